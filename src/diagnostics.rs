@@ -1,0 +1,1 @@
+//! Outlier diagnostics (SPEC §3).

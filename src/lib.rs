@@ -1,0 +1,83 @@
+//! spurio: the mathematics behind the spurio FMUs, as plain Rust.
+//!
+//! Nothing in this crate knows about FMI. Each FMU of the product (see `fmus/`) is a thin
+//! adapter around one of the types here: the plants of the papers, the signal chain, the
+//! estimators and the controllers. Every module cites the paper section it implements; the
+//! equations are in `../shared/SPEC.md` §2 and in the doc comments.
+
+pub mod control;
+pub mod diagnostics;
+pub mod estimation;
+pub mod linalg;
+pub mod ode;
+pub mod plants;
+pub mod signals;
+
+use std::fmt;
+
+/// A parameter (or a configuration value) that a model or algorithm cannot accept.
+///
+/// Every constructor in this crate validates its inputs and returns this error instead of
+/// producing NaN later; the FMU adapters pass the message on through the FMI logger, so it
+/// names the parameter and says why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterError {
+    /// The parameter's name as the user sees it (the FMU variable name where there is one).
+    pub parameter: String,
+    /// Why the value is not acceptable.
+    pub reason: String,
+}
+
+impl ParameterError {
+    /// An error for `parameter`, saying `reason`.
+    pub fn new(parameter: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self {
+            parameter: parameter.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+impl fmt::Display for ParameterError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "parameter `{}`: {}", self.parameter, self.reason)
+    }
+}
+
+impl std::error::Error for ParameterError {}
+
+/// Checks that `value` is finite and strictly positive.
+pub fn require_positive(parameter: &str, value: f64) -> Result<f64, ParameterError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(ParameterError::new(
+            parameter,
+            format!("must be a finite positive number, got {value}"),
+        ))
+    }
+}
+
+/// Checks that `value` is finite and not negative.
+pub fn require_non_negative(parameter: &str, value: f64) -> Result<f64, ParameterError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(ParameterError::new(
+            parameter,
+            format!("must be a finite number >= 0, got {value}"),
+        ))
+    }
+}
+
+/// Checks that `value` is finite.
+pub fn require_finite(parameter: &str, value: f64) -> Result<f64, ParameterError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(ParameterError::new(
+            parameter,
+            format!("must be finite, got {value}"),
+        ))
+    }
+}

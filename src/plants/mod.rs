@@ -1,0 +1,3 @@
+//! Physical plants of the papers (SPEC §2, items 1–4).
+
+pub mod gantry_crane;
