@@ -1,1 +1,98 @@
-fn main() {}
+//! `spurio`: the command line of the spurio FMU set.
+//!
+//! - `spurio package` writes the `.fmu` archives of every FMU (or the ones named) from the
+//!   compiled libraries;
+//! - `spurio model-descriptions` checks (or, with `--write`, regenerates) the committed
+//!   `modelDescription/*.xml` against the Rust variable tables.
+
+mod package;
+
+use anyhow::{bail, Result};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "spurio",
+    version,
+    about = "FMI 2.0 components for robust identification and control"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
+    Package {
+        /// Folder with the compiled `lib<ModelIdentifier>.so` files.
+        #[arg(long, default_value = "target/release")]
+        lib_dir: PathBuf,
+        /// Where to write the .fmu files.
+        #[arg(long, default_value = "build/fmus")]
+        out: PathBuf,
+        /// Model identifiers to package (default: all).
+        names: Vec<String>,
+    },
+    /// Compare the committed modelDescription/*.xml with the Rust variable tables.
+    ModelDescriptions {
+        /// Regenerate the files instead of checking them.
+        #[arg(long)]
+        write: bool,
+        /// The repository root (holding modelDescription/).
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::Package {
+            lib_dir,
+            out,
+            names,
+        } => {
+            let catalogue = spurio_fmus::catalogue();
+            for name in &names {
+                if !catalogue.iter().any(|e| &e.model_identifier == name) {
+                    let known: Vec<&str> = catalogue.iter().map(|e| e.model_identifier).collect();
+                    bail!("unknown FMU `{name}` (known: {})", known.join(", "));
+                }
+            }
+            for entry in catalogue
+                .iter()
+                .filter(|e| names.is_empty() || names.iter().any(|n| n == e.model_identifier))
+            {
+                for (stem, config) in &entry.variants {
+                    let path = package::package_variant(entry, stem, config, &lib_dir, &out)?;
+                    println!("wrote {}", path.display());
+                }
+            }
+        }
+        Command::ModelDescriptions { write, repo } => {
+            let mut stale = Vec::new();
+            for entry in spurio_fmus::catalogue() {
+                for (stem, config) in &entry.variants {
+                    let xml = (entry.describe)(config)
+                        .map_err(|e| anyhow::anyhow!("{stem}: {e}"))?
+                        .to_xml();
+                    let path = package::committed_model_description(&repo, stem);
+                    if write {
+                        std::fs::write(&path, xml)?;
+                        println!("wrote {}", path.display());
+                    } else if std::fs::read_to_string(&path).ok().as_deref() != Some(xml.as_str()) {
+                        stale.push(path.display().to_string());
+                    }
+                }
+            }
+            if !stale.is_empty() {
+                bail!(
+                    "these model descriptions differ from the Rust variable tables (run `spurio model-descriptions --write`): {}",
+                    stale.join(", ")
+                );
+            }
+        }
+    }
+    Ok(())
+}

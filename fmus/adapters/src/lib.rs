@@ -1,1 +1,45 @@
-//! FMU adapters.
+//! The spurio FMUs as safe Rust: for each FMU, its variable table and its step function over
+//! the plain-Rust models of the `spurio` crate. Each FMU binary (`fmus/<ModelIdentifier>/`)
+//! is one line: `spurio_fmi2::export_fmu!(…)` on a type of this crate.
+//!
+//! [`catalogue`] lists every FMU with its documentation page and its packaged variants: the
+//! packager writes `.fmu` archives from it, and the tests check that the committed
+//! `modelDescription/*.xml` files equal what it generates.
+
+pub mod gantry_crane;
+
+use spurio_fmi2::{Config, FmuModel, ModelInfo};
+
+/// One FMU of the product.
+pub struct CatalogueEntry {
+    /// `modelIdentifier` (also the name of the binary crate's library).
+    pub model_identifier: &'static str,
+    /// The FMU's documentation page (Markdown), packaged as `documentation/index.html`.
+    pub documentation: &'static str,
+    /// Builds the interface for a configuration.
+    pub describe: fn(&Config) -> Result<ModelInfo, String>,
+    /// The variants committed under `modelDescription/` and bundled: (file stem, config).
+    pub variants: Vec<(String, Config)>,
+}
+
+fn fixed(
+    model_identifier: &'static str,
+    documentation: &'static str,
+    describe: fn(&Config) -> Result<ModelInfo, String>,
+) -> CatalogueEntry {
+    CatalogueEntry {
+        model_identifier,
+        documentation,
+        describe,
+        variants: vec![(model_identifier.to_string(), Config::new())],
+    }
+}
+
+/// Every FMU of the product.
+pub fn catalogue() -> Vec<CatalogueEntry> {
+    vec![fixed(
+        "GantryCrane",
+        include_str!("../../../docs/fmus/GantryCrane.md"),
+        gantry_crane::GantryCraneFmu::describe,
+    )]
+}
