@@ -94,6 +94,7 @@ mod tests {
         let closed = &design.a - &design.b * &design.gain;
         let eig: Vec<Complex<f64>> = closed.complex_eigenvalues().iter().copied().collect();
         let mismatch = max_pole_mismatch(&eig, &design.poles);
+        eprintln!("crane closed-loop pole mismatch {mismatch:e}");
         assert!(mismatch < 1e-9, "pole mismatch {mismatch:e}");
     }
 
