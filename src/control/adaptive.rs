@@ -163,13 +163,15 @@ impl AdaptiveStateFeedback {
                 "must be at least 1 (recompute every N-th step)",
             ));
         }
-        crate::require_positive("max_gain_norm", config.max_gain_norm).or_else(|e| {
-            if config.max_gain_norm == f64::INFINITY {
-                Ok(f64::INFINITY)
-            } else {
-                Err(e)
-            }
-        })?;
+        if config.max_gain_norm.is_nan() || config.max_gain_norm <= 0.0 {
+            return Err(ParameterError::new(
+                "max_gain_norm",
+                format!(
+                    "must be a positive number (or +∞), got {}",
+                    config.max_gain_norm
+                ),
+            ));
+        }
         crate::require_positive("max_condition_number", config.max_condition_number)?;
         let n = config.poles.len();
         if let Some(gain) = &config.initial_gain {

@@ -38,13 +38,12 @@ impl InputLimits {
 
     /// Symmetric limits `[−bound, bound]` (e.g. ±17 N for the crane).
     pub fn symmetric(bound: f64) -> Result<Self, ParameterError> {
-        crate::require_positive("u_max", bound).or_else(|e| {
-            if bound == f64::INFINITY {
-                Ok(bound)
-            } else {
-                Err(e)
-            }
-        })?;
+        if bound.is_nan() || bound <= 0.0 {
+            return Err(ParameterError::new(
+                "u_max",
+                format!("must be a positive number (or +∞), got {bound}"),
+            ));
+        }
         Self::new(-bound, bound)
     }
 
