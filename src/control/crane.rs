@@ -20,10 +20,10 @@ use crate::control::pole_placement::{
 use crate::plants::gantry_crane::GantryCraneParameters;
 use nalgebra::{Complex, DMatrix};
 
-/// Sample time of the crane design [s] (paper 000 §VII-B).
+/// Sample time of the crane design (s) (paper 000 §VII-B).
 pub const CRANE_SAMPLE_TIME: f64 = 0.05;
 
-/// Desired continuous closed-loop poles of the crane design [1/s].
+/// Desired continuous closed-loop poles of the crane design (1/s).
 pub const CRANE_CONTINUOUS_POLES: [Complex<f64>; 4] = [
     Complex::new(-1.0, 0.5),
     Complex::new(-1.0, -0.5),
@@ -42,7 +42,7 @@ pub struct DiscreteDesign {
     pub poles: Vec<Complex<f64>>,
     /// Gain `L` (1 × n) of `u = −L x`.
     pub gain: DMatrix<f64>,
-    /// Sample time [s].
+    /// Sample time (s).
     pub sample_time: f64,
 }
 
