@@ -55,7 +55,7 @@ fn main() -> Result<()> {
         } => {
             let catalogue = spurio_fmus::catalogue();
             for name in &names {
-                if !catalogue.iter().any(|e| &e.model_identifier == name) {
+                if !catalogue.iter().any(|e| e.model_identifier == name) {
                     let known: Vec<&str> = catalogue.iter().map(|e| e.model_identifier).collect();
                     bail!("unknown FMU `{name}` (known: {})", known.join(", "));
                 }

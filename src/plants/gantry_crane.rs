@@ -28,23 +28,23 @@ pub type CraneState = SVector<f64, 4>;
 /// Physical parameters of the crane. Defaults: paper 000, Annex A.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GantryCraneParameters {
-    /// Cart mass `M` [kg]: cart 619.25 g + lid 90.55 g + positioners 134.05 g.
+    /// Cart mass `M` (kg): cart 619.25 g + lid 90.55 g + positioners 134.05 g.
     pub cart_mass: f64,
-    /// Load mass `m` [kg].
+    /// Load mass `m` (kg).
     pub load_mass: f64,
-    /// Pivot to the load's centre of mass, `l` [m].
+    /// Pivot to the load's centre of mass, `l` (m).
     pub rod_length: f64,
-    /// Moment of inertia of the load about the pivot, `J` [kg·m²].
+    /// Moment of inertia of the load about the pivot, `J` (kg·m²).
     pub inertia: f64,
-    /// Viscous cart friction `f_c` [N·s/m].
+    /// Viscous cart friction `f_c` (N·s/m).
     pub cart_friction: f64,
-    /// Viscous pivot friction `f_p` [kg·m²/(rad·s)].
+    /// Viscous pivot friction `f_p` (kg·m²/(rad·s)).
     pub pivot_friction: f64,
-    /// Gravity `g` [m/s²].
+    /// Gravity `g` (m/s²).
     pub gravity: f64,
-    /// Actuator limit `U_max` [N]: the force is saturated at ±`U_max`.
+    /// Actuator limit `U_max` (N): the force is saturated at ±`U_max`.
     pub max_force: f64,
-    /// Rail end stops at ±`x_limit` [m].
+    /// Rail end stops at ±`x_limit` (m).
     pub rail_limit: f64,
 }
 
@@ -273,9 +273,11 @@ mod tests {
 
     #[test]
     fn free_swing_conserves_energy_without_friction() {
-        let mut p = GantryCraneParameters::default();
-        p.cart_friction = 0.0;
-        p.pivot_friction = 0.0;
+        let p = GantryCraneParameters {
+            cart_friction: 0.0,
+            pivot_friction: 0.0,
+            ..Default::default()
+        };
         let mut c = GantryCrane::new(p, Vector4::new(0.0, 0.3, 0.0, 0.0)).unwrap();
         let energy = |s: &CraneState| {
             let (m, big_m, l, j, g) =
@@ -315,8 +317,10 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_named() {
-        let mut p = GantryCraneParameters::default();
-        p.rod_length = -1.0;
+        let p = GantryCraneParameters {
+            rod_length: -1.0,
+            ..Default::default()
+        };
         let e = GantryCrane::new(p, CraneState::zeros()).unwrap_err();
         assert_eq!(e.parameter, "l");
         let e = GantryCrane::new(

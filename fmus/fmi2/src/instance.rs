@@ -410,7 +410,7 @@ impl<M: FmuModel> Instance<M> {
             return self.reject(f, &format!("startTime must be finite, got {start_time}"));
         }
         if let Some(stop) = stop_time {
-            if !(stop >= start_time) {
+            if stop.is_nan() || stop < start_time {
                 return self.reject(
                     f,
                     &format!(
@@ -608,7 +608,7 @@ impl<M: FmuModel> Instance<M> {
     /// `fmi2DoStep`.
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Status {
         let f = &functions::DO_STEP;
-        if !(step.is_finite() && step > 0.0) {
+        if !step.is_finite() || step <= 0.0 {
             return self.reject(
                 f,
                 &format!("communicationStepSize must be finite and > 0, got {step:.16}"),

@@ -1,0 +1,319 @@
+"""GantryCrane.fmu through fmpy: validation, physics against the linearised model, step-size
+independence, the rail stop, and FMI conformance (state machine, value references, GUID,
+instances, FMU state, NaN inputs)."""
+
+import ctypes
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from fmpy.fmi1 import FMICallException
+from fmpy.validation import validate_fmu
+
+from conftest import LogSink, expm, fmu_path, make_callbacks, open_slave
+
+# Annex A of paper 000, written out again here independently of the Rust code.
+M, m, l, J, f_c, f_p, g = 0.84385, 0.013, 0.3434, 1e-5, 0.67, 9.3e-6, 9.8
+
+
+def linear_model():
+    """Continuous linearisation ṡ = A s + B U, s = [x, θ, ẋ, θ̇] (paper 000 eqs 4–5)."""
+    a11, a22, ml = M + m, J + m * l * l, m * l
+    det = a11 * a22 - ml * ml
+    A = np.array(
+        [
+            [0, 0, 1, 0],
+            [0, 0, 0, 1],
+            [0, -ml * ml * g / det, -a22 * f_c / det, -ml * f_p / det],
+            [0, -a11 * ml * g / det, -ml * f_c / det, -a11 * f_p / det],
+        ]
+    )
+    B = np.array([0, 0, a22 / det, ml / det])
+    return A, B
+
+
+def linear_response(t, s0, u):
+    A, B = linear_model()
+    aug = np.zeros((5, 5))
+    aug[:4, :4] = A
+    aug[:4, 4] = B
+    z0 = np.append(s0, u)
+    return np.array([(expm(aug * ti) @ z0)[:4] for ti in t])
+
+
+def simulate(step, stop, u=0.0, **start):
+    inputs = np.array([(0.0, u)], dtype=[("time", np.float64), ("U", np.float64)])
+    return simulate_fmu(
+        fmu_path("GantryCrane"),
+        fmi_type="CoSimulation",
+        stop_time=stop,
+        output_interval=step,
+        start_values=start,
+        input=inputs,
+        output=["x", "theta", "v", "omega", "U_applied"],
+    )
+
+
+def test_validates_without_problems(crane_fmu):
+    assert validate_fmu(crane_fmu) == []
+
+
+def test_simulates_in_co_simulation(crane_fmu):
+    r = simulate(0.05, 2.0, theta0=0.05)
+    assert r["time"][-1] == pytest.approx(2.0, abs=1e-9)
+    assert len(r) == 41
+    assert r["theta"][0] == 0.05
+    assert np.all(np.isfinite(r["theta"]))
+
+
+def test_free_swing_period_matches_the_linearised_model():
+    r = simulate(0.001, 12.0, theta0=0.05)
+    t, th = r["time"], r["theta"]
+    i = np.where((th[:-1] < 0) & (th[1:] >= 0))[0]
+    crossings = t[i] + (t[i + 1] - t[i]) * (-th[i]) / (th[i + 1] - th[i])
+    period = np.mean(np.diff(crossings))
+    A, _ = linear_model()
+    w = max(abs(np.linalg.eigvals(A).imag))
+    linear_period = 2 * np.pi / w
+    error = abs(period - linear_period) / linear_period
+    print(f"free-swing period {period:.6f} s, linearised {linear_period:.6f} s, error {error:.3e}")
+    assert error < 0.005
+
+
+def test_one_newton_step_matches_the_linearised_model():
+    r = simulate(0.01, 1.0, u=1.0)
+    lin = linear_response(r["time"], np.zeros(4), 1.0)
+    x_err = np.max(np.abs(r["x"] - lin[:, 0])) / np.max(np.abs(lin[:, 0]))
+    th_err = np.max(np.abs(r["theta"] - lin[:, 1])) / np.max(np.abs(lin[:, 1]))
+    print(f"1 N step: relative error x {x_err:.2e}, theta {th_err:.2e}")
+    assert np.max(np.abs(r["x"])) < 0.5  # stays off the rail stop
+    assert x_err < 2e-3
+    assert th_err < 1e-2
+
+
+def test_trajectory_does_not_depend_on_the_communication_step():
+    fine = simulate(0.001, 5.0, u=0.5, theta0=0.1)
+    coarse = simulate(0.05, 5.0, u=0.5, theta0=0.1)
+    common = fine[::50]
+    assert np.allclose(common["time"], coarse["time"], atol=1e-9)
+    diff = max(np.max(np.abs(common[k] - coarse[k])) for k in ["x", "theta", "v", "omega"])
+    print(f"max difference 1 ms vs 50 ms steps: {diff:.3e}")
+    assert diff < 1e-6
+
+
+def test_rail_stop_holds_the_cart_under_a_sustained_push():
+    sink = LogSink()
+    r = simulate_fmu(
+        fmu_path("GantryCrane"),
+        stop_time=5.0,
+        output_interval=0.01,
+        input=np.array([(0.0, 17.0)], dtype=[("time", np.float64), ("U", np.float64)]),
+        debug_logging=True,
+        logger=sink,
+    )
+    assert np.max(np.abs(r["x"])) <= 0.5
+    assert r["x"][-1] == 0.5 and r["v"][-1] == 0.0
+    hits = [t for t in sink.texts() if "rail end" in t]
+    assert len(hits) == 1, sink.messages
+
+
+def test_force_is_saturated():
+    r = simulate(0.05, 0.5, u=100.0)
+    assert np.all(r["U_applied"][1:] == 17.0)
+
+
+# --- conformance through fmpy's FMU2Slave --------------------------------------------------
+
+
+def init(slave):
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+
+
+def test_wrong_call_order_is_an_error_with_a_log_line():
+    slave, vr, sink = open_slave("GantryCrane")
+    with pytest.raises(FMICallException) as e:
+        slave.doStep(0.0, 0.01)
+    assert e.value.status == 3
+    assert any("fmi2DoStep" in t and "illegal call sequence" in t for t in sink.texts(3))
+    with pytest.raises(FMICallException):
+        slave.exitInitializationMode()
+    # the rejected calls changed nothing: the normal sequence still works
+    init(slave)
+    slave.doStep(0.0, 0.01)
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_unknown_value_reference_is_an_error():
+    slave, vr, sink = open_slave("GantryCrane")
+    init(slave)
+    with pytest.raises(FMICallException):
+        slave.getReal([999])
+    assert any("unknown value reference 999" in t for t in sink.texts(3))
+    with pytest.raises(FMICallException):
+        slave.setReal([999], [1.0])
+    with pytest.raises(FMICallException):
+        slave.getInteger([vr["x"]])  # a Real read as Integer
+    assert any("not Integer" in t for t in sink.texts(3))
+    slave.freeInstance()
+
+
+def test_fixed_parameter_cannot_change_after_initialisation():
+    slave, vr, sink = open_slave("GantryCrane")
+    init(slave)
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["M"]], [2.0])
+    assert any("`M`" in t and "fixed parameter" in t for t in sink.texts(3))
+    slave.freeInstance()
+
+
+def test_bad_parameter_is_named():
+    slave, vr, sink = open_slave("GantryCrane")
+    slave.setupExperiment(startTime=0.0)
+    slave.setReal([vr["x0"]], [0.9])
+    slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        slave.exitInitializationMode()
+    assert any("`x0`" in t for t in sink.texts(3)), sink.messages
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["l"]], [-1.0])  # below min = 0
+    slave.freeInstance()
+
+
+def test_wrong_guid_gives_null():
+    with pytest.raises(Exception, match="(?i)instantiate"):
+        open_slave("GantryCrane", guid="{00000000-0000-0000-0000-000000000000}")
+
+
+def test_wrong_guid_and_wrong_fmu_type_are_logged():
+    import fmpy.fmi2 as f2
+    from fmpy import extract, read_model_description
+
+    path = fmu_path("GantryCrane")
+    md = read_model_description(path)
+    unzipdir = extract(path)
+    slave = f2.FMU2Slave(guid="{bad}", unzipDirectory=unzipdir, modelIdentifier="GantryCrane", instanceName="g")
+    sink = LogSink()
+    callbacks = make_callbacks(sink)
+    comp = slave.fmi2Instantiate(b"g", 1, b"{bad}", b"file:///tmp", ctypes.byref(callbacks), 0, 0)
+    assert not comp
+    assert any("GUID mismatch" in t for t in sink.texts(3))
+    comp = slave.fmi2Instantiate(b"g", 0, md.guid.encode(), b"file:///tmp", ctypes.byref(callbacks), 0, 0)
+    assert not comp
+    assert any("Co-Simulation FMU only" in t for t in sink.texts(3))
+
+
+def run(slave, vr, n, u, h=0.01, t0=0.0):
+    out = []
+    t = t0
+    for k in range(n):
+        slave.setReal([vr["U"]], [u(k)])
+        slave.doStep(t, h)
+        t += h
+        out.append(slave.getReal([vr["x"], vr["theta"], vr["v"], vr["omega"]]))
+    return np.array(out)
+
+
+def test_two_interleaved_instances_equal_two_separate_runs():
+    ua = lambda k: np.sin(0.1 * k)
+    ub = lambda k: 2.0 if k < 50 else -1.0
+    a, vr, _ = open_slave("GantryCrane", "a")
+    init(a)
+    alone_a = run(a, vr, 200, ua)
+    a.freeInstance()
+    b, vr, _ = open_slave("GantryCrane", "b")
+    b.setReal([vr["theta0"]], [0.2])
+    init(b)
+    alone_b = run(b, vr, 200, ub)
+    b.freeInstance()
+
+    a, vr, _ = open_slave("GantryCrane", "a")
+    b, _, _ = open_slave("GantryCrane", "b")
+    b.setReal([vr["theta0"]], [0.2])
+    init(a)
+    init(b)
+    ra, rb = [], []
+    t = 0.0
+    for k in range(200):
+        a.setReal([vr["U"]], [ua(k)])
+        b.setReal([vr["U"]], [ub(k)])
+        a.doStep(t, 0.01)
+        b.doStep(t, 0.01)
+        t += 0.01
+        ra.append(a.getReal([vr["x"], vr["theta"], vr["v"], vr["omega"]]))
+        rb.append(b.getReal([vr["x"], vr["theta"], vr["v"], vr["omega"]]))
+    assert np.array_equal(np.array(ra), alone_a)
+    assert np.array_equal(np.array(rb), alone_b)
+    a.freeInstance()
+    b.freeInstance()
+
+
+def test_fmu_state_and_serialization_replay_bit_for_bit():
+    u = lambda k: 3.0 * np.cos(0.05 * k)
+    slave, vr, _ = open_slave("GantryCrane")
+    init(slave)
+    run(slave, vr, 100, u)
+    state = slave.getFMUstate()
+    blob = slave.serializeFMUstate(state)
+    first = run(slave, vr, 150, lambda k: u(k + 100), t0=1.0)
+
+    slave.setFMUstate(state)
+    again = run(slave, vr, 150, lambda k: u(k + 100), t0=1.0)
+    assert np.array_equal(first, again)
+
+    restored = slave.deSerializeFMUstate(blob)
+    slave.setFMUstate(restored)
+    third = run(slave, vr, 150, lambda k: u(k + 100), t0=1.0)
+    assert np.array_equal(first, third)
+
+    # a second instance restores the serialized state too
+    other, _, _ = open_slave("GantryCrane", "other")
+    init(other)
+    st = other.deSerializeFMUstate(blob)
+    other.setFMUstate(st)
+    fourth = run(other, vr, 150, lambda k: u(k + 100), t0=1.0)
+    assert np.array_equal(first, fourth)
+    other.freeFMUstate(st)
+    other.freeInstance()
+
+    slave.freeFMUstate(state)
+    slave.freeFMUstate(restored)
+    slave.freeInstance()
+
+
+def test_nan_input_is_rejected_and_not_integrated():
+    slave, vr, sink = open_slave("GantryCrane")
+    init(slave)
+    before = run(slave, vr, 10, lambda k: 1.0)
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["U"]], [float("nan")])
+    assert any("`U`" in t and "NaN" in t for t in sink.texts(3))
+    # the input kept its last good value; stepping goes on
+    slave.doStep(0.1, 0.01)
+    x = slave.getReal([vr["x"], vr["U"]])
+    assert np.isfinite(x[0]) and x[1] == 1.0
+    slave.freeInstance()
+
+
+def test_communication_point_mismatch_is_reported():
+    slave, vr, sink = open_slave("GantryCrane")
+    init(slave)
+    with pytest.raises(FMICallException):
+        slave.doStep(0.5, 0.01)
+    assert any("expected currentCommunicationPoint = 0" in t for t in sink.texts(3))
+    with pytest.raises(FMICallException):
+        slave.doStep(0.0, -0.01)
+    slave.freeInstance()
+
+
+def test_reset_returns_to_start_values():
+    slave, vr, _ = open_slave("GantryCrane")
+    init(slave)
+    first = run(slave, vr, 20, lambda k: 1.0)
+    slave.reset()
+    init(slave)
+    second = run(slave, vr, 20, lambda k: 1.0)
+    assert np.array_equal(first, second)
+    slave.freeInstance()
