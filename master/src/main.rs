@@ -35,6 +35,25 @@ enum Command {
         /// Model identifiers to package (default: all).
         names: Vec<String>,
     },
+    /// Package one FMU for your own dimensions: e.g. `spurio package-variant KalmanFilter
+    /// --set n=3 --set p=1 --set m=1 --name MyKalmanFilter` writes MyKalmanFilter.fmu whose
+    /// modelDescription has A[1,1]…A[3,3], y[1], x_hat[1]…x_hat[3], ….
+    PackageVariant {
+        /// Model identifier of a dimension-generic FMU.
+        model_identifier: String,
+        /// Configuration entries `key=value` (the FMU's page lists its keys).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        settings: Vec<String>,
+        /// File name of the .fmu without extension (default: the model identifier).
+        #[arg(long)]
+        name: Option<String>,
+        /// Folder with the compiled `lib<ModelIdentifier>.so` files.
+        #[arg(long, default_value = "target/release")]
+        lib_dir: PathBuf,
+        /// Where to write the .fmu.
+        #[arg(long, default_value = "build/fmus")]
+        out: PathBuf,
+    },
     /// Compare the committed modelDescription/*.xml with the Rust variable tables.
     ModelDescriptions {
         /// Regenerate the files instead of checking them.
@@ -69,6 +88,35 @@ fn main() -> Result<()> {
                     println!("wrote {}", path.display());
                 }
             }
+        }
+        Command::PackageVariant {
+            model_identifier,
+            settings,
+            name,
+            lib_dir,
+            out,
+        } => {
+            let catalogue = spurio_fmus::catalogue();
+            let Some(entry) = catalogue
+                .iter()
+                .find(|e| e.model_identifier == model_identifier)
+            else {
+                let known: Vec<&str> = catalogue.iter().map(|e| e.model_identifier).collect();
+                bail!(
+                    "unknown FMU `{model_identifier}` (known: {})",
+                    known.join(", ")
+                );
+            };
+            let mut config = spurio_fmi2::Config::new();
+            for setting in &settings {
+                let Some((key, value)) = setting.split_once('=') else {
+                    bail!("--set takes KEY=VALUE, got `{setting}`");
+                };
+                config.set(key.trim(), value.trim());
+            }
+            let stem = name.unwrap_or_else(|| model_identifier.clone());
+            let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
+            println!("wrote {}", path.display());
         }
         Command::ModelDescriptions { write, repo } => {
             let mut stale = Vec::new();

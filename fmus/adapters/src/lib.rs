@@ -7,6 +7,7 @@
 //! `modelDescription/*.xml` files equal what it generates.
 
 pub mod gantry_crane;
+pub mod structured;
 
 use spurio_fmi2::{Config, FmuModel, ModelInfo};
 

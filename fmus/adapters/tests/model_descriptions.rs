@@ -29,14 +29,21 @@ fn committed_model_descriptions_match_the_variable_tables() {
 #[test]
 fn every_fmu_has_a_documentation_page_and_unique_names() {
     for entry in spurio_fmus::catalogue() {
-        assert!(entry.documentation.starts_with(&format!("# {}", entry.model_identifier)));
+        assert!(entry
+            .documentation
+            .starts_with(&format!("# {}", entry.model_identifier)));
         for (_, config) in &entry.variants {
             let info = (entry.describe)(config).expect("describe");
             let mut names: Vec<&str> = info.variables.iter().map(|v| v.name.as_str()).collect();
             names.sort_unstable();
             let n = names.len();
             names.dedup();
-            assert_eq!(n, names.len(), "{}: duplicate variable names", entry.model_identifier);
+            assert_eq!(
+                n,
+                names.len(),
+                "{}: duplicate variable names",
+                entry.model_identifier
+            );
         }
     }
 }

@@ -236,11 +236,7 @@ pub unsafe fn instantiate<M: FmuModel>(
             ));
         }
         match Instance::<M>::new(info, logger) {
-            Ok(instance) => Box::into_raw(Box::new(Slot {
-                instance,
-                states: Vec::new(),
-                strings: Vec::new(),
-            })) as fmi2Component,
+            Ok(instance) => into_component(instance),
             Err(e) => {
                 // The logger moved into the failed constructor call; report through a new one.
                 let sink = CallbackSink {
@@ -253,6 +249,15 @@ pub unsafe fn instantiate<M: FmuModel>(
         }
     }));
     result.unwrap_or(std::ptr::null_mut())
+}
+
+/// Boxes an instance as an `fmi2Component` (what `fmi2Instantiate` returns).
+pub fn into_component<M: FmuModel>(instance: Instance<M>) -> fmi2Component {
+    Box::into_raw(Box::new(Slot {
+        instance,
+        states: Vec::new(),
+        strings: Vec::new(),
+    })) as fmi2Component
 }
 
 /// `fmi2FreeInstance`.

@@ -18,6 +18,7 @@
 pub mod bytes;
 pub mod description;
 pub mod ffi;
+pub mod harness;
 pub mod instance;
 pub mod model;
 pub mod types;
