@@ -3,3 +3,4 @@
 //! noise, ε-contaminated outliers, ADC quantisation).
 
 pub mod rng;
+pub mod sensor;
