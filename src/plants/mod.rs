@@ -1,3 +1,4 @@
 //! Physical plants of the papers (SPEC §2, items 1–4).
 
 pub mod gantry_crane;
+pub mod opamp_filter;
