@@ -1,1 +1,730 @@
-//! Linear-algebra helpers shared by the estimators and controllers.
+//! Linear-algebra helpers shared by the estimators and controllers (SPEC §2, items 7–14).
+//!
+//! Everything works on dynamic `DMatrix<f64>` because the FMUs choose their dimensions at
+//! packaging or instantiation time.
+//!
+//! * [`expm`]: the matrix exponential `e^A` by scaling and squaring with the degree-13 Padé
+//!   approximant (Higham, "The scaling and squaring method for the matrix exponential
+//!   revisited", SIAM J. Matrix Anal. Appl. 26(4), 2005):
+//!   `e^A = (r₁₃(A / 2^s))^(2^s)`, `r₁₃ = q₁₃(X)⁻¹ p₁₃(X)`, with `s` chosen so that
+//!   `‖A / 2^s‖₁ ≤ θ₁₃ = 5.37`.
+//! * [`zoh`]: zero-order-hold discretisation. With `M = [[A, B], [0, 0]]·Ts`,
+//!   `e^M = [[A_d, B_d], [0, I]]`, i.e. `A_d = e^{A Ts}`, `B_d = ∫₀^Ts e^{A τ} dτ B`
+//!   (used for the crane of paper 000 at Ts = 0.05 s).
+//! * [`solve_dare`]: the stabilising solution of the control discrete algebraic Riccati
+//!   equation
+//!   `P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q`
+//!   by the structured doubling algorithm (SDA; Chu, Fan, Lin & Wang, "Structure-preserving
+//!   algorithms for periodic discrete-time algebraic Riccati equations", Int. J. Control
+//!   77(8), 2004). With `G = B R⁻¹ Bᵀ`, `A₀ = A`, `G₀ = G`, `H₀ = Q` and `W_k = I + G_k H_k`:
+//!   `A_{k+1} = A_k W_k⁻¹ A_k`, `G_{k+1} = G_k + A_k W_k⁻¹ G_k A_kᵀ`,
+//!   `H_{k+1} = H_k + A_kᵀ H_k W_k⁻¹ A_k`; `H_k → P` quadratically when (A, B) is
+//!   stabilisable and (A, Q^{1/2}) has no unobservable mode on the unit circle. The result
+//!   is symmetrised and checked: finite, residual small, and `A − B K` Schur stable.
+//! * [`dlqr`]: discrete LQ regulator, `K = (R + BᵀPB)⁻¹ BᵀPA`, `u = −K x`.
+//! * [`kalman_gain_steady`]: steady-state Kalman filter by duality: the predicted covariance
+//!   `P⁻` solves DARE(Aᵀ, Cᵀ, Q, R), the filter gain is `K = P⁻Cᵀ (C P⁻ Cᵀ + R)⁻¹`
+//!   (SPEC §2.7; scalar A = C = 1, Q = R gives K = (√5 − 1)/2, SPEC §6).
+//! * [`cholesky_solve`], [`symmetrize`], [`is_positive_definite`]: the small tools that keep
+//!   covariances symmetric positive definite and avoid explicit inverses.
+//!
+//! Nothing here panics on bad input: the fallible functions return [`LinalgError`], which
+//! names the matrix and says why.
+
+use nalgebra::{Cholesky, DMatrix};
+use std::fmt;
+
+/// Why a linear-algebra routine could not produce a result.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LinalgError {
+    /// A matrix that must be square is not.
+    NotSquare {
+        /// Which matrix (e.g. `"A"`, `"R"`).
+        what: String,
+        /// Its rows.
+        rows: usize,
+        /// Its columns.
+        cols: usize,
+    },
+    /// Two matrices do not fit together.
+    DimensionMismatch {
+        /// Which matrix has the wrong shape.
+        what: String,
+        /// The shape it must have, `(rows, cols)`.
+        expected: (usize, usize),
+        /// The shape it has.
+        got: (usize, usize),
+    },
+    /// A matrix holds NaN or an infinity.
+    NonFinite {
+        /// Which matrix.
+        what: String,
+    },
+    /// A matrix that must be symmetric positive definite is not.
+    NotPositiveDefinite {
+        /// Which matrix (e.g. `"R"`, `"R + BᵀPB"`).
+        what: String,
+    },
+    /// A matrix that must be invertible is (numerically) singular.
+    Singular {
+        /// Which matrix.
+        what: String,
+    },
+    /// The Riccati iteration did not converge (typically (A, B) not stabilisable).
+    NoConvergence {
+        /// Iterations performed.
+        iterations: usize,
+        /// Last relative change `‖P_{k+1} − P_k‖₁ / max(1, ‖P_{k+1}‖₁)`.
+        relative_change: f64,
+    },
+    /// The Riccati solution does not satisfy the equation to the required accuracy.
+    InaccurateSolution {
+        /// Relative residual `‖res‖₁ / max(1, ‖P‖₁)`.
+        relative_residual: f64,
+    },
+    /// The Riccati solution does not stabilise the closed loop `A − B K`.
+    NotStabilising {
+        /// Spectral radius of `A − B K` (must be < 1).
+        spectral_radius: f64,
+    },
+}
+
+impl fmt::Display for LinalgError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotSquare { what, rows, cols } => {
+                write!(f, "matrix {what} must be square, got {rows}×{cols}")
+            }
+            Self::DimensionMismatch {
+                what,
+                expected,
+                got,
+            } => write!(
+                f,
+                "matrix {what} must be {}×{}, got {}×{}",
+                expected.0, expected.1, got.0, got.1
+            ),
+            Self::NonFinite { what } => write!(f, "matrix {what} contains NaN or infinity"),
+            Self::NotPositiveDefinite { what } => {
+                write!(f, "matrix {what} is not symmetric positive definite")
+            }
+            Self::Singular { what } => write!(f, "matrix {what} is singular"),
+            Self::NoConvergence {
+                iterations,
+                relative_change,
+            } => write!(
+                f,
+                "Riccati iteration did not converge after {iterations} iterations (last relative \
+                 change {relative_change:e}); is (A, B) stabilisable?"
+            ),
+            Self::InaccurateSolution { relative_residual } => write!(
+                f,
+                "Riccati solution is inaccurate (relative residual {relative_residual:e})"
+            ),
+            Self::NotStabilising { spectral_radius } => write!(
+                f,
+                "no stabilising Riccati solution: closed-loop spectral radius \
+                 {spectral_radius} >= 1 (is (A, B) stabilisable and (A, Q) detectable?)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for LinalgError {}
+
+/// Relative asymmetry accepted for a "symmetric" matrix: `|m_ij − m_ji| ≤ tol · max|m|`.
+const SYMMETRY_TOLERANCE: f64 = 1e-8;
+/// Maximum number of doubling steps in [`solve_dare`] (each one squares the convergence
+/// factor, so 100 is far beyond what any stabilisable problem needs).
+const DARE_MAX_ITERATIONS: usize = 100;
+/// Relative change below which the doubling iteration is converged.
+const DARE_TOLERANCE: f64 = 1e-14;
+/// Relative residual above which a Riccati solution is rejected.
+const DARE_RESIDUAL_LIMIT: f64 = 1e-8;
+/// Margin below 1 that the closed-loop spectral radius must keep.
+const STABILITY_MARGIN: f64 = 1e-10;
+
+fn require_square(what: &str, m: &DMatrix<f64>) -> Result<usize, LinalgError> {
+    if m.is_square() {
+        Ok(m.nrows())
+    } else {
+        Err(LinalgError::NotSquare {
+            what: what.to_string(),
+            rows: m.nrows(),
+            cols: m.ncols(),
+        })
+    }
+}
+
+fn require_shape(
+    what: &str,
+    m: &DMatrix<f64>,
+    rows: usize,
+    cols: usize,
+) -> Result<(), LinalgError> {
+    if m.shape() == (rows, cols) {
+        Ok(())
+    } else {
+        Err(LinalgError::DimensionMismatch {
+            what: what.to_string(),
+            expected: (rows, cols),
+            got: m.shape(),
+        })
+    }
+}
+
+fn require_finite(what: &str, m: &DMatrix<f64>) -> Result<(), LinalgError> {
+    if m.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(LinalgError::NonFinite {
+            what: what.to_string(),
+        })
+    }
+}
+
+fn is_symmetric(m: &DMatrix<f64>) -> bool {
+    if !m.is_square() {
+        return false;
+    }
+    let scale = m.amax();
+    let n = m.nrows();
+    (0..n).all(|i| (0..i).all(|j| (m[(i, j)] - m[(j, i)]).abs() <= SYMMETRY_TOLERANCE * scale))
+}
+
+/// Induced 1-norm (maximum absolute column sum).
+fn norm1(m: &DMatrix<f64>) -> f64 {
+    m.column_iter()
+        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// Replaces `m` by `(m + mᵀ)/2` (a non-square matrix is left unchanged).
+pub fn symmetrize(m: &mut DMatrix<f64>) {
+    if !m.is_square() {
+        return;
+    }
+    let n = m.nrows();
+    for i in 0..n {
+        for j in 0..i {
+            let mean = 0.5 * (m[(i, j)] + m[(j, i)]);
+            m[(i, j)] = mean;
+            m[(j, i)] = mean;
+        }
+    }
+}
+
+/// `true` when `m` is square, finite, symmetric (to a relative 1e-8) and its Cholesky
+/// factorisation exists (all leading minors positive).
+pub fn is_positive_definite(m: &DMatrix<f64>) -> bool {
+    m.nrows() > 0
+        && m.is_square()
+        && m.iter().all(|v| v.is_finite())
+        && is_symmetric(m)
+        && Cholesky::new(m.clone()).is_some()
+}
+
+/// Solves `m X = rhs` for symmetric positive definite `m` by a Cholesky factorisation.
+///
+/// `what` names `m` in the error (e.g. `"C P Cᵀ + R"`). `m` may be asymmetric by round-off
+/// (relative 1e-8): its symmetric part is factorised.
+pub fn cholesky_solve(
+    m: &DMatrix<f64>,
+    rhs: &DMatrix<f64>,
+    what: &str,
+) -> Result<DMatrix<f64>, LinalgError> {
+    let n = require_square(what, m)?;
+    require_shape("right-hand side", rhs, n, rhs.ncols())?;
+    require_finite(what, m)?;
+    require_finite("right-hand side", rhs)?;
+    let not_spd = || LinalgError::NotPositiveDefinite {
+        what: what.to_string(),
+    };
+    if n == 0 || !is_symmetric(m) {
+        return Err(not_spd());
+    }
+    let mut symmetric = m.clone();
+    symmetrize(&mut symmetric);
+    let factor = Cholesky::new(symmetric).ok_or_else(not_spd)?;
+    let solution = factor.solve(rhs);
+    require_finite(&format!("solution of ({what}) X = rhs"), &solution)?;
+    Ok(solution)
+}
+
+/// Solves `m X = rhs` for a general square `m` by LU with partial pivoting.
+fn lu_solve(m: &DMatrix<f64>, rhs: &DMatrix<f64>, what: &str) -> Result<DMatrix<f64>, LinalgError> {
+    let solution = m
+        .clone()
+        .lu()
+        .solve(rhs)
+        .ok_or_else(|| LinalgError::Singular {
+            what: what.to_string(),
+        })?;
+    if solution.iter().all(|v| v.is_finite()) {
+        Ok(solution)
+    } else {
+        Err(LinalgError::Singular {
+            what: what.to_string(),
+        })
+    }
+}
+
+/// Padé(13) coefficients b₀…b₁₃ (Higham 2005, Table 10.4 / expm.m).
+const PADE13: [f64; 14] = [
+    64_764_752_532_480_000.0,
+    32_382_376_266_240_000.0,
+    7_771_770_303_897_600.0,
+    1_187_353_796_428_800.0,
+    129_060_195_264_000.0,
+    10_559_470_521_600.0,
+    670_442_572_800.0,
+    33_522_128_640.0,
+    1_323_241_920.0,
+    40_840_800.0,
+    960_960.0,
+    16_380.0,
+    182.0,
+    1.0,
+];
+/// Largest 1-norm for which r₁₃ reaches double precision (Higham 2005, Table 2.3).
+const THETA13: f64 = 5.371_920_351_148_152;
+
+/// The matrix exponential `e^a`, or an error for a non-square or non-finite matrix.
+pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
+    let n = require_square("A", a)?;
+    require_finite("A", a)?;
+    let identity = DMatrix::<f64>::identity(n, n);
+    if n == 0 {
+        return Ok(identity);
+    }
+    let norm = norm1(a);
+    let squarings = if norm > THETA13 {
+        // 2^s ≥ ‖A‖₁ / θ₁₃; at most ~1100 for finite f64 input.
+        (norm / THETA13).log2().ceil().max(0.0) as i32
+    } else {
+        0
+    };
+    let x = a * 2f64.powi(-squarings);
+    let b = &PADE13;
+    let x2 = &x * &x;
+    let x4 = &x2 * &x2;
+    let x6 = &x2 * &x4;
+    // U = X [X⁶(b₁₃X⁶ + b₁₁X⁴ + b₉X²) + b₇X⁶ + b₅X⁴ + b₃X² + b₁I]
+    let u_inner = &x6 * (&x6 * b[13] + &x4 * b[11] + &x2 * b[9])
+        + &x6 * b[7]
+        + &x4 * b[5]
+        + &x2 * b[3]
+        + &identity * b[1];
+    let u = &x * u_inner;
+    // V = X⁶(b₁₂X⁶ + b₁₀X⁴ + b₈X²) + b₆X⁶ + b₄X⁴ + b₂X² + b₀I
+    let v = &x6 * (&x6 * b[12] + &x4 * b[10] + &x2 * b[8])
+        + &x6 * b[6]
+        + &x4 * b[4]
+        + &x2 * b[2]
+        + &identity * b[0];
+    // r₁₃ = (V − U)⁻¹ (V + U)
+    let mut result = lu_solve(&(&v - &u), &(&v + &u), "Padé denominator q₁₃(A/2^s)")?;
+    for _ in 0..squarings {
+        result = &result * &result;
+    }
+    require_finite("e^A (overflow)", &result)?;
+    Ok(result)
+}
+
+/// The matrix exponential `e^a` (scaling and squaring, Padé 13; see the module doc).
+///
+/// Accurate to about 1e-15 relative on well-scaled matrices. This never panics: a
+/// non-square matrix gives a `rows × cols` matrix of NaN, and non-finite input (or overflow)
+/// gives NaN entries. Use [`try_expm`] to get the reason as an error.
+pub fn expm(a: &DMatrix<f64>) -> DMatrix<f64> {
+    try_expm(a).unwrap_or_else(|_| DMatrix::from_element(a.nrows(), a.ncols(), f64::NAN))
+}
+
+/// Zero-order-hold discretisation of `ẋ = A x + B u` with sample time `ts`, or an error for
+/// inconsistent dimensions, a non-finite matrix or a non-positive / non-finite `ts`.
+pub fn try_zoh(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    ts: f64,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
+    let n = require_square("A", a)?;
+    require_shape("B", b, n, b.ncols())?;
+    require_finite("A", a)?;
+    require_finite("B", b)?;
+    if !(ts.is_finite() && ts > 0.0) {
+        return Err(LinalgError::NonFinite {
+            what: format!("sample time Ts = {ts} (must be finite and > 0)"),
+        });
+    }
+    let m = b.ncols();
+    let mut augmented = DMatrix::<f64>::zeros(n + m, n + m);
+    augmented.view_mut((0, 0), (n, n)).copy_from(&(a * ts));
+    augmented.view_mut((0, n), (n, m)).copy_from(&(b * ts));
+    let exponential = try_expm(&augmented)?;
+    let a_d = exponential.view((0, 0), (n, n)).into_owned();
+    let b_d = exponential.view((0, n), (n, m)).into_owned();
+    Ok((a_d, b_d))
+}
+
+/// Zero-order-hold discretisation: `(A_d, B_d)` with `A_d = e^{A ts}`,
+/// `B_d = ∫₀^ts e^{A τ} dτ B`, from the exponential of `[[A, B], [0, 0]]·ts`.
+///
+/// Never panics: on bad input (see [`try_zoh`]) both matrices are NaN of the shapes
+/// `n × n` and `n × m` (`n` = rows of `a`, `m` = columns of `b`).
+pub fn zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, ts: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+    try_zoh(a, b, ts).unwrap_or_else(|_| {
+        (
+            DMatrix::from_element(a.nrows(), a.nrows(), f64::NAN),
+            DMatrix::from_element(a.nrows(), b.ncols(), f64::NAN),
+        )
+    })
+}
+
+fn check_dare_inputs(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+) -> Result<(), LinalgError> {
+    let n = require_square("A", a)?;
+    require_shape("B", b, n, b.ncols())?;
+    let m = b.ncols();
+    require_shape("Q", q, n, n)?;
+    require_shape("R", r, m, m)?;
+    for (what, mat) in [("A", a), ("B", b), ("Q", q), ("R", r)] {
+        require_finite(what, mat)?;
+    }
+    let q_is_semidefinite = is_symmetric(q) && {
+        let mut q_sym = q.clone();
+        symmetrize(&mut q_sym);
+        let smallest = q_sym.symmetric_eigenvalues().min();
+        n == 0 || smallest >= -SYMMETRY_TOLERANCE * q.amax()
+    };
+    if !q_is_semidefinite {
+        return Err(LinalgError::NotPositiveDefinite {
+            what: "Q (must be symmetric positive semidefinite)".to_string(),
+        });
+    }
+    if !is_positive_definite(r) {
+        return Err(LinalgError::NotPositiveDefinite {
+            what: "R".to_string(),
+        });
+    }
+    Ok(())
+}
+
+/// Residual of the control DARE, `AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q − P`.
+pub fn dare_residual(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    p: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, LinalgError> {
+    check_dare_inputs(a, b, q, r)?;
+    require_shape("P", p, a.nrows(), a.nrows())?;
+    let btpa = b.transpose() * p * a;
+    let s = r + b.transpose() * p * b;
+    let k = cholesky_solve(&s, &btpa, "R + BᵀPB")?;
+    Ok(a.transpose() * p * a - btpa.transpose() * k + q - p)
+}
+
+fn spectral_radius(m: &DMatrix<f64>) -> f64 {
+    m.complex_eigenvalues()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max)
+}
+
+/// Stabilising solution `P` of the control DARE
+/// `P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q` (structured doubling; see the module doc).
+///
+/// Requirements: `A` n×n, `B` n×m, `Q` n×n symmetric positive semidefinite, `R` m×m
+/// symmetric positive definite, all finite. Errors when an input is malformed, when the
+/// iteration does not converge (typically (A, B) not stabilisable), when the relative
+/// residual exceeds 1e-8, or when `A − B K` is not Schur stable. The result is symmetric.
+pub fn solve_dare(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, LinalgError> {
+    check_dare_inputs(a, b, q, r)?;
+    let n = a.nrows();
+    let identity = DMatrix::<f64>::identity(n, n);
+    // G = B R⁻¹ Bᵀ
+    let r_inv_bt = cholesky_solve(r, &b.transpose(), "R")?;
+    let mut g = b * r_inv_bt;
+    symmetrize(&mut g);
+    let mut h = q.clone();
+    symmetrize(&mut h);
+    let mut a_k = a.clone();
+    let mut relative_change = f64::INFINITY;
+    let mut converged = false;
+    let mut iterations = 0;
+    while iterations < DARE_MAX_ITERATIONS {
+        iterations += 1;
+        let w = &identity + &g * &h;
+        // W⁻¹ A_k and W⁻¹ G_k in one solve.
+        let mut rhs = DMatrix::<f64>::zeros(n, 2 * n);
+        rhs.view_mut((0, 0), (n, n)).copy_from(&a_k);
+        rhs.view_mut((0, n), (n, n)).copy_from(&g);
+        let solved = lu_solve(&w, &rhs, "I + G H (doubling step)")?;
+        let w_inv_a = solved.view((0, 0), (n, n)).into_owned();
+        let w_inv_g = solved.view((0, n), (n, n)).into_owned();
+        let h_next = &h + a_k.transpose() * &h * &w_inv_a;
+        let g_next = &g + &a_k * w_inv_g * a_k.transpose();
+        let a_next = &a_k * &w_inv_a;
+        if !(h_next.iter().all(|v| v.is_finite())
+            && g_next.iter().all(|v| v.is_finite())
+            && a_next.iter().all(|v| v.is_finite()))
+        {
+            return Err(LinalgError::NoConvergence {
+                iterations,
+                relative_change,
+            });
+        }
+        relative_change = norm1(&(&h_next - &h)) / norm1(&h_next).max(1.0);
+        h = h_next;
+        g = g_next;
+        a_k = a_next;
+        symmetrize(&mut h);
+        symmetrize(&mut g);
+        if relative_change <= DARE_TOLERANCE {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(LinalgError::NoConvergence {
+            iterations,
+            relative_change,
+        });
+    }
+    let p = h;
+    let residual = dare_residual(a, b, q, r, &p)?;
+    let relative_residual = norm1(&residual) / norm1(&p).max(1.0);
+    if relative_residual.is_nan() || relative_residual > DARE_RESIDUAL_LIMIT {
+        return Err(LinalgError::InaccurateSolution { relative_residual });
+    }
+    let gain = lqr_gain(a, b, r, &p)?;
+    let rho = spectral_radius(&(a - b * gain));
+    if rho.is_nan() || rho >= 1.0 - STABILITY_MARGIN {
+        return Err(LinalgError::NotStabilising {
+            spectral_radius: rho,
+        });
+    }
+    Ok(p)
+}
+
+fn lqr_gain(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    p: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, LinalgError> {
+    let s = r + b.transpose() * p * b;
+    cholesky_solve(&s, &(b.transpose() * p * a), "R + BᵀPB")
+}
+
+/// Discrete LQ regulator: `(K, P)` with `P` from [`solve_dare`] and
+/// `K = (R + BᵀPB)⁻¹ BᵀPA`, so that `u = −K x` minimises `Σ xᵀQx + uᵀRu`.
+pub fn dlqr(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
+    let p = solve_dare(a, b, q, r)?;
+    let k = lqr_gain(a, b, r, &p)?;
+    Ok((k, p))
+}
+
+/// Steady-state Kalman filter for `x⁺ = A x + w`, `y = C x + v`, `cov(w) = Q`, `cov(v) = R`:
+/// `(K, P⁻)` with the predicted covariance `P⁻` from DARE(Aᵀ, Cᵀ, Q, R) and the filter gain
+/// `K = P⁻Cᵀ (C P⁻ Cᵀ + R)⁻¹` (update `x = x⁻ + K (y − C x⁻)`).
+pub fn kalman_gain_steady(
+    a: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
+    let n = require_square("A", a)?;
+    require_shape("C", c, c.nrows(), n)?;
+    let p = solve_dare(&a.transpose(), &c.transpose(), q, r)?;
+    let innovation_covariance = c * &p * c.transpose() + r;
+    // K = P Cᵀ S⁻¹  ⇔  Kᵀ = S⁻¹ C P (S, P symmetric).
+    let gain_t = cholesky_solve(&innovation_covariance, &(c * &p), "C P Cᵀ + R")?;
+    Ok((gain_t.transpose(), p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plants::gantry_crane::GantryCraneParameters;
+    use nalgebra::{dmatrix, Vector4};
+
+    fn max_abs_diff(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
+        (x - y).amax()
+    }
+
+    #[test]
+    fn expm_of_a_rotation_generator_is_a_rotation() {
+        for w in [0.3, 1.0, 7.5, 40.0] {
+            let a = dmatrix![0.0, -w; w, 0.0];
+            let e = expm(&a);
+            let expected = dmatrix![w.cos(), -w.sin(); w.sin(), w.cos()];
+            assert!(max_abs_diff(&e, &expected) < 1e-13 * w.max(1.0), "w = {w}");
+        }
+    }
+
+    #[test]
+    fn expm_of_a_nilpotent_matrix_is_a_finite_series() {
+        // N³ = 0: e^N = I + N + N²/2.
+        let a = dmatrix![0.0, 2.0, -1.0; 0.0, 0.0, 3.0; 0.0, 0.0, 0.0];
+        let expected = DMatrix::identity(3, 3) + &a + &a * &a * 0.5;
+        assert!(max_abs_diff(&expm(&a), &expected) < 1e-15 * 10.0);
+    }
+
+    #[test]
+    fn expm_of_a_diagonal_matrix_exponentiates_the_diagonal() {
+        let d = [-20.0, -1.0, 0.0, 0.5, 3.0, 12.0];
+        let a = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&d));
+        let e = expm(&a);
+        for (i, di) in d.iter().enumerate() {
+            let want = di.exp();
+            let rel = ((e[(i, i)] - want) / want).abs();
+            // Squaring amplifies the relative error of the small entries by about ‖A‖₁.
+            assert!(
+                rel < 1e-14 * di.abs().max(1.0),
+                "e^{di}: relative error {rel:e}"
+            );
+        }
+        assert_eq!(e[(0, 1)], 0.0);
+    }
+
+    #[test]
+    fn expm_of_non_square_or_nan_input_is_nan_not_a_panic() {
+        let e = expm(&DMatrix::zeros(2, 3));
+        assert!(e.iter().all(|v| v.is_nan()));
+        assert!(matches!(
+            try_expm(&dmatrix![f64::NAN]),
+            Err(LinalgError::NonFinite { .. })
+        ));
+    }
+
+    #[test]
+    fn zoh_of_the_crane_matches_fine_rk4_integration() {
+        let (a4, b4) = GantryCraneParameters::default().linearised();
+        let a = DMatrix::from_iterator(4, 4, a4.iter().copied());
+        let b = DMatrix::from_iterator(4, 1, b4.iter().copied());
+        let ts = 0.05;
+        let (a_d, b_d) = zoh(&a, &b, ts);
+        // Column j of A_d: x(ts) from x0 = e_j with u = 0; B_d: x(ts) from 0 with u = 1.
+        let simulate = |x0: Vector4<f64>, u: f64| {
+            let f = |_t: f64, x: &Vector4<f64>| a4 * x + b4 * u;
+            crate::ode::integrate(f, |_, _| {}, 0.0, &x0, ts, 1e-4)
+        };
+        for j in 0..4 {
+            let mut e = Vector4::zeros();
+            e[j] = 1.0;
+            let x = simulate(e, 0.0);
+            for i in 0..4 {
+                assert!((a_d[(i, j)] - x[i]).abs() < 1e-12, "A_d[{i},{j}]");
+            }
+        }
+        let x = simulate(Vector4::zeros(), 1.0);
+        for i in 0..4 {
+            assert!((b_d[(i, 0)] - x[i]).abs() < 1e-12, "B_d[{i}]");
+        }
+    }
+
+    #[test]
+    fn scalar_kalman_gain_is_the_golden_ratio_conjugate() {
+        // SPEC §6: A = C = 1, Q = R → K = (√5 − 1)/2, P⁻ = (1 + √5)/2 · Q.
+        for q in [1e-4, 1.0, 30.0] {
+            let one = dmatrix![1.0];
+            let (k, p) = kalman_gain_steady(&one, &one, &dmatrix![q], &dmatrix![q]).unwrap();
+            assert!((k[(0, 0)] - (5f64.sqrt() - 1.0) / 2.0).abs() < 1e-12);
+            assert!((p[(0, 0)] / q - (1.0 + 5f64.sqrt()) / 2.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn dare_of_the_crane_has_a_tiny_residual_and_a_stable_closed_loop() {
+        let (a4, b4) = GantryCraneParameters::default().linearised();
+        let a = DMatrix::from_iterator(4, 4, a4.iter().copied());
+        let b = DMatrix::from_iterator(4, 1, b4.iter().copied());
+        let (a_d, b_d) = zoh(&a, &b, 0.05);
+        let q = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![10.0, 1.0, 0.1, 0.1]));
+        let r = dmatrix![0.5];
+        let (k, p) = dlqr(&a_d, &b_d, &q, &r).unwrap();
+        let res = dare_residual(&a_d, &b_d, &q, &r, &p).unwrap();
+        let relative = res.amax() / p.amax();
+        eprintln!("crane DARE relative residual {relative:e}");
+        assert!(relative < 1e-10, "relative DARE residual {relative:e}");
+        assert_eq!(p, p.transpose());
+        assert!(is_positive_definite(&p));
+        assert!(spectral_radius(&(&a_d - &b_d * k)) < 1.0);
+    }
+
+    #[test]
+    fn dare_with_two_inputs_and_an_unstable_open_loop() {
+        let a = dmatrix![1.2, 0.3, 0.0; 0.0, 0.9, 0.5; 0.1, 0.0, 1.05];
+        let b = dmatrix![1.0, 0.0; 0.0, 0.0; 0.0, 1.0];
+        let q = DMatrix::identity(3, 3);
+        let r = dmatrix![2.0, 0.3; 0.3, 1.0];
+        let p = solve_dare(&a, &b, &q, &r).unwrap();
+        let res = dare_residual(&a, &b, &q, &r, &p).unwrap();
+        let relative = res.amax() / p.amax();
+        eprintln!("two-input DARE relative residual {relative:e}");
+        assert!(relative < 1e-10, "residual {relative:e}");
+    }
+
+    #[test]
+    fn dare_rejects_unstabilisable_pairs_and_bad_weights() {
+        let one = dmatrix![1.0];
+        // Unstable mode that B cannot touch.
+        let e = solve_dare(&dmatrix![2.0], &dmatrix![0.0], &one, &one).unwrap_err();
+        assert!(matches!(e, LinalgError::NoConvergence { .. }), "{e}");
+        // Marginal mode invisible to Q: P = 0 does not stabilise.
+        let e = solve_dare(&one, &dmatrix![0.0], &dmatrix![0.0], &one).unwrap_err();
+        assert!(matches!(e, LinalgError::NotStabilising { .. }), "{e}");
+        let e = solve_dare(&one, &one, &dmatrix![-1.0], &one).unwrap_err();
+        assert!(e.to_string().contains("Q (must be"), "{e}");
+        let e = solve_dare(&one, &one, &one, &dmatrix![-1.0]).unwrap_err();
+        assert_eq!(
+            e,
+            LinalgError::NotPositiveDefinite {
+                what: "R".to_string()
+            }
+        );
+        let e = solve_dare(&one, &dmatrix![1.0, 1.0], &one, &one).unwrap_err();
+        assert!(matches!(e, LinalgError::DimensionMismatch { .. }), "{e}");
+        let e = solve_dare(&dmatrix![f64::NAN], &one, &one, &one).unwrap_err();
+        assert!(matches!(e, LinalgError::NonFinite { .. }), "{e}");
+    }
+
+    #[test]
+    fn cholesky_solve_solves_and_names_the_failing_matrix() {
+        let m = dmatrix![4.0, 1.0; 1.0, 3.0];
+        let rhs = dmatrix![1.0; 2.0];
+        let x = cholesky_solve(&m, &rhs, "M").unwrap();
+        assert!(max_abs_diff(&(&m * &x), &rhs) < 1e-15 * 10.0);
+        let e = cholesky_solve(&dmatrix![1.0, 2.0; 2.0, 1.0], &rhs, "S").unwrap_err();
+        assert_eq!(e.to_string(), "matrix S is not symmetric positive definite");
+        assert!(cholesky_solve(&dmatrix![1.0, 0.5; 0.0, 1.0], &rhs, "S").is_err());
+    }
+
+    #[test]
+    fn positive_definiteness_and_symmetrisation() {
+        assert!(is_positive_definite(&dmatrix![2.0, -1.0; -1.0, 2.0]));
+        assert!(!is_positive_definite(&dmatrix![1.0, 2.0; 2.0, 1.0]));
+        assert!(!is_positive_definite(&dmatrix![0.0]));
+        assert!(!is_positive_definite(&DMatrix::zeros(0, 0)));
+        assert!(!is_positive_definite(&dmatrix![1.0, 0.0]));
+        let mut m = dmatrix![1.0, 2.0; 4.0, 1.0];
+        symmetrize(&mut m);
+        assert_eq!(m, dmatrix![1.0, 3.0; 3.0, 1.0]);
+    }
+}

@@ -1,0 +1,481 @@
+//! Adaptive state feedback: pole placement redone on the identified model (paper 000 §VI,
+//! Fig. 6; SPEC §2 item 14).
+//!
+//! Every `N`-th step the dual Kalman filter delivers estimates `Â`, `B̂` and the controller
+//! recomputes `L = [0 … 0 1] 𝒞(Â, B̂)⁻¹ φ(Â)` (Ackermann, paper 000 eq. 15) for fixed desired
+//! poles; the input is `u_k = sat(−L x̂_k)`.
+//!
+//! An identified model is not always usable: early in the identification `B̂` may be ≈ 0
+//! (not reachable), the estimate may hold NaN, or the placement may return a huge gain from
+//! an ill-conditioned `𝒞`. In all those cases the controller keeps the last good gain (or the
+//! initial gain given at construction, e.g. the nominal-model design) and reports why
+//! through [`GainUpdate::Kept`]. Consecutive rejected updates form an *episode*; only the
+//! first rejection of an episode has `first_in_episode = true`, so the FMU layer can log one
+//! warning per episode instead of one per step. An accepted update ends the episode.
+
+use crate::control::pole_placement::{
+    ackermann_with_options, check_poles, PolePlacementError, PolePlacementOptions,
+    DEFAULT_MAX_CONDITION_NUMBER,
+};
+use crate::control::state_feedback::{feedback_term, InputLimits};
+use crate::ParameterError;
+use nalgebra::{Complex, DMatrix, DVector};
+use std::fmt;
+
+/// Default bound on the Euclidean norm of an accepted gain.
+pub const DEFAULT_MAX_GAIN_NORM: f64 = 1e6;
+
+/// Why an update did not change the gain.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GainRejection {
+    /// `Â` or `B̂` holds NaN or infinity.
+    NonFiniteEstimate,
+    /// `Â` is not n × n or `B̂` not n × 1 (n = number of desired poles).
+    WrongDimensions {
+        /// Number of states n.
+        states: usize,
+        /// Shape of Â.
+        a_shape: (usize, usize),
+        /// Shape of B̂.
+        b_shape: (usize, usize),
+    },
+    /// `(Â, B̂)` is not reachable.
+    NotReachable {
+        /// Condition number of the reachability matrix.
+        condition_number: f64,
+    },
+    /// The new gain contains NaN or infinity.
+    NonFiniteGain,
+    /// The new gain is larger than the configured bound.
+    GainTooLarge {
+        /// ‖L‖₂ of the rejected gain.
+        norm: f64,
+        /// The bound.
+        bound: f64,
+    },
+    /// Any other pole-placement failure.
+    PlacementFailed(PolePlacementError),
+}
+
+impl fmt::Display for GainRejection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NonFiniteEstimate => write!(f, "the estimated A or B contains NaN or infinity"),
+            Self::WrongDimensions {
+                states,
+                a_shape,
+                b_shape,
+            } => write!(
+                f,
+                "the estimate must be A {states}×{states} and B {states}×1, got A {}×{} and B \
+                 {}×{}",
+                a_shape.0, a_shape.1, b_shape.0, b_shape.1
+            ),
+            Self::NotReachable { condition_number } => write!(
+                f,
+                "the estimated (A, B) is not reachable (reachability matrix condition number \
+                 {condition_number:e})"
+            ),
+            Self::NonFiniteGain => write!(f, "the recomputed gain contains NaN or infinity"),
+            Self::GainTooLarge { norm, bound } => {
+                write!(f, "the recomputed gain has norm {norm:e} > bound {bound:e}")
+            }
+            Self::PlacementFailed(e) => write!(f, "pole placement failed: {e}"),
+        }
+    }
+}
+
+/// Outcome of [`AdaptiveStateFeedback::update`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum GainUpdate {
+    /// Not a recompute step (only every `N`-th call recomputes): gain unchanged.
+    NotDue,
+    /// The gain was recomputed from the estimate and accepted.
+    Updated,
+    /// The estimate or the new gain was rejected; the last good gain is kept.
+    Kept {
+        /// Why.
+        reason: GainRejection,
+        /// `true` for the first rejection after an accepted update (or since the start):
+        /// log a warning for this one only.
+        first_in_episode: bool,
+    },
+}
+
+/// Configuration of an [`AdaptiveStateFeedback`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveStateFeedbackConfig {
+    /// Desired discrete closed-loop poles (self-conjugate, inside the unit circle); their
+    /// number is the number of states.
+    pub poles: Vec<Complex<f64>>,
+    /// Actuator limits.
+    pub limits: InputLimits,
+    /// Recompute the gain every `recompute_period` calls to `update` (≥ 1).
+    pub recompute_period: usize,
+    /// Gains with a larger Euclidean norm are rejected.
+    pub max_gain_norm: f64,
+    /// Estimates whose reachability matrix has a larger condition number are rejected.
+    pub max_condition_number: f64,
+    /// Gain used until the first accepted update (1 × n), e.g. the nominal design. Without
+    /// one, the controller outputs the admissible input closest to zero until then.
+    pub initial_gain: Option<DMatrix<f64>>,
+}
+
+impl AdaptiveStateFeedbackConfig {
+    /// A configuration with the defaults: recompute every step, gain norm ≤ 1e6,
+    /// condition number ≤ 1e12, no initial gain.
+    pub fn new(poles: Vec<Complex<f64>>, limits: InputLimits) -> Self {
+        Self {
+            poles,
+            limits,
+            recompute_period: 1,
+            max_gain_norm: DEFAULT_MAX_GAIN_NORM,
+            max_condition_number: DEFAULT_MAX_CONDITION_NUMBER,
+            initial_gain: None,
+        }
+    }
+}
+
+/// The adaptive pole-placement controller (see the module doc).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveStateFeedback {
+    config: AdaptiveStateFeedbackConfig,
+    gain: Option<DMatrix<f64>>,
+    /// Calls to `update` left before the next recompute (0: the next call recomputes).
+    calls_until_due: usize,
+    in_bad_episode: bool,
+    rejected_updates: u64,
+    episodes: u64,
+}
+
+impl AdaptiveStateFeedback {
+    /// Checks the configuration (poles, period, bounds, initial gain) and builds the
+    /// controller.
+    pub fn new(config: AdaptiveStateFeedbackConfig) -> Result<Self, ParameterError> {
+        if config.poles.is_empty() {
+            return Err(ParameterError::new("poles", "at least one pole is needed"));
+        }
+        check_poles(&config.poles, true)
+            .map_err(|e| ParameterError::new("poles", e.to_string()))?;
+        if config.recompute_period == 0 {
+            return Err(ParameterError::new(
+                "recompute_period",
+                "must be at least 1 (recompute every N-th step)",
+            ));
+        }
+        crate::require_positive("max_gain_norm", config.max_gain_norm).or_else(|e| {
+            if config.max_gain_norm == f64::INFINITY {
+                Ok(f64::INFINITY)
+            } else {
+                Err(e)
+            }
+        })?;
+        crate::require_positive("max_condition_number", config.max_condition_number)?;
+        let n = config.poles.len();
+        if let Some(gain) = &config.initial_gain {
+            if gain.shape() != (1, n) {
+                return Err(ParameterError::new(
+                    "initial_gain",
+                    format!("must be 1×{n}, got {}×{}", gain.nrows(), gain.ncols()),
+                ));
+            }
+            if !gain.iter().all(|v| v.is_finite()) {
+                return Err(ParameterError::new("initial_gain", "must be finite"));
+            }
+        }
+        Ok(Self {
+            gain: config.initial_gain.clone(),
+            config,
+            calls_until_due: 0,
+            in_bad_episode: false,
+            rejected_updates: 0,
+            episodes: 0,
+        })
+    }
+
+    /// Number of states n.
+    pub fn states(&self) -> usize {
+        self.config.poles.len()
+    }
+
+    /// The gain in use (1 × n), `None` before the first good one when no initial gain was
+    /// given.
+    pub fn gain(&self) -> Option<&DMatrix<f64>> {
+        self.gain.as_ref()
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AdaptiveStateFeedbackConfig {
+        &self.config
+    }
+
+    /// Total number of rejected updates.
+    pub fn rejected_updates(&self) -> u64 {
+        self.rejected_updates
+    }
+
+    /// Number of episodes of consecutive rejected updates.
+    pub fn rejection_episodes(&self) -> u64 {
+        self.episodes
+    }
+
+    /// Whether the last recompute was rejected (an episode is under way).
+    pub fn in_rejection_episode(&self) -> bool {
+        self.in_bad_episode
+    }
+
+    /// Feeds the latest model estimate; every `N`-th call recomputes the gain from it.
+    pub fn update(&mut self, a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>) -> GainUpdate {
+        if self.calls_until_due > 0 {
+            self.calls_until_due -= 1;
+            return GainUpdate::NotDue;
+        }
+        self.calls_until_due = self.config.recompute_period - 1;
+        match self.candidate_gain(a_hat, b_hat) {
+            Ok(gain) => {
+                self.gain = Some(gain);
+                self.in_bad_episode = false;
+                GainUpdate::Updated
+            }
+            Err(reason) => {
+                let first_in_episode = !self.in_bad_episode;
+                self.in_bad_episode = true;
+                self.rejected_updates += 1;
+                if first_in_episode {
+                    self.episodes += 1;
+                }
+                GainUpdate::Kept {
+                    reason,
+                    first_in_episode,
+                }
+            }
+        }
+    }
+
+    fn candidate_gain(
+        &self,
+        a_hat: &DMatrix<f64>,
+        b_hat: &DMatrix<f64>,
+    ) -> Result<DMatrix<f64>, GainRejection> {
+        let n = self.states();
+        if a_hat.shape() != (n, n) || b_hat.shape() != (n, 1) {
+            return Err(GainRejection::WrongDimensions {
+                states: n,
+                a_shape: a_hat.shape(),
+                b_shape: b_hat.shape(),
+            });
+        }
+        if !(a_hat.iter().all(|v| v.is_finite()) && b_hat.iter().all(|v| v.is_finite())) {
+            return Err(GainRejection::NonFiniteEstimate);
+        }
+        let options = PolePlacementOptions {
+            require_stable: true,
+            max_condition_number: self.config.max_condition_number,
+        };
+        let gain = ackermann_with_options(a_hat, b_hat, &self.config.poles, &options).map_err(
+            |e| match e {
+                PolePlacementError::NotReachable {
+                    condition_number, ..
+                } => GainRejection::NotReachable { condition_number },
+                PolePlacementError::NonFiniteGain => GainRejection::NonFiniteGain,
+                PolePlacementError::NonFinite { .. } => GainRejection::NonFiniteEstimate,
+                other => GainRejection::PlacementFailed(other),
+            },
+        )?;
+        let norm = gain.norm();
+        if !norm.is_finite() {
+            return Err(GainRejection::NonFiniteGain);
+        }
+        if norm > self.config.max_gain_norm {
+            return Err(GainRejection::GainTooLarge {
+                norm,
+                bound: self.config.max_gain_norm,
+            });
+        }
+        Ok(gain)
+    }
+
+    /// `u = sat(−L x̂)`, never NaN: without a gain, or for a NaN / mis-sized estimate, the
+    /// admissible input closest to zero.
+    pub fn control(&self, x_hat: &DVector<f64>) -> f64 {
+        let u = self
+            .gain
+            .as_ref()
+            .and_then(|gain| feedback_term(gain, x_hat, None));
+        self.config.limits.saturate(u.unwrap_or(0.0))
+    }
+
+    /// `u = sat(−L (x̂ − x_ref))` for a reference state that is an equilibrium with zero input.
+    pub fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
+        let u = self
+            .gain
+            .as_ref()
+            .and_then(|gain| feedback_term(gain, x_hat, Some(x_ref)));
+        self.config.limits.saturate(u.unwrap_or(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::crane::crane_reference_design;
+    use nalgebra::dvector;
+
+    fn crane_controller(initial_gain: Option<DMatrix<f64>>) -> AdaptiveStateFeedback {
+        let design = crane_reference_design().unwrap();
+        let mut config = AdaptiveStateFeedbackConfig::new(
+            design.poles.clone(),
+            InputLimits::symmetric(17.0).unwrap(),
+        );
+        config.initial_gain = initial_gain;
+        AdaptiveStateFeedback::new(config).unwrap()
+    }
+
+    #[test]
+    fn bad_estimates_keep_the_last_good_gain_and_warn_once_per_episode() {
+        let design = crane_reference_design().unwrap();
+        let (a, b) = (design.a.clone(), design.b.clone());
+        let mut controller = crane_controller(None);
+        let x = dvector![0.2, 0.0, 0.0, 0.0];
+        // Before any gain: zero input, never NaN.
+        assert_eq!(controller.control(&x), 0.0);
+
+        assert_eq!(controller.update(&a, &b), GainUpdate::Updated);
+        let good = controller.gain().unwrap().clone();
+        assert!((&good - &design.gain).amax() < 1e-12);
+
+        // A slightly different but valid estimate is accepted.
+        let b_scaled = &b * 1.1;
+        assert_eq!(controller.update(&a, &b_scaled), GainUpdate::Updated);
+        let last_good = controller.gain().unwrap().clone();
+        assert!((&last_good - &good).amax() > 1e-3);
+
+        // Episode 1: unreachable, then NaN, then a wrong shape.
+        let zero_b = DMatrix::zeros(4, 1);
+        match controller.update(&a, &zero_b) {
+            GainUpdate::Kept {
+                reason: GainRejection::NotReachable { condition_number },
+                first_in_episode: true,
+            } => assert!(condition_number.is_infinite() || condition_number > 1e12),
+            other => panic!("expected a first NotReachable rejection, got {other:?}"),
+        }
+        let mut nan_a = a.clone();
+        nan_a[(1, 2)] = f64::NAN;
+        assert_eq!(
+            controller.update(&nan_a, &b),
+            GainUpdate::Kept {
+                reason: GainRejection::NonFiniteEstimate,
+                first_in_episode: false
+            }
+        );
+        assert!(matches!(
+            controller.update(&DMatrix::zeros(3, 3), &b),
+            GainUpdate::Kept {
+                reason: GainRejection::WrongDimensions { .. },
+                first_in_episode: false
+            }
+        ));
+        assert_eq!(controller.gain(), Some(&last_good));
+        let u = controller.control(&x);
+        assert!(u.is_finite());
+        assert!((u - (-(&last_good * &x)[(0, 0)])).abs() < 1e-15);
+
+        // Recovery ends the episode; a new bad estimate opens episode 2.
+        assert_eq!(controller.update(&a, &b), GainUpdate::Updated);
+        assert!(matches!(
+            controller.update(&a, &zero_b),
+            GainUpdate::Kept {
+                first_in_episode: true,
+                ..
+            }
+        ));
+        assert_eq!(controller.rejection_episodes(), 2);
+        assert_eq!(controller.rejected_updates(), 4);
+        assert!(controller.gain().unwrap().iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_huge_gain_is_rejected() {
+        let design = crane_reference_design().unwrap();
+        let mut config = AdaptiveStateFeedbackConfig::new(
+            design.poles.clone(),
+            InputLimits::symmetric(17.0).unwrap(),
+        );
+        config.max_gain_norm = 10.0;
+        config.initial_gain = Some(design.gain.clone());
+        let mut controller = AdaptiveStateFeedback::new(config).unwrap();
+        // A tiny B̂ needs a gain ~ 1/ε.
+        let tiny_b = &design.b * 1e-4;
+        match controller.update(&design.a, &tiny_b) {
+            GainUpdate::Kept {
+                reason: GainRejection::GainTooLarge { norm, bound },
+                first_in_episode: true,
+            } => {
+                assert!(norm > bound);
+                assert!(GainRejection::GainTooLarge { norm, bound }
+                    .to_string()
+                    .contains("bound"));
+            }
+            other => panic!("expected GainTooLarge, got {other:?}"),
+        }
+        assert_eq!(controller.gain(), Some(&design.gain));
+    }
+
+    #[test]
+    fn recomputes_only_every_nth_call() {
+        let design = crane_reference_design().unwrap();
+        let mut config = AdaptiveStateFeedbackConfig::new(
+            design.poles.clone(),
+            InputLimits::symmetric(17.0).unwrap(),
+        );
+        config.recompute_period = 3;
+        let mut controller = AdaptiveStateFeedback::new(config).unwrap();
+        let outcomes: Vec<GainUpdate> = (0..6)
+            .map(|_| controller.update(&design.a, &design.b))
+            .collect();
+        let updated: Vec<bool> = outcomes.iter().map(|o| *o == GainUpdate::Updated).collect();
+        assert_eq!(updated, vec![true, false, false, true, false, false]);
+    }
+
+    #[test]
+    fn control_is_saturated_and_survives_nan_state() {
+        let design = crane_reference_design().unwrap();
+        let controller = crane_controller(Some(design.gain.clone()));
+        assert_eq!(controller.control(&dvector![-100.0, 0.0, 0.0, 0.0]), 17.0);
+        assert_eq!(controller.control(&dvector![100.0, 0.0, 0.0, 0.0]), -17.0);
+        assert_eq!(controller.control(&dvector![f64::NAN, 0.0, 0.0, 0.0]), 0.0);
+        let toward = controller
+            .control_towards(&dvector![0.1, 0.0, 0.0, 0.0], &dvector![0.1, 0.0, 0.0, 0.0]);
+        assert_eq!(toward, 0.0);
+    }
+
+    #[test]
+    fn invalid_configurations_are_named() {
+        let limits = InputLimits::symmetric(1.0).unwrap();
+        let half = Complex::new(0.5, 0.0);
+        let e = AdaptiveStateFeedback::new(AdaptiveStateFeedbackConfig::new(
+            vec![Complex::new(1.5, 0.0)],
+            limits,
+        ))
+        .unwrap_err();
+        assert_eq!(e.parameter, "poles");
+        assert!(e.reason.contains("unit circle"), "{e}");
+        let mut config = AdaptiveStateFeedbackConfig::new(vec![half], limits);
+        config.recompute_period = 0;
+        assert_eq!(
+            AdaptiveStateFeedback::new(config.clone())
+                .unwrap_err()
+                .parameter,
+            "recompute_period"
+        );
+        config.recompute_period = 1;
+        config.initial_gain = Some(DMatrix::zeros(1, 2));
+        assert_eq!(
+            AdaptiveStateFeedback::new(config).unwrap_err().parameter,
+            "initial_gain"
+        );
+        assert!(
+            AdaptiveStateFeedback::new(AdaptiveStateFeedbackConfig::new(vec![], limits)).is_err()
+        );
+    }
+}

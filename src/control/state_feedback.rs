@@ -1,0 +1,200 @@
+//! Saturated state feedback `u = sat(−L (x̂ − x_ref))` (paper 000 eq. 11; SPEC §2 item 13).
+//!
+//! The gain comes from [`crate::control::ackermann`] (or from anywhere else: an LQ design, a
+//! user parameter). The actuator limits `[u_min, u_max]` are applied here, and the output is
+//! never NaN: a non-finite product (NaN estimate, dimension mismatch) gives the admissible
+//! input closest to zero.
+
+use crate::control::pole_placement::{
+    ackermann_with_options, PolePlacementError, PolePlacementOptions,
+};
+use crate::ParameterError;
+use nalgebra::{Complex, DMatrix, DVector};
+
+/// Actuator limits `u_min < u_max` (either may be infinite).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InputLimits {
+    min: f64,
+    max: f64,
+}
+
+impl InputLimits {
+    /// Limits `[min, max]`; errors when either is NaN or `min ≥ max`.
+    pub fn new(min: f64, max: f64) -> Result<Self, ParameterError> {
+        if min.is_nan() {
+            return Err(ParameterError::new("u_min", "must not be NaN"));
+        }
+        if max.is_nan() {
+            return Err(ParameterError::new("u_max", "must not be NaN"));
+        }
+        if min >= max {
+            return Err(ParameterError::new(
+                "u_max",
+                format!("must be greater than u_min = {min}, got {max}"),
+            ));
+        }
+        Ok(Self { min, max })
+    }
+
+    /// Symmetric limits `[−bound, bound]` (e.g. ±17 N for the crane).
+    pub fn symmetric(bound: f64) -> Result<Self, ParameterError> {
+        crate::require_positive("u_max", bound).or_else(|e| {
+            if bound == f64::INFINITY {
+                Ok(bound)
+            } else {
+                Err(e)
+            }
+        })?;
+        Self::new(-bound, bound)
+    }
+
+    /// No limits.
+    pub fn unlimited() -> Self {
+        Self {
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY,
+        }
+    }
+
+    /// Lower limit.
+    pub fn min(&self) -> f64 {
+        self.min
+    }
+
+    /// Upper limit.
+    pub fn max(&self) -> f64 {
+        self.max
+    }
+
+    /// `u` clipped to the limits; NaN becomes the admissible value closest to zero.
+    pub fn saturate(&self, u: f64) -> f64 {
+        let value = if u.is_nan() { 0.0 } else { u };
+        value.clamp(self.min, self.max)
+    }
+}
+
+/// `−L (x − x_ref)` for a 1 × n gain, or `None` when dimensions differ or the result is not
+/// finite.
+pub(crate) fn feedback_term(
+    gain: &DMatrix<f64>,
+    state: &DVector<f64>,
+    reference: Option<&DVector<f64>>,
+) -> Option<f64> {
+    if gain.nrows() != 1 || gain.ncols() != state.len() {
+        return None;
+    }
+    if let Some(r) = reference {
+        if r.len() != state.len() {
+            return None;
+        }
+    }
+    let u: f64 = -(0..state.len())
+        .map(|i| gain[(0, i)] * (state[i] - reference.map_or(0.0, |r| r[i])))
+        .sum::<f64>();
+    u.is_finite().then_some(u)
+}
+
+/// A fixed, saturated state-feedback controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateFeedback {
+    gain: DMatrix<f64>,
+    limits: InputLimits,
+}
+
+impl StateFeedback {
+    /// A controller with a given 1 × n gain; errors if the gain is not one finite row.
+    pub fn from_gain(gain: DMatrix<f64>, limits: InputLimits) -> Result<Self, ParameterError> {
+        if gain.nrows() != 1 || gain.ncols() == 0 {
+            return Err(ParameterError::new(
+                "L",
+                format!("must be a 1×n row, got {}×{}", gain.nrows(), gain.ncols()),
+            ));
+        }
+        if !gain.iter().all(|v| v.is_finite()) {
+            return Err(ParameterError::new("L", "must be finite"));
+        }
+        Ok(Self { gain, limits })
+    }
+
+    /// A controller placing the (discrete, stable, self-conjugate) `poles` of `A − B L` by
+    /// Ackermann's formula.
+    pub fn place(
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        poles: &[Complex<f64>],
+        limits: InputLimits,
+    ) -> Result<Self, PolePlacementError> {
+        let options = PolePlacementOptions {
+            require_stable: true,
+            ..PolePlacementOptions::default()
+        };
+        let gain = ackermann_with_options(a, b, poles, &options)?;
+        Ok(Self { gain, limits })
+    }
+
+    /// The gain `L` (1 × n).
+    pub fn gain(&self) -> &DMatrix<f64> {
+        &self.gain
+    }
+
+    /// The actuator limits.
+    pub fn limits(&self) -> InputLimits {
+        self.limits
+    }
+
+    /// `u = sat(−L x̂)`; never NaN (a bad estimate gives the admissible input closest to 0).
+    pub fn control(&self, x_hat: &DVector<f64>) -> f64 {
+        self.limits
+            .saturate(feedback_term(&self.gain, x_hat, None).unwrap_or(0.0))
+    }
+
+    /// `u = sat(−L (x̂ − x_ref))`: regulation to a reference state `x_ref`, which must be an
+    /// equilibrium with zero input (e.g. any cart position of the crane, at rest).
+    pub fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
+        self.limits
+            .saturate(feedback_term(&self.gain, x_hat, Some(x_ref)).unwrap_or(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{dmatrix, dvector};
+
+    #[test]
+    fn output_is_saturated_and_never_nan() {
+        let limits = InputLimits::new(-1.0, 2.0).unwrap();
+        let controller = StateFeedback::from_gain(dmatrix![1.0, 10.0], limits).unwrap();
+        assert_eq!(controller.control(&dvector![0.1, 0.0]), -0.1);
+        assert_eq!(controller.control(&dvector![0.0, 1.0]), -1.0);
+        assert_eq!(controller.control(&dvector![0.0, -1.0]), 2.0);
+        assert_eq!(controller.control(&dvector![f64::NAN, 0.0]), 0.0);
+        assert_eq!(controller.control(&dvector![1.0]), 0.0);
+        assert_eq!(
+            controller.control_towards(&dvector![1.0, 0.0], &dvector![1.5, 0.0]),
+            0.5
+        );
+        let positive =
+            StateFeedback::from_gain(dmatrix![1.0], InputLimits::new(0.5, 1.0).unwrap()).unwrap();
+        assert_eq!(positive.control(&dvector![f64::NAN]), 0.5);
+    }
+
+    #[test]
+    fn bad_limits_and_gains_are_named() {
+        assert_eq!(InputLimits::new(1.0, 1.0).unwrap_err().parameter, "u_max");
+        assert_eq!(
+            InputLimits::new(f64::NAN, 1.0).unwrap_err().parameter,
+            "u_min"
+        );
+        assert!(InputLimits::symmetric(-3.0).is_err());
+        assert!(InputLimits::symmetric(f64::INFINITY).is_ok());
+        let limits = InputLimits::unlimited();
+        assert_eq!(
+            StateFeedback::from_gain(dmatrix![1.0; 2.0], limits)
+                .unwrap_err()
+                .parameter,
+            "L"
+        );
+        assert!(StateFeedback::from_gain(dmatrix![f64::NAN], limits).is_err());
+    }
+}
