@@ -3,3 +3,4 @@
 pub mod gantry_crane;
 pub mod linear_system;
 pub mod opamp_filter;
+pub mod wind_generator;
