@@ -1,1 +1,7 @@
-//! (filled in by its owner)
+//! The signal chain of the FMUs (SPEC §2, items 5–6): a portable seeded random generator,
+//! the signal sources (step, random steps, PRBS, sine/cosine) and the sensor model (Gaussian
+//! noise, ε-contaminated outliers, ADC quantisation).
+
+pub mod rng;
+pub mod sensor;
+pub mod source;

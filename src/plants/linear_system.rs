@@ -1,0 +1,753 @@
+//! A generic linear state-space plant (SPEC §2 item 4), used for paper 004's three-state
+//! system (§5 of that paper, SPEC §2 item 12) and by users.
+//!
+//! ```text
+//! discrete:    x_{k+1} = A x_k + B u_k + w_k,          w_k ~ N(0, Q)
+//! continuous:  dx/dt   = A x + B u + w(t),             w white with spectral density Q
+//! both:        y_k     = C x_k + D u_k + v_k,          v_k ~ N(0, R)
+//! ```
+//!
+//! Dimensions are dynamic: `n` states, `m` inputs (may be 0), `p` outputs.
+//!
+//! * **Discrete**: one [`LinearSystem::advance`] is one sample, whatever `h` is (the FMU
+//!   steps it at its sample time).
+//! * **Continuous**: over a communication step `h` with `u` held (zero-order hold) the
+//!   solution is exact: `x⁺ = Φ x + Γ u + w_h` with `Φ = e^{A h}`, `Γ = ∫₀^h e^{Aτ} dτ B`
+//!   (both from the exponential of the augmented matrix `[[A, B], [0, 0]] h`,
+//!   [`crate::linalg::try_zoh`]), and `w_h ~ N(0, Q_h)` with the discrete-equivalent
+//!   covariance `Q_h = ∫₀^h e^{Aτ} Q e^{Aᵀτ} dτ` by Van Loan's method: with
+//!   `E = exp([[−A, Q], [0, Aᵀ]] h) = [[E₁₁, E₁₂], [0, E₂₂]]`, `Q_h = E₂₂ᵀ E₁₂`. `Φ`, `Γ` and
+//!   the factor of `Q_h` are cached for the last `h` used (recomputed when `h` changes).
+//!
+//! **Noise.** `Q` and `R` must be symmetric positive *semi*-definite (zeros allowed: `Q = 0`
+//! or `R = 0` switches that noise off, singular covariances are fine). They are sampled as
+//! `w = L z`, `z ~ N(0, I)`, with the symmetric eigen-factor `L = V diag(√max(λᵢ, 0))`
+//! (`Q = V Λ Vᵀ`), which exists for any PSD matrix, unlike a Cholesky factor. Eigenvalues
+//! down to `−10⁻¹² · max(1, ‖Q‖_F)` are accepted as round-off zeros; a more negative one is
+//! a negative variance and is rejected. The process noise uses the stream
+//! `RandomGenerator::for_stream(seed, 0)`, the measurement noise `for_stream(seed, 1)`.
+//!
+//! **Sampling.** The measurement noise `v_k` belongs to the time point: it is drawn when the
+//! state reaches `x_k` (at construction and at the end of every step), so
+//! [`LinearSystem::output`] is a pure function of `u` at a given point and may be called any
+//! number of times. Each step draws `n` process then (after the state update) `p`
+//! measurement deviates. The complete state for save/restore is
+//! [`LinearSystem::saved_state`] (`x`, the pending `v_k`, the two generator states).
+
+use crate::linalg;
+use crate::signals::rng::RandomGenerator;
+use crate::ParameterError;
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+
+/// Whether the model is a difference or a differential equation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeDomain {
+    /// `x_{k+1} = A x_k + B u_k + w_k`, one sample per step.
+    Discrete,
+    /// `dx/dt = A x + B u + w`, integrated exactly over each step with u held.
+    Continuous,
+}
+
+/// The model, its noise and its start (parameter names as the FMU uses them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystemParameters {
+    /// State matrix `A` (n × n).
+    pub a: DMatrix<f64>,
+    /// Input matrix `B` (n × m).
+    pub b: DMatrix<f64>,
+    /// Output matrix `C` (p × n).
+    pub c: DMatrix<f64>,
+    /// Feedthrough `D` (p × m).
+    pub d: DMatrix<f64>,
+    /// Process-noise covariance `Q` (n × n, PSD): per sample (discrete) or spectral
+    /// density per second (continuous).
+    pub q: DMatrix<f64>,
+    /// Measurement-noise covariance `R` (p × p, PSD).
+    pub r: DMatrix<f64>,
+    /// Discrete or continuous.
+    pub time_domain: TimeDomain,
+    /// Initial state `x0` (n).
+    pub initial_state: DVector<f64>,
+    /// Seed of the noise streams (parameter `seed`).
+    pub seed: u64,
+}
+
+impl LinearSystemParameters {
+    /// A noise-free model (`Q = 0`, `R = 0`) starting at `x0 = 0`, seed 1.
+    pub fn noise_free(
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+        c: DMatrix<f64>,
+        d: DMatrix<f64>,
+        time_domain: TimeDomain,
+    ) -> Self {
+        let n = a.nrows();
+        let p = c.nrows();
+        Self {
+            a,
+            b,
+            c,
+            d,
+            q: DMatrix::zeros(n, n),
+            r: DMatrix::zeros(p, p),
+            time_domain,
+            initial_state: DVector::zeros(n),
+            seed: 1,
+        }
+    }
+
+    /// Paper 004 §5 (SPEC §2 item 12): `A = [[1.005, 0, 0], [0, 0.9954, −0.08757],
+    /// [0, 0.1248, 0.9945]]`, no input, both agents' outputs `C = [[1, 0, 0], [0, 1, 0]]`,
+    /// `Q = 0.2 I₃`, `R = 0.1 I₂` (covariances), discrete, `x0 = [1, 1, 1]` (SPEC §4).
+    pub fn distributed_observer_example(seed: u64) -> Self {
+        let a = DMatrix::from_row_slice(
+            3,
+            3,
+            &[1.005, 0.0, 0.0, 0.0, 0.9954, -0.08757, 0.0, 0.1248, 0.9945],
+        );
+        let c = DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+        Self {
+            a,
+            b: DMatrix::zeros(3, 0),
+            c,
+            d: DMatrix::zeros(2, 0),
+            q: DMatrix::identity(3, 3) * 0.2,
+            r: DMatrix::identity(2, 2) * 0.1,
+            time_domain: TimeDomain::Discrete,
+            initial_state: DVector::from_element(3, 1.0),
+            seed,
+        }
+    }
+
+    /// Number of states `n`.
+    pub fn states(&self) -> usize {
+        self.a.nrows()
+    }
+
+    /// Number of inputs `m`.
+    pub fn inputs(&self) -> usize {
+        self.b.ncols()
+    }
+
+    /// Number of outputs `p`.
+    pub fn outputs(&self) -> usize {
+        self.c.nrows()
+    }
+
+    /// Checks shapes, finiteness and the covariances, naming the first bad matrix.
+    pub fn validate(&self) -> Result<(), ParameterError> {
+        let n = self.a.nrows();
+        if n == 0 || self.a.ncols() != n {
+            return Err(ParameterError::new(
+                "A",
+                format!(
+                    "must be square with at least one state, got {}×{}",
+                    self.a.nrows(),
+                    self.a.ncols()
+                ),
+            ));
+        }
+        let m = self.b.ncols();
+        let p = self.c.nrows();
+        require_shape("B", &self.b, n, m)?;
+        require_shape("C", &self.c, p, n)?;
+        require_shape("D", &self.d, p, m)?;
+        require_shape("Q", &self.q, n, n)?;
+        require_shape("R", &self.r, p, p)?;
+        for (name, matrix) in [
+            ("A", &self.a),
+            ("B", &self.b),
+            ("C", &self.c),
+            ("D", &self.d),
+            ("Q", &self.q),
+            ("R", &self.r),
+        ] {
+            require_finite_matrix(name, matrix)?;
+        }
+        if self.initial_state.len() != n {
+            return Err(ParameterError::new(
+                "x0",
+                format!("must have {n} entries, got {}", self.initial_state.len()),
+            ));
+        }
+        if self.initial_state.iter().any(|v| !v.is_finite()) {
+            return Err(ParameterError::new("x0", "contains NaN or infinity"));
+        }
+        covariance_factor("Q", &self.q)?;
+        covariance_factor("R", &self.r)?;
+        Ok(())
+    }
+}
+
+/// The state needed to continue a [`LinearSystem`] bit-for-bit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystemState {
+    /// The state `x_k`.
+    pub state: Vec<f64>,
+    /// The measurement noise `v_k` of the current time point.
+    pub measurement_noise: Vec<f64>,
+    /// Process-noise generator state, then measurement-noise generator state.
+    pub random_streams: [u64; 8],
+}
+
+/// `Φ`, `Γ` and the factor of `Q_h` for one step length `h` (continuous time).
+#[derive(Debug, Clone, PartialEq)]
+struct Discretisation {
+    step: f64,
+    transition: DMatrix<f64>,
+    input: DMatrix<f64>,
+    noise_factor: DMatrix<f64>,
+}
+
+/// The plant with its state, noise streams and discretisation cache.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystem {
+    parameters: LinearSystemParameters,
+    state: DVector<f64>,
+    measurement_noise: DVector<f64>,
+    process_factor: DMatrix<f64>,
+    measurement_factor: DMatrix<f64>,
+    process_stream: RandomGenerator,
+    measurement_stream: RandomGenerator,
+    cache: Option<Discretisation>,
+}
+
+impl LinearSystem {
+    /// The system at `x0` with its first measurement noise drawn, after validation.
+    pub fn new(parameters: LinearSystemParameters) -> Result<Self, ParameterError> {
+        parameters.validate()?;
+        let process_factor = covariance_factor("Q", &parameters.q)?;
+        let measurement_factor = covariance_factor("R", &parameters.r)?;
+        let mut system = Self {
+            state: parameters.initial_state.clone(),
+            measurement_noise: DVector::zeros(parameters.outputs()),
+            process_factor,
+            measurement_factor,
+            process_stream: RandomGenerator::for_stream(parameters.seed, 0),
+            measurement_stream: RandomGenerator::for_stream(parameters.seed, 1),
+            cache: None,
+            parameters,
+        };
+        system.measurement_noise = system.draw_measurement_noise();
+        Ok(system)
+    }
+
+    /// Paper 004's three-state example ([`LinearSystemParameters::distributed_observer_example`]).
+    pub fn distributed_observer_example(seed: u64) -> Result<Self, ParameterError> {
+        Self::new(LinearSystemParameters::distributed_observer_example(seed))
+    }
+
+    /// The parameters.
+    pub fn parameters(&self) -> &LinearSystemParameters {
+        &self.parameters
+    }
+
+    /// The current state `x_k`.
+    pub fn state(&self) -> &DVector<f64> {
+        &self.state
+    }
+
+    /// The measurement noise `v_k` of the current time point (for scoring).
+    pub fn measurement_noise(&self) -> &DVector<f64> {
+        &self.measurement_noise
+    }
+
+    /// The noise-free output `C x + D u`.
+    pub fn clean_output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
+        self.check_input(u)?;
+        Ok(&self.parameters.c * &self.state + &self.parameters.d * u)
+    }
+
+    /// The measured output `y_k = C x_k + D u + v_k`.
+    pub fn output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
+        Ok(self.clean_output(u)? + &self.measurement_noise)
+    }
+
+    /// Advances one sample (discrete) or `h` seconds with `u` held (continuous), adds the
+    /// process noise and draws the measurement noise of the new time point. A wrong-length
+    /// or non-finite `u` (named `u`), or a non-positive `h` in continuous time (named `h`),
+    /// is an error and leaves the system unchanged.
+    pub fn advance(&mut self, u: &DVector<f64>, h: f64) -> Result<(), ParameterError> {
+        self.check_input(u)?;
+        let next = match self.parameters.time_domain {
+            TimeDomain::Discrete => {
+                let w = draw(&mut self.process_stream, &self.process_factor);
+                &self.parameters.a * &self.state + &self.parameters.b * u + w
+            }
+            TimeDomain::Continuous => {
+                let cached = matches!(&self.cache, Some(d) if d.step == h);
+                if !cached {
+                    self.cache = Some(self.discretisation(h)?);
+                }
+                match &self.cache {
+                    Some(d) => {
+                        let w = draw(&mut self.process_stream, &d.noise_factor);
+                        &d.transition * &self.state + &d.input * u + w
+                    }
+                    None => return Err(ParameterError::new("h", "no discretisation")),
+                }
+            }
+        };
+        self.state = next;
+        self.measurement_noise = self.draw_measurement_noise();
+        Ok(())
+    }
+
+    /// `(Φ, Γ)` for a step `h` in continuous time, or `(A, B)` in discrete time.
+    pub fn discrete_matrices(
+        &self,
+        h: f64,
+    ) -> Result<(DMatrix<f64>, DMatrix<f64>), ParameterError> {
+        match self.parameters.time_domain {
+            TimeDomain::Discrete => Ok((self.parameters.a.clone(), self.parameters.b.clone())),
+            TimeDomain::Continuous => {
+                let d = self.discretisation(h)?;
+                Ok((d.transition, d.input))
+            }
+        }
+    }
+
+    /// The complete state, for saving.
+    pub fn saved_state(&self) -> LinearSystemState {
+        let p = self.process_stream.state();
+        let m = self.measurement_stream.state();
+        LinearSystemState {
+            state: self.state.iter().copied().collect(),
+            measurement_noise: self.measurement_noise.iter().copied().collect(),
+            random_streams: [p[0], p[1], p[2], p[3], m[0], m[1], m[2], m[3]],
+        }
+    }
+
+    /// Restores a [`Self::saved_state`] (checked against the dimensions).
+    pub fn restore(&mut self, saved: &LinearSystemState) -> Result<(), ParameterError> {
+        let n = self.parameters.states();
+        let p = self.parameters.outputs();
+        if saved.state.len() != n || saved.state.iter().any(|v| !v.is_finite()) {
+            return Err(ParameterError::new(
+                "x",
+                format!("a saved state must hold {n} finite values"),
+            ));
+        }
+        if saved.measurement_noise.len() != p
+            || saved.measurement_noise.iter().any(|v| !v.is_finite())
+        {
+            return Err(ParameterError::new(
+                "v",
+                format!("a saved measurement noise must hold {p} finite values"),
+            ));
+        }
+        let s = &saved.random_streams;
+        let process = RandomGenerator::from_state([s[0], s[1], s[2], s[3]])?;
+        let measurement = RandomGenerator::from_state([s[4], s[5], s[6], s[7]])?;
+        self.state = DVector::from_column_slice(&saved.state);
+        self.measurement_noise = DVector::from_column_slice(&saved.measurement_noise);
+        self.process_stream = process;
+        self.measurement_stream = measurement;
+        Ok(())
+    }
+
+    fn check_input(&self, u: &DVector<f64>) -> Result<(), ParameterError> {
+        let m = self.parameters.inputs();
+        if u.len() != m {
+            return Err(ParameterError::new(
+                "u",
+                format!("must have {m} entries, got {}", u.len()),
+            ));
+        }
+        if u.iter().any(|v| !v.is_finite()) {
+            return Err(ParameterError::new("u", "contains NaN or infinity"));
+        }
+        Ok(())
+    }
+
+    fn draw_measurement_noise(&mut self) -> DVector<f64> {
+        draw(&mut self.measurement_stream, &self.measurement_factor)
+    }
+
+    /// The cached discretisation for `h`, or a fresh one.
+    fn discretisation(&self, h: f64) -> Result<Discretisation, ParameterError> {
+        if let Some(d) = &self.cache {
+            if d.step == h {
+                return Ok(d.clone());
+            }
+        }
+        if !(h.is_finite() && h > 0.0) {
+            return Err(ParameterError::new(
+                "h",
+                format!("the step must be finite and > 0, got {h}"),
+            ));
+        }
+        let p = &self.parameters;
+        let (transition, input) = linalg::try_zoh(&p.a, &p.b, h)
+            .map_err(|e| ParameterError::new("A", format!("cannot discretise: {e}")))?;
+        let n = p.states();
+        let noise_factor = if p.q.iter().all(|v| *v == 0.0) {
+            DMatrix::zeros(n, n)
+        } else {
+            // Van Loan: exp([[−A, Q], [0, Aᵀ]] h) = [[E11, E12], [0, E22]], Q_h = E22ᵀ E12.
+            let mut van_loan = DMatrix::<f64>::zeros(2 * n, 2 * n);
+            van_loan.view_mut((0, 0), (n, n)).copy_from(&(-&p.a * h));
+            van_loan.view_mut((0, n), (n, n)).copy_from(&(&p.q * h));
+            van_loan
+                .view_mut((n, n), (n, n))
+                .copy_from(&(p.a.transpose() * h));
+            let e = linalg::try_expm(&van_loan)
+                .map_err(|e| ParameterError::new("Q", format!("cannot discretise: {e}")))?;
+            let e12 = e.view((0, n), (n, n)).into_owned();
+            let e22 = e.view((n, n), (n, n)).into_owned();
+            let mut q_h = e22.transpose() * e12;
+            linalg::symmetrize(&mut q_h);
+            covariance_factor("Q", &q_h)?
+        };
+        Ok(Discretisation {
+            step: h,
+            transition,
+            input,
+            noise_factor,
+        })
+    }
+}
+
+/// `factor · z` with `z` a vector of standard normal deviates from `stream`.
+fn draw(stream: &mut RandomGenerator, factor: &DMatrix<f64>) -> DVector<f64> {
+    let z = DVector::from_fn(factor.ncols(), |_, _| stream.gaussian());
+    factor * z
+}
+
+fn require_shape(
+    name: &str,
+    matrix: &DMatrix<f64>,
+    rows: usize,
+    cols: usize,
+) -> Result<(), ParameterError> {
+    if matrix.nrows() != rows || matrix.ncols() != cols {
+        return Err(ParameterError::new(
+            name,
+            format!(
+                "must be {rows}×{cols}, got {}×{}",
+                matrix.nrows(),
+                matrix.ncols()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn require_finite_matrix(name: &str, matrix: &DMatrix<f64>) -> Result<(), ParameterError> {
+    if matrix.iter().any(|v| !v.is_finite()) {
+        return Err(ParameterError::new(name, "contains NaN or infinity"));
+    }
+    Ok(())
+}
+
+/// The eigen-factor `L = V diag(√max(λ, 0))` of a symmetric PSD covariance (module docs),
+/// or an error naming it if it is not symmetric or has a negative variance.
+fn covariance_factor(
+    name: &str,
+    covariance: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, ParameterError> {
+    let n = covariance.nrows();
+    if n == 0 {
+        return Ok(DMatrix::zeros(0, 0));
+    }
+    let scale = covariance.norm().max(1.0);
+    let asymmetry = (covariance - covariance.transpose()).amax();
+    if asymmetry > 1e-12 * scale {
+        return Err(ParameterError::new(
+            name,
+            format!("must be symmetric (largest |{name} − {name}ᵀ| entry {asymmetry:e})"),
+        ));
+    }
+    if covariance.iter().all(|v| *v == 0.0) {
+        return Ok(DMatrix::zeros(n, n));
+    }
+    let diagonal = (0..n).all(|i| (0..n).all(|j| i == j || covariance[(i, j)] == 0.0));
+    if diagonal {
+        let mut factor = DMatrix::zeros(n, n);
+        for i in 0..n {
+            let variance = covariance[(i, i)];
+            if variance < 0.0 {
+                return Err(ParameterError::new(
+                    name,
+                    format!("negative variance {variance} on the diagonal (entry {i})"),
+                ));
+            }
+            factor[(i, i)] = variance.sqrt();
+        }
+        return Ok(factor);
+    }
+    let eigen = SymmetricEigen::new(covariance.clone());
+    let smallest = eigen.eigenvalues.min();
+    if smallest < -1e-12 * scale {
+        return Err(ParameterError::new(
+            name,
+            format!("must be positive semi-definite, has eigenvalue {smallest:e}"),
+        ));
+    }
+    let mut factor = eigen.eigenvectors;
+    for (j, lambda) in eigen.eigenvalues.iter().enumerate() {
+        let root = lambda.max(0.0).sqrt();
+        factor.column_mut(j).scale_mut(root);
+    }
+    Ok(factor)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn matrix(rows: usize, cols: usize, values: &[f64]) -> DMatrix<f64> {
+        DMatrix::from_row_slice(rows, cols, values)
+    }
+
+    #[test]
+    fn discrete_system_matches_matrix_powers() {
+        let a = matrix(2, 2, &[0.9, 0.2, -0.1, 0.7]);
+        let b = matrix(2, 1, &[1.0, 0.5]);
+        let c = matrix(1, 2, &[1.0, -1.0]);
+        let d = matrix(1, 1, &[0.3]);
+        let mut p = LinearSystemParameters::noise_free(
+            a.clone(),
+            b.clone(),
+            c.clone(),
+            d.clone(),
+            TimeDomain::Discrete,
+        );
+        p.initial_state = DVector::from_vec(vec![1.0, -2.0]);
+        let x0 = p.initial_state.clone();
+        let mut s = LinearSystem::new(p).unwrap();
+        let u = DVector::from_vec(vec![0.4]);
+        for _ in 0..25 {
+            s.advance(&u, 0.1).unwrap();
+        }
+        // x_25 = A^25 x0 + Σ_{j<25} A^j B u.
+        let mut expected = a.pow(25) * &x0;
+        for j in 0..25 {
+            expected += a.pow(j) * &b * &u;
+        }
+        assert!((s.state() - &expected).amax() < 1e-12);
+        let y = s.output(&u).unwrap();
+        assert!((y - (&c * &expected + &d * &u)).amax() < 1e-12);
+    }
+
+    #[test]
+    fn continuous_system_matches_the_analytic_solution() {
+        // A = V Λ V⁻¹ with real eigenvalues −1, −2, −0.5.
+        let v = matrix(3, 3, &[1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0]);
+        let v_inv = v.clone().try_inverse().unwrap();
+        let lambda = [-1.0, -2.0, -0.5];
+        let a = &v * DMatrix::from_diagonal(&DVector::from_row_slice(&lambda)) * &v_inv;
+        let b = matrix(3, 1, &[1.0, 0.0, 2.0]);
+        let c = matrix(1, 3, &[1.0, 1.0, 1.0]);
+        let mut p = LinearSystemParameters::noise_free(
+            a,
+            b.clone(),
+            c,
+            matrix(1, 1, &[0.0]),
+            TimeDomain::Continuous,
+        );
+        let x0 = DVector::from_vec(vec![1.0, 0.5, -1.0]);
+        p.initial_state = x0.clone();
+        let mut s = LinearSystem::new(p).unwrap();
+        let u = DVector::from_vec(vec![1.5]);
+        let h = 0.1;
+        for _ in 0..50 {
+            s.advance(&u, h).unwrap();
+        }
+        let t = 5.0;
+        // x(t) = V e^{Λt} V⁻¹ x0 + V Λ⁻¹ (e^{Λt} − I) V⁻¹ B u.
+        let exp = DMatrix::from_diagonal(&DVector::from_iterator(
+            3,
+            lambda.iter().map(|l| (l * t).exp()),
+        ));
+        let integral = DMatrix::from_diagonal(&DVector::from_iterator(
+            3,
+            lambda.iter().map(|l| ((l * t).exp() - 1.0) / l),
+        ));
+        let expected = &v * &exp * &v_inv * &x0 + &v * integral * &v_inv * &b * &u;
+        let error = (s.state() - &expected).amax();
+        assert!(error < 1e-12, "error {error:e}");
+    }
+
+    #[test]
+    fn process_and_measurement_noise_have_the_set_covariances() {
+        // x⁺ = 0.5 x + w, Q = 1: stationary variance 1/(1 − 0.25) = 4/3; y = x + v, R = 0.1.
+        let mut p = LinearSystemParameters::noise_free(
+            matrix(1, 1, &[0.5]),
+            DMatrix::zeros(1, 0),
+            matrix(1, 1, &[1.0]),
+            DMatrix::zeros(1, 0),
+            TimeDomain::Discrete,
+        );
+        p.q = matrix(1, 1, &[1.0]);
+        p.r = matrix(1, 1, &[0.1]);
+        let mut s = LinearSystem::new(p).unwrap();
+        let u = DVector::zeros(0);
+        let n = 100_000;
+        let (mut sx2, mut sv2) = (0.0, 0.0);
+        for _ in 0..n {
+            s.advance(&u, 1.0).unwrap();
+            sx2 += s.state()[0].powi(2);
+            let v = s.output(&u).unwrap()[0] - s.state()[0];
+            sv2 += v * v;
+        }
+        let (var_x, var_v) = (sx2 / n as f64, sv2 / n as f64);
+        assert!(
+            (var_x - 4.0 / 3.0).abs() < 0.03 * 4.0 / 3.0,
+            "state variance {var_x}"
+        );
+        assert!(
+            (var_v - 0.1).abs() < 0.02 * 0.1,
+            "measurement variance {var_v}"
+        );
+    }
+
+    #[test]
+    fn continuous_process_noise_uses_the_van_loan_covariance() {
+        // dx/dt = −a x + w, spectral density q: Q_h = q (1 − e^{−2 a h}) / (2 a).
+        let (a, q, h) = (2.0, 0.3, 0.25);
+        let mut p = LinearSystemParameters::noise_free(
+            matrix(1, 1, &[-a]),
+            DMatrix::zeros(1, 0),
+            matrix(1, 1, &[1.0]),
+            DMatrix::zeros(1, 0),
+            TimeDomain::Continuous,
+        );
+        p.q = matrix(1, 1, &[q]);
+        let s = LinearSystem::new(p).unwrap();
+        let d = s.discretisation(h).unwrap();
+        let q_h = d.noise_factor[(0, 0)].powi(2);
+        let want = q * (1.0 - (-2.0 * a * h).exp()) / (2.0 * a);
+        assert!((q_h - want).abs() < 1e-14, "{q_h} vs {want}");
+        assert!((d.transition[(0, 0)] - (-a * h).exp()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn semidefinite_covariances_are_accepted() {
+        // Rank-one Q = [1 1; 1 1]: w₁ = w₂ always.
+        let mut p = LinearSystemParameters::noise_free(
+            DMatrix::zeros(2, 2),
+            DMatrix::zeros(2, 0),
+            DMatrix::identity(2, 2),
+            DMatrix::zeros(2, 0),
+            TimeDomain::Discrete,
+        );
+        p.q = matrix(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        let mut s = LinearSystem::new(p).unwrap();
+        let u = DVector::zeros(0);
+        let mut sum2 = 0.0;
+        for _ in 0..20_000 {
+            s.advance(&u, 1.0).unwrap();
+            let x = s.state();
+            assert!((x[0] - x[1]).abs() < 1e-12);
+            sum2 += x[0] * x[0];
+        }
+        assert!((sum2 / 20_000.0 - 1.0).abs() < 0.05);
+    }
+
+    #[test]
+    fn same_seed_same_run_and_restore_continues_bit_for_bit() {
+        let mut a = LinearSystem::distributed_observer_example(5).unwrap();
+        let mut b = LinearSystem::distributed_observer_example(5).unwrap();
+        let u = DVector::zeros(0);
+        for _ in 0..50 {
+            a.advance(&u, 1.0).unwrap();
+            b.advance(&u, 1.0).unwrap();
+            assert_eq!(a.output(&u).unwrap(), b.output(&u).unwrap());
+        }
+        let saved = a.saved_state();
+        let run = |s: &mut LinearSystem| -> Vec<f64> {
+            (0..20)
+                .flat_map(|_| {
+                    s.advance(&u, 1.0).unwrap();
+                    s.output(&u).unwrap().iter().copied().collect::<Vec<_>>()
+                })
+                .collect()
+        };
+        let first = run(&mut a);
+        let mut c = LinearSystem::distributed_observer_example(99).unwrap();
+        c.restore(&saved).unwrap();
+        assert_eq!(run(&mut c), first);
+        assert_ne!(
+            LinearSystem::distributed_observer_example(6)
+                .unwrap()
+                .output(&u)
+                .unwrap(),
+            LinearSystem::distributed_observer_example(5)
+                .unwrap()
+                .output(&u)
+                .unwrap()
+        );
+    }
+
+    #[test]
+    fn distributed_observer_example_has_the_papers_matrices() {
+        let s = LinearSystem::distributed_observer_example(1).unwrap();
+        let p = s.parameters();
+        assert_eq!(p.a[(1, 2)], -0.08757);
+        assert_eq!(p.a[(2, 1)], 0.1248);
+        assert_eq!((p.states(), p.inputs(), p.outputs()), (3, 0, 2));
+        assert_eq!(p.q, DMatrix::identity(3, 3) * 0.2);
+        assert_eq!(p.r, DMatrix::identity(2, 2) * 0.1);
+        assert_eq!(s.state(), &DVector::from_element(3, 1.0));
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let base = LinearSystemParameters::noise_free(
+            DMatrix::identity(2, 2),
+            DMatrix::zeros(2, 1),
+            DMatrix::zeros(1, 2),
+            DMatrix::zeros(1, 1),
+            TimeDomain::Continuous,
+        );
+        let name = |p: LinearSystemParameters| LinearSystem::new(p).unwrap_err().parameter;
+        let mut p = base.clone();
+        p.a = DMatrix::zeros(2, 3);
+        assert_eq!(name(p), "A");
+        let mut p = base.clone();
+        p.b = DMatrix::zeros(3, 1);
+        assert_eq!(name(p), "B");
+        let mut p = base.clone();
+        p.c = DMatrix::zeros(1, 3);
+        assert_eq!(name(p), "C");
+        let mut p = base.clone();
+        p.d = DMatrix::zeros(1, 2);
+        assert_eq!(name(p), "D");
+        let mut p = base.clone();
+        p.q = matrix(2, 2, &[1.0, 0.0, 0.0, -0.5]);
+        assert_eq!(name(p), "Q");
+        let mut p = base.clone();
+        p.q = matrix(2, 2, &[1.0, 2.0, 2.0, 1.0]); // eigenvalues 3, −1
+        assert_eq!(name(p), "Q");
+        let mut p = base.clone();
+        p.q = matrix(2, 2, &[1.0, 0.5, 0.0, 1.0]);
+        assert_eq!(name(p), "Q");
+        let mut p = base.clone();
+        p.r = matrix(1, 1, &[-0.1]);
+        assert_eq!(name(p), "R");
+        let mut p = base.clone();
+        p.a[(0, 1)] = f64::NAN;
+        assert_eq!(name(p), "A");
+        let mut p = base.clone();
+        p.initial_state = DVector::zeros(3);
+        assert_eq!(name(p), "x0");
+        let mut s = LinearSystem::new(base).unwrap();
+        let before = s.saved_state();
+        assert_eq!(
+            s.advance(&DVector::zeros(2), 0.1).unwrap_err().parameter,
+            "u"
+        );
+        assert_eq!(
+            s.advance(&DVector::from_element(1, f64::NAN), 0.1)
+                .unwrap_err()
+                .parameter,
+            "u"
+        );
+        assert_eq!(
+            s.advance(&DVector::zeros(1), 0.0).unwrap_err().parameter,
+            "h"
+        );
+        assert_eq!(s.saved_state(), before);
+    }
+}

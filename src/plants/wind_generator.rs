@@ -1,0 +1,612 @@
+//! The wind-generator laboratory set of paper 001 (§4 "Base de datos de un generador
+//! eólico", Fig. 1, appendices A–D; SPEC §2 item 2): an induction motor fed by a variable
+//! frequency drive (the "wind"), coupled to a wound-field synchronous generator feeding a
+//! resistive load, its field fed by an SCR module, its speed read by a tachogenerator.
+//!
+//! Inputs: the drive reference `u_drive` and the field (SCR) reference `u_field`, both
+//! 0–10 V; values outside are clipped to [0, 10] V (NaN counts as 0 V). Outputs: the shaft
+//! speed as read by the tachogenerator [rpm] and the terminal voltage (RMS, line to line)
+//! [V].
+//!
+//! # State (8, the paper's order)
+//!
+//! `x = [i_d, i_q, i_f, ω_m, θ_e, ω_s, v_f, ω_t]`: stator d/q currents [A] and field
+//! current [A] of the generator, shaft speed [rad/s], electrical rotor angle [rad] (kept in
+//! [0, 2π)), the drive's synchronous speed [rad/s, mechanical], the field voltage [V] and the
+//! tachometer reading [rad/s].
+//!
+//! # Equations
+//!
+//! **Synchronous generator** (Krause's dq model in the rotor frame, amplitude-invariant Park
+//! transform, generator convention: stator currents leave the machine; no damper windings).
+//! Pole pairs `p`, electrical speed `ω_e = p ω_m`, flux linkages
+//! `ψ_d = −L_d i_d + M_f i_f`, `ψ_q = −L_q i_q`, `ψ_f = L_f i_f − (3/2) M_f i_d`;
+//! `v_d = −R_s i_d + dψ_d/dt − ω_e ψ_q`, `v_q = −R_s i_q + dψ_q/dt + ω_e ψ_d`,
+//! `v_f = R_f i_f + dψ_f/dt`. A balanced star-connected resistive load `R_L` per phase gives
+//! `v_d = R_L i_d`, `v_q = R_L i_q`, so with `R = R_s + R_L`:
+//!
+//! ```text
+//! L_d di_d/dt − M_f di_f/dt        = −R i_d + ω_e L_q i_q
+//! L_q di_q/dt                      = −R i_q − ω_e L_d i_d + ω_e M_f i_f
+//! −(3/2) M_f di_d/dt + L_f di_f/dt = v_f − R_f i_f
+//! T_e = (3/2) p (ψ_d i_q − ψ_q i_d) = (3/2) p (M_f i_f + (L_q − L_d) i_d) i_q
+//! V_LL = √3 · (phase peak)/√2 = √(3/2) · R_L √(i_d² + i_q²)
+//! ```
+//!
+//! (The d/f pair is solved in closed form; `L_d L_f − (3/2) M_f² > 0` is required.) These
+//! are the paper's eqs (1)–(4) with their typos fixed: the q-axis equation has `i_q` and
+//! `u_q`, and the mechanical equation below has friction and the load torque with its sign.
+//!
+//! **Shaft** (motor and generator rigidly coupled): `J dω_m/dt = T_m − T_e − B ω_m`,
+//! `dθ_e/dt = p ω_m`.
+//!
+//! **Drive + induction motor.** The drive (Varispeed-606PC3, appendix C) turns `u_drive`
+//! into a speed reference `ω_ref = (u_drive/10) · 2π f_rated / p` (10 V ↔ 60 Hz ↔ 1800 rpm).
+//! The motor works on the linear part of its torque–slip curve,
+//! `T_m = clamp(k_s (ω_s − ω_m), −T_max, T_max)` with `k_s` = rated torque / rated slip
+//! speed and `T_max` the breakdown torque. The drive's slip compensation raises its output
+//! frequency by the slip it estimates from the motor current (`T_m / k_s`), through a
+//! first-order filter: `τ_drive dω_s/dt = ω_ref + T_m/k_s − ω_s`. Without clamping this is
+//! `τ_drive dω_s/dt = ω_ref − ω_m`, an integral speed loop, so in steady state the shaft
+//! turns at exactly `ω_ref` whatever the load; when the torque clamps, the same equation
+//! keeps `ω_s` from winding up.
+//!
+//! **SCR field supply** (appendix D, 0–125 V DC for 0–10 V): `τ_scr dv_f/dt = 12.5 u_field
+//! − v_f` (the firing delay of about half a mains cycle as a first-order lag).
+//!
+//! **Tachogenerator**: `τ_tach dω_t/dt = ω_m − ω_t`; the output is `ω_t · 60/(2π)` rpm.
+//!
+//! # Parameters (defaults)
+//!
+//! Generator (Hampden IM-100-3: 4 poles, 240 V, 1.5 A, 60 Hz, 0.33 hp, 1800 rpm; the values
+//! are plausible for a machine of that size, not measured): `p = 2`, `R_s = 6 Ω`,
+//! `L_d = 0.25 H` (X_d = 94 Ω ≈ 1.0 pu of the 92.4 Ω base), `L_q = 0.20 H`, `R_f = 200 Ω`,
+//! `L_f = 40 H` (open-circuit field time constant 0.2 s), `M_f = 1.13844 H` (chosen so that
+//! the rated operating point below gives exactly 240 V), load `R_L = 240 Ω` per phase (star).
+//! Motor (Hampden IM-100, 1725 rpm at 60 Hz) and shaft: rated torque 0.33 hp / 1725 rpm =
+//! 1.362 N·m, rated slip 75 rpm, so `k_s = 0.1734 N·m·s/rad`, `T_max = 3.4 N·m` (2.5 ×
+//! rated); `J = 0.008 kg·m²` (both rotors), `B = 5·10⁻⁴ N·m·s/rad`. Time constants
+//! `τ_drive = 0.5 s`, `τ_scr = 0.01 s`, `τ_tach = 0.02 s`; `f_rated = 60 Hz`.
+//!
+//! **Rated operating point** (`u_drive = 10 V`, `u_field = 8 V` = [`RATED_FIELD_REFERENCE`],
+//! i.e. 100 V and 0.5 A on the field): 1800 rpm, 240 V line to line, 0.577 A per phase, 240 W
+//! in the load (246 W = 0.33 hp through the air gap), `T_e = 1.305 N·m`, `T_m = 1.399 N·m`.
+//! See [`WindGeneratorParameters::operating_point`].
+//!
+//! **Measured responses** (unit tests, from the rated point; the 63 % time of each output,
+//! measured on the simulation, test `step_responses_have_the_documented_time_constants`):
+//! drive step 8 → 10 V: speed (tachometer) 0.542 s; the same step moves the voltage too
+//! (proportional to speed at a fixed field), 63 % in 0.503 s; field step 6 → 8 V at
+//! 1800 rpm: voltage 0.221 s, no overshoot. From rest, the rated references reach 1800 rpm
+//! and 240 V within 0.1 % after 3.3 s, without speed overshoot (test
+//! `rated_references_give_1800_rpm_and_240_volts_from_rest`). The eigenvalues of the
+//! Jacobian at the rated point are −1226 ± 377j (stator), −100 (SCR), −50 (tachometer),
+//! −20.4 and −2.15 (shaft loop), −5.06 (field) and 0 (the angle) s⁻¹.
+//!
+//! # Integration
+//!
+//! The stator modes are fast (≈ −R/L ± jω_e, |λ| ≈ 1.3·10³ s⁻¹), far faster than the 0.1 s
+//! sampling of the paper, but they are kept as states, as the paper's order-8 model has
+//! them. RK4 is stable for substeps below ≈ 2 ms; [`WindGenerator::RECOMMENDED_MAX_SUBSTEP`]
+//! = 10⁻⁴ s keeps the outputs within 10⁻⁶ relative of a twice finer grid (unit test).
+
+use crate::ode;
+use crate::{require_finite, require_positive, ParameterError};
+use nalgebra::SVector;
+use std::f64::consts::PI;
+
+/// State `[i_d, i_q, i_f, ω_m, θ_e, ω_s, v_f, ω_t]` (module docs for units).
+pub type GeneratorState = SVector<f64, 8>;
+
+/// Names of the state entries, in order (FMU variable names).
+pub const STATE_NAMES: [&str; 8] = [
+    "i_d",
+    "i_q",
+    "i_f",
+    "omega_m",
+    "theta_e",
+    "omega_s",
+    "v_f",
+    "omega_tach",
+];
+
+/// The field reference [V] that gives 240 V at 1800 rpm with the default parameters.
+pub const RATED_FIELD_REFERENCE: f64 = 8.0;
+
+/// The drive reference [V] for 1800 rpm.
+pub const RATED_DRIVE_REFERENCE: f64 = 10.0;
+
+/// Field voltage per volt of SCR reference: 125 V / 10 V.
+const SCR_GAIN: f64 = 12.5;
+
+/// Range of both references [V].
+const REFERENCE_MAX: f64 = 10.0;
+
+/// Clips a reference voltage to [0, 10] V (NaN → 0 V).
+pub fn clip_reference(u: f64) -> f64 {
+    if u.is_nan() {
+        0.0
+    } else {
+        u.clamp(0.0, REFERENCE_MAX)
+    }
+}
+
+/// Physical parameters (SI units). Defaults: module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindGeneratorParameters {
+    /// Pole pairs `p` (4 poles → 2).
+    pub pole_pairs: f64,
+    /// Stator resistance per phase `R_s` [Ω].
+    pub stator_resistance: f64,
+    /// d-axis synchronous inductance `L_d` [H].
+    pub d_inductance: f64,
+    /// q-axis synchronous inductance `L_q` [H].
+    pub q_inductance: f64,
+    /// Field resistance `R_f` [Ω].
+    pub field_resistance: f64,
+    /// Field self-inductance `L_f` [H].
+    pub field_inductance: f64,
+    /// Stator–field mutual inductance `M_f` [H].
+    pub mutual_inductance: f64,
+    /// Load resistance per phase, star-connected, `R_load` [Ω].
+    pub load_resistance: f64,
+    /// Total shaft inertia `J` [kg·m²].
+    pub inertia: f64,
+    /// Viscous friction `B` [N·m·s/rad].
+    pub friction: f64,
+    /// Motor torque per rad/s of slip `k_s` [N·m·s/rad].
+    pub slip_stiffness: f64,
+    /// Motor breakdown torque `T_max` [N·m].
+    pub max_motor_torque: f64,
+    /// Drive slip-compensation / frequency filter time constant `tau_drive` [s].
+    pub drive_time_constant: f64,
+    /// SCR module lag `tau_scr` [s].
+    pub scr_time_constant: f64,
+    /// Tachogenerator lag `tau_tach` [s].
+    pub tachometer_time_constant: f64,
+    /// Supply frequency at full drive reference `f_rated` [Hz].
+    pub rated_frequency: f64,
+}
+
+impl Default for WindGeneratorParameters {
+    fn default() -> Self {
+        Self {
+            pole_pairs: 2.0,
+            stator_resistance: 6.0,
+            d_inductance: 0.25,
+            q_inductance: 0.20,
+            field_resistance: 200.0,
+            field_inductance: 40.0,
+            mutual_inductance: 1.138_439_818_491_547,
+            load_resistance: 240.0,
+            inertia: 0.008,
+            friction: 5e-4,
+            slip_stiffness: 0.1734,
+            max_motor_torque: 3.4,
+            drive_time_constant: 0.5,
+            scr_time_constant: 0.01,
+            tachometer_time_constant: 0.02,
+            rated_frequency: 60.0,
+        }
+    }
+}
+
+/// The steady state for constant references (see
+/// [`WindGeneratorParameters::operating_point`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OperatingPoint {
+    /// The full state.
+    pub state: GeneratorState,
+    /// Shaft speed [rpm].
+    pub speed_rpm: f64,
+    /// Terminal voltage, RMS line to line [V].
+    pub terminal_voltage: f64,
+    /// Electrical torque [N·m].
+    pub electrical_torque: f64,
+    /// Motor torque [N·m].
+    pub motor_torque: f64,
+    /// Whether the motor torque is within ±T_max (otherwise the shaft cannot reach the
+    /// reference speed and `state` is not an equilibrium).
+    pub reachable: bool,
+}
+
+impl WindGeneratorParameters {
+    /// Checks every parameter, naming the first one that is not physical.
+    pub fn validate(&self) -> Result<(), ParameterError> {
+        require_positive("pole_pairs", self.pole_pairs)?;
+        require_positive("R_s", self.stator_resistance)?;
+        require_positive("L_d", self.d_inductance)?;
+        require_positive("L_q", self.q_inductance)?;
+        require_positive("R_f", self.field_resistance)?;
+        require_positive("L_f", self.field_inductance)?;
+        require_positive("M_f", self.mutual_inductance)?;
+        require_positive("R_load", self.load_resistance)?;
+        require_positive("J", self.inertia)?;
+        crate::require_non_negative("B", self.friction)?;
+        require_positive("k_s", self.slip_stiffness)?;
+        require_positive("T_max", self.max_motor_torque)?;
+        require_positive("tau_drive", self.drive_time_constant)?;
+        require_positive("tau_scr", self.scr_time_constant)?;
+        require_positive("tau_tach", self.tachometer_time_constant)?;
+        require_positive("f_rated", self.rated_frequency)?;
+        let determinant = self.d_field_determinant();
+        if determinant <= 1e-9 * self.d_inductance * self.field_inductance {
+            return Err(ParameterError::new(
+                "M_f",
+                format!("L_d·L_f − (3/2)·M_f² must be positive (some leakage), got {determinant}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `L_d L_f − (3/2) M_f²`.
+    fn d_field_determinant(&self) -> f64 {
+        self.d_inductance * self.field_inductance
+            - 1.5 * self.mutual_inductance * self.mutual_inductance
+    }
+
+    /// Speed reference of the drive [rad/s] for a (clipped) reference voltage.
+    pub fn speed_reference(&self, u_drive: f64) -> f64 {
+        clip_reference(u_drive) / REFERENCE_MAX * 2.0 * PI * self.rated_frequency / self.pole_pairs
+    }
+
+    /// Motor torque for synchronous speed `omega_s` and shaft speed `omega_m`.
+    pub fn motor_torque(&self, omega_s: f64, omega_m: f64) -> f64 {
+        (self.slip_stiffness * (omega_s - omega_m))
+            .clamp(-self.max_motor_torque, self.max_motor_torque)
+    }
+
+    /// Electrical (braking) torque `T_e` for the state `x`.
+    pub fn electrical_torque(&self, x: &GeneratorState) -> f64 {
+        let (i_d, i_q, i_f) = (x[0], x[1], x[2]);
+        1.5 * self.pole_pairs
+            * (self.mutual_inductance * i_f + (self.q_inductance - self.d_inductance) * i_d)
+            * i_q
+    }
+
+    /// Terminal voltage, RMS line to line [V], for the state `x`.
+    pub fn terminal_voltage(&self, x: &GeneratorState) -> f64 {
+        (1.5f64).sqrt() * self.load_resistance * (x[0] * x[0] + x[1] * x[1]).sqrt()
+    }
+
+    /// Right-hand side `ẋ = f(x, u)` for clipped references `u_drive`, `u_field`.
+    pub fn derivative(&self, x: &GeneratorState, u_drive: f64, u_field: f64) -> GeneratorState {
+        let (i_d, i_q, i_f, omega_m) = (x[0], x[1], x[2], x[3]);
+        let (omega_s, v_f, omega_t) = (x[5], x[6], x[7]);
+        let omega_e = self.pole_pairs * omega_m;
+        let resistance = self.stator_resistance + self.load_resistance;
+        let (l_d, l_q, l_f, m_f) = (
+            self.d_inductance,
+            self.q_inductance,
+            self.field_inductance,
+            self.mutual_inductance,
+        );
+        // [L_d, −M_f; −1.5 M_f, L_f] [di_d; di_f] = [r_d; r_f]
+        let r_d = -resistance * i_d + omega_e * l_q * i_q;
+        let r_f = v_f - self.field_resistance * i_f;
+        let det = self.d_field_determinant();
+        let di_d = (l_f * r_d + m_f * r_f) / det;
+        let di_f = (l_d * r_f + 1.5 * m_f * r_d) / det;
+        let di_q = (-resistance * i_q - omega_e * l_d * i_d + omega_e * m_f * i_f) / l_q;
+        let motor_torque = self.motor_torque(omega_s, omega_m);
+        let domega_m =
+            (motor_torque - self.electrical_torque(x) - self.friction * omega_m) / self.inertia;
+        let omega_ref = self.speed_reference(u_drive);
+        let domega_s =
+            (omega_ref + motor_torque / self.slip_stiffness - omega_s) / self.drive_time_constant;
+        let dv_f = (SCR_GAIN * clip_reference(u_field) - v_f) / self.scr_time_constant;
+        let domega_t = (omega_m - omega_t) / self.tachometer_time_constant;
+        GeneratorState::from_column_slice(&[
+            di_d, di_q, di_f, domega_m, omega_e, domega_s, dv_f, domega_t,
+        ])
+    }
+
+    /// The steady state for constant references (clipped), in closed form: `ω_m = ω_ref`,
+    /// `v_f = 12.5 u_field`, `i_f = v_f/R_f`, and with `E = ω_e M_f i_f`,
+    /// `X_{d,q} = ω_e L_{d,q}`: `i_q = E R/(R² + X_d X_q)`, `i_d = E X_q/(R² + X_d X_q)`;
+    /// `ω_s = ω_m + T_m/k_s` with `T_m = T_e + B ω_m`; `θ_e = 0`.
+    pub fn operating_point(&self, u_drive: f64, u_field: f64) -> OperatingPoint {
+        let omega_m = self.speed_reference(u_drive);
+        let omega_e = self.pole_pairs * omega_m;
+        let v_f = SCR_GAIN * clip_reference(u_field);
+        let i_f = v_f / self.field_resistance;
+        let resistance = self.stator_resistance + self.load_resistance;
+        let emf = omega_e * self.mutual_inductance * i_f;
+        let (x_d, x_q) = (omega_e * self.d_inductance, omega_e * self.q_inductance);
+        let denominator = resistance * resistance + x_d * x_q;
+        let i_q = emf * resistance / denominator;
+        let i_d = emf * x_q / denominator;
+        let mut state =
+            GeneratorState::from_column_slice(&[i_d, i_q, i_f, omega_m, 0.0, 0.0, v_f, omega_m]);
+        let electrical_torque = self.electrical_torque(&state);
+        let motor_torque = electrical_torque + self.friction * omega_m;
+        state[5] = omega_m + motor_torque / self.slip_stiffness;
+        OperatingPoint {
+            state,
+            speed_rpm: omega_m * 60.0 / (2.0 * PI),
+            terminal_voltage: self.terminal_voltage(&state),
+            electrical_torque,
+            motor_torque,
+            reachable: motor_torque.abs() <= self.max_motor_torque,
+        }
+    }
+}
+
+/// The generator set with its state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindGenerator {
+    /// Physical parameters.
+    pub parameters: WindGeneratorParameters,
+    /// Current state (module docs).
+    pub state: GeneratorState,
+}
+
+impl WindGenerator {
+    /// Substep that keeps the stiff stator modes accurate (module docs).
+    pub const RECOMMENDED_MAX_SUBSTEP: f64 = 1e-4;
+
+    /// The set at rest (all states zero), after checking the parameters.
+    pub fn new(parameters: WindGeneratorParameters) -> Result<Self, ParameterError> {
+        Self::with_state(parameters, GeneratorState::zeros())
+    }
+
+    /// The set in steady state for the references `u_drive`, `u_field` [V].
+    pub fn at_operating_point(
+        parameters: WindGeneratorParameters,
+        u_drive: f64,
+        u_field: f64,
+    ) -> Result<Self, ParameterError> {
+        parameters.validate()?;
+        let state = parameters.operating_point(u_drive, u_field).state;
+        Self::with_state(parameters, state)
+    }
+
+    /// The set at a given state (e.g. restored), after checking parameters and state.
+    pub fn with_state(
+        parameters: WindGeneratorParameters,
+        state: GeneratorState,
+    ) -> Result<Self, ParameterError> {
+        parameters.validate()?;
+        for (name, value) in STATE_NAMES.iter().zip(state.iter()) {
+            require_finite(name, *value)?;
+        }
+        Ok(Self { parameters, state })
+    }
+
+    /// Tachometer reading [rpm] (output `speed`).
+    pub fn speed_rpm(&self) -> f64 {
+        self.state[7] * 60.0 / (2.0 * PI)
+    }
+
+    /// Terminal voltage, RMS line to line [V] (output `voltage`).
+    pub fn terminal_voltage(&self) -> f64 {
+        self.parameters.terminal_voltage(&self.state)
+    }
+
+    /// True shaft speed [rpm] (without the tachometer lag).
+    pub fn shaft_speed_rpm(&self) -> f64 {
+        self.state[3] * 60.0 / (2.0 * PI)
+    }
+
+    /// Electrical frequency of the generated voltage [Hz].
+    pub fn frequency(&self) -> f64 {
+        self.parameters.pole_pairs * self.state[3] / (2.0 * PI)
+    }
+
+    /// Electrical torque [N·m].
+    pub fn electrical_torque(&self) -> f64 {
+        self.parameters.electrical_torque(&self.state)
+    }
+
+    /// Advances from time `t` over `h` seconds with the references held (clipped to
+    /// [0, 10] V), with RK4 substeps no longer than `h_max`
+    /// (use [`Self::RECOMMENDED_MAX_SUBSTEP`]).
+    pub fn advance(&mut self, t: f64, u_drive: f64, u_field: f64, h: f64, h_max: f64) {
+        let p = self.parameters;
+        let (u_drive, u_field) = (clip_reference(u_drive), clip_reference(u_field));
+        self.state = ode::integrate(
+            |_t, x| p.derivative(x, u_drive, u_field),
+            |_, x| x[4] = x[4].rem_euclid(2.0 * PI),
+            t,
+            &self.state,
+            h,
+            h_max,
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const H_MAX: f64 = WindGenerator::RECOMMENDED_MAX_SUBSTEP;
+
+    /// Runs `seconds` at the references, sampling every 0.01 s; returns (t, rpm, volts).
+    fn run(
+        g: &mut WindGenerator,
+        u_drive: f64,
+        u_field: f64,
+        seconds: f64,
+    ) -> Vec<(f64, f64, f64)> {
+        let h = 0.01;
+        let n = (seconds / h).round() as usize;
+        let mut out = Vec::with_capacity(n);
+        for k in 0..n {
+            g.advance(k as f64 * h, u_drive, u_field, h, H_MAX);
+            out.push(((k + 1) as f64 * h, g.speed_rpm(), g.terminal_voltage()));
+        }
+        out
+    }
+
+    /// Time for `signal` to cover 63.2 % of its change from `initial` to `last`.
+    fn time_constant(samples: &[(f64, f64)], initial: f64) -> f64 {
+        let last = samples[samples.len() - 1].1;
+        let target = initial + (1.0 - (-1f64).exp()) * (last - initial);
+        let rising = last > initial;
+        let mut previous = (0.0, initial);
+        for &(t, v) in samples {
+            if (rising && v >= target) || (!rising && v <= target) {
+                return previous.0 + (target - previous.1) / (v - previous.1) * (t - previous.0);
+            }
+            previous = (t, v);
+        }
+        f64::NAN
+    }
+
+    #[test]
+    fn rated_references_give_1800_rpm_and_240_volts_from_rest() {
+        let mut g = WindGenerator::new(WindGeneratorParameters::default()).unwrap();
+        let out = run(&mut g, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE, 12.0);
+        let (_, rpm, volts) = out[out.len() - 1];
+        let peak_rpm = out.iter().map(|s| s.1).fold(f64::MIN, f64::max);
+        let settled = out
+            .iter()
+            .rev()
+            .find(|s| (s.1 - rpm).abs() > 1.8 || (s.2 - volts).abs() > 0.24)
+            .map_or(0.0, |s| s.0);
+        eprintln!(
+            "rated steady state: {rpm:.3} rpm, {volts:.3} V; peak {peak_rpm:.1} rpm; \
+             within 0.1 % after {settled:.2} s"
+        );
+        assert!((rpm - 1800.0).abs() < 18.0, "speed {rpm}");
+        assert!((volts - 240.0).abs() < 4.8, "voltage {volts}");
+        // And it is the closed-form operating point.
+        let op = g.parameters.operating_point(10.0, 8.0);
+        assert!(op.reachable);
+        assert!((op.speed_rpm - 1800.0).abs() < 1e-9);
+        assert!((op.terminal_voltage - 240.0).abs() < 1e-9);
+        assert!((rpm - op.speed_rpm).abs() < 1e-3 * 1800.0);
+        assert!((volts - op.terminal_voltage).abs() < 1e-3 * 240.0);
+        assert!((g.frequency() - 60.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn operating_point_is_an_equilibrium() {
+        let p = WindGeneratorParameters::default();
+        for (u_drive, u_field) in [(10.0, 8.0), (7.0, 5.0), (3.0, 9.5)] {
+            let op = p.operating_point(u_drive, u_field);
+            let dx = p.derivative(&op.state, u_drive, u_field);
+            for i in [0, 1, 2, 3, 5, 6, 7] {
+                assert!(
+                    dx[i].abs() < 1e-9,
+                    "state {} derivative {}",
+                    STATE_NAMES[i],
+                    dx[i]
+                );
+            }
+            assert!((dx[4] - p.pole_pairs * op.state[3]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn step_responses_have_the_documented_time_constants() {
+        let p = WindGeneratorParameters::default();
+        // Drive step 8 → 10 V at rated field.
+        let mut g = WindGenerator::at_operating_point(p, 8.0, 8.0).unwrap();
+        let (rpm0, volts0) = (g.speed_rpm(), g.terminal_voltage());
+        let out = run(&mut g, 10.0, 8.0, 6.0);
+        let speed: Vec<(f64, f64)> = out.iter().map(|s| (s.0, s.1)).collect();
+        let voltage: Vec<(f64, f64)> = out.iter().map(|s| (s.0, s.2)).collect();
+        let tau_speed = time_constant(&speed, rpm0);
+        let tau_voltage_drive = time_constant(&voltage, volts0);
+        // Field step 6 → 8 V at rated speed.
+        let mut g = WindGenerator::at_operating_point(p, 10.0, 6.0).unwrap();
+        let volts0 = g.terminal_voltage();
+        let out = run(&mut g, 10.0, 8.0, 3.0);
+        let voltage: Vec<(f64, f64)> = out.iter().map(|s| (s.0, s.2)).collect();
+        let tau_field = time_constant(&voltage, volts0);
+        let overshoot = out.iter().map(|s| s.2).fold(f64::MIN, f64::max) - 240.0;
+        eprintln!(
+            "time constants: speed {tau_speed:.4} s, voltage after drive step \
+             {tau_voltage_drive:.4} s, voltage after field step {tau_field:.4} s \
+             (overshoot {overshoot:.3} V)"
+        );
+        assert!((tau_speed - 0.542).abs() < 0.005, "speed {tau_speed}");
+        assert!(
+            (tau_voltage_drive - 0.503).abs() < 0.005,
+            "{tau_voltage_drive}"
+        );
+        assert!((tau_field - 0.221).abs() < 0.005, "field {tau_field}");
+    }
+
+    #[test]
+    fn references_are_clipped_to_0_10_volts() {
+        assert_eq!(clip_reference(12.0), 10.0);
+        assert_eq!(clip_reference(-3.0), 0.0);
+        assert_eq!(clip_reference(f64::NAN), 0.0);
+        let p = WindGeneratorParameters::default();
+        let mut over = WindGenerator::at_operating_point(p, 10.0, 8.0).unwrap();
+        let mut rated = over.clone();
+        run(&mut over, 15.0, 8.0, 1.0);
+        run(&mut rated, 10.0, 8.0, 1.0);
+        assert_eq!(over.state, rated.state);
+        assert_eq!(
+            p.operating_point(15.0, 20.0).state,
+            p.operating_point(10.0, 10.0).state
+        );
+    }
+
+    #[test]
+    fn substep_of_1e_4_is_converged() {
+        let p = WindGeneratorParameters::default();
+        let simulate = |h_max: f64| {
+            let mut g = WindGenerator::at_operating_point(p, 6.0, 5.0).unwrap();
+            for k in 0..10 {
+                g.advance(k as f64 * 0.1, 10.0, 8.0, 0.1, h_max);
+            }
+            (g.speed_rpm(), g.terminal_voltage())
+        };
+        let (rpm, volts) = simulate(H_MAX);
+        let (rpm_fine, volts_fine) = simulate(H_MAX / 2.0);
+        assert!(((rpm - rpm_fine) / rpm_fine).abs() < 1e-6);
+        assert!(((volts - volts_fine) / volts_fine).abs() < 1e-6);
+    }
+
+    #[test]
+    fn energy_balance_at_the_operating_point() {
+        // Air-gap power = load power + stator copper losses.
+        let p = WindGeneratorParameters::default();
+        let op = p.operating_point(10.0, 8.0);
+        let (i_d, i_q) = (op.state[0], op.state[1]);
+        let current2 = i_d * i_d + i_q * i_q;
+        let load = 1.5 * p.load_resistance * current2;
+        let copper = 1.5 * p.stator_resistance * current2;
+        let air_gap = op.electrical_torque * op.state[3];
+        assert!((air_gap - load - copper).abs() < 1e-9 * air_gap);
+        assert!((load - 240.0).abs() < 1e-6);
+        assert!((op.terminal_voltage.powi(2) / p.load_resistance - load).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let base = WindGeneratorParameters::default();
+        let name = |p: WindGeneratorParameters| WindGenerator::new(p).unwrap_err().parameter;
+        assert_eq!(
+            name(WindGeneratorParameters {
+                load_resistance: 0.0,
+                ..base
+            }),
+            "R_load"
+        );
+        assert_eq!(
+            name(WindGeneratorParameters {
+                inertia: -1.0,
+                ..base
+            }),
+            "J"
+        );
+        assert_eq!(
+            name(WindGeneratorParameters {
+                mutual_inductance: 3.0,
+                ..base
+            }),
+            "M_f"
+        );
+        assert_eq!(
+            WindGenerator::with_state(base, GeneratorState::from_element(f64::NAN))
+                .unwrap_err()
+                .parameter,
+            "i_d"
+        );
+    }
+}

@@ -1,0 +1,601 @@
+//! Excitation signals for the experiments (SPEC §2 item 5; paper 001 §5 uses random steps of
+//! both generator references, paper 002 §III a unit step, papers 000/001 a cosine).
+//!
+//! Every waveform is a deterministic function of its parameters, its `seed` and the time
+//! `t` [s] (time origin 0):
+//!
+//! * **Step**: `offset + amplitude · [t ≥ step_time]`.
+//! * **Random steps**: switching instants `t₀ = 0`, `t_{k+1} = t_k + h_k`, holds
+//!   `h_k ~ U[min_hold, max_hold]`, levels `L_k ~ U[offset − amplitude, offset + amplitude]`;
+//!   the value is `L_k` on `[t_k, t_{k+1})`. The seeded stream draws `L_k` then `h_k` for each
+//!   segment in turn, so the signal does not depend on when it is sampled.
+//! * **PRBS**: a maximum-length Fibonacci linear-feedback shift register of `order` n
+//!   (2 ≤ n ≤ 24, period 2ⁿ − 1 bits). With the register `r` (n bits) and the feedback
+//!   polynomial `xⁿ + x^{k₁} + … + 1` of [`PRBS_TAPS`], one shift computes
+//!   `b = r_{n} ⊕ r_{k₁} ⊕ …` (bit positions counted from 1 at the least significant end),
+//!   `r ← ((r << 1) | b) mod 2ⁿ` and outputs `b`. Bit `j` (the `(j+1)`-th shift) holds on
+//!   `[j T_b, (j+1) T_b)` and the value is `offset + amplitude` for 1, `offset − amplitude`
+//!   for 0. The register starts at `1 + seed mod (2ⁿ − 1)` (never zero), so the seed chooses
+//!   the phase of the sequence.
+//! * **Sine / cosine**: `offset + amplitude · sin(2π f t + phase)` (or `cos`), `f` in Hz;
+//!   [`frequency_from_period`] converts a period.
+//!
+//! Switching instants are compared with a tolerance of 10⁻⁹ of the waveform's time scale
+//! (`max(1 s, |step_time|)`, `T_b`, `max_hold`): a communication point computed as `k · h`
+//! that lands a hair before an instant because of round-off counts as at the instant.
+//!
+//! **Sampling and time going back.** [`SignalSource::value_at`] is called at communication
+//! points. The random steps and the PRBS keep a cursor (current segment or bit) so that
+//! forward sampling costs O(1) per call; if `t` is earlier than the cursor, the source
+//! rewinds to its initial state and replays the stream up to `t`, so `value_at` always
+//! returns the same value for the same `t`. Hence the state is only a cache: an FMU saves
+//! and restores it by cloning, or serialises nothing but the parameters (a fresh source
+//! gives the same signal). Times before 0 give the first level / first bit.
+
+use super::rng::RandomGenerator;
+use crate::{require_finite, require_non_negative, require_positive, ParameterError};
+use std::f64::consts::PI;
+
+/// Relative tolerance on switching instants (module docs).
+const BOUNDARY_TOLERANCE: f64 = 1e-9;
+
+/// Feedback taps of the maximum-length LFSR for orders 2 to 24: `PRBS_TAPS[n − 2]` lists
+/// the exponents of the primitive polynomial `xⁿ + … + 1` (without the constant term).
+/// The unit tests check that every order has period 2ⁿ − 1.
+pub const PRBS_TAPS: [&[u32]; 23] = [
+    &[2, 1],
+    &[3, 2],
+    &[4, 3],
+    &[5, 3],
+    &[6, 5],
+    &[7, 6],
+    &[8, 6, 5, 4],
+    &[9, 5],
+    &[10, 7],
+    &[11, 9],
+    &[12, 11, 10, 4],
+    &[13, 12, 11, 8],
+    &[14, 13, 12, 2],
+    &[15, 14],
+    &[16, 15, 13, 4],
+    &[17, 14],
+    &[18, 11],
+    &[19, 18, 17, 14],
+    &[20, 17],
+    &[21, 19],
+    &[22, 21],
+    &[23, 18],
+    &[24, 23, 22, 17],
+];
+
+/// The frequency [Hz] of a signal of period `period` [s] (parameter `period`, > 0).
+pub fn frequency_from_period(period: f64) -> Result<f64, ParameterError> {
+    Ok(1.0 / require_positive("period", period)?)
+}
+
+/// What the source generates, with its parameters (module docs for the definitions).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Waveform {
+    /// `offset + amplitude · [t ≥ step_time]`.
+    Step {
+        /// Height of the step (parameter `amplitude`).
+        amplitude: f64,
+        /// Value before the step (parameter `offset`).
+        offset: f64,
+        /// When the step happens [s] (parameter `step_time`).
+        step_time: f64,
+    },
+    /// Levels uniform in `[offset − amplitude, offset + amplitude]` held for random times.
+    RandomSteps {
+        /// Half-width of the level range (parameter `amplitude`, ≥ 0).
+        amplitude: f64,
+        /// Centre of the level range (parameter `offset`).
+        offset: f64,
+        /// Shortest hold [s] (parameter `min_hold`, > 0).
+        min_hold: f64,
+        /// Longest hold [s] (parameter `max_hold`, ≥ `min_hold`).
+        max_hold: f64,
+    },
+    /// Pseudo-random binary sequence `offset ± amplitude`.
+    Prbs {
+        /// Register length n, 2 to 24 (parameter `order`).
+        order: u32,
+        /// Duration of one bit `T_b` [s] (parameter `bit_period`, > 0).
+        bit_period: f64,
+        /// Half the peak-to-peak swing (parameter `amplitude`).
+        amplitude: f64,
+        /// Mean level (parameter `offset`).
+        offset: f64,
+    },
+    /// `offset + amplitude · sin(2π f t + phase)`.
+    Sine {
+        /// Parameter `amplitude`.
+        amplitude: f64,
+        /// Parameter `offset`.
+        offset: f64,
+        /// Frequency f [Hz] (parameter `frequency`, ≥ 0).
+        frequency: f64,
+        /// Phase [rad] (parameter `phase`).
+        phase: f64,
+    },
+    /// `offset + amplitude · cos(2π f t + phase)`.
+    Cosine {
+        /// Parameter `amplitude`.
+        amplitude: f64,
+        /// Parameter `offset`.
+        offset: f64,
+        /// Frequency f [Hz] (parameter `frequency`, ≥ 0).
+        frequency: f64,
+        /// Phase [rad] (parameter `phase`).
+        phase: f64,
+    },
+}
+
+impl Waveform {
+    /// Checks every parameter, naming the first one that is not acceptable.
+    pub fn validate(&self) -> Result<(), ParameterError> {
+        match *self {
+            Waveform::Step {
+                amplitude,
+                offset,
+                step_time,
+            } => {
+                require_finite("amplitude", amplitude)?;
+                require_finite("offset", offset)?;
+                require_finite("step_time", step_time)?;
+            }
+            Waveform::RandomSteps {
+                amplitude,
+                offset,
+                min_hold,
+                max_hold,
+            } => {
+                require_non_negative("amplitude", amplitude)?;
+                require_finite("offset", offset)?;
+                require_positive("min_hold", min_hold)?;
+                require_positive("max_hold", max_hold)?;
+                if max_hold < min_hold {
+                    return Err(ParameterError::new(
+                        "max_hold",
+                        format!("must be >= min_hold = {min_hold}, got {max_hold}"),
+                    ));
+                }
+            }
+            Waveform::Prbs {
+                order,
+                bit_period,
+                amplitude,
+                offset,
+            } => {
+                if !(2..=24).contains(&order) {
+                    return Err(ParameterError::new(
+                        "order",
+                        format!("must be between 2 and 24, got {order}"),
+                    ));
+                }
+                require_positive("bit_period", bit_period)?;
+                require_finite("amplitude", amplitude)?;
+                require_finite("offset", offset)?;
+            }
+            Waveform::Sine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            }
+            | Waveform::Cosine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            } => {
+                require_finite("amplitude", amplitude)?;
+                require_finite("offset", offset)?;
+                require_non_negative("frequency", frequency)?;
+                require_finite("phase", phase)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Cursor of the random-steps stream: the current segment `[start, end)` and its level.
+#[derive(Debug, Clone, PartialEq)]
+struct RandomStepsCursor {
+    stream: RandomGenerator,
+    start: f64,
+    end: f64,
+    level: f64,
+}
+
+/// Cursor of the PRBS: the register after producing bit `index`, and that bit.
+#[derive(Debug, Clone, PartialEq)]
+struct PrbsCursor {
+    register: u32,
+    index: i64,
+    bit: bool,
+}
+
+/// A signal source: a [`Waveform`], its seed, and a cursor that makes forward sampling cheap.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SignalSource {
+    waveform: Waveform,
+    seed: u64,
+    random_steps: Option<RandomStepsCursor>,
+    prbs: Option<PrbsCursor>,
+}
+
+impl SignalSource {
+    /// A source after checking the waveform's parameters; `seed` matters only for the random
+    /// steps and the PRBS.
+    pub fn new(waveform: Waveform, seed: u64) -> Result<Self, ParameterError> {
+        waveform.validate()?;
+        let mut source = Self {
+            waveform,
+            seed,
+            random_steps: None,
+            prbs: None,
+        };
+        source.rewind();
+        Ok(source)
+    }
+
+    /// The waveform and its parameters.
+    pub fn waveform(&self) -> &Waveform {
+        &self.waveform
+    }
+
+    /// The seed.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Puts the cursor back at the start of the stream (what `value_at` does when time goes
+    /// back).
+    pub fn rewind(&mut self) {
+        match self.waveform {
+            Waveform::RandomSteps {
+                amplitude,
+                offset,
+                min_hold,
+                max_hold,
+            } => {
+                let mut stream = RandomGenerator::new(self.seed);
+                let level = stream.uniform_range(offset - amplitude, offset + amplitude);
+                let hold = stream.uniform_range(min_hold, max_hold);
+                self.random_steps = Some(RandomStepsCursor {
+                    stream,
+                    start: 0.0,
+                    end: hold,
+                    level,
+                });
+            }
+            Waveform::Prbs { order, .. } => {
+                let period = (1u64 << order) - 1;
+                let register = (1 + self.seed % period) as u32;
+                let mut cursor = PrbsCursor {
+                    register,
+                    index: -1,
+                    bit: false,
+                };
+                prbs_shift(&mut cursor, order);
+                self.prbs = Some(cursor);
+            }
+            _ => {}
+        }
+    }
+
+    /// The signal at time `t` [s] (module docs; a non-finite `t` gives NaN).
+    pub fn value_at(&mut self, t: f64) -> f64 {
+        if !t.is_finite() {
+            return f64::NAN;
+        }
+        match self.waveform {
+            Waveform::Step {
+                amplitude,
+                offset,
+                step_time,
+            } => {
+                let tolerance = BOUNDARY_TOLERANCE * step_time.abs().max(1.0);
+                if t >= step_time - tolerance {
+                    offset + amplitude
+                } else {
+                    offset
+                }
+            }
+            Waveform::RandomSteps {
+                amplitude,
+                offset,
+                min_hold,
+                max_hold,
+            } => {
+                let tolerance = BOUNDARY_TOLERANCE * max_hold;
+                let behind = match &self.random_steps {
+                    Some(c) => t < c.start - tolerance && c.start > 0.0,
+                    None => true,
+                };
+                if behind {
+                    self.rewind();
+                }
+                match self.random_steps.as_mut() {
+                    Some(c) => {
+                        while t >= c.end - tolerance {
+                            c.start = c.end;
+                            c.level = c
+                                .stream
+                                .uniform_range(offset - amplitude, offset + amplitude);
+                            c.end += c.stream.uniform_range(min_hold, max_hold);
+                        }
+                        c.level
+                    }
+                    None => f64::NAN,
+                }
+            }
+            Waveform::Prbs {
+                order,
+                bit_period,
+                amplitude,
+                offset,
+            } => {
+                let index = ((t / bit_period + BOUNDARY_TOLERANCE).floor() as i64).max(0);
+                let behind = match &self.prbs {
+                    Some(c) => index < c.index,
+                    None => true,
+                };
+                if behind {
+                    self.rewind();
+                }
+                match self.prbs.as_mut() {
+                    Some(c) => {
+                        while c.index < index {
+                            prbs_shift(c, order);
+                        }
+                        if c.bit {
+                            offset + amplitude
+                        } else {
+                            offset - amplitude
+                        }
+                    }
+                    None => f64::NAN,
+                }
+            }
+            Waveform::Sine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            } => offset + amplitude * (2.0 * PI * frequency * t + phase).sin(),
+            Waveform::Cosine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            } => offset + amplitude * (2.0 * PI * frequency * t + phase).cos(),
+        }
+    }
+}
+
+/// One shift of the LFSR (module docs): computes the feedback bit, shifts it in, outputs it.
+fn prbs_shift(cursor: &mut PrbsCursor, order: u32) {
+    let taps = PRBS_TAPS[(order - 2) as usize];
+    let mut bit = 0u32;
+    for &tap in taps {
+        bit ^= (cursor.register >> (tap - 1)) & 1;
+    }
+    let mask = (1u32 << order) - 1; // order ≤ 24 (validated)
+    cursor.register = ((cursor.register << 1) | bit) & mask;
+    cursor.bit = bit == 1;
+    cursor.index += 1;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_prbs_order_has_maximal_length() {
+        for order in 2..=24u32 {
+            let start = 1u32;
+            let mut c = PrbsCursor {
+                register: start,
+                index: 0,
+                bit: false,
+            };
+            let period = (1u64 << order) - 1;
+            let mut ones = 0u64;
+            for k in 1..=period {
+                prbs_shift(&mut c, order);
+                ones += c.bit as u64;
+                if k < period {
+                    assert_ne!(c.register, start, "order {order} repeats after {k}");
+                }
+            }
+            assert_eq!(c.register, start, "order {order}");
+            // A maximum-length sequence has 2^(n−1) ones and 2^(n−1) − 1 zeros per period.
+            assert_eq!(ones, 1u64 << (order - 1), "order {order}");
+        }
+    }
+
+    #[test]
+    fn prbs_levels_bits_and_replay() {
+        let w = Waveform::Prbs {
+            order: 7,
+            bit_period: 0.2,
+            amplitude: 1.5,
+            offset: 2.0,
+        };
+        let mut s = SignalSource::new(w, 11).unwrap();
+        let forward: Vec<f64> = (0..2000).map(|k| s.value_at(k as f64 * 0.05)).collect();
+        for v in &forward {
+            assert!(*v == 3.5 || *v == 0.5);
+        }
+        // Constant within a bit (4 samples of 0.05 s per 0.2 s bit).
+        for bit in forward.chunks(4) {
+            assert!(bit.iter().all(|v| *v == bit[0]));
+        }
+        // Periodic with 127 bits.
+        for k in 0..(2000 - 127 * 4) {
+            assert_eq!(forward[k], forward[k + 127 * 4]);
+        }
+        // Time going back replays the same values.
+        assert_eq!(s.value_at(0.35), forward[7]);
+        let mut fresh = SignalSource::new(w, 11).unwrap();
+        assert_eq!(fresh.value_at(60.0), s.value_at(60.0));
+        // Another seed shifts the phase.
+        let mut other = SignalSource::new(w, 12).unwrap();
+        let shifted: Vec<f64> = (0..2000).map(|k| other.value_at(k as f64 * 0.05)).collect();
+        assert_ne!(shifted, forward);
+    }
+
+    #[test]
+    fn random_steps_are_held_within_range_and_independent_of_sampling() {
+        let w = Waveform::RandomSteps {
+            amplitude: 2.0,
+            offset: 5.0,
+            min_hold: 1.0,
+            max_hold: 3.0,
+        };
+        let mut fine = SignalSource::new(w, 7).unwrap();
+        let mut coarse = SignalSource::new(w, 7).unwrap();
+        let mut changes = Vec::new();
+        let mut last = fine.value_at(0.0);
+        for k in 0..=100_000 {
+            let t = k as f64 * 1e-3;
+            let v = fine.value_at(t);
+            assert!((3.0..=7.0).contains(&v));
+            if v != last {
+                changes.push(t);
+                last = v;
+            }
+            if k % 100 == 0 {
+                assert_eq!(coarse.value_at(t), v);
+            }
+        }
+        let mut previous = 0.0;
+        for t in &changes {
+            let hold = t - previous;
+            assert!((1.0 - 2e-3..=3.0 + 2e-3).contains(&hold), "hold {hold}");
+            previous = *t;
+        }
+        assert!(changes.len() >= 33 && changes.len() <= 100);
+        // Back in time: the same value as the first pass.
+        let mut again = SignalSource::new(w, 7).unwrap();
+        let v50 = again.value_at(50.0);
+        assert_eq!(fine.value_at(50.0), v50);
+        let mut other_seed = SignalSource::new(w, 8).unwrap();
+        assert_ne!(other_seed.value_at(0.0), again.value_at(0.0));
+    }
+
+    #[test]
+    fn step_and_sinusoids() {
+        let mut step = SignalSource::new(
+            Waveform::Step {
+                amplitude: 2.0,
+                offset: -1.0,
+                step_time: 0.3,
+            },
+            0,
+        )
+        .unwrap();
+        assert_eq!(step.value_at(0.29), -1.0);
+        // 0.1 + 0.2 = 0.30000000000000004, 3 · 0.1 − 1e-16 is still at the step.
+        assert_eq!(step.value_at(0.3 - 1e-16), 1.0);
+        assert_eq!(step.value_at(0.1 + 0.2), 1.0);
+        let f = frequency_from_period(0.25).unwrap();
+        let mut sine = SignalSource::new(
+            Waveform::Sine {
+                amplitude: 2.0,
+                offset: 1.0,
+                frequency: f,
+                phase: 0.0,
+            },
+            0,
+        )
+        .unwrap();
+        let mut cosine = SignalSource::new(
+            Waveform::Cosine {
+                amplitude: 2.0,
+                offset: 1.0,
+                frequency: f,
+                phase: -PI / 2.0,
+            },
+            0,
+        )
+        .unwrap();
+        for k in 0..100 {
+            let t = k as f64 * 0.013;
+            let want = 1.0 + 2.0 * (2.0 * PI * 4.0 * t).sin();
+            assert!((sine.value_at(t) - want).abs() < 1e-12);
+            assert!((cosine.value_at(t) - want).abs() < 1e-12);
+        }
+        assert!((sine.value_at(0.0625) - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let err = |w: Waveform| SignalSource::new(w, 0).unwrap_err().parameter;
+        assert_eq!(
+            err(Waveform::Prbs {
+                order: 1,
+                bit_period: 1.0,
+                amplitude: 1.0,
+                offset: 0.0
+            }),
+            "order"
+        );
+        assert_eq!(
+            err(Waveform::Prbs {
+                order: 5,
+                bit_period: 0.0,
+                amplitude: 1.0,
+                offset: 0.0
+            }),
+            "bit_period"
+        );
+        assert_eq!(
+            err(Waveform::RandomSteps {
+                amplitude: 1.0,
+                offset: 0.0,
+                min_hold: -1.0,
+                max_hold: 1.0
+            }),
+            "min_hold"
+        );
+        assert_eq!(
+            err(Waveform::RandomSteps {
+                amplitude: 1.0,
+                offset: 0.0,
+                min_hold: 2.0,
+                max_hold: 1.0
+            }),
+            "max_hold"
+        );
+        assert_eq!(
+            err(Waveform::Sine {
+                amplitude: f64::NAN,
+                offset: 0.0,
+                frequency: 1.0,
+                phase: 0.0
+            }),
+            "amplitude"
+        );
+        assert_eq!(
+            err(Waveform::Cosine {
+                amplitude: 1.0,
+                offset: 0.0,
+                frequency: -1.0,
+                phase: 0.0
+            }),
+            "frequency"
+        );
+        assert_eq!(
+            err(Waveform::Step {
+                amplitude: 1.0,
+                offset: 0.0,
+                step_time: f64::INFINITY
+            }),
+            "step_time"
+        );
+        assert_eq!(frequency_from_period(0.0).unwrap_err().parameter, "period");
+    }
+}
