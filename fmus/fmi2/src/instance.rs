@@ -269,6 +269,8 @@ pub struct Core<M> {
     time: f64,
     state: ModelState,
     stop_time: Option<f64>,
+    /// Inputs were set since the outputs were last computed.
+    inputs_changed: bool,
 }
 
 const STATE_MAGIC: &str = "spurio-fmu-state/1";
@@ -294,6 +296,7 @@ impl<M: FmuModel> Instance<M> {
                 time: 0.0,
                 state: ModelState::Instantiated,
                 stop_time: None,
+                inputs_changed: false,
             },
         })
     }
@@ -457,6 +460,7 @@ impl<M: FmuModel> Instance<M> {
                     time: 0.0,
                     state: ModelState::Instantiated,
                     stop_time: None,
+                    inputs_changed: false,
                 };
                 Status::Ok
             }
@@ -485,6 +489,12 @@ impl<M: FmuModel> Instance<M> {
             if status > Status::Warning {
                 return status;
             }
+        } else if self.core.inputs_changed && self.core.state == ModelState::StepComplete {
+            status = self.run_model(f, |m, ctx| m.update_outputs(ctx));
+            if status > Status::Warning {
+                return status;
+            }
+            self.core.inputs_changed = false;
         }
         let all = self.core.values.all();
         for (i, vr) in vrs.iter().enumerate() {
@@ -520,6 +530,7 @@ impl<M: FmuModel> Instance<M> {
             return self.reject(f, "internal: value count differs from reference count");
         }
         let mut tunable_changed = false;
+        let mut inputs_changed = false;
         for (vr, value) in vrs.iter().zip(&values) {
             let index = match self.lookup(*vr, value.variable_type()) {
                 Ok(i) => i,
@@ -599,6 +610,7 @@ impl<M: FmuModel> Instance<M> {
         for (vr, value) in vrs.iter().zip(values) {
             self.core.values.set(*vr as usize, value);
         }
+        self.core.inputs_changed |= inputs_changed;
         if tunable_changed {
             return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
         }
@@ -635,6 +647,7 @@ impl<M: FmuModel> Instance<M> {
         let status = self.run_model(f, |m, ctx| m.do_step(ctx, current_time, step));
         if status <= Status::Warning {
             self.core.time = current_time + step;
+            self.core.inputs_changed = false;
         }
         status
     }
@@ -668,6 +681,7 @@ impl<M: FmuModel> Instance<M> {
         w.put_f64(core.time);
         w.put_bool(core.stop_time.is_some());
         w.put_f64(core.stop_time.unwrap_or(0.0));
+        w.put_bool(core.inputs_changed);
         let values = core.values.all();
         w.put_u64(values.len() as u64);
         for v in values {
@@ -701,6 +715,7 @@ impl<M: FmuModel> Instance<M> {
         let time = r.f64()?;
         let has_stop = r.bool()?;
         let stop = r.f64()?;
+        let inputs_changed = r.bool()?;
         let n = r.u64()?;
         if n != self.info.variables.len() as u64 {
             return Err(format!(
@@ -732,6 +747,7 @@ impl<M: FmuModel> Instance<M> {
             time,
             state,
             stop_time: has_stop.then_some(stop),
+            inputs_changed,
         }))
     }
 }

@@ -101,6 +101,16 @@ pub trait FmuModel: Clone + 'static {
     /// Advances from `time` to `time + step` with the current inputs, then writes the outputs.
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure>;
 
+    /// Recomputes the outputs that depend directly on the inputs (those declared with
+    /// `depends_on`), after inputs were set and before they are read, without advancing time
+    /// (FMI 2.0 CS direct feedthrough). Must not change the model's future: calling it any
+    /// number of times between two steps gives the same result. The default does nothing
+    /// (outputs keep their values from the last step).
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let _ = ctx;
+        Ok(())
+    }
+
     /// Called after tunable parameters were set between steps.
     fn parameters_changed(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let _ = ctx;
