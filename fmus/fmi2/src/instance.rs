@@ -606,6 +606,7 @@ impl<M: FmuModel> Instance<M> {
             }
             tunable_changed |=
                 state == ModelState::StepComplete && v.causality == Causality::Parameter;
+            inputs_changed |= v.causality == Causality::Input;
         }
         for (vr, value) in vrs.iter().zip(values) {
             self.core.values.set(*vr as usize, value);
