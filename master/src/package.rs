@@ -60,10 +60,14 @@ pub fn package_variant(
         &format!("binaries/linux64/{}.so", entry.model_identifier),
         &binary,
     )?;
+    let page = entry.documentation.replace("](img/", "](");
     add(
         "documentation/index.html",
-        documentation_html(&info.model_name, entry.documentation).as_bytes(),
+        documentation_html(&info.model_name, &page).as_bytes(),
     )?;
+    for (file_name, bytes) in entry.images {
+        add(&format!("documentation/{file_name}"), bytes)?;
+    }
     if !config.is_empty() {
         add(
             &format!("resources/{CONFIG_FILE}"),

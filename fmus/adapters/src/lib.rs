@@ -17,6 +17,9 @@ pub struct CatalogueEntry {
     pub model_identifier: &'static str,
     /// The FMU's documentation page (Markdown), packaged as `documentation/index.html`.
     pub documentation: &'static str,
+    /// Pictures the page shows, packaged beside it as `documentation/<file name>` (the page
+    /// refers to them as `img/<file name>`, relative to `docs/fmus/`).
+    pub images: &'static [(&'static str, &'static [u8])],
     /// Builds the interface for a configuration.
     pub describe: fn(&Config) -> Result<ModelInfo, String>,
     /// The variants committed under `modelDescription/` and bundled: (file stem, config).
@@ -31,6 +34,7 @@ fn fixed(
     CatalogueEntry {
         model_identifier,
         documentation,
+        images: &[],
         describe,
         variants: vec![(model_identifier.to_string(), Config::new())],
     }
