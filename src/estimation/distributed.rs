@@ -1,0 +1,7 @@
+//! placeholder
+pub struct DistributedObserver;
+pub struct DistributedObserverConfig;
+pub enum ObserverDesign {
+    LqDesign,
+    LocalKalman,
+}
