@@ -487,4 +487,27 @@ mod tests {
             .unwrap_err();
         assert!(matches!(e, EstimationError::NonFinite { .. }), "{e}");
     }
+
+    #[test]
+    fn overflowing_covariance_is_an_error_not_nan() {
+        let mut filter = KalmanFilter::new(
+            scalar(1e200),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            scalar(1.0),
+            DVector::zeros(1),
+            scalar(1e200),
+        )
+        .unwrap();
+        let e = filter
+            .step(&DVector::zeros(0), &DVector::from_element(1, 1.0))
+            .unwrap_err();
+        println!("{e}");
+        assert!(
+            matches!(e, EstimationError::NonFinite { step: 1, .. }),
+            "{e}"
+        );
+    }
 }
