@@ -1,1 +1,279 @@
-//! (filled in by its owner)
+//! State and parameter estimators of spurio (SPEC §2 items 7–12).
+//!
+//! | type | what | paper |
+//! |---|---|---|
+//! | [`KalmanFilter`] | standard Kalman filter (sKF) | 000 §IV, 001 §2 |
+//! | [`RobustKalmanFilter`] | robust-statistics Kalman filter (rsKF, Cipra & Romera 1997) | 000 §V, 001 §2 |
+//! | [`DualKalmanFilter`] | dual Kalman filter: states + Θ = [A B; C D] (DKF) | 000 §VI, 001 §2 (Haykin ch. 5) |
+//! | [`DkfRsKf`] | rsKF cleaning the outputs feeding a DKF | 001 §3, Fig. 2 |
+//! | [`RecursiveLeastSquares`] | ARX(na, nb) RLS with forgetting, continuous readout | 002 §3 |
+//! | [`DistributedObserver`] | one agent of the two-agent LQ-designed observer | 004 §3–4 |
+//!
+//! All matrices are dynamic (`DMatrix<f64>`): the dimensions are chosen by the user when an
+//! FMU is packaged. Every constructor validates its inputs and returns an
+//! [`EstimationError`] naming the matrix and the reason; every step method returns an error
+//! (never NaN) when a factorisation fails or a result is not finite. Covariances are updated
+//! in Joseph form and symmetrised, gains come from Cholesky solves, no inverse is formed. The
+//! step methods work in buffers allocated by the constructors.
+//!
+//! Time convention shared by the Kalman-type filters: the model is
+//! x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k. A call `step(u_k, y_k)` predicts
+//! from the previous estimate x̂_{k−1|k−1} with the previous input u_{k−1} (zero before the
+//! first call), then corrects with y_k. The initial x̂₀, P₀ given to a constructor are the
+//! estimate one sample before the first call.
+
+mod distributed;
+mod dual;
+mod kalman;
+mod rls;
+mod robust;
+
+pub use distributed::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
+pub use dual::{DkfRsKf, DualKalmanConfig, DualKalmanFilter};
+pub use kalman::KalmanFilter;
+pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};
+pub use robust::{InfluenceFunction, RobustKalmanFilter};
+
+use crate::ParameterError;
+use nalgebra::{Cholesky, DMatrix, DVector, SymmetricEigen};
+use std::fmt;
+
+/// What can go wrong when building or stepping an estimator.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EstimationError {
+    /// A constructor argument is not acceptable (names the parameter and says why).
+    Parameter(ParameterError),
+    /// A step was given a vector of the wrong length.
+    Dimension {
+        /// Which input ("u", "y", "x_neighbour", ...).
+        what: &'static str,
+        /// The length the estimator was built for.
+        expected: usize,
+        /// The length it got.
+        got: usize,
+    },
+    /// A matrix that must be symmetric positive definite was not, during a step.
+    Factorisation {
+        /// Which matrix (for example "innovation covariance C P⁻ Cᵀ + R").
+        what: &'static str,
+        /// The number of the step that failed (1 for the first call).
+        step: u64,
+    },
+    /// A step produced (or was given) a value that is not finite.
+    NonFinite {
+        /// Which quantity.
+        what: &'static str,
+        /// The number of the step (1 for the first call).
+        step: u64,
+    },
+    /// The design (gain computation) at construction is impossible, and why.
+    Design {
+        /// What was being designed.
+        what: &'static str,
+        /// Why it failed.
+        reason: String,
+    },
+}
+
+impl fmt::Display for EstimationError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Parameter(error) => write!(f, "{error}"),
+            Self::Dimension {
+                what,
+                expected,
+                got,
+            } => write!(
+                f,
+                "input `{what}` has length {got}, the estimator was built for length {expected}"
+            ),
+            Self::Factorisation { what, step } => write!(
+                f,
+                "step {step}: the {what} is not symmetric positive definite (Cholesky failed)"
+            ),
+            Self::NonFinite { what, step } => {
+                write!(f, "step {step}: the {what} is not finite (NaN or infinity)")
+            }
+            Self::Design { what, reason } => write!(f, "cannot design the {what}: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for EstimationError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Parameter(error) => Some(error),
+            _ => None,
+        }
+    }
+}
+
+impl From<ParameterError> for EstimationError {
+    fn from(error: ParameterError) -> Self {
+        Self::Parameter(error)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Validation helpers shared by the constructors.
+// ---------------------------------------------------------------------------------------
+
+fn parameter_error(parameter: &str, reason: impl Into<String>) -> EstimationError {
+    EstimationError::Parameter(ParameterError::new(parameter, reason))
+}
+
+/// Relative tolerance for "symmetric" and "positive semidefinite" checks on user matrices.
+const SYMMETRY_TOLERANCE: f64 = 1e-9;
+
+pub(crate) fn require_finite_matrix(name: &str, m: &DMatrix<f64>) -> Result<(), EstimationError> {
+    if let Some(position) = m.iter().position(|v| !v.is_finite()) {
+        let (row, col) = (position % m.nrows().max(1), position / m.nrows().max(1));
+        return Err(parameter_error(
+            name,
+            format!("entry ({row}, {col}) is not finite ({})", m[(row, col)]),
+        ));
+    }
+    Ok(())
+}
+
+pub(crate) fn require_finite_vector(name: &str, v: &DVector<f64>) -> Result<(), EstimationError> {
+    if let Some(index) = v.iter().position(|v| !v.is_finite()) {
+        return Err(parameter_error(
+            name,
+            format!("entry {index} is not finite ({})", v[index]),
+        ));
+    }
+    Ok(())
+}
+
+pub(crate) fn require_shape(
+    name: &str,
+    m: &DMatrix<f64>,
+    rows: usize,
+    cols: usize,
+    why: &str,
+) -> Result<(), EstimationError> {
+    if m.nrows() != rows || m.ncols() != cols {
+        return Err(parameter_error(
+            name,
+            format!(
+                "must be {rows}×{cols} ({why}), got {}×{}",
+                m.nrows(),
+                m.ncols()
+            ),
+        ));
+    }
+    require_finite_matrix(name, m)
+}
+
+pub(crate) fn require_length(
+    name: &str,
+    v: &DVector<f64>,
+    len: usize,
+    why: &str,
+) -> Result<(), EstimationError> {
+    if v.len() != len {
+        return Err(parameter_error(
+            name,
+            format!("must have length {len} ({why}), got {}", v.len()),
+        ));
+    }
+    require_finite_vector(name, v)
+}
+
+fn require_symmetric(name: &str, m: &DMatrix<f64>) -> Result<(), EstimationError> {
+    let scale = m.amax().max(1.0);
+    for i in 0..m.nrows() {
+        for j in 0..i {
+            if (m[(i, j)] - m[(j, i)]).abs() > SYMMETRY_TOLERANCE * scale {
+                return Err(parameter_error(
+                    name,
+                    format!(
+                        "must be symmetric, but entry ({i}, {j}) = {} differs from ({j}, {i}) = {}",
+                        m[(i, j)],
+                        m[(j, i)]
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that `m` is a finite, symmetric, positive definite `dim`×`dim` matrix.
+pub(crate) fn require_spd(name: &str, m: &DMatrix<f64>, dim: usize) -> Result<(), EstimationError> {
+    require_shape(name, m, dim, dim, "a covariance")?;
+    require_symmetric(name, m)?;
+    if dim > 0 && Cholesky::new(m.clone()).is_none() {
+        return Err(parameter_error(
+            name,
+            "must be positive definite (its Cholesky factorisation failed)",
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that `m` is a finite, symmetric, positive semidefinite `dim`×`dim` matrix.
+pub(crate) fn require_psd(name: &str, m: &DMatrix<f64>, dim: usize) -> Result<(), EstimationError> {
+    require_shape(name, m, dim, dim, "a covariance")?;
+    require_symmetric(name, m)?;
+    if dim == 0 {
+        return Ok(());
+    }
+    let eigen = SymmetricEigen::new(m.clone());
+    let smallest = eigen.eigenvalues.min();
+    if smallest < -SYMMETRY_TOLERANCE * m.amax().max(1.0) {
+        return Err(parameter_error(
+            name,
+            format!("must be positive semidefinite, but has eigenvalue {smallest}"),
+        ));
+    }
+    Ok(())
+}
+
+pub(crate) fn require_input_length(
+    what: &'static str,
+    v: &DVector<f64>,
+    expected: usize,
+) -> Result<(), EstimationError> {
+    if v.len() != expected {
+        return Err(EstimationError::Dimension {
+            what,
+            expected,
+            got: v.len(),
+        });
+    }
+    Ok(())
+}
+
+/// Solves `s · X = rhs` in place (`rhs` becomes X) with a Cholesky factorisation of the
+/// symmetric matrix in `s`, which is overwritten by its lower factor. No allocation unless
+/// the factorisation fails.
+pub(crate) fn cholesky_solve_in_place(
+    s: &mut DMatrix<f64>,
+    rhs: &mut DMatrix<f64>,
+    what: &'static str,
+    step: u64,
+) -> Result<(), EstimationError> {
+    let dim = s.nrows();
+    if s.iter().any(|v| !v.is_finite()) {
+        return Err(EstimationError::NonFinite { what, step });
+    }
+    let matrix = std::mem::replace(s, DMatrix::zeros(0, 0));
+    match Cholesky::new(matrix) {
+        Some(factor) => {
+            factor.solve_mut(rhs);
+            *s = factor.unpack_dirty();
+            Ok(())
+        }
+        None => {
+            *s = DMatrix::zeros(dim, dim);
+            Err(EstimationError::Factorisation { what, step })
+        }
+    }
+}
+
+/// Replaces `m` by (m + mᵀ)/2 in place.
+pub(crate) fn symmetrize_in_place(m: &mut DMatrix<f64>) {
+    crate::linalg::symmetrize(m);
+}

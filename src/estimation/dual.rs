@@ -1,0 +1,623 @@
+//! Dual Kalman filter (DKF), SPEC §2 items 9–10; papers 000 §VI (eqs 25–28) and 001 §2,
+//! after Haykin, *Kalman Filtering and Neural Networks*, ch. 5.
+//!
+//! Two Kalman filters run in sequence each sample: a **state filter** that uses the current
+//! model estimate, and a **parameter filter** on Θ = [A B; C D] ((n+p)×(n+m)) with the
+//! random-walk model
+//!
+//! ```text
+//! Θ_k = Θ_{k−1} + r_k,   r ~ N(0, Q_θ) (Q_θ diagonal: one variance per entry of Θ)
+//! Y_k = Θ_k Φ_k + V_k,   V ~ N(0, R_θ) (R_θ diagonal, default 0.5 I)
+//! Y_k = [x_{k+1}; y_k],  Φ_k = [x_k; u_k]
+//! ```
+//!
+//! Exact sequence of one call `step(u_k, y_k)` (x̂ are the state filter's estimates):
+//!
+//! 1. State filter with the model Θ̂_{k−1}: x⁻ = Â x̂_{k−1} + B̂ u_{k−1}, P⁻ = Â P Âᵀ + Q,
+//!    correction with y_k through Ĉ, D̂ (as [`KalmanFilter`](super::KalmanFilter)) → x̂_k.
+//!    Outputs: ŷ_k = Ĉ x̂_k + D̂ u_k (filtered) and the one-step prediction Ĉ x⁻ + D̂ u_k.
+//! 2. Parameter filter on the *previous* sample, the first one for which x_{k+1} is known:
+//!    Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}] (x_{k+1} ↦ x̂_k, y_k ↦ y_{k−1}). Skipped
+//!    on the first call. For every row θᵢ of Θ (a scalar measurement Yᵢ = θᵢᵀΦ + Vᵢ):
+//!    Σ⁻ = Σ + diag(Q_θ,i), s = Σ⁻Φ, d = Φᵀs + R_θ,i, g = s/d,
+//!    θᵢ ← θᵢ + g (Yᵢ − θᵢᵀΦ), Σ = Σ⁻ − g sᵀ − s gᵀ + d g gᵀ (the Joseph form for a scalar
+//!    measurement, = Σ⁻ − s sᵀ/d), symmetrised.
+//!
+//! Every row shares the regressor Φ and, with R_θ diagonal, the rows are independent: the
+//! (rows·cols)² covariance is block diagonal, and rows with the same Q_θ row, Σ₀ row and R_θ
+//! entry have the *same* (n+m)×(n+m) block. Rows are grouped at construction and each group
+//! keeps one Σ, so a step costs O(groups·(n+m)² + rows·(n+m)).
+//!
+//! Identifiability: (A, B, C, D) from output data alone is defined only up to a similarity
+//! transform x ↦ T x. Fix C and D (zero Q_θ and Σ₀ on their rows, see
+//! [`DualKalmanConfig::fix_output_matrices`]) or measure the states (C = I) so the truth is
+//! unique; paper 000's crane measures x and θ.
+//!
+//! [`DkfRsKf`] is the papers' combination (001 Fig. 2): an rsKF cleans the measured outputs
+//! and the DKF identifies from the cleaned outputs and the inputs.
+
+use super::kalman::FilterCore;
+use super::robust::RobustKalmanFilter;
+use super::{
+    parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
+    require_shape, require_spd, symmetrize_in_place, EstimationError,
+};
+use nalgebra::{DMatrix, DVector};
+
+/// Everything a [`DualKalmanFilter`] needs. Build it with [`DualKalmanConfig::new`] (which
+/// sets the paper's defaults for the parameter filter) and adjust the public fields.
+#[derive(Debug, Clone)]
+pub struct DualKalmanConfig {
+    /// Initial Â (n×n).
+    pub a0: DMatrix<f64>,
+    /// Initial B̂ (n×m).
+    pub b0: DMatrix<f64>,
+    /// Initial Ĉ (p×n).
+    pub c0: DMatrix<f64>,
+    /// Initial D̂ (p×m).
+    pub d0: DMatrix<f64>,
+    /// State-filter process noise covariance Q (n×n, symmetric PSD).
+    pub q: DMatrix<f64>,
+    /// State-filter measurement noise covariance R (p×p, SPD).
+    pub r: DMatrix<f64>,
+    /// Initial state estimate (n).
+    pub x0: DVector<f64>,
+    /// Initial state covariance (n×n, symmetric PSD).
+    pub p0: DMatrix<f64>,
+    /// Q_θ: random-walk variance of every entry of Θ ((n+p)×(n+m), ≥ 0). Default 1e-6.
+    pub parameter_q: DMatrix<f64>,
+    /// Σ₀: initial variance of every entry of Θ ((n+p)×(n+m), ≥ 0). Default 1.
+    /// A row with zero Q_θ and zero Σ₀ is known and never changes.
+    pub parameter_p0: DMatrix<f64>,
+    /// R_θ: measurement variance of every row of Y ((n+p), > 0). Default 0.5 (papers).
+    pub parameter_r: DVector<f64>,
+}
+
+impl DualKalmanConfig {
+    /// A configuration with the papers' parameter-filter defaults: Q_θ = 1e-6, Σ₀ = 1,
+    /// R_θ = 0.5 for every entry / row.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        a0: DMatrix<f64>,
+        b0: DMatrix<f64>,
+        c0: DMatrix<f64>,
+        d0: DMatrix<f64>,
+        q: DMatrix<f64>,
+        r: DMatrix<f64>,
+        x0: DVector<f64>,
+        p0: DMatrix<f64>,
+    ) -> Self {
+        let rows = a0.nrows() + c0.nrows();
+        let cols = a0.ncols() + b0.ncols();
+        Self {
+            a0,
+            b0,
+            c0,
+            d0,
+            q,
+            r,
+            x0,
+            p0,
+            parameter_q: DMatrix::from_element(rows, cols, 1e-6),
+            parameter_p0: DMatrix::from_element(rows, cols, 1.0),
+            parameter_r: DVector::from_element(rows, 0.5),
+        }
+    }
+
+    /// Marks C and D as known: zero Q_θ and Σ₀ on their rows, so Ĉ = C₀ and D̂ = D₀ forever.
+    pub fn fix_output_matrices(mut self) -> Self {
+        let n = self.a0.nrows();
+        let rows = self.parameter_q.nrows();
+        if rows > n {
+            self.parameter_q.rows_mut(n, rows - n).fill(0.0);
+            self.parameter_p0.rows_mut(n, rows - n).fill(0.0);
+        }
+        self
+    }
+}
+
+/// Rows of Θ that share one parameter covariance.
+#[derive(Debug, Clone)]
+struct ParameterGroup {
+    rows: Vec<usize>,
+    q_diag: DVector<f64>,
+    r: f64,
+    sigma: DMatrix<f64>,
+}
+
+/// Dual Kalman filter: states and Θ = [A B; C D]. See the module documentation.
+#[derive(Debug, Clone)]
+pub struct DualKalmanFilter {
+    n: usize,
+    m: usize,
+    p: usize,
+    theta: DMatrix<f64>,
+    q: DMatrix<f64>,
+    r: DMatrix<f64>,
+    core: FilterCore,
+    a_t: DMatrix<f64>,
+    c_t: DMatrix<f64>,
+    groups: Vec<ParameterGroup>,
+    predicted_output: DVector<f64>,
+    y_prev: DVector<f64>,
+    regressor: DVector<f64>,
+    target: DVector<f64>,
+    work_s: DVector<f64>,
+    work_g: DVector<f64>,
+}
+
+impl DualKalmanFilter {
+    /// Validates the configuration (parameter names "A0", "B0", "C0", "D0", "Q", "R", "x0",
+    /// "P0", "Q_theta", "P0_theta", "R_theta") and builds the filter.
+    pub fn new(config: DualKalmanConfig) -> Result<Self, EstimationError> {
+        let DualKalmanConfig {
+            a0,
+            b0,
+            c0,
+            d0,
+            q,
+            r,
+            x0,
+            p0,
+            parameter_q,
+            parameter_p0,
+            parameter_r,
+        } = config;
+        let n = a0.nrows();
+        if n == 0 {
+            return Err(parameter_error("A0", "must have at least one state"));
+        }
+        require_shape("A0", &a0, n, n, "square: n×n")?;
+        let m = b0.ncols();
+        require_shape("B0", &b0, n, m, "n rows, like A0")?;
+        let p = c0.nrows();
+        require_shape("C0", &c0, p, n, "n columns, like A0")?;
+        require_shape("D0", &d0, p, m, "rows of C0 × columns of B0")?;
+        require_psd("Q", &q, n)?;
+        require_spd("R", &r, p)?;
+        require_length("x0", &x0, n, "one entry per state")?;
+        require_psd("P0", &p0, n)?;
+        let rows = n + p;
+        let cols = n + m;
+        let theta_shape = "the shape of Θ = [A B; C D]: (n+p)×(n+m)";
+        require_shape("Q_theta", &parameter_q, rows, cols, theta_shape)?;
+        require_shape("P0_theta", &parameter_p0, rows, cols, theta_shape)?;
+        require_length("R_theta", &parameter_r, rows, "one entry per row of Θ")?;
+        if let Some(v) = parameter_q.iter().find(|v| **v < 0.0) {
+            return Err(parameter_error(
+                "Q_theta",
+                format!("variances must be >= 0, got {v}"),
+            ));
+        }
+        if let Some(v) = parameter_p0.iter().find(|v| **v < 0.0) {
+            return Err(parameter_error(
+                "P0_theta",
+                format!("variances must be >= 0, got {v}"),
+            ));
+        }
+        if let Some(v) = parameter_r.iter().find(|v| **v <= 0.0) {
+            return Err(parameter_error(
+                "R_theta",
+                format!("variances must be > 0, got {v}"),
+            ));
+        }
+
+        let mut theta = DMatrix::zeros(rows, cols);
+        theta.view_mut((0, 0), (n, n)).copy_from(&a0);
+        theta.view_mut((0, n), (n, m)).copy_from(&b0);
+        theta.view_mut((n, 0), (p, n)).copy_from(&c0);
+        theta.view_mut((n, n), (p, m)).copy_from(&d0);
+        require_finite_matrix("Theta0", &theta)?;
+
+        let mut groups: Vec<ParameterGroup> = Vec::new();
+        for row in 0..rows {
+            let q_row = parameter_q.row(row).transpose();
+            let p0_row = parameter_p0.row(row).transpose();
+            let sigma0 = DMatrix::from_diagonal(&p0_row);
+            let r_row = parameter_r[row];
+            match groups
+                .iter_mut()
+                .find(|g| g.q_diag == q_row && g.sigma == sigma0 && g.r == r_row)
+            {
+                Some(group) => group.rows.push(row),
+                None => groups.push(ParameterGroup {
+                    rows: vec![row],
+                    q_diag: q_row,
+                    r: r_row,
+                    sigma: sigma0,
+                }),
+            }
+        }
+
+        Ok(Self {
+            n,
+            m,
+            p,
+            a_t: a0.transpose(),
+            c_t: c0.transpose(),
+            theta,
+            q,
+            r,
+            core: FilterCore::new(x0, p0, m, p),
+            groups,
+            predicted_output: DVector::zeros(p),
+            y_prev: DVector::zeros(p),
+            regressor: DVector::zeros(cols),
+            target: DVector::zeros(rows),
+            work_s: DVector::zeros(cols),
+            work_g: DVector::zeros(cols),
+        })
+    }
+
+    /// Processes one sample (see the module documentation for the exact sequence).
+    pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
+        require_input_length("u", u, self.m)?;
+        require_input_length("y", y, self.p)?;
+        let (n, m, p) = (self.n, self.m, self.p);
+        // Φ = [x̂_{k−1}; u_{k−1}] before the state filter overwrites them.
+        self.regressor.rows_mut(0, n).copy_from(&self.core.x);
+        self.regressor.rows_mut(n, m).copy_from(&self.core.u_prev);
+
+        // 1. State filter with Θ̂_{k−1}.
+        {
+            let a = self.theta.view((0, 0), (n, n));
+            let b = self.theta.view((0, n), (n, m));
+            let c = self.theta.view((n, 0), (p, n));
+            let d = self.theta.view((n, n), (p, m));
+            self.a_t.tr_copy_from(&a);
+            self.c_t.tr_copy_from(&c);
+            self.core.predict(&a, &self.a_t, &b, &self.q);
+            self.core.compute_innovation(&c, &d, u, y)?;
+            self.predicted_output.copy_from(y);
+            self.predicted_output -= &self.core.innovation;
+            self.core.correct(&c, &self.c_t, &self.r)?;
+            self.core.finish(&c, &d, u);
+        }
+
+        // 2. Parameter filter on (Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}]).
+        if self.core.steps > 1 {
+            self.target.rows_mut(0, n).copy_from(&self.core.x);
+            self.target.rows_mut(n, p).copy_from(&self.y_prev);
+            self.update_parameters()?;
+        }
+        self.y_prev.copy_from(y);
+        Ok(())
+    }
+
+    fn update_parameters(&mut self) -> Result<(), EstimationError> {
+        let phi = &self.regressor;
+        for group in &mut self.groups {
+            for (i, q) in group.q_diag.iter().enumerate() {
+                group.sigma[(i, i)] += q;
+            }
+            self.work_s.gemv(1.0, &group.sigma, phi, 0.0);
+            let denominator = phi.dot(&self.work_s) + group.r;
+            if !(denominator.is_finite() && denominator > 0.0) {
+                return Err(EstimationError::NonFinite {
+                    what: "parameter-filter innovation variance Φᵀ Σ⁻ Φ + R_θ",
+                    step: self.core.steps,
+                });
+            }
+            self.work_g.copy_from(&self.work_s);
+            self.work_g /= denominator;
+            let cols = phi.len();
+            for &row in &group.rows {
+                let prediction: f64 = (0..cols).map(|j| self.theta[(row, j)] * phi[j]).sum();
+                let error = self.target[row] - prediction;
+                for j in 0..cols {
+                    self.theta[(row, j)] += self.work_g[j] * error;
+                }
+            }
+            group.sigma.ger(-1.0, &self.work_g, &self.work_s, 1.0);
+            group.sigma.ger(-1.0, &self.work_s, &self.work_g, 1.0);
+            group
+                .sigma
+                .ger(denominator, &self.work_g, &self.work_g, 1.0);
+            symmetrize_in_place(&mut group.sigma);
+        }
+        if self.theta.iter().any(|v| !v.is_finite()) {
+            return Err(EstimationError::NonFinite {
+                what: "parameter estimate Θ",
+                step: self.core.steps,
+            });
+        }
+        Ok(())
+    }
+
+    /// Filtered state x̂_{k|k}.
+    pub fn state(&self) -> &DVector<f64> {
+        &self.core.x
+    }
+    /// Covariance of the filtered state.
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.core.p
+    }
+    /// Filtered output ŷ_k = Ĉ x̂_{k|k} + D̂ u_k (model of the start of the step).
+    pub fn output(&self) -> &DVector<f64> {
+        &self.core.output
+    }
+    /// One-step-ahead predicted output Ĉ x⁻ + D̂ u_k (before y_k was used).
+    pub fn predicted_output(&self) -> &DVector<f64> {
+        &self.predicted_output
+    }
+    /// State-filter innovation y_k − Ĉ x⁻ − D̂ u_k.
+    pub fn innovation(&self) -> &DVector<f64> {
+        &self.core.innovation
+    }
+    /// Θ̂ = [Â B̂; Ĉ D̂], (n+p)×(n+m).
+    pub fn theta(&self) -> &DMatrix<f64> {
+        &self.theta
+    }
+    /// Â (n×n).
+    pub fn a(&self) -> DMatrix<f64> {
+        self.theta.view((0, 0), (self.n, self.n)).into_owned()
+    }
+    /// B̂ (n×m).
+    pub fn b(&self) -> DMatrix<f64> {
+        self.theta.view((0, self.n), (self.n, self.m)).into_owned()
+    }
+    /// Ĉ (p×n).
+    pub fn c(&self) -> DMatrix<f64> {
+        self.theta.view((self.n, 0), (self.p, self.n)).into_owned()
+    }
+    /// D̂ (p×m).
+    pub fn d(&self) -> DMatrix<f64> {
+        self.theta
+            .view((self.n, self.n), (self.p, self.m))
+            .into_owned()
+    }
+    /// Number of distinct parameter covariances kept (rows of Θ sharing Q_θ, Σ₀, R_θ share one).
+    pub fn parameter_covariance_count(&self) -> usize {
+        self.groups.len()
+    }
+    /// Parameter covariance Σ of row `row` of Θ ((n+m)×(n+m)), if the row exists.
+    pub fn parameter_covariance(&self, row: usize) -> Option<&DMatrix<f64>> {
+        self.groups
+            .iter()
+            .find(|g| g.rows.contains(&row))
+            .map(|g| &g.sigma)
+    }
+    /// Number of steps processed.
+    pub fn steps(&self) -> u64 {
+        self.core.steps
+    }
+    /// Number of states n.
+    pub fn states(&self) -> usize {
+        self.n
+    }
+    /// Number of inputs m.
+    pub fn inputs(&self) -> usize {
+        self.m
+    }
+    /// Number of outputs p.
+    pub fn outputs(&self) -> usize {
+        self.p
+    }
+}
+
+/// DKF-rsKF (paper 001, Fig. 2): the rsKF cleans the measured outputs, the DKF identifies
+/// from the cleaned outputs ŷ_rsKF = C x̂ + D u of the cleaner and the inputs.
+#[derive(Debug, Clone)]
+pub struct DkfRsKf {
+    cleaner: RobustKalmanFilter,
+    dual: DualKalmanFilter,
+    no_input: DVector<f64>,
+}
+
+impl DkfRsKf {
+    /// Composes a cleaner and a DKF. The cleaner must have as many outputs as the DKF and
+    /// either no input (e.g. [`RobustKalmanFilter::random_walk`]) or the DKF's inputs.
+    pub fn new(
+        cleaner: RobustKalmanFilter,
+        dual: DualKalmanFilter,
+    ) -> Result<Self, EstimationError> {
+        if cleaner.outputs() != dual.outputs() {
+            return Err(parameter_error(
+                "cleaner",
+                format!(
+                    "the rsKF has {} outputs but the DKF has {}",
+                    cleaner.outputs(),
+                    dual.outputs()
+                ),
+            ));
+        }
+        if cleaner.inputs() != 0 && cleaner.inputs() != dual.inputs() {
+            return Err(parameter_error(
+                "cleaner",
+                format!(
+                    "the rsKF has {} inputs: it must have none or the DKF's {}",
+                    cleaner.inputs(),
+                    dual.inputs()
+                ),
+            ));
+        }
+        Ok(Self {
+            cleaner,
+            dual,
+            no_input: DVector::zeros(0),
+        })
+    }
+
+    /// One sample: rsKF on (u, y), then the DKF on (u, cleaned y).
+    pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
+        require_input_length("u", u, self.dual.inputs())?;
+        let cleaner_input = if self.cleaner.inputs() == 0 {
+            &self.no_input
+        } else {
+            u
+        };
+        self.cleaner.step(cleaner_input, y)?;
+        self.dual.step(u, self.cleaner.output())
+    }
+
+    /// The cleaned outputs of the last step.
+    pub fn cleaned_output(&self) -> &DVector<f64> {
+        self.cleaner.output()
+    }
+    /// The rsKF.
+    pub fn cleaner(&self) -> &RobustKalmanFilter {
+        &self.cleaner
+    }
+    /// The DKF (states, outputs, Â, B̂, Ĉ, D̂).
+    pub fn dual(&self) -> &DualKalmanFilter {
+        &self.dual
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::robust::test_rng::TestRng;
+    use super::super::InfluenceFunction;
+    use super::*;
+
+    struct Truth {
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+    }
+
+    fn truth() -> Truth {
+        Truth {
+            a: DMatrix::from_row_slice(2, 2, &[0.9, 0.2, -0.1, 0.8]),
+            b: DMatrix::from_row_slice(2, 1, &[0.5, 1.0]),
+        }
+    }
+
+    /// Simulates the 2-state system with C = I: returns (u, clean y, measured y).
+    fn simulate(
+        seed: u64,
+        samples: usize,
+        process_std: f64,
+        noise_std: f64,
+        outlier_fraction: f64,
+    ) -> Vec<(DVector<f64>, DVector<f64>, DVector<f64>)> {
+        let t = truth();
+        let mut rng = TestRng::new(seed);
+        let mut x = DVector::zeros(2);
+        let mut u_held = 0.0;
+        let mut data = Vec::with_capacity(samples);
+        for k in 0..samples {
+            if k % 5 == 0 {
+                u_held = rng.normal();
+            }
+            let u = DVector::from_element(1, u_held);
+            let clean = x.clone();
+            let mut measured = &clean
+                + DVector::from_vec(vec![noise_std * rng.normal(), noise_std * rng.normal()]);
+            for j in 0..2 {
+                if rng.uniform() < outlier_fraction {
+                    measured[j] += if rng.uniform() < 0.5 { -5.0 } else { 5.0 };
+                }
+            }
+            data.push((u.clone(), clean, measured));
+            x = &t.a * &x
+                + &t.b * &u
+                + DVector::from_vec(vec![process_std * rng.normal(), process_std * rng.normal()]);
+        }
+        data
+    }
+
+    fn config(noise_var: f64) -> DualKalmanConfig {
+        let mut config = DualKalmanConfig::new(
+            DMatrix::identity(2, 2) * 0.5,
+            DMatrix::zeros(2, 1),
+            DMatrix::identity(2, 2),
+            DMatrix::zeros(2, 1),
+            DMatrix::identity(2, 2) * 1e-4,
+            DMatrix::identity(2, 2) * noise_var,
+            DVector::zeros(2),
+            DMatrix::identity(2, 2),
+        )
+        .fix_output_matrices();
+        config.parameter_q.fill(0.0);
+        config.parameter_q.rows_mut(2, 2).fill(0.0);
+        config
+    }
+
+    #[test]
+    fn shares_one_parameter_covariance_per_row_group() {
+        let dkf = DualKalmanFilter::new(config(1e-4)).unwrap();
+        // A/B rows share one Σ, the fixed C/D rows another.
+        assert_eq!(dkf.parameter_covariance_count(), 2);
+        assert_eq!(dkf.parameter_covariance(3).unwrap(), &DMatrix::zeros(3, 3));
+    }
+
+    #[test]
+    fn recovers_a_known_two_state_system() {
+        let t = truth();
+        let data = simulate(11, 3000, 0.01, 0.01, 0.0);
+        let mut dkf = DualKalmanFilter::new(config(1e-4)).unwrap();
+        for (u, _, y) in &data {
+            dkf.step(u, y).unwrap();
+        }
+        let a_error = (dkf.a() - &t.a).amax();
+        let b_error = (dkf.b() - &t.b).amax();
+        println!(
+            "Â = {}B̂ = {}|ΔA| = {a_error:.2e}, |ΔB| = {b_error:.2e}",
+            dkf.a(),
+            dkf.b()
+        );
+        assert!(a_error < 0.02, "Â = {}", dkf.a());
+        assert!(b_error < 0.02, "B̂ = {}", dkf.b());
+        assert_eq!(dkf.c(), DMatrix::identity(2, 2));
+        assert_eq!(dkf.d(), DMatrix::zeros(2, 1));
+    }
+
+    #[test]
+    fn rskf_cleaning_protects_identification_from_outliers() {
+        let t = truth();
+        let data = simulate(13, 3000, 0.01, 0.05, 0.05);
+        // The state filter must trust the measurements more than the (still wrong) model:
+        // Q = 1e-2 (model uncertainty) against R = 2.5e-3.
+        let tuned = || {
+            let mut cfg = config(0.0025);
+            cfg.q = DMatrix::identity(2, 2) * 1e-2;
+            DualKalmanFilter::new(cfg).unwrap()
+        };
+        let mut plain = tuned();
+        // The cleaner runs on a rough nominal model (entries 5–25 % off the truth); a
+        // random-walk cleaner lags this fast signal, since r is standardised by R only.
+        let cleaner = RobustKalmanFilter::new(
+            DMatrix::from_row_slice(2, 2, &[0.85, 0.25, -0.05, 0.75]),
+            DMatrix::from_row_slice(2, 1, &[0.45, 1.1]),
+            DMatrix::identity(2, 2),
+            DMatrix::zeros(2, 1),
+            DMatrix::identity(2, 2) * 1e-2,
+            DMatrix::identity(2, 2) * 0.0025,
+            DVector::zeros(2),
+            DMatrix::identity(2, 2),
+            InfluenceFunction::huber(),
+        )
+        .unwrap();
+        let mut robust = DkfRsKf::new(cleaner, tuned()).unwrap();
+        let (mut plain_error, mut robust_error, mut cleaner_error) = (0.0, 0.0, 0.0);
+        for (u, clean, y) in &data {
+            plain.step(u, y).unwrap();
+            robust.step(u, y).unwrap();
+            cleaner_error += (robust.cleaned_output() - clean).norm_squared();
+            plain_error += (plain.output() - clean).norm_squared();
+            robust_error += (robust.dual().output() - clean).norm_squared();
+        }
+        let plain_a = (plain.a() - &t.a).amax();
+        let robust_a = (robust.dual().a() - &t.a).amax();
+        println!("cleaner E_res = {:.4}", cleaner_error / data.len() as f64);
+        println!(
+            "outliers: DKF |ΔA| = {plain_a:.3}, E_res = {:.4}; DKF-rsKF |ΔA| = {robust_a:.3}, E_res = {:.4}",
+            plain_error / data.len() as f64,
+            robust_error / data.len() as f64
+        );
+        assert!(robust_a < 0.03 && robust_a < plain_a);
+        assert!(robust_error < 0.5 * plain_error);
+    }
+
+    #[test]
+    fn rejects_bad_parameter_filter_settings() {
+        let mut cfg = config(1e-4);
+        cfg.parameter_r[0] = 0.0;
+        let e = DualKalmanFilter::new(cfg).unwrap_err();
+        assert!(e.to_string().contains("R_theta"), "{e}");
+        let mut cfg = config(1e-4);
+        cfg.parameter_q = DMatrix::zeros(3, 3);
+        let e = DualKalmanFilter::new(cfg).unwrap_err();
+        assert!(e.to_string().contains("Q_theta"), "{e}");
+    }
+}

@@ -1,0 +1,513 @@
+//! Standard Kalman filter (sKF), SPEC §2 item 7; papers 000 §IV (eqs 16–24) and 001 §2.
+//!
+//! Model: x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k, w ~ N(0, Q), v ~ N(0, R).
+//! One call `step(u_k, y_k)`:
+//!
+//! ```text
+//! x⁻ = A x̂_{k−1} + B u_{k−1}                 P⁻ = A P_{k−1} Aᵀ + Q
+//! e  = y_k − C x⁻ − D u_k                      (innovation)
+//! S  = C P⁻ Cᵀ + R                             K = P⁻ Cᵀ S⁻¹   (Cholesky solve S Kᵀ = C P⁻)
+//! x̂_k = x⁻ + K e
+//! P_k = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ       (Joseph form, then symmetrised)
+//! ŷ_k = C x̂_k + D u_k                          (filtered output)
+//! ```
+//!
+//! Paper 000 prints P⁻ = P + Q: the special case A = I. The Joseph form equals
+//! P = (I − K C) P⁻ for the optimal gain and keeps P symmetric positive (semi)definite in
+//! floating point. `u_{k−1}` is zero before the first call; x̂₀, P₀ are the estimate one sample
+//! before the first measurement.
+
+use super::{
+    cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
+    require_spd, symmetrize_in_place, EstimationError,
+};
+use nalgebra::{DMatrix, DMatrixView, DVector};
+
+/// The prediction / correction machinery shared by the sKF, the rsKF and the DKF's state
+/// filter. It owns the estimate, the covariance and every work buffer; the model matrices are
+/// passed in (the DKF changes them every step, the rsKF changes the measurement covariance).
+#[derive(Debug, Clone)]
+pub(crate) struct FilterCore {
+    pub(crate) x: DVector<f64>,
+    pub(crate) p: DMatrix<f64>,
+    pub(crate) x_prior: DVector<f64>,
+    pub(crate) p_prior: DMatrix<f64>,
+    pub(crate) u_prev: DVector<f64>,
+    pub(crate) innovation: DVector<f64>,
+    pub(crate) output: DVector<f64>,
+    /// Kᵀ (p×n).
+    pub(crate) gain_t: DMatrix<f64>,
+    /// n×n scratch.
+    work_nn: DMatrix<f64>,
+    /// (I − K C)ᵀ, n×n.
+    work_mt: DMatrix<f64>,
+    /// S, then its Cholesky factor, p×p.
+    work_s: DMatrix<f64>,
+    /// R Kᵀ, p×n.
+    work_rk: DMatrix<f64>,
+    pub(crate) steps: u64,
+}
+
+impl FilterCore {
+    pub(crate) fn new(x0: DVector<f64>, p0: DMatrix<f64>, inputs: usize, outputs: usize) -> Self {
+        let n = x0.len();
+        Self {
+            x_prior: x0.clone(),
+            p_prior: p0.clone(),
+            x: x0,
+            p: p0,
+            u_prev: DVector::zeros(inputs),
+            innovation: DVector::zeros(outputs),
+            output: DVector::zeros(outputs),
+            gain_t: DMatrix::zeros(outputs, n),
+            work_nn: DMatrix::zeros(n, n),
+            work_mt: DMatrix::zeros(n, n),
+            work_s: DMatrix::zeros(outputs, outputs),
+            work_rk: DMatrix::zeros(outputs, n),
+            steps: 0,
+        }
+    }
+
+    /// x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q. `a_t` is Aᵀ.
+    pub(crate) fn predict(
+        &mut self,
+        a: &DMatrixView<'_, f64>,
+        a_t: &DMatrix<f64>,
+        b: &DMatrixView<'_, f64>,
+        q: &DMatrix<f64>,
+    ) {
+        self.steps += 1;
+        self.x_prior.gemv(1.0, a, &self.x, 0.0);
+        self.x_prior.gemv(1.0, b, &self.u_prev, 1.0);
+        self.work_nn.gemm(1.0, &self.p, a_t, 0.0);
+        self.p_prior.copy_from(q);
+        self.p_prior.gemm(1.0, a, &self.work_nn, 1.0);
+        symmetrize_in_place(&mut self.p_prior);
+    }
+
+    /// e = y − C x⁻ − D u.
+    pub(crate) fn compute_innovation(
+        &mut self,
+        c: &DMatrixView<'_, f64>,
+        d: &DMatrixView<'_, f64>,
+        u: &DVector<f64>,
+        y: &DVector<f64>,
+    ) -> Result<(), EstimationError> {
+        self.innovation.copy_from(y);
+        self.innovation.gemv(-1.0, c, &self.x_prior, 1.0);
+        self.innovation.gemv(-1.0, d, u, 1.0);
+        if self.innovation.iter().any(|v| !v.is_finite()) {
+            return Err(EstimationError::NonFinite {
+                what: "innovation y − C x⁻ − D u (check y and u)",
+                step: self.steps,
+            });
+        }
+        Ok(())
+    }
+
+    /// Gain from S = C P⁻ Cᵀ + R_eff, state update and Joseph covariance update with R_eff.
+    /// `c_t` is Cᵀ.
+    pub(crate) fn correct(
+        &mut self,
+        c: &DMatrixView<'_, f64>,
+        c_t: &DMatrix<f64>,
+        r_eff: &DMatrix<f64>,
+    ) -> Result<(), EstimationError> {
+        // Kᵀ = S⁻¹ C P⁻ (S symmetric).
+        self.gain_t.gemm(1.0, c, &self.p_prior, 0.0);
+        self.work_s.copy_from(r_eff);
+        self.work_s.gemm(1.0, &self.gain_t, c_t, 1.0);
+        cholesky_solve_in_place(
+            &mut self.work_s,
+            &mut self.gain_t,
+            "innovation covariance C P⁻ Cᵀ + R",
+            self.steps,
+        )?;
+        // x̂ = x⁻ + K e.
+        self.x.copy_from(&self.x_prior);
+        self.x.gemv_tr(1.0, &self.gain_t, &self.innovation, 1.0);
+        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C, Mᵀ = I − Cᵀ Kᵀ.
+        self.work_mt.fill_with_identity();
+        self.work_mt.gemm(-1.0, c_t, &self.gain_t, 1.0);
+        self.work_nn.gemm(1.0, &self.p_prior, &self.work_mt, 0.0);
+        self.p.gemm_tr(1.0, &self.work_mt, &self.work_nn, 0.0);
+        self.work_rk.gemm(1.0, r_eff, &self.gain_t, 0.0);
+        self.p.gemm_tr(1.0, &self.gain_t, &self.work_rk, 1.0);
+        symmetrize_in_place(&mut self.p);
+        if self.x.iter().any(|v| !v.is_finite()) || self.p.iter().any(|v| !v.is_finite()) {
+            return Err(EstimationError::NonFinite {
+                what: "state estimate or its covariance",
+                step: self.steps,
+            });
+        }
+        Ok(())
+    }
+
+    /// ŷ = C x̂ + D u, and remembers u for the next prediction.
+    pub(crate) fn finish(
+        &mut self,
+        c: &DMatrixView<'_, f64>,
+        d: &DMatrixView<'_, f64>,
+        u: &DVector<f64>,
+    ) {
+        self.output.gemv(1.0, c, &self.x, 0.0);
+        self.output.gemv(1.0, d, u, 1.0);
+        self.u_prev.copy_from(u);
+    }
+}
+
+/// The matrices of a linear Gaussian state-space model, validated.
+#[derive(Debug, Clone)]
+pub(crate) struct LinearModel {
+    pub(crate) a: DMatrix<f64>,
+    pub(crate) a_t: DMatrix<f64>,
+    pub(crate) b: DMatrix<f64>,
+    pub(crate) c: DMatrix<f64>,
+    pub(crate) c_t: DMatrix<f64>,
+    pub(crate) d: DMatrix<f64>,
+    pub(crate) q: DMatrix<f64>,
+    pub(crate) r: DMatrix<f64>,
+}
+
+impl LinearModel {
+    /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
+    /// "P0", "x0").
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn new(
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+        c: DMatrix<f64>,
+        d: DMatrix<f64>,
+        q: DMatrix<f64>,
+        r: DMatrix<f64>,
+        x0: &DVector<f64>,
+        p0: &DMatrix<f64>,
+    ) -> Result<Self, EstimationError> {
+        let n = a.nrows();
+        if n == 0 {
+            return Err(super::parameter_error("A", "must have at least one state"));
+        }
+        require_shape("A", &a, n, n, "square: n×n")?;
+        let m = b.ncols();
+        require_shape("B", &b, n, m, "n rows, like A")?;
+        let p = c.nrows();
+        if p == 0 {
+            return Err(super::parameter_error(
+                "C",
+                "must have at least one output row",
+            ));
+        }
+        require_shape("C", &c, p, n, "n columns, like A")?;
+        require_shape("D", &d, p, m, "rows of C × columns of B")?;
+        require_psd("Q", &q, n)?;
+        require_spd("R", &r, p)?;
+        require_length("x0", x0, n, "one entry per state")?;
+        require_psd("P0", p0, n)?;
+        Ok(Self {
+            a_t: a.transpose(),
+            c_t: c.transpose(),
+            a,
+            b,
+            c,
+            d,
+            q,
+            r,
+        })
+    }
+
+    pub(crate) fn states(&self) -> usize {
+        self.a.nrows()
+    }
+    pub(crate) fn inputs(&self) -> usize {
+        self.b.ncols()
+    }
+    pub(crate) fn outputs(&self) -> usize {
+        self.c.nrows()
+    }
+}
+
+/// Standard Kalman filter (sKF). See the module documentation for the equations.
+#[derive(Debug, Clone)]
+pub struct KalmanFilter {
+    model: LinearModel,
+    core: FilterCore,
+}
+
+impl KalmanFilter {
+    /// Builds a filter for x_{k+1} = A x_k + B u_k + w, y_k = C x_k + D u_k + v with
+    /// Cov(w) = Q (symmetric PSD), Cov(v) = R (SPD), initial estimate `x0` with covariance
+    /// `P0` (symmetric PSD). A system without input takes `B` n×0 and `D` p×0.
+    ///
+    /// Errors name the matrix ("A", "B", "C", "D", "Q", "R", "P0", "x0") and say why.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        a: DMatrix<f64>,
+        b: DMatrix<f64>,
+        c: DMatrix<f64>,
+        d: DMatrix<f64>,
+        q: DMatrix<f64>,
+        r: DMatrix<f64>,
+        x0: DVector<f64>,
+        p0: DMatrix<f64>,
+    ) -> Result<Self, EstimationError> {
+        let model = LinearModel::new(a, b, c, d, q, r, &x0, &p0)?;
+        let core = FilterCore::new(x0, p0, model.inputs(), model.outputs());
+        Ok(Self { model, core })
+    }
+
+    /// Processes one sample: predicts with the previous input, corrects with `y` (input `u`
+    /// enters through D). On error the estimate is left as the failed step produced it;
+    /// the caller should stop or rebuild the filter.
+    pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
+        require_input_length("u", u, self.model.inputs())?;
+        require_input_length("y", y, self.model.outputs())?;
+        let m = &self.model;
+        let (a, b, c, d) = (
+            m.a.view((0, 0), m.a.shape()),
+            m.b.view((0, 0), m.b.shape()),
+            m.c.view((0, 0), m.c.shape()),
+            m.d.view((0, 0), m.d.shape()),
+        );
+        self.core.predict(&a, &m.a_t, &b, &m.q);
+        self.core.compute_innovation(&c, &d, u, y)?;
+        self.core.correct(&c, &m.c_t, &m.r)?;
+        self.core.finish(&c, &d, u);
+        Ok(())
+    }
+
+    /// Filtered state x̂_{k|k}.
+    pub fn state(&self) -> &DVector<f64> {
+        &self.core.x
+    }
+    /// Covariance P_{k|k} of the filtered state.
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.core.p
+    }
+    /// Predicted state x⁻ = x̂_{k|k−1} of the last step.
+    pub fn predicted_state(&self) -> &DVector<f64> {
+        &self.core.x_prior
+    }
+    /// Predicted covariance P⁻ = P_{k|k−1} of the last step.
+    pub fn predicted_covariance(&self) -> &DMatrix<f64> {
+        &self.core.p_prior
+    }
+    /// Filtered output ŷ = C x̂_{k|k} + D u_k.
+    pub fn output(&self) -> &DVector<f64> {
+        &self.core.output
+    }
+    /// Innovation e = y_k − C x⁻ − D u_k of the last step.
+    pub fn innovation(&self) -> &DVector<f64> {
+        &self.core.innovation
+    }
+    /// Kalman gain K (n×p) of the last step.
+    pub fn gain(&self) -> DMatrix<f64> {
+        self.core.gain_t.transpose()
+    }
+    /// Number of steps processed.
+    pub fn steps(&self) -> u64 {
+        self.core.steps
+    }
+    /// Number of states n.
+    pub fn states(&self) -> usize {
+        self.model.states()
+    }
+    /// Number of inputs m.
+    pub fn inputs(&self) -> usize {
+        self.model.inputs()
+    }
+    /// Number of outputs p.
+    pub fn outputs(&self) -> usize {
+        self.model.outputs()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::kalman_gain_steady;
+
+    fn scalar(v: f64) -> DMatrix<f64> {
+        DMatrix::from_element(1, 1, v)
+    }
+
+    #[test]
+    fn scalar_steady_state_gain_is_golden_ratio_conjugate() {
+        let mut filter = KalmanFilter::new(
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            scalar(1.0),
+            DVector::zeros(1),
+            scalar(10.0),
+        )
+        .unwrap();
+        let u = DVector::zeros(0);
+        for k in 0..200 {
+            filter
+                .step(&u, &DVector::from_element(1, (k as f64).sin()))
+                .unwrap();
+        }
+        let expected = (5.0_f64.sqrt() - 1.0) / 2.0;
+        assert!((filter.gain()[(0, 0)] - expected).abs() < 1e-12);
+        let (k_dare, _) =
+            kalman_gain_steady(&scalar(1.0), &scalar(1.0), &scalar(1.0), &scalar(1.0)).unwrap();
+        assert!((k_dare[(0, 0)] - expected).abs() < 1e-9, "{k_dare}");
+    }
+
+    #[test]
+    fn multivariable_steady_state_gain_matches_dare() {
+        let a = DMatrix::from_row_slice(3, 3, &[0.9, 0.1, 0.0, -0.2, 0.8, 0.3, 0.0, 0.05, 0.95]);
+        let b = DMatrix::from_row_slice(3, 1, &[0.0, 0.1, 1.0]);
+        let c = DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 1.0]);
+        let d = DMatrix::zeros(2, 1);
+        let q = DMatrix::from_diagonal(&DVector::from_vec(vec![0.1, 0.2, 0.05]));
+        let r = DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.1, 0.3]);
+        let mut filter = KalmanFilter::new(
+            a.clone(),
+            b,
+            c.clone(),
+            d,
+            q.clone(),
+            r.clone(),
+            DVector::zeros(3),
+            DMatrix::identity(3, 3),
+        )
+        .unwrap();
+        for k in 0..500 {
+            let u = DVector::from_element(1, (0.1 * k as f64).cos());
+            let y = DVector::from_vec(vec![(k as f64).sin(), 0.5]);
+            filter.step(&u, &y).unwrap();
+        }
+        let (k_dare, p_pred) = kalman_gain_steady(&a, &c, &q, &r).unwrap();
+        let k = filter.gain();
+        assert!((&k - &k_dare).amax() < 1e-9, "K = {k}, DARE K = {k_dare}");
+        assert!((filter.predicted_covariance() - &p_pred).amax() < 1e-9);
+    }
+
+    #[test]
+    fn covariance_stays_symmetric_positive_definite() {
+        let a = DMatrix::from_row_slice(2, 2, &[1.0, 0.05, 0.0, 1.0]);
+        let mut filter = KalmanFilter::new(
+            a,
+            DMatrix::zeros(2, 0),
+            DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+            DMatrix::zeros(1, 0),
+            DMatrix::from_diagonal(&DVector::from_vec(vec![1e-12, 1e-10])),
+            scalar(1e-8),
+            DVector::zeros(2),
+            DMatrix::identity(2, 2) * 1e6,
+        )
+        .unwrap();
+        for k in 0..10_000 {
+            filter
+                .step(
+                    &DVector::zeros(0),
+                    &DVector::from_element(1, k as f64 * 0.01),
+                )
+                .unwrap();
+            let p = filter.covariance();
+            assert_eq!(p[(0, 1)], p[(1, 0)]);
+        }
+        assert!(nalgebra::Cholesky::new(filter.covariance().clone()).is_some());
+    }
+
+    #[test]
+    fn constructor_names_the_bad_matrix() {
+        let ok = || {
+            (
+                DMatrix::identity(2, 2),
+                DMatrix::zeros(2, 1),
+                DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+                DMatrix::zeros(1, 1),
+                DMatrix::identity(2, 2),
+                scalar(1.0),
+                DVector::zeros(2),
+                DMatrix::identity(2, 2),
+            )
+        };
+        let name_of = |e: EstimationError| match e {
+            EstimationError::Parameter(p) => p.parameter,
+            other => panic!("unexpected {other}"),
+        };
+        let (a, b, c, d, q, r, x0, p0) = ok();
+        assert!(KalmanFilter::new(a, b, c, d, q, r, x0, p0).is_ok());
+        let (_, b, c, d, q, r, x0, p0) = ok();
+        let e = KalmanFilter::new(DMatrix::zeros(2, 3), b, c, d, q, r, x0, p0).unwrap_err();
+        assert!(e.to_string().contains("square"), "{e}");
+        assert_eq!(name_of(e), "A");
+        let (a, _, c, d, q, r, x0, p0) = ok();
+        let e = KalmanFilter::new(a, DMatrix::zeros(3, 1), c, d, q, r, x0, p0).unwrap_err();
+        assert_eq!(name_of(e), "B");
+        let (a, b, _, d, q, r, x0, p0) = ok();
+        let e = KalmanFilter::new(a, b, DMatrix::zeros(1, 3), d, q, r, x0, p0).unwrap_err();
+        assert_eq!(name_of(e), "C");
+        let (a, b, c, _, q, r, x0, p0) = ok();
+        let e = KalmanFilter::new(a, b, c, DMatrix::zeros(2, 1), q, r, x0, p0).unwrap_err();
+        assert_eq!(name_of(e), "D");
+        let (a, b, c, d, _, r, x0, p0) = ok();
+        let bad_q = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]);
+        let e = KalmanFilter::new(a, b, c, d, bad_q, r, x0, p0).unwrap_err();
+        assert!(e.to_string().contains("semidefinite"), "{e}");
+        assert_eq!(name_of(e), "Q");
+        let (a, b, c, d, q, _, x0, p0) = ok();
+        let e = KalmanFilter::new(a, b, c, d, q, scalar(0.0), x0, p0).unwrap_err();
+        assert!(e.to_string().contains("positive definite"), "{e}");
+        assert_eq!(name_of(e), "R");
+        let (a, b, c, d, q, r, _, p0) = ok();
+        let e = KalmanFilter::new(a, b, c, d, q, r, DVector::zeros(3), p0).unwrap_err();
+        assert_eq!(name_of(e), "x0");
+        let (a, b, c, d, q, r, x0, _) = ok();
+        let asym = DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.0, 1.0]);
+        let e = KalmanFilter::new(a, b, c, d, q, r, x0, asym).unwrap_err();
+        assert!(e.to_string().contains("symmetric"), "{e}");
+        assert_eq!(name_of(e), "P0");
+    }
+
+    #[test]
+    fn step_rejects_wrong_lengths_and_non_finite_measurements() {
+        let mut filter = KalmanFilter::new(
+            scalar(1.0),
+            scalar(1.0),
+            scalar(1.0),
+            scalar(0.0),
+            scalar(1.0),
+            scalar(1.0),
+            DVector::zeros(1),
+            scalar(1.0),
+        )
+        .unwrap();
+        let e = filter
+            .step(&DVector::zeros(2), &DVector::zeros(1))
+            .unwrap_err();
+        assert!(matches!(e, EstimationError::Dimension { what: "u", .. }));
+        let e = filter
+            .step(&DVector::zeros(1), &DVector::from_element(1, f64::NAN))
+            .unwrap_err();
+        assert!(matches!(e, EstimationError::NonFinite { .. }), "{e}");
+    }
+
+    #[test]
+    fn overflowing_covariance_is_an_error_not_nan() {
+        let mut filter = KalmanFilter::new(
+            scalar(1e200),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            scalar(1.0),
+            DVector::zeros(1),
+            scalar(1e200),
+        )
+        .unwrap();
+        let e = filter
+            .step(&DVector::zeros(0), &DVector::from_element(1, 1.0))
+            .unwrap_err();
+        println!("{e}");
+        assert!(
+            matches!(e, EstimationError::NonFinite { step: 1, .. }),
+            "{e}"
+        );
+    }
+}
