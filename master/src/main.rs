@@ -3,9 +3,14 @@
 //! - `spurio package` writes the `.fmu` archives of every FMU (or the ones named) from the
 //!   compiled libraries;
 //! - `spurio model-descriptions` checks (or, with `--write`, regenerates) the committed
-//!   `modelDescription/*.xml` against the Rust variable tables.
+//!   `modelDescription/*.xml` against the Rust variable tables;
+//! - `spurio diagnose` runs the outlier diagnostics (Grubbs, kurtosis, skewness, E_res,
+//!   histogram) on a column of a results CSV.
 
+mod diagnose;
 mod package;
+mod plot;
+mod results;
 
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
@@ -53,6 +58,24 @@ enum Command {
         /// Where to write the .fmu.
         #[arg(long, default_value = "build/fmus")]
         out: PathBuf,
+    },
+    /// Outlier diagnostics of one column of a results CSV (fmpy layout): two-sided Grubbs
+    /// test, excess kurtosis, skewness, E_res against a clean column, histogram PNG.
+    Diagnose {
+        /// The results CSV.
+        csv: PathBuf,
+        /// The column to analyse.
+        #[arg(long)]
+        column: String,
+        /// A column with the clean signal, for E_res.
+        #[arg(long)]
+        clean: Option<String>,
+        /// Significance level of the Grubbs test.
+        #[arg(long, default_value_t = 0.05)]
+        alpha: f64,
+        /// Write the histogram with the ±2σ band here.
+        #[arg(long)]
+        png: Option<PathBuf>,
     },
     /// Compare the committed modelDescription/*.xml with the Rust variable tables.
     ModelDescriptions {
@@ -117,6 +140,18 @@ fn main() -> Result<()> {
             let stem = name.unwrap_or_else(|| model_identifier.clone());
             let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
             println!("wrote {}", path.display());
+        }
+        Command::Diagnose {
+            csv,
+            column,
+            clean,
+            alpha,
+            png,
+        } => {
+            print!(
+                "{}",
+                diagnose::diagnose(&csv, &column, clean.as_deref(), alpha, png.as_deref())?
+            );
         }
         Command::ModelDescriptions { write, repo } => {
             let mut stale = Vec::new();
