@@ -7,10 +7,10 @@
 //! - `spurio diagnose` runs the outlier diagnostics (Grubbs, kurtosis, skewness, E_res,
 //!   histogram) on a column of a results CSV.
 
-mod diagnose;
-mod package;
-mod plot;
-mod results;
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
+use spurio_master::{diagnose, logging, package, plot};
 
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
@@ -29,6 +29,26 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run a co-simulation system (TOML) and write its results as CSV (fmpy's layout).
+    Run {
+        /// The system file.
+        system: PathBuf,
+        /// Where to write the results.
+        #[arg(long, default_value = "results.csv")]
+        out: PathBuf,
+        /// Also plot these recorded variables (comma-separated names) to a PNG beside the CSV.
+        #[arg(long, value_delimiter = ',')]
+        plot: Vec<String>,
+        /// Pace the run: 1 = real time, 2 = twice as fast.
+        #[arg(long)]
+        real_time: Option<f64>,
+        /// Show a progress bar.
+        #[arg(long)]
+        progress: bool,
+        /// Print the FMUs' informational log messages too.
+        #[arg(long)]
+        verbose: bool,
+    },
     /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
     Package {
         /// Folder with the compiled `lib<ModelIdentifier>.so` files.
@@ -89,7 +109,41 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    match Cli::parse().command {
+    let cli = Cli::parse();
+    let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
+    logging::install(verbose);
+    match cli.command {
+        Command::Run {
+            system,
+            out,
+            plot: plotted,
+            real_time,
+            progress,
+            verbose: _,
+        } => {
+            let resolved = System::from_file(&system)?;
+            let mut sim = Simulation::new(&resolved)?;
+            let options = RunOptions {
+                real_time_factor: real_time,
+                progress,
+            };
+            if plotted.is_empty() {
+                let mut csv = CsvWriter::create(&out)
+                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
+                sim.run(&mut csv, &options)?;
+            } else {
+                let mut series = TimeSeries::default();
+                sim.run(&mut series, &options)?;
+                let mut csv = CsvWriter::create(&out)
+                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
+                spurio_master::record::replay(&series, &mut csv)?;
+                let png = out.with_extension("png");
+                plot::time_series_png(&png, &resolved.name, &series, &plotted)?;
+                println!("wrote {}", png.display());
+            }
+            sim.terminate()?;
+            println!("wrote {}", out.display());
+        }
         Command::Package {
             lib_dir,
             out,

@@ -79,3 +79,67 @@ pub fn histogram_png(
     root.present().map_err(err)?;
     Ok(())
 }
+
+/// Line plots of the named variables of `series` against time, one panel per variable.
+pub fn time_series_png(
+    path: &Path,
+    title: &str,
+    series: &crate::record::TimeSeries,
+    names: &[String],
+) -> Result<()> {
+    register_font();
+    let columns: Vec<(String, Vec<f64>)> = names
+        .iter()
+        .map(|n| {
+            series.column(n).map(|c| (n.clone(), c)).ok_or_else(|| {
+                anyhow!(
+                    "cannot plot `{n}`: it is not recorded (recorded: {})",
+                    series.names.join(", ")
+                )
+            })
+        })
+        .collect::<Result<_>>()?;
+    let height = 60 + 220 * columns.len() as u32;
+    let root = BitMapBackend::new(path, (900, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
+    let panels = root.split_evenly((columns.len(), 1));
+    let (t0, t1) = (
+        series.time.first().copied().unwrap_or(0.0),
+        series.time.last().copied().unwrap_or(1.0),
+    );
+    for (panel, (name, values)) in panels.iter().zip(&columns) {
+        let (lo, hi) = values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let (lo, hi) = if lo < hi {
+            (lo, hi)
+        } else {
+            (lo - 1.0, lo + 1.0)
+        };
+        let pad = 0.05 * (hi - lo);
+        let mut chart = ChartBuilder::on(panel)
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t0..t1.max(t0 + 1e-9), (lo - pad)..(hi + pad))
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc(name.as_str())
+            .draw()
+            .map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(
+                series.time.iter().copied().zip(values.iter().copied()),
+                &BLUE,
+            ))
+            .map_err(err)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
