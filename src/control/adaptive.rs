@@ -136,6 +136,22 @@ impl AdaptiveStateFeedbackConfig {
     }
 }
 
+/// The part of an [`AdaptiveStateFeedback`] that evolves with `update` (everything but the
+/// configuration): what an FMU state must carry besides the parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveProgress {
+    /// The gain in use (1 × n), if any.
+    pub gain: Option<DMatrix<f64>>,
+    /// Calls to `update` left before the next recompute (`< recompute_period`).
+    pub calls_until_due: usize,
+    /// Whether the last recompute was rejected.
+    pub in_rejection_episode: bool,
+    /// Total number of rejected updates.
+    pub rejected_updates: u64,
+    /// Number of episodes of consecutive rejected updates.
+    pub rejection_episodes: u64,
+}
+
 /// The adaptive pole-placement controller (see the module doc).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdaptiveStateFeedback {
@@ -224,6 +240,50 @@ impl AdaptiveStateFeedback {
     /// Whether the last recompute was rejected (an episode is under way).
     pub fn in_rejection_episode(&self) -> bool {
         self.in_bad_episode
+    }
+
+    /// The evolving state (gain, recompute phase, episode bookkeeping).
+    pub fn progress(&self) -> AdaptiveProgress {
+        AdaptiveProgress {
+            gain: self.gain.clone(),
+            calls_until_due: self.calls_until_due,
+            in_rejection_episode: self.in_bad_episode,
+            rejected_updates: self.rejected_updates,
+            rejection_episodes: self.episodes,
+        }
+    }
+
+    /// Restores what [`AdaptiveStateFeedback::progress`] returned (for a controller with the
+    /// same configuration); errors if it does not fit this configuration.
+    pub fn restore_progress(&mut self, progress: AdaptiveProgress) -> Result<(), ParameterError> {
+        let n = self.states();
+        if let Some(gain) = &progress.gain {
+            if gain.shape() != (1, n) || !gain.iter().all(|v| v.is_finite()) {
+                return Err(ParameterError::new(
+                    "gain",
+                    format!(
+                        "must be a finite 1×{n} row, got {}×{}",
+                        gain.nrows(),
+                        gain.ncols()
+                    ),
+                ));
+            }
+        }
+        if progress.calls_until_due >= self.config.recompute_period {
+            return Err(ParameterError::new(
+                "calls_until_due",
+                format!(
+                    "must be below recompute_period = {}, got {}",
+                    self.config.recompute_period, progress.calls_until_due
+                ),
+            ));
+        }
+        self.gain = progress.gain;
+        self.calls_until_due = progress.calls_until_due;
+        self.in_bad_episode = progress.in_rejection_episode;
+        self.rejected_updates = progress.rejected_updates;
+        self.episodes = progress.rejection_episodes;
+        Ok(())
     }
 
     /// Feeds the latest model estimate; every `N`-th call recomputes the gain from it.
@@ -421,6 +481,36 @@ mod tests {
             other => panic!("expected GainTooLarge, got {other:?}"),
         }
         assert_eq!(controller.gain(), Some(&design.gain));
+    }
+
+    #[test]
+    fn progress_round_trips_and_is_checked() {
+        let design = crane_reference_design().unwrap();
+        let mut config = AdaptiveStateFeedbackConfig::new(
+            design.poles.clone(),
+            InputLimits::symmetric(17.0).unwrap(),
+        );
+        config.recompute_period = 2;
+        let mut controller = AdaptiveStateFeedback::new(config.clone()).unwrap();
+        controller.update(&design.a, &design.b);
+        controller.update(&design.a, &design.b);
+        controller.update(&design.a, &DMatrix::zeros(4, 1));
+        let saved = controller.progress();
+        let mut other = AdaptiveStateFeedback::new(config).unwrap();
+        other.restore_progress(saved.clone()).unwrap();
+        assert_eq!(other, controller);
+        for _ in 0..3 {
+            assert_eq!(
+                other.update(&design.a, &design.b),
+                controller.update(&design.a, &design.b)
+            );
+        }
+        let mut bad = saved.clone();
+        bad.calls_until_due = 2;
+        assert!(other.restore_progress(bad).is_err());
+        let mut bad = saved;
+        bad.gain = Some(DMatrix::zeros(1, 3));
+        assert_eq!(other.restore_progress(bad).unwrap_err().parameter, "gain");
     }
 
     #[test]

@@ -14,7 +14,9 @@ pub mod crane;
 pub mod pole_placement;
 pub mod state_feedback;
 
-pub use adaptive::{AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainRejection, GainUpdate};
+pub use adaptive::{
+    AdaptiveProgress, AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainRejection, GainUpdate,
+};
 pub use crane::{
     crane_design, crane_reference_design, DiscreteDesign, CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
 };

@@ -6,7 +6,9 @@
 //! packager writes `.fmu` archives from it, and the tests check that the committed
 //! `modelDescription/*.xml` files equal what it generates.
 
+pub mod adaptive_state_feedback;
 pub mod gantry_crane;
+pub mod state_feedback;
 pub mod structured;
 
 use spurio_fmi2::{Config, FmuModel, ModelInfo};
@@ -40,11 +42,38 @@ fn fixed(
     }
 }
 
+/// The bundled variant of the controllers: the crane (n = 4, `preset = crane`).
+fn crane_controller_config() -> Config {
+    let mut config = Config::new();
+    config.set(state_feedback::CONFIG_STATES, 4);
+    config.set(state_feedback::CONFIG_PRESET, "crane");
+    config
+}
+
 /// Every FMU of the product.
 pub fn catalogue() -> Vec<CatalogueEntry> {
-    vec![fixed(
-        "GantryCrane",
-        include_str!("../../../docs/fmus/GantryCrane.md"),
-        gantry_crane::GantryCraneFmu::describe,
-    )]
+    vec![
+        fixed(
+            "GantryCrane",
+            include_str!("../../../docs/fmus/GantryCrane.md"),
+            gantry_crane::GantryCraneFmu::describe,
+        ),
+        CatalogueEntry {
+            model_identifier: "StateFeedback",
+            documentation: include_str!("../../../docs/fmus/StateFeedback.md"),
+            images: &[],
+            describe: state_feedback::StateFeedbackFmu::describe,
+            variants: vec![("StateFeedback".to_string(), crane_controller_config())],
+        },
+        CatalogueEntry {
+            model_identifier: "AdaptiveStateFeedback",
+            documentation: include_str!("../../../docs/fmus/AdaptiveStateFeedback.md"),
+            images: &[],
+            describe: adaptive_state_feedback::AdaptiveStateFeedbackFmu::describe,
+            variants: vec![(
+                "AdaptiveStateFeedback".to_string(),
+                crane_controller_config(),
+            )],
+        },
+    ]
 }
