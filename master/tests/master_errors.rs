@@ -1,0 +1,275 @@
+//! Every way a system or an FMU can be wrong gets an error that names the FMU, the variable
+//! and the file. These tests need the packaged FMUs (`scripts/build-fmus`).
+
+use spurio_master::engine::{RunError, Simulation};
+use spurio_master::fmu::{FmuFile, LoadError};
+use spurio_master::system::{System, SystemDescription};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+fn fmus() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
+    assert!(
+        dir.join("GantryCrane.fmu").is_file(),
+        "{} has no FMUs: run scripts/build-fmus first",
+        dir.display()
+    );
+    dir
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("spurio-master-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Copies `source` to `target`, passing each entry through `edit` (None drops it), then
+/// appending `extra` entries.
+fn rewrite(
+    source: &Path,
+    target: &Path,
+    edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
+    extra: &[(&str, &[u8])],
+) {
+    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
+    let mut out = zip::ZipWriter::new(std::fs::File::create(target).unwrap());
+    let options = zip::write::SimpleFileOptions::default();
+    for i in 0..archive.len() {
+        let mut entry = archive.by_index(i).unwrap();
+        let name = entry.name().unwrap().to_string();
+        let mut data = Vec::new();
+        entry.read_to_end(&mut data).unwrap();
+        if let Some(data) = edit(&name, data) {
+            out.start_file(name, options).unwrap();
+            out.write_all(&data).unwrap();
+        }
+    }
+    for (name, data) in extra {
+        out.start_file(*name, options).unwrap();
+        out.write_all(data).unwrap();
+    }
+    out.finish().unwrap();
+}
+
+fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
+    move |name, data| {
+        if name == "modelDescription.xml" {
+            Some(f(String::from_utf8(data).unwrap()).into_bytes())
+        } else {
+            Some(data)
+        }
+    }
+}
+
+#[test]
+fn missing_linux64_binary_is_named() {
+    let target = scratch("nobinary").join("NoBinary.fmu");
+    rewrite(
+        &fmus().join("GantryCrane.fmu"),
+        &target,
+        |name, data| (!name.starts_with("binaries/")).then_some(data),
+        &[],
+    );
+    let e = FmuFile::open(&target).unwrap_err();
+    assert!(matches!(e, LoadError::MissingBinary { .. }));
+    let text = e.to_string();
+    assert!(
+        text.contains("NoBinary.fmu") && text.contains("binaries/linux64/GantryCrane.so"),
+        "{text}"
+    );
+}
+
+#[test]
+fn guid_mismatch_is_reported_with_what_the_fmu_said() {
+    spurio_master::logging::install(false);
+    let target = scratch("guid").join("WrongGuid.fmu");
+    rewrite(
+        &fmus().join("GantryCrane.fmu"),
+        &target,
+        edit_xml(|xml| {
+            let start = xml.find("guid=\"").unwrap() + 6;
+            let end = start + xml[start..].find('"').unwrap();
+            format!(
+                "{}{{00000000-0000-0000-0000-000000000000}}{}",
+                &xml[..start],
+                &xml[end..]
+            )
+        }),
+        &[],
+    );
+    let fmu = FmuFile::open(&target).unwrap();
+    let e = fmu.instantiate("wrong_guid", false).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("wrong_guid") && text.contains("WrongGuid.fmu"),
+        "{text}"
+    );
+    assert!(text.contains("GUID mismatch"), "{text}");
+}
+
+#[test]
+fn model_exchange_only_fmu_is_rejected() {
+    let target = scratch("me").join("OnlyME.fmu");
+    rewrite(
+        &fmus().join("GantryCrane.fmu"),
+        &target,
+        edit_xml(|xml| {
+            let start = xml.find("<CoSimulation").unwrap();
+            let end = start + xml[start..].find("/>").unwrap() + 2;
+            format!(
+                "{}<ModelExchange modelIdentifier=\"GantryCrane\"/>{}",
+                &xml[..start],
+                &xml[end..]
+            )
+        }),
+        &[],
+    );
+    let e = FmuFile::open(&target).unwrap_err();
+    assert!(matches!(e, LoadError::NotCoSimulation { .. }), "{e}");
+    assert!(
+        e.to_string().contains("OnlyME.fmu") && e.to_string().contains("not a Co-Simulation FMU")
+    );
+}
+
+#[test]
+fn archive_entry_leaving_the_directory_is_rejected() {
+    let target = scratch("slip").join("Slip.fmu");
+    rewrite(
+        &fmus().join("GantryCrane.fmu"),
+        &target,
+        |_, data| Some(data),
+        &[("../../outside.txt", b"x")],
+    );
+    let e = FmuFile::open(&target).unwrap_err();
+    assert!(matches!(e, LoadError::UnsafeEntry { .. }), "{e}");
+    assert!(e.to_string().contains("../../outside.txt") && e.to_string().contains("Slip.fmu"));
+}
+
+fn system(toml_text: &str) -> Result<System, String> {
+    let description: SystemDescription = toml::from_str(toml_text).map_err(|e| e.to_string())?;
+    System::resolve(&description, &fmus()).map_err(|e| e.to_string())
+}
+
+const TWO: &str = r#"
+stop_time = 1.0
+step_size = 0.05
+[[instance]]
+name = "crane"
+fmu = "GantryCrane.fmu"
+[[instance]]
+name = "ctrl"
+fmu = "StateFeedback.fmu"
+[[instance]]
+name = "adaptive"
+fmu = "AdaptiveStateFeedback.fmu"
+"#;
+
+fn with_connections(connections: &[&str]) -> String {
+    let list: Vec<String> = connections.iter().map(|c| format!("{c:?}")).collect();
+    format!("connections = [{}]\n{TWO}", list.join(", "))
+}
+
+#[test]
+fn unknown_variable_names_the_instance_the_variable_and_the_file() {
+    let e = system(&with_connections(&["crane.position -> ctrl.x_hat[1]"])).unwrap_err();
+    assert!(
+        e.contains("`crane`") && e.contains("`position`") && e.contains("GantryCrane.fmu"),
+        "{e}"
+    );
+    let e = system(&with_connections(&["crane.x -> ctrl.x_hat[9]"])).unwrap_err();
+    assert!(
+        e.contains("x_hat[9]") && e.contains("did you mean") && e.contains("x_hat[1]"),
+        "{e}"
+    );
+    let e = system(&with_connections(&["crane.x -> nobody.u"])).unwrap_err();
+    assert!(e.contains("no instance called `nobody`"), "{e}");
+}
+
+#[test]
+fn causality_and_type_mismatches_are_named() {
+    let e = system(&with_connections(&["crane.U -> ctrl.x_hat[1]"])).unwrap_err();
+    assert!(
+        e.contains("crane.U") && e.contains("starts at an output"),
+        "{e}"
+    );
+    let e = system(&with_connections(&["crane.x -> ctrl.u[1]"])).unwrap_err();
+    assert!(
+        e.contains("ctrl.u[1]") && e.contains("ends at an input"),
+        "{e}"
+    );
+    let e = system(&with_connections(&[
+        "adaptive.estimate_rejected -> ctrl.x_hat[1]",
+    ]))
+    .unwrap_err();
+    assert!(
+        e.contains("type mismatch") && e.contains("Boolean") && e.contains("Real"),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_input_driven_twice_is_named() {
+    let e = system(&with_connections(&[
+        "crane.x -> ctrl.x_hat[1]",
+        "crane.theta -> ctrl.x_hat[1]",
+    ]))
+    .unwrap_err();
+    assert!(
+        e.contains("ctrl.x_hat[1]") && e.contains("crane.x") && e.contains("crane.theta"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_loop_of_direct_feedthrough_is_reported_not_delayed() {
+    let text = format!(
+        "connections = [\"ctrl.u[1] -> other.x_hat[1]\", \"other.u[1] -> ctrl.x_hat[1]\"]\n{TWO}\n[[instance]]\nname = \"other\"\nfmu = \"StateFeedback.fmu\"\n"
+    );
+    let e = system(&text).unwrap_err();
+    assert!(
+        e.contains("algebraic loop") && e.contains("ctrl.u[1]") && e.contains("other.u[1]"),
+        "{e}"
+    );
+    // The same loop closed through the crane (no feedthrough) is fine.
+    system(&with_connections(&[
+        "ctrl.u[1] -> crane.U",
+        "crane.x -> ctrl.x_hat[1]",
+    ]))
+    .unwrap();
+}
+
+#[test]
+fn bad_parameter_values_are_named() {
+    let text = TWO.replace(
+        "fmu = \"GantryCrane.fmu\"",
+        "fmu = \"GantryCrane.fmu\"\nparameters = { x0 = true }",
+    );
+    let e = system(&text).unwrap_err();
+    assert!(
+        e.contains("`crane`") && e.contains("`x0`") && e.contains("Real"),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_error_inside_the_fmu_names_the_instance_and_the_call() {
+    spurio_master::logging::install(false);
+    let text = TWO.replace(
+        "fmu = \"GantryCrane.fmu\"",
+        "fmu = \"GantryCrane.fmu\"\nparameters = { x0 = 0.9 }",
+    );
+    let s = system(&text).unwrap();
+    let e = match Simulation::new(&s) {
+        Err(e) => e,
+        Ok(_) => panic!("x0 beyond the rail must fail"),
+    };
+    assert!(matches!(e, RunError::Fmi { .. }));
+    let text = e.to_string();
+    assert!(
+        text.contains("`crane`")
+            && text.contains("GantryCrane.fmu")
+            && text.contains("returned fmi2Error")
+            && text.contains("`x0`"),
+        "{text}"
+    );
+}
