@@ -244,11 +244,16 @@ impl ModelInfo {
             if let Some(unit) = &v.unit {
                 let _ = write!(x, r#" unit="{}""#, esc(unit));
             }
+            // Integer bounds are written as integers (xs:int), Real bounds round-trip.
+            let bound = |b: f64| match v.start {
+                Value::Integer(_) => format!("{}", b as i64),
+                _ => fmt_real(b),
+            };
             if let Some(min) = v.min {
-                let _ = write!(x, r#" min="{}""#, fmt_real(min));
+                let _ = write!(x, r#" min="{}""#, bound(min));
             }
             if let Some(max) = v.max {
-                let _ = write!(x, r#" max="{}""#, fmt_real(max));
+                let _ = write!(x, r#" max="{}""#, bound(max));
             }
             if v.has_start() {
                 let start = match &v.start {
@@ -440,6 +445,20 @@ mod tests {
         assert!(x.contains(r#"<Unknown index="3" dependencies="2"/>"#));
         assert!(!x.contains(r#"causality="input" variability="continuous" initial"#));
         assert!(x.contains(r#"<Real unit="m" min="0.0" start="2.0"/>"#));
+    }
+
+    #[test]
+    fn integer_bounds_are_written_as_integers() {
+        let info = ModelInfo::new(
+            "Demo",
+            "",
+            vec![Variable::integer_parameter("seed", 1).min(0.0).max(32.0)],
+            None,
+            Config::new(),
+        );
+        assert!(info
+            .to_xml()
+            .contains(r#"<Integer min="0" max="32" start="1"/>"#));
     }
 
     #[test]
