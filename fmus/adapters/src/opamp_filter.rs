@@ -163,7 +163,8 @@ impl FmuModel for OpAmpFilterFmu {
         let filter = OpAmpFilter::with_state(parameters, state).map_err(|e| e.to_string())?;
         let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(|e| e.to_string())?;
         let fastest = fastest_mode(&parameters);
-        if !(h_max * fastest <= RK4_STABILITY_MARGIN) {
+        let product = h_max * fastest;
+        if product.is_nan() || product > RK4_STABILITY_MARGIN {
             return Err(Failure::Error(format!(
                 "parameter `h_max`: {h_max} s would make RK4 unstable on the circuit's fastest mode ({fastest:.4} 1/s); use at most {:.3e} s",
                 RK4_STABILITY_MARGIN / fastest
