@@ -9,9 +9,19 @@
 pub mod adaptive_state_feedback;
 pub mod gantry_crane;
 pub mod state_feedback;
+pub mod linear_system;
+pub mod opamp_filter;
+pub mod sensor;
+pub mod signal_source;
 pub mod structured;
+pub mod wind_generator;
 
-use spurio_fmi2::{Config, FmuModel, ModelInfo};
+use spurio_fmi2::{Config, Failure, FmuModel, ModelInfo};
+
+/// A parameter error of the `spurio` models as an `fmi2Error` naming the parameter.
+pub(crate) fn param_failure(e: &spurio::ParameterError) -> Failure {
+    Failure::Error(e.to_string())
+}
 
 /// One FMU of the product.
 pub struct CatalogueEntry {
@@ -52,6 +62,13 @@ fn crane_controller_config() -> Config {
 
 /// Every FMU of the product.
 pub fn catalogue() -> Vec<CatalogueEntry> {
+    let config = |pairs: &[(&str, &str)]| {
+        let mut c = Config::new();
+        for (k, v) in pairs {
+            c.set(k, v);
+        }
+        c
+    };
     vec![
         fixed(
             "GantryCrane",
@@ -74,6 +91,52 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
                 "AdaptiveStateFeedback".to_string(),
                 crane_controller_config(),
             )],
+        },
+        CatalogueEntry {
+            images: &[(
+                "wind_generator_steps.png",
+                include_bytes!("../../../docs/fmus/img/wind_generator_steps.png"),
+            )],
+            ..fixed(
+                "WindGenerator",
+                include_str!("../../../docs/fmus/WindGenerator.md"),
+                wind_generator::WindGeneratorFmu::describe,
+            )
+        },
+        fixed(
+            "OpAmpFilter",
+            include_str!("../../../docs/fmus/OpAmpFilter.md"),
+            opamp_filter::OpAmpFilterFmu::describe,
+        ),
+        CatalogueEntry {
+            variants: vec![
+                ("LinearSystem".to_string(), Config::new()),
+                (
+                    "DistributedObserverPlant".to_string(),
+                    config(&[("n", "3"), ("m", "0"), ("p", "2"), ("preset", "paper004")]),
+                ),
+            ],
+            ..fixed(
+                "LinearSystem",
+                include_str!("../../../docs/fmus/LinearSystem.md"),
+                linear_system::LinearSystemFmu::describe,
+            )
+        },
+        fixed(
+            "SignalSource",
+            include_str!("../../../docs/fmus/SignalSource.md"),
+            signal_source::SignalSourceFmu::describe,
+        ),
+        CatalogueEntry {
+            variants: vec![
+                ("Sensor".to_string(), Config::new()),
+                ("Sensor2".to_string(), config(&[("channels", "2")])),
+            ],
+            ..fixed(
+                "Sensor",
+                include_str!("../../../docs/fmus/Sensor.md"),
+                sensor::SensorFmu::describe,
+            )
         },
     ]
 }

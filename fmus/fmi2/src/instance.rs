@@ -357,7 +357,7 @@ impl<M: FmuModel> Instance<M> {
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
     ) -> Status {
-        let mut ctx = Context::new(&mut self.core.values);
+        let mut ctx = Context::at(&mut self.core.values, self.core.time);
         let result = call(&mut self.core.model, &mut ctx);
         let messages = ctx.take_messages();
         let mut status = Status::Ok;

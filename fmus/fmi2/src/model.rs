@@ -44,15 +44,27 @@ pub struct Context<'a> {
     /// Parameters, inputs and outputs, indexed like the variable table.
     pub values: &'a mut Values,
     pub(crate) messages: Vec<LogMessage>,
+    time: f64,
 }
 
 impl<'a> Context<'a> {
-    /// A context over `values`.
+    /// A context over `values` at time 0.
     pub fn new(values: &'a mut Values) -> Self {
+        Self::at(values, 0.0)
+    }
+    /// A context over `values` at simulation time `time`.
+    pub fn at(values: &'a mut Values, time: f64) -> Self {
         Self {
             values,
             messages: Vec::new(),
+            time,
         }
+    }
+    /// The instance's current communication point [s]: the start time (from
+    /// `fmi2SetupExperiment`) during initialization, the start of the step in `do_step`, the
+    /// last communication point in `update_outputs` and `parameters_changed`.
+    pub fn time(&self) -> f64 {
+        self.time
     }
     /// Logs an event (category `logEvents`; shown when debug logging is on).
     pub fn log_event(&mut self, text: impl Into<String>) {
