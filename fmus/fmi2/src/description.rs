@@ -4,7 +4,7 @@
 //! The GUID is a hash of everything in the interface, so a binary and a modelDescription
 //! built from different tables (or a variant packaged for other dimensions) never match.
 
-use crate::variables::{Causality, Value, Variable};
+use crate::variables::{Causality, Value, Variable, VariableType};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -244,11 +244,16 @@ impl ModelInfo {
             if let Some(unit) = &v.unit {
                 let _ = write!(x, r#" unit="{}""#, esc(unit));
             }
+            // Integer bounds are xs:int in the schema: no decimal point.
+            let bound = |b: f64| match v.variable_type() {
+                VariableType::Integer => format!("{}", b.round() as i64),
+                _ => fmt_real(b),
+            };
             if let Some(min) = v.min {
-                let _ = write!(x, r#" min="{}""#, fmt_real(min));
+                let _ = write!(x, r#" min="{}""#, bound(min));
             }
             if let Some(max) = v.max {
-                let _ = write!(x, r#" max="{}""#, fmt_real(max));
+                let _ = write!(x, r#" max="{}""#, bound(max));
             }
             if v.has_start() {
                 let start = match &v.start {
@@ -440,6 +445,20 @@ mod tests {
         assert!(x.contains(r#"<Unknown index="3" dependencies="2"/>"#));
         assert!(!x.contains(r#"causality="input" variability="continuous" initial"#));
         assert!(x.contains(r#"<Real unit="m" min="0.0" start="2.0"/>"#));
+    }
+
+    #[test]
+    fn integer_bounds_are_written_as_integers() {
+        let info = ModelInfo::new(
+            "Demo",
+            "",
+            vec![Variable::integer_parameter("k", 1).min(1.0).max(2.0)],
+            None,
+            Config::new(),
+        );
+        assert!(info
+            .to_xml()
+            .contains(r#"<Integer min="1" max="2" start="1"/>"#));
     }
 
     #[test]
