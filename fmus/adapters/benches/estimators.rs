@@ -49,7 +49,7 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
     let (median, q1, q3) = measure(300, 100, || {
         for (i, v) in values.iter_mut().enumerate() {
             let phase = k as f64 * 0.05 * (i + 1) as f64;
-            let outlier = if (k * 7 + i as u64) % 20 == 0 {
+            let outlier = if (k * 7 + i as u64).is_multiple_of(20) {
                 3.0
             } else {
                 0.0
