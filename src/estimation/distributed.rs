@@ -45,7 +45,7 @@
 
 use super::{
     parameter_error, require_input_length, require_length, require_psd, require_shape, require_spd,
-    EstimationError,
+    EstimationError, StateReader,
 };
 use crate::linalg::{cholesky_solve, dlqr, is_positive_definite, kalman_gain_steady, symmetrize};
 use nalgebra::{DMatrix, DVector, SVD};
@@ -451,6 +451,29 @@ impl DistributedObserver {
         }
         std::mem::swap(&mut self.x, &mut self.next);
         Ok(())
+    }
+
+    /// Everything that evolves from step to step (the estimate, the last innovation and
+    /// neighbour difference, the step count), as a flat list of numbers for FMU state
+    /// serialization; see [`DistributedObserver::set_dynamic_state`].
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        out.extend_from_slice(self.x.as_slice());
+        out.extend_from_slice(self.innovation.as_slice());
+        out.extend_from_slice(self.difference.as_slice());
+        out.push(self.steps as f64);
+        out
+    }
+
+    /// Restores what [`DistributedObserver::dynamic_state`] returned, into an observer built
+    /// with the same configuration.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        input.fill(self.x.as_mut_slice())?;
+        input.fill(self.innovation.as_mut_slice())?;
+        input.fill(self.difference.as_mut_slice())?;
+        self.steps = input.counter()?;
+        input.finish()
     }
 
     /// The estimate x̂_i (a one-step prediction: after the step with y_k it estimates x_{k+1}).

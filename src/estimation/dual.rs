@@ -40,7 +40,7 @@ use super::kalman::FilterCore;
 use super::robust::RobustKalmanFilter;
 use super::{
     parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
-    require_shape, require_spd, symmetrize_in_place, EstimationError,
+    require_shape, require_spd, symmetrize_in_place, EstimationError, StateReader,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -284,6 +284,42 @@ impl DualKalmanFilter {
         Ok(())
     }
 
+    /// Everything that evolves from step to step (see
+    /// [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)): the state filter,
+    /// Θ̂, every parameter covariance, the previous output and the predicted output.
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.save(&mut out);
+        out
+    }
+
+    /// Restores what [`DualKalmanFilter::dynamic_state`] returned.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        self.restore(&mut input)?;
+        input.finish()
+    }
+
+    fn save(&self, out: &mut Vec<f64>) {
+        self.core.save(out);
+        out.extend_from_slice(self.theta.as_slice());
+        for group in &self.groups {
+            out.extend_from_slice(group.sigma.as_slice());
+        }
+        out.extend_from_slice(self.y_prev.as_slice());
+        out.extend_from_slice(self.predicted_output.as_slice());
+    }
+
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.core.restore(input)?;
+        input.fill(self.theta.as_mut_slice())?;
+        for group in &mut self.groups {
+            input.fill(group.sigma.as_mut_slice())?;
+        }
+        input.fill(self.y_prev.as_mut_slice())?;
+        input.fill(self.predicted_output.as_mut_slice())
+    }
+
     fn update_parameters(&mut self) -> Result<(), EstimationError> {
         let phi = &self.regressor;
         for group in &mut self.groups {
@@ -448,6 +484,23 @@ impl DkfRsKf {
         };
         self.cleaner.step(cleaner_input, y)?;
         self.dual.step(u, self.cleaner.output())
+    }
+
+    /// Everything that evolves from step to step: the rsKF's and then the DKF's dynamic state
+    /// (see [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)).
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.cleaner.save(&mut out);
+        self.dual.save(&mut out);
+        out
+    }
+
+    /// Restores what [`DkfRsKf::dynamic_state`] returned.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        self.cleaner.restore(&mut input)?;
+        self.dual.restore(&mut input)?;
+        input.finish()
     }
 
     /// The cleaned outputs of the last step.

@@ -19,7 +19,7 @@
 
 use super::{
     cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
-    require_spd, symmetrize_in_place, EstimationError,
+    require_spd, symmetrize_in_place, EstimationError, StateReader,
 };
 use nalgebra::{DMatrix, DMatrixView, DVector};
 
@@ -140,6 +140,38 @@ impl FilterCore {
                 step: self.steps,
             });
         }
+        Ok(())
+    }
+
+    /// Appends every evolving quantity (estimates, covariances, last input, last innovation and
+    /// output, gain, step count) to `out`.
+    pub(crate) fn save(&self, out: &mut Vec<f64>) {
+        for block in [
+            self.x.as_slice(),
+            self.p.as_slice(),
+            self.x_prior.as_slice(),
+            self.p_prior.as_slice(),
+            self.u_prev.as_slice(),
+            self.innovation.as_slice(),
+            self.output.as_slice(),
+            self.gain_t.as_slice(),
+        ] {
+            out.extend_from_slice(block);
+        }
+        out.push(self.steps as f64);
+    }
+
+    /// Reads back what [`FilterCore::save`] wrote (same dimensions).
+    pub(crate) fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        input.fill(self.x.as_mut_slice())?;
+        input.fill(self.p.as_mut_slice())?;
+        input.fill(self.x_prior.as_mut_slice())?;
+        input.fill(self.p_prior.as_mut_slice())?;
+        input.fill(self.u_prev.as_mut_slice())?;
+        input.fill(self.innovation.as_mut_slice())?;
+        input.fill(self.output.as_mut_slice())?;
+        input.fill(self.gain_t.as_mut_slice())?;
+        self.steps = input.counter()?;
         Ok(())
     }
 
@@ -273,6 +305,23 @@ impl KalmanFilter {
         self.core.correct(&c, &m.c_t, &m.r)?;
         self.core.finish(&c, &d, u);
         Ok(())
+    }
+
+    /// Everything that evolves from step to step, as a flat list of numbers (for FMU state
+    /// serialization): restoring it with [`KalmanFilter::set_dynamic_state`] into a filter
+    /// built with the same parameters continues bit for bit.
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.core.save(&mut out);
+        out
+    }
+
+    /// Restores what [`KalmanFilter::dynamic_state`] returned. Errors (naming "state") when
+    /// the length does not fit this filter's dimensions.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        self.core.restore(&mut input)?;
+        input.finish()
     }
 
     /// Filtered state x̂_{k|k}.

@@ -277,3 +277,138 @@ pub(crate) fn cholesky_solve_in_place(
 pub(crate) fn symmetrize_in_place(m: &mut DMatrix<f64>) {
     crate::linalg::symmetrize(m);
 }
+
+// ---------------------------------------------------------------------------------------
+// Dynamic state as a flat list of numbers (FMU state serialization).
+// ---------------------------------------------------------------------------------------
+
+/// Reads back, in order, the numbers an estimator's `dynamic_state` wrote, into buffers of
+/// the estimator (built with the same parameters, so every length is known).
+pub(crate) struct StateReader<'a> {
+    data: &'a [f64],
+    position: usize,
+}
+
+impl<'a> StateReader<'a> {
+    pub(crate) fn new(data: &'a [f64]) -> Self {
+        Self { data, position: 0 }
+    }
+
+    fn short(&self, wanted: usize) -> EstimationError {
+        parameter_error(
+            "state",
+            format!(
+                "the saved estimator state is too short: {} numbers, needed at least {}",
+                self.data.len(),
+                self.position + wanted
+            ),
+        )
+    }
+
+    /// Fills `target` with the next `target.len()` numbers.
+    pub(crate) fn fill(&mut self, target: &mut [f64]) -> Result<(), EstimationError> {
+        let end = self.position + target.len();
+        let source = self
+            .data
+            .get(self.position..end)
+            .ok_or_else(|| self.short(target.len()))?;
+        target.copy_from_slice(source);
+        self.position = end;
+        Ok(())
+    }
+
+    /// The next number.
+    pub(crate) fn scalar(&mut self) -> Result<f64, EstimationError> {
+        let mut v = [0.0];
+        self.fill(&mut v)?;
+        Ok(v[0])
+    }
+
+    /// The next number as a step counter.
+    pub(crate) fn counter(&mut self) -> Result<u64, EstimationError> {
+        let v = self.scalar()?;
+        if !(v.is_finite() && v >= 0.0 && v.fract() == 0.0) {
+            return Err(parameter_error(
+                "state",
+                format!("a saved step counter must be a non-negative integer, got {v}"),
+            ));
+        }
+        Ok(v as u64)
+    }
+
+    /// Checks that every number was read.
+    pub(crate) fn finish(self) -> Result<(), EstimationError> {
+        if self.position != self.data.len() {
+            return Err(parameter_error(
+                "state",
+                format!(
+                    "the saved estimator state has {} numbers, this estimator reads {} (built with other dimensions?)",
+                    self.data.len(),
+                    self.position
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod state_tests {
+    use super::robust::test_rng::TestRng;
+    use super::*;
+
+    fn dkf_rskf() -> DkfRsKf {
+        let n = 2;
+        let a = DMatrix::from_row_slice(n, n, &[0.9, 0.1, -0.1, 0.8]);
+        let b = DMatrix::from_row_slice(n, 1, &[0.0, 1.0]);
+        let c = DMatrix::from_row_slice(1, n, &[1.0, 0.0]);
+        let config = DualKalmanConfig::new(
+            a,
+            b,
+            c,
+            DMatrix::zeros(1, 1),
+            DMatrix::identity(n, n) * 1e-3,
+            DMatrix::identity(1, 1) * 1e-2,
+            DVector::zeros(n),
+            DMatrix::identity(n, n),
+        )
+        .fix_output_matrices();
+        let cleaner =
+            RobustKalmanFilter::random_walk(1, 1e-2, 1e-2, 1.0, InfluenceFunction::default())
+                .unwrap();
+        DkfRsKf::new(cleaner, DualKalmanFilter::new(config).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn restored_dynamic_state_continues_bit_for_bit() {
+        let mut rng = TestRng::new(7);
+        let samples: Vec<(f64, f64)> = (0..60)
+            .map(|k| ((k as f64 * 0.3).sin(), rng.normal()))
+            .collect();
+        let mut original = dkf_rskf();
+        let mut rls = RecursiveLeastSquares::with_prefilter(2, 2, 0.98, 1e4, 5).unwrap();
+        for &(u, y) in &samples[..30] {
+            original
+                .step(&DVector::from_element(1, u), &DVector::from_element(1, y))
+                .unwrap();
+            rls.step(u, y).unwrap();
+        }
+        let mut copy = dkf_rskf();
+        copy.set_dynamic_state(&original.dynamic_state()).unwrap();
+        let mut rls_copy = RecursiveLeastSquares::with_prefilter(2, 2, 0.98, 1e4, 5).unwrap();
+        rls_copy.set_dynamic_state(&rls.dynamic_state()).unwrap();
+        for &(u, y) in &samples[30..] {
+            let (u, y1) = (DVector::from_element(1, u), DVector::from_element(1, y));
+            original.step(&u, &y1).unwrap();
+            copy.step(&u, &y1).unwrap();
+            assert_eq!(original.dual().theta(), copy.dual().theta());
+            assert_eq!(original.dual().state(), copy.dual().state());
+            assert_eq!(rls.step(u[0], y).unwrap(), rls_copy.step(u[0], y).unwrap());
+            assert_eq!(rls.parameters(), rls_copy.parameters());
+        }
+        let too_short = &original.dynamic_state()[1..];
+        let error = copy.set_dynamic_state(too_short).unwrap_err().to_string();
+        assert!(error.contains("state"), "{error}");
+        assert!(rls_copy.set_dynamic_state(&[1.0]).is_err());
+    }
+}

@@ -28,7 +28,7 @@
 //! with the current estimate Â (refreshed every `refresh` samples) before entering φ, which
 //! makes the equation error white when Â is right and removes most of the bias.
 
-use super::{parameter_error, EstimationError};
+use super::{parameter_error, EstimationError, StateReader};
 use std::f64::consts::PI;
 
 /// Recursive least squares on an ARX(na, nb) model (see the module documentation).
@@ -202,6 +202,45 @@ impl RecursiveLeastSquares {
             }
         }
         Ok(error)
+    }
+
+    /// Everything that evolves from step to step, as a flat list of numbers (for FMU state
+    /// serialization): θ, P, the past samples, the prefilter's state, the last error and the
+    /// step count. Restoring it with [`RecursiveLeastSquares::set_dynamic_state`] into an
+    /// estimator built with the same arguments continues bit for bit.
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        for block in [&self.theta, &self.p, &self.phi, &self.past_y, &self.past_u] {
+            out.extend_from_slice(block);
+        }
+        if let Some(filter) = &self.prefilter {
+            out.push(filter.since_refresh as f64);
+            out.extend_from_slice(&filter.denominator);
+            out.extend_from_slice(&filter.filtered_past_u);
+            out.extend_from_slice(&filter.filtered_past_y);
+        }
+        out.push(self.last_error);
+        out.push(self.steps as f64);
+        out
+    }
+
+    /// Restores what [`RecursiveLeastSquares::dynamic_state`] returned.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        input.fill(&mut self.theta)?;
+        input.fill(&mut self.p)?;
+        input.fill(&mut self.phi)?;
+        input.fill(&mut self.past_y)?;
+        input.fill(&mut self.past_u)?;
+        if let Some(filter) = &mut self.prefilter {
+            filter.since_refresh = input.counter()?;
+            input.fill(&mut filter.denominator)?;
+            input.fill(&mut filter.filtered_past_u)?;
+            input.fill(&mut filter.filtered_past_y)?;
+        }
+        self.last_error = input.scalar()?;
+        self.steps = input.counter()?;
+        input.finish()
     }
 
     /// θ = [a₁ … a_na, b₁ … b_nb].

@@ -7,12 +7,13 @@
 //! `modelDescription/*.xml` files equal what it generates.
 
 pub mod adaptive_state_feedback;
+pub mod estimators;
 pub mod gantry_crane;
-pub mod state_feedback;
 pub mod linear_system;
 pub mod opamp_filter;
 pub mod sensor;
 pub mod signal_source;
+pub mod state_feedback;
 pub mod structured;
 pub mod wind_generator;
 
@@ -60,6 +61,24 @@ fn crane_controller_config() -> Config {
     config
 }
 
+fn generic(
+    model_identifier: &'static str,
+    documentation: &'static str,
+    describe: fn(&Config) -> Result<ModelInfo, String>,
+    variants: Vec<(&str, Config)>,
+) -> CatalogueEntry {
+    CatalogueEntry {
+        model_identifier,
+        documentation,
+        images: &[],
+        describe,
+        variants: variants
+            .into_iter()
+            .map(|(stem, config)| (stem.to_string(), config))
+            .collect(),
+    }
+}
+
 /// Every FMU of the product.
 pub fn catalogue() -> Vec<CatalogueEntry> {
     let config = |pairs: &[(&str, &str)]| {
@@ -69,6 +88,10 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
         }
         c
     };
+    use estimators::distributed::{agent_config, DistributedObserverFmu};
+    use estimators::dual::{DkfRsKfFmu, DualKalmanFilterFmu};
+    use estimators::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
+    use estimators::rls::{arx_config, RecursiveLeastSquaresFmu};
     vec![
         fixed(
             "GantryCrane",
@@ -138,5 +161,47 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
                 sensor::SensorFmu::describe,
             )
         },
+        generic(
+            "KalmanFilter",
+            include_str!("../../../docs/fmus/KalmanFilter.md"),
+            KalmanFilterFmu::describe,
+            vec![("KalmanFilter", dims_config(1, 0, 1))],
+        ),
+        generic(
+            "RobustKalmanFilter",
+            include_str!("../../../docs/fmus/RobustKalmanFilter.md"),
+            RobustKalmanFilterFmu::describe,
+            vec![("RobustKalmanFilter", dims_config(1, 0, 1))],
+        ),
+        generic(
+            "DualKalmanFilter",
+            include_str!("../../../docs/fmus/DualKalmanFilter.md"),
+            DualKalmanFilterFmu::describe,
+            vec![("DualKalmanFilter", dims_config(4, 1, 2))],
+        ),
+        generic(
+            "DkfRsKf",
+            include_str!("../../../docs/fmus/DkfRsKf.md"),
+            DkfRsKfFmu::describe,
+            vec![
+                ("DkfRsKf", dims_config(4, 1, 2)),
+                ("DkfRsKfGenerator", dims_config(8, 2, 2)),
+            ],
+        ),
+        generic(
+            "RecursiveLeastSquares",
+            include_str!("../../../docs/fmus/RecursiveLeastSquares.md"),
+            RecursiveLeastSquaresFmu::describe,
+            vec![("RecursiveLeastSquares", arx_config(2, 2))],
+        ),
+        generic(
+            "DistributedObserver",
+            include_str!("../../../docs/fmus/DistributedObserver.md"),
+            DistributedObserverFmu::describe,
+            vec![
+                ("DistributedObserverAgent1", agent_config(1)),
+                ("DistributedObserverAgent2", agent_config(2)),
+            ],
+        ),
     ]
 }
