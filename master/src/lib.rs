@@ -13,4 +13,5 @@ pub mod package;
 pub mod plot;
 pub mod record;
 pub mod results;
+pub mod ssp;
 pub mod system;

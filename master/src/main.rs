@@ -79,6 +79,20 @@ enum Command {
         #[arg(long, default_value = "build/fmus")]
         out: PathBuf,
     },
+    /// Export a system (TOML) as an SSP 1.0 archive with its FMUs, for OMSimulator or fmpy.
+    SspExport {
+        /// The system file.
+        system: PathBuf,
+        /// The .ssp to write.
+        out: PathBuf,
+    },
+    /// Import an SSP archive: unpack its FMUs into a folder and write a TOML system file there.
+    SspImport {
+        /// The .ssp to read.
+        ssp: PathBuf,
+        /// The folder to write `system.toml` and the FMUs into.
+        out: PathBuf,
+    },
     /// Outlier diagnostics of one column of a results CSV (fmpy layout): two-sided Grubbs
     /// test, excess kurtosis, skewness, E_res against a clean column, histogram PNG.
     Diagnose {
@@ -193,6 +207,16 @@ fn main() -> Result<()> {
             }
             let stem = name.unwrap_or_else(|| model_identifier.clone());
             let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
+            println!("wrote {}", path.display());
+        }
+        Command::SspExport { system, out } => {
+            spurio_master::ssp::export(&system, &out)?;
+            println!("wrote {}", out.display());
+        }
+        Command::SspImport { ssp, out } => {
+            let description = spurio_master::ssp::import(&ssp, &out)?;
+            let path = out.join("system.toml");
+            std::fs::write(&path, toml::to_string_pretty(&description)?)?;
             println!("wrote {}", path.display());
         }
         Command::Diagnose {

@@ -395,8 +395,17 @@ impl System {
         Ok(system)
     }
 
-    /// Reads and resolves a TOML system file.
+    /// Reads and resolves a system file: TOML, or an SSP archive (`.ssp`, whose FMUs are
+    /// unpacked next to it in `<name>.ssp.d/`).
     pub fn from_file(path: &Path) -> Result<Self, SystemError> {
+        if path.extension().is_some_and(|e| e == "ssp") {
+            let dir = path.with_extension("ssp.d");
+            let description = crate::ssp::import(path, &dir).map_err(|e| SystemError::Read {
+                file: path.to_path_buf(),
+                reason: e.to_string(),
+            })?;
+            return Self::resolve(&description, &dir);
+        }
         let description = SystemDescription::read(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::resolve(&description, base)
