@@ -14,4 +14,5 @@ pub mod plot;
 pub mod record;
 pub mod results;
 pub mod ssp;
+pub mod sweep;
 pub mod system;

@@ -79,6 +79,24 @@ enum Command {
         #[arg(long, default_value = "build/fmus")]
         out: PathBuf,
     },
+    /// Run a system many times with one parameter varied (e.g. a seed), in parallel, and
+    /// print metrics as mean ± std.
+    Sweep {
+        /// The system file.
+        system: PathBuf,
+        /// `instance.variable=1..100` (integers) or `instance.variable=0.1,0.2`.
+        #[arg(long)]
+        vary: String,
+        /// Metrics: final(v), mean(v), rms(v), max_abs(v), e_res(a, b), settling(v, bound).
+        #[arg(long = "metric", required = true)]
+        metrics: Vec<String>,
+        /// Worker threads (0: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Also write every run's metrics as CSV here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Export a system (TOML) as an SSP 1.0 archive with its FMUs, for OMSimulator or fmpy.
     SspExport {
         /// The system file.
@@ -208,6 +226,39 @@ fn main() -> Result<()> {
             let stem = name.unwrap_or_else(|| model_identifier.clone());
             let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
             println!("wrote {}", path.display());
+        }
+        Command::Sweep {
+            system,
+            vary,
+            metrics,
+            threads,
+            out,
+        } => {
+            let resolved = System::from_file(&system)?;
+            let variation =
+                spurio_master::sweep::Variation::parse(&vary).map_err(anyhow::Error::msg)?;
+            let metrics = metrics
+                .iter()
+                .map(|m| spurio_master::sweep::Metric::parse(m))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(anyhow::Error::msg)?;
+            let result = spurio_master::sweep::sweep(&resolved, &variation, &metrics, threads)?;
+            if let Some(out) = out {
+                let mut text = format!("\"{}\"", variation.variable);
+                for m in &metrics {
+                    text.push_str(&format!(",\"{}\"", m.label()));
+                }
+                text.push('\n');
+                for (value, row) in variation.values.iter().zip(&result.runs) {
+                    text.push_str(&format!("{value:?}"));
+                    for v in row {
+                        text.push_str(&format!(",{v:?}"));
+                    }
+                    text.push('\n');
+                }
+                std::fs::write(&out, text)?;
+            }
+            print!("{}", result.table());
         }
         Command::SspExport { system, out } => {
             spurio_master::ssp::export(&system, &out)?;

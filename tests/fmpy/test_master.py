@@ -144,3 +144,29 @@ def test_closed_loop_in_gauss_seidel_order_equals_an_fmpy_loop(tmp_path):
     assert np.max(np.abs(ours["crane.theta"] - rows[:, 1])) <= 1e-12
     assert np.max(np.abs(ours["ctrl.u[1]"] - rows[:, 2])) <= 1e-12
     assert abs(ours["crane.x"][-1]) < 5e-3
+
+
+def test_sweep_rows_equal_single_runs_and_aggregate(tmp_path):
+    system = tmp_path / "crane_sensor.toml"
+    system.write_text(CRANE_SENSOR.format(crane=fmu_path("GantryCrane"), sensor=fmu_path("Sensor2")))
+    table = tmp_path / "sweep.csv"
+    result = spurio(
+        "sweep", system, "--vary", "sensor.seed=1..8",
+        "--metric", "e_res(sensor.y[1], crane.x)", "--metric", "max_abs(sensor.y[2])",
+        "--threads", "2", "--out", table,
+    )
+    runs = read_csv(table)
+    assert len(runs) == 8
+    # run seed 5 alone and compute the same metrics from its CSV
+    single = tmp_path / "seed5.toml"
+    single.write_text(system.read_text().replace("fmu = \"" + fmu_path("Sensor2") + "\"",
+                                                 "fmu = \"" + fmu_path("Sensor2") + "\"\nparameters = { seed = 5 }"))
+    out = tmp_path / "seed5.csv"
+    spurio("run", single, "--out", out)
+    r = read_csv(out)
+    row = runs[runs["sensor.seed"] == 5][0]
+    assert abs(row["e_res(sensor.y[1];crane.x)"] - np.mean((r["sensor.y[1]"] - r["crane.x"]) ** 2)) < 1e-12
+    assert abs(row["max_abs(sensor.y[2])"] - np.max(np.abs(r["sensor.y[2]"]))) < 1e-12
+    # the printed table is the mean ± std of the rows
+    e = runs["e_res(sensor.y[1];crane.x)"]
+    assert f"{np.mean(e):.6f} ± {np.std(e, ddof=1):.6f}" in result.stdout

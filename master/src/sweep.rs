@@ -1,0 +1,381 @@
+//! Sweeps: the same system run N times with different parameter values (seeds, gains, …) in
+//! parallel, each run's instances created on its worker thread (rust-fmi instances are
+//! `!Send`), and chosen metrics aggregated into a mean ± std table.
+
+use crate::engine::{RunError, RunOptions, Simulation};
+use crate::record::Observer;
+use crate::system::{System, SystemError};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+
+/// A summary of one recorded variable over a run.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Metric {
+    /// Value at the stop time.
+    Final(String),
+    /// Mean over the communication points.
+    Mean(String),
+    /// Root mean square.
+    Rms(String),
+    /// Largest absolute value.
+    MaxAbs(String),
+    /// Mean squared difference of two variables: E_res = (1/N)‖a − b‖².
+    MeanSquaredError(String, String),
+    /// First time after which |variable| stays below the bound for good (NaN if never).
+    SettlingTime(String, f64),
+}
+
+impl Metric {
+    /// Parses `final(x)`, `mean(x)`, `rms(x)`, `max_abs(x)`, `e_res(a, b)`, `settling(x, 0.005)`
+    /// (`;` may separate the arguments too; labels use `;` so they stay one CSV field).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let text = text.trim();
+        let (kind, rest) = text
+            .split_once('(')
+            .ok_or_else(|| format!("metric `{text}`: expected kind(variable)"))?;
+        let args: Vec<String> = rest
+            .strip_suffix(')')
+            .ok_or_else(|| format!("metric `{text}`: missing `)`"))?
+            .split([',', ';'])
+            .map(|a| a.trim().to_string())
+            .collect();
+        let one = |m: fn(String) -> Metric| match args.as_slice() {
+            [a] => Ok(m(a.clone())),
+            _ => Err(format!("metric `{text}` takes one variable")),
+        };
+        match kind.trim() {
+            "final" => one(Metric::Final),
+            "mean" => one(Metric::Mean),
+            "rms" => one(Metric::Rms),
+            "max_abs" => one(Metric::MaxAbs),
+            "e_res" => match args.as_slice() {
+                [a, b] => Ok(Metric::MeanSquaredError(a.clone(), b.clone())),
+                _ => Err(format!("metric `{text}` takes two variables")),
+            },
+            "settling" => match args.as_slice() {
+                [a, b] => Ok(Metric::SettlingTime(
+                    a.clone(),
+                    b.parse()
+                        .map_err(|_| format!("metric `{text}`: `{b}` is not a number"))?,
+                )),
+                _ => Err(format!("metric `{text}` takes a variable and a bound")),
+            },
+            k => Err(format!(
+                "unknown metric kind `{k}` (final, mean, rms, max_abs, e_res, settling)"
+            )),
+        }
+    }
+
+    fn variables(&self) -> Vec<&str> {
+        match self {
+            Metric::Final(a)
+            | Metric::Mean(a)
+            | Metric::Rms(a)
+            | Metric::MaxAbs(a)
+            | Metric::SettlingTime(a, _) => {
+                vec![a]
+            }
+            Metric::MeanSquaredError(a, b) => vec![a, b],
+        }
+    }
+
+    /// The metric's label in tables.
+    pub fn label(&self) -> String {
+        match self {
+            Metric::Final(a) => format!("final({a})"),
+            Metric::Mean(a) => format!("mean({a})"),
+            Metric::Rms(a) => format!("rms({a})"),
+            Metric::MaxAbs(a) => format!("max_abs({a})"),
+            Metric::MeanSquaredError(a, b) => format!("e_res({a};{b})"),
+            Metric::SettlingTime(a, bound) => format!("settling({a};{bound})"),
+        }
+    }
+}
+
+/// Computes metrics while the run goes, without keeping the series.
+struct MetricObserver<'a> {
+    metrics: &'a [Metric],
+    columns: Vec<Vec<usize>>,
+    sums: Vec<f64>,
+    last: Vec<f64>,
+    samples: usize,
+}
+
+impl Observer for MetricObserver<'_> {
+    fn start(&mut self, names: &[String]) -> std::io::Result<()> {
+        self.columns = Vec::new();
+        for m in self.metrics {
+            let mut idx = Vec::new();
+            for v in m.variables() {
+                let j = names.iter().position(|n| n == v).ok_or_else(|| {
+                    std::io::Error::other(format!(
+                        "metric {}: `{v}` is not recorded (recorded: {})",
+                        m.label(),
+                        names.join(", ")
+                    ))
+                })?;
+                idx.push(j);
+            }
+            self.columns.push(idx);
+        }
+        self.sums = vec![0.0; self.metrics.len()];
+        self.last = vec![f64::NAN; self.metrics.len()];
+        Ok(())
+    }
+
+    fn sample(&mut self, time: f64, values: &[f64]) -> std::io::Result<()> {
+        self.samples += 1;
+        for (k, m) in self.metrics.iter().enumerate() {
+            let a = values[self.columns[k][0]];
+            match m {
+                Metric::Final(_) => self.last[k] = a,
+                Metric::Mean(_) => self.sums[k] += a,
+                Metric::Rms(_) => self.sums[k] += a * a,
+                Metric::MaxAbs(_) => self.sums[k] = self.sums[k].max(a.abs()),
+                Metric::MeanSquaredError(_, _) => {
+                    let d = a - values[self.columns[k][1]];
+                    self.sums[k] += d * d;
+                }
+                Metric::SettlingTime(_, bound) => {
+                    if a.abs() >= *bound || a.is_nan() {
+                        self.last[k] = f64::NAN; // not settled yet
+                        self.sums[k] = f64::NAN;
+                    } else if self.sums[k].is_nan() || self.samples == 1 {
+                        self.sums[k] = time;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl MetricObserver<'_> {
+    fn values(&self) -> Vec<f64> {
+        let n = self.samples.max(1) as f64;
+        self.metrics
+            .iter()
+            .enumerate()
+            .map(|(k, m)| match m {
+                Metric::Final(_) => self.last[k],
+                Metric::Mean(_) | Metric::MeanSquaredError(_, _) => self.sums[k] / n,
+                Metric::Rms(_) => (self.sums[k] / n).sqrt(),
+                Metric::MaxAbs(_) | Metric::SettlingTime(_, _) => self.sums[k],
+            })
+            .collect()
+    }
+}
+
+/// One parameter varied across the runs: `instance.variable` and one value per run.
+#[derive(Debug, Clone)]
+pub struct Variation {
+    pub variable: String,
+    pub values: Vec<f64>,
+}
+
+impl Variation {
+    /// Parses `instance.var=1..100` (integers, inclusive) or `instance.var=0.1,0.2,0.3`.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let (variable, values) = text
+            .split_once('=')
+            .ok_or_else(|| format!("--vary `{text}`: expected instance.variable=values"))?;
+        let values = if let Some((a, b)) = values.split_once("..") {
+            let (a, b): (i64, i64) = (
+                a.trim()
+                    .parse()
+                    .map_err(|_| format!("--vary `{text}`: `{a}` is not an integer"))?,
+                b.trim()
+                    .parse()
+                    .map_err(|_| format!("--vary `{text}`: `{b}` is not an integer"))?,
+            );
+            (a..=b).map(|v| v as f64).collect()
+        } else {
+            values
+                .split(',')
+                .map(|v| {
+                    v.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("--vary `{text}`: `{v}` is not a number"))
+                })
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        if values.is_empty() {
+            return Err(format!("--vary `{text}`: no values"));
+        }
+        Ok(Self {
+            variable: variable.trim().to_string(),
+            values,
+        })
+    }
+}
+
+/// The metrics of every run (one row per run) and their mean ± std.
+#[derive(Debug, Clone)]
+pub struct SweepResult {
+    pub metrics: Vec<Metric>,
+    pub runs: Vec<Vec<f64>>,
+}
+
+impl SweepResult {
+    /// Mean and sample standard deviation of metric `k` over the runs (NaN runs skipped).
+    pub fn mean_std(&self, k: usize) -> (f64, f64, usize) {
+        let v: Vec<f64> = self
+            .runs
+            .iter()
+            .map(|r| r[k])
+            .filter(|x| x.is_finite())
+            .collect();
+        let n = v.len();
+        if n == 0 {
+            return (f64::NAN, f64::NAN, 0);
+        }
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = if n > 1 {
+            v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+        } else {
+            0.0
+        };
+        (mean, var.sqrt(), n)
+    }
+
+    /// A Markdown table: metric, mean ± std, runs counted.
+    pub fn table(&self) -> String {
+        let mut s = String::from("| metric | mean ± std | runs |\n|---|---|---|\n");
+        for (k, m) in self.metrics.iter().enumerate() {
+            let (mean, std, n) = self.mean_std(k);
+            let _ = writeln!(
+                s,
+                "| {} | {mean:.6} ± {std:.6} | {n}/{} |",
+                m.label(),
+                self.runs.len()
+            );
+        }
+        s
+    }
+}
+
+/// Runs `system` once per value of `variation` on `threads` worker threads (0: one per core).
+pub fn sweep(
+    system: &System,
+    variation: &Variation,
+    metrics: &[Metric],
+    threads: usize,
+) -> Result<SweepResult, RunError> {
+    let (instance, variable) = variation.variable.split_once('.').ok_or_else(|| {
+        SystemError::Invalid(format!(
+            "--vary `{}`: expected instance.variable",
+            variation.variable
+        ))
+    })?;
+    let i = system
+        .instances
+        .iter()
+        .position(|inst| inst.name == instance)
+        .ok_or_else(|| SystemError::Invalid(format!("--vary: no instance called `{instance}`")))?;
+    let v = system.instances[i].fmu.index_of(variable).ok_or_else(|| {
+        SystemError::Invalid(format!(
+            "--vary: instance `{instance}` has no variable `{variable}`"
+        ))
+    })?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| SystemError::Invalid(format!("thread pool: {e}")))?;
+    let runs: Result<Vec<Vec<f64>>, RunError> = pool.install(|| {
+        variation
+            .values
+            .par_iter()
+            .map(|value| {
+                let mut s = system.clone();
+                let starts = &mut s.instances[i].start_values;
+                starts.retain(|(index, _)| *index != v);
+                starts.push((v, *value));
+                let mut sim = Simulation::new(&s)?;
+                let mut observer = MetricObserver {
+                    metrics,
+                    columns: Vec::new(),
+                    sums: Vec::new(),
+                    last: Vec::new(),
+                    samples: 0,
+                };
+                sim.run(&mut observer, &RunOptions::default())?;
+                sim.terminate()?;
+                Ok(observer.values())
+            })
+            .collect()
+    });
+    Ok(SweepResult {
+        metrics: metrics.to_vec(),
+        runs: runs?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metrics_and_variations_parse_and_name_their_errors() {
+        assert_eq!(
+            Metric::parse("e_res(a.y[1], b.x)").unwrap(),
+            Metric::MeanSquaredError("a.y[1]".into(), "b.x".into())
+        );
+        assert_eq!(
+            Metric::parse("settling(c.x; 0.005)").unwrap(),
+            Metric::SettlingTime("c.x".into(), 0.005)
+        );
+        assert!(Metric::parse("median(x)")
+            .unwrap_err()
+            .contains("unknown metric kind `median`"));
+        assert!(Metric::parse("rms(a, b)")
+            .unwrap_err()
+            .contains("takes one variable"));
+        assert_eq!(
+            Variation::parse("s.seed=1..3").unwrap().values,
+            vec![1.0, 2.0, 3.0]
+        );
+        assert_eq!(
+            Variation::parse("c.k=0.5, 2").unwrap().values,
+            vec![0.5, 2.0]
+        );
+        assert!(Variation::parse("c.k=a")
+            .unwrap_err()
+            .contains("`a` is not a number"));
+    }
+
+    #[test]
+    fn metric_observer_computes_each_summary() {
+        let metrics = [
+            Metric::parse("final(a)").unwrap(),
+            Metric::parse("mean(a)").unwrap(),
+            Metric::parse("rms(a)").unwrap(),
+            Metric::parse("max_abs(a)").unwrap(),
+            Metric::parse("e_res(a, b)").unwrap(),
+            Metric::parse("settling(a, 1.5)").unwrap(),
+        ];
+        let mut o = MetricObserver {
+            metrics: &metrics,
+            columns: Vec::new(),
+            sums: Vec::new(),
+            last: Vec::new(),
+            samples: 0,
+        };
+        o.start(&["a".into(), "b".into()]).unwrap();
+        for (t, a, b) in [
+            (0.0, 3.0, 0.0),
+            (1.0, -2.0, 0.0),
+            (2.0, 1.0, 1.0),
+            (3.0, 0.0, 0.0),
+        ] {
+            o.sample(t, &[a, b]).unwrap();
+        }
+        let v = o.values();
+        assert_eq!(v[0], 0.0);
+        assert_eq!(v[1], 0.5);
+        assert!((v[2] - (14.0f64 / 4.0).sqrt()).abs() < 1e-15);
+        assert_eq!(v[3], 3.0);
+        assert_eq!(v[4], (9.0 + 4.0 + 0.0 + 0.0) / 4.0);
+        assert_eq!(v[5], 2.0);
+        assert!(o.start(&["b".into()]).is_err());
+    }
+}
