@@ -9,8 +9,9 @@
 //!    as their inputs change, so values flow through sensors and estimators within the same
 //!    point; for Jacobi from the values read after the previous step);
 //! 2. the recorded variables are sent to the observer;
-//! 3. every instance whose multiple divides k steps over `multiple · h`, then its outputs are
-//!    read.
+//! 3. every instance whose multiple divides k steps over `multiple · h`; its outputs are read
+//!    at the communication point where that step ends (a multirate instance holds its outputs
+//!    in between).
 //!
 //! `fmi2Discard` and `fmi2Error` stop the run with an error naming the instance, the FMU file,
 //! the call and the time, quoting what the FMU logged.
@@ -409,6 +410,20 @@ impl Simulation {
         Ok(())
     }
 
+    /// Reads the outputs of the instances whose step ends at base step `k` (all for k = 0).
+    fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
+        for m in &mut self.members {
+            if !k.is_multiple_of(m.multiple) {
+                continue;
+            }
+            for b in &mut m.after_step {
+                b.get(&mut m.instance, &mut self.buffer)
+                    .map_err(|e| fmi_error(&m.name, &m.file, "fmi2Get*", e, time))?;
+            }
+        }
+        Ok(())
+    }
+
     fn record(&mut self, observer: &mut dyn Observer, time: f64) -> Result<(), RunError> {
         for (v, s) in self.record_values.iter_mut().zip(&self.record_slots) {
             *v = self.buffer[*s];
@@ -438,6 +453,11 @@ impl Simulation {
         let wall_start = Instant::now();
         for k in 0..self.steps {
             let time = self.start_time + k as f64 * self.step_size;
+            if k > 0 {
+                // An instance's outputs are published at the communication point its step
+                // reaches (a multirate instance holds them in between).
+                self.read_outputs(k, time)?;
+            }
             self.propagate(k, false)?;
             self.record(observer, time)?;
             for m in &mut self.members {
@@ -448,10 +468,6 @@ impl Simulation {
                 m.instance
                     .do_step(time, h, true)
                     .map_err(|e| fmi_error(&m.name, &m.file, "fmi2DoStep", e, time))?;
-                for b in &mut m.after_step {
-                    b.get(&mut m.instance, &mut self.buffer)
-                        .map_err(|e| fmi_error(&m.name, &m.file, "fmi2Get*", e, time))?;
-                }
             }
             if let Some(factor) = options.real_time_factor {
                 let due =
@@ -464,8 +480,10 @@ impl Simulation {
                 bar.inc(1);
             }
         }
-        self.propagate(self.steps, true)?;
         let end = self.start_time + self.steps as f64 * self.step_size;
+        // Every instance's last step ends at the stop time.
+        self.read_outputs(0, end)?;
+        self.propagate(self.steps, true)?;
         self.record(observer, end.min(self.stop_time))?;
         if let Some(bar) = progress {
             bar.finish_and_clear();

@@ -273,3 +273,24 @@ fn an_error_inside_the_fmu_names_the_instance_and_the_call() {
         "{text}"
     );
 }
+
+#[test]
+fn an_error_in_a_step_names_the_instance_the_call_and_the_time() {
+    spurio_master::logging::install(false);
+    let s = system(
+        "stop_time = 1.0\nstep_size = 0.1\n[[instance]]\nname = \"plant\"\nfmu = \"LinearSystem.fmu\"\nparameters = { \"A[1,1]\" = 1e200, \"x0[1]\" = 1e200 }\n",
+    )
+    .unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    let e = sim
+        .run(&mut spurio_master::record::NoRecording, &Default::default())
+        .unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("`plant`")
+            && text.contains("LinearSystem.fmu")
+            && text.contains("fmi2DoStep returned fmi2Error at t = 0")
+            && text.contains("non-finite"),
+        "{text}"
+    );
+}
