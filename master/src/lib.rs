@@ -7,6 +7,7 @@
 
 pub mod diagnose;
 pub mod engine;
+pub mod experiments;
 pub mod fmu;
 pub mod logging;
 pub mod package;

@@ -79,6 +79,24 @@ enum Command {
         #[arg(long, default_value = "build/fmus")]
         out: PathBuf,
     },
+    /// Run the papers' experiments (examples/<name>/) and write REPORT.md, CSVs and plots.
+    Experiments {
+        /// Output folder.
+        #[arg(long, default_value = "results")]
+        out: PathBuf,
+        /// Only these experiments (comma-separated; default: all).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
+        /// Monte-Carlo runs where the papers report mean ± std.
+        #[arg(long, default_value_t = 100)]
+        seeds: usize,
+        /// Worker threads for sweeps (0: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// The repository root (holding examples/ and build/fmus/).
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
     /// Run a system many times with one parameter varied (e.g. a seed), in parallel, and
     /// print metrics as mean ± std.
     Sweep {
@@ -226,6 +244,24 @@ fn main() -> Result<()> {
             let stem = name.unwrap_or_else(|| model_identifier.clone());
             let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
             println!("wrote {}", path.display());
+        }
+        Command::Experiments {
+            out,
+            only,
+            seeds,
+            threads,
+            repo,
+        } => {
+            let reports = spurio_master::experiments::run_all(&repo, &out, &only, seeds, threads)?;
+            let failed: Vec<&str> = reports
+                .iter()
+                .filter(|(_, r)| !r.all_goals_met())
+                .map(|(n, _)| n.as_str())
+                .collect();
+            println!("wrote {}", out.join("REPORT.md").display());
+            if !failed.is_empty() {
+                println!("goals not met in: {}", failed.join(", "));
+            }
         }
         Command::Sweep {
             system,

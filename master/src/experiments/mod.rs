@@ -1,0 +1,218 @@
+//! The papers' experiments as bundled systems (`examples/<name>/`), run by the master, each
+//! writing a report: a Markdown table with the paper's figure beside ours, and the plots the
+//! papers show. `spurio experiments` runs them all and writes `REPORT.md` in the output folder.
+//!
+//! Each experiment is a module with one `run(&ExperimentContext) -> Result<Report>`; it loads
+//! its systems from `examples/<name>/*.toml` (so a user can run them with `spurio run` too),
+//! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
+//! a [`Report`].
+
+pub mod crane_free_swing;
+
+use anyhow::{Context as _, Result};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Where an experiment finds its inputs and writes its outputs.
+#[derive(Debug, Clone)]
+pub struct ExperimentContext {
+    /// The repository root (holding `examples/` and `build/fmus/`).
+    pub repo: PathBuf,
+    /// This experiment's output folder (created before `run`).
+    pub out_dir: PathBuf,
+    /// Monte-Carlo runs where the paper reports mean ± std (100 by default).
+    pub seeds: usize,
+    /// Worker threads for sweeps (0: one per core).
+    pub threads: usize,
+}
+
+impl ExperimentContext {
+    /// `examples/<experiment>/<file>`.
+    pub fn example(&self, experiment: &str, file: &str) -> PathBuf {
+        self.repo.join("examples").join(experiment).join(file)
+    }
+
+    /// Loads and resolves `examples/<experiment>/<file>` (FMU paths relative to that file).
+    pub fn system(&self, experiment: &str, file: &str) -> Result<crate::system::System> {
+        let path = self.example(experiment, file);
+        crate::system::System::from_file(&path)
+            .with_context(|| format!("loading {}", path.display()))
+    }
+}
+
+/// One line of a report's table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// What is measured.
+    pub quantity: String,
+    /// The paper's figure (or the independent reference of SPEC §4), as printed.
+    pub paper: String,
+    /// Ours.
+    pub ours: String,
+    /// The goal ("≤ 0.0124"), empty if none.
+    pub goal: String,
+    /// Whether the goal is met (None: no goal).
+    pub met: Option<bool>,
+}
+
+impl Row {
+    /// A row without a goal.
+    pub fn info(quantity: &str, paper: impl Into<String>, ours: impl Into<String>) -> Self {
+        Self {
+            quantity: quantity.to_string(),
+            paper: paper.into(),
+            ours: ours.into(),
+            goal: String::new(),
+            met: None,
+        }
+    }
+
+    /// A row with a goal and whether it is met.
+    pub fn goal(
+        quantity: &str,
+        paper: impl Into<String>,
+        ours: impl Into<String>,
+        goal: &str,
+        met: bool,
+    ) -> Self {
+        Self {
+            quantity: quantity.to_string(),
+            paper: paper.into(),
+            ours: ours.into(),
+            goal: goal.to_string(),
+            met: Some(met),
+        }
+    }
+}
+
+/// What an experiment found.
+#[derive(Debug, Clone, Default)]
+pub struct Report {
+    /// Title (the paper and section).
+    pub title: String,
+    /// A paragraph: the setup, in words.
+    pub setup: String,
+    /// The table: paper beside ours.
+    pub rows: Vec<Row>,
+    /// Figures written into the experiment's output folder (file names), with captions.
+    pub figures: Vec<(String, String)>,
+    /// Remarks: methods chosen, differences from the paper.
+    pub notes: Vec<String>,
+    /// Named figures for tests: (key, value) — the numbers the integration tests pin.
+    pub figures_of_merit: Vec<(String, f64)>,
+}
+
+impl Report {
+    /// The figure of merit called `key`.
+    pub fn value(&self, key: &str) -> Option<f64> {
+        self.figures_of_merit
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| *v)
+    }
+
+    /// Whether every goal is met.
+    pub fn all_goals_met(&self) -> bool {
+        self.rows.iter().all(|r| r.met != Some(false))
+    }
+
+    /// The report as Markdown (figures linked relative to `prefix`).
+    pub fn to_markdown(&self, prefix: &str) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "## {}\n", self.title);
+        if !self.setup.is_empty() {
+            let _ = writeln!(s, "{}\n", self.setup);
+        }
+        let _ = writeln!(
+            s,
+            "| quantity | paper | ours | goal | met |\n|---|---|---|---|---|"
+        );
+        for r in &self.rows {
+            let met = match r.met {
+                Some(true) => "yes",
+                Some(false) => "**no**",
+                None => "",
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {met} |",
+                r.quantity, r.paper, r.ours, r.goal
+            );
+        }
+        for (file, caption) in &self.figures {
+            let _ = writeln!(s, "\n![{caption}]({prefix}{file})\n\n*{caption}*");
+        }
+        if !self.notes.is_empty() {
+            let _ = writeln!(s);
+            for n in &self.notes {
+                let _ = writeln!(s, "- {n}");
+            }
+        }
+        s
+    }
+}
+
+/// One bundled experiment.
+pub struct Experiment {
+    /// Folder name under `examples/` and under the output folder.
+    pub name: &'static str,
+    /// One line.
+    pub description: &'static str,
+    /// Runs it.
+    pub run: fn(&ExperimentContext) -> Result<Report>,
+}
+
+/// Every bundled experiment, in report order.
+pub fn all() -> Vec<Experiment> {
+    vec![Experiment {
+        name: "crane_free_swing",
+        description: "free swing of the nonlinear crane against the linearised period",
+        run: crane_free_swing::run,
+    }]
+}
+
+/// Runs the named experiments (all if `only` is empty) into `out_dir/<name>/`, writes
+/// `out_dir/REPORT.md`, and returns the reports.
+pub fn run_all(
+    repo: &Path,
+    out_dir: &Path,
+    only: &[String],
+    seeds: usize,
+    threads: usize,
+) -> Result<Vec<(String, Report)>> {
+    let experiments = all();
+    for name in only {
+        if !experiments.iter().any(|e| e.name == name) {
+            let known: Vec<&str> = experiments.iter().map(|e| e.name).collect();
+            anyhow::bail!("unknown experiment `{name}` (known: {})", known.join(", "));
+        }
+    }
+    let mut reports = Vec::new();
+    let mut text = String::from("# spurio: the papers' experiments\n\nEach section puts the paper's figure beside ours; `met` says whether our goal (SPEC §4, issue 7) holds.\n\n");
+    for e in experiments
+        .iter()
+        .filter(|e| only.is_empty() || only.iter().any(|n| n == e.name))
+    {
+        let dir = out_dir.join(e.name);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let ctx = ExperimentContext {
+            repo: repo.to_path_buf(),
+            out_dir: dir.clone(),
+            seeds,
+            threads,
+        };
+        let started = std::time::Instant::now();
+        let report = (e.run)(&ctx).with_context(|| format!("experiment {}", e.name))?;
+        eprintln!(
+            "{}: done in {:.1} s",
+            e.name,
+            started.elapsed().as_secs_f64()
+        );
+        std::fs::write(dir.join("report.md"), report.to_markdown(""))?;
+        text.push_str(&report.to_markdown(&format!("{}/", e.name)));
+        text.push('\n');
+        reports.push((e.name.to_string(), report));
+    }
+    std::fs::write(out_dir.join("REPORT.md"), text)?;
+    Ok(reports)
+}
