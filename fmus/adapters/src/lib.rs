@@ -138,6 +138,10 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
                     "DistributedObserverPlant".to_string(),
                     config(&[("n", "3"), ("m", "0"), ("p", "2"), ("preset", "paper004")]),
                 ),
+                (
+                    "LinearSystem2".to_string(),
+                    config(&[("n", "2"), ("m", "2"), ("p", "2")]),
+                ),
             ],
             ..fixed(
                 "LinearSystem",
@@ -165,19 +169,28 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
             "KalmanFilter",
             include_str!("../../../docs/fmus/KalmanFilter.md"),
             KalmanFilterFmu::describe,
-            vec![("KalmanFilter", dims_config(1, 0, 1))],
+            vec![
+                ("KalmanFilter", dims_config(1, 0, 1)),
+                ("DistributedObserverCentralKalman", dims_config(3, 0, 2)),
+            ],
         ),
         generic(
             "RobustKalmanFilter",
             include_str!("../../../docs/fmus/RobustKalmanFilter.md"),
             RobustKalmanFilterFmu::describe,
-            vec![("RobustKalmanFilter", dims_config(1, 0, 1))],
+            vec![
+                ("RobustKalmanFilter", dims_config(1, 0, 1)),
+                ("RobustKalmanFilter2", dims_config(2, 0, 2)),
+            ],
         ),
         generic(
             "DualKalmanFilter",
             include_str!("../../../docs/fmus/DualKalmanFilter.md"),
             DualKalmanFilterFmu::describe,
-            vec![("DualKalmanFilter", dims_config(4, 1, 2))],
+            vec![
+                ("DualKalmanFilter", dims_config(4, 1, 2)),
+                ("DualKalmanFilterGenerator", dims_config(8, 2, 2)),
+            ],
         ),
         generic(
             "DkfRsKf",

@@ -8,6 +8,8 @@
 //! a [`Report`].
 
 pub mod crane_free_swing;
+pub mod distributed_observer;
+pub mod generator_identification;
 
 use anyhow::{Context as _, Result};
 use std::fmt::Write as _;
@@ -168,6 +170,16 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_free_swing",
         description: "free swing of the nonlinear crane against the linearised period",
         run: crane_free_swing::run,
+    },
+    Experiment {
+        name: "generator_identification",
+        description: "wind generator identified by DKF and DKF-rsKF under outliers (paper 001 §5)",
+        run: generator_identification::run,
+    },
+    Experiment {
+        name: "distributed_observer",
+        description: "two-agent distributed observer against the centralised Kalman filter (paper 004 §5)",
+        run: distributed_observer::run,
     }]
 }
 

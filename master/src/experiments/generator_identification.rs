@@ -1,0 +1,400 @@
+//! Paper 001 §5: on-line identification of the wind-generator set by the dual Kalman filter
+//! (DKF) alone and by the DKF-rsKF (rsKF cleaning the outputs, then the DKF; 001 Fig. 2) as
+//! two connected FMUs, under white noise and spurious samples from the acquisition card.
+//!
+//! System `examples/generator_identification/system.toml`: two `SignalSource`s (random steps
+//! of the drive and field references) → `WindGenerator` → `LinearSystem2` (the tachometer's
+//! and the voltage transducer's gains: the card's volts) → `Sensor2` (noise variance 0.1 V²
+//! on speed, 0.01 V² on voltage, 5 % spikes ±U(0, 4.8) V) → `DualKalmanFilterGenerator`
+//! (n = 8, m = 2, p = 2) alone, and `RobustKalmanFilter2` → `DualKalmanFilterGenerator` (the
+//! references reach it through a one-sample delay, so it pairs u_k with the cleaned y_k).
+//!
+//! **Timing.** The estimators have no direct feedthrough: the DKF's ŷ_k (after
+//! `fmi2DoStep(t_k)`) is recorded at t_{k+1}; the chain's ŷ_k at t_{k+2} (the cleaner's
+//! sample k reaches its DKF at t_{k+1}). E_res = (1/N) Σ_k (ŷ_k − y_clean,k)² (001 §4) is
+//! computed with that alignment, per channel, over k = 0 … N − 2.
+
+use super::distributed_observer::{mean_std, run_series, with_start_values};
+use super::{ExperimentContext, Report, Row};
+use crate::plot::{panels_png, Panel};
+use crate::record::{CsvWriter, TimeSeries};
+use crate::system::System;
+use anyhow::{anyhow, Context, Result};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use spurio::estimation::{
+    DualKalmanConfig, DualKalmanFilter, InfluenceFunction, RobustKalmanFilter,
+};
+use std::time::Instant;
+
+const EXPERIMENT: &str = "generator_identification";
+/// SPEC §4's independent reference: DKF-rsKF and DKF alone, E_res (speed, voltage).
+const REFERENCE_CHAIN: [f64; 2] = [0.024, 0.021];
+const REFERENCE_DKF: [f64; 2] = [0.10, 0.23];
+
+/// E_res of the recorded estimate `estimate` against `clean`, the estimate of sample k
+/// recorded `lag` rows later.
+fn e_res(series: &TimeSeries, estimate: &str, clean: &str, lag: usize) -> Result<f64> {
+    let y = series
+        .column(estimate)
+        .with_context(|| format!("`{estimate}` is not recorded"))?;
+    let c = series
+        .column(clean)
+        .with_context(|| format!("`{clean}` is not recorded"))?;
+    let n = c.len().saturating_sub(2);
+    anyhow::ensure!(n > 0 && y.len() >= n + lag, "too few samples recorded");
+    Ok((0..n).map(|k| (y[k + lag] - c[k]).powi(2)).sum::<f64>() / n as f64)
+}
+
+/// Per run: E_res of DKF alone, DKF-rsKF and the cleaner alone, speed then voltage.
+#[derive(Debug, Clone, Copy)]
+struct Scores {
+    dkf: [f64; 2],
+    chain: [f64; 2],
+    cleaner: [f64; 2],
+}
+
+fn scores(series: &TimeSeries) -> Result<Scores> {
+    let mut s = Scores {
+        dkf: [0.0; 2],
+        chain: [0.0; 2],
+        cleaner: [0.0; 2],
+    };
+    for ch in 0..2 {
+        let clean = format!("card.y_clean[{}]", ch + 1);
+        s.dkf[ch] = e_res(series, &format!("dkf.y_hat[{}]", ch + 1), &clean, 1)?;
+        s.chain[ch] = e_res(series, &format!("dkf_rskf.y_hat[{}]", ch + 1), &clean, 2)?;
+        s.cleaner[ch] = e_res(series, &format!("cleaner.y_hat[{}]", ch + 1), &clean, 1)?;
+    }
+    Ok(s)
+}
+
+/// Run `seed`: the card's noise and outliers and both references' steps all change.
+fn seeded(system: &System, seed: usize) -> Result<System> {
+    let s = seed as f64;
+    with_start_values(
+        system,
+        &[
+            ("card", "seed", s),
+            ("drive_ref", "seed", 1000.0 + 2.0 * s),
+            ("field_ref", "seed", 1001.0 + 2.0 * s),
+        ],
+    )
+}
+
+/// The start value of `instance.variable` in `system` (its default if not set).
+fn start_value(system: &System, instance: &str, variable: &str) -> Result<f64> {
+    let inst = system
+        .instances
+        .iter()
+        .find(|i| i.name == instance)
+        .ok_or_else(|| anyhow!("no instance `{instance}`"))?;
+    let index = inst
+        .fmu
+        .index_of(variable)
+        .ok_or_else(|| anyhow!("`{instance}` has no variable `{variable}`"))?;
+    if let Some((_, v)) = inst.start_values.iter().rev().find(|(i, _)| *i == index) {
+        return Ok(*v);
+    }
+    inst.fmu.variables[index]
+        .start
+        .ok_or_else(|| anyhow!("`{instance}.{variable}` has no start value"))
+}
+
+fn matrix(
+    system: &System,
+    instance: &str,
+    name: &str,
+    rows: usize,
+    cols: usize,
+) -> Result<DMatrix<f64>> {
+    let mut m = DMatrix::zeros(rows, cols);
+    for i in 0..rows {
+        for j in 0..cols {
+            m[(i, j)] = start_value(system, instance, &format!("{name}[{},{}]", i + 1, j + 1))?;
+        }
+    }
+    Ok(m)
+}
+
+fn vector(system: &System, instance: &str, name: &str, n: usize) -> Result<DVector<f64>> {
+    (0..n)
+        .map(|i| start_value(system, instance, &format!("{name}[{}]", i + 1)))
+        .collect::<Result<Vec<_>>>()
+        .map(DVector::from_vec)
+}
+
+/// The library filters with the settings of the system's `dkf` and `cleaner` instances.
+fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFilter)> {
+    let (n, m, p) = (8, 2, 2);
+    let mut config = DualKalmanConfig::new(
+        matrix(system, "dkf", "A", n, n)?,
+        matrix(system, "dkf", "B", n, m)?,
+        matrix(system, "dkf", "C", p, n)?,
+        matrix(system, "dkf", "D", p, m)?,
+        matrix(system, "dkf", "Q", n, n)?,
+        matrix(system, "dkf", "R", p, p)?,
+        vector(system, "dkf", "x0", n)?,
+        matrix(system, "dkf", "P0", n, n)?,
+    )
+    .fix_output_matrices();
+    let rows = n + p;
+    for row in 0..n {
+        for col in 0..n + m {
+            config.parameter_q[(row, col)] = start_value(system, "dkf", "q_theta")?;
+            config.parameter_p0[(row, col)] = start_value(system, "dkf", "p0_theta")?;
+        }
+    }
+    config.parameter_r = DVector::from_element(rows, start_value(system, "dkf", "r_theta")?);
+    let dkf = DualKalmanFilter::new(config)?;
+    let cleaner = RobustKalmanFilter::new(
+        matrix(system, "cleaner", "A", p, p)?,
+        DMatrix::zeros(p, 0),
+        matrix(system, "cleaner", "C", p, p)?,
+        DMatrix::zeros(p, 0),
+        matrix(system, "cleaner", "Q", p, p)?,
+        matrix(system, "cleaner", "R", p, p)?,
+        vector(system, "cleaner", "x0", p)?,
+        matrix(system, "cleaner", "P0", p, p)?,
+        InfluenceFunction::Huber {
+            c: start_value(system, "cleaner", "c")?,
+        },
+    )?;
+    Ok((dkf, cleaner))
+}
+
+/// Cost per iteration (mean ± std over the run's samples, like 001 §5's 1500 iterations) of
+/// the DKF alone and of rsKF + DKF, in µs, on the recorded inputs and measurements.
+fn cost_per_iteration(system: &System, series: &TimeSeries) -> Result<([f64; 2], [f64; 2])> {
+    let col = |n: &str| {
+        series
+            .column(n)
+            .with_context(|| format!("`{n}` is not recorded"))
+    };
+    let (u1, u2, y1, y2) = (
+        col("drive_ref.y")?,
+        col("field_ref.y")?,
+        col("card.y[1]")?,
+        col("card.y[2]")?,
+    );
+    let none = DVector::zeros(0);
+    let mut dkf_times = Vec::new();
+    let mut chain_times = Vec::new();
+    for _ in 0..3 {
+        let (mut dkf, _) = library_filters(system)?;
+        let (mut dual, mut cleaner) = library_filters(system)?;
+        dkf_times.clear();
+        chain_times.clear();
+        for k in 0..u1.len() {
+            let u = DVector::from_vec(vec![u1[k], u2[k]]);
+            let y = DVector::from_vec(vec![y1[k], y2[k]]);
+            let t0 = Instant::now();
+            dkf.step(&u, &y)?;
+            let t1 = Instant::now();
+            cleaner.step(&none, &y)?;
+            let cleaned = cleaner.output().clone();
+            dual.step(&u, &cleaned)?;
+            let t2 = Instant::now();
+            dkf_times.push((t1 - t0).as_secs_f64() * 1e6);
+            chain_times.push((t2 - t1).as_secs_f64() * 1e6);
+        }
+    }
+    let (a, b) = mean_std(&dkf_times);
+    let (c, d) = mean_std(&chain_times);
+    Ok(([a, b], [c, d]))
+}
+
+/// Runs the experiment (module documentation).
+pub fn run(ctx: &ExperimentContext) -> Result<Report> {
+    let system = ctx.system(EXPERIMENT, "system.toml")?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(ctx.threads)
+        .build()
+        .context("thread pool")?;
+
+    let representative = run_series(&system)?;
+    crate::record::replay(
+        &representative,
+        &mut CsvWriter::create(&ctx.out_dir.join("generator_identification_seed.csv"))?,
+    )?;
+    figures(ctx, &representative)?;
+    let (dkf_cost, chain_cost) = cost_per_iteration(&system, &representative)?;
+
+    let runs: Vec<Scores> = pool.install(|| {
+        (1..=ctx.seeds)
+            .into_par_iter()
+            .map(|seed| scores(&run_series(&seeded(&system, seed)?)?))
+            .collect::<Result<Vec<_>>>()
+    })?;
+    let stat = |pick: &dyn Fn(&Scores) -> f64| mean_std(&runs.iter().map(pick).collect::<Vec<_>>());
+    let dkf = [stat(&|s| s.dkf[0]), stat(&|s| s.dkf[1])];
+    let chain = [stat(&|s| s.chain[0]), stat(&|s| s.chain[1])];
+    let cleaner = [stat(&|s| s.cleaner[0]), stat(&|s| s.cleaner[1])];
+    let ratio = [chain[0].0 / dkf[0].0, chain[1].0 / dkf[1].0];
+    let channel = ["speed", "voltage"];
+    let pm = |(m, s): (f64, f64)| format!("{m:.4} ± {s:.4}");
+
+    let mut rows = Vec::new();
+    for ch in 0..2 {
+        rows.push(Row::goal(
+            &format!("E_res DKF-rsKF, {} [V²]", channel[ch]),
+            format!("≈ {} (SPEC §4 reference)", REFERENCE_CHAIN[ch]),
+            pm(chain[ch]),
+            "≤ 0.03",
+            chain[ch].0 <= 0.03,
+        ));
+        rows.push(Row::info(
+            &format!("E_res DKF alone, {} [V²]", channel[ch]),
+            format!("≈ {} (SPEC §4 reference)", REFERENCE_DKF[ch]),
+            pm(dkf[ch]),
+        ));
+        rows.push(Row::goal(
+            &format!("DKF-rsKF / DKF alone, {}", channel[ch]),
+            format!("{:.2}", REFERENCE_CHAIN[ch] / REFERENCE_DKF[ch]),
+            format!("{:.3}", ratio[ch]),
+            "≤ 1/3",
+            ratio[ch] <= 1.0 / 3.0,
+        ));
+        rows.push(Row::info(
+            &format!("E_res rsKF cleaner alone, {} [V²]", channel[ch]),
+            "—",
+            pm(cleaner[ch]),
+        ));
+    }
+    rows.push(Row::info(
+        "cost per iteration, DKF-rsKF (rsKF + DKF, n = 8, library)",
+        "12.0 ± 3.9 ms (Matlab R2009a)",
+        format!("{:.1} ± {:.1} µs", chain_cost[0], chain_cost[1]),
+    ));
+    rows.push(Row::info(
+        "cost per iteration, DKF alone",
+        "10.9 ± 0.77 ms",
+        format!("{:.1} ± {:.1} µs", dkf_cost[0], dkf_cost[1]),
+    ));
+
+    Ok(Report {
+        title: "Wind-generator identification under outliers (paper 001 §5)".into(),
+        setup: format!(
+            "SignalSource ×2 (random steps of the drive and field references, levels U[6, 10] V and U[5, 9] V held 2–8 s) → WindGenerator (8 states, from the 8 V / 7 V steady state) → LinearSystem2 as the tachometer (5 V per 1000 rpm) and voltage transducer (1/30) → Sensor2 (the card: noise variance 0.1 V² on speed, 0.01 V² on voltage, 5 % spikes ±U(0, 4.8) V) → DualKalmanFilterGenerator alone, and RobustKalmanFilter2 → DualKalmanFilterGenerator (paper 001 Fig. 2, two connected FMUs). Ts = 0.1 s, 150 s (1500 samples, the paper's run length); E_res against the clean card signal, mean ± std over {} runs (card, drive and field seeds all varied).",
+            ctx.seeds
+        ),
+        rows,
+        figures: vec![
+            (
+                "generator_dkf.png".into(),
+                "DKF alone follows the spurious samples (paper 001 Fig. 5): measured (grey points), clean and DKF output".into(),
+            ),
+            (
+                "generator_dkf_rskf.png".into(),
+                "DKF-rsKF does not (paper 001 Fig. 7): measured, clean and DKF-rsKF output".into(),
+            ),
+            (
+                "generator_zoom.png".into(),
+                "Zoom on 30 s of the run (paper 001 Figs. 6 and 8): both estimates against the clean signal".into(),
+            ),
+        ],
+        notes: vec![
+            "Units: the paper's DKF is fed the NI USB-6009's voltages (±10 V), and noise variances of 0.1 and 0.01 (and E_res ≈ 0.02) only make sense there, not in rpm and volts RMS. We model the signal conditioning explicitly: tachogenerator 5 V / 1000 rpm (1800 rpm → 9 V), voltage transducer 1/30 (240 V → 8 V); all E_res are in V² at the card.".into(),
+            "Settings (same for both DKFs): Θ₀ = [I 0; C 0] with C = [I₂ 0] fixed, Q = 0.01 I₈, R = diag(0.1, 0.01) (the card's noise), P₀ = I, q_θ = 1e-6, r_θ = 0.1 (the paper's 0.5 adapts too slowly), x̂₀ at the initial operating point's readings (7.2 V, 5.73 V) — started from x̂₀ = 0 the DKF learns the start-up jump as dynamics and needs most of the run to forget it. Cleaner: random walk per channel, Q = diag(0.1, 0.02), R = diag(0.1, 0.01), Huber c = 1.645 (5 % contamination).".into(),
+            "The cleaner has no direct feedthrough, so its cleaned sample k reaches the second DKF at t_(k+1); a one-sample delay (LinearSystem2 with A = 0, B = C = I) on the references keeps that DKF's (u_k, y_k) pairs consistent. Feeding it u_(k+1) with y_k instead costs little once identified, but a wrong start-up pair is learnt as dynamics.".into(),
+            "Cost: the library's DKF and rsKF steps timed on this run's 1500 samples (3 passes, mean ± std per iteration, one core), i.e. the algorithm as the paper timed its Matlab code. Through the FMU interface (`cargo bench -p spurio-fmus --bench estimators`: fmi2SetReal + fmi2DoStep + fmi2GetReal of all 92 outputs) one DKF-rsKF sample costs about 4 µs. Either way three to four orders of magnitude below the paper's 12 ms.".into(),
+            "SPEC §4's reference figures come from an independent implementation with its own plant, scaling and outlier model; they are beside ours for scale, not for exact agreement.".into(),
+            "Representative run (seed of the TOML): generator_identification_seed.csv.".into(),
+        ],
+        figures_of_merit: vec![
+            ("e_res_chain_speed".into(), chain[0].0),
+            ("e_res_chain_voltage".into(), chain[1].0),
+            ("e_res_dkf_speed".into(), dkf[0].0),
+            ("e_res_dkf_voltage".into(), dkf[1].0),
+            ("ratio_speed".into(), ratio[0]),
+            ("ratio_voltage".into(), ratio[1]),
+            ("cost_chain_us".into(), chain_cost[0]),
+            ("cost_dkf_us".into(), dkf_cost[0]),
+        ],
+    })
+}
+
+/// The paper's Figs. 5–8 from the representative run (estimates shifted to their sample).
+fn figures(ctx: &ExperimentContext, series: &TimeSeries) -> Result<()> {
+    let col = |n: &str| {
+        series
+            .column(n)
+            .with_context(|| format!("`{n}` is not recorded"))
+    };
+    let k: Vec<f64> = (0..series.time.len()).map(|k| k as f64).collect();
+    let shifted = |v: Vec<f64>, lag: usize| -> (Vec<f64>, Vec<f64>) {
+        (k[..v.len() - lag].to_vec(), v[lag..].to_vec())
+    };
+    let labels = ["speed channel [V]", "voltage channel [V]"];
+    for (file, name, lag, title) in [
+        (
+            "generator_dkf.png",
+            "dkf",
+            1,
+            "DKF alone on the card's samples",
+        ),
+        (
+            "generator_dkf_rskf.png",
+            "dkf_rskf",
+            2,
+            "DKF-rsKF (rsKF -> DKF, two FMUs)",
+        ),
+    ] {
+        let panels = (0..2)
+            .map(|ch| {
+                let (xe, ye) = shifted(col(&format!("{name}.y_hat[{}]", ch + 1))?, lag);
+                Ok(Panel {
+                    label: labels[ch].into(),
+                    lines: vec![
+                        (
+                            "measured".into(),
+                            k.clone(),
+                            col(&format!("card.y[{}]", ch + 1))?,
+                            true,
+                        ),
+                        (
+                            "clean".into(),
+                            k.clone(),
+                            col(&format!("card.y_clean[{}]", ch + 1))?,
+                            false,
+                        ),
+                        ("estimate".into(), xe, ye, false),
+                    ],
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        panels_png(
+            &ctx.out_dir.join(file),
+            title,
+            "sample k (Ts = 0.1 s)",
+            &panels,
+        )?;
+    }
+    let (a, b) = (600usize, 900usize);
+    let panels = (0..2)
+        .map(|ch| {
+            let window = |v: Vec<f64>, lag: usize| -> (Vec<f64>, Vec<f64>) {
+                (k[a..b].to_vec(), v[a + lag..b + lag].to_vec())
+            };
+            let (xm, ym) = window(col(&format!("card.y[{}]", ch + 1))?, 0);
+            let (xc, yc) = window(col(&format!("card.y_clean[{}]", ch + 1))?, 0);
+            let (x1, y1) = window(col(&format!("dkf.y_hat[{}]", ch + 1))?, 1);
+            let (x2, y2) = window(col(&format!("dkf_rskf.y_hat[{}]", ch + 1))?, 2);
+            Ok(Panel {
+                label: labels[ch].into(),
+                lines: vec![
+                    ("measured".into(), xm, ym, true),
+                    ("clean".into(), xc, yc, false),
+                    ("DKF".into(), x1, y1, false),
+                    ("DKF-rsKF".into(), x2, y2, false),
+                ],
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    panels_png(
+        &ctx.out_dir.join("generator_zoom.png"),
+        "Samples 600-900",
+        "sample k (Ts = 0.1 s)",
+        &panels,
+    )
+}
