@@ -7,6 +7,7 @@
 //! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
 //! a [`Report`].
 
+pub mod crane_adaptive;
 pub mod crane_free_swing;
 
 use anyhow::{Context as _, Result};
@@ -168,6 +169,11 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_free_swing",
         description: "free swing of the nonlinear crane against the linearised period",
         run: crane_free_swing::run,
+    },
+    Experiment {
+        name: "crane_adaptive",
+        description: "adaptive pole placement of the crane with 5 % outliers: DKF alone vs DKF-rsKF (paper 000 §VII-B)",
+        run: crane_adaptive::run,
     }]
 }
 
