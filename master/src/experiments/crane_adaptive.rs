@@ -638,8 +638,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         Some(t) if t <= stop - MIN_REST_HOLD => format!("{t:.2} s"),
         _ => format!("not within {stop:.0} s"),
     };
-    let mut sens_table =
-        String::from("State-filter Q sensitivity (R = 0.01 I, same seeds 1..".to_string());
+    let mut sens_table = String::from("State-filter Q sensitivity (R = 0.01 I, same seeds 1..");
     let _ = write!(sens_table, "{sensitivity_seeds}): ");
     let parts: Vec<String> = sensitivity
         .iter()
