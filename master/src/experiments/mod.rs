@@ -7,6 +7,7 @@
 //! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
 //! a [`Report`].
 
+pub mod crane_adaptive;
 pub mod crane_free_swing;
 pub mod distributed_observer;
 pub mod generator_identification;
@@ -180,6 +181,11 @@ pub fn all() -> Vec<Experiment> {
         name: "distributed_observer",
         description: "two-agent distributed observer against the centralised Kalman filter (paper 004 §5)",
         run: distributed_observer::run,
+    },
+    Experiment {
+        name: "crane_adaptive",
+        description: "adaptive pole placement of the crane with 5 % outliers: DKF alone vs DKF-rsKF (paper 000 §VII-B)",
+        run: crane_adaptive::run,
     }]
 }
 

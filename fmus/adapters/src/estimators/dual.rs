@@ -5,7 +5,7 @@
 //! Each `fmi2DoStep` with inputs u_k, y_k runs, in sequence,
 //!
 //! ```text
-//! (DkfRsKf only) rsKF random walk per channel: y_clean = x̂_rsKF (weights w_j)
+//! (DkfRsKf only) rsKF random walk per channel, started at C x0: y_clean = x̂_rsKF (weights w_j)
 //! state filter with Θ̂_{k−1} = [Â B̂; Ĉ D̂]:  x̂_k, ŷ_k = Ĉ x̂_k + D̂ u_k
 //! parameter filter on the previous sample:  Θ_k = Θ_{k−1} + r_k,  Y = Θ Φ + V,
 //!     Y = [x̂_k; y_{k−1}], Φ = [x̂_{k−1}; u_{k−1}], Cov r = q_theta·I, Cov V = r_theta·I
@@ -139,7 +139,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             let p0_clean = t.add(
                 Variable::parameter("p0_clean", 1.0)
                     .min(0.0)
-                    .describe("rsKF cleaner: initial variance (its estimate starts at 0)"),
+                    .describe("rsKF cleaner: initial variance (its estimate starts at C·x0, the DKF's initial output)"),
             );
             let psi = add_influence(&mut t);
             Some(CleanerBlocks {
@@ -324,9 +324,25 @@ impl Estimator for DkfRsKfEstimator {
         let r = scalar(values, c.r_clean, "r_clean", true)?;
         let p0 = scalar(values, c.p0_clean, "p0_clean", false)?;
         let psi = read_influence(values, c.psi)?;
-        let cleaner =
-            RobustKalmanFilter::random_walk(layout.dims.p, q, r, p0, psi).map_err(error)?;
         let dual = build_dual(layout, values)?;
+        // The cleaner starts at the DKF's initial output ŷ₀ = C x̂₀ (0 with the default x0):
+        // a robust filter started far from the signal trusts its first samples whatever
+        // they are, so a known initial state must reach the cleaner too.
+        let p_out = layout.dims.p;
+        let eye = nalgebra::DMatrix::<f64>::identity(p_out, p_out);
+        let start = dual.c() * dual.state();
+        let cleaner = RobustKalmanFilter::new(
+            eye.clone(),
+            nalgebra::DMatrix::zeros(p_out, 0),
+            eye.clone(),
+            nalgebra::DMatrix::zeros(p_out, 0),
+            &eye * q,
+            &eye * r,
+            start,
+            &eye * p0,
+            psi,
+        )
+        .map_err(error)?;
         Ok(Self {
             filter: DkfRsKf::new(cleaner, dual).map_err(error)?,
             u: DVector::zeros(layout.dims.m),
@@ -404,6 +420,36 @@ mod tests {
             .unwrap();
         assert!(out.iter().all(|v| v.is_finite()));
         assert_eq!(out[1], 1.0, "C is fixed by default");
+    }
+
+    #[test]
+    fn the_cleaner_starts_at_the_initial_output_and_rejects_a_first_outlier() {
+        let config = dims_config(4, 1, 2);
+        let info = DkfRsKfFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<DkfRsKfFmu>::new(&config).unwrap();
+        h.set_real(
+            &[vr("x0[1]"), vr("q_clean"), vr("r_clean"), vr("p0_clean")],
+            &[0.2, 1e-5, 1e-5, 1e-5],
+        )
+        .unwrap();
+        h.initialize(0.0).unwrap();
+        let mut out = [0.0; 3];
+        h.get_real(&[vr("y_clean[1]"), vr("y_clean[2]"), vr("w[1]")], &mut out)
+            .unwrap();
+        assert_eq!(out, [0.2, 0.0, 1.0], "y_clean starts at C x0");
+        // The first sample carries a +0.28 outlier on the position.
+        h.set_real(&[vr("u[1]"), vr("y[1]"), vr("y[2]")], &[0.0, 0.48, 0.0])
+            .unwrap();
+        h.do_step(0.0, 0.05).unwrap();
+        h.get_real(&[vr("y_clean[1]"), vr("y_clean[2]"), vr("w[1]")], &mut out)
+            .unwrap();
+        assert!(
+            (out[0] - 0.2).abs() < 0.015,
+            "cleaned {} (outlier 0.28)",
+            out[0]
+        );
+        assert!(out[2] < 0.05, "weight {}", out[2]);
     }
 
     #[test]
