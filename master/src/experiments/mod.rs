@@ -7,7 +7,10 @@
 //! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
 //! a [`Report`].
 
+pub mod cosine_outliers;
 pub mod crane_free_swing;
+pub mod opamp_identification;
+pub mod seeded_runs;
 
 use anyhow::{Context as _, Result};
 use std::fmt::Write as _;
@@ -168,6 +171,16 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_free_swing",
         description: "free swing of the nonlinear crane against the linearised period",
         run: crane_free_swing::run,
+    },
+    Experiment {
+        name: "cosine_outliers",
+        description: "noisy cosine with outliers: sKF vs rsKF, E_res, moments, Grubbs (papers 000, 001)",
+        run: cosine_outliers::run,
+    },
+    Experiment {
+        name: "opamp_identification",
+        description: "op-amp filter identified from a noisy step and a PRBS: RLS with Steiglitz–McBride iterations (paper 002)",
+        run: opamp_identification::run,
     }]
 }
 
