@@ -327,11 +327,15 @@ impl Simulation {
             }
         }
 
-        // Recorded inputs and direct-feedthrough outputs of instances whose inputs are set at
-        // a communication point are re-read after the propagation, so that a record holds
-        // the values that belong to that point (e.g. a Sensor's `y_clean`, which feeds no
-        // connection, for the input just set) rather than those read after the last step.
-        let connected: Vec<usize> = system.connections.iter().map(|c| c.to.0).collect();
+        // Gauss–Seidel: recorded inputs and direct-feedthrough outputs of instances whose
+        // inputs are set at a communication point are re-read after the propagation, so that
+        // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
+        // which feeds no connection, for the input just set) rather than those read after the
+        // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
+        let connected: Vec<usize> = match system.algorithm {
+            Algorithm::GaussSeidel => system.connections.iter().map(|c| c.to.0).collect(),
+            Algorithm::Jacobi => Vec::new(),
+        };
         for r in &system.recorded {
             let v = &system.instances[r.0].fmu.variables[r.1];
             let refreshed = connected.contains(&r.0)
