@@ -16,7 +16,7 @@
 //! `fmi2Discard` and `fmi2Error` stop the run with an error naming the instance, the FMU file,
 //! the call and the time, quoting what the FMU logged.
 
-use crate::fmu::{LoadError, VarType};
+use crate::fmu::{Causality, LoadError, VarType};
 use crate::record::Observer;
 use crate::system::{Algorithm, PropagationStep, System, SystemError, VarRef};
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
@@ -324,6 +324,32 @@ impl Simulation {
                         slot_of[&from],
                     );
                 }
+            }
+        }
+
+        // Gauss–Seidel: recorded inputs and direct-feedthrough outputs of instances whose
+        // inputs are set at a communication point are re-read after the propagation, so that
+        // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
+        // which feeds no connection, for the input just set) rather than those read after the
+        // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
+        let connected: Vec<usize> = match system.algorithm {
+            Algorithm::GaussSeidel => system.connections.iter().map(|c| c.to.0).collect(),
+            Algorithm::Jacobi => Vec::new(),
+        };
+        for r in &system.recorded {
+            let v = &system.instances[r.0].fmu.variables[r.1];
+            let refreshed = connected.contains(&r.0)
+                && (v.causality == Causality::Input
+                    || (v.causality == Causality::Output && system.has_feedthrough(*r)));
+            if refreshed {
+                push_op(
+                    &mut propagation,
+                    false,
+                    r.0,
+                    v.var_type,
+                    v.value_reference,
+                    slot_of[r],
+                );
             }
         }
 

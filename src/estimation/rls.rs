@@ -27,6 +27,15 @@
 //! with_prefilter`] runs the Steiglitz–McBride variant: u and y are filtered through 1/Â(q)
 //! with the current estimate Â (refreshed every `refresh` samples) before entering φ, which
 //! makes the equation error white when Â is right and removes most of the bias.
+//!
+//! **Steiglitz–McBride iterations.** Refreshing Â from the running estimate needs long,
+//! rich records: with a single step of the op-amp filter (paper 002) the early estimates
+//! are so biased that the refreshed prefilter spoils the regressors. The classical batch form
+//! is sound there: run the estimator over the record with Â *fixed* (`refresh` = 0), set Â
+//! to the θ it ends with ([`RecursiveLeastSquares::set_prefilter_denominator`]) and run the
+//! same record again, until Â stops changing. With λ = 1 each run is the least-squares
+//! solution on the prefiltered record (up to the P₀ prior), i.e. one Steiglitz–McBride
+//! iteration (Steiglitz & McBride 1965; Ljung, *System Identification*, §10.4).
 
 use super::{parameter_error, EstimationError, StateReader};
 use std::f64::consts::PI;
@@ -106,9 +115,11 @@ impl RecursiveLeastSquares {
         })
     }
 
-    /// As [`new`](Self::new), with Steiglitz–McBride prefiltering through 1/Â(q); Â is
-    /// refreshed from θ every `refresh` samples (≥ 1) when it is stable (roots inside the
-    /// unit circle), otherwise the previous Â is kept. Errors as `new`, plus "refresh".
+    /// As [`new`](Self::new), with Steiglitz–McBride prefiltering through 1/Â(q); Â starts
+    /// at 1 (no filtering; see [`set_prefilter_denominator`](Self::set_prefilter_denominator))
+    /// and is refreshed from θ every `refresh` samples when it is stable (roots inside the
+    /// unit circle), otherwise the previous Â is kept; `refresh` = 0 keeps Â fixed (one
+    /// Steiglitz–McBride iteration per pass over the data, module doc). Errors as `new`.
     pub fn with_prefilter(
         na: usize,
         nb: usize,
@@ -116,9 +127,6 @@ impl RecursiveLeastSquares {
         p0_scale: f64,
         refresh: u64,
     ) -> Result<Self, EstimationError> {
-        if refresh == 0 {
-            return Err(parameter_error("refresh", "must be at least 1 sample"));
-        }
         let mut rls = Self::new(na, nb, lambda, p0_scale)?;
         rls.prefilter = Some(Prefilter {
             refresh,
@@ -128,6 +136,35 @@ impl RecursiveLeastSquares {
             filtered_past_y: vec![0.0; na],
         });
         Ok(rls)
+    }
+
+    /// Sets the prefilter's denominator Â = [â₁ … â_na] (before the first sample: the
+    /// filter's past is zero). Errors: no prefilter, a length other than na, a non-finite
+    /// or unstable Â (roots on or outside the unit circle) — named "prefilter_a".
+    pub fn set_prefilter_denominator(&mut self, a: &[f64]) -> Result<(), EstimationError> {
+        let na = self.na;
+        let filter = self.prefilter.as_mut().ok_or_else(|| {
+            parameter_error("prefilter_a", "the estimator has no prefilter to set")
+        })?;
+        if a.len() != na {
+            return Err(parameter_error(
+                "prefilter_a",
+                format!("needs na = {na} coefficients, got {}", a.len()),
+            ));
+        }
+        if a.iter().any(|v| !v.is_finite()) || !polynomial_is_stable(a) {
+            return Err(parameter_error(
+                "prefilter_a",
+                format!("1/Â(q) must be a stable filter (all roots of z^na + â₁ z^(na−1) + … inside the unit circle), got Â = {a:?}"),
+            ));
+        }
+        filter.denominator.copy_from_slice(a);
+        Ok(())
+    }
+
+    /// The prefilter's current denominator Â (None without a prefilter).
+    pub fn prefilter_denominator(&self) -> Option<&[f64]> {
+        self.prefilter.as_ref().map(|f| f.denominator.as_slice())
     }
 
     /// Processes one sample u(t), y(t); returns the prior prediction error ε(t).
@@ -194,7 +231,7 @@ impl RecursiveLeastSquares {
         shift_in(&mut self.past_y, y_used);
         shift_in(&mut self.past_u, u_used);
         self.last_error = error;
-        if let Some(filter) = &mut self.prefilter {
+        if let Some(filter) = self.prefilter.as_mut().filter(|f| f.refresh > 0) {
             filter.since_refresh += 1;
             if filter.since_refresh >= filter.refresh {
                 filter.since_refresh = 0;
@@ -652,6 +689,62 @@ mod tests {
         assert!(plain_biased);
         assert!(sm_zeta_error < 0.04, "ζ error {sm_zeta_error}");
         assert!(sm_wn_error < 0.04, "ω_n error {sm_wn_error}");
+    }
+
+    #[test]
+    fn steiglitz_mcbride_iterations_identify_the_op_amp_from_one_noisy_step() {
+        // Paper 002's experiment: one unit step, 10 s at Ts = 0.01, σ = 0.05 on the output.
+        // Plain least squares has no continuous equivalent (a pole on the negative real
+        // axis); passes with a fixed prefilter, Â taken from the previous pass, converge.
+        let (a1, a2, b1, b2) = op_amp_arx();
+        let inputs: Vec<f64> = (0..1000).map(|k| if k >= 50 { 1.0 } else { 0.0 }).collect();
+        let clean = simulate_arx([a1, a2], [b1, b2], &inputs);
+        let mut rng = TestRng::new(11);
+        let measured: Vec<f64> = clean.iter().map(|y| y + 0.05 * rng.normal()).collect();
+        let pass = |denominator: &[f64]| {
+            let mut rls = RecursiveLeastSquares::with_prefilter(2, 2, 1.0, 1e4, 0).unwrap();
+            rls.set_prefilter_denominator(denominator).unwrap();
+            for (u, y) in inputs.iter().zip(&measured) {
+                rls.step(*u, *y).unwrap();
+            }
+            assert_eq!(rls.prefilter_denominator().unwrap(), denominator);
+            rls
+        };
+        let plain = pass(&[0.0, 0.0]);
+        assert!(plain.continuous_second_order(0.01).is_err());
+        let mut denominator = plain.a().to_vec();
+        let mut passes = 1;
+        let estimate = loop {
+            let rls = pass(&denominator);
+            passes += 1;
+            let change = (rls.a()[0] - denominator[0]).abs() + (rls.a()[1] - denominator[1]).abs();
+            denominator = rls.a().to_vec();
+            if change < 1e-10 || passes == 30 {
+                break rls;
+            }
+        };
+        let readout = estimate.continuous_second_order(0.01).unwrap();
+        println!("{passes} passes: {readout:?}");
+        assert!(passes < 30);
+        assert!(
+            (readout.natural_frequency / 5.19615 - 1.0).abs() < 0.05,
+            "{readout:?}"
+        );
+        assert!(
+            (readout.damping / 0.49941 - 1.0).abs() < 0.05,
+            "{readout:?}"
+        );
+        assert!(
+            (readout.settling_time / 1.555 - 1.0).abs() < 0.1,
+            "{readout:?}"
+        );
+        // Bad denominators are refused, naming the parameter.
+        let mut rls = RecursiveLeastSquares::with_prefilter(2, 2, 1.0, 1e4, 0).unwrap();
+        let unstable = rls.set_prefilter_denominator(&[-2.1, 1.1]).unwrap_err();
+        assert!(unstable.to_string().contains("prefilter_a"), "{unstable}");
+        assert!(rls.set_prefilter_denominator(&[0.5]).is_err());
+        let mut no_prefilter = RecursiveLeastSquares::new(2, 2, 1.0, 1e4).unwrap();
+        assert!(no_prefilter.set_prefilter_denominator(&[0.0, 0.0]).is_err());
     }
 
     #[test]

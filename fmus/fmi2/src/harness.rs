@@ -94,6 +94,18 @@ impl<M: FmuModel> Harness<M> {
         })
     }
 
+    /// `fmi2SetBoolean` (`true` → fmi2True).
+    pub fn set_boolean(&mut self, vr: &[u32], values: &[bool]) -> Result<Status, Status> {
+        if vr.len() != values.len() {
+            return Err(Status::Error);
+        }
+        let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::set_boolean::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
     /// `fmi2GetReal` into `out`.
     pub fn get_real(&mut self, vr: &[u32], out: &mut [f64]) -> Result<Status, Status> {
         if vr.len() != out.len() {

@@ -7,10 +7,13 @@
 //! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
 //! a [`Report`].
 
+pub mod cosine_outliers;
 pub mod crane_adaptive;
 pub mod crane_free_swing;
 pub mod distributed_observer;
 pub mod generator_identification;
+pub mod opamp_identification;
+pub mod seeded_runs;
 
 use anyhow::{Context as _, Result};
 use std::fmt::Write as _;
@@ -186,6 +189,16 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_adaptive",
         description: "adaptive pole placement of the crane with 5 % outliers: DKF alone vs DKF-rsKF (paper 000 §VII-B)",
         run: crane_adaptive::run,
+    },
+    Experiment {
+        name: "cosine_outliers",
+        description: "noisy cosine with outliers: sKF vs rsKF, E_res, moments, Grubbs (papers 000, 001)",
+        run: cosine_outliers::run,
+    },
+    Experiment {
+        name: "opamp_identification",
+        description: "op-amp filter identified from a noisy step and a PRBS: RLS with Steiglitz–McBride iterations (paper 002)",
+        run: opamp_identification::run,
     }]
 }
 

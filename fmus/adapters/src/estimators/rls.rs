@@ -16,7 +16,9 @@
 //!
 //! With `prefilter` = true, u and y pass through 1/Â(q) (Steiglitz–McBride) refreshed every
 //! `refresh` samples, which removes the bias of least squares under white output noise
-//! (SPEC §4, paper 002's error in ζ).
+//! (SPEC §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
+//! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
+//! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
 
 use super::{count, error, Estimator};
 use crate::structured::{add_vector, Block};
@@ -44,6 +46,7 @@ pub struct RlsLayout {
     pub ts: usize,
     pub prefilter: usize,
     pub refresh: usize,
+    pub prefilter_a: Block,
 }
 
 /// The RLS estimator and whether the readout failure was logged.
@@ -122,9 +125,16 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), String> {
     ));
     let refresh = t.add(
         Variable::integer_parameter("refresh", 10)
-            .min(1.0)
-            .describe("Prefilter: samples between refreshes of Â(q)"),
+            .min(0.0)
+            .describe("Prefilter: samples between refreshes of Â(q) from θ; 0 = keep Â fixed"),
     );
+    let prefilter_a = add_vector(&mut t, "prefilter_a", na, |name, i| {
+        Variable::parameter(name, 0.0).describe(&format!(
+            "Prefilter: initial â{} of Â(q) = 1 + â₁q⁻¹ + … (Steiglitz–McBride: the previous pass's a{})",
+            i + 1,
+            i + 1
+        ))
+    });
     let info = ModelInfo::new(
         "RecursiveLeastSquares",
         "Recursive least squares on an ARX(na, nb) model with forgetting, continuous second-order readout (paper 002)",
@@ -154,6 +164,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), String> {
             ts,
             prefilter,
             refresh,
+            prefilter_a,
         },
         info,
     ))
@@ -178,12 +189,19 @@ impl Estimator for Rls {
         let p0 = values.real(l.p0_scale);
         let rls = if values.boolean(l.prefilter) {
             let refresh = values.integer(l.refresh);
-            if refresh < 1 {
+            if refresh < 0 {
                 return Err(Failure::Error(format!(
-                    "parameter `refresh`: must be at least 1 sample, got {refresh}"
+                    "parameter `refresh`: must be >= 0 samples (0 = fixed prefilter), got {refresh}"
                 )));
             }
-            RecursiveLeastSquares::with_prefilter(l.na, l.nb, lambda, p0, refresh as u64)
+            RecursiveLeastSquares::with_prefilter(l.na, l.nb, lambda, p0, refresh as u64).and_then(
+                |mut rls| {
+                    let denominator: Vec<f64> =
+                        l.prefilter_a.indices().map(|k| values.real(k)).collect();
+                    rls.set_prefilter_denominator(&denominator)?;
+                    Ok(rls)
+                },
+            )
         } else {
             RecursiveLeastSquares::new(l.na, l.nb, lambda, p0)
         }
@@ -347,6 +365,21 @@ mod tests {
             .log()
             .iter()
             .any(|(_, _, t)| t.contains("`lambda` = 1.5")));
+        let mut unstable = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
+        unstable.set_boolean(&[vr("prefilter")], &[true]).unwrap();
+        unstable
+            .set_real(&[vr("prefilter_a[1]"), vr("prefilter_a[2]")], &[-2.1, 1.1])
+            .unwrap();
+        assert!(unstable.initialize(0.0).is_err());
+        assert!(
+            unstable
+                .log()
+                .iter()
+                .any(|(_, _, t)| t.contains("parameter `prefilter_a`")),
+            "{:?}",
+            unstable.log()
+        );
+
         bad.set_real(&[vr("lambda")], &[0.0]).unwrap();
         assert!(bad.initialize(0.0).is_err());
         assert!(
