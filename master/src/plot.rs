@@ -151,6 +151,8 @@ pub struct Panel {
     pub label: String,
     /// (legend, x values, y values, draw as points instead of a line).
     pub lines: Vec<(String, Vec<f64>, Vec<f64>, bool)>,
+    /// The colour of each line, in order; lines beyond it take the default palette.
+    pub colours: Vec<RGBColor>,
 }
 
 /// Several panels stacked vertically, each with any number of lines (or point clouds) and a
@@ -208,7 +210,11 @@ pub fn panels_png(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> 
             .draw()
             .map_err(err)?;
         for (k, (legend, x, y, points)) in panel.lines.iter().enumerate() {
-            let colour = COLOURS[k % COLOURS.len()];
+            let colour = panel
+                .colours
+                .get(k)
+                .copied()
+                .unwrap_or(COLOURS[k % COLOURS.len()]);
             let data = x.iter().copied().zip(y.iter().copied());
             let series = if *points {
                 chart

@@ -301,77 +301,33 @@ struct Curve<'a> {
     points: bool,
 }
 
-/// Stacked panels sharing the time axis, several curves per panel (Figs. 7–8 style).
+/// Stacked panels sharing the time axis, several curves per panel (Figs. 7–8 style), drawn
+/// with [`crate::plot::panels_png`].
 fn panels_png(
     path: &Path,
     title: &str,
     time: &[f64],
     panels: &[(&str, Vec<Curve<'_>>)],
 ) -> Result<()> {
-    crate::plot::register_font();
-    let err = |e: &dyn std::fmt::Debug| anyhow!("plotting {}: {e:?}", path.display());
-    let root = BitMapBackend::new(path, (1000, 60 + 260 * panels.len() as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 22))
-        .map_err(|e| err(&e))?;
-    let areas = root.split_evenly((panels.len(), 1));
-    let (t0, t1) = (
-        time.first().copied().unwrap_or(0.0),
-        time.last().copied().unwrap_or(1.0),
-    );
-    for (area, (ylabel, curves)) in areas.iter().zip(panels) {
-        let (lo, hi) = curves
-            .iter()
-            .flat_map(|c| c.values.iter())
-            .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(*v), b.max(*v))
-            });
-        let (lo, hi) = if lo < hi {
-            (lo, hi)
-        } else {
-            (lo - 1.0, lo + 1.0)
-        };
-        let pad = 0.05 * (hi - lo);
-        let mut chart = ChartBuilder::on(area)
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(70)
-            .build_cartesian_2d(t0..t1.max(t0 + 1e-9), (lo - pad)..(hi + pad))
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("time [s]")
-            .y_desc(*ylabel)
-            .draw()
-            .map_err(|e| err(&e))?;
-        for c in curves {
-            let color = c.color;
-            let data = time.iter().copied().zip(c.values.iter().copied());
-            let series = if c.points {
-                chart
-                    .draw_series(data.map(|p| Circle::new(p, 2, color.filled())))
-                    .map_err(|e| err(&e))?
-            } else {
-                chart
-                    .draw_series(LineSeries::new(data, color.stroke_width(2)))
-                    .map_err(|e| err(&e))?
-            };
-            series.label(c.label).legend(move |(x, y)| {
-                Rectangle::new([(x, y - 3), (x + 18, y + 3)], color.filled())
-            });
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(&e))?;
-    }
-    root.present().map_err(|e| err(&e))?;
-    Ok(())
+    let panels: Vec<crate::plot::Panel> = panels
+        .iter()
+        .map(|(label, curves)| crate::plot::Panel {
+            label: label.to_string(),
+            lines: curves
+                .iter()
+                .map(|c| {
+                    (
+                        c.label.to_string(),
+                        time.to_vec(),
+                        c.values.to_vec(),
+                        c.points,
+                    )
+                })
+                .collect(),
+            colours: curves.iter().map(|c| c.color).collect(),
+        })
+        .collect();
+    crate::plot::panels_png(path, title, "time [s]", &panels)
 }
 
 const GREY: RGBColor = RGBColor(190, 190, 190);
@@ -598,7 +554,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     let (rs_xh, rs_thh) = (c(&rep_rskf, "est.x_hat[1]")?, c(&rep_rskf, "est.x_hat[2]")?);
     panels_png(
         &ctx.out_dir.join("crane_adaptive_estimates.png"),
-        &format!("Measurements and state estimates (seed {representative}, first 15 s; estimates as the controller reads them, one sample late)"),
+        &format!("Measurements and estimates (seed {representative}, first 15 s, as the controller reads them)"),
         &time[..time.len().min(301)],
         &[
             (

@@ -429,6 +429,7 @@ fn figure_states(ctx: &ExperimentContext, lq: &TimeSeries, local: &TimeSeries) -
     let cut = |v: &Vec<f64>| v.iter().copied().take(HORIZON + 1).collect::<Vec<_>>();
     let panels: Vec<Panel> = (0..3)
         .map(|i| Panel {
+            colours: Vec::new(),
             label: format!("x{}", i + 1),
             lines: vec![
                 (format!("x{}", i + 1), t.clone(), cut(&x[i]), false),

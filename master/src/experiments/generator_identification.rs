@@ -344,6 +344,7 @@ fn figures(ctx: &ExperimentContext, series: &TimeSeries) -> Result<()> {
             .map(|ch| {
                 let (xe, ye) = shifted(col(&format!("{name}.y_hat[{}]", ch + 1))?, lag);
                 Ok(Panel {
+                    colours: Vec::new(),
                     label: labels[ch].into(),
                     lines: vec![
                         (
@@ -381,6 +382,7 @@ fn figures(ctx: &ExperimentContext, series: &TimeSeries) -> Result<()> {
             let (x1, y1) = window(col(&format!("dkf.y_hat[{}]", ch + 1))?, 1);
             let (x2, y2) = window(col(&format!("dkf_rskf.y_hat[{}]", ch + 1))?, 2);
             Ok(Panel {
+                colours: Vec::new(),
                 label: labels[ch].into(),
                 lines: vec![
                     ("measured".into(), xm, ym, true),
