@@ -427,16 +427,12 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::state_feedback::{CONFIG_PRESET, CONFIG_STATES};
     use spurio::control::crane_reference_design;
     use spurio_fmi2::types::Status;
     use spurio_fmi2::Values;
 
     fn crane_config() -> Config {
-        let mut c = Config::new();
-        c.set(CONFIG_STATES, 4);
-        c.set(CONFIG_PRESET, "crane");
-        c
+        crate::crane_controller_config()
     }
 
     #[test]

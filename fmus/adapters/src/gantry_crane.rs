@@ -258,8 +258,6 @@ mod tests {
             (vr::H_MAX, "h_max"),
         ];
         assert_eq!(v.len(), expect.len());
-        for (i, name) in expect {
-            assert_eq!(v[i].name, name);
-        }
+        crate::assert_value_references(&v, &expect);
     }
 }

@@ -44,17 +44,16 @@ fn fixed(
     documentation: &'static str,
     describe: fn(&Config) -> Result<ModelInfo, String>,
 ) -> CatalogueEntry {
-    CatalogueEntry {
+    generic(
         model_identifier,
         documentation,
-        images: &[],
         describe,
-        variants: vec![(model_identifier.to_string(), Config::new())],
-    }
+        vec![(model_identifier, Config::new())],
+    )
 }
 
 /// The bundled variant of the controllers: the crane (n = 4, `preset = crane`).
-fn crane_controller_config() -> Config {
+pub(crate) fn crane_controller_config() -> Config {
     let mut config = Config::new();
     config.set(state_feedback::CONFIG_STATES, 4);
     config.set(state_feedback::CONFIG_PRESET, "crane");
@@ -217,4 +216,15 @@ pub fn catalogue() -> Vec<CatalogueEntry> {
             ],
         ),
     ]
+}
+
+/// Test helper: the variable table has exactly these value references, with these names.
+#[cfg(test)]
+pub(crate) fn assert_value_references(
+    variables: &[spurio_fmi2::Variable],
+    expect: &[(usize, &str)],
+) {
+    for (i, name) in expect {
+        assert_eq!(variables[*i].name, *name, "value reference {i}");
+    }
 }

@@ -330,8 +330,6 @@ mod tests {
             (vr::SEED, "seed"),
         ];
         assert_eq!(v.len(), expect.len());
-        for (i, name) in expect {
-            assert_eq!(v[i].name, name);
-        }
+        crate::assert_value_references(&v, &expect);
     }
 }

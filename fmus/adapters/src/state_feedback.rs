@@ -504,10 +504,7 @@ mod tests {
     use spurio_fmi2::types::Status;
 
     fn crane_config() -> Config {
-        let mut c = Config::new();
-        c.set(CONFIG_STATES, 4);
-        c.set(CONFIG_PRESET, "crane");
-        c
+        crate::crane_controller_config()
     }
 
     #[test]

@@ -378,9 +378,7 @@ mod tests {
             (vr::U_FIELD_0, "u_field_0"),
         ];
         assert_eq!(v.len(), vr::U_FIELD_0 + 1);
-        for (i, name) in expect {
-            assert_eq!(v[i].name, name);
-        }
+        crate::assert_value_references(&v, &expect);
         let p = WindGeneratorParameters::default();
         assert_eq!(parameters_from(&parameter_values(&p)), p);
     }
