@@ -5,8 +5,9 @@
 //! estimators and the controllers. Every module cites the paper section it implements; the
 //! equations are in `../shared/SPEC.md` §2 and in the doc comments.
 
+#![forbid(unsafe_code)]
+
 pub mod control;
-pub mod diagnostics;
 pub mod estimation;
 pub mod linalg;
 pub mod ode;

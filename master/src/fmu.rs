@@ -79,6 +79,10 @@ pub struct VariableInfo {
     pub fixed: bool,
     /// Start value of a Real/Integer/Boolean variable, as f64.
     pub start: Option<f64>,
+    /// The unit (`unit` of the variable, or of its declared type), e.g. `m`.
+    pub unit: Option<String>,
+    /// The model description's `description` of the variable.
+    pub description: Option<String>,
     /// For outputs: indices (into [`FmuFile::variables`]) of the inputs it depends on directly;
     /// `None` when the model description does not say (taken as: depends on every input).
     pub dependencies: Option<Vec<usize>>,
@@ -179,6 +183,10 @@ impl FmuFile {
                 file: path.to_path_buf(),
                 reason,
             })?;
+        let units = variable_units(&xml).map_err(|reason| LoadError::ModelDescription {
+            file: path.to_path_buf(),
+            reason,
+        })?;
         let mut variables = Vec::with_capacity(md.model_variables.variables.len());
         for (i, v) in md.model_variables.variables.iter().enumerate() {
             let (var_type, start) = match &v.elem {
@@ -209,6 +217,8 @@ impl FmuFile {
                 causality,
                 fixed,
                 start,
+                unit: units.get(i).cloned().flatten(),
+                description: v.description.clone(),
                 dependencies: dependencies
                     .get(&(i + 1))
                     .cloned()
@@ -307,6 +317,69 @@ fn output_dependencies(xml: &str) -> Result<HashMap<usize, Option<Vec<usize>>>, 
     Ok(map)
 }
 
+/// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
+/// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
+fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
+        e.attributes()
+            .flatten()
+            .find(|a| a.key.as_ref() == key)
+            .and_then(|a| {
+                a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                    .ok()
+                    .map(|v| v.to_string())
+            })
+    };
+    let mut type_units: HashMap<String, String> = HashMap::new();
+    let mut simple_type: Option<String> = None;
+    let mut in_variable = false;
+    // (own unit, declared type) per variable.
+    let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
+    loop {
+        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
+            Event::Start(e) => (e.into_owned(), false),
+            Event::Empty(e) => (e.into_owned(), true),
+            Event::End(e) => {
+                match e.name().as_ref() {
+                    "SimpleType" => simple_type = None,
+                    "ScalarVariable" => in_variable = false,
+                    _ => {}
+                }
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
+        };
+        match e.name().as_ref() {
+            "SimpleType" if !empty => simple_type = attribute(&e, "name"),
+            "ScalarVariable" => {
+                declared.push((None, None));
+                in_variable = !empty;
+            }
+            "Real" | "Integer" | "Enumeration" => {
+                if let Some(name) = &simple_type {
+                    if let Some(unit) = attribute(&e, "unit") {
+                        type_units.insert(name.clone(), unit);
+                    }
+                } else if in_variable {
+                    if let Some(last) = declared.last_mut() {
+                        *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(declared
+        .into_iter()
+        .map(|(unit, declared_type)| {
+            unit.or_else(|| declared_type.and_then(|t| type_units.get(&t).cloned()))
+        })
+        .collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -322,5 +395,23 @@ mod tests {
         assert_eq!(d[&2], Some(vec![]));
         assert_eq!(d[&3], Some(vec![1, 4]));
         assert_eq!(d[&5], None);
+    }
+
+    #[test]
+    fn units_come_from_the_variable_or_its_declared_type() {
+        let xml = r#"<fmiModelDescription>
+            <TypeDefinitions>
+              <SimpleType name="Length"><Real quantity="Length" unit="m"/></SimpleType>
+            </TypeDefinitions>
+            <ModelVariables>
+              <ScalarVariable name="x" valueReference="0"><Real declaredType="Length"/></ScalarVariable>
+              <ScalarVariable name="F" valueReference="1"><Real unit="N" declaredType="Length"/></ScalarVariable>
+              <ScalarVariable name="n" valueReference="2"><Integer/></ScalarVariable>
+              <ScalarVariable name="v" valueReference="3"><Real unit="m/s"/></ScalarVariable>
+            </ModelVariables></fmiModelDescription>"#;
+        assert_eq!(
+            variable_units(xml).unwrap(),
+            vec![Some("m".into()), Some("N".into()), None, Some("m/s".into())]
+        );
     }
 }

@@ -1,17 +1,14 @@
-//! The spurio co-simulation master: runs any FMI 2.0 Co-Simulation FMU (ours or a third
-//! party's), connects and steps several together, records, plots and sweeps; plus the
-//! packaging of the spurio FMUs and the outlier diagnostics.
-//!
-//! Import is built on rust-fmi ([`fmu`]); setup works with names ([`system`]), stepping with
-//! indices resolved once ([`engine`]); results go to observers ([`record`]).
+//! spurio-master: a co-simulation master for FMI 2.0 Co-Simulation FMUs (ours or a third
+//! party's). It loads FMUs on rust-fmi ([`fmu`]), describes systems by name in TOML or SSP
+//! ([`system`], [`ssp`]), steps them with indices resolved once ([`engine`]), sends results to
+//! observers ([`record`]), runs parameter sweeps in parallel ([`sweep`]) and reads results back
+//! ([`results`]). It knows no FMU of its own: any FMI 2.0 CS FMU runs.
 
-pub mod diagnose;
+#![forbid(unsafe_code)]
+
 pub mod engine;
-pub mod experiments;
 pub mod fmu;
 pub mod logging;
-pub mod package;
-pub mod plot;
 pub mod record;
 pub mod results;
 pub mod ssp;

@@ -23,7 +23,7 @@
 //! [`System::resolve`] loads every FMU once and checks every name, type and causality,
 //! reporting errors that name the instance, the variable and the file.
 
-use crate::fmu::{Causality, FmuFile, LoadError, VarType};
+use crate::fmu::{Causality, FmuFile, LoadError, VarType, VariableInfo};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -109,6 +109,8 @@ pub enum SystemError {
         file: PathBuf,
         reason: String,
     },
+    #[error("no instance called `{instance}` (instances: {known})")]
+    UnknownInstance { instance: String, known: String },
     #[error("input `{input}` is driven twice: by `{first}` and by `{second}`")]
     DrivenTwice {
         input: String,
@@ -152,6 +154,59 @@ pub struct System {
     pub instances: Vec<ResolvedInstance>,
     pub connections: Vec<Connection>,
     pub recorded: Vec<VarRef>,
+    /// The description this system was resolved from, FMU paths as loaded; edits by name
+    /// ([`System::set_start_value`], [`System::set_fmu`]) keep it in step.
+    source: SystemDescription,
+}
+
+/// A value given to a parameter or an unconnected input before initialisation, as a system
+/// file's `parameters` table gives it: a Real takes a `Real` or an `Integer`, an Integer or
+/// Enumeration an `Integer` (that fits 32 bits), a Boolean a `Boolean`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StartValue {
+    Real(f64),
+    Integer(i64),
+    Boolean(bool),
+}
+
+impl From<f64> for StartValue {
+    fn from(v: f64) -> Self {
+        Self::Real(v)
+    }
+}
+
+impl From<i64> for StartValue {
+    fn from(v: i64) -> Self {
+        Self::Integer(v)
+    }
+}
+
+impl From<i32> for StartValue {
+    fn from(v: i32) -> Self {
+        Self::Integer(i64::from(v))
+    }
+}
+
+impl From<u32> for StartValue {
+    fn from(v: u32) -> Self {
+        Self::Integer(i64::from(v))
+    }
+}
+
+impl From<bool> for StartValue {
+    fn from(v: bool) -> Self {
+        Self::Boolean(v)
+    }
+}
+
+impl From<StartValue> for toml::Value {
+    fn from(v: StartValue) -> Self {
+        match v {
+            StartValue::Real(x) => toml::Value::Float(x),
+            StartValue::Integer(i) => toml::Value::Integer(i),
+            StartValue::Boolean(b) => toml::Value::Boolean(b),
+        }
+    }
 }
 
 impl SystemDescription {
@@ -177,6 +232,15 @@ fn split_variable(text: &str) -> Option<(&str, &str)> {
 impl System {
     /// Resolves `description`, loading FMUs relative to `base_dir`.
     pub fn resolve(description: &SystemDescription, base_dir: &Path) -> Result<Self, SystemError> {
+        Self::resolve_with(description, base_dir, &mut HashMap::new())
+    }
+
+    /// [`System::resolve`], taking FMUs from `loaded` (by path) before loading them.
+    fn resolve_with(
+        description: &SystemDescription,
+        base_dir: &Path,
+        loaded: &mut HashMap<PathBuf, Arc<FmuFile>>,
+    ) -> Result<Self, SystemError> {
         let d = description;
         if !(d.step_size.is_finite() && d.step_size > 0.0) {
             return Err(SystemError::Invalid(format!(
@@ -193,7 +257,6 @@ impl System {
         if d.instances.is_empty() {
             return Err(SystemError::Invalid("no [[instance]]".into()));
         }
-        let mut loaded: HashMap<PathBuf, Arc<FmuFile>> = HashMap::new();
         let mut instances = Vec::new();
         let mut index_of: HashMap<&str, usize> = HashMap::new();
         for spec in &d.instances {
@@ -229,35 +292,17 @@ impl System {
             };
             let mut start_values = Vec::new();
             for (name, value) in &spec.parameters {
-                let err = |reason: String| SystemError::Parameter {
-                    instance: spec.name.clone(),
-                    variable: name.clone(),
-                    file: fmu.path.clone(),
-                    reason,
-                };
                 let Some(index) = fmu.index_of(name) else {
                     return Err(unknown(&spec.name, name, &fmu));
                 };
-                let v = &fmu.variables[index];
-                if !matches!(v.causality, Causality::Parameter | Causality::Input) {
-                    return Err(err(format!(
-                        "has causality {:?}: only parameters and inputs can be given values",
-                        v.causality
-                    )));
-                }
-                let number = match (v.var_type, value) {
-                    (VarType::Real, toml::Value::Float(x)) => *x,
-                    (VarType::Real, toml::Value::Integer(i)) => *i as f64,
-                    (VarType::Integer | VarType::Enumeration, toml::Value::Integer(i)) => {
-                        i32::try_from(*i)
-                            .map_err(|_| err(format!("{i} does not fit an Integer")))?
-                            as f64
+                let number = start_number(&fmu.variables[index], value).map_err(|reason| {
+                    SystemError::Parameter {
+                        instance: spec.name.clone(),
+                        variable: name.clone(),
+                        file: fmu.path.clone(),
+                        reason,
                     }
-                    (VarType::Boolean, toml::Value::Boolean(b)) => f64::from(u8::from(*b)),
-                    (t, v) => {
-                        return Err(err(format!("is of type {t:?}; the value `{v}` is not")));
-                    }
-                };
+                })?;
                 start_values.push((index, number));
             }
             instances.push(ResolvedInstance {
@@ -388,6 +433,17 @@ impl System {
             instances,
             connections,
             recorded,
+            source: SystemDescription {
+                instances: d
+                    .instances
+                    .iter()
+                    .map(|i| InstanceDescription {
+                        fmu: base_dir.join(&i.fmu),
+                        ..i.clone()
+                    })
+                    .collect(),
+                ..d.clone()
+            },
         };
         if system.algorithm == Algorithm::GaussSeidel {
             system.propagation_order()?;
@@ -409,6 +465,122 @@ impl System {
         let description = SystemDescription::read(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::resolve(&description, base)
+    }
+
+    /// The instance called `name`.
+    pub fn instance(&self, name: &str) -> Result<&ResolvedInstance, SystemError> {
+        self.instances
+            .iter()
+            .find(|i| i.name == name)
+            .ok_or_else(|| self.unknown_instance(name))
+    }
+
+    fn unknown_instance(&self, name: &str) -> SystemError {
+        SystemError::UnknownInstance {
+            instance: name.to_string(),
+            known: self
+                .instances
+                .iter()
+                .map(|i| i.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        }
+    }
+
+    /// The variable called `qualified` (`"instance.variable"`).
+    pub fn var_ref(&self, qualified: &str) -> Result<VarRef, SystemError> {
+        let Some((instance, variable)) = split_variable(qualified) else {
+            return Err(SystemError::Invalid(format!(
+                "`{qualified}` is not of the form instance.variable"
+            )));
+        };
+        let i = self
+            .instances
+            .iter()
+            .position(|inst| inst.name == instance)
+            .ok_or_else(|| self.unknown_instance(instance))?;
+        let fmu = &self.instances[i].fmu;
+        let v = fmu
+            .index_of(variable)
+            .ok_or_else(|| unknown(instance, variable, fmu))?;
+        Ok((i, v))
+    }
+
+    /// What the model description says of `qualified` (`"crane.x"`).
+    pub fn variable(&self, qualified: &str) -> Result<&VariableInfo, SystemError> {
+        let (i, v) = self.var_ref(qualified)?;
+        Ok(&self.instances[i].fmu.variables[v])
+    }
+
+    /// The unit of `qualified` (`"crane.x"` → `Some("m")`), if its FMU declares one.
+    pub fn unit(&self, qualified: &str) -> Result<Option<&str>, SystemError> {
+        Ok(self.variable(qualified)?.unit.as_deref())
+    }
+
+    /// The description of `qualified` in its FMU's model description, if any.
+    pub fn description(&self, qualified: &str) -> Result<Option<&str>, SystemError> {
+        Ok(self.variable(qualified)?.description.as_deref())
+    }
+
+    /// The value `qualified` starts with: the one this system sets, else the FMU's start
+    /// value (`None` if neither exists).
+    pub fn start_value(&self, qualified: &str) -> Result<Option<f64>, SystemError> {
+        let (i, v) = self.var_ref(qualified)?;
+        let inst = &self.instances[i];
+        Ok(inst
+            .start_values
+            .iter()
+            .rev()
+            .find(|(index, _)| *index == v)
+            .map(|(_, value)| *value)
+            .or(inst.fmu.variables[v].start))
+    }
+
+    /// Sets `qualified` (`"plant.seed"`) to `value` before initialisation, with the checks of
+    /// a `parameters` entry of the system file (a parameter or an input, of a matching type);
+    /// replaces a value set before.
+    pub fn set_start_value(
+        &mut self,
+        qualified: &str,
+        value: impl Into<StartValue>,
+    ) -> Result<(), SystemError> {
+        let value = toml::Value::from(value.into());
+        let (i, v) = self.var_ref(qualified)?;
+        let inst = &mut self.instances[i];
+        let variable = &inst.fmu.variables[v];
+        let number = start_number(variable, &value).map_err(|reason| SystemError::Parameter {
+            instance: inst.name.clone(),
+            variable: variable.name.clone(),
+            file: inst.fmu.path.clone(),
+            reason,
+        })?;
+        let name = variable.name.clone();
+        inst.start_values.retain(|(index, _)| *index != v);
+        inst.start_values.push((v, number));
+        if let Some(source) = self.source.instances.get_mut(i) {
+            source.parameters.insert(name, value);
+        }
+        Ok(())
+    }
+
+    /// Runs `instance` from another FMU file (`fmu`, a path as given, not relative to the
+    /// system file): its start values, connections and recorded variables are resolved again
+    /// by name against the new FMU, with the same checks as when the system was loaded.
+    pub fn set_fmu(&mut self, instance: &str, fmu: &Path) -> Result<(), SystemError> {
+        let i = self
+            .instances
+            .iter()
+            .position(|inst| inst.name == instance)
+            .ok_or_else(|| self.unknown_instance(instance))?;
+        let mut description = self.source.clone();
+        description.instances[i].fmu = fmu.to_path_buf();
+        let mut loaded: HashMap<PathBuf, Arc<FmuFile>> = self
+            .instances
+            .iter()
+            .map(|inst| (inst.fmu.path.clone(), inst.fmu.clone()))
+            .collect();
+        *self = Self::resolve_with(&description, Path::new(""), &mut loaded)?;
+        Ok(())
     }
 
     /// `instance.variable`.
@@ -509,6 +681,26 @@ pub enum PropagationStep {
     SetInput(VarRef),
     /// Re-read a direct-feedthrough output after its inputs changed.
     GetOutput(VarRef),
+}
+
+/// `value` as the f64 the engine sets for variable `v`, checked as a `parameters` entry is:
+/// only parameters and inputs take values, of their own type (a Real takes an integer too).
+fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
+    if !matches!(v.causality, Causality::Parameter | Causality::Input) {
+        return Err(format!(
+            "has causality {:?}: only parameters and inputs can be given values",
+            v.causality
+        ));
+    }
+    match (v.var_type, value.clone()) {
+        (VarType::Real, toml::Value::Float(x)) => Ok(x),
+        (VarType::Real, toml::Value::Integer(i)) => Ok(i as f64),
+        (VarType::Integer | VarType::Enumeration, toml::Value::Integer(i)) => i32::try_from(i)
+            .map(f64::from)
+            .map_err(|_| format!("{i} does not fit an Integer")),
+        (VarType::Boolean, toml::Value::Boolean(b)) => Ok(f64::from(u8::from(b))),
+        (t, v) => Err(format!("is of type {t:?}; the value `{v}` is not")),
+    }
 }
 
 fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {

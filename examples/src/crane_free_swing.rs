@@ -3,9 +3,9 @@
 //! model's (SPEC §6: ≈ 1.17 s).
 
 use super::{ExperimentContext, Report, Row};
-use crate::engine::{RunOptions, Simulation};
-use crate::record::{CsvWriter, TimeSeries};
 use anyhow::{Context, Result};
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::{CsvWriter, TimeSeries};
 
 /// Runs `examples/crane_free_swing/system.toml`.
 pub fn run(ctx: &ExperimentContext) -> Result<Report> {
@@ -14,7 +14,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     let mut series = TimeSeries::default();
     sim.run(&mut series, &RunOptions::default())?;
     sim.terminate()?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &series,
         &mut CsvWriter::create(&ctx.out_dir.join("crane_free_swing.csv"))?,
     )?;

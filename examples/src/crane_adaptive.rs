@@ -21,14 +21,14 @@
 //! and the sensitivity to the state filter's Q.
 
 use super::{ExperimentContext, Report, Row};
-use crate::engine::{RunOptions, Simulation};
-use crate::record::{CsvWriter, TimeSeries};
-use crate::system::System;
 use anyhow::{anyhow, Context as _, Result};
 use nalgebra::DMatrix;
 use plotters::prelude::*;
 use rayon::prelude::*;
 use spurio::plants::gantry_crane::GantryCraneParameters;
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -484,15 +484,15 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     )?)?;
     let rep_dkf_score = score(&rep_dkf, &truth)?;
     let rep_rskf_score = score(&rep_rskf, &truth)?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &rep_dkf,
         &mut CsvWriter::create(&ctx.out_dir.join("dkf.csv"))?,
     )?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &rep_rskf,
         &mut CsvWriter::create(&ctx.out_dir.join("dkf_rskf.csv"))?,
     )?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &reference_run,
         &mut CsvWriter::create(&ctx.out_dir.join("reference.csv"))?,
     )?;

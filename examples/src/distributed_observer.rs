@@ -19,12 +19,12 @@
 //! 2 Σ_k ‖x(k) − x̂(k|k)‖²), so the numbers compare like for like.
 
 use super::{ExperimentContext, Report, Row};
-use crate::engine::{RunOptions, Simulation};
 use crate::plot::{heatmap_png, panels_png, Panel};
-use crate::record::{CsvWriter, TimeSeries};
-use crate::system::System;
 use anyhow::{anyhow, Context, Result};
 use rayon::prelude::*;
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
 use std::fmt::Write as _;
 
 const EXPERIMENT: &str = "distributed_observer";
@@ -179,11 +179,11 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     let local_system = design(&system, LOCAL_KALMAN, 1.0, 1.0)?;
     let lq_run = run_series(&lq_system)?;
     let local_run = run_series(&local_system)?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &lq_run,
         &mut CsvWriter::create(&ctx.out_dir.join("distributed_observer_lq_seed1.csv"))?,
     )?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &local_run,
         &mut CsvWriter::create(
             &ctx.out_dir

@@ -19,14 +19,14 @@
 
 use super::seeded_runs::{column, for_each_seed, mean_std, median, run_series, with_start_values};
 use super::{ExperimentContext, Report, Row};
-use crate::record::{CsvWriter, TimeSeries};
-use crate::system::System;
-use anyhow::{anyhow, ensure, Result};
-use plotters::prelude::*;
-use spurio::diagnostics::{
+use crate::diagnostics::{
     excess_kurtosis, grubbs_critical_value, grubbs_iterative, histogram, mean, residual_error,
     skewness, std_dev, two_sigma_band,
 };
+use anyhow::{anyhow, ensure, Result};
+use plotters::prelude::*;
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
 use std::path::Path;
 
 /// Samples per run (paper 000/001: 1000).
@@ -101,7 +101,7 @@ fn e_res(clean: &[f64], estimate: &[f64]) -> Result<f64> {
 /// Whole-run value and (mean, std) over segments of a moment statistic.
 fn moment(
     data: &[f64],
-    f: fn(&[f64]) -> Result<f64, spurio::diagnostics::DiagnosticsError>,
+    f: fn(&[f64]) -> Result<f64, crate::diagnostics::DiagnosticsError>,
 ) -> Result<[f64; 3]> {
     let whole = f(data)?;
     let (m, s) = segment_spread(data.len(), |r| Ok(f(&data[r])?))?;
@@ -320,7 +320,7 @@ fn scenario(ctx: &ExperimentContext, file: &str, label: &str) -> Result<Scenario
     let seeds: Vec<u64> = (1..=ctx.seeds.max(1) as u64).collect();
     let results = for_each_seed(&seeds, ctx.threads, |seed| seed_figures(&system, seed))?;
     let (shown, series) = Signals::run(&system, &[("sensor.seed", SHOWN_SEED as f64)])?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &series,
         &mut CsvWriter::create(&ctx.out_dir.join(format!("{label}_seed{SHOWN_SEED}.csv")))?,
     )?;

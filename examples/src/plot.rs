@@ -85,7 +85,7 @@ pub fn histogram_png(
 pub fn time_series_png(
     path: &Path,
     title: &str,
-    series: &crate::record::TimeSeries,
+    series: &spurio_master::record::TimeSeries,
     names: &[String],
 ) -> Result<()> {
     register_font();

@@ -17,14 +17,14 @@
 use super::distributed_observer::{mean_std, run_series, with_start_values};
 use super::{ExperimentContext, Report, Row};
 use crate::plot::{panels_png, Panel};
-use crate::record::{CsvWriter, TimeSeries};
-use crate::system::System;
 use anyhow::{anyhow, Context, Result};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use spurio::estimation::{
     DualKalmanConfig, DualKalmanFilter, InfluenceFunction, RobustKalmanFilter,
 };
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
 use std::time::Instant;
 
 const EXPERIMENT: &str = "generator_identification";
@@ -213,7 +213,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         .context("thread pool")?;
 
     let representative = run_series(&system)?;
-    crate::record::replay(
+    spurio_master::record::replay(
         &representative,
         &mut CsvWriter::create(&ctx.out_dir.join("generator_identification_seed.csv"))?,
     )?;

@@ -2,9 +2,9 @@
 //! two-sided Grubbs test (one pass and iterated), sample moments (excess kurtosis, skewness,
 //! paper 001 eqs 18–19), E_res against a clean column, and a histogram with the ±2σ band.
 
-use crate::results::ResultTable;
+use crate::diagnostics;
 use anyhow::{Context, Result};
-use spurio::diagnostics;
+use spurio_master::results::ResultTable;
 use std::fmt::Write;
 use std::path::Path;
 

@@ -10,8 +10,7 @@ fn dkf_rskf_brings_the_crane_to_rest_where_the_dkf_alone_does_not() {
     let out =
         std::env::temp_dir().join(format!("spurio-exp-crane-adaptive-{}", std::process::id()));
     let reports =
-        spurio_master::experiments::run_all(&repo, &out, &["crane_adaptive".into()], 30, 0)
-            .unwrap();
+        spurio_experiments::run_all(&repo, &out, &["crane_adaptive".into()], 30, 0).unwrap();
     let report = &reports[0].1;
     let text = report.to_markdown("");
     assert!(report.all_goals_met(), "{text}");

@@ -1,11 +1,19 @@
-//! The papers' experiments as bundled systems (`examples/<name>/`), run by the master, each
-//! writing a report: a Markdown table with the paper's figure beside ours, and the plots the
-//! papers show. `spurio experiments` runs them all and writes `REPORT.md` in the output folder.
+//! The papers' experiments as bundled systems (`examples/<name>/`), run on the co-simulation
+//! engine ([`spurio_master`]), each writing a report: a Markdown table with the paper's figure
+//! beside ours, and the plots the papers show. `spurio experiments` runs them all and writes
+//! `REPORT.md` in the output folder.
 //!
 //! Each experiment is a module with one `run(&ExperimentContext) -> Result<Report>`; it loads
 //! its systems from `examples/<name>/*.toml` (so a user can run them with `spurio run` too),
-//! runs them (Monte-Carlo with [`crate::sweep`] where the paper reports mean ± std) and fills
-//! a [`Report`].
+//! runs them (Monte-Carlo with [`spurio_master::sweep`] where the paper reports mean ± std) and
+//! fills a [`Report`]. The analysis they share lives here too: the outlier [`diagnostics`]
+//! (and [`diagnose`], behind `spurio diagnose`) and the [`plot`]s.
+
+#![forbid(unsafe_code)]
+
+pub mod diagnose;
+pub mod diagnostics;
+pub mod plot;
 
 pub mod cosine_outliers;
 pub mod crane_adaptive;
@@ -39,9 +47,9 @@ impl ExperimentContext {
     }
 
     /// Loads and resolves `examples/<experiment>/<file>` (FMU paths relative to that file).
-    pub fn system(&self, experiment: &str, file: &str) -> Result<crate::system::System> {
+    pub fn system(&self, experiment: &str, file: &str) -> Result<spurio_master::system::System> {
         let path = self.example(experiment, file);
-        crate::system::System::from_file(&path)
+        spurio_master::system::System::from_file(&path)
             .with_context(|| format!("loading {}", path.display()))
     }
 }

@@ -20,12 +20,12 @@
 
 use super::seeded_runs::{column, for_each_seed, mean_std, median, run_series, with_start_values};
 use super::{ExperimentContext, Report, Row};
-use crate::record::{CsvWriter, TimeSeries};
-use crate::system::System;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use spurio::estimation::ContinuousSecondOrder;
 use spurio::plants::opamp_filter::OpAmpFilterParameters;
+use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::system::System;
 use std::path::Path;
 
 /// Sampling period of the acquisition and of the ARX model [s].
@@ -304,7 +304,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         })?;
         let (shown, _, passes, _, series) =
             steiglitz_mcbride(&system, &excitation.overrides(SHOWN_SEED))?;
-        crate::record::replay(
+        spurio_master::record::replay(
             &series,
             &mut CsvWriter::create(
                 &ctx.out_dir

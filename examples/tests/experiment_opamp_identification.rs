@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-fn close(report: &spurio_master::experiments::Report, key: &str, expected: f64, tolerance: f64) {
+fn close(report: &spurio_experiments::Report, key: &str, expected: f64, tolerance: f64) {
     let value = report.value(key).unwrap();
     assert!(
         (value - expected).abs() <= tolerance,
@@ -15,8 +15,7 @@ fn steiglitz_mcbride_identifies_the_filter_from_a_step_and_a_prbs() {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = std::env::temp_dir().join(format!("spurio-exp-opamp-{}", std::process::id()));
     let reports =
-        spurio_master::experiments::run_all(&repo, &out, &["opamp_identification".into()], 100, 0)
-            .unwrap();
+        spurio_experiments::run_all(&repo, &out, &["opamp_identification".into()], 100, 0).unwrap();
     let report = &reports[0].1;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     // Unit step (paper 002): mean relative errors over 100 seeds, in percent.

@@ -1,13 +1,13 @@
-//! Helpers for Monte-Carlo experiments that need more than [`crate::sweep`]: several start
+//! Helpers for Monte-Carlo experiments that need more than [`spurio_master::sweep`]: several start
 //! values changed per run, the whole recorded series kept for custom metrics, runs spread
 //! over a rayon pool with each run's instances created on its worker thread (rust-fmi
 //! instances are `!Send`, the resolved [`System`] is shared).
 
-use crate::engine::{RunOptions, Simulation};
-use crate::record::TimeSeries;
-use crate::system::System;
 use anyhow::{anyhow, Context, Result};
 use rayon::prelude::*;
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::TimeSeries;
+use spurio_master::system::System;
 
 /// A copy of `system` with start values replaced: `("instance.variable", value)` pairs
 /// (Boolean and Integer parameters take 0/1 and whole numbers).

@@ -6,14 +6,9 @@ use std::path::PathBuf;
 fn dkf_rskf_keeps_the_outliers_out_of_the_identified_output() {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = std::env::temp_dir().join(format!("spurio-exp-gen-{}", std::process::id()));
-    let reports = spurio_master::experiments::run_all(
-        &repo,
-        &out,
-        &["generator_identification".into()],
-        100,
-        0,
-    )
-    .unwrap();
+    let reports =
+        spurio_experiments::run_all(&repo, &out, &["generator_identification".into()], 100, 0)
+            .unwrap();
     let report = &reports[0].1;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     let v = |k: &str| report.value(k).unwrap();

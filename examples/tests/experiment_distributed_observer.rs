@@ -7,8 +7,7 @@ fn lq_gains_are_the_papers_and_the_local_gain_is_near_the_central_filter() {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = std::env::temp_dir().join(format!("spurio-exp-obs-{}", std::process::id()));
     let reports =
-        spurio_master::experiments::run_all(&repo, &out, &["distributed_observer".into()], 100, 0)
-            .unwrap();
+        spurio_experiments::run_all(&repo, &out, &["distributed_observer".into()], 100, 0).unwrap();
     let report = &reports[0].1;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     let v = |k: &str| report.value(k).unwrap();

@@ -7,10 +7,17 @@
 //! - `spurio diagnose` runs the outlier diagnostics (Grubbs, kurtosis, skewness, E_res,
 //!   histogram) on a column of a results CSV.
 
+// No unsafe code here; a module that must call into a compiled FMU library directly opts
+// in with `#[allow(unsafe_code)]` on that module alone.
+#![deny(unsafe_code)]
+
+use spurio_experiments::{diagnose, plot};
 use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::logging;
 use spurio_master::record::{CsvWriter, TimeSeries};
 use spurio_master::system::System;
-use spurio_master::{diagnose, logging, package, plot};
+
+mod package;
 
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
@@ -252,7 +259,7 @@ fn main() -> Result<()> {
             threads,
             repo,
         } => {
-            let reports = spurio_master::experiments::run_all(&repo, &out, &only, seeds, threads)?;
+            let reports = spurio_experiments::run_all(&repo, &out, &only, seeds, threads)?;
             let failed: Vec<&str> = reports
                 .iter()
                 .filter(|(_, r)| !r.all_goals_met())

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-fn close(report: &spurio_master::experiments::Report, key: &str, expected: f64, tolerance: f64) {
+fn close(report: &spurio_experiments::Report, key: &str, expected: f64, tolerance: f64) {
     let value = report.value(key).unwrap();
     assert!(
         (value - expected).abs() <= tolerance,
@@ -15,8 +15,7 @@ fn rskf_beats_skf_and_reaches_both_papers_figures() {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = std::env::temp_dir().join(format!("spurio-exp-cosine-{}", std::process::id()));
     let reports =
-        spurio_master::experiments::run_all(&repo, &out, &["cosine_outliers".into()], 100, 0)
-            .unwrap();
+        spurio_experiments::run_all(&repo, &out, &["cosine_outliers".into()], 100, 0).unwrap();
     let report = &reports[0].1;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     // Paper 000: literal filters (an independent numpy run: 0.179, 0.0121).
