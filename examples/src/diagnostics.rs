@@ -12,10 +12,9 @@
 //!   the upper `α/(2N)` quantile of Student's t with N − 2 degrees of freedom. (Paper 000
 //!   prints `N/√N`, a typo.) α = 0.05 gives 4.0400 for N = 1000 (the paper's 4.04) and 2.2900
 //!   for N = 10. [`grubbs_iterative`] removes the rejected value and repeats.
-//! * **Student's t** CDF and quantile, computed here: the upper tail is
+//! * **Student's t** CDF and quantile from `statrs` (the upper tail is
 //!   `P(T > t) = ½ I_{ν/(ν+t²)}(ν/2, ½)`, with the regularised incomplete beta function
-//!   `I_x(a, b)` from its continued fraction (modified Lentz), `ln Γ` by Lanczos, and the
-//!   quantile by bisection on the monotone tail (to full double precision).
+//!   `I_x(a, b)`; the quantile inverts it on the tail).
 //! * **Sample moments**: mean `ȳ`, standard deviation `s` (N − 1), and the paper 001 moment
 //!   estimators (population, 1/N, *biased* forms):
 //!
@@ -28,7 +27,7 @@
 //!
 //! Every function checks its input and returns [`DiagnosticsError`] instead of NaN.
 
-use std::f64::consts::PI;
+use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::fmt;
 
 /// Why a diagnostic could not be computed.
@@ -111,103 +110,6 @@ fn check_samples(data: &[f64], needed: usize) -> Result<(), DiagnosticsError> {
 // Special functions and Student's t
 // ---------------------------------------------------------------------------------------
 
-/// Lanczos coefficients (g = 7, n = 9), relative accuracy ≈ 1e-15 for x > 0.
-const LANCZOS: [f64; 9] = [
-    0.999_999_999_999_809_9,
-    676.520_368_121_885_1,
-    -1_259.139_216_722_402_8,
-    771.323_428_777_653_1,
-    -176.615_029_162_140_6,
-    12.507_343_278_686_905,
-    -0.138_571_095_265_720_12,
-    9.984_369_578_019_572e-6,
-    1.505_632_735_149_311_6e-7,
-];
-
-/// `ln Γ(x)` for `x > 0` (Lanczos approximation).
-fn ln_gamma(x: f64) -> f64 {
-    if x < 0.5 {
-        // Reflection: Γ(x) Γ(1 − x) = π / sin(πx).
-        return (PI / (PI * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let z = x - 1.0;
-    let mut sum = LANCZOS[0];
-    for (k, c) in LANCZOS.iter().enumerate().skip(1) {
-        sum += c / (z + k as f64);
-    }
-    let t = z + 7.5;
-    0.5 * (2.0 * PI).ln() + (z + 0.5) * t.ln() - t + sum.ln()
-}
-
-/// Continued fraction of the incomplete beta function (modified Lentz), valid for
-/// `x < (a + 1)/(a + b + 2)`.
-fn incomplete_beta_fraction(a: f64, b: f64, x: f64) -> f64 {
-    const TINY: f64 = 1e-300;
-    const MAX_TERMS: usize = 10_000;
-    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
-    let mut c = 1.0;
-    let mut d = 1.0 - qab * x / qap;
-    if d.abs() < TINY {
-        d = TINY;
-    }
-    d = 1.0 / d;
-    let mut h = d;
-    for m in 1..=MAX_TERMS {
-        let m = m as f64;
-        let m2 = 2.0 * m;
-        let even = m * (b - m) * x / ((qam + m2) * (a + m2));
-        d = 1.0 + even * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + even / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
-        h *= d * c;
-        let odd = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-        d = 1.0 + odd * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + odd / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
-        let delta = d * c;
-        h *= delta;
-        if (delta - 1.0).abs() <= f64::EPSILON {
-            break;
-        }
-    }
-    h
-}
-
-/// Regularised incomplete beta function `I_x(a, b)` for `0 ≤ x ≤ 1`, `a, b > 0`.
-pub fn regularized_incomplete_beta(x: f64, a: f64, b: f64) -> Result<f64, DiagnosticsError> {
-    if !(a.is_finite() && a > 0.0) {
-        return Err(DiagnosticsError::InvalidArgument(a));
-    }
-    if !(b.is_finite() && b > 0.0) {
-        return Err(DiagnosticsError::InvalidArgument(b));
-    }
-    if !(0.0..=1.0).contains(&x) {
-        return Err(DiagnosticsError::InvalidArgument(x));
-    }
-    if x == 0.0 || x == 1.0 {
-        return Ok(x);
-    }
-    let ln_front = a * x.ln() + b * (-x).ln_1p() - (ln_gamma(a) + ln_gamma(b) - ln_gamma(a + b));
-    let front = ln_front.exp();
-    if x < (a + 1.0) / (a + b + 2.0) {
-        Ok(front * incomplete_beta_fraction(a, b, x) / a)
-    } else {
-        Ok(1.0 - front * incomplete_beta_fraction(b, a, 1.0 - x) / b)
-    }
-}
-
 fn check_dof(dof: f64) -> Result<(), DiagnosticsError> {
     if dof.is_finite() && dof > 0.0 {
         Ok(())
@@ -216,61 +118,36 @@ fn check_dof(dof: f64) -> Result<(), DiagnosticsError> {
     }
 }
 
-/// Upper tail `P(T > t)` for `t ≥ 0`: `½ I_{ν/(ν+t²)}(ν/2, ½)`.
-fn student_t_upper_tail(t: f64, dof: f64) -> Result<f64, DiagnosticsError> {
-    let x = dof / (dof + t * t);
-    Ok(0.5 * regularized_incomplete_beta(x, 0.5 * dof, 0.5)?)
+/// The standard Student's t distribution with `dof` degrees of freedom (statrs).
+fn student_t(dof: f64) -> Result<StudentsT, DiagnosticsError> {
+    check_dof(dof)?;
+    StudentsT::new(0.0, 1.0, dof).map_err(|_| DiagnosticsError::InvalidDegreesOfFreedom(dof))
 }
 
 /// Student's t cumulative distribution `P(T ≤ t)` with `dof` degrees of freedom.
 pub fn student_t_cdf(t: f64, dof: f64) -> Result<f64, DiagnosticsError> {
-    check_dof(dof)?;
+    let distribution = student_t(dof)?;
     if t.is_nan() {
         return Err(DiagnosticsError::InvalidArgument(t));
     }
     if t.is_infinite() {
         return Ok(if t > 0.0 { 1.0 } else { 0.0 });
     }
-    let tail = student_t_upper_tail(t.abs(), dof)?;
-    Ok(if t >= 0.0 { 1.0 - tail } else { tail })
+    Ok(distribution.cdf(t))
 }
 
-/// Student's t quantile: the `t` with `P(T ≤ t) = p`, for `0 < p < 1`.
-///
-/// Solved on the tail (so small tail probabilities such as α/(2N) = 2.5e-5 keep full
-/// relative accuracy) by bisection to double precision.
+/// Student's t quantile: the `t` with `P(T ≤ t) = p`, for `0 < p < 1` (statrs, which
+/// inverts the regularised incomplete beta function on the tail, so small tail
+/// probabilities such as α/(2N) = 2.5e-5 keep their accuracy).
 pub fn student_t_quantile(p: f64, dof: f64) -> Result<f64, DiagnosticsError> {
-    check_dof(dof)?;
+    let distribution = student_t(dof)?;
     if !(p > 0.0 && p < 1.0) {
         return Err(DiagnosticsError::InvalidProbability(p));
     }
     if p == 0.5 {
         return Ok(0.0);
     }
-    // Find s ≥ 0 with P(T > s) = tail.
-    let tail = if p < 0.5 { p } else { 1.0 - p };
-    let mut low = 0.0;
-    let mut high = 1.0;
-    while student_t_upper_tail(high, dof)? > tail {
-        low = high;
-        high *= 2.0;
-        if !high.is_finite() {
-            return Err(DiagnosticsError::InvalidProbability(p));
-        }
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (low + high);
-        if mid <= low || mid >= high {
-            break;
-        }
-        if student_t_upper_tail(mid, dof)? > tail {
-            low = mid;
-        } else {
-            high = mid;
-        }
-    }
-    let s = 0.5 * (low + high);
-    Ok(if p < 0.5 { -s } else { s })
+    Ok(distribution.inverse_cdf(p))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -513,6 +390,7 @@ pub fn two_sigma_band(data: &[f64]) -> Result<(f64, f64), DiagnosticsError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     #[test]
     fn student_t_quantiles_match_published_values() {

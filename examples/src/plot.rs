@@ -88,11 +88,24 @@ pub fn time_series_png(
     series: &spurio_master::record::TimeSeries,
     names: &[String],
 ) -> Result<()> {
+    labelled_time_series_png(path, title, series, names, names)
+}
+
+/// [`time_series_png`] with the y-axis of `names[i]` labelled `labels[i]` (e.g. with its
+/// unit: `crane.x [m]`).
+pub fn labelled_time_series_png(
+    path: &Path,
+    title: &str,
+    series: &spurio_master::record::TimeSeries,
+    names: &[String],
+    labels: &[String],
+) -> Result<()> {
     register_font();
     let columns: Vec<(String, Vec<f64>)> = names
         .iter()
-        .map(|n| {
-            series.column(n).map(|c| (n.clone(), c)).ok_or_else(|| {
+        .zip(labels.iter().chain(names.iter().skip(labels.len())))
+        .map(|(n, label)| {
+            series.column(n).map(|c| (label.clone(), c)).ok_or_else(|| {
                 anyhow!(
                     "cannot plot `{n}`: it is not recorded (recorded: {})",
                     series.names.join(", ")

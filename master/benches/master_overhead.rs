@@ -27,7 +27,7 @@ fn bare_loop(fmu: &Path, steps: usize, batches: usize) -> f64 {
     let file = FmuFile::open(fmu).expect("open");
     let u = file.variable("u[1]").expect("u").value_reference;
     let y = file.variable("y[1]").expect("y").value_reference;
-    let mut inst = file.instantiate("bare", false).expect("instantiate");
+    let (mut inst, _log) = file.instantiate("bare", false).expect("instantiate");
     Common::setup_experiment(&mut inst, None, 0.0, None).expect("setup");
     Common::enter_initialization_mode(&mut inst).expect("enter");
     Common::exit_initialization_mode(&mut inst).expect("exit");

@@ -1,8 +1,9 @@
 //! The stepping loop: fixed-step Gauss–Seidel or Jacobi, multirate, by index.
 //!
-//! Setup ([`Simulation::new`]) instantiates every instance on the calling thread, sets start
-//! values by value reference, initialises, and turns the system's names into batches of value
-//! references and buffer slots. The loop then only moves numbers:
+//! [`Simulation::new`] instantiates every instance on the calling thread, sets start values
+//! by value reference, initialises, and follows the system's compiled [`Plan`] (names were
+//! turned into value references and buffer slots once, in [`crate::plan`]). The loop then
+//! only moves numbers:
 //!
 //! 1. at each communication point t_k, the connected inputs are set from their sources (for
 //!    Gauss–Seidel in the order of the direct-feedthrough graph, re-reading feedthrough outputs
@@ -14,16 +15,47 @@
 //!    in between).
 //!
 //! `fmi2Discard` and `fmi2Error` stop the run with an error naming the instance, the FMU file,
-//! the call and the time, quoting what the FMU logged.
+//! the call and the time, quoting what that instance logged; when several instances fail in
+//! the same step (or in initialisation, or in terminate), the error names every one of them.
 
-use crate::fmu::{Causality, LoadError, VarType};
+use crate::fmu::{LoadError, VarType};
+use crate::logging::LogKey;
+use crate::plan::{Op, Plan, Transfer};
 use crate::record::Observer;
-use crate::system::{Algorithm, PropagationStep, System, SystemError, VarRef};
+use crate::system::{System, SystemError};
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::fmi2::Fmi2Error;
 use fmi::traits::FmiInstance;
-use std::collections::HashMap;
 use std::time::{Duration, Instant};
+
+/// One FMI call of one instance that did not succeed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("instance `{instance}` ({file}): {call} returned {status} at t = {time}{log}")]
+pub struct FmiFailure {
+    pub instance: String,
+    pub file: String,
+    pub call: &'static str,
+    /// `fmi2Discard`, `fmi2Error`, `fmi2Fatal` (or rust-fmi's description of another failure).
+    pub status: String,
+    pub time: f64,
+    /// What the instance logged, quoted (empty if nothing).
+    pub log: String,
+}
+
+/// Every failure of one step (or initialisation, or terminate), joined.
+fn joined(failures: &[FmiFailure]) -> String {
+    match failures {
+        [one] => one.to_string(),
+        many => format!(
+            "{} instances failed: {}",
+            many.len(),
+            many.iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+    }
+}
 
 /// Why a run stopped.
 #[derive(Debug, thiserror::Error)]
@@ -32,48 +64,40 @@ pub enum RunError {
     Load(#[from] LoadError),
     #[error(transparent)]
     System(#[from] SystemError),
-    #[error("instance `{instance}` ({file}): {call} returned {status} at t = {time}{log}")]
-    Fmi {
-        instance: String,
-        file: String,
-        call: &'static str,
-        status: String,
-        time: f64,
-        log: String,
-    },
+    /// One or more FMUs failed in the same step (all of them are listed).
+    #[error("{}", joined(failures))]
+    Fmi { failures: Vec<FmiFailure> },
     #[error("writing results: {0}")]
     Output(#[from] std::io::Error),
 }
 
-/// A group of variables of one instance and one type, moved in one FMI call.
+impl From<FmiFailure> for RunError {
+    fn from(f: FmiFailure) -> Self {
+        Self::Fmi { failures: vec![f] }
+    }
+}
+
+/// A [`Transfer`] of the plan with the scratch space of its FMI call.
 #[derive(Debug, Clone)]
 struct Batch {
-    member: usize,
-    var_type: VarType,
     vrs: Vec<u32>,
-    /// Buffer slots: where read values go (get) or where set values come from (set).
     slots: Vec<usize>,
+    var_type: VarType,
+    member: usize,
     reals: Vec<f64>,
     integers: Vec<i32>,
 }
 
 impl Batch {
-    fn new(member: usize, var_type: VarType) -> Self {
+    fn new(t: &Transfer) -> Self {
         Self {
-            member,
-            var_type,
-            vrs: Vec::new(),
-            slots: Vec::new(),
-            reals: Vec::new(),
-            integers: Vec::new(),
+            vrs: t.vrs.clone(),
+            slots: t.slots.clone(),
+            var_type: t.var_type,
+            member: t.member,
+            reals: vec![0.0; t.vrs.len()],
+            integers: vec![0; t.vrs.len()],
         }
-    }
-
-    fn push(&mut self, vr: u32, slot: usize) {
-        self.vrs.push(vr);
-        self.slots.push(slot);
-        self.reals.push(0.0);
-        self.integers.push(0);
     }
 
     fn get(&mut self, inst: &mut InstanceCS, buffer: &mut [f64]) -> Result<(), Fmi2Error> {
@@ -125,8 +149,7 @@ impl Batch {
     }
 }
 
-#[derive(Debug, Clone)]
-enum Op {
+enum Step {
     Set(Batch),
     Get(Batch),
 }
@@ -135,9 +158,60 @@ struct Member {
     name: String,
     file: String,
     instance: InstanceCS,
+    /// Where this instance's log messages are kept (dropped after the instance).
+    log: LogKey,
     multiple: u64,
     /// Gets after this member's step (its slots).
     after_step: Vec<Batch>,
+}
+
+impl Member {
+    /// Reads this member's outputs into the buffer.
+    fn read(&mut self, buffer: &mut [f64]) -> Result<(), Fmi2Error> {
+        for b in &mut self.after_step {
+            b.get(&mut self.instance, buffer)?;
+        }
+        Ok(())
+    }
+
+    fn failure(&self, call: &'static str, e: Fmi2Error, time: f64) -> FmiFailure {
+        let said = self.log.recent_messages();
+        FmiFailure {
+            instance: self.name.clone(),
+            file: self.file.clone(),
+            call,
+            status: match e {
+                Fmi2Error::Discard => "fmi2Discard".into(),
+                Fmi2Error::Error => "fmi2Error".into(),
+                Fmi2Error::Fatal => "fmi2Fatal".into(),
+                other => other.to_string(),
+            },
+            time,
+            log: if said.is_empty() {
+                String::new()
+            } else {
+                format!(" (the FMU logged: {})", said.join("; "))
+            },
+        }
+    }
+}
+
+/// Calls `call` on every member (that `due` selects), then reports every failure at once.
+fn on_every(
+    members: &mut [Member],
+    due: impl Fn(&Member) -> bool,
+    mut call: impl FnMut(&mut Member) -> Result<(), FmiFailure>,
+) -> Result<(), RunError> {
+    let failures: Vec<FmiFailure> = members
+        .iter_mut()
+        .filter(|m| due(m))
+        .filter_map(|m| call(m).err())
+        .collect();
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(RunError::Fmi { failures })
+    }
 }
 
 /// Options of a run.
@@ -153,7 +227,7 @@ pub struct RunOptions {
 pub struct Simulation {
     members: Vec<Member>,
     /// Set/get operations at each communication point.
-    propagation: Vec<Op>,
+    propagation: Vec<Step>,
     buffer: Vec<f64>,
     record_names: Vec<String>,
     record_slots: Vec<usize>,
@@ -164,237 +238,84 @@ pub struct Simulation {
     steps: u64,
 }
 
-fn fmi_error(name: &str, file: &str, call: &'static str, e: Fmi2Error, time: f64) -> RunError {
-    let said = crate::logging::recent_messages(name);
-    RunError::Fmi {
-        instance: name.to_string(),
-        file: file.to_string(),
-        call,
-        status: match e {
-            Fmi2Error::Discard => "fmi2Discard".into(),
-            Fmi2Error::Error => "fmi2Error".into(),
-            Fmi2Error::Fatal => "fmi2Fatal".into(),
-            other => other.to_string(),
-        },
-        time,
-        log: if said.is_empty() {
-            String::new()
-        } else {
-            format!(" (the FMU logged: {})", said.join("; "))
-        },
-    }
-}
-
-/// Groups consecutive operations of the same kind, member and type into one batch.
-fn push_op(ops: &mut Vec<Op>, set: bool, member: usize, var_type: VarType, vr: u32, slot: usize) {
-    let same = |b: &Batch| b.member == member && b.var_type == var_type;
-    match ops.last_mut() {
-        Some(Op::Set(b)) if set && same(b) => b.push(vr, slot),
-        Some(Op::Get(b)) if !set && same(b) => b.push(vr, slot),
-        _ => {
-            let mut b = Batch::new(member, var_type);
-            b.push(vr, slot);
-            ops.push(if set { Op::Set(b) } else { Op::Get(b) });
-        }
-    }
-}
-
 impl Simulation {
     /// Instantiates and initialises every instance of `system` on this thread.
     pub fn new(system: &System) -> Result<Self, RunError> {
-        // Buffer slots: every connection source and every recorded variable.
-        let mut slot_of: HashMap<VarRef, usize> = HashMap::new();
-        let slot = |r: VarRef, slot_of: &mut HashMap<VarRef, usize>| {
-            let n = slot_of.len();
-            *slot_of.entry(r).or_insert(n)
-        };
-        for c in &system.connections {
-            slot(c.from, &mut slot_of);
-        }
-        let record_slots: Vec<usize> = system
-            .recorded
-            .iter()
-            .map(|r| slot(*r, &mut slot_of))
-            .collect();
-        let mut by_slot: Vec<VarRef> = vec![(0, 0); slot_of.len()];
-        for (r, s) in &slot_of {
-            by_slot[*s] = *r;
-        }
-
+        let plan: &Plan = &system.plan;
+        let t0 = system.start_time;
         let mut members = Vec::with_capacity(system.instances.len());
         for (i, spec) in system.instances.iter().enumerate() {
             let fmu = &spec.fmu;
-            let mut instance = fmu.instantiate(&spec.name, spec.logging)?;
+            let (instance, log) = fmu.instantiate(&spec.name, spec.logging)?;
             let mut m = Member {
                 name: spec.name.clone(),
                 file: fmu.path.display().to_string(),
-                instance: {
-                    Common::setup_experiment(
-                        &mut instance,
-                        None,
-                        system.start_time,
-                        Some(system.stop_time),
-                    )
-                    .map_err(|e| RunError::Fmi {
-                        instance: spec.name.clone(),
-                        file: fmu.path.display().to_string(),
-                        call: "fmi2SetupExperiment",
-                        status: e.to_string(),
-                        time: system.start_time,
-                        log: String::new(),
-                    })?;
-                    instance
-                },
+                instance,
+                log,
                 multiple: u64::from(spec.step_multiple),
-                after_step: Vec::new(),
+                after_step: plan.after_step[i].iter().map(Batch::new).collect(),
             };
+            Common::setup_experiment(&mut m.instance, None, t0, Some(system.stop_time))
+                .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
             for (index, value) in &spec.start_values {
                 let v = &fmu.variables[*index];
-                let mut b = Batch::new(i, v.var_type);
-                b.push(v.value_reference, 0);
-                b.set(&mut m.instance, &[*value]).map_err(|e| {
-                    fmi_error(
-                        &m.name,
-                        &m.file,
-                        "fmi2Set* (start value)",
-                        e,
-                        system.start_time,
-                    )
-                })?;
+                let mut b = Batch::new(&Transfer {
+                    member: i,
+                    var_type: v.var_type,
+                    vrs: vec![v.value_reference],
+                    slots: vec![0],
+                });
+                b.set(&mut m.instance, &[*value])
+                    .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
             }
-            Common::enter_initialization_mode(&mut m.instance).map_err(|e| {
-                fmi_error(
-                    &m.name,
-                    &m.file,
-                    "fmi2EnterInitializationMode",
-                    e,
-                    system.start_time,
-                )
-            })?;
-            let mut gets: Vec<Op> = Vec::new();
-            for (s, r) in by_slot.iter().enumerate() {
-                if r.0 == i {
-                    let v = &fmu.variables[r.1];
-                    push_op(&mut gets, false, i, v.var_type, v.value_reference, s);
-                }
-            }
-            m.after_step = gets
-                .into_iter()
-                .filter_map(|op| match op {
-                    Op::Get(b) => Some(b),
-                    Op::Set(_) => None,
-                })
-                .collect();
+            Common::enter_initialization_mode(&mut m.instance)
+                .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
             members.push(m);
         }
-
-        let mut propagation = Vec::new();
-        let steps: Vec<PropagationStep> = match system.algorithm {
-            Algorithm::GaussSeidel => system.propagation_order()?,
-            Algorithm::Jacobi => system
-                .connections
-                .iter()
-                .map(|c| PropagationStep::SetInput(c.to))
-                .collect(),
-        };
-        for step in steps {
-            match step {
-                PropagationStep::SetInput(to) => {
-                    let Some(c) = system.connections.iter().find(|c| c.to == to) else {
-                        continue;
-                    };
-                    let v = &system.instances[to.0].fmu.variables[to.1];
-                    push_op(
-                        &mut propagation,
-                        true,
-                        to.0,
-                        v.var_type,
-                        v.value_reference,
-                        slot_of[&c.from],
-                    );
-                }
-                PropagationStep::GetOutput(from) => {
-                    let v = &system.instances[from.0].fmu.variables[from.1];
-                    push_op(
-                        &mut propagation,
-                        false,
-                        from.0,
-                        v.var_type,
-                        v.value_reference,
-                        slot_of[&from],
-                    );
-                }
-            }
-        }
-
-        // Gauss–Seidel: recorded inputs and direct-feedthrough outputs of instances whose
-        // inputs are set at a communication point are re-read after the propagation, so that
-        // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
-        // which feeds no connection, for the input just set) rather than those read after the
-        // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
-        let connected: Vec<usize> = match system.algorithm {
-            Algorithm::GaussSeidel => system.connections.iter().map(|c| c.to.0).collect(),
-            Algorithm::Jacobi => Vec::new(),
-        };
-        for r in &system.recorded {
-            let v = &system.instances[r.0].fmu.variables[r.1];
-            let refreshed = connected.contains(&r.0)
-                && (v.causality == Causality::Input
-                    || (v.causality == Causality::Output && system.has_feedthrough(*r)));
-            if refreshed {
-                push_op(
-                    &mut propagation,
-                    false,
-                    r.0,
-                    v.var_type,
-                    v.value_reference,
-                    slot_of[r],
-                );
-            }
-        }
-
-        let steps = ((system.stop_time - system.start_time) / system.step_size - 1e-9)
-            .ceil()
-            .max(0.0) as u64;
         let mut sim = Self {
             members,
-            propagation,
-            buffer: vec![0.0; slot_of.len()],
-            record_names: system
-                .recorded
+            propagation: plan
+                .propagation
                 .iter()
-                .map(|r| system.variable_name(*r))
+                .map(|op| match op {
+                    Op::Set(t) => Step::Set(Batch::new(t)),
+                    Op::Get(t) => Step::Get(Batch::new(t)),
+                })
                 .collect(),
-            record_slots,
-            record_values: vec![0.0; system.recorded.len()],
+            buffer: vec![0.0; plan.slot_count],
+            record_names: plan.record_names.clone(),
+            record_slots: plan.record_slots.clone(),
+            record_values: vec![0.0; plan.recorded.len()],
             start_time: system.start_time,
             stop_time: system.stop_time,
             step_size: system.step_size,
-            steps,
+            steps: plan.steps,
         };
         // Initial values flow through the connections in initialization mode, then every
         // instance leaves it.
-        let t0 = sim.start_time;
-        for m in &mut sim.members {
-            for b in &mut m.after_step {
-                b.get(&mut m.instance, &mut sim.buffer).map_err(|e| {
-                    fmi_error(&m.name, &m.file, "fmi2Get* (initial outputs)", e, t0)
-                })?;
-            }
-        }
+        sim.read_all("fmi2Get* (initial outputs)", t0)?;
         sim.propagate(0, true)?;
-        for m in &mut sim.members {
-            Common::exit_initialization_mode(&mut m.instance)
-                .map_err(|e| fmi_error(&m.name, &m.file, "fmi2ExitInitializationMode", e, t0))?;
-        }
-        for m in &mut sim.members {
-            for b in &mut m.after_step {
-                b.get(&mut m.instance, &mut sim.buffer).map_err(|e| {
-                    fmi_error(&m.name, &m.file, "fmi2Get* (initial outputs)", e, t0)
-                })?;
-            }
-        }
+        on_every(
+            &mut sim.members,
+            |_| true,
+            |m| {
+                Common::exit_initialization_mode(&mut m.instance)
+                    .map(|_| ())
+                    .map_err(|e| m.failure("fmi2ExitInitializationMode", e, t0))
+            },
+        )?;
+        sim.read_all("fmi2Get* (initial outputs)", t0)?;
         Ok(sim)
+    }
+
+    /// Reads every member's outputs (initialisation).
+    fn read_all(&mut self, call: &'static str, time: f64) -> Result<(), RunError> {
+        let buffer = &mut self.buffer;
+        on_every(
+            &mut self.members,
+            |_| true,
+            |m| m.read(buffer).map_err(|e| m.failure(call, e, time)),
+        )
     }
 
     /// The names of the recorded variables.
@@ -411,8 +332,8 @@ impl Simulation {
         let time = self.start_time + k as f64 * self.step_size;
         for op in &mut self.propagation {
             let (batch, set) = match op {
-                Op::Set(b) => (b, true),
-                Op::Get(b) => (b, false),
+                Step::Set(b) => (b, true),
+                Step::Get(b) => (b, false),
             };
             let m = &mut self.members[batch.member];
             if !all && !k.is_multiple_of(m.multiple) {
@@ -423,31 +344,19 @@ impl Simulation {
             } else {
                 batch.get(&mut m.instance, &mut self.buffer)
             };
-            result.map_err(|e| {
-                fmi_error(
-                    &m.name,
-                    &m.file,
-                    if set { "fmi2Set*" } else { "fmi2Get*" },
-                    e,
-                    time,
-                )
-            })?;
+            result.map_err(|e| m.failure(if set { "fmi2Set*" } else { "fmi2Get*" }, e, time))?;
         }
         Ok(())
     }
 
     /// Reads the outputs of the instances whose step ends at base step `k` (all for k = 0).
     fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
-        for m in &mut self.members {
-            if !k.is_multiple_of(m.multiple) {
-                continue;
-            }
-            for b in &mut m.after_step {
-                b.get(&mut m.instance, &mut self.buffer)
-                    .map_err(|e| fmi_error(&m.name, &m.file, "fmi2Get*", e, time))?;
-            }
-        }
-        Ok(())
+        let buffer = &mut self.buffer;
+        on_every(
+            &mut self.members,
+            |m| k.is_multiple_of(m.multiple),
+            |m| m.read(buffer).map_err(|e| m.failure("fmi2Get*", e, time)),
+        )
     }
 
     fn record(&mut self, observer: &mut dyn Observer, time: f64) -> Result<(), RunError> {
@@ -486,15 +395,18 @@ impl Simulation {
             }
             self.propagate(k, false)?;
             self.record(observer, time)?;
-            for m in &mut self.members {
-                if !k.is_multiple_of(m.multiple) {
-                    continue;
-                }
-                let h = (self.step_size * m.multiple as f64).min(self.stop_time - time);
-                m.instance
-                    .do_step(time, h, true)
-                    .map_err(|e| fmi_error(&m.name, &m.file, "fmi2DoStep", e, time))?;
-            }
+            let (step_size, stop_time) = (self.step_size, self.stop_time);
+            on_every(
+                &mut self.members,
+                |m| k.is_multiple_of(m.multiple),
+                |m| {
+                    let h = (step_size * m.multiple as f64).min(stop_time - time);
+                    m.instance
+                        .do_step(time, h, true)
+                        .map(|_| ())
+                        .map_err(|e| m.failure("fmi2DoStep", e, time))
+                },
+            )?;
             if let Some(factor) = options.real_time_factor {
                 let due =
                     Duration::from_secs_f64((time + self.step_size - self.start_time) / factor);
@@ -518,13 +430,18 @@ impl Simulation {
         Ok(())
     }
 
-    /// Terminates every instance (they are freed when the simulation is dropped).
+    /// Terminates every instance (they are freed when the simulation is dropped); reports
+    /// every instance that fails to.
     pub fn terminate(&mut self) -> Result<(), RunError> {
         let t = self.stop_time;
-        for m in &mut self.members {
-            FmiInstance::terminate(&mut m.instance)
-                .map_err(|e| fmi_error(&m.name, &m.file, "fmi2Terminate", e, t))?;
-        }
-        Ok(())
+        on_every(
+            &mut self.members,
+            |_| true,
+            |m| {
+                FmiInstance::terminate(&mut m.instance)
+                    .map(|_| ())
+                    .map_err(|e| m.failure("fmi2Terminate", e, t))
+            },
+        )
     }
 }

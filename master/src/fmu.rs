@@ -7,6 +7,7 @@
 //! quotes what the FMU logged. Variables are indexed by name once, here, so the simulation can
 //! work with value references only.
 
+use crate::logging::LogKey;
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::InstanceCS;
 use fmi::schema::fmi2::{
@@ -256,24 +257,34 @@ impl FmuFile {
         self.by_name.get(name).copied()
     }
 
-    /// A Co-Simulation instance, created on the calling thread (rust-fmi instances are
-    /// `!Send`). On failure the error quotes what the FMU logged.
-    pub fn instantiate(&self, instance: &str, logging_on: bool) -> Result<InstanceCS, LoadError> {
-        self.import
-            .instantiate_cs(instance, false, logging_on)
-            .map_err(|e| {
-                let said = crate::logging::recent_messages(instance);
+    /// A Co-Simulation instance called `instance`, created on the calling thread (rust-fmi
+    /// instances are `!Send`), with the key its log messages are kept under (see
+    /// [`crate::logging`]). On failure the error quotes what the FMU logged.
+    pub fn instantiate(
+        &self,
+        instance: &str,
+        logging_on: bool,
+    ) -> Result<(InstanceCS, LogKey), LoadError> {
+        let key = LogKey::new(instance);
+        match self
+            .import
+            .instantiate_cs(key.instance_name(), false, logging_on)
+        {
+            Ok(cs) => Ok((cs, key)),
+            Err(e) => {
+                let said = key.recent_messages();
                 let log = if said.is_empty() {
                     format!(" ({e})")
                 } else {
                     format!(": {}", said.join("; "))
                 };
-                LoadError::Instantiate {
+                Err(LoadError::Instantiate {
                     instance: instance.to_string(),
                     file: self.path.clone(),
                     log,
-                }
-            })
+                })
+            }
+        }
     }
 }
 

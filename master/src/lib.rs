@@ -1,14 +1,17 @@
 //! spurio-master: a co-simulation master for FMI 2.0 Co-Simulation FMUs (ours or a third
 //! party's). It loads FMUs on rust-fmi ([`fmu`]), describes systems by name in TOML or SSP
-//! ([`system`], [`ssp`]), steps them with indices resolved once ([`engine`]), sends results to
-//! observers ([`record`]), runs parameter sweeps in parallel ([`sweep`]) and reads results back
+//! ([`description`], [`ssp`]), loads and edits them by name ([`system`]), compiles them to
+//! indices once ([`plan`]), steps them ([`engine`]), sends results to observers
+//! ([`record`]), runs parameter sweeps in parallel ([`sweep`]) and reads results back
 //! ([`results`]). It knows no FMU of its own: any FMI 2.0 CS FMU runs.
 
 #![forbid(unsafe_code)]
 
+pub mod description;
 pub mod engine;
 pub mod fmu;
 pub mod logging;
+pub mod plan;
 pub mod record;
 pub mod results;
 pub mod ssp;

@@ -1,22 +1,42 @@
-//! FMU log messages, forwarded to the master's log with the instance name.
+//! FMU log messages, forwarded to the master's log and kept per instance.
 //!
 //! rust-fmi's logger callback formats each FMU message (C variadic) and emits it through the
-//! `log` crate with the instance name as the target. [`install`] sets a logger that prints
-//! those messages as `[instance] LEVEL: message` on standard error (warnings and errors always,
-//! informational messages with `--verbose`) and keeps the most recent ones, so an error report
-//! can quote what an FMU said about it ([`recent_messages`]).
+//! `log` crate with the instance name as the target. So that two instances with the same
+//! name (say, `crane` in two parallel runs of a sweep) cannot be told apart by it, every
+//! instance is created under a name of its own, `<name>#<n>` ([`LogKey`]). [`install`] sets
+//! a logger that prints the messages as `[name] LEVEL: message` on standard error (warnings
+//! and errors always, informational messages with `--verbose`) and keeps the most recent
+//! ones of each live [`LogKey`], so an error report quotes what that very instance said
+//! ([`LogKey::recent_messages`]).
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, OnceLock};
 
-const KEPT: usize = 500;
+/// Messages kept per instance.
+const KEPT: usize = 100;
 
 struct ForwardingLogger {
     verbose: bool,
-    recent: Mutex<VecDeque<(String, log::Level, String)>>,
 }
 
 static LOGGER: OnceLock<ForwardingLogger> = OnceLock::new();
+
+/// The messages of the live instances, by their unique name.
+type Kept = Mutex<HashMap<String, VecDeque<(log::Level, String)>>>;
+
+fn kept() -> &'static Kept {
+    static KEPT_MESSAGES: OnceLock<Kept> = OnceLock::new();
+    KEPT_MESSAGES.get_or_init(|| Mutex::new(HashMap::new()))
+}
+
+/// The name the user gave an instance, from the unique name it was created under.
+fn display_name(target: &str) -> &str {
+    match target.rsplit_once('#') {
+        Some((name, n)) if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => name,
+        _ => target,
+    }
+}
 
 impl log::Log for ForwardingLogger {
     fn enabled(&self, metadata: &log::Metadata) -> bool {
@@ -33,13 +53,20 @@ impl log::Log for ForwardingLogger {
         }
         let text = record.args().to_string();
         if record.level() <= log::Level::Warn || self.verbose {
-            eprintln!("[{}] {}: {}", record.target(), record.level(), text);
+            eprintln!(
+                "[{}] {}: {}",
+                display_name(record.target()),
+                record.level(),
+                text
+            );
         }
-        if let Ok(mut recent) = self.recent.lock() {
-            if recent.len() == KEPT {
-                recent.pop_front();
+        if let Ok(mut kept) = kept().lock() {
+            if let Some(messages) = kept.get_mut(record.target()) {
+                if messages.len() == KEPT {
+                    messages.pop_front();
+                }
+                messages.push_back((record.level(), text));
             }
-            recent.push_back((record.target().to_string(), record.level(), text));
         }
     }
 
@@ -48,26 +75,88 @@ impl log::Log for ForwardingLogger {
 
 /// Installs the forwarding logger (once per process; later calls keep the first setting).
 pub fn install(verbose: bool) {
-    let logger = LOGGER.get_or_init(|| ForwardingLogger {
-        verbose,
-        recent: Mutex::new(VecDeque::new()),
-    });
+    let logger = LOGGER.get_or_init(|| ForwardingLogger { verbose });
     if log::set_logger(logger).is_ok() {
         log::set_max_level(log::LevelFilter::Info);
     }
 }
 
-/// The most recent messages that instance `name` logged (oldest first).
-pub fn recent_messages(name: &str) -> Vec<String> {
-    let Some(logger) = LOGGER.get() else {
-        return Vec::new();
-    };
-    let Ok(recent) = logger.recent.lock() else {
-        return Vec::new();
-    };
-    recent
-        .iter()
-        .filter(|(target, _, _)| target == name)
-        .map(|(_, level, text)| format!("{level}: {text}"))
-        .collect()
+/// The unique name one instance is created under: its messages are kept under it while the
+/// key lives, and dropped with it.
+#[derive(Debug)]
+pub struct LogKey {
+    unique: String,
+}
+
+impl LogKey {
+    /// A new key for an instance the user calls `name`.
+    pub fn new(name: &str) -> Self {
+        static NEXT: AtomicU64 = AtomicU64::new(1);
+        let unique = format!("{name}#{}", NEXT.fetch_add(1, Ordering::Relaxed));
+        if let Ok(mut kept) = kept().lock() {
+            kept.insert(unique.clone(), VecDeque::new());
+        }
+        Self { unique }
+    }
+
+    /// The name to give `fmi2Instantiate`.
+    pub fn instance_name(&self) -> &str {
+        &self.unique
+    }
+
+    /// The most recent messages this instance logged (oldest first), as `LEVEL: text`.
+    pub fn recent_messages(&self) -> Vec<String> {
+        let Ok(kept) = kept().lock() else {
+            return Vec::new();
+        };
+        kept.get(&self.unique)
+            .map(|messages| {
+                messages
+                    .iter()
+                    .map(|(level, text)| format!("{level}: {text}"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for LogKey {
+    fn drop(&mut self) {
+        if let Ok(mut kept) = kept().lock() {
+            kept.remove(&self.unique);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_are_kept_per_key_and_printed_under_the_users_name() {
+        install(false);
+        let a = LogKey::new("crane");
+        let b = LogKey::new("crane");
+        assert_ne!(a.instance_name(), b.instance_name());
+        assert_eq!(display_name(a.instance_name()), "crane");
+        assert_eq!(display_name("odd#name"), "odd#name");
+        let emit = |target: &str, text: &str| {
+            log::logger().log(
+                &log::Record::builder()
+                    .target(target)
+                    .module_path_static(Some("logger"))
+                    .level(log::Level::Error)
+                    .args(format_args!("{text}"))
+                    .build(),
+            )
+        };
+        emit(a.instance_name(), "x0 beyond the rail");
+        emit(b.instance_name(), "m_c must be positive");
+        emit("crane", "not kept: no key");
+        assert_eq!(a.recent_messages(), ["ERROR: x0 beyond the rail"]);
+        assert_eq!(b.recent_messages(), ["ERROR: m_c must be positive"]);
+        let name = a.instance_name().to_string();
+        drop(a);
+        assert!(!kept().lock().unwrap().contains_key(&name));
+    }
 }

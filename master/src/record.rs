@@ -67,11 +67,20 @@ pub fn replay(series: &TimeSeries, observer: &mut dyn Observer) -> std::io::Resu
     observer.finish()
 }
 
-/// Writes fmpy's CSV layout: `"time","a.x",…` then full-precision rows (shortest
-/// representation that reads back to the same `f64`).
+/// Writes fmpy's CSV layout with the `csv` crate: a header of quoted names (`"time","a.x",…`)
+/// then full-precision rows (shortest representation that reads back to the same `f64`).
 pub struct CsvWriter<W: Write> {
-    out: W,
-    line: String,
+    state: CsvState<W>,
+    field: String,
+}
+
+enum CsvState<W: Write> {
+    /// Before the header.
+    Fresh(W),
+    /// Writing rows.
+    Rows(Box<csv::Writer<W>>),
+    /// A write failed and took the output with it.
+    Broken,
 }
 
 impl CsvWriter<std::io::BufWriter<std::fs::File>> {
@@ -87,18 +96,28 @@ impl<W: Write> CsvWriter<W> {
     /// A writer to `out`.
     pub fn new(out: W) -> Self {
         Self {
-            out,
-            line: String::with_capacity(256),
+            state: CsvState::Fresh(out),
+            field: String::with_capacity(32),
+        }
+    }
+
+    fn rows(&mut self) -> std::io::Result<&mut csv::Writer<W>> {
+        match &mut self.state {
+            CsvState::Rows(w) => Ok(w),
+            _ => Err(std::io::Error::other(
+                "CSV rows written before the header (Observer::start)",
+            )),
         }
     }
 }
 
-fn push_number(line: &mut String, v: f64) {
+fn format_number(field: &mut String, v: f64) {
     use std::fmt::Write as _;
+    field.clear();
     if v.is_finite() {
-        let _ = write!(line, "{v:?}");
+        let _ = write!(field, "{v:?}");
     } else {
-        line.push_str(if v.is_nan() {
+        field.push_str(if v.is_nan() {
             "nan"
         } else if v > 0.0 {
             "inf"
@@ -110,24 +129,36 @@ fn push_number(line: &mut String, v: f64) {
 
 impl<W: Write> Observer for CsvWriter<W> {
     fn start(&mut self, names: &[String]) -> std::io::Result<()> {
-        let header: Vec<String> = std::iter::once("time".to_string())
-            .chain(names.iter().cloned())
-            .map(|n| format!("\"{}\"", n.replace('"', "\"\"")))
-            .collect();
-        writeln!(self.out, "{}", header.join(","))
+        let CsvState::Fresh(out) = std::mem::replace(&mut self.state, CsvState::Broken) else {
+            return Err(std::io::Error::other("the CSV header is written once"));
+        };
+        // The header quotes every name (as fmpy does); the rows quote nothing, they are
+        // numbers.
+        let mut header = csv::WriterBuilder::new()
+            .quote_style(csv::QuoteStyle::Always)
+            .from_writer(out);
+        header.write_record(std::iter::once("time").chain(names.iter().map(String::as_str)))?;
+        let out = header.into_inner().map_err(|e| e.into_error())?;
+        self.state = CsvState::Rows(Box::new(
+            csv::WriterBuilder::new()
+                .quote_style(csv::QuoteStyle::Never)
+                .from_writer(out),
+        ));
+        Ok(())
     }
     fn sample(&mut self, time: f64, values: &[f64]) -> std::io::Result<()> {
-        self.line.clear();
-        push_number(&mut self.line, time);
-        for v in values {
-            self.line.push(',');
-            push_number(&mut self.line, *v);
+        let mut field = std::mem::take(&mut self.field);
+        let rows = self.rows()?;
+        for v in std::iter::once(&time).chain(values) {
+            format_number(&mut field, *v);
+            rows.write_field(&field)?;
         }
-        self.line.push('\n');
-        self.out.write_all(self.line.as_bytes())
+        rows.write_record(None::<&[u8]>)?;
+        self.field = field;
+        Ok(())
     }
     fn finish(&mut self) -> std::io::Result<()> {
-        self.out.flush()
+        self.rows()?.flush()
     }
 }
 
@@ -148,6 +179,19 @@ mod tests {
         assert_eq!(
             text,
             "\"time\",\"crane.x\",\"s.y[1]\"\n0.1,0.30000000000000004,-1e-300\n"
+        );
+        // Names with commas and quotes (matrix entries) stay one field each.
+        let mut buf = Vec::new();
+        {
+            let mut w = CsvWriter::new(&mut buf);
+            w.start(&["est.A_hat[1,2]".into(), "say \"hi\"".into()])
+                .unwrap();
+            w.sample(0.0, &[f64::NAN, f64::NEG_INFINITY]).unwrap();
+            w.finish().unwrap();
+        }
+        assert_eq!(
+            String::from_utf8(buf).unwrap(),
+            "\"time\",\"est.A_hat[1,2]\",\"say \"\"hi\"\"\"\n0.0,nan,-inf\n"
         );
     }
 }

@@ -1,8 +1,37 @@
 //! Result files in fmpy's CSV layout: a header of quoted names (`"time","x",…`) and one row
-//! of full-precision numbers per communication point.
+//! of full-precision numbers per communication point. Read with the `csv` crate, so a quoted
+//! name may hold commas (`"est.A_hat[1,2]"`).
 
-use anyhow::{bail, Context, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// What is wrong with a results file.
+#[derive(Debug, thiserror::Error)]
+pub enum ResultsError {
+    #[error("cannot read results file {}: {source}", file.display())]
+    Read {
+        file: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("in results file {}: {source}", file.display())]
+    InFile {
+        file: PathBuf,
+        source: Box<ResultsError>,
+    },
+    #[error("the file is empty")]
+    Empty,
+    #[error("line {line}: {reason}")]
+    Csv { line: u64, reason: String },
+    #[error("line {line}: `{value}` is not a number")]
+    NotANumber { line: u64, value: String },
+    #[error("line {line}: {values} values for {columns} columns")]
+    Width {
+        line: u64,
+        values: usize,
+        columns: usize,
+    },
+    #[error("no column `{name}` (columns: {columns})")]
+    NoColumn { name: String, columns: String },
+}
 
 /// A table of named columns read from a results CSV.
 #[derive(Debug, Clone, PartialEq)]
@@ -15,53 +44,75 @@ pub struct ResultTable {
 
 impl ResultTable {
     /// Reads `path`; every error names the file and the line.
-    pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read results file {}", path.display()))?;
-        Self::parse(&text).with_context(|| format!("in results file {}", path.display()))
+    pub fn read(path: &Path) -> Result<Self, ResultsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ResultsError::Read {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text).map_err(|e| ResultsError::InFile {
+            file: path.to_path_buf(),
+            source: Box::new(e),
+        })
     }
 
-    /// Parses CSV text.
-    pub fn parse(text: &str) -> Result<Self> {
-        let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-        let Some(header) = lines.next() else {
-            bail!("the file is empty");
+    /// Parses CSV text (blank lines are skipped; `True`/`False` read as 1/0).
+    pub fn parse(text: &str) -> Result<Self, ResultsError> {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let mut records = reader.records();
+        let line_of = |r: &csv::StringRecord| r.position().map_or(0, |p| p.line());
+        let csv_error = |e: csv::Error| ResultsError::Csv {
+            line: e.position().map_or(0, |p| p.line()),
+            reason: e.to_string(),
         };
-        let names: Vec<String> = header
-            .split(',')
-            .map(|n| n.trim().trim_matches('"').to_string())
-            .collect();
+        let names: Vec<String> = match records.next() {
+            None => return Err(ResultsError::Empty),
+            Some(header) => header
+                .map_err(csv_error)?
+                .iter()
+                .map(str::to_string)
+                .collect(),
+        };
         let mut rows = Vec::new();
-        for (k, line) in lines.enumerate() {
-            let row: Vec<f64> = line
-                .split(',')
-                .map(|v| {
-                    let v = v.trim();
-                    match v {
-                        "True" | "true" => Ok(1.0),
-                        "False" | "false" => Ok(0.0),
-                        _ => v.parse::<f64>(),
-                    }
-                })
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("line {}: not a number", k + 2))?;
-            if row.len() != names.len() {
-                bail!(
-                    "line {}: {} values for {} columns",
-                    k + 2,
-                    row.len(),
-                    names.len()
-                );
+        for record in records {
+            let record = record.map_err(csv_error)?;
+            let line = line_of(&record);
+            if record.len() == 1 && record[0].is_empty() {
+                continue;
             }
+            if record.len() != names.len() {
+                return Err(ResultsError::Width {
+                    line,
+                    values: record.len(),
+                    columns: names.len(),
+                });
+            }
+            let row = record
+                .iter()
+                .map(|v| match v {
+                    "True" | "true" => Ok(1.0),
+                    "False" | "false" => Ok(0.0),
+                    _ => v.parse::<f64>().map_err(|_| ResultsError::NotANumber {
+                        line,
+                        value: v.to_string(),
+                    }),
+                })
+                .collect::<Result<Vec<f64>, _>>()?;
             rows.push(row);
         }
         Ok(Self { names, rows })
     }
 
     /// The column called `name`, or an error listing the columns there are.
-    pub fn column(&self, name: &str) -> Result<Vec<f64>> {
+    pub fn column(&self, name: &str) -> Result<Vec<f64>, ResultsError> {
         let Some(j) = self.names.iter().position(|n| n == name) else {
-            bail!("no column `{name}` (columns: {})", self.names.join(", "));
+            return Err(ResultsError::NoColumn {
+                name: name.to_string(),
+                columns: self.names.join(", "),
+            });
         };
         Ok(self.rows.iter().map(|r| r[j]).collect())
     }
@@ -83,6 +134,33 @@ mod tests {
             "{e}"
         );
         let e = ResultTable::parse("\"a\",\"b\"\n1,2\n3\n").unwrap_err();
-        assert!(format!("{e:#}").contains("line 3"));
+        assert!(
+            matches!(
+                e,
+                ResultsError::Width {
+                    line: 3,
+                    values: 1,
+                    columns: 2
+                }
+            ),
+            "{e}"
+        );
+        let e = ResultTable::parse("\"a\",\"b\"\n1,2\n3,x\n").unwrap_err();
+        assert_eq!(e.to_string(), "line 3: `x` is not a number");
+        assert!(matches!(ResultTable::parse(""), Err(ResultsError::Empty)));
+    }
+
+    #[test]
+    fn quoted_names_may_hold_commas() {
+        let t = ResultTable::parse(
+            "\"time\",\"est.A_hat[1,1]\",\"est.A_hat[1,2]\"\n0.0,1.0,2.5\n0.1,nan,-inf\n",
+        )
+        .unwrap();
+        assert_eq!(t.names, ["time", "est.A_hat[1,1]", "est.A_hat[1,2]"]);
+        assert_eq!(
+            t.column("est.A_hat[1,2]").unwrap(),
+            vec![2.5, f64::NEG_INFINITY]
+        );
+        assert!(t.column("est.A_hat[1,1]").unwrap()[1].is_nan());
     }
 }

@@ -6,10 +6,11 @@
 //! the step size, the algorithm and the step multiples (which SSP 1.0 does not define) go
 //! into an `ssc:Annotation` of type `org.spurio.simulation`.
 
-use crate::system::{Algorithm, InstanceDescription, SystemDescription};
-use quick_xml::events::Event;
+use crate::description::{Algorithm, InstanceDescription, SystemDescription};
+use crate::fmu::{Causality, FmuFile, VarType};
+use quick_xml::events::{BytesDecl, Event};
+use quick_xml::Writer;
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -27,184 +28,243 @@ fn err(file: &Path, reason: impl ToString) -> SspError {
     }
 }
 
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
 const ANNOTATION: &str = "org.spurio.simulation";
 
-/// The `SystemStructure.ssd` text for `d`; `sources[i]` is the archive path of instance i's FMU.
+/// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector).
+fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, &'static str)> {
+    let v = fmu.variable(name)?;
+    let kind = match v.causality {
+        Causality::Input => "input",
+        Causality::Output => "output",
+        Causality::Parameter => "parameter",
+        Causality::CalculatedParameter => "calculatedParameter",
+        _ => return None,
+    };
+    let ty = match v.var_type {
+        VarType::Real => "Real",
+        VarType::Integer | VarType::Enumeration => "Integer",
+        VarType::Boolean => "Boolean",
+        VarType::String => "String",
+    };
+    Some((kind, ty))
+}
+
+/// The `SystemStructure.ssd` text for `d`, written with quick-xml (which escapes every
+/// attribute); `connectors[i]` are instance i's (name, kind, type), `sources[i]` the archive
+/// path of its FMU.
 pub fn ssd_text(
     d: &SystemDescription,
     connectors: &[Vec<(String, &'static str, &'static str)>],
     sources: &[String],
-) -> String {
-    let mut x = String::new();
+) -> Result<String, std::io::Error> {
     let name = if d.name.is_empty() {
         "system"
     } else {
         d.name.as_str()
     };
-    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
-    let _ = writeln!(
-        x,
-        r#"<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="{}" generationTool="spurio">"#,
-        esc(name)
-    );
-    let _ = writeln!(x, r#"  <ssd:System name="{}">"#, esc(name));
-    let _ = writeln!(x, "    <ssd:Elements>");
-    for (i, inst) in d.instances.iter().enumerate() {
-        let _ = writeln!(
-            x,
-            r#"      <ssd:Component name="{}" type="application/x-fmu-sharedlibrary" source="{}">"#,
-            esc(&inst.name),
-            esc(&sources[i])
-        );
-        if !connectors[i].is_empty() {
-            let _ = writeln!(x, "        <ssd:Connectors>");
-            for (cname, kind, ty) in &connectors[i] {
-                let _ = writeln!(
-                    x,
-                    r#"          <ssd:Connector name="{}" kind="{kind}"><ssc:{ty}/></ssd:Connector>"#,
-                    esc(cname)
-                );
+    let mut w = Writer::new_with_indent(Vec::new(), b' ', 2);
+    w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
+    w.create_element("ssd:SystemStructureDescription")
+        .with_attributes([
+            (
+                "xmlns:ssc",
+                "http://ssp-standard.org/SSP1/SystemStructureCommon",
+            ),
+            (
+                "xmlns:ssd",
+                "http://ssp-standard.org/SSP1/SystemStructureDescription",
+            ),
+            (
+                "xmlns:ssv",
+                "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+            ),
+            ("version", "1.0"),
+            ("name", name),
+            ("generationTool", "spurio"),
+        ])
+        .write_inner_content(|w| {
+            w.create_element("ssd:System")
+                .with_attribute(("name", name))
+                .write_inner_content(|w| {
+                    w.create_element("ssd:Elements").write_inner_content(|w| {
+                        for (i, inst) in d.instances.iter().enumerate() {
+                            component(w, inst, &connectors[i], &sources[i])?;
+                        }
+                        Ok(())
+                    })?;
+                    if !d.connections.is_empty() {
+                        w.create_element("ssd:Connections")
+                            .write_inner_content(|w| {
+                                for c in &d.connections {
+                                    let Some((from, to)) = c.split_once("->") else {
+                                        continue;
+                                    };
+                                    let (Some((fe, fc)), Some((te, tc))) =
+                                        (from.trim().split_once('.'), to.trim().split_once('.'))
+                                    else {
+                                        continue;
+                                    };
+                                    w.create_element("ssd:Connection")
+                                        .with_attributes([
+                                            ("startElement", fe),
+                                            ("startConnector", fc),
+                                            ("endElement", te),
+                                            ("endConnector", tc),
+                                        ])
+                                        .write_empty()?;
+                                }
+                                Ok(())
+                            })?;
+                    }
+                    Ok(())
+                })?;
+            let (start, stop) = (format!("{:?}", d.start_time), format!("{:?}", d.stop_time));
+            w.create_element("ssd:DefaultExperiment")
+                .with_attributes([("startTime", start.as_str()), ("stopTime", stop.as_str())])
+                .write_inner_content(|w| {
+                    w.create_element("ssd:Annotations")
+                        .write_inner_content(|w| {
+                            w.create_element("ssc:Annotation")
+                                .with_attribute(("type", ANNOTATION))
+                                .write_inner_content(|w| simulation_annotation(w, d))?;
+                            Ok(())
+                        })?;
+                    Ok(())
+                })?;
+            Ok(())
+        })?;
+    let mut text = String::from_utf8(w.into_inner()).map_err(std::io::Error::other)?;
+    text.push('\n');
+    Ok(text)
+}
+
+fn component(
+    w: &mut Writer<Vec<u8>>,
+    inst: &InstanceDescription,
+    connectors: &[(String, &'static str, &'static str)],
+    source: &str,
+) -> std::io::Result<()> {
+    w.create_element("ssd:Component")
+        .with_attributes([
+            ("name", inst.name.as_str()),
+            ("type", "application/x-fmu-sharedlibrary"),
+            ("source", source),
+        ])
+        .write_inner_content(|w| {
+            if !connectors.is_empty() {
+                w.create_element("ssd:Connectors")
+                    .write_inner_content(|w| {
+                        for (name, kind, ty) in connectors {
+                            w.create_element("ssd:Connector")
+                                .with_attributes([("name", name.as_str()), ("kind", *kind)])
+                                .write_inner_content(|w| {
+                                    w.create_element(format!("ssc:{ty}")).write_empty()?;
+                                    Ok(())
+                                })?;
+                        }
+                        Ok(())
+                    })?;
             }
-            let _ = writeln!(x, "        </ssd:Connectors>");
-        }
-        if !inst.parameters.is_empty() {
-            let _ = writeln!(x, "        <ssd:ParameterBindings>");
-            let _ = writeln!(x, "          <ssd:ParameterBinding>");
-            let _ = writeln!(x, "            <ssd:ParameterValues>");
-            let _ = writeln!(
-                x,
-                r#"              <ssv:ParameterSet version="1.0" name="{}">"#,
-                esc(&inst.name)
-            );
-            let _ = writeln!(x, "                <ssv:Parameters>");
-            for (pname, value) in &inst.parameters {
-                let typed = match value {
-                    toml::Value::Float(f) => format!(r#"<ssv:Real value="{f:?}"/>"#),
-                    toml::Value::Integer(n) => format!(r#"<ssv:Integer value="{n}"/>"#),
-                    toml::Value::Boolean(b) => format!(r#"<ssv:Boolean value="{b}"/>"#),
-                    other => format!(r#"<ssv:String value="{}"/>"#, esc(&other.to_string())),
-                };
-                let _ = writeln!(
-                    x,
-                    r#"                  <ssv:Parameter name="{}">{typed}</ssv:Parameter>"#,
-                    esc(pname)
-                );
+            if !inst.parameters.is_empty() {
+                w.create_element("ssd:ParameterBindings")
+                    .write_inner_content(|w| {
+                        w.create_element("ssd:ParameterBinding")
+                            .write_inner_content(|w| {
+                                w.create_element("ssd:ParameterValues")
+                                    .write_inner_content(|w| parameter_set(w, inst))?;
+                                Ok(())
+                            })?;
+                        Ok(())
+                    })?;
             }
-            let _ = writeln!(x, "                </ssv:Parameters>");
-            let _ = writeln!(x, "              </ssv:ParameterSet>");
-            let _ = writeln!(x, "            </ssd:ParameterValues>");
-            let _ = writeln!(x, "          </ssd:ParameterBinding>");
-            let _ = writeln!(x, "        </ssd:ParameterBindings>");
-        }
-        let _ = writeln!(x, "      </ssd:Component>");
-    }
-    let _ = writeln!(x, "    </ssd:Elements>");
-    if !d.connections.is_empty() {
-        let _ = writeln!(x, "    <ssd:Connections>");
-        for c in &d.connections {
-            if let Some((from, to)) = c.split_once("->") {
-                if let (Some((fe, fc)), Some((te, tc))) =
-                    (from.trim().split_once('.'), to.trim().split_once('.'))
-                {
-                    let _ = writeln!(
-                        x,
-                        r#"      <ssd:Connection startElement="{}" startConnector="{}" endElement="{}" endConnector="{}"/>"#,
-                        esc(fe),
-                        esc(fc),
-                        esc(te),
-                        esc(tc)
-                    );
-                }
-            }
-        }
-        let _ = writeln!(x, "    </ssd:Connections>");
-    }
-    let _ = writeln!(x, "  </ssd:System>");
-    let _ = writeln!(
-        x,
-        r#"  <ssd:DefaultExperiment startTime="{:?}" stopTime="{:?}">"#,
-        d.start_time, d.stop_time
-    );
-    let _ = writeln!(x, "    <ssd:Annotations>");
-    let _ = writeln!(x, r#"      <ssc:Annotation type="{ANNOTATION}">"#);
+            Ok(())
+        })?;
+    Ok(())
+}
+
+fn parameter_set(w: &mut Writer<Vec<u8>>, inst: &InstanceDescription) -> std::io::Result<()> {
+    w.create_element("ssv:ParameterSet")
+        .with_attributes([("version", "1.0"), ("name", inst.name.as_str())])
+        .write_inner_content(|w| {
+            w.create_element("ssv:Parameters")
+                .write_inner_content(|w| {
+                    for (name, value) in &inst.parameters {
+                        let (ty, text) = match value {
+                            toml::Value::Float(f) => ("ssv:Real", format!("{f:?}")),
+                            toml::Value::Integer(n) => ("ssv:Integer", n.to_string()),
+                            toml::Value::Boolean(b) => ("ssv:Boolean", b.to_string()),
+                            other => ("ssv:String", other.to_string()),
+                        };
+                        w.create_element("ssv:Parameter")
+                            .with_attribute(("name", name.as_str()))
+                            .write_inner_content(|w| {
+                                w.create_element(ty)
+                                    .with_attribute(("value", text.as_str()))
+                                    .write_empty()?;
+                                Ok(())
+                            })?;
+                    }
+                    Ok(())
+                })?;
+            Ok(())
+        })?;
+    Ok(())
+}
+
+/// What SSP 1.0 has no place for: step size, algorithm, record, step multiples, logging.
+fn simulation_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std::io::Result<()> {
     let algorithm = match d.algorithm {
         Algorithm::GaussSeidel => "gauss-seidel",
         Algorithm::Jacobi => "jacobi",
     };
+    let step = format!("{:?}", d.step_size);
     let record = d.record.join(" ");
-    let _ = writeln!(
-        x,
-        r#"        <Simulation stepSize="{:?}" algorithm="{algorithm}" record="{}">"#,
-        d.step_size,
-        esc(&record)
-    );
-    for inst in &d.instances {
-        let _ = writeln!(
-            x,
-            r#"          <Instance name="{}" stepMultiple="{}" logging="{}"/>"#,
-            esc(&inst.name),
-            inst.step_multiple,
-            inst.logging
-        );
-    }
-    let _ = writeln!(x, "        </Simulation>");
-    let _ = writeln!(x, "      </ssc:Annotation>");
-    let _ = writeln!(x, "    </ssd:Annotations>");
-    let _ = writeln!(x, "  </ssd:DefaultExperiment>");
-    let _ = writeln!(x, "</ssd:SystemStructureDescription>");
-    x
+    w.create_element("Simulation")
+        .with_attributes([
+            ("stepSize", step.as_str()),
+            ("algorithm", algorithm),
+            ("record", record.as_str()),
+        ])
+        .write_inner_content(|w| {
+            for inst in &d.instances {
+                let multiple = inst.step_multiple.to_string();
+                let logging = inst.logging.to_string();
+                w.create_element("Instance")
+                    .with_attributes([
+                        ("name", inst.name.as_str()),
+                        ("stepMultiple", multiple.as_str()),
+                        ("logging", logging.as_str()),
+                    ])
+                    .write_empty()?;
+            }
+            Ok(())
+        })?;
+    Ok(())
 }
 
-/// Writes `target` (.ssp) for the system file `system_file`.
-pub fn export(system_file: &Path, target: &Path) -> Result<(), SspError> {
-    let d = SystemDescription::read(system_file).map_err(|e| err(system_file, e))?;
-    let system = crate::system::System::from_file(system_file).map_err(|e| err(system_file, e))?;
-    let base = system_file.parent().unwrap_or(Path::new("."));
-    // Connectors: every variable used by a connection or given a start value.
+/// Writes `target` (.ssp) for the system `d` whose instance i runs `fmus[i]` (loaded from
+/// `d.instances[i].fmu`): the SSD, and every FMU under `resources/`. The connectors are the
+/// variables used by a connection or a record.
+pub fn export(d: &SystemDescription, fmus: &[&FmuFile], target: &Path) -> Result<(), SspError> {
+    if fmus.len() != d.instances.len() {
+        return Err(err(
+            target,
+            format!("{} FMUs for {} instances", fmus.len(), d.instances.len()),
+        ));
+    }
     let mut used: Vec<BTreeMap<String, (&'static str, &'static str)>> =
         vec![BTreeMap::new(); d.instances.len()];
-    let kind_of = |i: usize, name: &str| -> Option<(&'static str, &'static str)> {
-        let v = system.instances[i].fmu.variable(name)?;
-        let kind = match v.causality {
-            crate::fmu::Causality::Input => "input",
-            crate::fmu::Causality::Output => "output",
-            crate::fmu::Causality::Parameter => "parameter",
-            crate::fmu::Causality::CalculatedParameter => "calculatedParameter",
-            _ => return None,
-        };
-        let ty = match v.var_type {
-            crate::fmu::VarType::Real => "Real",
-            crate::fmu::VarType::Integer | crate::fmu::VarType::Enumeration => "Integer",
-            crate::fmu::VarType::Boolean => "Boolean",
-            crate::fmu::VarType::String => "String",
-        };
-        Some((kind, ty))
-    };
     let index = |name: &str| d.instances.iter().position(|i| i.name == name);
-    for c in &d.connections {
-        if let Some((from, to)) = c.split_once("->") {
-            for end in [from, to] {
-                if let Some((e, v)) = end.trim().split_once('.') {
-                    if let Some(i) = index(e) {
-                        if let Some(k) = kind_of(i, v) {
-                            used[i].insert(v.to_string(), k);
-                        }
-                    }
-                }
-            }
-        }
-    }
-    for r in &d.record {
-        if let Some((e, v)) = r.trim().split_once('.') {
+    let ends = d
+        .connections
+        .iter()
+        .filter_map(|c| c.split_once("->"))
+        .flat_map(|(from, to)| [from, to])
+        .chain(d.record.iter().map(String::as_str));
+    for end in ends {
+        if let Some((e, v)) = end.trim().split_once('.') {
             if let Some(i) = index(e) {
-                if let Some(k) = kind_of(i, v) {
+                if let Some(k) = connector(fmus[i], v) {
                     used[i].insert(v.to_string(), k);
                 }
             }
@@ -217,24 +277,24 @@ pub fn export(system_file: &Path, target: &Path) -> Result<(), SspError> {
     let mut sources = Vec::new();
     let mut files: BTreeMap<String, PathBuf> = BTreeMap::new();
     for inst in &d.instances {
-        let path = base.join(&inst.fmu);
+        let path = &inst.fmu;
         let file_name = path
             .file_name()
             .map(|f| f.to_string_lossy().to_string())
-            .ok_or_else(|| err(&path, "not a file"))?;
+            .ok_or_else(|| err(path, "not a file"))?;
         let source = format!("resources/{file_name}");
         if let Some(previous) = files.get(&source) {
-            if previous != &path {
+            if previous != path {
                 return Err(err(
-                    &path,
+                    path,
                     format!("two different FMUs are both called {file_name}"),
                 ));
             }
         }
-        files.insert(source.clone(), path);
+        files.insert(source.clone(), path.clone());
         sources.push(source);
     }
-    let ssd = ssd_text(&d, &connectors, &sources);
+    let ssd = ssd_text(d, &connectors, &sources).map_err(|e| err(target, e))?;
     let file = std::fs::File::create(target).map_err(|e| err(target, e))?;
     let mut zip = zip::ZipWriter::new(file);
     let options = zip::write::SimpleFileOptions::default()
@@ -421,4 +481,58 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
         d.step_size = (d.stop_time - d.start_time) / 100.0;
     }
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ssd_reads_back_as_the_system_it_was_written_from() {
+        let mut parameters = BTreeMap::new();
+        parameters.insert("x0".to_string(), toml::Value::Float(0.2));
+        parameters.insert("seed".to_string(), toml::Value::Integer(7));
+        parameters.insert("use_snr[1]".to_string(), toml::Value::Boolean(true));
+        let d = SystemDescription {
+            name: "crane & \"sensor\" <1>".into(),
+            start_time: 0.5,
+            stop_time: 2.0,
+            step_size: 0.01,
+            algorithm: Algorithm::Jacobi,
+            instances: vec![
+                InstanceDescription {
+                    name: "crane".into(),
+                    fmu: PathBuf::from("resources/GantryCrane.fmu"),
+                    parameters,
+                    step_multiple: 1,
+                    logging: false,
+                },
+                InstanceDescription {
+                    name: "sensor".into(),
+                    fmu: PathBuf::from("resources/Sensor2.fmu"),
+                    parameters: BTreeMap::new(),
+                    step_multiple: 2,
+                    logging: true,
+                },
+            ],
+            connections: vec!["crane.x -> sensor.u[1]".into()],
+            record: vec!["crane.x".into(), "sensor.y[1]".into()],
+        };
+        let connectors = vec![
+            vec![("x".to_string(), "output", "Real")],
+            vec![("u[1]".to_string(), "input", "Real")],
+        ];
+        let sources = vec![
+            "resources/GantryCrane.fmu".to_string(),
+            "resources/Sensor2.fmu".to_string(),
+        ];
+        let text = ssd_text(&d, &connectors, &sources).unwrap();
+        assert!(text.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"));
+        assert!(
+            text.contains(r#"name="crane &amp; &quot;sensor&quot; &lt;1&gt;""#),
+            "{text}"
+        );
+        assert!(text.contains(r#"<ssd:Connector name="u[1]" kind="input">"#));
+        assert_eq!(parse_ssd(&text).unwrap(), d);
+    }
 }

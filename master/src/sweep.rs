@@ -8,6 +8,15 @@ use crate::system::{System, SystemError};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 
+/// A metric or a variation that cannot be parsed; the text says where and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpecError {
+    #[error("{0}")]
+    Metric(String),
+    #[error("{0}")]
+    Variation(String),
+}
+
 /// A summary of one recorded variable over a run.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Metric {
@@ -28,7 +37,11 @@ pub enum Metric {
 impl Metric {
     /// Parses `final(x)`, `mean(x)`, `rms(x)`, `max_abs(x)`, `e_res(a, b)`, `settling(x, 0.005)`
     /// (`;` may separate the arguments too; labels use `;` so they stay one CSV field).
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, SpecError> {
+        Self::parse_text(text).map_err(SpecError::Metric)
+    }
+
+    fn parse_text(text: &str) -> Result<Self, String> {
         let text = text.trim();
         let (kind, rest) = text
             .split_once('(')
@@ -175,7 +188,11 @@ pub struct Variation {
 
 impl Variation {
     /// Parses `instance.var=1..100` (integers, inclusive) or `instance.var=0.1,0.2,0.3`.
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, SpecError> {
+        Self::parse_text(text).map_err(SpecError::Variation)
+    }
+
+    fn parse_text(text: &str) -> Result<Self, String> {
         let (variable, values) = text
             .split_once('=')
             .ok_or_else(|| format!("--vary `{text}`: expected instance.variable=values"))?;
@@ -326,9 +343,11 @@ mod tests {
         );
         assert!(Metric::parse("median(x)")
             .unwrap_err()
+            .to_string()
             .contains("unknown metric kind `median`"));
         assert!(Metric::parse("rms(a, b)")
             .unwrap_err()
+            .to_string()
             .contains("takes one variable"));
         assert_eq!(
             Variation::parse("s.seed=1..3").unwrap().values,
@@ -340,6 +359,7 @@ mod tests {
         );
         assert!(Variation::parse("c.k=a")
             .unwrap_err()
+            .to_string()
             .contains("`a` is not a number"));
     }
 

@@ -1,4 +1,6 @@
-//! A co-simulation system, described in TOML and resolved by name.
+//! A co-simulation system: its description ([`SystemDescription`], TOML or SSP) with every
+//! FMU loaded, every start value checked and the rest compiled to an index [`Plan`]; and
+//! editing it by name ([`System::set_start_value`], [`System::set_fmu`]).
 //!
 //! ```toml
 //! name = "crane with sensor"
@@ -21,74 +23,25 @@
 //! ```
 //!
 //! [`System::resolve`] loads every FMU once and checks every name, type and causality,
-//! reporting errors that name the instance, the variable and the file.
+//! reporting errors that name the instance, the variable and the file. [`System::from_file`]
+//! is the one loader: it reads a TOML system file or an SSP archive, by the file's type.
+
+pub use crate::description::{Algorithm, InstanceDescription, ReadError, SystemDescription};
+pub use crate::plan::{Connection, Plan, PropagationStep, VarRef};
 
 use crate::fmu::{Causality, FmuFile, LoadError, VarType, VariableInfo};
-use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, HashMap};
+use crate::ssp::SspError;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// How the instances exchange values at a communication point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Algorithm {
-    /// Outputs flow to inputs within the same communication point, in the order of the
-    /// direct-feedthrough graph (a loop of direct-feedthrough variables is an error).
-    #[default]
-    GaussSeidel,
-    /// Every input gets the value its source had after the previous step (a one-step delay on
-    /// direct-feedthrough paths; what fmpy's SSP runner does).
-    Jacobi,
-}
-
-/// One instance in the TOML.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct InstanceDescription {
-    pub name: String,
-    /// Path of the `.fmu`, relative to the system file.
-    pub fmu: PathBuf,
-    /// Start values by variable name (parameters, and constant values of unconnected inputs).
-    #[serde(default)]
-    pub parameters: BTreeMap<String, toml::Value>,
-    /// Steps every `step_multiple` base steps (multirate).
-    #[serde(default = "one")]
-    pub step_multiple: u32,
-    /// Turns the FMU's debug logging on.
-    #[serde(default)]
-    pub logging: bool,
-}
-
-fn one() -> u32 {
-    1
-}
-
-/// A system file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SystemDescription {
-    #[serde(default)]
-    pub name: String,
-    #[serde(default)]
-    pub start_time: f64,
-    pub stop_time: f64,
-    pub step_size: f64,
-    #[serde(default)]
-    pub algorithm: Algorithm,
-    #[serde(default, rename = "instance")]
-    pub instances: Vec<InstanceDescription>,
-    #[serde(default)]
-    pub connections: Vec<String>,
-    #[serde(default)]
-    pub record: Vec<String>,
-}
 
 /// What is wrong with a system.
 #[derive(Debug, thiserror::Error)]
 pub enum SystemError {
-    #[error("{file}: {reason}")]
-    Read { file: PathBuf, reason: String },
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    #[error(transparent)]
+    Ssp(#[from] SspError),
     #[error("{0}")]
     Load(#[from] LoadError),
     #[error("system: {0}")]
@@ -121,9 +74,6 @@ pub enum SystemError {
     AlgebraicLoop(String),
 }
 
-/// A variable of an instance: (instance index, variable index in its FMU).
-pub type VarRef = (usize, usize);
-
 /// An instance with its FMU and resolved start values.
 #[derive(Debug, Clone)]
 pub struct ResolvedInstance {
@@ -135,14 +85,6 @@ pub struct ResolvedInstance {
     pub logging: bool,
 }
 
-/// A connection from an output to an input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Connection {
-    pub from: VarRef,
-    pub to: VarRef,
-    pub var_type: VarType,
-}
-
 /// A system with every name resolved.
 #[derive(Debug, Clone)]
 pub struct System {
@@ -152,8 +94,8 @@ pub struct System {
     pub step_size: f64,
     pub algorithm: Algorithm,
     pub instances: Vec<ResolvedInstance>,
-    pub connections: Vec<Connection>,
-    pub recorded: Vec<VarRef>,
+    /// Connections, records and propagation, compiled to indices.
+    pub plan: Plan,
     /// The description this system was resolved from, FMU paths as loaded; edits by name
     /// ([`System::set_start_value`], [`System::set_fmu`]) keep it in step.
     source: SystemDescription,
@@ -209,21 +151,7 @@ impl From<StartValue> for toml::Value {
     }
 }
 
-impl SystemDescription {
-    /// Reads a TOML system file.
-    pub fn read(path: &Path) -> Result<Self, SystemError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SystemError::Read {
-            file: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        toml::from_str(&text).map_err(|e| SystemError::Read {
-            file: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    }
-}
-
-fn split_variable(text: &str) -> Option<(&str, &str)> {
+pub(crate) fn split_variable(text: &str) -> Option<(&str, &str)> {
     let text = text.trim();
     let (instance, variable) = text.split_once('.')?;
     (!instance.is_empty() && !variable.is_empty()).then_some((instance, variable))
@@ -313,117 +241,7 @@ impl System {
                 logging: spec.logging,
             });
         }
-        let lookup = |text: &str, connection: &str| -> Result<VarRef, SystemError> {
-            let Some((inst, var)) = split_variable(text) else {
-                return Err(SystemError::Connection {
-                    connection: connection.to_string(),
-                    reason: format!("`{text}` is not of the form instance.variable"),
-                });
-            };
-            let Some(&i) = index_of.get(inst) else {
-                return Err(SystemError::Connection {
-                    connection: connection.to_string(),
-                    reason: format!("no instance called `{inst}`"),
-                });
-            };
-            let fmu = &instances[i].fmu;
-            let Some(v) = fmu.index_of(var) else {
-                return Err(unknown(inst, var, fmu));
-            };
-            Ok((i, v))
-        };
-        let name_of = |r: VarRef| {
-            format!(
-                "{}.{}",
-                instances[r.0].name, instances[r.0].fmu.variables[r.1].name
-            )
-        };
-        let mut connections = Vec::new();
-        let mut drivers: HashMap<VarRef, String> = HashMap::new();
-        for c in &d.connections {
-            let Some((from, to)) = c.split_once("->") else {
-                return Err(SystemError::Connection {
-                    connection: c.clone(),
-                    reason: "expected `instance.output -> instance.input`".into(),
-                });
-            };
-            let (from, to) = (lookup(from, c)?, lookup(to, c)?);
-            let fv = &instances[from.0].fmu.variables[from.1];
-            let tv = &instances[to.0].fmu.variables[to.1];
-            let fail = |reason: String| SystemError::Connection {
-                connection: c.clone(),
-                reason,
-            };
-            if !matches!(fv.causality, Causality::Output) {
-                return Err(fail(format!(
-                    "`{}` has causality {:?}; a connection starts at an output",
-                    name_of(from),
-                    fv.causality
-                )));
-            }
-            if tv.causality != Causality::Input {
-                return Err(fail(format!(
-                    "`{}` has causality {:?}; a connection ends at an input",
-                    name_of(to),
-                    tv.causality
-                )));
-            }
-            if fv.var_type != tv.var_type {
-                return Err(fail(format!(
-                    "type mismatch: `{}` is {:?} but `{}` is {:?}",
-                    name_of(from),
-                    fv.var_type,
-                    name_of(to),
-                    tv.var_type
-                )));
-            }
-            if !matches!(
-                fv.var_type,
-                VarType::Real | VarType::Integer | VarType::Boolean
-            ) {
-                return Err(fail(format!(
-                    "{:?} connections are not supported",
-                    fv.var_type
-                )));
-            }
-            if let Some(first) = drivers.insert(to, name_of(from)) {
-                return Err(SystemError::DrivenTwice {
-                    input: name_of(to),
-                    first,
-                    second: name_of(from),
-                });
-            }
-            connections.push(Connection {
-                from,
-                to,
-                var_type: fv.var_type,
-            });
-        }
-        let recorded = if d.record.is_empty() {
-            instances
-                .iter()
-                .enumerate()
-                .flat_map(|(i, inst)| {
-                    inst.fmu
-                        .variables
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, v)| {
-                            v.causality == Causality::Output
-                                && matches!(
-                                    v.var_type,
-                                    VarType::Real | VarType::Integer | VarType::Boolean
-                                )
-                        })
-                        .map(move |(j, _)| (i, j))
-                })
-                .collect()
-        } else {
-            d.record
-                .iter()
-                .map(|r| lookup(r, &format!("record {r}")))
-                .collect::<Result<Vec<_>, _>>()?
-        };
+        let plan = Plan::compile(d, &instances)?;
         let system = Self {
             name: d.name.clone(),
             start_time: d.start_time,
@@ -431,8 +249,7 @@ impl System {
             step_size: d.step_size,
             algorithm: d.algorithm,
             instances,
-            connections,
-            recorded,
+            plan,
             source: SystemDescription {
                 instances: d
                     .instances
@@ -445,26 +262,33 @@ impl System {
                 ..d.clone()
             },
         };
-        if system.algorithm == Algorithm::GaussSeidel {
-            system.propagation_order()?;
-        }
         Ok(system)
     }
 
-    /// Reads and resolves a system file: TOML, or an SSP archive (`.ssp`, whose FMUs are
-    /// unpacked next to it in `<name>.ssp.d/`).
+    /// Reads and resolves a system file, by its type: an SSP archive (`.ssp`, whose FMUs are
+    /// unpacked next to it in `<name>.ssp.d/`) or TOML (anything else; FMU paths relative to
+    /// the file).
     pub fn from_file(path: &Path) -> Result<Self, SystemError> {
         if path.extension().is_some_and(|e| e == "ssp") {
             let dir = path.with_extension("ssp.d");
-            let description = crate::ssp::import(path, &dir).map_err(|e| SystemError::Read {
-                file: path.to_path_buf(),
-                reason: e.to_string(),
-            })?;
+            let description = crate::ssp::import(path, &dir)?;
             return Self::resolve(&description, &dir);
         }
         let description = SystemDescription::read(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::resolve(&description, base)
+    }
+
+    /// The description this system was resolved from (FMU paths as loaded, start values as
+    /// set by name since).
+    pub fn source_description(&self) -> &SystemDescription {
+        &self.source
+    }
+
+    /// Writes this system as an SSP archive with its FMUs (see [`crate::ssp::export`]).
+    pub fn export_ssp(&self, target: &Path) -> Result<(), SspError> {
+        let fmus: Vec<&FmuFile> = self.instances.iter().map(|i| i.fmu.as_ref()).collect();
+        crate::ssp::export(&self.source, &fmus, target)
     }
 
     /// The instance called `name`.
@@ -585,102 +409,8 @@ impl System {
 
     /// `instance.variable`.
     pub fn variable_name(&self, r: VarRef) -> String {
-        format!(
-            "{}.{}",
-            self.instances[r.0].name, self.instances[r.0].fmu.variables[r.1].name
-        )
+        crate::plan::variable_name(&self.instances, r)
     }
-
-    /// Whether output `r` depends directly on input `input` of the same instance.
-    fn feeds_through(&self, output: VarRef, input: VarRef) -> bool {
-        output.0 == input.0
-            && match &self.instances[output.0].fmu.variables[output.1].dependencies {
-                None => true,
-                Some(deps) => deps.contains(&input.1),
-            }
-    }
-
-    /// Whether output `r` depends directly on any input.
-    pub fn has_feedthrough(&self, output: VarRef) -> bool {
-        match &self.instances[output.0].fmu.variables[output.1].dependencies {
-            None => self.instances[output.0]
-                .fmu
-                .variables
-                .iter()
-                .any(|v| v.causality == Causality::Input),
-            Some(deps) => !deps.is_empty(),
-        }
-    }
-
-    /// The order in which, at a communication point, connected inputs are set and
-    /// direct-feedthrough outputs re-read: a topological order of the graph whose edges are
-    /// the connections (output → input) and the feedthrough inside each FMU (input → output
-    /// that depends on it). A cycle is an algebraic loop and is reported with its variables.
-    pub fn propagation_order(&self) -> Result<Vec<PropagationStep>, SystemError> {
-        // Nodes: the connected inputs and the feedthrough outputs that are connection sources.
-        let mut nodes: Vec<PropagationStep> = Vec::new();
-        for c in &self.connections {
-            nodes.push(PropagationStep::SetInput(c.to));
-            if self.has_feedthrough(c.from) {
-                let n = PropagationStep::GetOutput(c.from);
-                if !nodes.contains(&n) {
-                    nodes.push(n);
-                }
-            }
-        }
-        let n = nodes.len();
-        let mut edges = vec![Vec::new(); n];
-        let mut indegree = vec![0usize; n];
-        for (a, na) in nodes.iter().enumerate() {
-            for (b, nb) in nodes.iter().enumerate() {
-                let edge = match (na, nb) {
-                    (PropagationStep::GetOutput(o), PropagationStep::SetInput(i)) => {
-                        self.connections.iter().any(|c| c.from == *o && c.to == *i)
-                    }
-                    (PropagationStep::SetInput(i), PropagationStep::GetOutput(o)) => {
-                        self.feeds_through(*o, *i)
-                    }
-                    _ => false,
-                };
-                if edge {
-                    edges[a].push(b);
-                    indegree[b] += 1;
-                }
-            }
-        }
-        let mut ready: Vec<usize> = (0..n).filter(|&i| indegree[i] == 0).rev().collect();
-        let mut order = Vec::with_capacity(n);
-        while let Some(a) = ready.pop() {
-            order.push(nodes[a]);
-            for &b in edges[a].iter().rev() {
-                indegree[b] -= 1;
-                if indegree[b] == 0 {
-                    ready.push(b);
-                }
-            }
-        }
-        if order.len() < n {
-            let stuck: Vec<String> = (0..n)
-                .filter(|&i| indegree[i] > 0)
-                .map(|i| match nodes[i] {
-                    PropagationStep::SetInput(r) | PropagationStep::GetOutput(r) => {
-                        self.variable_name(r)
-                    }
-                })
-                .collect();
-            return Err(SystemError::AlgebraicLoop(stuck.join(", ")));
-        }
-        Ok(order)
-    }
-}
-
-/// One action of the propagation at a communication point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PropagationStep {
-    /// Set a connected input from its source.
-    SetInput(VarRef),
-    /// Re-read a direct-feedthrough output after its inputs changed.
-    GetOutput(VarRef),
 }
 
 /// `value` as the f64 the engine sets for variable `v`, checked as a `parameters` entry is:
@@ -703,7 +433,7 @@ fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
     }
 }
 
-fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {
+pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {
     let close: Vec<&str> = fmu
         .variables
         .iter()

@@ -19,7 +19,7 @@ use spurio_master::system::System;
 
 mod package;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -165,6 +165,18 @@ enum Command {
     },
 }
 
+/// Each plotted variable's axis label: its name and the unit its model description gives
+/// (`crane.x [m]`).
+fn axis_labels(system: &System, names: &[String]) -> Vec<String> {
+    names
+        .iter()
+        .map(|name| match system.unit(name).ok().flatten() {
+            Some(unit) if !unit.is_empty() => format!("{name} [{unit}]"),
+            _ => name.clone(),
+        })
+        .collect()
+}
+
 fn main() -> Result<()> {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
@@ -195,7 +207,8 @@ fn main() -> Result<()> {
                     .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
                 spurio_master::record::replay(&series, &mut csv)?;
                 let png = out.with_extension("png");
-                plot::time_series_png(&png, &resolved.name, &series, &plotted)?;
+                let labels = axis_labels(&resolved, &plotted);
+                plot::labelled_time_series_png(&png, &resolved.name, &series, &plotted, &labels)?;
                 println!("wrote {}", png.display());
             }
             sim.terminate()?;
@@ -278,33 +291,34 @@ fn main() -> Result<()> {
             out,
         } => {
             let resolved = System::from_file(&system)?;
-            let variation =
-                spurio_master::sweep::Variation::parse(&vary).map_err(anyhow::Error::msg)?;
+            let variation = spurio_master::sweep::Variation::parse(&vary)?;
             let metrics = metrics
                 .iter()
                 .map(|m| spurio_master::sweep::Metric::parse(m))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(anyhow::Error::msg)?;
+                .collect::<Result<Vec<_>, _>>()?;
             let result = spurio_master::sweep::sweep(&resolved, &variation, &metrics, threads)?;
             if let Some(out) = out {
-                let mut text = format!("\"{}\"", variation.variable);
-                for m in &metrics {
-                    text.push_str(&format!(",\"{}\"", m.label()));
-                }
-                text.push('\n');
+                // Names quoted, numbers bare (fmpy's layout).
+                let mut csv = csv::WriterBuilder::new()
+                    .quote_style(csv::QuoteStyle::NonNumeric)
+                    .from_path(&out)
+                    .with_context(|| format!("cannot write {}", out.display()))?;
+                csv.write_record(
+                    std::iter::once(variation.variable.clone())
+                        .chain(metrics.iter().map(|m| m.label())),
+                )?;
                 for (value, row) in variation.values.iter().zip(&result.runs) {
-                    text.push_str(&format!("{value:?}"));
-                    for v in row {
-                        text.push_str(&format!(",{v:?}"));
-                    }
-                    text.push('\n');
+                    csv.write_record(
+                        std::iter::once(format!("{value:?}"))
+                            .chain(row.iter().map(|v| format!("{v:?}"))),
+                    )?;
                 }
-                std::fs::write(&out, text)?;
+                csv.flush()?;
             }
             print!("{}", result.table());
         }
         Command::SspExport { system, out } => {
-            spurio_master::ssp::export(&system, &out)?;
+            System::from_file(&system)?.export_ssp(&out)?;
             println!("wrote {}", out.display());
         }
         Command::SspImport { ssp, out } => {
@@ -350,4 +364,31 @@ fn main() -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plot_axes_carry_the_units_of_the_model_description() {
+        let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+        assert!(
+            repo.join("build/fmus/GantryCrane.fmu").is_file(),
+            "run scripts/build-fmus first"
+        );
+        let system = System::from_file(&repo.join("examples/systems/crane_sensor.toml")).unwrap();
+        let names: Vec<String> = ["crane.x", "crane.theta", "sensor.y[1]", "nobody.x"]
+            .map(String::from)
+            .into();
+        assert_eq!(
+            axis_labels(&system, &names),
+            [
+                "crane.x [m]",
+                "crane.theta [rad]",
+                "sensor.y[1]",
+                "nobody.x"
+            ]
+        );
+    }
 }

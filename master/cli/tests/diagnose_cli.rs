@@ -79,3 +79,47 @@ fn diagnose_names_a_missing_column_and_the_file() {
         "{err}"
     );
 }
+
+#[test]
+fn diagnose_reads_what_run_writes_names_with_commas_included() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    assert!(
+        repo.join("build/fmus/DualKalmanFilter.fmu").is_file(),
+        "run scripts/build-fmus first"
+    );
+    let dir = std::env::temp_dir().join(format!("spurio-run-diagnose-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("r.csv");
+    let run = spurio()
+        .arg("run")
+        .arg(repo.join("examples/crane_adaptive/dkf.toml"))
+        .arg("--out")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let header = std::fs::read_to_string(&csv).unwrap();
+    assert!(header.starts_with("\"time\","), "{}", &header[..80]);
+    assert!(header.contains("\"est.A_hat[1,1]\""));
+    let out = spurio()
+        .args([
+            "diagnose",
+            csv.to_str().unwrap(),
+            "--column",
+            "est.A_hat[1,1]",
+        ])
+        .output()
+        .unwrap();
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{report}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // 40 s at 0.05 s: 801 communication points.
+    assert!(report.contains("| samples N | 801 |"), "{report}");
+}

@@ -1,0 +1,83 @@
+//! A co-simulation system as written: names only, serialised as TOML (the system file) or
+//! read from an SSP archive ([`crate::ssp`]).
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// How the instances exchange values at a communication point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// Outputs flow to inputs within the same communication point, in the order of the
+    /// direct-feedthrough graph (a loop of direct-feedthrough variables is an error).
+    #[default]
+    GaussSeidel,
+    /// Every input gets the value its source had after the previous step (a one-step delay on
+    /// direct-feedthrough paths; what fmpy's SSP runner does).
+    Jacobi,
+}
+
+/// One instance in the TOML.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstanceDescription {
+    pub name: String,
+    /// Path of the `.fmu`, relative to the system file.
+    pub fmu: PathBuf,
+    /// Start values by variable name (parameters, and constant values of unconnected inputs).
+    #[serde(default)]
+    pub parameters: BTreeMap<String, toml::Value>,
+    /// Steps every `step_multiple` base steps (multirate).
+    #[serde(default = "one")]
+    pub step_multiple: u32,
+    /// Turns the FMU's debug logging on.
+    #[serde(default)]
+    pub logging: bool,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// A system file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SystemDescription {
+    #[serde(default)]
+    pub name: String,
+    #[serde(default)]
+    pub start_time: f64,
+    pub stop_time: f64,
+    pub step_size: f64,
+    #[serde(default)]
+    pub algorithm: Algorithm,
+    #[serde(default, rename = "instance")]
+    pub instances: Vec<InstanceDescription>,
+    #[serde(default)]
+    pub connections: Vec<String>,
+    #[serde(default)]
+    pub record: Vec<String>,
+}
+
+/// Why a system file cannot be read.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {reason}", file.display())]
+pub struct ReadError {
+    pub file: PathBuf,
+    pub reason: String,
+}
+
+impl SystemDescription {
+    /// Reads a TOML system file.
+    pub fn read(path: &Path) -> Result<Self, ReadError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ReadError {
+            file: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        toml::from_str(&text).map_err(|e| ReadError {
+            file: path.to_path_buf(),
+            reason: e.to_string(),
+        })
+    }
+}

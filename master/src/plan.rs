@@ -1,0 +1,443 @@
+//! Compiling a system from names to an index plan, once.
+//!
+//! [`Plan::compile`] turns the names of a system (connections `"crane.x -> sensor.u[1]"`,
+//! recorded variables) into indices, checking every causality and type, orders the
+//! propagation at a communication point (Gauss–Seidel: the direct-feedthrough graph, an
+//! algebraic loop is an error; Jacobi: the connections as given), gives every value a slot
+//! in one buffer and groups the value references of one instance and type into batches,
+//! so the engine's loop ([`crate::engine`]) only moves numbers.
+
+use crate::description::{Algorithm, SystemDescription};
+use crate::fmu::{Causality, VarType};
+use crate::system::{split_variable, unknown, ResolvedInstance, SystemError};
+use std::collections::HashMap;
+
+/// A variable of an instance: (instance index, variable index in its FMU).
+pub type VarRef = (usize, usize);
+
+/// A connection from an output to an input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Connection {
+    pub from: VarRef,
+    pub to: VarRef,
+    pub var_type: VarType,
+}
+
+/// One action of the propagation at a communication point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PropagationStep {
+    /// Set a connected input from its source.
+    SetInput(VarRef),
+    /// Re-read a direct-feedthrough output after its inputs changed.
+    GetOutput(VarRef),
+}
+
+/// Value references of one instance and one type, moved in one FMI call, and the buffer
+/// slots their values go to (get) or come from (set).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Transfer {
+    /// Index of the instance.
+    pub member: usize,
+    pub var_type: VarType,
+    pub vrs: Vec<u32>,
+    pub slots: Vec<usize>,
+}
+
+/// One operation at a communication point.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Op {
+    /// Set inputs of an instance from the buffer.
+    Set(Transfer),
+    /// Read outputs of an instance into the buffer.
+    Get(Transfer),
+}
+
+/// Appends one value reference, joining the last operation when it is of the same kind,
+/// instance and type.
+fn push_op(ops: &mut Vec<Op>, set: bool, member: usize, var_type: VarType, vr: u32, slot: usize) {
+    let same = |t: &Transfer| t.member == member && t.var_type == var_type;
+    match ops.last_mut() {
+        Some(Op::Set(t)) if set && same(t) => {
+            t.vrs.push(vr);
+            t.slots.push(slot);
+        }
+        Some(Op::Get(t)) if !set && same(t) => {
+            t.vrs.push(vr);
+            t.slots.push(slot);
+        }
+        _ => {
+            let t = Transfer {
+                member,
+                var_type,
+                vrs: vec![vr],
+                slots: vec![slot],
+            };
+            ops.push(if set { Op::Set(t) } else { Op::Get(t) });
+        }
+    }
+}
+
+/// A system compiled to indices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The connections, resolved.
+    pub connections: Vec<Connection>,
+    /// The recorded variables, in record order.
+    pub recorded: Vec<VarRef>,
+    /// `instance.variable` of each recorded variable.
+    pub record_names: Vec<String>,
+    /// Buffer slot of each recorded variable.
+    pub record_slots: Vec<usize>,
+    /// Size of the value buffer.
+    pub slot_count: usize,
+    /// Per instance: the reads after its step (the values it feeds or records).
+    pub after_step: Vec<Vec<Transfer>>,
+    /// Sets and reads at each communication point, in order.
+    pub propagation: Vec<Op>,
+    /// Number of base steps from start to stop time.
+    pub steps: u64,
+}
+
+/// Whether output `output` depends directly on input `input` of the same instance.
+fn feeds_through(instances: &[ResolvedInstance], output: VarRef, input: VarRef) -> bool {
+    output.0 == input.0
+        && match &instances[output.0].fmu.variables[output.1].dependencies {
+            None => true,
+            Some(deps) => deps.contains(&input.1),
+        }
+}
+
+/// Whether output `output` depends directly on any input.
+pub fn has_feedthrough(instances: &[ResolvedInstance], output: VarRef) -> bool {
+    match &instances[output.0].fmu.variables[output.1].dependencies {
+        None => instances[output.0]
+            .fmu
+            .variables
+            .iter()
+            .any(|v| v.causality == Causality::Input),
+        Some(deps) => !deps.is_empty(),
+    }
+}
+
+/// `instance.variable`.
+pub fn variable_name(instances: &[ResolvedInstance], r: VarRef) -> String {
+    format!(
+        "{}.{}",
+        instances[r.0].name, instances[r.0].fmu.variables[r.1].name
+    )
+}
+
+impl Plan {
+    /// Compiles the connections and records of `d` over `instances` (loaded, in the order of
+    /// `d.instances`).
+    pub fn compile(
+        d: &SystemDescription,
+        instances: &[ResolvedInstance],
+    ) -> Result<Self, SystemError> {
+        let index_of: HashMap<&str, usize> = instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| (inst.name.as_str(), i))
+            .collect();
+        let lookup = |text: &str, connection: &str| -> Result<VarRef, SystemError> {
+            let Some((inst, var)) = split_variable(text) else {
+                return Err(SystemError::Connection {
+                    connection: connection.to_string(),
+                    reason: format!("`{text}` is not of the form instance.variable"),
+                });
+            };
+            let Some(&i) = index_of.get(inst) else {
+                return Err(SystemError::Connection {
+                    connection: connection.to_string(),
+                    reason: format!("no instance called `{inst}`"),
+                });
+            };
+            let fmu = &instances[i].fmu;
+            let Some(v) = fmu.index_of(var) else {
+                return Err(unknown(inst, var, fmu));
+            };
+            Ok((i, v))
+        };
+        let name_of = |r: VarRef| {
+            format!(
+                "{}.{}",
+                instances[r.0].name, instances[r.0].fmu.variables[r.1].name
+            )
+        };
+        let mut connections = Vec::new();
+        let mut drivers: HashMap<VarRef, String> = HashMap::new();
+        for c in &d.connections {
+            let Some((from, to)) = c.split_once("->") else {
+                return Err(SystemError::Connection {
+                    connection: c.clone(),
+                    reason: "expected `instance.output -> instance.input`".into(),
+                });
+            };
+            let (from, to) = (lookup(from, c)?, lookup(to, c)?);
+            let fv = &instances[from.0].fmu.variables[from.1];
+            let tv = &instances[to.0].fmu.variables[to.1];
+            let fail = |reason: String| SystemError::Connection {
+                connection: c.clone(),
+                reason,
+            };
+            if !matches!(fv.causality, Causality::Output) {
+                return Err(fail(format!(
+                    "`{}` has causality {:?}; a connection starts at an output",
+                    name_of(from),
+                    fv.causality
+                )));
+            }
+            if tv.causality != Causality::Input {
+                return Err(fail(format!(
+                    "`{}` has causality {:?}; a connection ends at an input",
+                    name_of(to),
+                    tv.causality
+                )));
+            }
+            if fv.var_type != tv.var_type {
+                return Err(fail(format!(
+                    "type mismatch: `{}` is {:?} but `{}` is {:?}",
+                    name_of(from),
+                    fv.var_type,
+                    name_of(to),
+                    tv.var_type
+                )));
+            }
+            if !matches!(
+                fv.var_type,
+                VarType::Real | VarType::Integer | VarType::Boolean
+            ) {
+                return Err(fail(format!(
+                    "{:?} connections are not supported",
+                    fv.var_type
+                )));
+            }
+            if let Some(first) = drivers.insert(to, name_of(from)) {
+                return Err(SystemError::DrivenTwice {
+                    input: name_of(to),
+                    first,
+                    second: name_of(from),
+                });
+            }
+            connections.push(Connection {
+                from,
+                to,
+                var_type: fv.var_type,
+            });
+        }
+        let recorded = if d.record.is_empty() {
+            instances
+                .iter()
+                .enumerate()
+                .flat_map(|(i, inst)| {
+                    inst.fmu
+                        .variables
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, v)| {
+                            v.causality == Causality::Output
+                                && matches!(
+                                    v.var_type,
+                                    VarType::Real | VarType::Integer | VarType::Boolean
+                                )
+                        })
+                        .map(move |(j, _)| (i, j))
+                })
+                .collect()
+        } else {
+            d.record
+                .iter()
+                .map(|r| lookup(r, &format!("record {r}")))
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        let order = match d.algorithm {
+            Algorithm::GaussSeidel => propagation_order(instances, &connections)?,
+            Algorithm::Jacobi => connections
+                .iter()
+                .map(|c| PropagationStep::SetInput(c.to))
+                .collect(),
+        };
+        Ok(Self::lay_out(d, instances, connections, recorded, &order))
+    }
+
+    /// Slots, batches and the propagation for resolved connections and records.
+    fn lay_out(
+        d: &SystemDescription,
+        instances: &[ResolvedInstance],
+        connections: Vec<Connection>,
+        recorded: Vec<VarRef>,
+        order: &[PropagationStep],
+    ) -> Self {
+        // Buffer slots: every connection source and every recorded variable.
+        let mut slot_of: HashMap<VarRef, usize> = HashMap::new();
+        let mut slot = |r: VarRef| {
+            let n = slot_of.len();
+            *slot_of.entry(r).or_insert(n)
+        };
+        for c in &connections {
+            slot(c.from);
+        }
+        let record_slots: Vec<usize> = recorded.iter().map(|r| slot(*r)).collect();
+        let mut by_slot: Vec<VarRef> = vec![(0, 0); slot_of.len()];
+        for (r, s) in &slot_of {
+            by_slot[*s] = *r;
+        }
+        let variable = |r: VarRef| &instances[r.0].fmu.variables[r.1];
+
+        let after_step = (0..instances.len())
+            .map(|i| {
+                let mut gets: Vec<Op> = Vec::new();
+                for (s, r) in by_slot.iter().enumerate() {
+                    if r.0 == i {
+                        let v = variable(*r);
+                        push_op(&mut gets, false, i, v.var_type, v.value_reference, s);
+                    }
+                }
+                gets.into_iter()
+                    .filter_map(|op| match op {
+                        Op::Get(t) => Some(t),
+                        Op::Set(_) => None,
+                    })
+                    .collect()
+            })
+            .collect();
+
+        let mut propagation = Vec::new();
+        for step in order {
+            match *step {
+                PropagationStep::SetInput(to) => {
+                    let Some(c) = connections.iter().find(|c| c.to == to) else {
+                        continue;
+                    };
+                    let v = variable(to);
+                    push_op(
+                        &mut propagation,
+                        true,
+                        to.0,
+                        v.var_type,
+                        v.value_reference,
+                        slot_of[&c.from],
+                    );
+                }
+                PropagationStep::GetOutput(from) => {
+                    let v = variable(from);
+                    push_op(
+                        &mut propagation,
+                        false,
+                        from.0,
+                        v.var_type,
+                        v.value_reference,
+                        slot_of[&from],
+                    );
+                }
+            }
+        }
+
+        // Gauss–Seidel: recorded inputs and direct-feedthrough outputs of instances whose
+        // inputs are set at a communication point are re-read after the propagation, so that
+        // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
+        // which feeds no connection, for the input just set) rather than those read after the
+        // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
+        let connected: Vec<usize> = match d.algorithm {
+            Algorithm::GaussSeidel => connections.iter().map(|c| c.to.0).collect(),
+            Algorithm::Jacobi => Vec::new(),
+        };
+        for r in &recorded {
+            let v = variable(*r);
+            let refreshed = connected.contains(&r.0)
+                && (v.causality == Causality::Input
+                    || (v.causality == Causality::Output && has_feedthrough(instances, *r)));
+            if refreshed {
+                push_op(
+                    &mut propagation,
+                    false,
+                    r.0,
+                    v.var_type,
+                    v.value_reference,
+                    slot_of[r],
+                );
+            }
+        }
+
+        let steps = ((d.stop_time - d.start_time) / d.step_size - 1e-9)
+            .ceil()
+            .max(0.0) as u64;
+        Self {
+            record_names: recorded
+                .iter()
+                .map(|r| variable_name(instances, *r))
+                .collect(),
+            record_slots,
+            slot_count: slot_of.len(),
+            after_step,
+            propagation,
+            steps,
+            connections,
+            recorded,
+        }
+    }
+}
+
+/// The order in which, at a communication point, connected inputs are set and
+/// direct-feedthrough outputs re-read: a topological order of the graph whose edges are
+/// the connections (output → input) and the feedthrough inside each FMU (input → output
+/// that depends on it). A cycle is an algebraic loop and is reported with its variables.
+pub fn propagation_order(
+    instances: &[ResolvedInstance],
+    connections: &[Connection],
+) -> Result<Vec<PropagationStep>, SystemError> {
+    // Nodes: the connected inputs and the feedthrough outputs that are connection sources.
+    let mut nodes: Vec<PropagationStep> = Vec::new();
+    for c in connections {
+        nodes.push(PropagationStep::SetInput(c.to));
+        if has_feedthrough(instances, c.from) {
+            let n = PropagationStep::GetOutput(c.from);
+            if !nodes.contains(&n) {
+                nodes.push(n);
+            }
+        }
+    }
+    let n = nodes.len();
+    let mut edges = vec![Vec::new(); n];
+    let mut indegree = vec![0usize; n];
+    for (a, na) in nodes.iter().enumerate() {
+        for (b, nb) in nodes.iter().enumerate() {
+            let edge = match (na, nb) {
+                (PropagationStep::GetOutput(o), PropagationStep::SetInput(i)) => {
+                    connections.iter().any(|c| c.from == *o && c.to == *i)
+                }
+                (PropagationStep::SetInput(i), PropagationStep::GetOutput(o)) => {
+                    feeds_through(instances, *o, *i)
+                }
+                _ => false,
+            };
+            if edge {
+                edges[a].push(b);
+                indegree[b] += 1;
+            }
+        }
+    }
+    let mut ready: Vec<usize> = (0..n).filter(|&i| indegree[i] == 0).rev().collect();
+    let mut order = Vec::with_capacity(n);
+    while let Some(a) = ready.pop() {
+        order.push(nodes[a]);
+        for &b in edges[a].iter().rev() {
+            indegree[b] -= 1;
+            if indegree[b] == 0 {
+                ready.push(b);
+            }
+        }
+    }
+    if order.len() < n {
+        let stuck: Vec<String> = (0..n)
+            .filter(|&i| indegree[i] > 0)
+            .map(|i| match nodes[i] {
+                PropagationStep::SetInput(r) | PropagationStep::GetOutput(r) => {
+                    variable_name(instances, r)
+                }
+            })
+            .collect();
+        return Err(SystemError::AlgebraicLoop(stuck.join(", ")));
+    }
+    Ok(order)
+}
