@@ -79,7 +79,8 @@ pub enum SystemError {
 pub struct ResolvedInstance {
     pub name: String,
     pub fmu: Arc<FmuFile>,
-    /// (variable index, value as f64) to set before initialisation.
+    /// (variable index, value as f64) to set before initialisation; change them by name with
+    /// [`System::set_start_value`], which checks them and keeps the description in step.
     pub start_values: Vec<(usize, f64)>,
     pub step_multiple: u32,
     pub logging: bool,
@@ -389,7 +390,10 @@ impl System {
 
     /// Runs `instance` from another FMU file (`fmu`, a path as given, not relative to the
     /// system file): its start values, connections and recorded variables are resolved again
-    /// by name against the new FMU, with the same checks as when the system was loaded.
+    /// by name against the new FMU, with the same checks as when the system was loaded. The
+    /// start values are those of the description and of [`System::set_start_value`] (not
+    /// edits made to [`ResolvedInstance::start_values`] directly). On error the system is
+    /// left as it was.
     pub fn set_fmu(&mut self, instance: &str, fmu: &Path) -> Result<(), SystemError> {
         let i = self
             .instances
