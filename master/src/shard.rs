@@ -20,8 +20,10 @@
 //!   task killed while writing (pre-emption) leaves no truncated shard behind.
 //! - **Merge** ([`merge`]): checks that the shards belong to one sweep and agree on its
 //!   shape, that none is duplicated and none is missing (naming the missing ones and the
-//!   commands that rerun them), and returns the runs in run-index order; [`progress`] does the
-//!   same checks on an unfinished sweep and gives the running table of the runs done so far.
+//!   commands that rerun them), that each holds exactly its runs (and, given the definition,
+//!   that each run carries its run index's parameter values), and returns the runs in
+//!   run-index order; [`progress`] does the same checks on an unfinished sweep and gives the
+//!   running table of the runs done so far.
 //!
 //! The mean ± std of the merged runs is [`SweepResult::table`] over the rows in run-index
 //! order, the same summation order as the one-machine [`crate::sweep::sweep`].
@@ -356,6 +358,9 @@ pub struct MergeOptions {
     pub expected_sweep: Option<SweepIdentity>,
     /// The number of shards the sweep was cut into; without it, the count the files record.
     pub expected_shards: Option<usize>,
+    /// The sweep definition: every run's parameter values must be the definition's values
+    /// for its run index (bit for bit), whichever shard ran it.
+    pub definition: Option<SweepDefinition>,
 }
 
 /// A run that failed, for [`MergeError::FailedRuns`].
@@ -413,6 +418,8 @@ pub enum MergeError {
         expected: Range<usize>,
         found: String,
     },
+    #[error("shard file {}: not of this sweep's definition: {reason}", path.display())]
+    NotOfDefinition { path: PathBuf, reason: String },
     #[error("{}", missing_message(missing, slurm_script.as_deref()))]
     MissingShards {
         missing: Vec<MissingShard>,
@@ -687,6 +694,9 @@ pub fn progress(
             });
         }
         check_runs(path, file)?;
+        if let Some(definition) = &options.definition {
+            check_definition(path, file, definition)?;
+        }
         by_shard.entry(file.shard).or_default().push(path);
     }
     if let Some((shard, paths)) = by_shard.iter().find(|(_, p)| p.len() > 1) {
@@ -834,6 +844,45 @@ fn check_runs(path: &Path, file: &ShardFile) -> Result<(), MergeError> {
                 return wrong(format!("failed run {index} has no error text"));
             }
             _ => {}
+        }
+    }
+    Ok(())
+}
+
+fn check_definition(
+    path: &Path,
+    file: &ShardFile,
+    definition: &SweepDefinition,
+) -> Result<(), MergeError> {
+    let wrong = |reason: String| {
+        Err(MergeError::NotOfDefinition {
+            path: path.to_path_buf(),
+            reason,
+        })
+    };
+    if file.total_runs != definition.runs.len() {
+        return wrong(format!(
+            "{} runs, the definition has {}",
+            file.total_runs,
+            definition.runs.len()
+        ));
+    }
+    if file.parameters != definition.parameters || file.metrics != definition.metrics {
+        return wrong(format!(
+            "parameters {:?} and metrics {:?}, the definition has {:?} and {:?}",
+            file.parameters, file.metrics, definition.parameters, definition.metrics
+        ));
+    }
+    for run in &file.runs {
+        let Some(expected) = definition.runs.get(run.index) else {
+            return wrong(format!("run {} is not in the definition", run.index));
+        };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        if bits(&run.parameters) != bits(expected) {
+            return wrong(format!(
+                "run {} has parameter values {:?}, the definition {expected:?}",
+                run.index, run.parameters
+            ));
         }
     }
     Ok(())
@@ -1219,6 +1268,35 @@ mod tests {
     }
 
     #[test]
+    fn runs_must_carry_the_definitions_values_for_their_index() {
+        let (definition, local) = local_sweep(20);
+        let mut files = shard_files(&definition, &local, 4);
+        let options = MergeOptions {
+            definition: Some(definition.clone()),
+            ..Default::default()
+        };
+        assert_eq!(merge(&files, &options).unwrap().runs.len(), 20);
+        // A shard that seeded its runs by their position in the shard, not their run index.
+        for (j, run) in files[1].1.runs.iter_mut().enumerate() {
+            run.parameters = vec![j as f64 + 1.0];
+        }
+        assert!(merge(&files, &MergeOptions::default()).is_ok());
+        let e = merge(&files, &options).unwrap_err().to_string();
+        assert!(
+            e.contains("shard-1.toml: not of this sweep's definition: run 5 has parameter values [1.0], the definition [6.0]"),
+            "{e}"
+        );
+        let mut shorter = definition.clone();
+        shorter.runs.pop();
+        let options = MergeOptions {
+            definition: Some(shorter),
+            ..Default::default()
+        };
+        let e = merge(&files, &options).unwrap_err().to_string();
+        assert!(e.contains("20 runs, the definition has 19"), "{e}");
+    }
+
+    #[test]
     fn failed_runs_are_kept_in_the_files_and_named_by_the_merge() {
         let (definition, local) = local_sweep(20);
         let mut files = shard_files(&definition, &local, 4);
@@ -1241,6 +1319,52 @@ mod tests {
         let p = progress(&files, &MergeOptions::default()).unwrap();
         assert_eq!(p.to_string(), "4/4 shards done (20/20 runs, 1 failed)");
         assert_eq!(p.running_result().unwrap().runs.len(), 19);
+    }
+
+    #[test]
+    fn every_float_reads_back_with_the_bits_it_was_written_with() {
+        let values = [
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            5e-324,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            -f64::MAX,
+            0.1 + 0.2,
+            1.0 / 3.0,
+            -2.5e-17,
+            123456789.0,
+            f64::NAN,
+        ];
+        let definition = SweepDefinition {
+            parameters: vec!["p".into()],
+            runs: values.iter().map(|v| vec![*v]).collect(),
+            metrics: vec!["final(p)".into()],
+        };
+        let runs = values
+            .iter()
+            .enumerate()
+            .map(|(k, v)| RunRecord::ok(k, vec![*v], vec![-*v]))
+            .collect();
+        let file = ShardFile::new(
+            identity(&definition),
+            Shard::new(0, 1).unwrap(),
+            &definition,
+            runs,
+        );
+        let path = PathBuf::from("floats.toml");
+        let back = ShardFile::from_toml(&file.to_toml().unwrap(), &path).unwrap();
+        for (k, v) in values.iter().enumerate() {
+            let run = &back.runs[k];
+            if v.is_nan() {
+                assert!(run.parameters[0].is_nan() && run.metrics[0].is_nan());
+            } else {
+                assert_eq!(run.parameters[0].to_bits(), v.to_bits(), "{v:e}");
+                assert_eq!(run.metrics[0].to_bits(), (-v).to_bits(), "{v:e}");
+            }
+        }
     }
 
     #[test]
