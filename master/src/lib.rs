@@ -14,6 +14,7 @@ pub mod logging;
 pub mod plan;
 pub mod record;
 pub mod results;
+pub mod shard;
 pub mod ssp;
 pub mod sweep;
 pub mod system;
