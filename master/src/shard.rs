@@ -553,7 +553,7 @@ fn parse_metrics(labels: &[String]) -> Result<Vec<Metric>, MergeError> {
         .map(|label| {
             let metric = Metric::parse(label).map_err(|reason| MergeError::Metric {
                 label: label.clone(),
-                reason,
+                reason: reason.to_string(),
             })?;
             if metric.label() != *label {
                 return Err(MergeError::Metric {
