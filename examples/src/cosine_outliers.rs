@@ -337,7 +337,9 @@ fn figures(ctx: &ExperimentContext, p0: &Scenario, p1: &Scenario) -> Result<Hist
     signals_png(
         ctx,
         "paper000_signals.png",
-        &format!("Paper 000 scenario, seed {SHOWN_SEED}: measurements, sKF and rsKF (x̂₀ = 0)"),
+        &format!(
+            "Paper 000 scenario, seed {SHOWN_SEED}: measurements, sKF and rsKF (both started at 0)"
+        ),
         &p0.shown,
     )?;
     signals_png(
@@ -372,6 +374,7 @@ fn paper000_rows(r0: &[SeedFigures]) -> Result<Vec<Row>> {
     let critical_exact = grubbs_critical_value(SAMPLES, ALPHA)?;
     let single = over_seeds(r0, |r| r.grubbs_single_pass);
     let shown_grubbs = r0.first().cloned().unwrap_or_default();
+    let mean_of = |f: fn(&SeedFigures) -> f64, digits| pm(over_seeds(r0, f), digits);
     Ok(vec![
         Row::info(
             "**Paper 000 scenario** (5 % outliers anywhere): outliers per run",
@@ -407,11 +410,7 @@ fn paper000_rows(r0: &[SeedFigures]) -> Result<Vec<Row>> {
         Row::info(
             "Grubbs: mean, std of the measured signal",
             "−0.0945, 1.388",
-            format!(
-                "{}, {}",
-                pm(over_seeds(r0, |r| r.grubbs_mean), 4),
-                pm(over_seeds(r0, |r| r.grubbs_std), 3)
-            ),
+            [mean_of(|r| r.grubbs_mean, 4), mean_of(|r| r.grubbs_std, 3)].join(", "),
         ),
         Row::info(
             "Grubbs: samples rejected (one pass, eq. 36 on every sample) / outliers",
@@ -427,11 +426,11 @@ fn paper000_rows(r0: &[SeedFigures]) -> Result<Vec<Row>> {
         Row::info(
             "Grubbs iterated (remove, retest): rejected, of which true outliers",
             "—",
-            format!(
-                "{}, {}",
-                pm(over_seeds(r0, |r| r.grubbs_iterative), 1),
-                pm(over_seeds(r0, |r| r.grubbs_iterative_true), 1)
-            ),
+            [
+                mean_of(|r| r.grubbs_iterative, 1),
+                mean_of(|r| r.grubbs_iterative_true, 1),
+            ]
+            .join(", "),
         ),
     ])
 }

@@ -469,7 +469,7 @@ impl Representative {
         let first = |series: &TimeSeries, name: &str| -> Result<Vec<f64>> {
             Ok(column(series, name)?[..n].to_vec())
         };
-        let panel = |label: &str, hat: &str, channel: usize, truth: &str| -> Result<Panel> {
+        let panel = |label: &str, what: &str, channel: usize, truth: &str| -> Result<Panel> {
             let estimate = format!("est.x_hat[{channel}]");
             let measured = first(&self.rskf, &format!("sensor.y[{channel}]"))?;
             Ok(Panel {
@@ -479,13 +479,13 @@ impl Representative {
                         .style(Style::Points)
                         .colour(GREY),
                     Line::new(
-                        format!("{hat} DKF"),
+                        format!("{what}, DKF"),
                         time.clone(),
                         first(&self.dkf, &estimate)?,
                     )
                     .colour(DKF_COLOR),
                     Line::new(
-                        format!("{hat} DKF-rsKF"),
+                        format!("{what}, DKF-rsKF"),
                         time.clone(),
                         first(&self.rskf, &estimate)?,
                     )
@@ -507,8 +507,8 @@ impl Representative {
             ),
             "time [s]",
             &[
-                panel("x [m]", "x̂", 1, "crane.x")?,
-                panel("θ [rad]", "θ̂", 2, "crane.theta")?,
+                panel("x [m]", "estimate", 1, "crane.x")?,
+                panel("θ [rad]", "estimate", 2, "crane.theta")?,
             ],
         )
     }
@@ -601,30 +601,31 @@ fn report(f: &Findings) -> Report {
     }
 }
 
+/// "DKF-rsKF's vs DKF's", each shown by `show`.
+fn versus(rskf: &Summary, dkf: &Summary, show: impl Fn(&Summary) -> String) -> String {
+    format!("{} vs {}", show(rskf), show(dkf))
+}
+
 /// The table.
 fn rows(f: &Findings) -> Vec<Row> {
-    let (st, rep) = (&f.studies, &f.representative);
-    let (stop, seeds, elapsed, initial_model_error) =
-        (f.stop, f.seeds, f.elapsed, f.initial_model_error);
-    let (dkf_sum, rskf_sum) = (&st.dkf, &st.rskf);
-    let (dkf_clean_sum, dkf_exact, rskf_exact) = (&st.dkf_clean, &st.dkf_exact, &st.rskf_exact);
+    let mut rows = rest_rows(f);
+    rows.extend(control_rows(f));
+    rows
+}
+
+/// Time to rest: the reference design, DKF alone with and without outliers, DKF-rsKF.
+fn rest_rows(f: &Findings) -> Vec<Row> {
+    let stop = f.stop;
+    let (dkf_sum, rskf_sum, dkf_clean_sum) =
+        (&f.studies.dkf, &f.studies.rskf, &f.studies.dkf_clean);
     let (reference_rest, reference_effort, reference_max_force) =
         (f.reference.rest, f.reference.effort, f.reference.max_force);
-    let (representative, rep_dkf_score, rep_rskf_score) = (rep.seed, rep.dkf_score, rep.rskf_score);
-    let total_runs = 5 * seeds + 2 * Q_SENSITIVITY.len() * st.sensitivity_seeds + 3;
     let (rs_mean, _) = rskf_sum.rest();
     let rest_goal_met = rskf_sum.at_rest() == rskf_sum.runs
         && rs_mean < 15.0
         && rskf_sum.rest_before(15.0) as f64 >= 0.95 * rskf_sum.runs as f64;
     let half_goal_met =
         rskf_sum.at_rest() == rskf_sum.runs && rs_mean <= 0.5 * dkf_sum.censored_rest_mean;
-    let effort_goal_met = rskf_sum.effort.0 <= dkf_sum.effort.0;
-    let force_goal_met =
-        rskf_sum.max_force_overall <= 17.0 + 1e-9 && dkf_sum.max_force_overall <= 17.0 + 1e-9;
-    let rest_of = |s: &RunScore| match s.rest {
-        Some(t) if t <= stop - MIN_REST_HOLD => format!("{t:.2} s"),
-        _ => format!("not within {stop:.0} s"),
-    };
     vec![
         Row::info(
             "reference design, true states: time to rest / Σu²Ts / max|u|",
@@ -667,72 +668,71 @@ fn rows(f: &Findings) -> Vec<Row> {
             "≤ 0.5",
             half_goal_met,
         ),
+    ]
+}
+
+/// Control effort and smoothness, the model, the exact start, the representative run.
+fn control_rows(f: &Findings) -> Vec<Row> {
+    let (st, rep) = (&f.studies, &f.representative);
+    let (stop, seeds, elapsed, initial_model_error) =
+        (f.stop, f.seeds, f.elapsed, f.initial_model_error);
+    let (dkf_sum, rskf_sum) = (&st.dkf, &st.rskf);
+    let (dkf_exact, rskf_exact) = (&st.dkf_exact, &st.rskf_exact);
+    let (representative, rep_dkf_score, rep_rskf_score) = (rep.seed, rep.dkf_score, rep.rskf_score);
+    let total_runs = 5 * seeds + 2 * Q_SENSITIVITY.len() * st.sensitivity_seeds + 3;
+    let effort_goal_met = rskf_sum.effort.0 <= dkf_sum.effort.0;
+    let force_goal_met =
+        rskf_sum.max_force_overall <= 17.0 + 1e-9 && dkf_sum.max_force_overall <= 17.0 + 1e-9;
+    let rest_of = |s: &RunScore| match s.rest {
+        Some(t) if t <= stop - MIN_REST_HOLD => format!("{t:.2} s"),
+        _ => format!("not within {stop:.0} s"),
+    };
+    vec![
         Row::goal(
             "control effort Σu²·Ts [N²·s]: DKF-rsKF vs DKF",
             "smaller with the rsKF (Fig. 8)",
-            format!("{} vs {}", pm(rskf_sum.effort, 4), pm(dkf_sum.effort, 4)),
+            versus(rskf_sum, dkf_sum, |s| pm(s.effort, 4)),
             "DKF-rsKF ≤ DKF",
             effort_goal_met,
         ),
         Row::goal(
             "max |u| [N]: DKF-rsKF vs DKF (mean ± std; largest)",
             "|U| < 0.25 N (reference)",
-            format!(
-                "{} (≤ {:.3}) vs {} (≤ {:.3})",
-                pm(rskf_sum.max_force, 3),
-                rskf_sum.max_force_overall,
-                pm(dkf_sum.max_force, 3),
-                dkf_sum.max_force_overall
-            ),
+            versus(rskf_sum, dkf_sum, |s| {
+                format!("{} (≤ {:.3})", pm(s.max_force, 3), s.max_force_overall)
+            }),
             "≤ 17 N throughout",
             force_goal_met,
         ),
         Row::info(
             "control smoothness Σ|u_k − u_{k−1}| [N]: DKF-rsKF vs DKF",
             "smoother with the rsKF (Fig. 8)",
-            format!(
-                "{} vs {}",
-                pm(rskf_sum.variation, 3),
-                pm(dkf_sum.variation, 3)
-            ),
+            versus(rskf_sum, dkf_sum, |s| pm(s.variation, 3)),
         ),
         Row::info(
             "residual swing: RMS of θ after 10 s [rad], DKF-rsKF vs DKF",
             "angle not disturbed by noise with the rsKF (Fig. 8)",
-            format!(
-                "{:.2e} ± {:.1e} vs {:.2e} ± {:.1e}",
-                rskf_sum.late_theta_rms.0,
-                rskf_sum.late_theta_rms.1,
-                dkf_sum.late_theta_rms.0,
-                dkf_sum.late_theta_rms.1
-            ),
+            versus(rskf_sum, dkf_sum, |s| {
+                format!("{:.2e} ± {:.1e}", s.late_theta_rms.0, s.late_theta_rms.1)
+            }),
         ),
         Row::info(
             "model error at 40 s (dynamics rows of [A B], relative): DKF-rsKF vs DKF",
             "—",
             format!(
-                "{} vs {} (initial {initial_model_error:.3})",
-                pm(rskf_sum.model_error, 4),
-                pm(dkf_sum.model_error, 4)
+                "{} (initial {initial_model_error:.3})",
+                versus(rskf_sum, dkf_sum, |s| pm(s.model_error, 4))
             ),
         ),
         Row::info(
             "started from the exact ZOH model: time to rest, DKF-rsKF vs DKF",
             "reference ≈ 4.7 s vs ≈ 28 s",
-            format!(
-                "{} vs {}",
-                rskf_exact.rest_text(stop),
-                dkf_exact.rest_text(stop)
-            ),
+            versus(rskf_exact, dkf_exact, |s| s.rest_text(stop)),
         ),
         Row::info(
             "started from the exact ZOH model: Σu²·Ts, DKF-rsKF vs DKF",
             "—",
-            format!(
-                "{} vs {}",
-                pm(rskf_exact.effort, 4),
-                pm(dkf_exact.effort, 4)
-            ),
+            versus(rskf_exact, dkf_exact, |s| pm(s.effort, 4)),
         ),
         Row::info(
             &format!("representative run (seed {representative}): time to rest, Σu²Ts, max|u|"),

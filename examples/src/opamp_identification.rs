@@ -374,18 +374,24 @@ fn excitation_rows(
     truth: &ContinuousSecondOrder,
     out: &mut Outputs,
 ) -> Vec<Row> {
-    let true_figs = figures(truth);
-    let (names, paper) = (NAMES, PAPER);
-    let mut rows = Vec::new();
-    let figures_of_merit = &mut out.figures_of_merit;
-    let notes = &mut out.notes;
-    let label = excitation.label();
-    let title = excitation.title();
+    let mut rows = table_rows(excitation, results, &figures(truth), out);
+    rows.extend(other_rows(excitation, results, truth, out));
+    rows
+}
+
+/// Table I's four figures identified by Steiglitz–McBride, with their errors.
+fn table_rows(
+    excitation: Excitation,
+    results: &[SeedResult],
+    true_figs: &Figures,
+    out: &mut Outputs,
+) -> Vec<Row> {
+    let (label, title) = (excitation.label(), excitation.title());
     let converged = results.iter().filter(|r| r.converged).count();
-    let (passes, passes_std) = stat(results, |r| r.passes as f64);
-    for (i, (name, digits)) in names.iter().enumerate() {
+    let mut rows = Vec::new();
+    for (i, (name, digits)) in NAMES.iter().enumerate() {
         let value = stat(results, |r| r.ours[i]);
-        let error = stat(results, |r| errors(&r.ours, &true_figs)[i]);
+        let error = stat(results, |r| errors(&r.ours, true_figs)[i]);
         let ours = format!(
             "{:.d$} ± {:.d$}: error {:.2} ± {:.2} %",
             value.0,
@@ -398,7 +404,7 @@ fn excitation_rows(
         let row = match excitation {
             Excitation::Step => Row::goal(
                 &quantity,
-                paper[i],
+                PAPER[i],
                 ours,
                 "error ≤ 5 %",
                 error.0 <= 5.0 && converged == results.len(),
@@ -407,9 +413,27 @@ fn excitation_rows(
         };
         rows.push(row);
         let key = ["wn", "zeta", "overshoot", "settling"][i];
-        figures_of_merit.push((format!("{label}_{key}_error"), error.0));
-        figures_of_merit.push((format!("{label}_{key}"), value.0));
+        out.figures_of_merit
+            .push((format!("{label}_{key}_error"), error.0));
+        out.figures_of_merit
+            .push((format!("{label}_{key}"), value.0));
     }
+    rows
+}
+
+/// The peak of the step response, the paper's chain and plain least squares; the
+/// convergence note.
+fn other_rows(
+    excitation: Excitation,
+    results: &[SeedResult],
+    truth: &ContinuousSecondOrder,
+    out: &mut Outputs,
+) -> Vec<Row> {
+    let true_figs = figures(truth);
+    let (label, title) = (excitation.label(), excitation.title());
+    let converged = results.iter().filter(|r| r.converged).count();
+    let (passes, passes_std) = stat(results, |r| r.passes as f64);
+    let mut rows = Vec::new();
     let peak = stat(results, |r| r.ours_dc_gain * (1.0 + r.ours[2] / 100.0));
     let true_peak = truth.dc_gain * (1.0 + true_figs[2] / 100.0);
     rows.push(Row::info(
@@ -454,15 +478,17 @@ fn excitation_rows(
         "—",
         format!("continuous equivalent in {plain_ok}/{} runs", results.len()),
     ));
-    notes.push(format!(
+    out.notes.push(format!(
         "{title}: Steiglitz–McBride converged in {converged}/{} runs, {passes:.1} ± {passes_std:.1} passes (|Δâ| < 1e-10).",
         results.len()
     ));
-    figures_of_merit.push((format!("{label}_converged"), converged as f64));
-    figures_of_merit.push((
+    out.figures_of_merit
+        .push((format!("{label}_converged"), converged as f64));
+    out.figures_of_merit.push((
         format!("{label}_paper_chain_available"),
         paper_ok.len() as f64,
     ));
-    figures_of_merit.push((format!("{label}_plain_available"), plain_ok as f64));
+    out.figures_of_merit
+        .push((format!("{label}_plain_available"), plain_ok as f64));
     rows
 }

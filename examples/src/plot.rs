@@ -3,8 +3,9 @@
 //! of the axes (they hide no data), ticks without needless decimals (sample axes read "200",
 //! not "200.0"), axis labels with units given by the caller ("crane.x [m]").
 //!
-//! Text note: plotters' glyph layout over-applies kerning ("Ts" overlaps); write subscripts
-//! as Unicode ("Tₛ", "x̂"), which DejaVu renders without a kerning pair.
+//! Text note: plotters' glyph layout over-applies kerning ("Ts" overlaps) and misplaces
+//! combining accents ("x̂"); write subscripts as Unicode letters ("Tₛ", "x₀"), which DejaVu
+//! renders cleanly, and name estimates in words.
 
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
@@ -41,26 +42,28 @@ const PALETTE: [RGBColor; 5] = [
     RGBColor(20, 150, 60),
 ];
 
-/// A tick label with no needless digits: `200`, `0.5`, `-0.025`, `1.5e-5`.
-pub fn tick(v: &f64) -> String {
-    let v = *v;
-    if v == 0.0 || !v.is_finite() {
-        return if v.is_finite() {
-            "0".into()
+/// A tick label with no needless digits on an axis spanning `span`: `200`, `0.5`,
+/// `-0.025`, `1.5e-5`; a tick within rounding error of zero reads `0`.
+fn tick(v: f64, span: f64) -> String {
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    if v.abs() <= 1e-9 * span.abs() || v == 0.0 {
+        return "0".into();
+    }
+    let trim = |text: String| -> String {
+        if text.contains('.') {
+            text.trim_end_matches('0').trim_end_matches('.').to_string()
         } else {
-            v.to_string()
-        };
-    }
+            text
+        }
+    };
     if v.abs() < 1e-3 || v.abs() >= 1e6 {
-        return format!("{v:e}");
+        let text = format!("{v:.3e}");
+        let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+        return format!("{}e{exponent}", trim(mantissa.to_string()));
     }
-    let text = format!("{v:.6}");
-    let text = text.trim_end_matches('0').trim_end_matches('.');
-    if text == "-0" {
-        "0".into()
-    } else {
-        text.into()
-    }
+    trim(format!("{v:.6}"))
 }
 
 /// How a line's samples are drawn.
@@ -193,8 +196,8 @@ fn draw_panel(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(panel.label.as_str())
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
+        .x_label_formatter(&|v| tick(*v, x1 - x0))
+        .y_label_formatter(&|v| tick(*v, y1 - y0))
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
         .draw()
@@ -294,19 +297,20 @@ pub fn histogram_png(
     let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
     let (plot_area, legend_area) = root.split_horizontally(1000 - LEGEND_WIDTH);
     let (lo, hi) = range(edges.iter().copied());
+    let (lo, hi) = (lo.min(band.0), hi.max(band.1));
     let top = counts.iter().copied().max().unwrap_or(1) as f64 * 1.1;
     let mut chart = ChartBuilder::on(&plot_area)
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(lo.min(band.0)..hi.max(band.1), 0f64..top)
+        .build_cartesian_2d(lo..hi, 0f64..top)
         .map_err(err)?;
     chart
         .configure_mesh()
         .x_desc(x_label)
         .y_desc("count")
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
+        .x_label_formatter(&|v| tick(*v, hi - lo))
+        .y_label_formatter(&|v| tick(*v, top))
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
         .draw()
@@ -419,12 +423,14 @@ mod tests {
 
     #[test]
     fn ticks_carry_no_needless_digits() {
-        assert_eq!(tick(&200.0), "200");
-        assert_eq!(tick(&0.5), "0.5");
-        assert_eq!(tick(&-0.025), "-0.025");
-        assert_eq!(tick(&0.0), "0");
-        assert_eq!(tick(&1.5e-5), "1.5e-5");
-        assert_eq!(tick(&-1e-7), "-1e-7");
+        assert_eq!(tick(200.0, 1000.0), "200");
+        assert_eq!(tick(0.5, 1.0), "0.5");
+        assert_eq!(tick(-0.025, 0.1), "-0.025");
+        assert_eq!(tick(0.30000000000000004, 1.0), "0.3");
+        assert_eq!(tick(2.783e-17, 0.6), "0");
+        assert_eq!(tick(1.5e-5, 1e-4), "1.5e-5");
+        assert_eq!(tick(-1.0000000000000002e-7, 1e-6), "-1e-7");
+        assert_eq!(tick(2e6, 1e7), "2e6");
     }
 
     #[test]
