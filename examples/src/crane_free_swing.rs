@@ -3,7 +3,8 @@
 //! model's (SPEC §6: ≈ 1.17 s).
 
 use super::{ExperimentContext, Report, Row};
-use crate::runner::{axis_label, column, simulate, write_csv};
+use crate::plot::axis_label;
+use crate::runner::{column, simulate, write_csv};
 use anyhow::Result;
 use spurio_master::record::TimeSeries;
 

@@ -45,7 +45,7 @@ const DESIGNS: [(i32, &str, &str); 2] = [
 ];
 /// The values of ρ and of λ on the grid.
 const GRID: [f64; 3] = [0.1, 1.0, 10.0];
-/// The paper's gains of the LQ design (SPEC §6): L₁, N₁₂ (row-major), N₂₁.
+/// The reference gains of the LQ design (the report's first rows): L₁, N₁₂ (row-major), N₂₁.
 const PAPER_L1: f64 = 0.73628;
 const PAPER_N12: [f64; 4] = [0.35345, 0.05317, -0.02291, 0.36055];
 const PAPER_N21: f64 = 0.36258;

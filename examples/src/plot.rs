@@ -11,6 +11,7 @@ use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use spurio_master::record::TimeSeries;
+use spurio_master::system::{System, SystemError};
 use std::path::Path;
 use std::sync::Once;
 
@@ -227,7 +228,7 @@ fn draw_panel(
 /// legend at its right; `x_label` names the common x axis (with its unit).
 pub fn panels_png(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> Result<()> {
     register_font();
-    let height = 60 + 260 * panels.len().max(1) as u32;
+    let height = (60 + 260 * panels.len().max(1) as u32).max(480);
     let root = BitMapBackend::new(path, (1100, height)).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
@@ -239,6 +240,15 @@ pub fn panels_png(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> 
         draw_panel(area, x_label, panel)?;
     }
     root.present().map_err(err)
+}
+
+/// An axis label for `qualified` with its FMU's unit: `"crane.x [m]"` (the bare name if the
+/// FMU declares none).
+pub fn axis_label(system: &System, qualified: &str) -> Result<String, SystemError> {
+    Ok(match system.unit(qualified)? {
+        Some(unit) => format!("{qualified} [{unit}]"),
+        None => qualified.to_string(),
+    })
 }
 
 /// The recorded variables `(name, label)` of `series` against time, one panel each, the

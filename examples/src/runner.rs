@@ -35,15 +35,6 @@ pub fn start_value(system: &System, qualified: &str) -> Result<f64> {
         .with_context(|| format!("{qualified} has no start value in {}", system.name))
 }
 
-/// An axis label for `qualified` with its FMU's unit: `"crane.x [m]"` (the bare name if the
-/// FMU declares none).
-pub fn axis_label(system: &System, qualified: &str) -> Result<String> {
-    Ok(match system.unit(qualified)? {
-        Some(unit) => format!("{qualified} [{unit}]"),
-        None => qualified.to_string(),
-    })
-}
-
 /// Runs `system` once, keeping every recorded sample.
 pub fn simulate(system: &System) -> Result<TimeSeries> {
     let mut sim = Simulation::new(system)?;
