@@ -72,7 +72,12 @@ struct RunScore {
 
 /// The true model (ZOH of the linearisation at the Annex A parameters), rows 3–4 of [A B].
 fn true_dynamics_rows() -> DMatrix<f64> {
-    let (a, b) = zoh_model(&GantryCraneParameters::default());
+    dynamics_rows(&GantryCraneParameters::default())
+}
+
+/// Rows 3–4 of [A B], the ZOH model of the crane with `parameters`.
+fn dynamics_rows(parameters: &GantryCraneParameters) -> DMatrix<f64> {
+    let (a, b) = zoh_model(parameters);
     let mut rows = DMatrix::zeros(2, 5);
     rows.view_mut((0, 0), (2, 4)).copy_from(&a.rows(2, 2));
     rows.view_mut((0, 4), (2, 1)).copy_from(&b.rows(2, 2));
@@ -119,12 +124,22 @@ fn score(series: &TimeSeries, truth: &DMatrix<f64>) -> Result<RunScore> {
     }
     Ok(RunScore {
         rest: time_to_rest(t, &x, &theta),
-        effort: u.iter().map(|v| v * v).sum::<f64>() * SAMPLE_TIME,
-        max_force: u.iter().fold(0.0, |m, v| m.max(v.abs())),
+        effort: effort(&u),
+        max_force: max_abs(&u),
         variation: u.windows(2).map(|w| (w[1] - w[0]).abs()).sum(),
         late_theta_rms: rms(&late),
         model_error: (&estimate - truth).norm() / truth.norm(),
     })
+}
+
+/// Σ u² Ts.
+fn effort(u: &[f64]) -> f64 {
+    u.iter().map(|v| v * v).sum::<f64>() * SAMPLE_TIME
+}
+
+/// max |u|.
+fn max_abs(u: &[f64]) -> f64 {
+    u.iter().fold(0.0f64, |m, v| m.max(v.abs()))
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -251,8 +266,8 @@ impl Reference {
             x_rms: rms(&x[..window]),
             theta_rms: rms(&theta[..window]),
             rest: time_to_rest(&series.time, &x, &theta).unwrap_or(f64::NAN),
-            effort: u.iter().map(|v| v * v).sum::<f64>() * SAMPLE_TIME,
-            max_force: u.iter().fold(0.0f64, |m, v| m.max(v.abs())),
+            effort: effort(&u),
+            max_force: max_abs(&u),
             series,
         })
     }
@@ -316,11 +331,7 @@ fn check_initial_model(system: &System) -> Result<()> {
 
 /// The relative error of the perturbed crane's dynamics rows of [A B].
 fn initial_model_error(truth: &DMatrix<f64>) -> f64 {
-    let (a, b) = zoh_model(&perturbed_crane());
-    let mut initial = DMatrix::zeros(2, 5);
-    initial.view_mut((0, 0), (2, 4)).copy_from(&a.rows(2, 2));
-    initial.view_mut((0, 4), (2, 1)).copy_from(&b.rows(2, 2));
-    (&initial - truth).norm() / truth.norm()
+    (dynamics_rows(&perturbed_crane()) - truth).norm() / truth.norm()
 }
 
 /// `system` with `edits` (name, value) set.
