@@ -3,44 +3,51 @@
 //! model's (SPEC §6: ≈ 1.17 s).
 
 use super::{ExperimentContext, Report, Row};
-use anyhow::{Context, Result};
-use spurio_master::engine::{RunOptions, Simulation};
-use spurio_master::record::{CsvWriter, TimeSeries};
+use crate::plot::axis_label;
+use crate::runner::{column, simulate, write_csv};
+use anyhow::Result;
+use spurio_master::record::TimeSeries;
 
-/// Runs `examples/crane_free_swing/system.toml`.
-pub fn run(ctx: &ExperimentContext) -> Result<Report> {
-    let system = ctx.system("crane_free_swing", "system.toml")?;
-    let mut sim = Simulation::new(&system)?;
-    let mut series = TimeSeries::default();
-    sim.run(&mut series, &RunOptions::default())?;
-    sim.terminate()?;
-    spurio_master::record::replay(
-        &series,
-        &mut CsvWriter::create(&ctx.out_dir.join("crane_free_swing.csv"))?,
-    )?;
-    let theta = series
-        .column("crane.theta")
-        .context("crane.theta is not recorded")?;
+/// The mean spacing of the upward zero crossings of `crane.theta` (interpolated).
+fn measured_period(series: &TimeSeries) -> Result<f64> {
+    let theta = column(series, "crane.theta")?;
     let t = &series.time;
     let crossings: Vec<f64> = (1..theta.len())
         .filter(|&i| theta[i - 1] < 0.0 && theta[i] >= 0.0)
         .map(|i| t[i - 1] + (t[i] - t[i - 1]) * (-theta[i - 1]) / (theta[i] - theta[i - 1]))
         .collect();
     anyhow::ensure!(crossings.len() >= 2, "the load did not swing");
-    let period = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    Ok((crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64)
+}
+
+/// The period of the linearised crane's oscillatory mode.
+fn linear_period() -> f64 {
     let (a, _) = spurio::plants::gantry_crane::GantryCraneParameters::default().linearised();
     let w = a
         .complex_eigenvalues()
         .iter()
         .map(|e| e.im.abs())
         .fold(0.0, f64::max);
-    let linear = 2.0 * std::f64::consts::PI / w;
+    2.0 * std::f64::consts::PI / w
+}
+
+/// Runs `examples/crane_free_swing/system.toml`.
+pub fn run(ctx: &ExperimentContext) -> Result<Report> {
+    let system = ctx.system("crane_free_swing", "system.toml")?;
+    let series = simulate(&system)?;
+    write_csv(&series, &ctx.out_dir.join("crane_free_swing.csv"))?;
+    let period = measured_period(&series)?;
+    let linear = linear_period();
     let error = (period - linear).abs() / linear;
-    crate::plot::time_series_png(
+    let plotted = ["crane.theta", "crane.x"]
+        .iter()
+        .map(|n| Ok((n.to_string(), axis_label(&system, n)?)))
+        .collect::<Result<Vec<_>>>()?;
+    crate::plot::labelled_time_series_png(
         &ctx.out_dir.join("crane_free_swing.png"),
-        "Crane free swing (theta0 = 0.05 rad)",
+        "Crane free swing (θ₀ = 0.05 rad)",
         &series,
-        &["crane.theta".to_string(), "crane.x".to_string()],
+        &plotted,
     )?;
     Ok(Report {
         title: "Crane free swing (paper 000, Annex A parameters)".into(),

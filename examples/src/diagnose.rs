@@ -65,8 +65,8 @@ pub fn diagnose(
         crate::plot::histogram_png(
             png,
             &format!("Histogram of {column}"),
-            &edges,
-            &counts,
+            column,
+            (&edges, &counts),
             band,
         )
         .with_context(|| format!("writing {}", png.display()))?;

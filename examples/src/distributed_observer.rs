@@ -19,11 +19,10 @@
 //! 2 Σ_k ‖x(k) − x̂(k|k)‖²), so the numbers compare like for like.
 
 use super::{ExperimentContext, Report, Row};
-use crate::plot::{heatmap_png, panels_png, Panel};
-use anyhow::{anyhow, Context, Result};
-use rayon::prelude::*;
-use spurio_master::engine::{RunOptions, Simulation};
-use spurio_master::record::{CsvWriter, TimeSeries};
+use crate::plot::{heatmap_png, panels_png, Line, Panel};
+use crate::runner::{column, edited, mean_std_of, monte_carlo, simulate, write_csv};
+use anyhow::Result;
+use spurio_master::record::TimeSeries;
 use spurio_master::system::System;
 use std::fmt::Write as _;
 
@@ -37,53 +36,23 @@ const A: [[f64; 3]; 3] = [
 /// Samples scored (k = 1..100).
 const HORIZON: usize = 100;
 /// The 1 = LQ, 2 = local Kalman values of the agents' `design` parameter.
-const LQ: f64 = 1.0;
-const LOCAL_KALMAN: f64 = 2.0;
-
-/// A copy of `system` with start values changed: (instance, variable, value).
-pub(crate) fn with_start_values(system: &System, changes: &[(&str, &str, f64)]) -> Result<System> {
-    let mut s = system.clone();
-    for (instance, variable, value) in changes {
-        let inst = s
-            .instances
-            .iter_mut()
-            .find(|i| i.name == *instance)
-            .ok_or_else(|| anyhow!("no instance `{instance}` in {}", system.name))?;
-        let index = inst
-            .fmu
-            .index_of(variable)
-            .ok_or_else(|| anyhow!("instance `{instance}` has no variable `{variable}`"))?;
-        inst.start_values.retain(|(i, _)| *i != index);
-        inst.start_values.push((index, *value));
-    }
-    Ok(s)
-}
-
-/// Runs `system` once, keeping every recorded value.
-pub(crate) fn run_series(system: &System) -> Result<TimeSeries> {
-    let mut sim = Simulation::new(system)?;
-    let mut series = TimeSeries::default();
-    sim.run(&mut series, &RunOptions::default())?;
-    sim.terminate()?;
-    Ok(series)
-}
-
-/// Mean and sample standard deviation.
-pub(crate) fn mean_std(values: &[f64]) -> (f64, f64) {
-    let n = values.len().max(1) as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
-    (mean, var.sqrt())
-}
+const LQ: i32 = 1;
+const LOCAL_KALMAN: i32 = 2;
+/// The designs' names in the report.
+const DESIGNS: [(i32, &str, &str); 2] = [
+    (LQ, "LQ (paper)", "lq"),
+    (LOCAL_KALMAN, "local Kalman", "local_kalman"),
+];
+/// The values of ρ and of λ on the grid.
+const GRID: [f64; 3] = [0.1, 1.0, 10.0];
+/// The reference gains of the LQ design (the report's first rows): L₁, N₁₂ (row-major), N₂₁.
+const PAPER_L1: f64 = 0.73628;
+const PAPER_N12: [f64; 4] = [0.35345, 0.05317, -0.02291, 0.36055];
+const PAPER_N21: f64 = 0.36258;
 
 fn columns(series: &TimeSeries, prefix: &str) -> Result<Vec<Vec<f64>>> {
     (1..=3)
-        .map(|i| {
-            let name = format!("{prefix}[{i}]");
-            series
-                .column(&name)
-                .with_context(|| format!("`{name}` is not recorded"))
-        })
+        .map(|i| column(series, &format!("{prefix}[{i}]")))
         .collect()
 }
 
@@ -135,188 +104,81 @@ fn scores(series: &TimeSeries) -> Result<Scores> {
 }
 
 /// Both agents' design and weights.
-fn design(system: &System, design: f64, rho: f64, lambda: f64) -> Result<System> {
-    with_start_values(
+fn design(system: &System, design: i32, rho: f64, lambda: f64) -> Result<System> {
+    edited(
         system,
         &[
-            ("agent1", "design", design),
-            ("agent2", "design", design),
-            ("agent1", "rho", rho),
-            ("agent2", "rho", rho),
-            ("agent1", "lambda", lambda),
-            ("agent2", "lambda", lambda),
+            ("agent1.design", design.into()),
+            ("agent2.design", design.into()),
+            ("agent1.rho", rho.into()),
+            ("agent2.rho", rho.into()),
+            ("agent1.lambda", lambda.into()),
+            ("agent2.lambda", lambda.into()),
         ],
     )
 }
 
-/// The scores over plant seeds 1..=seeds, in parallel.
-fn monte_carlo(system: &System, seeds: usize, pool: &rayon::ThreadPool) -> Result<Vec<Scores>> {
-    pool.install(|| {
-        (1..=seeds)
-            .into_par_iter()
-            .map(|seed| {
-                let s = with_start_values(system, &[("plant", "seed", seed as f64)])?;
-                scores(&run_series(&s)?)
-            })
-            .collect()
-    })
+/// The scores over plant seeds 1..=seeds.
+fn scores_over_seeds(ctx: &ExperimentContext, system: &System) -> Result<Vec<Scores>> {
+    monte_carlo(
+        ctx,
+        system,
+        &ctx.seed_list(),
+        |seed| vec![("plant.seed", seed.into())],
+        scores,
+    )
 }
 
-fn summary(values: &[Scores], pick: fn(&Scores) -> f64) -> (f64, f64) {
-    mean_std(&values.iter().map(pick).collect::<Vec<_>>())
+/// The gains the agents computed (read from the first recorded row).
+struct Gains {
+    l1: f64,
+    n12: [f64; 4],
+    n21: f64,
+    l2_lq: [f64; 2],
+    l1_local: f64,
+    l2_local: [f64; 2],
+    /// The largest difference from the paper's LQ gains.
+    error: f64,
 }
 
-/// Runs the experiment (module documentation).
-pub fn run(ctx: &ExperimentContext) -> Result<Report> {
-    let system = ctx.system(EXPERIMENT, "system.toml")?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(ctx.threads)
-        .build()
-        .context("thread pool")?;
-
-    // Representative runs (seed 1) of both designs: gains, CSV, the paper's Fig. 2.
-    let lq_system = design(&system, LQ, 1.0, 1.0)?;
-    let local_system = design(&system, LOCAL_KALMAN, 1.0, 1.0)?;
-    let lq_run = run_series(&lq_system)?;
-    let local_run = run_series(&local_system)?;
-    spurio_master::record::replay(
-        &lq_run,
-        &mut CsvWriter::create(&ctx.out_dir.join("distributed_observer_lq_seed1.csv"))?,
-    )?;
-    spurio_master::record::replay(
-        &local_run,
-        &mut CsvWriter::create(
-            &ctx.out_dir
-                .join("distributed_observer_local_kalman_seed1.csv"),
-        )?,
-    )?;
-    let gain = |series: &TimeSeries, name: &str| -> Result<f64> {
-        series
-            .column(name)
-            .and_then(|c| c.first().copied())
-            .with_context(|| format!("`{name}` is not recorded"))
-    };
-    let l1 = gain(&lq_run, "agent1.L[1,1]")?;
-    let n12 = [
-        gain(&lq_run, "agent1.N[1,1]")?,
-        gain(&lq_run, "agent1.N[1,2]")?,
-        gain(&lq_run, "agent1.N[2,1]")?,
-        gain(&lq_run, "agent1.N[2,2]")?,
-    ];
-    let n21 = gain(&lq_run, "agent2.N[1,1]")?;
-    let l2_lq = [
-        gain(&lq_run, "agent2.L[1,1]")?,
-        gain(&lq_run, "agent2.L[2,1]")?,
-    ];
-    let l2_local = [
-        gain(&local_run, "agent2.L[1,1]")?,
-        gain(&local_run, "agent2.L[2,1]")?,
-    ];
-    let l1_local = gain(&local_run, "agent1.L[1,1]")?;
-    let reference_n12 = [0.35345, 0.05317, -0.02291, 0.36055];
-    let gain_error = n12
-        .iter()
-        .zip(reference_n12)
-        .map(|(a, b)| (a - b).abs())
-        .fold((l1 - 0.73628).abs().max((n21 - 0.36258).abs()), f64::max);
-
-    figure_states(ctx, &lq_run, &local_run)?;
-
-    // Monte-Carlo over the plant's seed, both designs, ρ = λ = 1.
-    let lq = monte_carlo(&lq_system, ctx.seeds, &pool)?;
-    let local = monte_carlo(&local_system, ctx.seeds, &pool)?;
-    let (lq_mean, lq_std) = summary(&lq, |s| s.distributed);
-    let (local_mean, local_std) = summary(&local, |s| s.distributed);
-    let (cp_mean, cp_std) = summary(&lq, |s| s.central_prediction);
-    let (cf_mean, cf_std) = summary(&lq, |s| s.central_filtered);
-    let (lq1, _) = summary(&lq, |s| s.agent1);
-    let (lq2, _) = summary(&lq, |s| s.agent2);
-    let (lk1, _) = summary(&local, |s| s.agent1);
-    let (lk2, _) = summary(&local, |s| s.agent2);
-    let ratio = local_mean / cp_mean;
-
-    // The ρ × λ grid (same seeds for every cell, as the paper's "same noise vector").
-    let grid = [0.1, 1.0, 10.0];
-    let mut cells = Vec::new();
-    for d in [LQ, LOCAL_KALMAN] {
-        for &lambda in &grid {
-            for &rho in &grid {
-                cells.push((d, rho, lambda));
-            }
-        }
-    }
-    let grid_values: Vec<f64> = cells
-        .iter()
-        .map(|&(d, rho, lambda)| {
-            let runs = monte_carlo(&design(&system, d, rho, lambda)?, ctx.seeds, &pool)?;
-            Ok(summary(&runs, |s| s.distributed).0)
+impl Gains {
+    fn new(lq: &TimeSeries, local: &TimeSeries) -> Result<Self> {
+        let gain = |series: &TimeSeries, name: &str| -> Result<f64> {
+            Ok(column(series, name)?.first().copied().unwrap_or(f64::NAN))
+        };
+        let l1 = gain(lq, "agent1.L[1,1]")?;
+        let n12 = [
+            gain(lq, "agent1.N[1,1]")?,
+            gain(lq, "agent1.N[1,2]")?,
+            gain(lq, "agent1.N[2,1]")?,
+            gain(lq, "agent1.N[2,2]")?,
+        ];
+        let n21 = gain(lq, "agent2.N[1,1]")?;
+        let error = n12
+            .iter()
+            .zip(PAPER_N12)
+            .map(|(a, b)| (a - b).abs())
+            .fold((l1 - PAPER_L1).abs().max((n21 - PAPER_N21).abs()), f64::max);
+        Ok(Self {
+            l1,
+            n12,
+            n21,
+            l2_lq: [gain(lq, "agent2.L[1,1]")?, gain(lq, "agent2.L[2,1]")?],
+            l1_local: gain(local, "agent1.L[1,1]")?,
+            l2_local: [gain(local, "agent2.L[1,1]")?, gain(local, "agent2.L[2,1]")?],
+            error,
         })
-        .collect::<Result<_>>()?;
-    // Cells with the same ρ/λ must give the same e_ac.
-    let mut ratio_spread: f64 = 0.0;
-    for (a, va) in cells.iter().zip(&grid_values) {
-        for (b, vb) in cells.iter().zip(&grid_values) {
-            if a.0 == b.0 && ((a.1 / a.2) / (b.1 / b.2) - 1.0).abs() < 1e-9 {
-                ratio_spread = ratio_spread.max((va - vb).abs() / va.abs().max(1e-300));
-            }
-        }
     }
-    let labels: Vec<String> = grid.iter().map(|v| format!("{v}")).collect();
-    let mut grid_table = String::from(
-        "e_ac (mean over the seeds) on the ρ × λ grid — rows λ, columns ρ:\n\n| design | λ \\ ρ | 0.1 | 1 | 10 |\n|---|---|---|---|---|\n",
-    );
-    let mut grid_rows = Vec::new();
-    for (di, name) in ["LQ (paper)", "local Kalman"].iter().enumerate() {
-        let mut rows = Vec::new();
-        for (li, lambda) in grid.iter().enumerate() {
-            let row: Vec<f64> = (0..3).map(|ri| grid_values[di * 9 + li * 3 + ri]).collect();
-            let _ = writeln!(
-                grid_table,
-                "| {name} | {lambda} | {:.1} | {:.1} | {:.1} |",
-                row[0], row[1], row[2]
-            );
-            grid_rows.push(Row::info(
-                &format!("e_ac grid, {name}, λ = {lambda} (ρ = 0.1 / 1 / 10)"),
-                if di == 0 {
-                    "Fig. 1 (surface, no numbers)"
-                } else {
-                    "—"
-                },
-                format!("{:.0} / {:.0} / {:.0}", row[0], row[1], row[2]),
-            ));
-            rows.push(row);
-        }
-        let file = format!(
-            "distributed_observer_grid_{}.png",
-            if di == 0 { "lq" } else { "local_kalman" }
-        );
-        heatmap_png(
-            &ctx.out_dir.join(&file),
-            &format!(
-                "e_ac over rho x lambda, {name} design ({} seeds)",
-                ctx.seeds
-            ),
-            ("rho", &labels),
-            ("lambda", &labels),
-            &rows,
-        )?;
-    }
-    std::fs::write(ctx.out_dir.join("rho_lambda_grid.md"), &grid_table)?;
 
-    let pm = |m: f64, s: f64| format!("{m:.0} ± {s:.0}");
-    let n = ctx.seeds;
-    Ok(Report {
-        title: "Distributed observer (paper 004 §5)".into(),
-        setup: format!(
-            "DistributedObserverPlant (A of 004 §5, Q = 0.2 I, R₁ = R₂ = 0.1, x₀ = [1, 1, 1]) → two DistributedObserverAgent FMUs exchanging x̂ through the master (Gauss–Seidel; the agents have no direct feedthrough, so each receives the neighbour's x̂(k) of the same instant, eq. 6), plus a centralised KalmanFilter FMU (variant DistributedObserverCentralKalman: n = 3, m = 0, p = 2, P₀ = I one sample before x₀) on both outputs. x̂₀ = 0; e_ac = Σ_(k=1..100) Σ_i ‖x(k) − x̂_i(k)‖², mean ± std over plant seeds 1..{n}; ρ = λ = 1, D = I unless stated."
-        ),
-        rows: vec![
+    fn rows(&self) -> Vec<Row> {
+        let n12 = self.n12;
+        vec![
             Row::goal(
                 "agent 1 L₁ (LQ)",
                 "0.73628 (SPEC §6)",
-                format!("{l1:.5}"),
+                format!("{:.5}", self.l1),
                 "paper's LQ design reproduced: every gain within 1e-4",
-                gain_error < 1e-4,
+                self.error < 1e-4,
             ),
             Row::info(
                 "agent 1 N₁₂ (LQ)",
@@ -326,61 +188,219 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
                     n12[0], n12[1], n12[2], n12[3]
                 ),
             ),
-            Row::info("agent 2 N₂₁ (LQ)", "0.36258", format!("{n21:.5}")),
+            Row::info("agent 2 N₂₁ (LQ)", "0.36258", format!("{:.5}", self.n21)),
             Row::info(
                 "agent 2 L₂ (LQ, least squares; basis V₂)",
                 "—",
-                format!("[{:.5}, {:.5}]ᵀ", l2_lq[0], l2_lq[1]),
+                format!("[{:.5}, {:.5}]ᵀ", self.l2_lq[0], self.l2_lq[1]),
             ),
             Row::info(
                 "local Kalman gains: L₁; L₂ (basis V₂)",
                 "—",
                 format!(
-                    "{l1_local:.5}; [{:.5}, {:.5}]ᵀ",
-                    l2_local[0], l2_local[1]
+                    "{:.5}; [{:.5}, {:.5}]ᵀ",
+                    self.l1_local, self.l2_local[0], self.l2_local[1]
                 ),
             ),
+        ]
+    }
+}
+
+/// e_ac and the central filter's scores, mean ± std over the seeds, ρ = λ = 1.
+struct Comparison {
+    lq: (f64, f64),
+    local: (f64, f64),
+    /// Per agent, LQ then local Kalman.
+    agents: [[f64; 2]; 2],
+    central_prediction: (f64, f64),
+    central_filtered: (f64, f64),
+    /// Local Kalman over the central prediction.
+    ratio: f64,
+}
+
+impl Comparison {
+    fn new(lq: &[Scores], local: &[Scores]) -> Self {
+        let lq_mean = mean_std_of(lq, |s| s.distributed);
+        let local_mean = mean_std_of(local, |s| s.distributed);
+        let central_prediction = mean_std_of(lq, |s| s.central_prediction);
+        let agents = |runs: &[Scores]| {
+            [
+                mean_std_of(runs, |s| s.agent1).0,
+                mean_std_of(runs, |s| s.agent2).0,
+            ]
+        };
+        Self {
+            lq: lq_mean,
+            local: local_mean,
+            agents: [agents(lq), agents(local)],
+            central_prediction,
+            central_filtered: mean_std_of(lq, |s| s.central_filtered),
+            ratio: local_mean.0 / central_prediction.0,
+        }
+    }
+
+    fn rows(&self) -> Vec<Row> {
+        let pm = |(m, s): (f64, f64)| format!("{m:.0} ± {s:.0}");
+        let [[lq1, lq2], [lk1, lk2]] = self.agents;
+        vec![
             Row::info(
                 "e_ac, paper's LQ design",
                 "Fig. 1 (no number); reference 1507 ± 1287",
-                format!("{} (agent 1 {lq1:.0}, agent 2 {lq2:.0})", pm(lq_mean, lq_std)),
+                format!("{} (agent 1 {lq1:.0}, agent 2 {lq2:.0})", pm(self.lq)),
             ),
             Row::info(
                 "e_ac, local Kalman gain",
                 "reference 695 ± 272",
-                format!(
-                    "{} (agent 1 {lk1:.0}, agent 2 {lk2:.0})",
-                    pm(local_mean, local_std)
-                ),
+                format!("{} (agent 1 {lk1:.0}, agent 2 {lk2:.0})", pm(self.local)),
             ),
             Row::info(
                 "centralised KF, one-step prediction (×2 agents)",
                 "reference 573 ± 238",
-                pm(cp_mean, cp_std),
+                pm(self.central_prediction),
             ),
             Row::info(
                 "centralised KF, filtered (×2 agents)",
                 "reference 462 ± 217",
-                pm(cf_mean, cf_std),
+                pm(self.central_filtered),
             ),
             Row::goal(
                 "better local design / centralised prediction",
                 "reference 1.21",
-                format!("{ratio:.3}"),
+                format!("{:.3}", self.ratio),
                 "≤ 1.3",
-                ratio <= 1.3,
-            ),
-            Row::goal(
-                "e_ac depends only on ρ/λ: largest relative difference between grid cells of equal ρ/λ",
-                "paper's Fig. 1 suggests ρ and λ separately",
-                format!("{ratio_spread:.1e}"),
-                "≤ 1e-9",
-                ratio_spread <= 1e-9,
+                self.ratio <= 1.3,
             ),
         ]
-        .into_iter()
-        .chain(grid_rows)
-        .collect(),
+    }
+}
+
+/// Mean e_ac on the ρ × λ grid, per design: `[design][λ][ρ]` (the same seeds in every cell,
+/// as the paper's "same noise vector").
+fn rho_lambda_grid(ctx: &ExperimentContext, system: &System) -> Result<Vec<Vec<Vec<f64>>>> {
+    DESIGNS
+        .iter()
+        .map(|(d, _, _)| {
+            GRID.iter()
+                .map(|&lambda| {
+                    GRID.iter()
+                        .map(|&rho| {
+                            let runs = scores_over_seeds(ctx, &design(system, *d, rho, lambda)?)?;
+                            Ok(mean_std_of(&runs, |s| s.distributed).0)
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The largest relative difference of e_ac between cells of one design with equal ρ/λ.
+fn ratio_spread(grid: &[Vec<Vec<f64>>]) -> f64 {
+    let mut spread: f64 = 0.0;
+    for cells in grid {
+        let flat: Vec<(f64, f64)> = GRID
+            .iter()
+            .enumerate()
+            .flat_map(|(li, lambda)| {
+                GRID.iter()
+                    .enumerate()
+                    .map(move |(ri, rho)| (rho / lambda, cells[li][ri]))
+            })
+            .collect();
+        for (ra, va) in &flat {
+            for (rb, vb) in &flat {
+                if (ra / rb - 1.0).abs() < 1e-9 {
+                    spread = spread.max((va - vb).abs() / va.abs().max(1e-300));
+                }
+            }
+        }
+    }
+    spread
+}
+
+/// The grid's rows of the report, its Markdown table and heat maps.
+fn grid_outputs(ctx: &ExperimentContext, grid: &[Vec<Vec<f64>>]) -> Result<Vec<Row>> {
+    let labels: Vec<String> = GRID.iter().map(|v| format!("{v}")).collect();
+    let mut table = String::from(
+        "e_ac (mean over the seeds) on the ρ × λ grid — rows λ, columns ρ:\n\n| design | λ \\ ρ | 0.1 | 1 | 10 |\n|---|---|---|---|---|\n",
+    );
+    let mut rows = Vec::new();
+    for ((_, name, key), cells) in DESIGNS.iter().zip(grid) {
+        for (lambda, row) in GRID.iter().zip(cells) {
+            let _ = writeln!(
+                table,
+                "| {name} | {lambda} | {:.1} | {:.1} | {:.1} |",
+                row[0], row[1], row[2]
+            );
+            rows.push(Row::info(
+                &format!("e_ac grid, {name}, λ = {lambda} (ρ = 0.1 / 1 / 10)"),
+                if *key == "lq" {
+                    "Fig. 1 (surface, no numbers)"
+                } else {
+                    "—"
+                },
+                format!("{:.0} / {:.0} / {:.0}", row[0], row[1], row[2]),
+            ));
+        }
+        heatmap_png(
+            &ctx.out_dir
+                .join(format!("distributed_observer_grid_{key}.png")),
+            &format!("e_ac over ρ × λ, {name} design ({} seeds)", ctx.seeds),
+            ("ρ", &labels),
+            ("λ", &labels),
+            cells,
+        )?;
+    }
+    std::fs::write(ctx.out_dir.join("rho_lambda_grid.md"), &table)?;
+    Ok(rows)
+}
+
+/// Runs the experiment (module documentation).
+pub fn run(ctx: &ExperimentContext) -> Result<Report> {
+    let system = ctx.system(EXPERIMENT, "system.toml")?;
+    // Representative runs (seed 1) of both designs: gains, CSV, the paper's Fig. 2.
+    let lq_system = design(&system, LQ, 1.0, 1.0)?;
+    let local_system = design(&system, LOCAL_KALMAN, 1.0, 1.0)?;
+    let lq_run = simulate(&lq_system)?;
+    let local_run = simulate(&local_system)?;
+    write_csv(
+        &lq_run,
+        &ctx.out_dir.join("distributed_observer_lq_seed1.csv"),
+    )?;
+    write_csv(
+        &local_run,
+        &ctx.out_dir
+            .join("distributed_observer_local_kalman_seed1.csv"),
+    )?;
+    let gains = Gains::new(&lq_run, &local_run)?;
+    figure_states(ctx, &lq_run, &local_run)?;
+    let comparison = Comparison::new(
+        &scores_over_seeds(ctx, &lq_system)?,
+        &scores_over_seeds(ctx, &local_system)?,
+    );
+    let grid = rho_lambda_grid(ctx, &system)?;
+    let spread = ratio_spread(&grid);
+    let mut rows = gains.rows();
+    rows.extend(comparison.rows());
+    rows.push(Row::goal(
+        "e_ac depends only on ρ/λ: largest relative difference between grid cells of equal ρ/λ",
+        "paper's Fig. 1 suggests ρ and λ separately",
+        format!("{spread:.1e}"),
+        "≤ 1e-9",
+        spread <= 1e-9,
+    ));
+    rows.extend(grid_outputs(ctx, &grid)?);
+    Ok(report(ctx.seeds, rows, &gains, &comparison, spread))
+}
+
+/// The report around the table `rows`.
+fn report(n: usize, rows: Vec<Row>, gains: &Gains, c: &Comparison, spread: f64) -> Report {
+    Report {
+        title: "Distributed observer (paper 004 §5)".into(),
+        setup: format!(
+            "DistributedObserverPlant (A of 004 §5, Q = 0.2 I, R₁ = R₂ = 0.1, x₀ = [1, 1, 1]) → two DistributedObserverAgent FMUs exchanging x̂ through the master (Gauss–Seidel; the agents have no direct feedthrough, so each receives the neighbour's x̂(k) of the same instant, eq. 6), plus a centralised KalmanFilter FMU (variant DistributedObserverCentralKalman: n = 3, m = 0, p = 2, P₀ = I one sample before x₀) on both outputs. x̂₀ = 0; e_ac = Σ_(k=1..100) Σ_i ‖x(k) − x̂_i(k)‖², mean ± std over plant seeds 1..{n}; ρ = λ = 1, D = I unless stated."
+        ),
+        rows,
         figures: vec![
             (
                 "distributed_observer_states.png".into(),
@@ -403,21 +423,21 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
             "Results: distributed_observer_lq_seed1.csv, distributed_observer_local_kalman_seed1.csv (seed 1), rho_lambda_grid.md.".into(),
         ],
         figures_of_merit: vec![
-            ("L1".into(), l1),
-            ("N12_11".into(), n12[0]),
-            ("N12_12".into(), n12[1]),
-            ("N12_21".into(), n12[2]),
-            ("N12_22".into(), n12[3]),
-            ("N21".into(), n21),
-            ("gain_error".into(), gain_error),
-            ("e_ac_lq".into(), lq_mean),
-            ("e_ac_local_kalman".into(), local_mean),
-            ("e_ac_central_prediction".into(), cp_mean),
-            ("e_ac_central_filtered".into(), cf_mean),
-            ("local_over_central".into(), ratio),
-            ("rho_lambda_spread".into(), ratio_spread),
+            ("L1".into(), gains.l1),
+            ("N12_11".into(), gains.n12[0]),
+            ("N12_12".into(), gains.n12[1]),
+            ("N12_21".into(), gains.n12[2]),
+            ("N12_22".into(), gains.n12[3]),
+            ("N21".into(), gains.n21),
+            ("gain_error".into(), gains.error),
+            ("e_ac_lq".into(), c.lq.0),
+            ("e_ac_local_kalman".into(), c.local.0),
+            ("e_ac_central_prediction".into(), c.central_prediction.0),
+            ("e_ac_central_filtered".into(), c.central_filtered.0),
+            ("local_over_central".into(), c.ratio),
+            ("rho_lambda_spread".into(), spread),
         ],
-    })
+    }
 }
 
 /// The paper's Fig. 2: the three states and agent 1's estimates, for both designs.
@@ -425,21 +445,15 @@ fn figure_states(ctx: &ExperimentContext, lq: &TimeSeries, local: &TimeSeries) -
     let x = columns(lq, "plant.x")?;
     let e_lq = columns(lq, "agent1.x_hat")?;
     let e_local = columns(local, "agent1.x_hat")?;
-    let t: Vec<f64> = lq.time.iter().copied().take(HORIZON + 1).collect();
+    let k: Vec<f64> = (0..=HORIZON).map(|k| k as f64).collect();
     let cut = |v: &Vec<f64>| v.iter().copied().take(HORIZON + 1).collect::<Vec<_>>();
     let panels: Vec<Panel> = (0..3)
         .map(|i| Panel {
-            colours: Vec::new(),
-            label: format!("x{}", i + 1),
+            label: format!("x{} (state {})", ['₁', '₂', '₃'][i], i + 1),
             lines: vec![
-                (format!("x{}", i + 1), t.clone(), cut(&x[i]), false),
-                ("agent 1, LQ".into(), t.clone(), cut(&e_lq[i]), false),
-                (
-                    "agent 1, local Kalman".into(),
-                    t.clone(),
-                    cut(&e_local[i]),
-                    false,
-                ),
+                Line::new(format!("x{}", ['₁', '₂', '₃'][i]), k.clone(), cut(&x[i])),
+                Line::new("agent 1, LQ", k.clone(), cut(&e_lq[i])),
+                Line::new("agent 1, local Kalman", k.clone(), cut(&e_local[i])),
             ],
         })
         .collect();

@@ -14,16 +14,17 @@
 //! sample k reaches its DKF at t_{k+1}). E_res = (1/N) Σ_k (ŷ_k − y_clean,k)² (001 §4) is
 //! computed with that alignment, per channel, over k = 0 … N − 2.
 
-use super::distributed_observer::{mean_std, run_series, with_start_values};
 use super::{ExperimentContext, Report, Row};
-use crate::plot::{panels_png, Panel};
-use anyhow::{anyhow, Context, Result};
+use crate::plot::{panels_png, Line, Panel, Style};
+use crate::runner::{
+    column, mean_std, mean_std_of, monte_carlo, pm, simulate, start_value, write_csv, Edit,
+};
+use anyhow::Result;
 use nalgebra::{DMatrix, DVector};
-use rayon::prelude::*;
 use spurio::estimation::{
     DualKalmanConfig, DualKalmanFilter, InfluenceFunction, RobustKalmanFilter,
 };
-use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::record::TimeSeries;
 use spurio_master::system::System;
 use std::time::Instant;
 
@@ -31,16 +32,14 @@ const EXPERIMENT: &str = "generator_identification";
 /// SPEC §4's independent reference: DKF-rsKF and DKF alone, E_res (speed, voltage).
 const REFERENCE_CHAIN: [f64; 2] = [0.024, 0.021];
 const REFERENCE_DKF: [f64; 2] = [0.10, 0.23];
+/// The channels, in order.
+const CHANNELS: [&str; 2] = ["speed", "voltage"];
 
 /// E_res of the recorded estimate `estimate` against `clean`, the estimate of sample k
 /// recorded `lag` rows later.
 fn e_res(series: &TimeSeries, estimate: &str, clean: &str, lag: usize) -> Result<f64> {
-    let y = series
-        .column(estimate)
-        .with_context(|| format!("`{estimate}` is not recorded"))?;
-    let c = series
-        .column(clean)
-        .with_context(|| format!("`{clean}` is not recorded"))?;
+    let y = column(series, estimate)?;
+    let c = column(series, clean)?;
     let n = c.len().saturating_sub(2);
     anyhow::ensure!(n > 0 && y.len() >= n + lag, "too few samples recorded");
     Ok((0..n).map(|k| (y[k + lag] - c[k]).powi(2)).sum::<f64>() / n as f64)
@@ -70,35 +69,13 @@ fn scores(series: &TimeSeries) -> Result<Scores> {
 }
 
 /// Run `seed`: the card's noise and outliers and both references' steps all change.
-fn seeded(system: &System, seed: usize) -> Result<System> {
-    let s = seed as f64;
-    with_start_values(
-        system,
-        &[
-            ("card", "seed", s),
-            ("drive_ref", "seed", 1000.0 + 2.0 * s),
-            ("field_ref", "seed", 1001.0 + 2.0 * s),
-        ],
-    )
-}
-
-/// The start value of `instance.variable` in `system` (its default if not set).
-fn start_value(system: &System, instance: &str, variable: &str) -> Result<f64> {
-    let inst = system
-        .instances
-        .iter()
-        .find(|i| i.name == instance)
-        .ok_or_else(|| anyhow!("no instance `{instance}`"))?;
-    let index = inst
-        .fmu
-        .index_of(variable)
-        .ok_or_else(|| anyhow!("`{instance}` has no variable `{variable}`"))?;
-    if let Some((_, v)) = inst.start_values.iter().rev().find(|(i, _)| *i == index) {
-        return Ok(*v);
-    }
-    inst.fmu.variables[index]
-        .start
-        .ok_or_else(|| anyhow!("`{instance}.{variable}` has no start value"))
+fn seed_edits(seed: u32) -> Vec<Edit<'static>> {
+    let s = i64::from(seed);
+    vec![
+        ("card.seed", s.into()),
+        ("drive_ref.seed", (1000 + 2 * s).into()),
+        ("field_ref.seed", (1001 + 2 * s).into()),
+    ]
 }
 
 fn matrix(
@@ -111,7 +88,7 @@ fn matrix(
     let mut m = DMatrix::zeros(rows, cols);
     for i in 0..rows {
         for j in 0..cols {
-            m[(i, j)] = start_value(system, instance, &format!("{name}[{},{}]", i + 1, j + 1))?;
+            m[(i, j)] = start_value(system, &format!("{instance}.{name}[{},{}]", i + 1, j + 1))?;
         }
     }
     Ok(m)
@@ -119,7 +96,7 @@ fn matrix(
 
 fn vector(system: &System, instance: &str, name: &str, n: usize) -> Result<DVector<f64>> {
     (0..n)
-        .map(|i| start_value(system, instance, &format!("{name}[{}]", i + 1)))
+        .map(|i| start_value(system, &format!("{instance}.{name}[{}]", i + 1)))
         .collect::<Result<Vec<_>>>()
         .map(DVector::from_vec)
 }
@@ -141,11 +118,11 @@ fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFil
     let rows = n + p;
     for row in 0..n {
         for col in 0..n + m {
-            config.parameter_q[(row, col)] = start_value(system, "dkf", "q_theta")?;
-            config.parameter_p0[(row, col)] = start_value(system, "dkf", "p0_theta")?;
+            config.parameter_q[(row, col)] = start_value(system, "dkf.q_theta")?;
+            config.parameter_p0[(row, col)] = start_value(system, "dkf.p0_theta")?;
         }
     }
-    config.parameter_r = DVector::from_element(rows, start_value(system, "dkf", "r_theta")?);
+    config.parameter_r = DVector::from_element(rows, start_value(system, "dkf.r_theta")?);
     let dkf = DualKalmanFilter::new(config)?;
     let cleaner = RobustKalmanFilter::new(
         matrix(system, "cleaner", "A", p, p)?,
@@ -157,7 +134,7 @@ fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFil
         vector(system, "cleaner", "x0", p)?,
         matrix(system, "cleaner", "P0", p, p)?,
         InfluenceFunction::Huber {
-            c: start_value(system, "cleaner", "c")?,
+            c: start_value(system, "cleaner.c")?,
         },
     )?;
     Ok((dkf, cleaner))
@@ -166,11 +143,7 @@ fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFil
 /// Cost per iteration (mean ± std over the run's samples, like 001 §5's 1500 iterations) of
 /// the DKF alone and of rsKF + DKF, in µs, on the recorded inputs and measurements.
 fn cost_per_iteration(system: &System, series: &TimeSeries) -> Result<([f64; 2], [f64; 2])> {
-    let col = |n: &str| {
-        series
-            .column(n)
-            .with_context(|| format!("`{n}` is not recorded"))
-    };
+    let col = |n: &str| column(series, n);
     let (u1, u2, y1, y2) = (
         col("drive_ref.y")?,
         col("field_ref.y")?,
@@ -204,61 +177,56 @@ fn cost_per_iteration(system: &System, series: &TimeSeries) -> Result<([f64; 2],
     Ok(([a, b], [c, d]))
 }
 
-/// Runs the experiment (module documentation).
-pub fn run(ctx: &ExperimentContext) -> Result<Report> {
-    let system = ctx.system(EXPERIMENT, "system.toml")?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(ctx.threads)
-        .build()
-        .context("thread pool")?;
+/// E_res of every run, mean ± std over the seeds: DKF alone, DKF-rsKF, the cleaner alone.
+struct Summary {
+    dkf: [(f64, f64); 2],
+    chain: [(f64, f64); 2],
+    cleaner: [(f64, f64); 2],
+    /// DKF-rsKF / DKF alone, per channel.
+    ratio: [f64; 2],
+}
 
-    let representative = run_series(&system)?;
-    spurio_master::record::replay(
-        &representative,
-        &mut CsvWriter::create(&ctx.out_dir.join("generator_identification_seed.csv"))?,
-    )?;
-    figures(ctx, &representative)?;
-    let (dkf_cost, chain_cost) = cost_per_iteration(&system, &representative)?;
+impl Summary {
+    fn new(runs: &[Scores]) -> Self {
+        let per_channel =
+            |pick: fn(&Scores) -> [f64; 2]| [0, 1].map(|ch| mean_std_of(runs, |s| pick(s)[ch]));
+        let (dkf, chain) = (per_channel(|s| s.dkf), per_channel(|s| s.chain));
+        Self {
+            dkf,
+            chain,
+            cleaner: per_channel(|s| s.cleaner),
+            ratio: [0, 1].map(|ch| chain[ch].0 / dkf[ch].0),
+        }
+    }
+}
 
-    let runs: Vec<Scores> = pool.install(|| {
-        (1..=ctx.seeds)
-            .into_par_iter()
-            .map(|seed| scores(&run_series(&seeded(&system, seed)?)?))
-            .collect::<Result<Vec<_>>>()
-    })?;
-    let stat = |pick: &dyn Fn(&Scores) -> f64| mean_std(&runs.iter().map(pick).collect::<Vec<_>>());
-    let dkf = [stat(&|s| s.dkf[0]), stat(&|s| s.dkf[1])];
-    let chain = [stat(&|s| s.chain[0]), stat(&|s| s.chain[1])];
-    let cleaner = [stat(&|s| s.cleaner[0]), stat(&|s| s.cleaner[1])];
-    let ratio = [chain[0].0 / dkf[0].0, chain[1].0 / dkf[1].0];
-    let channel = ["speed", "voltage"];
-    let pm = |(m, s): (f64, f64)| format!("{m:.4} ± {s:.4}");
-
+/// The table: per channel E_res and ratio, then the cost per iteration.
+fn rows(sum: &Summary, dkf_cost: [f64; 2], chain_cost: [f64; 2]) -> Vec<Row> {
     let mut rows = Vec::new();
-    for ch in 0..2 {
+    for (ch, channel) in CHANNELS.iter().enumerate() {
         rows.push(Row::goal(
-            &format!("E_res DKF-rsKF, {} [V²]", channel[ch]),
+            &format!("E_res DKF-rsKF, {channel} [V²]"),
             format!("≈ {} (SPEC §4 reference)", REFERENCE_CHAIN[ch]),
-            pm(chain[ch]),
+            pm(sum.chain[ch], 4),
             "≤ 0.03",
-            chain[ch].0 <= 0.03,
+            sum.chain[ch].0 <= 0.03,
         ));
         rows.push(Row::info(
-            &format!("E_res DKF alone, {} [V²]", channel[ch]),
+            &format!("E_res DKF alone, {channel} [V²]"),
             format!("≈ {} (SPEC §4 reference)", REFERENCE_DKF[ch]),
-            pm(dkf[ch]),
+            pm(sum.dkf[ch], 4),
         ));
         rows.push(Row::goal(
-            &format!("DKF-rsKF / DKF alone, {}", channel[ch]),
+            &format!("DKF-rsKF / DKF alone, {channel}"),
             format!("{:.2}", REFERENCE_CHAIN[ch] / REFERENCE_DKF[ch]),
-            format!("{:.3}", ratio[ch]),
+            format!("{:.3}", sum.ratio[ch]),
             "≤ 1/3",
-            ratio[ch] <= 1.0 / 3.0,
+            sum.ratio[ch] <= 1.0 / 3.0,
         ));
         rows.push(Row::info(
-            &format!("E_res rsKF cleaner alone, {} [V²]", channel[ch]),
+            &format!("E_res rsKF cleaner alone, {channel} [V²]"),
             "—",
-            pm(cleaner[ch]),
+            pm(sum.cleaner[ch], 4),
         ));
     }
     rows.push(Row::info(
@@ -271,14 +239,28 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         "10.9 ± 0.77 ms",
         format!("{:.1} ± {:.1} µs", dkf_cost[0], dkf_cost[1]),
     ));
+    rows
+}
 
+/// Runs the experiment (module documentation).
+pub fn run(ctx: &ExperimentContext) -> Result<Report> {
+    let system = ctx.system(EXPERIMENT, "system.toml")?;
+    let representative = simulate(&system)?;
+    write_csv(
+        &representative,
+        &ctx.out_dir.join("generator_identification_seed.csv"),
+    )?;
+    figures(ctx, &representative)?;
+    let (dkf_cost, chain_cost) = cost_per_iteration(&system, &representative)?;
+    let runs = monte_carlo(ctx, &system, &ctx.seed_list(), seed_edits, scores)?;
+    let sum = Summary::new(&runs);
     Ok(Report {
+        rows: rows(&sum, dkf_cost, chain_cost),
         title: "Wind-generator identification under outliers (paper 001 §5)".into(),
         setup: format!(
             "SignalSource ×2 (random steps of the drive and field references, levels U[6, 10] V and U[5, 9] V held 2–8 s) → WindGenerator (8 states, from the 8 V / 7 V steady state) → LinearSystem2 as the tachometer (5 V per 1000 rpm) and voltage transducer (1/30) → Sensor2 (the card: noise variance 0.1 V² on speed, 0.01 V² on voltage, 5 % spikes ±U(0, 4.8) V) → DualKalmanFilterGenerator alone, and RobustKalmanFilter2 → DualKalmanFilterGenerator (paper 001 Fig. 2, two connected FMUs). Ts = 0.1 s, 150 s (1500 samples, the paper's run length); E_res against the clean card signal, mean ± std over {} runs (card, drive and field seeds all varied).",
             ctx.seeds
         ),
-        rows,
         figures: vec![
             (
                 "generator_dkf.png".into(),
@@ -302,101 +284,94 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
             "Representative run (seed of the TOML): generator_identification_seed.csv.".into(),
         ],
         figures_of_merit: vec![
-            ("e_res_chain_speed".into(), chain[0].0),
-            ("e_res_chain_voltage".into(), chain[1].0),
-            ("e_res_dkf_speed".into(), dkf[0].0),
-            ("e_res_dkf_voltage".into(), dkf[1].0),
-            ("ratio_speed".into(), ratio[0]),
-            ("ratio_voltage".into(), ratio[1]),
+            ("e_res_chain_speed".into(), sum.chain[0].0),
+            ("e_res_chain_voltage".into(), sum.chain[1].0),
+            ("e_res_dkf_speed".into(), sum.dkf[0].0),
+            ("e_res_dkf_voltage".into(), sum.dkf[1].0),
+            ("ratio_speed".into(), sum.ratio[0]),
+            ("ratio_voltage".into(), sum.ratio[1]),
             ("cost_chain_us".into(), chain_cost[0]),
             ("cost_dkf_us".into(), dkf_cost[0]),
         ],
     })
 }
 
+/// Sample numbers 0 … n − 1 as an x axis.
+fn samples(n: usize) -> Vec<f64> {
+    (0..n).map(|k| k as f64).collect()
+}
+
+/// The recorded `name` over samples `range`, the estimate of sample k recorded `lag` rows
+/// later (so the line sits at its sample).
+fn at_samples(
+    series: &TimeSeries,
+    name: &str,
+    lag: usize,
+    range: std::ops::Range<usize>,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let values = column(series, name)?;
+    let end = range.end.min(values.len().saturating_sub(lag));
+    let start = range.start.min(end);
+    Ok((
+        samples(end)[start..].to_vec(),
+        values[start + lag..end + lag].to_vec(),
+    ))
+}
+
+/// One channel's panel: measured, clean and the estimates `(legend, instance, lag)`.
+fn channel_panel(
+    series: &TimeSeries,
+    ch: usize,
+    estimates: &[(&str, &str, usize)],
+    range: std::ops::Range<usize>,
+) -> Result<Panel> {
+    let signal =
+        |name: &str, lag| at_samples(series, &format!("{name}[{}]", ch + 1), lag, range.clone());
+    let (xm, ym) = signal("card.y", 0)?;
+    let (xc, yc) = signal("card.y_clean", 0)?;
+    let mut lines = vec![
+        Line::new("measured", xm, ym).style(Style::Points),
+        Line::new("clean", xc, yc),
+    ];
+    for (legend, instance, lag) in estimates {
+        let (x, y) = signal(&format!("{instance}.y_hat"), *lag)?;
+        lines.push(Line::new(*legend, x, y));
+    }
+    Ok(Panel {
+        label: format!("{} channel [V]", CHANNELS[ch]),
+        lines,
+    })
+}
+
 /// The paper's Figs. 5–8 from the representative run (estimates shifted to their sample).
 fn figures(ctx: &ExperimentContext, series: &TimeSeries) -> Result<()> {
-    let col = |n: &str| {
-        series
-            .column(n)
-            .with_context(|| format!("`{n}` is not recorded"))
-    };
-    let k: Vec<f64> = (0..series.time.len()).map(|k| k as f64).collect();
-    let shifted = |v: Vec<f64>, lag: usize| -> (Vec<f64>, Vec<f64>) {
-        (k[..v.len() - lag].to_vec(), v[lag..].to_vec())
-    };
-    let labels = ["speed channel [V]", "voltage channel [V]"];
-    for (file, name, lag, title) in [
+    let all = 0..series.time.len();
+    let x_label = "sample k (Tₛ = 0.1 s)";
+    for (file, estimates, title) in [
         (
             "generator_dkf.png",
-            "dkf",
-            1,
+            [("estimate", "dkf", 1)],
             "DKF alone on the card's samples",
         ),
         (
             "generator_dkf_rskf.png",
-            "dkf_rskf",
-            2,
-            "DKF-rsKF (rsKF -> DKF, two FMUs)",
+            [("estimate", "dkf_rskf", 2)],
+            "DKF-rsKF (rsKF → DKF, two FMUs)",
         ),
     ] {
         let panels = (0..2)
-            .map(|ch| {
-                let (xe, ye) = shifted(col(&format!("{name}.y_hat[{}]", ch + 1))?, lag);
-                Ok(Panel {
-                    colours: Vec::new(),
-                    label: labels[ch].into(),
-                    lines: vec![
-                        (
-                            "measured".into(),
-                            k.clone(),
-                            col(&format!("card.y[{}]", ch + 1))?,
-                            true,
-                        ),
-                        (
-                            "clean".into(),
-                            k.clone(),
-                            col(&format!("card.y_clean[{}]", ch + 1))?,
-                            false,
-                        ),
-                        ("estimate".into(), xe, ye, false),
-                    ],
-                })
-            })
+            .map(|ch| channel_panel(series, ch, &estimates, all.clone()))
             .collect::<Result<Vec<_>>>()?;
-        panels_png(
-            &ctx.out_dir.join(file),
-            title,
-            "sample k (Ts = 0.1 s)",
-            &panels,
-        )?;
+        panels_png(&ctx.out_dir.join(file), title, x_label, &panels)?;
     }
-    let (a, b) = (600usize, 900usize);
+    let both = [("DKF", "dkf", 1), ("DKF-rsKF", "dkf_rskf", 2)];
     let panels = (0..2)
-        .map(|ch| {
-            let window = |v: Vec<f64>, lag: usize| -> (Vec<f64>, Vec<f64>) {
-                (k[a..b].to_vec(), v[a + lag..b + lag].to_vec())
-            };
-            let (xm, ym) = window(col(&format!("card.y[{}]", ch + 1))?, 0);
-            let (xc, yc) = window(col(&format!("card.y_clean[{}]", ch + 1))?, 0);
-            let (x1, y1) = window(col(&format!("dkf.y_hat[{}]", ch + 1))?, 1);
-            let (x2, y2) = window(col(&format!("dkf_rskf.y_hat[{}]", ch + 1))?, 2);
-            Ok(Panel {
-                colours: Vec::new(),
-                label: labels[ch].into(),
-                lines: vec![
-                    ("measured".into(), xm, ym, true),
-                    ("clean".into(), xc, yc, false),
-                    ("DKF".into(), x1, y1, false),
-                    ("DKF-rsKF".into(), x2, y2, false),
-                ],
-            })
-        })
+        .map(|ch| channel_panel(series, ch, &both, 600..900))
         .collect::<Result<Vec<_>>>()?;
     panels_png(
         &ctx.out_dir.join("generator_zoom.png"),
-        "Samples 600-900",
-        "sample k (Ts = 0.1 s)",
+        "Samples 600–900",
+        x_label,
         &panels,
     )
 }

@@ -3,11 +3,12 @@
 //! beside ours, and the plots the papers show. `spurio experiments` runs them all and writes
 //! `REPORT.md` in the output folder.
 //!
-//! Each experiment is a module with one `run(&ExperimentContext) -> Result<Report>`; it loads
-//! its systems from `examples/<name>/*.toml` (so a user can run them with `spurio run` too),
-//! runs them (Monte-Carlo with [`spurio_master::sweep`] where the paper reports mean ± std) and
-//! fills a [`Report`]. The analysis they share lives here too: the outlier [`diagnostics`]
-//! (and [`diagnose`], behind `spurio diagnose`) and the [`plot`]s.
+//! Each experiment is a module with one `run(&ExperimentContext) -> Result<Report>` that reads
+//! as scenario → runs → scores → report: it loads its systems from `examples/<name>/*.toml`
+//! (so a user can run them with `spurio run` too), edits them by name and runs them per seed
+//! ([`runner`], one thread pool for all), scores the runs and fills a [`Report`]. The analysis
+//! they share lives here too: the outlier [`diagnostics`] (and [`diagnose`], behind
+//! `spurio diagnose`) and the [`plot`]s.
 
 #![forbid(unsafe_code)]
 
@@ -21,11 +22,12 @@ pub mod crane_free_swing;
 pub mod distributed_observer;
 pub mod generator_identification;
 pub mod opamp_identification;
-pub mod seeded_runs;
+pub mod runner;
 
 use anyhow::{Context as _, Result};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Where an experiment finds its inputs and writes its outputs.
 #[derive(Debug, Clone)]
@@ -36,8 +38,8 @@ pub struct ExperimentContext {
     pub out_dir: PathBuf,
     /// Monte-Carlo runs where the paper reports mean ± std (100 by default).
     pub seeds: usize,
-    /// Worker threads for sweeps (0: one per core).
-    pub threads: usize,
+    /// The worker threads every Monte-Carlo study of the run shares.
+    pub pool: Arc<rayon::ThreadPool>,
 }
 
 impl ExperimentContext {
@@ -226,6 +228,12 @@ pub fn run_all(
             anyhow::bail!("unknown experiment `{name}` (known: {})", known.join(", "));
         }
     }
+    let pool = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .context("thread pool")?,
+    );
     let mut reports = Vec::new();
     let mut text = String::from("# spurio: the papers' experiments\n\nEach section puts the paper's figure beside ours; `met` says whether our goal (SPEC §4, issue 7) holds.\n\n");
     for e in experiments
@@ -238,7 +246,7 @@ pub fn run_all(
             repo: repo.to_path_buf(),
             out_dir: dir.clone(),
             seeds,
-            threads,
+            pool: pool.clone(),
         };
         let started = std::time::Instant::now();
         let report = (e.run)(&ctx).with_context(|| format!("experiment {}", e.name))?;

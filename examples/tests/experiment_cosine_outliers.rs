@@ -1,22 +1,13 @@
 //! Pins the cosine-with-outliers figures of papers 000 and 001 (needs `scripts/build-fmus`).
 
-use std::path::PathBuf;
+mod common;
 
-fn close(report: &spurio_experiments::Report, key: &str, expected: f64, tolerance: f64) {
-    let value = report.value(key).unwrap();
-    assert!(
-        (value - expected).abs() <= tolerance,
-        "{key} = {value}, expected {expected} ± {tolerance}"
-    );
-}
+use common::{close, run_experiment};
 
 #[test]
 fn rskf_beats_skf_and_reaches_both_papers_figures() {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = std::env::temp_dir().join(format!("spurio-exp-cosine-{}", std::process::id()));
-    let reports =
-        spurio_experiments::run_all(&repo, &out, &["cosine_outliers".into()], 100, 0).unwrap();
-    let report = &reports[0].1;
+    let (report, out) = run_experiment("cosine_outliers", "cosine", 100);
+    let report = &report;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     // Paper 000: literal filters (an independent numpy run: 0.179, 0.0121).
     close(report, "e_res_skf_000", 0.1735, 0.01);

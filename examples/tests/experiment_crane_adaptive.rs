@@ -2,16 +2,14 @@
 //! 30 seeds keep it short; the bounds leave room for the seed-to-seed spread but not for a
 //! regression (e.g. the cleaner starting at 0 again, which saturates some runs at 17 N).
 
-use std::path::PathBuf;
+mod common;
+
+use common::run_experiment;
 
 #[test]
 fn dkf_rskf_brings_the_crane_to_rest_where_the_dkf_alone_does_not() {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out =
-        std::env::temp_dir().join(format!("spurio-exp-crane-adaptive-{}", std::process::id()));
-    let reports =
-        spurio_experiments::run_all(&repo, &out, &["crane_adaptive".into()], 30, 0).unwrap();
-    let report = &reports[0].1;
+    let (report, out) = run_experiment("crane_adaptive", "crane-adaptive", 30);
+    let report = &report;
     let text = report.to_markdown("");
     assert!(report.all_goals_met(), "{text}");
     let v = |key: &str| report.value(key).unwrap_or_else(|| panic!("no {key}"));

@@ -1,14 +1,13 @@
 //! Pins the distributed-observer figures (paper 004 §5; needs `scripts/build-fmus`).
 
-use std::path::PathBuf;
+mod common;
+
+use common::run_experiment;
 
 #[test]
 fn lq_gains_are_the_papers_and_the_local_gain_is_near_the_central_filter() {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = std::env::temp_dir().join(format!("spurio-exp-obs-{}", std::process::id()));
-    let reports =
-        spurio_experiments::run_all(&repo, &out, &["distributed_observer".into()], 100, 0).unwrap();
-    let report = &reports[0].1;
+    let (report, out) = run_experiment("distributed_observer", "obs", 100);
+    let report = &report;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     let v = |k: &str| report.value(k).unwrap();
     // SPEC §6 gains.

@@ -1,15 +1,13 @@
 //! Pins the wind-generator identification figures (paper 001 §5; needs `scripts/build-fmus`).
 
-use std::path::PathBuf;
+mod common;
+
+use common::run_experiment;
 
 #[test]
 fn dkf_rskf_keeps_the_outliers_out_of_the_identified_output() {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = std::env::temp_dir().join(format!("spurio-exp-gen-{}", std::process::id()));
-    let reports =
-        spurio_experiments::run_all(&repo, &out, &["generator_identification".into()], 100, 0)
-            .unwrap();
-    let report = &reports[0].1;
+    let (report, out) = run_experiment("generator_identification", "gen", 100);
+    let report = &report;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     let v = |k: &str| report.value(k).unwrap();
     // DKF-rsKF against the clean output (measured 0.0273 / 0.0254 V²; goal ≤ 0.03).

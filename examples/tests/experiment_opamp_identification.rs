@@ -1,22 +1,13 @@
 //! Pins the op-amp identification figures of paper 002 (needs `scripts/build-fmus`).
 
-use std::path::PathBuf;
+mod common;
 
-fn close(report: &spurio_experiments::Report, key: &str, expected: f64, tolerance: f64) {
-    let value = report.value(key).unwrap();
-    assert!(
-        (value - expected).abs() <= tolerance,
-        "{key} = {value}, expected {expected} ± {tolerance}"
-    );
-}
+use common::{close, run_experiment};
 
 #[test]
 fn steiglitz_mcbride_identifies_the_filter_from_a_step_and_a_prbs() {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = std::env::temp_dir().join(format!("spurio-exp-opamp-{}", std::process::id()));
-    let reports =
-        spurio_experiments::run_all(&repo, &out, &["opamp_identification".into()], 100, 0).unwrap();
-    let report = &reports[0].1;
+    let (report, out) = run_experiment("opamp_identification", "opamp", 100);
+    let report = &report;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     // Unit step (paper 002): mean relative errors over 100 seeds, in percent.
     close(report, "step_wn_error", 1.73, 0.3);

@@ -167,16 +167,6 @@ enum Command {
 
 /// Each plotted variable's axis label: its name and the unit its model description gives
 /// (`crane.x [m]`).
-fn axis_labels(system: &System, names: &[String]) -> Vec<String> {
-    names
-        .iter()
-        .map(|name| match system.unit(name).ok().flatten() {
-            Some(unit) if !unit.is_empty() => format!("{name} [{unit}]"),
-            _ => name.clone(),
-        })
-        .collect()
-}
-
 fn main() -> Result<()> {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
@@ -191,6 +181,11 @@ fn main() -> Result<()> {
             verbose: _,
         } => {
             let resolved = System::from_file(&system)?;
+            // The plotted variables and their axis labels (with units), checked before the run.
+            let plotted = plotted
+                .iter()
+                .map(|name| Ok((name.clone(), plot::axis_label(&resolved, name)?)))
+                .collect::<Result<Vec<_>>>()?;
             let mut sim = Simulation::new(&resolved)?;
             let options = RunOptions {
                 real_time_factor: real_time,
@@ -207,8 +202,7 @@ fn main() -> Result<()> {
                     .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
                 spurio_master::record::replay(&series, &mut csv)?;
                 let png = out.with_extension("png");
-                let labels = axis_labels(&resolved, &plotted);
-                plot::labelled_time_series_png(&png, &resolved.name, &series, &plotted, &labels)?;
+                plot::labelled_time_series_png(&png, &resolved.name, &series, &plotted)?;
                 println!("wrote {}", png.display());
             }
             sim.terminate()?;
@@ -378,17 +372,11 @@ mod tests {
             "run scripts/build-fmus first"
         );
         let system = System::from_file(&repo.join("examples/systems/crane_sensor.toml")).unwrap();
-        let names: Vec<String> = ["crane.x", "crane.theta", "sensor.y[1]", "nobody.x"]
-            .map(String::from)
-            .into();
-        assert_eq!(
-            axis_labels(&system, &names),
-            [
-                "crane.x [m]",
-                "crane.theta [rad]",
-                "sensor.y[1]",
-                "nobody.x"
-            ]
-        );
+        let label = |name: &str| plot::axis_label(&system, name).map_err(|e| e.to_string());
+        assert_eq!(label("crane.x").unwrap(), "crane.x [m]");
+        assert_eq!(label("crane.theta").unwrap(), "crane.theta [rad]");
+        assert_eq!(label("sensor.y[1]").unwrap(), "sensor.y[1]");
+        let unknown = label("nobody.x").unwrap_err();
+        assert!(unknown.contains("nobody"), "{unknown}");
     }
 }
