@@ -9,6 +9,7 @@ pub mod diagnose;
 pub mod engine;
 pub mod experiments;
 pub mod fmu;
+pub mod library_query;
 pub mod logging;
 pub mod package;
 pub mod plot;

@@ -1,0 +1,40 @@
+//! What several spurio FMUs share and that knows the `spurio` models (the FMI-generic
+//! plumbing is in `spurio-export`):
+//! - [`structured`]: vector and matrix variables (`x_hat[1]`, `A[1,1]`) as blocks;
+//! - [`estimator`]: the one generic estimator adapter ([`estimator::EstimatorFmu`]) and its
+//!   input checks;
+//! - [`kalman`], [`dual`]: the sKF/rsKF and DKF/DKF-rsKF estimators behind their FMUs;
+//! - [`controller`]: presets, pole and limit parameters of the two state-feedback FMUs.
+//!
+//! An FMU binary links only what it uses of this crate.
+#![forbid(unsafe_code)]
+
+pub mod controller;
+pub mod dual;
+pub mod estimator;
+pub mod kalman;
+pub mod structured;
+
+use spurio_export::{Config, Failure};
+
+/// A parameter error of the `spurio` models as an `fmi2Error` naming the parameter.
+pub fn param_failure(e: &spurio::ParameterError) -> Failure {
+    Failure::Error(e.to_string())
+}
+
+/// The bundled variant of the controllers: the crane (n = 4, `preset = crane`).
+pub fn crane_controller_config() -> Config {
+    let mut config = Config::new();
+    config.set(controller::CONFIG_STATES, 4);
+    config.set(controller::CONFIG_PRESET, "crane");
+    config
+}
+
+/// A configuration from `(key, value)` pairs.
+pub fn config(pairs: &[(&str, &str)]) -> Config {
+    let mut c = Config::new();
+    for (k, v) in pairs {
+        c.set(k, v);
+    }
+    c
+}
