@@ -882,6 +882,9 @@ unsafe fn write_answer(answer: &str, out: *mut u8, capacity: usize) -> usize {
 }
 
 /// `spurio_variants`: the bundled variants as [`crate::query::variants_text`].
+///
+/// # Safety
+/// `out` is NULL or points to `capacity` writable bytes.
 pub unsafe fn query_variants(
     variants: fn() -> Vec<crate::query::Variant>,
     out: *mut u8,
@@ -896,6 +899,10 @@ pub unsafe fn query_variants(
 
 /// `spurio_describe`: the model description for a configuration text, or minus the length of
 /// the error message.
+///
+/// # Safety
+/// `config` is NULL or a NUL-terminated string; `out` is NULL or points to `capacity`
+/// writable bytes.
 pub unsafe fn query_describe<M: FmuModel>(
     config: *const c_char,
     out: *mut u8,
