@@ -377,6 +377,24 @@ impl AdaptiveStateFeedback {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(AdaptiveStateFeedbackConfig {
+    poles,
+    limits,
+    recompute_period,
+    max_gain_norm,
+    max_condition_number,
+    initial_gain
+});
+crate::plain_state!(AdaptiveStateFeedback {
+    config,
+    gain,
+    calls_until_due,
+    in_bad_episode,
+    rejected_updates,
+    episodes
+});
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -155,6 +155,10 @@ impl StateFeedback {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(InputLimits { min, max });
+crate::plain_state!(StateFeedback { gain, limits });
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -27,12 +27,11 @@
 use nalgebra::DMatrix;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
 use spurio::control::{
-    AdaptiveProgress, AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits,
-    CRANE_SAMPLE_TIME,
+    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Value, Variable, VariableTable,
+    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Value, Variable,
+    VariableTable,
 };
 use spurio_fmu_common::controller::{
     add_limit_parameters, add_pole_parameters, check_pole_parameters, format_gain, input_unit,
@@ -348,82 +347,7 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_u64(self.rejections_before_episode);
-        out.put_bool(self.controller.is_some());
-        if let Some(controller) = &self.controller {
-            let config = controller.config();
-            out.put_f64_slice(&config.poles.iter().map(|p| p.re).collect::<Vec<_>>());
-            out.put_f64_slice(&config.poles.iter().map(|p| p.im).collect::<Vec<_>>());
-            out.put_f64(config.limits.min());
-            out.put_f64(config.limits.max());
-            out.put_u64(config.recompute_period as u64);
-            out.put_f64(config.max_gain_norm);
-            out.put_f64(config.max_condition_number);
-            let initial: Vec<f64> = config
-                .initial_gain
-                .as_ref()
-                .map_or(Vec::new(), |g| g.iter().copied().collect());
-            out.put_f64_slice(&initial);
-            let progress = controller.progress();
-            let gain: Vec<f64> = progress
-                .gain
-                .as_ref()
-                .map_or(Vec::new(), |g| g.iter().copied().collect());
-            out.put_f64_slice(&gain);
-            out.put_u64(progress.calls_until_due as u64);
-            out.put_bool(progress.in_rejection_episode);
-            out.put_u64(progress.rejected_updates);
-            out.put_u64(progress.rejection_episodes);
-        }
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        let rejections_before_episode = input.u64()?;
-        let controller = if input.bool()? {
-            let re = input.f64_vec()?;
-            let im = input.f64_vec()?;
-            let n = self.layout.states;
-            if re.len() != n || im.len() != n {
-                return Err(format!(
-                    "AdaptiveStateFeedback state: {} poles, expected {n}",
-                    re.len()
-                ));
-            }
-            let poles = re
-                .iter()
-                .zip(&im)
-                .map(|(r, i)| nalgebra::Complex::new(*r, *i))
-                .collect();
-            let limits = InputLimits::new(input.f64()?, input.f64()?).map_err(|e| e.to_string())?;
-            let mut config = AdaptiveStateFeedbackConfig::new(poles, limits);
-            config.recompute_period = usize::try_from(input.u64()?).map_err(|e| e.to_string())?;
-            config.max_gain_norm = input.f64()?;
-            config.max_condition_number = input.f64()?;
-            let initial = input.f64_vec()?;
-            config.initial_gain =
-                (!initial.is_empty()).then(|| DMatrix::from_row_slice(1, initial.len(), &initial));
-            let gain = input.f64_vec()?;
-            let progress = AdaptiveProgress {
-                gain: (!gain.is_empty()).then(|| DMatrix::from_row_slice(1, gain.len(), &gain)),
-                calls_until_due: usize::try_from(input.u64()?).map_err(|e| e.to_string())?,
-                in_rejection_episode: input.bool()?,
-                rejected_updates: input.u64()?,
-                rejection_episodes: input.u64()?,
-            };
-            let mut controller = AdaptiveStateFeedback::new(config)
-                .map_err(|e| format!("AdaptiveStateFeedback state: {e}"))?;
-            controller
-                .restore_progress(progress)
-                .map_err(|e| format!("AdaptiveStateFeedback state: {e}"))?;
-            Some(controller)
-        } else {
-            None
-        };
-        self.controller = controller;
-        self.rejections_before_episode = rejections_before_episode;
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(controller, rejections_before_episode);
 }
 
 spurio_export::export_fmu!(
@@ -439,7 +363,7 @@ mod tests {
     use super::*;
     use spurio::control::crane_reference_design;
     use spurio_export::types::Status;
-    use spurio_export::Values;
+    use spurio_export::{ByteReader, ByteWriter, Values};
 
     fn crane_config() -> Config {
         spurio_fmu_common::crane_controller_config()

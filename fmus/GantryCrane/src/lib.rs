@@ -7,10 +7,7 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::gantry_crane::{GantryCrane, GantryCraneParameters};
-use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable,
-};
+use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
@@ -166,46 +163,7 @@ impl FmuModel for GantryCraneFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        let p = &self.crane.parameters;
-        out.put_f64_slice(&[
-            p.cart_mass,
-            p.load_mass,
-            p.rod_length,
-            p.inertia,
-            p.cart_friction,
-            p.pivot_friction,
-            p.gravity,
-            p.max_force,
-            p.rail_limit,
-        ]);
-        out.put_f64_slice(self.crane.state.as_slice());
-        out.put_f64(self.h_max);
-        out.put_bool(self.stop_logged);
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        let p = input.f64_vec()?;
-        let s = input.f64_vec()?;
-        if p.len() != 9 || s.len() != 4 {
-            return Err("GantryCrane state: wrong number of parameters or states".into());
-        }
-        self.crane.parameters = GantryCraneParameters {
-            cart_mass: p[0],
-            load_mass: p[1],
-            rod_length: p[2],
-            inertia: p[3],
-            cart_friction: p[4],
-            pivot_friction: p[5],
-            gravity: p[6],
-            max_force: p[7],
-            rail_limit: p[8],
-        };
-        self.crane.state = nalgebra::Vector4::from_column_slice(&s);
-        self.h_max = input.f64()?;
-        self.stop_logged = input.bool()?;
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(crane, h_max, stop_logged);
 }
 
 spurio_export::export_fmu!(GantryCraneFmu);

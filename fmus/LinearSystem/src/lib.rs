@@ -25,12 +25,9 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use nalgebra::{DMatrix, DVector};
-use spurio::plants::linear_system::{
-    LinearSystem, LinearSystemParameters, LinearSystemState, TimeDomain,
-};
+use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable, VariableTable,
+    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -322,82 +319,7 @@ impl FmuModel for LinearSystemFmu {
         self.write_outputs(ctx)
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        match &self.system {
-            None => out.put_bool(false),
-            Some(s) => {
-                out.put_bool(true);
-                let p = s.parameters();
-                for m in [&p.a, &p.b, &p.c, &p.d, &p.q, &p.r] {
-                    out.put_f64_slice(m.as_slice());
-                }
-                out.put_f64_slice(p.initial_state.as_slice());
-                out.put_u64(p.seed);
-                out.put_bool(p.time_domain == TimeDomain::Continuous);
-                let saved = s.saved_state();
-                out.put_f64_slice(&saved.state);
-                out.put_f64_slice(&saved.measurement_noise);
-                for w in saved.random_streams {
-                    out.put_u64(w);
-                }
-            }
-        }
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        if !input.bool()? {
-            self.system = None;
-            return Ok(());
-        }
-        let Dimensions { n, m, p, .. } = self.layout.dims;
-        let mut matrix = |rows: usize, cols: usize| -> Result<DMatrix<f64>, String> {
-            let v = input.f64_vec()?;
-            if v.len() != rows * cols {
-                return Err("LinearSystem state: wrong matrix size".into());
-            }
-            Ok(DMatrix::from_column_slice(rows, cols, &v))
-        };
-        let a = matrix(n, n)?;
-        let b = matrix(n, m)?;
-        let c = matrix(p, n)?;
-        let d = matrix(p, m)?;
-        let q = matrix(n, n)?;
-        let r = matrix(p, p)?;
-        let x0 = matrix(n, 1)?;
-        let seed = input.u64()?;
-        let continuous = input.bool()?;
-        let state = input.f64_vec()?;
-        let measurement_noise = input.f64_vec()?;
-        let mut random_streams = [0u64; 8];
-        for w in random_streams.iter_mut() {
-            *w = input.u64()?;
-        }
-        let parameters = LinearSystemParameters {
-            a,
-            b,
-            c,
-            d,
-            q,
-            r,
-            time_domain: if continuous {
-                TimeDomain::Continuous
-            } else {
-                TimeDomain::Discrete
-            },
-            initial_state: DVector::from_column_slice(x0.as_slice()),
-            seed,
-        };
-        let mut system = LinearSystem::new(parameters).map_err(|e| e.to_string())?;
-        system
-            .restore(&LinearSystemState {
-                state,
-                measurement_noise,
-                random_streams,
-            })
-            .map_err(|e| e.to_string())?;
-        self.system = Some(system);
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(system);
 }
 
 spurio_export::export_fmu!(

@@ -19,10 +19,7 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
-use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable,
-};
+use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
 
 /// `h_max · |λ|max` above which RK4 is refused (its real-axis stability limit is 2.785).
 pub const RK4_STABILITY_MARGIN: f64 = 2.5;
@@ -176,31 +173,7 @@ impl FmuModel for OpAmpFilterFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        let p = &self.filter.parameters;
-        out.put_f64_slice(&[p.r1, p.r2, p.c1, p.c2, p.v_sat_high, p.v_sat_low]);
-        out.put_f64_slice(self.filter.state.as_slice());
-        out.put_f64(self.h_max);
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        let p = input.f64_vec()?;
-        let s = input.f64_vec()?;
-        if p.len() != 6 || s.len() != 2 {
-            return Err("OpAmpFilter state: wrong number of parameters or states".into());
-        }
-        self.filter.parameters = OpAmpFilterParameters {
-            r1: p[0],
-            r2: p[1],
-            c1: p[2],
-            c2: p[3],
-            v_sat_high: p[4],
-            v_sat_low: p[5],
-        };
-        self.filter.state = nalgebra::Vector2::new(s[0], s[1]);
-        self.h_max = input.f64()?;
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(filter, h_max);
 }
 
 spurio_export::export_fmu!(OpAmpFilterFmu);

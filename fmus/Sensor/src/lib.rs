@@ -33,8 +33,7 @@ use spurio::signals::sensor::{
     NoiseLevel, OutlierParameters, Quantiser, Sensor, SensorParameters, SensorReading,
 };
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable, VariableTable,
+    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
 };
 use spurio_fmu_common::param_failure;
 use spurio_fmu_common::structured::{add_vector, Block};
@@ -193,6 +192,7 @@ struct Channel {
     sensor: Sensor,
     before: [u64; 8],
 }
+spurio::plain_state!(Channel { sensor, before });
 
 /// The Sensor FMU.
 #[derive(Debug, Clone)]
@@ -360,97 +360,7 @@ impl FmuModel for SensorFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_u64(self.channels.len() as u64);
-        for c in &self.channels {
-            let p = c.sensor.parameters();
-            let (mode, a, b) = match p.noise {
-                NoiseLevel::Variance(v) => (0.0, v, 0.0),
-                NoiseLevel::SignalToNoiseRatio {
-                    snr_db,
-                    signal_power,
-                } => (1.0, snr_db, signal_power),
-            };
-            let o = &p.outliers;
-            let (bits, qmin, qmax) = match p.quantiser {
-                Some(q) => (q.bits as f64, q.min, q.max),
-                None => (0.0, 0.0, 0.0),
-            };
-            out.put_f64_slice(&[
-                mode,
-                a,
-                b,
-                o.epsilon,
-                o.min_magnitude,
-                o.max_magnitude,
-                o.window_start,
-                o.window_end,
-                bits,
-                qmin,
-                qmax,
-            ]);
-            out.put_u64(p.seed);
-            for w in c.sensor.state().iter().chain(c.before.iter()) {
-                out.put_u64(*w);
-            }
-        }
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        let n = input.u64()? as usize;
-        if n != 0 && n != self.layout.channels {
-            return Err(format!(
-                "Sensor state: {n} channels saved, this instance has {}",
-                self.layout.channels
-            ));
-        }
-        let mut channels = Vec::with_capacity(n);
-        for _ in 0..n {
-            let f = input.f64_vec()?;
-            if f.len() != 11 {
-                return Err("Sensor state: wrong number of channel parameters".into());
-            }
-            let seed = input.u64()?;
-            let mut words = [0u64; 16];
-            for w in words.iter_mut() {
-                *w = input.u64()?;
-            }
-            let noise = if f[0] == 0.0 {
-                NoiseLevel::Variance(f[1])
-            } else {
-                NoiseLevel::SignalToNoiseRatio {
-                    snr_db: f[1],
-                    signal_power: f[2],
-                }
-            };
-            let quantiser = (f[8] >= 1.0).then_some(Quantiser {
-                bits: f[8] as u32,
-                min: f[9],
-                max: f[10],
-            });
-            let parameters = SensorParameters {
-                noise,
-                outliers: OutlierParameters {
-                    epsilon: f[3],
-                    min_magnitude: f[4],
-                    max_magnitude: f[5],
-                    window_start: f[6],
-                    window_end: f[7],
-                },
-                quantiser,
-                seed,
-            };
-            let mut sensor = Sensor::new(parameters).map_err(|e| e.to_string())?;
-            let mut current = [0u64; 8];
-            current.copy_from_slice(&words[..8]);
-            let mut before = [0u64; 8];
-            before.copy_from_slice(&words[8..]);
-            sensor.restore_state(current).map_err(|e| e.to_string())?;
-            channels.push(Channel { sensor, before });
-        }
-        self.channels = channels;
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(channels);
 }
 
 spurio_export::export_fmu!(

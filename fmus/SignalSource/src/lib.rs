@@ -24,10 +24,7 @@
 
 use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
 use spurio::ParameterError;
-use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable,
-};
+use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
 
 /// `waveform` codes.
 pub mod waveform {
@@ -197,103 +194,7 @@ impl FmuModel for SignalSourceFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        // The source is a pure function of its parameters and t (the cursor is a cache), so
-        // the parameters are all there is to save.
-        match &self.source {
-            None => out.put_bool(false),
-            Some(s) => {
-                out.put_bool(true);
-                let (code, f) = match *s.waveform() {
-                    Waveform::Step {
-                        amplitude,
-                        offset,
-                        step_time,
-                    } => (waveform::STEP, [amplitude, offset, step_time, 0.0]),
-                    Waveform::RandomSteps {
-                        amplitude,
-                        offset,
-                        min_hold,
-                        max_hold,
-                    } => (
-                        waveform::RANDOM_STEPS,
-                        [amplitude, offset, min_hold, max_hold],
-                    ),
-                    Waveform::Prbs {
-                        order,
-                        bit_period,
-                        amplitude,
-                        offset,
-                    } => (
-                        waveform::PRBS,
-                        [order as f64, bit_period, amplitude, offset],
-                    ),
-                    Waveform::Sine {
-                        amplitude,
-                        offset,
-                        frequency,
-                        phase,
-                    } => (waveform::SINE, [amplitude, offset, frequency, phase]),
-                    Waveform::Cosine {
-                        amplitude,
-                        offset,
-                        frequency,
-                        phase,
-                    } => (waveform::COSINE, [amplitude, offset, frequency, phase]),
-                };
-                out.put_i32(code);
-                out.put_f64_slice(&f);
-                out.put_u64(s.seed());
-            }
-        }
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        if !input.bool()? {
-            self.source = None;
-            return Ok(());
-        }
-        let code = input.i32()?;
-        let f = input.f64_vec()?;
-        let seed = input.u64()?;
-        if f.len() != 4 {
-            return Err("SignalSource state: wrong number of parameters".into());
-        }
-        let w = match code {
-            waveform::STEP => Waveform::Step {
-                amplitude: f[0],
-                offset: f[1],
-                step_time: f[2],
-            },
-            waveform::RANDOM_STEPS => Waveform::RandomSteps {
-                amplitude: f[0],
-                offset: f[1],
-                min_hold: f[2],
-                max_hold: f[3],
-            },
-            waveform::PRBS => Waveform::Prbs {
-                order: f[0] as u32,
-                bit_period: f[1],
-                amplitude: f[2],
-                offset: f[3],
-            },
-            waveform::SINE => Waveform::Sine {
-                amplitude: f[0],
-                offset: f[1],
-                frequency: f[2],
-                phase: f[3],
-            },
-            waveform::COSINE => Waveform::Cosine {
-                amplitude: f[0],
-                offset: f[1],
-                frequency: f[2],
-                phase: f[3],
-            },
-            other => return Err(format!("SignalSource state: unknown waveform {other}")),
-        };
-        self.source = Some(SignalSource::new(w, seed).map_err(|e| e.to_string())?);
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(source);
 }
 
 spurio_export::export_fmu!(SignalSourceFmu);

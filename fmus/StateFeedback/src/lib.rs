@@ -23,13 +23,11 @@
 #![deny(unsafe_code)]
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
-use nalgebra::DMatrix;
 use spurio::control::{
     ackermann_with_options, InputLimits, PolePlacementOptions, StateFeedback, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable, VariableTable,
+    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
 };
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -210,35 +208,7 @@ impl FmuModel for StateFeedbackFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_bool(self.controller.is_some());
-        if let Some(controller) = &self.controller {
-            out.put_f64_slice(controller.gain().as_slice());
-            out.put_f64(controller.limits().min());
-            out.put_f64(controller.limits().max());
-        }
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        self.controller = if input.bool()? {
-            let gain = input.f64_vec()?;
-            let min = input.f64()?;
-            let max = input.f64()?;
-            if gain.len() != self.layout.states {
-                return Err(format!(
-                    "StateFeedback state: gain of {} entries, expected {}",
-                    gain.len(),
-                    self.layout.states
-                ));
-            }
-            let limits = InputLimits::new(min, max).map_err(|e| e.to_string())?;
-            let gain = DMatrix::from_row_slice(1, gain.len(), &gain);
-            Some(StateFeedback::from_gain(gain, limits).map_err(|e| e.to_string())?)
-        } else {
-            None
-        };
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(controller);
 }
 
 spurio_export::export_fmu!(
@@ -252,6 +222,7 @@ spurio_export::export_fmu!(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::DMatrix;
     use spurio_export::types::Status;
     use spurio_export::Values;
 

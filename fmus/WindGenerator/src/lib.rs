@@ -33,10 +33,7 @@ use spurio::plants::wind_generator::{
     GeneratorState, WindGenerator, WindGeneratorParameters, RATED_DRIVE_REFERENCE,
     RATED_FIELD_REFERENCE,
 };
-use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo,
-    Variable,
-};
+use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
 use std::f64::consts::PI;
 
 /// `h_max · |λ|max` above which RK4 is refused.
@@ -310,23 +307,7 @@ impl FmuModel for WindGeneratorFmu {
         Ok(())
     }
 
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_f64_slice(&parameter_values(&self.generator.parameters));
-        out.put_f64_slice(self.generator.state.as_slice());
-        out.put_f64(self.h_max);
-    }
-
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
-        let p = input.f64_vec()?;
-        let s = input.f64_vec()?;
-        if p.len() != PARAMETER_NAMES.len() || s.len() != 8 {
-            return Err("WindGenerator state: wrong number of parameters or states".into());
-        }
-        self.generator.parameters = parameters_from(&p);
-        self.generator.state = GeneratorState::from_column_slice(&s);
-        self.h_max = input.f64()?;
-        Ok(())
-    }
+    spurio_fmu_common::fmu_state!(generator, h_max);
 }
 
 spurio_export::export_fmu!(WindGeneratorFmu);

@@ -30,6 +30,40 @@ pub fn crane_controller_config() -> Config {
     config
 }
 
+/// What [`fmu_state!`] expands to refers to.
+#[doc(hidden)]
+pub mod reexport {
+    pub use spurio::state::PlainState;
+    pub use spurio_export::{ByteReader, ByteWriter};
+}
+
+/// Implements `FmuModel::save_state` and `load_state`, inside `impl FmuModel for …`, as the
+/// plain-bytes snapshots ([`spurio::state::PlainState`]) of the listed fields, in order: the
+/// FMU state is derived from the model's own types, not written by hand. Fields rebuilt from
+/// the configuration (layouts) are left out. A failed load changes nothing.
+#[macro_export]
+macro_rules! fmu_state {
+    ($($field:ident),+ $(,)?) => {
+        fn save_state(&self, out: &mut $crate::reexport::ByteWriter) {
+            let mut bytes = ::std::vec::Vec::new();
+            $($crate::reexport::PlainState::save(&self.$field, &mut bytes);)+
+            out.put_bytes(&bytes);
+        }
+
+        fn load_state(
+            &mut self,
+            input: &mut $crate::reexport::ByteReader,
+        ) -> ::std::result::Result<(), ::std::string::String> {
+            let bytes = input.byte_vec()?;
+            let mut rest = bytes.as_slice();
+            $(let $field = $crate::reexport::PlainState::read(&mut rest)
+                .map_err(|e| format!("{}: {e}", stringify!($field)))?;)+
+            $(self.$field = $field;)+
+            Ok(())
+        }
+    };
+}
+
 /// A configuration from `(key, value)` pairs.
 pub fn config(pairs: &[(&str, &str)]) -> Config {
     let mut c = Config::new();

@@ -42,6 +42,11 @@ impl ByteWriter {
             self.put_f64(*x);
         }
     }
+    /// Appends a length-prefixed byte string.
+    pub fn put_bytes(&mut self, v: &[u8]) {
+        self.put_u64(v.len() as u64);
+        self.bytes.extend_from_slice(v);
+    }
     /// The bytes written so far.
     pub fn into_bytes(self) -> Vec<u8> {
         self.bytes
@@ -100,6 +105,11 @@ impl<'a> ByteReader<'a> {
         let raw = self.take(n)?;
         String::from_utf8(raw.to_vec())
             .map_err(|_| "serialized FMU state: a string is not UTF-8".to_string())
+    }
+    /// Reads a byte string written by [`ByteWriter::put_bytes`].
+    pub fn byte_vec(&mut self) -> Result<Vec<u8>, String> {
+        let n = self.len_prefix()?;
+        Ok(self.take(n)?.to_vec())
     }
     /// Reads a slice of `f64`.
     pub fn f64_vec(&mut self) -> Result<Vec<f64>, String> {
