@@ -28,13 +28,15 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use nalgebra::{DMatrix, DVector};
-use spurio::estimation::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
+use spurio::estimation::{
+    DistributedObserver, DistributedObserverConfig, EstimationError, ObserverDesign,
+};
 use spurio_export::{
     Causality, Config, Context, DefaultExperiment, Failure, ModelInfo, Value, Values, Variability,
     Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{
-    choice, count, error, leading_identity, read_inputs, Estimator,
+    choice, count, error, leading_identity, read_inputs, DynamicState, Estimator,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -300,14 +302,24 @@ impl Estimator for Agent {
         Ok(())
     }
 
+    type Filter = Self;
+
+    fn filter(&self) -> &Self {
+        self
+    }
+
+    fn filter_mut(&mut self) -> &mut Self {
+        self
+    }
+}
+
+/// The agent's dynamic state is its observer's.
+impl DynamicState for Agent {
     fn dynamic_state(&self) -> Vec<f64> {
         self.observer.dynamic_state()
     }
-
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        self.observer
-            .set_dynamic_state(state)
-            .map_err(|e| e.to_string())
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        self.observer.set_dynamic_state(state)
     }
 }
 

@@ -22,11 +22,11 @@
 #![deny(unsafe_code)]
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
-use spurio::estimation::RecursiveLeastSquares;
+use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{
     Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
-use spurio_fmu_common::estimator::{count, error, Estimator};
+use spurio_fmu_common::estimator::{count, error, DynamicState, Estimator};
 use spurio_fmu_common::structured::{add_vector, Block};
 
 /// Value references of a `RecursiveLeastSquares` variant.
@@ -296,19 +296,31 @@ impl Estimator for Rls {
         Ok(())
     }
 
+    type Filter = Self;
+
+    fn filter(&self) -> &Self {
+        self
+    }
+
+    fn filter_mut(&mut self) -> &mut Self {
+        self
+    }
+}
+
+/// The RLS and whether the readout problem was logged (once per episode).
+impl DynamicState for Rls {
     fn dynamic_state(&self) -> Vec<f64> {
         let mut state = self.rls.dynamic_state();
         state.push(if self.readout_logged { 1.0 } else { 0.0 });
         state
     }
-
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        let (flag, rest) = state
-            .split_last()
-            .ok_or("RecursiveLeastSquares state: empty")?;
-        self.rls
-            .set_dynamic_state(rest)
-            .map_err(|e| e.to_string())?;
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let (flag, rest) = state.split_last().ok_or(EstimationError::Dimension {
+            what: "saved RecursiveLeastSquares state",
+            expected: 1,
+            got: 0,
+        })?;
+        self.rls.set_dynamic_state(rest)?;
         self.readout_logged = *flag != 0.0;
         Ok(())
     }

@@ -21,13 +21,15 @@
 //! `fix_output_matrices` (C and D known: their rows of Θ never change; default true, which
 //! removes the similarity-transform ambiguity of identifying from outputs).
 
-use crate::estimator::{error, read_inputs, write_matrix_view, Estimator};
+use crate::estimator::{error, read_inputs, write_matrix_view, DynamicState, Estimator};
 use crate::kalman::{
     add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
 };
 use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::DVector;
-use spurio::estimation::{DkfRsKf, DualKalmanConfig, DualKalmanFilter, RobustKalmanFilter};
+use spurio::estimation::{
+    DkfRsKf, DualKalmanConfig, DualKalmanFilter, RobustKalmanFilter, StateEstimator,
+};
 use spurio_export::{
     Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
@@ -254,68 +256,33 @@ fn write_initial_dual(l: &DualLayout, ctx: &mut Context, dual: &DualKalmanFilter
     l.y_hat.write_vector(ctx.values, &y_hat);
 }
 
-/// The DKF behind `DualKalmanFilter.fmu`.
-#[derive(Debug, Clone)]
-pub struct Dkf {
-    filter: DualKalmanFilter,
-    u: DVector<f64>,
-    y: DVector<f64>,
+/// A dual filter behind a `DualKalmanFilter`-style FMU.
+pub trait DualFilter: StateEstimator + DynamicState + Clone + std::fmt::Debug + 'static {
+    /// Whether an rsKF cleans the outputs first: parameters `q_clean`…, outputs `w[j]`,
+    /// `y_clean[j]`.
+    const CLEANED: bool;
+    /// Reads and checks the parameters, builds the filter.
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure>;
+    /// The DKF (estimates of the state and of Θ).
+    fn dual(&self) -> &DualKalmanFilter;
+    /// Writes the cleaner's outputs, before the first step (`initial`) or after a step.
+    fn write_cleaner(&self, cleaner: &CleanerBlocks, values: &mut Values, initial: bool) {
+        let _ = (cleaner, values, initial);
+    }
 }
 
-impl Estimator for Dkf {
-    type Layout = DualLayout;
-
-    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), String> {
-        interface(config, false)
-    }
-
+impl DualFilter for DualKalmanFilter {
+    const CLEANED: bool = false;
     fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
-        Ok(Self {
-            filter: build_dual(layout, values)?,
-            u: DVector::zeros(layout.dims.m),
-            y: DVector::zeros(layout.dims.p),
-        })
+        build_dual(layout, values)
     }
-
-    fn write_initial(&self, layout: &DualLayout, ctx: &mut Context) {
-        write_initial_dual(layout, ctx, &self.filter);
-    }
-
-    fn step(&mut self, l: &DualLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
-        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
-        self.filter.step(&self.u, &self.y).map_err(error)?;
-        write_dual_outputs(l, ctx.values, &self.filter);
-        l.y_hat.write_vector(ctx.values, self.filter.output());
-        Ok(())
-    }
-
-    fn dynamic_state(&self) -> Vec<f64> {
-        self.filter.dynamic_state()
-    }
-
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        self.filter
-            .set_dynamic_state(state)
-            .map_err(|e| e.to_string())
+    fn dual(&self) -> &DualKalmanFilter {
+        self
     }
 }
 
-/// The DKF-rsKF behind `DkfRsKf.fmu`.
-#[derive(Debug, Clone)]
-pub struct DkfRsKfEstimator {
-    filter: DkfRsKf,
-    u: DVector<f64>,
-    y: DVector<f64>,
-}
-
-impl Estimator for DkfRsKfEstimator {
-    type Layout = DualLayout;
-
-    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), String> {
-        interface(config, true)
-    }
-
+impl DualFilter for DkfRsKf {
+    const CLEANED: bool = true;
     fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
         let c = layout
             .cleaner
@@ -343,8 +310,43 @@ impl Estimator for DkfRsKfEstimator {
             psi,
         )
         .map_err(error)?;
+        DkfRsKf::new(cleaner, dual).map_err(error)
+    }
+    fn dual(&self) -> &DualKalmanFilter {
+        DkfRsKf::dual(self)
+    }
+    fn write_cleaner(&self, c: &CleanerBlocks, values: &mut Values, initial: bool) {
+        if initial {
+            for k in c.w.indices() {
+                values.set_real(k, 1.0);
+            }
+            c.y_clean.write_vector(values, self.cleaner().state());
+        } else {
+            c.w.write_vector(values, self.cleaner().weights());
+            c.y_clean.write_vector(values, self.cleaned_output());
+        }
+    }
+}
+
+/// The one adapter of the dual filters (DKF, DKF-rsKF) and its input buffers.
+#[derive(Debug, Clone)]
+pub struct Dual<F: DualFilter> {
+    filter: F,
+    u: DVector<f64>,
+    y: DVector<f64>,
+}
+
+impl<F: DualFilter> Estimator for Dual<F> {
+    type Layout = DualLayout;
+    type Filter = F;
+
+    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), String> {
+        interface(config, F::CLEANED)
+    }
+
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
         Ok(Self {
-            filter: DkfRsKf::new(cleaner, dual).map_err(error)?,
+            filter: F::build(layout, values)?,
             u: DVector::zeros(layout.dims.m),
             y: DVector::zeros(layout.dims.p),
         })
@@ -353,11 +355,7 @@ impl Estimator for DkfRsKfEstimator {
     fn write_initial(&self, layout: &DualLayout, ctx: &mut Context) {
         write_initial_dual(layout, ctx, self.filter.dual());
         if let Some(c) = &layout.cleaner {
-            for k in c.w.indices() {
-                ctx.values.set_real(k, 1.0);
-            }
-            c.y_clean
-                .write_vector(ctx.values, self.filter.cleaner().state());
+            self.filter.write_cleaner(c, ctx.values, true);
         }
     }
 
@@ -366,31 +364,26 @@ impl Estimator for DkfRsKfEstimator {
         read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
         self.filter.step(&self.u, &self.y).map_err(error)?;
         write_dual_outputs(l, ctx.values, self.filter.dual());
-        l.y_hat
-            .write_vector(ctx.values, self.filter.dual().output());
+        l.y_hat.write_vector(ctx.values, self.filter.output());
         if let Some(c) = &l.cleaner {
-            c.w.write_vector(ctx.values, self.filter.cleaner().weights());
-            c.y_clean
-                .write_vector(ctx.values, self.filter.cleaned_output());
+            self.filter.write_cleaner(c, ctx.values, false);
         }
         Ok(())
     }
 
-    fn dynamic_state(&self) -> Vec<f64> {
-        self.filter.dynamic_state()
+    fn filter(&self) -> &F {
+        &self.filter
     }
 
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        self.filter
-            .set_dynamic_state(state)
-            .map_err(|e| e.to_string())
+    fn filter_mut(&mut self) -> &mut F {
+        &mut self.filter
     }
 }
 
 /// `DualKalmanFilter.fmu`.
-pub type DualKalmanFilterFmu = crate::estimator::EstimatorFmu<Dkf>;
+pub type DualKalmanFilterFmu = crate::estimator::EstimatorFmu<Dual<DualKalmanFilter>>;
 /// `DkfRsKf.fmu`.
-pub type DkfRsKfFmu = crate::estimator::EstimatorFmu<DkfRsKfEstimator>;
+pub type DkfRsKfFmu = crate::estimator::EstimatorFmu<Dual<DkfRsKf>>;
 
 #[cfg(test)]
 mod tests {

@@ -1,19 +1,19 @@
-//! The estimator FMUs (SPEC §2 items 7–12): dimension-generic FMI 2.0 CS wrappers of
-//! [`spurio::estimation`].
+//! The one generic adapter of the estimator FMUs (SPEC §2 items 7–12): dimension-generic
+//! FMI 2.0 CS wrappers of [`spurio::estimation`].
 //!
 //! One compiled binary per algorithm; the dimensions come from the packaging configuration
 //! (`resources/variant.cfg`, keys such as `n`, `m`, `p`), so `spurio package-variant
 //! KalmanFilter --set n=3 --set m=1 --set p=2` writes an FMU for another plant without
-//! recompiling. Every FMU here is an [`EstimatorFmu`] over one [`Estimator`]:
+//! recompiling. Every estimator FMU is an [`EstimatorFmu`] over one [`Estimator`]:
 //!
-//! | FMU | estimator | module |
+//! | FMU | estimator | where |
 //! |---|---|---|
-//! | `KalmanFilter` | sKF | [`kalman`] |
-//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | [`kalman`] |
-//! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`dual`] |
-//! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | [`dual`] |
-//! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | [`rls`] |
-//! | `DistributedObserver` | one agent of paper 004's observer | [`distributed`] |
+//! | `KalmanFilter` | sKF | [`crate::kalman::Linear`] over any [`spurio::estimation::StateEstimator`] |
+//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`crate::kalman::Linear`] |
+//! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`crate::dual::Dual`] |
+//! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same, [`crate::dual::Dual`] |
+//! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
+//! | `DistributedObserver` | one agent of paper 004's observer | its own crate |
 //!
 //! **Sampling convention.** The estimators are discrete-time: every `fmi2DoStep(t_k, h)`
 //! processes one sample, the inputs set at t_k (u_k, y_k), and leaves the estimates of that
@@ -31,6 +31,7 @@
 
 use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
+use spurio::estimation::EstimationError;
 use spurio_export::{
     ByteReader, ByteWriter, Config, Context, Failure, FmuModel, ModelInfo, Value, Values,
 };
@@ -74,10 +75,13 @@ pub trait Estimator: Clone + std::fmt::Debug + 'static {
         time: f64,
         step: f64,
     ) -> Result<(), Failure>;
-    /// Everything that evolves (the estimator's and the adapter's own flags).
-    fn dynamic_state(&self) -> Vec<f64>;
-    /// Restores [`Estimator::dynamic_state`] into an estimator built from the same parameters.
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String>;
+    /// The estimator whose dynamic state is the FMU's (see
+    /// [`spurio::estimation::StateEstimator::dynamic_state`]).
+    type Filter: DynamicState;
+    /// The estimator.
+    fn filter(&self) -> &Self::Filter;
+    /// The estimator, to restore its dynamic state.
+    fn filter_mut(&mut self) -> &mut Self::Filter;
 }
 
 /// An FMU over an [`Estimator`]: the layout, the parameters the estimator was built from
@@ -134,7 +138,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         match &self.estimator {
             Some(estimator) => {
                 out.put_bool(true);
-                out.put_f64_slice(&estimator.dynamic_state());
+                out.put_f64_slice(&estimator.filter().dynamic_state());
             }
             None => out.put_bool(false),
         }
@@ -163,7 +167,10 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {
                 Failure::Error(m) | Failure::Discard(m) => m,
             })?;
-            estimator.set_dynamic_state(&state)?;
+            estimator
+                .filter_mut()
+                .set_dynamic_state(&state)
+                .map_err(|e| e.to_string())?;
             Some(estimator)
         } else {
             None
@@ -172,6 +179,36 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         Ok(())
     }
 }
+
+/// What evolves in an estimator from step to step, saved in FMU states: implemented by every
+/// [`spurio::estimation::StateEstimator`] and by the estimators of other shapes (RLS, the
+/// distributed observer).
+pub trait DynamicState {
+    /// Everything that evolves.
+    fn dynamic_state(&self) -> Vec<f64>;
+    /// Restores [`DynamicState::dynamic_state`] into an estimator built from the same
+    /// parameters.
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
+}
+
+macro_rules! through_state_estimator {
+    ($($t:ty),*) => {$(
+        impl DynamicState for $t {
+            fn dynamic_state(&self) -> Vec<f64> {
+                spurio::estimation::StateEstimator::dynamic_state(self)
+            }
+            fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+                spurio::estimation::StateEstimator::set_dynamic_state(self, state)
+            }
+        }
+    )*};
+}
+through_state_estimator!(
+    spurio::estimation::KalmanFilter,
+    spurio::estimation::RobustKalmanFilter,
+    spurio::estimation::DualKalmanFilter,
+    spurio::estimation::DkfRsKf
+);
 
 /// Copies the inputs of `block` into `buffer` (no allocation), or fails naming the first
 /// non-finite one (`y[2] = NaN`).

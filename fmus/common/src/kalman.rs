@@ -17,10 +17,12 @@
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of SPEC §4 for n = p = 1.
 
-use crate::estimator::{count, error, leading_identity, read_inputs, Estimator};
+use crate::estimator::{count, error, leading_identity, read_inputs, DynamicState, Estimator};
 use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::{DMatrix, DVector};
-use spurio::estimation::{InfluenceFunction, KalmanFilter, RobustKalmanFilter};
+use spurio::estimation::{
+    EstimationError, InfluenceFunction, KalmanFilter, RobustKalmanFilter, StateEstimator,
+};
 use spurio_export::{
     Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
@@ -305,70 +307,50 @@ fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
     }
 }
 
-/// The sKF behind `KalmanFilter.fmu`.
+/// A filter of the linear model behind a `KalmanFilter`-style FMU, built from the model
+/// matrices (and, for the robust one, its influence function).
+pub trait LinearFilter: StateEstimator + DynamicState + Clone + std::fmt::Debug + 'static {
+    /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
+    const ROBUST: bool;
+    /// The filter for the model `m`.
+    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError>;
+    /// The last step's weights `w_j` (robust filter only).
+    fn weights(&self) -> Option<&DVector<f64>> {
+        None
+    }
+}
+
+impl LinearFilter for KalmanFilter {
+    const ROBUST: bool = false;
+    fn from_model(m: ModelMatrices, _: InfluenceFunction) -> Result<Self, EstimationError> {
+        KalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0)
+    }
+}
+
+impl LinearFilter for RobustKalmanFilter {
+    const ROBUST: bool = true;
+    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError> {
+        RobustKalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0, psi)
+    }
+    fn weights(&self) -> Option<&DVector<f64>> {
+        Some(RobustKalmanFilter::weights(self))
+    }
+}
+
+/// The one adapter of the linear-model filters (sKF, rsKF) and its input buffers.
 #[derive(Debug, Clone)]
-pub struct Skf {
-    filter: KalmanFilter,
+pub struct Linear<F: LinearFilter> {
+    filter: F,
     u: DVector<f64>,
     y: DVector<f64>,
 }
 
-impl Estimator for Skf {
+impl<F: LinearFilter> Estimator for Linear<F> {
     type Layout = LinearLayout;
+    type Filter = F;
 
     fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), String> {
-        interface(config, false)
-    }
-
-    fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
-        let m = layout.model.read(values);
-        let filter = KalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0).map_err(error)?;
-        Ok(Self {
-            filter,
-            u: DVector::zeros(layout.dims.m),
-            y: DVector::zeros(layout.dims.p),
-        })
-    }
-
-    fn write_initial(&self, layout: &LinearLayout, ctx: &mut Context) {
-        write_initial_linear(layout, ctx);
-    }
-
-    fn step(&mut self, l: &LinearLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
-        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
-        self.filter.step(&self.u, &self.y).map_err(error)?;
-        l.x_hat.write_vector(ctx.values, self.filter.state());
-        l.y_hat.write_vector(ctx.values, self.filter.output());
-        l.innovation
-            .write_vector(ctx.values, self.filter.innovation());
-        Ok(())
-    }
-
-    fn dynamic_state(&self) -> Vec<f64> {
-        self.filter.dynamic_state()
-    }
-
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        self.filter
-            .set_dynamic_state(state)
-            .map_err(|e| e.to_string())
-    }
-}
-
-/// The rsKF behind `RobustKalmanFilter.fmu`.
-#[derive(Debug, Clone)]
-pub struct RsKf {
-    filter: RobustKalmanFilter,
-    u: DVector<f64>,
-    y: DVector<f64>,
-}
-
-impl Estimator for RsKf {
-    type Layout = LinearLayout;
-
-    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), String> {
-        interface(config, true)
+        interface(config, F::ROBUST)
     }
 
     fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
@@ -376,9 +358,7 @@ impl Estimator for RsKf {
             Some(indices) => read_influence(values, indices)?,
             None => InfluenceFunction::default(),
         };
-        let m = layout.model.read(values);
-        let filter = RobustKalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0, psi)
-            .map_err(error)?;
+        let filter = F::from_model(layout.model.read(values), psi).map_err(error)?;
         Ok(Self {
             filter,
             u: DVector::zeros(layout.dims.m),
@@ -398,27 +378,25 @@ impl Estimator for RsKf {
         l.y_hat.write_vector(ctx.values, self.filter.output());
         l.innovation
             .write_vector(ctx.values, self.filter.innovation());
-        if let Some(w) = &l.w {
-            w.write_vector(ctx.values, self.filter.weights());
+        if let (Some(w), Some(weights)) = (&l.w, self.filter.weights()) {
+            w.write_vector(ctx.values, weights);
         }
         Ok(())
     }
 
-    fn dynamic_state(&self) -> Vec<f64> {
-        self.filter.dynamic_state()
+    fn filter(&self) -> &F {
+        &self.filter
     }
 
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), String> {
-        self.filter
-            .set_dynamic_state(state)
-            .map_err(|e| e.to_string())
+    fn filter_mut(&mut self) -> &mut F {
+        &mut self.filter
     }
 }
 
 /// `KalmanFilter.fmu`.
-pub type KalmanFilterFmu = crate::estimator::EstimatorFmu<Skf>;
+pub type KalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<KalmanFilter>>;
 /// `RobustKalmanFilter.fmu`.
-pub type RobustKalmanFilterFmu = crate::estimator::EstimatorFmu<RsKf>;
+pub type RobustKalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<RobustKalmanFilter>>;
 
 /// The configuration of a variant of dimensions n, m, p.
 pub fn dims_config(n: usize, m: usize, p: usize) -> Config {
