@@ -80,9 +80,9 @@ impl FmuLibrary {
         let f: VariantsFn = self.symbol(VARIANTS_SYMBOL)?;
         // SAFETY: the function writes at most `capacity` bytes into the buffer it is given.
         let bytes = answer(|out, capacity| unsafe { f(out, capacity) });
-        parse_variants(&String::from_utf8_lossy(&bytes)).map_err(|message| QueryError::Answer {
+        parse_variants(&String::from_utf8_lossy(&bytes)).map_err(|e| QueryError::Answer {
             path: self.path.clone(),
-            message,
+            message: e.to_string(),
         })
     }
 

@@ -30,7 +30,7 @@ use spurio::control::{
     AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Value, Variable,
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Value, Variable,
     VariableTable,
 };
 use spurio_fmu_common::controller::{
@@ -82,7 +82,7 @@ pub struct Layout {
 }
 
 /// The variable table of a variant and where each variable is.
-pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), String> {
+pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let defaults = variant_defaults(config)?;
     let n = defaults.states();
     let preset = defaults.preset;
@@ -232,11 +232,10 @@ impl AdaptiveStateFeedbackFmu {
 fn config_from_parameters(
     layout: &Layout,
     values: &spurio_export::Values,
-) -> Result<AdaptiveStateFeedbackConfig, String> {
+) -> Result<AdaptiveStateFeedbackConfig, Cause> {
     let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
     check_pole_parameters(&poles, true)?;
-    let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))
-        .map_err(|e| e.to_string())?;
+    let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))?;
     let period = values.integer(layout.recompute_period);
     let recompute_period = usize::try_from(period)
         .ok()
@@ -248,13 +247,14 @@ fn config_from_parameters(
     if max_gain_norm.is_nan() || max_gain_norm <= 0.0 {
         return Err(format!(
             "parameter `max_gain_norm`: must be a positive number, got {max_gain_norm}"
-        ));
+        )
+        .into());
     }
     let max_condition_number = values.real(layout.max_condition_number);
     if max_condition_number.is_nan() || max_condition_number < 1.0 {
         return Err(format!(
             "parameter `max_condition_number`: must be at least 1 (a condition number is ≥ 1), got {max_condition_number}"
-        ));
+        ).into());
     }
     let initial_gain = layout.initial_gain.matrix(values);
     if !initial_gain.iter().all(|v| v.is_finite()) {
@@ -269,7 +269,7 @@ fn config_from_parameters(
 }
 
 impl FmuModel for AdaptiveStateFeedbackFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, String> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         let (_, variables) = build(config)?;
         Ok(ModelInfo::new(
             "AdaptiveStateFeedback",
@@ -284,7 +284,7 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
         ))
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, String> {
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self {
             layout: layout_for(info, build)?,
             controller: None,
@@ -311,7 +311,7 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
     fn do_step(&mut self, ctx: &mut Context, time: f64, _step: f64) -> Result<(), Failure> {
         let (a_hat, b_hat) = self.estimate(ctx);
         let Some(controller) = self.controller.as_mut() else {
-            return Err(Failure::Error("the controller was not initialised".into()));
+            return Err(Failure::error("the controller was not initialised"));
         };
         let rejections_before = controller.rejected_updates();
         let was_rejecting = controller.in_rejection_episode();
@@ -467,7 +467,9 @@ mod tests {
             values.set_real(index, value);
             let mut ctx = Context::new(&mut values);
             match model.initialize(&mut ctx) {
-                Err(Failure::Error(message)) => assert!(message.contains(named), "{message}"),
+                Err(Failure::Error(message)) => {
+                    assert!(message.to_string().contains(named), "{message}")
+                }
                 other => panic!("expected an error naming {named}, got {other:?}"),
             }
         }
@@ -476,7 +478,7 @@ mod tests {
         let mut ctx = Context::new(&mut values);
         assert!(matches!(
             model.initialize(&mut ctx),
-            Err(Failure::Error(m)) if m.contains("`recompute_period`")
+            Err(Failure::Error(m)) if m.to_string().contains("`recompute_period`")
         ));
     }
 }

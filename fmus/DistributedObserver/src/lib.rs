@@ -32,8 +32,8 @@ use spurio::estimation::{
     DistributedObserver, DistributedObserverConfig, EstimationError, ObserverDesign,
 };
 use spurio_export::{
-    Causality, Config, Context, DefaultExperiment, Failure, ModelInfo, Value, Values, Variability,
-    Variable, VariableTable,
+    Causality, Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Value, Values,
+    Variability, Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{
     choice, count, error, leading_identity, read_inputs, DynamicState, Estimator,
@@ -82,13 +82,13 @@ fn selector(rows: usize, n: usize, first: usize) -> DMatrix<f64> {
     DMatrix::from_fn(rows, n, |i, j| if (first + i) % n == j { 1.0 } else { 0.0 })
 }
 
-fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), String> {
+fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), Cause> {
     let n = count(config, "n", 3, 1)?;
     let p_own = count(config, "p_own", 1, 1)?;
     let p_neighbour = count(config, "p_neighbour", 1, 1)?;
     let agent = count(config, "agent", 1, 1)?;
     if agent > 2 {
-        return Err(format!("variant.cfg: `agent` must be 1 or 2, got {agent}"));
+        return Err(format!("variant.cfg: `agent` must be 1 or 2, got {agent}").into());
     }
     let (c_own_default, c_neighbour_default) = if agent == 1 {
         (selector(p_own, n, 0), selector(p_neighbour, n, p_own))
@@ -214,7 +214,7 @@ pub struct Agent {
 }
 
 fn observer_error(e: spurio::estimation::EstimationError) -> Failure {
-    Failure::Error(
+    Failure::error(
         e.to_string()
             .replace("parameter `distance`", "parameter `D` (distance)"),
     )
@@ -223,7 +223,7 @@ fn observer_error(e: spurio::estimation::EstimationError) -> Failure {
 impl Estimator for Agent {
     type Layout = ObserverLayout;
 
-    fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), String> {
+    fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), Cause> {
         interface(config)
     }
 

@@ -7,7 +7,9 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::gantry_crane::{GantryCrane, GantryCraneParameters};
-use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
@@ -103,7 +105,7 @@ impl GantryCraneFmu {
 }
 
 impl FmuModel for GantryCraneFmu {
-    fn describe(_config: &Config) -> Result<ModelInfo, String> {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "GantryCrane",
             "Nonlinear gantry crane (cart + pendulum load) of paper 000, Annex A parameters, RK4 inside fmi2DoStep",
@@ -117,7 +119,7 @@ impl FmuModel for GantryCraneFmu {
         ))
     }
 
-    fn create(_info: &ModelInfo) -> Result<Self, String> {
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self {
             crane: GantryCrane {
                 parameters: GantryCraneParameters::default(),
@@ -142,8 +144,8 @@ impl FmuModel for GantryCraneFmu {
             rail_limit: r(vr::X_LIMIT),
         };
         let state = [r(vr::X0), r(vr::THETA0), r(vr::V0), r(vr::OMEGA0)].into();
-        self.crane = GantryCrane::new(parameters, state).map_err(|e| e.to_string())?;
-        self.h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(|e| e.to_string())?;
+        self.crane = GantryCrane::new(parameters, state).map_err(Failure::error)?;
+        self.h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(Failure::error)?;
         self.stop_logged = false;
         let applied = parameters.saturate(r(vr::U));
         self.write_outputs(ctx, applied);

@@ -27,7 +27,8 @@
 use nalgebra::{DMatrix, DVector};
 use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    VariableTable,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -44,27 +45,29 @@ pub struct Dimensions {
     pub paper004: bool,
 }
 
-fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, String> {
+fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, Cause> {
     match config.get(key) {
         None => Ok(default),
         Some(v) => match v.parse::<usize>() {
             Ok(k) if (min..=MAX_DIMENSION).contains(&k) => Ok(k),
             _ => Err(format!(
                 "variant.cfg: `{key}` must be an integer from {min} to {MAX_DIMENSION}, got `{v}`"
-            )),
+            )
+            .into()),
         },
     }
 }
 
 /// The dimensions a configuration asks for.
-pub fn dimensions(config: &Config) -> Result<Dimensions, String> {
+pub fn dimensions(config: &Config) -> Result<Dimensions, Cause> {
     let paper004 = match config.get("preset") {
         None | Some("") | Some("none") => false,
         Some("paper004") => true,
         Some(other) => {
             return Err(format!(
                 "variant.cfg: `preset` must be `paper004` or absent, got `{other}`"
-            ))
+            )
+            .into())
         }
     };
     let (dn, dm, dp) = if paper004 { (3, 0, 2) } else { (2, 1, 1) };
@@ -78,7 +81,7 @@ pub fn dimensions(config: &Config) -> Result<Dimensions, String> {
         return Err(format!(
             "variant.cfg: `preset = paper004` is the system with n = 3, m = 0, p = 2, got n = {}, m = {}, p = {}",
             d.n, d.m, d.p
-        ));
+        ).into());
     }
     Ok(d)
 }
@@ -212,7 +215,7 @@ pub struct LinearSystemFmu {
 }
 
 fn error(e: spurio::ParameterError) -> Failure {
-    Failure::Error(e.to_string())
+    Failure::error(e.to_string())
 }
 
 impl LinearSystemFmu {
@@ -224,7 +227,7 @@ impl LinearSystemFmu {
         let system = self
             .system
             .as_ref()
-            .ok_or_else(|| Failure::Error("LinearSystem: not initialised".into()))?;
+            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
         let u = self.input(ctx);
         let clean = system.clean_output(&u).map_err(error)?;
         let measured = &clean + system.measurement_noise();
@@ -239,7 +242,7 @@ impl LinearSystemFmu {
         let v = &*ctx.values;
         let seed = v.integer(l.seed);
         if seed < 0 {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `seed`: must be >= 0, got {seed}"
             )));
         }
@@ -262,7 +265,7 @@ impl LinearSystemFmu {
 }
 
 impl FmuModel for LinearSystemFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, String> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         let d = dimensions(config)?;
         let (variables, _) = table(&d);
         let description = if d.paper004 {
@@ -283,7 +286,7 @@ impl FmuModel for LinearSystemFmu {
         ))
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, String> {
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
         let d = dimensions(&info.config)?;
         let (_, layout) = table(&d);
         Ok(Self {
@@ -303,11 +306,11 @@ impl FmuModel for LinearSystemFmu {
         let system = self
             .system
             .as_mut()
-            .ok_or_else(|| Failure::Error("LinearSystem: not initialised".into()))?;
+            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
         let mut next = system.clone();
         next.advance(&u, step).map_err(error)?;
         if next.state().iter().any(|v| !v.is_finite()) {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
             )));
         }
@@ -355,12 +358,12 @@ mod tests {
         let d = dimensions(&c).unwrap();
         assert_eq!((d.n, d.m, d.p), (3, 0, 2));
         c.set("n", 4);
-        assert!(dimensions(&c).unwrap_err().contains("paper004"));
+        assert!(dimensions(&c).unwrap_err().to_string().contains("paper004"));
         let mut c = Config::new();
         c.set("m", 0);
         assert_eq!(dimensions(&c).unwrap().m, 0);
         c.set("n", 0);
-        assert!(dimensions(&c).unwrap_err().contains("`n`"));
+        assert!(dimensions(&c).unwrap_err().to_string().contains("`n`"));
     }
 
     #[test]

@@ -19,7 +19,9 @@
 #![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
-use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
 
 /// `h_max · |λ|max` above which RK4 is refused (its real-axis stability limit is 2.785).
 pub const RK4_STABILITY_MARGIN: f64 = 2.5;
@@ -108,7 +110,7 @@ impl OpAmpFilterFmu {
 }
 
 impl FmuModel for OpAmpFilterFmu {
-    fn describe(_config: &Config) -> Result<ModelInfo, String> {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "OpAmpFilter",
             "Sallen-Key op-amp low-pass of paper 002, H(s) = 27/(s^2 + 5.19 s + 27) by default, output saturated at the rails",
@@ -122,7 +124,7 @@ impl FmuModel for OpAmpFilterFmu {
         ))
     }
 
-    fn create(_info: &ModelInfo) -> Result<Self, String> {
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self {
             filter: OpAmpFilter {
                 parameters: OpAmpFilterParameters::default(),
@@ -143,12 +145,12 @@ impl FmuModel for OpAmpFilterFmu {
             v_sat_low: r(vr::V_SAT_LOW),
         };
         let state = [r(vr::V_C1_0), r(vr::V_C2_0)].into();
-        let filter = OpAmpFilter::with_state(parameters, state).map_err(|e| e.to_string())?;
-        let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(|e| e.to_string())?;
+        let filter = OpAmpFilter::with_state(parameters, state).map_err(Failure::error)?;
+        let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
         let product = h_max * fastest;
         if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `h_max`: {h_max} s would make RK4 unstable on the circuit's fastest mode ({fastest:.4} 1/s); use at most {:.3e} s",
                 RK4_STABILITY_MARGIN / fastest
             )));
@@ -164,7 +166,7 @@ impl FmuModel for OpAmpFilterFmu {
         let mut next = self.filter.clone();
         next.advance(time, u, step, self.h_max);
         if next.state.iter().any(|v| !v.is_finite()) {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "the capacitor voltages became non-finite in the step from t = {time} (input u = {u})"
             )));
         }

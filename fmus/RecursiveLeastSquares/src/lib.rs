@@ -24,7 +24,7 @@
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{count, error, DynamicState, Estimator};
 use spurio_fmu_common::structured::{add_vector, Block};
@@ -60,7 +60,7 @@ pub struct Rls {
     readout_logged: bool,
 }
 
-fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), String> {
+fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
     let na = count(config, "na", 2, 0)?;
     let nb = count(config, "nb", 2, 0)?;
     if na + nb == 0 {
@@ -182,7 +182,7 @@ fn write_readout(l: &RlsLayout, values: &mut Values, figures: [f64; 5]) {
 impl Estimator for Rls {
     type Layout = RlsLayout;
 
-    fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), String> {
+    fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
         interface(config)
     }
 
@@ -192,7 +192,7 @@ impl Estimator for Rls {
         let rls = if values.boolean(l.prefilter) {
             let refresh = values.integer(l.refresh);
             if refresh < 0 {
-                return Err(Failure::Error(format!(
+                return Err(Failure::error(format!(
                     "parameter `refresh`: must be >= 0 samples (0 = fixed prefilter), got {refresh}"
                 )));
             }
@@ -208,14 +208,14 @@ impl Estimator for Rls {
             RecursiveLeastSquares::new(l.na, l.nb, lambda, p0)
         }
         .map_err(|e| {
-            Failure::Error(
+            Failure::error(
                 e.to_string()
                     .replace("parameter `P0`", "parameter `p0_scale`"),
             )
         })?;
         let ts = values.real(l.ts);
         if !(ts.is_finite() && ts >= 0.0) {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `Ts`: the sampling period must be finite and >= 0 (0 = the communication step), got {ts}"
             )));
         }
@@ -243,7 +243,7 @@ impl Estimator for Rls {
         let y = ctx.values.real(l.y);
         for (name, v) in [("u", u), ("y", y)] {
             if !v.is_finite() {
-                return Err(Failure::Error(format!(
+                return Err(Failure::error(format!(
                     "input `{name}` = {v} is not finite: the estimator cannot use it (the step was not taken)"
                 )));
             }

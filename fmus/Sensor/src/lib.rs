@@ -33,7 +33,8 @@ use spurio::signals::sensor::{
     NoiseLevel, OutlierParameters, Quantiser, Sensor, SensorParameters, SensorReading,
 };
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    VariableTable,
 };
 use spurio_fmu_common::param_failure;
 use spurio_fmu_common::structured::{add_vector, Block};
@@ -68,12 +69,10 @@ pub struct Layout {
 }
 
 /// Number of channels of a configuration (`channels`, default 1).
-pub fn channels(config: &Config) -> Result<usize, String> {
+pub fn channels(config: &Config) -> Result<usize, Cause> {
     let n = config.dimension("channels", 1)?;
     if n > MAX_CHANNELS {
-        return Err(format!(
-            "`channels` must be at most {MAX_CHANNELS}, got {n}"
-        ));
+        return Err(format!("`channels` must be at most {MAX_CHANNELS}, got {n}").into());
     }
     Ok(n)
 }
@@ -235,7 +234,7 @@ impl SensorFmu {
         let quantiser = match bits {
             0 => None,
             b if b < 0 => {
-                return Err(Failure::Error(format!(
+                return Err(Failure::error(format!(
                     "parameter `adc_bits[{}]`: must be 0 (off) or 1 to 32, got {b}",
                     i + 1
                 )))
@@ -248,7 +247,7 @@ impl SensorFmu {
         };
         let seed = v.integer(l.seed);
         if seed < 0 {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `seed`: must be >= 0, got {seed}"
             )));
         }
@@ -294,7 +293,7 @@ fn channel_name(parameter: &str, i: usize) -> String {
 }
 
 impl FmuModel for SensorFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, String> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         let n = channels(config)?;
         let (variables, _) = table(n);
         Ok(ModelInfo::new(
@@ -310,7 +309,7 @@ impl FmuModel for SensorFmu {
         ))
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, String> {
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
         let n = channels(&info.config)?;
         let (_, layout) = table(n);
         Ok(Self {
@@ -324,7 +323,7 @@ impl FmuModel for SensorFmu {
         for i in 0..self.layout.channels {
             let parameters = self.channel_parameters(ctx, i)?;
             let sensor = Sensor::new(parameters).map_err(|e| {
-                Failure::Error(format!(
+                Failure::error(format!(
                     "parameter `{}`: {}",
                     channel_name(&e.parameter, i),
                     e.reason

@@ -24,7 +24,9 @@
 
 use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
 use spurio::ParameterError;
-use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
 
 /// `waveform` codes.
 pub mod waveform {
@@ -87,7 +89,7 @@ fn named(e: ParameterError) -> Failure {
         "order" => "prbs_order",
         other => other,
     };
-    Failure::Error(format!("parameter `{parameter}`: {}", e.reason))
+    Failure::error(format!("parameter `{parameter}`: {}", e.reason))
 }
 
 /// The waveform the parameters describe.
@@ -97,7 +99,7 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
     let offset = v.real(vr::OFFSET);
     let seed = v.integer(vr::SEED);
     if seed < 0 {
-        return Err(Failure::Error(format!(
+        return Err(Failure::error(format!(
             "parameter `seed`: must be >= 0, got {seed}"
         )));
     }
@@ -135,7 +137,7 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
         waveform::PRBS => {
             let order = v.integer(vr::PRBS_ORDER);
             if !(2..=24).contains(&order) {
-                return Err(Failure::Error(format!(
+                return Err(Failure::error(format!(
                     "parameter `prbs_order`: must be between 2 and 24, got {order}"
                 )));
             }
@@ -149,7 +151,7 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
         waveform::SINE => periodic(false)?,
         waveform::COSINE => periodic(true)?,
         other => {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `waveform`: must be 1 (step), 2 (random steps), 3 (PRBS), 4 (sine) or 5 (cosine), got {other}"
             )))
         }
@@ -158,7 +160,7 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
 }
 
 impl FmuModel for SignalSourceFmu {
-    fn describe(_config: &Config) -> Result<ModelInfo, String> {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "SignalSource",
             "Excitation signals: step, random steps, PRBS, sine, cosine (seeded)",
@@ -172,7 +174,7 @@ impl FmuModel for SignalSourceFmu {
         ))
     }
 
-    fn create(_info: &ModelInfo) -> Result<Self, String> {
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self { source: None })
     }
 
@@ -189,7 +191,7 @@ impl FmuModel for SignalSourceFmu {
         let source = self
             .source
             .as_mut()
-            .ok_or_else(|| Failure::Error("SignalSource: not initialised".into()))?;
+            .ok_or_else(|| Failure::error("SignalSource: not initialised"))?;
         ctx.values.set_real(vr::Y, source.value_at(time + step));
         Ok(())
     }

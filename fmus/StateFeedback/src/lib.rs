@@ -27,7 +27,8 @@ use spurio::control::{
     ackermann_with_options, InputLimits, PolePlacementOptions, StateFeedback, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    VariableTable,
 };
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -62,7 +63,7 @@ pub struct Layout {
 }
 
 /// The variable table of a variant and where each variable is.
-pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), String> {
+pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let defaults = variant_defaults(config)?;
     let n = defaults.states();
     let preset = defaults.preset;
@@ -154,7 +155,7 @@ impl StateFeedbackFmu {
 }
 
 impl FmuModel for StateFeedbackFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, String> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         let (_, variables) = build(config)?;
         Ok(ModelInfo::new(
             "StateFeedback",
@@ -169,7 +170,7 @@ impl FmuModel for StateFeedbackFmu {
         ))
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, String> {
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self {
             layout: layout_for(info, build)?,
             controller: None,
@@ -180,7 +181,7 @@ impl FmuModel for StateFeedbackFmu {
         let layout = self.layout;
         let values = &*ctx.values;
         let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))
-            .map_err(|e| e.to_string())?;
+            .map_err(Failure::error)?;
         let a = layout.a.matrix(values);
         let b = layout.b.matrix(values);
         let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
@@ -190,7 +191,7 @@ impl FmuModel for StateFeedbackFmu {
         };
         let gain = ackermann_with_options(&a, &b, &poles, &options)
             .map_err(|e| design_error_message(&e, &poles))?;
-        let controller = StateFeedback::from_gain(gain, limits).map_err(|e| e.to_string())?;
+        let controller = StateFeedback::from_gain(gain, limits).map_err(Failure::error)?;
         layout.gain.write(ctx.values, controller.gain());
         self.controller = Some(controller);
         self.write_output(ctx);
@@ -253,13 +254,13 @@ mod tests {
     fn configurations_are_checked() {
         let mut c = crane_config();
         c.set(CONFIG_STATES, 3);
-        assert!(build(&c).unwrap_err().contains("4 states"));
+        assert!(build(&c).unwrap_err().to_string().contains("4 states"));
         let mut c = Config::new();
         c.set(CONFIG_PRESET, "bridge");
-        assert!(build(&c).unwrap_err().contains("`preset`"));
+        assert!(build(&c).unwrap_err().to_string().contains("`preset`"));
         let mut c = Config::new();
         c.set(CONFIG_STATES, 0);
-        assert!(build(&c).unwrap_err().contains("`n`"));
+        assert!(build(&c).unwrap_err().to_string().contains("`n`"));
         let mut c = Config::new();
         c.set(CONFIG_STATES, 3);
         let d = variant_defaults(&c).unwrap();

@@ -33,7 +33,9 @@ use spurio::plants::wind_generator::{
     GeneratorState, WindGenerator, WindGeneratorParameters, RATED_DRIVE_REFERENCE,
     RATED_FIELD_REFERENCE,
 };
-use spurio_export::{Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
 use std::f64::consts::PI;
 
 /// `h_max · |λ|max` above which RK4 is refused.
@@ -230,7 +232,7 @@ impl WindGeneratorFmu {
 }
 
 impl FmuModel for WindGeneratorFmu {
-    fn describe(_config: &Config) -> Result<ModelInfo, String> {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "WindGenerator",
             "Wind-generator lab set of paper 001: drive-fed induction motor and wound-field synchronous generator on a resistive load (8 states)",
@@ -244,7 +246,7 @@ impl FmuModel for WindGeneratorFmu {
         ))
     }
 
-    fn create(_info: &ModelInfo) -> Result<Self, String> {
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self {
             generator: WindGenerator {
                 parameters: WindGeneratorParameters::default(),
@@ -265,24 +267,24 @@ impl FmuModel for WindGeneratorFmu {
                 ctx.values.real(vr::U_FIELD_0),
             );
             let g = WindGenerator::at_operating_point(parameters, u_drive, u_field)
-                .map_err(|e| e.to_string())?;
+                .map_err(Failure::error)?;
             let op = parameters.operating_point(u_drive, u_field);
             if !op.reachable {
-                return Err(Failure::Error(format!(
+                return Err(Failure::error(format!(
                     "parameters `u_drive_0`, `u_field_0`: the steady state needs a motor torque of {:.4} N.m, beyond T_max = {} N.m",
                     op.motor_torque, parameters.max_motor_torque
                 )));
             }
             g
         } else {
-            WindGenerator::new(parameters).map_err(|e| e.to_string())?
+            WindGenerator::new(parameters).map_err(Failure::error)?
         };
         let h_max = spurio::require_positive("h_max", ctx.values.real(vr::H_MAX))
-            .map_err(|e| e.to_string())?;
+            .map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
         let product = h_max * fastest;
         if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "parameter `h_max`: {h_max} s would make RK4 unstable on the machine's fastest mode (about {fastest:.1} 1/s); use at most {:.3e} s",
                 RK4_STABILITY_MARGIN / fastest
             )));
@@ -298,7 +300,7 @@ impl FmuModel for WindGeneratorFmu {
         let mut next = self.generator.clone();
         next.advance(time, u_drive, u_field, step, self.h_max);
         if next.state.iter().any(|v| !v.is_finite()) {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "the state became non-finite in the step from t = {time}"
             )));
         }

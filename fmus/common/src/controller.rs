@@ -10,7 +10,7 @@ use spurio::control::{
     CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    Causality, Config, Initial, ModelInfo, Values, Variability, Variable, VariableTable,
+    Causality, Cause, Config, Initial, ModelInfo, Values, Variability, Variable, VariableTable,
 };
 
 /// Configuration key: number of states n.
@@ -66,14 +66,15 @@ impl VariantDefaults {
 ///   0.5 (a repeated real pole is fine for a single input). Its reachability matrix has a
 ///   condition number ≈ Ts^{−(n−1)}, so for n ≳ 9 the default design is rejected as not
 ///   reachable: give your own `A`, `B` then.
-pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, String> {
+pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, Cause> {
     let preset = match config.get(CONFIG_PRESET) {
         None | Some("generic") => Preset::Generic,
         Some("crane") => Preset::Crane,
         Some(other) => {
             return Err(format!(
                 "configuration `{CONFIG_PRESET}` must be `crane` or `generic`, got `{other}`"
-            ))
+            )
+            .into())
         }
     };
     let n = config.dimension(CONFIG_STATES, 4)?;
@@ -82,7 +83,7 @@ pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, String> {
             if n != 4 {
                 return Err(format!(
                     "configuration `{CONFIG_PRESET} = crane` has 4 states, but `{CONFIG_STATES} = {n}`"
-                ));
+                ).into());
             }
             let design = crane_reference_design().map_err(|e| format!("crane design: {e}"))?;
             Ok(VariantDefaults {
@@ -241,8 +242,8 @@ pub fn design_error_message(error: &PolePlacementError, poles: &[Complex<f64>]) 
 
 /// Checks the desired poles alone (self-conjugate, finite, inside the unit circle when
 /// `require_stable`), naming the offending `pole_re[i]`, `pole_im[i]`.
-pub fn check_pole_parameters(poles: &[Complex<f64>], require_stable: bool) -> Result<(), String> {
-    check_poles(poles, require_stable).map_err(|e| design_error_message(&e, poles))
+pub fn check_pole_parameters(poles: &[Complex<f64>], require_stable: bool) -> Result<(), Cause> {
+    check_poles(poles, require_stable).map_err(|e| design_error_message(&e, poles).into())
 }
 
 /// `[l₁, l₂, …]` with every digit (for log messages).
@@ -254,8 +255,8 @@ pub fn format_gain(gain: &DMatrix<f64>) -> String {
 /// Rebuilds the layout of an instance's model description (and checks it fits).
 pub fn layout_for<L>(
     info: &ModelInfo,
-    build: impl Fn(&Config) -> Result<(L, Vec<Variable>), String>,
-) -> Result<L, String> {
+    build: impl Fn(&Config) -> Result<(L, Vec<Variable>), Cause>,
+) -> Result<L, Cause> {
     let (layout, variables) = build(&info.config)?;
     if variables.len() != info.variables.len() {
         return Err(format!(
@@ -263,7 +264,8 @@ pub fn layout_for<L>(
             info.model_identifier,
             info.variables.len(),
             variables.len()
-        ));
+        )
+        .into());
     }
     Ok(layout)
 }

@@ -31,7 +31,7 @@ use spurio::estimation::{
     DkfRsKf, DualKalmanConfig, DualKalmanFilter, RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
 
 /// Value references of the cleaner's parameters (DkfRsKf).
@@ -65,7 +65,7 @@ pub struct DualLayout {
     pub cleaner: Option<CleanerBlocks>,
 }
 
-fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), String> {
+fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), Cause> {
     let dims = Dimensions::from_config(config, 4, 1, 2)?;
     let Dimensions { n, m, p } = dims;
     let mut t = VariableTable::new();
@@ -205,7 +205,7 @@ fn scalar(values: &Values, index: usize, name: &str, positive: bool) -> Result<f
     if ok {
         Ok(v)
     } else {
-        Err(Failure::Error(format!(
+        Err(Failure::error(format!(
             "parameter `{name}`: a variance must be finite and {}, got {v}",
             if positive { "> 0" } else { ">= 0" }
         )))
@@ -221,7 +221,7 @@ fn dual_error(e: spurio::estimation::EstimationError) -> Failure {
             &format!("parameter `{name}` (initial {name})"),
         );
     }
-    Failure::Error(text)
+    Failure::error(text)
 }
 
 fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, Failure> {
@@ -286,7 +286,7 @@ impl DualFilter for DkfRsKf {
     fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
         let c = layout
             .cleaner
-            .ok_or_else(|| Failure::Error("DkfRsKf: the layout has no cleaner".into()))?;
+            .ok_or_else(|| Failure::error("DkfRsKf: the layout has no cleaner"))?;
         let q = scalar(values, c.q_clean, "q_clean", false)?;
         let r = scalar(values, c.r_clean, "r_clean", true)?;
         let p0 = scalar(values, c.p0_clean, "p0_clean", false)?;
@@ -340,7 +340,7 @@ impl<F: DualFilter> Estimator for Dual<F> {
     type Layout = DualLayout;
     type Filter = F;
 
-    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), String> {
+    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), Cause> {
         interface(config, F::CLEANED)
     }
 

@@ -33,7 +33,7 @@ use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::EstimationError;
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, Failure, FmuModel, ModelInfo, Value, Values,
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Values,
 };
 
 /// The largest dimension a variant may ask for (keeps the variable table and the matrices
@@ -41,7 +41,7 @@ use spurio_export::{
 pub const MAX_DIMENSION: usize = 200;
 
 /// Reads configuration key `key` as a count in `min..=MAX_DIMENSION` (`default` when absent).
-pub fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, String> {
+pub fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, Cause> {
     let value = match config.get(key) {
         None => default,
         Some(text) => text
@@ -52,7 +52,8 @@ pub fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<u
     if value < min || value > MAX_DIMENSION {
         return Err(format!(
             "variant.cfg: `{key}` must lie in {min}..={MAX_DIMENSION}, got {value}"
-        ));
+        )
+        .into());
     }
     Ok(value)
 }
@@ -62,7 +63,7 @@ pub trait Estimator: Clone + std::fmt::Debug + 'static {
     /// Value references of the variables of one variant.
     type Layout: Clone + std::fmt::Debug + 'static;
     /// The variable layout and model description for a configuration.
-    fn interface(config: &Config) -> Result<(Self::Layout, ModelInfo), String>;
+    fn interface(config: &Config) -> Result<(Self::Layout, ModelInfo), Cause>;
     /// Reads and checks the parameters, builds the estimator.
     fn build(layout: &Self::Layout, values: &Values) -> Result<Self, Failure>;
     /// Writes the outputs (and calculated parameters) before the first step.
@@ -94,11 +95,11 @@ pub struct EstimatorFmu<E: Estimator> {
 }
 
 impl<E: Estimator> FmuModel for EstimatorFmu<E> {
-    fn describe(config: &Config) -> Result<ModelInfo, String> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         E::interface(config).map(|(_, info)| info)
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, String> {
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
         let (layout, _) = E::interface(&info.config)?;
         Ok(Self {
             layout,
@@ -144,13 +145,14 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         }
     }
 
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
         let count = input.u64()?;
         if count != self.parameters.all().len() as u64 {
             return Err(format!(
                 "estimator state: {count} saved values, the FMU has {}",
                 self.parameters.all().len()
-            ));
+            )
+            .into());
         }
         let mut parameters = self.parameters.clone();
         for index in 0..parameters.all().len() {
@@ -167,10 +169,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {
                 Failure::Error(m) | Failure::Discard(m) => m,
             })?;
-            estimator
-                .filter_mut()
-                .set_dynamic_state(&state)
-                .map_err(|e| e.to_string())?;
+            estimator.filter_mut().set_dynamic_state(&state)?;
             Some(estimator)
         } else {
             None
@@ -221,7 +220,7 @@ pub fn read_inputs(
     for (k, index) in block.indices().enumerate() {
         let v = values.real(index);
         if !v.is_finite() {
-            return Err(Failure::Error(format!(
+            return Err(Failure::error(format!(
                 "input `{name}[{}]` = {v} is not finite: the estimator cannot use it (the step was not taken)",
                 k + 1
             )));
@@ -262,7 +261,7 @@ pub fn choice(
             .iter()
             .map(|(k, what)| format!("{k} = {what}"))
             .collect();
-        Err(Failure::Error(format!(
+        Err(Failure::error(format!(
             "parameter `{name}`: must be one of {}, got {v}",
             list.join(", ")
         )))
@@ -271,7 +270,7 @@ pub fn choice(
 
 /// Turns an estimation error into `fmi2Error` with its message.
 pub fn error(e: spurio::estimation::EstimationError) -> Failure {
-    Failure::Error(e.to_string())
+    Failure::error(e.to_string())
 }
 
 /// Identity-like default for C (p×n): C[j, j] = 1 for j < min(n, p).

@@ -24,7 +24,7 @@ use spurio::estimation::{
     EstimationError, InfluenceFunction, KalmanFilter, RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
-    Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
 
 /// Dimensions of a linear-Gaussian estimator variant.
@@ -40,7 +40,7 @@ pub struct Dimensions {
 
 impl Dimensions {
     /// Reads `n`, `m`, `p` from the configuration (defaults as given).
-    pub fn from_config(config: &Config, n: usize, m: usize, p: usize) -> Result<Self, String> {
+    pub fn from_config(config: &Config, n: usize, m: usize, p: usize) -> Result<Self, Cause> {
         Ok(Self {
             n: count(config, "n", n, 1)?,
             m: count(config, "m", m, 0)?,
@@ -211,7 +211,7 @@ pub fn read_influence(
         crate::estimator::choice(values, psi, "psi", &[(1, "Huber"), (2, "Tukey bisquare")])?;
     let c = values.real(c);
     if !(c.is_finite() && c > 0.0) {
-        return Err(Failure::Error(format!(
+        return Err(Failure::error(format!(
             "parameter `c`: the tuning constant of ψ must be finite and > 0, got {c}"
         )));
     }
@@ -222,7 +222,7 @@ pub fn read_influence(
     })
 }
 
-fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo), String> {
+fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo), Cause> {
     let dims = Dimensions::from_config(config, 1, 0, 1)?;
     let mut t = VariableTable::new();
     let (u, y) = add_inputs(
@@ -349,7 +349,7 @@ impl<F: LinearFilter> Estimator for Linear<F> {
     type Layout = LinearLayout;
     type Filter = F;
 
-    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), String> {
+    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
         interface(config, F::ROBUST)
     }
 
@@ -464,6 +464,6 @@ mod tests {
             cols: 1,
         };
         let error = crate::estimator::read_inputs(&values, &block, "y", &mut DVector::zeros(1));
-        assert!(matches!(error, Err(Failure::Error(m)) if m.contains("`y[1]`")));
+        assert!(matches!(error, Err(Failure::Error(m)) if m.to_string().contains("`y[1]`")));
     }
 }

@@ -19,7 +19,7 @@ use spurio_export::{Config, Failure};
 
 /// A parameter error of the `spurio` models as an `fmi2Error` naming the parameter.
 pub fn param_failure(e: &spurio::ParameterError) -> Failure {
-    Failure::Error(e.to_string())
+    Failure::error(e.to_string())
 }
 
 /// The bundled variant of the controllers: the crane (n = 4, `preset = crane`).
@@ -34,7 +34,7 @@ pub fn crane_controller_config() -> Config {
 #[doc(hidden)]
 pub mod reexport {
     pub use spurio::state::PlainState;
-    pub use spurio_export::{ByteReader, ByteWriter};
+    pub use spurio_export::{ByteReader, ByteWriter, Cause};
 }
 
 /// Implements `FmuModel::save_state` and `load_state`, inside `impl FmuModel for …`, as the
@@ -53,7 +53,7 @@ macro_rules! fmu_state {
         fn load_state(
             &mut self,
             input: &mut $crate::reexport::ByteReader,
-        ) -> ::std::result::Result<(), ::std::string::String> {
+        ) -> ::std::result::Result<(), $crate::reexport::Cause> {
             let bytes = input.byte_vec()?;
             let mut rest = bytes.as_slice();
             $(let $field = $crate::reexport::PlainState::read(&mut rest)

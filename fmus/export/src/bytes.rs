@@ -53,6 +53,38 @@ impl ByteWriter {
     }
 }
 
+/// Why serialized FMU-state bytes could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StateFormatError {
+    /// The bytes ended before the value.
+    Truncated { needed: usize, left: usize },
+    /// A boolean byte other than 0 or 1.
+    InvalidBoolean(u8),
+    /// A string that is not UTF-8.
+    NotUtf8,
+    /// A length prefix longer than the bytes left.
+    LengthTooLong { length: u64, left: usize },
+}
+
+impl std::fmt::Display for StateFormatError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Truncated { needed, left } => write!(
+                f,
+                "serialized FMU state is truncated: needed {needed} more bytes, {left} left"
+            ),
+            Self::InvalidBoolean(b) => write!(f, "serialized FMU state: invalid boolean byte {b}"),
+            Self::NotUtf8 => write!(f, "serialized FMU state: a string is not UTF-8"),
+            Self::LengthTooLong { length, left } => write!(
+                f,
+                "serialized FMU state: length {length} exceeds the {left} bytes left"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for StateFormatError {}
+
 /// Reads values written by [`ByteWriter`], failing cleanly on truncated or foreign input.
 #[derive(Debug)]
 pub struct ByteReader<'a> {
@@ -64,65 +96,64 @@ impl<'a> ByteReader<'a> {
     pub fn new(bytes: &'a [u8]) -> Self {
         Self { bytes }
     }
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], StateFormatError> {
         if self.bytes.len() < n {
-            return Err(format!(
-                "serialized FMU state is truncated: needed {n} more bytes, {} left",
-                self.bytes.len()
-            ));
+            return Err(StateFormatError::Truncated {
+                needed: n,
+                left: self.bytes.len(),
+            });
         }
         let (head, tail) = self.bytes.split_at(n);
         self.bytes = tail;
         Ok(head)
     }
     /// Reads a `u64`.
-    pub fn u64(&mut self) -> Result<u64, String> {
+    pub fn u64(&mut self) -> Result<u64, StateFormatError> {
         let mut b = [0u8; 8];
         b.copy_from_slice(self.take(8)?);
         Ok(u64::from_le_bytes(b))
     }
     /// Reads an `f64`.
-    pub fn f64(&mut self) -> Result<f64, String> {
+    pub fn f64(&mut self) -> Result<f64, StateFormatError> {
         Ok(f64::from_bits(self.u64()?))
     }
     /// Reads an `i32`.
-    pub fn i32(&mut self) -> Result<i32, String> {
+    pub fn i32(&mut self) -> Result<i32, StateFormatError> {
         let mut b = [0u8; 4];
         b.copy_from_slice(self.take(4)?);
         Ok(i32::from_le_bytes(b))
     }
     /// Reads a `bool`.
-    pub fn bool(&mut self) -> Result<bool, String> {
+    pub fn bool(&mut self) -> Result<bool, StateFormatError> {
         match self.take(1)?[0] {
             0 => Ok(false),
             1 => Ok(true),
-            b => Err(format!("serialized FMU state: invalid boolean byte {b}")),
+            b => Err(StateFormatError::InvalidBoolean(b)),
         }
     }
     /// Reads a string.
-    pub fn string(&mut self) -> Result<String, String> {
+    pub fn string(&mut self) -> Result<String, StateFormatError> {
         let n = self.len_prefix()?;
         let raw = self.take(n)?;
-        String::from_utf8(raw.to_vec())
-            .map_err(|_| "serialized FMU state: a string is not UTF-8".to_string())
+        String::from_utf8(raw.to_vec()).map_err(|_| StateFormatError::NotUtf8)
     }
     /// Reads a byte string written by [`ByteWriter::put_bytes`].
-    pub fn byte_vec(&mut self) -> Result<Vec<u8>, String> {
+    pub fn byte_vec(&mut self) -> Result<Vec<u8>, StateFormatError> {
         let n = self.len_prefix()?;
         Ok(self.take(n)?.to_vec())
     }
     /// Reads a slice of `f64`.
-    pub fn f64_vec(&mut self) -> Result<Vec<f64>, String> {
+    pub fn f64_vec(&mut self) -> Result<Vec<f64>, StateFormatError> {
         let n = self.len_prefix()?;
         (0..n).map(|_| self.f64()).collect()
     }
-    fn len_prefix(&mut self) -> Result<usize, String> {
+    fn len_prefix(&mut self) -> Result<usize, StateFormatError> {
         let n = self.u64()?;
         if n > self.bytes.len() as u64 {
-            return Err(format!(
-                "serialized FMU state: length {n} exceeds the {} bytes left",
-                self.bytes.len()
-            ));
+            return Err(StateFormatError::LengthTooLong {
+                length: n,
+                left: self.bytes.len(),
+            });
         }
         Ok(n as usize)
     }
@@ -160,7 +191,7 @@ mod tests {
     #[test]
     fn truncated_input_is_an_error() {
         let mut r = ByteReader::new(&[1, 2, 3]);
-        assert!(r.f64().unwrap_err().contains("truncated"));
+        assert!(r.f64().unwrap_err().to_string().contains("truncated"));
         let mut w = ByteWriter::new();
         w.put_u64(1 << 40);
         let bytes = w.into_bytes();

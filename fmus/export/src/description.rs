@@ -15,6 +15,32 @@ pub struct Config {
     entries: BTreeMap<String, String>,
 }
 
+/// Why a configuration is not acceptable.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ConfigError {
+    /// A line that is not `key = value`.
+    Syntax { line: usize, text: String },
+    /// A dimension that is not a positive integer.
+    NotPositive { key: String, value: String },
+}
+
+impl std::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Syntax { line, text } => write!(
+                f,
+                "{CONFIG_FILE} line {line}: expected `key = value`, got `{text}`"
+            ),
+            Self::NotPositive { key, value } => write!(
+                f,
+                "{CONFIG_FILE}: `{key}` must be a positive integer, got `{value}`"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
 /// File name of the configuration inside the FMU's `resources/` folder.
 pub const CONFIG_FILE: &str = "variant.cfg";
 
@@ -24,18 +50,16 @@ impl Config {
         Self::default()
     }
     /// Parses `key = value` lines; `#` starts a comment.
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
         let mut entries = BTreeMap::new();
         for (n, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
                 continue;
             }
-            let (key, value) = line.split_once('=').ok_or_else(|| {
-                format!(
-                    "{CONFIG_FILE} line {}: expected `key = value`, got `{line}`",
-                    n + 1
-                )
+            let (key, value) = line.split_once('=').ok_or_else(|| ConfigError::Syntax {
+                line: n + 1,
+                text: line.to_string(),
             })?;
             entries.insert(key.trim().to_string(), value.trim().to_string());
         }
@@ -50,14 +74,15 @@ impl Config {
         self.entries.get(key).map(|s| s.as_str())
     }
     /// `key` as a positive integer, or `default` when absent.
-    pub fn dimension(&self, key: &str, default: usize) -> Result<usize, String> {
+    pub fn dimension(&self, key: &str, default: usize) -> Result<usize, ConfigError> {
         match self.get(key) {
             None => Ok(default),
             Some(v) => match v.parse::<usize>() {
                 Ok(n) if n > 0 => Ok(n),
-                _ => Err(format!(
-                    "{CONFIG_FILE}: `{key}` must be a positive integer, got `{v}`"
-                )),
+                _ => Err(ConfigError::NotPositive {
+                    key: key.to_string(),
+                    value: v.to_string(),
+                }),
             },
         }
     }
@@ -486,7 +511,11 @@ mod tests {
         assert_eq!(Config::parse(&c.to_text()).unwrap(), c);
         assert!(Config::parse("n 3").is_err());
         let bad = Config::parse("n = 0").unwrap();
-        assert!(bad.dimension("n", 1).unwrap_err().contains("`n`"));
+        assert!(bad
+            .dimension("n", 1)
+            .unwrap_err()
+            .to_string()
+            .contains("`n`"));
     }
 
     #[test]

@@ -211,7 +211,7 @@ pub unsafe fn instantiate<M: FmuModel>(
             if path.exists() {
                 match std::fs::read_to_string(&path)
                     .map_err(|e| e.to_string())
-                    .and_then(|t| Config::parse(&t))
+                    .and_then(|t| Config::parse(&t).map_err(|e| e.to_string()))
                 {
                     Ok(c) => config = c,
                     Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
@@ -758,7 +758,7 @@ pub unsafe fn deserialize_fmu_state<M: FmuModel>(
                     *state = p as fmi2FMUstate;
                     Status::Ok
                 }
-                Err(e) => s.instance.reject(f, &e),
+                Err(e) => s.instance.reject(f, &e.to_string()),
             }
         })
     }
@@ -911,12 +911,12 @@ pub unsafe fn query_describe<M: FmuModel>(
     // SAFETY: `config` is NULL or a NUL-terminated string (query contract).
     let text = unsafe { string_arg(config) }.unwrap_or_default();
     let answer = catch_unwind(AssertUnwindSafe(|| crate::query::describe::<M>(&text)))
-        .unwrap_or_else(|payload| Err(panic_message(&payload)));
-    let (text, sign) = match &answer {
-        Ok(xml) => (xml.as_str(), 1),
-        Err(message) => (message.as_str(), -1),
+        .unwrap_or_else(|payload| Err(panic_message(&payload).into()));
+    let (text, sign) = match answer {
+        Ok(xml) => (xml, 1),
+        Err(cause) => (cause.to_string(), -1),
     };
     // SAFETY: forwarded from the caller.
-    let length = unsafe { write_answer(text, out, capacity) };
+    let length = unsafe { write_answer(&text, out, capacity) };
     sign * isize::try_from(length).unwrap_or(isize::MAX)
 }

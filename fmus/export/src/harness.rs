@@ -48,7 +48,7 @@ fn status(code: fmi2Status) -> Result<Status, Status> {
 
 impl<M: FmuModel> Harness<M> {
     /// Instantiates `M` for `config` with debug logging on.
-    pub fn new(config: &Config) -> Result<Self, String> {
+    pub fn new(config: &Config) -> Result<Self, crate::model::Cause> {
         let info = M::describe(config)?;
         let log = MemorySink::default();
         let logger = Logger::new("harness", Box::new(log.clone()), true);

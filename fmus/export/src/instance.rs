@@ -11,9 +11,9 @@
 //! that fails inside initialisation or a step moves the instance to the `Error` state, from
 //! which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
 
-use crate::bytes::{ByteReader, ByteWriter};
+use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
-use crate::model::{Context, Failure, FmuModel};
+use crate::model::{Cause, Context, Failure, FmuModel};
 use crate::types::Status;
 use crate::variables::{Causality, Initial, Value, Values, Variability, VariableType};
 use std::fmt;
@@ -284,7 +284,7 @@ pub struct Instance<M: FmuModel> {
 
 impl<M: FmuModel> Instance<M> {
     /// A new instance in state `Instantiated`, with the start values of `info`.
-    pub fn new(info: ModelInfo, logger: Logger) -> Result<Self, String> {
+    pub fn new(info: ModelInfo, logger: Logger) -> Result<Self, Cause> {
         let model = M::create(&info)?;
         let values = Values::from_start(&info.variables);
         Ok(Self {
@@ -464,7 +464,7 @@ impl<M: FmuModel> Instance<M> {
                 };
                 Status::Ok
             }
-            Err(e) => self.reject(&functions::RESET, &e),
+            Err(e) => self.reject(&functions::RESET, &e.to_string()),
         }
     }
 
@@ -699,30 +699,29 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2DeSerializeFMUstate`: a state from bytes written by [`Instance::serialize`] of an
     /// instance of the same FMU.
-    pub fn deserialize(&self, bytes: &[u8]) -> Result<Box<Core<M>>, String> {
+    pub fn deserialize(&self, bytes: &[u8]) -> Result<Box<Core<M>>, StateError> {
         let mut r = ByteReader::new(bytes);
         if r.string().ok().as_deref() != Some(STATE_MAGIC) {
-            return Err("the bytes are not a serialized spurio FMU state".into());
+            return Err(StateError::NotAState);
         }
         let guid = r.string()?;
         if guid != self.info.guid {
-            return Err(format!(
-                "the state was serialized by an FMU with GUID {guid}, this one is {}",
-                self.info.guid
-            ));
+            return Err(StateError::OtherFmu {
+                saved: guid,
+                this: self.info.guid.clone(),
+            });
         }
-        let state = ModelState::from_bits_index(r.u64()?)
-            .ok_or("serialized FMU state: invalid state machine state")?;
+        let state = ModelState::from_bits_index(r.u64()?).ok_or(StateError::MachineState)?;
         let time = r.f64()?;
         let has_stop = r.bool()?;
         let stop = r.f64()?;
         let inputs_changed = r.bool()?;
         let n = r.u64()?;
         if n != self.info.variables.len() as u64 {
-            return Err(format!(
-                "serialized FMU state has {n} values, the FMU has {} variables",
-                self.info.variables.len()
-            ));
+            return Err(StateError::ValueCount {
+                saved: n,
+                variables: self.info.variables.len(),
+            });
         }
         let mut values = Values::from_start(&self.info.variables);
         for (i, v) in self.info.variables.iter().enumerate() {
@@ -735,12 +734,9 @@ impl<M: FmuModel> Instance<M> {
             values.set(i, value);
         }
         let mut model = self.core.model.clone();
-        model.load_state(&mut r)?;
+        model.load_state(&mut r).map_err(StateError::Model)?;
         if r.remaining() != 0 {
-            return Err(format!(
-                "serialized FMU state has {} bytes left over",
-                r.remaining()
-            ));
+            return Err(StateError::LeftOver(r.remaining()));
         }
         Ok(Box::new(Core {
             model,
@@ -750,5 +746,52 @@ impl<M: FmuModel> Instance<M> {
             stop_time: has_stop.then_some(stop),
             inputs_changed,
         }))
+    }
+}
+
+/// Why serialized bytes are not a state of this FMU (`fmi2DeSerializeFMUstate`).
+#[derive(Debug)]
+pub enum StateError {
+    /// The bytes do not start with the spurio state header.
+    NotAState,
+    /// The state belongs to an FMU with another GUID.
+    OtherFmu { saved: String, this: String },
+    /// The saved state-machine state is unknown.
+    MachineState,
+    /// The number of saved values is not the number of variables.
+    ValueCount { saved: u64, variables: usize },
+    /// The bytes are malformed.
+    Format(StateFormatError),
+    /// The model could not read its part.
+    Model(Cause),
+    /// Bytes remain after the state.
+    LeftOver(usize),
+}
+
+impl std::fmt::Display for StateError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotAState => write!(f, "the bytes are not a serialized spurio FMU state"),
+            Self::OtherFmu { saved, this } => write!(
+                f,
+                "the state was serialized by an FMU with GUID {saved}, this one is {this}"
+            ),
+            Self::MachineState => write!(f, "serialized FMU state: invalid state machine state"),
+            Self::ValueCount { saved, variables } => write!(
+                f,
+                "serialized FMU state has {saved} values, the FMU has {variables} variables"
+            ),
+            Self::Format(e) => write!(f, "{e}"),
+            Self::Model(e) => write!(f, "{e}"),
+            Self::LeftOver(n) => write!(f, "serialized FMU state has {n} bytes left over"),
+        }
+    }
+}
+
+impl std::error::Error for StateError {}
+
+impl From<StateFormatError> for StateError {
+    fn from(e: StateFormatError) -> Self {
+        StateError::Format(e)
     }
 }

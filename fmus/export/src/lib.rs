@@ -32,7 +32,7 @@ pub mod variables;
 
 pub use bytes::{ByteReader, ByteWriter};
 pub use description::{Config, DefaultExperiment, ModelInfo};
-pub use model::{Context, Failure, FmuModel};
+pub use model::{Cause, Context, Failure, FmuModel};
 pub use variables::{
     Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
 };

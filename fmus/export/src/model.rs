@@ -9,24 +9,58 @@ use crate::description::{Config, ModelInfo};
 use crate::types::Status;
 use crate::variables::Values;
 
-/// Why a model call failed.
-#[derive(Debug, Clone, PartialEq)]
+/// What went wrong, as the typed error of whoever found it (a parameter error of the
+/// models, an estimation error, [`crate::bytes::StateFormatError`], a configuration error…);
+/// the export layer logs its `Display` text, prefixed by the FMI function.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why a model call failed: the FMI status it gives and its cause.
+#[derive(Debug)]
 pub enum Failure {
     /// The step was not carried out but the instance is intact (`fmi2Discard`).
-    Discard(String),
+    Discard(Cause),
     /// The call failed (`fmi2Error`): bad parameters, a numerical failure.
-    Error(String),
+    Error(Cause),
+}
+
+impl Failure {
+    /// An `fmi2Error` failure with this cause (an error value or a message).
+    pub fn error(cause: impl Into<Cause>) -> Self {
+        Failure::Error(cause.into())
+    }
+    /// An `fmi2Discard` failure with this cause.
+    pub fn discard(cause: impl Into<Cause>) -> Self {
+        Failure::Discard(cause.into())
+    }
+    /// The cause, whichever the status.
+    pub fn cause(&self) -> &Cause {
+        match self {
+            Failure::Discard(cause) | Failure::Error(cause) => cause,
+        }
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.cause())
+    }
 }
 
 impl From<String> for Failure {
     fn from(message: String) -> Self {
-        Failure::Error(message)
+        Failure::error(message)
     }
 }
 
 impl From<&str> for Failure {
     fn from(message: &str) -> Self {
-        Failure::Error(message.to_string())
+        Failure::error(message)
+    }
+}
+
+impl From<Cause> for Failure {
+    fn from(cause: Cause) -> Self {
+        Failure::Error(cause)
     }
 }
 
@@ -100,10 +134,10 @@ impl<'a> Context<'a> {
 pub trait FmuModel: Clone + 'static {
     /// The interface for `config` (empty for FMUs of fixed dimensions). Called when packaging
     /// and in `fmi2Instantiate`, with the configuration read from the FMU's resources.
-    fn describe(config: &Config) -> Result<ModelInfo, String>;
+    fn describe(config: &Config) -> Result<ModelInfo, Cause>;
 
     /// A new model for an instance of `info`.
-    fn create(info: &ModelInfo) -> Result<Self, String>;
+    fn create(info: &ModelInfo) -> Result<Self, Cause>;
 
     /// Reads and checks the parameters, sets the initial state and computes the initial
     /// outputs. Called in initialization mode (possibly more than once: when outputs are read
@@ -133,5 +167,5 @@ pub trait FmuModel: Clone + 'static {
     fn save_state(&self, out: &mut ByteWriter);
 
     /// Restores what [`FmuModel::save_state`] wrote.
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String>;
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause>;
 }

@@ -13,7 +13,7 @@
 //! Both copy at most `capacity` bytes of the UTF-8 answer into `out` (no NUL) and return the
 //! answer's full length, so a caller asks again with a larger buffer when it was too small.
 
-use crate::description::Config;
+use crate::description::{Config, ConfigError};
 use crate::model::FmuModel;
 
 /// `extern "C" fn(out: *mut u8, capacity: usize) -> usize`.
@@ -42,8 +42,28 @@ pub fn variants_text(variants: &[Variant]) -> String {
         .collect()
 }
 
+/// Why a variant list could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum VariantListError {
+    /// A configuration line before any `[stem]` header.
+    BeforeStem(String),
+    /// A variant's configuration is malformed.
+    Config(ConfigError),
+}
+
+impl std::fmt::Display for VariantListError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::BeforeStem(line) => write!(f, "variant list: `{line}` comes before any `[stem]`"),
+            Self::Config(e) => write!(f, "variant list: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for VariantListError {}
+
 /// Reads what [`variants_text`] wrote.
-pub fn parse_variants(text: &str) -> Result<Vec<Variant>, String> {
+pub fn parse_variants(text: &str) -> Result<Vec<Variant>, VariantListError> {
     let mut variants: Vec<(String, String)> = Vec::new();
     for line in text.lines() {
         if let Some(stem) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
@@ -52,17 +72,21 @@ pub fn parse_variants(text: &str) -> Result<Vec<Variant>, String> {
             body.push_str(line);
             body.push('\n');
         } else if !line.trim().is_empty() {
-            return Err(format!("variant list: `{line}` comes before any `[stem]`"));
+            return Err(VariantListError::BeforeStem(line.to_string()));
         }
     }
     variants
         .into_iter()
-        .map(|(stem, body)| Ok((stem, Config::parse(&body)?)))
+        .map(|(stem, body)| {
+            Config::parse(&body)
+                .map(|config| (stem, config))
+                .map_err(VariantListError::Config)
+        })
         .collect()
 }
 
 /// The model description of `M` for a configuration text.
-pub fn describe<M: FmuModel>(config_text: &str) -> Result<String, String> {
+pub fn describe<M: FmuModel>(config_text: &str) -> Result<String, crate::model::Cause> {
     let config = Config::parse(config_text)?;
     Ok(M::describe(&config)?.to_xml())
 }

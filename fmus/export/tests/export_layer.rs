@@ -4,7 +4,7 @@
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
 use spurio_export::{
-    ByteReader, ByteWriter, Config, Context, Failure, FmuModel, ModelInfo, Variable,
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
 };
 
 /// y = integral of u (Euler per step); z = 2 u (direct feedthrough); panics when u = 13.
@@ -19,7 +19,7 @@ const Z: usize = 2;
 const Y0: usize = 3;
 
 impl FmuModel for Integrator {
-    fn describe(_config: &Config) -> Result<ModelInfo, String> {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "Integrator",
             "test model",
@@ -33,7 +33,7 @@ impl FmuModel for Integrator {
             Config::new(),
         ))
     }
-    fn create(_info: &ModelInfo) -> Result<Self, String> {
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self::default())
     }
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
@@ -47,7 +47,7 @@ impl FmuModel for Integrator {
             panic!("unlucky input");
         }
         if u < -100.0 {
-            return Err(Failure::Error("u below -100 is not integrable".into()));
+            return Err(Failure::error("u below -100 is not integrable"));
         }
         self.state += step * u;
         ctx.values.set_real(Y, self.state);
@@ -61,7 +61,7 @@ impl FmuModel for Integrator {
     fn save_state(&self, out: &mut ByteWriter) {
         out.put_f64(self.state);
     }
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), String> {
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
         self.state = input.f64()?;
         Ok(())
     }
