@@ -13,7 +13,7 @@
 //! beside it) and, for variants of dimension-generic FMUs, `resources/variant.cfg`, which
 //! the binary reads in `fmi2Instantiate`.
 
-use crate::library_query::FmuLibrary;
+use crate::library_query::{FmuLibrary, QueryError};
 use anyhow::{anyhow, bail, Context, Result};
 use spurio_export::description::CONFIG_FILE;
 use spurio_export::Config;
@@ -174,11 +174,10 @@ impl BuiltFmu {
 
     /// The model description of a configuration.
     pub fn describe(&self, config: &Config) -> Result<String> {
-        self.library.describe(config).map_err(|e| {
-            anyhow!(
-                "{}: invalid configuration: {e}",
-                self.source.model_identifier
-            )
+        let id = &self.source.model_identifier;
+        self.library.describe(config).map_err(|e| match e {
+            QueryError::Answer { message, .. } => anyhow!("{id}: invalid configuration: {message}"),
+            other => anyhow!(other),
         })
     }
 }
@@ -373,6 +372,27 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("/nonexistent/Sensor.dll"), "{err}");
+    }
+
+    /// Needs the built libraries (`scripts/build-fmus`), like the experiments' tests.
+    #[test]
+    fn a_built_library_answers_its_variants_and_descriptions() {
+        let lib_dir = repo().join("target/release");
+        let sensor = select(&repo(), &["Sensor".into()]).unwrap().remove(0);
+        let fmu = BuiltFmu::load(sensor, &lib_dir).expect("build with scripts/build-fmus");
+        let variants = fmu.library.variants().unwrap();
+        let stems: Vec<&str> = variants.iter().map(|(s, _)| s.as_str()).collect();
+        assert_eq!(stems, ["Sensor", "Sensor2"]);
+        assert_eq!(variants[1].1.get("channels"), Some("2"));
+        let xml = fmu.describe(&variants[1].1).unwrap();
+        let committed =
+            std::fs::read_to_string(committed_model_description(&repo(), "Sensor2")).unwrap();
+        assert_eq!(xml, committed);
+        let mut bad = Config::new();
+        bad.set("channels", "0");
+        let err = fmu.describe(&bad).unwrap_err().to_string();
+        assert!(err.starts_with("Sensor: invalid configuration: "), "{err}");
+        assert!(err.contains("channels"), "{err}");
     }
 
     #[test]

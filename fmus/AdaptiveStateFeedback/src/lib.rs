@@ -21,8 +21,6 @@
 //! `B_hat`; `L`, `rejected_updates` and `estimate_rejected` on `A_hat`, `B_hat`), computed on
 //! a copy when inputs are set; `fmi2DoStep` commits that update (and logs), so the gain
 //! used for `u_k` is the one from `Â_k`, `B̂_k`, as in paper 000 Fig. 6.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use nalgebra::DMatrix;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;

@@ -24,8 +24,6 @@
 //! The gains are calculated parameters `L[i,j]` (n_o×p_own, rows beyond n_o are 0) and
 //! `N[i,j]` (n_ō×n_ō, padded to n×n with zeros), in the bases V_i, V̄_i, with `n_observable`
 //! = n_o. Only the first n_ō entries of the distance `D[i]` are used.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{

@@ -7,26 +7,11 @@
 use spurio_export::harness::Harness;
 use spurio_export::{Config, FmuModel};
 use std::hint::black_box;
-use std::time::Instant;
 use GantryCrane::{vr, GantryCraneFmu};
 
 /// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, mut call: impl FnMut()) -> (f64, f64, f64) {
-    for _ in 0..per_batch {
-        call();
-    }
-    let mut samples: Vec<f64> = (0..batches)
-        .map(|_| {
-            let start = Instant::now();
-            for _ in 0..per_batch {
-                call();
-            }
-            start.elapsed().as_nanos() as f64 / per_batch as f64
-        })
-        .collect();
-    samples.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| samples[((samples.len() - 1) as f64 * p) as usize];
-    (q(0.5), q(0.25), q(0.75))
+fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> (f64, f64, f64) {
+    spurio_export::harness::time_per_call(per_batch, batches, per_batch, call)
 }
 
 fn crane(step: f64, label: &str) {

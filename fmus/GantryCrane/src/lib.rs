@@ -3,8 +3,6 @@
 //! Input `U` [N] (saturated at ±`U_max`), outputs `x`, `theta`, `v`, `omega` and the applied
 //! force `U_applied`; the physical parameters of Annex A, the initial state and the RK4
 //! substep bound `h_max`. The mathematics is [`spurio::plants::gantry_crane`].
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::gantry_crane::{GantryCrane, GantryCraneParameters};
 use spurio_export::{

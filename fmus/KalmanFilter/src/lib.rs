@@ -1,16 +1,4 @@
-//! `KalmanFilter.fmu`: the standard Kalman filter (sKF) as an FMI 2.0 CS FMU, dimension-generic (keys `n`, `m`, `p`
-//! of the packaging configuration). The adapter is the generic
-//! [`spurio_fmu_common::estimator::EstimatorFmu`] over [`spurio_fmu_common::kalman`].
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
-
-use spurio_fmu_common::kalman::dims_config;
-pub use spurio_fmu_common::kalman::KalmanFilterFmu;
-
-spurio_export::export_fmu!(
-    KalmanFilterFmu,
-    variants = [
-        ("KalmanFilter", dims_config(1, 0, 1)),
-        ("DistributedObserverCentralKalman", dims_config(3, 0, 2)),
-    ]
-);
+//! `KalmanFilter.fmu`: the standard Kalman filter (sKF), dimension-generic (keys `n`, `m`, `p`), as
+//! [`spurio_fmu_common::kalman::Linear`] over [`spurio::estimation::KalmanFilter`].
+pub use spurio_fmu_common::{kalman::dims_config as dims, kalman::KalmanFilterFmu};
+spurio_export::export_fmu! { KalmanFilterFmu, variants = [("KalmanFilter", dims(1, 0, 1)), ("DistributedObserverCentralKalman", dims(3, 0, 2))] }

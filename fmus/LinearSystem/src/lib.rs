@@ -21,8 +21,6 @@
 //! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
 //! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
 //! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use nalgebra::{DMatrix, DVector};
 use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};

@@ -15,8 +15,6 @@
 //! `h_max` inside `fmi2DoStep`. A substep too long for RK4 to be stable on the circuit's
 //! fastest mode (`h_max · |λ|max > 2.5`, |λ|max over the linear poles and the saturated
 //! modes `(1/R1 + 1/R2)/C1`, `1/(R2 C2)`) is refused with an error naming `h_max`.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
 use spurio_export::{

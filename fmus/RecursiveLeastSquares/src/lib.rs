@@ -19,8 +19,6 @@
 //! (SPEC §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
 //! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{

@@ -1,16 +1,4 @@
-//! `RobustKalmanFilter.fmu`: the robust-statistics Kalman filter (rsKF, Cipra & Romera) as an FMI 2.0 CS FMU, dimension-generic (keys `n`, `m`, `p`
-//! of the packaging configuration). The adapter is the generic
-//! [`spurio_fmu_common::estimator::EstimatorFmu`] over [`spurio_fmu_common::kalman`].
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
-
-use spurio_fmu_common::kalman::dims_config;
-pub use spurio_fmu_common::kalman::RobustKalmanFilterFmu;
-
-spurio_export::export_fmu!(
-    RobustKalmanFilterFmu,
-    variants = [
-        ("RobustKalmanFilter", dims_config(1, 0, 1)),
-        ("RobustKalmanFilter2", dims_config(2, 0, 2)),
-    ]
-);
+//! `RobustKalmanFilter.fmu`: the robust-statistics Kalman filter (rsKF, Cipra & Romera), dimension-generic (keys `n`, `m`, `p`), as
+//! [`spurio_fmu_common::kalman::Linear`] over [`spurio::estimation::RobustKalmanFilter`].
+pub use spurio_fmu_common::{kalman::dims_config as dims, kalman::RobustKalmanFilterFmu};
+spurio_export::export_fmu! { RobustKalmanFilterFmu, variants = [("RobustKalmanFilter", dims(1, 0, 1)), ("RobustKalmanFilter2", dims(2, 0, 2))] }

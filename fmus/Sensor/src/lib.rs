@@ -26,8 +26,6 @@
 //! **Seeds.** One Integer parameter `seed` ≥ 0; channel `i` uses the 64-bit seed
 //! `seed + (i − 1)·2³²`, so every (seed, channel) pair has its own independent streams and the
 //! one-channel FMU is exactly [`Sensor`] with seed `seed`.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::signals::sensor::{
     NoiseLevel, OutlierParameters, Quantiser, Sensor, SensorParameters, SensorReading,

@@ -19,8 +19,6 @@
 //! point `t` is the signal at `t`: at the start time after initialisation and at `t + h`
 //! after each step, so a master that connects `y` to another FMU's input at each
 //! communication point feeds it the signal sampled there.
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
 use spurio::ParameterError;

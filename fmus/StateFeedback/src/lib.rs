@@ -20,8 +20,6 @@
 //! Ts = 0.05 s, poles of [`spurio::control::crane_reference_design`]), any other `n` the
 //! generic chain of [`variant_defaults`]. The pieces shared with the adaptive controller
 //! (presets, pole parameters, error messages) live in [`spurio_fmu_common::controller`].
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::control::{
     ackermann_with_options, InputLimits, PolePlacementOptions, StateFeedback, CRANE_SAMPLE_TIME,

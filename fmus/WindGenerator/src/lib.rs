@@ -26,8 +26,6 @@
 //! naming `h_max`. Initial condition: at rest (all states 0, the default), or, with
 //! `start_at_operating_point = true`, in the steady state of the references `u_drive_0`,
 //! `u_field_0` (closed form, [`WindGeneratorParameters::operating_point`]).
-#![deny(unsafe_code)]
-#![allow(non_snake_case)] // the crate is named by the FMU's model identifier
 
 use spurio::plants::wind_generator::{
     GeneratorState, WindGenerator, WindGeneratorParameters, RATED_DRIVE_REFERENCE,

@@ -11,25 +11,10 @@ use spurio_export::{Config, FmuModel};
 use spurio_fmu_common::dual::DkfRsKfFmu;
 use spurio_fmu_common::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
 use std::hint::black_box;
-use std::time::Instant;
 
 /// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, mut call: impl FnMut()) -> (f64, f64, f64) {
-    for _ in 0..per_batch * 10 {
-        call();
-    }
-    let mut samples: Vec<f64> = (0..batches)
-        .map(|_| {
-            let start = Instant::now();
-            for _ in 0..per_batch {
-                call();
-            }
-            start.elapsed().as_nanos() as f64 / per_batch as f64
-        })
-        .collect();
-    samples.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| samples[((samples.len() - 1) as f64 * p) as usize];
-    (q(0.5), q(0.25), q(0.75))
+fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> (f64, f64, f64) {
+    spurio_export::harness::time_per_call(per_batch * 10, batches, per_batch, call)
 }
 
 /// Steps `M` on a deterministic test signal (sines plus a 5 % sprinkling of outliers) and

@@ -130,3 +130,34 @@ impl<M: FmuModel> Drop for Harness<M> {
         unsafe { ffi::free_instance::<M>(self.component) }
     }
 }
+
+/// For benchmarks: the median, first and third quartiles of the time per call (ns) of `call`
+/// over `batches` batches of `per_batch` calls, after `warm_up` calls (NaN without batches).
+pub fn time_per_call(
+    warm_up: usize,
+    batches: usize,
+    per_batch: usize,
+    mut call: impl FnMut(),
+) -> (f64, f64, f64) {
+    for _ in 0..warm_up {
+        call();
+    }
+    let mut samples: Vec<f64> = (0..batches)
+        .map(|_| {
+            let start = std::time::Instant::now();
+            for _ in 0..per_batch {
+                call();
+            }
+            start.elapsed().as_nanos() as f64 / per_batch.max(1) as f64
+        })
+        .collect();
+    samples.sort_by(|a, b| a.total_cmp(b));
+    let q = |p: f64| {
+        let last = samples.len().saturating_sub(1);
+        samples
+            .get((last as f64 * p) as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    (q(0.5), q(0.25), q(0.75))
+}
