@@ -25,15 +25,15 @@
 use nalgebra::DMatrix;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
 use spurio::control::{
-    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, CRANE_SAMPLE_TIME,
+    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, StateController,
 };
 use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Value, Variable,
-    VariableTable,
+    Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable, VariableTable,
 };
 use spurio_fmu_common::controller::{
-    add_limit_parameters, add_pole_parameters, check_pole_parameters, format_gain, input_unit,
-    layout_for, read_poles, state_meaning, variant_defaults, with_unit, Preset,
+    add_limit_parameters, add_pole_parameters, check_pole_parameters, describe_controller,
+    format_gain, input_unit, layout_for, read_poles, state_meaning, variant_defaults, with_unit,
+    Preset,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -268,18 +268,12 @@ fn config_from_parameters(
 
 impl FmuModel for AdaptiveStateFeedbackFmu {
     fn describe(config: &Config) -> Result<ModelInfo, Cause> {
-        let (_, variables) = build(config)?;
-        Ok(ModelInfo::new(
+        describe_controller(
             "AdaptiveStateFeedback",
             "Adaptive pole placement: L recomputed by Ackermann from the estimated A_hat, B_hat every N steps, last good gain kept when the estimate is unusable (paper 000 Fig. 6); single input",
-            variables,
-            Some(DefaultExperiment {
-                start_time: 0.0,
-                stop_time: 10.0,
-                step_size: CRANE_SAMPLE_TIME,
-            }),
-            config.clone(),
-        ))
+            config,
+            build,
+        )
     }
 
     fn create(info: &ModelInfo) -> Result<Self, Cause> {

@@ -22,11 +22,10 @@
 //! (presets, pole parameters, error messages) live in [`spurio_fmu_common::controller`].
 
 use spurio::control::{
-    ackermann_with_options, InputLimits, PolePlacementOptions, StateFeedback, CRANE_SAMPLE_TIME,
+    ackermann_with_options, InputLimits, PolePlacementOptions, StateController, StateFeedback,
 };
 use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
-    VariableTable,
+    Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable, VariableTable,
 };
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -154,18 +153,12 @@ impl StateFeedbackFmu {
 
 impl FmuModel for StateFeedbackFmu {
     fn describe(config: &Config) -> Result<ModelInfo, Cause> {
-        let (_, variables) = build(config)?;
-        Ok(ModelInfo::new(
+        describe_controller(
             "StateFeedback",
             "Discrete state feedback u = sat(−L·(x_hat − x_ref)), L by Ackermann's pole placement at initialisation (paper 000 §IV); single input",
-            variables,
-            Some(DefaultExperiment {
-                start_time: 0.0,
-                stop_time: 10.0,
-                step_size: CRANE_SAMPLE_TIME,
-            }),
-            config.clone(),
-        ))
+            config,
+            build,
+        )
     }
 
     fn create(info: &ModelInfo) -> Result<Self, Cause> {

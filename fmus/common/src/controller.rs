@@ -10,7 +10,8 @@ use spurio::control::{
     CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
 };
 use spurio_export::{
-    Causality, Cause, Config, Initial, ModelInfo, Values, Variability, Variable, VariableTable,
+    Causality, Cause, Config, DefaultExperiment, Initial, ModelInfo, Values, Variability, Variable,
+    VariableTable,
 };
 
 /// Configuration key: number of states n.
@@ -268,4 +269,26 @@ pub fn layout_for<L>(
         .into());
     }
     Ok(layout)
+}
+
+/// The model description of a controller variant: its variables from `build`, the crane's
+/// sample time as the default step.
+pub fn describe_controller<L>(
+    model_identifier: &str,
+    description: &str,
+    config: &Config,
+    build: impl Fn(&Config) -> Result<(L, Vec<Variable>), Cause>,
+) -> Result<ModelInfo, Cause> {
+    let (_, variables) = build(config)?;
+    Ok(ModelInfo::new(
+        model_identifier,
+        description,
+        variables,
+        Some(DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 10.0,
+            step_size: CRANE_SAMPLE_TIME,
+        }),
+        config.clone(),
+    ))
 }
