@@ -76,6 +76,20 @@ def open_slave(name, instance_name="instance", logging_on=False, guid=None):
     return slave, vr, sink
 
 
+def assert_initialization_fails_naming(slave, sink, name):
+    """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
+    backticks (the parameter or matrix at fault); frees the slave."""
+    from fmpy.fmi1 import FMICallException
+
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    with pytest.raises(FMICallException) as e:
+        slave.exitInitializationMode()
+    assert e.value.status == 3
+    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
+    slave.freeInstance()
+
+
 def expm(a: np.ndarray) -> np.ndarray:
     """Matrix exponential by scaling and squaring of a Taylor series (independent of the
     Rust implementation)."""

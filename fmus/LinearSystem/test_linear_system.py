@@ -10,7 +10,7 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import REPO, expm, fmu_path, open_slave
+from conftest import REPO, assert_initialization_fails_naming, expm, fmu_path, open_slave
 
 A = np.array([[0.5, 0.3], [-0.2, 0.8]])
 B = np.array([[1.0], [0.5]])
@@ -188,13 +188,7 @@ def test_bad_covariance_is_an_error_naming_the_matrix(start, name):
     s, vr, sink = open_slave("LinearSystem")
     for k, v in start.items():
         s.setReal([vr[k]], [v])
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    with pytest.raises(FMICallException) as e:
-        s.exitInitializationMode()
-    assert e.value.status == 3
-    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
-    s.freeInstance()
+    assert_initialization_fails_naming(s, sink, name)
 
 
 def test_custom_dimensions_through_package_variant(tmp_path):

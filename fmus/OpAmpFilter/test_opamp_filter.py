@@ -8,7 +8,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, open_slave
 
 
 def simulate(stop=5.0, h=1e-3, u=1.0, **start):
@@ -125,10 +125,4 @@ def test_two_instances_interleaved_equal_separate_runs():
 def test_bad_parameter_is_an_error_naming_it(name, value):
     s, vr, sink = open_slave("OpAmpFilter")
     s.setReal([vr[name]], [value])
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    with pytest.raises(FMICallException) as e:
-        s.exitInitializationMode()
-    assert e.value.status == 3
-    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
-    s.freeInstance()
+    assert_initialization_fails_naming(s, sink, name)

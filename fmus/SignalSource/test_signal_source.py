@@ -8,7 +8,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, open_slave
 
 STEP, RANDOM_STEPS, PRBS, SINE, COSINE = 1, 2, 3, 4, 5
 
@@ -139,13 +139,7 @@ def test_bad_parameter_is_an_error_naming_it(waveform, name, value):
         s.setInteger([vr[name]], [value])
     else:
         s.setReal([vr[name]], [value])
-    s.setupExperiment(startTime=0.0)
-    s.enterInitializationMode()
-    with pytest.raises(FMICallException) as e:
-        s.exitInitializationMode()
-    assert e.value.status == 3
-    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
-    s.freeInstance()
+    assert_initialization_fails_naming(s, sink, name)
 
 
 def test_unknown_waveform_is_rejected():
