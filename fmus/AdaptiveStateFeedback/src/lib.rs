@@ -35,6 +35,7 @@ use spurio_fmu_common::controller::{
     format_gain, input_unit, layout_for, read_poles, state_meaning, variant_defaults, with_unit,
     Preset,
 };
+use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Default bound on ‖L‖₂ for the crane preset: 50 times the reference gain's norm (≈ 1.99).
@@ -342,13 +343,7 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
     spurio_fmu_common::fmu_state!(controller, rejections_before_episode);
 }
 
-spurio_export::export_fmu!(
-    AdaptiveStateFeedbackFmu,
-    variants = [(
-        "AdaptiveStateFeedback",
-        spurio_fmu_common::crane_controller_config()
-    )]
-);
+spurio_export::export_fmu! { AdaptiveStateFeedbackFmu, variants = [("AdaptiveStateFeedback", crane_controller_config())] }
 
 #[cfg(test)]
 mod tests {
@@ -356,10 +351,7 @@ mod tests {
     use spurio::control::crane_reference_design;
     use spurio_export::types::Status;
     use spurio_export::{ByteReader, ByteWriter, Values};
-
-    fn crane_config() -> Config {
-        spurio_fmu_common::crane_controller_config()
-    }
+    use spurio_fmu_common::crane_controller_config as crane_config;
 
     #[test]
     fn layout_matches_the_table() {

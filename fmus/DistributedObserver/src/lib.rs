@@ -299,16 +299,6 @@ impl Estimator for Agent {
         l.x_hat.write_vector(ctx.values, self.observer.estimate());
         Ok(())
     }
-
-    type Filter = Self;
-
-    fn filter(&self) -> &Self {
-        self
-    }
-
-    fn filter_mut(&mut self) -> &mut Self {
-        self
-    }
 }
 
 /// The agent's dynamic state is its observer's.

@@ -293,16 +293,6 @@ impl Estimator for Rls {
         }
         Ok(())
     }
-
-    type Filter = Self;
-
-    fn filter(&self) -> &Self {
-        self
-    }
-
-    fn filter_mut(&mut self) -> &mut Self {
-        self
-    }
 }
 
 /// The RLS and whether the readout problem was logged (once per episode).

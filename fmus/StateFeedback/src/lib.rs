@@ -28,6 +28,7 @@ use spurio_export::{
     Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable, VariableTable,
 };
 pub use spurio_fmu_common::controller::*;
+use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Positions of the variables of one StateFeedback variant in its table.
@@ -203,13 +204,7 @@ impl FmuModel for StateFeedbackFmu {
     spurio_fmu_common::fmu_state!(controller);
 }
 
-spurio_export::export_fmu!(
-    StateFeedbackFmu,
-    variants = [(
-        "StateFeedback",
-        spurio_fmu_common::crane_controller_config()
-    )]
-);
+spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
 
 #[cfg(test)]
 mod tests {
@@ -217,10 +212,7 @@ mod tests {
     use nalgebra::DMatrix;
     use spurio_export::types::Status;
     use spurio_export::Values;
-
-    fn crane_config() -> Config {
-        spurio_fmu_common::crane_controller_config()
-    }
+    use spurio_fmu_common::crane_controller_config as crane_config;
 
     #[test]
     fn layout_matches_the_table() {

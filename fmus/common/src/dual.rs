@@ -28,7 +28,8 @@ use crate::kalman::{
 use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::DVector;
 use spurio::estimation::{
-    DkfRsKf, DualKalmanConfig, DualKalmanFilter, RobustKalmanFilter, StateEstimator,
+    DkfRsKf, DualKalmanConfig, DualKalmanFilter, EstimationError, RobustKalmanFilter,
+    StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -257,7 +258,7 @@ fn write_initial_dual(l: &DualLayout, ctx: &mut Context, dual: &DualKalmanFilter
 }
 
 /// A dual filter behind a `DualKalmanFilter`-style FMU.
-pub trait DualFilter: StateEstimator + DynamicState + Clone + std::fmt::Debug + 'static {
+pub trait DualFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     /// Whether an rsKF cleans the outputs first: parameters `q_clean`…, outputs `w[j]`,
     /// `y_clean[j]`.
     const CLEANED: bool;
@@ -338,8 +339,6 @@ pub struct Dual<F: DualFilter> {
 
 impl<F: DualFilter> Estimator for Dual<F> {
     type Layout = DualLayout;
-    type Filter = F;
-
     fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), Cause> {
         interface(config, F::CLEANED)
     }
@@ -370,13 +369,14 @@ impl<F: DualFilter> Estimator for Dual<F> {
         }
         Ok(())
     }
+}
 
-    fn filter(&self) -> &F {
-        &self.filter
+impl<F: DualFilter> DynamicState for Dual<F> {
+    fn dynamic_state(&self) -> Vec<f64> {
+        StateEstimator::dynamic_state(&self.filter)
     }
-
-    fn filter_mut(&mut self) -> &mut F {
-        &mut self.filter
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        StateEstimator::set_dynamic_state(&mut self.filter, state)
     }
 }
 

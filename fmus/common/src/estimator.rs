@@ -59,7 +59,7 @@ pub fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<u
 }
 
 /// One estimator algorithm behind an [`EstimatorFmu`].
-pub trait Estimator: Clone + std::fmt::Debug + 'static {
+pub trait Estimator: DynamicState + Clone + std::fmt::Debug + 'static {
     /// Value references of the variables of one variant.
     type Layout: Clone + std::fmt::Debug + 'static;
     /// The variable layout and model description for a configuration.
@@ -76,13 +76,6 @@ pub trait Estimator: Clone + std::fmt::Debug + 'static {
         time: f64,
         step: f64,
     ) -> Result<(), Failure>;
-    /// The estimator whose dynamic state is the FMU's (see
-    /// [`spurio::estimation::StateEstimator::dynamic_state`]).
-    type Filter: DynamicState;
-    /// The estimator.
-    fn filter(&self) -> &Self::Filter;
-    /// The estimator, to restore its dynamic state.
-    fn filter_mut(&mut self) -> &mut Self::Filter;
 }
 
 /// An FMU over an [`Estimator`]: the layout, the parameters the estimator was built from
@@ -139,7 +132,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         match &self.estimator {
             Some(estimator) => {
                 out.put_bool(true);
-                out.put_f64_slice(&estimator.filter().dynamic_state());
+                out.put_f64_slice(&estimator.dynamic_state());
             }
             None => out.put_bool(false),
         }
@@ -169,7 +162,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {
                 Failure::Error(m) | Failure::Discard(m) => m,
             })?;
-            estimator.filter_mut().set_dynamic_state(&state)?;
+            estimator.set_dynamic_state(&state)?;
             Some(estimator)
         } else {
             None
@@ -179,9 +172,8 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     }
 }
 
-/// What evolves in an estimator from step to step, saved in FMU states: implemented by every
-/// [`spurio::estimation::StateEstimator`] and by the estimators of other shapes (RLS, the
-/// distributed observer).
+/// What evolves in an estimator adapter from step to step, saved in FMU states (for the
+/// filters, their [`spurio::estimation::StateEstimator::dynamic_state`]).
 pub trait DynamicState {
     /// Everything that evolves.
     fn dynamic_state(&self) -> Vec<f64>;
@@ -189,25 +181,6 @@ pub trait DynamicState {
     /// parameters.
     fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
 }
-
-macro_rules! through_state_estimator {
-    ($($t:ty),*) => {$(
-        impl DynamicState for $t {
-            fn dynamic_state(&self) -> Vec<f64> {
-                spurio::estimation::StateEstimator::dynamic_state(self)
-            }
-            fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-                spurio::estimation::StateEstimator::set_dynamic_state(self, state)
-            }
-        }
-    )*};
-}
-through_state_estimator!(
-    spurio::estimation::KalmanFilter,
-    spurio::estimation::RobustKalmanFilter,
-    spurio::estimation::DualKalmanFilter,
-    spurio::estimation::DkfRsKf
-);
 
 /// Copies the inputs of `block` into `buffer` (no allocation), or fails naming the first
 /// non-finite one (`y[2] = NaN`).

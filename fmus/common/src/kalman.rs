@@ -309,7 +309,7 @@ fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
 
 /// A filter of the linear model behind a `KalmanFilter`-style FMU, built from the model
 /// matrices (and, for the robust one, its influence function).
-pub trait LinearFilter: StateEstimator + DynamicState + Clone + std::fmt::Debug + 'static {
+pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
     const ROBUST: bool;
     /// The filter for the model `m`.
@@ -347,8 +347,6 @@ pub struct Linear<F: LinearFilter> {
 
 impl<F: LinearFilter> Estimator for Linear<F> {
     type Layout = LinearLayout;
-    type Filter = F;
-
     fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
         interface(config, F::ROBUST)
     }
@@ -383,13 +381,14 @@ impl<F: LinearFilter> Estimator for Linear<F> {
         }
         Ok(())
     }
+}
 
-    fn filter(&self) -> &F {
-        &self.filter
+impl<F: LinearFilter> DynamicState for Linear<F> {
+    fn dynamic_state(&self) -> Vec<f64> {
+        StateEstimator::dynamic_state(&self.filter)
     }
-
-    fn filter_mut(&mut self) -> &mut F {
-        &mut self.filter
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        StateEstimator::set_dynamic_state(&mut self.filter, state)
     }
 }
 
