@@ -13,6 +13,7 @@ pub mod linalg;
 pub mod ode;
 pub mod plants;
 pub mod signals;
+pub mod state;
 
 use std::fmt;
 

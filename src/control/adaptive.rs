@@ -17,9 +17,9 @@ use crate::control::pole_placement::{
     ackermann_with_options, check_poles, PolePlacementError, PolePlacementOptions,
     DEFAULT_MAX_CONDITION_NUMBER,
 };
-use crate::control::state_feedback::{feedback_term, InputLimits};
+use crate::control::state_feedback::{InputLimits, StateController};
 use crate::ParameterError;
-use nalgebra::{Complex, DMatrix, DVector};
+use nalgebra::{Complex, DMatrix};
 use std::fmt;
 
 /// Default bound on the Euclidean norm of an accepted gain.
@@ -356,26 +356,35 @@ impl AdaptiveStateFeedback {
         }
         Ok(gain)
     }
+}
 
-    /// `u = sat(−L x̂)`, never NaN: without a gain, or for a NaN / mis-sized estimate, the
-    /// admissible input closest to zero.
-    pub fn control(&self, x_hat: &DVector<f64>) -> f64 {
-        let u = self
-            .gain
-            .as_ref()
-            .and_then(|gain| feedback_term(gain, x_hat, None));
-        self.config.limits.saturate(u.unwrap_or(0.0))
+/// The adaptive law: the gain is the last good one ([`AdaptiveStateFeedback::gain`]).
+impl StateController for AdaptiveStateFeedback {
+    fn current_gain(&self) -> Option<&DMatrix<f64>> {
+        self.gain.as_ref()
     }
-
-    /// `u = sat(−L (x̂ − x_ref))` for a reference state that is an equilibrium with zero input.
-    pub fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
-        let u = self
-            .gain
-            .as_ref()
-            .and_then(|gain| feedback_term(gain, x_hat, Some(x_ref)));
-        self.config.limits.saturate(u.unwrap_or(0.0))
+    fn input_limits(&self) -> InputLimits {
+        self.config.limits
     }
 }
+
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(AdaptiveStateFeedbackConfig {
+    poles,
+    limits,
+    recompute_period,
+    max_gain_norm,
+    max_condition_number,
+    initial_gain
+});
+crate::plain_state!(AdaptiveStateFeedback {
+    config,
+    gain,
+    calls_until_due,
+    in_bad_episode,
+    rejected_updates,
+    episodes
+});
 
 #[cfg(test)]
 mod tests {

@@ -24,4 +24,4 @@ pub use pole_placement::{
     ackermann, ackermann_with_options, characteristic_polynomial, poles_from_continuous,
     reachability_matrix, PolePlacementError, PolePlacementOptions,
 };
-pub use state_feedback::{InputLimits, StateFeedback};
+pub use state_feedback::{InputLimits, StateController, StateFeedback};

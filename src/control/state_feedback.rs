@@ -140,20 +140,52 @@ impl StateFeedback {
     pub fn limits(&self) -> InputLimits {
         self.limits
     }
+}
 
-    /// `u = sat(−L x̂)`; never NaN (a bad estimate gives the admissible input closest to 0).
-    pub fn control(&self, x_hat: &DVector<f64>) -> f64 {
-        self.limits
-            .saturate(feedback_term(&self.gain, x_hat, None).unwrap_or(0.0))
+/// A discrete state-feedback law (paper 000 §IV eq. 15; Fig. 6 for the adaptive one)
+///
+/// ```text
+/// u_k = sat_[u_min, u_max]( −L_k (x̂_k − x_ref) )
+/// ```
+///
+/// with a fixed gain `L` ([`StateFeedback`]) or one recomputed from the estimated model
+/// ([`crate::control::AdaptiveStateFeedback`]). The law itself is shared: it never returns
+/// NaN — without a gain, or for a NaN or mis-sized estimate, it gives the admissible input
+/// closest to zero.
+pub trait StateController {
+    /// The gain `L_k` (1 × n) in use; `None` while there is none.
+    fn current_gain(&self) -> Option<&DMatrix<f64>>;
+    /// The actuator limits.
+    fn input_limits(&self) -> InputLimits;
+    /// `u = sat(−L x̂)` (regulation to the origin).
+    fn control(&self, x_hat: &DVector<f64>) -> f64 {
+        let u = self
+            .current_gain()
+            .and_then(|gain| feedback_term(gain, x_hat, None));
+        self.input_limits().saturate(u.unwrap_or(0.0))
     }
-
     /// `u = sat(−L (x̂ − x_ref))`: regulation to a reference state `x_ref`, which must be an
     /// equilibrium with zero input (e.g. any cart position of the crane, at rest).
-    pub fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
-        self.limits
-            .saturate(feedback_term(&self.gain, x_hat, Some(x_ref)).unwrap_or(0.0))
+    fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
+        let u = self
+            .current_gain()
+            .and_then(|gain| feedback_term(gain, x_hat, Some(x_ref)));
+        self.input_limits().saturate(u.unwrap_or(0.0))
     }
 }
+
+impl StateController for StateFeedback {
+    fn current_gain(&self) -> Option<&DMatrix<f64>> {
+        Some(&self.gain)
+    }
+    fn input_limits(&self) -> InputLimits {
+        self.limits
+    }
+}
+
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(InputLimits { min, max });
+crate::plain_state!(StateFeedback { gain, limits });
 
 #[cfg(test)]
 mod tests {

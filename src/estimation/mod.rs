@@ -24,12 +24,14 @@
 
 mod distributed;
 mod dual;
+mod estimator;
 mod kalman;
 mod rls;
 mod robust;
 
 pub use distributed::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
 pub use dual::{DkfRsKf, DualKalmanConfig, DualKalmanFilter};
+pub use estimator::StateEstimator;
 pub use kalman::KalmanFilter;
 pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};
 pub use robust::{InfluenceFunction, RobustKalmanFilter};

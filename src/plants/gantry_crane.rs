@@ -218,6 +218,20 @@ impl GantryCrane {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(GantryCraneParameters {
+    cart_mass,
+    load_mass,
+    rod_length,
+    inertia,
+    cart_friction,
+    pivot_friction,
+    gravity,
+    max_force,
+    rail_limit
+});
+crate::plain_state!(GantryCrane { parameters, state });
+
 #[cfg(test)]
 mod tests {
     use super::*;

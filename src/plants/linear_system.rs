@@ -492,6 +492,41 @@ fn covariance_factor(
     Ok(factor)
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(
+    enum TimeDomain {
+        Discrete,
+        Continuous,
+    }
+);
+crate::plain_state!(LinearSystemParameters {
+    a,
+    b,
+    c,
+    d,
+    q,
+    r,
+    time_domain,
+    initial_state,
+    seed
+});
+crate::plain_state!(Discretisation {
+    step,
+    transition,
+    input,
+    noise_factor
+});
+crate::plain_state!(LinearSystem {
+    parameters,
+    state,
+    measurement_noise,
+    process_factor,
+    measurement_factor,
+    process_stream,
+    measurement_stream,
+    cache
+});
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -180,6 +180,17 @@ impl OpAmpFilter {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(OpAmpFilterParameters {
+    r1,
+    r2,
+    c1,
+    c2,
+    v_sat_high,
+    v_sat_low
+});
+crate::plain_state!(OpAmpFilter { parameters, state });
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -415,6 +415,27 @@ impl WindGenerator {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(WindGeneratorParameters {
+    pole_pairs,
+    stator_resistance,
+    d_inductance,
+    q_inductance,
+    field_resistance,
+    field_inductance,
+    mutual_inductance,
+    load_resistance,
+    inertia,
+    friction,
+    slip_stiffness,
+    max_motor_torque,
+    drive_time_constant,
+    scr_time_constant,
+    tachometer_time_constant,
+    rated_frequency
+});
+crate::plain_state!(WindGenerator { parameters, state });
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -180,6 +180,9 @@ impl RandomGenerator {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(RandomGenerator { state });
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -308,6 +308,29 @@ impl Sensor {
     }
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(enum NoiseLevel { Variance(v0), SignalToNoiseRatio { snr_db, signal_power } });
+crate::plain_state!(OutlierParameters {
+    epsilon,
+    min_magnitude,
+    max_magnitude,
+    window_start,
+    window_end
+});
+crate::plain_state!(Quantiser { bits, min, max });
+crate::plain_state!(SensorParameters {
+    noise,
+    outliers,
+    quantiser,
+    seed
+});
+crate::plain_state!(Sensor {
+    parameters,
+    noise_deviation,
+    noise_stream,
+    outlier_stream
+});
+
 #[cfg(test)]
 mod tests {
     use super::*;

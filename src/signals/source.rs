@@ -388,6 +388,26 @@ fn prbs_shift(cursor: &mut PrbsCursor, order: u32) {
     cursor.index += 1;
 }
 
+// FMU-state snapshots (plain bytes) of the types above: every field, in order.
+crate::plain_state!(enum Waveform { Step { amplitude, offset, step_time }, RandomSteps { amplitude, offset, min_hold, max_hold }, Prbs { order, bit_period, amplitude, offset }, Sine { amplitude, offset, frequency, phase }, Cosine { amplitude, offset, frequency, phase } });
+crate::plain_state!(RandomStepsCursor {
+    stream,
+    start,
+    end,
+    level
+});
+crate::plain_state!(PrbsCursor {
+    register,
+    index,
+    bit
+});
+crate::plain_state!(SignalSource {
+    waveform,
+    seed,
+    random_steps,
+    prbs
+});
+
 #[cfg(test)]
 mod tests {
     use super::*;

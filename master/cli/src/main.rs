@@ -3,7 +3,7 @@
 //! - `spurio package` writes the `.fmu` archives of every FMU (or the ones named) from the
 //!   compiled libraries;
 //! - `spurio model-descriptions` checks (or, with `--write`, regenerates) the committed
-//!   `modelDescription/*.xml` against the Rust variable tables;
+//!   `modelDescription/*.xml` against what the built FMU libraries generate;
 //! - `spurio diagnose` runs the outlier diagnostics (Grubbs, kurtosis, skewness, E_res,
 //!   histogram) on a column of a results CSV.
 
@@ -17,6 +17,7 @@ use spurio_master::logging;
 use spurio_master::record::{CsvWriter, TimeSeries};
 use spurio_master::system::System;
 
+mod library_query;
 mod package;
 
 use anyhow::{bail, Context, Result};
@@ -66,6 +67,14 @@ enum Command {
         out: PathBuf,
         /// Model identifiers to package (default: all).
         names: Vec<String>,
+        /// Also add the binaries of another platform: `PLATFORM=DIR` (repeatable), e.g.
+        /// `win64=target/x86_64-pc-windows-gnu/release` (`<Id>.dll`) or
+        /// `aarch64-linux=…/release` (`lib<Id>.so`); `linux64` comes from `--lib-dir`.
+        #[arg(long = "platform-dir", value_name = "PLATFORM=DIR")]
+        platform_dirs: Vec<String>,
+        /// The repository root (holding fmus/<Id>/ with each FMU's page).
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
     },
     /// Package one FMU for your own dimensions: e.g. `spurio package-variant KalmanFilter
     /// --set n=3 --set p=1 --set m=1 --name MyKalmanFilter` writes MyKalmanFilter.fmu whose
@@ -85,6 +94,12 @@ enum Command {
         /// Where to write the .fmu.
         #[arg(long, default_value = "build/fmus")]
         out: PathBuf,
+        /// Also add the binaries of another platform: `PLATFORM=DIR` (repeatable).
+        #[arg(long = "platform-dir", value_name = "PLATFORM=DIR")]
+        platform_dirs: Vec<String>,
+        /// The repository root (holding fmus/<Id>/ with each FMU's page).
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
     },
     /// Run the papers' experiments (examples/<name>/) and write REPORT.md, CSVs and plots.
     Experiments {
@@ -154,14 +169,17 @@ enum Command {
         #[arg(long)]
         png: Option<PathBuf>,
     },
-    /// Compare the committed modelDescription/*.xml with the Rust variable tables.
+    /// Compare the committed modelDescription/*.xml with what the built FMU libraries generate.
     ModelDescriptions {
         /// Regenerate the files instead of checking them.
         #[arg(long)]
         write: bool,
-        /// The repository root (holding modelDescription/).
+        /// The repository root (holding modelDescription/ and fmus/).
         #[arg(long, default_value = ".")]
         repo: PathBuf,
+        /// Folder with the compiled FMU libraries, which generate the descriptions.
+        #[arg(long, default_value = "target/release")]
+        lib_dir: PathBuf,
     },
 }
 
@@ -212,22 +230,12 @@ fn main() -> Result<()> {
             lib_dir,
             out,
             names,
+            platform_dirs,
+            repo,
         } => {
-            let catalogue = spurio_fmus::catalogue();
-            for name in &names {
-                if !catalogue.iter().any(|e| e.model_identifier == name) {
-                    let known: Vec<&str> = catalogue.iter().map(|e| e.model_identifier).collect();
-                    bail!("unknown FMU `{name}` (known: {})", known.join(", "));
-                }
-            }
-            for entry in catalogue
-                .iter()
-                .filter(|e| names.is_empty() || names.iter().any(|n| n == e.model_identifier))
-            {
-                for (stem, config) in &entry.variants {
-                    let path = package::package_variant(entry, stem, config, &lib_dir, &out)?;
-                    println!("wrote {}", path.display());
-                }
+            let platforms = parse_platforms(&platform_dirs)?;
+            for path in package::package_bundled(&repo, &lib_dir, &platforms, &names, &out)? {
+                println!("wrote {}", path.display());
             }
         }
         Command::PackageVariant {
@@ -236,27 +244,20 @@ fn main() -> Result<()> {
             name,
             lib_dir,
             out,
+            platform_dirs,
+            repo,
         } => {
-            let catalogue = spurio_fmus::catalogue();
-            let Some(entry) = catalogue
-                .iter()
-                .find(|e| e.model_identifier == model_identifier)
-            else {
-                let known: Vec<&str> = catalogue.iter().map(|e| e.model_identifier).collect();
-                bail!(
-                    "unknown FMU `{model_identifier}` (known: {})",
-                    known.join(", ")
-                );
-            };
-            let mut config = spurio_fmi2::Config::new();
-            for setting in &settings {
-                let Some((key, value)) = setting.split_once('=') else {
-                    bail!("--set takes KEY=VALUE, got `{setting}`");
-                };
-                config.set(key.trim(), value.trim());
-            }
+            let platforms = parse_platforms(&platform_dirs)?;
             let stem = name.unwrap_or_else(|| model_identifier.clone());
-            let path = package::package_variant(entry, &stem, &config, &lib_dir, &out)?;
+            let path = package::package_custom(
+                &repo,
+                &lib_dir,
+                &platforms,
+                &model_identifier,
+                &settings,
+                &stem,
+                &out,
+            )?;
             println!("wrote {}", path.display());
         }
         Command::Experiments {
@@ -333,31 +334,31 @@ fn main() -> Result<()> {
                 diagnose::diagnose(&csv, &column, clean.as_deref(), alpha, png.as_deref())?
             );
         }
-        Command::ModelDescriptions { write, repo } => {
-            let mut stale = Vec::new();
-            for entry in spurio_fmus::catalogue() {
-                for (stem, config) in &entry.variants {
-                    let xml = (entry.describe)(config)
-                        .map_err(|e| anyhow::anyhow!("{stem}: {e}"))?
-                        .to_xml();
-                    let path = package::committed_model_description(&repo, stem);
-                    if write {
-                        std::fs::write(&path, xml)?;
-                        println!("wrote {}", path.display());
-                    } else if std::fs::read_to_string(&path).ok().as_deref() != Some(xml.as_str()) {
-                        stale.push(path.display().to_string());
-                    }
+        Command::ModelDescriptions {
+            write,
+            repo,
+            lib_dir,
+        } => {
+            let touched = package::model_descriptions(&repo, &lib_dir, write)?;
+            if write {
+                for path in &touched {
+                    println!("wrote {}", path.display());
                 }
-            }
-            if !stale.is_empty() {
+            } else if !touched.is_empty() {
+                let stale: Vec<String> = touched.iter().map(|p| p.display().to_string()).collect();
                 bail!(
-                    "these model descriptions differ from the Rust variable tables (run `spurio model-descriptions --write`): {}",
+                    "these model descriptions differ from the FMUs' declarations (run `spurio model-descriptions --write`): {}",
                     stale.join(", ")
                 );
             }
         }
     }
     Ok(())
+}
+
+/// `--platform-dir NAME=DIR` values.
+fn parse_platforms(values: &[String]) -> Result<Vec<package::Platform>> {
+    values.iter().map(|v| package::Platform::parse(v)).collect()
 }
 
 #[cfg(test)]

@@ -1,0 +1,111 @@
+"""Shared helpers for the fmpy tests: where the FMUs are, logging callbacks, slaves."""
+
+import os
+import pathlib
+from ctypes import byref
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+from fmpy import calloc, free
+
+REPO = pathlib.Path(__file__).resolve().parent
+FMU_DIR = pathlib.Path(os.environ.get("SPURIO_FMU_DIR", REPO / "build" / "fmus"))
+
+_extracted = {}
+
+
+def fmu_path(name: str) -> str:
+    path = FMU_DIR / f"{name}.fmu"
+    assert path.is_file(), f"{path} is missing: build the FMUs with scripts/build-fmus"
+    return str(path)
+
+
+class LogSink:
+    """Collects (instance, status, category, message) from an FMU's logger callback."""
+
+    def __init__(self):
+        self.messages = []
+
+    def __call__(self, env, instance, status, category, message):
+        self.messages.append(
+            (instance.decode(), status, category.decode(), message.decode())
+        )
+
+    def texts(self, status=None):
+        return [m[3] for m in self.messages if status is None or m[1] == status]
+
+
+def make_callbacks(sink: LogSink):
+    """fmi2CallbackFunctions whose logger formats the variadic message (fmpy's native proxy)
+    and hands it to `sink`."""
+    from fmpy.logging import addLoggerProxy
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(sink)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    addLoggerProxy(byref(callbacks))
+    return callbacks
+
+
+def open_slave(name, instance_name="instance", logging_on=False, guid=None):
+    """An instantiated FMU2Slave of FMU `name`, its value references by name and its log."""
+    path = fmu_path(name)
+    if path not in _extracted:
+        _extracted[path] = (read_model_description(path), extract(path))
+    md, unzipdir = _extracted[path]
+    slave = FMU2Slave(
+        guid=guid or md.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName=instance_name,
+    )
+    sink = LogSink()
+    callbacks = make_callbacks(sink)
+    slave.instantiate(callbacks=callbacks, loggingOn=logging_on)
+    slave._spurio_keepalive = callbacks  # the FMU keeps the pointer: keep the object alive
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    return slave, vr, sink
+
+
+def assert_initialization_fails_naming(slave, sink, name):
+    """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
+    backticks (the parameter or matrix at fault); frees the slave."""
+    from fmpy.fmi1 import FMICallException
+
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    with pytest.raises(FMICallException) as e:
+        slave.exitInitializationMode()
+    assert e.value.status == 3
+    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
+    slave.freeInstance()
+
+
+def expm(a: np.ndarray) -> np.ndarray:
+    """Matrix exponential by scaling and squaring of a Taylor series (independent of the
+    Rust implementation)."""
+    norm = np.linalg.norm(a, 1)
+    s = max(0, int(np.ceil(np.log2(norm))) + 1) if norm > 0 else 0
+    a = a / 2**s
+    result = np.eye(a.shape[0])
+    term = np.eye(a.shape[0])
+    for k in range(1, 30):
+        term = term @ a / k
+        result = result + term
+    for _ in range(s):
+        result = result @ result
+    return result
+
+
+@pytest.fixture
+def crane_fmu():
+    return fmu_path("GantryCrane")

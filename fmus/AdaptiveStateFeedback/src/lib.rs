@@ -1,0 +1,468 @@
+//! `AdaptiveStateFeedback.fmu`: pole placement redone on the identified model (paper 000
+//! §VI, Fig. 6; SPEC §2 item 14) as an FMI 2.0 CS FMU.
+//!
+//! Every communication point the FMU receives the estimated model `Â`, `B̂` (inputs `A_hat`,
+//! `B_hat`, e.g. from a dual Kalman filter) and the estimated state `x̂`; every
+//! `recompute_period`-th point it recomputes
+//!
+//! ```text
+//! L = [0 … 0 1] 𝒞(Â, B̂)⁻¹ φ(Â),      u = sat_[u_min, u_max](−L x̂)
+//! ```
+//!
+//! (Ackermann, paper 000 eq. 15) for the fixed desired poles. An estimate that is not
+//! reachable (condition number of 𝒞 above `max_condition_number`), not finite, or whose gain
+//! has a norm above `max_gain_norm` is rejected: the last good gain stays (at first `L0`),
+//! the output is never NaN, and the first rejection of each episode of consecutive
+//! rejections is logged as a warning (`fmi2Warning` from `fmi2DoStep`) that names the reason.
+//! The mathematics is [`spurio::control::AdaptiveStateFeedback`].
+//!
+//! Timing: the outputs at a communication point are those of the controller *after*
+//! processing the inputs held there (direct feedthrough: `u[1]` depends on `x_hat`, `A_hat`,
+//! `B_hat`; `L`, `rejected_updates` and `estimate_rejected` on `A_hat`, `B_hat`), computed on
+//! a copy when inputs are set; `fmi2DoStep` commits that update (and logs), so the gain
+//! used for `u_k` is the one from `Â_k`, `B̂_k`, as in paper 000 Fig. 6.
+
+use nalgebra::DMatrix;
+use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
+use spurio::control::{
+    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, StateController,
+};
+use spurio_export::{
+    Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable, VariableTable,
+};
+use spurio_fmu_common::controller::{
+    add_limit_parameters, add_pole_parameters, check_pole_parameters, describe_controller,
+    format_gain, input_unit, layout_for, read_poles, state_meaning, variant_defaults, with_unit,
+    Preset,
+};
+use spurio_fmu_common::crane_controller_config;
+use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
+
+/// Default bound on ‖L‖₂ for the crane preset: 50 times the reference gain's norm (≈ 1.99).
+pub const CRANE_MAX_GAIN_NORM: f64 = 100.0;
+/// Default bound on ‖L‖₂ for generic variants.
+pub const GENERIC_MAX_GAIN_NORM: f64 = 1e6;
+
+/// Positions of the variables of one AdaptiveStateFeedback variant in its table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// Number of states n.
+    pub states: usize,
+    /// Input `x_hat[i]`.
+    pub x_hat: Block,
+    /// Input `A_hat[i,j]`.
+    pub a_hat: Block,
+    /// Input `B_hat[i,1]`.
+    pub b_hat: Block,
+    /// Output `u[1]`.
+    pub u: usize,
+    /// Output `L[1,j]`: the gain in use.
+    pub gain: Block,
+    /// Integer output `rejected_updates`.
+    pub rejected_updates: usize,
+    /// Boolean output `estimate_rejected`.
+    pub estimate_rejected: usize,
+    /// Parameter `pole_re[i]`.
+    pub pole_re: Block,
+    /// Parameter `pole_im[i]`.
+    pub pole_im: Block,
+    /// Parameter `u_min`.
+    pub u_min: usize,
+    /// Parameter `u_max`.
+    pub u_max: usize,
+    /// Integer parameter `recompute_period`.
+    pub recompute_period: usize,
+    /// Parameter `max_gain_norm`.
+    pub max_gain_norm: usize,
+    /// Parameter `max_condition_number`.
+    pub max_condition_number: usize,
+    /// Parameter `L0[1,j]`: the gain until the first accepted update.
+    pub initial_gain: Block,
+}
+
+/// The variable table of a variant and where each variable is.
+pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
+    let defaults = variant_defaults(config)?;
+    let n = defaults.states();
+    let preset = defaults.preset;
+    let mut t = VariableTable::new();
+    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
+        let (meaning, unit) = state_meaning(preset, i);
+        with_unit(
+            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
+            unit,
+        )
+    });
+    let a_hat = add_matrix(&mut t, "A_hat", n, n, |name, i, j| {
+        Variable::input(name, defaults.a[(i, j)])
+            .describe("Estimated discrete state matrix Â (e.g. from the dual Kalman filter)")
+    });
+    let b_hat = add_matrix(&mut t, "B_hat", n, 1, |name, i, _| {
+        Variable::input(name, defaults.b[(i, 0)])
+            .describe("Estimated discrete input matrix B̂ (one column)")
+    });
+    let estimate: Vec<usize> = a_hat.indices().chain(b_hat.indices()).collect();
+    let all_inputs: Vec<usize> = x_hat.indices().chain(estimate.iter().copied()).collect();
+    let u = t.add(with_unit(
+        Variable::output("u[1]")
+            .describe("Control input u = sat(−L·x_hat) to [u_min, u_max]; never NaN")
+            .depends_on(&all_inputs),
+        input_unit(preset),
+    ));
+    let gain = add_matrix(&mut t, "L", 1, n, |name, _, j| {
+        Variable::discrete_output(name)
+            .describe(&format!(
+                "Gain in use on state {}: recomputed from A_hat, B_hat, or the last good one",
+                j + 1
+            ))
+            .depends_on(&estimate)
+    });
+    let rejected_updates = t.add(Variable {
+        start: Value::Integer(0),
+        ..Variable::discrete_output("rejected_updates")
+            .describe(
+                "Number of gain updates rejected so far (estimate unusable or gain too large)",
+            )
+            .depends_on(&estimate)
+    });
+    let estimate_rejected = t.add(
+        Variable::boolean_output("estimate_rejected")
+            .describe("True while the latest recompute was rejected and the last good gain is kept")
+            .depends_on(&estimate),
+    );
+    let (pole_re, pole_im) = add_pole_parameters(&mut t, &defaults);
+    let (u_min, u_max) = add_limit_parameters(&mut t, preset);
+    let recompute_period = t.add(
+        Variable::integer_parameter("recompute_period", 1)
+            .min(1.0)
+            .describe("Recompute the gain every N-th communication point (N ≥ 1)"),
+    );
+    let default_gain_bound = match preset {
+        Preset::Crane => CRANE_MAX_GAIN_NORM,
+        Preset::Generic => GENERIC_MAX_GAIN_NORM,
+    };
+    let max_gain_norm = t.add(
+        Variable::parameter("max_gain_norm", default_gain_bound)
+            .min(0.0)
+            .describe("Recomputed gains with a larger Euclidean norm are rejected (the last good gain is kept)"),
+    );
+    let max_condition_number = t.add(
+        Variable::parameter("max_condition_number", DEFAULT_MAX_CONDITION_NUMBER)
+            .min(1.0)
+            .describe("Estimates whose reachability matrix [B AB … A^(n−1)B] has a larger 2-norm condition number are rejected as not reachable"),
+    );
+    let initial_gain = add_matrix(&mut t, "L0", 1, n, |name, _, j| {
+        Variable::parameter(name, defaults.gain[(0, j)]).describe(&format!(
+            "Initial gain on state {} (used until the first accepted update; default: the design on the default model)",
+            j + 1
+        ))
+    });
+    let layout = Layout {
+        states: n,
+        x_hat,
+        a_hat,
+        b_hat,
+        u,
+        gain,
+        rejected_updates,
+        estimate_rejected,
+        pole_re,
+        pole_im,
+        u_min,
+        u_max,
+        recompute_period,
+        max_gain_norm,
+        max_condition_number,
+        initial_gain,
+    };
+    Ok((layout, t.into_variables()))
+}
+
+/// The AdaptiveStateFeedback FMU: layout, controller (after initialisation) and the number of
+/// rejections when the current episode began (for the recovery message).
+#[derive(Debug, Clone)]
+pub struct AdaptiveStateFeedbackFmu {
+    layout: Layout,
+    controller: Option<AdaptiveStateFeedback>,
+    rejections_before_episode: u64,
+}
+
+impl AdaptiveStateFeedbackFmu {
+    fn estimate(&self, ctx: &Context) -> (DMatrix<f64>, DMatrix<f64>) {
+        (
+            self.layout.a_hat.matrix(ctx.values),
+            self.layout.b_hat.matrix(ctx.values),
+        )
+    }
+
+    /// Writes the outputs of `controller` for the current `x_hat`.
+    fn write_outputs(&self, ctx: &mut Context, controller: &AdaptiveStateFeedback) {
+        let layout = &self.layout;
+        let x_hat = layout.x_hat.vector(ctx.values);
+        let u = controller.control(&x_hat);
+        ctx.values.set_real(layout.u, u);
+        let gain = controller
+            .gain()
+            .cloned()
+            .unwrap_or_else(|| DMatrix::zeros(1, layout.states));
+        layout.gain.write(ctx.values, &gain);
+        let rejected = i32::try_from(controller.rejected_updates()).unwrap_or(i32::MAX);
+        ctx.values.set_integer(layout.rejected_updates, rejected);
+        ctx.values
+            .set_boolean(layout.estimate_rejected, controller.in_rejection_episode());
+    }
+
+    /// Outputs of the controller after processing the current inputs, without committing.
+    fn write_preview(&self, ctx: &mut Context) {
+        if let Some(controller) = &self.controller {
+            let mut preview = controller.clone();
+            let (a_hat, b_hat) = self.estimate(ctx);
+            preview.update(&a_hat, &b_hat);
+            self.write_outputs(ctx, &preview);
+        }
+    }
+
+    /// The controller in use (after initialisation).
+    pub fn controller(&self) -> Option<&AdaptiveStateFeedback> {
+        self.controller.as_ref()
+    }
+}
+
+fn config_from_parameters(
+    layout: &Layout,
+    values: &spurio_export::Values,
+) -> Result<AdaptiveStateFeedbackConfig, Cause> {
+    let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
+    check_pole_parameters(&poles, true)?;
+    let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))?;
+    let period = values.integer(layout.recompute_period);
+    let recompute_period = usize::try_from(period)
+        .ok()
+        .filter(|p| *p >= 1)
+        .ok_or_else(|| {
+            format!("parameter `recompute_period`: must be at least 1 (recompute every N-th step), got {period}")
+        })?;
+    let max_gain_norm = values.real(layout.max_gain_norm);
+    if max_gain_norm.is_nan() || max_gain_norm <= 0.0 {
+        return Err(format!(
+            "parameter `max_gain_norm`: must be a positive number, got {max_gain_norm}"
+        )
+        .into());
+    }
+    let max_condition_number = values.real(layout.max_condition_number);
+    if max_condition_number.is_nan() || max_condition_number < 1.0 {
+        return Err(format!(
+            "parameter `max_condition_number`: must be at least 1 (a condition number is ≥ 1), got {max_condition_number}"
+        ).into());
+    }
+    let initial_gain = layout.initial_gain.matrix(values);
+    if !initial_gain.iter().all(|v| v.is_finite()) {
+        return Err("parameter `L0`: must be finite".into());
+    }
+    let mut config = AdaptiveStateFeedbackConfig::new(poles, limits);
+    config.recompute_period = recompute_period;
+    config.max_gain_norm = max_gain_norm;
+    config.max_condition_number = max_condition_number;
+    config.initial_gain = Some(initial_gain);
+    Ok(config)
+}
+
+impl FmuModel for AdaptiveStateFeedbackFmu {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        describe_controller(
+            "AdaptiveStateFeedback",
+            "Adaptive pole placement: L recomputed by Ackermann from the estimated A_hat, B_hat every N steps, last good gain kept when the estimate is unusable (paper 000 Fig. 6); single input",
+            config,
+            build,
+        )
+    }
+
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self {
+            layout: layout_for(info, build)?,
+            controller: None,
+            rejections_before_episode: 0,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let config = config_from_parameters(&self.layout, ctx.values)?;
+        let controller = AdaptiveStateFeedback::new(config).map_err(|e| {
+            let parameter = if e.parameter == "initial_gain" {
+                "L0"
+            } else {
+                e.parameter.as_str()
+            };
+            format!("parameter `{parameter}`: {}", e.reason)
+        })?;
+        self.controller = Some(controller);
+        self.rejections_before_episode = 0;
+        self.write_preview(ctx);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, _step: f64) -> Result<(), Failure> {
+        let (a_hat, b_hat) = self.estimate(ctx);
+        let Some(controller) = self.controller.as_mut() else {
+            return Err(Failure::error("the controller was not initialised"));
+        };
+        let rejections_before = controller.rejected_updates();
+        let was_rejecting = controller.in_rejection_episode();
+        match controller.update(&a_hat, &b_hat) {
+            GainUpdate::Kept {
+                reason,
+                first_in_episode: true,
+            } => {
+                self.rejections_before_episode = rejections_before;
+                let kept = controller
+                    .gain()
+                    .map_or("none yet (u = 0)".to_string(), format_gain);
+                ctx.warn(format!(
+                    "t = {time} s: gain update rejected: {reason}; keeping the last good gain L = {kept} (warned once per episode; `rejected_updates` counts every rejection)"
+                ));
+            }
+            GainUpdate::Updated if was_rejecting => {
+                let rejected = controller.rejected_updates() - self.rejections_before_episode;
+                let gain = controller.gain().map_or(String::new(), format_gain);
+                ctx.log_event(format!(
+                    "t = {time} s: the estimate is usable again after {rejected} rejected updates; new gain L = {gain}"
+                ));
+            }
+            GainUpdate::Kept { .. } | GainUpdate::Updated | GainUpdate::NotDue => {}
+        }
+        // Outputs at the new communication point, for the inputs still held.
+        self.write_preview(ctx);
+        Ok(())
+    }
+
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.write_preview(ctx);
+        Ok(())
+    }
+
+    spurio_fmu_common::fmu_state!(controller, rejections_before_episode);
+}
+
+spurio_export::export_fmu! { AdaptiveStateFeedbackFmu, variants = [("AdaptiveStateFeedback", crane_controller_config())] }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spurio::control::crane_reference_design;
+    use spurio_export::types::Status;
+    use spurio_export::{ByteReader, ByteWriter, Values};
+    use spurio_fmu_common::crane_controller_config as crane_config;
+
+    #[test]
+    fn layout_matches_the_table() {
+        let (layout, v) = build(&crane_config()).unwrap();
+        assert_eq!(v[layout.x_hat.index(3, 0)].name, "x_hat[4]");
+        assert_eq!(v[layout.a_hat.index(1, 2)].name, "A_hat[2,3]");
+        assert_eq!(v[layout.b_hat.index(3, 0)].name, "B_hat[4,1]");
+        assert_eq!(v[layout.u].name, "u[1]");
+        assert_eq!(v[layout.gain.index(0, 0)].name, "L[1,1]");
+        assert_eq!(v[layout.rejected_updates].name, "rejected_updates");
+        assert_eq!(v[layout.estimate_rejected].name, "estimate_rejected");
+        assert_eq!(v[layout.pole_im.index(3, 0)].name, "pole_im[4]");
+        assert_eq!(v[layout.recompute_period].name, "recompute_period");
+        assert_eq!(v[layout.max_gain_norm].name, "max_gain_norm");
+        assert_eq!(v[layout.max_condition_number].name, "max_condition_number");
+        assert_eq!(v[layout.initial_gain.index(0, 3)].name, "L0[1,4]");
+        assert_eq!(v.len(), layout.initial_gain.index(0, 3) + 1);
+        assert_eq!(v[layout.u].dependencies.len(), 4 + 16 + 4);
+    }
+
+    /// Straight through the model (no FMI layer, which refuses NaN inputs): NaN estimates,
+    /// NaN states and mis-sized gains never reach the output.
+    #[test]
+    fn nan_estimate_keeps_the_gain_warns_once_and_never_outputs_nan() {
+        let design = crane_reference_design().unwrap();
+        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let layout = model.layout;
+        let mut values = Values::from_start(&info.variables);
+        let mut ctx = Context::new(&mut values);
+        model.initialize(&mut ctx).unwrap();
+        ctx.values.set_real(layout.x_hat.first, 0.2);
+        model.do_step(&mut ctx, 0.0, 0.05).unwrap();
+        let good = layout.gain.matrix(ctx.values);
+        assert!((&good - &design.gain).amax() < 1e-12);
+        assert!(ctx.take_messages().is_empty());
+
+        ctx.values.set_real(layout.a_hat.index(2, 1), f64::NAN);
+        for k in 1..4 {
+            model.update_outputs(&mut ctx).unwrap();
+            assert!(ctx.values.real(layout.u).is_finite());
+            model.do_step(&mut ctx, k as f64 * 0.05, 0.05).unwrap();
+            assert_eq!(layout.gain.matrix(ctx.values), good);
+        }
+        let messages = ctx.take_messages();
+        assert_eq!(messages.len(), 1, "{messages:?}");
+        assert_eq!(messages[0].status, Status::Warning);
+        assert!(messages[0].text.contains("NaN or infinity"), "{messages:?}");
+        assert_eq!(ctx.values.integer(layout.rejected_updates), 4); // 3 + the preview
+        assert!(ctx.values.boolean(layout.estimate_rejected));
+
+        ctx.values.set_real(layout.x_hat.first + 2, f64::NAN);
+        model.update_outputs(&mut ctx).unwrap();
+        assert_eq!(ctx.values.real(layout.u), 0.0);
+    }
+
+    #[test]
+    fn state_serialization_round_trips() {
+        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let layout = model.layout;
+        let mut values = Values::from_start(&info.variables);
+        let mut ctx = Context::new(&mut values);
+        model.initialize(&mut ctx).unwrap();
+        ctx.values.set_real(layout.b_hat.first + 3, 0.0);
+        ctx.values.set_real(layout.b_hat.first + 2, 0.0);
+        model.do_step(&mut ctx, 0.0, 0.05).unwrap();
+        let mut out = ByteWriter::new();
+        model.save_state(&mut out);
+        let bytes = out.into_bytes();
+        let mut restored = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        restored.load_state(&mut ByteReader::new(&bytes)).unwrap();
+        assert_eq!(restored.controller, model.controller);
+        assert_eq!(
+            restored.rejections_before_episode,
+            model.rejections_before_episode
+        );
+        let mut truncated = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        assert!(truncated
+            .load_state(&mut ByteReader::new(&bytes[..bytes.len() - 3]))
+            .is_err());
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let layout = model.layout;
+        let cases: Vec<(usize, f64, &str)> = vec![
+            (layout.pole_re.first, 1.2, "`pole_re[1]`, `pole_im[1]`"),
+            (layout.u_min, 20.0, "`u_max`"),
+            (layout.max_gain_norm, 0.0, "`max_gain_norm`"),
+            (layout.max_condition_number, 0.5, "`max_condition_number`"),
+        ];
+        for (index, value, named) in cases {
+            let mut values = Values::from_start(&info.variables);
+            values.set_real(index, value);
+            let mut ctx = Context::new(&mut values);
+            match model.initialize(&mut ctx) {
+                Err(Failure::Error(message)) => {
+                    assert!(message.to_string().contains(named), "{message}")
+                }
+                other => panic!("expected an error naming {named}, got {other:?}"),
+            }
+        }
+        let mut values = Values::from_start(&info.variables);
+        values.set_integer(layout.recompute_period, 0);
+        let mut ctx = Context::new(&mut values);
+        assert!(matches!(
+            model.initialize(&mut ctx),
+            Err(Failure::Error(m)) if m.to_string().contains("`recompute_period`")
+        ));
+    }
+}

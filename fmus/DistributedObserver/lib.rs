@@ -1,4 +1,0 @@
-//! The `DistributedObserver` FMU binary: the FMI 2.0 CS symbols for [`spurio_fmus::estimators::distributed`].
-#![allow(non_snake_case)]
-
-spurio_fmi2::export_fmu!(spurio_fmus::estimators::distributed::DistributedObserverFmu);

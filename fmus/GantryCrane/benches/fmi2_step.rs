@@ -1,0 +1,59 @@
+//! Cost of one `fmi2DoStep` (with the `fmi2SetReal` of the input and the `fmi2GetReal` of the
+//! outputs around it) through the FMUs' C entry points, in-process.
+//!
+//! Run: `cargo bench -p fmu-gantry-crane --bench fmi2_step`. Prints the median over many batches,
+//! so a noisy machine shifts it little.
+
+use spurio_export::harness::Harness;
+use spurio_export::{Config, FmuModel};
+use std::hint::black_box;
+use GantryCrane::{vr, GantryCraneFmu};
+
+/// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
+fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> (f64, f64, f64) {
+    spurio_export::harness::time_per_call(per_batch, batches, per_batch, call)
+}
+
+fn crane(step: f64, label: &str) {
+    let mut h = Harness::<GantryCraneFmu>::new(&Config::new()).expect("instantiate");
+    h.initialize(0.0).expect("initialize");
+    let outputs = [
+        vr::X as u32,
+        vr::THETA as u32,
+        vr::V as u32,
+        vr::OMEGA as u32,
+    ];
+    let mut y = [0.0; 4];
+    let mut t = 0.0;
+    let mut k = 0u64;
+    let (median, q1, q3) = measure(200, 50, || {
+        // A gentle input that keeps the cart away from the rail stops.
+        let u = 0.5 * ((k as f64) * 0.01).sin();
+        h.set_real(&[vr::U as u32], &[u]).expect("set");
+        h.do_step(t, step).expect("step");
+        h.get_real(&outputs, &mut y).expect("get");
+        black_box(&y);
+        t += step;
+        k += 1;
+    });
+    println!(
+        "{label}: median {:.2} µs per step (IQR {:.2}–{:.2} µs), {} RK4 substeps of {} s",
+        median / 1e3,
+        q1 / 1e3,
+        q3 / 1e3,
+        spurio::ode::substep_count(step, 1e-3),
+        1e-3
+    );
+}
+
+fn main() {
+    let _ = GantryCraneFmu::describe(&Config::new());
+    crane(
+        0.05,
+        "GantryCrane fmi2SetReal+fmi2DoStep(h = 50 ms)+fmi2GetReal",
+    );
+    crane(
+        0.001,
+        "GantryCrane fmi2SetReal+fmi2DoStep(h = 1 ms)+fmi2GetReal",
+    );
+}

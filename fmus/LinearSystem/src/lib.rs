@@ -1,0 +1,400 @@
+//! `LinearSystem.fmu`: a discrete or continuous linear state-space plant with seeded process
+//! and measurement noise (SPEC §2 item 4), dimensions chosen when the FMU is packaged;
+//! paper 004's three-state system (§5, SPEC §2 item 12) is the bundled variant
+//! `DistributedObserverPlant`.
+//!
+//! ```text
+//! discrete   (continuous = false):  x_{k+1} = A x_k + B u_k + w_k,   w_k ~ N(0, Q)
+//! continuous (continuous = true):   x(t+h) = e^{Ah} x(t) + ∫₀^h e^{Aτ}dτ B u + w_h,
+//!                                   w_h ~ N(0, ∫₀^h e^{Aτ} Q e^{Aᵀτ} dτ)   (exact, u held)
+//! both:                             y_k = C x_k + D u_k + v_k,          v_k ~ N(0, R)
+//! ```
+//!
+//! In discrete time every `fmi2DoStep` is one sample, whatever its length. Outputs: the
+//! measured `y[j]`, the noise-free `y_clean[j] = C x + D u` and the true state `x[i]` (for
+//! scoring). `y` and `y_clean` depend directly on `u` (through `D`); the measurement noise of a
+//! communication point is drawn once, when the point is reached, so setting `u` again at the
+//! same point recomputes `y` with the same `v_k`. The mathematics (exact discretisation by the
+//! matrix exponential, Van Loan's method for `Q_h`, eigen-factor sampling of PSD covariances)
+//! is [`spurio::plants::linear_system`].
+//!
+//! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
+//! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
+//! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
+
+use nalgebra::{DMatrix, DVector};
+use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    VariableTable,
+};
+use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
+
+/// Largest dimension a variant may have.
+pub const MAX_DIMENSION: usize = 100;
+
+/// Dimensions and preset of a configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dimensions {
+    pub n: usize,
+    pub m: usize,
+    pub p: usize,
+    /// Paper 004's matrices as defaults.
+    pub paper004: bool,
+}
+
+fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, Cause> {
+    match config.get(key) {
+        None => Ok(default),
+        Some(v) => match v.parse::<usize>() {
+            Ok(k) if (min..=MAX_DIMENSION).contains(&k) => Ok(k),
+            _ => Err(format!(
+                "variant.cfg: `{key}` must be an integer from {min} to {MAX_DIMENSION}, got `{v}`"
+            )
+            .into()),
+        },
+    }
+}
+
+/// The dimensions a configuration asks for.
+pub fn dimensions(config: &Config) -> Result<Dimensions, Cause> {
+    let paper004 = match config.get("preset") {
+        None | Some("") | Some("none") => false,
+        Some("paper004") => true,
+        Some(other) => {
+            return Err(format!(
+                "variant.cfg: `preset` must be `paper004` or absent, got `{other}`"
+            )
+            .into())
+        }
+    };
+    let (dn, dm, dp) = if paper004 { (3, 0, 2) } else { (2, 1, 1) };
+    let d = Dimensions {
+        n: count(config, "n", dn, 1)?,
+        m: count(config, "m", dm, 0)?,
+        p: count(config, "p", dp, 1)?,
+        paper004,
+    };
+    if paper004 && (d.n, d.m, d.p) != (3, 0, 2) {
+        return Err(format!(
+            "variant.cfg: `preset = paper004` is the system with n = 3, m = 0, p = 2, got n = {}, m = {}, p = {}",
+            d.n, d.m, d.p
+        ).into());
+    }
+    Ok(d)
+}
+
+/// The default parameters of a configuration: paper 004's system, or a stable chain
+/// `x_i⁺ = 0.9 x_i + 0.1 x_{i+1}` (all poles at 0.9) with input `j` driving state `n − j`,
+/// output `j` reading state `j`, `Q = 0.001 I`, `R = 0.01 I`, `x0 = 0`.
+pub fn default_parameters(d: &Dimensions) -> LinearSystemParameters {
+    if d.paper004 {
+        return LinearSystemParameters::distributed_observer_example(1);
+    }
+    let (n, m, p) = (d.n, d.m, d.p);
+    LinearSystemParameters {
+        a: DMatrix::from_fn(n, n, |i, j| {
+            if i == j {
+                0.9
+            } else if j == i + 1 {
+                0.1
+            } else {
+                0.0
+            }
+        }),
+        b: DMatrix::from_fn(n, m, |i, j| if i + j + 1 == n { 1.0 } else { 0.0 }),
+        c: DMatrix::from_fn(p, n, |i, j| if i == j { 1.0 } else { 0.0 }),
+        d: DMatrix::zeros(p, m),
+        q: DMatrix::identity(n, n) * 0.001,
+        r: DMatrix::identity(p, p) * 0.01,
+        time_domain: TimeDomain::Discrete,
+        initial_state: DVector::zeros(n),
+        seed: 1,
+    }
+}
+
+/// Where each block of variables starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layout {
+    pub dims: Dimensions,
+    pub u: Block,
+    pub y: Block,
+    pub y_clean: Block,
+    pub x: Block,
+    pub a: Block,
+    pub b: Block,
+    pub c: Block,
+    pub d: Block,
+    pub q: Block,
+    pub r: Block,
+    pub x0: Block,
+    pub seed: usize,
+    pub continuous: usize,
+}
+
+/// The variable table and its layout.
+pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
+    let defaults = default_parameters(d);
+    let (n, m, p) = (d.n, d.m, d.p);
+    let mut t = VariableTable::new();
+    let u = add_vector(&mut t, "u", m, |name, _| {
+        Variable::input(name, 0.0).describe("Input (held over each step)")
+    });
+    let inputs: Vec<usize> = u.indices().collect();
+    let y = add_vector(&mut t, "y", p, |name, _| {
+        Variable::discrete_output(name)
+            .describe("Measured output C x + D u + v")
+            .depends_on(&inputs)
+    });
+    let y_clean = add_vector(&mut t, "y_clean", p, |name, _| {
+        Variable::discrete_output(name)
+            .describe("Noise-free output C x + D u")
+            .depends_on(&inputs)
+    });
+    let x = add_vector(&mut t, "x", n, |name, _| {
+        Variable::discrete_output(name).describe("True state (for scoring)")
+    });
+    let a = add_matrix(&mut t, "A", n, n, |name, i, j| {
+        Variable::parameter(name, defaults.a[(i, j)]).describe("State matrix")
+    });
+    let b = add_matrix(&mut t, "B", n, m, |name, i, j| {
+        Variable::parameter(name, defaults.b[(i, j)]).describe("Input matrix")
+    });
+    let c = add_matrix(&mut t, "C", p, n, |name, i, j| {
+        Variable::parameter(name, defaults.c[(i, j)]).describe("Output matrix")
+    });
+    let dd = add_matrix(&mut t, "D", p, m, |name, i, j| {
+        Variable::parameter(name, defaults.d[(i, j)]).describe("Feedthrough matrix")
+    });
+    let q = add_matrix(&mut t, "Q", n, n, |name, i, j| {
+        Variable::parameter(name, defaults.q[(i, j)]).describe(
+            "Process-noise covariance (symmetric PSD): per sample, or spectral density per second when continuous",
+        )
+    });
+    let r = add_matrix(&mut t, "R", p, p, |name, i, j| {
+        Variable::parameter(name, defaults.r[(i, j)])
+            .describe("Measurement-noise covariance (symmetric PSD)")
+    });
+    let x0 = add_vector(&mut t, "x0", n, |name, i| {
+        Variable::parameter(name, defaults.initial_state[i]).describe("Initial state")
+    });
+    let seed = t.add(
+        Variable::integer_parameter("seed", 1)
+            .min(0.0)
+            .describe("Seed of the noise streams (process: stream 0, measurement: stream 1)"),
+    );
+    let continuous = t.add(Variable::boolean_parameter("continuous", false).describe(
+        "false: x+ = A x + B u + w, one sample per step; true: dx/dt = A x + B u + w, exact over each step",
+    ));
+    let layout = Layout {
+        dims: *d,
+        u,
+        y,
+        y_clean,
+        x,
+        a,
+        b,
+        c,
+        d: dd,
+        q,
+        r,
+        x0,
+        seed,
+        continuous,
+    };
+    (t.into_variables(), layout)
+}
+
+/// The LinearSystem FMU.
+#[derive(Debug, Clone)]
+pub struct LinearSystemFmu {
+    layout: Layout,
+    system: Option<LinearSystem>,
+}
+
+fn error(e: spurio::ParameterError) -> Failure {
+    Failure::error(e.to_string())
+}
+
+impl LinearSystemFmu {
+    fn input(&self, ctx: &Context) -> DVector<f64> {
+        self.layout.u.vector(ctx.values)
+    }
+
+    fn write_outputs(&self, ctx: &mut Context) -> Result<(), Failure> {
+        let system = self
+            .system
+            .as_ref()
+            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let u = self.input(ctx);
+        let clean = system.clean_output(&u).map_err(error)?;
+        let measured = &clean + system.measurement_noise();
+        self.layout.y.write_vector(ctx.values, &measured);
+        self.layout.y_clean.write_vector(ctx.values, &clean);
+        self.layout.x.write_vector(ctx.values, system.state());
+        Ok(())
+    }
+
+    fn read_parameters(&self, ctx: &Context) -> Result<LinearSystemParameters, Failure> {
+        let l = &self.layout;
+        let v = &*ctx.values;
+        let seed = v.integer(l.seed);
+        if seed < 0 {
+            return Err(Failure::error(format!(
+                "parameter `seed`: must be >= 0, got {seed}"
+            )));
+        }
+        Ok(LinearSystemParameters {
+            a: l.a.matrix(v),
+            b: l.b.matrix(v),
+            c: l.c.matrix(v),
+            d: l.d.matrix(v),
+            q: l.q.matrix(v),
+            r: l.r.matrix(v),
+            time_domain: if v.boolean(l.continuous) {
+                TimeDomain::Continuous
+            } else {
+                TimeDomain::Discrete
+            },
+            initial_state: l.x0.vector(v),
+            seed: seed as u64,
+        })
+    }
+}
+
+impl FmuModel for LinearSystemFmu {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        let d = dimensions(config)?;
+        let (variables, _) = table(&d);
+        let description = if d.paper004 {
+            "Linear state-space plant with seeded noise: paper 004's three-state system (A, C, Q = 0.2 I, R = 0.1 I)"
+        } else {
+            "Discrete or continuous linear state-space plant with seeded process and measurement noise"
+        };
+        Ok(ModelInfo::new(
+            "LinearSystem",
+            description,
+            variables,
+            Some(DefaultExperiment {
+                start_time: 0.0,
+                stop_time: if d.paper004 { 100.0 } else { 10.0 },
+                step_size: if d.paper004 { 1.0 } else { 0.1 },
+            }),
+            config.clone(),
+        ))
+    }
+
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
+        let d = dimensions(&info.config)?;
+        let (_, layout) = table(&d);
+        Ok(Self {
+            layout,
+            system: None,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let parameters = self.read_parameters(ctx)?;
+        self.system = Some(LinearSystem::new(parameters).map_err(error)?);
+        self.write_outputs(ctx)
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        let u = self.input(ctx);
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let mut next = system.clone();
+        next.advance(&u, step).map_err(error)?;
+        if next.state().iter().any(|v| !v.is_finite()) {
+            return Err(Failure::error(format!(
+                "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
+            )));
+        }
+        *system = next;
+        self.write_outputs(ctx)
+    }
+
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.write_outputs(ctx)
+    }
+
+    spurio_fmu_common::fmu_state!(system);
+}
+
+spurio_export::export_fmu!(
+    LinearSystemFmu,
+    variants = [
+        ("LinearSystem", Config::new()),
+        (
+            "DistributedObserverPlant",
+            spurio_fmu_common::config(&[
+                ("n", "3"),
+                ("m", "0"),
+                ("p", "2"),
+                ("preset", "paper004")
+            ])
+        ),
+        (
+            "LinearSystem2",
+            spurio_fmu_common::config(&[("n", "2"), ("m", "2"), ("p", "2")])
+        ),
+    ]
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn configurations_give_the_right_dimensions() {
+        let d = dimensions(&Config::new()).unwrap();
+        assert_eq!((d.n, d.m, d.p, d.paper004), (2, 1, 1, false));
+        let mut c = Config::new();
+        c.set("preset", "paper004");
+        let d = dimensions(&c).unwrap();
+        assert_eq!((d.n, d.m, d.p), (3, 0, 2));
+        c.set("n", 4);
+        assert!(dimensions(&c).unwrap_err().to_string().contains("paper004"));
+        let mut c = Config::new();
+        c.set("m", 0);
+        assert_eq!(dimensions(&c).unwrap().m, 0);
+        c.set("n", 0);
+        assert!(dimensions(&c).unwrap_err().to_string().contains("`n`"));
+    }
+
+    #[test]
+    fn tables_have_no_inputs_when_m_is_zero_and_defaults_are_valid() {
+        for (n, m, p) in [(2, 1, 1), (3, 0, 2), (4, 2, 3)] {
+            let d = Dimensions {
+                n,
+                m,
+                p,
+                paper004: false,
+            };
+            let (v, l) = table(&d);
+            assert_eq!(
+                v.iter()
+                    .filter(|x| x.causality == spurio_export::Causality::Input)
+                    .count(),
+                m
+            );
+            assert_eq!(v[l.continuous].name, "continuous");
+            assert_eq!(v[l.a.index(n - 1, n - 1)].name, format!("A[{n},{n}]"));
+            assert!(LinearSystem::new(default_parameters(&d)).is_ok());
+        }
+        let d = Dimensions {
+            n: 3,
+            m: 0,
+            p: 2,
+            paper004: true,
+        };
+        let (v, l) = table(&d);
+        assert_eq!(
+            v[l.a.index(1, 2)].start,
+            spurio_export::Value::Real(-0.08757)
+        );
+        assert_eq!(v[l.x0.first].start, spurio_export::Value::Real(1.0));
+    }
+}

@@ -1,0 +1,192 @@
+//! `OpAmpFilter.fmu`: the unity-gain Sallen–Key low-pass of paper 002 (§III, eq. 9; SPEC §2
+//! item 3) as an FMI 2.0 CS FMU.
+//!
+//! Input `u` [V], output `y` [V] (the op-amp output, clipped to `[V_sat_low, V_sat_high]`),
+//! plus the capacitor voltages. Component values are parameters; the defaults give
+//! `H(s) = 27/(s² + 5.19 s + 27)`:
+//!
+//! ```text
+//! C1 dv₁/dt = (u − V_A)/R1 − (V_A − v₂)/R2,   V_A = v₁ + y
+//! C2 dv₂/dt = (V_A − v₂)/R2,                  y = clamp(v₂, V_sat_low, V_sat_high)
+//! H(s) = 1/(R1 R2 C1 C2 s² + C2 (R1 + R2) s + 1)
+//! ```
+//!
+//! The mathematics is [`spurio::plants::opamp_filter`]; RK4 on substeps no longer than
+//! `h_max` inside `fmi2DoStep`. A substep too long for RK4 to be stable on the circuit's
+//! fastest mode (`h_max · |λ|max > 2.5`, |λ|max over the linear poles and the saturated
+//! modes `(1/R1 + 1/R2)/C1`, `1/(R2 C2)`) is refused with an error naming `h_max`.
+
+use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
+
+/// `h_max · |λ|max` above which RK4 is refused (its real-axis stability limit is 2.785).
+pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+
+spurio_export::declare_variables! {
+    /// The variable table, in value-reference order.
+    pub fn variables() {
+        let p = OpAmpFilterParameters::default();
+        table: [
+            U = Variable::input("u", 0.0)
+                .unit("V")
+                .describe("Input voltage"),
+            Y = Variable::output("y")
+                .unit("V")
+                .describe("Output voltage of the op-amp (within the supply rails)"),
+            V_C1 = Variable::output("v_C1")
+                .unit("V")
+                .describe("Voltage across C1 (node A minus output)"),
+            V_C2 = Variable::output("v_C2")
+                .unit("V")
+                .describe("Voltage across C2 (node B to ground, the op-amp's + input)"),
+            SATURATED = Variable::boolean_output("saturated")
+                .describe("Whether the output sits on a rail at this communication point"),
+            R1 = Variable::parameter("R1", p.r1).unit("Ohm").describe(
+                "Input resistor (default: with R2, C1, C2 gives H(s) = 27/(s^2 + 5.19 s + 27))",
+                ),
+            R2 = Variable::parameter("R2", p.r2)
+                .unit("Ohm")
+                .describe("Resistor between node A and node B"),
+            C1 = Variable::parameter("C1", p.c1)
+                .unit("F")
+                .describe("Feedback capacitor from node A to the output (4.7 uF)"),
+            C2 = Variable::parameter("C2", p.c2)
+                .unit("F")
+                .describe("Capacitor from node B to ground (1 uF)"),
+            V_SAT_HIGH = Variable::parameter("V_sat_high", p.v_sat_high)
+                .unit("V")
+                .describe("Upper output saturation (positive rail less headroom)"),
+            V_SAT_LOW = Variable::parameter("V_sat_low", p.v_sat_low)
+                .unit("V")
+                .describe("Lower output saturation (negative rail less headroom)"),
+            V_C1_0 = Variable::parameter("v_C1_0", 0.0)
+                .unit("V")
+                .describe("Initial voltage across C1"),
+            V_C2_0 = Variable::parameter("v_C2_0", 0.0)
+                .unit("V")
+                .describe("Initial voltage across C2"),
+            H_MAX = Variable::parameter("h_max", 1e-3)
+                .unit("s")
+                .describe("Longest RK4 substep inside fmi2DoStep"),
+        ]
+    }
+}
+
+/// Largest |eigenvalue| the integrator meets: the linear poles and the saturated modes.
+pub fn fastest_mode(p: &OpAmpFilterParameters) -> f64 {
+    let (a, _, _) = p.state_space();
+    // Poles of s² − tr(A) s + det(A).
+    let (tr, det) = (a.trace(), a.determinant());
+    let disc = tr * tr - 4.0 * det;
+    let linear = if disc >= 0.0 {
+        0.5 * (tr.abs() + disc.sqrt())
+    } else {
+        det.sqrt()
+    };
+    let saturated = ((1.0 / p.r1 + 1.0 / p.r2) / p.c1).max(1.0 / (p.r2 * p.c2));
+    linear.max(saturated)
+}
+
+/// The OpAmpFilter FMU.
+#[derive(Debug, Clone)]
+pub struct OpAmpFilterFmu {
+    filter: OpAmpFilter,
+    h_max: f64,
+}
+
+impl OpAmpFilterFmu {
+    fn write_outputs(&self, ctx: &mut Context) {
+        let y = self.filter.output();
+        ctx.values.set_real(vr::Y, y);
+        ctx.values.set_real(vr::V_C1, self.filter.state[0]);
+        ctx.values.set_real(vr::V_C2, self.filter.state[1]);
+        ctx.values
+            .set_boolean(vr::SATURATED, y != self.filter.state[1]);
+    }
+}
+
+impl FmuModel for OpAmpFilterFmu {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
+        Ok(ModelInfo::new(
+            "OpAmpFilter",
+            "Sallen-Key op-amp low-pass of paper 002, H(s) = 27/(s^2 + 5.19 s + 27) by default, output saturated at the rails",
+            variables(),
+            Some(DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 5.0,
+                step_size: 0.01,
+            }),
+            Config::new(),
+        ))
+    }
+
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self {
+            filter: OpAmpFilter {
+                parameters: OpAmpFilterParameters::default(),
+                state: Default::default(),
+            },
+            h_max: 1e-3,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let r = |i| ctx.values.real(i);
+        let parameters = OpAmpFilterParameters {
+            r1: r(vr::R1),
+            r2: r(vr::R2),
+            c1: r(vr::C1),
+            c2: r(vr::C2),
+            v_sat_high: r(vr::V_SAT_HIGH),
+            v_sat_low: r(vr::V_SAT_LOW),
+        };
+        let state = [r(vr::V_C1_0), r(vr::V_C2_0)].into();
+        let filter = OpAmpFilter::with_state(parameters, state).map_err(Failure::error)?;
+        let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(Failure::error)?;
+        let fastest = fastest_mode(&parameters);
+        let product = h_max * fastest;
+        if product.is_nan() || product > RK4_STABILITY_MARGIN {
+            return Err(Failure::error(format!(
+                "parameter `h_max`: {h_max} s would make RK4 unstable on the circuit's fastest mode ({fastest:.4} 1/s); use at most {:.3e} s",
+                RK4_STABILITY_MARGIN / fastest
+            )));
+        }
+        self.filter = filter;
+        self.h_max = h_max;
+        self.write_outputs(ctx);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        let u = ctx.values.real(vr::U);
+        let mut next = self.filter.clone();
+        next.advance(time, u, step, self.h_max);
+        if next.state.iter().any(|v| !v.is_finite()) {
+            return Err(Failure::error(format!(
+                "the capacitor voltages became non-finite in the step from t = {time} (input u = {u})"
+            )));
+        }
+        self.filter = next;
+        self.write_outputs(ctx);
+        Ok(())
+    }
+
+    spurio_fmu_common::fmu_state!(filter, h_max);
+}
+
+spurio_export::export_fmu!(OpAmpFilterFmu);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fastest_mode_of_the_defaults_is_the_saturated_c2_mode() {
+        let p = OpAmpFilterParameters::default();
+        // Linear poles |λ| = √27; saturated modes (1/R1 + 1/R2)/C1 ≈ 5.19, 1/(R2 C2) ≈ 16.9.
+        let f = fastest_mode(&p);
+        assert!((f - 1.0 / (p.r2 * p.c2)).abs() < 1e-9, "{f}");
+    }
+}

@@ -1,0 +1,400 @@
+//! `RecursiveLeastSquares.fmu`: ARX(na, nb) recursive least squares with forgetting, SPEC §2
+//! item 11; paper 002 §3.
+//!
+//! ```text
+//! y(t) = −a₁ y(t−1) − … − a_na y(t−na) + b₁ u(t−1) + … + b_nb u(t−nb) + e(t) = φᵀθ + e
+//! ε = y − φᵀθ(t−1),  L = Pφ/(λ + φᵀPφ),  θ(t) = θ(t−1) + L ε,  P = (P − Pφφᵀ P/(λ + φᵀPφ))/λ
+//! ```
+//!
+//! Outputs θ = [a₁ … a_na, b₁ … b_nb] (`theta[i]`), the one-step prediction `y_hat` = φᵀθ(t−1)
+//! and, for na = 2, nb ∈ {1, 2}, the continuous-time equivalent K ω_n²/(s² + 2ζω_n s + ω_n²)
+//! of the current estimate: `wn`, `zeta`, `dc_gain`, `overshoot` [%] and the 2 %
+//! `settling_time` [s] (see [`spurio::estimation::ContinuousSecondOrder`]). When the model is
+//! not second order or the estimate has no continuous equivalent (a pole on the negative real
+//! axis or outside the unit circle, e.g. at the start when θ = 0) those outputs are 0 and an
+//! event is logged once.
+//!
+//! With `prefilter` = true, u and y pass through 1/Â(q) (Steiglitz–McBride) refreshed every
+//! `refresh` samples, which removes the bias of least squares under white output noise
+//! (SPEC §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
+//! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
+//! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
+
+use spurio::estimation::{EstimationError, RecursiveLeastSquares};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+};
+use spurio_fmu_common::estimator::{count, error, DynamicState, Estimator};
+use spurio_fmu_common::structured::{add_vector, Block};
+
+/// Value references of a `RecursiveLeastSquares` variant.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RlsLayout {
+    pub na: usize,
+    pub nb: usize,
+    pub u: usize,
+    pub y: usize,
+    pub theta: Block,
+    pub y_hat: usize,
+    pub wn: usize,
+    pub zeta: usize,
+    pub dc_gain: usize,
+    pub overshoot: usize,
+    pub settling_time: usize,
+    pub lambda: usize,
+    pub p0_scale: usize,
+    pub ts: usize,
+    pub prefilter: usize,
+    pub refresh: usize,
+    pub prefilter_a: Block,
+}
+
+/// The RLS estimator and whether the readout failure was logged.
+#[derive(Debug, Clone)]
+pub struct Rls {
+    rls: RecursiveLeastSquares,
+    /// Sampling period of the readout (0: the communication step).
+    ts: f64,
+    readout_logged: bool,
+}
+
+fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
+    let na = count(config, "na", 2, 0)?;
+    let nb = count(config, "nb", 2, 0)?;
+    if na + nb == 0 {
+        return Err("variant.cfg: na + nb must be at least 1".into());
+    }
+    let mut t = VariableTable::new();
+    let u = t.add(Variable::input("u", 0.0).describe("Input sample u(t)"));
+    let y = t.add(Variable::input("y", 0.0).describe("Output sample y(t)"));
+    let theta = add_vector(&mut t, "theta", na + nb, |name, i| {
+        let what = if i < na {
+            format!(
+                "ARX coefficient a{} (y(t) = −Σ a_i y(t−i) + Σ b_j u(t−j))",
+                i + 1
+            )
+        } else {
+            format!("ARX coefficient b{}", i - na + 1)
+        };
+        Variable::discrete_output(name).describe(&what)
+    });
+    let y_hat =
+        t.add(Variable::discrete_output("y_hat").describe("One-step prediction φᵀθ(t−1) of y(t)"));
+    let wn = t.add(
+        Variable::discrete_output("wn")
+            .unit("rad/s")
+            .describe("Natural frequency ω_n of the continuous equivalent (0 when unavailable)"),
+    );
+    let zeta = t.add(
+        Variable::discrete_output("zeta")
+            .unit("1")
+            .describe("Damping ratio ζ of the continuous equivalent (0 when unavailable)"),
+    );
+    let dc_gain = t.add(
+        Variable::discrete_output("dc_gain").describe("DC gain Σb/(1 + Σa) (0 when unavailable)"),
+    );
+    let overshoot = t.add(
+        Variable::discrete_output("overshoot")
+            .unit("%")
+            .describe("Step-response overshoot of the continuous equivalent (0 when unavailable)"),
+    );
+    let settling_time = t.add(
+        Variable::discrete_output("settling_time")
+            .unit("s")
+            .describe("2 % settling time of the continuous equivalent (0 when unavailable)"),
+    );
+    let lambda = t.add(
+        Variable::parameter("lambda", 1.0)
+            .min(0.0)
+            .max(1.0)
+            .describe(
+            "Forgetting factor λ in (0, 1] (paper 002: 0.98; 1 keeps a single step's transient)",
+        ),
+    );
+    let p0_scale = t.add(
+        Variable::parameter("p0_scale", 1e4)
+            .min(0.0)
+            .describe("Initial covariance P₀ = p0_scale·I (large: no prior knowledge); θ₀ = 0"),
+    );
+    let ts =
+        t.add(Variable::parameter("Ts", 0.0).unit("s").min(0.0).describe(
+            "Sampling period for the continuous readout; 0 = the communication step size",
+        ));
+    let prefilter = t.add(Variable::boolean_parameter("prefilter", false).describe(
+        "Steiglitz–McBride prefilter: u, y filtered through 1/Â(q) (removes the noise bias)",
+    ));
+    let refresh = t.add(
+        Variable::integer_parameter("refresh", 10)
+            .min(0.0)
+            .describe("Prefilter: samples between refreshes of Â(q) from θ; 0 = keep Â fixed"),
+    );
+    let prefilter_a = add_vector(&mut t, "prefilter_a", na, |name, i| {
+        Variable::parameter(name, 0.0).describe(&format!(
+            "Prefilter: initial â{} of Â(q) = 1 + â₁q⁻¹ + … (Steiglitz–McBride: the previous pass's a{})",
+            i + 1,
+            i + 1
+        ))
+    });
+    let info = ModelInfo::new(
+        "RecursiveLeastSquares",
+        "Recursive least squares on an ARX(na, nb) model with forgetting, continuous second-order readout (paper 002)",
+        t.into_variables(),
+        Some(DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 10.0,
+            step_size: 0.01,
+        }),
+        config.clone(),
+    );
+    Ok((
+        RlsLayout {
+            na,
+            nb,
+            u,
+            y,
+            theta,
+            y_hat,
+            wn,
+            zeta,
+            dc_gain,
+            overshoot,
+            settling_time,
+            lambda,
+            p0_scale,
+            ts,
+            prefilter,
+            refresh,
+            prefilter_a,
+        },
+        info,
+    ))
+}
+
+fn write_readout(l: &RlsLayout, values: &mut Values, figures: [f64; 5]) {
+    let indices = [l.wn, l.zeta, l.dc_gain, l.overshoot, l.settling_time];
+    for (index, value) in indices.into_iter().zip(figures) {
+        values.set_real(index, value);
+    }
+}
+
+impl Estimator for Rls {
+    type Layout = RlsLayout;
+
+    fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
+        interface(config)
+    }
+
+    fn build(l: &RlsLayout, values: &Values) -> Result<Self, Failure> {
+        let lambda = values.real(l.lambda);
+        let p0 = values.real(l.p0_scale);
+        let rls = if values.boolean(l.prefilter) {
+            let refresh = values.integer(l.refresh);
+            if refresh < 0 {
+                return Err(Failure::error(format!(
+                    "parameter `refresh`: must be >= 0 samples (0 = fixed prefilter), got {refresh}"
+                )));
+            }
+            RecursiveLeastSquares::with_prefilter(l.na, l.nb, lambda, p0, refresh as u64).and_then(
+                |mut rls| {
+                    let denominator: Vec<f64> =
+                        l.prefilter_a.indices().map(|k| values.real(k)).collect();
+                    rls.set_prefilter_denominator(&denominator)?;
+                    Ok(rls)
+                },
+            )
+        } else {
+            RecursiveLeastSquares::new(l.na, l.nb, lambda, p0)
+        }
+        .map_err(|e| {
+            Failure::error(
+                e.to_string()
+                    .replace("parameter `P0`", "parameter `p0_scale`"),
+            )
+        })?;
+        let ts = values.real(l.ts);
+        if !(ts.is_finite() && ts >= 0.0) {
+            return Err(Failure::error(format!(
+                "parameter `Ts`: the sampling period must be finite and >= 0 (0 = the communication step), got {ts}"
+            )));
+        }
+        Ok(Self {
+            rls,
+            ts,
+            readout_logged: false,
+        })
+    }
+
+    fn write_initial(&self, l: &RlsLayout, ctx: &mut Context) {
+        l.theta.indices().for_each(|k| ctx.values.set_real(k, 0.0));
+        ctx.values.set_real(l.y_hat, 0.0);
+        write_readout(l, ctx.values, [0.0; 5]);
+    }
+
+    fn step(
+        &mut self,
+        l: &RlsLayout,
+        ctx: &mut Context,
+        time: f64,
+        step: f64,
+    ) -> Result<(), Failure> {
+        let u = ctx.values.real(l.u);
+        let y = ctx.values.real(l.y);
+        for (name, v) in [("u", u), ("y", y)] {
+            if !v.is_finite() {
+                return Err(Failure::error(format!(
+                    "input `{name}` = {v} is not finite: the estimator cannot use it (the step was not taken)"
+                )));
+            }
+        }
+        let prediction_error = self.rls.step(u, y).map_err(error)?;
+        for (k, index) in l.theta.indices().enumerate() {
+            ctx.values
+                .set_real(index, self.rls.parameters().get(k).copied().unwrap_or(0.0));
+        }
+        ctx.values.set_real(l.y_hat, y - prediction_error);
+        let ts = if self.ts > 0.0 { self.ts } else { step };
+        match self.rls.continuous_second_order(ts) {
+            Ok(c)
+                if [
+                    c.natural_frequency,
+                    c.damping,
+                    c.dc_gain,
+                    c.overshoot_percent,
+                    c.settling_time,
+                ]
+                .iter()
+                .all(|v| v.is_finite()) =>
+            {
+                write_readout(
+                    l,
+                    ctx.values,
+                    [
+                        c.natural_frequency,
+                        c.damping,
+                        c.dc_gain,
+                        c.overshoot_percent,
+                        c.settling_time,
+                    ],
+                );
+            }
+            result => {
+                write_readout(l, ctx.values, [0.0; 5]);
+                if !self.readout_logged {
+                    self.readout_logged = true;
+                    let reason = match result {
+                        Err(e) => e.to_string(),
+                        Ok(_) => "a figure of the continuous equivalent is not finite".into(),
+                    };
+                    ctx.log_event(format!(
+                        "t = {time}: no continuous second-order readout ({reason}); wn, zeta, dc_gain, overshoot and settling_time are 0 while it is unavailable (logged once)"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The RLS and whether the readout problem was logged (once per episode).
+impl DynamicState for Rls {
+    fn dynamic_state(&self) -> Vec<f64> {
+        let mut state = self.rls.dynamic_state();
+        state.push(if self.readout_logged { 1.0 } else { 0.0 });
+        state
+    }
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let (flag, rest) = state.split_last().ok_or(EstimationError::Dimension {
+            what: "saved RecursiveLeastSquares state",
+            expected: 1,
+            got: 0,
+        })?;
+        self.rls.set_dynamic_state(rest)?;
+        self.readout_logged = *flag != 0.0;
+        Ok(())
+    }
+}
+
+/// `RecursiveLeastSquares.fmu`.
+pub type RecursiveLeastSquaresFmu = spurio_fmu_common::estimator::EstimatorFmu<Rls>;
+
+/// The configuration of a variant with na, nb.
+pub fn arx_config(na: usize, nb: usize) -> Config {
+    let mut c = Config::new();
+    c.set("na", na);
+    c.set("nb", nb);
+    c
+}
+
+spurio_export::export_fmu!(
+    RecursiveLeastSquaresFmu,
+    variants = [("RecursiveLeastSquares", arx_config(2, 2))]
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spurio_export::harness::Harness;
+    use spurio_export::FmuModel;
+
+    #[test]
+    fn identifies_the_op_amp_filter_and_rejects_lambda_above_one() {
+        // SPEC §6: H(s) = 27/(s² + 5.19 s + 27) with ZOH at Ts = 0.01 s; these rounded
+        // coefficients have ω_n = 5.196607, ζ = 0.499362 (computed independently).
+        let (a1, a2, b1, b2) = (-1.946793, 0.949424, 1.32665e-3, 1.30389e-3);
+        let config = arx_config(2, 2);
+        let info = RecursiveLeastSquaresFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
+        // A weak prior: the ARX regressors are nearly collinear at this sampling rate.
+        h.set_real(&[vr("p0_scale")], &[1e10]).unwrap();
+        h.initialize(0.0).unwrap();
+        let (mut y1, mut y2, mut u1, mut u2) = (0.0, 0.0, 0.0, 0.0);
+        for k in 0..2000 {
+            let u = if (k / 37) % 3 == 0 { 1.0 } else { -1.0 };
+            let y = -a1 * y1 - a2 * y2 + b1 * u1 + b2 * u2;
+            h.set_real(&[vr("u"), vr("y")], &[u, y]).unwrap();
+            h.do_step(k as f64 * 0.01, 0.01).unwrap();
+            (y2, y1, u2, u1) = (y1, y, u1, u);
+        }
+        let mut out = [0.0; 2];
+        h.get_real(&[vr("wn"), vr("zeta")], &mut out).unwrap();
+        assert!((out[0] - 5.196607).abs() < 1e-3, "{out:?}");
+        assert!((out[1] - 0.499362).abs() < 1e-3, "{out:?}");
+        assert!(
+            h.log().iter().any(|(_, _, t)| t.contains("logged once")),
+            "{:?}",
+            h.log()
+        );
+
+        let mut bad = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
+        assert!(bad.set_real(&[vr("lambda")], &[1.5]).is_err());
+        assert!(bad
+            .log()
+            .iter()
+            .any(|(_, _, t)| t.contains("`lambda` = 1.5")));
+        let mut unstable = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
+        unstable.set_boolean(&[vr("prefilter")], &[true]).unwrap();
+        unstable
+            .set_real(&[vr("prefilter_a[1]"), vr("prefilter_a[2]")], &[-2.1, 1.1])
+            .unwrap();
+        assert!(unstable.initialize(0.0).is_err());
+        assert!(
+            unstable
+                .log()
+                .iter()
+                .any(|(_, _, t)| t.contains("parameter `prefilter_a`")),
+            "{:?}",
+            unstable.log()
+        );
+
+        bad.set_real(&[vr("lambda")], &[0.0]).unwrap();
+        assert!(bad.initialize(0.0).is_err());
+        assert!(
+            bad.log()
+                .iter()
+                .any(|(_, _, t)| t.contains("parameter `lambda`")),
+            "{:?}",
+            bad.log()
+        );
+    }
+}

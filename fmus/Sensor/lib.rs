@@ -1,4 +1,0 @@
-//! The `Sensor` FMU binary: the FMI 2.0 CS symbols for [`spurio_fmus::sensor`].
-#![allow(non_snake_case)]
-
-spurio_fmi2::export_fmu!(spurio_fmus::sensor::SensorFmu);

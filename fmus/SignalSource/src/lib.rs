@@ -1,0 +1,200 @@
+//! `SignalSource.fmu`: the excitation signals of the experiments (SPEC §2 item 5; paper 001 §5
+//! random steps, paper 002 §III the unit step, papers 000/001 the cosine) as an FMI 2.0 CS FMU.
+//!
+//! Integer parameter `waveform` (an enumeration, Integer because fmpy's SSP runner has no
+//! String variables):
+//!
+//! ```text
+//! 1 step          y = offset + amplitude · [t ≥ step_time]
+//! 2 random steps  y = L_k on [t_k, t_k+1), L_k ~ U[offset − amplitude, offset + amplitude],
+//!                 t_k+1 − t_k ~ U[min_hold, max_hold]            (seeded)
+//! 3 PRBS          y = offset ± amplitude, one bit of a maximum-length LFSR of order
+//!                 prbs_order per bit_period; the seed sets the register's start
+//! 4 sine          y = offset + amplitude · sin(2π t/period + phase)
+//! 5 cosine        y = offset + amplitude · cos(2π t/period + phase)
+//! ```
+//!
+//! (definitions in [`spurio::signals::source`]; time origin t = 0 whatever the start time).
+//! Only the parameters of the chosen waveform are checked. The output `y` at a communication
+//! point `t` is the signal at `t`: at the start time after initialisation and at `t + h`
+//! after each step, so a master that connects `y` to another FMU's input at each
+//! communication point feeds it the signal sampled there.
+
+use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
+use spurio::ParameterError;
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+};
+
+/// `waveform` codes.
+pub mod waveform {
+    pub const STEP: i32 = 1;
+    pub const RANDOM_STEPS: i32 = 2;
+    pub const PRBS: i32 = 3;
+    pub const SINE: i32 = 4;
+    pub const COSINE: i32 = 5;
+}
+
+spurio_export::declare_variables! {
+    /// The variable table, in value-reference order.
+    pub fn variables() {
+        table: [
+            Y = Variable::discrete_output("y").describe("The signal at the current communication point"),
+            WAVEFORM = Variable::integer_parameter("waveform", waveform::STEP)
+                .min(1.0)
+                .max(5.0)
+                .describe("1 step, 2 random steps, 3 PRBS, 4 sine, 5 cosine"),
+            AMPLITUDE = Variable::parameter("amplitude", 1.0).describe(
+                "Step height; half-width of the random levels (>= 0); PRBS half swing; sine/cosine amplitude",
+                ),
+            OFFSET = Variable::parameter("offset", 0.0)
+                .describe("Level before the step; centre of the random levels, PRBS and sine/cosine"),
+            PERIOD = Variable::parameter("period", 1.0)
+                .unit("s")
+                .describe("Period of the sine/cosine (> 0)"),
+            PHASE = Variable::parameter("phase", 0.0)
+                .unit("rad")
+                .describe("Phase of the sine/cosine"),
+            STEP_TIME = Variable::parameter("step_time", 0.0)
+                .unit("s")
+                .describe("Time of the step"),
+            MIN_HOLD = Variable::parameter("min_hold", 1.0)
+                .unit("s")
+                .describe("Shortest hold of a random step (> 0)"),
+            MAX_HOLD = Variable::parameter("max_hold", 5.0)
+                .unit("s")
+                .describe("Longest hold of a random step (>= min_hold)"),
+            PRBS_ORDER = Variable::integer_parameter("prbs_order", 7)
+                .describe("PRBS register length n, 2 to 24 (period 2^n - 1 bits)"),
+            BIT_PERIOD = Variable::parameter("bit_period", 0.1)
+                .unit("s")
+                .describe("Duration of one PRBS bit (> 0)"),
+            SEED = Variable::integer_parameter("seed", 1)
+                .min(0.0)
+                .describe("Seed of the random steps and of the PRBS start register"),
+        ]
+    }
+}
+
+/// The SignalSource FMU.
+#[derive(Debug, Clone)]
+pub struct SignalSourceFmu {
+    source: Option<SignalSource>,
+}
+
+fn named(e: ParameterError) -> Failure {
+    let parameter = match e.parameter.as_str() {
+        "order" => "prbs_order",
+        other => other,
+    };
+    Failure::error(format!("parameter `{parameter}`: {}", e.reason))
+}
+
+/// The waveform the parameters describe.
+fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
+    let v = &ctx.values;
+    let amplitude = v.real(vr::AMPLITUDE);
+    let offset = v.real(vr::OFFSET);
+    let seed = v.integer(vr::SEED);
+    if seed < 0 {
+        return Err(Failure::error(format!(
+            "parameter `seed`: must be >= 0, got {seed}"
+        )));
+    }
+    let periodic = |cosine: bool| -> Result<Waveform, Failure> {
+        let frequency = frequency_from_period(v.real(vr::PERIOD)).map_err(named)?;
+        let phase = v.real(vr::PHASE);
+        Ok(if cosine {
+            Waveform::Cosine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            }
+        } else {
+            Waveform::Sine {
+                amplitude,
+                offset,
+                frequency,
+                phase,
+            }
+        })
+    };
+    let w = match v.integer(vr::WAVEFORM) {
+        waveform::STEP => Waveform::Step {
+            amplitude,
+            offset,
+            step_time: v.real(vr::STEP_TIME),
+        },
+        waveform::RANDOM_STEPS => Waveform::RandomSteps {
+            amplitude,
+            offset,
+            min_hold: v.real(vr::MIN_HOLD),
+            max_hold: v.real(vr::MAX_HOLD),
+        },
+        waveform::PRBS => {
+            let order = v.integer(vr::PRBS_ORDER);
+            if !(2..=24).contains(&order) {
+                return Err(Failure::error(format!(
+                    "parameter `prbs_order`: must be between 2 and 24, got {order}"
+                )));
+            }
+            Waveform::Prbs {
+                order: order as u32,
+                bit_period: v.real(vr::BIT_PERIOD),
+                amplitude,
+                offset,
+            }
+        }
+        waveform::SINE => periodic(false)?,
+        waveform::COSINE => periodic(true)?,
+        other => {
+            return Err(Failure::error(format!(
+                "parameter `waveform`: must be 1 (step), 2 (random steps), 3 (PRBS), 4 (sine) or 5 (cosine), got {other}"
+            )))
+        }
+    };
+    Ok((w, seed as u64))
+}
+
+impl FmuModel for SignalSourceFmu {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
+        Ok(ModelInfo::new(
+            "SignalSource",
+            "Excitation signals: step, random steps, PRBS, sine, cosine (seeded)",
+            variables(),
+            Some(DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 10.0,
+                step_size: 0.01,
+            }),
+            Config::new(),
+        ))
+    }
+
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self { source: None })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let (w, seed) = read_waveform(ctx)?;
+        let mut source = SignalSource::new(w, seed).map_err(named)?;
+        let y = source.value_at(ctx.time());
+        ctx.values.set_real(vr::Y, y);
+        self.source = Some(source);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        let source = self
+            .source
+            .as_mut()
+            .ok_or_else(|| Failure::error("SignalSource: not initialised"))?;
+        ctx.values.set_real(vr::Y, source.value_at(time + step));
+        Ok(())
+    }
+
+    spurio_fmu_common::fmu_state!(source);
+}
+
+spurio_export::export_fmu!(SignalSourceFmu);

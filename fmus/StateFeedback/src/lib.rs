@@ -1,0 +1,311 @@
+//! `StateFeedback.fmu`: discrete pole-placement state feedback (paper 000 §IV, eqs 8–15;
+//! SPEC §2 item 13) as an FMI 2.0 CS FMU.
+//!
+//! The law is
+//!
+//! ```text
+//! u = sat_[u_min, u_max]( −L (x̂ − x_ref) ),      L = [0 … 0 1] 𝒞⁻¹ φ(A),
+//! 𝒞 = [B  A B  …  A^{n−1} B],      φ(z) = Π (z − p_i)
+//! ```
+//!
+//! with `L` computed once, at initialisation, by Ackermann's formula
+//! ([`spurio::control::ackermann_with_options`]) from the parameters `A`, `B` (the discrete
+//! model) and the desired discrete poles `p_i = pole_re[i] + j·pole_im[i]`. Ackermann's
+//! formula is single-input, so `B` is n × 1 and there is one output, `u[1]`. `u[1]` depends
+//! directly on the inputs `x_hat`, `x_ref` (direct feedthrough): it is recomputed as soon as
+//! an input is set, so a master reads it at the same communication point.
+//!
+//! Dimension-generic: the configuration key `n` (number of states) is chosen at packaging
+//! time; `preset = crane` gives the crane defaults (n = 4, ZOH of the linearised crane at
+//! Ts = 0.05 s, poles of [`spurio::control::crane_reference_design`]), any other `n` the
+//! generic chain of [`variant_defaults`]. The pieces shared with the adaptive controller
+//! (presets, pole parameters, error messages) live in [`spurio_fmu_common::controller`].
+
+use spurio::control::{
+    ackermann_with_options, InputLimits, PolePlacementOptions, StateController, StateFeedback,
+};
+use spurio_export::{
+    Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable, VariableTable,
+};
+pub use spurio_fmu_common::controller::*;
+use spurio_fmu_common::crane_controller_config;
+use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
+
+/// Positions of the variables of one StateFeedback variant in its table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// Number of states n.
+    pub states: usize,
+    /// Input `x_hat[i]`: the estimated (or measured) state.
+    pub x_hat: Block,
+    /// Input `x_ref[i]`: the reference state.
+    pub x_ref: Block,
+    /// Output `u[1]`.
+    pub u: usize,
+    /// Calculated parameter `L[1,j]`.
+    pub gain: Block,
+    /// Parameter `A[i,j]`.
+    pub a: Block,
+    /// Parameter `B[i,1]`.
+    pub b: Block,
+    /// Parameter `pole_re[i]`.
+    pub pole_re: Block,
+    /// Parameter `pole_im[i]`.
+    pub pole_im: Block,
+    /// Parameter `u_min`.
+    pub u_min: usize,
+    /// Parameter `u_max`.
+    pub u_max: usize,
+    /// Boolean parameter `require_stable`.
+    pub require_stable: usize,
+}
+
+/// The variable table of a variant and where each variable is.
+pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
+    let defaults = variant_defaults(config)?;
+    let n = defaults.states();
+    let preset = defaults.preset;
+    let mut t = VariableTable::new();
+    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
+        let (meaning, unit) = state_meaning(preset, i);
+        with_unit(
+            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
+            unit,
+        )
+    });
+    let x_ref = add_vector(&mut t, "x_ref", n, |name, i| {
+        let (meaning, unit) = state_meaning(preset, i);
+        with_unit(
+            Variable::input(name, 0.0).describe(&format!(
+                "Reference state (an equilibrium with zero input): {meaning}; u = −L·(x_hat − x_ref)"
+            )),
+            unit,
+        )
+    });
+    let feedthrough: Vec<usize> = x_hat.indices().chain(x_ref.indices()).collect();
+    let u = t.add(with_unit(
+        Variable::output("u[1]")
+            .describe("Control input u = sat(−L·(x_hat − x_ref)) to [u_min, u_max]; never NaN")
+            .depends_on(&feedthrough),
+        input_unit(preset),
+    ));
+    let gain = add_matrix(&mut t, "L", 1, n, |name, _, j| {
+        calculated_parameter(name).describe(&format!(
+            "Feedback gain on state {} (Ackermann, computed at initialisation)",
+            j + 1
+        ))
+    });
+    let a = add_matrix(&mut t, "A", n, n, |name, i, j| {
+        Variable::parameter(name, defaults.a[(i, j)])
+            .describe("Discrete state matrix of the model x⁺ = A·x + B·u")
+    });
+    let b = add_matrix(&mut t, "B", n, 1, |name, i, _| {
+        Variable::parameter(name, defaults.b[(i, 0)])
+            .describe("Discrete input matrix (single input: one column)")
+    });
+    let (pole_re, pole_im) = add_pole_parameters(&mut t, &defaults);
+    let (u_min, u_max) = add_limit_parameters(&mut t, preset);
+    let require_stable = t.add(
+        Variable::boolean_parameter("require_stable", true).describe(
+            "Reject desired poles on or outside the unit circle (|z| ≥ 1) with fmi2Error",
+        ),
+    );
+    let layout = Layout {
+        states: n,
+        x_hat,
+        x_ref,
+        u,
+        gain,
+        a,
+        b,
+        pole_re,
+        pole_im,
+        u_min,
+        u_max,
+        require_stable,
+    };
+    Ok((layout, t.into_variables()))
+}
+
+/// The StateFeedback FMU: its layout and, after initialisation, the controller.
+#[derive(Debug, Clone)]
+pub struct StateFeedbackFmu {
+    layout: Layout,
+    controller: Option<StateFeedback>,
+}
+
+impl StateFeedbackFmu {
+    /// `u[1] = sat(−L (x̂ − x_ref))` from the current inputs.
+    fn write_output(&self, ctx: &mut Context) {
+        let x_hat = self.layout.x_hat.vector(ctx.values);
+        let x_ref = self.layout.x_ref.vector(ctx.values);
+        let u = match &self.controller {
+            Some(controller) => controller.control_towards(&x_hat, &x_ref),
+            None => 0.0,
+        };
+        ctx.values.set_real(self.layout.u, u);
+    }
+
+    /// The controller in use (after initialisation).
+    pub fn controller(&self) -> Option<&StateFeedback> {
+        self.controller.as_ref()
+    }
+}
+
+impl FmuModel for StateFeedbackFmu {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        describe_controller(
+            "StateFeedback",
+            "Discrete state feedback u = sat(−L·(x_hat − x_ref)), L by Ackermann's pole placement at initialisation (paper 000 §IV); single input",
+            config,
+            build,
+        )
+    }
+
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self {
+            layout: layout_for(info, build)?,
+            controller: None,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let layout = self.layout;
+        let values = &*ctx.values;
+        let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))
+            .map_err(Failure::error)?;
+        let a = layout.a.matrix(values);
+        let b = layout.b.matrix(values);
+        let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
+        let options = PolePlacementOptions {
+            require_stable: values.boolean(layout.require_stable),
+            ..PolePlacementOptions::default()
+        };
+        let gain = ackermann_with_options(&a, &b, &poles, &options)
+            .map_err(|e| design_error_message(&e, &poles))?;
+        let controller = StateFeedback::from_gain(gain, limits).map_err(Failure::error)?;
+        layout.gain.write(ctx.values, controller.gain());
+        self.controller = Some(controller);
+        self.write_output(ctx);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, _time: f64, _step: f64) -> Result<(), Failure> {
+        // No internal state: the output follows the inputs held at the new time.
+        self.write_output(ctx);
+        Ok(())
+    }
+
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.write_output(ctx);
+        Ok(())
+    }
+
+    spurio_fmu_common::fmu_state!(controller);
+}
+
+spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+    use spurio_export::types::Status;
+    use spurio_export::Values;
+    use spurio_fmu_common::crane_controller_config as crane_config;
+
+    #[test]
+    fn layout_matches_the_table() {
+        let (layout, v) = build(&crane_config()).unwrap();
+        assert_eq!(v[layout.x_hat.first].name, "x_hat[1]");
+        assert_eq!(v[layout.x_ref.index(3, 0)].name, "x_ref[4]");
+        assert_eq!(v[layout.u].name, "u[1]");
+        assert_eq!(v[layout.gain.index(0, 3)].name, "L[1,4]");
+        assert_eq!(v[layout.a.index(3, 3)].name, "A[4,4]");
+        assert_eq!(v[layout.b.index(3, 0)].name, "B[4,1]");
+        assert_eq!(v[layout.pole_re.first].name, "pole_re[1]");
+        assert_eq!(v[layout.pole_im.index(3, 0)].name, "pole_im[4]");
+        assert_eq!(v[layout.u_min].name, "u_min");
+        assert_eq!(v[layout.u_max].name, "u_max");
+        assert_eq!(v[layout.require_stable].name, "require_stable");
+        assert_eq!(v.len(), layout.require_stable + 1);
+        assert_eq!(v[layout.u].unit.as_deref(), Some("N"));
+        assert_eq!(v[layout.u].dependencies.len(), 8);
+    }
+
+    #[test]
+    fn configurations_are_checked() {
+        let mut c = crane_config();
+        c.set(CONFIG_STATES, 3);
+        assert!(build(&c).unwrap_err().to_string().contains("4 states"));
+        let mut c = Config::new();
+        c.set(CONFIG_PRESET, "bridge");
+        assert!(build(&c).unwrap_err().to_string().contains("`preset`"));
+        let mut c = Config::new();
+        c.set(CONFIG_STATES, 0);
+        assert!(build(&c).unwrap_err().to_string().contains("`n`"));
+        let mut c = Config::new();
+        c.set(CONFIG_STATES, 3);
+        let d = variant_defaults(&c).unwrap();
+        assert_eq!(d.preset, Preset::Generic);
+        let closed = &d.a - &d.b * &d.gain;
+        // (z − 0.5)³: the closed loop minus 0.5 I is nilpotent.
+        let shifted = closed - DMatrix::identity(3, 3) * GENERIC_POLE;
+        assert!((&shifted * &shifted * &shifted).amax() < 1e-12);
+        // A long chain: default design not computable, the description still is.
+        let mut c = Config::new();
+        c.set(CONFIG_STATES, 16);
+        assert!(build(&c).is_ok());
+    }
+
+    #[test]
+    fn crane_defaults_give_the_reference_gain_and_survive_nan() {
+        let info = StateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = StateFeedbackFmu::create(&info).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let layout = model.layout;
+        let mut ctx = Context::new(&mut values);
+        model.initialize(&mut ctx).unwrap();
+        let gain = layout.gain.matrix(ctx.values);
+        let reference = [0.982, 1.132, 1.027, 0.774];
+        for (j, want) in reference.iter().enumerate() {
+            assert!((gain[(0, j)] - want).abs() < 5e-4, "{gain}");
+        }
+        ctx.values.set_real(layout.x_hat.first, 0.2);
+        model.update_outputs(&mut ctx).unwrap();
+        let u = ctx.values.real(layout.u);
+        assert!((u + 0.2 * gain[(0, 0)]).abs() < 1e-15);
+        ctx.values.set_real(layout.x_hat.first + 1, f64::NAN);
+        model.do_step(&mut ctx, 0.0, 0.05).unwrap();
+        assert_eq!(ctx.values.real(layout.u), 0.0);
+        ctx.values.set_real(layout.x_hat.first + 1, 1e3);
+        model.update_outputs(&mut ctx).unwrap();
+        assert_eq!(ctx.values.real(layout.u), -17.0);
+    }
+
+    #[test]
+    fn bad_poles_are_named_through_the_c_api() {
+        use spurio_export::harness::Harness;
+        let config = crane_config();
+        let info = StateFeedbackFmu::describe(&config).unwrap();
+        let vr = |name: &str| info.index_of(name).unwrap() as u32;
+        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        h.set_real(&[vr("pole_im[2]")], &[0.3]).unwrap();
+        assert_eq!(h.initialize(0.0), Err(Status::Error));
+        let log = h.log();
+        assert!(
+            log.iter().any(|(s, _, t)| *s == Status::Error
+                && t.contains("`pole_re[1]`, `pole_im[1]`")
+                && t.contains("conjugate")),
+            "{log:?}"
+        );
+        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        assert_eq!(h.initialize(0.0), Ok(Status::Ok));
+        h.set_real(&[vr("x_hat[2]")], &[0.01]).unwrap();
+        let mut u = [0.0];
+        h.get_real(&[vr("u[1]")], &mut u).unwrap();
+        let mut l2 = [0.0];
+        h.get_real(&[vr("L[1,2]")], &mut l2).unwrap();
+        assert_eq!(u[0], -0.01 * l2[0]);
+    }
+}

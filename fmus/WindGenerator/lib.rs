@@ -1,4 +1,0 @@
-//! The `WindGenerator` FMU binary: the FMI 2.0 CS symbols for [`spurio_fmus::wind_generator`].
-#![allow(non_snake_case)]
-
-spurio_fmi2::export_fmu!(spurio_fmus::wind_generator::WindGeneratorFmu);

@@ -1,0 +1,294 @@
+//! The pieces the two state-feedback controller FMUs (`StateFeedback`,
+//! `AdaptiveStateFeedback`) share: the configuration keys and presets, the default model and
+//! poles of a variant, the pole and limit parameters, and the design error messages.
+
+use crate::structured::{add_vector, Block};
+use nalgebra::{Complex, DMatrix};
+use spurio::control::pole_placement::check_poles;
+use spurio::control::{
+    ackermann_with_options, crane_reference_design, PolePlacementError, PolePlacementOptions,
+    CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
+};
+use spurio_export::{
+    Causality, Cause, Config, DefaultExperiment, Initial, ModelInfo, Values, Variability, Variable,
+    VariableTable,
+};
+
+/// Configuration key: number of states n.
+pub const CONFIG_STATES: &str = "n";
+/// Configuration key: `crane` for the crane defaults, `generic` (or absent) for the chain.
+pub const CONFIG_PRESET: &str = "preset";
+/// Sample time of the generic chain `A = I + Ts·N` (s).
+pub const GENERIC_SAMPLE_TIME: f64 = 0.05;
+/// Every desired pole of the generic default (a real pole of multiplicity n).
+pub const GENERIC_POLE: f64 = 0.5;
+/// Default actuator limit `|u| ≤ 17` (N for the crane, paper 000 Annex A).
+pub const DEFAULT_INPUT_LIMIT: f64 = 17.0;
+
+/// Which defaults a variant carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preset {
+    /// The crane of paper 000: n = 4, state `[x, θ, ẋ, θ̇]`, input the force in N.
+    Crane,
+    /// Any n: the discretised chain of integrators.
+    Generic,
+}
+
+/// The default model, poles and gain of a variant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VariantDefaults {
+    /// Which preset.
+    pub preset: Preset,
+    /// Discrete `A` (n × n).
+    pub a: DMatrix<f64>,
+    /// Discrete `B` (n × 1).
+    pub b: DMatrix<f64>,
+    /// Desired discrete poles (n).
+    pub poles: Vec<Complex<f64>>,
+    /// Ackermann gain for the above (1 × n); zeros if the default design is not computable
+    /// (a generic chain so long that its reachability matrix is ill-conditioned).
+    pub gain: DMatrix<f64>,
+}
+
+impl VariantDefaults {
+    /// Number of states.
+    pub fn states(&self) -> usize {
+        self.a.nrows()
+    }
+}
+
+/// The defaults for a configuration.
+///
+/// * `preset = crane` (requires n = 4 or no n): `A`, `B` = ZOH at Ts = 0.05 s of the crane
+///   linearisation (paper 000 eqs 4–5, Annex A), poles `z = e^{s Ts}` for
+///   `s = −1 ± 0.5j, −1.5 ± 5.2j`, gain ≈ [0.982, 1.132, 1.027, 0.774] (SPEC §6).
+/// * otherwise (n default 4): the chain of n integrators discretised with Euler at
+///   Ts = 0.05 s, `A = I + Ts·N` (N the ones on the superdiagonal), `B = e_n`, all poles at
+///   0.5 (a repeated real pole is fine for a single input). Its reachability matrix has a
+///   condition number ≈ Ts^{−(n−1)}, so for n ≳ 9 the default design is rejected as not
+///   reachable: give your own `A`, `B` then.
+pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, Cause> {
+    let preset = match config.get(CONFIG_PRESET) {
+        None | Some("generic") => Preset::Generic,
+        Some("crane") => Preset::Crane,
+        Some(other) => {
+            return Err(format!(
+                "configuration `{CONFIG_PRESET}` must be `crane` or `generic`, got `{other}`"
+            )
+            .into())
+        }
+    };
+    let n = config.dimension(CONFIG_STATES, 4)?;
+    match preset {
+        Preset::Crane => {
+            if n != 4 {
+                return Err(format!(
+                    "configuration `{CONFIG_PRESET} = crane` has 4 states, but `{CONFIG_STATES} = {n}`"
+                ).into());
+            }
+            let design = crane_reference_design().map_err(|e| format!("crane design: {e}"))?;
+            Ok(VariantDefaults {
+                preset,
+                a: design.a,
+                b: design.b,
+                poles: design.poles,
+                gain: design.gain,
+            })
+        }
+        Preset::Generic => {
+            let a = DMatrix::from_fn(n, n, |i, j| {
+                if i == j {
+                    1.0
+                } else if j == i + 1 {
+                    GENERIC_SAMPLE_TIME
+                } else {
+                    0.0
+                }
+            });
+            let mut b = DMatrix::zeros(n, 1);
+            b[(n - 1, 0)] = 1.0;
+            let poles = vec![Complex::new(GENERIC_POLE, 0.0); n];
+            let gain = ackermann_with_options(&a, &b, &poles, &PolePlacementOptions::default())
+                .unwrap_or_else(|_| DMatrix::zeros(1, n));
+            Ok(VariantDefaults {
+                preset,
+                a,
+                b,
+                poles,
+                gain,
+            })
+        }
+    }
+}
+
+/// What state i is, and its unit, for the descriptions of the variables.
+pub fn state_meaning(preset: Preset, i: usize) -> (String, Option<&'static str>) {
+    const CRANE: [(&str, &str); 4] = [
+        ("cart position x", "m"),
+        ("load angle θ", "rad"),
+        ("cart velocity ẋ", "m/s"),
+        ("load angular velocity θ̇", "rad/s"),
+    ];
+    match (preset, CRANE.get(i)) {
+        (Preset::Crane, Some((meaning, unit))) => (meaning.to_string(), Some(*unit)),
+        _ => (format!("state {}", i + 1), None),
+    }
+}
+
+/// Unit of the control input.
+pub fn input_unit(preset: Preset) -> Option<&'static str> {
+    match preset {
+        Preset::Crane => Some("N"),
+        Preset::Generic => None,
+    }
+}
+
+/// Adds the unit when there is one.
+pub fn with_unit(variable: Variable, unit: Option<&str>) -> Variable {
+    match unit {
+        Some(u) => variable.unit(u),
+        None => variable,
+    }
+}
+
+/// A calculated parameter (`fixed`, `initial="calculated"`), computed at initialisation.
+pub fn calculated_parameter(name: &str) -> Variable {
+    Variable {
+        causality: Causality::CalculatedParameter,
+        variability: Variability::Fixed,
+        initial: Some(Initial::Calculated),
+        ..Variable::parameter(name, 0.0)
+    }
+}
+
+/// Adds `pole_re[i]`, `pole_im[i]` with the defaults; returns their blocks.
+pub fn add_pole_parameters(
+    table: &mut VariableTable,
+    defaults: &VariantDefaults,
+) -> (Block, Block) {
+    let origin = |i: usize| match defaults.preset {
+        Preset::Crane => CRANE_CONTINUOUS_POLES.get(i).map_or(String::new(), |s| {
+            format!(
+                " (default: z = e^(s·Ts), s = {} {:+}j 1/s, Ts = {CRANE_SAMPLE_TIME} s)",
+                s.re, s.im
+            )
+        }),
+        Preset::Generic => String::new(),
+    };
+    let re = add_vector(table, "pole_re", defaults.states(), |name, i| {
+        Variable::parameter(name, defaults.poles.get(i).map_or(0.0, |p| p.re)).describe(&format!(
+            "Real part of desired closed-loop pole {} of A − B·L (discrete time, z-plane){}",
+            i + 1,
+            origin(i)
+        ))
+    });
+    let im = add_vector(table, "pole_im", defaults.states(), |name, i| {
+        Variable::parameter(name, defaults.poles.get(i).map_or(0.0, |p| p.im)).describe(
+            &format!(
+                "Imaginary part of desired closed-loop pole {}: complex poles must come in conjugate pairs",
+                i + 1
+            ),
+        )
+    });
+    (re, im)
+}
+
+/// Adds `u_min`, `u_max`; returns their indices.
+pub fn add_limit_parameters(table: &mut VariableTable, preset: Preset) -> (usize, usize) {
+    let unit = input_unit(preset);
+    let u_min = table.add(with_unit(
+        Variable::parameter("u_min", -DEFAULT_INPUT_LIMIT)
+            .describe("Lower actuator limit: u is clipped to [u_min, u_max]"),
+        unit,
+    ));
+    let u_max = table.add(with_unit(
+        Variable::parameter("u_max", DEFAULT_INPUT_LIMIT)
+            .describe("Upper actuator limit (must be greater than u_min)"),
+        unit,
+    ));
+    (u_min, u_max)
+}
+
+/// The desired poles `pole_re[i] + j·pole_im[i]`.
+pub fn read_poles(values: &Values, re: &Block, im: &Block) -> Vec<Complex<f64>> {
+    re.indices()
+        .zip(im.indices())
+        .map(|(r, i)| Complex::new(values.real(r), values.real(i)))
+        .collect()
+}
+
+/// The FMU parameters a pole-placement error is about, and why.
+pub fn design_error_message(error: &PolePlacementError, poles: &[Complex<f64>]) -> String {
+    let pole_parameters = |pole: &Complex<f64>| match poles.iter().position(|p| p == pole) {
+        Some(i) => format!("parameters `pole_re[{0}]`, `pole_im[{0}]`", i + 1),
+        None => "parameters `pole_re`, `pole_im`".to_string(),
+    };
+    let what = match error {
+        PolePlacementError::NotConjugate { pole }
+        | PolePlacementError::UnstablePole { pole, .. } => pole_parameters(pole),
+        PolePlacementError::NonFinite { what: "poles" }
+        | PolePlacementError::WrongPoleCount { .. } => {
+            "parameters `pole_re`, `pole_im`".to_string()
+        }
+        PolePlacementError::NonFinite { what } => format!("parameter `{what}`"),
+        PolePlacementError::NotReachable { .. } | PolePlacementError::NonFiniteGain => {
+            "parameters `A`, `B`".to_string()
+        }
+        PolePlacementError::NotSquare { .. }
+        | PolePlacementError::DimensionMismatch { .. }
+        | PolePlacementError::NotSingleInput { .. } => "parameters `A`, `B`".to_string(),
+    };
+    format!("pole placement (Ackermann) failed: {what}: {error}")
+}
+
+/// Checks the desired poles alone (self-conjugate, finite, inside the unit circle when
+/// `require_stable`), naming the offending `pole_re[i]`, `pole_im[i]`.
+pub fn check_pole_parameters(poles: &[Complex<f64>], require_stable: bool) -> Result<(), Cause> {
+    check_poles(poles, require_stable).map_err(|e| design_error_message(&e, poles).into())
+}
+
+/// `[l₁, l₂, …]` with every digit (for log messages).
+pub fn format_gain(gain: &DMatrix<f64>) -> String {
+    let entries: Vec<String> = gain.iter().map(|v| v.to_string()).collect();
+    format!("[{}]", entries.join(", "))
+}
+
+/// Rebuilds the layout of an instance's model description (and checks it fits).
+pub fn layout_for<L>(
+    info: &ModelInfo,
+    build: impl Fn(&Config) -> Result<(L, Vec<Variable>), Cause>,
+) -> Result<L, Cause> {
+    let (layout, variables) = build(&info.config)?;
+    if variables.len() != info.variables.len() {
+        return Err(format!(
+            "{}: the model description has {} variables, the configuration gives {}",
+            info.model_identifier,
+            info.variables.len(),
+            variables.len()
+        )
+        .into());
+    }
+    Ok(layout)
+}
+
+/// The model description of a controller variant: its variables from `build`, the crane's
+/// sample time as the default step.
+pub fn describe_controller<L>(
+    model_identifier: &str,
+    description: &str,
+    config: &Config,
+    build: impl Fn(&Config) -> Result<(L, Vec<Variable>), Cause>,
+) -> Result<ModelInfo, Cause> {
+    let (_, variables) = build(config)?;
+    Ok(ModelInfo::new(
+        model_identifier,
+        description,
+        variables,
+        Some(DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 10.0,
+            step_size: CRANE_SAMPLE_TIME,
+        }),
+        config.clone(),
+    ))
+}

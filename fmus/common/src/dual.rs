@@ -1,0 +1,464 @@
+//! `DualKalmanFilter.fmu` (DKF, SPEC §2 item 9; papers 000 §VI, 001 §2, after Haykin,
+//! *Kalman Filtering and Neural Networks*, ch. 5) and `DkfRsKf.fmu` (SPEC §2 item 10;
+//! paper 001 Fig. 2: an rsKF cleans the measured outputs, the DKF identifies from them).
+//!
+//! Each `fmi2DoStep` with inputs u_k, y_k runs, in sequence,
+//!
+//! ```text
+//! (DkfRsKf only) rsKF random walk per channel, started at C x0: y_clean = x̂_rsKF (weights w_j)
+//! state filter with Θ̂_{k−1} = [Â B̂; Ĉ D̂]:  x̂_k, ŷ_k = Ĉ x̂_k + D̂ u_k
+//! parameter filter on the previous sample:  Θ_k = Θ_{k−1} + r_k,  Y = Θ Φ + V,
+//!     Y = [x̂_k; y_{k−1}], Φ = [x̂_{k−1}; u_{k−1}], Cov r = q_theta·I, Cov V = r_theta·I
+//! ```
+//!
+//! (see [`spurio::estimation::DualKalmanFilter`] for the exact sequence). Every row of Θ
+//! shares Φ, so rows with equal settings share one (n+m)×(n+m) covariance.
+//!
+//! Configuration `n`, `m` (may be 0), `p`. Parameters: the initial model `A`, `B`, `C`, `D`,
+//! the state filter's `Q`, `R`, `P0`, `x0`, the parameter filter's scalars `q_theta`
+//! (random-walk variance of every entry of Θ), `p0_theta` (initial variance of every entry)
+//! and `r_theta` (measurement variance of every row, papers: 0.5), and
+//! `fix_output_matrices` (C and D known: their rows of Θ never change; default true, which
+//! removes the similarity-transform ambiguity of identifying from outputs).
+
+use crate::estimator::{error, read_inputs, write_matrix_view, DynamicState, Estimator};
+use crate::kalman::{
+    add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
+};
+use crate::structured::{add_matrix, add_vector, Block};
+use nalgebra::DVector;
+use spurio::estimation::{
+    DkfRsKf, DualKalmanConfig, DualKalmanFilter, EstimationError, RobustKalmanFilter,
+    StateEstimator,
+};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+};
+
+/// Value references of the cleaner's parameters (DkfRsKf).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CleanerBlocks {
+    pub w: Block,
+    pub y_clean: Block,
+    pub q_clean: usize,
+    pub r_clean: usize,
+    pub p0_clean: usize,
+    pub psi: (usize, usize),
+}
+
+/// Value references of a `DualKalmanFilter` / `DkfRsKf` variant.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DualLayout {
+    pub dims: Dimensions,
+    pub u: Block,
+    pub y: Block,
+    pub x_hat: Block,
+    pub y_hat: Block,
+    pub a_hat: Block,
+    pub b_hat: Block,
+    pub c_hat: Block,
+    pub d_hat: Block,
+    pub model: ModelBlocks,
+    pub q_theta: usize,
+    pub p0_theta: usize,
+    pub r_theta: usize,
+    pub fix_output_matrices: usize,
+    pub cleaner: Option<CleanerBlocks>,
+}
+
+fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), Cause> {
+    let dims = Dimensions::from_config(config, 4, 1, 2)?;
+    let Dimensions { n, m, p } = dims;
+    let mut t = VariableTable::new();
+    let (u, y) = add_inputs(
+        &mut t,
+        dims,
+        if cleaned {
+            "Measured output y_k, possibly with outliers (cleaned by the rsKF first)"
+        } else {
+            "Measured output y_k (sampled at the start of the step)"
+        },
+    );
+    let (x_hat, y_hat) = add_estimates(&mut t, dims);
+    let hat = |t: &mut VariableTable, name: &str, rows: usize, cols: usize, what: &str| {
+        add_matrix(t, name, rows, cols, |element, _, _| {
+            Variable::discrete_output(element).describe(what)
+        })
+    };
+    let a_hat = hat(&mut t, "A_hat", n, n, "Estimated state matrix Â");
+    let b_hat = hat(&mut t, "B_hat", n, m, "Estimated input matrix B̂");
+    let c_hat = hat(&mut t, "C_hat", p, n, "Estimated output matrix Ĉ");
+    let d_hat = hat(&mut t, "D_hat", p, m, "Estimated feedthrough matrix D̂");
+    let cleaner_outputs = cleaned.then(|| {
+        let w = add_vector(&mut t, "w", p, |name, _| {
+            Variable::discrete_output(name).describe(
+                "rsKF weight of channel j in the last sample (1 = trusted, → 0 = outlier)",
+            )
+        });
+        let y_clean = add_vector(&mut t, "y_clean", p, |name, _| {
+            Variable::discrete_output(name)
+                .describe("Cleaned output (rsKF estimate) fed to the DKF")
+        });
+        (w, y_clean)
+    });
+    let model = ModelBlocks::add(
+        &mut t,
+        dims,
+        Defaults {
+            q: 1e-4,
+            r: 1e-2,
+            p0: 1.0,
+        },
+        "Initial ",
+    );
+    let q_theta =
+        t.add(Variable::parameter("q_theta", 1e-6).min(0.0).describe(
+            "Parameter filter: random-walk variance Q_θ of every entry of Θ = [A B; C D]",
+        ));
+    let p0_theta = t.add(
+        Variable::parameter("p0_theta", 1.0)
+            .min(0.0)
+            .describe("Parameter filter: initial variance of every entry of Θ"),
+    );
+    let r_theta = t.add(Variable::parameter("r_theta", 0.5).min(0.0).describe(
+        "Parameter filter: measurement variance R_θ of every row of Y = [x⁺; y] (papers: 0.5)",
+    ));
+    let fix_output_matrices = t.add(
+        Variable::boolean_parameter("fix_output_matrices", true)
+            .describe("C and D are known: Ĉ = C, D̂ = D forever (removes the similarity ambiguity)"),
+    );
+    let cleaner = match cleaner_outputs {
+        Some((w, y_clean)) => {
+            let q_clean = t.add(
+                Variable::parameter("q_clean", 1e-3)
+                    .min(0.0)
+                    .describe("rsKF cleaner (random walk per channel): process variance"),
+            );
+            let r_clean = t.add(
+                Variable::parameter("r_clean", 1e-2)
+                    .min(0.0)
+                    .describe("rsKF cleaner: measurement noise variance of each channel"),
+            );
+            let p0_clean = t.add(
+                Variable::parameter("p0_clean", 1.0)
+                    .min(0.0)
+                    .describe("rsKF cleaner: initial variance (its estimate starts at C·x0, the DKF's initial output)"),
+            );
+            let psi = add_influence(&mut t);
+            Some(CleanerBlocks {
+                w,
+                y_clean,
+                q_clean,
+                r_clean,
+                p0_clean,
+                psi,
+            })
+        }
+        None => None,
+    };
+    let (id, description) = if cleaned {
+        (
+            "DkfRsKf",
+            "DKF-rsKF (paper 001 Fig. 2): robust Kalman filter cleaning the outputs, then a dual Kalman filter estimating states and [A B; C D]",
+        )
+    } else {
+        (
+            "DualKalmanFilter",
+            "Dual Kalman filter (DKF, Haykin ch. 5): states and the model matrices [A B; C D], papers 000/001",
+        )
+    };
+    let info = ModelInfo::new(
+        id,
+        description,
+        t.into_variables(),
+        Some(DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 10.0,
+            step_size: 0.05,
+        }),
+        config.clone(),
+    );
+    Ok((
+        DualLayout {
+            dims,
+            u,
+            y,
+            x_hat,
+            y_hat,
+            a_hat,
+            b_hat,
+            c_hat,
+            d_hat,
+            model,
+            q_theta,
+            p0_theta,
+            r_theta,
+            fix_output_matrices,
+            cleaner,
+        },
+        info,
+    ))
+}
+
+fn scalar(values: &Values, index: usize, name: &str, positive: bool) -> Result<f64, Failure> {
+    let v = values.real(index);
+    let ok = v.is_finite() && if positive { v > 0.0 } else { v >= 0.0 };
+    if ok {
+        Ok(v)
+    } else {
+        Err(Failure::error(format!(
+            "parameter `{name}`: a variance must be finite and {}, got {v}",
+            if positive { "> 0" } else { ">= 0" }
+        )))
+    }
+}
+
+/// The library names the initial matrices A0…D0; the FMU calls them A…D.
+fn dual_error(e: spurio::estimation::EstimationError) -> Failure {
+    let mut text = e.to_string();
+    for name in ["A", "B", "C", "D"] {
+        text = text.replace(
+            &format!("parameter `{name}0`"),
+            &format!("parameter `{name}` (initial {name})"),
+        );
+    }
+    Failure::error(text)
+}
+
+fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, Failure> {
+    let q_theta = scalar(values, layout.q_theta, "q_theta", false)?;
+    let p0_theta = scalar(values, layout.p0_theta, "p0_theta", false)?;
+    let r_theta = scalar(values, layout.r_theta, "r_theta", true)?;
+    let mm = layout.model.read(values);
+    let mut config = DualKalmanConfig::new(mm.a, mm.b, mm.c, mm.d, mm.q, mm.r, mm.x0, mm.p0);
+    config.parameter_q.fill(q_theta);
+    config.parameter_p0.fill(p0_theta);
+    config.parameter_r.fill(r_theta);
+    if values.boolean(layout.fix_output_matrices) {
+        config = config.fix_output_matrices();
+    }
+    DualKalmanFilter::new(config).map_err(dual_error)
+}
+
+fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilter) {
+    let Dimensions { n, m, p } = l.dims;
+    let theta = dual.theta();
+    write_matrix_view(values, &l.a_hat, &theta.view((0, 0), (n, n)));
+    write_matrix_view(values, &l.b_hat, &theta.view((0, n), (n, m)));
+    write_matrix_view(values, &l.c_hat, &theta.view((n, 0), (p, n)));
+    write_matrix_view(values, &l.d_hat, &theta.view((n, n), (p, m)));
+    l.x_hat.write_vector(values, dual.state());
+}
+
+fn write_initial_dual(l: &DualLayout, ctx: &mut Context, dual: &DualKalmanFilter) {
+    write_dual_outputs(l, ctx.values, dual);
+    let u = l.u.vector(ctx.values);
+    let y_hat = dual.c() * dual.state() + dual.d() * u;
+    l.y_hat.write_vector(ctx.values, &y_hat);
+}
+
+/// A dual filter behind a `DualKalmanFilter`-style FMU.
+pub trait DualFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
+    /// Whether an rsKF cleans the outputs first: parameters `q_clean`…, outputs `w[j]`,
+    /// `y_clean[j]`.
+    const CLEANED: bool;
+    /// Reads and checks the parameters, builds the filter.
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure>;
+    /// The DKF (estimates of the state and of Θ).
+    fn dual(&self) -> &DualKalmanFilter;
+    /// Writes the cleaner's outputs, before the first step (`initial`) or after a step.
+    fn write_cleaner(&self, cleaner: &CleanerBlocks, values: &mut Values, initial: bool) {
+        let _ = (cleaner, values, initial);
+    }
+}
+
+impl DualFilter for DualKalmanFilter {
+    const CLEANED: bool = false;
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
+        build_dual(layout, values)
+    }
+    fn dual(&self) -> &DualKalmanFilter {
+        self
+    }
+}
+
+impl DualFilter for DkfRsKf {
+    const CLEANED: bool = true;
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
+        let c = layout
+            .cleaner
+            .ok_or_else(|| Failure::error("DkfRsKf: the layout has no cleaner"))?;
+        let q = scalar(values, c.q_clean, "q_clean", false)?;
+        let r = scalar(values, c.r_clean, "r_clean", true)?;
+        let p0 = scalar(values, c.p0_clean, "p0_clean", false)?;
+        let psi = read_influence(values, c.psi)?;
+        let dual = build_dual(layout, values)?;
+        // The cleaner starts at the DKF's initial output ŷ₀ = C x̂₀ (0 with the default x0):
+        // a robust filter started far from the signal trusts its first samples whatever
+        // they are, so a known initial state must reach the cleaner too.
+        let p_out = layout.dims.p;
+        let eye = nalgebra::DMatrix::<f64>::identity(p_out, p_out);
+        let start = dual.c() * dual.state();
+        let cleaner = RobustKalmanFilter::new(
+            eye.clone(),
+            nalgebra::DMatrix::zeros(p_out, 0),
+            eye.clone(),
+            nalgebra::DMatrix::zeros(p_out, 0),
+            &eye * q,
+            &eye * r,
+            start,
+            &eye * p0,
+            psi,
+        )
+        .map_err(error)?;
+        DkfRsKf::new(cleaner, dual).map_err(error)
+    }
+    fn dual(&self) -> &DualKalmanFilter {
+        DkfRsKf::dual(self)
+    }
+    fn write_cleaner(&self, c: &CleanerBlocks, values: &mut Values, initial: bool) {
+        if initial {
+            for k in c.w.indices() {
+                values.set_real(k, 1.0);
+            }
+            c.y_clean.write_vector(values, self.cleaner().state());
+        } else {
+            c.w.write_vector(values, self.cleaner().weights());
+            c.y_clean.write_vector(values, self.cleaned_output());
+        }
+    }
+}
+
+/// The one adapter of the dual filters (DKF, DKF-rsKF) and its input buffers.
+#[derive(Debug, Clone)]
+pub struct Dual<F: DualFilter> {
+    filter: F,
+    u: DVector<f64>,
+    y: DVector<f64>,
+}
+
+impl<F: DualFilter> Estimator for Dual<F> {
+    type Layout = DualLayout;
+    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), Cause> {
+        interface(config, F::CLEANED)
+    }
+
+    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
+        Ok(Self {
+            filter: F::build(layout, values)?,
+            u: DVector::zeros(layout.dims.m),
+            y: DVector::zeros(layout.dims.p),
+        })
+    }
+
+    fn write_initial(&self, layout: &DualLayout, ctx: &mut Context) {
+        write_initial_dual(layout, ctx, self.filter.dual());
+        if let Some(c) = &layout.cleaner {
+            self.filter.write_cleaner(c, ctx.values, true);
+        }
+    }
+
+    fn step(&mut self, l: &DualLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
+        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
+        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
+        self.filter.step(&self.u, &self.y).map_err(error)?;
+        write_dual_outputs(l, ctx.values, self.filter.dual());
+        l.y_hat.write_vector(ctx.values, self.filter.output());
+        if let Some(c) = &l.cleaner {
+            self.filter.write_cleaner(c, ctx.values, false);
+        }
+        Ok(())
+    }
+}
+
+impl<F: DualFilter> DynamicState for Dual<F> {
+    fn dynamic_state(&self) -> Vec<f64> {
+        StateEstimator::dynamic_state(&self.filter)
+    }
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        StateEstimator::set_dynamic_state(&mut self.filter, state)
+    }
+}
+
+/// `DualKalmanFilter.fmu`.
+pub type DualKalmanFilterFmu = crate::estimator::EstimatorFmu<Dual<DualKalmanFilter>>;
+/// `DkfRsKf.fmu`.
+pub type DkfRsKfFmu = crate::estimator::EstimatorFmu<Dual<DkfRsKf>>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kalman::dims_config;
+    use spurio_export::harness::Harness;
+    use spurio_export::FmuModel;
+
+    #[test]
+    fn generator_variant_steps_and_reports_the_model() {
+        let config = dims_config(8, 2, 2);
+        let info = DkfRsKfFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<DkfRsKfFmu>::new(&config).unwrap();
+        h.initialize(0.0).unwrap();
+        let mut out = [0.0; 3];
+        for k in 0..100 {
+            let t = k as f64 * 0.1;
+            h.set_real(
+                &[vr("u[1]"), vr("y[1]"), vr("y[2]")],
+                &[t.sin(), t.cos(), 0.5],
+            )
+            .unwrap();
+            h.do_step(t, 0.1).unwrap();
+        }
+        h.get_real(&[vr("A_hat[1,1]"), vr("C_hat[1,1]"), vr("w[1]")], &mut out)
+            .unwrap();
+        assert!(out.iter().all(|v| v.is_finite()));
+        assert_eq!(out[1], 1.0, "C is fixed by default");
+    }
+
+    #[test]
+    fn the_cleaner_starts_at_the_initial_output_and_rejects_a_first_outlier() {
+        let config = dims_config(4, 1, 2);
+        let info = DkfRsKfFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<DkfRsKfFmu>::new(&config).unwrap();
+        h.set_real(
+            &[vr("x0[1]"), vr("q_clean"), vr("r_clean"), vr("p0_clean")],
+            &[0.2, 1e-5, 1e-5, 1e-5],
+        )
+        .unwrap();
+        h.initialize(0.0).unwrap();
+        let mut out = [0.0; 3];
+        h.get_real(&[vr("y_clean[1]"), vr("y_clean[2]"), vr("w[1]")], &mut out)
+            .unwrap();
+        assert_eq!(out, [0.2, 0.0, 1.0], "y_clean starts at C x0");
+        // The first sample carries a +0.28 outlier on the position.
+        h.set_real(&[vr("u[1]"), vr("y[1]"), vr("y[2]")], &[0.0, 0.48, 0.0])
+            .unwrap();
+        h.do_step(0.0, 0.05).unwrap();
+        h.get_real(&[vr("y_clean[1]"), vr("y_clean[2]"), vr("w[1]")], &mut out)
+            .unwrap();
+        assert!(
+            (out[0] - 0.2).abs() < 0.015,
+            "cleaned {} (outlier 0.28)",
+            out[0]
+        );
+        assert!(out[2] < 0.05, "weight {}", out[2]);
+    }
+
+    #[test]
+    fn bad_covariances_are_errors_naming_the_parameter() {
+        let config = dims_config(2, 0, 1);
+        let info = DualKalmanFilterFmu::describe(&config).unwrap();
+        let mut h = Harness::<DualKalmanFilterFmu>::new(&config).unwrap();
+        let q = info.index_of("Q[1,2]").unwrap() as u32;
+        h.set_real(&[q], &[0.5]).unwrap();
+        assert!(h.initialize(0.0).is_err());
+        assert!(
+            h.log()
+                .iter()
+                .any(|(_, _, t)| t.contains("parameter `Q`") && t.contains("symmetric")),
+            "{:?}",
+            h.log()
+        );
+    }
+}

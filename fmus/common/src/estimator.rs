@@ -1,0 +1,252 @@
+//! The one generic adapter of the estimator FMUs (SPEC §2 items 7–12): dimension-generic
+//! FMI 2.0 CS wrappers of [`spurio::estimation`].
+//!
+//! One compiled binary per algorithm; the dimensions come from the packaging configuration
+//! (`resources/variant.cfg`, keys such as `n`, `m`, `p`), so `spurio package-variant
+//! KalmanFilter --set n=3 --set m=1 --set p=2` writes an FMU for another plant without
+//! recompiling. Every estimator FMU is an [`EstimatorFmu`] over one [`Estimator`]:
+//!
+//! | FMU | estimator | where |
+//! |---|---|---|
+//! | `KalmanFilter` | sKF | [`crate::kalman::Linear`] over any [`spurio::estimation::StateEstimator`] |
+//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`crate::kalman::Linear`] |
+//! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`crate::dual::Dual`] |
+//! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same, [`crate::dual::Dual`] |
+//! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
+//! | `DistributedObserver` | one agent of paper 004's observer | its own crate |
+//!
+//! **Sampling convention.** The estimators are discrete-time: every `fmi2DoStep(t_k, h)`
+//! processes one sample, the inputs set at t_k (u_k, y_k), and leaves the estimates of that
+//! sample in the outputs (x̂_{k|k}, ŷ_k = C x̂_{k|k} + D u_k), readable at t_k + h. The step
+//! size does not enter the filters (only the RLS readout uses it as the sampling period when
+//! `Ts` = 0).
+//!
+//! **Errors.** Parameters are read and checked in initialization; a bad one gives
+//! `fmi2Error` with the estimator's message, which names the matrix and the reason. A
+//! non-finite input gives `fmi2Error` naming the input (`y[2]`), before the filter is touched.
+//!
+//! **FMU state.** The parameters read at initialization and the estimator's dynamic state are
+//! serialized; deserialization rebuilds the estimator from the parameters and restores the
+//! dynamic state, so a restored instance continues bit for bit.
+
+use crate::structured::Block;
+use nalgebra::{DMatrix, DVector};
+use spurio::estimation::EstimationError;
+use spurio_export::{
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Values,
+};
+
+/// The largest dimension a variant may ask for (keeps the variable table and the matrices
+/// of a mistyped configuration reasonable).
+pub const MAX_DIMENSION: usize = 200;
+
+/// Reads configuration key `key` as a count in `min..=MAX_DIMENSION` (`default` when absent).
+pub fn count(config: &Config, key: &str, default: usize, min: usize) -> Result<usize, Cause> {
+    let value = match config.get(key) {
+        None => default,
+        Some(text) => text
+            .trim()
+            .parse::<usize>()
+            .map_err(|_| format!("variant.cfg: `{key}` must be a whole number, got `{text}`"))?,
+    };
+    if value < min || value > MAX_DIMENSION {
+        return Err(format!(
+            "variant.cfg: `{key}` must lie in {min}..={MAX_DIMENSION}, got {value}"
+        )
+        .into());
+    }
+    Ok(value)
+}
+
+/// One estimator algorithm behind an [`EstimatorFmu`].
+pub trait Estimator: DynamicState + Clone + std::fmt::Debug + 'static {
+    /// Value references of the variables of one variant.
+    type Layout: Clone + std::fmt::Debug + 'static;
+    /// The variable layout and model description for a configuration.
+    fn interface(config: &Config) -> Result<(Self::Layout, ModelInfo), Cause>;
+    /// Reads and checks the parameters, builds the estimator.
+    fn build(layout: &Self::Layout, values: &Values) -> Result<Self, Failure>;
+    /// Writes the outputs (and calculated parameters) before the first step.
+    fn write_initial(&self, layout: &Self::Layout, ctx: &mut Context);
+    /// One sample: reads the inputs, steps, writes the outputs.
+    fn step(
+        &mut self,
+        layout: &Self::Layout,
+        ctx: &mut Context,
+        time: f64,
+        step: f64,
+    ) -> Result<(), Failure>;
+}
+
+/// An FMU over an [`Estimator`]: the layout, the parameters the estimator was built from
+/// (kept for FMU state serialization) and the estimator once initialized.
+#[derive(Debug, Clone)]
+pub struct EstimatorFmu<E: Estimator> {
+    layout: E::Layout,
+    parameters: Values,
+    estimator: Option<E>,
+}
+
+impl<E: Estimator> FmuModel for EstimatorFmu<E> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        E::interface(config).map(|(_, info)| info)
+    }
+
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
+        let (layout, _) = E::interface(&info.config)?;
+        Ok(Self {
+            layout,
+            parameters: Values::from_start(&info.variables),
+            estimator: None,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let estimator = E::build(&self.layout, ctx.values)?;
+        estimator.write_initial(&self.layout, ctx);
+        self.parameters = ctx.values.clone();
+        self.estimator = Some(estimator);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        match &mut self.estimator {
+            Some(estimator) => estimator.step(&self.layout, ctx, time, step),
+            None => Err(Failure::Error(
+                "the estimator was not initialized (fmi2ExitInitializationMode failed?)".into(),
+            )),
+        }
+    }
+
+    fn save_state(&self, out: &mut ByteWriter) {
+        let values = self.parameters.all();
+        out.put_u64(values.len() as u64);
+        for value in values {
+            match value {
+                Value::Real(v) => out.put_f64(*v),
+                Value::Integer(v) => out.put_i32(*v),
+                Value::Boolean(v) => out.put_bool(*v),
+                Value::String(v) => out.put_str(v),
+            }
+        }
+        match &self.estimator {
+            Some(estimator) => {
+                out.put_bool(true);
+                out.put_f64_slice(&estimator.dynamic_state());
+            }
+            None => out.put_bool(false),
+        }
+    }
+
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
+        let count = input.u64()?;
+        if count != self.parameters.all().len() as u64 {
+            return Err(format!(
+                "estimator state: {count} saved values, the FMU has {}",
+                self.parameters.all().len()
+            )
+            .into());
+        }
+        let mut parameters = self.parameters.clone();
+        for index in 0..parameters.all().len() {
+            let value = match &parameters.all()[index] {
+                Value::Real(_) => Value::Real(input.f64()?),
+                Value::Integer(_) => Value::Integer(input.i32()?),
+                Value::Boolean(_) => Value::Boolean(input.bool()?),
+                Value::String(_) => Value::String(input.string()?),
+            };
+            parameters.set(index, value);
+        }
+        self.estimator = if input.bool()? {
+            let state = input.f64_vec()?;
+            let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {
+                Failure::Error(m) | Failure::Discard(m) => m,
+            })?;
+            estimator.set_dynamic_state(&state)?;
+            Some(estimator)
+        } else {
+            None
+        };
+        self.parameters = parameters;
+        Ok(())
+    }
+}
+
+/// What evolves in an estimator adapter from step to step, saved in FMU states (for the
+/// filters, their [`spurio::estimation::StateEstimator::dynamic_state`]).
+pub trait DynamicState {
+    /// Everything that evolves.
+    fn dynamic_state(&self) -> Vec<f64>;
+    /// Restores [`DynamicState::dynamic_state`] into an estimator built from the same
+    /// parameters.
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
+}
+
+/// Copies the inputs of `block` into `buffer` (no allocation), or fails naming the first
+/// non-finite one (`y[2] = NaN`).
+pub fn read_inputs(
+    values: &Values,
+    block: &Block,
+    name: &str,
+    buffer: &mut DVector<f64>,
+) -> Result<(), Failure> {
+    for (k, index) in block.indices().enumerate() {
+        let v = values.real(index);
+        if !v.is_finite() {
+            return Err(Failure::error(format!(
+                "input `{name}[{}]` = {v} is not finite: the estimator cannot use it (the step was not taken)",
+                k + 1
+            )));
+        }
+        if let Some(slot) = buffer.get_mut(k) {
+            *slot = v;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `m` (any storage) into a block, row-major, no allocation.
+pub fn write_matrix_view(values: &mut Values, block: &Block, m: &nalgebra::DMatrixView<'_, f64>) {
+    for i in 0..block.rows.min(m.nrows()) {
+        for j in 0..block.cols.min(m.ncols()) {
+            values.set_real(block.index(i, j), m[(i, j)]);
+        }
+    }
+}
+
+/// Writes a vector into a block.
+pub fn write_vector(values: &mut Values, block: &Block, v: &DVector<f64>) {
+    block.write_vector(values, v);
+}
+
+/// Reads an integer-valued choice parameter, with the allowed values in the message.
+pub fn choice(
+    values: &Values,
+    index: usize,
+    name: &str,
+    allowed: &[(i32, &str)],
+) -> Result<i32, Failure> {
+    let v = values.integer(index);
+    if allowed.iter().any(|(k, _)| *k == v) {
+        Ok(v)
+    } else {
+        let list: Vec<String> = allowed
+            .iter()
+            .map(|(k, what)| format!("{k} = {what}"))
+            .collect();
+        Err(Failure::error(format!(
+            "parameter `{name}`: must be one of {}, got {v}",
+            list.join(", ")
+        )))
+    }
+}
+
+/// Turns an estimation error into `fmi2Error` with its message.
+pub fn error(e: spurio::estimation::EstimationError) -> Failure {
+    Failure::error(e.to_string())
+}
+
+/// Identity-like default for C (p×n): C[j, j] = 1 for j < min(n, p).
+pub fn leading_identity(rows: usize, cols: usize) -> DMatrix<f64> {
+    DMatrix::from_fn(rows, cols, |i, j| if i == j { 1.0 } else { 0.0 })
+}

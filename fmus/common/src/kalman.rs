@@ -1,0 +1,468 @@
+//! `KalmanFilter.fmu` (sKF, SPEC §2 item 7; paper 000 §IV, 001 §2) and
+//! `RobustKalmanFilter.fmu` (rsKF, SPEC §2 item 8; Cipra & Romera 1997, papers 000 §V, 001 §2).
+//!
+//! Model x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k, Cov w = Q, Cov v = R. One
+//! `fmi2DoStep` with inputs u_k, y_k:
+//!
+//! ```text
+//! x⁻ = A x̂_{k−1} + B u_{k−1},  P⁻ = A P Aᵀ + Q
+//! e  = y_k − C x⁻ − D u_k                          (output `innovation`)
+//! sKF:  K = P⁻Cᵀ(C P⁻ Cᵀ + R)⁻¹
+//! rsKF: r = R^{-1/2} e, w_j = ψ(r_j)/r_j,  K = P⁻Cᵀ(C P⁻ Cᵀ + R^{1/2} W⁻¹ R^{1/2ᵀ})⁻¹
+//! x̂_k = x⁻ + K e,  P = (I − K C) P⁻ (Joseph form)
+//! ŷ_k = C x̂_k + D u_k                              (output `y_hat`)
+//! ```
+//!
+//! Configuration: `n` (states, ≥ 1, default 1), `m` (inputs, may be 0, default 0), `p`
+//! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
+//! x̂₀ = 0, P₀ = 0) are the cosine experiment of SPEC §4 for n = p = 1.
+
+use crate::estimator::{count, error, leading_identity, read_inputs, DynamicState, Estimator};
+use crate::structured::{add_matrix, add_vector, Block};
+use nalgebra::{DMatrix, DVector};
+use spurio::estimation::{
+    EstimationError, InfluenceFunction, KalmanFilter, RobustKalmanFilter, StateEstimator,
+};
+use spurio_export::{
+    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+};
+
+/// Dimensions of a linear-Gaussian estimator variant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dimensions {
+    /// States.
+    pub n: usize,
+    /// Inputs (may be 0).
+    pub m: usize,
+    /// Outputs.
+    pub p: usize,
+}
+
+impl Dimensions {
+    /// Reads `n`, `m`, `p` from the configuration (defaults as given).
+    pub fn from_config(config: &Config, n: usize, m: usize, p: usize) -> Result<Self, Cause> {
+        Ok(Self {
+            n: count(config, "n", n, 1)?,
+            m: count(config, "m", m, 0)?,
+            p: count(config, "p", p, 1)?,
+        })
+    }
+}
+
+/// Default diagonal values of the model parameters.
+#[derive(Debug, Clone, Copy)]
+pub struct Defaults {
+    pub q: f64,
+    pub r: f64,
+    pub p0: f64,
+}
+
+/// The parameter blocks A, B, C, D, Q, R, P0, x0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelBlocks {
+    pub a: Block,
+    pub b: Block,
+    pub c: Block,
+    pub d: Block,
+    pub q: Block,
+    pub r: Block,
+    pub p0: Block,
+    pub x0: Block,
+}
+
+/// The model matrices as read from the parameters.
+#[derive(Debug, Clone)]
+pub struct ModelMatrices {
+    pub a: DMatrix<f64>,
+    pub b: DMatrix<f64>,
+    pub c: DMatrix<f64>,
+    pub d: DMatrix<f64>,
+    pub q: DMatrix<f64>,
+    pub r: DMatrix<f64>,
+    pub p0: DMatrix<f64>,
+    pub x0: DVector<f64>,
+}
+
+impl ModelBlocks {
+    /// Adds the parameters, named as in the model `x⁺ = A x + B u, y = C x + D u` (prefix
+    /// `what` in the descriptions, e.g. "initial " for the DKF).
+    pub fn add(
+        table: &mut VariableTable,
+        dims: Dimensions,
+        defaults: Defaults,
+        what: &str,
+    ) -> Self {
+        let Dimensions { n, m, p } = dims;
+        let diag = |value: f64| move |i: usize, j: usize| if i == j { value } else { 0.0 };
+        let a_default = diag(1.0);
+        let c_default = leading_identity(p, n);
+        let q_default = diag(defaults.q);
+        let r_default = diag(defaults.r);
+        let p0_default = diag(defaults.p0);
+        Self {
+            a: add_matrix(table, "A", n, n, |name, i, j| {
+                Variable::parameter(name, a_default(i, j))
+                    .describe(&format!("{what}state matrix A (x⁺ = A x + B u + w)"))
+            }),
+            b: add_matrix(table, "B", n, m, |name, _, _| {
+                Variable::parameter(name, 0.0).describe(&format!("{what}input matrix B"))
+            }),
+            c: add_matrix(table, "C", p, n, |name, i, j| {
+                Variable::parameter(name, c_default[(i, j)])
+                    .describe(&format!("{what}output matrix C (y = C x + D u + v)"))
+            }),
+            d: add_matrix(table, "D", p, m, |name, _, _| {
+                Variable::parameter(name, 0.0).describe(&format!("{what}feedthrough matrix D"))
+            }),
+            q: add_matrix(table, "Q", n, n, |name, i, j| {
+                Variable::parameter(name, q_default(i, j))
+                    .describe("Process noise covariance Q (symmetric positive semidefinite)")
+            }),
+            r: add_matrix(table, "R", p, p, |name, i, j| {
+                Variable::parameter(name, r_default(i, j))
+                    .describe("Measurement noise covariance R (symmetric positive definite)")
+            }),
+            p0: add_matrix(table, "P0", n, n, |name, i, j| {
+                Variable::parameter(name, p0_default(i, j))
+                    .describe("Covariance of x0 (symmetric positive semidefinite; 0 = x0 is exact)")
+            }),
+            x0: add_vector(table, "x0", n, |name, _| {
+                Variable::parameter(name, 0.0)
+                    .describe("Initial state estimate (one sample before the first step)")
+            }),
+        }
+    }
+
+    /// Reads the matrices.
+    pub fn read(&self, values: &Values) -> ModelMatrices {
+        ModelMatrices {
+            a: self.a.matrix(values),
+            b: self.b.matrix(values),
+            c: self.c.matrix(values),
+            d: self.d.matrix(values),
+            q: self.q.matrix(values),
+            r: self.r.matrix(values),
+            p0: self.p0.matrix(values),
+            x0: self.x0.vector(values),
+        }
+    }
+}
+
+/// Value references of a `KalmanFilter` / `RobustKalmanFilter` variant.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LinearLayout {
+    pub dims: Dimensions,
+    pub u: Block,
+    pub y: Block,
+    pub x_hat: Block,
+    pub y_hat: Block,
+    pub innovation: Block,
+    /// rsKF only: the weights w_j.
+    pub w: Option<Block>,
+    pub model: ModelBlocks,
+    /// rsKF only: value references of `psi` (Integer) and `c` (Real).
+    pub psi: Option<(usize, usize)>,
+}
+
+/// Adds the inputs `u[i]`, `y[j]`.
+pub fn add_inputs(table: &mut VariableTable, dims: Dimensions, y_what: &str) -> (Block, Block) {
+    let u = add_vector(table, "u", dims.m, |name, _| {
+        Variable::input(name, 0.0).describe("Control input u_k (sampled at the start of the step)")
+    });
+    let y = add_vector(table, "y", dims.p, |name, _| {
+        Variable::input(name, 0.0).describe(y_what)
+    });
+    (u, y)
+}
+
+/// Adds `x_hat[i]` and `y_hat[j]`.
+pub fn add_estimates(table: &mut VariableTable, dims: Dimensions) -> (Block, Block) {
+    let x_hat = add_vector(table, "x_hat", dims.n, |name, _| {
+        Variable::discrete_output(name).describe("Filtered state x̂_{k|k}")
+    });
+    let y_hat = add_vector(table, "y_hat", dims.p, |name, _| {
+        Variable::discrete_output(name).describe("Filtered output ŷ_k = C x̂_{k|k} + D u_k")
+    });
+    (x_hat, y_hat)
+}
+
+/// Adds `psi` and `c` (rsKF): returns their value references.
+pub fn add_influence(table: &mut VariableTable) -> (usize, usize) {
+    let psi = table.add(
+        Variable::integer_parameter("psi", 1)
+            .min(1.0)
+            .max(2.0)
+            .describe("Influence function ψ: 1 = Huber, 2 = Tukey bisquare"),
+    );
+    let c = table.add(
+        Variable::parameter("c", 1.645)
+            .min(0.0)
+            .describe("Tuning constant of ψ in standard deviations (Huber 1.645 = 5 % contamination; Tukey usually 4.685)"),
+    );
+    (psi, c)
+}
+
+/// Reads ψ from the `psi` and `c` parameters.
+pub fn read_influence(
+    values: &Values,
+    (psi, c): (usize, usize),
+) -> Result<InfluenceFunction, Failure> {
+    let kind =
+        crate::estimator::choice(values, psi, "psi", &[(1, "Huber"), (2, "Tukey bisquare")])?;
+    let c = values.real(c);
+    if !(c.is_finite() && c > 0.0) {
+        return Err(Failure::error(format!(
+            "parameter `c`: the tuning constant of ψ must be finite and > 0, got {c}"
+        )));
+    }
+    Ok(if kind == 1 {
+        InfluenceFunction::Huber { c }
+    } else {
+        InfluenceFunction::Tukey { c }
+    })
+}
+
+fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo), Cause> {
+    let dims = Dimensions::from_config(config, 1, 0, 1)?;
+    let mut t = VariableTable::new();
+    let (u, y) = add_inputs(
+        &mut t,
+        dims,
+        "Measured output y_k (sampled at the start of the step)",
+    );
+    let (x_hat, y_hat) = add_estimates(&mut t, dims);
+    let innovation = add_vector(&mut t, "innovation", dims.p, |name, _| {
+        Variable::discrete_output(name).describe("Innovation e_k = y_k − C x⁻ − D u_k")
+    });
+    let w = robust.then(|| {
+        add_vector(&mut t, "w", dims.p, |name, _| {
+            Variable::discrete_output(name).describe(
+                "Robust weight w_j = ψ(r_j)/r_j of the last sample (1 = trusted, → 0 = outlier)",
+            )
+        })
+    });
+    let model = ModelBlocks::add(
+        &mut t,
+        dims,
+        Defaults {
+            q: 1e-4,
+            r: 1e-4,
+            p0: 0.0,
+        },
+        "",
+    );
+    let psi = robust.then(|| add_influence(&mut t));
+    let (id, description) = if robust {
+        (
+            "RobustKalmanFilter",
+            "Robust-statistics Kalman filter (rsKF, Cipra & Romera 1997): Huber/Tukey M-estimator gain, papers 000/001",
+        )
+    } else {
+        (
+            "KalmanFilter",
+            "Standard Kalman filter (sKF), papers 000/001",
+        )
+    };
+    let info = ModelInfo::new(
+        id,
+        description,
+        t.into_variables(),
+        Some(DefaultExperiment {
+            start_time: 0.0,
+            stop_time: 1.0,
+            step_size: 1e-3,
+        }),
+        config.clone(),
+    );
+    Ok((
+        LinearLayout {
+            dims,
+            u,
+            y,
+            x_hat,
+            y_hat,
+            innovation,
+            w,
+            model,
+            psi,
+        },
+        info,
+    ))
+}
+
+/// Writes x̂ = x0, ŷ = C x0 + D u, e = 0, w = 1 before the first step.
+fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
+    let m = layout.model.read(ctx.values);
+    let u = layout.u.vector(ctx.values);
+    let y_hat = &m.c * &m.x0 + &m.d * &u;
+    layout.x_hat.write_vector(ctx.values, &m.x0);
+    layout.y_hat.write_vector(ctx.values, &y_hat);
+    for k in layout.innovation.indices() {
+        ctx.values.set_real(k, 0.0);
+    }
+    if let Some(w) = &layout.w {
+        for k in w.indices() {
+            ctx.values.set_real(k, 1.0);
+        }
+    }
+}
+
+/// A filter of the linear model behind a `KalmanFilter`-style FMU, built from the model
+/// matrices (and, for the robust one, its influence function).
+pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
+    /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
+    const ROBUST: bool;
+    /// The filter for the model `m`.
+    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError>;
+    /// The last step's weights `w_j` (robust filter only).
+    fn weights(&self) -> Option<&DVector<f64>> {
+        None
+    }
+}
+
+impl LinearFilter for KalmanFilter {
+    const ROBUST: bool = false;
+    fn from_model(m: ModelMatrices, _: InfluenceFunction) -> Result<Self, EstimationError> {
+        KalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0)
+    }
+}
+
+impl LinearFilter for RobustKalmanFilter {
+    const ROBUST: bool = true;
+    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError> {
+        RobustKalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0, psi)
+    }
+    fn weights(&self) -> Option<&DVector<f64>> {
+        Some(RobustKalmanFilter::weights(self))
+    }
+}
+
+/// The one adapter of the linear-model filters (sKF, rsKF) and its input buffers.
+#[derive(Debug, Clone)]
+pub struct Linear<F: LinearFilter> {
+    filter: F,
+    u: DVector<f64>,
+    y: DVector<f64>,
+}
+
+impl<F: LinearFilter> Estimator for Linear<F> {
+    type Layout = LinearLayout;
+    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
+        interface(config, F::ROBUST)
+    }
+
+    fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
+        let psi = match layout.psi {
+            Some(indices) => read_influence(values, indices)?,
+            None => InfluenceFunction::default(),
+        };
+        let filter = F::from_model(layout.model.read(values), psi).map_err(error)?;
+        Ok(Self {
+            filter,
+            u: DVector::zeros(layout.dims.m),
+            y: DVector::zeros(layout.dims.p),
+        })
+    }
+
+    fn write_initial(&self, layout: &LinearLayout, ctx: &mut Context) {
+        write_initial_linear(layout, ctx);
+    }
+
+    fn step(&mut self, l: &LinearLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
+        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
+        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
+        self.filter.step(&self.u, &self.y).map_err(error)?;
+        l.x_hat.write_vector(ctx.values, self.filter.state());
+        l.y_hat.write_vector(ctx.values, self.filter.output());
+        l.innovation
+            .write_vector(ctx.values, self.filter.innovation());
+        if let (Some(w), Some(weights)) = (&l.w, self.filter.weights()) {
+            w.write_vector(ctx.values, weights);
+        }
+        Ok(())
+    }
+}
+
+impl<F: LinearFilter> DynamicState for Linear<F> {
+    fn dynamic_state(&self) -> Vec<f64> {
+        StateEstimator::dynamic_state(&self.filter)
+    }
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        StateEstimator::set_dynamic_state(&mut self.filter, state)
+    }
+}
+
+/// `KalmanFilter.fmu`.
+pub type KalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<KalmanFilter>>;
+/// `RobustKalmanFilter.fmu`.
+pub type RobustKalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<RobustKalmanFilter>>;
+
+/// The configuration of a variant of dimensions n, m, p.
+pub fn dims_config(n: usize, m: usize, p: usize) -> Config {
+    let mut c = Config::new();
+    c.set("n", n);
+    c.set("m", m);
+    c.set("p", p);
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spurio_export::harness::Harness;
+    use spurio_export::FmuModel;
+
+    #[test]
+    fn scalar_variant_tracks_a_constant_and_names_bad_parameters() {
+        let config = dims_config(1, 0, 1);
+        let info = KalmanFilterFmu::describe(&config).unwrap();
+        let names: Vec<&str> = info.variables.iter().map(|v| v.name.as_str()).collect();
+        assert_eq!(
+            &names[..4],
+            &["y[1]", "x_hat[1]", "y_hat[1]", "innovation[1]"]
+        );
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<KalmanFilterFmu>::new(&config).unwrap();
+        h.set_real(&[vr("P0[1,1]")], &[1.0]).unwrap();
+        h.initialize(0.0).unwrap();
+        let mut out = [0.0];
+        for k in 0..50 {
+            h.set_real(&[vr("y[1]")], &[2.0]).unwrap();
+            h.do_step(k as f64 * 1e-3, 1e-3).unwrap();
+        }
+        h.get_real(&[vr("x_hat[1]")], &mut out).unwrap();
+        assert!((out[0] - 2.0).abs() < 1e-3, "{out:?}");
+
+        let robust = RobustKalmanFilterFmu::describe(&config).unwrap();
+        let r = robust.index_of("R[1,1]").unwrap() as u32;
+        let mut bad = Harness::<RobustKalmanFilterFmu>::new(&config).unwrap();
+        bad.set_real(&[r], &[-1.0]).unwrap();
+        assert!(bad.initialize(0.0).is_err());
+        assert!(
+            bad.log().iter().any(|(_, _, text)| text.contains("`R`")),
+            "{:?}",
+            bad.log()
+        );
+    }
+
+    #[test]
+    fn nan_input_is_an_error_naming_the_input() {
+        let config = dims_config(2, 1, 1);
+        let info = RobustKalmanFilterFmu::describe(&config).unwrap();
+        let mut h = Harness::<RobustKalmanFilterFmu>::new(&config).unwrap();
+        h.initialize(0.0).unwrap();
+        let y = info.index_of("y[1]").unwrap() as u32;
+        // The export layer rejects the value; the adapter would too (`read_inputs`).
+        assert!(h.set_real(&[y], &[f64::NAN]).is_err());
+        assert!(h.log().iter().any(|(_, _, text)| text.contains("`y[1]`")));
+        let mut values = spurio_export::Values::from_start(&info.variables);
+        values.set_real(y as usize, f64::INFINITY);
+        let block = Block {
+            first: y as usize,
+            rows: 1,
+            cols: 1,
+        };
+        let error = crate::estimator::read_inputs(&values, &block, "y", &mut DVector::zeros(1));
+        assert!(matches!(error, Err(Failure::Error(m)) if m.to_string().contains("`y[1]`")));
+    }
+}

@@ -1,0 +1,922 @@
+//! The C ABI: raw pointers in, [`Instance`] calls out.
+//!
+//! This module (with the logger call in [`CallbackSink`]) is the only place in the product's
+//! FMUs with `unsafe` code. Each function here is generic over the model; the
+//! [`export_fmu!`](crate::export_fmu) macro instantiates them as the `fmi2*` symbols of one
+//! FMU binary. Every function checks its pointers, catches panics (`catch_unwind`: a panic
+//! never crosses the ABI; the instance is then `Fatal`) and checks the allowed-state mask
+//! before doing anything.
+
+use crate::description::{Config, CONFIG_FILE};
+use crate::instance::{functions, Core, Function, Instance, LogSink, Logger};
+use crate::model::FmuModel;
+use crate::types::*;
+use crate::variables::{Value, VariableType};
+use std::ffi::{CStr, CString};
+use std::os::raw::c_char;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+/// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
+pub struct CallbackSink {
+    logger: fmi2CallbackLogger,
+    environment: fmi2ComponentEnvironment,
+}
+
+impl LogSink for CallbackSink {
+    fn deliver(&self, instance: &str, status: Status, category: &str, text: &str) {
+        let Some(logger) = self.logger else { return };
+        let clean = |s: &str| CString::new(s.replace('\0', " ")).unwrap_or_default();
+        let (name, category, text) = (clean(instance), clean(category), clean(text));
+        // SAFETY: the master gave us this function pointer for exactly this call; every string
+        // is NUL-terminated and lives until the call returns; the format is "%s" with one
+        // `char*` argument.
+        unsafe {
+            logger(
+                self.environment,
+                name.as_ptr(),
+                status.code(),
+                category.as_ptr(),
+                c"%s".as_ptr(),
+                text.as_ptr(),
+            );
+        }
+    }
+}
+
+/// What an `fmi2Component` points to.
+pub struct Slot<M: FmuModel> {
+    instance: Instance<M>,
+    /// FMU states created by this instance and not freed yet.
+    states: Vec<*mut Core<M>>,
+    /// Keeps the strings returned by `fmi2GetString` alive until the next call.
+    strings: Vec<CString>,
+}
+
+impl<M: FmuModel> Drop for Slot<M> {
+    fn drop(&mut self) {
+        for p in self.states.drain(..) {
+            // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from the
+            // list when freed, so each is freed exactly once.
+            drop(unsafe { Box::from_raw(p) });
+        }
+    }
+}
+
+fn panic_message(payload: &Box<dyn std::any::Any + Send>) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "panic".to_string()
+    }
+}
+
+/// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
+unsafe fn with_instance<M: FmuModel>(
+    c: fmi2Component,
+    f: &Function,
+    body: impl FnOnce(&mut Slot<M>) -> Status,
+) -> fmi2Status {
+    if c.is_null() {
+        return fmi2Error;
+    }
+    let slot = c as *mut Slot<M>;
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        // SAFETY: `c` is non-null and was returned by `instantiate::<M>` (the master's
+        // obligation); no other reference to the slot is alive during the call.
+        let slot = unsafe { &mut *slot };
+        if !slot.instance.allows(f) {
+            return Status::Error;
+        }
+        body(slot)
+    }));
+    match result {
+        Ok(status) => status.code(),
+        Err(payload) => {
+            let message = panic_message(&payload);
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                // SAFETY: as above; the closure that panicked no longer borrows the slot.
+                unsafe { &mut *slot }.instance.set_fatal(f, &message)
+            }));
+            fmi2Fatal
+        }
+    }
+}
+
+/// Reads `n` elements behind `p` as a slice; `None` if `p` is NULL while `n > 0`.
+unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
+    if n == 0 {
+        Some(&[])
+    } else if p.is_null() {
+        None
+    } else {
+        // SAFETY: the caller guarantees `p` points to `n` valid elements (FMI contract).
+        Some(unsafe { std::slice::from_raw_parts(p, n) })
+    }
+}
+
+unsafe fn string_arg(s: fmi2String) -> Option<String> {
+    if s.is_null() {
+        None
+    } else {
+        // SAFETY: FMI strings are NUL-terminated.
+        Some(unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned())
+    }
+}
+
+/// The folder a `fmuResourceLocation` URI points to (`file:///…`, `file:/…`,
+/// `file://localhost/…`, percent-encoded), or `None` if it is not a local file URI.
+pub fn resource_directory(uri: &str) -> Option<PathBuf> {
+    let rest = uri
+        .strip_prefix("file://localhost/")
+        .map(|r| format!("/{r}"))
+        .or_else(|| uri.strip_prefix("file:///").map(|r| format!("/{r}")))
+        .or_else(|| uri.strip_prefix("file:/").map(|r| format!("/{r}")))?;
+    let bytes = rest.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok());
+            if let Some(v) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(bytes[i]);
+        i += 1;
+    }
+    Some(PathBuf::from(String::from_utf8(out).ok()?))
+}
+
+/// `fmi2GetTypesPlatform`.
+pub fn types_platform() -> *const c_char {
+    c"default".as_ptr()
+}
+
+/// `fmi2GetVersion`.
+pub fn version() -> *const c_char {
+    c"2.0".as_ptr()
+}
+
+/// `fmi2Instantiate`: checks the type, the GUID and the resources, then creates the instance.
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+pub unsafe fn instantiate<M: FmuModel>(
+    instance_name: fmi2String,
+    fmu_type: fmi2Type,
+    guid: fmi2String,
+    resource_location: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    logging_on: fmi2Boolean,
+) -> fmi2Component {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        if functions.is_null() {
+            return std::ptr::null_mut();
+        }
+        // SAFETY: checked non-null; the master keeps the struct alive (FMI 2.0.4 §2.1.5 asks
+        // the FMU to copy what it needs: we copy the two fields we use).
+        let callbacks = unsafe { &*functions };
+        let sink = CallbackSink {
+            logger: callbacks.logger,
+            environment: callbacks.componentEnvironment,
+        };
+        let name = unsafe { string_arg(instance_name) };
+        let logger = Logger::new(
+            name.as_deref().unwrap_or("?"),
+            Box::new(sink),
+            logging_on != 0,
+        );
+        let fail = |message: String| {
+            logger.error(&format!("fmi2Instantiate: {message}"));
+            std::ptr::null_mut()
+        };
+        let Some(name) = name.filter(|n| !n.is_empty()) else {
+            return fail("instanceName must be a non-empty string".into());
+        };
+        let _ = name;
+        let mut config = Config::new();
+        if let Some(dir) = unsafe { string_arg(resource_location) }
+            .as_deref()
+            .and_then(resource_directory)
+        {
+            let path = dir.join(CONFIG_FILE);
+            if path.exists() {
+                match std::fs::read_to_string(&path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|t| Config::parse(&t).map_err(|e| e.to_string()))
+                {
+                    Ok(c) => config = c,
+                    Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
+                }
+            }
+        }
+        let info = match M::describe(&config) {
+            Ok(info) => info,
+            Err(e) => return fail(format!("invalid variant configuration: {e}")),
+        };
+        if fmu_type != fmi2CoSimulation {
+            return fail(format!(
+                "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
+                info.model_identifier
+            ));
+        }
+        let given = unsafe { string_arg(guid) }.unwrap_or_default();
+        if given != info.guid {
+            return fail(format!(
+                "GUID mismatch: the modelDescription.xml gives {given} but this binary of {} implements {} (the binary and the XML come from different builds or variants)",
+                info.model_identifier, info.guid
+            ));
+        }
+        match Instance::<M>::new(info, logger) {
+            Ok(instance) => into_component(instance),
+            Err(e) => {
+                // The logger moved into the failed constructor call; report through a new one.
+                let sink = CallbackSink {
+                    logger: callbacks.logger,
+                    environment: callbacks.componentEnvironment,
+                };
+                Logger::new("?", Box::new(sink), true).error(&format!("fmi2Instantiate: {e}"));
+                std::ptr::null_mut()
+            }
+        }
+    }));
+    result.unwrap_or(std::ptr::null_mut())
+}
+
+/// Boxes an instance as an `fmi2Component` (what `fmi2Instantiate` returns).
+pub fn into_component<M: FmuModel>(instance: Instance<M>) -> fmi2Component {
+    Box::into_raw(Box::new(Slot {
+        instance,
+        states: Vec::new(),
+        strings: Vec::new(),
+    })) as fmi2Component
+}
+
+/// `fmi2FreeInstance`.
+///
+/// # Safety
+/// `c` must be NULL or a component from [`instantiate`] not freed yet.
+pub unsafe fn free_instance<M: FmuModel>(c: fmi2Component) {
+    if c.is_null() {
+        return;
+    }
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        // SAFETY: `c` came from `Box::into_raw` in `instantiate::<M>`.
+        drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
+    }));
+}
+
+/// `fmi2SetDebugLogging`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_debug_logging<M: FmuModel>(
+    c: fmi2Component,
+    logging_on: fmi2Boolean,
+    n: usize,
+    categories: *const fmi2String,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, &functions::SET_DEBUG_LOGGING, |s| {
+            let Some(raw) = slice(categories, n) else {
+                return s
+                    .instance
+                    .reject(&functions::SET_DEBUG_LOGGING, "categories is NULL");
+            };
+            let names: Vec<String> = raw
+                .iter()
+                .map(|p| string_arg(*p).unwrap_or_default())
+                .collect();
+            s.instance.set_debug_logging(logging_on != 0, &names)
+        })
+    }
+}
+
+/// `fmi2SetupExperiment`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn setup_experiment<M: FmuModel>(
+    c: fmi2Component,
+    _tolerance_defined: fmi2Boolean,
+    _tolerance: fmi2Real,
+    start_time: fmi2Real,
+    stop_time_defined: fmi2Boolean,
+    stop_time: fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, &functions::SETUP_EXPERIMENT, |s| {
+            s.instance
+                .setup_experiment(start_time, (stop_time_defined != 0).then_some(stop_time))
+        })
+    }
+}
+
+macro_rules! simple_call {
+    ($(#[$doc:meta])* $fn_name:ident, $function:expr, $method:ident) => {
+        $(#[$doc])*
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn $fn_name<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+            unsafe { with_instance::<M>(c, &$function, |s| s.instance.$method()) }
+        }
+    };
+}
+
+simple_call!(
+    /// `fmi2EnterInitializationMode`.
+    enter_initialization_mode, functions::ENTER_INITIALIZATION_MODE, enter_initialization_mode);
+simple_call!(
+    /// `fmi2ExitInitializationMode`.
+    exit_initialization_mode, functions::EXIT_INITIALIZATION_MODE, exit_initialization_mode);
+simple_call!(
+    /// `fmi2Terminate`.
+    terminate, functions::TERMINATE, terminate);
+simple_call!(
+    /// `fmi2Reset`.
+    reset, functions::RESET, reset);
+
+/// `fmi2Get{Real,Integer,Boolean}` into a C array, converting each value with `convert`.
+unsafe fn get_into<M: FmuModel, T>(
+    c: fmi2Component,
+    f: &'static Function,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    out: *mut T,
+    ty: VariableType,
+    convert: impl Fn(&Value) -> T,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, n) else {
+                return s.instance.reject(f, "vr is NULL");
+            };
+            if n > 0 && out.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            s.instance.get_values(f, vrs, ty, |i, v| {
+                // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
+                *out.add(i) = convert(v)
+            })
+        })
+    }
+}
+
+/// `fmi2GetReal`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_real<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        get_into::<M, _>(
+            c,
+            &functions::GET_REAL,
+            vr,
+            n,
+            value,
+            VariableType::Real,
+            |v| match v {
+                Value::Real(x) => *x,
+                _ => f64::NAN,
+            },
+        )
+    }
+}
+
+/// `fmi2GetInteger`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_integer<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *mut fmi2Integer,
+) -> fmi2Status {
+    unsafe {
+        get_into::<M, _>(
+            c,
+            &functions::GET_INTEGER,
+            vr,
+            n,
+            value,
+            VariableType::Integer,
+            |v| match v {
+                Value::Integer(x) => *x,
+                _ => 0,
+            },
+        )
+    }
+}
+
+/// `fmi2GetBoolean`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_boolean<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        get_into::<M, _>(
+            c,
+            &functions::GET_BOOLEAN,
+            vr,
+            n,
+            value,
+            VariableType::Boolean,
+            |v| matches!(v, Value::Boolean(true)) as fmi2Boolean,
+        )
+    }
+}
+
+/// `fmi2GetString`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_string<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *mut fmi2String,
+) -> fmi2Status {
+    let f = &functions::GET_STRING;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, n) else {
+                return s.instance.reject(f, "vr is NULL");
+            };
+            if n > 0 && value.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            let mut strings = Vec::with_capacity(n);
+            let status = s.instance.get_values(f, vrs, VariableType::String, |_, v| {
+                let text = match v {
+                    Value::String(t) => t.as_str(),
+                    _ => "",
+                };
+                strings.push(CString::new(text.replace('\0', " ")).unwrap_or_default());
+            });
+            for (i, cs) in strings.iter().enumerate() {
+                // SAFETY: `value` points to `n` slots; the strings live in the slot until the
+                // next fmi2GetString call.
+                *value.add(i) = cs.as_ptr();
+            }
+            s.strings = strings;
+            status
+        })
+    }
+}
+
+unsafe fn set_from<M: FmuModel, T: Copy>(
+    c: fmi2Component,
+    f: &'static Function,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *const T,
+    convert: impl Fn(T) -> Value,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
+                return s.instance.reject(f, "vr or value is NULL");
+            };
+            let values = values.iter().map(|v| convert(*v)).collect();
+            s.instance.set_values(f, vrs, values)
+        })
+    }
+}
+
+/// `fmi2SetReal`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_real<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    unsafe { set_from::<M, _>(c, &functions::SET_REAL, vr, n, value, Value::Real) }
+}
+
+/// `fmi2SetInteger`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_integer<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *const fmi2Integer,
+) -> fmi2Status {
+    unsafe { set_from::<M, _>(c, &functions::SET_INTEGER, vr, n, value, Value::Integer) }
+}
+
+/// `fmi2SetBoolean`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_boolean<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *const fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        set_from::<M, _>(c, &functions::SET_BOOLEAN, vr, n, value, |b| {
+            Value::Boolean(b != 0)
+        })
+    }
+}
+
+/// `fmi2SetString`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_string<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    value: *const fmi2String,
+) -> fmi2Status {
+    let f = &functions::SET_STRING;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let (Some(vrs), Some(raw)) = (slice(vr, n), slice(value, n)) else {
+                return s.instance.reject(f, "vr or value is NULL");
+            };
+            let mut values = Vec::with_capacity(n);
+            for p in raw {
+                match string_arg(*p) {
+                    Some(t) => values.push(Value::String(t)),
+                    None => return s.instance.reject(f, "a string value is NULL"),
+                }
+            }
+            s.instance.set_values(f, vrs, values)
+        })
+    }
+}
+
+/// `fmi2DoStep`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn do_step<M: FmuModel>(
+    c: fmi2Component,
+    current_time: fmi2Real,
+    step: fmi2Real,
+    _no_set_prior: fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, &functions::DO_STEP, |s| {
+            s.instance.do_step(current_time, step)
+        })
+    }
+}
+
+/// `fmi2CancelStep` (steps are synchronous: the mask rejects every call).
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn cancel_step<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    unsafe { with_instance::<M>(c, &functions::CANCEL_STEP, |_| Status::Ok) }
+}
+
+/// `fmi2GetFMUstate`: a new state, or the given one overwritten.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    let f = &functions::GET_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            if state.is_null() {
+                return s.instance.reject(f, "FMUstate is NULL");
+            }
+            let existing = *state as *mut Core<M>;
+            let snapshot = s.instance.get_state();
+            if !existing.is_null() && s.states.contains(&existing) {
+                *existing = *snapshot;
+            } else {
+                let p = Box::into_raw(snapshot);
+                s.states.push(p);
+                *state = p as fmi2FMUstate;
+            }
+            Status::Ok
+        })
+    }
+}
+
+unsafe fn known_state<'a, M: FmuModel>(s: &Slot<M>, state: fmi2FMUstate) -> Option<&'a Core<M>> {
+    let p = state as *mut Core<M>;
+    // SAFETY: only pointers this instance created and has not freed are dereferenced.
+    (!p.is_null() && s.states.contains(&p)).then(|| unsafe { &*p })
+}
+
+const UNKNOWN_STATE: &str =
+    "unknown FMUstate: it was not created by this instance or was already freed";
+
+/// `fmi2SetFMUstate`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+    let f = &functions::SET_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| match known_state(s, state) {
+            Some(core) => {
+                s.instance.set_state(core);
+                Status::Ok
+            }
+            None => s.instance.reject(f, UNKNOWN_STATE),
+        })
+    }
+}
+
+/// `fmi2FreeFMUstate`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn free_fmu_state<M: FmuModel>(
+    c: fmi2Component,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
+    let f = &functions::FREE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            if state.is_null() || (*state).is_null() {
+                return Status::Ok;
+            }
+            let p = *state as *mut Core<M>;
+            match s.states.iter().position(|q| *q == p) {
+                Some(i) => {
+                    s.states.swap_remove(i);
+                    drop(Box::from_raw(p));
+                    *state = std::ptr::null_mut();
+                    Status::Ok
+                }
+                None => s.instance.reject(f, UNKNOWN_STATE),
+            }
+        })
+    }
+}
+
+/// `fmi2SerializedFMUstateSize`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    size: *mut usize,
+) -> fmi2Status {
+    let f = &functions::SERIALIZED_FMU_STATE_SIZE;
+    unsafe {
+        with_instance::<M>(c, f, |s| match (known_state(s, state), size.is_null()) {
+            (Some(core), false) => {
+                *size = s.instance.serialize(core).len();
+                Status::Ok
+            }
+            (None, _) => s.instance.reject(f, UNKNOWN_STATE),
+            (_, true) => s.instance.reject(f, "size is NULL"),
+        })
+    }
+}
+
+/// `fmi2SerializeFMUstate`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn serialize_fmu_state<M: FmuModel>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    bytes: *mut fmi2Byte,
+    size: usize,
+) -> fmi2Status {
+    let f = &functions::SERIALIZE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(core) = known_state(s, state) else {
+                return s.instance.reject(f, UNKNOWN_STATE);
+            };
+            let data = s.instance.serialize(core);
+            if bytes.is_null() || size < data.len() {
+                return s.instance.reject(
+                    f,
+                    &format!(
+                        "the buffer holds {size} bytes, the state needs {}",
+                        data.len()
+                    ),
+                );
+            }
+            std::ptr::copy_nonoverlapping(data.as_ptr() as *const fmi2Byte, bytes, data.len());
+            Status::Ok
+        })
+    }
+}
+
+/// `fmi2DeSerializeFMUstate`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn deserialize_fmu_state<M: FmuModel>(
+    c: fmi2Component,
+    bytes: *const fmi2Byte,
+    size: usize,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
+    let f = &functions::DESERIALIZE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(data) = slice(bytes as *const u8, size) else {
+                return s.instance.reject(f, "serializedState is NULL");
+            };
+            if state.is_null() {
+                return s.instance.reject(f, "FMUstate is NULL");
+            }
+            match s.instance.deserialize(data) {
+                Ok(core) => {
+                    let p = Box::into_raw(core);
+                    s.states.push(p);
+                    *state = p as fmi2FMUstate;
+                    Status::Ok
+                }
+                Err(e) => s.instance.reject(f, &e.to_string()),
+            }
+        })
+    }
+}
+
+/// Functions of capabilities the FMUs do not declare: rejected with a reason.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn unsupported<M: FmuModel>(
+    c: fmi2Component,
+    f: &'static Function,
+    capability: &'static str,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            s.instance
+                .reject(f, &format!("not supported: the FMU declares {capability}"))
+        })
+    }
+}
+
+/// `fmi2GetStatus`: steps are never asynchronous, so there is no pending status to report.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_status<M: FmuModel>(
+    c: fmi2Component,
+    f: &'static Function,
+    kind: fmi2StatusKind,
+) -> fmi2Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            s.instance.logger().log(
+                Status::Discard,
+                Status::Discard.category(),
+                &format!(
+                    "{}: status kind {kind} is not available (fmi2DoStep never returns fmi2Pending)",
+                    f.name
+                ),
+            );
+            Status::Discard
+        })
+    }
+}
+
+/// `fmi2GetRealStatus`: `fmi2LastSuccessfulTime`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_real_status<M: FmuModel>(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    let f = &functions::GET_REAL_STATUS;
+    unsafe {
+        if kind != fmi2LastSuccessfulTime {
+            return get_status::<M>(c, f, kind);
+        }
+        with_instance::<M>(c, f, |s| {
+            if value.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            *value = s.instance.last_successful_time();
+            Status::Ok
+        })
+    }
+}
+
+/// `fmi2GetBooleanStatus`: `fmi2Terminated` (the FMUs never ask to stop early).
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_boolean_status<M: FmuModel>(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    let f = &functions::GET_BOOLEAN_STATUS;
+    unsafe {
+        if kind != fmi2Terminated {
+            return get_status::<M>(c, f, kind);
+        }
+        with_instance::<M>(c, f, |s| {
+            if value.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            *value = fmi2False;
+            Status::Ok
+        })
+    }
+}
+
+/// `fmi2GetStringStatus`: no pending status, ever.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_string_status<M: FmuModel>(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    value: *mut fmi2String,
+) -> fmi2Status {
+    unsafe {
+        if !value.is_null() {
+            *value = c"".as_ptr();
+        }
+        get_status::<M>(c, &functions::GET_STRING_STATUS, kind)
+    }
+}
+
+/// Copies `answer` into `out` (at most `capacity` bytes) and returns its length.
+unsafe fn write_answer(answer: &str, out: *mut u8, capacity: usize) -> usize {
+    let bytes = answer.as_bytes();
+    if !out.is_null() && capacity > 0 {
+        let n = bytes.len().min(capacity);
+        // SAFETY: the caller gives a writable buffer of `capacity` bytes (query contract).
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), out, n) };
+    }
+    bytes.len()
+}
+
+/// `spurio_variants`: the bundled variants as [`crate::query::variants_text`].
+///
+/// # Safety
+/// `out` is NULL or points to `capacity` writable bytes.
+pub unsafe fn query_variants(
+    variants: fn() -> Vec<crate::query::Variant>,
+    out: *mut u8,
+    capacity: usize,
+) -> usize {
+    let text = catch_unwind(variants)
+        .map(|v| crate::query::variants_text(&v))
+        .unwrap_or_default();
+    // SAFETY: forwarded from the caller.
+    unsafe { write_answer(&text, out, capacity) }
+}
+
+/// `spurio_describe`: the model description for a configuration text, or minus the length of
+/// the error message.
+///
+/// # Safety
+/// `config` is NULL or a NUL-terminated string; `out` is NULL or points to `capacity`
+/// writable bytes.
+pub unsafe fn query_describe<M: FmuModel>(
+    config: *const c_char,
+    out: *mut u8,
+    capacity: usize,
+) -> isize {
+    // SAFETY: `config` is NULL or a NUL-terminated string (query contract).
+    let text = unsafe { string_arg(config) }.unwrap_or_default();
+    let answer = catch_unwind(AssertUnwindSafe(|| crate::query::describe::<M>(&text)))
+        .unwrap_or_else(|payload| Err(panic_message(&payload).into()));
+    let (text, sign) = match answer {
+        Ok(xml) => (xml, 1),
+        Err(cause) => (cause.to_string(), -1),
+    };
+    // SAFETY: forwarded from the caller.
+    let length = unsafe { write_answer(&text, out, capacity) };
+    sign * isize::try_from(length).unwrap_or(isize::MAX)
+}

@@ -1,0 +1,163 @@
+//! An in-process driver of an FMU's C entry points, for Rust tests and benchmarks.
+//!
+//! It calls the same generic functions of [`crate::ffi`] that the exported `fmi2*` symbols
+//! call, with real pointers, so a test or benchmark measures the C ABI path (pointer checks,
+//! `catch_unwind`, state masks, dispatch) without loading a shared library. Log messages are
+//! collected in memory (a C variadic logger cannot be written in stable Rust).
+
+use crate::description::Config;
+use crate::ffi;
+use crate::instance::{Instance, LogSink, Logger};
+use crate::model::FmuModel;
+use crate::types::*;
+use std::cell::RefCell;
+use std::marker::PhantomData;
+use std::rc::Rc;
+
+/// One logged message: (status, category, text).
+pub type Logged = (Status, String, String);
+
+#[derive(Clone, Default)]
+struct MemorySink(Rc<RefCell<Vec<Logged>>>);
+
+impl LogSink for MemorySink {
+    fn deliver(&self, _instance: &str, status: Status, category: &str, text: &str) {
+        self.0
+            .borrow_mut()
+            .push((status, category.to_string(), text.to_string()));
+    }
+}
+
+/// An instance of `M` driven through the C entry points.
+pub struct Harness<M: FmuModel> {
+    component: fmi2Component,
+    log: MemorySink,
+    model: PhantomData<M>,
+}
+
+#[allow(non_upper_case_globals)]
+fn status(code: fmi2Status) -> Result<Status, Status> {
+    match code {
+        fmi2OK => Ok(Status::Ok),
+        fmi2Warning => Ok(Status::Warning),
+        fmi2Discard => Err(Status::Discard),
+        fmi2Error => Err(Status::Error),
+        _ => Err(Status::Fatal),
+    }
+}
+
+impl<M: FmuModel> Harness<M> {
+    /// Instantiates `M` for `config` with debug logging on.
+    pub fn new(config: &Config) -> Result<Self, crate::model::Cause> {
+        let info = M::describe(config)?;
+        let log = MemorySink::default();
+        let logger = Logger::new("harness", Box::new(log.clone()), true);
+        let instance = Instance::<M>::new(info, logger)?;
+        let component = ffi::into_component(instance);
+        Ok(Self {
+            component,
+            log,
+            model: PhantomData,
+        })
+    }
+
+    /// The messages logged so far.
+    pub fn log(&self) -> Vec<Logged> {
+        self.log.0.borrow().clone()
+    }
+
+    /// `fmi2SetupExperiment` + `fmi2EnterInitializationMode` + `fmi2ExitInitializationMode`.
+    pub fn initialize(&mut self, start_time: f64) -> Result<Status, Status> {
+        // SAFETY: `component` is a live component created by `into_component`.
+        unsafe {
+            status(ffi::setup_experiment::<M>(
+                self.component,
+                0,
+                0.0,
+                start_time,
+                0,
+                0.0,
+            ))?;
+            status(ffi::enter_initialization_mode::<M>(self.component))?;
+            status(ffi::exit_initialization_mode::<M>(self.component))
+        }
+    }
+
+    /// `fmi2SetReal`.
+    pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Result<Status, Status> {
+        if vr.len() != values.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::set_real::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    /// `fmi2SetBoolean` (`true` → fmi2True).
+    pub fn set_boolean(&mut self, vr: &[u32], values: &[bool]) -> Result<Status, Status> {
+        if vr.len() != values.len() {
+            return Err(Status::Error);
+        }
+        let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::set_boolean::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    /// `fmi2GetReal` into `out`.
+    pub fn get_real(&mut self, vr: &[u32], out: &mut [f64]) -> Result<Status, Status> {
+        if vr.len() != out.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::get_real::<M>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+        })
+    }
+
+    /// `fmi2DoStep`.
+    pub fn do_step(&mut self, time: f64, step: f64) -> Result<Status, Status> {
+        // SAFETY: live component.
+        status(unsafe { ffi::do_step::<M>(self.component, time, step, fmi2True) })
+    }
+}
+
+impl<M: FmuModel> Drop for Harness<M> {
+    fn drop(&mut self) {
+        // SAFETY: the component is freed exactly once, here.
+        unsafe { ffi::free_instance::<M>(self.component) }
+    }
+}
+
+/// For benchmarks: the median, first and third quartiles of the time per call (ns) of `call`
+/// over `batches` batches of `per_batch` calls, after `warm_up` calls (NaN without batches).
+pub fn time_per_call(
+    warm_up: usize,
+    batches: usize,
+    per_batch: usize,
+    mut call: impl FnMut(),
+) -> (f64, f64, f64) {
+    for _ in 0..warm_up {
+        call();
+    }
+    let mut samples: Vec<f64> = (0..batches)
+        .map(|_| {
+            let start = std::time::Instant::now();
+            for _ in 0..per_batch {
+                call();
+            }
+            start.elapsed().as_nanos() as f64 / per_batch.max(1) as f64
+        })
+        .collect();
+    samples.sort_by(|a, b| a.total_cmp(b));
+    let q = |p: f64| {
+        let last = samples.len().saturating_sub(1);
+        samples
+            .get((last as f64 * p) as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    (q(0.5), q(0.25), q(0.75))
+}

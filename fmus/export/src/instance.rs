@@ -1,0 +1,797 @@
+//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a safe [`FmuModel`].
+//!
+//! Every entry point is checked against an allowed-state mask (as the Reference-FMUs do in
+//! `fmi2Functions.c`), every value reference against the variable table, every value against
+//! the variable's type, causality, variability, bounds and finiteness — before anything is
+//! changed, so a rejected call loses nothing. Errors are logged with the function's name and
+//! the expected vs. actual value.
+//!
+//! Calls that the instance rejects (illegal call sequence, unknown value reference, a NaN
+//! input, a value out of bounds) return `fmi2Error` and leave the instance as it was; a model
+//! that fails inside initialisation or a step moves the instance to the `Error` state, from
+//! which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
+
+use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
+use crate::description::ModelInfo;
+use crate::model::{Cause, Context, Failure, FmuModel};
+use crate::types::Status;
+use crate::variables::{Causality, Initial, Value, Values, Variability, VariableType};
+use std::fmt;
+
+/// The states of the FMI 2.0 Co-Simulation state machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelState {
+    StartAndEnd,
+    Instantiated,
+    InitializationMode,
+    StepComplete,
+    StepInProgress,
+    StepFailed,
+    StepCanceled,
+    Terminated,
+    Error,
+    Fatal,
+}
+
+impl ModelState {
+    const ALL: [ModelState; 10] = [
+        ModelState::StartAndEnd,
+        ModelState::Instantiated,
+        ModelState::InitializationMode,
+        ModelState::StepComplete,
+        ModelState::StepInProgress,
+        ModelState::StepFailed,
+        ModelState::StepCanceled,
+        ModelState::Terminated,
+        ModelState::Error,
+        ModelState::Fatal,
+    ];
+
+    /// This state's bit in the masks.
+    pub const fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+
+    fn from_bits_index(i: u64) -> Option<Self> {
+        Self::ALL.get(i as usize).copied()
+    }
+}
+
+impl fmt::Display for ModelState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self, f)
+    }
+}
+
+const INSTANTIATED: u32 = ModelState::Instantiated.bit();
+const INIT_MODE: u32 = ModelState::InitializationMode.bit();
+const STEP_COMPLETE: u32 = ModelState::StepComplete.bit();
+const STEP_IN_PROGRESS: u32 = ModelState::StepInProgress.bit();
+const STEP_FAILED: u32 = ModelState::StepFailed.bit();
+const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
+const TERMINATED: u32 = ModelState::Terminated.bit();
+const ERROR: u32 = ModelState::Error.bit();
+const FATAL: u32 = ModelState::Fatal.bit();
+
+/// An FMI function and the states in which it may be called.
+#[derive(Debug, Clone, Copy)]
+pub struct Function {
+    pub name: &'static str,
+    pub mask: u32,
+}
+
+/// Allowed-state masks of the FMI 2.0 CS functions (FMI 2.0.4, §4.2.4 state machine).
+pub mod functions {
+    use super::*;
+    const ANY_LIVE: u32 = INSTANTIATED
+        | INIT_MODE
+        | STEP_COMPLETE
+        | STEP_IN_PROGRESS
+        | STEP_FAILED
+        | STEP_CANCELED
+        | TERMINATED
+        | ERROR;
+    const AFTER_INIT: u32 =
+        INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
+    const STATE_OPS: u32 = ANY_LIVE & !STEP_IN_PROGRESS;
+
+    macro_rules! f {
+        ($id:ident, $name:literal, $mask:expr) => {
+            pub const $id: Function = Function {
+                name: $name,
+                mask: $mask,
+            };
+        };
+    }
+    f!(SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE);
+    f!(FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL);
+    f!(SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED);
+    f!(
+        ENTER_INITIALIZATION_MODE,
+        "fmi2EnterInitializationMode",
+        INSTANTIATED
+    );
+    f!(
+        EXIT_INITIALIZATION_MODE,
+        "fmi2ExitInitializationMode",
+        INIT_MODE
+    );
+    f!(
+        TERMINATE,
+        "fmi2Terminate",
+        STEP_COMPLETE | STEP_FAILED | STEP_CANCELED
+    );
+    f!(RESET, "fmi2Reset", STATE_OPS);
+    f!(GET_REAL, "fmi2GetReal", AFTER_INIT);
+    f!(GET_INTEGER, "fmi2GetInteger", AFTER_INIT);
+    f!(GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT);
+    f!(GET_STRING, "fmi2GetString", AFTER_INIT);
+    f!(
+        SET_REAL,
+        "fmi2SetReal",
+        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+    );
+    f!(
+        SET_INTEGER,
+        "fmi2SetInteger",
+        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+    );
+    f!(
+        SET_BOOLEAN,
+        "fmi2SetBoolean",
+        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+    );
+    f!(
+        SET_STRING,
+        "fmi2SetString",
+        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+    );
+    f!(GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS);
+    f!(SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS);
+    f!(FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL);
+    f!(
+        SERIALIZED_FMU_STATE_SIZE,
+        "fmi2SerializedFMUstateSize",
+        STATE_OPS
+    );
+    f!(SERIALIZE_FMU_STATE, "fmi2SerializeFMUstate", STATE_OPS);
+    f!(DESERIALIZE_FMU_STATE, "fmi2DeSerializeFMUstate", STATE_OPS);
+    f!(
+        GET_DIRECTIONAL_DERIVATIVE,
+        "fmi2GetDirectionalDerivative",
+        AFTER_INIT
+    );
+    f!(
+        SET_REAL_INPUT_DERIVATIVES,
+        "fmi2SetRealInputDerivatives",
+        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+    );
+    f!(
+        GET_REAL_OUTPUT_DERIVATIVES,
+        "fmi2GetRealOutputDerivatives",
+        STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR
+    );
+    f!(DO_STEP, "fmi2DoStep", STEP_COMPLETE);
+    f!(CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS);
+    f!(
+        GET_STATUS,
+        "fmi2GetStatus",
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
+    );
+    f!(
+        GET_REAL_STATUS,
+        "fmi2GetRealStatus",
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
+    );
+    f!(
+        GET_INTEGER_STATUS,
+        "fmi2GetIntegerStatus",
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
+    );
+    f!(
+        GET_BOOLEAN_STATUS,
+        "fmi2GetBooleanStatus",
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
+    );
+    f!(
+        GET_STRING_STATUS,
+        "fmi2GetStringStatus",
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
+    );
+}
+
+fn state_names(mask: u32) -> String {
+    ModelState::ALL
+        .iter()
+        .filter(|s| mask & s.bit() != 0)
+        .map(|s| s.to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Where log messages go: the master's callback (see [`crate::ffi`]) or memory (tests).
+pub trait LogSink {
+    /// Delivers one message.
+    fn deliver(&self, instance: &str, status: Status, category: &str, text: &str);
+}
+
+/// The instance's logger: filters by `loggingOn` and categories, then hands to the sink.
+/// Warnings, discards, errors and fatals are always delivered: a user must learn why a call
+/// failed even with debug logging off.
+pub struct Logger {
+    sink: Box<dyn LogSink>,
+    instance_name: String,
+    logging_on: bool,
+    /// Enabled categories; empty means all.
+    categories: Vec<String>,
+}
+
+impl Logger {
+    /// A logger for `instance_name` writing to `sink`.
+    pub fn new(instance_name: &str, sink: Box<dyn LogSink>, logging_on: bool) -> Self {
+        Self {
+            sink,
+            instance_name: instance_name.to_string(),
+            logging_on,
+            categories: Vec::new(),
+        }
+    }
+    /// Logs `text` with `status` under `category`.
+    pub fn log(&self, status: Status, category: &str, text: &str) {
+        if status == Status::Ok {
+            let enabled = self.categories.is_empty()
+                || self
+                    .categories
+                    .iter()
+                    .any(|c| c == category || c == "logAll");
+            if !self.logging_on || !enabled {
+                return;
+            }
+        }
+        self.sink
+            .deliver(&self.instance_name, status, category, text);
+    }
+    /// Logs an error.
+    pub fn error(&self, text: &str) {
+        self.log(Status::Error, Status::Error.category(), text);
+    }
+    /// The instance name.
+    pub fn instance_name(&self) -> &str {
+        &self.instance_name
+    }
+}
+
+/// The part of an instance that an FMU state captures.
+#[derive(Clone)]
+pub struct Core<M> {
+    model: M,
+    values: Values,
+    time: f64,
+    state: ModelState,
+    stop_time: Option<f64>,
+    /// Inputs were set since the outputs were last computed.
+    inputs_changed: bool,
+}
+
+const STATE_MAGIC: &str = "spurio-fmu-state/1";
+
+/// An instance of model `M`.
+pub struct Instance<M: FmuModel> {
+    info: ModelInfo,
+    logger: Logger,
+    core: Core<M>,
+}
+
+impl<M: FmuModel> Instance<M> {
+    /// A new instance in state `Instantiated`, with the start values of `info`.
+    pub fn new(info: ModelInfo, logger: Logger) -> Result<Self, Cause> {
+        let model = M::create(&info)?;
+        let values = Values::from_start(&info.variables);
+        Ok(Self {
+            info,
+            logger,
+            core: Core {
+                model,
+                values,
+                time: 0.0,
+                state: ModelState::Instantiated,
+                stop_time: None,
+                inputs_changed: false,
+            },
+        })
+    }
+
+    /// The model description this instance was created from.
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+    /// The logger.
+    pub fn logger(&self) -> &Logger {
+        &self.logger
+    }
+    /// The current state of the state machine.
+    pub fn state(&self) -> ModelState {
+        self.core.state
+    }
+    /// The current simulation time.
+    pub fn time(&self) -> f64 {
+        self.core.time
+    }
+    /// The model (for tests and benchmarks).
+    pub fn model(&self) -> &M {
+        &self.core.model
+    }
+
+    /// Checks that `f` may be called now; logs and returns `false` when not.
+    pub fn allows(&self, f: &Function) -> bool {
+        if f.mask & self.core.state.bit() != 0 {
+            return true;
+        }
+        self.logger.error(&format!(
+            "{}: illegal call sequence: not allowed in state {} (allowed in: {})",
+            f.name,
+            self.core.state,
+            state_names(f.mask)
+        ));
+        false
+    }
+
+    /// Logs an error for function `f` and returns `Status::Error`; the state is unchanged.
+    pub fn reject(&self, f: &Function, message: &str) -> Status {
+        self.logger.error(&format!("{}: {}", f.name, message));
+        Status::Error
+    }
+
+    /// Marks the instance as fatally broken (after a panic was caught).
+    pub fn set_fatal(&mut self, f: &Function, message: &str) {
+        self.core.state = ModelState::Fatal;
+        self.logger.log(
+            Status::Fatal,
+            Status::Fatal.category(),
+            &format!("{}: internal error: {message}", f.name),
+        );
+    }
+
+    fn run_model(
+        &mut self,
+        f: &Function,
+        call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
+    ) -> Status {
+        let mut ctx = Context::at(&mut self.core.values, self.core.time);
+        let result = call(&mut self.core.model, &mut ctx);
+        let messages = ctx.take_messages();
+        let mut status = Status::Ok;
+        for m in &messages {
+            self.logger.log(m.status, m.category, &m.text);
+            status = status.max(m.status);
+        }
+        match result {
+            Ok(()) => status,
+            Err(Failure::Discard(message)) => {
+                self.logger.log(
+                    Status::Discard,
+                    Status::Discard.category(),
+                    &format!("{}: {message}", f.name),
+                );
+                Status::Discard
+            }
+            Err(Failure::Error(message)) => {
+                self.logger.error(&format!("{}: {message}", f.name));
+                self.core.state = ModelState::Error;
+                Status::Error
+            }
+        }
+    }
+
+    /// `fmi2SetDebugLogging`.
+    pub fn set_debug_logging(&mut self, logging_on: bool, categories: &[String]) -> Status {
+        let f = &functions::SET_DEBUG_LOGGING;
+        for c in categories {
+            if !crate::description::LOG_CATEGORIES
+                .iter()
+                .any(|(n, _)| n == c)
+            {
+                let known: Vec<&str> = crate::description::LOG_CATEGORIES
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect();
+                return self.reject(
+                    f,
+                    &format!("unknown log category `{c}` (known: {})", known.join(", ")),
+                );
+            }
+        }
+        self.logger.logging_on = logging_on;
+        self.logger.categories = categories.to_vec();
+        Status::Ok
+    }
+
+    /// `fmi2SetupExperiment`.
+    pub fn setup_experiment(&mut self, start_time: f64, stop_time: Option<f64>) -> Status {
+        let f = &functions::SETUP_EXPERIMENT;
+        if !start_time.is_finite() {
+            return self.reject(f, &format!("startTime must be finite, got {start_time}"));
+        }
+        if let Some(stop) = stop_time {
+            if stop.is_nan() || stop < start_time {
+                return self.reject(
+                    f,
+                    &format!(
+                        "stopTime = {stop:.16} must not be before startTime = {start_time:.16}"
+                    ),
+                );
+            }
+        }
+        self.core.time = start_time;
+        self.core.stop_time = stop_time;
+        Status::Ok
+    }
+
+    /// `fmi2EnterInitializationMode`.
+    pub fn enter_initialization_mode(&mut self) -> Status {
+        self.core.state = ModelState::InitializationMode;
+        Status::Ok
+    }
+
+    /// `fmi2ExitInitializationMode`: the model reads its parameters and computes its outputs.
+    pub fn exit_initialization_mode(&mut self) -> Status {
+        let status = self.run_model(&functions::EXIT_INITIALIZATION_MODE, |m, ctx| {
+            m.initialize(ctx)
+        });
+        if status <= Status::Warning {
+            self.core.state = ModelState::StepComplete;
+        }
+        status
+    }
+
+    /// `fmi2Terminate`.
+    pub fn terminate(&mut self) -> Status {
+        self.core.state = ModelState::Terminated;
+        Status::Ok
+    }
+
+    /// `fmi2Reset`: back to `Instantiated` with the start values.
+    pub fn reset(&mut self) -> Status {
+        match M::create(&self.info) {
+            Ok(model) => {
+                self.core = Core {
+                    model,
+                    values: Values::from_start(&self.info.variables),
+                    time: 0.0,
+                    state: ModelState::Instantiated,
+                    stop_time: None,
+                    inputs_changed: false,
+                };
+                Status::Ok
+            }
+            Err(e) => self.reject(&functions::RESET, &e.to_string()),
+        }
+    }
+
+    /// `fmi2Get{Real,Integer,Boolean,String}`: checks every reference, then hands each value
+    /// to `out` in order.
+    pub fn get_values(
+        &mut self,
+        f: &Function,
+        vrs: &[u32],
+        expected: VariableType,
+        mut out: impl FnMut(usize, &Value),
+    ) -> Status {
+        for vr in vrs {
+            if let Err(message) = self.lookup(*vr, expected) {
+                return self.reject(f, &message);
+            }
+        }
+        let mut status = Status::Ok;
+        if self.core.state == ModelState::InitializationMode {
+            // Outputs and calculated parameters are computed from the current parameters.
+            status = self.run_model(f, |m, ctx| m.initialize(ctx));
+            if status > Status::Warning {
+                return status;
+            }
+        } else if self.core.inputs_changed && self.core.state == ModelState::StepComplete {
+            status = self.run_model(f, |m, ctx| m.update_outputs(ctx));
+            if status > Status::Warning {
+                return status;
+            }
+            self.core.inputs_changed = false;
+        }
+        let all = self.core.values.all();
+        for (i, vr) in vrs.iter().enumerate() {
+            out(i, &all[*vr as usize]);
+        }
+        status
+    }
+
+    fn lookup(&self, vr: u32, expected: VariableType) -> Result<usize, String> {
+        let index = vr as usize;
+        let v = self.info.variables.get(index).ok_or_else(|| {
+            format!(
+                "unknown value reference {vr} ({} has value references 0 to {})",
+                self.info.model_identifier,
+                self.info.variables.len().saturating_sub(1)
+            )
+        })?;
+        if v.variable_type() != expected {
+            return Err(format!(
+                "variable `{}` (value reference {vr}) is of type {}, not {expected}",
+                v.name,
+                v.variable_type()
+            ));
+        }
+        Ok(index)
+    }
+
+    /// `fmi2Set{Real,Integer,Boolean,String}`: checks every value first (reference, type,
+    /// whether it may be set in this state, finiteness, bounds), then sets them all, so a
+    /// rejected call changes nothing.
+    pub fn set_values(&mut self, f: &Function, vrs: &[u32], values: Vec<Value>) -> Status {
+        if vrs.len() != values.len() {
+            return self.reject(f, "internal: value count differs from reference count");
+        }
+        let mut tunable_changed = false;
+        let mut inputs_changed = false;
+        for (vr, value) in vrs.iter().zip(&values) {
+            let index = match self.lookup(*vr, value.variable_type()) {
+                Ok(i) => i,
+                Err(message) => return self.reject(f, &message),
+            };
+            let v = &self.info.variables[index];
+            let state = self.core.state;
+            let settable = match state {
+                ModelState::Instantiated => {
+                    v.variability != Variability::Constant
+                        && (v.causality == Causality::Input
+                            || matches!(v.initial, Some(Initial::Exact) | Some(Initial::Approx)))
+                }
+                ModelState::InitializationMode => {
+                    v.variability != Variability::Constant
+                        && (v.causality == Causality::Input || v.initial == Some(Initial::Exact))
+                }
+                ModelState::StepComplete => {
+                    v.causality == Causality::Input
+                        || (v.causality == Causality::Parameter
+                            && v.variability == Variability::Tunable)
+                }
+                _ => false,
+            };
+            if !settable {
+                let what = match (v.causality, v.variability) {
+                    (Causality::Parameter, Variability::Fixed) => {
+                        "a fixed parameter: it can be set only before fmi2ExitInitializationMode"
+                    }
+                    (Causality::Output, _) => "an output: the FMU computes it",
+                    (Causality::CalculatedParameter, _) => {
+                        "a calculated parameter: the FMU computes it"
+                    }
+                    _ => "not settable now",
+                };
+                return self.reject(
+                    f,
+                    &format!(
+                        "variable `{}` (value reference {vr}) is {what} (state {state})",
+                        v.name
+                    ),
+                );
+            }
+            if let Value::Real(x) = value {
+                if !x.is_finite() {
+                    return self.reject(
+                        f,
+                        &format!(
+                            "variable `{}` (value reference {vr}): {x} rejected, values must be finite",
+                            v.name
+                        ),
+                    );
+                }
+            }
+            let numeric = match value {
+                Value::Real(x) => Some(*x),
+                Value::Integer(i) => Some(*i as f64),
+                _ => None,
+            };
+            if let Some(x) = numeric {
+                if let Some(min) = v.min.filter(|m| x < *m) {
+                    return self.reject(
+                        f,
+                        &format!("variable `{}` = {x} is below its minimum {min}", v.name),
+                    );
+                }
+                if let Some(max) = v.max.filter(|m| x > *m) {
+                    return self.reject(
+                        f,
+                        &format!("variable `{}` = {x} is above its maximum {max}", v.name),
+                    );
+                }
+            }
+            tunable_changed |=
+                state == ModelState::StepComplete && v.causality == Causality::Parameter;
+            inputs_changed |= v.causality == Causality::Input;
+        }
+        for (vr, value) in vrs.iter().zip(values) {
+            self.core.values.set(*vr as usize, value);
+        }
+        self.core.inputs_changed |= inputs_changed;
+        if tunable_changed {
+            return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
+        }
+        Status::Ok
+    }
+
+    /// `fmi2DoStep`.
+    pub fn do_step(&mut self, current_time: f64, step: f64) -> Status {
+        let f = &functions::DO_STEP;
+        if !step.is_finite() || step <= 0.0 {
+            return self.reject(
+                f,
+                &format!("communicationStepSize must be finite and > 0, got {step:.16}"),
+            );
+        }
+        let time = self.core.time;
+        if !current_time.is_finite() || (current_time - time).abs() > 1e-9 * time.abs().max(1.0) {
+            return self.reject(
+                f,
+                &format!(
+                    "expected currentCommunicationPoint = {time:.16} but was {current_time:.16}"
+                ),
+            );
+        }
+        if let Some(stop) = self.core.stop_time {
+            let end = current_time + step;
+            if end > stop + 1e-9 * stop.abs().max(1.0) {
+                return self.reject(
+                    f,
+                    &format!("the step to {end:.16} would pass stopTime = {stop:.16}"),
+                );
+            }
+        }
+        let status = self.run_model(f, |m, ctx| m.do_step(ctx, current_time, step));
+        if status <= Status::Warning {
+            self.core.time = current_time + step;
+            self.core.inputs_changed = false;
+        }
+        status
+    }
+
+    /// `fmi2GetRealStatus(fmi2LastSuccessfulTime)`.
+    pub fn last_successful_time(&self) -> f64 {
+        self.core.time
+    }
+
+    /// `fmi2GetFMUstate`: a copy of everything that determines the future of the instance.
+    pub fn get_state(&self) -> Box<Core<M>> {
+        Box::new(self.core.clone())
+    }
+
+    /// `fmi2SetFMUstate`.
+    pub fn set_state(&mut self, core: &Core<M>) {
+        self.core = core.clone();
+    }
+
+    /// `fmi2SerializeFMUstate`: the bytes of a state.
+    pub fn serialize(&self, core: &Core<M>) -> Vec<u8> {
+        let mut w = ByteWriter::new();
+        w.put_str(STATE_MAGIC);
+        w.put_str(&self.info.guid);
+        w.put_u64(
+            ModelState::ALL
+                .iter()
+                .position(|s| *s == core.state)
+                .unwrap_or(0) as u64,
+        );
+        w.put_f64(core.time);
+        w.put_bool(core.stop_time.is_some());
+        w.put_f64(core.stop_time.unwrap_or(0.0));
+        w.put_bool(core.inputs_changed);
+        let values = core.values.all();
+        w.put_u64(values.len() as u64);
+        for v in values {
+            match v {
+                Value::Real(x) => w.put_f64(*x),
+                Value::Integer(i) => w.put_i32(*i),
+                Value::Boolean(b) => w.put_bool(*b),
+                Value::String(s) => w.put_str(s),
+            }
+        }
+        core.model.save_state(&mut w);
+        w.into_bytes()
+    }
+
+    /// `fmi2DeSerializeFMUstate`: a state from bytes written by [`Instance::serialize`] of an
+    /// instance of the same FMU.
+    pub fn deserialize(&self, bytes: &[u8]) -> Result<Box<Core<M>>, StateError> {
+        let mut r = ByteReader::new(bytes);
+        if r.string().ok().as_deref() != Some(STATE_MAGIC) {
+            return Err(StateError::NotAState);
+        }
+        let guid = r.string()?;
+        if guid != self.info.guid {
+            return Err(StateError::OtherFmu {
+                saved: guid,
+                this: self.info.guid.clone(),
+            });
+        }
+        let state = ModelState::from_bits_index(r.u64()?).ok_or(StateError::MachineState)?;
+        let time = r.f64()?;
+        let has_stop = r.bool()?;
+        let stop = r.f64()?;
+        let inputs_changed = r.bool()?;
+        let n = r.u64()?;
+        if n != self.info.variables.len() as u64 {
+            return Err(StateError::ValueCount {
+                saved: n,
+                variables: self.info.variables.len(),
+            });
+        }
+        let mut values = Values::from_start(&self.info.variables);
+        for (i, v) in self.info.variables.iter().enumerate() {
+            let value = match v.variable_type() {
+                VariableType::Real => Value::Real(r.f64()?),
+                VariableType::Integer => Value::Integer(r.i32()?),
+                VariableType::Boolean => Value::Boolean(r.bool()?),
+                VariableType::String => Value::String(r.string()?),
+            };
+            values.set(i, value);
+        }
+        let mut model = self.core.model.clone();
+        model.load_state(&mut r).map_err(StateError::Model)?;
+        if r.remaining() != 0 {
+            return Err(StateError::LeftOver(r.remaining()));
+        }
+        Ok(Box::new(Core {
+            model,
+            values,
+            time,
+            state,
+            stop_time: has_stop.then_some(stop),
+            inputs_changed,
+        }))
+    }
+}
+
+/// Why serialized bytes are not a state of this FMU (`fmi2DeSerializeFMUstate`).
+#[derive(Debug)]
+pub enum StateError {
+    /// The bytes do not start with the spurio state header.
+    NotAState,
+    /// The state belongs to an FMU with another GUID.
+    OtherFmu { saved: String, this: String },
+    /// The saved state-machine state is unknown.
+    MachineState,
+    /// The number of saved values is not the number of variables.
+    ValueCount { saved: u64, variables: usize },
+    /// The bytes are malformed.
+    Format(StateFormatError),
+    /// The model could not read its part.
+    Model(Cause),
+    /// Bytes remain after the state.
+    LeftOver(usize),
+}
+
+impl std::fmt::Display for StateError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotAState => write!(f, "the bytes are not a serialized spurio FMU state"),
+            Self::OtherFmu { saved, this } => write!(
+                f,
+                "the state was serialized by an FMU with GUID {saved}, this one is {this}"
+            ),
+            Self::MachineState => write!(f, "serialized FMU state: invalid state machine state"),
+            Self::ValueCount { saved, variables } => write!(
+                f,
+                "serialized FMU state has {saved} values, the FMU has {variables} variables"
+            ),
+            Self::Format(e) => write!(f, "{e}"),
+            Self::Model(e) => write!(f, "{e}"),
+            Self::LeftOver(n) => write!(f, "serialized FMU state has {n} bytes left over"),
+        }
+    }
+}
+
+impl std::error::Error for StateError {}
+
+impl From<StateFormatError> for StateError {
+    fn from(e: StateFormatError) -> Self {
+        StateError::Format(e)
+    }
+}

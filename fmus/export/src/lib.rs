@@ -1,0 +1,410 @@
+//! The export layer shared by every spurio FMU (today the FMI 2.0 Co-Simulation front).
+//!
+//! One implementation of the FMI plumbing for all FMUs, with no dependencies:
+//! - [`types`]: the C types of the standard headers;
+//! - [`variables`]: the variable table (value reference = index) and the instance values;
+//! - [`description`]: the model identity and `modelDescription.xml`, generated from the table
+//!   (so the XML and the binary cannot disagree), with a GUID hashed from the interface;
+//! - [`model`]: the safe trait a model implements (`describe`, `create`, `initialize`,
+//!   `do_step`, state save/load);
+//! - [`instance`]: the state machine with allowed-state masks per function, argument checks,
+//!   the logger (always `"%s"` + message), FMU states;
+//! - [`ffi`]: the raw C entry points, each wrapped in `catch_unwind`;
+//! - [`query`]: the non-FMI questions a packager asks a built library (bundled variants,
+//!   model description of a configuration);
+//! - [`testing`]: the checks every FMU crate runs on itself;
+//! - [`export_fmu!`]: emits the `fmi2*` and query symbols of one FMU binary for a model type,
+//!   with its bundled variants.
+//!
+//! No global state: every instance owns all it uses, so any number of instances of any
+//! number of FMUs live in one process.
+
+pub mod bytes;
+pub mod description;
+pub mod ffi;
+pub mod harness;
+pub mod instance;
+pub mod model;
+pub mod query;
+pub mod testing;
+pub mod types;
+pub mod variables;
+
+pub use bytes::{ByteReader, ByteWriter};
+pub use description::{Config, DefaultExperiment, ModelInfo};
+pub use model::{Cause, Context, Failure, FmuModel};
+pub use variables::{
+    Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
+};
+
+/// Emits, in the crate that builds an FMU's `cdylib`, the FMI 2.0 Co-Simulation C API
+/// (`fmi2GetTypesPlatform` … `fmi2GetStringStatus`) for the model type `$model`, the query
+/// symbols of [`query`] and `pub fn bundled_variants()`, and a test that the committed model
+/// descriptions of those variants are up to date.
+///
+/// The variants are `(file stem, configuration)` pairs; without any, the FMU has one: its
+/// default configuration, named by its model identifier.
+///
+/// ```ignore
+/// spurio_export::export_fmu!(GantryCraneFmu);
+/// spurio_export::export_fmu!(SensorFmu, variants = [("Sensor", Config::new()), ("Sensor2", two)]);
+/// ```
+#[macro_export]
+macro_rules! export_fmu {
+    ($model:ty) => {
+        $crate::export_fmu!($model, variants = []);
+    };
+    ($model:ty, variants = [$(($stem:expr, $config:expr)),* $(,)?]) => {
+        /// The variants of this FMU that are bundled and whose model descriptions are
+        /// committed: (file stem, configuration).
+        pub fn bundled_variants() -> Vec<$crate::query::Variant> {
+            let declared: Vec<$crate::query::Variant> =
+                vec![$((::std::string::ToString::to_string(&$stem), $config)),*];
+            if declared.is_empty() {
+                $crate::query::default_variants::<$model>()
+            } else {
+                declared
+            }
+        }
+
+        #[cfg(test)]
+        mod bundled_variants_tests {
+            #[allow(unused_imports)]
+            use super::*;
+            #[test]
+            fn committed_model_descriptions_match_the_declaration() {
+                $crate::testing::check_bundled_variants::<$model>(
+                    &super::bundled_variants(),
+                    ::std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+                );
+            }
+        }
+
+        mod query_exports {
+            #![allow(unsafe_code, clippy::missing_safety_doc)]
+            #[allow(unused_imports)]
+            use super::*;
+
+            #[no_mangle]
+            pub unsafe extern "C" fn spurio_variants(out: *mut u8, capacity: usize) -> usize {
+                unsafe { $crate::ffi::query_variants(super::bundled_variants, out, capacity) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn spurio_describe(
+                config: *const ::std::os::raw::c_char,
+                out: *mut u8,
+                capacity: usize,
+            ) -> isize {
+                unsafe { $crate::ffi::query_describe::<$model>(config, out, capacity) }
+            }
+        }
+
+        mod fmi2_exports {
+            #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
+            #[allow(unused_imports)]
+            use super::*;
+            use $crate::ffi;
+            use $crate::instance::functions;
+            use $crate::types::*;
+            type M = $model;
+
+            #[no_mangle]
+            pub extern "C" fn fmi2GetTypesPlatform() -> *const fmi2Char {
+                ffi::types_platform()
+            }
+            #[no_mangle]
+            pub extern "C" fn fmi2GetVersion() -> *const fmi2Char {
+                ffi::version()
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetDebugLogging(
+                c: fmi2Component,
+                on: fmi2Boolean,
+                n: usize,
+                categories: *const fmi2String,
+            ) -> fmi2Status {
+                unsafe { ffi::set_debug_logging::<M>(c, on, n, categories) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Instantiate(
+                name: fmi2String,
+                kind: fmi2Type,
+                guid: fmi2String,
+                resources: fmi2String,
+                callbacks: *const fmi2CallbackFunctions,
+                visible: fmi2Boolean,
+                logging_on: fmi2Boolean,
+            ) -> fmi2Component {
+                unsafe {
+                    ffi::instantiate::<M>(
+                        name, kind, guid, resources, callbacks, visible, logging_on,
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+                unsafe { ffi::free_instance::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetupExperiment(
+                c: fmi2Component,
+                tolerance_defined: fmi2Boolean,
+                tolerance: fmi2Real,
+                start: fmi2Real,
+                stop_defined: fmi2Boolean,
+                stop: fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    ffi::setup_experiment::<M>(
+                        c,
+                        tolerance_defined,
+                        tolerance,
+                        start,
+                        stop_defined,
+                        stop,
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+                unsafe { ffi::enter_initialization_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+                unsafe { ffi::exit_initialization_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+                unsafe { ffi::terminate::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+                unsafe { ffi::reset::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetReal(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe { ffi::get_real::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetInteger(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *mut fmi2Integer,
+            ) -> fmi2Status {
+                unsafe { ffi::get_integer::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBoolean(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *mut fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe { ffi::get_boolean::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetString(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *mut fmi2String,
+            ) -> fmi2Status {
+                unsafe { ffi::get_string::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetReal(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *const fmi2Real,
+            ) -> fmi2Status {
+                unsafe { ffi::set_real::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetInteger(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *const fmi2Integer,
+            ) -> fmi2Status {
+                unsafe { ffi::set_integer::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetBoolean(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *const fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe { ffi::set_boolean::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetString(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                n: usize,
+                value: *const fmi2String,
+            ) -> fmi2Status {
+                unsafe { ffi::set_string::<M>(c, vr, n, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetFMUstate(
+                c: fmi2Component,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
+                unsafe { ffi::get_fmu_state::<M>(c, state) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetFMUstate(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+            ) -> fmi2Status {
+                unsafe { ffi::set_fmu_state::<M>(c, state) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeFMUstate(
+                c: fmi2Component,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
+                unsafe { ffi::free_fmu_state::<M>(c, state) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+                size: *mut usize,
+            ) -> fmi2Status {
+                unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializeFMUstate(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+                bytes: *mut fmi2Byte,
+                size: usize,
+            ) -> fmi2Status {
+                unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+                c: fmi2Component,
+                bytes: *const fmi2Byte,
+                size: usize,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
+                unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+                c: fmi2Component,
+                _u: *const fmi2ValueReference,
+                _nu: usize,
+                _z: *const fmi2ValueReference,
+                _nz: usize,
+                _dv: *const fmi2Real,
+                _dz: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    ffi::unsupported::<M>(
+                        c,
+                        &functions::GET_DIRECTIONAL_DERIVATIVE,
+                        "providesDirectionalDerivative=\"false\"",
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+                c: fmi2Component,
+                _vr: *const fmi2ValueReference,
+                _n: usize,
+                _order: *const fmi2Integer,
+                _value: *const fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    ffi::unsupported::<M>(
+                        c,
+                        &functions::SET_REAL_INPUT_DERIVATIVES,
+                        "canInterpolateInputs=\"false\"",
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+                c: fmi2Component,
+                _vr: *const fmi2ValueReference,
+                _n: usize,
+                _order: *const fmi2Integer,
+                _value: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    ffi::unsupported::<M>(
+                        c,
+                        &functions::GET_REAL_OUTPUT_DERIVATIVES,
+                        "maxOutputDerivativeOrder=\"0\"",
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DoStep(
+                c: fmi2Component,
+                t: fmi2Real,
+                h: fmi2Real,
+                no_set_prior: fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe { ffi::do_step::<M>(c, t, h, no_set_prior) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+                unsafe { ffi::cancel_step::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStatus(
+                c: fmi2Component,
+                kind: fmi2StatusKind,
+                value: *mut fmi2Status,
+            ) -> fmi2Status {
+                let _ = value;
+                unsafe { ffi::get_status::<M>(c, &functions::GET_STATUS, kind) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealStatus(
+                c: fmi2Component,
+                kind: fmi2StatusKind,
+                value: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe { ffi::get_real_status::<M>(c, kind, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetIntegerStatus(
+                c: fmi2Component,
+                kind: fmi2StatusKind,
+                value: *mut fmi2Integer,
+            ) -> fmi2Status {
+                let _ = value;
+                unsafe { ffi::get_status::<M>(c, &functions::GET_INTEGER_STATUS, kind) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBooleanStatus(
+                c: fmi2Component,
+                kind: fmi2StatusKind,
+                value: *mut fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe { ffi::get_boolean_status::<M>(c, kind, value) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStringStatus(
+                c: fmi2Component,
+                kind: fmi2StatusKind,
+                value: *mut fmi2String,
+            ) -> fmi2Status {
+                unsafe { ffi::get_string_status::<M>(c, kind, value) }
+            }
+        }
+    };
+}

@@ -1,0 +1,171 @@
+//! The safe trait an FMU implements: its interface, its initialisation and its step.
+//!
+//! Everything FMI — the state machine, argument checks, value-reference dispatch, logging,
+//! FMU states — is done by [`crate::instance::Instance`]; a model only reads its parameters
+//! and inputs from the [`Context`] and writes its outputs there.
+
+use crate::bytes::{ByteReader, ByteWriter};
+use crate::description::{Config, ModelInfo};
+use crate::types::Status;
+use crate::variables::Values;
+
+/// What went wrong, as the typed error of whoever found it (a parameter error of the
+/// models, an estimation error, [`crate::bytes::StateFormatError`], a configuration error…);
+/// the export layer logs its `Display` text, prefixed by the FMI function.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why a model call failed: the FMI status it gives and its cause.
+#[derive(Debug)]
+pub enum Failure {
+    /// The step was not carried out but the instance is intact (`fmi2Discard`).
+    Discard(Cause),
+    /// The call failed (`fmi2Error`): bad parameters, a numerical failure.
+    Error(Cause),
+}
+
+impl Failure {
+    /// An `fmi2Error` failure with this cause (an error value or a message).
+    pub fn error(cause: impl Into<Cause>) -> Self {
+        Failure::Error(cause.into())
+    }
+    /// An `fmi2Discard` failure with this cause.
+    pub fn discard(cause: impl Into<Cause>) -> Self {
+        Failure::Discard(cause.into())
+    }
+    /// The cause, whichever the status.
+    pub fn cause(&self) -> &Cause {
+        match self {
+            Failure::Discard(cause) | Failure::Error(cause) => cause,
+        }
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.cause())
+    }
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Self {
+        Failure::error(message)
+    }
+}
+
+impl From<&str> for Failure {
+    fn from(message: &str) -> Self {
+        Failure::error(message)
+    }
+}
+
+impl From<Cause> for Failure {
+    fn from(cause: Cause) -> Self {
+        Failure::Error(cause)
+    }
+}
+
+/// A message a model wants logged.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogMessage {
+    pub status: Status,
+    pub category: &'static str,
+    pub text: String,
+}
+
+/// What a model sees during a call: the values of its variables and a place to log.
+#[derive(Debug)]
+pub struct Context<'a> {
+    /// Parameters, inputs and outputs, indexed like the variable table.
+    pub values: &'a mut Values,
+    pub(crate) messages: Vec<LogMessage>,
+    time: f64,
+}
+
+impl<'a> Context<'a> {
+    /// A context over `values` at time 0.
+    pub fn new(values: &'a mut Values) -> Self {
+        Self::at(values, 0.0)
+    }
+    /// A context over `values` at simulation time `time`.
+    pub fn at(values: &'a mut Values, time: f64) -> Self {
+        Self {
+            values,
+            messages: Vec::new(),
+            time,
+        }
+    }
+    /// The instance's current communication point [s]: the start time (from
+    /// `fmi2SetupExperiment`) during initialization, the start of the step in `do_step`, the
+    /// last communication point in `update_outputs` and `parameters_changed`.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+    /// Logs an event (category `logEvents`; shown when debug logging is on).
+    pub fn log_event(&mut self, text: impl Into<String>) {
+        self.messages.push(LogMessage {
+            status: Status::Ok,
+            category: "logEvents",
+            text: text.into(),
+        });
+    }
+    /// Logs a warning; the call then returns `fmi2Warning`.
+    pub fn warn(&mut self, text: impl Into<String>) {
+        self.messages.push(LogMessage {
+            status: Status::Warning,
+            category: "logStatusWarning",
+            text: text.into(),
+        });
+    }
+    /// The messages logged so far.
+    pub fn messages(&self) -> &[LogMessage] {
+        &self.messages
+    }
+    /// Takes the messages logged so far.
+    pub fn take_messages(&mut self) -> Vec<LogMessage> {
+        std::mem::take(&mut self.messages)
+    }
+}
+
+/// An FMI 2.0 Co-Simulation model.
+///
+/// `Clone` is how FMU states are taken (`fmi2GetFMUstate`); `save_state`/`load_state` are how
+/// they are serialized. Implementations must not panic on any input (a panic is caught and
+/// reported as `fmi2Fatal`, but that is a bug).
+pub trait FmuModel: Clone + 'static {
+    /// The interface for `config` (empty for FMUs of fixed dimensions). Called when packaging
+    /// and in `fmi2Instantiate`, with the configuration read from the FMU's resources.
+    fn describe(config: &Config) -> Result<ModelInfo, Cause>;
+
+    /// A new model for an instance of `info`.
+    fn create(info: &ModelInfo) -> Result<Self, Cause>;
+
+    /// Reads and checks the parameters, sets the initial state and computes the initial
+    /// outputs. Called in initialization mode (possibly more than once: when outputs are read
+    /// there) and at `fmi2ExitInitializationMode`; it must give the same result each time.
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure>;
+
+    /// Advances from `time` to `time + step` with the current inputs, then writes the outputs.
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure>;
+
+    /// Recomputes the outputs that depend directly on the inputs (those declared with
+    /// `depends_on`), after inputs were set and before they are read, without advancing time
+    /// (FMI 2.0 CS direct feedthrough). Must not change the model's future: calling it any
+    /// number of times between two steps gives the same result. The default does nothing
+    /// (outputs keep their values from the last step).
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let _ = ctx;
+        Ok(())
+    }
+
+    /// Called after tunable parameters were set between steps.
+    fn parameters_changed(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let _ = ctx;
+        Ok(())
+    }
+
+    /// Writes the model's internal state (not the variable values, which are saved apart).
+    fn save_state(&self, out: &mut ByteWriter);
+
+    /// Restores what [`FmuModel::save_state`] wrote.
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause>;
+}

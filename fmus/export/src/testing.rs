@@ -1,0 +1,34 @@
+//! Checks every FMU crate runs on itself (the [`export_fmu!`](crate::export_fmu) macro
+//! generates a test calling [`check_bundled_variants`]).
+
+use crate::model::FmuModel;
+use crate::query::Variant;
+use std::path::Path;
+
+/// Each bundled variant describes itself, has unique variable names, and its generated
+/// `modelDescription.xml` equals the committed `<repo>/modelDescription/<stem>.xml`; the
+/// FMU's page (`<crate>/README.md`) starts with `# <modelIdentifier>`.
+pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Path) {
+    assert!(!variants.is_empty(), "no bundled variant");
+    let repo = crate_dir.join("../..");
+    for (stem, config) in variants {
+        let info = M::describe(config).unwrap_or_else(|e| panic!("{stem}: {e}"));
+        let mut names: Vec<&str> = info.variables.iter().map(|v| v.name.as_str()).collect();
+        names.sort_unstable();
+        let n = names.len();
+        names.dedup();
+        assert_eq!(n, names.len(), "{stem}: duplicate variable names");
+        let path = repo.join("modelDescription").join(format!("{stem}.xml"));
+        let committed =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(
+            committed == info.to_xml(),
+            "{} differs from the variable table of {}: run `spurio model-descriptions --write`",
+            path.display(),
+            info.model_identifier
+        );
+        let page = std::fs::read_to_string(crate_dir.join("README.md"))
+            .unwrap_or_else(|e| panic!("{}: README.md: {e}", crate_dir.display()));
+        assert!(page.starts_with(&format!("# {}", info.model_identifier)));
+    }
+}

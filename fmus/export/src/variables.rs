@@ -1,0 +1,433 @@
+//! The variable table of an FMU and the values an instance holds for it.
+//!
+//! A model declares its interface as a list of [`Variable`]s; the value reference of a
+//! variable is its position in the list, so dispatch is an index, not a search. The same table
+//! produces `modelDescription.xml` ([`crate::description`]) and drives the checks of every
+//! `fmi2Get*` / `fmi2Set*` call ([`crate::instance`]).
+
+use std::fmt;
+
+/// `causality` of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Causality {
+    Parameter,
+    CalculatedParameter,
+    Input,
+    Output,
+    Local,
+}
+
+/// `variability` of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variability {
+    Constant,
+    Fixed,
+    Tunable,
+    Discrete,
+    Continuous,
+}
+
+/// `initial` of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Initial {
+    Exact,
+    Approx,
+    Calculated,
+}
+
+/// The FMI type of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VariableType {
+    Real,
+    Integer,
+    Boolean,
+    String,
+}
+
+impl fmt::Display for VariableType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            VariableType::Real => "Real",
+            VariableType::Integer => "Integer",
+            VariableType::Boolean => "Boolean",
+            VariableType::String => "String",
+        })
+    }
+}
+
+impl Causality {
+    /// The attribute value in `modelDescription.xml`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Causality::Parameter => "parameter",
+            Causality::CalculatedParameter => "calculatedParameter",
+            Causality::Input => "input",
+            Causality::Output => "output",
+            Causality::Local => "local",
+        }
+    }
+}
+
+impl Variability {
+    /// The attribute value in `modelDescription.xml`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Variability::Constant => "constant",
+            Variability::Fixed => "fixed",
+            Variability::Tunable => "tunable",
+            Variability::Discrete => "discrete",
+            Variability::Continuous => "continuous",
+        }
+    }
+}
+
+impl Initial {
+    /// The attribute value in `modelDescription.xml`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Initial::Exact => "exact",
+            Initial::Approx => "approx",
+            Initial::Calculated => "calculated",
+        }
+    }
+}
+
+/// A value of one variable.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Value {
+    Real(f64),
+    Integer(i32),
+    Boolean(bool),
+    String(String),
+}
+
+impl Value {
+    /// The type of this value.
+    pub fn variable_type(&self) -> VariableType {
+        match self {
+            Value::Real(_) => VariableType::Real,
+            Value::Integer(_) => VariableType::Integer,
+            Value::Boolean(_) => VariableType::Boolean,
+            Value::String(_) => VariableType::String,
+        }
+    }
+}
+
+/// One scalar variable of the interface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variable {
+    /// Name (structured naming: `x`, `A[1,2]`, `x_hat[3]`).
+    pub name: String,
+    /// Human-readable description.
+    pub description: String,
+    pub causality: Causality,
+    pub variability: Variability,
+    /// `None` for inputs (FMI 2.0 forbids the attribute there).
+    pub initial: Option<Initial>,
+    /// The type and, for variables that have one, the start value. Outputs with
+    /// `initial="calculated"` carry a placeholder value that is not written to the XML.
+    pub start: Value,
+    /// Unit of a Real variable (declared in `UnitDefinitions`).
+    pub unit: Option<String>,
+    /// Lower bound, checked on `fmi2Set*`.
+    pub min: Option<f64>,
+    /// Upper bound, checked on `fmi2Set*`.
+    pub max: Option<f64>,
+    /// For outputs: the indices of the inputs this output depends on directly (direct
+    /// feedthrough). Empty: the output depends on no input within a step.
+    pub dependencies: Vec<usize>,
+}
+
+impl Variable {
+    fn new(name: &str, causality: Causality, variability: Variability, start: Value) -> Self {
+        let initial = match causality {
+            Causality::Input => None,
+            Causality::Output | Causality::CalculatedParameter => Some(Initial::Calculated),
+            _ => Some(Initial::Exact),
+        };
+        Self {
+            name: name.to_string(),
+            description: String::new(),
+            causality,
+            variability,
+            initial,
+            start,
+            unit: None,
+            min: None,
+            max: None,
+            dependencies: Vec::new(),
+        }
+    }
+
+    /// A Real parameter (`fixed`, `initial="exact"`).
+    pub fn parameter(name: &str, start: f64) -> Self {
+        Self::new(
+            name,
+            Causality::Parameter,
+            Variability::Fixed,
+            Value::Real(start),
+        )
+    }
+    /// An Integer parameter (`fixed`).
+    pub fn integer_parameter(name: &str, start: i32) -> Self {
+        Self::new(
+            name,
+            Causality::Parameter,
+            Variability::Fixed,
+            Value::Integer(start),
+        )
+    }
+    /// A Boolean parameter (`fixed`).
+    pub fn boolean_parameter(name: &str, start: bool) -> Self {
+        Self::new(
+            name,
+            Causality::Parameter,
+            Variability::Fixed,
+            Value::Boolean(start),
+        )
+    }
+    /// A String parameter (`fixed`).
+    pub fn string_parameter(name: &str, start: &str) -> Self {
+        Self::new(
+            name,
+            Causality::Parameter,
+            Variability::Fixed,
+            Value::String(start.to_string()),
+        )
+    }
+    /// A continuous Real input.
+    pub fn input(name: &str, start: f64) -> Self {
+        Self::new(
+            name,
+            Causality::Input,
+            Variability::Continuous,
+            Value::Real(start),
+        )
+    }
+    /// A continuous Real output, calculated by the model.
+    pub fn output(name: &str) -> Self {
+        Self::new(
+            name,
+            Causality::Output,
+            Variability::Continuous,
+            Value::Real(0.0),
+        )
+    }
+    /// A discrete Real output (changes only at communication points).
+    pub fn discrete_output(name: &str) -> Self {
+        Self::new(
+            name,
+            Causality::Output,
+            Variability::Discrete,
+            Value::Real(0.0),
+        )
+    }
+    /// A discrete Boolean output.
+    pub fn boolean_output(name: &str) -> Self {
+        Self::new(
+            name,
+            Causality::Output,
+            Variability::Discrete,
+            Value::Boolean(false),
+        )
+    }
+    /// Sets the unit.
+    pub fn unit(mut self, unit: &str) -> Self {
+        self.unit = Some(unit.to_string());
+        self
+    }
+    /// Sets the description.
+    pub fn describe(mut self, description: &str) -> Self {
+        self.description = description.to_string();
+        self
+    }
+    /// Sets the lower bound.
+    pub fn min(mut self, min: f64) -> Self {
+        self.min = Some(min);
+        self
+    }
+    /// Sets the upper bound.
+    pub fn max(mut self, max: f64) -> Self {
+        self.max = Some(max);
+        self
+    }
+    /// Makes a parameter tunable (settable between steps).
+    pub fn tunable(mut self) -> Self {
+        self.variability = Variability::Tunable;
+        self
+    }
+    /// Declares direct feedthrough from the inputs at these indices.
+    pub fn depends_on(mut self, inputs: &[usize]) -> Self {
+        self.dependencies = inputs.to_vec();
+        self
+    }
+    /// The FMI type of the variable.
+    pub fn variable_type(&self) -> VariableType {
+        self.start.variable_type()
+    }
+    /// Whether the variable's start value is written to `modelDescription.xml`.
+    pub fn has_start(&self) -> bool {
+        self.causality == Causality::Input
+            || matches!(self.initial, Some(Initial::Exact) | Some(Initial::Approx))
+    }
+}
+
+/// Builds a variable table, handing back each variable's index (= value reference).
+#[derive(Debug, Clone, Default)]
+pub struct VariableTable {
+    variables: Vec<Variable>,
+}
+
+impl VariableTable {
+    /// An empty table.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Adds a variable; returns its index, which is also its value reference.
+    pub fn add(&mut self, variable: Variable) -> usize {
+        self.variables.push(variable);
+        self.variables.len() - 1
+    }
+    /// The variables, in value-reference order.
+    pub fn into_variables(self) -> Vec<Variable> {
+        self.variables
+    }
+    /// The variables added so far.
+    pub fn variables(&self) -> &[Variable] {
+        &self.variables
+    }
+}
+
+/// The current values of an instance, one per variable, indexed like the table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Values {
+    values: Vec<Value>,
+}
+
+impl Values {
+    /// The start values of `variables`.
+    pub fn from_start(variables: &[Variable]) -> Self {
+        Self {
+            values: variables.iter().map(|v| v.start.clone()).collect(),
+        }
+    }
+    /// All values.
+    pub fn all(&self) -> &[Value] {
+        &self.values
+    }
+    /// Replaces the value at `index` (the type is checked by the caller).
+    pub fn set(&mut self, index: usize, value: Value) {
+        if let Some(slot) = self.values.get_mut(index) {
+            *slot = value;
+        }
+    }
+    /// The Real at `index`; NaN if the index is not a Real (a table bug caught by tests).
+    pub fn real(&self, index: usize) -> f64 {
+        match self.values.get(index) {
+            Some(Value::Real(v)) => *v,
+            _ => f64::NAN,
+        }
+    }
+    /// Sets the Real at `index`.
+    pub fn set_real(&mut self, index: usize, value: f64) {
+        if let Some(Value::Real(slot)) = self.values.get_mut(index) {
+            *slot = value;
+        }
+    }
+    /// The Integer at `index` (0 if it is not an Integer).
+    pub fn integer(&self, index: usize) -> i32 {
+        match self.values.get(index) {
+            Some(Value::Integer(v)) => *v,
+            _ => 0,
+        }
+    }
+    /// Sets the Integer at `index`.
+    pub fn set_integer(&mut self, index: usize, value: i32) {
+        if let Some(Value::Integer(slot)) = self.values.get_mut(index) {
+            *slot = value;
+        }
+    }
+    /// The Boolean at `index` (false if it is not a Boolean).
+    pub fn boolean(&self, index: usize) -> bool {
+        matches!(self.values.get(index), Some(Value::Boolean(true)))
+    }
+    /// Sets the Boolean at `index`.
+    pub fn set_boolean(&mut self, index: usize, value: bool) {
+        if let Some(Value::Boolean(slot)) = self.values.get_mut(index) {
+            *slot = value;
+        }
+    }
+    /// The String at `index` ("" if it is not a String).
+    pub fn string(&self, index: usize) -> &str {
+        match self.values.get(index) {
+            Some(Value::String(v)) => v,
+            _ => "",
+        }
+    }
+    /// Reals at consecutive `indices`, collected.
+    pub fn reals(&self, indices: &[usize]) -> Vec<f64> {
+        indices.iter().map(|&i| self.real(i)).collect()
+    }
+}
+
+/// Declares an FMU's variable table once and generates from it both the table function and
+/// the value-reference constants (`vr::NAME` = position in the table), so the two cannot
+/// disagree. An entry is `NAME = <Variable>`, or `NAME[count] = <iterator of Variables>` for a
+/// block (then `vr::NAME` is its first position). `let` bindings before `table:` are visible
+/// to every entry.
+///
+/// ```
+/// spurio_export::declare_variables! {
+///     /// The variable table.
+///     pub fn variables() {
+///         let gain = 2.0;
+///         table: [
+///             U = spurio_export::Variable::input("u", 0.0),
+///             Y = spurio_export::Variable::output("y").depends_on(&[vr::U]),
+///             K[2] = ["k1", "k2"].map(|n| spurio_export::Variable::parameter(n, gain)),
+///             H = spurio_export::Variable::parameter("h", 1e-3),
+///         ]
+///     }
+/// }
+/// assert_eq!((vr::U, vr::Y, vr::K, vr::H), (0, 1, 2, 4));
+/// assert_eq!(variables()[vr::H].name, "h");
+/// ```
+#[macro_export]
+macro_rules! declare_variables {
+    (
+        $(#[$meta:meta])*
+        $vis:vis fn $name:ident() {
+            $(let $binding:ident = $value:expr;)*
+            table: [ $($id:ident $([$count:expr])? = $variable:expr),+ $(,)? ]
+        }
+    ) => {
+        /// Value references (= positions in the variable table), generated from its declaration.
+        pub mod vr {
+            $crate::declare_variables!(@vr 0usize; $($id $([$count])?,)+);
+        }
+        $(#[$meta])*
+        $vis fn $name() -> ::std::vec::Vec<$crate::Variable> {
+            $(let $binding = $value;)*
+            let mut table = ::std::vec::Vec::new();
+            $($crate::declare_variables!(@push table; $variable $(; $count)?);)+
+            table
+        }
+    };
+    (@vr $position:expr;) => {};
+    (@vr $position:expr; $id:ident, $($rest:tt)*) => {
+        pub const $id: usize = $position;
+        $crate::declare_variables!(@vr $id + 1; $($rest)*);
+    };
+    (@vr $position:expr; $id:ident [$count:expr], $($rest:tt)*) => {
+        pub const $id: usize = $position;
+        $crate::declare_variables!(@vr $id + $count; $($rest)*);
+    };
+    (@push $table:ident; $variable:expr) => {
+        $table.push($variable)
+    };
+    (@push $table:ident; $block:expr; $count:expr) => {{
+        let first = $table.len();
+        $table.extend($block);
+        debug_assert_eq!($table.len() - first, $count, "block size");
+    }};
+}
