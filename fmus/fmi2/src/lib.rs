@@ -22,6 +22,7 @@ pub mod harness;
 pub mod instance;
 pub mod model;
 pub mod types;
+pub mod uri;
 pub mod variables;
 
 pub use bytes::{ByteReader, ByteWriter};
