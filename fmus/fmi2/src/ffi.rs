@@ -178,7 +178,16 @@ pub unsafe fn instantiate<M: FmuModel>(
         // that of the default configuration may go without one; any other failure to read it
         // is an error that names the file (or the URI) and the reason.
         let given = unsafe { string_arg(guid) }.unwrap_or_default();
-        let is_default = || M::describe(&Config::new()).is_ok_and(|info| info.guid == given);
+        let default = M::describe(&Config::new()).ok();
+        let is_default = default.as_ref().is_some_and(|info| info.guid == given);
+        let without_config = |reason: String| {
+            let (id, guid) = default.as_ref().map_or(("this FMU", "?"), |i| {
+                (i.model_identifier.as_str(), i.guid.as_str())
+            });
+            fail(format!(
+                "GUID mismatch or missing variant configuration: the modelDescription.xml gives {given}, not the GUID {guid} of {id} without a variant configuration, and {reason}"
+            ))
+        };
         let location = unsafe { string_arg(resource_location) }.filter(|s| !s.is_empty());
         let config = match location.as_deref().map(resource_path) {
             Some(Ok(dir)) => {
@@ -188,7 +197,13 @@ pub unsafe fn instantiate<M: FmuModel>(
                         Ok(config) => config,
                         Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
                     },
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound && is_default() => {
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        if !is_default {
+                            return without_config(format!(
+                                "the variant configuration {} cannot be read: {e}",
+                                path.display()
+                            ));
+                        }
                         Config::new()
                     }
                     Err(e) => {
@@ -199,15 +214,15 @@ pub unsafe fn instantiate<M: FmuModel>(
                     }
                 }
             }
-            Some(Err(e)) if !is_default() => {
-                return fail(format!(
-                    "cannot locate the variant configuration resources/{CONFIG_FILE}: fmuResourceLocation `{}`: {e}",
+            Some(Err(e)) if !is_default => {
+                return without_config(format!(
+                    "resources/{CONFIG_FILE} cannot be located: fmuResourceLocation `{}`: {e}",
                     location.as_deref().unwrap_or_default()
                 ))
             }
-            None if !is_default() => {
-                return fail(format!(
-                    "no fmuResourceLocation given, so resources/{CONFIG_FILE} cannot be read, and GUID {given} is not that of the default variant"
+            None if !is_default => {
+                return without_config(format!(
+                    "no fmuResourceLocation is given to read resources/{CONFIG_FILE} from"
                 ))
             }
             _ => Config::new(),
