@@ -11,11 +11,11 @@ use crate::description::{Config, CONFIG_FILE};
 use crate::instance::{functions, Core, Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::*;
+use crate::uri::resource_path;
 use crate::variables::{Value, VariableType};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::PathBuf;
 
 /// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
 pub struct CallbackSink {
@@ -126,34 +126,6 @@ unsafe fn string_arg(s: fmi2String) -> Option<String> {
     }
 }
 
-/// The folder a `fmuResourceLocation` URI points to (`file:///…`, `file:/…`,
-/// `file://localhost/…`, percent-encoded), or `None` if it is not a local file URI.
-pub fn resource_directory(uri: &str) -> Option<PathBuf> {
-    let rest = uri
-        .strip_prefix("file://localhost/")
-        .map(|r| format!("/{r}"))
-        .or_else(|| uri.strip_prefix("file:///").map(|r| format!("/{r}")))
-        .or_else(|| uri.strip_prefix("file:/").map(|r| format!("/{r}")))?;
-    let bytes = rest.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' {
-            let hex = bytes
-                .get(i + 1..i + 3)
-                .and_then(|h| std::str::from_utf8(h).ok());
-            if let Some(v) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
-                out.push(v);
-                i += 3;
-                continue;
-            }
-        }
-        out.push(bytes[i]);
-        i += 1;
-    }
-    Some(PathBuf::from(String::from_utf8(out).ok()?))
-}
-
 /// `fmi2GetTypesPlatform`.
 pub fn types_platform() -> *const c_char {
     c"default".as_ptr()
@@ -202,22 +174,59 @@ pub unsafe fn instantiate<M: FmuModel>(
             return fail("instanceName must be a non-empty string".into());
         };
         let _ = name;
-        let mut config = Config::new();
-        if let Some(dir) = unsafe { string_arg(resource_location) }
-            .as_deref()
-            .and_then(resource_directory)
-        {
-            let path = dir.join(CONFIG_FILE);
-            if path.exists() {
-                match std::fs::read_to_string(&path)
-                    .map_err(|e| e.to_string())
-                    .and_then(|t| Config::parse(&t).map_err(|e| e.to_string()))
-                {
-                    Ok(c) => config = c,
-                    Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
+        // The variant configuration, from `resources/variant.cfg`. Only an FMU whose GUID is
+        // that of the default configuration may go without one; any other failure to read it
+        // is an error that names the file (or the URI) and the reason.
+        let given = unsafe { string_arg(guid) }.unwrap_or_default();
+        let default = M::describe(&Config::new()).ok();
+        let is_default = default.as_ref().is_some_and(|info| info.guid == given);
+        let without_config = |reason: String| {
+            let (id, guid) = default.as_ref().map_or(("this FMU", "?"), |i| {
+                (i.model_identifier.as_str(), i.guid.as_str())
+            });
+            fail(format!(
+                "GUID mismatch or missing variant configuration: the modelDescription.xml gives {given}, not the GUID {guid} of {id} without a variant configuration, and {reason}"
+            ))
+        };
+        let location = unsafe { string_arg(resource_location) }.filter(|s| !s.is_empty());
+        let config = match location.as_deref().map(resource_path) {
+            Some(Ok(dir)) => {
+                let path = dir.join(CONFIG_FILE);
+                match std::fs::read_to_string(&path) {
+                    Ok(text) => match Config::parse(&text) {
+                        Ok(config) => config,
+                        Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
+                    },
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        if !is_default {
+                            return without_config(format!(
+                                "the variant configuration {} cannot be read: {e}",
+                                path.display()
+                            ));
+                        }
+                        Config::new()
+                    }
+                    Err(e) => {
+                        return fail(format!(
+                            "cannot read the variant configuration {}: {e}",
+                            path.display()
+                        ))
+                    }
                 }
             }
-        }
+            Some(Err(e)) if !is_default => {
+                return without_config(format!(
+                    "resources/{CONFIG_FILE} cannot be located: fmuResourceLocation `{}`: {e}",
+                    location.as_deref().unwrap_or_default()
+                ))
+            }
+            None if !is_default => {
+                return without_config(format!(
+                    "no fmuResourceLocation is given to read resources/{CONFIG_FILE} from"
+                ))
+            }
+            _ => Config::new(),
+        };
         let info = match M::describe(&config) {
             Ok(info) => info,
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
@@ -228,7 +237,6 @@ pub unsafe fn instantiate<M: FmuModel>(
                 info.model_identifier
             ));
         }
-        let given = unsafe { string_arg(guid) }.unwrap_or_default();
         if given != info.guid {
             return fail(format!(
                 "GUID mismatch: the modelDescription.xml gives {given} but this binary of {} implements {} (the binary and the XML come from different builds or variants)",

@@ -28,6 +28,7 @@ pub mod model;
 pub mod query;
 pub mod testing;
 pub mod types;
+pub mod uri;
 pub mod variables;
 
 pub use bytes::{ByteReader, ByteWriter};
