@@ -47,12 +47,12 @@ enum Command {
         /// Where to write the results.
         #[arg(long, default_value = "results.csv")]
         out: PathBuf,
-        /// Record nothing: no CSV is written (like fmpy's and OMSimulator's empty result
-        /// file); for benchmarks.
+        /// Record nothing: no CSV is written (OMSimulator's `--resultFile=""`, fmpy's
+        /// `output=[]`); for benchmarks.
         #[arg(long, conflicts_with_all = ["out", "plot", "output_interval"])]
         no_record: bool,
         /// Record every K-th communication point (the first and the last are always
-        /// recorded); 1 records every one.
+        /// recorded); 1 records every one. fmpy's `output_interval` is K × step_size.
         #[arg(long, value_name = "K", default_value_t = 1,
               value_parser = clap::value_parser!(u64).range(1..))]
         output_interval: u64,
