@@ -72,6 +72,21 @@ pub enum SystemError {
     },
     #[error("algebraic loop: these direct-feedthrough variables depend on each other within a communication point: {0}")]
     AlgebraicLoop(String),
+    /// What is wrong with the system an SSP archive describes, naming the archive (and its
+    /// FMUs by their paths inside it, not by the folder they were unpacked into).
+    #[error("{}: {}", ssp.display(), in_archive(source, unpacked))]
+    InArchive {
+        ssp: PathBuf,
+        /// Where the archive was unpacked.
+        unpacked: PathBuf,
+        source: Box<SystemError>,
+    },
+}
+
+fn in_archive(error: &SystemError, unpacked: &Path) -> String {
+    error
+        .to_string()
+        .replace(&format!("{}/", unpacked.display()), "")
 }
 
 /// An instance with its FMU and resolved start values.
@@ -301,7 +316,12 @@ impl System {
                 }
             };
             let imported = crate::ssp::import(path, &dir)?;
-            let mut system = Self::resolve(&imported.description, &dir)?;
+            let mut system =
+                Self::resolve(&imported.description, &dir).map_err(|e| SystemError::InArchive {
+                    ssp: path.to_path_buf(),
+                    unpacked: dir.clone(),
+                    source: Box::new(e),
+                })?;
             system.notes = imported.notes;
             system.unpacked = temporary;
             return Ok(system);

@@ -70,21 +70,30 @@ def test_an_ssp_is_unpacked_into_a_temporary_folder_and_removed(workdir):
     ]
 
 
-def test_an_ssp_error_names_the_archive_once(workdir):
-    ssp = export_crane_sensor(workdir)
+def broken_copy(ssp, old: bytes, new: bytes):
     with zipfile.ZipFile(ssp) as z:
         entries = {n: z.read(n) for n in z.namelist()}
-    entries["SystemStructure.ssd"] = entries["SystemStructure.ssd"].replace(
-        b'version="2.0" name=', b'version="3.0" name=', 1
-    )
-    bad = workdir / "bad.ssp"
+    assert old in entries["SystemStructure.ssd"]
+    entries["SystemStructure.ssd"] = entries["SystemStructure.ssd"].replace(old, new, 1)
+    bad = ssp.parent / "bad.ssp"
     with zipfile.ZipFile(bad, "w") as z:
         for n, data in entries.items():
             z.writestr(n, data)
-    result = spurio("run", bad, check=False)
-    assert result.returncode != 0
-    assert result.stderr.count("bad.ssp") == 1, result.stderr
-    assert "SSP version `3.0` is not supported (1.0 and 2.0 are)" in result.stderr
+    return bad
+
+
+def test_an_ssp_error_names_the_archive_once(workdir):
+    ssp = export_crane_sensor(workdir)
+    for old, new, said in [
+        (b'version="2.0" name=', b'version="3.0" name=',
+         "bad.ssp: SystemStructure.ssd: SSP version `3.0` is not supported (1.0 and 2.0 are)"),
+        (b'startConnector="x"', b'startConnector="xx"',
+         "bad.ssp: instance `crane` (resources/GantryCrane.fmu): no variable `xx`"),
+    ]:
+        result = spurio("run", broken_copy(ssp, old, new), check=False)
+        assert result.returncode != 0
+        assert result.stderr.count("bad.ssp") == 1, result.stderr
+        assert said in result.stderr, result.stderr
 
 
 def test_a_string_parameter_says_what_is_supported(workdir):
