@@ -14,11 +14,16 @@
 //!    at the communication point where that step ends (a multirate instance holds its outputs
 //!    in between).
 //!
-//! `fmi2Discard` and `fmi2Error` stop the run with an error naming the instance, the FMU file,
-//! the call and the time, quoting what that instance logged; when several instances fail in
-//! the same step (or in initialisation, or in terminate), the error names every one of them.
+//! An instance whose `fmi2DoStep` returns `fmi2Discard` with `fmi2GetBooleanStatus(
+//! fmi2Terminated)` = true asks to end the simulation (as the Reference FMU `Stair` does; fmpy,
+//! OMSimulator and the FMU Compliance Checker stop there too): the run ends normally at that
+//! instance's last successful time (`fmi2LastSuccessfulTime`), records that point and says
+//! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`, and `fmi2Error`, stop the
+//! run with an error naming the instance, the FMU file, the call and the time, quoting what
+//! that instance logged; when several instances fail in the same step (or in initialisation,
+//! or in terminate), the error names every one of them.
 
-use crate::fmu::{LoadError, VarType};
+use crate::fmu::{self, LoadError, VarType};
 use crate::logging::LogKey;
 use crate::plan::{Op, Plan, Transfer};
 use crate::record::Observer;
@@ -221,6 +226,40 @@ pub struct RunOptions {
     pub real_time_factor: Option<f64>,
     /// Show a progress bar on standard error.
     pub progress: bool,
+    /// Send every `output_interval`-th communication point to the observer (0 and 1: every
+    /// one); the start and the last point are always sent.
+    pub output_interval: u64,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunEnd {
+    /// Every instance reached the stop time.
+    StopTime { time: f64 },
+    /// An instance asked to end the simulation (`fmi2DoStep` returned `fmi2Discard` and
+    /// `fmi2GetBooleanStatus(fmi2Terminated)` is true); the run ended at `time`, its last
+    /// successful time, which is the last recorded point.
+    Terminated { instance: String, time: f64 },
+}
+
+impl std::fmt::Display for RunEnd {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::StopTime { time } => write!(f, "the run reached its stop time t = {time}"),
+            Self::Terminated { instance, time } => write!(
+                f,
+                "instance `{instance}` asked to end the simulation at t = {time} \
+                 (fmi2DoStep returned fmi2Discard with fmi2Terminated = true)"
+            ),
+        }
+    }
+}
+
+/// The outcome of one `fmi2DoStep` of every due member.
+enum StepOutcome {
+    Completed,
+    /// (instance, last successful time) of every member that asked to end the run.
+    Terminated(Vec<(String, f64)>),
 }
 
 /// A system ready to run: instances created, names resolved to indices.
@@ -236,6 +275,8 @@ pub struct Simulation {
     stop_time: f64,
     step_size: f64,
     steps: u64,
+    /// Where the run ended (the stop time until it has run).
+    end_time: f64,
 }
 
 impl Simulation {
@@ -290,6 +331,7 @@ impl Simulation {
             stop_time: system.stop_time,
             step_size: system.step_size,
             steps: plan.steps,
+            end_time: system.stop_time,
         };
         // Initial values flow through the connections in initialization mode, then every
         // instance leaves it.
@@ -367,13 +409,15 @@ impl Simulation {
         Ok(())
     }
 
-    /// Runs to the stop time, sending the recorded variables to `observer` at every
-    /// communication point (start time included).
+    /// Runs to the stop time (or until an instance asks to end the simulation), sending the
+    /// recorded variables to `observer` at every communication point (every
+    /// [`RunOptions::output_interval`]-th one; start time and last point included), and says
+    /// how the run ended.
     pub fn run(
         &mut self,
         observer: &mut dyn Observer,
         options: &RunOptions,
-    ) -> Result<(), RunError> {
+    ) -> Result<RunEnd, RunError> {
         observer.start(&self.record_names)?;
         let progress = options.progress.then(|| {
             let bar = indicatif::ProgressBar::new(self.steps);
@@ -386,6 +430,7 @@ impl Simulation {
             bar
         });
         let wall_start = Instant::now();
+        let every = options.output_interval.max(1);
         for k in 0..self.steps {
             let time = self.start_time + k as f64 * self.step_size;
             if k > 0 {
@@ -394,19 +439,35 @@ impl Simulation {
                 self.read_outputs(k, time)?;
             }
             self.propagate(k, false)?;
-            self.record(observer, time)?;
-            let (step_size, stop_time) = (self.step_size, self.stop_time);
-            on_every(
-                &mut self.members,
-                |m| k.is_multiple_of(m.multiple),
-                |m| {
-                    let h = (step_size * m.multiple as f64).min(stop_time - time);
-                    m.instance
-                        .do_step(time, h, true)
-                        .map(|_| ())
-                        .map_err(|e| m.failure("fmi2DoStep", e, time))
-                },
-            )?;
+            if k.is_multiple_of(every) {
+                self.record(observer, time)?;
+            }
+            if let StepOutcome::Terminated(asked) = self.step_all(k, time)? {
+                // The run ends where the earliest of them stopped: every output is read
+                // there and recorded as the last point.
+                let (instance, end) = asked
+                    .into_iter()
+                    .fold(
+                        None,
+                        |first: Option<(String, f64)>, (name, t)| match first {
+                            Some((n, t0)) if t0 <= t => Some((n, t0)),
+                            _ => Some((name, t)),
+                        },
+                    )
+                    .unwrap_or_default();
+                self.read_outputs(0, end)?;
+                self.propagate(self.steps, true)?;
+                self.record(observer, end)?;
+                if let Some(bar) = progress {
+                    bar.finish_and_clear();
+                }
+                observer.finish()?;
+                self.end_time = end;
+                return Ok(RunEnd::Terminated {
+                    instance,
+                    time: end,
+                });
+            }
             if let Some(factor) = options.real_time_factor {
                 let due =
                     Duration::from_secs_f64((time + self.step_size - self.start_time) / factor);
@@ -422,18 +483,51 @@ impl Simulation {
         // Every instance's last step ends at the stop time.
         self.read_outputs(0, end)?;
         self.propagate(self.steps, true)?;
-        self.record(observer, end.min(self.stop_time))?;
+        let end = end.min(self.stop_time);
+        self.record(observer, end)?;
         if let Some(bar) = progress {
             bar.finish_and_clear();
         }
         observer.finish()?;
-        Ok(())
+        self.end_time = end;
+        Ok(RunEnd::StopTime { time: end })
+    }
+
+    /// `fmi2DoStep` on every member due at base step `k`: every failure is reported at once;
+    /// members that ask to end the run (`fmi2Discard` with `fmi2Terminated`) are listed.
+    fn step_all(&mut self, k: u64, time: f64) -> Result<StepOutcome, RunError> {
+        let (step_size, stop_time) = (self.step_size, self.stop_time);
+        let mut failures = Vec::new();
+        let mut terminated = Vec::new();
+        for m in self
+            .members
+            .iter_mut()
+            .filter(|m| k.is_multiple_of(m.multiple))
+        {
+            let h = (step_size * m.multiple as f64).min(stop_time - time);
+            match m.instance.do_step(time, h, true) {
+                Ok(_) => {}
+                Err(Fmi2Error::Discard) => match fmu::termination_requested(&mut m.instance) {
+                    Some(last) => terminated.push((m.name.clone(), last.unwrap_or(time))),
+                    None => failures.push(m.failure("fmi2DoStep", Fmi2Error::Discard, time)),
+                },
+                Err(e) => failures.push(m.failure("fmi2DoStep", e, time)),
+            }
+        }
+        if !failures.is_empty() {
+            return Err(RunError::Fmi { failures });
+        }
+        Ok(if terminated.is_empty() {
+            StepOutcome::Completed
+        } else {
+            StepOutcome::Terminated(terminated)
+        })
     }
 
     /// Terminates every instance (they are freed when the simulation is dropped); reports
     /// every instance that fails to.
     pub fn terminate(&mut self) -> Result<(), RunError> {
-        let t = self.stop_time;
+        let t = self.end_time;
         on_every(
             &mut self.members,
             |_| true,

@@ -288,6 +288,26 @@ impl FmuFile {
     }
 }
 
+/// Whether an instance whose `fmi2DoStep` returned `fmi2Discard` asks to end the simulation:
+/// `Some(last successful time)` when `fmi2GetBooleanStatus(fmi2Terminated)` says so (the time
+/// from `fmi2GetRealStatus(fmi2LastSuccessfulTime)`, `None` if the FMU does not give it),
+/// `None` when it does not ask or cannot say (the discard is then an error).
+///
+/// rust-fmi's `pending_status()` always returns "" (it reads into a constant), so only the
+/// boolean and real status calls are used here.
+pub fn termination_requested(instance: &mut InstanceCS) -> Option<Option<f64>> {
+    use fmi::fmi2::instance::CoSimulation;
+    match instance.terminated() {
+        Ok(true) => Some(
+            instance
+                .last_successful_time()
+                .ok()
+                .filter(|t| t.is_finite()),
+        ),
+        _ => None,
+    }
+}
+
 /// `ModelStructure/Outputs`: for each output's 1-based index, its 1-based dependencies, or
 /// `None` when the attribute is absent (rust-fmi's schema cannot tell absent from empty).
 fn output_dependencies(xml: &str) -> Result<HashMap<usize, Option<Vec<usize>>>, String> {

@@ -238,7 +238,10 @@ impl Plan {
                             v.causality == Causality::Output
                                 && matches!(
                                     v.var_type,
-                                    VarType::Real | VarType::Integer | VarType::Boolean
+                                    VarType::Real
+                                        | VarType::Integer
+                                        | VarType::Boolean
+                                        | VarType::Enumeration
                                 )
                         })
                         .map(move |(j, _)| (i, j))

@@ -1,10 +1,30 @@
-//! SSP 1.0: export a system as `<name>.ssp` (`SystemStructure.ssd` + the FMUs under
+//! SSP 1.0 and 2.0: export a system as `<name>.ssp` (`SystemStructure.ssd` + the FMUs under
 //! `resources/`) and import one back, so the same system runs in OMSimulator, fmpy's SSP
 //! runner or this master.
 //!
-//! Start values go into inline `ssv:ParameterSet`s of each component's `ParameterBindings`;
-//! the step size, the algorithm and the step multiples (which SSP 1.0 does not define) go
-//! into an `ssc:Annotation` of type `org.spurio.simulation`.
+//! Both versions share the standard's namespaces (`http://ssp-standard.org/SSP1/...`) and,
+//! in what is written here, differ only by the `version` attributes of the SSD and of the
+//! parameter sets. Connectors and parameters are written as `Real`/`Integer`/`Boolean`/
+//! `String`, which both schemas define: SSP 2.0 adds the sized types (`Float64`, `Int32`,
+//! …), which are read, but OMSimulator 3.x's command line refuses a `Float64` connector
+//! ("Failed to import connector … with type \"\"") and its own Python API writes `Real` in
+//! SSP 2.0 files too.
+//!
+//! Start values go into inline `ssv:ParameterSet`s of each component's `ParameterBindings`.
+//! The standard has no place for a fixed step size, so the export writes it twice:
+//! - on the system, OpenModelica's `org.openmodelica` annotation with an
+//!   `oms:FixedStepMaster` (OMSimulator's fixed-step master, `stepSize`): with it
+//!   `OMSimulator x.ssp --stopTime <stop>` runs the file (OMSimulator takes neither the
+//!   `DefaultExperiment`'s stop time nor, without this annotation, a step size);
+//! - on the `DefaultExperiment`, an `org.spurio.simulation` annotation with the step size,
+//!   the algorithm, the recorded variables and the step multiples.
+//!
+//! The import takes the step size from the first of: `org.spurio.simulation` `stepSize`,
+//! `oms:FixedStepMaster` `stepSize` (OMSimulator 2.x and this export),
+//! `oms:SimulationInformation` `stepSize` (a solver written by OMSimulator 3.x's Python
+//! API), `osp:FixedStepAlgorithm` `baseStepSize` (the Open Simulation Platform's
+//! `DefaultExperiment` annotation); with none of them it uses (stopTime − startTime)/100 and
+//! says so in [`Imported::notes`].
 
 use crate::description::{Algorithm, InstanceDescription, SystemDescription};
 use crate::fmu::{Causality, FmuFile, VarType};
@@ -29,9 +49,70 @@ fn err(file: &Path, reason: impl ToString) -> SspError {
 }
 
 const ANNOTATION: &str = "org.spurio.simulation";
+const OPENMODELICA: &str = "org.openmodelica";
+const OMS_NAMESPACE: &str =
+    "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd";
+
+/// The SSP version of a written file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SspVersion {
+    /// SSP 1.0, the default: what every tool reads (fmpy's SSP runner reads 1.x only).
+    #[default]
+    V1_0,
+    /// SSP 2.0, what OMSimulator 3.x writes.
+    V2_0,
+}
+
+impl SspVersion {
+    /// `1.0` or `2.0`, as in the files' `version` attributes.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::V1_0 => "1.0",
+            Self::V2_0 => "2.0",
+        }
+    }
+}
+
+/// The SSD connector type (`ssc:`) and parameter type (`ssv:`) name of an FMI type (the
+/// names SSP 1.0 and 2.0 share).
+fn type_name(ty: VarType) -> &'static str {
+    match ty {
+        VarType::Real => "Real",
+        VarType::Integer | VarType::Enumeration => "Integer",
+        VarType::Boolean => "Boolean",
+        VarType::String => "String",
+    }
+}
+
+impl std::fmt::Display for SspVersion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for SspVersion {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim() {
+            "1.0" | "1" => Ok(Self::V1_0),
+            "2.0" | "2" => Ok(Self::V2_0),
+            other => Err(format!("SSP version `{other}`: 1.0 and 2.0 are supported")),
+        }
+    }
+}
+
+/// An imported SSD: the system and what the import had to assume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Imported {
+    pub description: SystemDescription,
+    /// The SSD's `version` attribute.
+    pub version: String,
+    /// Where the step size came from (or which default was chosen), for the user.
+    pub notes: Vec<String>,
+}
 
 /// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector).
-fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, &'static str)> {
+fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, VarType)> {
     let v = fmu.variable(name)?;
     let kind = match v.causality {
         Causality::Input => "input",
@@ -40,22 +121,17 @@ fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, &'static str)> 
         Causality::CalculatedParameter => "calculatedParameter",
         _ => return None,
     };
-    let ty = match v.var_type {
-        VarType::Real => "Real",
-        VarType::Integer | VarType::Enumeration => "Integer",
-        VarType::Boolean => "Boolean",
-        VarType::String => "String",
-    };
-    Some((kind, ty))
+    Some((kind, v.var_type))
 }
 
-/// The `SystemStructure.ssd` text for `d`, written with quick-xml (which escapes every
-/// attribute); `connectors[i]` are instance i's (name, kind, type), `sources[i]` the archive
-/// path of its FMU.
+/// The `SystemStructure.ssd` text (SSP `version`) for `d`, written with quick-xml (which
+/// escapes every attribute); `connectors[i]` are instance i's (name, kind, type),
+/// `sources[i]` the archive path of its FMU.
 pub fn ssd_text(
     d: &SystemDescription,
-    connectors: &[Vec<(String, &'static str, &'static str)>],
+    connectors: &[Vec<(String, &'static str, VarType)>],
     sources: &[String],
+    version: SspVersion,
 ) -> Result<String, std::io::Error> {
     let name = if d.name.is_empty() {
         "system"
@@ -78,7 +154,8 @@ pub fn ssd_text(
                 "xmlns:ssv",
                 "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
             ),
-            ("version", "1.0"),
+            ("xmlns:oms", OMS_NAMESPACE),
+            ("version", version.as_str()),
             ("name", name),
             ("generationTool", "spurio"),
         ])
@@ -88,7 +165,7 @@ pub fn ssd_text(
                 .write_inner_content(|w| {
                     w.create_element("ssd:Elements").write_inner_content(|w| {
                         for (i, inst) in d.instances.iter().enumerate() {
-                            component(w, inst, &connectors[i], &sources[i])?;
+                            component(w, inst, &connectors[i], &sources[i], version)?;
                         }
                         Ok(())
                     })?;
@@ -116,6 +193,7 @@ pub fn ssd_text(
                                 Ok(())
                             })?;
                     }
+                    openmodelica_annotation(w, d)?;
                     Ok(())
                 })?;
             let (start, stop) = (format!("{:?}", d.start_time), format!("{:?}", d.stop_time));
@@ -138,11 +216,45 @@ pub fn ssd_text(
     Ok(text)
 }
 
+/// OpenModelica's fixed-step master annotation of a system: what OMSimulator's command line
+/// needs to run the file with a fixed step (`oms-ma`, its master algorithm; the tolerances
+/// are those OMSimulator writes itself and do not apply to a fixed-step master).
+fn openmodelica_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std::io::Result<()> {
+    let step = format!("{:?}", d.step_size);
+    w.create_element("ssd:Annotations")
+        .write_inner_content(|w| {
+            w.create_element("ssc:Annotation")
+                .with_attribute(("type", OPENMODELICA))
+                .write_inner_content(|w| {
+                    w.create_element("oms:Annotations")
+                        .write_inner_content(|w| {
+                            w.create_element("oms:SimulationInformation")
+                                .write_inner_content(|w| {
+                                    w.create_element("oms:FixedStepMaster")
+                                        .with_attributes([
+                                            ("description", "oms-ma"),
+                                            ("stepSize", step.as_str()),
+                                            ("absoluteTolerance", "0.0001"),
+                                            ("relativeTolerance", "0.0001"),
+                                        ])
+                                        .write_empty()?;
+                                    Ok(())
+                                })?;
+                            Ok(())
+                        })?;
+                    Ok(())
+                })?;
+            Ok(())
+        })?;
+    Ok(())
+}
+
 fn component(
     w: &mut Writer<Vec<u8>>,
     inst: &InstanceDescription,
-    connectors: &[(String, &'static str, &'static str)],
+    connectors: &[(String, &'static str, VarType)],
     source: &str,
+    version: SspVersion,
 ) -> std::io::Result<()> {
     w.create_element("ssd:Component")
         .with_attributes([
@@ -158,7 +270,8 @@ fn component(
                             w.create_element("ssd:Connector")
                                 .with_attributes([("name", name.as_str()), ("kind", *kind)])
                                 .write_inner_content(|w| {
-                                    w.create_element(format!("ssc:{ty}")).write_empty()?;
+                                    w.create_element(format!("ssc:{}", type_name(*ty)))
+                                        .write_empty()?;
                                     Ok(())
                                 })?;
                         }
@@ -171,7 +284,7 @@ fn component(
                         w.create_element("ssd:ParameterBinding")
                             .write_inner_content(|w| {
                                 w.create_element("ssd:ParameterValues")
-                                    .write_inner_content(|w| parameter_set(w, inst))?;
+                                    .write_inner_content(|w| parameter_set(w, inst, version))?;
                                 Ok(())
                             })?;
                         Ok(())
@@ -182,23 +295,28 @@ fn component(
     Ok(())
 }
 
-fn parameter_set(w: &mut Writer<Vec<u8>>, inst: &InstanceDescription) -> std::io::Result<()> {
+fn parameter_set(
+    w: &mut Writer<Vec<u8>>,
+    inst: &InstanceDescription,
+    version: SspVersion,
+) -> std::io::Result<()> {
     w.create_element("ssv:ParameterSet")
-        .with_attributes([("version", "1.0"), ("name", inst.name.as_str())])
+        .with_attributes([("version", version.as_str()), ("name", inst.name.as_str())])
         .write_inner_content(|w| {
             w.create_element("ssv:Parameters")
                 .write_inner_content(|w| {
                     for (name, value) in &inst.parameters {
                         let (ty, text) = match value {
-                            toml::Value::Float(f) => ("ssv:Real", format!("{f:?}")),
-                            toml::Value::Integer(n) => ("ssv:Integer", n.to_string()),
-                            toml::Value::Boolean(b) => ("ssv:Boolean", b.to_string()),
-                            other => ("ssv:String", other.to_string()),
+                            toml::Value::Float(f) => (VarType::Real, format!("{f:?}")),
+                            toml::Value::Integer(n) => (VarType::Integer, n.to_string()),
+                            toml::Value::Boolean(b) => (VarType::Boolean, b.to_string()),
+                            toml::Value::String(s) => (VarType::String, s.clone()),
+                            other => (VarType::String, other.to_string()),
                         };
                         w.create_element("ssv:Parameter")
                             .with_attribute(("name", name.as_str()))
                             .write_inner_content(|w| {
-                                w.create_element(ty)
+                                w.create_element(format!("ssv:{}", type_name(ty)))
                                     .with_attribute(("value", text.as_str()))
                                     .write_empty()?;
                                 Ok(())
@@ -211,7 +329,7 @@ fn parameter_set(w: &mut Writer<Vec<u8>>, inst: &InstanceDescription) -> std::io
     Ok(())
 }
 
-/// What SSP 1.0 has no place for: step size, algorithm, record, step multiples, logging.
+/// What SSP has no place for: step size, algorithm, record, step multiples, logging.
 fn simulation_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std::io::Result<()> {
     let algorithm = match d.algorithm {
         Algorithm::GaussSeidel => "gauss-seidel",
@@ -242,17 +360,22 @@ fn simulation_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std:
     Ok(())
 }
 
-/// Writes `target` (.ssp) for the system `d` whose instance i runs `fmus[i]` (loaded from
-/// `d.instances[i].fmu`): the SSD, and every FMU under `resources/`. The connectors are the
-/// variables used by a connection or a record.
-pub fn export(d: &SystemDescription, fmus: &[&FmuFile], target: &Path) -> Result<(), SspError> {
+/// Writes `target` (.ssp, SSP `version`) for the system `d` whose instance i runs `fmus[i]`
+/// (loaded from `d.instances[i].fmu`): the SSD, and every FMU under `resources/`. The
+/// connectors are the variables used by a connection or a record.
+pub fn export(
+    d: &SystemDescription,
+    fmus: &[&FmuFile],
+    target: &Path,
+    version: SspVersion,
+) -> Result<(), SspError> {
     if fmus.len() != d.instances.len() {
         return Err(err(
             target,
             format!("{} FMUs for {} instances", fmus.len(), d.instances.len()),
         ));
     }
-    let mut used: Vec<BTreeMap<String, (&'static str, &'static str)>> =
+    let mut used: Vec<BTreeMap<String, (&'static str, VarType)>> =
         vec![BTreeMap::new(); d.instances.len()];
     let index = |name: &str| d.instances.iter().position(|i| i.name == name);
     let ends = d
@@ -270,7 +393,7 @@ pub fn export(d: &SystemDescription, fmus: &[&FmuFile], target: &Path) -> Result
             }
         }
     }
-    let connectors: Vec<Vec<(String, &'static str, &'static str)>> = used
+    let connectors: Vec<Vec<(String, &'static str, VarType)>> = used
         .into_iter()
         .map(|m| m.into_iter().map(|(n, (k, t))| (n, k, t)).collect())
         .collect();
@@ -294,7 +417,7 @@ pub fn export(d: &SystemDescription, fmus: &[&FmuFile], target: &Path) -> Result
         files.insert(source.clone(), path.clone());
         sources.push(source);
     }
-    let ssd = ssd_text(d, &connectors, &sources).map_err(|e| err(target, e))?;
+    let ssd = ssd_text(d, &connectors, &sources, version).map_err(|e| err(target, e))?;
     let file = std::fs::File::create(target).map_err(|e| err(target, e))?;
     let mut zip = zip::ZipWriter::new(file);
     let options = zip::write::SimpleFileOptions::default()
@@ -313,8 +436,8 @@ pub fn export(d: &SystemDescription, fmus: &[&FmuFile], target: &Path) -> Result
 }
 
 /// Reads `ssp`, extracting its FMUs into `out_dir`, and returns the system description
-/// (FMU paths relative to `out_dir`).
-pub fn import(ssp: &Path, out_dir: &Path) -> Result<SystemDescription, SspError> {
+/// (FMU paths relative to `out_dir`) with the import's notes.
+pub fn import(ssp: &Path, out_dir: &Path) -> Result<Imported, SspError> {
     let file = std::fs::File::open(ssp).map_err(|e| err(ssp, e))?;
     let mut archive = zip::ZipArchive::new(file).map_err(|e| err(ssp, e))?;
     let mut ssd = String::new();
@@ -323,9 +446,10 @@ pub fn import(ssp: &Path, out_dir: &Path) -> Result<SystemDescription, SspError>
         .map_err(|_| err(ssp, "no SystemStructure.ssd in the archive"))?
         .read_to_string(&mut ssd)
         .map_err(|e| err(ssp, e))?;
-    let mut d = parse_ssd(&ssd).map_err(|e| err(ssp, format!("SystemStructure.ssd: {e}")))?;
+    let mut imported =
+        parse_ssd(&ssd).map_err(|e| err(ssp, format!("SystemStructure.ssd: {e}")))?;
     std::fs::create_dir_all(out_dir).map_err(|e| err(out_dir, e))?;
-    for inst in &mut d.instances {
+    for inst in &mut imported.description.instances {
         let source = inst.fmu.to_string_lossy().to_string();
         let mut entry = archive.by_name(&source).map_err(|_| {
             err(
@@ -351,7 +475,7 @@ pub fn import(ssp: &Path, out_dir: &Path) -> Result<SystemDescription, SspError>
         std::fs::write(&target, bytes).map_err(|e| err(&target, e))?;
         inst.fmu = PathBuf::from(source);
     }
-    Ok(d)
+    Ok(imported)
 }
 
 fn attr(e: &quick_xml::events::BytesStart, key: &str) -> Option<String> {
@@ -365,9 +489,44 @@ fn attr(e: &quick_xml::events::BytesStart, key: &str) -> Option<String> {
         })
 }
 
-/// Parses a `SystemStructure.ssd` (the subset this master exports, which is also what simple
-/// tools write: components, connectors, connections, inline parameter sets).
-pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
+/// Where an SSD gave the step size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum StepSource {
+    /// `org.spurio.simulation` `Simulation stepSize` (this master's export).
+    Spurio,
+    /// `org.openmodelica` `oms:FixedStepMaster stepSize`.
+    OmsFixedStepMaster,
+    /// `org.openmodelica` `oms:SimulationInformation stepSize` (OMSimulator 3.x solvers).
+    OmsSolver,
+    /// `org.open-simulation-platform` `osp:FixedStepAlgorithm baseStepSize`.
+    Osp,
+}
+
+impl StepSource {
+    fn describe(self) -> &'static str {
+        match self {
+            Self::Spurio => "the org.spurio.simulation annotation (stepSize)",
+            Self::OmsFixedStepMaster => "OMSimulator's oms:FixedStepMaster (stepSize)",
+            Self::OmsSolver => "OMSimulator's solver, oms:SimulationInformation (stepSize)",
+            Self::Osp => "the Open Simulation Platform's osp:FixedStepAlgorithm (baseStepSize)",
+        }
+    }
+}
+
+fn number(e: &quick_xml::events::BytesStart, key: &str) -> Result<Option<f64>, String> {
+    attr(e, key)
+        .map(|v| {
+            v.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("bad {key} `{v}`"))
+        })
+        .transpose()
+}
+
+/// Parses a `SystemStructure.ssd` of SSP 1.0 or 2.0: the components of the top system (FMUs)
+/// with their connectors and inline parameter sets, the connections between them, the
+/// default experiment and the step size (see the module documentation for its sources).
+pub fn parse_ssd(text: &str) -> Result<Imported, String> {
     let mut reader = quick_xml::Reader::from_str(text);
     let mut d = SystemDescription {
         name: String::new(),
@@ -379,8 +538,13 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
         connections: Vec::new(),
         record: Vec::new(),
     };
+    let mut version = String::new();
+    let mut steps: Vec<(StepSource, f64)> = Vec::new();
+    let mut stop_given = false;
     let mut parameter: Option<String> = None;
     let mut depth_component = false;
+    // Depth of `ssd:System` elements: only the top system's components are this system's.
+    let mut system_depth = 0usize;
     loop {
         let event = reader.read_event().map_err(|e| e.to_string())?;
         let (e, is_empty) = match &event {
@@ -390,6 +554,7 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
                 match e.local_name().as_ref() {
                     "Component" => depth_component = false,
                     "Parameter" => parameter = None,
+                    "System" => system_depth = system_depth.saturating_sub(1),
                     _ => {}
                 }
                 continue;
@@ -397,40 +562,78 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
             Event::Eof => break,
             _ => continue,
         };
-        let _ = is_empty;
         match e.local_name().as_ref() {
             "SystemStructureDescription" => {
-                if let Some(v) = attr(&e, "version") {
-                    if !v.starts_with("1.") {
-                        return Err(format!("SSP version {v} is not supported (1.x only)"));
-                    }
+                version = attr(&e, "version").unwrap_or_default();
+                if !(version.starts_with("1.") || version.starts_with("2.")) {
+                    return Err(format!(
+                        "SSP version `{version}` is not supported (1.0 and 2.0 are)"
+                    ));
                 }
                 d.name = attr(&e, "name").unwrap_or_default();
             }
+            "System" => {
+                if system_depth > 0 {
+                    return Err(format!(
+                        "nested system `{}`: only a flat system of FMU components is supported",
+                        attr(&e, "name").unwrap_or_default()
+                    ));
+                }
+                if !is_empty {
+                    system_depth += 1;
+                }
+            }
             "Component" => {
-                depth_component = true;
+                depth_component = !is_empty;
+                let name = attr(&e, "name").ok_or("a Component has no name")?;
+                if let Some(kind) = attr(&e, "type") {
+                    if kind != "application/x-fmu-sharedlibrary" {
+                        return Err(format!(
+                            "component `{name}` is of type `{kind}`; only FMUs \
+                             (application/x-fmu-sharedlibrary) are supported"
+                        ));
+                    }
+                }
                 d.instances.push(InstanceDescription {
-                    name: attr(&e, "name").ok_or("a Component has no name")?,
-                    fmu: PathBuf::from(attr(&e, "source").ok_or("a Component has no source")?),
+                    fmu: PathBuf::from(
+                        attr(&e, "source")
+                            .ok_or_else(|| format!("component `{name}` has no source"))?,
+                    ),
+                    name,
                     parameters: BTreeMap::new(),
                     step_multiple: 1,
                     logging: false,
                 });
             }
+            "ParameterBinding" if depth_component => {
+                if let Some(source) = attr(&e, "source") {
+                    return Err(format!(
+                        "component `{}`: parameter values from a separate file (`{source}`) \
+                         are not supported; inline ssv:ParameterSet only",
+                        d.instances.last().map(|i| i.name.as_str()).unwrap_or("")
+                    ));
+                }
+            }
             "Parameter" if depth_component => parameter = attr(&e, "name"),
-            "Real" | "Integer" | "Boolean" | "String" if parameter.is_some() => {
+            kind if parameter.is_some() => {
                 let value = attr(&e, "value").unwrap_or_default();
-                let v = match e.local_name().as_ref() {
-                    "Real" => toml::Value::Float(
-                        value.parse().map_err(|_| format!("bad Real `{value}`"))?,
-                    ),
-                    "Integer" => toml::Value::Integer(
+                let v = match kind {
+                    "Real" | "Float64" | "Float32" => toml::Value::Float(
                         value
+                            .trim()
                             .parse()
-                            .map_err(|_| format!("bad Integer `{value}`"))?,
+                            .map_err(|_| format!("bad {kind} `{value}`"))?,
+                    ),
+                    "Integer" | "Int8" | "UInt8" | "Int16" | "UInt16" | "Int32" | "UInt32"
+                    | "Int64" | "UInt64" | "Enumeration" => toml::Value::Integer(
+                        value
+                            .trim()
+                            .parse()
+                            .map_err(|_| format!("bad {kind} `{value}`"))?,
                     ),
                     "Boolean" => toml::Value::Boolean(value == "true" || value == "1"),
-                    _ => toml::Value::String(value),
+                    "String" => toml::Value::String(value),
+                    _ => continue,
                 };
                 if let (Some(inst), Some(p)) = (d.instances.last_mut(), parameter.clone()) {
                     inst.parameters.insert(p, v);
@@ -447,16 +650,17 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
                 ));
             }
             "DefaultExperiment" => {
-                if let Some(v) = attr(&e, "startTime") {
-                    d.start_time = v.parse().map_err(|_| format!("bad startTime `{v}`"))?;
+                if let Some(v) = number(&e, "startTime")? {
+                    d.start_time = v;
                 }
-                if let Some(v) = attr(&e, "stopTime") {
-                    d.stop_time = v.parse().map_err(|_| format!("bad stopTime `{v}`"))?;
+                if let Some(v) = number(&e, "stopTime")? {
+                    d.stop_time = v;
+                    stop_given = true;
                 }
             }
             "Simulation" => {
-                if let Some(v) = attr(&e, "stepSize") {
-                    d.step_size = v.parse().map_err(|_| format!("bad stepSize `{v}`"))?;
+                if let Some(v) = number(&e, "stepSize")? {
+                    steps.push((StepSource::Spurio, v));
                 }
                 if attr(&e, "algorithm").as_deref() == Some("jacobi") {
                     d.algorithm = Algorithm::Jacobi;
@@ -474,13 +678,52 @@ pub fn parse_ssd(text: &str) -> Result<SystemDescription, String> {
                     inst.logging = attr(&e, "logging").as_deref() == Some("true");
                 }
             }
+            "FixedStepMaster" => {
+                if let Some(v) = number(&e, "stepSize")? {
+                    steps.push((StepSource::OmsFixedStepMaster, v));
+                }
+            }
+            "SimulationInformation" => {
+                if let Some(v) = number(&e, "stepSize")? {
+                    steps.push((StepSource::OmsSolver, v));
+                }
+            }
+            "FixedStepAlgorithm" => {
+                if let Some(v) = number(&e, "baseStepSize")? {
+                    steps.push((StepSource::Osp, v));
+                }
+            }
             _ => {}
         }
     }
-    if d.step_size <= 0.0 {
-        d.step_size = (d.stop_time - d.start_time) / 100.0;
+    let mut notes = Vec::new();
+    if !stop_given {
+        notes.push(format!(
+            "the SSD gives no DefaultExperiment stopTime; using {}",
+            d.stop_time
+        ));
     }
-    Ok(d)
+    steps.sort_by_key(|(source, _)| *source);
+    match steps.first() {
+        Some((source, h)) => {
+            d.step_size = *h;
+            notes.push(format!("step size {h} from {}", source.describe()));
+        }
+        None => {
+            d.step_size = (d.stop_time - d.start_time) / 100.0;
+            notes.push(format!(
+                "the SSD gives no step size (no org.spurio.simulation, oms:FixedStepMaster, \
+                 oms:SimulationInformation or osp:FixedStepAlgorithm annotation); using \
+                 (stopTime - startTime)/100 = {}",
+                d.step_size
+            ));
+        }
+    }
+    Ok(Imported {
+        description: d,
+        version,
+        notes,
+    })
 }
 
 #[cfg(test)]
@@ -519,20 +762,128 @@ mod tests {
             record: vec!["crane.x".into(), "sensor.y[1]".into()],
         };
         let connectors = vec![
-            vec![("x".to_string(), "output", "Real")],
-            vec![("u[1]".to_string(), "input", "Real")],
+            vec![("x".to_string(), "output", VarType::Real)],
+            vec![("u[1]".to_string(), "input", VarType::Real)],
         ];
         let sources = vec![
             "resources/GantryCrane.fmu".to_string(),
             "resources/Sensor2.fmu".to_string(),
         ];
-        let text = ssd_text(&d, &connectors, &sources).unwrap();
-        assert!(text.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"));
+        for version in [SspVersion::V1_0, SspVersion::V2_0] {
+            let text = ssd_text(&d, &connectors, &sources, version).unwrap();
+            assert!(text.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"));
+            assert!(
+                text.contains(r#"name="crane &amp; &quot;sensor&quot; &lt;1&gt;""#),
+                "{text}"
+            );
+            assert!(
+                text.contains(&format!(r#"version="{version}" name="#)),
+                "{text}"
+            );
+            assert!(text.contains(r#"<ssd:Connector name="u[1]" kind="input">"#));
+            assert!(text.contains("<ssc:Real/>"), "{text}");
+            assert!(text.contains(r#"<ssv:Real value="0.2"/>"#), "{text}");
+            assert!(
+                text.contains(&format!(r#"<ssv:ParameterSet version="{version}""#)),
+                "{text}"
+            );
+            // OMSimulator's fixed-step master, with the step size.
+            assert!(
+                text.contains(r#"<oms:FixedStepMaster description="oms-ma" stepSize="0.01""#),
+                "{text}"
+            );
+            let imported = parse_ssd(&text).unwrap();
+            assert_eq!(imported.description, d);
+            assert_eq!(imported.version, version.as_str());
+            assert_eq!(
+                imported.notes,
+                ["step size 0.01 from the org.spurio.simulation annotation (stepSize)"]
+            );
+        }
+    }
+
+    /// The shape OMSimulator 3.x's Python API writes (SSP 2.0, a solver with a step size
+    /// on the system, types of either version), and OMSimulator 2.x's fixed-step master.
+    #[test]
+    fn step_sizes_come_from_every_annotation_a_real_ssd_carries() {
+        let oms3 = r#"<?xml version='1.0' encoding='utf-8'?>
+<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd" name="default" version="2.0">
+  <ssd:System name="default">
+    <ssd:Elements>
+      <ssd:Component name="vdp" type="application/x-fmu-sharedlibrary" source="resources/VanDerPol.fmu">
+        <ssd:Connectors><ssd:Connector name="x0" kind="output"><ssc:Real/></ssd:Connector></ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="2.0" name="parameters"><ssv:Parameters>
+            <ssv:Parameter name="mu"><ssv:Float64 value="1.5"/></ssv:Parameter>
+            <ssv:Parameter name="n"><ssv:Int32 value="3"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="ft" source="resources/Feedthrough.fmu"/>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="vdp" startConnector="x0" endElement="ft" endConnector="Float64_continuous_input"/>
+    </ssd:Connections>
+    <ssd:Annotations><ssc:Annotation type="org.openmodelica"><oms:Annotations>
+      <oms:SimulationInformation name="solver1" method="oms-ma" stepSize="0.1"/>
+    </oms:Annotations></ssc:Annotation></ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="10.0"/>
+</ssd:SystemStructureDescription>"#;
+        let imported = parse_ssd(oms3).unwrap();
+        let d = &imported.description;
+        assert_eq!(imported.version, "2.0");
+        assert_eq!((d.start_time, d.stop_time, d.step_size), (0.0, 10.0, 0.1));
+        assert_eq!(d.instances.len(), 2);
+        assert_eq!(d.instances[0].parameters["mu"], toml::Value::Float(1.5));
+        assert_eq!(d.instances[0].parameters["n"], toml::Value::Integer(3));
+        assert_eq!(d.connections, ["vdp.x0 -> ft.Float64_continuous_input"]);
+        assert!(imported.notes[0].contains("oms:SimulationInformation"));
+
+        let oms2 = oms3
+            .replace(
+                r#"<oms:SimulationInformation name="solver1" method="oms-ma" stepSize="0.1"/>"#,
+                r#"<oms:SimulationInformation><oms:FixedStepMaster description="oms-ma" stepSize="0.025"/></oms:SimulationInformation>"#,
+            )
+            .replace(r#"version="2.0" name="default""#, r#"version="1.0" name="default""#);
+        let imported = parse_ssd(&oms2).unwrap();
+        assert_eq!(imported.description.step_size, 0.025);
         assert!(
-            text.contains(r#"name="crane &amp; &quot;sensor&quot; &lt;1&gt;""#),
-            "{text}"
+            imported.notes[0].contains("oms:FixedStepMaster"),
+            "{:?}",
+            imported.notes
         );
-        assert!(text.contains(r#"<ssd:Connector name="u[1]" kind="input">"#));
-        assert_eq!(parse_ssd(&text).unwrap(), d);
+
+        let osp = oms3.replace(
+            r#"<oms:SimulationInformation name="solver1" method="oms-ma" stepSize="0.1"/>"#,
+            "",
+        );
+        let osp = osp.replace(
+            r#"<ssd:DefaultExperiment startTime="0.0" stopTime="10.0"/>"#,
+            r#"<ssd:DefaultExperiment startTime="0.0" stopTime="10.0"><ssd:Annotations><ssc:Annotation type="org.open-simulation-platform"><osp:Algorithm xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations"><osp:FixedStepAlgorithm baseStepSize="0.05"/></osp:Algorithm></ssc:Annotation></ssd:Annotations></ssd:DefaultExperiment>"#,
+        );
+        assert_eq!(parse_ssd(&osp).unwrap().description.step_size, 0.05);
+
+        // No step size anywhere: the default, said.
+        let none = oms3.replace(
+            r#"<oms:SimulationInformation name="solver1" method="oms-ma" stepSize="0.1"/>"#,
+            "",
+        );
+        let imported = parse_ssd(&none).unwrap();
+        assert_eq!(imported.description.step_size, 0.1);
+        assert!(
+            imported.notes[0].contains("no step size") && imported.notes[0].contains("= 0.1"),
+            "{:?}",
+            imported.notes
+        );
+    }
+
+    #[test]
+    fn versions_other_than_1_and_2_are_refused() {
+        let e =
+            parse_ssd(r#"<ssd:SystemStructureDescription version="3.0" name="x"/>"#).unwrap_err();
+        assert_eq!(e, "SSP version `3.0` is not supported (1.0 and 2.0 are)");
+        assert_eq!("1.0".parse::<SspVersion>(), Ok(SspVersion::V1_0));
+        assert!("1.1".parse::<SspVersion>().is_err());
     }
 }

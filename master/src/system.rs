@@ -72,6 +72,21 @@ pub enum SystemError {
     },
     #[error("algebraic loop: these direct-feedthrough variables depend on each other within a communication point: {0}")]
     AlgebraicLoop(String),
+    /// What is wrong with the system an SSP archive describes, naming the archive (and its
+    /// FMUs by their paths inside it, not by the folder they were unpacked into).
+    #[error("{}: {}", ssp.display(), in_archive(source, unpacked))]
+    InArchive {
+        ssp: PathBuf,
+        /// Where the archive was unpacked.
+        unpacked: PathBuf,
+        source: Box<SystemError>,
+    },
+}
+
+fn in_archive(error: &SystemError, unpacked: &Path) -> String {
+    error
+        .to_string()
+        .replace(&format!("{}/", unpacked.display()), "")
 }
 
 /// An instance with its FMU and resolved start values.
@@ -100,6 +115,11 @@ pub struct System {
     /// The description this system was resolved from, FMU paths as loaded; edits by name
     /// ([`System::set_start_value`], [`System::set_fmu`]) keep it in step.
     source: SystemDescription,
+    /// What loading had to assume (an SSP's step size source or default), for the user.
+    pub notes: Vec<String>,
+    /// The temporary folder an SSP archive was unpacked into, removed with the last clone
+    /// of this system.
+    unpacked: Option<Arc<tempfile::TempDir>>,
 }
 
 /// A value given to a parameter or an unconnected input before initialisation, as a system
@@ -262,18 +282,49 @@ impl System {
                     .collect(),
                 ..d.clone()
             },
+            notes: Vec::new(),
+            unpacked: None,
         };
         Ok(system)
     }
 
-    /// Reads and resolves a system file, by its type: an SSP archive (`.ssp`, whose FMUs are
-    /// unpacked next to it in `<name>.ssp.d/`) or TOML (anything else; FMU paths relative to
-    /// the file).
+    /// Reads and resolves a system file, by its type: an SSP archive (`.ssp`, SSP 1.0 or 2.0,
+    /// whose FMUs are unpacked into a temporary folder removed with the system) or TOML
+    /// (anything else; FMU paths relative to the file). What the SSP import had to assume
+    /// (where the step size came from) is in [`System::notes`].
     pub fn from_file(path: &Path) -> Result<Self, SystemError> {
+        Self::from_file_unpacking(path, None)
+    }
+
+    /// [`System::from_file`], unpacking an SSP archive's FMUs into `unpack_to` (kept) instead
+    /// of a temporary folder when it is given.
+    pub fn from_file_unpacking(path: &Path, unpack_to: Option<&Path>) -> Result<Self, SystemError> {
         if path.extension().is_some_and(|e| e == "ssp") {
-            let dir = path.with_extension("ssp.d");
-            let description = crate::ssp::import(path, &dir)?;
-            return Self::resolve(&description, &dir);
+            let (dir, temporary) = match unpack_to {
+                Some(dir) => (dir.to_path_buf(), None),
+                None => {
+                    let t = tempfile::Builder::new()
+                        .prefix("spurio-ssp-")
+                        .tempdir()
+                        .map_err(|e| {
+                            SystemError::Ssp(crate::ssp::SspError::File {
+                                file: path.to_path_buf(),
+                                reason: format!("cannot create a temporary folder: {e}"),
+                            })
+                        })?;
+                    (t.path().to_path_buf(), Some(Arc::new(t)))
+                }
+            };
+            let imported = crate::ssp::import(path, &dir)?;
+            let mut system =
+                Self::resolve(&imported.description, &dir).map_err(|e| SystemError::InArchive {
+                    ssp: path.to_path_buf(),
+                    unpacked: dir.clone(),
+                    source: Box::new(e),
+                })?;
+            system.notes = imported.notes;
+            system.unpacked = temporary;
+            return Ok(system);
         }
         let description = SystemDescription::read(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
@@ -286,10 +337,15 @@ impl System {
         &self.source
     }
 
-    /// Writes this system as an SSP archive with its FMUs (see [`crate::ssp::export`]).
-    pub fn export_ssp(&self, target: &Path) -> Result<(), SspError> {
+    /// Writes this system as an SSP archive (SSP `version`) with its FMUs (see
+    /// [`crate::ssp::export`]).
+    pub fn export_ssp(
+        &self,
+        target: &Path,
+        version: crate::ssp::SspVersion,
+    ) -> Result<(), SspError> {
         let fmus: Vec<&FmuFile> = self.instances.iter().map(|i| i.fmu.as_ref()).collect();
-        crate::ssp::export(&self.source, &fmus, target)
+        crate::ssp::export(&self.source, &fmus, target, version)
     }
 
     /// The instance called `name`.
@@ -407,7 +463,10 @@ impl System {
             .iter()
             .map(|inst| (inst.fmu.path.clone(), inst.fmu.clone()))
             .collect();
-        *self = Self::resolve_with(&description, Path::new(""), &mut loaded)?;
+        let mut edited = Self::resolve_with(&description, Path::new(""), &mut loaded)?;
+        edited.notes = std::mem::take(&mut self.notes);
+        edited.unpacked = self.unpacked.take();
+        *self = edited;
         Ok(())
     }
 
@@ -433,7 +492,18 @@ fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
             .map(f64::from)
             .map_err(|_| format!("{i} does not fit an Integer")),
         (VarType::Boolean, toml::Value::Boolean(b)) => Ok(f64::from(u8::from(b))),
-        (t, v) => Err(format!("is of type {t:?}; the value `{v}` is not")),
+        (VarType::String, v) => Err(format!(
+            "is of type String, and only Real, Integer, Enumeration and Boolean variables can \
+             be given values (the value was `{v}`)"
+        )),
+        (t, v) => Err(format!(
+            "is of type {t:?}, which takes {}; the value `{v}` is not one",
+            match t {
+                VarType::Real => "a number (`1.5` or `2`)",
+                VarType::Integer | VarType::Enumeration => "an integer (`3`)",
+                _ => "`true` or `false`",
+            }
+        )),
     }
 }
 

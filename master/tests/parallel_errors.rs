@@ -63,7 +63,7 @@ fn failing_crane(parameters: &str, start: &Barrier) -> String {
         Err(e) => e.to_string(),
         Ok(mut sim) => match sim.run(&mut NoRecording, &Default::default()) {
             Err(e) => e.to_string(),
-            Ok(()) => panic!("{parameters} must fail"),
+            Ok(end) => panic!("{parameters} must fail ({end})"),
         },
     }
 }

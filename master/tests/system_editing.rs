@@ -79,7 +79,8 @@ fn start_values_set_by_name_are_checked_like_toml_entries() {
     assert!(matches!(e, SystemError::Parameter { .. }));
     assert!(text(e).contains("causality Output"));
     let e = system.set_start_value("sensor.seed", 1.5).unwrap_err();
-    assert!(text(e).contains("is of type Integer; the value `1.5` is not"));
+    assert!(text(e)
+        .contains("is of type Integer, which takes an integer (`3`); the value `1.5` is not one"));
     let e = system
         .set_start_value("sensor.seed", 1i64 << 40)
         .unwrap_err();

@@ -12,9 +12,9 @@
 #![deny(unsafe_code)]
 
 use spurio_experiments::{diagnose, plot};
-use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::engine::{RunEnd, RunOptions, Simulation};
 use spurio_master::logging;
-use spurio_master::record::{CsvWriter, TimeSeries};
+use spurio_master::record::{CsvWriter, NoRecording, TimeSeries};
 use spurio_master::system::System;
 
 mod library_query;
@@ -37,13 +37,29 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a co-simulation system (TOML) and write its results as CSV (fmpy's layout).
+    /// Run a co-simulation system (TOML, or an SSP 1.0/2.0 archive) and write its results as
+    /// CSV (fmpy's layout). The run ends at the stop time, or earlier when an FMU asks to end
+    /// the simulation (fmi2Discard with fmi2Terminated, as the Reference FMU Stair does): the
+    /// last point is recorded and the reason printed.
     Run {
-        /// The system file.
+        /// The system file (`.toml`) or SSP archive (`.ssp`; its FMUs are unpacked into a
+        /// temporary folder, removed afterwards unless --unpack-to is given).
         system: PathBuf,
         /// Where to write the results.
         #[arg(long, default_value = "results.csv")]
         out: PathBuf,
+        /// Record nothing: no CSV is written (OMSimulator's `--resultFile=""`, fmpy's
+        /// `output=[]`); for benchmarks.
+        #[arg(long, conflicts_with_all = ["out", "plot", "output_interval"])]
+        no_record: bool,
+        /// Record every K-th communication point (the first and the last are always
+        /// recorded); 1 records every one. fmpy's `output_interval` is K × step_size.
+        #[arg(long, value_name = "K", default_value_t = 1,
+              value_parser = clap::value_parser!(u64).range(1..))]
+        output_interval: u64,
+        /// Unpack an SSP archive's FMUs into this folder and keep them there.
+        #[arg(long, value_name = "DIR")]
+        unpack_to: Option<PathBuf>,
         /// Also plot these recorded variables (comma-separated names) to a PNG beside the CSV.
         #[arg(long, value_delimiter = ',')]
         plot: Vec<String>,
@@ -137,12 +153,19 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Export a system (TOML) as an SSP 1.0 archive with its FMUs, for OMSimulator or fmpy.
+    /// Export a system (TOML) as an SSP archive with its FMUs, for OMSimulator or fmpy. The
+    /// SSD carries OMSimulator's fixed-step master annotation, so
+    /// `OMSimulator <out> --stopTime <stop_time>` runs it (OMSimulator does not take the
+    /// SSD's stop time by itself).
     SspExport {
         /// The system file.
         system: PathBuf,
         /// The .ssp to write.
         out: PathBuf,
+        /// The SSP version of the files: 1.0 (read by fmpy and OMSimulator) or 2.0 (what
+        /// OMSimulator 3.x writes; fmpy 0.3 refuses it).
+        #[arg(long, default_value = "1.0")]
+        ssp_version: spurio_master::ssp::SspVersion,
     },
     /// Import an SSP archive: unpack its FMUs into a folder and write a TOML system file there.
     SspImport {
@@ -193,12 +216,18 @@ fn main() -> Result<()> {
         Command::Run {
             system,
             out,
+            no_record,
+            output_interval,
+            unpack_to,
             plot: plotted,
             real_time,
             progress,
             verbose: _,
         } => {
-            let resolved = System::from_file(&system)?;
+            let resolved = System::from_file_unpacking(&system, unpack_to.as_deref())?;
+            for note in &resolved.notes {
+                eprintln!("spurio: {}: {note}", system.display());
+            }
             // The plotted variables and their axis labels (with units), checked before the run.
             let plotted = plotted
                 .iter()
@@ -208,23 +237,32 @@ fn main() -> Result<()> {
             let options = RunOptions {
                 real_time_factor: real_time,
                 progress,
+                output_interval,
             };
-            if plotted.is_empty() {
+            let end = if no_record {
+                sim.run(&mut NoRecording, &options)?
+            } else if plotted.is_empty() {
                 let mut csv = CsvWriter::create(&out)
                     .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
-                sim.run(&mut csv, &options)?;
+                sim.run(&mut csv, &options)?
             } else {
                 let mut series = TimeSeries::default();
-                sim.run(&mut series, &options)?;
+                let end = sim.run(&mut series, &options)?;
                 let mut csv = CsvWriter::create(&out)
                     .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
                 spurio_master::record::replay(&series, &mut csv)?;
                 let png = out.with_extension("png");
                 plot::labelled_time_series_png(&png, &resolved.name, &series, &plotted)?;
                 println!("wrote {}", png.display());
-            }
+                end
+            };
             sim.terminate()?;
-            println!("wrote {}", out.display());
+            if let RunEnd::Terminated { .. } = end {
+                println!("{end}");
+            }
+            if !no_record {
+                println!("wrote {}", out.display());
+            }
         }
         Command::Package {
             lib_dir,
@@ -312,14 +350,28 @@ fn main() -> Result<()> {
             }
             print!("{}", result.table());
         }
-        Command::SspExport { system, out } => {
-            System::from_file(&system)?.export_ssp(&out)?;
-            println!("wrote {}", out.display());
+        Command::SspExport {
+            system,
+            out,
+            ssp_version,
+        } => {
+            let resolved = System::from_file(&system)?;
+            resolved.export_ssp(&out, ssp_version)?;
+            println!("wrote {} (SSP {ssp_version})", out.display());
+            println!(
+                "run it with: OMSimulator {} --stopTime {:?}   or: spurio run {}",
+                out.display(),
+                resolved.stop_time,
+                out.display()
+            );
         }
         Command::SspImport { ssp, out } => {
-            let description = spurio_master::ssp::import(&ssp, &out)?;
+            let imported = spurio_master::ssp::import(&ssp, &out)?;
+            for note in &imported.notes {
+                eprintln!("spurio: {}: {note}", ssp.display());
+            }
             let path = out.join("system.toml");
-            std::fs::write(&path, toml::to_string_pretty(&description)?)?;
+            std::fs::write(&path, toml::to_string_pretty(&imported.description)?)?;
             println!("wrote {}", path.display());
         }
         Command::Diagnose {

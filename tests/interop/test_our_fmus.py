@@ -1,0 +1,135 @@
+"""Every FMU of ours in the FMU Compliance Checker and in OMSimulator, against fmpy.
+
+Each FMU runs to its default stop time at the power of two nearest its default step
+(`binary_step`: n·h is exact, so fmpy's start + n·h and the tools' accumulated t += h agree
+on every communication point and nobody takes a tiny last step). The timing case, each
+FMU's own default step (0.1, 0.05, …, not exact in binary), is tested apart: there
+OMSimulator's last step of ~1e-15 s makes our discrete-time FMUs (one sample per
+fmi2DoStep) take one sample more than in fmpy; that is a known defect of those FMUs, marked
+`xfail(strict=True)` until they sample on their own clock.
+"""
+
+import subprocess
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+
+from conftest import (
+    FMUCHECK,
+    OMS_RTOL,
+    binary_step,
+    by_time,
+    column,
+    default_experiment,
+    omsimulator,
+    our_fmu,
+    our_fmus,
+    read_csv,
+    require,
+)
+
+FMUS = our_fmus()
+
+
+def test_every_fmu_of_ours_is_tested():
+    assert len(FMUS) == 22, FMUS
+
+
+def outputs(fmu):
+    return [
+        v.name
+        for v in read_model_description(str(fmu)).modelVariables
+        if v.causality == "output" and v.type != "String"
+    ]
+
+
+def fmpy_result(fmu, stop, step):
+    return simulate_fmu(
+        str(fmu), fmi_type="CoSimulation", stop_time=stop, step_size=step, output_interval=step
+    )
+
+
+@pytest.mark.parametrize("name", FMUS)
+def test_fmucheck_passes_and_matches_fmpy(name, workdir):
+    fmu = our_fmu(name)
+    stop, step = default_experiment(fmu)
+    step = binary_step(step)
+    out = workdir / "fmucheck.csv"
+    check = subprocess.run(
+        [str(require(FMUCHECK, "see the third-party README")), "-k", "cs", "-n", "0", "-h", repr(step),
+         "-s", repr(stop), "-o", str(out), str(fmu)],
+        capture_output=True, text=True, timeout=300,
+    )
+    report = check.stdout + check.stderr
+    assert check.returncode == 0, report
+    assert "0 Warning(s)" in report and "0 Error(s)" in report, report
+    assert "0 warning(s) and error(s)" in report, report
+
+    names, rows = read_csv(out)
+    expected = fmpy_result(fmu, stop, step)
+    assert rows.shape[0] == len(expected)
+    np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=0, atol=1e-12)
+    for name_ in outputs(fmu):
+        np.testing.assert_allclose(
+            column(names, rows, name_), expected[name_].astype(float), rtol=1e-15, atol=0,
+            err_msg=name_,
+        )
+
+
+def omsimulator_result(fmu, stop, step, workdir):
+    out = workdir / "oms.csv"
+    omsimulator(
+        fmu, "--mode=cs", f"--stopTime={stop!r}", f"--stepSize={step!r}",
+        f"--resultFile={out.name}", cwd=workdir,
+    )
+    return read_csv(out)
+
+
+def compare_with_fmpy(fmu, stop, step, workdir):
+    names, rows = by_time(*omsimulator_result(fmu, stop, step, workdir), keep="last")
+    expected = fmpy_result(fmu, stop, step)
+    assert rows.shape[0] == len(expected), (rows[-3:, 0], expected["time"][-3:])
+    np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=OMS_RTOL, atol=0)
+    for name_ in outputs(fmu):
+        np.testing.assert_allclose(
+            column(names, rows, name_), expected[name_].astype(float), rtol=OMS_RTOL, atol=0,
+            err_msg=name_,
+        )
+
+
+@pytest.mark.parametrize("name", FMUS)
+def test_omsimulator_matches_fmpy(name, workdir):
+    fmu = our_fmu(name)
+    stop, step = default_experiment(fmu)
+    compare_with_fmpy(fmu, stop, binary_step(step), workdir)
+
+
+# One sample per fmi2DoStep: OMSimulator's extra step of ~1e-15 s at the end (100 × 0.1 <
+# 10 in floating point) takes one more noise/sample draw, so the last row differs from
+# fmpy's by a whole sample. To be fixed in the FMUs (sampling on their own clock).
+SAMPLE_PER_STEP = {"LinearSystem", "LinearSystem2", "Sensor", "Sensor2"}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            n,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="samples once per fmi2DoStep, so OMSimulator's final ~1e-15 s step "
+                "takes an extra sample (the FMU should sample on its own clock)",
+            ),
+        )
+        if n in SAMPLE_PER_STEP
+        else n
+        for n in FMUS
+    ],
+)
+def test_omsimulator_matches_fmpy_at_the_default_step(name, workdir):
+    """The FMU's own default step (not exact in binary): OMSimulator accumulates time and
+    may end with a step of ~1e-15 s, fmpy does not."""
+    fmu = our_fmu(name)
+    stop, step = default_experiment(fmu)
+    compare_with_fmpy(fmu, stop, step, workdir)
