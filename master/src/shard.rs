@@ -217,13 +217,13 @@ pub fn identity_of_system_file(
     if system.extension().is_some_and(|e| e == "ssp") {
         return Ok(SweepIdentity::compute(&bytes, &[], definition));
     }
-    let description: crate::description::SystemDescription = std::str::from_utf8(&bytes)
-        .ok()
-        .and_then(|text| toml::from_str(text).ok())
-        .ok_or_else(|| ShardError::Format {
-            path: system.to_path_buf(),
-            reason: "not a TOML system file".into(),
-        })?;
+    let format = |reason: String| ShardError::Format {
+        path: system.to_path_buf(),
+        reason: format!("not a TOML system file: {reason}"),
+    };
+    let text = std::str::from_utf8(&bytes).map_err(|e| format(e.to_string()))?;
+    let description: crate::description::SystemDescription =
+        toml::from_str(text).map_err(|e| format(e.to_string()))?;
     let base = system.parent().unwrap_or(Path::new("."));
     let mut names: Vec<String> = description
         .instances

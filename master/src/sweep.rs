@@ -446,6 +446,39 @@ mod tests {
     }
 
     #[test]
+    fn the_table_writer_gives_rows_in_round_trip_form_and_checks_their_count() {
+        let result = SweepResult {
+            metrics: vec![
+                Metric::parse("rms(a.y[1])").unwrap(),
+                Metric::parse("e_res(a.y, b.x)").unwrap(),
+            ],
+            runs: vec![vec![0.1 + 0.2, f64::NAN], vec![-0.0, 1e-300]],
+        };
+        let dir = std::env::temp_dir().join(format!("spurio-table-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("runs.csv");
+        let parameters = vec!["a.seed".to_string()];
+        let table =
+            write_table(Some(&path), &parameters, &[vec![1.0], vec![2.5]], &result).unwrap();
+        assert_eq!(table, result.table());
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            "\"a.seed\",\"rms(a.y[1])\",\"e_res(a.y;b.x)\"\n\
+             1.0,0.30000000000000004,NaN\n\
+             2.5,-0.0,1e-300\n"
+        );
+        let e = write_table(None, &parameters, &[vec![1.0]], &result).unwrap_err();
+        assert_eq!(e.to_string(), "1 rows of parameter values for 2 runs");
+        let empty = SweepResult {
+            metrics: vec![],
+            runs: vec![],
+        };
+        let e = write_table(Some(&dir.join("no/such.csv")), &parameters, &[], &empty).unwrap_err();
+        assert!(e.to_string().contains("cannot write"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn metric_observer_computes_each_summary() {
         let metrics = [
             Metric::parse("final(a)").unwrap(),

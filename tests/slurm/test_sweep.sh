@@ -56,10 +56,11 @@ run_on_slurm() {
   t=$(now)
   out=$("$spurio" sweep "${sweep[@]}" --slurm "$dir" --shards "$shards" --time 00:10:00 --submit) ||
     fail "spurio sweep --slurm --submit failed: $out"
-  echo "$out" | sed 's/^/  | /'
+  local line
+  while IFS= read -r line; do echo "  | $line"; done <<<"$out"
   array=$(sed -n 's/^submitted array job \([0-9]*\) .*/\1/p' <<<"$out")
   merge=$(sed -n 's/.* and merge job \([0-9]*\) (afterok:.*/\1/p' <<<"$out")
-  [ -n "$array" ] && [ -n "$merge" ] || fail "no job ids in: $out"
+  if [ -z "$array" ] || [ -z "$merge" ]; then fail "no job ids in: $out"; fi
   slurm_wait_jobs 300 "$array" "$merge" || fail "the sweep's jobs did not end"
   slurm_s=$(elapsed "$t" "$(now)")
   local i state

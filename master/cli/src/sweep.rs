@@ -35,7 +35,8 @@ pub struct SweepArgs {
         conflicts_with = "slurm"
     )]
     shard: Option<Shard>,
-    /// The shard file to write, or a folder to write `shard-<i>.toml` into.
+    /// The shard file to write, or a folder (existing, or ending in `/`) to write
+    /// `shard-<i>.toml` into.
     #[arg(long, requires = "shard")]
     shard_out: Option<PathBuf>,
     /// The Slurm batch script this shard runs in (named by `sweep-merge` for missing shards).
@@ -146,7 +147,10 @@ fn run_shard(
         .collect();
     let failed = records.iter().filter(|r| r.error.is_some()).count();
     let mut file = ShardFile::new(identity, shard, definition, records);
-    let (path, folder) = if shard_out.is_dir() {
+    let is_folder = shard_out.is_dir() || shard_out.to_string_lossy().ends_with('/');
+    let (path, folder) = if is_folder {
+        std::fs::create_dir_all(shard_out)
+            .with_context(|| format!("cannot create {}", shard_out.display()))?;
         (
             shard_out.join(slurm::shard_file_name(shard)),
             shard_out.to_path_buf(),
