@@ -18,9 +18,10 @@
 //! shard file (runs seeded by run index), so the result does not depend on how often a task
 //! ran. The task must requeue itself rather than fail: Slurm marks an `afterok` dependent job
 //! `DependencyNeverSatisfied` as soon as a task ends failed, and a later external requeue does
-//! not release it. Tasks pre-empted or lost with their node are requeued by Slurm
-//! (`--requeue`). [`submit`] calls `sbatch` for the array and for the merge job with
-//! `--dependency=afterok:<array>`.
+//! not release it. A run that fails inside a shard is not a failed task: the shard file
+//! records it (a rerun would fail the same way) and the merge names it. Tasks pre-empted or
+//! lost with their node are requeued by Slurm (`--requeue`). [`submit`] calls `sbatch` for
+//! the array and for the merge job with `--dependency=afterok:<array>`.
 #![forbid(unsafe_code)]
 
 use crate::description::SystemDescription;
