@@ -2,8 +2,9 @@
 //! party's). It loads FMUs on rust-fmi ([`fmu`]), describes systems by name in TOML or SSP
 //! ([`description`], [`ssp`]), loads and edits them by name ([`system`]), compiles them to
 //! indices once ([`plan`]), steps them ([`engine`]), sends results to observers
-//! ([`record`]), runs parameter sweeps in parallel ([`sweep`]) and reads results back
-//! ([`results`]). It knows no FMU of its own: any FMI 2.0 CS FMU runs.
+//! ([`record`]), runs parameter sweeps in parallel ([`sweep`]), in shards ([`shard`]) and
+//! on a Slurm cluster ([`slurm`]), and reads results back ([`results`]). It knows no FMU of
+//! its own: any FMI 2.0 CS FMU runs.
 
 #![forbid(unsafe_code)]
 
@@ -15,6 +16,7 @@ pub mod plan;
 pub mod record;
 pub mod results;
 pub mod shard;
+pub mod slurm;
 pub mod ssp;
 pub mod sweep;
 pub mod system;

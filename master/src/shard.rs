@@ -200,6 +200,84 @@ impl fmt::Display for SweepIdentity {
     }
 }
 
+/// Reads a system file and the FMU archives it refers to, and gives the identity of the
+/// sweep `definition` over them. A TOML file enters with its bytes and every FMU archive
+/// (named as the file refers to it); an SSP archive holds its FMUs, so its bytes are all.
+pub fn identity_of_system_file(
+    system: &Path,
+    definition: &SweepDefinition,
+) -> Result<SweepIdentity, ShardError> {
+    let read = |path: &Path| {
+        std::fs::read(path).map_err(|source| ShardError::Read {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let bytes = read(system)?;
+    if system.extension().is_some_and(|e| e == "ssp") {
+        return Ok(SweepIdentity::compute(&bytes, &[], definition));
+    }
+    let format = |reason: String| ShardError::Format {
+        path: system.to_path_buf(),
+        reason: format!("not a TOML system file: {reason}"),
+    };
+    let text = std::str::from_utf8(&bytes).map_err(|e| format(e.to_string()))?;
+    let description: crate::description::SystemDescription =
+        toml::from_str(text).map_err(|e| format(e.to_string()))?;
+    let base = system.parent().unwrap_or(Path::new("."));
+    let mut names: Vec<String> = description
+        .instances
+        .iter()
+        .map(|i| i.fmu.to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names.dedup();
+    let archives = names
+        .iter()
+        .map(|name| read(&base.join(name)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let fmus: Vec<(&str, &[u8])> = names
+        .iter()
+        .zip(&archives)
+        .map(|(n, b)| (n.as_str(), b.as_slice()))
+        .collect();
+    Ok(SweepIdentity::compute(&bytes, &fmus, definition))
+}
+
+/// Reads the shard files among `inputs`: a file is read as one, a folder gives every
+/// `*.toml` file in it (by name; other files and subfolders are left alone).
+pub fn read_shard_files(inputs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardFile)>, ShardError> {
+    let mut paths = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input).map_err(|source| ShardError::Read {
+                path: input.clone(),
+                source,
+            })?;
+            let mut found = Vec::new();
+            for entry in entries {
+                let path = entry
+                    .map_err(|source| ShardError::Read {
+                        path: input.clone(),
+                        source,
+                    })?
+                    .path();
+                if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
+                    found.push(path);
+                }
+            }
+            found.sort();
+            paths.extend(found);
+        } else {
+            paths.push(input.clone());
+        }
+    }
+    paths
+        .into_iter()
+        .map(|p| ShardFile::read(&p).map(|f| (p, f)))
+        .collect()
+}
+
 /// How a run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

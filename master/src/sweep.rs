@@ -7,6 +7,8 @@ use crate::record::Observer;
 use crate::system::{System, SystemError};
 use rayon::prelude::*;
 use std::fmt::Write as _;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
 
 /// A metric or a variation that cannot be parsed; the text says where and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -272,12 +274,37 @@ impl SweepResult {
 }
 
 /// Runs `system` once per value of `variation` on `threads` worker threads (0: one per core).
+/// The first failed run (by run index) is the error.
 pub fn sweep(
     system: &System,
     variation: &Variation,
     metrics: &[Metric],
     threads: usize,
 ) -> Result<SweepResult, RunError> {
+    let runs = sweep_runs(
+        system,
+        variation,
+        metrics,
+        0..variation.values.len(),
+        threads,
+    )?;
+    Ok(SweepResult {
+        metrics: metrics.to_vec(),
+        runs: runs.into_iter().collect::<Result<_, _>>()?,
+    })
+}
+
+/// Runs the runs `runs` of the sweep (run `k` takes `variation.values[k]`, whoever runs it)
+/// on `threads` worker threads (0: one per core), and gives each run's metrics or error, in
+/// run order. The error of the whole call is a sweep that cannot start (an unknown varied
+/// variable, a run range beyond the values, no thread pool).
+pub fn sweep_runs(
+    system: &System,
+    variation: &Variation,
+    metrics: &[Metric],
+    runs: Range<usize>,
+    threads: usize,
+) -> Result<Vec<Result<Vec<f64>, RunError>>, RunError> {
     let (instance, variable) = variation.variable.split_once('.').ok_or_else(|| {
         SystemError::Invalid(format!(
             "--vary `{}`: expected instance.variable",
@@ -294,13 +321,21 @@ pub fn sweep(
             "--vary: instance `{instance}` has no variable `{variable}`"
         ))
     })?;
+    let Some(values) = variation.values.get(runs.clone()) else {
+        return Err(SystemError::Invalid(format!(
+            "runs {}..{} of a sweep of {} runs",
+            runs.start,
+            runs.end,
+            variation.values.len()
+        ))
+        .into());
+    };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| SystemError::Invalid(format!("thread pool: {e}")))?;
-    let runs: Result<Vec<Vec<f64>>, RunError> = pool.install(|| {
-        variation
-            .values
+    Ok(pool.install(|| {
+        values
             .par_iter()
             .map(|value| {
                 let mut s = system.clone();
@@ -320,11 +355,58 @@ pub fn sweep(
                 Ok(observer.values())
             })
             .collect()
-    });
-    Ok(SweepResult {
-        metrics: metrics.to_vec(),
-        runs: runs?,
-    })
+    }))
+}
+
+/// The per-run table of a sweep cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    #[error("cannot write {}: {source}", path.display())]
+    Write { path: PathBuf, source: csv::Error },
+    #[error("{rows} rows of parameter values for {runs} runs")]
+    Rows { rows: usize, runs: usize },
+}
+
+/// Writes a sweep's table: the per-run rows as CSV at `out` (when given; the varied
+/// parameters then the metrics, names quoted, numbers bare in their shortest round-trip
+/// form, fmpy's layout) and gives the Markdown mean ± std table ([`SweepResult::table`]).
+/// The one writer of both the one-machine sweep and the merge of its shards, so that the
+/// two give the same bytes.
+pub fn write_table(
+    out: Option<&Path>,
+    parameters: &[String],
+    values: &[Vec<f64>],
+    result: &SweepResult,
+) -> Result<String, TableError> {
+    if values.len() != result.runs.len() {
+        return Err(TableError::Rows {
+            rows: values.len(),
+            runs: result.runs.len(),
+        });
+    }
+    if let Some(path) = out {
+        let error = |source| TableError::Write {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut csv = csv::WriterBuilder::new()
+            .quote_style(csv::QuoteStyle::NonNumeric)
+            .from_path(path)
+            .map_err(error)?;
+        csv.write_record(
+            parameters
+                .iter()
+                .cloned()
+                .chain(result.metrics.iter().map(Metric::label)),
+        )
+        .map_err(error)?;
+        for (row, metrics) in values.iter().zip(&result.runs) {
+            csv.write_record(row.iter().chain(metrics).map(|v| format!("{v:?}")))
+                .map_err(error)?;
+        }
+        csv.flush().map_err(|e| error(e.into()))?;
+    }
+    Ok(result.table())
 }
 
 #[cfg(test)]
@@ -361,6 +443,39 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("`a` is not a number"));
+    }
+
+    #[test]
+    fn the_table_writer_gives_rows_in_round_trip_form_and_checks_their_count() {
+        let result = SweepResult {
+            metrics: vec![
+                Metric::parse("rms(a.y[1])").unwrap(),
+                Metric::parse("e_res(a.y, b.x)").unwrap(),
+            ],
+            runs: vec![vec![0.1 + 0.2, f64::NAN], vec![-0.0, 1e-300]],
+        };
+        let dir = std::env::temp_dir().join(format!("spurio-table-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("runs.csv");
+        let parameters = vec!["a.seed".to_string()];
+        let table =
+            write_table(Some(&path), &parameters, &[vec![1.0], vec![2.5]], &result).unwrap();
+        assert_eq!(table, result.table());
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            "\"a.seed\",\"rms(a.y[1])\",\"e_res(a.y;b.x)\"\n\
+             1.0,0.30000000000000004,NaN\n\
+             2.5,-0.0,1e-300\n"
+        );
+        let e = write_table(None, &parameters, &[vec![1.0]], &result).unwrap_err();
+        assert_eq!(e.to_string(), "1 rows of parameter values for 2 runs");
+        let empty = SweepResult {
+            metrics: vec![],
+            runs: vec![],
+        };
+        let e = write_table(Some(&dir.join("no/such.csv")), &parameters, &[], &empty).unwrap_err();
+        assert!(e.to_string().contains("cannot write"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

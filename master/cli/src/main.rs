@@ -19,8 +19,9 @@ use spurio_master::system::System;
 
 mod library_query;
 mod package;
+mod sweep;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -136,23 +137,12 @@ enum Command {
         repo: PathBuf,
     },
     /// Run a system many times with one parameter varied (e.g. a seed), in parallel, and
-    /// print metrics as mean ± std.
-    Sweep {
-        /// The system file.
-        system: PathBuf,
-        /// `instance.variable=1..100` (integers) or `instance.variable=0.1,0.2`.
-        #[arg(long)]
-        vary: String,
-        /// Metrics: final(v), mean(v), rms(v), max_abs(v), e_res(a, b), settling(v, bound).
-        #[arg(long = "metric", required = true)]
-        metrics: Vec<String>,
-        /// Worker threads (0: one per core).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Also write every run's metrics as CSV here.
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
+    /// print metrics as mean ± std; or one shard of it (`--shard i/N`), or stage it as a
+    /// Slurm job array (`--slurm <dir>`).
+    Sweep(sweep::SweepArgs),
+    /// Merge the shard files of a sweep into the table the one-machine sweep prints (checking
+    /// they are of one sweep, none missing or duplicated), or show its progress.
+    SweepMerge(sweep::MergeArgs),
     /// Export a system (TOML) as an SSP archive with its FMUs, for OMSimulator or fmpy. The
     /// SSD carries OMSimulator's fixed-step master annotation, so
     /// `OMSimulator <out> --stopTime <stop_time>` runs it (OMSimulator does not take the
@@ -316,40 +306,8 @@ fn main() -> Result<()> {
                 println!("goals not met in: {}", failed.join(", "));
             }
         }
-        Command::Sweep {
-            system,
-            vary,
-            metrics,
-            threads,
-            out,
-        } => {
-            let resolved = System::from_file(&system)?;
-            let variation = spurio_master::sweep::Variation::parse(&vary)?;
-            let metrics = metrics
-                .iter()
-                .map(|m| spurio_master::sweep::Metric::parse(m))
-                .collect::<Result<Vec<_>, _>>()?;
-            let result = spurio_master::sweep::sweep(&resolved, &variation, &metrics, threads)?;
-            if let Some(out) = out {
-                // Names quoted, numbers bare (fmpy's layout).
-                let mut csv = csv::WriterBuilder::new()
-                    .quote_style(csv::QuoteStyle::NonNumeric)
-                    .from_path(&out)
-                    .with_context(|| format!("cannot write {}", out.display()))?;
-                csv.write_record(
-                    std::iter::once(variation.variable.clone())
-                        .chain(metrics.iter().map(|m| m.label())),
-                )?;
-                for (value, row) in variation.values.iter().zip(&result.runs) {
-                    csv.write_record(
-                        std::iter::once(format!("{value:?}"))
-                            .chain(row.iter().map(|v| format!("{v:?}"))),
-                    )?;
-                }
-                csv.flush()?;
-            }
-            print!("{}", result.table());
-        }
+        Command::Sweep(args) => sweep::run(args)?,
+        Command::SweepMerge(args) => sweep::merge(args)?,
         Command::SspExport {
             system,
             out,
