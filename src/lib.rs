@@ -3,7 +3,7 @@
 //! Nothing in this crate knows about FMI. Each FMU of the product (see `fmus/`) is a thin
 //! adapter around one of the types here: the plants of the papers, the signal chain, the
 //! estimators and the controllers. Every module cites the paper section it implements; the
-//! equations are in `../shared/SPEC.md` §2 and in the doc comments.
+//! equations are in `docs/README.md` §2 and in the doc comments.
 
 #![forbid(unsafe_code)]
 

@@ -1,4 +1,4 @@
-//! Linear-algebra helpers shared by the estimators and controllers (SPEC §2, items 7–14).
+//! Linear-algebra helpers shared by the estimators and controllers (docs/estimators.md §2.7–§2.12, docs/controllers.md §2.13–§2.14).
 //!
 //! Everything works on dynamic `DMatrix<f64>` because the FMUs choose their dimensions at
 //! packaging or instantiation time.
@@ -24,7 +24,7 @@
 //! * [`dlqr`]: discrete LQ regulator, `K = (R + BᵀPB)⁻¹ BᵀPA`, `u = −K x`.
 //! * [`kalman_gain_steady`]: steady-state Kalman filter by duality: the predicted covariance
 //!   `P⁻` solves DARE(Aᵀ, Cᵀ, Q, R), the filter gain is `K = P⁻Cᵀ (C P⁻ Cᵀ + R)⁻¹`
-//!   (SPEC §2.7; scalar A = C = 1, Q = R gives K = (√5 − 1)/2, SPEC §6).
+//!   (docs/estimators.md §2.7; scalar A = C = 1, Q = R gives K = (√5 − 1)/2, docs/reference-values.md §6).
 //! * [`cholesky_solve`], [`symmetrize`], [`is_positive_definite`]: the small tools that keep
 //!   covariances symmetric positive definite and avoid explicit inverses.
 //!
@@ -641,7 +641,7 @@ mod tests {
 
     #[test]
     fn scalar_kalman_gain_is_the_golden_ratio_conjugate() {
-        // SPEC §6: A = C = 1, Q = R → K = (√5 − 1)/2, P⁻ = (1 + √5)/2 · Q.
+        // docs/reference-values.md §6: A = C = 1, Q = R → K = (√5 − 1)/2, P⁻ = (1 + √5)/2 · Q.
         for q in [1e-4, 1.0, 30.0] {
             let one = dmatrix![1.0];
             let (k, p) = kalman_gain_steady(&one, &one, &dmatrix![q], &dmatrix![q]).unwrap();

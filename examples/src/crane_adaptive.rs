@@ -1,4 +1,4 @@
-//! Adaptive control of the gantry crane with outliers (paper 000 §VII-B, Figs. 6–8; SPEC §4).
+//! Adaptive control of the gantry crane with outliers (paper 000 §VII-B, Figs. 6–8; docs/experiments.md §4).
 //!
 //! Loop (`examples/crane_adaptive/`): GantryCrane → Sensor2 (20 dB SNR noise on x and θ, 5 %
 //! outliers of ±5·RMS) → estimator → AdaptiveStateFeedback → crane, Ts = 0.05 s,
@@ -652,7 +652,7 @@ fn rest_rows(f: &Findings) -> Vec<Row> {
         ),
         Row::info(
             "DKF alone, 5 % outliers: time to rest",
-            "never stays in a 2 % band (≈ 28 s) (SPEC §4 reference)",
+            "never stays in a 2 % band (≈ 28 s) (docs/experiments.md §4 reference)",
             dkf_sum.rest_text(stop),
         ),
         Row::goal(

@@ -1,6 +1,6 @@
 //! Free swing of the nonlinear GantryCrane (paper 000, Annex A): θ0 = 0.05 rad, U = 0. The
 //! measured period (mean spacing of upward zero crossings of θ) against the linearised
-//! model's (SPEC §6: ≈ 1.17 s).
+//! model's (docs/reference-values.md §6: ≈ 1.17 s).
 
 use super::{ExperimentContext, Report, Row};
 use crate::plot::axis_label;
@@ -53,7 +53,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         title: "Crane free swing (paper 000, Annex A parameters)".into(),
         setup: "GantryCrane FMU alone, θ0 = 0.05 rad, U = 0, 20 s at 10 ms communication steps (RK4 substeps of 1 ms inside the FMU).".into(),
         rows: vec![
-            Row::info("pendulum period (linearised model)", "≈ 1.17 s (SPEC §6)", format!("{linear:.5} s")),
+            Row::info("pendulum period (linearised model)", "≈ 1.17 s (docs/reference-values.md §6)", format!("{linear:.5} s")),
             Row::goal("pendulum period (nonlinear FMU)", "—", format!("{period:.5} s"), "within 0.5 % of the linear model", error < 5e-3),
         ],
         figures: vec![("crane_free_swing.png".into(), "Load angle and cart position during the free swing".into())],

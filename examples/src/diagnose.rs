@@ -1,4 +1,4 @@
-//! `spurio diagnose`: the outlier diagnostics of SPEC §3 on one column of a results CSV —
+//! `spurio diagnose`: the outlier diagnostics of docs/diagnostics.md §3 on one column of a results CSV —
 //! two-sided Grubbs test (one pass and iterated), sample moments (excess kurtosis, skewness,
 //! paper 001 eqs 18–19), E_res against a clean column, and a histogram with the ±2σ band.
 

@@ -1,4 +1,4 @@
-//! Outlier diagnostics on recorded results (SPEC §3; paper 000 §VII-A Table 2, paper 001 §5
+//! Outlier diagnostics on recorded results (docs/diagnostics.md §3; paper 000 §VII-A Table 2, paper 001 §5
 //! eqs 18–19).
 //!
 //! * **Grubbs test**, two-sided, for one outlier in a sample `y₁ … y_N` assumed normal:
@@ -435,7 +435,7 @@ mod tests {
 
     #[test]
     fn grubbs_critical_values_match_the_spec() {
-        // SPEC §6 / paper 000 Table 2: 4.0400 (N = 1000) and 2.2900 (N = 10), α = 0.05.
+        // docs/reference-values.md §6 / paper 000 Table 2: 4.0400 (N = 1000) and 2.2900 (N = 10), α = 0.05.
         let g1000 = grubbs_critical_value(1000, 0.05).unwrap();
         let g10 = grubbs_critical_value(10, 0.05).unwrap();
         eprintln!("Grubbs critical values: N=1000 {g1000:.6}, N=10 {g10:.6}");

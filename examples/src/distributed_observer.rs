@@ -175,7 +175,7 @@ impl Gains {
         vec![
             Row::goal(
                 "agent 1 L₁ (LQ)",
-                "0.73628 (SPEC §6)",
+                "0.73628 (docs/reference-values.md §6)",
                 format!("{:.5}", self.l1),
                 "paper's LQ design reproduced: every gain within 1e-4",
                 self.error < 1e-4,
@@ -419,7 +419,7 @@ fn report(n: usize, rows: Vec<Row>, gains: &Gains, c: &Comparison, spread: f64) 
             "Why only ρ/λ matters: U = ρQ, S = λC̃ᵀRC̃ and T = λ(…) scale both Riccati problems; multiplying every weight by c multiplies P by c and leaves K = (S + P)⁻¹PA unchanged, so the gains — and e_ac — depend on ρ/λ alone.".into(),
             "Agent 2 measures one output of its two-dimensional observable part, so S₂ is singular and L₂C̃₂ = K_L has no exact solution; the least-squares L₂ leaves a slow local error mode (0.9935) — hence the LQ design's large and very variable e_ac. The local-Kalman design keeps the paper's N (consensus) gains and takes L from the steady-state Kalman predictor of the observable part (a sound choice when S is singular).".into(),
             "Centralised lower bound: the KalmanFilter FMU (variant DistributedObserverCentralKalman, not the library filter) in the same co-simulation, fed the same y(k); its x̂(k|k) is propagated by A to x̂(k+1|k) in the scoring, and counted once per agent (2 Σ‖·‖²) so that it compares with e_ac, which sums two agents.".into(),
-            "References: SPEC §4's independent implementation (different random streams, so the means agree only within their spread); the estimation library's own Monte-Carlo test found LQ 1438 ± 1035, local 733 ± 242, central prediction 601 ± 216 with the same scoring.".into(),
+            "References: docs/experiments.md §4's independent implementation (different random streams, so the means agree only within their spread); the estimation library's own Monte-Carlo test found LQ 1438 ± 1035, local 733 ± 242, central prediction 601 ± 216 with the same scoring.".into(),
             "Results: distributed_observer_lq_seed1.csv, distributed_observer_local_kalman_seed1.csv (seed 1), rho_lambda_grid.md.".into(),
         ],
         figures_of_merit: vec![

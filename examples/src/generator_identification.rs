@@ -29,7 +29,7 @@ use spurio_master::system::System;
 use std::time::Instant;
 
 const EXPERIMENT: &str = "generator_identification";
-/// SPEC §4's independent reference: DKF-rsKF and DKF alone, E_res (speed, voltage).
+/// docs/experiments.md §4's independent reference: DKF-rsKF and DKF alone, E_res (speed, voltage).
 const REFERENCE_CHAIN: [f64; 2] = [0.024, 0.021];
 const REFERENCE_DKF: [f64; 2] = [0.10, 0.23];
 /// The channels, in order.
@@ -206,14 +206,17 @@ fn rows(sum: &Summary, dkf_cost: [f64; 2], chain_cost: [f64; 2]) -> Vec<Row> {
     for (ch, channel) in CHANNELS.iter().enumerate() {
         rows.push(Row::goal(
             &format!("E_res DKF-rsKF, {channel} [V²]"),
-            format!("≈ {} (SPEC §4 reference)", REFERENCE_CHAIN[ch]),
+            format!(
+                "≈ {} (docs/experiments.md §4 reference)",
+                REFERENCE_CHAIN[ch]
+            ),
             pm(sum.chain[ch], 4),
             "≤ 0.03",
             sum.chain[ch].0 <= 0.03,
         ));
         rows.push(Row::info(
             &format!("E_res DKF alone, {channel} [V²]"),
-            format!("≈ {} (SPEC §4 reference)", REFERENCE_DKF[ch]),
+            format!("≈ {} (docs/experiments.md §4 reference)", REFERENCE_DKF[ch]),
             pm(sum.dkf[ch], 4),
         ));
         rows.push(Row::goal(
@@ -280,7 +283,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
             "Settings (same for both DKFs): Θ₀ = [I 0; C 0] with C = [I₂ 0] fixed, Q = 0.01 I₈, R = diag(0.1, 0.01) (the card's noise), P₀ = I, q_θ = 1e-6, r_θ = 0.1 (the paper's 0.5 adapts too slowly), x̂₀ at the initial operating point's readings (7.2 V, 5.73 V) — started from x̂₀ = 0 the DKF learns the start-up jump as dynamics and needs most of the run to forget it. Cleaner: random walk per channel, Q = diag(0.1, 0.02), R = diag(0.1, 0.01), Huber c = 1.645 (5 % contamination).".into(),
             "The cleaner has no direct feedthrough, so its cleaned sample k reaches the second DKF at t_(k+1); a one-sample delay (LinearSystem2 with A = 0, B = C = I) on the references keeps that DKF's (u_k, y_k) pairs consistent. Feeding it u_(k+1) with y_k instead costs little once identified, but a wrong start-up pair is learnt as dynamics.".into(),
             "Cost: the library's DKF and rsKF steps timed on this run's 1500 samples (3 passes, mean ± std per iteration, one core), i.e. the algorithm as the paper timed its Matlab code. Through the FMU interface (`cargo bench -p spurio-fmu-common --bench estimators`: fmi2SetReal + fmi2DoStep + fmi2GetReal of all 92 outputs) one DKF-rsKF sample costs about 4 µs. Either way three to four orders of magnitude below the paper's 12 ms.".into(),
-            "SPEC §4's reference figures come from an independent implementation with its own plant, scaling and outlier model; they are beside ours for scale, not for exact agreement.".into(),
+            "docs/experiments.md §4's reference figures come from an independent implementation with its own plant, scaling and outlier model; they are beside ours for scale, not for exact agreement.".into(),
             "Representative run (seed of the TOML): generator_identification_seed.csv.".into(),
         ],
         figures_of_merit: vec![

@@ -61,7 +61,7 @@ impl ExperimentContext {
 pub struct Row {
     /// What is measured.
     pub quantity: String,
-    /// The paper's figure (or the independent reference of SPEC §4), as printed.
+    /// The paper's figure (or the independent reference of docs/experiments.md §4), as printed.
     pub paper: String,
     /// Ours.
     pub ours: String,
@@ -235,7 +235,7 @@ pub fn run_all(
             .context("thread pool")?,
     );
     let mut reports = Vec::new();
-    let mut text = String::from("# spurio: the papers' experiments\n\nEach section puts the paper's figure beside ours; `met` says whether our goal (SPEC §4, issue 7) holds.\n\n");
+    let mut text = String::from("# spurio: the papers' experiments\n\nEach section puts the paper's figure beside ours; `met` says whether our goal (docs/experiments.md §4) holds.\n\n");
     for e in experiments
         .iter()
         .filter(|e| only.is_empty() || only.iter().any(|n| n == e.name))

@@ -10,7 +10,7 @@ fn lq_gains_are_the_papers_and_the_local_gain_is_near_the_central_filter() {
     let report = &report;
     assert!(report.all_goals_met(), "{}", report.to_markdown(""));
     let v = |k: &str| report.value(k).unwrap();
-    // SPEC §6 gains.
+    // docs/reference-values.md §6 gains.
     for (key, reference) in [
         ("L1", 0.73628),
         ("N12_11", 0.35345),

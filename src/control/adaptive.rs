@@ -1,5 +1,5 @@
 //! Adaptive state feedback: pole placement redone on the identified model (paper 000 §VI,
-//! Fig. 6; SPEC §2 item 14).
+//! Fig. 6; docs/controllers.md §2.14).
 //!
 //! Every `N`-th step the dual Kalman filter delivers estimates `Â`, `B̂` and the controller
 //! recomputes `L = [0 … 0 1] 𝒞(Â, B̂)⁻¹ φ(Â)` (Ackermann, paper 000 eq. 15) for fixed desired

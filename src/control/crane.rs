@@ -1,4 +1,4 @@
-//! The documented pole-placement design for the gantry crane (paper 000 §VII-B; SPEC §6).
+//! The documented pole-placement design for the gantry crane (paper 000 §VII-B; docs/reference-values.md §6).
 //!
 //! Model: the continuous linearisation of [`GantryCraneParameters::default`] (paper 000
 //! eqs 4–5, Annex A), state `[x, θ, ẋ, θ̇]`, discretised with a zero-order hold at
@@ -9,7 +9,7 @@
 //! ```
 //!
 //! mapped by `z = e^{s Ts}`. Ackermann's formula then gives
-//! `L ≈ [0.982, 1.132, 1.027, 0.774]` (SPEC §6). On the *nonlinear* crane, with the true
+//! `L ≈ [0.982, 1.132, 1.027, 0.774]` (docs/reference-values.md §6). On the *nonlinear* crane, with the true
 //! state fed back every 0.05 s from `x₀ = [0.2, 0, 0, 0]`, the cart is within 5 mm and the
 //! angle within 0.01 rad for good after 4.15 s with `|U| ≤ 0.197 N` (test
 //! `reference_design_settles_the_nonlinear_crane`), well inside the paper's 15 s and ±17 N.

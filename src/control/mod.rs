@@ -1,4 +1,4 @@
-//! Controllers of the papers (SPEC §2, items 13–14): pole placement and adaptive state
+//! Controllers of the papers (docs/controllers.md §2.13–§2.14): pole placement and adaptive state
 //! feedback (paper 000 §IV–VI, eqs 8–15, Fig. 6).
 //!
 //! * [`pole_placement`]: reachability matrix `𝒞 = [B  A B  …  A^{n−1}B]` (eq. 14) and

@@ -1,4 +1,4 @@
-//! Pole placement by Ackermann's formula (paper 000 §IV, eqs 8–15; SPEC §2 item 13).
+//! Pole placement by Ackermann's formula (paper 000 §IV, eqs 8–15; docs/controllers.md §2.13).
 //!
 //! For the discrete single-input system `x_{k+1} = A x_k + B u_k` with reachability matrix
 //! (paper eq. 14)

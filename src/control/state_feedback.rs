@@ -1,4 +1,4 @@
-//! Saturated state feedback `u = sat(−L (x̂ − x_ref))` (paper 000 eq. 11; SPEC §2 item 13).
+//! Saturated state feedback `u = sat(−L (x̂ − x_ref))` (paper 000 eq. 11; docs/controllers.md §2.13).
 //!
 //! The gain comes from [`crate::control::ackermann`] (or from anywhere else: an LQ design, a
 //! user parameter). The actuator limits `[u_min, u_max]` are applied here, and the output is

@@ -1,6 +1,6 @@
 //! One agent of the two-agent distributed observer of paper 004 (del Nozal, Orihuela,
 //! Millán, Ierardi & Tapia, "Diseño LQ e implementación distribuida para la estimación de
-//! estado", Jornadas de Automática 2017), SPEC §2 item 12.
+//! estado", Jornadas de Automática 2017), docs/estimators.md §2.12.
 //!
 //! Plant x⁺ = A x + w, agent i measures y_i = C_i x + n_i (Cov w = Q, Cov n_i = R_i).
 //!
@@ -30,7 +30,7 @@
 //! and L_i solves L_i C̃_i = K_L — in the least-squares sense, L = K_L C̃ᵀ(C̃ C̃ᵀ)⁻¹, since
 //! K_L (n_o×n_o) need not factor through C̃ (p×n_o). When S is singular (agent 2 of the
 //! example: one output, two observable states) L C̃ cannot reproduce K_L and the local error
-//! dynamics A^o − L C̃ keep a slow mode (0.9935 in the example, SPEC §4). With S positive
+//! dynamics A^o − L C̃ keep a slow mode (0.9935 in the example, docs/experiments.md §4). With S positive
 //! definite the Riccati equations are solved by [`crate::linalg::dlqr`] (B = I); with S only
 //! semidefinite by the value iteration P ← A^oᵀ P (S + P)⁻¹ S A^o + VᵀUV from P = VᵀUV
 //! (P − P(S+P)⁻¹P = P(S+P)⁻¹S), which converges to the stabilising solution.
@@ -185,7 +185,7 @@ fn row_space_projector(m: &DMatrix<f64>, tolerance: f64) -> (DMatrix<f64>, usize
 /// canonical: the unit vectors e_j chosen by pivoting (largest projection first), then
 /// Gram–Schmidt on P e_j in *decreasing* j. A coordinate subspace gets its unit vectors,
 /// last coordinate first — the order of the staircase form of Matlab's `obsvf`, which the
-/// paper's numbers use (SPEC §6: N₁₂ with V̄₁ = [e₃ e₂]).
+/// paper's numbers use (docs/reference-values.md §6: N₁₂ with V̄₁ = [e₃ e₂]).
 fn canonical_basis(projector: &DMatrix<f64>, dim: usize) -> DMatrix<f64> {
     let n = projector.nrows();
     let mut residual = projector.clone();
@@ -595,7 +595,7 @@ mod tests {
             agent1.consensus_gain()
         );
         assert!((agent2.consensus_gain()[(0, 0)] - 0.36258).abs() < 5e-6);
-        // Agent 2: singular S, least-squares L leaves a slow mode at 0.9935 (SPEC §4).
+        // Agent 2: singular S, least-squares L leaves a slow mode at 0.9935 (docs/experiments.md §4).
         let slow = spectral_radius(&agent2.local_error_dynamics());
         println!("agent 2 LQ local error spectral radius = {slow:.5}");
         assert!((slow - 0.9935).abs() < 5e-4, "{slow}");
@@ -631,7 +631,7 @@ mod tests {
 
     /// e_ac = Σ_{k=1..100} Σ_i ‖x_k − x̂_{i,k}‖² for both agents, and the same score for
     /// the centralised one-step KF prediction x̂_{k|k−1} held by both agents (2 Σ_k ‖·‖²,
-    /// which is how the SPEC's reference 573 ± 238 compares).
+    /// which is how the reference 573 ± 238 of docs/experiments.md §4 compares).
     fn monte_carlo(design: ObserverDesign, seeds: u64) -> (Vec<f64>, Vec<f64>) {
         let a = paper_a();
         let mut distributed = Vec::new();
@@ -688,9 +688,9 @@ mod tests {
         let (lq_mean, lq_std) = mean_std(&lq);
         let (lk_mean, lk_std) = mean_std(&local_kalman);
         let (c_mean, c_std) = mean_std(&central);
-        println!("e_ac LQ design      = {lq_mean:.0} ± {lq_std:.0} (SPEC 1507 ± 1287)");
-        println!("e_ac local Kalman   = {lk_mean:.0} ± {lk_std:.0} (SPEC 695 ± 272)");
-        println!("central KF predict  = {c_mean:.0} ± {c_std:.0} (SPEC 573 ± 238)");
+        println!("e_ac LQ design      = {lq_mean:.0} ± {lq_std:.0} (reference 1507 ± 1287)");
+        println!("e_ac local Kalman   = {lk_mean:.0} ± {lk_std:.0} (reference 695 ± 272)");
+        println!("central KF predict  = {c_mean:.0} ± {c_std:.0} (reference 573 ± 238)");
         assert!(lk_mean <= 1.3 * c_mean, "{lk_mean} vs {c_mean}");
         assert!(lk_mean < lq_mean);
     }

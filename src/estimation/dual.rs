@@ -1,4 +1,4 @@
-//! Dual Kalman filter (DKF), SPEC §2 items 9–10; papers 000 §VI (eqs 25–28) and 001 §2,
+//! Dual Kalman filter (DKF), docs/estimators.md §2.9–§2.10; papers 000 §VI (eqs 25–28) and 001 §2,
 //! after Haykin, *Kalman Filtering and Neural Networks*, ch. 5.
 //!
 //! Two Kalman filters run in sequence each sample: a **state filter** that uses the current

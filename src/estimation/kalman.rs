@@ -1,4 +1,4 @@
-//! Standard Kalman filter (sKF), SPEC §2 item 7; papers 000 §IV (eqs 16–24) and 001 §2.
+//! Standard Kalman filter (sKF), docs/estimators.md §2.7; papers 000 §IV (eqs 16–24) and 001 §2.
 //!
 //! Model: x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k, w ~ N(0, Q), v ~ N(0, R).
 //! One call `step(u_k, y_k)`:

@@ -1,4 +1,4 @@
-//! State and parameter estimators of spurio (SPEC §2 items 7–12).
+//! State and parameter estimators of spurio (docs/estimators.md §2.7–§2.12).
 //!
 //! | type | what | paper |
 //! |---|---|---|

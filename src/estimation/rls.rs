@@ -1,4 +1,4 @@
-//! Recursive least squares for ARX models with forgetting, SPEC §2 item 11; paper 002 §3.
+//! Recursive least squares for ARX models with forgetting, docs/estimators.md §2.11; paper 002 §3.
 //!
 //! ARX(na, nb): y(t) = −a₁ y(t−1) − … − a_na y(t−na) + b₁ u(t−1) + … + b_nb u(t−nb) + e(t),
 //! i.e. y(t) = φ(t)ᵀθ + e(t) with φ(t) = [−y(t−1) … −y(t−na), u(t−1) … u(t−nb)]ᵀ and
@@ -23,7 +23,7 @@
 //! ±2 % band), not with the 4/(ζω_n) rule.
 //!
 //! **Bias.** Least squares on an ARX model whose output carries white measurement noise is
-//! biased (towards too much damping: paper 002's error, SPEC §4). [`RecursiveLeastSquares::
+//! biased (towards too much damping: paper 002's error, docs/experiments.md §4). [`RecursiveLeastSquares::
 //! with_prefilter`] runs the Steiglitz–McBride variant: u and y are filtered through 1/Â(q)
 //! with the current estimate Â (refreshed every `refresh` samples) before entering φ, which
 //! makes the equation error white when Â is right and removes most of the bias.
@@ -611,7 +611,7 @@ mod tests {
         assert!((readout.overshoot_percent - 16.35).abs() < 0.005);
         assert!((readout.peak_time - 0.698).abs() < 5e-4);
         assert!((readout.settling_time - 1.555).abs() < 5e-4);
-        // The SPEC's 6–7 digit coefficients: ω_n is sensitive to a₁ (∂ω_n/∂a₁ ≈ 1e3).
+        // The 6–7 digit coefficients of docs/reference-values.md §6: ω_n is sensitive to a₁ (∂ω_n/∂a₁ ≈ 1e3).
         let rounded = ContinuousSecondOrder::from_arx(A1, A2, &[B1, B2], 0.01).unwrap();
         assert!((rounded.natural_frequency - 5.19615).abs() < 1e-3);
         assert!((rounded.damping - 0.49941).abs() < 1e-4);

@@ -1,4 +1,4 @@
-//! Robust-statistics Kalman filter (rsKF), SPEC §2 item 8; Cipra & Romera (1997), papers
+//! Robust-statistics Kalman filter (rsKF), docs/estimators.md §2.8; Cipra & Romera (1997), papers
 //! 000 §V and 001 §2 ("Filtro de Kalman de estadística robusta").
 //!
 //! Same model, prediction and state update as the [`KalmanFilter`](super::KalmanFilter);
@@ -13,7 +13,7 @@
 //! ```
 //!
 //! The papers print W instead of W⁻¹: that trusts outliers more, not less; W⁻¹ is the
-//! M-estimator (SPEC §2 item 8). The robust K also enters the covariance update.
+//! M-estimator (docs/estimators.md §2.8). The robust K also enters the covariance update.
 //!
 //! ψ functions ([`InfluenceFunction`]): Huber ψ(z) = z for |z| ≤ c, c·sgn z otherwise
 //! (c = 1.645, 5 % contamination), so w = min(1, c/|z|); Tukey bisquare
@@ -448,7 +448,7 @@ mod tests {
         measured: Vec<f64>,
     }
 
-    /// SPEC §4: y_k = cos(2π·4k/1000) + N(0, 0.01), 50 outliers at distinct random indices
+    /// docs/experiments.md §4: y_k = cos(2π·4k/1000) + N(0, 0.01), 50 outliers at distinct random indices
     /// adding U(−4.8, 4.8).
     fn cosine_with_outliers(seed: u64) -> CosineRun {
         let samples = 1000;
@@ -514,8 +514,8 @@ mod tests {
         let (standard, robust) = cosine_scores(InfluenceFunction::huber());
         let (s_mean, s_std) = mean_std(&standard);
         let (r_mean, r_std) = mean_std(&robust);
-        println!("E_res sKF  = {s_mean:.4} ± {s_std:.4} (SPEC 0.179 ± 0.023)");
-        println!("E_res rsKF = {r_mean:.5} ± {r_std:.5} (SPEC 0.0121 ± 0.0006)");
+        println!("E_res sKF  = {s_mean:.4} ± {s_std:.4} (reference 0.179 ± 0.023)");
+        println!("E_res rsKF = {r_mean:.5} ± {r_std:.5} (reference 0.0121 ± 0.0006)");
         assert!((0.15..=0.21).contains(&s_mean), "sKF mean {s_mean}");
         assert!(r_mean <= 0.0124, "rsKF mean {r_mean}");
     }

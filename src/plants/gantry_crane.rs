@@ -1,4 +1,4 @@
-//! The nonlinear gantry crane of paper 000 (SPEC §2.1, paper 000 §III and Annex A).
+//! The nonlinear gantry crane of paper 000 (docs/models.md §2.1, paper 000 §III and Annex A).
 //!
 //! A cart of mass `M` runs on a rail; a load of mass `m` hangs from it on a rod whose centre
 //! of mass is at distance `l` from the pivot, with moment of inertia `J` about the pivot. The
@@ -246,7 +246,7 @@ mod tests {
 
     #[test]
     fn linearisation_matches_the_reference_coefficients() {
-        // SPEC §6: k1..k8 computed independently.
+        // docs/reference-values.md §6: k1..k8 computed independently.
         let (a, b) = GantryCraneParameters::default().linearised();
         let expect = [
             // (ours, reference, half a unit in the reference's last printed digit)

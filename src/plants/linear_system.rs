@@ -1,5 +1,5 @@
-//! A generic linear state-space plant (SPEC §2 item 4), used for paper 004's three-state
-//! system (§5 of that paper, SPEC §2 item 12) and by users.
+//! A generic linear state-space plant (docs/models.md §2.4), used for paper 004's three-state
+//! system (§5 of that paper, docs/estimators.md §2.12) and by users.
 //!
 //! ```text
 //! discrete:    x_{k+1} = A x_k + B u_k + w_k,          w_k ~ N(0, Q)
@@ -96,9 +96,9 @@ impl LinearSystemParameters {
         }
     }
 
-    /// Paper 004 §5 (SPEC §2 item 12): `A = [[1.005, 0, 0], [0, 0.9954, −0.08757],
+    /// Paper 004 §5 (docs/estimators.md §2.12): `A = [[1.005, 0, 0], [0, 0.9954, −0.08757],
     /// [0, 0.1248, 0.9945]]`, no input, both agents' outputs `C = [[1, 0, 0], [0, 1, 0]]`,
-    /// `Q = 0.2 I₃`, `R = 0.1 I₂` (covariances), discrete, `x0 = [1, 1, 1]` (SPEC §4).
+    /// `Q = 0.2 I₃`, `R = 0.1 I₂` (covariances), discrete, `x0 = [1, 1, 1]` (docs/experiments.md §4).
     pub fn distributed_observer_example(seed: u64) -> Self {
         let a = DMatrix::from_row_slice(
             3,

@@ -1,4 +1,4 @@
-//! Physical plants of the papers (SPEC §2, items 1–4).
+//! Physical plants of the papers (docs/models.md §2.1–§2.4).
 
 pub mod gantry_crane;
 pub mod linear_system;

@@ -1,5 +1,5 @@
-//! The op-amp second-order low-pass filter of paper 002 (§III, eq. 9 and Fig. 6; SPEC §2
-//! item 3), modelled as a unity-gain Sallen–Key circuit.
+//! The op-amp second-order low-pass filter of paper 002 (§III, eq. 9 and Fig. 6; docs/models.md
+//! §2.3), modelled as a unity-gain Sallen–Key circuit.
 //!
 //! ```text
 //!  u ──R1──●──R2──●──(+)▷──●── y
@@ -34,7 +34,7 @@
 //! trimmers); ω_n = 5.1962 rad/s, ζ = 0.4994. Rails ±12 V (a ±15 V supply less the output
 //! stage's headroom). Measured from the simulated unit step (test
 //! `unit_step_matches_the_reference_figures`): peak at 0.6979 s, overshoot 16.350 %, 2 %
-//! settling time 1.5554 s, hence ω_n = 5.1962 rad/s and ζ = 0.49941 (SPEC §6: 16.35 %,
+//! settling time 1.5554 s, hence ω_n = 5.1962 rad/s and ζ = 0.49941 (docs/reference-values.md §6: 16.35 %,
 //! 1.555 s, 0.698 s).
 
 use crate::ode;

@@ -1,5 +1,5 @@
 //! The wind-generator laboratory set of paper 001 (§4 "Base de datos de un generador
-//! eólico", Fig. 1, appendices A–D; SPEC §2 item 2): an induction motor fed by a variable
+//! eólico", Fig. 1, appendices A–D; docs/models.md §2.2): an induction motor fed by a variable
 //! frequency drive (the "wind"), coupled to a wound-field synchronous generator feeding a
 //! resistive load, its field fed by an SCR module, its speed read by a tachogenerator.
 //!

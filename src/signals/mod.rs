@@ -1,4 +1,4 @@
-//! The signal chain of the FMUs (SPEC §2, items 5–6): a portable seeded random generator,
+//! The signal chain of the FMUs (docs/models.md §2.5–§2.6): a portable seeded random generator,
 //! the signal sources (step, random steps, PRBS, sine/cosine) and the sensor model (Gaussian
 //! noise, ε-contaminated outliers, ADC quantisation).
 

@@ -1,4 +1,4 @@
-//! A deterministic, portable pseudo-random number generator for the seeded FMUs (SPEC §2,
+//! A deterministic, portable pseudo-random number generator for the seeded FMUs (docs/README.md §2,
 //! "seeded randomness (parameter `seed`) so runs are reproducible").
 //!
 //! # Algorithm

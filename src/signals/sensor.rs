@@ -1,4 +1,4 @@
-//! One measurement channel with noise, outliers and an ADC (SPEC §2 item 6; the outlier model
+//! One measurement channel with noise, outliers and an ADC (docs/models.md §2.6; the outlier model
 //! of papers 000 §VII-A and 001 §5, the 12-bit acquisition of paper 002 §III).
 //!
 //! For a clean value `y(t)` sampled at a communication point `t`, the channel returns
@@ -16,7 +16,7 @@
 //! * **Outliers** (ε-contamination, Huber's model): a fraction `epsilon` ∈ [0, 1] of the
 //!   samples inside the window get an additive spike of uniform magnitude in
 //!   `[outlier_min, outlier_max]` and random sign. With `outlier_min = 0`,
-//!   `outlier_max = 4.8` this is exactly the `U(−4.8, 4.8)` spikes of SPEC §4; with
+//!   `outlier_max = 4.8` this is exactly the `U(−4.8, 4.8)` spikes of docs/experiments.md §4; with
 //!   `outlier_min = outlier_max = 5 · RMS` the ±5·RMS spikes of the crane experiment. The
 //!   window defaults to all time (`[0, ∞)`); paper 001 uses only the first half.
 //! * **Quantisation** (optional): an ideal `bits`-bit ADC on `[adc_min, adc_max]` with step
@@ -70,7 +70,7 @@ pub struct OutlierParameters {
 }
 
 impl Default for OutlierParameters {
-    /// ε = 0.05 (SPEC §2 item 6) with the `U(−4.8, 4.8)` spikes of SPEC §4, at all times.
+    /// ε = 0.05 (docs/models.md §2.6) with the `U(−4.8, 4.8)` spikes of docs/experiments.md §4, at all times.
     fn default() -> Self {
         Self {
             epsilon: 0.05,
@@ -141,7 +141,7 @@ pub struct SensorParameters {
 }
 
 impl Default for SensorParameters {
-    /// Noise variance 0.01 (SPEC §4), default outliers, no ADC, seed 1.
+    /// Noise variance 0.01 (docs/experiments.md §4), default outliers, no ADC, seed 1.
     fn default() -> Self {
         Self {
             noise: NoiseLevel::Variance(0.01),

@@ -1,4 +1,4 @@
-//! Excitation signals for the experiments (SPEC §2 item 5; paper 001 §5 uses random steps of
+//! Excitation signals for the experiments (docs/models.md §2.5; paper 001 §5 uses random steps of
 //! both generator references, paper 002 §III a unit step, papers 000/001 a cosine).
 //!
 //! Every waveform is a deterministic function of its parameters, its `seed` and the time

@@ -16,10 +16,10 @@ from conftest import REPO, expm, fmu_path, open_slave
 
 TS = 0.05
 N = 4
-# The crane design (paper 000 §VII-B, SPEC §6): continuous poles mapped by z = e^{s Ts}.
+# The crane design (paper 000 §VII-B, docs/reference-values.md §6): continuous poles mapped by z = e^{s Ts}.
 S_POLES = np.array([-1 + 0.5j, -1 - 0.5j, -1.5 + 5.2j, -1.5 - 5.2j])
 Z_POLES = np.exp(S_POLES * TS)
-SPEC_GAIN = np.array([0.982, 1.132, 1.027, 0.774])
+REFERENCE_GAIN = np.array([0.982, 1.132, 1.027, 0.774])
 
 # Annex A of paper 000, written out again independently of the Rust code.
 M, m, l, J, f_c, f_p, g = 0.84385, 0.013, 0.3434, 1e-5, 0.67, 9.3e-6, 9.8
@@ -95,7 +95,7 @@ def test_simulates_in_fmpy(name):
     )
     assert len(r) == 21
     assert np.all(r["u[1]"] == -0.2 * r["L[1,1]"])
-    assert r["L[1,1]"][0] == pytest.approx(SPEC_GAIN[0], abs=5e-4)
+    assert r["L[1,1]"][0] == pytest.approx(REFERENCE_GAIN[0], abs=5e-4)
 
 
 # --- StateFeedback -----------------------------------------------------------------------
@@ -115,11 +115,11 @@ def test_gain_places_the_requested_poles():
     error = max_pole_mismatch(np.linalg.eigvals(A - B @ L), requested)
     print(f"max |eig(A − B L) − requested pole| = {error:.2e}")
     assert error < 1e-9
-    # the defaults are the crane design of the SPEC, the model is the crane's ZOH
+    # the defaults are the crane design of docs/reference-values.md §6, the model is the crane's ZOH
     assert max_pole_mismatch(requested, Z_POLES) < 1e-15
     A_ref, B_ref = crane_zoh()
     assert np.max(np.abs(A - A_ref)) < 1e-9 and np.max(np.abs(B - B_ref)) < 1e-9
-    assert np.max(np.abs(L[0] - SPEC_GAIN)) < 5e-4
+    assert np.max(np.abs(L[0] - REFERENCE_GAIN)) < 5e-4
     assert np.max(np.abs(L[0] - ackermann(A, B, requested))) < 1e-9
 
 
@@ -153,7 +153,7 @@ def test_closed_loop_with_the_nonlinear_crane_settles():
     final = crane.getReal(state_vrs)
     assert abs(final[0]) < 1e-3 and abs(final[1]) < 1e-3
     # the first input is −L x₀ exactly: the controller saw x_hat before the step
-    assert trajectory[0][-1] == pytest.approx(-0.2 * SPEC_GAIN[0], abs=5e-4)
+    assert trajectory[0][-1] == pytest.approx(-0.2 * REFERENCE_GAIN[0], abs=5e-4)
     crane.freeInstance()
     ctrl.freeInstance()
 

@@ -1,5 +1,5 @@
 """The estimator FMUs through fmpy: validation and simulation of every bundled variant, the
-cosine experiment of SPEC §4 (sKF vs rsKF, 100 seeds), agreement with an independent numpy
+cosine experiment of docs/experiments.md §4 (sKF vs rsKF, 100 seeds), agreement with an independent numpy
 filter, bad parameters, DKF and rsKF as two connected FMUs, instances and FMU states."""
 
 import ctypes
@@ -80,7 +80,7 @@ def test_structured_names_and_dimensions():
     assert "A[9,1]" not in names
 
 
-# --- the cosine experiment (SPEC §4) --------------------------------------------------------
+# --- the cosine experiment (docs/experiments.md §4) --------------------------------------------------------
 
 N, OUTLIERS, Q, R = 1000, 50, 1e-4, 1e-4
 

@@ -1,5 +1,5 @@
 //! `AdaptiveStateFeedback.fmu`: pole placement redone on the identified model (paper 000
-//! §VI, Fig. 6; SPEC §2 item 14) as an FMI 2.0 CS FMU.
+//! §VI, Fig. 6; docs/controllers.md §2.14) as an FMI 2.0 CS FMU.
 //!
 //! Every communication point the FMU receives the estimated model `Â`, `B̂` (inputs `A_hat`,
 //! `B_hat`, e.g. from a dual Kalman filter) and the estimated state `x̂`; every

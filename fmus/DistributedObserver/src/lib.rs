@@ -1,5 +1,5 @@
 //! `DistributedObserver.fmu`: one agent of the two-agent distributed observer of paper 004
-//! (del Nozal et al., Jornadas de Automática 2017), SPEC §2 item 12.
+//! (del Nozal et al., Jornadas de Automática 2017), docs/estimators.md §2.12.
 //!
 //! Plant x⁺ = A x + w, agent i measures y_i = C_i x + n_i. Each `fmi2DoStep` with inputs
 //! y_own = y_i(k) and x_neighbour = x̂_j(k) (the other agent's output, connected by the
@@ -14,7 +14,7 @@
 //! Riccati (LQ) problems with U = ρ Q, S = λ V_iᵀC_iᵀR_iC_iV_i, T = λ(V̄_iᵀC_iᵀR_iC_iV̄_i + D_i)
 //! solved once in initialization ([`spurio::estimation::DistributedObserver`]). `design` = 2
 //! replaces L_i by the local steady-state Kalman predictor gain (far better when S is
-//! singular, SPEC §4).
+//! singular, docs/experiments.md §4).
 //!
 //! Configuration: `n` (states, default 3), `p_own` and `p_neighbour` (outputs of this agent
 //! and of the other, default 1), `agent` (1 or 2; only the defaults depend on it: agent 1
@@ -340,7 +340,7 @@ mod tests {
 
     #[test]
     fn paper_gains_and_unobservable_design_error() {
-        // SPEC §6: agent 1 L₁ = 0.73628, N₁₂ = [[0.35345, 0.05317], [−0.02291, 0.36055]].
+        // docs/reference-values.md §6: agent 1 L₁ = 0.73628, N₁₂ = [[0.35345, 0.05317], [−0.02291, 0.36055]].
         let config = agent_config(1);
         let info = DistributedObserverFmu::describe(&config).unwrap();
         let vr = |n: &str| info.index_of(n).unwrap() as u32;

@@ -1,4 +1,4 @@
-//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (SPEC §2.1) as an FMI 2.0 CS FMU.
+//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (docs/models.md §2.1) as an FMI 2.0 CS FMU.
 //!
 //! Input `U` [N] (saturated at ±`U_max`), outputs `x`, `theta`, `v`, `omega` and the applied
 //! force `U_applied`; the physical parameters of Annex A, the initial state and the RK4

@@ -1,6 +1,6 @@
 //! `LinearSystem.fmu`: a discrete or continuous linear state-space plant with seeded process
-//! and measurement noise (SPEC §2 item 4), dimensions chosen when the FMU is packaged;
-//! paper 004's three-state system (§5, SPEC §2 item 12) is the bundled variant
+//! and measurement noise (docs/models.md §2.4), dimensions chosen when the FMU is packaged;
+//! paper 004's three-state system (§5, docs/estimators.md §2.12) is the bundled variant
 //! `DistributedObserverPlant`.
 //!
 //! ```text

@@ -1,5 +1,5 @@
-//! `OpAmpFilter.fmu`: the unity-gain Sallen–Key low-pass of paper 002 (§III, eq. 9; SPEC §2
-//! item 3) as an FMI 2.0 CS FMU.
+//! `OpAmpFilter.fmu`: the unity-gain Sallen–Key low-pass of paper 002 (§III, eq. 9; docs/models.md
+//! §2.3) as an FMI 2.0 CS FMU.
 //!
 //! Input `u` [V], output `y` [V] (the op-amp output, clipped to `[V_sat_low, V_sat_high]`),
 //! plus the capacitor voltages. Component values are parameters; the defaults give

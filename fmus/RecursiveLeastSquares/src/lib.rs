@@ -1,5 +1,5 @@
-//! `RecursiveLeastSquares.fmu`: ARX(na, nb) recursive least squares with forgetting, SPEC §2
-//! item 11; paper 002 §3.
+//! `RecursiveLeastSquares.fmu`: ARX(na, nb) recursive least squares with forgetting, docs/estimators.md
+//! §2.11; paper 002 §3.
 //!
 //! ```text
 //! y(t) = −a₁ y(t−1) − … − a_na y(t−na) + b₁ u(t−1) + … + b_nb u(t−nb) + e(t) = φᵀθ + e
@@ -16,7 +16,7 @@
 //!
 //! With `prefilter` = true, u and y pass through 1/Â(q) (Steiglitz–McBride) refreshed every
 //! `refresh` samples, which removes the bias of least squares under white output noise
-//! (SPEC §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
+//! (docs/experiments.md §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
 //! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
 
@@ -338,7 +338,7 @@ mod tests {
 
     #[test]
     fn identifies_the_op_amp_filter_and_rejects_lambda_above_one() {
-        // SPEC §6: H(s) = 27/(s² + 5.19 s + 27) with ZOH at Ts = 0.01 s; these rounded
+        // docs/reference-values.md §6: H(s) = 27/(s² + 5.19 s + 27) with ZOH at Ts = 0.01 s; these rounded
         // coefficients have ω_n = 5.196607, ζ = 0.499362 (computed independently).
         let (a1, a2, b1, b2) = (-1.946793, 0.949424, 1.32665e-3, 1.30389e-3);
         let config = arx_config(2, 2);

@@ -1,5 +1,5 @@
 //! `Sensor.fmu`: measurement channels with Gaussian noise, ε-contaminated outliers and an
-//! optional ADC (SPEC §2 item 6; the outlier model of papers 000 §VII-A and 001 §5, the
+//! optional ADC (docs/models.md §2.6; the outlier model of papers 000 §VII-A and 001 §5, the
 //! 12-bit acquisition of paper 002 §III) as an FMI 2.0 CS FMU.
 //!
 //! Configuration key `channels` (default 1) sets the number of channels `N`. Channel `i`
@@ -98,7 +98,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
     });
     let variance = add_vector(&mut t, "variance", n, |name, _| {
         Variable::parameter(name, 0.01).min(0.0).describe(
-            "Noise variance σ² (signal unit squared), used when use_snr is false; SPEC §4: 0.01",
+            "Noise variance σ² (signal unit squared), used when use_snr is false; 0.01 in the experiments of the papers",
         )
     });
     let use_snr = add_vector(&mut t, "use_snr", n, |name, _| {
@@ -116,7 +116,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
     });
     let epsilon = add_vector(&mut t, "epsilon", n, |name, _| {
         Variable::parameter(name, o.epsilon)
-            .describe("Outlier fraction ε in [0, 1] (SPEC §2.6 default 0.05)")
+            .describe("Outlier fraction ε in [0, 1] (default 0.05: 5 % contamination)")
     });
     let outlier_min = add_vector(&mut t, "outlier_min", n, |name, _| {
         Variable::parameter(name, o.min_magnitude)
@@ -124,7 +124,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
     });
     let outlier_max = add_vector(&mut t, "outlier_max", n, |name, _| {
         Variable::parameter(name, o.max_magnitude).describe(
-            "Largest outlier magnitude; 0 to 4.8 gives the U(-4.8, 4.8) spikes of SPEC §4",
+            "Largest outlier magnitude; 0 to 4.8 gives the U(-4.8, 4.8) spikes of the cosine experiment of papers 000 and 001",
         )
     });
     let outlier_window = add_vector(&mut t, "outlier_window", n, |name, _| {
@@ -296,7 +296,7 @@ impl FmuModel for SensorFmu {
         let (variables, _) = table(n);
         Ok(ModelInfo::new(
             "Sensor",
-            "Measurement channels with Gaussian noise, epsilon-contaminated outliers and an optional ADC (SPEC 2.6)",
+            "Measurement channels with Gaussian noise, epsilon-contaminated outliers and an optional ADC",
             variables,
             Some(DefaultExperiment {
                 start_time: 0.0,

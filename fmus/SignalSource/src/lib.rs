@@ -1,4 +1,4 @@
-//! `SignalSource.fmu`: the excitation signals of the experiments (SPEC §2 item 5; paper 001 §5
+//! `SignalSource.fmu`: the excitation signals of the experiments (docs/models.md §2.5; paper 001 §5
 //! random steps, paper 002 §III the unit step, papers 000/001 the cosine) as an FMI 2.0 CS FMU.
 //!
 //! Integer parameter `waveform` (an enumeration, Integer because fmpy's SSP runner has no

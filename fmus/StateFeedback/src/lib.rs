@@ -1,5 +1,5 @@
 //! `StateFeedback.fmu`: discrete pole-placement state feedback (paper 000 §IV, eqs 8–15;
-//! SPEC §2 item 13) as an FMI 2.0 CS FMU.
+//! docs/controllers.md §2.13) as an FMI 2.0 CS FMU.
 //!
 //! The law is
 //!

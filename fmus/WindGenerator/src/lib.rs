@@ -1,5 +1,5 @@
 //! `WindGenerator.fmu`: the wind-generator laboratory set of paper 001 (§4, Fig. 1,
-//! appendices A–D; SPEC §2 item 2) as an FMI 2.0 CS FMU: a drive-fed induction motor turning a
+//! appendices A–D; docs/models.md §2.2) as an FMI 2.0 CS FMU: a drive-fed induction motor turning a
 //! wound-field synchronous generator on a resistive load, field fed by an SCR module, speed
 //! read by a tachogenerator.
 //!

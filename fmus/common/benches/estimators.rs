@@ -1,5 +1,5 @@
 //! Cost of one estimator sample through the FMUs' C entry points, in-process: `fmi2SetReal`
-//! of the inputs, `fmi2DoStep`, `fmi2GetReal` of the outputs (SPEC §4: the papers' Matlab
+//! of the inputs, `fmi2DoStep`, `fmi2GetReal` of the outputs (docs/experiments.md §4: the papers' Matlab
 //! DKF-rsKF took 12 ms per iteration; a numpy one of order 8 ≈ 0.17 ms; goal here ≤ 5 µs for
 //! n = 8, p = q = 2).
 //!

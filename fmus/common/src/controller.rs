@@ -61,7 +61,7 @@ impl VariantDefaults {
 ///
 /// * `preset = crane` (requires n = 4 or no n): `A`, `B` = ZOH at Ts = 0.05 s of the crane
 ///   linearisation (paper 000 eqs 4–5, Annex A), poles `z = e^{s Ts}` for
-///   `s = −1 ± 0.5j, −1.5 ± 5.2j`, gain ≈ [0.982, 1.132, 1.027, 0.774] (SPEC §6).
+///   `s = −1 ± 0.5j, −1.5 ± 5.2j`, gain ≈ [0.982, 1.132, 1.027, 0.774] (docs/reference-values.md §6).
 /// * otherwise (n default 4): the chain of n integrators discretised with Euler at
 ///   Ts = 0.05 s, `A = I + Ts·N` (N the ones on the superdiagonal), `B = e_n`, all poles at
 ///   0.5 (a repeated real pole is fine for a single input). Its reachability matrix has a

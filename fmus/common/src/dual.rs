@@ -1,5 +1,5 @@
-//! `DualKalmanFilter.fmu` (DKF, SPEC §2 item 9; papers 000 §VI, 001 §2, after Haykin,
-//! *Kalman Filtering and Neural Networks*, ch. 5) and `DkfRsKf.fmu` (SPEC §2 item 10;
+//! `DualKalmanFilter.fmu` (DKF, docs/estimators.md §2.9; papers 000 §VI, 001 §2, after Haykin,
+//! *Kalman Filtering and Neural Networks*, ch. 5) and `DkfRsKf.fmu` (docs/estimators.md §2.10;
 //! paper 001 Fig. 2: an rsKF cleans the measured outputs, the DKF identifies from them).
 //!
 //! Each `fmi2DoStep` with inputs u_k, y_k runs, in sequence,

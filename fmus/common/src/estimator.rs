@@ -1,4 +1,4 @@
-//! The one generic adapter of the estimator FMUs (SPEC §2 items 7–12): dimension-generic
+//! The one generic adapter of the estimator FMUs (docs/estimators.md §2.7–§2.12): dimension-generic
 //! FMI 2.0 CS wrappers of [`spurio::estimation`].
 //!
 //! One compiled binary per algorithm; the dimensions come from the packaging configuration

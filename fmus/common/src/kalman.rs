@@ -1,5 +1,5 @@
-//! `KalmanFilter.fmu` (sKF, SPEC §2 item 7; paper 000 §IV, 001 §2) and
-//! `RobustKalmanFilter.fmu` (rsKF, SPEC §2 item 8; Cipra & Romera 1997, papers 000 §V, 001 §2).
+//! `KalmanFilter.fmu` (sKF, docs/estimators.md §2.7; paper 000 §IV, 001 §2) and
+//! `RobustKalmanFilter.fmu` (rsKF, docs/estimators.md §2.8; Cipra & Romera 1997, papers 000 §V, 001 §2).
 //!
 //! Model x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k, Cov w = Q, Cov v = R. One
 //! `fmi2DoStep` with inputs u_k, y_k:
@@ -15,7 +15,7 @@
 //!
 //! Configuration: `n` (states, ≥ 1, default 1), `m` (inputs, may be 0, default 0), `p`
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
-//! x̂₀ = 0, P₀ = 0) are the cosine experiment of SPEC §4 for n = p = 1.
+//! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
 use crate::estimator::{count, error, leading_identity, read_inputs, DynamicState, Estimator};
 use crate::structured::{add_matrix, add_vector, Block};

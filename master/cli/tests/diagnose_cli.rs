@@ -1,4 +1,4 @@
-//! `spurio diagnose` on a results CSV: the Grubbs figures of SPEC §3 and the histogram PNG.
+//! `spurio diagnose` on a results CSV: the Grubbs figures of docs/diagnostics.md §3 and the histogram PNG.
 
 use std::process::Command;
 
@@ -50,7 +50,7 @@ fn diagnose_reports_grubbs_moments_e_res_and_writes_the_histogram() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(report.contains("| samples N | 1000 |"), "{report}");
-    // SPEC §3: exact two-sided critical value for N = 1000, α = 0.05.
+    // docs/diagnostics.md §3: exact two-sided critical value for N = 1000, α = 0.05.
     assert!(report.contains("| 4.0400 |"), "{report}");
     assert!(
         report.contains("| outliers rejected by iterated Grubbs | 3 |"),
