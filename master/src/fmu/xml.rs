@@ -1,0 +1,233 @@
+//! What the model description says that rust-fmi's schema does not keep: the entries of
+//! `ModelStructure` as written (so indices can be checked and an absent `dependencies` told
+//! from an empty one), each variable's unit and whether it declares a start value.
+
+use std::collections::HashMap;
+
+/// One `<Unknown>` of `ModelStructure`, as written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct Unknown {
+    /// `Outputs`, `Derivatives` or `InitialUnknowns`.
+    pub list: &'static str,
+    /// The `index` attribute, unparsed (`None` when absent).
+    pub index: Option<String>,
+    /// The `dependencies` attribute split at whitespace, unparsed (`None` when absent).
+    pub dependencies: Option<Vec<String>>,
+}
+
+/// Every `<Unknown>` of `ModelStructure`, in file order.
+pub(super) fn model_structure(xml: &str) -> Result<Vec<Unknown>, String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let mut list: Option<&'static str> = None;
+    let mut out = Vec::new();
+    loop {
+        match reader.read_event().map_err(|e| e.to_string())? {
+            Event::Start(e) => match e.name().as_ref() {
+                "Outputs" => list = Some("Outputs"),
+                "Derivatives" => list = Some("Derivatives"),
+                "InitialUnknowns" => list = Some("InitialUnknowns"),
+                "Unknown" => out.extend(unknown(list, &e)),
+                _ => {}
+            },
+            Event::Empty(e) if e.name().as_ref() == "Unknown" => out.extend(unknown(list, &e)),
+            Event::End(e)
+                if matches!(
+                    e.name().as_ref(),
+                    "Outputs" | "Derivatives" | "InitialUnknowns"
+                ) =>
+            {
+                list = None
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    Ok(out)
+}
+
+fn unknown(list: Option<&'static str>, e: &quick_xml::events::BytesStart) -> Option<Unknown> {
+    let list = list?;
+    let mut index = None;
+    let mut dependencies = None;
+    for a in e.attributes().flatten() {
+        let value = a.value.to_string();
+        match a.key.as_ref() {
+            "index" => index = Some(value.trim().to_string()),
+            "dependencies" => {
+                dependencies = Some(value.split_whitespace().map(str::to_string).collect())
+            }
+            _ => {}
+        }
+    }
+    Some(Unknown {
+        list,
+        index,
+        dependencies,
+    })
+}
+
+/// For every `ScalarVariable`, in file order: whether its type element has a `start`.
+pub(super) fn variable_has_start(xml: &str) -> Result<Vec<bool>, String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let mut in_variable = false;
+    let mut out = Vec::new();
+    loop {
+        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
+            Event::Start(e) => (e, false),
+            Event::Empty(e) => (e, true),
+            Event::End(e) => {
+                if e.name().as_ref() == "ScalarVariable" {
+                    in_variable = false;
+                }
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
+        };
+        match e.name().as_ref() {
+            "ScalarVariable" => {
+                out.push(false);
+                in_variable = !empty;
+            }
+            "Real" | "Integer" | "Boolean" | "String" | "Enumeration"
+                if in_variable && e.attributes().flatten().any(|a| a.key.as_ref() == "start") =>
+            {
+                if let Some(last) = out.last_mut() {
+                    *last = true;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(out)
+}
+
+/// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
+/// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
+pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
+        e.attributes()
+            .flatten()
+            .find(|a| a.key.as_ref() == key)
+            .and_then(|a| {
+                a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                    .ok()
+                    .map(|v| v.to_string())
+            })
+    };
+    let mut type_units: HashMap<String, String> = HashMap::new();
+    let mut simple_type: Option<String> = None;
+    let mut in_variable = false;
+    // (own unit, declared type) per variable.
+    let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
+    loop {
+        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
+            Event::Start(e) => (e.into_owned(), false),
+            Event::Empty(e) => (e.into_owned(), true),
+            Event::End(e) => {
+                match e.name().as_ref() {
+                    "SimpleType" => simple_type = None,
+                    "ScalarVariable" => in_variable = false,
+                    _ => {}
+                }
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
+        };
+        match e.name().as_ref() {
+            "SimpleType" if !empty => simple_type = attribute(&e, "name"),
+            "ScalarVariable" => {
+                declared.push((None, None));
+                in_variable = !empty;
+            }
+            "Real" | "Integer" | "Enumeration" => {
+                if let Some(name) = &simple_type {
+                    if let Some(unit) = attribute(&e, "unit") {
+                        type_units.insert(name.clone(), unit);
+                    }
+                } else if in_variable {
+                    if let Some(last) = declared.last_mut() {
+                        *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(declared
+        .into_iter()
+        .map(|(unit, declared_type)| {
+            unit.or_else(|| declared_type.and_then(|t| type_units.get(&t).cloned()))
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn model_structure_tells_absent_from_empty_dependencies() {
+        let xml = r#"<a><ModelStructure><Outputs>
+            <Unknown index="2" dependencies=""/>
+            <Unknown index="3" dependencies="1 4"/>
+            <Unknown index="5"/>
+        </Outputs><InitialUnknowns><Unknown index="7"></Unknown></InitialUnknowns>
+        </ModelStructure></a>"#;
+        let d = model_structure(xml).unwrap();
+        let deps: Vec<_> = d
+            .iter()
+            .map(|u| (u.list, u.index.as_deref(), u.dependencies.clone()))
+            .collect();
+        assert_eq!(
+            deps,
+            vec![
+                ("Outputs", Some("2"), Some(vec![])),
+                (
+                    "Outputs",
+                    Some("3"),
+                    Some(vec!["1".to_string(), "4".to_string()])
+                ),
+                ("Outputs", Some("5"), None),
+                ("InitialUnknowns", Some("7"), None),
+            ]
+        );
+    }
+
+    #[test]
+    fn start_values_are_seen_on_every_type() {
+        let xml = r#"<m><ModelVariables>
+            <ScalarVariable name="a" valueReference="0"><Real start="1"/></ScalarVariable>
+            <ScalarVariable name="b" valueReference="0"><Real/></ScalarVariable>
+            <ScalarVariable name="c" valueReference="0"><String start="x"/></ScalarVariable>
+            <ScalarVariable name="d" valueReference="0"><Enumeration declaredType="E"/></ScalarVariable>
+        </ModelVariables></m>"#;
+        assert_eq!(
+            variable_has_start(xml).unwrap(),
+            vec![true, false, true, false]
+        );
+    }
+
+    #[test]
+    fn units_come_from_the_variable_or_its_declared_type() {
+        let xml = r#"<fmiModelDescription>
+            <TypeDefinitions>
+              <SimpleType name="Length"><Real quantity="Length" unit="m"/></SimpleType>
+            </TypeDefinitions>
+            <ModelVariables>
+              <ScalarVariable name="x" valueReference="0"><Real declaredType="Length"/></ScalarVariable>
+              <ScalarVariable name="F" valueReference="1"><Real unit="N" declaredType="Length"/></ScalarVariable>
+              <ScalarVariable name="n" valueReference="2"><Integer/></ScalarVariable>
+              <ScalarVariable name="v" valueReference="3"><Real unit="m/s"/></ScalarVariable>
+            </ModelVariables></fmiModelDescription>"#;
+        assert_eq!(
+            variable_units(xml).unwrap(),
+            vec![Some("m".into()), Some("N".into()), None, Some("m/s".into())]
+        );
+    }
+}

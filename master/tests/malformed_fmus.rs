@@ -1,0 +1,622 @@
+//! Malformed FMUs, each built from a packaged one (`scripts/build-fmus`) or from scratch: the
+//! loader refuses each with a message naming the FMU and what is wrong, writes nothing outside
+//! the temporary folder it is pointed at and leaves that folder empty; `spurio run` on a
+//! system using such an FMU exits with 1 and the message (never Rust's panic exit 101).
+
+use spurio_master::fmu::{FmuFile, LoadError, LoadLimits, LoadOptions};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fmus() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
+    assert!(
+        dir.join("GantryCrane.fmu").is_file(),
+        "{} has no FMUs: run scripts/build-fmus first",
+        dir.display()
+    );
+    dir
+}
+
+/// A fresh folder for one case: the bad FMU goes in it, `tmp/` is the loader's temp folder.
+struct Case {
+    dir: PathBuf,
+    tmp: PathBuf,
+}
+
+impl Case {
+    fn new(name: &str) -> Self {
+        let dir =
+            std::env::temp_dir().join(format!("spurio-malformed-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = dir.join("tmp");
+        std::fs::create_dir_all(&tmp).unwrap();
+        Case { dir, tmp }
+    }
+
+    fn fmu(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+
+    fn options(&self) -> LoadOptions {
+        LoadOptions {
+            limits: LoadLimits::default(),
+            temp_dir: Some(self.tmp.clone()),
+        }
+    }
+
+    /// Loads `fmu`, expects an error, and checks that the temp folder is empty and that the
+    /// case folder holds nothing but `expected` files besides `tmp/`.
+    fn refuse(&self, fmu: &Path, options: &LoadOptions, expected: &[&str]) -> LoadError {
+        let e = match FmuFile::open_with(fmu, options) {
+            Ok(f) => panic!("{} was loaded: {:?}", fmu.display(), f),
+            Err(e) => e,
+        };
+        self.assert_clean(expected);
+        e
+    }
+
+    fn assert_clean(&self, expected: &[&str]) {
+        let left: Vec<_> = std::fs::read_dir(&self.tmp)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert!(left.is_empty(), "left in the temp folder: {left:?}");
+        let mut found: Vec<String> = std::fs::read_dir(&self.dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n != "tmp")
+            .collect();
+        found.sort();
+        let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
+        expected.sort();
+        assert_eq!(found, expected, "written outside the temp folder");
+    }
+
+    /// Runs `spurio run` on a one-instance system using `fmu`, with TMPDIR at the temp folder;
+    /// returns the exit code and stderr.
+    fn run_cli(&self, fmu: &str) -> (Option<i32>, String) {
+        let system = self.dir.join("system.toml");
+        std::fs::write(
+            &system,
+            format!(
+                "stop_time = 0.1\nstep_size = 0.01\n[[instance]]\nname = \"bad\"\nfmu = \"{fmu}\"\n"
+            ),
+        )
+        .unwrap();
+        let out = Command::new(spurio())
+            .arg("run")
+            .arg(&system)
+            .arg("--out")
+            .arg(self.dir.join("out.csv"))
+            .env("TMPDIR", &self.tmp)
+            .output()
+            .unwrap();
+        std::fs::remove_file(&system).unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+}
+
+impl Drop for Case {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// The `spurio` binary of the same build profile as this test.
+fn spurio() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let bin = exe.parent().unwrap().parent().unwrap().join("spurio");
+    assert!(
+        bin.is_file(),
+        "{} is missing: build the workspace (scripts/build-fmus) first",
+        bin.display()
+    );
+    bin
+}
+
+/// Bytes of a copy of `source` with each entry passed through `edit` (None drops it) and
+/// `extra` entries appended (name, data, Unix mode; a mode of 0o120777 writes a symlink).
+fn rewrite(
+    source: &Path,
+    edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
+    extra: &[(&str, &[u8], u32)],
+) -> Vec<u8> {
+    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
+    let mut out = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default();
+    for i in 0..archive.len() {
+        let mut entry = archive.by_index(i).unwrap();
+        let name = entry.name().unwrap().to_string();
+        let mut data = Vec::new();
+        entry.read_to_end(&mut data).unwrap();
+        if let Some(data) = edit(&name, data) {
+            out.start_file(name, options).unwrap();
+            out.write_all(&data).unwrap();
+        }
+    }
+    for (name, data, mode) in extra {
+        if *mode == 0o120_777 {
+            out.add_symlink(*name, std::str::from_utf8(data).unwrap(), options)
+                .unwrap();
+        } else {
+            out.start_file(*name, options.unix_permissions(*mode))
+                .unwrap();
+            out.write_all(data).unwrap();
+        }
+    }
+    out.finish().unwrap().into_inner()
+}
+
+fn crane() -> PathBuf {
+    fmus().join("GantryCrane.fmu")
+}
+
+const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
+
+fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
+    move |name, data| {
+        if name == "modelDescription.xml" {
+            Some(f(String::from_utf8(data).unwrap()).into_bytes())
+        } else {
+            Some(data)
+        }
+    }
+}
+
+fn edit_library(f: impl Fn(Vec<u8>) -> Vec<u8>) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
+    move |name, data| Some(if name == LIBRARY { f(data) } else { data })
+}
+
+fn replace_all(data: &[u8], from: &[u8], to: &[u8]) -> (Vec<u8>, usize) {
+    assert_eq!(from.len(), to.len());
+    let mut out = data.to_vec();
+    let mut count = 0;
+    let mut i = 0;
+    while i + from.len() <= out.len() {
+        if &out[i..i + from.len()] == from {
+            out[i..i + from.len()].copy_from_slice(to);
+            count += 1;
+            i += from.len();
+        } else {
+            i += 1;
+        }
+    }
+    (out, count)
+}
+
+#[test]
+fn the_good_fmu_unpacks_in_the_given_folder_and_leaves_it_clean() {
+    let case = Case::new("good");
+    let fmu = FmuFile::open_with(&crane(), &case.options()).unwrap();
+    let inside: Vec<_> = std::fs::read_dir(&case.tmp).unwrap().collect();
+    assert_eq!(inside.len(), 1, "one unpacked FMU folder");
+    assert_eq!(fmu.variable("theta").unwrap().value_reference, 2);
+    assert_eq!(
+        fmu.variable("U_applied").unwrap().dependencies,
+        Some(vec![0])
+    );
+    drop(fmu);
+    case.assert_clean(&[]);
+}
+
+#[test]
+fn symlink_to_a_library_outside_the_archive_is_refused() {
+    let case = Case::new("symlink");
+    // The library the link points at, outside the archive.
+    let outside = case.dir.join("outside.so");
+    std::fs::copy(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus/GantryCrane.fmu"),
+        &outside,
+    )
+    .unwrap();
+    let bytes = rewrite(
+        &crane(),
+        |name, data| (name != LIBRARY).then_some(data),
+        &[(LIBRARY, outside.to_str().unwrap().as_bytes(), 0o120_777)],
+    );
+    let fmu = case.fmu("Symlink.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Symlink.fmu", "outside.so"]);
+    assert!(matches!(e, LoadError::UnsafeEntry { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("Symlink.fmu")
+            && text.contains(&format!("`{LIBRARY}`"))
+            && text.contains("symbolic link"),
+        "{text}"
+    );
+    let (code, stderr) = case.run_cli("Symlink.fmu");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("symbolic link"), "{stderr}");
+    case.assert_clean(&["Symlink.fmu", "outside.so"]);
+}
+
+#[test]
+fn entries_that_are_not_plain_files_or_folders_are_refused() {
+    let case = Case::new("fifo");
+    // A named pipe (S_IFIFO).
+    let bytes = rewrite(
+        &crane(),
+        |_, d| Some(d),
+        &[("resources/pipe", b"", 0o100_644)],
+    );
+    let bytes = set_unix_mode(bytes, "resources/pipe", 0o010_644);
+    let fmu = case.fmu("Fifo.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Fifo.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("Fifo.fmu")
+            && text.contains("`resources/pipe`")
+            && text.contains("not a plain file or folder (Unix mode 10644)"),
+        "{text}"
+    );
+}
+
+#[test]
+fn absolute_entries_are_refused_not_re_rooted() {
+    let case = Case::new("absolute");
+    let target = case.dir.join("planted.txt");
+    let bytes = rewrite(
+        &crane(),
+        |_, d| Some(d),
+        &[(target.to_str().unwrap(), b"planted", 0o100_644)],
+    );
+    let fmu = case.fmu("Absolute.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Absolute.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("Absolute.fmu") && text.contains("absolute path"),
+        "{text}"
+    );
+}
+
+#[test]
+fn missing_entry_point_is_named_not_a_panic() {
+    let case = Case::new("entry");
+    let bytes = rewrite(
+        &crane(),
+        edit_library(|lib| {
+            // Rename the exported symbol in the dynamic string table (same length).
+            let (lib, n) = replace_all(&lib, b"\0fmi2DoStep\0", b"\0fmi2DoStoq\0");
+            assert!(n >= 1, "fmi2DoStep not found in the library");
+            lib
+        }),
+        &[],
+    );
+    let fmu = case.fmu("NoDoStep.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["NoDoStep.fmu"]);
+    match &e {
+        LoadError::MissingFunctions { missing, .. } => assert_eq!(missing, &["fmi2DoStep"]),
+        other => panic!("{other}"),
+    }
+    let text = e.to_string();
+    assert!(
+        text.contains("NoDoStep.fmu") && text.contains(LIBRARY) && text.contains("fmi2DoStep"),
+        "{text}"
+    );
+    let (code, stderr) = case.run_cli("NoDoStep.fmu");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("does not export fmi2DoStep") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    case.assert_clean(&["NoDoStep.fmu"]);
+}
+
+#[test]
+fn library_for_another_architecture_is_named() {
+    let case = Case::new("arch");
+    let bytes = rewrite(
+        &crane(),
+        edit_library(|mut lib| {
+            // e_machine (ELF header offset 18, little-endian): 183 = AArch64.
+            lib[18..20].copy_from_slice(&183u16.to_le_bytes());
+            lib
+        }),
+        &[],
+    );
+    let fmu = case.fmu("Arm.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Arm.fmu"]);
+    assert!(matches!(e, LoadError::WrongBinary { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("Arm.fmu")
+            && text.contains("is an ELF shared library for aarch64 (64-bit)")
+            && text.contains(&format!(
+                "needs an ELF shared library for {}",
+                std::env::consts::ARCH
+            ))
+            && !text.contains("No such file"),
+        "{text}"
+    );
+    let (code, stderr) = case.run_cli("Arm.fmu");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("aarch64"), "{stderr}");
+    case.assert_clean(&["Arm.fmu"]);
+}
+
+#[test]
+fn file_that_is_not_a_library_is_named() {
+    let case = Case::new("notelf");
+    let bytes = rewrite(
+        &crane(),
+        edit_library(|_| b"this is not a shared library\n".to_vec()),
+        &[],
+    );
+    let fmu = case.fmu("Text.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Text.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("Text.fmu") && text.contains("is a text file, not a shared library"),
+        "{text}"
+    );
+}
+
+#[test]
+fn damaged_zip_is_not_a_valid_fmu_archive() {
+    let case = Case::new("zip");
+    let good = std::fs::read(crane()).unwrap();
+    let fmu = case.fmu("Truncated.fmu");
+    std::fs::write(&fmu, &good[..good.len() / 2]).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Truncated.fmu"]);
+    assert!(matches!(e, LoadError::NotZip { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("Truncated.fmu")
+            && text.contains("not a valid FMU archive (an FMU is a zip file)"),
+        "{text}"
+    );
+    let (code, stderr) = case.run_cli("Truncated.fmu");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("not a valid FMU archive"), "{stderr}");
+    case.assert_clean(&["Truncated.fmu"]);
+}
+
+fn refuse_xml(case_name: &str, edit: impl Fn(String) -> String) -> String {
+    let case = Case::new(case_name);
+    let bytes = rewrite(&crane(), edit_xml(edit), &[]);
+    let fmu = case.fmu("Bad.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = case.refuse(&fmu, &case.options(), &["Bad.fmu"]);
+    assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
+    let text = e.to_string();
+    assert!(text.contains("Bad.fmu: modelDescription.xml"), "{text}");
+    text
+}
+
+#[test]
+fn two_variables_with_the_same_name_are_refused() {
+    let text = refuse_xml("dupname", |x| x.replace("name=\"theta\"", "name=\"x\""));
+    assert!(
+        text.contains("two variables are called `x` (variables 2 and 3 of ModelVariables)"),
+        "{text}"
+    );
+}
+
+#[test]
+fn two_parameters_on_one_value_reference_are_refused() {
+    // `m` (vr 7) moved onto `M`'s vr 6: two start values for one value.
+    let text = refuse_xml("alias", |x| {
+        x.replace(
+            "name=\"m\" valueReference=\"7\"",
+            "name=\"m\" valueReference=\"6\"",
+        )
+    });
+    assert!(
+        text.contains(
+            "variables `M` (parameter) and `m` (parameter) share value reference 6 (Real) and both have a start value"
+        ),
+        "{text}"
+    );
+}
+
+#[test]
+fn an_output_aliasing_another_output_is_accepted() {
+    // `theta` (vr 2) as an alias of `x` (vr 1): same base type, no start values: allowed.
+    let case = Case::new("alias-ok");
+    let bytes = rewrite(
+        &crane(),
+        edit_xml(|x| {
+            x.replace(
+                "name=\"theta\" valueReference=\"2\"",
+                "name=\"theta\" valueReference=\"1\"",
+            )
+        }),
+        &[],
+    );
+    let fmu = case.fmu("Alias.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let f = FmuFile::open_with(&fmu, &case.options()).unwrap();
+    assert_eq!(f.variable("theta").unwrap().value_reference, 1);
+    drop(f);
+    case.assert_clean(&["Alias.fmu"]);
+}
+
+#[test]
+fn model_structure_index_out_of_range_is_refused() {
+    let text = refuse_xml("index", |x| {
+        x.replace(
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"99\" dependencies=\"1\"/>",
+        )
+    });
+    assert!(
+        text.contains(
+            "ModelStructure/Outputs: index 99 is out of range (ModelVariables has 20 variables"
+        ),
+        "{text}"
+    );
+    let text = refuse_xml("dependency", |x| {
+        x.replace(
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"6\" dependencies=\"0\"/>",
+        )
+    });
+    assert!(
+        text.contains("a dependency of `U_applied` 0 is out of range"),
+        "{text}"
+    );
+    let text = refuse_xml("notoutput", |x| {
+        x.replace(
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"7\" dependencies=\"1\"/>",
+        )
+    });
+    assert!(
+        text.contains("index 7 is `M`, whose causality is parameter, not output"),
+        "{text}"
+    );
+}
+
+/// Sets the Unix mode (file type included) recorded for `name` in the central directory.
+fn set_unix_mode(mut zip: Vec<u8>, name: &str, mode: u32) -> Vec<u8> {
+    let mut patched = 0;
+    for i in 0..zip.len().saturating_sub(46 + name.len()) {
+        if zip[i..i + 4] == *b"PK\x01\x02" && zip[i + 46..i + 46 + name.len()] == *name.as_bytes() {
+            zip[i + 5] = 3; // made by: Unix
+            zip[i + 38..i + 42].copy_from_slice(&(mode << 16).to_le_bytes());
+            patched += 1;
+        }
+    }
+    assert_eq!(patched, 1, "the central header of {name}");
+    zip
+}
+
+/// Sets the uncompressed size recorded for `name` in both the local and the central header.
+fn lie_about_size(mut zip: Vec<u8>, name: &str, size: u32) -> Vec<u8> {
+    let mut patched = 0;
+    for i in 0..zip.len().saturating_sub(46 + name.len()) {
+        if zip[i..i + 4] == *b"PK\x03\x04" && zip[i + 30..i + 30 + name.len()] == *name.as_bytes() {
+            zip[i + 22..i + 26].copy_from_slice(&size.to_le_bytes());
+            patched += 1;
+        }
+        if zip[i..i + 4] == *b"PK\x01\x02" && zip[i + 46..i + 46 + name.len()] == *name.as_bytes() {
+            zip[i + 24..i + 28].copy_from_slice(&size.to_le_bytes());
+            patched += 1;
+        }
+    }
+    assert_eq!(patched, 2, "both headers of {name}");
+    zip
+}
+
+#[test]
+fn a_zip_bomb_stops_at_the_declared_size_limit() {
+    let case = Case::new("bomb-declared");
+    let zeros = vec![0u8; 8 << 20];
+    let bytes = rewrite(
+        &crane(),
+        |_, d| Some(d),
+        &[("resources/bomb.bin", &zeros, 0o100_644)],
+    );
+    assert!(bytes.len() < 1 << 20, "the bomb compresses");
+    let fmu = case.fmu("Bomb.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let mut options = case.options();
+    options.limits.max_unpacked = 4 << 20;
+    let e = case.refuse(&fmu, &options, &["Bomb.fmu"]);
+    assert!(matches!(e, LoadError::TooLarge { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("Bomb.fmu")
+            && text.contains(
+                "declare more than 4194304 bytes unpacked (reached at `resources/bomb.bin`)"
+            )
+            && text.contains("at most 4194304 bytes (max_unpacked)"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
+    let case = Case::new("bomb-lying");
+    let zeros = vec![0u8; 8 << 20];
+    let bytes = rewrite(
+        &crane(),
+        |_, d| Some(d),
+        &[("resources/bomb.bin", &zeros, 0o100_644)],
+    );
+    let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
+    let fmu = case.fmu("Liar.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let mut options = case.options();
+    options.limits.max_unpacked = 4 << 20;
+    let e = case.refuse(&fmu, &options, &["Liar.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("Liar.fmu") && text.contains("resources/bomb.bin"),
+        "{text}"
+    );
+    // Either the count while inflating stops it at the limit, or the zip reader itself
+    // refuses data beyond the declared size: never 8 MiB on disk.
+    assert!(
+        matches!(e, LoadError::TooLarge { .. }) || matches!(e, LoadError::Unpack { .. }),
+        "{text}"
+    );
+}
+
+#[test]
+fn an_oversized_model_description_is_refused_before_parsing() {
+    let case = Case::new("bigxml");
+    let bytes = rewrite(
+        &crane(),
+        edit_xml(|x| {
+            x.replace(
+                "</fmiModelDescription>",
+                &format!("<!--{}--></fmiModelDescription>", " ".repeat(1 << 20)),
+            )
+        }),
+        &[],
+    );
+    let fmu = case.fmu("BigXml.fmu");
+    std::fs::write(&fmu, &bytes).unwrap();
+    let mut options = case.options();
+    options.limits.max_model_description = 64 << 10;
+    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("BigXml.fmu: modelDescription.xml declares")
+            && text.contains("at most 65536 bytes (max_model_description)"),
+        "{text}"
+    );
+    // The same archive with its declared size forged small is stopped while inflating.
+    let case = Case::new("bigxml-lying");
+    let fmu = case.fmu("BigXml.fmu");
+    std::fs::write(&fmu, lie_about_size(bytes, "modelDescription.xml", 100)).unwrap();
+    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("BigXml.fmu") && text.contains("modelDescription.xml"),
+        "{text}"
+    );
+}
+
+#[test]
+fn too_many_entries_are_refused() {
+    let case = Case::new("entries");
+    let names: Vec<String> = (0..20).map(|i| format!("resources/{i}.txt")).collect();
+    let extra: Vec<(&str, &[u8], u32)> = names
+        .iter()
+        .map(|n| (n.as_str(), b"x".as_slice(), 0o100_644))
+        .collect();
+    let bytes = rewrite(&crane(), |_, d| Some(d), &extra);
+    let fmu = case.fmu("Many.fmu");
+    std::fs::write(&fmu, bytes).unwrap();
+    let mut options = case.options();
+    options.limits.max_entries = 10;
+    let e = case.refuse(&fmu, &options, &["Many.fmu"]);
+    let text = e.to_string();
+    assert!(
+        text.contains("Many.fmu: the archive has 23 entries")
+            && text.contains("at most 10 entries (max_entries)"),
+        "{text}"
+    );
+}
