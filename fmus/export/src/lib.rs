@@ -35,7 +35,7 @@ pub use bytes::{ByteReader, ByteWriter};
 pub use description::{Config, DefaultExperiment, ModelInfo};
 pub use model::{Cause, Context, Failure, FmuModel};
 pub use variables::{
-    Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
+    rows, Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
 };
 
 /// Emits, in the crate that builds an FMU's `cdylib`, the FMI 2.0 Co-Simulation C API

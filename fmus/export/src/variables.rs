@@ -272,6 +272,36 @@ impl Variable {
     }
 }
 
+/// One-line rows for the variable tables of physical models: name, (start,) unit and
+/// description in one call, so a `declare_variables!` table reads as a table. Further
+/// attributes chain on as usual (`parameter("m", 1.0, "kg", "Load mass").min(0.0)`).
+pub mod rows {
+    use super::Variable;
+
+    /// A Real parameter ([`Variable::parameter`]) with its unit and description.
+    pub fn parameter(name: &str, start: f64, unit: &str, description: &str) -> Variable {
+        Variable::parameter(name, start)
+            .unit(unit)
+            .describe(description)
+    }
+    /// A continuous Real input ([`Variable::input`]) with its unit and description.
+    pub fn input(name: &str, start: f64, unit: &str, description: &str) -> Variable {
+        Variable::input(name, start)
+            .unit(unit)
+            .describe(description)
+    }
+    /// A continuous Real output ([`Variable::output`]) with its unit and description.
+    pub fn output(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::output(name).unit(unit).describe(description)
+    }
+    /// A discrete Real output ([`Variable::discrete_output`]) with its unit and description.
+    pub fn discrete_output(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::discrete_output(name)
+            .unit(unit)
+            .describe(description)
+    }
+}
+
 /// Builds a variable table, handing back each variable's index (= value reference).
 #[derive(Debug, Clone, Default)]
 pub struct VariableTable {
