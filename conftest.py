@@ -76,6 +76,13 @@ def open_slave(name, instance_name="instance", logging_on=False, guid=None):
     return slave, vr, sink
 
 
+def init(slave, t0=0.0):
+    """Sets up and initialises `slave` with its start values."""
+    slave.setupExperiment(startTime=t0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+
+
 def assert_initialization_fails_naming(slave, sink, name):
     """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
     backticks (the parameter or matrix at fault); frees the slave."""
@@ -104,6 +111,39 @@ def expm(a: np.ndarray) -> np.ndarray:
     for _ in range(s):
         result = result @ result
     return result
+
+
+def zoh(a, b, t):
+    """Exact discretisation over `t` of ṡ = A s + B u with u held: (e^{At}, ∫₀ᵗ e^{Aτ} dτ B),
+    both read from the matrix exponential of the augmented [[A, B], [0, 0]]."""
+    n = a.shape[0]
+    b = np.reshape(b, (n, -1))
+    aug = np.zeros((n + b.shape[1],) * 2)
+    aug[:n, :n] = a
+    aug[:n, n:] = b
+    e = expm(aug * t)
+    return e[:n, :n], e[:n, n:]
+
+
+# Annex A of paper 000, written out again here independently of the Rust code.
+CRANE = dict(M=0.84385, m=0.013, l=0.3434, J=1e-5, f_c=0.67, f_p=9.3e-6, g=9.8)
+
+
+def crane_linear_model(M, m, l, J, f_c, f_p, g):
+    """Continuous linearisation ṡ = A s + B U of the crane, s = [x, θ, ẋ, θ̇]
+    (paper 000 eqs 4–5): `crane_linear_model(**CRANE)`."""
+    a11, a22, ml = M + m, J + m * l * l, m * l
+    det = a11 * a22 - ml * ml
+    A = np.array(
+        [
+            [0, 0, 1, 0],
+            [0, 0, 0, 1],
+            [0, -ml * ml * g / det, -a22 * f_c / det, -ml * f_p / det],
+            [0, -a11 * ml * g / det, -ml * f_c / det, -a11 * f_p / det],
+        ]
+    )
+    B = np.array([0, 0, a22 / det, ml / det])
+    return A, B
 
 
 @pytest.fixture

@@ -10,35 +10,16 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import LogSink, expm, fmu_path, make_callbacks, open_slave
-
-# Annex A of paper 000, written out again here independently of the Rust code.
-M, m, l, J, f_c, f_p, g = 0.84385, 0.013, 0.3434, 1e-5, 0.67, 9.3e-6, 9.8
-
-
-def linear_model():
-    """Continuous linearisation ṡ = A s + B U, s = [x, θ, ẋ, θ̇] (paper 000 eqs 4–5)."""
-    a11, a22, ml = M + m, J + m * l * l, m * l
-    det = a11 * a22 - ml * ml
-    A = np.array(
-        [
-            [0, 0, 1, 0],
-            [0, 0, 0, 1],
-            [0, -ml * ml * g / det, -a22 * f_c / det, -ml * f_p / det],
-            [0, -a11 * ml * g / det, -ml * f_c / det, -a11 * f_p / det],
-        ]
-    )
-    B = np.array([0, 0, a22 / det, ml / det])
-    return A, B
-
+from conftest import CRANE, LogSink, crane_linear_model, fmu_path, init, make_callbacks, open_slave, zoh
 
 def linear_response(t, s0, u):
-    A, B = linear_model()
-    aug = np.zeros((5, 5))
-    aug[:4, :4] = A
-    aug[:4, 4] = B
-    z0 = np.append(s0, u)
-    return np.array([(expm(aug * ti) @ z0)[:4] for ti in t])
+    """The linearised crane from `s0` under a constant force `u`, at the times `t`."""
+    A, B = crane_linear_model(**CRANE)
+    responses = []
+    for ti in t:
+        a, b = zoh(A, B, ti)
+        responses.append(a @ s0 + b[:, 0] * u)
+    return np.array(responses)
 
 
 def simulate(step, stop, u=0.0, **start):
@@ -72,7 +53,7 @@ def test_free_swing_period_matches_the_linearised_model():
     i = np.where((th[:-1] < 0) & (th[1:] >= 0))[0]
     crossings = t[i] + (t[i + 1] - t[i]) * (-th[i]) / (th[i + 1] - th[i])
     period = np.mean(np.diff(crossings))
-    A, _ = linear_model()
+    A, _ = crane_linear_model(**CRANE)
     w = max(abs(np.linalg.eigvals(A).imag))
     linear_period = 2 * np.pi / w
     error = abs(period - linear_period) / linear_period
@@ -123,12 +104,6 @@ def test_force_is_saturated():
 
 
 # --- conformance through fmpy's FMU2Slave --------------------------------------------------
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 def test_wrong_call_order_is_an_error_with_a_log_line():

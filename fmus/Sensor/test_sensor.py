@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_path, open_slave
+from conftest import fmu_path, init, open_slave
 
 N = 100_000
 
@@ -21,12 +21,6 @@ def simulate(name="Sensor", n=N, h=0.1, **start):
         output_interval=h,
         start_values=start,
     )
-
-
-def init(slave, t0=0.0):
-    slave.setupExperiment(startTime=t0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 @pytest.mark.parametrize("name", ["Sensor", "Sensor2"])

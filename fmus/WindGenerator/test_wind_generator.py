@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave
 
 DTYPE = [("time", np.float64), ("u_drive", np.float64), ("u_field", np.float64)]
 
@@ -95,12 +95,6 @@ def test_trajectory_does_not_depend_on_the_communication_step():
     coarse = simulate([(0, 7, 5)], 2.0, 0.1)
     for k in ("speed", "voltage"):
         assert np.max(np.abs(fine[k][::10] - coarse[k])) < 1e-9 * 1800
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 def run(slave, vr, n, u, h=0.1, t0=0.0):

@@ -12,7 +12,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import REPO, expm, fmu_path, open_slave
+from conftest import CRANE, REPO, crane_linear_model, fmu_path, init, open_slave, zoh
 
 TS = 0.05
 N = 4
@@ -21,28 +21,9 @@ S_POLES = np.array([-1 + 0.5j, -1 - 0.5j, -1.5 + 5.2j, -1.5 - 5.2j])
 Z_POLES = np.exp(S_POLES * TS)
 REFERENCE_GAIN = np.array([0.982, 1.132, 1.027, 0.774])
 
-# Annex A of paper 000, written out again independently of the Rust code.
-M, m, l, J, f_c, f_p, g = 0.84385, 0.013, 0.3434, 1e-5, 0.67, 9.3e-6, 9.8
-
-
 def crane_zoh():
-    """ZOH at TS of the crane linearisation ṡ = A s + B U, s = [x, θ, ẋ, θ̇] (eqs 4–5)."""
-    a11, a22, ml = M + m, J + m * l * l, m * l
-    det = a11 * a22 - ml * ml
-    A = np.array(
-        [
-            [0, 0, 1, 0],
-            [0, 0, 0, 1],
-            [0, -ml * ml * g / det, -a22 * f_c / det, -ml * f_p / det],
-            [0, -a11 * ml * g / det, -ml * f_c / det, -a11 * f_p / det],
-        ]
-    )
-    B = np.array([0, 0, a22 / det, ml / det])
-    aug = np.zeros((5, 5))
-    aug[:4, :4] = A
-    aug[:4, 4] = B
-    e = expm(aug * TS)
-    return e[:4, :4], e[:4, 4:5]
+    """ZOH at TS of the crane linearisation."""
+    return zoh(*crane_linear_model(**CRANE), TS)
 
 
 def ackermann(A, B, poles):
@@ -58,12 +39,6 @@ def names(prefix, rows, cols=None):
     if cols is None:
         return [f"{prefix}[{i + 1}]" for i in range(rows)]
     return [f"{prefix}[{i + 1},{j + 1}]" for i in range(rows) for j in range(cols)]
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 def max_pole_mismatch(got, want):

@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2True, fmi2ValueReference
 from fmpy.validation import validate_fmu
 
-from conftest import REPO, LogSink, fmu_path, make_callbacks, open_slave
+from conftest import REPO, LogSink, fmu_path, init, make_callbacks, open_slave
 
 VARIANTS = [
     "KalmanFilter",
@@ -25,12 +25,6 @@ VARIANTS = [
     "DistributedObserverAgent1",
     "DistributedObserverAgent2",
 ]
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 class Driver:
