@@ -371,7 +371,7 @@ impl KalmanFilter {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::linalg::kalman_gain_steady;
 
@@ -379,19 +379,25 @@ mod tests {
         DMatrix::from_element(1, 1, v)
     }
 
+    /// The scalar filter of x⁺ = a x + w, y = x + v without input: Cov w = q, Cov v = r,
+    /// x̂₀ = 0, P₀ = p0.
+    pub(crate) fn scalar_filter(a: f64, q: f64, r: f64, p0: f64) -> KalmanFilter {
+        KalmanFilter::new(
+            scalar(a),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(q),
+            scalar(r),
+            DVector::zeros(1),
+            scalar(p0),
+        )
+        .unwrap()
+    }
+
     #[test]
     fn scalar_steady_state_gain_is_golden_ratio_conjugate() {
-        let mut filter = KalmanFilter::new(
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            scalar(1.0),
-            DVector::zeros(1),
-            scalar(10.0),
-        )
-        .unwrap();
+        let mut filter = scalar_filter(1.0, 1.0, 1.0, 10.0);
         let u = DVector::zeros(0);
         for k in 0..200 {
             filter
@@ -539,17 +545,7 @@ mod tests {
 
     #[test]
     fn overflowing_covariance_is_an_error_not_nan() {
-        let mut filter = KalmanFilter::new(
-            scalar(1e200),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            scalar(1.0),
-            DVector::zeros(1),
-            scalar(1e200),
-        )
-        .unwrap();
+        let mut filter = scalar_filter(1e200, 1.0, 1.0, 1e200);
         let e = filter
             .step(&DVector::zeros(0), &DVector::from_element(1, 1.0))
             .unwrap_err();

@@ -383,6 +383,7 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::{mean_std, TestRng};
     use super::*;
+    use crate::estimation::kalman::tests::scalar_filter;
     use crate::estimation::KalmanFilter;
 
     fn scalar(v: f64) -> DMatrix<f64> {
@@ -485,17 +486,7 @@ mod tests {
         let none = DVector::zeros(0);
         for seed in 0..100 {
             let run = cosine_with_outliers(1000 + seed);
-            let mut standard = KalmanFilter::new(
-                scalar(1.0),
-                DMatrix::zeros(1, 0),
-                scalar(1.0),
-                DMatrix::zeros(1, 0),
-                scalar(1e-4),
-                scalar(1e-4),
-                DVector::zeros(1),
-                scalar(0.0),
-            )
-            .unwrap();
+            let mut standard = scalar_filter(1.0, 1e-4, 1e-4, 0.0);
             let mut robust = RobustKalmanFilter::random_walk(1, 1e-4, 1e-4, 0.0, psi).unwrap();
             standard_scores.push(residual_error(&run, |y| {
                 standard.step(&none, &DVector::from_element(1, y)).unwrap();

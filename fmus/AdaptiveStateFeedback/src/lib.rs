@@ -372,17 +372,26 @@ mod tests {
         assert_eq!(v[layout.u].dependencies.len(), 4 + 16 + 4);
     }
 
+    /// The crane variant's description, the model created from it and initialised straight
+    /// through the model, and its values; initialising logs nothing.
+    fn initialized_crane_variant() -> (ModelInfo, AdaptiveStateFeedbackFmu, Values) {
+        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let mut ctx = Context::new(&mut values);
+        model.initialize(&mut ctx).unwrap();
+        assert!(ctx.take_messages().is_empty());
+        (info, model, values)
+    }
+
     /// Straight through the model (no FMI layer, which refuses NaN inputs): NaN estimates,
     /// NaN states and mis-sized gains never reach the output.
     #[test]
     fn nan_estimate_keeps_the_gain_warns_once_and_never_outputs_nan() {
         let design = crane_reference_design().unwrap();
-        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
-        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let (_, mut model, mut values) = initialized_crane_variant();
         let layout = model.layout;
-        let mut values = Values::from_start(&info.variables);
         let mut ctx = Context::new(&mut values);
-        model.initialize(&mut ctx).unwrap();
         ctx.values.set_real(layout.x_hat.first, 0.2);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
         let good = layout.gain.matrix(ctx.values);
@@ -410,12 +419,9 @@ mod tests {
 
     #[test]
     fn state_serialization_round_trips() {
-        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
-        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let (info, mut model, mut values) = initialized_crane_variant();
         let layout = model.layout;
-        let mut values = Values::from_start(&info.variables);
         let mut ctx = Context::new(&mut values);
-        model.initialize(&mut ctx).unwrap();
         ctx.values.set_real(layout.b_hat.first + 3, 0.0);
         ctx.values.set_real(layout.b_hat.first + 2, 0.0);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
