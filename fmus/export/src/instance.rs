@@ -683,16 +683,8 @@ impl<M: FmuModel> Instance<M> {
         w.put_bool(core.stop_time.is_some());
         w.put_f64(core.stop_time.unwrap_or(0.0));
         w.put_bool(core.inputs_changed);
-        let values = core.values.all();
-        w.put_u64(values.len() as u64);
-        for v in values {
-            match v {
-                Value::Real(x) => w.put_f64(*x),
-                Value::Integer(i) => w.put_i32(*i),
-                Value::Boolean(b) => w.put_bool(*b),
-                Value::String(s) => w.put_str(s),
-            }
-        }
+        w.put_u64(core.values.all().len() as u64);
+        core.values.save(&mut w);
         core.model.save_state(&mut w);
         w.into_bytes()
     }
@@ -724,15 +716,7 @@ impl<M: FmuModel> Instance<M> {
             });
         }
         let mut values = Values::from_start(&self.info.variables);
-        for (i, v) in self.info.variables.iter().enumerate() {
-            let value = match v.variable_type() {
-                VariableType::Real => Value::Real(r.f64()?),
-                VariableType::Integer => Value::Integer(r.i32()?),
-                VariableType::Boolean => Value::Boolean(r.bool()?),
-                VariableType::String => Value::String(r.string()?),
-            };
-            values.set(i, value);
-        }
+        values.load(&mut r)?;
         let mut model = self.core.model.clone();
         model.load_state(&mut r).map_err(StateError::Model)?;
         if r.remaining() != 0 {

@@ -5,6 +5,7 @@
 //! produces `modelDescription.xml` ([`crate::description`]) and drives the checks of every
 //! `fmi2Get*` / `fmi2Set*` call ([`crate::instance`]).
 
+use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use std::fmt;
 
 /// `causality` of a variable.
@@ -393,6 +394,29 @@ impl Values {
             Some(Value::String(v)) => v,
             _ => "",
         }
+    }
+    /// Writes every value in order (for an FMU state).
+    pub fn save(&self, out: &mut ByteWriter) {
+        for value in &self.values {
+            match value {
+                Value::Real(v) => out.put_f64(*v),
+                Value::Integer(v) => out.put_i32(*v),
+                Value::Boolean(v) => out.put_bool(*v),
+                Value::String(v) => out.put_str(v),
+            }
+        }
+    }
+    /// Reads back in place what [`Values::save`] wrote of values of the same types.
+    pub fn load(&mut self, input: &mut ByteReader) -> Result<(), StateFormatError> {
+        for value in &mut self.values {
+            *value = match value {
+                Value::Real(_) => Value::Real(input.f64()?),
+                Value::Integer(_) => Value::Integer(input.i32()?),
+                Value::Boolean(_) => Value::Boolean(input.bool()?),
+                Value::String(_) => Value::String(input.string()?),
+            };
+        }
+        Ok(())
     }
     /// Reals at consecutive `indices`, collected.
     pub fn reals(&self, indices: &[usize]) -> Vec<f64> {
