@@ -813,6 +813,33 @@ pub unsafe fn get_status<M: FmuModel>(
     }
 }
 
+/// A status query that answers the one `kind` it knows with `answer` and every other kind as
+/// [`get_status`] does.
+///
+/// # Safety
+/// FMI pointer contract.
+unsafe fn get_known_status<M: FmuModel, T>(
+    c: fmi2Component,
+    f: &'static Function,
+    kind: fmi2StatusKind,
+    known: fmi2StatusKind,
+    value: *mut T,
+    answer: impl FnOnce(&Slot<M>) -> T,
+) -> fmi2Status {
+    unsafe {
+        if kind != known {
+            return get_status::<M>(c, f, kind);
+        }
+        with_instance::<M>(c, f, |s| {
+            if value.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            *value = answer(s);
+            Status::Ok
+        })
+    }
+}
+
 /// `fmi2GetRealStatus`: `fmi2LastSuccessfulTime`.
 ///
 /// # Safety
@@ -824,15 +851,8 @@ pub unsafe fn get_real_status<M: FmuModel>(
 ) -> fmi2Status {
     let f = &functions::GET_REAL_STATUS;
     unsafe {
-        if kind != fmi2LastSuccessfulTime {
-            return get_status::<M>(c, f, kind);
-        }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = s.instance.last_successful_time();
-            Status::Ok
+        get_known_status::<M, _>(c, f, kind, fmi2LastSuccessfulTime, value, |s| {
+            s.instance.last_successful_time()
         })
     }
 }
@@ -847,18 +867,7 @@ pub unsafe fn get_boolean_status<M: FmuModel>(
     value: *mut fmi2Boolean,
 ) -> fmi2Status {
     let f = &functions::GET_BOOLEAN_STATUS;
-    unsafe {
-        if kind != fmi2Terminated {
-            return get_status::<M>(c, f, kind);
-        }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = fmi2False;
-            Status::Ok
-        })
-    }
+    unsafe { get_known_status::<M, _>(c, f, kind, fmi2Terminated, value, |_| fmi2False) }
 }
 
 /// `fmi2GetStringStatus`: no pending status, ever.
