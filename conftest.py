@@ -7,6 +7,7 @@ from ctypes import byref
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -76,6 +77,26 @@ def open_slave(name, instance_name="instance", logging_on=False, guid=None):
     return slave, vr, sink
 
 
+def set_values(slave, vr, values):
+    """Sets variables by name, each with the setter of its Python type (bool, int, float)."""
+    for name, value in values.items():
+        if isinstance(value, bool):
+            slave.setBoolean([vr[name]], [value])
+        elif isinstance(value, int):
+            slave.setInteger([vr[name]], [value])
+        else:
+            slave.setReal([vr[name]], [value])
+
+
+def assert_set_rejected(slave, vr, sink, name, value, *words):
+    """Setting `name` to `value` fails, and a logged error holds all `words` (by default the
+    name in backticks)."""
+    with pytest.raises(FMICallException):
+        set_values(slave, vr, {name: value})
+    words = words or (f"`{name}`",)
+    assert any(all(w in t for w in words) for t in sink.texts(3)), sink.messages
+
+
 def init(slave, t0=0.0):
     """Sets up and initialises `slave` with its start values."""
     slave.setupExperiment(startTime=t0)
@@ -83,11 +104,18 @@ def init(slave, t0=0.0):
     slave.exitInitializationMode()
 
 
+def open_initialized_pair(name):
+    """Two initialised instances "a" and "b" of FMU `name`, and its value references by name."""
+    a, vr, _ = open_slave(name, "a")
+    b, _, _ = open_slave(name, "b")
+    init(a)
+    init(b)
+    return a, b, vr
+
+
 def assert_initialization_fails_naming(slave, sink, name):
     """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
     backticks (the parameter or matrix at fault); frees the slave."""
-    from fmpy.fmi1 import FMICallException
-
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     with pytest.raises(FMICallException) as e:

@@ -10,7 +10,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import CRANE, LogSink, crane_linear_model, fmu_path, init, make_callbacks, open_slave, zoh
+from conftest import CRANE, LogSink, assert_set_rejected, crane_linear_model, fmu_path, init, make_callbacks, open_slave, zoh
 
 def linear_response(t, s0, u):
     """The linearised crane from `s0` under a constant force `u`, at the times `t`."""
@@ -138,9 +138,7 @@ def test_unknown_value_reference_is_an_error():
 def test_fixed_parameter_cannot_change_after_initialisation():
     slave, vr, sink = open_slave("GantryCrane")
     init(slave)
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["M"]], [2.0])
-    assert any("`M`" in t and "fixed parameter" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "M", 2.0, "`M`", "fixed parameter")
     slave.freeInstance()
 
 
@@ -262,9 +260,7 @@ def test_nan_input_is_rejected_and_not_integrated():
     slave, vr, sink = open_slave("GantryCrane")
     init(slave)
     before = run(slave, vr, 10, lambda k: 1.0)
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["U"]], [float("nan")])
-    assert any("`U`" in t and "NaN" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "U", float("nan"), "`U`", "NaN")
     # the input kept its last good value; stepping goes on
     slave.doStep(0.1, 0.01)
     x = slave.getReal([vr["x"], vr["U"]])

@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_initialized_pair, open_slave
 
 DTYPE = [("time", np.float64), ("u_drive", np.float64), ("u_field", np.float64)]
 
@@ -115,10 +115,7 @@ def test_two_instances_and_fmu_state():
     init(a)
     alone = run(a, vr, 30, ua)
     a.freeInstance()
-    a, _, _ = open_slave("WindGenerator", "a")
-    b, _, _ = open_slave("WindGenerator", "b")
-    init(a)
-    init(b)
+    a, b, _ = open_initialized_pair("WindGenerator")
     ra, rb = [], []
     t = 0.0
     for k in range(30):

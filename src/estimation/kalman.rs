@@ -19,7 +19,7 @@
 
 use super::{
     cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
-    require_spd, symmetrize_in_place, EstimationError, StateReader,
+    require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
 };
 use nalgebra::{DMatrix, DMatrixView, DVector};
 
@@ -143,9 +143,23 @@ impl FilterCore {
         Ok(())
     }
 
+    /// ŷ = C x̂ + D u, and remembers u for the next prediction.
+    pub(crate) fn finish(
+        &mut self,
+        c: &DMatrixView<'_, f64>,
+        d: &DMatrixView<'_, f64>,
+        u: &DVector<f64>,
+    ) {
+        self.output.gemv(1.0, c, &self.x, 0.0);
+        self.output.gemv(1.0, d, u, 1.0);
+        self.u_prev.copy_from(u);
+    }
+}
+
+impl Saved for FilterCore {
     /// Appends every evolving quantity (estimates, covariances, last input, last innovation and
     /// output, gain, step count) to `out`.
-    pub(crate) fn save(&self, out: &mut Vec<f64>) {
+    fn save(&self, out: &mut Vec<f64>) {
         for block in [
             self.x.as_slice(),
             self.p.as_slice(),
@@ -161,8 +175,8 @@ impl FilterCore {
         out.push(self.steps as f64);
     }
 
-    /// Reads back what [`FilterCore::save`] wrote (same dimensions).
-    pub(crate) fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+    /// Reads back what [`Saved::save`] wrote (same dimensions).
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
         input.fill(self.x.as_mut_slice())?;
         input.fill(self.p.as_mut_slice())?;
         input.fill(self.x_prior.as_mut_slice())?;
@@ -173,18 +187,6 @@ impl FilterCore {
         input.fill(self.gain_t.as_mut_slice())?;
         self.steps = input.counter()?;
         Ok(())
-    }
-
-    /// ŷ = C x̂ + D u, and remembers u for the next prediction.
-    pub(crate) fn finish(
-        &mut self,
-        c: &DMatrixView<'_, f64>,
-        d: &DMatrixView<'_, f64>,
-        u: &DVector<f64>,
-    ) {
-        self.output.gemv(1.0, c, &self.x, 0.0);
-        self.output.gemv(1.0, d, u, 1.0);
-        self.u_prev.copy_from(u);
     }
 }
 
@@ -311,17 +313,13 @@ impl KalmanFilter {
     /// serialization): restoring it with [`KalmanFilter::set_dynamic_state`] into a filter
     /// built with the same parameters continues bit for bit.
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.core.save(&mut out);
-        out
+        self.core.saved()
     }
 
     /// Restores what [`KalmanFilter::dynamic_state`] returned. Errors (naming "state") when
     /// the length does not fit this filter's dimensions.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.core.restore(&mut input)?;
-        input.finish()
+        self.core.restore_saved(state)
     }
 
     /// Filtered state x̂_{k|k}.

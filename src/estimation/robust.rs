@@ -24,7 +24,7 @@
 //! bit whenever no standardised residual exceeds c (Huber).
 
 use super::kalman::{FilterCore, LinearModel};
-use super::{parameter_error, require_input_length, EstimationError, StateReader};
+use super::{parameter_error, require_input_length, EstimationError, Saved, StateReader};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// Smallest weight used in W⁻¹ (see the module documentation).
@@ -196,30 +196,12 @@ impl RobustKalmanFilter {
     /// [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)): the filter core,
     /// the standardised residuals, the weights and the effective measurement covariance.
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.save(&mut out);
-        out
+        self.saved()
     }
 
     /// Restores what [`RobustKalmanFilter::dynamic_state`] returned.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.restore(&mut input)?;
-        input.finish()
-    }
-
-    pub(crate) fn save(&self, out: &mut Vec<f64>) {
-        self.core.save(out);
-        out.extend_from_slice(self.standardized.as_slice());
-        out.extend_from_slice(self.weights.as_slice());
-        out.extend_from_slice(self.r_effective.as_slice());
-    }
-
-    pub(crate) fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
-        self.core.restore(input)?;
-        input.fill(self.standardized.as_mut_slice())?;
-        input.fill(self.weights.as_mut_slice())?;
-        input.fill(self.r_effective.as_mut_slice())
+        self.restore_saved(state)
     }
 
     /// Processes one sample (see [`KalmanFilter::step`](super::KalmanFilter::step)).
@@ -323,6 +305,22 @@ impl RobustKalmanFilter {
     /// Number of outputs p.
     pub fn outputs(&self) -> usize {
         self.model.outputs()
+    }
+}
+
+impl Saved for RobustKalmanFilter {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.core.save(out);
+        out.extend_from_slice(self.standardized.as_slice());
+        out.extend_from_slice(self.weights.as_slice());
+        out.extend_from_slice(self.r_effective.as_slice());
+    }
+
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.core.restore(input)?;
+        input.fill(self.standardized.as_mut_slice())?;
+        input.fill(self.weights.as_mut_slice())?;
+        input.fill(self.r_effective.as_mut_slice())
     }
 }
 

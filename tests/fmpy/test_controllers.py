@@ -12,7 +12,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import CRANE, REPO, crane_linear_model, fmu_path, init, open_slave, zoh
+from conftest import CRANE, REPO, assert_set_rejected, crane_linear_model, fmu_path, init, open_initialized_pair, open_slave, set_values, zoh
 
 TS = 0.05
 N = 4
@@ -292,9 +292,7 @@ def test_adaptive_refuses_nan_estimates_and_goes_on():
     init(slave)
     seq = adaptive_sequence()[:4]
     before = run_adaptive(slave, vr, seq)
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["A_hat[2,3]"]], [float("nan")])
-    assert any("`A_hat[2,3]`" in t and "finite" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "A_hat[2,3]", float("nan"), "`A_hat[2,3]`", "finite")
     after = run_adaptive(slave, vr, seq, t0=4 * TS, k0=4)
     assert np.all(np.isfinite(after))
     assert np.array_equal(after[:, 1:5], before[:, 1:5])
@@ -319,10 +317,8 @@ def test_adaptive_with_the_true_model_equals_state_feedback():
 
 def test_adaptive_recomputes_every_nth_step():
     slave, vr, _ = open_slave("AdaptiveStateFeedback")
-    slave.setupExperiment(startTime=0.0)
-    slave.setInteger([vr["recompute_period"]], [3])
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
+    set_values(slave, vr, {"recompute_period": 3})
+    init(slave)
     A, B = crane_zoh()
     seq = [(A, (1 + 0.1 * k) * B, "good") for k in range(7)]
     out = run_adaptive(slave, vr, seq)
@@ -365,10 +361,7 @@ def test_adaptive_two_interleaved_instances_equal_two_separate_runs():
         init(s)
         alone.append(run_adaptive(s, vr, seq))
         s.freeInstance()
-    a, vr, _ = open_slave("AdaptiveStateFeedback", "a")
-    b, _, _ = open_slave("AdaptiveStateFeedback", "b")
-    init(a)
-    init(b)
+    a, b, vr = open_initialized_pair("AdaptiveStateFeedback")
     ra, rb = [], []
     for k in range(len(seq_a)):
         ra.append(run_adaptive(a, vr, seq_a[k : k + 1], t0=k * TS, k0=k)[0])

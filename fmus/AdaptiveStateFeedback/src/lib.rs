@@ -31,12 +31,12 @@ use spurio_export::{
     Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable, VariableTable,
 };
 use spurio_fmu_common::controller::{
-    add_limit_parameters, add_pole_parameters, check_pole_parameters, describe_controller,
-    format_gain, input_unit, layout_for, read_poles, state_meaning, variant_defaults, with_unit,
-    Preset,
+    add_estimated_state, add_limit_parameters, add_pole_parameters, check_pole_parameters,
+    describe_controller, format_gain, input_unit, layout_for, read_poles, variant_defaults,
+    with_unit, Preset,
 };
 use spurio_fmu_common::crane_controller_config;
-use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
+use spurio_fmu_common::structured::{add_matrix, Block};
 
 /// Default bound on ‖L‖₂ for the crane preset: 50 times the reference gain's norm (≈ 1.99).
 pub const CRANE_MAX_GAIN_NORM: f64 = 100.0;
@@ -86,13 +86,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let n = defaults.states();
     let preset = defaults.preset;
     let mut t = VariableTable::new();
-    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
-        let (meaning, unit) = state_meaning(preset, i);
-        with_unit(
-            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
-            unit,
-        )
-    });
+    let x_hat = add_estimated_state(&mut t, preset, n);
     let a_hat = add_matrix(&mut t, "A_hat", n, n, |name, i, j| {
         Variable::input(name, defaults.a[(i, j)])
             .describe("Estimated discrete state matrix Â (e.g. from the dual Kalman filter)")

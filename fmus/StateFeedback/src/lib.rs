@@ -66,13 +66,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let n = defaults.states();
     let preset = defaults.preset;
     let mut t = VariableTable::new();
-    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
-        let (meaning, unit) = state_meaning(preset, i);
-        with_unit(
-            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
-            unit,
-        )
-    });
+    let x_hat = add_estimated_state(&mut t, preset, n);
     let x_ref = add_vector(&mut t, "x_ref", n, |name, i| {
         let (meaning, unit) = state_meaning(preset, i);
         with_unit(

@@ -90,7 +90,7 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::set_real::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+            ffi::set::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
         })
     }
 
@@ -102,7 +102,7 @@ impl<M: FmuModel> Harness<M> {
         let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::set_boolean::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+            ffi::set::<M, ffi::Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
         })
     }
 
@@ -113,7 +113,7 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::get_real::<M>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+            ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
 

@@ -189,7 +189,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Real,
             ) -> fmi2Status {
-                unsafe { ffi::get_real::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Real>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetInteger(
@@ -198,7 +198,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Integer,
             ) -> fmi2Status {
-                unsafe { ffi::get_integer::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Integer>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBoolean(
@@ -207,7 +207,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Boolean,
             ) -> fmi2Status {
-                unsafe { ffi::get_boolean::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Boolean>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetString(
@@ -225,7 +225,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Real,
             ) -> fmi2Status {
-                unsafe { ffi::set_real::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Real>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetInteger(
@@ -234,7 +234,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Integer,
             ) -> fmi2Status {
-                unsafe { ffi::set_integer::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Integer>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetBoolean(
@@ -243,7 +243,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Boolean,
             ) -> fmi2Status {
-                unsafe { ffi::set_boolean::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Boolean>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetString(
