@@ -23,6 +23,54 @@ use super::{
 };
 use nalgebra::{DMatrix, DMatrixView, DVector};
 
+/// The accessors of a filter built on a [`FilterCore`] (field `core`) and a [`LinearModel`]
+/// (field `model`): the sKF and the rsKF.
+macro_rules! core_accessors {
+    () => {
+        /// Filtered state x̂_{k|k}.
+        pub fn state(&self) -> &DVector<f64> {
+            &self.core.x
+        }
+        /// Covariance P_{k|k} of the filtered state.
+        pub fn covariance(&self) -> &DMatrix<f64> {
+            &self.core.p
+        }
+        /// Predicted state x⁻ = x̂_{k|k−1} of the last step.
+        pub fn predicted_state(&self) -> &DVector<f64> {
+            &self.core.x_prior
+        }
+        /// Filtered output ŷ = C x̂_{k|k} + D u_k (for the rsKF: the cleaned output).
+        pub fn output(&self) -> &DVector<f64> {
+            &self.core.output
+        }
+        /// Innovation e = y_k − C x⁻ − D u_k of the last step.
+        pub fn innovation(&self) -> &DVector<f64> {
+            &self.core.innovation
+        }
+        /// Gain K (n×p) of the last step.
+        pub fn gain(&self) -> DMatrix<f64> {
+            self.core.gain_t.transpose()
+        }
+        /// Number of steps processed.
+        pub fn steps(&self) -> u64 {
+            self.core.steps
+        }
+        /// Number of states n.
+        pub fn states(&self) -> usize {
+            self.model.states()
+        }
+        /// Number of inputs m.
+        pub fn inputs(&self) -> usize {
+            self.model.inputs()
+        }
+        /// Number of outputs p.
+        pub fn outputs(&self) -> usize {
+            self.model.outputs()
+        }
+    };
+}
+pub(crate) use core_accessors;
+
 /// The prediction / correction machinery shared by the sKF, the rsKF and the DKF's state
 /// filter. It owns the estimate, the covariance and every work buffer; the model matrices are
 /// passed in (the DKF changes them every step, the rsKF changes the measurement covariance).
@@ -322,49 +370,10 @@ impl KalmanFilter {
         self.core.restore_saved(state)
     }
 
-    /// Filtered state x̂_{k|k}.
-    pub fn state(&self) -> &DVector<f64> {
-        &self.core.x
-    }
-    /// Covariance P_{k|k} of the filtered state.
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.core.p
-    }
-    /// Predicted state x⁻ = x̂_{k|k−1} of the last step.
-    pub fn predicted_state(&self) -> &DVector<f64> {
-        &self.core.x_prior
-    }
+    core_accessors!();
     /// Predicted covariance P⁻ = P_{k|k−1} of the last step.
     pub fn predicted_covariance(&self) -> &DMatrix<f64> {
         &self.core.p_prior
-    }
-    /// Filtered output ŷ = C x̂_{k|k} + D u_k.
-    pub fn output(&self) -> &DVector<f64> {
-        &self.core.output
-    }
-    /// Innovation e = y_k − C x⁻ − D u_k of the last step.
-    pub fn innovation(&self) -> &DVector<f64> {
-        &self.core.innovation
-    }
-    /// Kalman gain K (n×p) of the last step.
-    pub fn gain(&self) -> DMatrix<f64> {
-        self.core.gain_t.transpose()
-    }
-    /// Number of steps processed.
-    pub fn steps(&self) -> u64 {
-        self.core.steps
-    }
-    /// Number of states n.
-    pub fn states(&self) -> usize {
-        self.model.states()
-    }
-    /// Number of inputs m.
-    pub fn inputs(&self) -> usize {
-        self.model.inputs()
-    }
-    /// Number of outputs p.
-    pub fn outputs(&self) -> usize {
-        self.model.outputs()
     }
 }
 

@@ -23,7 +23,7 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{FilterCore, LinearModel};
+use super::kalman::{core_accessors, FilterCore, LinearModel};
 use super::{parameter_error, require_input_length, EstimationError, Saved, StateReader};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -250,26 +250,7 @@ impl RobustKalmanFilter {
         Ok(())
     }
 
-    /// Filtered state x̂_{k|k}.
-    pub fn state(&self) -> &DVector<f64> {
-        &self.core.x
-    }
-    /// Covariance P_{k|k}.
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.core.p
-    }
-    /// Predicted state x⁻ of the last step.
-    pub fn predicted_state(&self) -> &DVector<f64> {
-        &self.core.x_prior
-    }
-    /// Filtered (cleaned) output ŷ = C x̂_{k|k} + D u_k.
-    pub fn output(&self) -> &DVector<f64> {
-        &self.core.output
-    }
-    /// Innovation e = y_k − C x⁻ − D u_k.
-    pub fn innovation(&self) -> &DVector<f64> {
-        &self.core.innovation
-    }
+    core_accessors!();
     /// Standardised residual r = R^{-1/2} e of the last step.
     pub fn standardized_residual(&self) -> &DVector<f64> {
         &self.standardized
@@ -282,29 +263,9 @@ impl RobustKalmanFilter {
     pub fn effective_measurement_covariance(&self) -> &DMatrix<f64> {
         &self.r_effective
     }
-    /// Robust gain K (n×p) of the last step.
-    pub fn gain(&self) -> DMatrix<f64> {
-        self.core.gain_t.transpose()
-    }
     /// The ψ function in use.
     pub fn influence_function(&self) -> InfluenceFunction {
         self.psi
-    }
-    /// Number of steps processed.
-    pub fn steps(&self) -> u64 {
-        self.core.steps
-    }
-    /// Number of states n.
-    pub fn states(&self) -> usize {
-        self.model.states()
-    }
-    /// Number of inputs m.
-    pub fn inputs(&self) -> usize {
-        self.model.inputs()
-    }
-    /// Number of outputs p.
-    pub fn outputs(&self) -> usize {
-        self.model.outputs()
     }
 }
 
