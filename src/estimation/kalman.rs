@@ -252,6 +252,18 @@ pub(crate) struct LinearModel {
 }
 
 impl LinearModel {
+    /// Checks the lengths of a sample (u_k, y_k), naming `u` or `y`, and gives the views of
+    /// A, B, C, D the filter core's updates take.
+    pub(crate) fn sample_views(
+        &self,
+        u: &DVector<f64>,
+        y: &DVector<f64>,
+    ) -> Result<[DMatrixView<'_, f64>; 4], EstimationError> {
+        require_input_length("u", u, self.inputs())?;
+        require_input_length("y", y, self.outputs())?;
+        Ok([&self.a, &self.b, &self.c, &self.d].map(|m| m.view((0, 0), m.shape())))
+    }
+
     /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
     /// "P0", "x0").
     #[allow(clippy::too_many_arguments)]
@@ -341,15 +353,8 @@ impl KalmanFilter {
     /// enters through D). On error the estimate is left as the failed step produced it;
     /// the caller should stop or rebuild the filter.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
-        require_input_length("u", u, self.model.inputs())?;
-        require_input_length("y", y, self.model.outputs())?;
         let m = &self.model;
-        let (a, b, c, d) = (
-            m.a.view((0, 0), m.a.shape()),
-            m.b.view((0, 0), m.b.shape()),
-            m.c.view((0, 0), m.c.shape()),
-            m.d.view((0, 0), m.d.shape()),
-        );
+        let [a, b, c, d] = m.sample_views(u, y)?;
         self.core.predict(&a, &m.a_t, &b, &m.q);
         self.core.compute_innovation(&c, &d, u, y)?;
         self.core.correct(&c, &m.c_t, &m.r)?;

@@ -24,7 +24,7 @@
 //! bit whenever no standardised residual exceeds c (Huber).
 
 use super::kalman::{core_accessors, FilterCore, LinearModel};
-use super::{parameter_error, require_input_length, EstimationError, Saved, StateReader};
+use super::{parameter_error, EstimationError, Saved, StateReader};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// Smallest weight used in W⁻¹ (see the module documentation).
@@ -206,15 +206,8 @@ impl RobustKalmanFilter {
 
     /// Processes one sample (see [`KalmanFilter::step`](super::KalmanFilter::step)).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
-        require_input_length("u", u, self.model.inputs())?;
-        require_input_length("y", y, self.model.outputs())?;
         let m = &self.model;
-        let (a, b, c, d) = (
-            m.a.view((0, 0), m.a.shape()),
-            m.b.view((0, 0), m.b.shape()),
-            m.c.view((0, 0), m.c.shape()),
-            m.d.view((0, 0), m.d.shape()),
-        );
+        let [a, b, c, d] = m.sample_views(u, y)?;
         self.core.predict(&a, &m.a_t, &b, &m.q);
         self.core.compute_innovation(&c, &d, u, y)?;
         // r = R^{-1/2} e.
