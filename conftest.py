@@ -113,15 +113,16 @@ def open_initialized_pair(name):
     return a, b, vr
 
 
-def assert_initialization_fails_naming(slave, sink, name):
+def assert_initialization_fails_naming(slave, sink, name, *words):
     """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
-    backticks (the parameter or matrix at fault); frees the slave."""
+    backticks (the parameter or matrix at fault) and holding all `words`; frees the slave."""
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     with pytest.raises(FMICallException) as e:
         slave.exitInitializationMode()
     assert e.value.status == 3
-    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
+    words = (f"`{name}`", *words)
+    assert any(all(w in t for w in words) for t in sink.texts(3)), sink.messages
     slave.freeInstance()
 
 

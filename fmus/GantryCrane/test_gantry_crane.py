@@ -10,7 +10,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import CRANE, LogSink, assert_set_rejected, crane_linear_model, fmu_path, init, make_callbacks, open_slave, zoh
+from conftest import CRANE, LogSink, assert_initialization_fails_naming, assert_set_rejected, crane_linear_model, fmu_path, init, make_callbacks, open_slave, set_values, zoh
 
 def linear_response(t, s0, u):
     """The linearised crane from `s0` under a constant force `u`, at the times `t`."""
@@ -144,15 +144,9 @@ def test_fixed_parameter_cannot_change_after_initialisation():
 
 def test_bad_parameter_is_named():
     slave, vr, sink = open_slave("GantryCrane")
-    slave.setupExperiment(startTime=0.0)
-    slave.setReal([vr["x0"]], [0.9])
-    slave.enterInitializationMode()
-    with pytest.raises(FMICallException):
-        slave.exitInitializationMode()
-    assert any("`x0`" in t for t in sink.texts(3)), sink.messages
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["l"]], [-1.0])  # below min = 0
-    slave.freeInstance()
+    assert_set_rejected(slave, vr, sink, "l", -1.0)  # below min = 0
+    set_values(slave, vr, {"x0": 0.9})
+    assert_initialization_fails_naming(slave, sink, "x0")
 
 
 def test_wrong_guid_gives_null():

@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_set_rejected, fmu_path, init, open_slave
+from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, init, open_slave, set_values
 
 N = 100_000
 
@@ -180,14 +180,8 @@ def test_fmu_state_replays_the_same_samples():
 
 def test_epsilon_outside_0_1_is_an_error_naming_it():
     s, vr, sink = open_slave("Sensor")
-    s.setupExperiment(startTime=0.0)
-    s.setReal([vr["epsilon[1]"]], [1.5])
-    s.enterInitializationMode()
-    with pytest.raises(FMICallException) as e:
-        s.exitInitializationMode()
-    assert e.value.status == 3
-    assert any("epsilon[1]" in t and "[0, 1]" in t for t in sink.texts(3)), sink.messages
-    s.freeInstance()
+    set_values(s, vr, {"epsilon[1]": 1.5})
+    assert_initialization_fails_naming(s, sink, "epsilon[1]", "[0, 1]")
 
 
 def test_negative_variance_is_an_error_naming_it():
