@@ -22,8 +22,8 @@ use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
 };
 
-/// `h_max · |λ|max` above which RK4 is refused (its real-axis stability limit is 2.785).
-pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+use spurio_fmu_common::rk4_substep;
+pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
@@ -122,15 +122,9 @@ impl FmuModel for OpAmpFilterFmu {
         };
         let state = [r(vr::V_C1_0), r(vr::V_C2_0)].into();
         let filter = OpAmpFilter::with_state(parameters, state).map_err(Failure::error)?;
-        let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
-        let product = h_max * fastest;
-        if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::error(format!(
-                "parameter `h_max`: {h_max} s would make RK4 unstable on the circuit's fastest mode ({fastest:.4} 1/s); use at most {:.3e} s",
-                RK4_STABILITY_MARGIN / fastest
-            )));
-        }
+        let mode = format!("the circuit's fastest mode ({fastest:.4} 1/s)");
+        let h_max = rk4_substep(r(vr::H_MAX), fastest, &mode)?;
         self.filter = filter;
         self.h_max = h_max;
         self.write_outputs(ctx);

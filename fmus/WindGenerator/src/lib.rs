@@ -37,8 +37,8 @@ use spurio_export::{
 };
 use std::f64::consts::PI;
 
-/// `h_max · |λ|max` above which RK4 is refused.
-pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+use spurio_fmu_common::rk4_substep;
+pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 
 /// The physical parameters: (name, unit, description), in value-reference order.
 pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
@@ -252,16 +252,9 @@ impl FmuModel for WindGeneratorFmu {
         } else {
             WindGenerator::new(parameters).map_err(Failure::error)?
         };
-        let h_max = spurio::require_positive("h_max", ctx.values.real(vr::H_MAX))
-            .map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
-        let product = h_max * fastest;
-        if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::error(format!(
-                "parameter `h_max`: {h_max} s would make RK4 unstable on the machine's fastest mode (about {fastest:.1} 1/s); use at most {:.3e} s",
-                RK4_STABILITY_MARGIN / fastest
-            )));
-        }
+        let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
+        let h_max = rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?;
         self.generator = generator;
         self.h_max = h_max;
         self.write_outputs(ctx);
