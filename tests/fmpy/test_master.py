@@ -25,17 +25,23 @@ def read_csv(path):
     return np.genfromtxt(path, delimiter=",", names=True, deletechars="")
 
 
+def fmpy_crane_step(output_interval, output):
+    """fmpy's run of the crane of examples/systems/crane_step.toml: 1 s under U = 1 N from
+    θ₀ = 0.02 rad."""
+    return simulate_fmu(
+        fmu_path("GantryCrane"),
+        stop_time=1.0,
+        output_interval=output_interval,
+        start_values={"U": 1.0, "theta0": 0.02},
+        output=output,
+    )
+
+
 def test_one_fmu_equals_fmpy_simulate_fmu(tmp_path):
     out = tmp_path / "master.csv"
     spurio("run", REPO / "examples/systems/crane_step.toml", "--out", out)
     ours = read_csv(out)
-    theirs = simulate_fmu(
-        fmu_path("GantryCrane"),
-        stop_time=1.0,
-        output_interval=0.01,
-        start_values={"U": 1.0, "theta0": 0.02},
-        output=["x", "theta", "v", "omega"],
-    )
+    theirs = fmpy_crane_step(0.01, ["x", "theta", "v", "omega"])
     assert len(ours) == len(theirs) == 101
     assert np.max(np.abs(ours["time"] - theirs["time"])) < 1e-12
     for name in ["x", "theta", "v", "omega"]:
@@ -186,13 +192,7 @@ def test_multirate_instance_steps_every_n_base_steps(tmp_path):
     out = tmp_path / "multirate.csv"
     spurio("run", system, "--out", out)
     ours = read_csv(out)
-    theirs = simulate_fmu(
-        fmu_path("GantryCrane"),
-        stop_time=1.0,
-        output_interval=0.04,
-        start_values={"U": 1.0, "theta0": 0.02},
-        output=["x", "theta"],
-    )
+    theirs = fmpy_crane_step(0.04, ["x", "theta"])
     assert len(ours) == 101
     # at multiples of 4 base steps the crane has just stepped 0.04 s: same as fmpy at 0.04
     assert np.max(np.abs(ours["crane.x"][::4] - theirs["x"])) <= 1e-12
