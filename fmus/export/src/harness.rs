@@ -116,6 +116,12 @@ impl<M: FmuModel> Harness<M> {
             ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
+    /// `fmi2GetReal` of one variable.
+    pub fn real(&mut self, vr: u32) -> Result<f64, Status> {
+        let mut out = [f64::NAN];
+        self.get_real(&[vr], &mut out)?;
+        Ok(out[0])
+    }
 
     /// `fmi2DoStep`.
     pub fn do_step(&mut self, time: f64, step: f64) -> Result<Status, Status> {
