@@ -7,6 +7,7 @@ from ctypes import byref
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -76,17 +77,52 @@ def open_slave(name, instance_name="instance", logging_on=False, guid=None):
     return slave, vr, sink
 
 
-def assert_initialization_fails_naming(slave, sink, name):
-    """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
-    backticks (the parameter or matrix at fault); frees the slave."""
-    from fmpy.fmi1 import FMICallException
+def set_values(slave, vr, values):
+    """Sets variables by name, each with the setter of its Python type (bool, int, float)."""
+    for name, value in values.items():
+        if isinstance(value, bool):
+            slave.setBoolean([vr[name]], [value])
+        elif isinstance(value, int):
+            slave.setInteger([vr[name]], [value])
+        else:
+            slave.setReal([vr[name]], [value])
 
+
+def assert_set_rejected(slave, vr, sink, name, value, *words):
+    """Setting `name` to `value` fails, and a logged error holds all `words` (by default the
+    name in backticks)."""
+    with pytest.raises(FMICallException):
+        set_values(slave, vr, {name: value})
+    words = words or (f"`{name}`",)
+    assert any(all(w in t for w in words) for t in sink.texts(3)), sink.messages
+
+
+def init(slave, t0=0.0):
+    """Sets up and initialises `slave` with its start values."""
+    slave.setupExperiment(startTime=t0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+
+
+def open_initialized_pair(name):
+    """Two initialised instances "a" and "b" of FMU `name`, and its value references by name."""
+    a, vr, _ = open_slave(name, "a")
+    b, _, _ = open_slave(name, "b")
+    init(a)
+    init(b)
+    return a, b, vr
+
+
+def assert_initialization_fails_naming(slave, sink, name, *words):
+    """Initialising `slave` fails with fmi2Error and a logged error naming `name` in
+    backticks (the parameter or matrix at fault) and holding all `words`; frees the slave."""
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     with pytest.raises(FMICallException) as e:
         slave.exitInitializationMode()
     assert e.value.status == 3
-    assert any(f"`{name}`" in t for t in sink.texts(3)), sink.messages
+    words = (f"`{name}`", *words)
+    assert any(all(w in t for w in words) for t in sink.texts(3)), sink.messages
     slave.freeInstance()
 
 
@@ -104,6 +140,39 @@ def expm(a: np.ndarray) -> np.ndarray:
     for _ in range(s):
         result = result @ result
     return result
+
+
+def zoh(a, b, t):
+    """Exact discretisation over `t` of ṡ = A s + B u with u held: (e^{At}, ∫₀ᵗ e^{Aτ} dτ B),
+    both read from the matrix exponential of the augmented [[A, B], [0, 0]]."""
+    n = a.shape[0]
+    b = np.reshape(b, (n, -1))
+    aug = np.zeros((n + b.shape[1],) * 2)
+    aug[:n, :n] = a
+    aug[:n, n:] = b
+    e = expm(aug * t)
+    return e[:n, :n], e[:n, n:]
+
+
+# Annex A of paper 000, written out again here independently of the Rust code.
+CRANE = dict(M=0.84385, m=0.013, l=0.3434, J=1e-5, f_c=0.67, f_p=9.3e-6, g=9.8)
+
+
+def crane_linear_model(M, m, l, J, f_c, f_p, g):
+    """Continuous linearisation ṡ = A s + B U of the crane, s = [x, θ, ẋ, θ̇]
+    (paper 000 eqs 4–5): `crane_linear_model(**CRANE)`."""
+    a11, a22, ml = M + m, J + m * l * l, m * l
+    det = a11 * a22 - ml * ml
+    A = np.array(
+        [
+            [0, 0, 1, 0],
+            [0, 0, 0, 1],
+            [0, -ml * ml * g / det, -a22 * f_c / det, -ml * f_p / det],
+            [0, -a11 * ml * g / det, -ml * f_c / det, -a11 * f_p / det],
+        ]
+    )
+    B = np.array([0, 0, a22 / det, ml / det])
+    return A, B
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave
 
 
 def simulate(stop=5.0, h=1e-3, u=1.0, **start):
@@ -84,12 +84,6 @@ def test_component_values_set_the_transfer_function():
     slow = step_figures(slow["time"], slow["y"])
     assert slow[0] == pytest.approx(base[0] / 2, rel=1e-3)
     assert slow[1] == pytest.approx(base[1], rel=1e-3)
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 def test_two_instances_interleaved_equal_separate_runs():

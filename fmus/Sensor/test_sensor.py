@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, init, open_slave, set_values
 
 N = 100_000
 
@@ -21,12 +21,6 @@ def simulate(name="Sensor", n=N, h=0.1, **start):
         output_interval=h,
         start_values=start,
     )
-
-
-def init(slave, t0=0.0):
-    slave.setupExperiment(startTime=t0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 @pytest.mark.parametrize("name", ["Sensor", "Sensor2"])
@@ -186,21 +180,13 @@ def test_fmu_state_replays_the_same_samples():
 
 def test_epsilon_outside_0_1_is_an_error_naming_it():
     s, vr, sink = open_slave("Sensor")
-    s.setupExperiment(startTime=0.0)
-    s.setReal([vr["epsilon[1]"]], [1.5])
-    s.enterInitializationMode()
-    with pytest.raises(FMICallException) as e:
-        s.exitInitializationMode()
-    assert e.value.status == 3
-    assert any("epsilon[1]" in t and "[0, 1]" in t for t in sink.texts(3)), sink.messages
-    s.freeInstance()
+    set_values(s, vr, {"epsilon[1]": 1.5})
+    assert_initialization_fails_naming(s, sink, "epsilon[1]", "[0, 1]")
 
 
 def test_negative_variance_is_an_error_naming_it():
     s, vr, sink = open_slave("Sensor2")
-    with pytest.raises(FMICallException):
-        s.setReal([vr["variance[2]"]], [-0.1])
-    assert any("variance[2]" in t for t in sink.texts(3)), sink.messages
+    assert_set_rejected(s, vr, sink, "variance[2]", -0.1)
     # inconsistent outlier magnitudes are caught at initialisation, naming the parameter
     s.setBoolean([vr["use_snr[2]"]], [True])
     s.setReal([vr["outlier_max[2]"]], [0.5])

@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_initialized_pair, open_slave
 
 DTYPE = [("time", np.float64), ("u_drive", np.float64), ("u_field", np.float64)]
 
@@ -97,12 +97,6 @@ def test_trajectory_does_not_depend_on_the_communication_step():
         assert np.max(np.abs(fine[k][::10] - coarse[k])) < 1e-9 * 1800
 
 
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-
-
 def run(slave, vr, n, u, h=0.1, t0=0.0):
     out = []
     t = t0
@@ -121,10 +115,7 @@ def test_two_instances_and_fmu_state():
     init(a)
     alone = run(a, vr, 30, ua)
     a.freeInstance()
-    a, _, _ = open_slave("WindGenerator", "a")
-    b, _, _ = open_slave("WindGenerator", "b")
-    init(a)
-    init(b)
+    a, b, _ = open_initialized_pair("WindGenerator")
     ra, rb = [], []
     t = 0.0
     for k in range(30):

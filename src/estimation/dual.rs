@@ -40,7 +40,7 @@ use super::kalman::FilterCore;
 use super::robust::RobustKalmanFilter;
 use super::{
     parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
-    require_shape, require_spd, symmetrize_in_place, EstimationError, StateReader,
+    require_shape, require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -288,36 +288,12 @@ impl DualKalmanFilter {
     /// [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)): the state filter,
     /// Θ̂, every parameter covariance, the previous output and the predicted output.
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.save(&mut out);
-        out
+        self.saved()
     }
 
     /// Restores what [`DualKalmanFilter::dynamic_state`] returned.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.restore(&mut input)?;
-        input.finish()
-    }
-
-    fn save(&self, out: &mut Vec<f64>) {
-        self.core.save(out);
-        out.extend_from_slice(self.theta.as_slice());
-        for group in &self.groups {
-            out.extend_from_slice(group.sigma.as_slice());
-        }
-        out.extend_from_slice(self.y_prev.as_slice());
-        out.extend_from_slice(self.predicted_output.as_slice());
-    }
-
-    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
-        self.core.restore(input)?;
-        input.fill(self.theta.as_mut_slice())?;
-        for group in &mut self.groups {
-            input.fill(group.sigma.as_mut_slice())?;
-        }
-        input.fill(self.y_prev.as_mut_slice())?;
-        input.fill(self.predicted_output.as_mut_slice())
+        self.restore_saved(state)
     }
 
     fn update_parameters(&mut self) -> Result<(), EstimationError> {
@@ -431,6 +407,28 @@ impl DualKalmanFilter {
     }
 }
 
+impl Saved for DualKalmanFilter {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.core.save(out);
+        out.extend_from_slice(self.theta.as_slice());
+        for group in &self.groups {
+            out.extend_from_slice(group.sigma.as_slice());
+        }
+        out.extend_from_slice(self.y_prev.as_slice());
+        out.extend_from_slice(self.predicted_output.as_slice());
+    }
+
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.core.restore(input)?;
+        input.fill(self.theta.as_mut_slice())?;
+        for group in &mut self.groups {
+            input.fill(group.sigma.as_mut_slice())?;
+        }
+        input.fill(self.y_prev.as_mut_slice())?;
+        input.fill(self.predicted_output.as_mut_slice())
+    }
+}
+
 /// DKF-rsKF (paper 001, Fig. 2): the rsKF cleans the measured outputs, the DKF identifies
 /// from the cleaned outputs ŷ_rsKF = C x̂ + D u of the cleaner and the inputs.
 #[derive(Debug, Clone)]
@@ -489,18 +487,12 @@ impl DkfRsKf {
     /// Everything that evolves from step to step: the rsKF's and then the DKF's dynamic state
     /// (see [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)).
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.cleaner.save(&mut out);
-        self.dual.save(&mut out);
-        out
+        self.saved()
     }
 
     /// Restores what [`DkfRsKf::dynamic_state`] returned.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.cleaner.restore(&mut input)?;
-        self.dual.restore(&mut input)?;
-        input.finish()
+        self.restore_saved(state)
     }
 
     /// The cleaned outputs of the last step.
@@ -514,6 +506,17 @@ impl DkfRsKf {
     /// The DKF (states, outputs, Â, B̂, Ĉ, D̂).
     pub fn dual(&self) -> &DualKalmanFilter {
         &self.dual
+    }
+}
+
+impl Saved for DkfRsKf {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.cleaner.save(out);
+        self.dual.save(out);
+    }
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.cleaner.restore(input)?;
+        self.dual.restore(input)
     }
 }
 

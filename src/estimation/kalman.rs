@@ -19,9 +19,57 @@
 
 use super::{
     cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
-    require_spd, symmetrize_in_place, EstimationError, StateReader,
+    require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
 };
 use nalgebra::{DMatrix, DMatrixView, DVector};
+
+/// The accessors of a filter built on a [`FilterCore`] (field `core`) and a [`LinearModel`]
+/// (field `model`): the sKF and the rsKF.
+macro_rules! core_accessors {
+    () => {
+        /// Filtered state x̂_{k|k}.
+        pub fn state(&self) -> &DVector<f64> {
+            &self.core.x
+        }
+        /// Covariance P_{k|k} of the filtered state.
+        pub fn covariance(&self) -> &DMatrix<f64> {
+            &self.core.p
+        }
+        /// Predicted state x⁻ = x̂_{k|k−1} of the last step.
+        pub fn predicted_state(&self) -> &DVector<f64> {
+            &self.core.x_prior
+        }
+        /// Filtered output ŷ = C x̂_{k|k} + D u_k (for the rsKF: the cleaned output).
+        pub fn output(&self) -> &DVector<f64> {
+            &self.core.output
+        }
+        /// Innovation e = y_k − C x⁻ − D u_k of the last step.
+        pub fn innovation(&self) -> &DVector<f64> {
+            &self.core.innovation
+        }
+        /// Gain K (n×p) of the last step.
+        pub fn gain(&self) -> DMatrix<f64> {
+            self.core.gain_t.transpose()
+        }
+        /// Number of steps processed.
+        pub fn steps(&self) -> u64 {
+            self.core.steps
+        }
+        /// Number of states n.
+        pub fn states(&self) -> usize {
+            self.model.states()
+        }
+        /// Number of inputs m.
+        pub fn inputs(&self) -> usize {
+            self.model.inputs()
+        }
+        /// Number of outputs p.
+        pub fn outputs(&self) -> usize {
+            self.model.outputs()
+        }
+    };
+}
+pub(crate) use core_accessors;
 
 /// The prediction / correction machinery shared by the sKF, the rsKF and the DKF's state
 /// filter. It owns the estimate, the covariance and every work buffer; the model matrices are
@@ -143,9 +191,23 @@ impl FilterCore {
         Ok(())
     }
 
+    /// ŷ = C x̂ + D u, and remembers u for the next prediction.
+    pub(crate) fn finish(
+        &mut self,
+        c: &DMatrixView<'_, f64>,
+        d: &DMatrixView<'_, f64>,
+        u: &DVector<f64>,
+    ) {
+        self.output.gemv(1.0, c, &self.x, 0.0);
+        self.output.gemv(1.0, d, u, 1.0);
+        self.u_prev.copy_from(u);
+    }
+}
+
+impl Saved for FilterCore {
     /// Appends every evolving quantity (estimates, covariances, last input, last innovation and
     /// output, gain, step count) to `out`.
-    pub(crate) fn save(&self, out: &mut Vec<f64>) {
+    fn save(&self, out: &mut Vec<f64>) {
         for block in [
             self.x.as_slice(),
             self.p.as_slice(),
@@ -161,8 +223,8 @@ impl FilterCore {
         out.push(self.steps as f64);
     }
 
-    /// Reads back what [`FilterCore::save`] wrote (same dimensions).
-    pub(crate) fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+    /// Reads back what [`Saved::save`] wrote (same dimensions).
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
         input.fill(self.x.as_mut_slice())?;
         input.fill(self.p.as_mut_slice())?;
         input.fill(self.x_prior.as_mut_slice())?;
@@ -173,18 +235,6 @@ impl FilterCore {
         input.fill(self.gain_t.as_mut_slice())?;
         self.steps = input.counter()?;
         Ok(())
-    }
-
-    /// ŷ = C x̂ + D u, and remembers u for the next prediction.
-    pub(crate) fn finish(
-        &mut self,
-        c: &DMatrixView<'_, f64>,
-        d: &DMatrixView<'_, f64>,
-        u: &DVector<f64>,
-    ) {
-        self.output.gemv(1.0, c, &self.x, 0.0);
-        self.output.gemv(1.0, d, u, 1.0);
-        self.u_prev.copy_from(u);
     }
 }
 
@@ -202,6 +252,18 @@ pub(crate) struct LinearModel {
 }
 
 impl LinearModel {
+    /// Checks the lengths of a sample (u_k, y_k), naming `u` or `y`, and gives the views of
+    /// A, B, C, D the filter core's updates take.
+    pub(crate) fn sample_views(
+        &self,
+        u: &DVector<f64>,
+        y: &DVector<f64>,
+    ) -> Result<[DMatrixView<'_, f64>; 4], EstimationError> {
+        require_input_length("u", u, self.inputs())?;
+        require_input_length("y", y, self.outputs())?;
+        Ok([&self.a, &self.b, &self.c, &self.d].map(|m| m.view((0, 0), m.shape())))
+    }
+
     /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
     /// "P0", "x0").
     #[allow(clippy::too_many_arguments)]
@@ -291,15 +353,8 @@ impl KalmanFilter {
     /// enters through D). On error the estimate is left as the failed step produced it;
     /// the caller should stop or rebuild the filter.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
-        require_input_length("u", u, self.model.inputs())?;
-        require_input_length("y", y, self.model.outputs())?;
         let m = &self.model;
-        let (a, b, c, d) = (
-            m.a.view((0, 0), m.a.shape()),
-            m.b.view((0, 0), m.b.shape()),
-            m.c.view((0, 0), m.c.shape()),
-            m.d.view((0, 0), m.d.shape()),
-        );
+        let [a, b, c, d] = m.sample_views(u, y)?;
         self.core.predict(&a, &m.a_t, &b, &m.q);
         self.core.compute_innovation(&c, &d, u, y)?;
         self.core.correct(&c, &m.c_t, &m.r)?;
@@ -311,67 +366,24 @@ impl KalmanFilter {
     /// serialization): restoring it with [`KalmanFilter::set_dynamic_state`] into a filter
     /// built with the same parameters continues bit for bit.
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.core.save(&mut out);
-        out
+        self.core.saved()
     }
 
     /// Restores what [`KalmanFilter::dynamic_state`] returned. Errors (naming "state") when
     /// the length does not fit this filter's dimensions.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.core.restore(&mut input)?;
-        input.finish()
+        self.core.restore_saved(state)
     }
 
-    /// Filtered state x̂_{k|k}.
-    pub fn state(&self) -> &DVector<f64> {
-        &self.core.x
-    }
-    /// Covariance P_{k|k} of the filtered state.
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.core.p
-    }
-    /// Predicted state x⁻ = x̂_{k|k−1} of the last step.
-    pub fn predicted_state(&self) -> &DVector<f64> {
-        &self.core.x_prior
-    }
+    core_accessors!();
     /// Predicted covariance P⁻ = P_{k|k−1} of the last step.
     pub fn predicted_covariance(&self) -> &DMatrix<f64> {
         &self.core.p_prior
     }
-    /// Filtered output ŷ = C x̂_{k|k} + D u_k.
-    pub fn output(&self) -> &DVector<f64> {
-        &self.core.output
-    }
-    /// Innovation e = y_k − C x⁻ − D u_k of the last step.
-    pub fn innovation(&self) -> &DVector<f64> {
-        &self.core.innovation
-    }
-    /// Kalman gain K (n×p) of the last step.
-    pub fn gain(&self) -> DMatrix<f64> {
-        self.core.gain_t.transpose()
-    }
-    /// Number of steps processed.
-    pub fn steps(&self) -> u64 {
-        self.core.steps
-    }
-    /// Number of states n.
-    pub fn states(&self) -> usize {
-        self.model.states()
-    }
-    /// Number of inputs m.
-    pub fn inputs(&self) -> usize {
-        self.model.inputs()
-    }
-    /// Number of outputs p.
-    pub fn outputs(&self) -> usize {
-        self.model.outputs()
-    }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::linalg::kalman_gain_steady;
 
@@ -379,19 +391,25 @@ mod tests {
         DMatrix::from_element(1, 1, v)
     }
 
+    /// The scalar filter of x⁺ = a x + w, y = x + v without input: Cov w = q, Cov v = r,
+    /// x̂₀ = 0, P₀ = p0.
+    pub(crate) fn scalar_filter(a: f64, q: f64, r: f64, p0: f64) -> KalmanFilter {
+        KalmanFilter::new(
+            scalar(a),
+            DMatrix::zeros(1, 0),
+            scalar(1.0),
+            DMatrix::zeros(1, 0),
+            scalar(q),
+            scalar(r),
+            DVector::zeros(1),
+            scalar(p0),
+        )
+        .unwrap()
+    }
+
     #[test]
     fn scalar_steady_state_gain_is_golden_ratio_conjugate() {
-        let mut filter = KalmanFilter::new(
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            scalar(1.0),
-            DVector::zeros(1),
-            scalar(10.0),
-        )
-        .unwrap();
+        let mut filter = scalar_filter(1.0, 1.0, 1.0, 10.0);
         let u = DVector::zeros(0);
         for k in 0..200 {
             filter
@@ -539,17 +557,7 @@ mod tests {
 
     #[test]
     fn overflowing_covariance_is_an_error_not_nan() {
-        let mut filter = KalmanFilter::new(
-            scalar(1e200),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            scalar(1.0),
-            DVector::zeros(1),
-            scalar(1e200),
-        )
-        .unwrap();
+        let mut filter = scalar_filter(1e200, 1.0, 1.0, 1e200);
         let e = filter
             .step(&DVector::zeros(0), &DVector::from_element(1, 1.0))
             .unwrap_err();

@@ -284,6 +284,29 @@ pub(crate) fn symmetrize_in_place(m: &mut DMatrix<f64>) {
 // Dynamic state as a flat list of numbers (FMU state serialization).
 // ---------------------------------------------------------------------------------------
 
+/// An estimator part whose evolving numbers go into FMU states: [`Saved::save`] appends them,
+/// [`Saved::restore`] reads them back in the same order. The provided methods are the
+/// estimators' `dynamic_state` and `set_dynamic_state`.
+pub(crate) trait Saved {
+    /// Appends every evolving number to `out`.
+    fn save(&self, out: &mut Vec<f64>);
+    /// Reads back what [`Saved::save`] wrote (same dimensions).
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError>;
+
+    /// All that [`Saved::save`] writes, as one list.
+    fn saved(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.save(&mut out);
+        out
+    }
+    /// Restores exactly what [`Saved::saved`] returned.
+    fn restore_saved(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        let mut input = StateReader::new(state);
+        self.restore(&mut input)?;
+        input.finish()
+    }
+}
+
 /// Reads back, in order, the numbers an estimator's `dynamic_state` wrote, into buffers of
 /// the estimator (built with the same parameters, so every length is known).
 pub(crate) struct StateReader<'a> {

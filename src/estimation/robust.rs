@@ -23,8 +23,8 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{FilterCore, LinearModel};
-use super::{parameter_error, require_input_length, EstimationError, StateReader};
+use super::kalman::{core_accessors, FilterCore, LinearModel};
+use super::{parameter_error, EstimationError, Saved, StateReader};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// Smallest weight used in W⁻¹ (see the module documentation).
@@ -196,43 +196,18 @@ impl RobustKalmanFilter {
     /// [`KalmanFilter::dynamic_state`](super::KalmanFilter::dynamic_state)): the filter core,
     /// the standardised residuals, the weights and the effective measurement covariance.
     pub fn dynamic_state(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.save(&mut out);
-        out
+        self.saved()
     }
 
     /// Restores what [`RobustKalmanFilter::dynamic_state`] returned.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        let mut input = StateReader::new(state);
-        self.restore(&mut input)?;
-        input.finish()
-    }
-
-    pub(crate) fn save(&self, out: &mut Vec<f64>) {
-        self.core.save(out);
-        out.extend_from_slice(self.standardized.as_slice());
-        out.extend_from_slice(self.weights.as_slice());
-        out.extend_from_slice(self.r_effective.as_slice());
-    }
-
-    pub(crate) fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
-        self.core.restore(input)?;
-        input.fill(self.standardized.as_mut_slice())?;
-        input.fill(self.weights.as_mut_slice())?;
-        input.fill(self.r_effective.as_mut_slice())
+        self.restore_saved(state)
     }
 
     /// Processes one sample (see [`KalmanFilter::step`](super::KalmanFilter::step)).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
-        require_input_length("u", u, self.model.inputs())?;
-        require_input_length("y", y, self.model.outputs())?;
         let m = &self.model;
-        let (a, b, c, d) = (
-            m.a.view((0, 0), m.a.shape()),
-            m.b.view((0, 0), m.b.shape()),
-            m.c.view((0, 0), m.c.shape()),
-            m.d.view((0, 0), m.d.shape()),
-        );
+        let [a, b, c, d] = m.sample_views(u, y)?;
         self.core.predict(&a, &m.a_t, &b, &m.q);
         self.core.compute_innovation(&c, &d, u, y)?;
         // r = R^{-1/2} e.
@@ -268,26 +243,7 @@ impl RobustKalmanFilter {
         Ok(())
     }
 
-    /// Filtered state x̂_{k|k}.
-    pub fn state(&self) -> &DVector<f64> {
-        &self.core.x
-    }
-    /// Covariance P_{k|k}.
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.core.p
-    }
-    /// Predicted state x⁻ of the last step.
-    pub fn predicted_state(&self) -> &DVector<f64> {
-        &self.core.x_prior
-    }
-    /// Filtered (cleaned) output ŷ = C x̂_{k|k} + D u_k.
-    pub fn output(&self) -> &DVector<f64> {
-        &self.core.output
-    }
-    /// Innovation e = y_k − C x⁻ − D u_k.
-    pub fn innovation(&self) -> &DVector<f64> {
-        &self.core.innovation
-    }
+    core_accessors!();
     /// Standardised residual r = R^{-1/2} e of the last step.
     pub fn standardized_residual(&self) -> &DVector<f64> {
         &self.standardized
@@ -300,29 +256,25 @@ impl RobustKalmanFilter {
     pub fn effective_measurement_covariance(&self) -> &DMatrix<f64> {
         &self.r_effective
     }
-    /// Robust gain K (n×p) of the last step.
-    pub fn gain(&self) -> DMatrix<f64> {
-        self.core.gain_t.transpose()
-    }
     /// The ψ function in use.
     pub fn influence_function(&self) -> InfluenceFunction {
         self.psi
     }
-    /// Number of steps processed.
-    pub fn steps(&self) -> u64 {
-        self.core.steps
+}
+
+impl Saved for RobustKalmanFilter {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.core.save(out);
+        out.extend_from_slice(self.standardized.as_slice());
+        out.extend_from_slice(self.weights.as_slice());
+        out.extend_from_slice(self.r_effective.as_slice());
     }
-    /// Number of states n.
-    pub fn states(&self) -> usize {
-        self.model.states()
-    }
-    /// Number of inputs m.
-    pub fn inputs(&self) -> usize {
-        self.model.inputs()
-    }
-    /// Number of outputs p.
-    pub fn outputs(&self) -> usize {
-        self.model.outputs()
+
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.core.restore(input)?;
+        input.fill(self.standardized.as_mut_slice())?;
+        input.fill(self.weights.as_mut_slice())?;
+        input.fill(self.r_effective.as_mut_slice())
     }
 }
 
@@ -383,6 +335,7 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::{mean_std, TestRng};
     use super::*;
+    use crate::estimation::kalman::tests::scalar_filter;
     use crate::estimation::KalmanFilter;
 
     fn scalar(v: f64) -> DMatrix<f64> {
@@ -485,17 +438,7 @@ mod tests {
         let none = DVector::zeros(0);
         for seed in 0..100 {
             let run = cosine_with_outliers(1000 + seed);
-            let mut standard = KalmanFilter::new(
-                scalar(1.0),
-                DMatrix::zeros(1, 0),
-                scalar(1.0),
-                DMatrix::zeros(1, 0),
-                scalar(1e-4),
-                scalar(1e-4),
-                DVector::zeros(1),
-                scalar(0.0),
-            )
-            .unwrap();
+            let mut standard = scalar_filter(1.0, 1e-4, 1e-4, 0.0);
             let mut robust = RobustKalmanFilter::random_walk(1, 1e-4, 1e-4, 0.0, psi).unwrap();
             standard_scores.push(residual_error(&run, |y| {
                 standard.step(&none, &DVector::from_element(1, y)).unwrap();

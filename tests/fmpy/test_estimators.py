@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2True, fmi2ValueReference
 from fmpy.validation import validate_fmu
 
-from conftest import REPO, LogSink, fmu_path, make_callbacks, open_slave
+from conftest import LogSink, REPO, assert_set_rejected, fmu_path, init, make_callbacks, open_initialized_pair, open_slave
 
 VARIANTS = [
     "KalmanFilter",
@@ -25,12 +25,6 @@ VARIANTS = [
     "DistributedObserverAgent1",
     "DistributedObserverAgent2",
 ]
-
-
-def init(slave):
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
 
 
 class Driver:
@@ -203,9 +197,7 @@ def test_r_not_positive_definite_is_named():
 
 def test_lambda_outside_the_unit_interval_is_named():
     slave, vr, sink = open_slave("RecursiveLeastSquares")
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["lambda"]], [1.5])
-    assert any("`lambda` = 1.5" in t and "maximum 1" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "lambda", 1.5, "`lambda` = 1.5", "maximum 1")
     slave.freeInstance()
     expect_init_error("RecursiveLeastSquares", {"lambda": 0.0}, "parameter `lambda`", "(0, 1]")
 
@@ -222,18 +214,14 @@ def test_unobservable_observer_design_is_reported():
 
 def test_unknown_influence_function_is_named():
     slave, vr, sink = open_slave("RobustKalmanFilter")
-    with pytest.raises(FMICallException):
-        slave.setInteger([vr["psi"]], [3])
-    assert any("`psi`" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "psi", 3)
     slave.freeInstance()
 
 
 def test_nan_measurement_is_rejected():
     slave, vr, sink = open_slave("DkfRsKf")
     init(slave)
-    with pytest.raises(FMICallException):
-        slave.setReal([vr["y[2]"]], [float("nan")])
-    assert any("`y[2]`" in t for t in sink.texts(3))
+    assert_set_rejected(slave, vr, sink, "y[2]", float("nan"))
     slave.doStep(0.0, 0.05)
     assert np.all(np.isfinite(slave.getReal([vr["x_hat[1]"], vr["A_hat[1,1]"]])))
     slave.freeInstance()
@@ -317,10 +305,7 @@ def test_two_interleaved_instances_equal_two_separate_runs():
         init(s)
         alone.append(run_filter(s, vr, y))
         s.freeInstance()
-    a, vr, _ = open_slave("RobustKalmanFilter", "a")
-    b, _, _ = open_slave("RobustKalmanFilter", "b")
-    init(a)
-    init(b)
+    a, b, vr = open_initialized_pair("RobustKalmanFilter")
     da = Driver(a, [vr["y[1]"]], [vr["y_hat[1]"]], 1e-3)
     db = Driver(b, [vr["y[1]"]], [vr["y_hat[1]"]], 1e-3)
     ra, rb = [], []

@@ -10,7 +10,7 @@ from fmpy import simulate_fmu
 from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import Parameter, ParameterSet
 
-from conftest import REPO, fmu_path, open_slave
+from conftest import REPO, fmu_path, init, open_slave
 
 SPURIO = REPO / "target" / "release" / "spurio"
 
@@ -25,22 +25,40 @@ def read_csv(path):
     return np.genfromtxt(path, delimiter=",", names=True, deletechars="")
 
 
+def fmpy_crane_step(output_interval, output):
+    """fmpy's run of the crane of examples/systems/crane_step.toml: 1 s under U = 1 N from
+    θ₀ = 0.02 rad."""
+    return simulate_fmu(
+        fmu_path("GantryCrane"),
+        stop_time=1.0,
+        output_interval=output_interval,
+        start_values={"U": 1.0, "theta0": 0.02},
+        output=output,
+    )
+
+
 def test_one_fmu_equals_fmpy_simulate_fmu(tmp_path):
     out = tmp_path / "master.csv"
     spurio("run", REPO / "examples/systems/crane_step.toml", "--out", out)
     ours = read_csv(out)
-    theirs = simulate_fmu(
-        fmu_path("GantryCrane"),
-        stop_time=1.0,
-        output_interval=0.01,
-        start_values={"U": 1.0, "theta0": 0.02},
-        output=["x", "theta", "v", "omega"],
-    )
+    theirs = fmpy_crane_step(0.01, ["x", "theta", "v", "omega"])
     assert len(ours) == len(theirs) == 101
     assert np.max(np.abs(ours["time"] - theirs["time"])) < 1e-12
     for name in ["x", "theta", "v", "omega"]:
         diff = np.max(np.abs(ours["crane." + name] - theirs[name]))
         assert diff <= 1e-12, (name, diff)
+
+
+def write_system(path, header, **instances):
+    """Writes the system file `path`: `header`, then one instance per keyword, name=(FMU,
+    inline table of parameters or None). Returns the path."""
+    text = header
+    for name, (fmu, parameters) in instances.items():
+        text += f'\n[[instance]]\nname = "{name}"\nfmu = "{fmu_path(fmu)}"\n'
+        if parameters:
+            text += f"parameters = {parameters}\n"
+    path.write_text(text)
+    return path
 
 
 CRANE_SENSOR = """
@@ -50,21 +68,13 @@ step_size = 0.01
 algorithm = "jacobi"
 connections = ["crane.x -> sensor.u[1]", "crane.theta -> sensor.u[2]"]
 record = ["crane.x", "crane.theta", "sensor.y[1]", "sensor.y[2]"]
-
-[[instance]]
-name = "crane"
-fmu = "{crane}"
-parameters = {{ U = 0.5 }}
-
-[[instance]]
-name = "sensor"
-fmu = "{sensor}"
 """
 
 
 def test_two_fmus_equal_fmpy_ssp_after_the_jacobi_shift(tmp_path):
-    system = tmp_path / "crane_sensor.toml"
-    system.write_text(CRANE_SENSOR.format(crane=fmu_path("GantryCrane"), sensor=fmu_path("Sensor2")))
+    system = write_system(
+        tmp_path / "crane_sensor.toml", CRANE_SENSOR, crane=("GantryCrane", "{ U = 0.5 }"), sensor=("Sensor2", None)
+    )
     ssp = tmp_path / "crane_sensor.ssp"
     spurio("ssp-export", system, ssp)
     out = tmp_path / "master.csv"
@@ -99,21 +109,13 @@ connections = [
   "ctrl.u[1] -> crane.U",
 ]
 record = ["crane.x", "crane.theta", "ctrl.u[1]"]
-
-[[instance]]
-name = "crane"
-fmu = "{crane}"
-parameters = {{ x0 = 0.2 }}
-
-[[instance]]
-name = "ctrl"
-fmu = "{ctrl}"
 """
 
 
 def test_closed_loop_in_gauss_seidel_order_equals_an_fmpy_loop(tmp_path):
-    system = tmp_path / "loop.toml"
-    system.write_text(CLOSED_LOOP.format(crane=fmu_path("GantryCrane"), ctrl=fmu_path("StateFeedback")))
+    system = write_system(
+        tmp_path / "loop.toml", CLOSED_LOOP, crane=("GantryCrane", "{ x0 = 0.2 }"), ctrl=("StateFeedback", None)
+    )
     out = tmp_path / "loop.csv"
     spurio("run", system, "--out", out)
     ours = read_csv(out)
@@ -122,9 +124,7 @@ def test_closed_loop_in_gauss_seidel_order_equals_an_fmpy_loop(tmp_path):
     ctrl, kv, _ = open_slave("StateFeedback", "ctrl")
     crane.setReal([cv["x0"]], [0.2])
     for s in (crane, ctrl):
-        s.setupExperiment(startTime=0.0)
-        s.enterInitializationMode()
-        s.exitInitializationMode()
+        init(s)
     states = [cv[n] for n in ["x", "theta", "v", "omega"]]
     xs = [kv[f"x_hat[{i}]"] for i in range(1, 5)]
     rows = []
@@ -147,8 +147,9 @@ def test_closed_loop_in_gauss_seidel_order_equals_an_fmpy_loop(tmp_path):
 
 
 def test_sweep_rows_equal_single_runs_and_aggregate(tmp_path):
-    system = tmp_path / "crane_sensor.toml"
-    system.write_text(CRANE_SENSOR.format(crane=fmu_path("GantryCrane"), sensor=fmu_path("Sensor2")))
+    system = write_system(
+        tmp_path / "crane_sensor.toml", CRANE_SENSOR, crane=("GantryCrane", "{ U = 0.5 }"), sensor=("Sensor2", None)
+    )
     table = tmp_path / "sweep.csv"
     result = spurio(
         "sweep", system, "--vary", "sensor.seed=1..8",
@@ -158,9 +159,9 @@ def test_sweep_rows_equal_single_runs_and_aggregate(tmp_path):
     runs = read_csv(table)
     assert len(runs) == 8
     # run seed 5 alone and compute the same metrics from its CSV
-    single = tmp_path / "seed5.toml"
-    single.write_text(system.read_text().replace("fmu = \"" + fmu_path("Sensor2") + "\"",
-                                                 "fmu = \"" + fmu_path("Sensor2") + "\"\nparameters = { seed = 5 }"))
+    single = write_system(
+        tmp_path / "seed5.toml", CRANE_SENSOR, crane=("GantryCrane", "{ U = 0.5 }"), sensor=("Sensor2", "{ seed = 5 }")
+    )
     out = tmp_path / "seed5.csv"
     spurio("run", single, "--out", out)
     r = read_csv(out)
@@ -191,13 +192,7 @@ def test_multirate_instance_steps_every_n_base_steps(tmp_path):
     out = tmp_path / "multirate.csv"
     spurio("run", system, "--out", out)
     ours = read_csv(out)
-    theirs = simulate_fmu(
-        fmu_path("GantryCrane"),
-        stop_time=1.0,
-        output_interval=0.04,
-        start_values={"U": 1.0, "theta0": 0.02},
-        output=["x", "theta"],
-    )
+    theirs = fmpy_crane_step(0.04, ["x", "theta"])
     assert len(ours) == 101
     # at multiples of 4 base steps the crane has just stepped 0.04 s: same as fmpy at 0.04
     assert np.max(np.abs(ours["crane.x"][::4] - theirs["x"])) <= 1e-12

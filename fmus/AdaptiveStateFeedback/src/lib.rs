@@ -31,12 +31,12 @@ use spurio_export::{
     Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable, VariableTable,
 };
 use spurio_fmu_common::controller::{
-    add_limit_parameters, add_pole_parameters, check_pole_parameters, describe_controller,
-    format_gain, input_unit, layout_for, read_poles, state_meaning, variant_defaults, with_unit,
-    Preset,
+    add_estimated_state, add_limit_parameters, add_pole_parameters, check_pole_parameters,
+    describe_controller, format_gain, input_unit, layout_for, read_poles, variant_defaults,
+    with_unit, Preset,
 };
 use spurio_fmu_common::crane_controller_config;
-use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
+use spurio_fmu_common::structured::{add_matrix, Block};
 
 /// Default bound on ‖L‖₂ for the crane preset: 50 times the reference gain's norm (≈ 1.99).
 pub const CRANE_MAX_GAIN_NORM: f64 = 100.0;
@@ -86,13 +86,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let n = defaults.states();
     let preset = defaults.preset;
     let mut t = VariableTable::new();
-    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
-        let (meaning, unit) = state_meaning(preset, i);
-        with_unit(
-            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
-            unit,
-        )
-    });
+    let x_hat = add_estimated_state(&mut t, preset, n);
     let a_hat = add_matrix(&mut t, "A_hat", n, n, |name, i, j| {
         Variable::input(name, defaults.a[(i, j)])
             .describe("Estimated discrete state matrix Â (e.g. from the dual Kalman filter)")
@@ -372,17 +366,26 @@ mod tests {
         assert_eq!(v[layout.u].dependencies.len(), 4 + 16 + 4);
     }
 
+    /// The crane variant's description, the model created from it and initialised straight
+    /// through the model, and its values; initialising logs nothing.
+    fn initialized_crane_variant() -> (ModelInfo, AdaptiveStateFeedbackFmu, Values) {
+        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
+        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let mut ctx = Context::new(&mut values);
+        model.initialize(&mut ctx).unwrap();
+        assert!(ctx.take_messages().is_empty());
+        (info, model, values)
+    }
+
     /// Straight through the model (no FMI layer, which refuses NaN inputs): NaN estimates,
     /// NaN states and mis-sized gains never reach the output.
     #[test]
     fn nan_estimate_keeps_the_gain_warns_once_and_never_outputs_nan() {
         let design = crane_reference_design().unwrap();
-        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
-        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let (_, mut model, mut values) = initialized_crane_variant();
         let layout = model.layout;
-        let mut values = Values::from_start(&info.variables);
         let mut ctx = Context::new(&mut values);
-        model.initialize(&mut ctx).unwrap();
         ctx.values.set_real(layout.x_hat.first, 0.2);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
         let good = layout.gain.matrix(ctx.values);
@@ -410,12 +413,9 @@ mod tests {
 
     #[test]
     fn state_serialization_round_trips() {
-        let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
-        let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
+        let (info, mut model, mut values) = initialized_crane_variant();
         let layout = model.layout;
-        let mut values = Values::from_start(&info.variables);
         let mut ctx = Context::new(&mut values);
-        model.initialize(&mut ctx).unwrap();
         ctx.values.set_real(layout.b_hat.first + 3, 0.0);
         ctx.values.set_real(layout.b_hat.first + 2, 0.0);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();

@@ -5,80 +5,42 @@
 //! substep bound `h_max`. The mathematics is [`spurio::plants::gantry_crane`].
 
 use spurio::plants::gantry_crane::{GantryCrane, GantryCraneParameters};
-use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
-};
+use spurio_export::rows::{input, output, parameter};
+use spurio_export::{Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo};
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
     pub fn variables() {
         let p = GantryCraneParameters::default();
         table: [
-            U = Variable::input("U", 0.0)
-                .unit("N")
-                .describe("Force on the cart requested by the controller (saturated at ±U_max)"),
-            X = Variable::output("x").unit("m").describe("Cart position on the rail"),
-            THETA = Variable::output("theta")
-                .unit("rad")
-                .describe("Load angle, 0 hanging straight down"),
-            V = Variable::output("v").unit("m/s").describe("Cart velocity"),
-            OMEGA = Variable::output("omega").unit("rad/s").describe("Load angular velocity"),
-            U_APPLIED = Variable::output("U_applied")
-                .unit("N")
-                .describe("Force actually applied during the last step (U saturated)")
-                .depends_on(&[vr::U]),
-            M_CART = Variable::parameter("M", p.cart_mass)
-                .unit("kg")
-                .min(0.0)
-                .describe("Cart mass: cart 619.25 g + lid 90.55 g + positioners 134.05 g (paper 000, Annex A)"),
-            M_LOAD = Variable::parameter("m", p.load_mass)
-                .unit("kg")
-                .min(0.0)
-                .describe("Load mass"),
-            L = Variable::parameter("l", p.rod_length)
-                .unit("m")
-                .min(0.0)
-                .describe("Distance from the pivot to the load's centre of mass"),
-            J = Variable::parameter("J", p.inertia)
-                .unit("kg.m2")
-                .min(0.0)
-                .describe("Moment of inertia of the load about the pivot"),
-            F_C = Variable::parameter("f_c", p.cart_friction)
-                .unit("N.s/m")
-                .min(0.0)
-                .describe("Viscous friction of the cart on the rail"),
-            F_P = Variable::parameter("f_p", p.pivot_friction)
-                .unit("kg.m2/(rad.s)")
-                .min(0.0)
-                .describe("Viscous friction at the pivot"),
-            G = Variable::parameter("g", p.gravity)
-                .unit("m/s2")
-                .min(0.0)
-                .describe("Gravitational acceleration"),
-            U_MAX = Variable::parameter("U_max", p.max_force)
-                .unit("N")
-                .min(0.0)
-                .describe("Actuator limit: the applied force is U clipped to ±U_max"),
-            X_LIMIT = Variable::parameter("x_limit", p.rail_limit)
-                .unit("m")
-                .min(0.0)
-                .describe("Rail end stops at ±x_limit (perfectly inelastic)"),
-            X0 = Variable::parameter("x0", 0.0)
-                .unit("m")
-                .describe("Initial cart position"),
-            THETA0 = Variable::parameter("theta0", 0.0)
-                .unit("rad")
-                .describe("Initial load angle"),
-            V0 = Variable::parameter("v0", 0.0)
-                .unit("m/s")
-                .describe("Initial cart velocity"),
-            OMEGA0 = Variable::parameter("omega0", 0.0)
-                .unit("rad/s")
-                .describe("Initial load angular velocity"),
-            H_MAX = Variable::parameter("h_max", 1e-3)
-                .unit("s")
-                .min(0.0)
-                .describe("Longest RK4 substep inside fmi2DoStep; steps are cut into equal substeps no longer than this"),
+            U = input("U", 0.0, "N", "Force on the cart requested by the controller (saturated at ±U_max)"),
+            X = output("x", "m", "Cart position on the rail"),
+            THETA = output("theta", "rad", "Load angle, 0 hanging straight down"),
+            V = output("v", "m/s", "Cart velocity"),
+            OMEGA = output("omega", "rad/s", "Load angular velocity"),
+            U_APPLIED = output("U_applied", "N",
+                "Force actually applied during the last step (U saturated)").depends_on(&[vr::U]),
+            M_CART = parameter("M", p.cart_mass, "kg",
+                "Cart mass: cart 619.25 g + lid 90.55 g + positioners 134.05 g (paper 000, Annex A)").min(0.0),
+            M_LOAD = parameter("m", p.load_mass, "kg", "Load mass").min(0.0),
+            L = parameter("l", p.rod_length, "m",
+                "Distance from the pivot to the load's centre of mass").min(0.0),
+            J = parameter("J", p.inertia, "kg.m2", "Moment of inertia of the load about the pivot").min(0.0),
+            F_C = parameter("f_c", p.cart_friction, "N.s/m",
+                "Viscous friction of the cart on the rail").min(0.0),
+            F_P = parameter("f_p", p.pivot_friction, "kg.m2/(rad.s)",
+                "Viscous friction at the pivot").min(0.0),
+            G = parameter("g", p.gravity, "m/s2", "Gravitational acceleration").min(0.0),
+            U_MAX = parameter("U_max", p.max_force, "N",
+                "Actuator limit: the applied force is U clipped to ±U_max").min(0.0),
+            X_LIMIT = parameter("x_limit", p.rail_limit, "m",
+                "Rail end stops at ±x_limit (perfectly inelastic)").min(0.0),
+            X0 = parameter("x0", 0.0, "m", "Initial cart position"),
+            THETA0 = parameter("theta0", 0.0, "rad", "Initial load angle"),
+            V0 = parameter("v0", 0.0, "m/s", "Initial cart velocity"),
+            OMEGA0 = parameter("omega0", 0.0, "rad/s", "Initial load angular velocity"),
+            H_MAX = parameter("h_max", 1e-3, "s",
+                "Longest RK4 substep inside fmi2DoStep; steps are cut into equal substeps no longer than this").min(0.0),
         ]
     }
 }

@@ -17,59 +17,37 @@
 //! modes `(1/R1 + 1/R2)/C1`, `1/(R2 C2)`) is refused with an error naming `h_max`.
 
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
+use spurio_export::rows::{input, output, parameter};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
 };
 
-/// `h_max · |λ|max` above which RK4 is refused (its real-axis stability limit is 2.785).
-pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+use spurio_fmu_common::rk4_substep;
+pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
     pub fn variables() {
         let p = OpAmpFilterParameters::default();
         table: [
-            U = Variable::input("u", 0.0)
-                .unit("V")
-                .describe("Input voltage"),
-            Y = Variable::output("y")
-                .unit("V")
-                .describe("Output voltage of the op-amp (within the supply rails)"),
-            V_C1 = Variable::output("v_C1")
-                .unit("V")
-                .describe("Voltage across C1 (node A minus output)"),
-            V_C2 = Variable::output("v_C2")
-                .unit("V")
-                .describe("Voltage across C2 (node B to ground, the op-amp's + input)"),
+            U = input("u", 0.0, "V", "Input voltage"),
+            Y = output("y", "V", "Output voltage of the op-amp (within the supply rails)"),
+            V_C1 = output("v_C1", "V", "Voltage across C1 (node A minus output)"),
+            V_C2 = output("v_C2", "V", "Voltage across C2 (node B to ground, the op-amp's + input)"),
             SATURATED = Variable::boolean_output("saturated")
                 .describe("Whether the output sits on a rail at this communication point"),
-            R1 = Variable::parameter("R1", p.r1).unit("Ohm").describe(
-                "Input resistor (default: with R2, C1, C2 gives H(s) = 27/(s^2 + 5.19 s + 27))",
-                ),
-            R2 = Variable::parameter("R2", p.r2)
-                .unit("Ohm")
-                .describe("Resistor between node A and node B"),
-            C1 = Variable::parameter("C1", p.c1)
-                .unit("F")
-                .describe("Feedback capacitor from node A to the output (4.7 uF)"),
-            C2 = Variable::parameter("C2", p.c2)
-                .unit("F")
-                .describe("Capacitor from node B to ground (1 uF)"),
-            V_SAT_HIGH = Variable::parameter("V_sat_high", p.v_sat_high)
-                .unit("V")
-                .describe("Upper output saturation (positive rail less headroom)"),
-            V_SAT_LOW = Variable::parameter("V_sat_low", p.v_sat_low)
-                .unit("V")
-                .describe("Lower output saturation (negative rail less headroom)"),
-            V_C1_0 = Variable::parameter("v_C1_0", 0.0)
-                .unit("V")
-                .describe("Initial voltage across C1"),
-            V_C2_0 = Variable::parameter("v_C2_0", 0.0)
-                .unit("V")
-                .describe("Initial voltage across C2"),
-            H_MAX = Variable::parameter("h_max", 1e-3)
-                .unit("s")
-                .describe("Longest RK4 substep inside fmi2DoStep"),
+            R1 = parameter("R1", p.r1, "Ohm",
+                "Input resistor (default: with R2, C1, C2 gives H(s) = 27/(s^2 + 5.19 s + 27))"),
+            R2 = parameter("R2", p.r2, "Ohm", "Resistor between node A and node B"),
+            C1 = parameter("C1", p.c1, "F", "Feedback capacitor from node A to the output (4.7 uF)"),
+            C2 = parameter("C2", p.c2, "F", "Capacitor from node B to ground (1 uF)"),
+            V_SAT_HIGH = parameter("V_sat_high", p.v_sat_high, "V",
+                "Upper output saturation (positive rail less headroom)"),
+            V_SAT_LOW = parameter("V_sat_low", p.v_sat_low, "V",
+                "Lower output saturation (negative rail less headroom)"),
+            V_C1_0 = parameter("v_C1_0", 0.0, "V", "Initial voltage across C1"),
+            V_C2_0 = parameter("v_C2_0", 0.0, "V", "Initial voltage across C2"),
+            H_MAX = parameter("h_max", 1e-3, "s", "Longest RK4 substep inside fmi2DoStep"),
         ]
     }
 }
@@ -144,15 +122,9 @@ impl FmuModel for OpAmpFilterFmu {
         };
         let state = [r(vr::V_C1_0), r(vr::V_C2_0)].into();
         let filter = OpAmpFilter::with_state(parameters, state).map_err(Failure::error)?;
-        let h_max = spurio::require_positive("h_max", r(vr::H_MAX)).map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
-        let product = h_max * fastest;
-        if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::error(format!(
-                "parameter `h_max`: {h_max} s would make RK4 unstable on the circuit's fastest mode ({fastest:.4} 1/s); use at most {:.3e} s",
-                RK4_STABILITY_MARGIN / fastest
-            )));
-        }
+        let mode = format!("the circuit's fastest mode ({fastest:.4} 1/s)");
+        let h_max = rk4_substep(r(vr::H_MAX), fastest, &mode)?;
         self.filter = filter;
         self.h_max = h_max;
         self.write_outputs(ctx);

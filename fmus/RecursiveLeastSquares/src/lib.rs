@@ -21,6 +21,7 @@
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
+use spurio_export::rows::discrete_output;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
@@ -80,29 +81,29 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
     });
     let y_hat =
         t.add(Variable::discrete_output("y_hat").describe("One-step prediction φᵀθ(t−1) of y(t)"));
-    let wn = t.add(
-        Variable::discrete_output("wn")
-            .unit("rad/s")
-            .describe("Natural frequency ω_n of the continuous equivalent (0 when unavailable)"),
-    );
-    let zeta = t.add(
-        Variable::discrete_output("zeta")
-            .unit("1")
-            .describe("Damping ratio ζ of the continuous equivalent (0 when unavailable)"),
-    );
+    let wn = t.add(discrete_output(
+        "wn",
+        "rad/s",
+        "Natural frequency ω_n of the continuous equivalent (0 when unavailable)",
+    ));
+    let zeta = t.add(discrete_output(
+        "zeta",
+        "1",
+        "Damping ratio ζ of the continuous equivalent (0 when unavailable)",
+    ));
     let dc_gain = t.add(
         Variable::discrete_output("dc_gain").describe("DC gain Σb/(1 + Σa) (0 when unavailable)"),
     );
-    let overshoot = t.add(
-        Variable::discrete_output("overshoot")
-            .unit("%")
-            .describe("Step-response overshoot of the continuous equivalent (0 when unavailable)"),
-    );
-    let settling_time = t.add(
-        Variable::discrete_output("settling_time")
-            .unit("s")
-            .describe("2 % settling time of the continuous equivalent (0 when unavailable)"),
-    );
+    let overshoot = t.add(discrete_output(
+        "overshoot",
+        "%",
+        "Step-response overshoot of the continuous equivalent (0 when unavailable)",
+    ));
+    let settling_time = t.add(discrete_output(
+        "settling_time",
+        "s",
+        "2 % settling time of the continuous equivalent (0 when unavailable)",
+    ));
     let lambda = t.add(
         Variable::parameter("lambda", 1.0)
             .min(0.0)

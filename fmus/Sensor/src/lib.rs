@@ -396,34 +396,24 @@ mod tests {
         let mut h = Harness::<SensorFmu>::new(&two_channels()).unwrap();
         h.initialize(0.0).unwrap();
         let vr = |b: &Block, i: usize| (b.first + i) as u32;
-        let mut first = [0.0; 4];
-        let mut again = [0.0; 4];
+        let inputs = [vr(&l.u, 0), vr(&l.u, 1)];
+        let outputs = [
+            vr(&l.y, 0),
+            vr(&l.y, 1),
+            vr(&l.y_clean, 0),
+            vr(&l.y_clean, 1),
+        ];
+        // y[1], y[2], y_clean[1], y_clean[2] with both inputs at `u`.
+        let read_at = |h: &mut Harness<SensorFmu>, u: f64| {
+            let mut read = [0.0; 4];
+            h.set_real(&inputs, &[u, u]).unwrap();
+            h.get_real(&outputs, &mut read).unwrap();
+            read
+        };
         for k in 0..20 {
-            h.set_real(&[vr(&l.u, 0), vr(&l.u, 1)], &[1.0, 1.0])
-                .unwrap();
-            h.get_real(
-                &[
-                    vr(&l.y, 0),
-                    vr(&l.y, 1),
-                    vr(&l.y_clean, 0),
-                    vr(&l.y_clean, 1),
-                ],
-                &mut first,
-            )
-            .unwrap();
+            let first = read_at(&mut h, 1.0);
             // Set the inputs again at the same point: same draw, shifted by the input change.
-            h.set_real(&[vr(&l.u, 0), vr(&l.u, 1)], &[3.0, 3.0])
-                .unwrap();
-            h.get_real(
-                &[
-                    vr(&l.y, 0),
-                    vr(&l.y, 1),
-                    vr(&l.y_clean, 0),
-                    vr(&l.y_clean, 1),
-                ],
-                &mut again,
-            )
-            .unwrap();
+            let again = read_at(&mut h, 3.0);
             assert_eq!(again[2], 3.0);
             for c in 0..2 {
                 let moved = again[c] - first[c];

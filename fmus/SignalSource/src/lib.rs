@@ -22,6 +22,7 @@
 
 use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
 use spurio::ParameterError;
+use spurio_export::rows::parameter;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
 };
@@ -49,26 +50,14 @@ spurio_export::declare_variables! {
                 ),
             OFFSET = Variable::parameter("offset", 0.0)
                 .describe("Level before the step; centre of the random levels, PRBS and sine/cosine"),
-            PERIOD = Variable::parameter("period", 1.0)
-                .unit("s")
-                .describe("Period of the sine/cosine (> 0)"),
-            PHASE = Variable::parameter("phase", 0.0)
-                .unit("rad")
-                .describe("Phase of the sine/cosine"),
-            STEP_TIME = Variable::parameter("step_time", 0.0)
-                .unit("s")
-                .describe("Time of the step"),
-            MIN_HOLD = Variable::parameter("min_hold", 1.0)
-                .unit("s")
-                .describe("Shortest hold of a random step (> 0)"),
-            MAX_HOLD = Variable::parameter("max_hold", 5.0)
-                .unit("s")
-                .describe("Longest hold of a random step (>= min_hold)"),
+            PERIOD = parameter("period", 1.0, "s", "Period of the sine/cosine (> 0)"),
+            PHASE = parameter("phase", 0.0, "rad", "Phase of the sine/cosine"),
+            STEP_TIME = parameter("step_time", 0.0, "s", "Time of the step"),
+            MIN_HOLD = parameter("min_hold", 1.0, "s", "Shortest hold of a random step (> 0)"),
+            MAX_HOLD = parameter("max_hold", 5.0, "s", "Longest hold of a random step (>= min_hold)"),
             PRBS_ORDER = Variable::integer_parameter("prbs_order", 7)
                 .describe("PRBS register length n, 2 to 24 (period 2^n - 1 bits)"),
-            BIT_PERIOD = Variable::parameter("bit_period", 0.1)
-                .unit("s")
-                .describe("Duration of one PRBS bit (> 0)"),
+            BIT_PERIOD = parameter("bit_period", 0.1, "s", "Duration of one PRBS bit (> 0)"),
             SEED = Variable::integer_parameter("seed", 1)
                 .min(0.0)
                 .describe("Seed of the random steps and of the PRBS start register"),

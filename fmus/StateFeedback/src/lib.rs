@@ -66,13 +66,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let n = defaults.states();
     let preset = defaults.preset;
     let mut t = VariableTable::new();
-    let x_hat = add_vector(&mut t, "x_hat", n, |name, i| {
-        let (meaning, unit) = state_meaning(preset, i);
-        with_unit(
-            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
-            unit,
-        )
-    });
+    let x_hat = add_estimated_state(&mut t, preset, n);
     let x_ref = add_vector(&mut t, "x_ref", n, |name, i| {
         let (meaning, unit) = state_meaning(preset, i);
         with_unit(
@@ -302,10 +296,7 @@ mod tests {
         let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
         assert_eq!(h.initialize(0.0), Ok(Status::Ok));
         h.set_real(&[vr("x_hat[2]")], &[0.01]).unwrap();
-        let mut u = [0.0];
-        h.get_real(&[vr("u[1]")], &mut u).unwrap();
-        let mut l2 = [0.0];
-        h.get_real(&[vr("L[1,2]")], &mut l2).unwrap();
-        assert_eq!(u[0], -0.01 * l2[0]);
+        let u = h.real(vr("u[1]")).unwrap();
+        assert_eq!(u, -0.01 * h.real(vr("L[1,2]")).unwrap());
     }
 }

@@ -31,13 +31,14 @@ use spurio::plants::wind_generator::{
     GeneratorState, WindGenerator, WindGeneratorParameters, RATED_DRIVE_REFERENCE,
     RATED_FIELD_REFERENCE,
 };
+use spurio_export::rows::{input, output, parameter};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
 };
 use std::f64::consts::PI;
 
-/// `h_max · |λ|max` above which RK4 is refused.
-pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+use spurio_fmu_common::rk4_substep;
+pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 
 /// The physical parameters: (name, unit, description), in value-reference order.
 pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
@@ -119,59 +120,33 @@ spurio_export::declare_variables! {
     pub fn variables() {
         let p = WindGeneratorParameters::default();
         table: [
-            U_DRIVE = Variable::input("u_drive", RATED_DRIVE_REFERENCE)
-        .unit("V")
-        .describe("Drive speed reference, 0-10 V for 0-60 Hz (clipped to [0, 10] V)"),
-            U_FIELD = Variable::input("u_field", RATED_FIELD_REFERENCE)
-        .unit("V")
-        .describe("SCR field reference, 0-10 V for 0-125 V DC (clipped to [0, 10] V)"),
-            SPEED = Variable::output("speed")
-        .unit("rpm")
-        .describe("Shaft speed read by the tachogenerator"),
-            VOLTAGE = Variable::output("voltage")
-        .unit("V")
-        .describe("Terminal voltage, RMS line to line"),
-            FREQUENCY = Variable::output("frequency")
-        .unit("Hz")
-        .describe("Electrical frequency of the generated voltage"),
-            SHAFT_SPEED = Variable::output("shaft_speed")
-        .unit("rpm")
-        .describe("True shaft speed (without the tachometer lag)"),
-            FIELD_CURRENT = Variable::output("field_current")
-        .unit("A")
-        .describe("Field current i_f"),
-            FIELD_VOLTAGE = Variable::output("field_voltage")
-        .unit("V")
-        .describe("Field voltage from the SCR module"),
-            T_E = Variable::output("T_e")
-        .unit("N.m")
-        .describe("Electrical (braking) torque of the generator"),
-            T_M = Variable::output("T_m").unit("N.m").describe("Motor torque"),
-            I_D = Variable::output("i_d")
-        .unit("A")
-        .describe("Stator d-axis current (peak-phase scale, amplitude-invariant Park)"),
-            I_Q = Variable::output("i_q")
-        .unit("A")
-        .describe("Stator q-axis current (peak-phase scale, amplitude-invariant Park)"),
+            U_DRIVE = input("u_drive", RATED_DRIVE_REFERENCE, "V",
+                "Drive speed reference, 0-10 V for 0-60 Hz (clipped to [0, 10] V)"),
+            U_FIELD = input("u_field", RATED_FIELD_REFERENCE, "V",
+                "SCR field reference, 0-10 V for 0-125 V DC (clipped to [0, 10] V)"),
+            SPEED = output("speed", "rpm", "Shaft speed read by the tachogenerator"),
+            VOLTAGE = output("voltage", "V", "Terminal voltage, RMS line to line"),
+            FREQUENCY = output("frequency", "Hz", "Electrical frequency of the generated voltage"),
+            SHAFT_SPEED = output("shaft_speed", "rpm", "True shaft speed (without the tachometer lag)"),
+            FIELD_CURRENT = output("field_current", "A", "Field current i_f"),
+            FIELD_VOLTAGE = output("field_voltage", "V", "Field voltage from the SCR module"),
+            T_E = output("T_e", "N.m", "Electrical (braking) torque of the generator"),
+            T_M = output("T_m", "N.m", "Motor torque"),
+            I_D = output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)"),
+            I_Q = output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)"),
             // The 16 physical parameters, in `PARAMETER_NAMES` order.
             FIRST_PARAMETER[16] = PARAMETER_NAMES
                 .iter()
                 .zip(parameter_values(&p))
-                .map(|((name, unit, description), value)| {
-                    Variable::parameter(name, value).unit(unit).describe(description)
-                }),
-            H_MAX = Variable::parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP)
-        .unit("s")
-        .describe("Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms)"),
-            START_AT_OPERATING_POINT = Variable::boolean_parameter("start_at_operating_point", false).describe(
-        "Start in the steady state of u_drive_0, u_field_0 (true) or at rest (false)",
-        ),
-            U_DRIVE_0 = Variable::parameter("u_drive_0", RATED_DRIVE_REFERENCE)
-        .unit("V")
-        .describe("Drive reference of the initial steady state"),
-            U_FIELD_0 = Variable::parameter("u_field_0", RATED_FIELD_REFERENCE)
-        .unit("V")
-        .describe("Field reference of the initial steady state"),
+                .map(|((name, unit, description), value)| parameter(name, value, unit, description)),
+            H_MAX = parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP, "s",
+                "Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms)"),
+            START_AT_OPERATING_POINT = Variable::boolean_parameter("start_at_operating_point", false)
+                .describe("Start in the steady state of u_drive_0, u_field_0 (true) or at rest (false)"),
+            U_DRIVE_0 = parameter("u_drive_0", RATED_DRIVE_REFERENCE, "V",
+                "Drive reference of the initial steady state"),
+            U_FIELD_0 = parameter("u_field_0", RATED_FIELD_REFERENCE, "V",
+                "Field reference of the initial steady state"),
         ]
     }
 }
@@ -277,16 +252,9 @@ impl FmuModel for WindGeneratorFmu {
         } else {
             WindGenerator::new(parameters).map_err(Failure::error)?
         };
-        let h_max = spurio::require_positive("h_max", ctx.values.real(vr::H_MAX))
-            .map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
-        let product = h_max * fastest;
-        if product.is_nan() || product > RK4_STABILITY_MARGIN {
-            return Err(Failure::error(format!(
-                "parameter `h_max`: {h_max} s would make RK4 unstable on the machine's fastest mode (about {fastest:.1} 1/s); use at most {:.3e} s",
-                RK4_STABILITY_MARGIN / fastest
-            )));
-        }
+        let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
+        let h_max = rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?;
         self.generator = generator;
         self.h_max = h_max;
         self.write_outputs(ctx);

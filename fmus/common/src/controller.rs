@@ -161,6 +161,18 @@ pub fn calculated_parameter(name: &str) -> Variable {
     }
 }
 
+/// Adds the controller's state-estimate inputs `x_hat[i]`, described and with units by the
+/// preset; returns their block.
+pub fn add_estimated_state(table: &mut VariableTable, preset: Preset, n: usize) -> Block {
+    add_vector(table, "x_hat", n, |name, i| {
+        let (meaning, unit) = state_meaning(preset, i);
+        with_unit(
+            Variable::input(name, 0.0).describe(&format!("Estimated state: {meaning}")),
+            unit,
+        )
+    })
+}
+
 /// Adds `pole_re[i]`, `pole_im[i]` with the defaults; returns their blocks.
 pub fn add_pole_parameters(
     table: &mut VariableTable,

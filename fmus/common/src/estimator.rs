@@ -33,7 +33,7 @@ use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::EstimationError;
 use spurio_export::{
-    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Values,
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Values,
 };
 
 /// The largest dimension a variant may ask for (keeps the variable table and the matrices
@@ -119,16 +119,8 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     }
 
     fn save_state(&self, out: &mut ByteWriter) {
-        let values = self.parameters.all();
-        out.put_u64(values.len() as u64);
-        for value in values {
-            match value {
-                Value::Real(v) => out.put_f64(*v),
-                Value::Integer(v) => out.put_i32(*v),
-                Value::Boolean(v) => out.put_bool(*v),
-                Value::String(v) => out.put_str(v),
-            }
-        }
+        out.put_u64(self.parameters.all().len() as u64);
+        self.parameters.save(out);
         match &self.estimator {
             Some(estimator) => {
                 out.put_bool(true);
@@ -148,15 +140,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             .into());
         }
         let mut parameters = self.parameters.clone();
-        for index in 0..parameters.all().len() {
-            let value = match &parameters.all()[index] {
-                Value::Real(_) => Value::Real(input.f64()?),
-                Value::Integer(_) => Value::Integer(input.i32()?),
-                Value::Boolean(_) => Value::Boolean(input.bool()?),
-                Value::String(_) => Value::String(input.string()?),
-            };
-            parameters.set(index, value);
-        }
+        parameters.load(input)?;
         self.estimator = if input.bool()? {
             let state = input.f64_vec()?;
             let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {

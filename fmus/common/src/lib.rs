@@ -22,6 +22,25 @@ pub fn param_failure(e: &spurio::ParameterError) -> Failure {
     Failure::error(e.to_string())
 }
 
+/// `h_max · |λ|max` above which RK4 substeps are refused (RK4's real-axis stability limit is
+/// 2.785).
+pub const RK4_STABILITY_MARGIN: f64 = 2.5;
+
+/// The RK4 substep bound `h_max` (> 0) of a model whose fastest mode is `fastest` [1/s]:
+/// refused, naming `h_max`, when RK4 would be unstable on that mode (`mode` describes it in
+/// the message).
+pub fn rk4_substep(h_max: f64, fastest: f64, mode: &str) -> Result<f64, Failure> {
+    let h_max = spurio::require_positive("h_max", h_max).map_err(Failure::error)?;
+    let product = h_max * fastest;
+    if product.is_nan() || product > RK4_STABILITY_MARGIN {
+        return Err(Failure::error(format!(
+            "parameter `h_max`: {h_max} s would make RK4 unstable on {mode}; use at most {:.3e} s",
+            RK4_STABILITY_MARGIN / fastest
+        )));
+    }
+    Ok(h_max)
+}
+
 /// The bundled variant of the controllers: the crane (n = 4, `preset = crane`).
 pub fn crane_controller_config() -> Config {
     let mut config = Config::new();
@@ -71,4 +90,23 @@ pub fn config(pairs: &[(&str, &str)]) -> Config {
         c.set(k, v);
     }
     c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rk4_substep_is_refused_beyond_the_stability_margin() {
+        assert_eq!(rk4_substep(0.25, 10.0, "the mode").unwrap(), 0.25);
+        let Err(Failure::Error(message)) = rk4_substep(0.3, 10.0, "the test mode (10 1/s)") else {
+            panic!("h_max · |λ| = 3 > 2.5 must be refused");
+        };
+        assert_eq!(
+            message.to_string(),
+            "parameter `h_max`: 0.3 s would make RK4 unstable on the test mode (10 1/s); use at most 2.500e-1 s"
+        );
+        assert!(rk4_substep(0.0, 10.0, "the mode").is_err());
+        assert!(rk4_substep(0.1, f64::NAN, "the mode").is_err());
+    }
 }

@@ -353,16 +353,77 @@ simple_call!(
     /// `fmi2Reset`.
     reset, functions::RESET, reset);
 
-/// `fmi2Get{Real,Integer,Boolean}` into a C array, converting each value with `convert`.
-unsafe fn get_into<M: FmuModel, T>(
+/// The numeric FMI types as exchanged through `fmi2Get*`/`fmi2Set*`: the C type, the
+/// functions and how a value crosses the boundary. (`fmi2Integer` and `fmi2Boolean` are both
+/// `int` in C, so the types are marker types rather than the C types themselves.)
+pub trait Scalar {
+    /// The C type of one value.
+    type C: Copy;
+    /// The variables' type.
+    const TYPE: VariableType;
+    /// `fmi2Get*`.
+    const GET: &'static Function;
+    /// `fmi2Set*`.
+    const SET: &'static Function;
+    /// A value of this type as the master reads it.
+    fn to_c(value: &Value) -> Self::C;
+    /// A value the master sets.
+    fn from_c(value: Self::C) -> Value;
+}
+
+/// Declares a [`Scalar`] marker type: its C type, its `fmi2Get*`/`fmi2Set*` functions and the
+/// conversions (a value of another type reads as `$default`).
+macro_rules! scalar {
+    ($(#[$doc:meta])* $name:ident($c:ty, $get:ident, $set:ident, $default:expr) {
+        to_c: |$x:ident| $to_c:expr, from_c: |$v:ident| $from_c:expr $(,)?
+    }) => {
+        $(#[$doc])*
+        pub struct $name;
+        impl Scalar for $name {
+            type C = $c;
+            const TYPE: VariableType = VariableType::$name;
+            const GET: &'static Function = &functions::$get;
+            const SET: &'static Function = &functions::$set;
+            fn to_c(value: &Value) -> $c {
+                match value {
+                    Value::$name($x) => $to_c,
+                    _ => $default,
+                }
+            }
+            fn from_c($v: $c) -> Value {
+                Value::$name($from_c)
+            }
+        }
+    };
+}
+
+scalar!(
+    /// `fmi2Real`.
+    Real(fmi2Real, GET_REAL, SET_REAL, f64::NAN) { to_c: |x| *x, from_c: |v| v }
+);
+scalar!(
+    /// `fmi2Integer`.
+    Integer(fmi2Integer, GET_INTEGER, SET_INTEGER, 0) { to_c: |x| *x, from_c: |v| v }
+);
+scalar!(
+    /// `fmi2Boolean`.
+    Boolean(fmi2Boolean, GET_BOOLEAN, SET_BOOLEAN, fmi2False) {
+        to_c: |x| if *x { fmi2True } else { fmi2False },
+        from_c: |v| v != 0,
+    }
+);
+
+/// `fmi2GetReal`, `fmi2GetInteger`, `fmi2GetBoolean`: the values into a C array.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get<M: FmuModel, T: Scalar>(
     c: fmi2Component,
-    f: &'static Function,
     vr: *const fmi2ValueReference,
     n: usize,
-    out: *mut T,
-    ty: VariableType,
-    convert: impl Fn(&Value) -> T,
+    out: *mut T::C,
 ) -> fmi2Status {
+    let f = T::GET;
     unsafe {
         with_instance::<M>(c, f, |s| {
             let Some(vrs) = slice(vr, n) else {
@@ -371,86 +432,11 @@ unsafe fn get_into<M: FmuModel, T>(
             if n > 0 && out.is_null() {
                 return s.instance.reject(f, "value is NULL");
             }
-            s.instance.get_values(f, vrs, ty, |i, v| {
+            s.instance.get_values(f, vrs, T::TYPE, |i, v| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = convert(v)
+                *out.add(i) = T::to_c(v)
             })
         })
-    }
-}
-
-/// `fmi2GetReal`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_real<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *mut fmi2Real,
-) -> fmi2Status {
-    unsafe {
-        get_into::<M, _>(
-            c,
-            &functions::GET_REAL,
-            vr,
-            n,
-            value,
-            VariableType::Real,
-            |v| match v {
-                Value::Real(x) => *x,
-                _ => f64::NAN,
-            },
-        )
-    }
-}
-
-/// `fmi2GetInteger`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_integer<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *mut fmi2Integer,
-) -> fmi2Status {
-    unsafe {
-        get_into::<M, _>(
-            c,
-            &functions::GET_INTEGER,
-            vr,
-            n,
-            value,
-            VariableType::Integer,
-            |v| match v {
-                Value::Integer(x) => *x,
-                _ => 0,
-            },
-        )
-    }
-}
-
-/// `fmi2GetBoolean`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_boolean<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *mut fmi2Boolean,
-) -> fmi2Status {
-    unsafe {
-        get_into::<M, _>(
-            c,
-            &functions::GET_BOOLEAN,
-            vr,
-            n,
-            value,
-            VariableType::Boolean,
-            |v| matches!(v, Value::Boolean(true)) as fmi2Boolean,
-        )
     }
 }
 
@@ -492,64 +478,24 @@ pub unsafe fn get_string<M: FmuModel>(
     }
 }
 
-unsafe fn set_from<M: FmuModel, T: Copy>(
+/// `fmi2SetReal`, `fmi2SetInteger`, `fmi2SetBoolean`: the values from a C array.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set<M: FmuModel, T: Scalar>(
     c: fmi2Component,
-    f: &'static Function,
     vr: *const fmi2ValueReference,
     n: usize,
-    value: *const T,
-    convert: impl Fn(T) -> Value,
+    value: *const T::C,
 ) -> fmi2Status {
+    let f = T::SET;
     unsafe {
         with_instance::<M>(c, f, |s| {
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let values = values.iter().map(|v| convert(*v)).collect();
+            let values = values.iter().map(|v| T::from_c(*v)).collect();
             s.instance.set_values(f, vrs, values)
-        })
-    }
-}
-
-/// `fmi2SetReal`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_real<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *const fmi2Real,
-) -> fmi2Status {
-    unsafe { set_from::<M, _>(c, &functions::SET_REAL, vr, n, value, Value::Real) }
-}
-
-/// `fmi2SetInteger`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_integer<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *const fmi2Integer,
-) -> fmi2Status {
-    unsafe { set_from::<M, _>(c, &functions::SET_INTEGER, vr, n, value, Value::Integer) }
-}
-
-/// `fmi2SetBoolean`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_boolean<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *const fmi2Boolean,
-) -> fmi2Status {
-    unsafe {
-        set_from::<M, _>(c, &functions::SET_BOOLEAN, vr, n, value, |b| {
-            Value::Boolean(b != 0)
         })
     }
 }
@@ -813,6 +759,33 @@ pub unsafe fn get_status<M: FmuModel>(
     }
 }
 
+/// A status query that answers the one `kind` it knows with `answer` and every other kind as
+/// [`get_status`] does.
+///
+/// # Safety
+/// FMI pointer contract.
+unsafe fn get_known_status<M: FmuModel, T>(
+    c: fmi2Component,
+    f: &'static Function,
+    kind: fmi2StatusKind,
+    known: fmi2StatusKind,
+    value: *mut T,
+    answer: impl FnOnce(&Slot<M>) -> T,
+) -> fmi2Status {
+    unsafe {
+        if kind != known {
+            return get_status::<M>(c, f, kind);
+        }
+        with_instance::<M>(c, f, |s| {
+            if value.is_null() {
+                return s.instance.reject(f, "value is NULL");
+            }
+            *value = answer(s);
+            Status::Ok
+        })
+    }
+}
+
 /// `fmi2GetRealStatus`: `fmi2LastSuccessfulTime`.
 ///
 /// # Safety
@@ -824,15 +797,8 @@ pub unsafe fn get_real_status<M: FmuModel>(
 ) -> fmi2Status {
     let f = &functions::GET_REAL_STATUS;
     unsafe {
-        if kind != fmi2LastSuccessfulTime {
-            return get_status::<M>(c, f, kind);
-        }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = s.instance.last_successful_time();
-            Status::Ok
+        get_known_status::<M, _>(c, f, kind, fmi2LastSuccessfulTime, value, |s| {
+            s.instance.last_successful_time()
         })
     }
 }
@@ -847,18 +813,7 @@ pub unsafe fn get_boolean_status<M: FmuModel>(
     value: *mut fmi2Boolean,
 ) -> fmi2Status {
     let f = &functions::GET_BOOLEAN_STATUS;
-    unsafe {
-        if kind != fmi2Terminated {
-            return get_status::<M>(c, f, kind);
-        }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = fmi2False;
-            Status::Ok
-        })
-    }
+    unsafe { get_known_status::<M, _>(c, f, kind, fmi2Terminated, value, |_| fmi2False) }
 }
 
 /// `fmi2GetStringStatus`: no pending status, ever.

@@ -90,7 +90,7 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::set_real::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+            ffi::set::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
         })
     }
 
@@ -102,7 +102,7 @@ impl<M: FmuModel> Harness<M> {
         let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::set_boolean::<M>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+            ffi::set::<M, ffi::Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
         })
     }
 
@@ -113,8 +113,14 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::get_real::<M>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+            ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
+    }
+    /// `fmi2GetReal` of one variable.
+    pub fn real(&mut self, vr: u32) -> Result<f64, Status> {
+        let mut out = [f64::NAN];
+        self.get_real(&[vr], &mut out)?;
+        Ok(out[0])
     }
 
     /// `fmi2DoStep`.

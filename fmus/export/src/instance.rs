@@ -94,6 +94,11 @@ pub mod functions {
     const AFTER_INIT: u32 =
         INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
     const STATE_OPS: u32 = ANY_LIVE & !STEP_IN_PROGRESS;
+    /// Where `fmi2Set*` (and the input derivatives) may be called.
+    const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_COMPLETE;
+    /// Where the `fmi2Get*Status` queries may be called: once stepping has begun.
+    const STATUS_QUERIES: u32 =
+        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
 
     macro_rules! f {
         ($id:ident, $name:literal, $mask:expr) => {
@@ -126,26 +131,10 @@ pub mod functions {
     f!(GET_INTEGER, "fmi2GetInteger", AFTER_INIT);
     f!(GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT);
     f!(GET_STRING, "fmi2GetString", AFTER_INIT);
-    f!(
-        SET_REAL,
-        "fmi2SetReal",
-        INSTANTIATED | INIT_MODE | STEP_COMPLETE
-    );
-    f!(
-        SET_INTEGER,
-        "fmi2SetInteger",
-        INSTANTIATED | INIT_MODE | STEP_COMPLETE
-    );
-    f!(
-        SET_BOOLEAN,
-        "fmi2SetBoolean",
-        INSTANTIATED | INIT_MODE | STEP_COMPLETE
-    );
-    f!(
-        SET_STRING,
-        "fmi2SetString",
-        INSTANTIATED | INIT_MODE | STEP_COMPLETE
-    );
+    f!(SET_REAL, "fmi2SetReal", SETTABLE);
+    f!(SET_INTEGER, "fmi2SetInteger", SETTABLE);
+    f!(SET_BOOLEAN, "fmi2SetBoolean", SETTABLE);
+    f!(SET_STRING, "fmi2SetString", SETTABLE);
     f!(GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS);
     f!(SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS);
     f!(FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL);
@@ -164,7 +153,7 @@ pub mod functions {
     f!(
         SET_REAL_INPUT_DERIVATIVES,
         "fmi2SetRealInputDerivatives",
-        INSTANTIATED | INIT_MODE | STEP_COMPLETE
+        SETTABLE
     );
     f!(
         GET_REAL_OUTPUT_DERIVATIVES,
@@ -173,31 +162,11 @@ pub mod functions {
     );
     f!(DO_STEP, "fmi2DoStep", STEP_COMPLETE);
     f!(CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS);
-    f!(
-        GET_STATUS,
-        "fmi2GetStatus",
-        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
-    );
-    f!(
-        GET_REAL_STATUS,
-        "fmi2GetRealStatus",
-        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
-    );
-    f!(
-        GET_INTEGER_STATUS,
-        "fmi2GetIntegerStatus",
-        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
-    );
-    f!(
-        GET_BOOLEAN_STATUS,
-        "fmi2GetBooleanStatus",
-        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
-    );
-    f!(
-        GET_STRING_STATUS,
-        "fmi2GetStringStatus",
-        STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED
-    );
+    f!(GET_STATUS, "fmi2GetStatus", STATUS_QUERIES);
+    f!(GET_REAL_STATUS, "fmi2GetRealStatus", STATUS_QUERIES);
+    f!(GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES);
+    f!(GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES);
+    f!(GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES);
 }
 
 fn state_names(mask: u32) -> String {
@@ -683,16 +652,8 @@ impl<M: FmuModel> Instance<M> {
         w.put_bool(core.stop_time.is_some());
         w.put_f64(core.stop_time.unwrap_or(0.0));
         w.put_bool(core.inputs_changed);
-        let values = core.values.all();
-        w.put_u64(values.len() as u64);
-        for v in values {
-            match v {
-                Value::Real(x) => w.put_f64(*x),
-                Value::Integer(i) => w.put_i32(*i),
-                Value::Boolean(b) => w.put_bool(*b),
-                Value::String(s) => w.put_str(s),
-            }
-        }
+        w.put_u64(core.values.all().len() as u64);
+        core.values.save(&mut w);
         core.model.save_state(&mut w);
         w.into_bytes()
     }
@@ -724,15 +685,7 @@ impl<M: FmuModel> Instance<M> {
             });
         }
         let mut values = Values::from_start(&self.info.variables);
-        for (i, v) in self.info.variables.iter().enumerate() {
-            let value = match v.variable_type() {
-                VariableType::Real => Value::Real(r.f64()?),
-                VariableType::Integer => Value::Integer(r.i32()?),
-                VariableType::Boolean => Value::Boolean(r.bool()?),
-                VariableType::String => Value::String(r.string()?),
-            };
-            values.set(i, value);
-        }
+        values.load(&mut r)?;
         let mut model = self.core.model.clone();
         model.load_state(&mut r).map_err(StateError::Model)?;
         if r.remaining() != 0 {

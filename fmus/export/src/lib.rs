@@ -35,7 +35,7 @@ pub use bytes::{ByteReader, ByteWriter};
 pub use description::{Config, DefaultExperiment, ModelInfo};
 pub use model::{Cause, Context, Failure, FmuModel};
 pub use variables::{
-    Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
+    rows, Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
 };
 
 /// Emits, in the crate that builds an FMU's `cdylib`, the FMI 2.0 Co-Simulation C API
@@ -189,7 +189,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Real,
             ) -> fmi2Status {
-                unsafe { ffi::get_real::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Real>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetInteger(
@@ -198,7 +198,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Integer,
             ) -> fmi2Status {
-                unsafe { ffi::get_integer::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Integer>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBoolean(
@@ -207,7 +207,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *mut fmi2Boolean,
             ) -> fmi2Status {
-                unsafe { ffi::get_boolean::<M>(c, vr, n, value) }
+                unsafe { ffi::get::<M, ffi::Boolean>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetString(
@@ -225,7 +225,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Real,
             ) -> fmi2Status {
-                unsafe { ffi::set_real::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Real>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetInteger(
@@ -234,7 +234,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Integer,
             ) -> fmi2Status {
-                unsafe { ffi::set_integer::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Integer>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetBoolean(
@@ -243,7 +243,7 @@ macro_rules! export_fmu {
                 n: usize,
                 value: *const fmi2Boolean,
             ) -> fmi2Status {
-                unsafe { ffi::set_boolean::<M>(c, vr, n, value) }
+                unsafe { ffi::set::<M, ffi::Boolean>(c, vr, n, value) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetString(
@@ -301,56 +301,32 @@ macro_rules! export_fmu {
             ) -> fmi2Status {
                 unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
-                c: fmi2Component,
-                _u: *const fmi2ValueReference,
-                _nu: usize,
-                _z: *const fmi2ValueReference,
-                _nz: usize,
-                _dv: *const fmi2Real,
-                _dz: *mut fmi2Real,
-            ) -> fmi2Status {
-                unsafe {
-                    ffi::unsupported::<M>(
-                        c,
-                        &functions::GET_DIRECTIONAL_DERIVATIVE,
-                        "providesDirectionalDerivative=\"false\"",
-                    )
-                }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
-                c: fmi2Component,
-                _vr: *const fmi2ValueReference,
-                _n: usize,
-                _order: *const fmi2Integer,
-                _value: *const fmi2Real,
-            ) -> fmi2Status {
-                unsafe {
-                    ffi::unsupported::<M>(
-                        c,
-                        &functions::SET_REAL_INPUT_DERIVATIVES,
-                        "canInterpolateInputs=\"false\"",
-                    )
-                }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
-                c: fmi2Component,
-                _vr: *const fmi2ValueReference,
-                _n: usize,
-                _order: *const fmi2Integer,
-                _value: *mut fmi2Real,
-            ) -> fmi2Status {
-                unsafe {
-                    ffi::unsupported::<M>(
-                        c,
-                        &functions::GET_REAL_OUTPUT_DERIVATIVES,
-                        "maxOutputDerivativeOrder=\"0\"",
-                    )
-                }
-            }
+            $crate::unsupported_fmi2_function!(
+                fmi2GetDirectionalDerivative(
+                    _u: *const fmi2ValueReference,
+                    _nu: usize,
+                    _z: *const fmi2ValueReference,
+                    _nz: usize,
+                    _dv: *const fmi2Real,
+                    _dz: *mut fmi2Real,
+                ) => GET_DIRECTIONAL_DERIVATIVE, "providesDirectionalDerivative=\"false\""
+            );
+            $crate::unsupported_fmi2_function!(
+                fmi2SetRealInputDerivatives(
+                    _vr: *const fmi2ValueReference,
+                    _n: usize,
+                    _order: *const fmi2Integer,
+                    _value: *const fmi2Real,
+                ) => SET_REAL_INPUT_DERIVATIVES, "canInterpolateInputs=\"false\""
+            );
+            $crate::unsupported_fmi2_function!(
+                fmi2GetRealOutputDerivatives(
+                    _vr: *const fmi2ValueReference,
+                    _n: usize,
+                    _order: *const fmi2Integer,
+                    _value: *mut fmi2Real,
+                ) => GET_REAL_OUTPUT_DERIVATIVES, "maxOutputDerivativeOrder=\"0\""
+            );
             #[no_mangle]
             pub unsafe extern "C" fn fmi2DoStep(
                 c: fmi2Component,
@@ -406,6 +382,19 @@ macro_rules! export_fmu {
             ) -> fmi2Status {
                 unsafe { ffi::get_string_status::<M>(c, kind, value) }
             }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`], an `fmi2*` entry point of a capability the FMUs do not
+/// declare: it rejects every call, naming the capability's attribute.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! unsupported_fmi2_function {
+    ($name:ident($($arg:ident: $type:ty),* $(,)?) => $function:ident, $capability:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(c: fmi2Component, $($arg: $type),*) -> fmi2Status {
+            unsafe { $crate::ffi::unsupported::<M>(c, &functions::$function, $capability) }
         }
     };
 }

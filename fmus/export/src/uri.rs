@@ -158,62 +158,61 @@ mod tests {
     use super::*;
     use PathStyle::{Posix, Windows};
 
+    /// Each URI, read in its path style, gives its local path.
+    fn assert_paths(cases: &[(&str, PathStyle, &str)]) {
+        for &(uri, style, path) in cases {
+            assert_eq!(
+                local_path(uri, style).as_deref(),
+                Ok(path),
+                "{uri} ({style:?})"
+            );
+        }
+    }
+
+    /// Each URI, read in its path style, is refused with its error.
+    fn assert_errors(cases: &[(&str, PathStyle, UriError)]) {
+        for (uri, style, error) in cases {
+            assert_eq!(
+                local_path(uri, *style).as_ref(),
+                Err(error),
+                "{uri} ({style:?})"
+            );
+        }
+    }
+
     #[test]
     fn windows_drive_paths_lose_the_leading_slash() {
-        assert_eq!(
-            local_path("file:///C:/x%20y/res", Windows).unwrap(),
-            r"C:\x y\res"
-        );
-        assert_eq!(
-            local_path("file:/d:/fmu/res/", Windows).unwrap(),
-            r"d:\fmu\res\"
-        );
-        assert_eq!(
-            local_path("file:///C|/legacy", Windows).unwrap(),
-            r"C:\legacy"
-        );
-        assert_eq!(
-            local_path("file://localhost/Z:/tmp/a", Windows).unwrap(),
-            r"Z:\tmp\a"
-        );
-        // The same URI on a POSIX system is taken literally.
-        assert_eq!(
-            local_path("file:///C:/x%20y/res", Posix).unwrap(),
-            "/C:/x y/res"
-        );
+        assert_paths(&[
+            ("file:///C:/x%20y/res", Windows, r"C:\x y\res"),
+            ("file:/d:/fmu/res/", Windows, r"d:\fmu\res\"),
+            ("file:///C|/legacy", Windows, r"C:\legacy"),
+            ("file://localhost/Z:/tmp/a", Windows, r"Z:\tmp\a"),
+            // The same URI on a POSIX system is taken literally.
+            ("file:///C:/x%20y/res", Posix, "/C:/x y/res"),
+        ]);
     }
 
     #[test]
     fn posix_forms() {
-        assert_eq!(
-            local_path("file:///home/u/res/", Posix).unwrap(),
-            "/home/u/res/"
-        );
-        assert_eq!(
-            local_path("file:/home/u/res", Posix).unwrap(),
-            "/home/u/res"
-        );
-        assert_eq!(
-            local_path("file://localhost/home/u/res", Posix).unwrap(),
-            "/home/u/res"
-        );
-        assert_eq!(
-            local_path("FILE://LocalHost/home/u", Posix).unwrap(),
-            "/home/u"
-        );
-        assert_eq!(local_path("file:///", Posix).unwrap(), "/");
+        assert_paths(&[
+            ("file:///home/u/res/", Posix, "/home/u/res/"),
+            ("file:/home/u/res", Posix, "/home/u/res"),
+            ("file://localhost/home/u/res", Posix, "/home/u/res"),
+            ("FILE://LocalHost/home/u", Posix, "/home/u"),
+            ("file:///", Posix, "/"),
+        ]);
     }
 
     #[test]
     fn unc_paths_on_windows_only() {
-        assert_eq!(
-            local_path("file://server/share/res", Windows).unwrap(),
-            r"\\server\share\res"
-        );
-        assert_eq!(
-            local_path("file://server/share/my%20fmu/res", Windows).unwrap(),
-            r"\\server\share\my fmu\res"
-        );
+        assert_paths(&[
+            ("file://server/share/res", Windows, r"\\server\share\res"),
+            (
+                "file://server/share/my%20fmu/res",
+                Windows,
+                r"\\server\share\my fmu\res",
+            ),
+        ]);
         assert_eq!(
             local_path("file://server/share/res", Posix),
             Err(UriError::RemoteHost("server".into()))
@@ -222,73 +221,60 @@ mod tests {
 
     #[test]
     fn percent_decoding_including_utf8() {
-        assert_eq!(
-            local_path("file:///tmp/caf%C3%A9/%E6%97%A5%20%25/res", Posix).unwrap(),
-            "/tmp/café/日 %/res"
-        );
-        // Unencoded non-ASCII text passes through unchanged, as do `?` and `#`.
-        assert_eq!(
-            local_path("file:///tmp/Ünïcode/a#b?c", Posix).unwrap(),
-            "/tmp/Ünïcode/a#b?c"
-        );
-        assert_eq!(
-            local_path("file:///C:/Users/J%C3%BCrgen/res", Windows).unwrap(),
-            r"C:\Users\Jürgen\res"
-        );
-        // Lower-case hexadecimal digits.
-        assert_eq!(local_path("file:///a%2fb%3a", Posix).unwrap(), "/a/b:");
+        assert_paths(&[
+            (
+                "file:///tmp/caf%C3%A9/%E6%97%A5%20%25/res",
+                Posix,
+                "/tmp/café/日 %/res",
+            ),
+            // Unencoded non-ASCII text passes through unchanged, as do `?` and `#`.
+            ("file:///tmp/Ünïcode/a#b?c", Posix, "/tmp/Ünïcode/a#b?c"),
+            (
+                "file:///C:/Users/J%C3%BCrgen/res",
+                Windows,
+                r"C:\Users\Jürgen\res",
+            ),
+            // Lower-case hexadecimal digits.
+            ("file:///a%2fb%3a", Posix, "/a/b:"),
+        ]);
     }
 
     #[test]
     fn invalid_escapes_are_errors_with_their_position() {
-        assert_eq!(
-            local_path("file:///tmp/a%zzb", Posix),
-            Err(UriError::InvalidEscape(13))
-        );
-        assert_eq!(
-            local_path("file:///tmp/a%4", Posix),
-            Err(UriError::InvalidEscape(13))
-        );
-        assert_eq!(
-            local_path("file:///tmp/a%", Posix),
-            Err(UriError::InvalidEscape(13))
-        );
-        // `%+1` must not pass as hexadecimal through from_str_radix's sign handling.
-        assert_eq!(
-            local_path("file:///a%+1", Posix),
-            Err(UriError::InvalidEscape(9))
-        );
-        assert_eq!(
-            local_path("file:///tmp/%C3%28", Posix),
-            Err(UriError::NotUtf8)
-        );
-        assert_eq!(local_path("file:///tmp/%00", Posix), Err(UriError::Nul));
+        assert_errors(&[
+            ("file:///tmp/a%zzb", Posix, UriError::InvalidEscape(13)),
+            ("file:///tmp/a%4", Posix, UriError::InvalidEscape(13)),
+            ("file:///tmp/a%", Posix, UriError::InvalidEscape(13)),
+            // `%+1` must not pass as hexadecimal through from_str_radix's sign handling.
+            ("file:///a%+1", Posix, UriError::InvalidEscape(9)),
+            ("file:///tmp/%C3%28", Posix, UriError::NotUtf8),
+            ("file:///tmp/%00", Posix, UriError::Nul),
+        ]);
     }
 
     #[test]
     fn not_a_file_uri() {
-        assert_eq!(local_path("", Posix), Err(UriError::Empty));
-        assert_eq!(
-            local_path("http://x/res", Posix),
-            Err(UriError::NotFileUri("http://x/res".into()))
-        );
-        assert_eq!(
-            local_path("/home/u/res", Posix),
-            Err(UriError::NotFileUri("/home/u/res".into()))
-        );
-        assert_eq!(
-            local_path(r"C:\fmu\res", Windows),
-            Err(UriError::NotFileUri(r"C:\fmu\res".into()))
-        );
-        assert_eq!(local_path("file://server", Windows), Err(UriError::NoPath));
-        assert_eq!(
-            local_path("file:relative/res", Posix),
-            Err(UriError::NoPath)
-        );
-        assert_eq!(
-            local_path("fil", Posix),
-            Err(UriError::NotFileUri("fil".into()))
-        );
+        assert_errors(&[
+            ("", Posix, UriError::Empty),
+            (
+                "http://x/res",
+                Posix,
+                UriError::NotFileUri("http://x/res".into()),
+            ),
+            (
+                "/home/u/res",
+                Posix,
+                UriError::NotFileUri("/home/u/res".into()),
+            ),
+            (
+                r"C:\fmu\res",
+                Windows,
+                UriError::NotFileUri(r"C:\fmu\res".into()),
+            ),
+            ("file://server", Windows, UriError::NoPath),
+            ("file:relative/res", Posix, UriError::NoPath),
+            ("fil", Posix, UriError::NotFileUri("fil".into())),
+        ]);
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! produces `modelDescription.xml` ([`crate::description`]) and drives the checks of every
 //! `fmi2Get*` / `fmi2Set*` call ([`crate::instance`]).
 
+use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use std::fmt;
 
 /// `causality` of a variable.
@@ -272,6 +273,36 @@ impl Variable {
     }
 }
 
+/// One-line rows for the variable tables of physical models: name, (start,) unit and
+/// description in one call, so a `declare_variables!` table reads as a table. Further
+/// attributes chain on as usual (`parameter("m", 1.0, "kg", "Load mass").min(0.0)`).
+pub mod rows {
+    use super::Variable;
+
+    /// A Real parameter ([`Variable::parameter`]) with its unit and description.
+    pub fn parameter(name: &str, start: f64, unit: &str, description: &str) -> Variable {
+        Variable::parameter(name, start)
+            .unit(unit)
+            .describe(description)
+    }
+    /// A continuous Real input ([`Variable::input`]) with its unit and description.
+    pub fn input(name: &str, start: f64, unit: &str, description: &str) -> Variable {
+        Variable::input(name, start)
+            .unit(unit)
+            .describe(description)
+    }
+    /// A continuous Real output ([`Variable::output`]) with its unit and description.
+    pub fn output(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::output(name).unit(unit).describe(description)
+    }
+    /// A discrete Real output ([`Variable::discrete_output`]) with its unit and description.
+    pub fn discrete_output(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::discrete_output(name)
+            .unit(unit)
+            .describe(description)
+    }
+}
+
 /// Builds a variable table, handing back each variable's index (= value reference).
 #[derive(Debug, Clone, Default)]
 pub struct VariableTable {
@@ -363,6 +394,29 @@ impl Values {
             Some(Value::String(v)) => v,
             _ => "",
         }
+    }
+    /// Writes every value in order (for an FMU state).
+    pub fn save(&self, out: &mut ByteWriter) {
+        for value in &self.values {
+            match value {
+                Value::Real(v) => out.put_f64(*v),
+                Value::Integer(v) => out.put_i32(*v),
+                Value::Boolean(v) => out.put_bool(*v),
+                Value::String(v) => out.put_str(v),
+            }
+        }
+    }
+    /// Reads back in place what [`Values::save`] wrote of values of the same types.
+    pub fn load(&mut self, input: &mut ByteReader) -> Result<(), StateFormatError> {
+        for value in &mut self.values {
+            *value = match value {
+                Value::Real(_) => Value::Real(input.f64()?),
+                Value::Integer(_) => Value::Integer(input.i32()?),
+                Value::Boolean(_) => Value::Boolean(input.bool()?),
+                Value::String(_) => Value::String(input.string()?),
+            };
+        }
+        Ok(())
     }
     /// Reals at consecutive `indices`, collected.
     pub fn reals(&self, indices: &[usize]) -> Vec<f64> {

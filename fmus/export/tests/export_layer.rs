@@ -88,9 +88,7 @@ fn stepping_before_initialisation_is_an_illegal_call_sequence() {
     h.initialize(0.0).unwrap();
     h.set_real(&[U as u32], &[1.0]).unwrap();
     h.do_step(0.0, 0.5).unwrap();
-    let mut y = [0.0];
-    h.get_real(&[Y as u32], &mut y).unwrap();
-    assert_eq!(y[0], 0.5);
+    assert_eq!(h.real(Y as u32).unwrap(), 0.5);
 }
 
 #[test]
@@ -127,12 +125,12 @@ fn direct_feedthrough_outputs_follow_their_inputs_between_steps() {
     let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
     h.initialize(0.0).unwrap();
     h.set_real(&[U as u32], &[4.0]).unwrap();
-    let mut z = [0.0];
-    h.get_real(&[Z as u32], &mut z).unwrap();
-    assert_eq!(z[0], 8.0);
-    let mut y = [0.0];
-    h.get_real(&[Y as u32], &mut y).unwrap();
-    assert_eq!(y[0], 0.0, "the state does not advance without a step");
+    assert_eq!(h.real(Z as u32).unwrap(), 8.0);
+    assert_eq!(
+        h.real(Y as u32).unwrap(),
+        0.0,
+        "the state does not advance without a step"
+    );
 }
 
 #[test]
@@ -169,9 +167,7 @@ fn a_model_error_moves_the_instance_to_the_error_state() {
             && errors(&h).last().unwrap().contains("Error")
     );
     // outputs can still be read in the Error state
-    let mut y = [1.0];
-    h.get_real(&[Y as u32], &mut y).unwrap();
-    assert_eq!(y[0], 0.0);
+    assert_eq!(h.real(Y as u32).unwrap(), 0.0);
 }
 
 #[test]
