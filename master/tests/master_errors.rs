@@ -8,24 +8,21 @@ use spurio_master::engine::{RunError, Simulation};
 use spurio_master::fmu::{FmuFile, LoadError};
 use spurio_master::system::System;
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("spurio-master-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// Copies `source` to `target`, passing each entry through `edit` (None drops it), then
-/// appending `extra` entries.
-fn rewrite(
-    source: &Path,
-    target: &Path,
+/// GantryCrane.fmu copied to `<tmp>/spurio-master-<pid>-<file>/<file>`, each entry passed
+/// through `edit` (None drops it), then `extra` entries appended.
+fn crane_copy(
+    file: &str,
     edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
     extra: &[(&str, &[u8])],
-) {
-    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
-    let mut out = zip::ZipWriter::new(std::fs::File::create(target).unwrap());
+) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("spurio-master-{}-{file}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let target = dir.join(file);
+    let source = std::fs::File::open(fmus().join("GantryCrane.fmu")).unwrap();
+    let mut archive = zip::ZipArchive::new(source).unwrap();
+    let mut out = zip::ZipWriter::new(std::fs::File::create(&target).unwrap());
     let options = zip::write::SimpleFileOptions::default();
     for i in 0..archive.len() {
         let mut entry = archive.by_index(i).unwrap();
@@ -42,94 +39,72 @@ fn rewrite(
         out.write_all(data).unwrap();
     }
     out.finish().unwrap();
+    target
 }
 
-fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| {
-        if name == "modelDescription.xml" {
-            Some(f(String::from_utf8(data).unwrap()).into_bytes())
-        } else {
-            Some(data)
+/// GantryCrane.fmu copied as `file` with the text of its modelDescription.xml from the first
+/// `from` through the next `through` replaced by `with`.
+fn crane_with_xml(file: &str, from: &str, through: &str, with: &str) -> PathBuf {
+    let edit = |name: &str, data: Vec<u8>| {
+        if name != "modelDescription.xml" {
+            return Some(data);
         }
-    }
+        let xml = String::from_utf8(data).unwrap();
+        let start = xml.find(from).unwrap();
+        let after = start + from.len();
+        let end = after + xml[after..].find(through).unwrap() + through.len();
+        Some(format!("{}{with}{}", &xml[..start], &xml[end..]).into_bytes())
+    };
+    crane_copy(file, edit, &[])
 }
 
 #[test]
 fn missing_linux64_binary_is_named() {
-    let target = scratch("nobinary").join("NoBinary.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
+    let target = crane_copy(
+        "NoBinary.fmu",
         |name, data| (!name.starts_with("binaries/")).then_some(data),
         &[],
     );
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::MissingBinary { .. }));
-    let text = e.to_string();
-    assert_names(&text, &["NoBinary.fmu", "binaries/linux64/GantryCrane.so"]);
+    assert_names(
+        &e.to_string(),
+        &["NoBinary.fmu", "binaries/linux64/GantryCrane.so"],
+    );
 }
 
 #[test]
 fn guid_mismatch_is_reported_with_what_the_fmu_said() {
     spurio_master::logging::install(false);
-    let target = scratch("guid").join("WrongGuid.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
-        edit_xml(|xml| {
-            let start = xml.find("guid=\"").unwrap() + 6;
-            let end = start + xml[start..].find('"').unwrap();
-            format!(
-                "{}{{00000000-0000-0000-0000-000000000000}}{}",
-                &xml[..start],
-                &xml[end..]
-            )
-        }),
-        &[],
-    );
+    let zero_guid = "guid=\"{00000000-0000-0000-0000-000000000000}\"";
+    let target = crane_with_xml("WrongGuid.fmu", "guid=\"", "\"", zero_guid);
     let fmu = FmuFile::open(&target).unwrap();
     let e = fmu.instantiate("wrong_guid", false).unwrap_err();
-    let text = e.to_string();
-    assert_names(&text, &["wrong_guid", "WrongGuid.fmu"]);
-    assert!(text.contains("GUID mismatch"), "{text}");
+    assert_names(
+        &e.to_string(),
+        &["wrong_guid", "WrongGuid.fmu", "GUID mismatch"],
+    );
 }
 
 #[test]
 fn model_exchange_only_fmu_is_rejected() {
-    let target = scratch("me").join("OnlyME.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
-        edit_xml(|xml| {
-            let start = xml.find("<CoSimulation").unwrap();
-            let end = start + xml[start..].find("/>").unwrap() + 2;
-            format!(
-                "{}<ModelExchange modelIdentifier=\"GantryCrane\"/>{}",
-                &xml[..start],
-                &xml[end..]
-            )
-        }),
-        &[],
-    );
+    let model_exchange = "<ModelExchange modelIdentifier=\"GantryCrane\"/>";
+    let target = crane_with_xml("OnlyME.fmu", "<CoSimulation", "/>", model_exchange);
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::NotCoSimulation { .. }), "{e}");
-    assert!(
-        e.to_string().contains("OnlyME.fmu") && e.to_string().contains("not a Co-Simulation FMU")
-    );
+    assert_names(&e.to_string(), &["OnlyME.fmu", "not a Co-Simulation FMU"]);
 }
 
 #[test]
 fn archive_entry_leaving_the_directory_is_rejected() {
-    let target = scratch("slip").join("Slip.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
+    let target = crane_copy(
+        "Slip.fmu",
         |_, data| Some(data),
         &[("../../outside.txt", b"x")],
     );
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::UnsafeEntry { .. }), "{e}");
-    assert!(e.to_string().contains("../../outside.txt") && e.to_string().contains("Slip.fmu"));
+    assert_names(&e.to_string(), &["../../outside.txt", "Slip.fmu"]);
 }
 
 fn system(toml_text: &str) -> Result<System, String> {
