@@ -8,6 +8,7 @@
 //! work with value references only.
 
 use crate::logging::LogKey;
+use crate::xml::Tag;
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::InstanceCS;
 use fmi::schema::fmi2::{
@@ -311,15 +312,16 @@ pub fn termination_requested(instance: &mut InstanceCS) -> Option<Option<f64>> {
 /// `ModelStructure/Outputs`: for each output's 1-based index, its 1-based dependencies, or
 /// `None` when the attribute is absent (rust-fmi's schema cannot tell absent from empty).
 fn output_dependencies(xml: &str) -> Result<HashMap<usize, Option<Vec<usize>>>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let mut in_outputs = false;
     let mut map = HashMap::new();
-    loop {
-        match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) if e.name().as_ref() == "Outputs" => in_outputs = true,
-            Event::End(e) if e.name().as_ref() == "Outputs" => in_outputs = false,
-            Event::Empty(e) | Event::Start(e) if in_outputs && e.name().as_ref() == "Unknown" => {
+    for tag in crate::xml::tags(xml) {
+        match tag? {
+            Tag::Start {
+                element: e,
+                empty: false,
+            } if e.name().as_ref() == "Outputs" => in_outputs = true,
+            Tag::End(e) if e.name().as_ref() == "Outputs" => in_outputs = false,
+            Tag::Start { element: e, .. } if in_outputs && e.name().as_ref() == "Unknown" => {
                 let mut index = None;
                 let mut deps = None;
                 for a in e.attributes().flatten() {
@@ -341,7 +343,6 @@ fn output_dependencies(xml: &str) -> Result<HashMap<usize, Option<Vec<usize>>>, 
                     map.insert(i, deps);
                 }
             }
-            Event::Eof => break,
             _ => {}
         }
     }
@@ -351,8 +352,6 @@ fn output_dependencies(xml: &str) -> Result<HashMap<usize, Option<Vec<usize>>>, 
 /// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
 /// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
 fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
         e.attributes()
             .flatten()
@@ -368,11 +367,10 @@ fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
     let mut in_variable = false;
     // (own unit, declared type) per variable.
     let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
-    loop {
-        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => (e.into_owned(), false),
-            Event::Empty(e) => (e.into_owned(), true),
-            Event::End(e) => {
+    for tag in crate::xml::tags(xml) {
+        let (e, empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            Tag::End(e) => {
                 match e.name().as_ref() {
                     "SimpleType" => simple_type = None,
                     "ScalarVariable" => in_variable = false,
@@ -380,8 +378,6 @@ fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
                 }
                 continue;
             }
-            Event::Eof => break,
-            _ => continue,
         };
         match e.name().as_ref() {
             "SimpleType" if !empty => simple_type = attribute(&e, "name"),

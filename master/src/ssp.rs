@@ -28,6 +28,7 @@
 
 use crate::description::{Algorithm, InstanceDescription, SystemDescription};
 use crate::fmu::{Causality, FmuFile, VarType};
+use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::collections::BTreeMap;
@@ -508,7 +509,6 @@ fn number(e: &quick_xml::events::BytesStart, key: &str) -> Result<Option<f64>, S
 /// with their connectors and inline parameter sets, the connections between them, the
 /// default experiment and the step size (see the module documentation for its sources).
 pub fn parse_ssd(text: &str) -> Result<Imported, String> {
-    let mut reader = quick_xml::Reader::from_str(text);
     let mut d = SystemDescription {
         name: String::new(),
         start_time: 0.0,
@@ -526,12 +526,10 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
     let mut depth_component = false;
     // Depth of `ssd:System` elements: only the top system's components are this system's.
     let mut system_depth = 0usize;
-    loop {
-        let event = reader.read_event().map_err(|e| e.to_string())?;
-        let (e, is_empty) = match &event {
-            Event::Start(e) => (e.clone(), false),
-            Event::Empty(e) => (e.clone(), true),
-            Event::End(e) => {
+    for tag in crate::xml::tags(text) {
+        let (e, is_empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            Tag::End(e) => {
                 match e.local_name().as_ref() {
                     "Component" => depth_component = false,
                     "Parameter" => parameter = None,
@@ -540,8 +538,6 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                 }
                 continue;
             }
-            Event::Eof => break,
-            _ => continue,
         };
         match e.local_name().as_ref() {
             "SystemStructureDescription" => {
