@@ -368,35 +368,31 @@ fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
     // (own unit, declared type) per variable.
     let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
     for tag in crate::xml::tags(xml) {
-        let (e, empty) = match tag? {
-            Tag::Start { element, empty } => (element, empty),
-            Tag::End(e) => {
-                match e.name().as_ref() {
-                    "SimpleType" => simple_type = None,
-                    "ScalarVariable" => in_variable = false,
-                    _ => {}
+        match tag? {
+            Tag::End(e) => match e.name().as_ref() {
+                "SimpleType" => simple_type = None,
+                "ScalarVariable" => in_variable = false,
+                _ => {}
+            },
+            Tag::Start { element: e, empty } => match e.name().as_ref() {
+                "SimpleType" if !empty => simple_type = attribute(&e, "name"),
+                "ScalarVariable" => {
+                    declared.push((None, None));
+                    in_variable = !empty;
                 }
-                continue;
-            }
-        };
-        match e.name().as_ref() {
-            "SimpleType" if !empty => simple_type = attribute(&e, "name"),
-            "ScalarVariable" => {
-                declared.push((None, None));
-                in_variable = !empty;
-            }
-            "Real" | "Integer" | "Enumeration" => {
-                if let Some(name) = &simple_type {
-                    if let Some(unit) = attribute(&e, "unit") {
-                        type_units.insert(name.clone(), unit);
-                    }
-                } else if in_variable {
-                    if let Some(last) = declared.last_mut() {
-                        *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                "Real" | "Integer" | "Enumeration" => {
+                    if let Some(name) = &simple_type {
+                        if let Some(unit) = attribute(&e, "unit") {
+                            type_units.insert(name.clone(), unit);
+                        }
+                    } else if in_variable {
+                        if let Some(last) = declared.last_mut() {
+                            *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                        }
                     }
                 }
-            }
-            _ => {}
+                _ => {}
+            },
         }
     }
     Ok(declared
