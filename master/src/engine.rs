@@ -219,6 +219,25 @@ fn on_every(
     }
 }
 
+/// Calls the FMI function `call` (`name`) at `time` on every member's instance, then reports
+/// every failure at once.
+fn call_every<T>(
+    members: &mut [Member],
+    name: &'static str,
+    time: f64,
+    call: impl Fn(&mut InstanceCS) -> Result<T, Fmi2Error>,
+) -> Result<(), RunError> {
+    on_every(
+        members,
+        |_| true,
+        |m| {
+            call(&mut m.instance)
+                .map(|_| ())
+                .map_err(|e| m.failure(name, e, time))
+        },
+    )
+}
+
 /// Options of a run.
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
@@ -337,14 +356,11 @@ impl Simulation {
         // instance leaves it.
         sim.read_all("fmi2Get* (initial outputs)", t0)?;
         sim.propagate(0, true)?;
-        on_every(
+        call_every(
             &mut sim.members,
-            |_| true,
-            |m| {
-                Common::exit_initialization_mode(&mut m.instance)
-                    .map(|_| ())
-                    .map_err(|e| m.failure("fmi2ExitInitializationMode", e, t0))
-            },
+            "fmi2ExitInitializationMode",
+            t0,
+            Common::exit_initialization_mode,
         )?;
         sim.read_all("fmi2Get* (initial outputs)", t0)?;
         Ok(sim)
@@ -528,14 +544,11 @@ impl Simulation {
     /// every instance that fails to.
     pub fn terminate(&mut self) -> Result<(), RunError> {
         let t = self.end_time;
-        on_every(
+        call_every(
             &mut self.members,
-            |_| true,
-            |m| {
-                FmiInstance::terminate(&mut m.instance)
-                    .map(|_| ())
-                    .map_err(|e| m.failure("fmi2Terminate", e, t))
-            },
+            "fmi2Terminate",
+            t,
+            FmiInstance::terminate,
         )
     }
 }

@@ -20,3 +20,4 @@ pub mod slurm;
 pub mod ssp;
 pub mod sweep;
 pub mod system;
+mod xml;

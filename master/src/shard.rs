@@ -509,7 +509,8 @@ pub enum MergeError {
     Metric { label: String, reason: String },
 }
 
-fn list_paths(paths: &[PathBuf]) -> String {
+/// `paths` as one line, separated by commas (as the errors name them).
+pub fn list_paths(paths: &[PathBuf]) -> String {
     paths
         .iter()
         .map(|p| p.display().to_string())

@@ -28,6 +28,7 @@
 
 use crate::description::{Algorithm, InstanceDescription, SystemDescription};
 use crate::fmu::{Causality, FmuFile, VarType};
+use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::collections::BTreeMap;
@@ -140,224 +141,205 @@ pub fn ssd_text(
     };
     let mut w = Writer::new_with_indent(Vec::new(), b' ', 2);
     w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
-    w.create_element("ssd:SystemStructureDescription")
-        .with_attributes([
-            (
-                "xmlns:ssc",
-                "http://ssp-standard.org/SSP1/SystemStructureCommon",
-            ),
-            (
-                "xmlns:ssd",
-                "http://ssp-standard.org/SSP1/SystemStructureDescription",
-            ),
-            (
-                "xmlns:ssv",
-                "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-            ),
-            ("xmlns:oms", OMS_NAMESPACE),
-            ("version", version.as_str()),
-            ("name", name),
-            ("generationTool", "spurio"),
-        ])
-        .write_inner_content(|w| {
-            w.create_element("ssd:System")
-                .with_attribute(("name", name))
-                .write_inner_content(|w| {
-                    w.create_element("ssd:Elements").write_inner_content(|w| {
-                        for (i, inst) in d.instances.iter().enumerate() {
-                            component(w, inst, &connectors[i], &sources[i], version)?;
-                        }
-                        Ok(())
-                    })?;
-                    if !d.connections.is_empty() {
-                        w.create_element("ssd:Connections")
-                            .write_inner_content(|w| {
-                                for c in &d.connections {
-                                    let Some((from, to)) = c.split_once("->") else {
-                                        continue;
-                                    };
-                                    let (Some((fe, fc)), Some((te, tc))) =
-                                        (from.trim().split_once('.'), to.trim().split_once('.'))
-                                    else {
-                                        continue;
-                                    };
-                                    w.create_element("ssd:Connection")
-                                        .with_attributes([
-                                            ("startElement", fe),
-                                            ("startConnector", fc),
-                                            ("endElement", te),
-                                            ("endConnector", tc),
-                                        ])
-                                        .write_empty()?;
-                                }
-                                Ok(())
-                            })?;
+    let root = [
+        (
+            "xmlns:ssc",
+            "http://ssp-standard.org/SSP1/SystemStructureCommon",
+        ),
+        (
+            "xmlns:ssd",
+            "http://ssp-standard.org/SSP1/SystemStructureDescription",
+        ),
+        (
+            "xmlns:ssv",
+            "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+        ),
+        ("xmlns:oms", OMS_NAMESPACE),
+        ("version", version.as_str()),
+        ("name", name),
+        ("generationTool", "spurio"),
+    ];
+    element(&mut w, "ssd:SystemStructureDescription", &root, |w| {
+        element(w, "ssd:System", &[("name", name)], |w| {
+            element(w, "ssd:Elements", &[], |w| {
+                for (i, inst) in d.instances.iter().enumerate() {
+                    component(w, inst, &connectors[i], &sources[i], version)?;
+                }
+                Ok(())
+            })?;
+            if !d.connections.is_empty() {
+                element(w, "ssd:Connections", &[], |w| {
+                    for c in &d.connections {
+                        let Some((from, to)) = c.split_once("->") else {
+                            continue;
+                        };
+                        let (Some((fe, fc)), Some((te, tc))) =
+                            (from.trim().split_once('.'), to.trim().split_once('.'))
+                        else {
+                            continue;
+                        };
+                        let ends = [
+                            ("startElement", fe),
+                            ("startConnector", fc),
+                            ("endElement", te),
+                            ("endConnector", tc),
+                        ];
+                        empty(w, "ssd:Connection", &ends)?;
                     }
-                    openmodelica_annotation(w, d)?;
                     Ok(())
                 })?;
-            let (start, stop) = (format!("{:?}", d.start_time), format!("{:?}", d.stop_time));
-            w.create_element("ssd:DefaultExperiment")
-                .with_attributes([("startTime", start.as_str()), ("stopTime", stop.as_str())])
-                .write_inner_content(|w| {
-                    w.create_element("ssd:Annotations")
-                        .write_inner_content(|w| {
-                            w.create_element("ssc:Annotation")
-                                .with_attribute(("type", ANNOTATION))
-                                .write_inner_content(|w| simulation_annotation(w, d))?;
-                            Ok(())
-                        })?;
-                    Ok(())
-                })?;
-            Ok(())
+            }
+            openmodelica_annotation(w, d)
         })?;
+        let (start, stop) = (format!("{:?}", d.start_time), format!("{:?}", d.stop_time));
+        let times = [("startTime", start.as_str()), ("stopTime", stop.as_str())];
+        element(w, "ssd:DefaultExperiment", &times, |w| {
+            element(w, "ssd:Annotations", &[], |w| {
+                element(w, "ssc:Annotation", &[("type", ANNOTATION)], |w| {
+                    simulation_annotation(w, d)
+                })
+            })
+        })
+    })?;
     let mut text = String::from_utf8(w.into_inner()).map_err(std::io::Error::other)?;
     text.push('\n');
     Ok(text)
 }
 
-/// OpenModelica's fixed-step master annotation of a system: what OMSimulator's command line
-/// needs to run the file with a fixed step (`oms-ma`, its master algorithm; the tolerances
-/// are those OMSimulator writes itself and do not apply to a fixed-step master).
-fn openmodelica_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std::io::Result<()> {
-    let step = format!("{:?}", d.step_size);
-    w.create_element("ssd:Annotations")
-        .write_inner_content(|w| {
-            w.create_element("ssc:Annotation")
-                .with_attribute(("type", OPENMODELICA))
-                .write_inner_content(|w| {
-                    w.create_element("oms:Annotations")
-                        .write_inner_content(|w| {
-                            w.create_element("oms:SimulationInformation")
-                                .write_inner_content(|w| {
-                                    w.create_element("oms:FixedStepMaster")
-                                        .with_attributes([
-                                            ("description", "oms-ma"),
-                                            ("stepSize", step.as_str()),
-                                            ("absoluteTolerance", "0.0001"),
-                                            ("relativeTolerance", "0.0001"),
-                                        ])
-                                        .write_empty()?;
-                                    Ok(())
-                                })?;
-                            Ok(())
-                        })?;
-                    Ok(())
-                })?;
-            Ok(())
-        })?;
+type Xml = Writer<Vec<u8>>;
+
+/// Writes the element `name` with `attributes`, its content written by `content`.
+fn element(
+    w: &mut Xml,
+    name: &str,
+    attributes: &[(&str, &str)],
+    content: impl FnOnce(&mut Xml) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    w.create_element(name)
+        .with_attributes(attributes.iter().copied())
+        .write_inner_content(content)?;
     Ok(())
 }
 
+/// Writes the empty element `name` with `attributes`.
+fn empty(w: &mut Xml, name: &str, attributes: &[(&str, &str)]) -> std::io::Result<()> {
+    w.create_element(name)
+        .with_attributes(attributes.iter().copied())
+        .write_empty()?;
+    Ok(())
+}
+
+/// OpenModelica's fixed-step master annotation of a system: what OMSimulator's command line
+/// needs to run the file with a fixed step (`oms-ma`, its master algorithm; the tolerances
+/// are those OMSimulator writes itself and do not apply to a fixed-step master).
+fn openmodelica_annotation(w: &mut Xml, d: &SystemDescription) -> std::io::Result<()> {
+    let step = format!("{:?}", d.step_size);
+    let master = [
+        ("description", "oms-ma"),
+        ("stepSize", step.as_str()),
+        ("absoluteTolerance", "0.0001"),
+        ("relativeTolerance", "0.0001"),
+    ];
+    element(w, "ssd:Annotations", &[], |w| {
+        element(w, "ssc:Annotation", &[("type", OPENMODELICA)], |w| {
+            element(w, "oms:Annotations", &[], |w| {
+                element(w, "oms:SimulationInformation", &[], |w| {
+                    empty(w, "oms:FixedStepMaster", &master)
+                })
+            })
+        })
+    })
+}
+
 fn component(
-    w: &mut Writer<Vec<u8>>,
+    w: &mut Xml,
     inst: &InstanceDescription,
     connectors: &[(String, &'static str, VarType)],
     source: &str,
     version: SspVersion,
 ) -> std::io::Result<()> {
-    w.create_element("ssd:Component")
-        .with_attributes([
-            ("name", inst.name.as_str()),
-            ("type", "application/x-fmu-sharedlibrary"),
-            ("source", source),
-        ])
-        .write_inner_content(|w| {
-            if !connectors.is_empty() {
-                w.create_element("ssd:Connectors")
-                    .write_inner_content(|w| {
-                        for (name, kind, ty) in connectors {
-                            w.create_element("ssd:Connector")
-                                .with_attributes([("name", name.as_str()), ("kind", *kind)])
-                                .write_inner_content(|w| {
-                                    w.create_element(format!("ssc:{}", type_name(*ty)))
-                                        .write_empty()?;
-                                    Ok(())
-                                })?;
-                        }
-                        Ok(())
+    let attributes = [
+        ("name", inst.name.as_str()),
+        ("type", "application/x-fmu-sharedlibrary"),
+        ("source", source),
+    ];
+    element(w, "ssd:Component", &attributes, |w| {
+        if !connectors.is_empty() {
+            element(w, "ssd:Connectors", &[], |w| {
+                for (name, kind, ty) in connectors {
+                    let attributes = [("name", name.as_str()), ("kind", *kind)];
+                    element(w, "ssd:Connector", &attributes, |w| {
+                        empty(w, &format!("ssc:{}", type_name(*ty)), &[])
                     })?;
-            }
-            if !inst.parameters.is_empty() {
-                w.create_element("ssd:ParameterBindings")
-                    .write_inner_content(|w| {
-                        w.create_element("ssd:ParameterBinding")
-                            .write_inner_content(|w| {
-                                w.create_element("ssd:ParameterValues")
-                                    .write_inner_content(|w| parameter_set(w, inst, version))?;
-                                Ok(())
-                            })?;
-                        Ok(())
-                    })?;
-            }
-            Ok(())
-        })?;
-    Ok(())
+                }
+                Ok(())
+            })?;
+        }
+        if !inst.parameters.is_empty() {
+            element(w, "ssd:ParameterBindings", &[], |w| {
+                element(w, "ssd:ParameterBinding", &[], |w| {
+                    element(w, "ssd:ParameterValues", &[], |w| {
+                        parameter_set(w, inst, version)
+                    })
+                })
+            })?;
+        }
+        Ok(())
+    })
 }
 
 fn parameter_set(
-    w: &mut Writer<Vec<u8>>,
+    w: &mut Xml,
     inst: &InstanceDescription,
     version: SspVersion,
 ) -> std::io::Result<()> {
-    w.create_element("ssv:ParameterSet")
-        .with_attributes([("version", version.as_str()), ("name", inst.name.as_str())])
-        .write_inner_content(|w| {
-            w.create_element("ssv:Parameters")
-                .write_inner_content(|w| {
-                    for (name, value) in &inst.parameters {
-                        let (ty, text) = match value {
-                            toml::Value::Float(f) => (VarType::Real, format!("{f:?}")),
-                            toml::Value::Integer(n) => (VarType::Integer, n.to_string()),
-                            toml::Value::Boolean(b) => (VarType::Boolean, b.to_string()),
-                            toml::Value::String(s) => (VarType::String, s.clone()),
-                            other => (VarType::String, other.to_string()),
-                        };
-                        w.create_element("ssv:Parameter")
-                            .with_attribute(("name", name.as_str()))
-                            .write_inner_content(|w| {
-                                w.create_element(format!("ssv:{}", type_name(ty)))
-                                    .with_attribute(("value", text.as_str()))
-                                    .write_empty()?;
-                                Ok(())
-                            })?;
-                    }
-                    Ok(())
+    let attributes = [("version", version.as_str()), ("name", inst.name.as_str())];
+    element(w, "ssv:ParameterSet", &attributes, |w| {
+        element(w, "ssv:Parameters", &[], |w| {
+            for (name, value) in &inst.parameters {
+                let (ty, text) = match value {
+                    toml::Value::Float(f) => (VarType::Real, format!("{f:?}")),
+                    toml::Value::Integer(n) => (VarType::Integer, n.to_string()),
+                    toml::Value::Boolean(b) => (VarType::Boolean, b.to_string()),
+                    toml::Value::String(s) => (VarType::String, s.clone()),
+                    other => (VarType::String, other.to_string()),
+                };
+                element(w, "ssv:Parameter", &[("name", name.as_str())], |w| {
+                    let value = [("value", text.as_str())];
+                    empty(w, &format!("ssv:{}", type_name(ty)), &value)
                 })?;
+            }
             Ok(())
-        })?;
-    Ok(())
+        })
+    })
 }
 
 /// What SSP has no place for: step size, algorithm, record, step multiples, logging.
-fn simulation_annotation(w: &mut Writer<Vec<u8>>, d: &SystemDescription) -> std::io::Result<()> {
+fn simulation_annotation(w: &mut Xml, d: &SystemDescription) -> std::io::Result<()> {
     let algorithm = match d.algorithm {
         Algorithm::GaussSeidel => "gauss-seidel",
         Algorithm::Jacobi => "jacobi",
     };
     let step = format!("{:?}", d.step_size);
     let record = d.record.join(" ");
-    w.create_element("Simulation")
-        .with_attributes([
-            ("stepSize", step.as_str()),
-            ("algorithm", algorithm),
-            ("record", record.as_str()),
-        ])
-        .write_inner_content(|w| {
-            for inst in &d.instances {
-                let multiple = inst.step_multiple.to_string();
-                let logging = inst.logging.to_string();
-                w.create_element("Instance")
-                    .with_attributes([
-                        ("name", inst.name.as_str()),
-                        ("stepMultiple", multiple.as_str()),
-                        ("logging", logging.as_str()),
-                    ])
-                    .write_empty()?;
-            }
-            Ok(())
-        })?;
-    Ok(())
+    let attributes = [
+        ("stepSize", step.as_str()),
+        ("algorithm", algorithm),
+        ("record", record.as_str()),
+    ];
+    element(w, "Simulation", &attributes, |w| {
+        for inst in &d.instances {
+            let multiple = inst.step_multiple.to_string();
+            let logging = inst.logging.to_string();
+            let attributes = [
+                ("name", inst.name.as_str()),
+                ("stepMultiple", multiple.as_str()),
+                ("logging", logging.as_str()),
+            ];
+            empty(w, "Instance", &attributes)?;
+        }
+        Ok(())
+    })
 }
 
 /// Writes `target` (.ssp, SSP `version`) for the system `d` whose instance i runs `fmus[i]`
@@ -527,7 +509,6 @@ fn number(e: &quick_xml::events::BytesStart, key: &str) -> Result<Option<f64>, S
 /// with their connectors and inline parameter sets, the connections between them, the
 /// default experiment and the step size (see the module documentation for its sources).
 pub fn parse_ssd(text: &str) -> Result<Imported, String> {
-    let mut reader = quick_xml::Reader::from_str(text);
     let mut d = SystemDescription {
         name: String::new(),
         start_time: 0.0,
@@ -545,12 +526,10 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
     let mut depth_component = false;
     // Depth of `ssd:System` elements: only the top system's components are this system's.
     let mut system_depth = 0usize;
-    loop {
-        let event = reader.read_event().map_err(|e| e.to_string())?;
-        let (e, is_empty) = match &event {
-            Event::Start(e) => (e.clone(), false),
-            Event::Empty(e) => (e.clone(), true),
-            Event::End(e) => {
+    for tag in crate::xml::tags(text) {
+        let (e, is_empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            Tag::End(e) => {
                 match e.local_name().as_ref() {
                     "Component" => depth_component = false,
                     "Parameter" => parameter = None,
@@ -559,8 +538,6 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                 }
                 continue;
             }
-            Event::Eof => break,
-            _ => continue,
         };
         match e.local_name().as_ref() {
             "SystemStructureDescription" => {

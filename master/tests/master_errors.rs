@@ -1,38 +1,28 @@
 //! Every way a system or an FMU can be wrong gets an error that names the FMU, the variable
 //! and the file. These tests need the packaged FMUs (`scripts/build-fmus`).
 
+mod common;
+
+use common::{assert_names, fmus, resolve};
 use spurio_master::engine::{RunError, Simulation};
 use spurio_master::fmu::{FmuFile, LoadError};
-use spurio_master::system::{System, SystemDescription};
+use spurio_master::system::System;
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-fn fmus() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
-    assert!(
-        dir.join("GantryCrane.fmu").is_file(),
-        "{} has no FMUs: run scripts/build-fmus first",
-        dir.display()
-    );
-    dir
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("spurio-master-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// Copies `source` to `target`, passing each entry through `edit` (None drops it), then
-/// appending `extra` entries.
-fn rewrite(
-    source: &Path,
-    target: &Path,
+/// GantryCrane.fmu copied to `<tmp>/spurio-master-<pid>-<file>/<file>`, each entry passed
+/// through `edit` (None drops it), then `extra` entries appended.
+fn crane_copy(
+    file: &str,
     edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
     extra: &[(&str, &[u8])],
-) {
-    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
-    let mut out = zip::ZipWriter::new(std::fs::File::create(target).unwrap());
+) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("spurio-master-{}-{file}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let target = dir.join(file);
+    let source = std::fs::File::open(fmus().join("GantryCrane.fmu")).unwrap();
+    let mut archive = zip::ZipArchive::new(source).unwrap();
+    let mut out = zip::ZipWriter::new(std::fs::File::create(&target).unwrap());
     let options = zip::write::SimpleFileOptions::default();
     for i in 0..archive.len() {
         let mut entry = archive.by_index(i).unwrap();
@@ -49,105 +39,76 @@ fn rewrite(
         out.write_all(data).unwrap();
     }
     out.finish().unwrap();
+    target
 }
 
-fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| {
-        if name == "modelDescription.xml" {
-            Some(f(String::from_utf8(data).unwrap()).into_bytes())
-        } else {
-            Some(data)
+/// GantryCrane.fmu copied as `file` with the text of its modelDescription.xml from the first
+/// `from` through the next `through` replaced by `with`.
+fn crane_with_xml(file: &str, from: &str, through: &str, with: &str) -> PathBuf {
+    let edit = |name: &str, data: Vec<u8>| {
+        if name != "modelDescription.xml" {
+            return Some(data);
         }
-    }
+        let xml = String::from_utf8(data).unwrap();
+        let start = xml.find(from).unwrap();
+        let after = start + from.len();
+        let end = after + xml[after..].find(through).unwrap() + through.len();
+        Some(format!("{}{with}{}", &xml[..start], &xml[end..]).into_bytes())
+    };
+    crane_copy(file, edit, &[])
 }
 
 #[test]
 fn missing_linux64_binary_is_named() {
-    let target = scratch("nobinary").join("NoBinary.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
+    let target = crane_copy(
+        "NoBinary.fmu",
         |name, data| (!name.starts_with("binaries/")).then_some(data),
         &[],
     );
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::MissingBinary { .. }));
-    let text = e.to_string();
-    assert!(
-        text.contains("NoBinary.fmu") && text.contains("binaries/linux64/GantryCrane.so"),
-        "{text}"
+    assert_names(
+        &e.to_string(),
+        &["NoBinary.fmu", "binaries/linux64/GantryCrane.so"],
     );
 }
 
 #[test]
 fn guid_mismatch_is_reported_with_what_the_fmu_said() {
     spurio_master::logging::install(false);
-    let target = scratch("guid").join("WrongGuid.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
-        edit_xml(|xml| {
-            let start = xml.find("guid=\"").unwrap() + 6;
-            let end = start + xml[start..].find('"').unwrap();
-            format!(
-                "{}{{00000000-0000-0000-0000-000000000000}}{}",
-                &xml[..start],
-                &xml[end..]
-            )
-        }),
-        &[],
-    );
+    let zero_guid = "guid=\"{00000000-0000-0000-0000-000000000000}\"";
+    let target = crane_with_xml("WrongGuid.fmu", "guid=\"", "\"", zero_guid);
     let fmu = FmuFile::open(&target).unwrap();
     let e = fmu.instantiate("wrong_guid", false).unwrap_err();
-    let text = e.to_string();
-    assert!(
-        text.contains("wrong_guid") && text.contains("WrongGuid.fmu"),
-        "{text}"
+    assert_names(
+        &e.to_string(),
+        &["wrong_guid", "WrongGuid.fmu", "GUID mismatch"],
     );
-    assert!(text.contains("GUID mismatch"), "{text}");
 }
 
 #[test]
 fn model_exchange_only_fmu_is_rejected() {
-    let target = scratch("me").join("OnlyME.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
-        edit_xml(|xml| {
-            let start = xml.find("<CoSimulation").unwrap();
-            let end = start + xml[start..].find("/>").unwrap() + 2;
-            format!(
-                "{}<ModelExchange modelIdentifier=\"GantryCrane\"/>{}",
-                &xml[..start],
-                &xml[end..]
-            )
-        }),
-        &[],
-    );
+    let model_exchange = "<ModelExchange modelIdentifier=\"GantryCrane\"/>";
+    let target = crane_with_xml("OnlyME.fmu", "<CoSimulation", "/>", model_exchange);
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::NotCoSimulation { .. }), "{e}");
-    assert!(
-        e.to_string().contains("OnlyME.fmu") && e.to_string().contains("not a Co-Simulation FMU")
-    );
+    assert_names(&e.to_string(), &["OnlyME.fmu", "not a Co-Simulation FMU"]);
 }
 
 #[test]
 fn archive_entry_leaving_the_directory_is_rejected() {
-    let target = scratch("slip").join("Slip.fmu");
-    rewrite(
-        &fmus().join("GantryCrane.fmu"),
-        &target,
+    let target = crane_copy(
+        "Slip.fmu",
         |_, data| Some(data),
         &[("../../outside.txt", b"x")],
     );
     let e = FmuFile::open(&target).unwrap_err();
     assert!(matches!(e, LoadError::UnsafeEntry { .. }), "{e}");
-    assert!(e.to_string().contains("../../outside.txt") && e.to_string().contains("Slip.fmu"));
+    assert_names(&e.to_string(), &["../../outside.txt", "Slip.fmu"]);
 }
 
 fn system(toml_text: &str) -> Result<System, String> {
-    let description: SystemDescription = toml::from_str(toml_text).map_err(|e| e.to_string())?;
-    System::resolve(&description, &fmus()).map_err(|e| e.to_string())
+    resolve(toml_text).map_err(|e| e.to_string())
 }
 
 const TWO: &str = r#"
@@ -172,15 +133,9 @@ fn with_connections(connections: &[&str]) -> String {
 #[test]
 fn unknown_variable_names_the_instance_the_variable_and_the_file() {
     let e = system(&with_connections(&["crane.position -> ctrl.x_hat[1]"])).unwrap_err();
-    assert!(
-        e.contains("`crane`") && e.contains("`position`") && e.contains("GantryCrane.fmu"),
-        "{e}"
-    );
+    assert_names(&e, &["`crane`", "`position`", "GantryCrane.fmu"]);
     let e = system(&with_connections(&["crane.x -> ctrl.x_hat[9]"])).unwrap_err();
-    assert!(
-        e.contains("x_hat[9]") && e.contains("did you mean") && e.contains("x_hat[1]"),
-        "{e}"
-    );
+    assert_names(&e, &["x_hat[9]", "did you mean", "x_hat[1]"]);
     let e = system(&with_connections(&["crane.x -> nobody.u"])).unwrap_err();
     assert!(e.contains("no instance called `nobody`"), "{e}");
 }
@@ -188,23 +143,14 @@ fn unknown_variable_names_the_instance_the_variable_and_the_file() {
 #[test]
 fn causality_and_type_mismatches_are_named() {
     let e = system(&with_connections(&["crane.U -> ctrl.x_hat[1]"])).unwrap_err();
-    assert!(
-        e.contains("crane.U") && e.contains("starts at an output"),
-        "{e}"
-    );
+    assert_names(&e, &["crane.U", "starts at an output"]);
     let e = system(&with_connections(&["crane.x -> ctrl.u[1]"])).unwrap_err();
-    assert!(
-        e.contains("ctrl.u[1]") && e.contains("ends at an input"),
-        "{e}"
-    );
+    assert_names(&e, &["ctrl.u[1]", "ends at an input"]);
     let e = system(&with_connections(&[
         "adaptive.estimate_rejected -> ctrl.x_hat[1]",
     ]))
     .unwrap_err();
-    assert!(
-        e.contains("type mismatch") && e.contains("Boolean") && e.contains("Real"),
-        "{e}"
-    );
+    assert_names(&e, &["type mismatch", "Boolean", "Real"]);
 }
 
 #[test]
@@ -214,10 +160,7 @@ fn an_input_driven_twice_is_named() {
         "crane.theta -> ctrl.x_hat[1]",
     ]))
     .unwrap_err();
-    assert!(
-        e.contains("ctrl.x_hat[1]") && e.contains("crane.x") && e.contains("crane.theta"),
-        "{e}"
-    );
+    assert_names(&e, &["ctrl.x_hat[1]", "crane.x", "crane.theta"]);
 }
 
 #[test]
@@ -226,10 +169,7 @@ fn a_loop_of_direct_feedthrough_is_reported_not_delayed() {
         "connections = [\"ctrl.u[1] -> other.x_hat[1]\", \"other.u[1] -> ctrl.x_hat[1]\"]\n{TWO}\n[[instance]]\nname = \"other\"\nfmu = \"StateFeedback.fmu\"\n"
     );
     let e = system(&text).unwrap_err();
-    assert!(
-        e.contains("algebraic loop") && e.contains("ctrl.u[1]") && e.contains("other.u[1]"),
-        "{e}"
-    );
+    assert_names(&e, &["algebraic loop", "ctrl.u[1]", "other.u[1]"]);
     // The same loop closed through the crane (no feedthrough) is fine.
     system(&with_connections(&[
         "ctrl.u[1] -> crane.U",
@@ -245,10 +185,7 @@ fn bad_parameter_values_are_named() {
         "fmu = \"GantryCrane.fmu\"\nparameters = { x0 = true }",
     );
     let e = system(&text).unwrap_err();
-    assert!(
-        e.contains("`crane`") && e.contains("`x0`") && e.contains("Real"),
-        "{e}"
-    );
+    assert_names(&e, &["`crane`", "`x0`", "Real"]);
 }
 
 #[test]
@@ -265,12 +202,9 @@ fn an_error_inside_the_fmu_names_the_instance_and_the_call() {
     };
     assert!(matches!(e, RunError::Fmi { .. }));
     let text = e.to_string();
-    assert!(
-        text.contains("`crane`")
-            && text.contains("GantryCrane.fmu")
-            && text.contains("returned fmi2Error")
-            && text.contains("`x0`"),
-        "{text}"
+    assert_names(
+        &text,
+        &["`crane`", "GantryCrane.fmu", "returned fmi2Error", "`x0`"],
     );
 }
 
@@ -286,11 +220,13 @@ fn an_error_in_a_step_names_the_instance_the_call_and_the_time() {
         .run(&mut spurio_master::record::NoRecording, &Default::default())
         .unwrap_err();
     let text = e.to_string();
-    assert!(
-        text.contains("`plant`")
-            && text.contains("LinearSystem.fmu")
-            && text.contains("fmi2DoStep returned fmi2Error at t = 0")
-            && text.contains("non-finite"),
-        "{text}"
+    assert_names(
+        &text,
+        &[
+            "`plant`",
+            "LinearSystem.fmu",
+            "fmi2DoStep returned fmi2Error at t = 0",
+            "non-finite",
+        ],
     );
 }

@@ -2,20 +2,16 @@
 //! instance's error quotes what that instance logged, even when a parallel run has an
 //! instance of the same name that logged something else. Needs `scripts/build-fmus`.
 
+mod common;
+
+use common::resolve;
 use spurio_master::engine::{RunError, Simulation};
 use spurio_master::record::NoRecording;
-use spurio_master::system::{System, SystemDescription};
-use std::path::PathBuf;
+use spurio_master::system::System;
 use std::sync::{Arc, Barrier};
 
 fn system(text: &str) -> System {
-    let fmus = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
-    assert!(
-        fmus.join("GantryCrane.fmu").is_file(),
-        "run scripts/build-fmus first"
-    );
-    let description: SystemDescription = toml::from_str(text).unwrap();
-    System::resolve(&description, &fmus).unwrap()
+    resolve(text).unwrap()
 }
 
 #[test]

@@ -3,57 +3,29 @@
 //! folder that is gone with the system. These tests need the packaged FMUs
 //! (`scripts/build-fmus`).
 
-use spurio_master::engine::{RunEnd, RunOptions, Simulation};
+mod common;
+
+use common::{crane_sensor, run};
+use spurio_master::engine::{RunEnd, RunOptions};
 use spurio_master::record::TimeSeries;
 use spurio_master::ssp::SspVersion;
-use spurio_master::system::{System, SystemDescription};
-use std::path::PathBuf;
+use spurio_master::system::System;
 
-fn crane_sensor(stop_time: f64) -> System {
-    let fmus = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
-    assert!(
-        fmus.join("GantryCrane.fmu").is_file(),
-        "{} has no FMUs: run scripts/build-fmus first",
-        fmus.display()
-    );
-    let text = format!(
-        r#"
-        stop_time = {stop_time:?}
-        step_size = 0.01
-        connections = ["crane.x -> sensor.u[1]", "crane.theta -> sensor.u[2]"]
-        record = ["crane.x", "sensor.y[1]"]
-        [[instance]]
-        name = "crane"
-        fmu = "GantryCrane.fmu"
-        parameters = {{ U = 0.5 }}
-        [[instance]]
-        name = "sensor"
-        fmu = "Sensor2.fmu"
-        "#
-    );
-    let description: SystemDescription = toml::from_str(&text).unwrap();
-    System::resolve(&description, &fmus).unwrap()
-}
-
-fn run(system: &System, output_interval: u64) -> (TimeSeries, RunEnd) {
-    let mut sim = Simulation::new(system).unwrap();
-    let mut series = TimeSeries::default();
+fn run_every(system: &System, output_interval: u64) -> (TimeSeries, RunEnd) {
     let options = RunOptions {
         output_interval,
         ..Default::default()
     };
-    let end = sim.run(&mut series, &options).unwrap();
-    sim.terminate().unwrap();
-    (series, end)
+    run(system, &options)
 }
 
 #[test]
 fn an_output_interval_keeps_every_kth_point_and_the_last() {
-    let system = crane_sensor(1.0);
-    let (all, end) = run(&system, 1);
+    let system = crane_sensor(1.0, "U = 0.5");
+    let (all, end) = run_every(&system, 1);
     assert_eq!(end, RunEnd::StopTime { time: 1.0 });
     assert_eq!(all.time.len(), 101);
-    let (every7, _) = run(&system, 7);
+    let (every7, _) = run_every(&system, 7);
     // 0, 7, …, 98 (15 points), then the stop time.
     assert_eq!(every7.time.len(), 16);
     for (i, (t, row)) in every7.time.iter().zip(&every7.rows).enumerate() {
@@ -63,14 +35,14 @@ fn an_output_interval_keeps_every_kth_point_and_the_last() {
     }
     assert_eq!(*every7.time.last().unwrap(), 1.0);
     // 0 means every point, as 1 does.
-    assert_eq!(run(&system, 0).0.rows, all.rows);
+    assert_eq!(run_every(&system, 0).0.rows, all.rows);
 }
 
 #[test]
 fn an_ssp_archive_is_unpacked_into_a_temporary_folder_removed_with_the_system() {
     let out = tempfile::tempdir().unwrap();
     let ssp = out.path().join("crane_sensor.ssp");
-    crane_sensor(0.5)
+    crane_sensor(0.5, "U = 0.5")
         .export_ssp(&ssp, SspVersion::V1_0)
         .unwrap();
     let system = System::from_file(&ssp).unwrap();
@@ -84,7 +56,7 @@ fn an_ssp_archive_is_unpacked_into_a_temporary_folder_removed_with_the_system() 
     let copy = system.clone();
     drop(system);
     assert!(unpacked.is_file(), "a clone still uses the FMUs");
-    let (series, _) = run(&copy, 1);
+    let (series, _) = run_every(&copy, 1);
     assert_eq!(series.time.len(), 51);
     drop(copy);
     assert!(!unpacked.exists(), "{} is left behind", unpacked.display());

@@ -30,6 +30,16 @@ SLURM_NODE=""
 
 slurm_log() { echo "slurm-test: $*" >&2; }
 
+# For the test scripts: a failure that shows the daemons' logs first, and wall-clock timing
+# (`t=$(now); …; echo "$(elapsed "$t" "$(now)") s"`).
+fail() {
+  echo "FAIL: $*" >&2
+  slurm_dump_logs
+  exit 1
+}
+now() { date +%s.%N; }
+elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", b - a }'; }
+
 # Installs the Debian packages when a binary is missing. Daemons the packages' scripts might
 # start are not ours and not needed: the cluster below uses its own key, socket and ports.
 slurm_install() {

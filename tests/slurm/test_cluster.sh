@@ -14,14 +14,6 @@ here=$(cd "$(dirname "$0")" && pwd)
 source "$here/cluster.sh"
 trap slurm_stop EXIT
 
-fail() {
-  echo "FAIL: $*" >&2
-  slurm_dump_logs
-  exit 1
-}
-now() { date +%s.%N; }
-elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", b - a }'; }
-
 t=$(now)
 slurm_install
 install_s=$(elapsed "$t" "$(now)")

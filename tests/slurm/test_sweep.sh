@@ -19,14 +19,6 @@ repo=$(cd "$here/../.." && pwd)
 source "$here/cluster.sh"
 trap slurm_stop EXIT
 
-fail() {
-  echo "FAIL: $*" >&2
-  slurm_dump_logs
-  exit 1
-}
-now() { date +%s.%N; }
-elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", b - a }'; }
-
 spurio=${SPURIO:-$repo/target/release/spurio}
 system=$repo/examples/systems/crane_sensor.toml
 [ -x "$spurio" ] || fail "$spurio not found: run scripts/build-fmus first"

@@ -1,25 +1,68 @@
-//! What the pinned experiment tests share: running one experiment into a fresh folder, and
-//! comparing a figure of merit with its pinned value.
-
-#![allow(dead_code)]
+//! What the pinned experiment tests share: running one experiment into a fresh folder and
+//! checking its figures of merit and files against `examples/tests/pinned.toml`.
 
 use spurio_experiments::Report;
 use std::path::PathBuf;
 
 /// Runs the experiment `name` with `seeds` Monte-Carlo runs into
-/// `<tmp>/spurio-exp-<tag>-<pid>/` and returns its report and that folder.
-pub fn run_experiment(name: &str, tag: &str, seeds: usize) -> (Report, PathBuf) {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+/// `<tmp>/spurio-exp-<tag>-<pid>/`, asserts that its report meets every goal and that its
+/// figures and files are the ones `pinned.toml` pins, and returns the report and that folder.
+pub fn run_pinned(name: &str, tag: &str, seeds: usize) -> (Report, PathBuf) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let out = std::env::temp_dir().join(format!("spurio-exp-{tag}-{}", std::process::id()));
-    let mut reports = spurio_experiments::run_all(&repo, &out, &[name.into()], seeds, 0).unwrap();
-    (reports.remove(0).1, out)
+    let mut reports =
+        spurio_experiments::run_all(&root.join(".."), &out, &[name.into()], seeds, 0).unwrap();
+    let report = reports.remove(0).1;
+    let text = report.to_markdown("");
+    assert!(report.all_goals_met(), "{text}");
+
+    let pinned: toml::Table = std::fs::read_to_string(root.join("tests/pinned.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let pinned = pinned[name].as_table().unwrap();
+    for (key, expected, tolerance) in pairs(pinned, "close") {
+        let x = value(&report, &key);
+        assert!(
+            (x - expected).abs() <= tolerance,
+            "{key} = {x}, expected {expected} ± {tolerance}\n{text}"
+        );
+    }
+    for (key, low, high) in pairs(pinned, "within") {
+        let x = value(&report, &key);
+        assert!(
+            (low..=high).contains(&x),
+            "{key} = {x}, expected [{low}, {high}]\n{text}"
+        );
+    }
+    for file in pinned["files"].as_array().unwrap() {
+        let path = out.join(name).join(file.as_str().unwrap());
+        assert!(path.is_file(), "no {}", path.display());
+    }
+    (report, out)
 }
 
-/// Asserts that the figure of merit `key` is `expected` within `tolerance`.
-pub fn close(report: &Report, key: &str, expected: f64, tolerance: f64) {
-    let value = report.value(key).unwrap();
-    assert!(
-        (value - expected).abs() <= tolerance,
-        "{key} = {value}, expected {expected} ± {tolerance}"
-    );
+/// The figure of merit `key`.
+pub fn value(report: &Report, key: &str) -> f64 {
+    report
+        .value(key)
+        .unwrap_or_else(|| panic!("no {key}\n{}", report.to_markdown("")))
+}
+
+/// The `key = [a, b]` entries of the table `section` (none if it is absent).
+fn pairs(pinned: &toml::Table, section: &str) -> Vec<(String, f64, f64)> {
+    let Some(table) = pinned.get(section) else {
+        return Vec::new();
+    };
+    let number = |v: &toml::Value| v.as_float().unwrap_or_else(|| panic!("{section}: {v}"));
+    table
+        .as_table()
+        .unwrap()
+        .iter()
+        .map(|(key, pair)| {
+            let pair = pair.as_array().unwrap();
+            assert_eq!(pair.len(), 2, "{section}.{key}");
+            (key.clone(), number(&pair[0]), number(&pair[1]))
+        })
+        .collect()
 }

@@ -76,22 +76,10 @@ enum Command {
     },
     /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
     Package {
-        /// Folder with the compiled `lib<ModelIdentifier>.so` files.
-        #[arg(long, default_value = "target/release")]
-        lib_dir: PathBuf,
-        /// Where to write the .fmu files.
-        #[arg(long, default_value = "build/fmus")]
-        out: PathBuf,
         /// Model identifiers to package (default: all).
         names: Vec<String>,
-        /// Also add the binaries of another platform: `PLATFORM=DIR` (repeatable), e.g.
-        /// `win64=target/x86_64-pc-windows-gnu/release` (`<Id>.dll`) or
-        /// `aarch64-linux=…/release` (`lib<Id>.so`); `linux64` comes from `--lib-dir`.
-        #[arg(long = "platform-dir", value_name = "PLATFORM=DIR")]
-        platform_dirs: Vec<String>,
-        /// The repository root (holding fmus/<Id>/ with each FMU's page).
-        #[arg(long, default_value = ".")]
-        repo: PathBuf,
+        #[command(flatten)]
+        packaging: Packaging,
     },
     /// Package one FMU for your own dimensions: e.g. `spurio package-variant KalmanFilter
     /// --set n=3 --set p=1 --set m=1 --name MyKalmanFilter` writes MyKalmanFilter.fmu whose
@@ -105,18 +93,8 @@ enum Command {
         /// File name of the .fmu without extension (default: the model identifier).
         #[arg(long)]
         name: Option<String>,
-        /// Folder with the compiled `lib<ModelIdentifier>.so` files.
-        #[arg(long, default_value = "target/release")]
-        lib_dir: PathBuf,
-        /// Where to write the .fmu.
-        #[arg(long, default_value = "build/fmus")]
-        out: PathBuf,
-        /// Also add the binaries of another platform: `PLATFORM=DIR` (repeatable).
-        #[arg(long = "platform-dir", value_name = "PLATFORM=DIR")]
-        platform_dirs: Vec<String>,
-        /// The repository root (holding fmus/<Id>/ with each FMU's page).
-        #[arg(long, default_value = ".")]
-        repo: PathBuf,
+        #[command(flatten)]
+        packaging: Packaging,
     },
     /// Run the papers' experiments (examples/<name>/) and write REPORT.md, CSVs and plots.
     Experiments {
@@ -254,13 +232,13 @@ fn main() -> Result<()> {
                 println!("wrote {}", out.display());
             }
         }
-        Command::Package {
-            lib_dir,
-            out,
-            names,
-            platform_dirs,
-            repo,
-        } => {
+        Command::Package { names, packaging } => {
+            let Packaging {
+                lib_dir,
+                out,
+                platform_dirs,
+                repo,
+            } = packaging;
             let platforms = parse_platforms(&platform_dirs)?;
             for path in package::package_bundled(&repo, &lib_dir, &platforms, &names, &out)? {
                 println!("wrote {}", path.display());
@@ -270,10 +248,13 @@ fn main() -> Result<()> {
             model_identifier,
             settings,
             name,
-            lib_dir,
-            out,
-            platform_dirs,
-            repo,
+            packaging:
+                Packaging {
+                    lib_dir,
+                    out,
+                    platform_dirs,
+                    repo,
+                },
         } => {
             let platforms = parse_platforms(&platform_dirs)?;
             let stem = name.unwrap_or_else(|| model_identifier.clone());
@@ -367,6 +348,26 @@ fn main() -> Result<()> {
 }
 
 /// `--platform-dir NAME=DIR` values.
+/// Where `package` and `package-variant` find the libraries and the FMUs' pages, and where
+/// they write the .fmu files.
+#[derive(clap::Args)]
+struct Packaging {
+    /// Folder with the compiled `lib<ModelIdentifier>.so` files.
+    #[arg(long, default_value = "target/release")]
+    lib_dir: PathBuf,
+    /// Where to write the .fmu files.
+    #[arg(long, default_value = "build/fmus")]
+    out: PathBuf,
+    /// Also add the binaries of another platform: `PLATFORM=DIR` (repeatable), e.g.
+    /// `win64=target/x86_64-pc-windows-gnu/release` (`<Id>.dll`) or
+    /// `aarch64-linux=…/release` (`lib<Id>.so`); `linux64` comes from `--lib-dir`.
+    #[arg(long = "platform-dir", value_name = "PLATFORM=DIR")]
+    platform_dirs: Vec<String>,
+    /// The repository root (holding fmus/<Id>/ with each FMU's page).
+    #[arg(long, default_value = ".")]
+    repo: PathBuf,
+}
+
 fn parse_platforms(values: &[String]) -> Result<Vec<package::Platform>> {
     values.iter().map(|v| package::Platform::parse(v)).collect()
 }

@@ -89,13 +89,7 @@ pub struct MergeArgs {
 /// `spurio sweep`.
 pub fn run(args: SweepArgs) -> Result<()> {
     let resolved = System::from_file(&args.system)?;
-    let variation = Variation::parse(&args.vary)?;
-    let metrics = args
-        .metrics
-        .iter()
-        .map(|m| Metric::parse(m))
-        .collect::<Result<Vec<_>, _>>()?;
-    let definition = SweepDefinition::from_variation(&variation, &metrics);
+    let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics)?;
     if let Some(dir) = &args.slurm {
         return stage(&args, &resolved, dir, &definition);
     }
@@ -111,15 +105,29 @@ pub fn run(args: SweepArgs) -> Result<()> {
         );
     }
     let result = sweeps::sweep(&resolved, &variation, &metrics, args.threads)?;
-    let values: Vec<Vec<f64>> = variation.values.iter().map(|v| vec![*v]).collect();
     let table = sweeps::write_table(
         args.out.as_deref(),
         &definition.parameters,
-        &values,
+        &definition.runs,
         &result,
     )?;
     print!("{table}");
     Ok(())
+}
+
+/// The variation, the metrics and the sweep definition of a `--vary` text and `--metric`
+/// texts (as given on the command line or kept in a staged folder's manifest).
+fn parse_sweep(
+    vary: &str,
+    metrics: &[String],
+) -> Result<(Variation, Vec<Metric>, SweepDefinition)> {
+    let variation = Variation::parse(vary)?;
+    let metrics = metrics
+        .iter()
+        .map(|m| Metric::parse(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let definition = SweepDefinition::from_variation(&variation, &metrics);
+    Ok((variation, metrics, definition))
 }
 
 fn run_shard(
@@ -274,13 +282,7 @@ fn gather(args: &MergeArgs) -> Result<(Vec<PathBuf>, MergeOptions, Option<Manife
             );
         }
         // The staged system and FMUs give the identity every shard must have.
-        let variation = Variation::parse(&manifest.vary)?;
-        let metrics = manifest
-            .metrics
-            .iter()
-            .map(|m| Metric::parse(m))
-            .collect::<Result<Vec<_>, _>>()?;
-        let definition = SweepDefinition::from_variation(&variation, &metrics);
+        let (_, _, definition) = parse_sweep(&manifest.vary, &manifest.metrics)?;
         let identity = shard::identity_of_system_file(&input.join(&manifest.system), &definition)?;
         if identity != manifest.sweep {
             bail!(
@@ -313,7 +315,7 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     if args.progress {
         if files.is_empty() {
             let Some(m) = manifest else {
-                bail!("no shard files in {}", list(&paths));
+                bail!("no shard files in {}", shard::list_paths(&paths));
             };
             println!(
                 "0/{} shards done (0/{} runs); missing: all",
@@ -342,12 +344,4 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     let table = sweeps::write_table(args.out.as_deref(), &merged.parameters, &values, &result)?;
     print!("{table}");
     Ok(())
-}
-
-fn list(paths: &[PathBuf]) -> String {
-    paths
-        .iter()
-        .map(|p| p.display().to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
 }

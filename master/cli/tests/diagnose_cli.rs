@@ -1,15 +1,12 @@
 //! `spurio diagnose` on a results CSV: the Grubbs figures of docs/diagnostics.md §3 and the histogram PNG.
 
-use std::process::Command;
+mod common;
 
-fn spurio() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_spurio"))
-}
+use common::{failed, ok, repo, require_fmus, s, spurio, temp};
 
 #[test]
 fn diagnose_reports_grubbs_moments_e_res_and_writes_the_histogram() {
-    let dir = std::env::temp_dir().join(format!("spurio-diagnose-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp("diagnose");
     let csv = dir.join("results.csv");
     // 1000 samples of a cosine with three planted outliers; the clean column beside it.
     let mut text = String::from("\"time\",\"y\",\"y_clean\"\n");
@@ -30,25 +27,16 @@ fn diagnose_reports_grubbs_moments_e_res_and_writes_the_histogram() {
     }
     std::fs::write(&csv, text).unwrap();
     let png = dir.join("hist.png");
-    let out = spurio()
-        .args([
-            "diagnose",
-            csv.to_str().unwrap(),
-            "--column",
-            "y",
-            "--clean",
-            "y_clean",
-            "--png",
-        ])
-        .arg(&png)
-        .output()
-        .unwrap();
-    let report = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{report}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let report = ok(spurio([
+        "diagnose",
+        s(&csv),
+        "--column",
+        "y",
+        "--clean",
+        "y_clean",
+        "--png",
+        s(&png),
+    ]));
     assert!(report.contains("| samples N | 1000 |"), "{report}");
     // docs/diagnostics.md §3: exact two-sided critical value for N = 1000, α = 0.05.
     assert!(report.contains("| 4.0400 |"), "{report}");
@@ -64,16 +52,9 @@ fn diagnose_reports_grubbs_moments_e_res_and_writes_the_histogram() {
 
 #[test]
 fn diagnose_names_a_missing_column_and_the_file() {
-    let dir = std::env::temp_dir().join(format!("spurio-diagnose-missing-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let csv = dir.join("r.csv");
+    let csv = temp("diagnose-missing").join("r.csv");
     std::fs::write(&csv, "\"time\",\"x\"\n0,1\n1,2\n").unwrap();
-    let out = spurio()
-        .args(["diagnose", csv.to_str().unwrap(), "--column", "theta"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed(spurio(["diagnose", s(&csv), "--column", "theta"]));
     assert!(
         err.contains("no column `theta`") && err.contains("r.csv"),
         "{err}"
@@ -82,44 +63,14 @@ fn diagnose_names_a_missing_column_and_the_file() {
 
 #[test]
 fn diagnose_reads_what_run_writes_names_with_commas_included() {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    assert!(
-        repo.join("build/fmus/DualKalmanFilter.fmu").is_file(),
-        "run scripts/build-fmus first"
-    );
-    let dir = std::env::temp_dir().join(format!("spurio-run-diagnose-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let csv = dir.join("r.csv");
-    let run = spurio()
-        .arg("run")
-        .arg(repo.join("examples/crane_adaptive/dkf.toml"))
-        .arg("--out")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    require_fmus(&["DualKalmanFilter"]);
+    let csv = temp("run-diagnose").join("r.csv");
+    let system = repo().join("examples/crane_adaptive/dkf.toml");
+    ok(spurio(["run", s(&system), "--out", s(&csv)]));
     let header = std::fs::read_to_string(&csv).unwrap();
     assert!(header.starts_with("\"time\","), "{}", &header[..80]);
     assert!(header.contains("\"est.A_hat[1,1]\""));
-    let out = spurio()
-        .args([
-            "diagnose",
-            csv.to_str().unwrap(),
-            "--column",
-            "est.A_hat[1,1]",
-        ])
-        .output()
-        .unwrap();
-    let report = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{report}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let report = ok(spurio(["diagnose", s(&csv), "--column", "est.A_hat[1,1]"]));
     // 40 s at 0.05 s: 801 communication points.
     assert!(report.contains("| samples N | 801 |"), "{report}");
 }

@@ -2,43 +2,14 @@
 //! sweep's table, byte for byte; the staged Slurm scripts, run as array tasks would run them,
 //! give the same table. Uses the FMUs of `scripts/build-fmus`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn system() -> PathBuf {
-    let repo = repo();
-    assert!(
-        repo.join("build/fmus/GantryCrane.fmu").is_file()
-            && repo.join("build/fmus/Sensor2.fmu").is_file(),
-        "run scripts/build-fmus first"
-    );
-    repo.join("examples/systems/crane_sensor.toml")
-}
+use common::{failed, ok, repo, require_fmus, s, spurio, temp};
+use std::path::PathBuf;
+use std::process::Command;
 
 const VARY: &str = "sensor.seed=1..12";
 const METRICS: [&str; 2] = ["rms(sensor.y[1])", "e_res(sensor.y[2], crane.theta)"];
-
-fn spurio(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_spurio"))
-        .args(args)
-        .output()
-        .unwrap();
-    out
-}
-
-fn ok(out: Output) -> String {
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
-}
 
 fn sweep_args<'a>(system: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec!["sweep", system, "--vary", VARY, "--threads", "2"];
@@ -49,23 +20,40 @@ fn sweep_args<'a>(system: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     args
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("spurio-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// The one-machine sweep the shards must reproduce, run into a fresh folder.
+struct Local {
+    /// The crane-sensor system swept.
+    system: PathBuf,
+    /// The fresh folder `<tmp>/spurio-<name>-<pid>/`.
+    dir: PathBuf,
+    /// Its runs table (`--out`), `local.csv` in `dir`.
+    csv: PathBuf,
+    /// The table it printed.
+    table: String,
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+fn local_sweep(name: &str) -> Local {
+    require_fmus(&["GantryCrane", "Sensor2"]);
+    let system = repo().join("examples/systems/crane_sensor.toml");
+    let dir = temp(name);
+    let csv = dir.join("local.csv");
+    let table = ok(spurio(sweep_args(s(&system), &["--out", s(&csv)])));
+    Local {
+        system,
+        dir,
+        csv,
+        table,
+    }
 }
 
 #[test]
 fn shards_merge_into_the_one_machine_table_byte_for_byte() {
-    let system = system();
-    let dir = temp("sweep-shards");
-    let local_csv = dir.join("local.csv");
-    let local = ok(spurio(&sweep_args(s(&system), &["--out", s(&local_csv)])));
+    let Local {
+        system,
+        dir,
+        csv: local_csv,
+        table: local,
+    } = local_sweep("sweep-shards");
     let local_rows = std::fs::read_to_string(&local_csv).unwrap();
     // A real table: 12 runs, the seed varies the noise, so rows differ.
     assert!(local.contains("| rms(sensor.y[1]) | "), "{local}");
@@ -84,19 +72,14 @@ fn shards_merge_into_the_one_machine_table_byte_for_byte() {
     std::fs::create_dir_all(&shards).unwrap();
     for i in [3, 0, 4, 1, 2] {
         let spec = format!("{i}/5");
-        let out = ok(spurio(&sweep_args(
+        let out = ok(spurio(sweep_args(
             s(&system),
             &["--shard", &spec, "--shard-out", s(&shards)],
         )));
         assert!(out.contains(&format!("shard {i}/5: runs ")), "{out}");
     }
     let merged_csv = dir.join("merged.csv");
-    let merged = ok(spurio(&[
-        "sweep-merge",
-        s(&shards),
-        "--out",
-        s(&merged_csv),
-    ]));
+    let merged = ok(spurio(["sweep-merge", s(&shards), "--out", s(&merged_csv)]));
     assert_eq!(merged, local);
     assert_eq!(std::fs::read_to_string(&merged_csv).unwrap(), local_rows);
 
@@ -104,9 +87,7 @@ fn shards_merge_into_the_one_machine_table_byte_for_byte() {
     let lost = shards.join("shard-1.toml");
     let kept = std::fs::read(&lost).unwrap();
     std::fs::remove_file(&lost).unwrap();
-    let out = spurio(&["sweep-merge", s(&shards), "--out", s(&merged_csv)]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed(spurio(["sweep-merge", s(&shards), "--out", s(&merged_csv)]));
     assert!(err.contains("1 of 5 shards missing"), "{err}");
     assert!(err.contains("shard 1/5 (runs 3..6)"), "{err}");
     assert!(err.contains("--shard 1/5 --shard-out "), "{err}");
@@ -115,7 +96,7 @@ fn shards_merge_into_the_one_machine_table_byte_for_byte() {
         "{err}"
     );
     // Progress: 4 of 5 shards, the running table over their 9 runs.
-    let progress = ok(spurio(&["sweep-merge", "--progress", s(&shards)]));
+    let progress = ok(spurio(["sweep-merge", "--progress", s(&shards)]));
     assert!(
         progress.starts_with("4/5 shards done (9/12 runs); missing: 1\n"),
         "{progress}"
@@ -124,23 +105,21 @@ fn shards_merge_into_the_one_machine_table_byte_for_byte() {
     // Rerun and a duplicate under another name.
     std::fs::write(&lost, &kept).unwrap();
     std::fs::write(shards.join("again.toml"), &kept).unwrap();
-    let out = spurio(&["sweep-merge", s(&shards)]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("shard 1 appears more than once"),
-        "{err}"
-    );
+    let err = failed(spurio(["sweep-merge", s(&shards)]));
+    assert!(err.contains("shard 1 appears more than once"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn staged_slurm_scripts_run_as_array_tasks_give_the_local_table() {
-    let system = system();
-    let dir = temp("sweep-slurm");
-    let local_csv = dir.join("local.csv");
-    let local = ok(spurio(&sweep_args(s(&system), &["--out", s(&local_csv)])));
+    let Local {
+        system,
+        dir,
+        csv: local_csv,
+        table: local,
+    } = local_sweep("sweep-slurm");
     let stage = dir.join("stage");
-    let out = ok(spurio(&sweep_args(
+    let out = ok(spurio(sweep_args(
         s(&system),
         &["--slurm", s(&stage), "--shards", "4", "--time", "00:05:00"],
     )));
@@ -167,7 +146,7 @@ fn staged_slurm_scripts_run_as_array_tasks_give_the_local_table() {
     assert!(script.contains("#SBATCH --time=00:05:00\n"), "{script}");
 
     // Nothing ran yet.
-    let progress = ok(spurio(&["sweep-merge", "--progress", s(&stage)]));
+    let progress = ok(spurio(["sweep-merge", "--progress", s(&stage)]));
     assert_eq!(progress, "0/4 shards done (0/12 runs); missing: all\n");
 
     let task = |i: usize, restarts: &str| {
@@ -184,21 +163,20 @@ fn staged_slurm_scripts_run_as_array_tasks_give_the_local_table() {
     // rather than call scontrol), and removes the marker.
     std::fs::create_dir_all(stage.join("inject-failure")).unwrap();
     std::fs::write(stage.join("inject-failure/2"), "").unwrap();
-    let failed = task(2, "2");
-    assert_eq!(failed.status.code(), Some(75));
-    assert!(String::from_utf8_lossy(&failed.stderr).contains("injected failure"));
+    let attempt = task(2, "2");
+    assert_eq!(attempt.status.code(), Some(75));
+    assert!(String::from_utf8_lossy(&attempt.stderr).contains("injected failure"));
     assert!(!stage.join("inject-failure/2").exists());
     assert!(!stage.join("shards/shard-2.toml").exists());
     for i in [0, 1, 3] {
         ok(task(i, "0"));
     }
-    let progress = ok(spurio(&["sweep-merge", "--progress", s(&stage)]));
+    let progress = ok(spurio(["sweep-merge", "--progress", s(&stage)]));
     assert!(
         progress.starts_with("3/4 shards done (9/12 runs); missing: 2\n"),
         "{progress}"
     );
-    let out = spurio(&["sweep-merge", s(&stage)]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed(spurio(["sweep-merge", s(&stage)]));
     assert!(
         err.contains(&format!(
             "or on Slurm: sbatch --array=2 {}",
@@ -232,14 +210,16 @@ fn staged_slurm_scripts_run_as_array_tasks_give_the_local_table() {
         stage.join("shards/shard-0.toml"),
     )
     .unwrap();
-    let out = spurio(&["sweep-merge", s(&stage)]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed(spurio(["sweep-merge", s(&stage)]));
     assert!(
-        !out.status.success() && err.contains("belong to another sweep than sha256:"),
+        err.contains("belong to another sweep than sha256:"),
         "{err}"
     );
     // Staging again into a folder with shards is refused.
-    let out = spurio(&sweep_args(s(&system), &["--slurm", s(&stage)]));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("holds shard files of an earlier sweep"));
+    let err = failed(spurio(sweep_args(s(&system), &["--slurm", s(&stage)])));
+    assert!(
+        err.contains("holds shard files of an earlier sweep"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,0 +1,64 @@
+//! What the engine's integration tests share: the packaged FMUs (`scripts/build-fmus`),
+//! systems written as TOML, running a system into memory, and checking error messages.
+
+#![allow(dead_code)]
+
+use spurio_master::engine::{RunEnd, RunOptions, Simulation};
+use spurio_master::record::TimeSeries;
+use spurio_master::system::{System, SystemDescription, SystemError};
+use std::path::PathBuf;
+
+/// The folder of the packaged FMUs.
+pub fn fmus() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
+    assert!(
+        dir.join("GantryCrane.fmu").is_file(),
+        "{} has no FMUs: run scripts/build-fmus first",
+        dir.display()
+    );
+    dir
+}
+
+/// The system a TOML text describes, its FMUs taken from [`fmus`].
+pub fn resolve(toml_text: &str) -> Result<System, SystemError> {
+    let description: SystemDescription = toml::from_str(toml_text).unwrap();
+    System::resolve(&description, &fmus())
+}
+
+/// A GantryCrane (`crane`, with the inline parameter table `crane_parameters`) measured by a
+/// Sensor2 (`sensor`) for `stop_time` s at 0.01 s, recording the cart position and the
+/// sensor's measured and clean first values.
+pub fn crane_sensor(stop_time: f64, crane_parameters: &str) -> System {
+    resolve(&format!(
+        r#"
+        stop_time = {stop_time:?}
+        step_size = 0.01
+        connections = ["crane.x -> sensor.u[1]", "crane.theta -> sensor.u[2]"]
+        record = ["crane.x", "sensor.y[1]", "sensor.y_clean[1]"]
+        [[instance]]
+        name = "crane"
+        fmu = "GantryCrane.fmu"
+        parameters = {{ {crane_parameters} }}
+        [[instance]]
+        name = "sensor"
+        fmu = "Sensor2.fmu"
+        "#
+    ))
+    .unwrap()
+}
+
+/// Runs `system` into memory with `options`, then terminates it.
+pub fn run(system: &System, options: &RunOptions) -> (TimeSeries, RunEnd) {
+    let mut sim = Simulation::new(system).unwrap();
+    let mut series = TimeSeries::default();
+    let end = sim.run(&mut series, options).unwrap();
+    sim.terminate().unwrap();
+    (series, end)
+}
+
+/// Asserts that the message `text` names every one of `parts`.
+pub fn assert_names(text: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(text.contains(part), "no `{part}` in: {text}");
+    }
+}
