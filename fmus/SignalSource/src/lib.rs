@@ -55,7 +55,7 @@ spurio_export::declare_variables! {
             PHASE = Variable::parameter("phase", 0.0)
                 .unit("rad")
                 .describe("Phase of the sine/cosine"),
-            STEP_TIME = Variable::parameter("step_time", 0.0)
+            STEP_TIME = Variable::parameter("step_time", 1.0)
                 .unit("s")
                 .describe("Time of the step"),
             MIN_HOLD = Variable::parameter("min_hold", 1.0)
