@@ -5,10 +5,11 @@ Each bundled FMU `<Model>` (a variant too) has, in its FMU's folder `fmus/<Id>/c
 * `<Model>_ref.opt`  the experiment: `StartTime`, `StopTime`, `StepSize` (equal to the model
   description's `DefaultExperiment`) and `RelTol`;
 * `<Model>_in.csv`   the inputs: a `time` column, then one column per input, named as the
-  input. Piecewise constant: a change at a communication point `t` is written as two rows
-  with the same `t` (the value before, then after), so fmpy's `Input` (which takes the value
-  after an event) and a sample-and-hold master (the last row with time ≤ t) apply the same
-  values;
+  input. Piecewise constant, with a row at every communication point `t₀ + k h` (computed
+  as fmpy and the driver compute them); a change is written as two rows with the same `t`
+  (the value before, then after). So fmpy's `Input` (which takes the value after an event,
+  and interpolates with weights exactly 0 and 1 at a row's time) and a sample-and-hold master
+  (the last row with time ≤ t) apply bit-identical values;
 * `<Model>_ref.csv`  the reference outputs: `time`, then every output, after the start and
   after each step, computed by the linux64 FMU in fmpy (`simulate_fmu` with the `_in.csv` as
   input, output interval = step size). Numbers written with 17 significant digits, so they
@@ -144,12 +145,11 @@ def write_inputs(fmu: Path) -> Path:
     rows = ["time," + ",".join(cell(x) for x in names)]
     previous = None
     for k in range(n + 1):
-        t = t0 + k * h
+        t = t0 + k * h  # as fmpy and the driver compute the communication points
         now = [columns[x][k] for x in names]
         if previous is not None and now != previous:
             rows.append(",".join([repr(t)] + [repr(v) for v in previous]))
-        if previous is None or now != previous or k == n:
-            rows.append(",".join([repr(t)] + [repr(v) for v in now]))
+        rows.append(",".join([repr(t)] + [repr(v) for v in now]))
         previous = now
     (folder / f"{model}_in.csv").write_text("\n".join(rows) + "\n")
     return folder
