@@ -327,7 +327,10 @@ def broken_export_check(stem: str, folder: Path, work: Path, bin_dir: Path,
                         env: dict[str, str], failures: list[str]) -> None:
     """Negative control: a win64 DLL whose `fmi2DoStep` export is misnamed must fail the
     driver (exit 2, naming the symbol), so a broken win64 build cannot pass."""
-    dll = next((folder / "binaries" / "win64").glob("*.dll"))
+    dll = next((folder / "binaries" / "win64").glob("*.dll"), None)
+    if dll is None:
+        failures.append(f"{stem}: no win64 DLL for the negative control")
+        return
     data = dll.read_bytes()
     if b"fmi2DoStep\0" not in data:
         failures.append(f"{dll}: no fmi2DoStep export name to break")
