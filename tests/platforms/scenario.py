@@ -3,9 +3,10 @@
 A scenario is the driver's directive file plus, in the FMI cross-check layout, the inputs
 `<Model>_in.csv` (a `time` column, then one column per input, named as the input) and the
 options `<Model>_ref.opt` (`StartTime, …` / `StopTime, …` / `StepSize, …` / `RelTol, …`).
-When a model folder already holds its own `<Model>_in.csv` and `<Model>_ref.opt`, those are
-used; otherwise (phase 1) exciting inputs are generated: each real input holds its start
-value, then steps at a quarter of the run, with a sine on top.
+The bundled models' own files (fmus/<Id>/crosscheck/, written by scripts/crosscheck.py) are
+used; for a model without them (an FMU under test that is not bundled) exciting inputs are
+generated: each real input holds its start value, then steps at a quarter of the run, with a
+sine on top.
 
 Standard library only, so that any Python 3 runs it.
 """

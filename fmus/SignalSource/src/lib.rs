@@ -52,7 +52,7 @@ spurio_export::declare_variables! {
                 .describe("Level before the step; centre of the random levels, PRBS and sine/cosine"),
             PERIOD = parameter("period", 1.0, "s", "Period of the sine/cosine (> 0)"),
             PHASE = parameter("phase", 0.0, "rad", "Phase of the sine/cosine"),
-            STEP_TIME = parameter("step_time", 0.0, "s", "Time of the step"),
+            STEP_TIME = parameter("step_time", 1.0, "s", "Time of the step"),
             MIN_HOLD = parameter("min_hold", 1.0, "s", "Shortest hold of a random step (> 0)"),
             MAX_HOLD = parameter("max_hold", 5.0, "s", "Longest hold of a random step (>= min_hold)"),
             PRBS_ORDER = Variable::integer_parameter("prbs_order", 7)
