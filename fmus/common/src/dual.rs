@@ -27,7 +27,7 @@ use crate::kalman::{
 };
 use crate::structured::{add_matrix, add_vector, Block};
 use spurio::estimation::{
-    DkfRsKf, DualKalmanConfig, DualKalmanFilter, RobustKalmanFilter, StateEstimator,
+    DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel, RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -228,8 +228,7 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     let q_theta = scalar(values, layout.q_theta, "q_theta", false)?;
     let p0_theta = scalar(values, layout.p0_theta, "p0_theta", false)?;
     let r_theta = scalar(values, layout.r_theta, "r_theta", true)?;
-    let mm = layout.model.read(values);
-    let mut config = DualKalmanConfig::new(mm.a, mm.b, mm.c, mm.d, mm.q, mm.r, mm.x0, mm.p0);
+    let mut config = DualKalmanConfig::new(layout.model.read(values));
     config.parameter_q.fill(q_theta);
     config.parameter_p0.fill(p0_theta);
     config.parameter_r.fill(r_theta);
@@ -299,14 +298,16 @@ impl DualFilter for DkfRsKf {
         let eye = nalgebra::DMatrix::<f64>::identity(p_out, p_out);
         let start = dual.c() * dual.state();
         let cleaner = RobustKalmanFilter::new(
-            eye.clone(),
-            nalgebra::DMatrix::zeros(p_out, 0),
-            eye.clone(),
-            nalgebra::DMatrix::zeros(p_out, 0),
-            &eye * q,
-            &eye * r,
-            start,
-            &eye * p0,
+            GaussianModel {
+                a: eye.clone(),
+                b: nalgebra::DMatrix::zeros(p_out, 0),
+                c: eye.clone(),
+                d: nalgebra::DMatrix::zeros(p_out, 0),
+                q: &eye * q,
+                r: &eye * r,
+                x0: start,
+                p0: &eye * p0,
+            },
             psi,
         )
         .map_err(error)?;

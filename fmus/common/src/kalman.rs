@@ -19,9 +19,10 @@
 
 use crate::estimator::{count, error, leading_identity, EstimatorFmu, FilterFamily, Filtered};
 use crate::structured::{add_matrix, add_vector, Block};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use spurio::estimation::{
-    EstimationError, InfluenceFunction, KalmanFilter, RobustKalmanFilter, StateEstimator,
+    EstimationError, GaussianModel, InfluenceFunction, KalmanFilter, RobustKalmanFilter,
+    StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -69,19 +70,6 @@ pub struct ModelBlocks {
     pub r: Block,
     pub p0: Block,
     pub x0: Block,
-}
-
-/// The model matrices as read from the parameters.
-#[derive(Debug, Clone)]
-pub struct ModelMatrices {
-    pub a: DMatrix<f64>,
-    pub b: DMatrix<f64>,
-    pub c: DMatrix<f64>,
-    pub d: DMatrix<f64>,
-    pub q: DMatrix<f64>,
-    pub r: DMatrix<f64>,
-    pub p0: DMatrix<f64>,
-    pub x0: DVector<f64>,
 }
 
 impl ModelBlocks {
@@ -135,8 +123,8 @@ impl ModelBlocks {
     }
 
     /// Reads the matrices.
-    pub fn read(&self, values: &Values) -> ModelMatrices {
-        ModelMatrices {
+    pub fn read(&self, values: &Values) -> GaussianModel {
+        GaussianModel {
             a: self.a.matrix(values),
             b: self.b.matrix(values),
             c: self.c.matrix(values),
@@ -314,7 +302,7 @@ pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
     const ROBUST: bool;
     /// The filter for the model `m`.
-    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError>;
+    fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError>;
     /// The last step's weights `w_j` (robust filter only).
     fn weights(&self) -> Option<&DVector<f64>> {
         None
@@ -323,15 +311,15 @@ pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
 
 impl LinearFilter for KalmanFilter {
     const ROBUST: bool = false;
-    fn from_model(m: ModelMatrices, _: InfluenceFunction) -> Result<Self, EstimationError> {
-        KalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0)
+    fn from_model(m: GaussianModel, _: InfluenceFunction) -> Result<Self, EstimationError> {
+        KalmanFilter::new(m)
     }
 }
 
 impl LinearFilter for RobustKalmanFilter {
     const ROBUST: bool = true;
-    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError> {
-        RobustKalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0, psi)
+    fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError> {
+        RobustKalmanFilter::new(m, psi)
     }
     fn weights(&self) -> Option<&DVector<f64>> {
         Some(RobustKalmanFilter::weights(self))
