@@ -362,18 +362,11 @@ mod tests {
         h.get_real(&[vr("wn"), vr("zeta")], &mut out).unwrap();
         assert!((out[0] - 5.196607).abs() < 1e-3, "{out:?}");
         assert!((out[1] - 0.499362).abs() < 1e-3, "{out:?}");
-        assert!(
-            h.log().iter().any(|(_, _, t)| t.contains("logged once")),
-            "{:?}",
-            h.log()
-        );
+        assert!(h.logged(&["logged once"]), "{:?}", h.log());
 
         let mut bad = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
         assert!(bad.set_real(&[vr("lambda")], &[1.5]).is_err());
-        assert!(bad
-            .log()
-            .iter()
-            .any(|(_, _, t)| t.contains("`lambda` = 1.5")));
+        assert!(bad.logged(&["`lambda` = 1.5"]));
         let mut unstable = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
         unstable.set_boolean(&[vr("prefilter")], &[true]).unwrap();
         unstable
@@ -381,22 +374,13 @@ mod tests {
             .unwrap();
         assert!(unstable.initialize(0.0).is_err());
         assert!(
-            unstable
-                .log()
-                .iter()
-                .any(|(_, _, t)| t.contains("parameter `prefilter_a`")),
+            unstable.logged(&["parameter `prefilter_a`"]),
             "{:?}",
             unstable.log()
         );
 
         bad.set_real(&[vr("lambda")], &[0.0]).unwrap();
         assert!(bad.initialize(0.0).is_err());
-        assert!(
-            bad.log()
-                .iter()
-                .any(|(_, _, t)| t.contains("parameter `lambda`")),
-            "{:?}",
-            bad.log()
-        );
+        assert!(bad.logged(&["parameter `lambda`"]), "{:?}", bad.log());
     }
 }

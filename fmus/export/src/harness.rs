@@ -66,6 +66,15 @@ impl<M: FmuModel> Harness<M> {
         self.log.0.borrow().clone()
     }
 
+    /// Whether a message logged so far contains every one of `words`.
+    pub fn logged(&self, words: &[&str]) -> bool {
+        self.log
+            .0
+            .borrow()
+            .iter()
+            .any(|(_, _, text)| words.iter().all(|w| text.contains(w)))
+    }
+
     /// `fmi2SetupExperiment` + `fmi2EnterInitializationMode` + `fmi2ExitInitializationMode`.
     pub fn initialize(&mut self, start_time: f64) -> Result<Status, Status> {
         // SAFETY: `component` is a live component created by `into_component`.
