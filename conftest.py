@@ -6,7 +6,7 @@ from ctypes import byref
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
@@ -27,6 +27,24 @@ def fmu_path(name: str) -> str:
     path = FMU_DIR / f"{name}.fmu"
     assert path.is_file(), f"{path} is missing: build the FMUs with scripts/build-fmus"
     return str(path)
+
+
+def simulate_packaged(name, stop, h, start, rows=None, inputs=(), **options):
+    """fmpy's simulation of the packaged FMU `name` up to `stop` with outputs every `h` and
+    the start values `start`; `rows` (time first, then one value a name of `inputs`) are its
+    input signals; `options` go to `simulate_fmu` as they are."""
+    signals = None
+    if inputs:
+        dtype = [("time", np.float64)] + [(n, np.float64) for n in inputs]
+        signals = np.array(rows, dtype=dtype)
+    return simulate_fmu(
+        fmu_path(name),
+        stop_time=stop,
+        output_interval=h,
+        start_values=start,
+        input=signals,
+        **options,
+    )
 
 
 class LogSink:

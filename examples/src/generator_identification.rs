@@ -22,7 +22,7 @@ use crate::runner::{
 use anyhow::Result;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{
-    DualKalmanConfig, DualKalmanFilter, InfluenceFunction, RobustKalmanFilter,
+    DualKalmanConfig, DualKalmanFilter, GaussianModel, InfluenceFunction, RobustKalmanFilter,
 };
 use spurio_master::record::TimeSeries;
 use spurio_master::system::System;
@@ -104,16 +104,16 @@ fn vector(system: &System, instance: &str, name: &str, n: usize) -> Result<DVect
 /// The library filters with the settings of the system's `dkf` and `cleaner` instances.
 fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFilter)> {
     let (n, m, p) = (8, 2, 2);
-    let mut config = DualKalmanConfig::new(
-        matrix(system, "dkf", "A", n, n)?,
-        matrix(system, "dkf", "B", n, m)?,
-        matrix(system, "dkf", "C", p, n)?,
-        matrix(system, "dkf", "D", p, m)?,
-        matrix(system, "dkf", "Q", n, n)?,
-        matrix(system, "dkf", "R", p, p)?,
-        vector(system, "dkf", "x0", n)?,
-        matrix(system, "dkf", "P0", n, n)?,
-    )
+    let mut config = DualKalmanConfig::new(GaussianModel {
+        a: matrix(system, "dkf", "A", n, n)?,
+        b: matrix(system, "dkf", "B", n, m)?,
+        c: matrix(system, "dkf", "C", p, n)?,
+        d: matrix(system, "dkf", "D", p, m)?,
+        q: matrix(system, "dkf", "Q", n, n)?,
+        r: matrix(system, "dkf", "R", p, p)?,
+        x0: vector(system, "dkf", "x0", n)?,
+        p0: matrix(system, "dkf", "P0", n, n)?,
+    })
     .fix_output_matrices();
     let rows = n + p;
     for row in 0..n {
@@ -125,14 +125,16 @@ fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFil
     config.parameter_r = DVector::from_element(rows, start_value(system, "dkf.r_theta")?);
     let dkf = DualKalmanFilter::new(config)?;
     let cleaner = RobustKalmanFilter::new(
-        matrix(system, "cleaner", "A", p, p)?,
-        DMatrix::zeros(p, 0),
-        matrix(system, "cleaner", "C", p, p)?,
-        DMatrix::zeros(p, 0),
-        matrix(system, "cleaner", "Q", p, p)?,
-        matrix(system, "cleaner", "R", p, p)?,
-        vector(system, "cleaner", "x0", p)?,
-        matrix(system, "cleaner", "P0", p, p)?,
+        GaussianModel {
+            a: matrix(system, "cleaner", "A", p, p)?,
+            b: DMatrix::zeros(p, 0),
+            c: matrix(system, "cleaner", "C", p, p)?,
+            d: DMatrix::zeros(p, 0),
+            q: matrix(system, "cleaner", "Q", p, p)?,
+            r: matrix(system, "cleaner", "R", p, p)?,
+            x0: vector(system, "cleaner", "x0", p)?,
+            p0: matrix(system, "cleaner", "P0", p, p)?,
+        },
         InfluenceFunction::Huber {
             c: start_value(system, "cleaner.c")?,
         },

@@ -10,7 +10,7 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import CRANE, LogSink, assert_initialization_fails_naming, assert_set_rejected, crane_linear_model, fmu_path, init, make_callbacks, open_slave, set_values, zoh
+from conftest import CRANE, LogSink, simulate_packaged, assert_initialization_fails_naming, assert_set_rejected, crane_linear_model, fmu_path, init, make_callbacks, open_slave, set_values, zoh
 
 def linear_response(t, s0, u):
     """The linearised crane from `s0` under a constant force `u`, at the times `t`."""
@@ -23,15 +23,9 @@ def linear_response(t, s0, u):
 
 
 def simulate(step, stop, u=0.0, **start):
-    inputs = np.array([(0.0, u)], dtype=[("time", np.float64), ("U", np.float64)])
-    return simulate_fmu(
-        fmu_path("GantryCrane"),
-        fmi_type="CoSimulation",
-        stop_time=stop,
-        output_interval=step,
-        start_values=start,
-        input=inputs,
-        output=["x", "theta", "v", "omega", "U_applied"],
+    return simulate_packaged(
+        "GantryCrane", stop, step, start, [(0.0, u)], ["U"],
+        fmi_type="CoSimulation", output=["x", "theta", "v", "omega", "U_applied"],
     )
 
 

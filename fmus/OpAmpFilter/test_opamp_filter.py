@@ -4,22 +4,14 @@ step-size independence, several instances, bad parameters named."""
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave, simulate_packaged
 
 
 def simulate(stop=5.0, h=1e-3, u=1.0, **start):
-    inputs = np.array([(0.0, u)], dtype=[("time", np.float64), ("u", np.float64)])
-    return simulate_fmu(
-        fmu_path("OpAmpFilter"),
-        stop_time=stop,
-        output_interval=h,
-        start_values=start,
-        input=inputs,
-    )
+    return simulate_packaged("OpAmpFilter", stop, h, start, [(0.0, u)], ["u"])
 
 
 def step_figures(t, y, final=1.0):

@@ -9,18 +9,13 @@ from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, init, open_slave, set_values
+from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, init, open_slave, set_values, simulate_packaged
 
 N = 100_000
 
 
 def simulate(name="Sensor", n=N, h=0.1, **start):
-    return simulate_fmu(
-        fmu_path(name),
-        stop_time=n * h,
-        output_interval=h,
-        start_values=start,
-    )
+    return simulate_packaged(name, n * h, h, start)
 
 
 @pytest.mark.parametrize("name", ["Sensor", "Sensor2"])

@@ -4,22 +4,15 @@ each step, bad parameters named."""
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, open_slave, set_values
+from conftest import assert_initialization_fails_naming, assert_set_rejected, fmu_path, open_slave, set_values, simulate_packaged
 
 STEP, RANDOM_STEPS, PRBS, SINE, COSINE = 1, 2, 3, 4, 5
 
 
 def simulate(stop=10.0, h=0.01, start_time=0.0, **start):
-    return simulate_fmu(
-        fmu_path("SignalSource"),
-        start_time=start_time,
-        stop_time=stop,
-        output_interval=h,
-        start_values=start,
-    )
+    return simulate_packaged("SignalSource", stop, h, start, start_time=start_time)
 
 
 def test_validates_without_problems():

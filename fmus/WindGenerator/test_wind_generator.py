@@ -5,23 +5,13 @@ bad parameters named."""
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, init, open_initialized_pair, open_slave
-
-DTYPE = [("time", np.float64), ("u_drive", np.float64), ("u_field", np.float64)]
-
+from conftest import assert_initialization_fails_naming, fmu_path, init, open_initialized_pair, open_slave, simulate_packaged
 
 def simulate(rows, stop, h=0.01, **start):
-    return simulate_fmu(
-        fmu_path("WindGenerator"),
-        stop_time=stop,
-        output_interval=h,
-        start_values=start,
-        input=np.array(rows, dtype=DTYPE),
-    )
+    return simulate_packaged("WindGenerator", stop, h, start, rows, ["u_drive", "u_field"])
 
 
 def time_constant(t, y, t_step):

@@ -389,15 +389,21 @@ crate::plain_state!(AdaptiveStateFeedback {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::crane::crane_reference_design;
+    use crate::control::crane::{crane_reference_design, DiscreteDesign};
     use nalgebra::dvector;
 
-    fn crane_controller(initial_gain: Option<DMatrix<f64>>) -> AdaptiveStateFeedback {
+    /// The crane's reference design and a configuration with its poles and |u| ≤ 17 N.
+    fn crane_config() -> (DiscreteDesign, AdaptiveStateFeedbackConfig) {
         let design = crane_reference_design().unwrap();
-        let mut config = AdaptiveStateFeedbackConfig::new(
+        let config = AdaptiveStateFeedbackConfig::new(
             design.poles.clone(),
             InputLimits::symmetric(17.0).unwrap(),
         );
+        (design, config)
+    }
+
+    fn crane_controller(initial_gain: Option<DMatrix<f64>>) -> AdaptiveStateFeedback {
+        let (_, mut config) = crane_config();
         config.initial_gain = initial_gain;
         AdaptiveStateFeedback::new(config).unwrap()
     }
@@ -467,11 +473,7 @@ mod tests {
 
     #[test]
     fn a_huge_gain_is_rejected() {
-        let design = crane_reference_design().unwrap();
-        let mut config = AdaptiveStateFeedbackConfig::new(
-            design.poles.clone(),
-            InputLimits::symmetric(17.0).unwrap(),
-        );
+        let (design, mut config) = crane_config();
         config.max_gain_norm = 10.0;
         config.initial_gain = Some(design.gain.clone());
         let mut controller = AdaptiveStateFeedback::new(config).unwrap();
@@ -494,11 +496,7 @@ mod tests {
 
     #[test]
     fn progress_round_trips_and_is_checked() {
-        let design = crane_reference_design().unwrap();
-        let mut config = AdaptiveStateFeedbackConfig::new(
-            design.poles.clone(),
-            InputLimits::symmetric(17.0).unwrap(),
-        );
+        let (design, mut config) = crane_config();
         config.recompute_period = 2;
         let mut controller = AdaptiveStateFeedback::new(config.clone()).unwrap();
         controller.update(&design.a, &design.b);
@@ -524,11 +522,7 @@ mod tests {
 
     #[test]
     fn recomputes_only_every_nth_call() {
-        let design = crane_reference_design().unwrap();
-        let mut config = AdaptiveStateFeedbackConfig::new(
-            design.poles.clone(),
-            InputLimits::symmetric(17.0).unwrap(),
-        );
+        let (design, mut config) = crane_config();
         config.recompute_period = 3;
         let mut controller = AdaptiveStateFeedback::new(config).unwrap();
         let outcomes: Vec<GainUpdate> = (0..6)

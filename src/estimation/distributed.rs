@@ -531,7 +531,7 @@ impl DistributedObserver {
 #[cfg(test)]
 mod tests {
     use super::super::robust::test_rng::{mean_std, TestRng};
-    use super::super::KalmanFilter;
+    use super::super::{GaussianModel, KalmanFilter};
     use super::*;
 
     fn paper_a() -> DMatrix<f64> {
@@ -643,16 +643,16 @@ mod tests {
             let c_all = DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
             // Constructed one sample before x₀ with x̂ = 0, P = I: x̂_{0|−1} = 0,
             // P_{0|−1} = A Aᵀ + Q (the initial error [1, 1, 1] has size 1 per state).
-            let mut kf = KalmanFilter::new(
-                a.clone(),
-                DMatrix::zeros(3, 0),
-                c_all.clone(),
-                DMatrix::zeros(2, 0),
-                DMatrix::identity(3, 3) * 0.2,
-                DMatrix::identity(2, 2) * 0.1,
-                DVector::zeros(3),
-                DMatrix::identity(3, 3),
-            )
+            let mut kf = KalmanFilter::new(GaussianModel {
+                a: a.clone(),
+                b: DMatrix::zeros(3, 0),
+                c: c_all.clone(),
+                d: DMatrix::zeros(2, 0),
+                q: DMatrix::identity(3, 3) * 0.2,
+                r: DMatrix::identity(2, 2) * 0.1,
+                x0: DVector::zeros(3),
+                p0: DMatrix::identity(3, 3),
+            })
             .unwrap();
             let none = DVector::zeros(0);
             let mut x = DVector::from_element(3, 1.0);

@@ -36,7 +36,7 @@
 //! [`DkfRsKf`] is the papers' combination (001 Fig. 2): an rsKF cleans the measured outputs
 //! and the DKF identifies from the cleaned outputs and the inputs.
 
-use super::kalman::FilterCore;
+use super::kalman::{FilterCore, GaussianModel};
 use super::robust::RobustKalmanFilter;
 use super::{
     parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
@@ -48,22 +48,10 @@ use nalgebra::{DMatrix, DVector};
 /// sets the paper's defaults for the parameter filter) and adjust the public fields.
 #[derive(Debug, Clone)]
 pub struct DualKalmanConfig {
-    /// Initial Â (n×n).
-    pub a0: DMatrix<f64>,
-    /// Initial B̂ (n×m).
-    pub b0: DMatrix<f64>,
-    /// Initial Ĉ (p×n).
-    pub c0: DMatrix<f64>,
-    /// Initial D̂ (p×m).
-    pub d0: DMatrix<f64>,
-    /// State-filter process noise covariance Q (n×n, symmetric PSD).
-    pub q: DMatrix<f64>,
-    /// State-filter measurement noise covariance R (p×p, SPD).
-    pub r: DMatrix<f64>,
-    /// Initial state estimate (n).
-    pub x0: DVector<f64>,
-    /// Initial state covariance (n×n, symmetric PSD).
-    pub p0: DMatrix<f64>,
+    /// The initial model Â, B̂, Ĉ, D̂ (parameters "A0", "B0", "C0", "D0"), the state filter's
+    /// noise covariances Q (symmetric PSD) and R (SPD), and its initial state x0 with
+    /// covariance P0 (symmetric PSD).
+    pub initial: GaussianModel,
     /// Q_θ: random-walk variance of every entry of Θ ((n+p)×(n+m), ≥ 0). Default 1e-6.
     pub parameter_q: DMatrix<f64>,
     /// Σ₀: initial variance of every entry of Θ ((n+p)×(n+m), ≥ 0). Default 1.
@@ -76,28 +64,11 @@ pub struct DualKalmanConfig {
 impl DualKalmanConfig {
     /// A configuration with the papers' parameter-filter defaults: Q_θ = 1e-6, Σ₀ = 1,
     /// R_θ = 0.5 for every entry / row.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        a0: DMatrix<f64>,
-        b0: DMatrix<f64>,
-        c0: DMatrix<f64>,
-        d0: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DMatrix<f64>,
-        x0: DVector<f64>,
-        p0: DMatrix<f64>,
-    ) -> Self {
-        let rows = a0.nrows() + c0.nrows();
-        let cols = a0.ncols() + b0.ncols();
+    pub fn new(initial: GaussianModel) -> Self {
+        let rows = initial.a.nrows() + initial.c.nrows();
+        let cols = initial.a.ncols() + initial.b.ncols();
         Self {
-            a0,
-            b0,
-            c0,
-            d0,
-            q,
-            r,
-            x0,
-            p0,
+            initial,
             parameter_q: DMatrix::from_element(rows, cols, 1e-6),
             parameter_p0: DMatrix::from_element(rows, cols, 1.0),
             parameter_r: DVector::from_element(rows, 0.5),
@@ -106,7 +77,7 @@ impl DualKalmanConfig {
 
     /// Marks C and D as known: zero Q_θ and Σ₀ on their rows, so Ĉ = C₀ and D̂ = D₀ forever.
     pub fn fix_output_matrices(mut self) -> Self {
-        let n = self.a0.nrows();
+        let n = self.initial.a.nrows();
         let rows = self.parameter_q.nrows();
         if rows > n {
             self.parameter_q.rows_mut(n, rows - n).fill(0.0);
@@ -151,32 +122,25 @@ impl DualKalmanFilter {
     /// "P0", "Q_theta", "P0_theta", "R_theta") and builds the filter.
     pub fn new(config: DualKalmanConfig) -> Result<Self, EstimationError> {
         let DualKalmanConfig {
-            a0,
-            b0,
-            c0,
-            d0,
-            q,
-            r,
-            x0,
-            p0,
+            initial,
             parameter_q,
             parameter_p0,
             parameter_r,
         } = config;
-        let n = a0.nrows();
+        let n = initial.a.nrows();
         if n == 0 {
             return Err(parameter_error("A0", "must have at least one state"));
         }
-        require_shape("A0", &a0, n, n, "square: n×n")?;
-        let m = b0.ncols();
-        require_shape("B0", &b0, n, m, "n rows, like A0")?;
-        let p = c0.nrows();
-        require_shape("C0", &c0, p, n, "n columns, like A0")?;
-        require_shape("D0", &d0, p, m, "rows of C0 × columns of B0")?;
-        require_psd("Q", &q, n)?;
-        require_spd("R", &r, p)?;
-        require_length("x0", &x0, n, "one entry per state")?;
-        require_psd("P0", &p0, n)?;
+        require_shape("A0", &initial.a, n, n, "square: n×n")?;
+        let m = initial.b.ncols();
+        require_shape("B0", &initial.b, n, m, "n rows, like A0")?;
+        let p = initial.c.nrows();
+        require_shape("C0", &initial.c, p, n, "n columns, like A0")?;
+        require_shape("D0", &initial.d, p, m, "rows of C0 × columns of B0")?;
+        require_psd("Q", &initial.q, n)?;
+        require_spd("R", &initial.r, p)?;
+        require_length("x0", &initial.x0, n, "one entry per state")?;
+        require_psd("P0", &initial.p0, n)?;
         let rows = n + p;
         let cols = n + m;
         let theta_shape = "the shape of Θ = [A B; C D]: (n+p)×(n+m)";
@@ -203,10 +167,10 @@ impl DualKalmanFilter {
         }
 
         let mut theta = DMatrix::zeros(rows, cols);
-        theta.view_mut((0, 0), (n, n)).copy_from(&a0);
-        theta.view_mut((0, n), (n, m)).copy_from(&b0);
-        theta.view_mut((n, 0), (p, n)).copy_from(&c0);
-        theta.view_mut((n, n), (p, m)).copy_from(&d0);
+        theta.view_mut((0, 0), (n, n)).copy_from(&initial.a);
+        theta.view_mut((0, n), (n, m)).copy_from(&initial.b);
+        theta.view_mut((n, 0), (p, n)).copy_from(&initial.c);
+        theta.view_mut((n, n), (p, m)).copy_from(&initial.d);
         require_finite_matrix("Theta0", &theta)?;
 
         let mut groups: Vec<ParameterGroup> = Vec::new();
@@ -233,12 +197,12 @@ impl DualKalmanFilter {
             n,
             m,
             p,
-            a_t: a0.transpose(),
-            c_t: c0.transpose(),
+            a_t: initial.a.transpose(),
+            c_t: initial.c.transpose(),
             theta,
-            q,
-            r,
-            core: FilterCore::new(x0, p0, m, p),
+            q: initial.q,
+            r: initial.r,
+            core: FilterCore::new(initial.x0, initial.p0, m, p),
             groups,
             predicted_output: DVector::zeros(p),
             y_prev: DVector::zeros(p),
@@ -523,7 +487,7 @@ impl Saved for DkfRsKf {
 #[cfg(test)]
 mod tests {
     use super::super::robust::test_rng::TestRng;
-    use super::super::InfluenceFunction;
+    use super::super::{GaussianModel, InfluenceFunction};
     use super::*;
 
     struct Truth {
@@ -573,16 +537,16 @@ mod tests {
     }
 
     fn config(noise_var: f64) -> DualKalmanConfig {
-        let mut config = DualKalmanConfig::new(
-            DMatrix::identity(2, 2) * 0.5,
-            DMatrix::zeros(2, 1),
-            DMatrix::identity(2, 2),
-            DMatrix::zeros(2, 1),
-            DMatrix::identity(2, 2) * 1e-4,
-            DMatrix::identity(2, 2) * noise_var,
-            DVector::zeros(2),
-            DMatrix::identity(2, 2),
-        )
+        let mut config = DualKalmanConfig::new(GaussianModel {
+            a: DMatrix::identity(2, 2) * 0.5,
+            b: DMatrix::zeros(2, 1),
+            c: DMatrix::identity(2, 2),
+            d: DMatrix::zeros(2, 1),
+            q: DMatrix::identity(2, 2) * 1e-4,
+            r: DMatrix::identity(2, 2) * noise_var,
+            x0: DVector::zeros(2),
+            p0: DMatrix::identity(2, 2),
+        })
         .fix_output_matrices();
         config.parameter_q.fill(0.0);
         config.parameter_q.rows_mut(2, 2).fill(0.0);
@@ -626,21 +590,23 @@ mod tests {
         // Q = 1e-2 (model uncertainty) against R = 2.5e-3.
         let tuned = || {
             let mut cfg = config(0.0025);
-            cfg.q = DMatrix::identity(2, 2) * 1e-2;
+            cfg.initial.q = DMatrix::identity(2, 2) * 1e-2;
             DualKalmanFilter::new(cfg).unwrap()
         };
         let mut plain = tuned();
         // The cleaner runs on a rough nominal model (entries 5–25 % off the truth); a
         // random-walk cleaner lags this fast signal, since r is standardised by R only.
         let cleaner = RobustKalmanFilter::new(
-            DMatrix::from_row_slice(2, 2, &[0.85, 0.25, -0.05, 0.75]),
-            DMatrix::from_row_slice(2, 1, &[0.45, 1.1]),
-            DMatrix::identity(2, 2),
-            DMatrix::zeros(2, 1),
-            DMatrix::identity(2, 2) * 1e-2,
-            DMatrix::identity(2, 2) * 0.0025,
-            DVector::zeros(2),
-            DMatrix::identity(2, 2),
+            GaussianModel {
+                a: DMatrix::from_row_slice(2, 2, &[0.85, 0.25, -0.05, 0.75]),
+                b: DMatrix::from_row_slice(2, 1, &[0.45, 1.1]),
+                c: DMatrix::identity(2, 2),
+                d: DMatrix::zeros(2, 1),
+                q: DMatrix::identity(2, 2) * 1e-2,
+                r: DMatrix::identity(2, 2) * 0.0025,
+                x0: DVector::zeros(2),
+                p0: DMatrix::identity(2, 2),
+            },
             InfluenceFunction::huber(),
         )
         .unwrap();

@@ -83,6 +83,7 @@ impl StateEstimator for DkfRsKf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimation::GaussianModel;
     use nalgebra::{dmatrix, dvector};
 
     /// Drives any estimator through the trait: the generic path must equal the direct one.
@@ -96,16 +97,16 @@ mod tests {
     #[test]
     fn the_trait_drives_the_skf_like_its_own_methods() {
         let make = || {
-            KalmanFilter::new(
-                dmatrix![0.9],
-                dmatrix![1.0],
-                dmatrix![1.0],
-                dmatrix![0.0],
-                dmatrix![0.01],
-                dmatrix![0.1],
-                dvector![0.0],
-                dmatrix![1.0],
-            )
+            KalmanFilter::new(GaussianModel {
+                a: dmatrix![0.9],
+                b: dmatrix![1.0],
+                c: dmatrix![1.0],
+                d: dmatrix![0.0],
+                q: dmatrix![0.01],
+                r: dmatrix![0.1],
+                x0: dvector![0.0],
+                p0: dmatrix![1.0],
+            })
             .unwrap()
         };
         let samples = [(1.0, 0.5), (0.0, 1.2), (-1.0, 0.7)];

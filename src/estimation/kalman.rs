@@ -238,6 +238,22 @@ impl Saved for FilterCore {
     }
 }
 
+/// A linear Gaussian state-space model and the start of its estimate:
+/// x_{k+1} = A x_k + B u_k + w, y_k = C x_k + D u_k + v with Cov(w) = Q (symmetric PSD),
+/// Cov(v) = R (SPD), initial estimate `x0` with covariance `P0` (symmetric PSD). A system
+/// without input takes `B` n×0 and `D` p×0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussianModel {
+    pub a: DMatrix<f64>,
+    pub b: DMatrix<f64>,
+    pub c: DMatrix<f64>,
+    pub d: DMatrix<f64>,
+    pub q: DMatrix<f64>,
+    pub r: DMatrix<f64>,
+    pub x0: DVector<f64>,
+    pub p0: DMatrix<f64>,
+}
+
 /// The matrices of a linear Gaussian state-space model, validated.
 #[derive(Debug, Clone)]
 pub(crate) struct LinearModel {
@@ -265,18 +281,18 @@ impl LinearModel {
     }
 
     /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
-    /// "P0", "x0").
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn new(
-        a: DMatrix<f64>,
-        b: DMatrix<f64>,
-        c: DMatrix<f64>,
-        d: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DMatrix<f64>,
-        x0: &DVector<f64>,
-        p0: &DMatrix<f64>,
-    ) -> Result<Self, EstimationError> {
+    /// "P0", "x0"); gives the model and a filter core started at x0 with covariance P0.
+    pub(crate) fn with_core(model: GaussianModel) -> Result<(Self, FilterCore), EstimationError> {
+        let GaussianModel {
+            a,
+            b,
+            c,
+            d,
+            q,
+            r,
+            x0,
+            p0,
+        } = model;
         let n = a.nrows();
         if n == 0 {
             return Err(super::parameter_error("A", "must have at least one state"));
@@ -295,9 +311,10 @@ impl LinearModel {
         require_shape("D", &d, p, m, "rows of C × columns of B")?;
         require_psd("Q", &q, n)?;
         require_spd("R", &r, p)?;
-        require_length("x0", x0, n, "one entry per state")?;
-        require_psd("P0", p0, n)?;
-        Ok(Self {
+        require_length("x0", &x0, n, "one entry per state")?;
+        require_psd("P0", &p0, n)?;
+        let core = FilterCore::new(x0, p0, m, p);
+        let model = Self {
             a_t: a.transpose(),
             c_t: c.transpose(),
             a,
@@ -306,7 +323,8 @@ impl LinearModel {
             d,
             q,
             r,
-        })
+        };
+        Ok((model, core))
     }
 
     pub(crate) fn states(&self) -> usize {
@@ -328,24 +346,10 @@ pub struct KalmanFilter {
 }
 
 impl KalmanFilter {
-    /// Builds a filter for x_{k+1} = A x_k + B u_k + w, y_k = C x_k + D u_k + v with
-    /// Cov(w) = Q (symmetric PSD), Cov(v) = R (SPD), initial estimate `x0` with covariance
-    /// `P0` (symmetric PSD). A system without input takes `B` n×0 and `D` p×0.
-    ///
-    /// Errors name the matrix ("A", "B", "C", "D", "Q", "R", "P0", "x0") and say why.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        a: DMatrix<f64>,
-        b: DMatrix<f64>,
-        c: DMatrix<f64>,
-        d: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DMatrix<f64>,
-        x0: DVector<f64>,
-        p0: DMatrix<f64>,
-    ) -> Result<Self, EstimationError> {
-        let model = LinearModel::new(a, b, c, d, q, r, &x0, &p0)?;
-        let core = FilterCore::new(x0, p0, model.inputs(), model.outputs());
+    /// Builds a filter for the model (errors name the matrix: "A", "B", "C", "D", "Q", "R",
+    /// "P0", "x0", and say why).
+    pub fn new(model: GaussianModel) -> Result<Self, EstimationError> {
+        let (model, core) = LinearModel::with_core(model)?;
         Ok(Self { model, core })
     }
 
@@ -394,16 +398,16 @@ pub(crate) mod tests {
     /// The scalar filter of x⁺ = a x + w, y = x + v without input: Cov w = q, Cov v = r,
     /// x̂₀ = 0, P₀ = p0.
     pub(crate) fn scalar_filter(a: f64, q: f64, r: f64, p0: f64) -> KalmanFilter {
-        KalmanFilter::new(
-            scalar(a),
-            DMatrix::zeros(1, 0),
-            scalar(1.0),
-            DMatrix::zeros(1, 0),
-            scalar(q),
-            scalar(r),
-            DVector::zeros(1),
-            scalar(p0),
-        )
+        KalmanFilter::new(GaussianModel {
+            a: scalar(a),
+            b: DMatrix::zeros(1, 0),
+            c: scalar(1.0),
+            d: DMatrix::zeros(1, 0),
+            q: scalar(q),
+            r: scalar(r),
+            x0: DVector::zeros(1),
+            p0: scalar(p0),
+        })
         .unwrap()
     }
 
@@ -431,16 +435,16 @@ pub(crate) mod tests {
         let d = DMatrix::zeros(2, 1);
         let q = DMatrix::from_diagonal(&DVector::from_vec(vec![0.1, 0.2, 0.05]));
         let r = DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.1, 0.3]);
-        let mut filter = KalmanFilter::new(
-            a.clone(),
+        let mut filter = KalmanFilter::new(GaussianModel {
+            a: a.clone(),
             b,
-            c.clone(),
+            c: c.clone(),
             d,
-            q.clone(),
-            r.clone(),
-            DVector::zeros(3),
-            DMatrix::identity(3, 3),
-        )
+            q: q.clone(),
+            r: r.clone(),
+            x0: DVector::zeros(3),
+            p0: DMatrix::identity(3, 3),
+        })
         .unwrap();
         for k in 0..500 {
             let u = DVector::from_element(1, (0.1 * k as f64).cos());
@@ -456,16 +460,16 @@ pub(crate) mod tests {
     #[test]
     fn covariance_stays_symmetric_positive_definite() {
         let a = DMatrix::from_row_slice(2, 2, &[1.0, 0.05, 0.0, 1.0]);
-        let mut filter = KalmanFilter::new(
+        let mut filter = KalmanFilter::new(GaussianModel {
             a,
-            DMatrix::zeros(2, 0),
-            DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
-            DMatrix::zeros(1, 0),
-            DMatrix::from_diagonal(&DVector::from_vec(vec![1e-12, 1e-10])),
-            scalar(1e-8),
-            DVector::zeros(2),
-            DMatrix::identity(2, 2) * 1e6,
-        )
+            b: DMatrix::zeros(2, 0),
+            c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+            d: DMatrix::zeros(1, 0),
+            q: DMatrix::from_diagonal(&DVector::from_vec(vec![1e-12, 1e-10])),
+            r: scalar(1e-8),
+            x0: DVector::zeros(2),
+            p0: DMatrix::identity(2, 2) * 1e6,
+        })
         .unwrap();
         for k in 0..10_000 {
             filter
@@ -482,68 +486,106 @@ pub(crate) mod tests {
 
     #[test]
     fn constructor_names_the_bad_matrix() {
-        let ok = || {
+        let ok = GaussianModel {
+            a: DMatrix::identity(2, 2),
+            b: DMatrix::zeros(2, 1),
+            c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+            d: DMatrix::zeros(1, 1),
+            q: DMatrix::identity(2, 2),
+            r: scalar(1.0),
+            x0: DVector::zeros(2),
+            p0: DMatrix::identity(2, 2),
+        };
+        assert!(KalmanFilter::new(ok.clone()).is_ok());
+        let cases = [
             (
-                DMatrix::identity(2, 2),
-                DMatrix::zeros(2, 1),
-                DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
-                DMatrix::zeros(1, 1),
-                DMatrix::identity(2, 2),
-                scalar(1.0),
-                DVector::zeros(2),
-                DMatrix::identity(2, 2),
-            )
-        };
-        let name_of = |e: EstimationError| match e {
-            EstimationError::Parameter(p) => p.parameter,
-            other => panic!("unexpected {other}"),
-        };
-        let (a, b, c, d, q, r, x0, p0) = ok();
-        assert!(KalmanFilter::new(a, b, c, d, q, r, x0, p0).is_ok());
-        let (_, b, c, d, q, r, x0, p0) = ok();
-        let e = KalmanFilter::new(DMatrix::zeros(2, 3), b, c, d, q, r, x0, p0).unwrap_err();
-        assert!(e.to_string().contains("square"), "{e}");
-        assert_eq!(name_of(e), "A");
-        let (a, _, c, d, q, r, x0, p0) = ok();
-        let e = KalmanFilter::new(a, DMatrix::zeros(3, 1), c, d, q, r, x0, p0).unwrap_err();
-        assert_eq!(name_of(e), "B");
-        let (a, b, _, d, q, r, x0, p0) = ok();
-        let e = KalmanFilter::new(a, b, DMatrix::zeros(1, 3), d, q, r, x0, p0).unwrap_err();
-        assert_eq!(name_of(e), "C");
-        let (a, b, c, _, q, r, x0, p0) = ok();
-        let e = KalmanFilter::new(a, b, c, DMatrix::zeros(2, 1), q, r, x0, p0).unwrap_err();
-        assert_eq!(name_of(e), "D");
-        let (a, b, c, d, _, r, x0, p0) = ok();
-        let bad_q = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]);
-        let e = KalmanFilter::new(a, b, c, d, bad_q, r, x0, p0).unwrap_err();
-        assert!(e.to_string().contains("semidefinite"), "{e}");
-        assert_eq!(name_of(e), "Q");
-        let (a, b, c, d, q, _, x0, p0) = ok();
-        let e = KalmanFilter::new(a, b, c, d, q, scalar(0.0), x0, p0).unwrap_err();
-        assert!(e.to_string().contains("positive definite"), "{e}");
-        assert_eq!(name_of(e), "R");
-        let (a, b, c, d, q, r, _, p0) = ok();
-        let e = KalmanFilter::new(a, b, c, d, q, r, DVector::zeros(3), p0).unwrap_err();
-        assert_eq!(name_of(e), "x0");
-        let (a, b, c, d, q, r, x0, _) = ok();
-        let asym = DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.0, 1.0]);
-        let e = KalmanFilter::new(a, b, c, d, q, r, x0, asym).unwrap_err();
-        assert!(e.to_string().contains("symmetric"), "{e}");
-        assert_eq!(name_of(e), "P0");
+                GaussianModel {
+                    a: DMatrix::zeros(2, 3),
+                    ..ok.clone()
+                },
+                "A",
+                "square",
+            ),
+            (
+                GaussianModel {
+                    b: DMatrix::zeros(3, 1),
+                    ..ok.clone()
+                },
+                "B",
+                "rows",
+            ),
+            (
+                GaussianModel {
+                    c: DMatrix::zeros(1, 3),
+                    ..ok.clone()
+                },
+                "C",
+                "columns",
+            ),
+            (
+                GaussianModel {
+                    d: DMatrix::zeros(2, 1),
+                    ..ok.clone()
+                },
+                "D",
+                "rows",
+            ),
+            (
+                GaussianModel {
+                    q: DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]),
+                    ..ok.clone()
+                },
+                "Q",
+                "semidefinite",
+            ),
+            (
+                GaussianModel {
+                    r: scalar(0.0),
+                    ..ok.clone()
+                },
+                "R",
+                "positive definite",
+            ),
+            (
+                GaussianModel {
+                    x0: DVector::zeros(3),
+                    ..ok.clone()
+                },
+                "x0",
+                "entry",
+            ),
+            (
+                GaussianModel {
+                    p0: DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.0, 1.0]),
+                    ..ok
+                },
+                "P0",
+                "symmetric",
+            ),
+        ];
+        for (model, name, why) in cases {
+            match KalmanFilter::new(model) {
+                Err(EstimationError::Parameter(e)) => {
+                    assert_eq!(e.parameter, name);
+                    assert!(e.to_string().contains(why), "{e}");
+                }
+                other => panic!("expected an error naming {name}, got {other:?}"),
+            }
+        }
     }
 
     #[test]
     fn step_rejects_wrong_lengths_and_non_finite_measurements() {
-        let mut filter = KalmanFilter::new(
-            scalar(1.0),
-            scalar(1.0),
-            scalar(1.0),
-            scalar(0.0),
-            scalar(1.0),
-            scalar(1.0),
-            DVector::zeros(1),
-            scalar(1.0),
-        )
+        let mut filter = KalmanFilter::new(GaussianModel {
+            a: scalar(1.0),
+            b: scalar(1.0),
+            c: scalar(1.0),
+            d: scalar(0.0),
+            q: scalar(1.0),
+            r: scalar(1.0),
+            x0: DVector::zeros(1),
+            p0: scalar(1.0),
+        })
         .unwrap();
         let e = filter
             .step(&DVector::zeros(2), &DVector::zeros(1))

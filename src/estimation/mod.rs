@@ -32,7 +32,7 @@ mod robust;
 pub use distributed::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
 pub use dual::{DkfRsKf, DualKalmanConfig, DualKalmanFilter};
 pub use estimator::StateEstimator;
-pub use kalman::KalmanFilter;
+pub use kalman::{GaussianModel, KalmanFilter};
 pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};
 pub use robust::{InfluenceFunction, RobustKalmanFilter};
 
@@ -387,16 +387,16 @@ mod state_tests {
         let a = DMatrix::from_row_slice(n, n, &[0.9, 0.1, -0.1, 0.8]);
         let b = DMatrix::from_row_slice(n, 1, &[0.0, 1.0]);
         let c = DMatrix::from_row_slice(1, n, &[1.0, 0.0]);
-        let config = DualKalmanConfig::new(
+        let config = DualKalmanConfig::new(GaussianModel {
             a,
             b,
             c,
-            DMatrix::zeros(1, 1),
-            DMatrix::identity(n, n) * 1e-3,
-            DMatrix::identity(1, 1) * 1e-2,
-            DVector::zeros(n),
-            DMatrix::identity(n, n),
-        )
+            d: DMatrix::zeros(1, 1),
+            q: DMatrix::identity(n, n) * 1e-3,
+            r: DMatrix::identity(1, 1) * 1e-2,
+            x0: DVector::zeros(n),
+            p0: DMatrix::identity(n, n),
+        })
         .fix_output_matrices();
         let cleaner =
             RobustKalmanFilter::random_walk(1, 1e-2, 1e-2, 1.0, InfluenceFunction::default())

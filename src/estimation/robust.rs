@@ -23,7 +23,7 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{core_accessors, FilterCore, LinearModel};
+use super::kalman::{core_accessors, FilterCore, GaussianModel, LinearModel};
 use super::{parameter_error, EstimationError, Saved, StateReader};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -137,25 +137,13 @@ pub struct RobustKalmanFilter {
 impl RobustKalmanFilter {
     /// Builds an rsKF; arguments as [`KalmanFilter::new`](super::KalmanFilter::new) plus the
     /// ψ function. Errors name the matrix ("A", "B", "C", "D", "Q", "R", "P0", "x0") or "c".
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        a: DMatrix<f64>,
-        b: DMatrix<f64>,
-        c: DMatrix<f64>,
-        d: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DMatrix<f64>,
-        x0: DVector<f64>,
-        p0: DMatrix<f64>,
-        psi: InfluenceFunction,
-    ) -> Result<Self, EstimationError> {
+    pub fn new(model: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError> {
         psi.validate()?;
-        let model = LinearModel::new(a, b, c, d, q, r, &x0, &p0)?;
+        let (model, core) = LinearModel::with_core(model)?;
         let p = model.outputs();
         let r_sqrt = Cholesky::new(model.r.clone())
             .ok_or_else(|| parameter_error("R", "must be positive definite"))?
             .l();
-        let core = FilterCore::new(x0, p0, model.inputs(), p);
         Ok(Self {
             r_sqrt_t: r_sqrt.transpose(),
             r_sqrt,
@@ -180,14 +168,16 @@ impl RobustKalmanFilter {
     ) -> Result<Self, EstimationError> {
         let eye = DMatrix::<f64>::identity(channels, channels);
         Self::new(
-            eye.clone(),
-            DMatrix::zeros(channels, 0),
-            eye.clone(),
-            DMatrix::zeros(channels, 0),
-            &eye * q,
-            &eye * r,
-            DVector::zeros(channels),
-            &eye * p0,
+            GaussianModel {
+                a: eye.clone(),
+                b: DMatrix::zeros(channels, 0),
+                c: eye.clone(),
+                d: DMatrix::zeros(channels, 0),
+                q: &eye * q,
+                r: &eye * r,
+                x0: DVector::zeros(channels),
+                p0: &eye * p0,
+            },
             psi,
         )
     }
@@ -365,19 +355,31 @@ mod tests {
         let r = DMatrix::from_row_slice(2, 2, &[0.04, 0.01, 0.01, 0.09]);
         let x0 = DVector::zeros(2);
         let p0 = DMatrix::identity(2, 2) * 0.01;
-        let mut standard = KalmanFilter::new(
-            a.clone(),
-            b.clone(),
-            c.clone(),
-            d.clone(),
-            q.clone(),
-            r.clone(),
-            x0.clone(),
-            p0.clone(),
+        let mut standard = KalmanFilter::new(GaussianModel {
+            a: a.clone(),
+            b: b.clone(),
+            c: c.clone(),
+            d: d.clone(),
+            q: q.clone(),
+            r: r.clone(),
+            x0: x0.clone(),
+            p0: p0.clone(),
+        })
+        .unwrap();
+        let mut robust = RobustKalmanFilter::new(
+            GaussianModel {
+                a,
+                b,
+                c,
+                d,
+                q,
+                r,
+                x0,
+                p0,
+            },
+            InfluenceFunction::huber(),
         )
         .unwrap();
-        let mut robust =
-            RobustKalmanFilter::new(a, b, c, d, q, r, x0, p0, InfluenceFunction::huber()).unwrap();
         let mut rng = TestRng::new(7);
         let mut truth = DVector::zeros(2);
         for k in 0..300 {
@@ -474,14 +476,16 @@ mod tests {
             let run = cosine_with_outliers(1000 + seed);
             let make = |psi| {
                 RobustKalmanFilter::new(
-                    scalar(1.0),
-                    DMatrix::zeros(1, 0),
-                    scalar(1.0),
-                    DMatrix::zeros(1, 0),
-                    scalar(1e-3),
-                    scalar(1e-2),
-                    DVector::from_element(1, 1.0),
-                    scalar(1e-2),
+                    GaussianModel {
+                        a: scalar(1.0),
+                        b: DMatrix::zeros(1, 0),
+                        c: scalar(1.0),
+                        d: DMatrix::zeros(1, 0),
+                        q: scalar(1e-3),
+                        r: scalar(1e-2),
+                        x0: DVector::from_element(1, 1.0),
+                        p0: scalar(1e-2),
+                    },
                     psi,
                 )
                 .unwrap()

@@ -736,37 +736,25 @@ mod tests {
             DMatrix::zeros(1, 1),
             TimeDomain::Continuous,
         );
-        let name = |p: LinearSystemParameters| LinearSystem::new(p).unwrap_err().parameter;
-        let mut p = base.clone();
-        p.a = DMatrix::zeros(2, 3);
-        assert_eq!(name(p), "A");
-        let mut p = base.clone();
-        p.b = DMatrix::zeros(3, 1);
-        assert_eq!(name(p), "B");
-        let mut p = base.clone();
-        p.c = DMatrix::zeros(1, 3);
-        assert_eq!(name(p), "C");
-        let mut p = base.clone();
-        p.d = DMatrix::zeros(1, 2);
-        assert_eq!(name(p), "D");
-        let mut p = base.clone();
-        p.q = matrix(2, 2, &[1.0, 0.0, 0.0, -0.5]);
-        assert_eq!(name(p), "Q");
-        let mut p = base.clone();
-        p.q = matrix(2, 2, &[1.0, 2.0, 2.0, 1.0]); // eigenvalues 3, −1
-        assert_eq!(name(p), "Q");
-        let mut p = base.clone();
-        p.q = matrix(2, 2, &[1.0, 0.5, 0.0, 1.0]);
-        assert_eq!(name(p), "Q");
-        let mut p = base.clone();
-        p.r = matrix(1, 1, &[-0.1]);
-        assert_eq!(name(p), "R");
-        let mut p = base.clone();
-        p.a[(0, 1)] = f64::NAN;
-        assert_eq!(name(p), "A");
-        let mut p = base.clone();
-        p.initial_state = DVector::zeros(3);
-        assert_eq!(name(p), "x0");
+        type Change = fn(&mut LinearSystemParameters);
+        let cases: [(Change, &str); 10] = [
+            (|p| p.a = DMatrix::zeros(2, 3), "A"),
+            (|p| p.b = DMatrix::zeros(3, 1), "B"),
+            (|p| p.c = DMatrix::zeros(1, 3), "C"),
+            (|p| p.d = DMatrix::zeros(1, 2), "D"),
+            (|p| p.q = matrix(2, 2, &[1.0, 0.0, 0.0, -0.5]), "Q"),
+            // eigenvalues 3, −1
+            (|p| p.q = matrix(2, 2, &[1.0, 2.0, 2.0, 1.0]), "Q"),
+            (|p| p.q = matrix(2, 2, &[1.0, 0.5, 0.0, 1.0]), "Q"),
+            (|p| p.r = matrix(1, 1, &[-0.1]), "R"),
+            (|p| p.a[(0, 1)] = f64::NAN, "A"),
+            (|p| p.initial_state = DVector::zeros(3), "x0"),
+        ];
+        for (change, name) in cases {
+            let mut p = base.clone();
+            change(&mut p);
+            assert_eq!(LinearSystem::new(p).unwrap_err().parameter, name);
+        }
         let mut s = LinearSystem::new(base).unwrap();
         let before = s.saved_state();
         assert_eq!(

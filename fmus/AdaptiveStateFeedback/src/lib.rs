@@ -25,15 +25,12 @@
 use nalgebra::DMatrix;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
 use spurio::control::{
-    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, InputLimits, StateController,
+    AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, StateController,
 };
-use spurio_export::{
-    Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable, VariableTable,
-};
+use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable};
 use spurio_fmu_common::controller::{
-    add_estimated_state, add_limit_parameters, add_pole_parameters, check_pole_parameters,
-    describe_controller, format_gain, input_unit, layout_for, read_poles, variant_defaults,
-    with_unit, Preset,
+    check_pole_parameters, describe_controller, format_gain, input_unit, layout_for, start_table,
+    with_unit, DesignBlocks, Preset,
 };
 use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, Block};
@@ -62,14 +59,8 @@ pub struct Layout {
     pub rejected_updates: usize,
     /// Boolean output `estimate_rejected`.
     pub estimate_rejected: usize,
-    /// Parameter `pole_re[i]`.
-    pub pole_re: Block,
-    /// Parameter `pole_im[i]`.
-    pub pole_im: Block,
-    /// Parameter `u_min`.
-    pub u_min: usize,
-    /// Parameter `u_max`.
-    pub u_max: usize,
+    /// Parameters `pole_re[i]`, `pole_im[i]`, `u_min`, `u_max`.
+    pub design: DesignBlocks,
     /// Integer parameter `recompute_period`.
     pub recompute_period: usize,
     /// Parameter `max_gain_norm`.
@@ -82,11 +73,9 @@ pub struct Layout {
 
 /// The variable table of a variant and where each variable is.
 pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
-    let defaults = variant_defaults(config)?;
+    let (defaults, mut t, x_hat) = start_table(config)?;
     let n = defaults.states();
     let preset = defaults.preset;
-    let mut t = VariableTable::new();
-    let x_hat = add_estimated_state(&mut t, preset, n);
     let a_hat = add_matrix(&mut t, "A_hat", n, n, |name, i, j| {
         Variable::input(name, defaults.a[(i, j)])
             .describe("Estimated discrete state matrix Â (e.g. from the dual Kalman filter)")
@@ -124,8 +113,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
             .describe("True while the latest recompute was rejected and the last good gain is kept")
             .depends_on(&estimate),
     );
-    let (pole_re, pole_im) = add_pole_parameters(&mut t, &defaults);
-    let (u_min, u_max) = add_limit_parameters(&mut t, preset);
+    let design = DesignBlocks::add(&mut t, &defaults);
     let recompute_period = t.add(
         Variable::integer_parameter("recompute_period", 1)
             .min(1.0)
@@ -160,10 +148,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         gain,
         rejected_updates,
         estimate_rejected,
-        pole_re,
-        pole_im,
-        u_min,
-        u_max,
+        design,
         recompute_period,
         max_gain_norm,
         max_condition_number,
@@ -226,9 +211,9 @@ fn config_from_parameters(
     layout: &Layout,
     values: &spurio_export::Values,
 ) -> Result<AdaptiveStateFeedbackConfig, Cause> {
-    let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
+    let poles = layout.design.poles(values);
     check_pole_parameters(&poles, true)?;
-    let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))?;
+    let limits = layout.design.limits(values)?;
     let period = values.integer(layout.recompute_period);
     let recompute_period = usize::try_from(period)
         .ok()
@@ -357,7 +342,7 @@ mod tests {
         assert_eq!(v[layout.gain.index(0, 0)].name, "L[1,1]");
         assert_eq!(v[layout.rejected_updates].name, "rejected_updates");
         assert_eq!(v[layout.estimate_rejected].name, "estimate_rejected");
-        assert_eq!(v[layout.pole_im.index(3, 0)].name, "pole_im[4]");
+        assert_eq!(v[layout.design.pole_im.index(3, 0)].name, "pole_im[4]");
         assert_eq!(v[layout.recompute_period].name, "recompute_period");
         assert_eq!(v[layout.max_gain_norm].name, "max_gain_norm");
         assert_eq!(v[layout.max_condition_number].name, "max_condition_number");
@@ -441,8 +426,12 @@ mod tests {
         let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
         let layout = model.layout;
         let cases: Vec<(usize, f64, &str)> = vec![
-            (layout.pole_re.first, 1.2, "`pole_re[1]`, `pole_im[1]`"),
-            (layout.u_min, 20.0, "`u_max`"),
+            (
+                layout.design.pole_re.first,
+                1.2,
+                "`pole_re[1]`, `pole_im[1]`",
+            ),
+            (layout.design.u_min, 20.0, "`u_max`"),
             (layout.max_gain_norm, 0.0, "`max_gain_norm`"),
             (layout.max_condition_number, 0.5, "`max_condition_number`"),
         ];

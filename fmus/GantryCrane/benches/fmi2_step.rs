@@ -4,13 +4,13 @@
 //! Run: `cargo bench -p fmu-gantry-crane --bench fmi2_step`. Prints the median over many batches,
 //! so a noisy machine shifts it little.
 
-use spurio_export::harness::Harness;
+use spurio_export::harness::{Harness, Timing};
 use spurio_export::{Config, FmuModel};
 use std::hint::black_box;
 use GantryCrane::{vr, GantryCraneFmu};
 
 /// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> (f64, f64, f64) {
+fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> Timing {
     spurio_export::harness::time_per_call(per_batch, batches, per_batch, call)
 }
 
@@ -26,21 +26,18 @@ fn crane(step: f64, label: &str) {
     let mut y = [0.0; 4];
     let mut t = 0.0;
     let mut k = 0u64;
-    let (median, q1, q3) = measure(200, 50, || {
+    let timing = measure(200, 50, || {
         // A gentle input that keeps the cart away from the rail stops.
         let u = 0.5 * ((k as f64) * 0.01).sin();
-        h.set_real(&[vr::U as u32], &[u]).expect("set");
-        h.do_step(t, step).expect("step");
-        h.get_real(&outputs, &mut y).expect("get");
+        h.exchange(&[vr::U as u32], &[u], (t, step), &outputs, &mut y)
+            .expect("step");
         black_box(&y);
         t += step;
         k += 1;
     });
     println!(
-        "{label}: median {:.2} µs per step (IQR {:.2}–{:.2} µs), {} RK4 substeps of {} s",
-        median / 1e3,
-        q1 / 1e3,
-        q3 / 1e3,
+        "{label}: {}, {} RK4 substeps of {} s",
+        timing.summary("step"),
         spurio::ode::substep_count(step, 1e-3),
         1e-3
     );

@@ -21,12 +21,37 @@
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
-use spurio_export::rows::discrete_output;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{count, error, DynamicState, Estimator};
 use spurio_fmu_common::structured::{add_vector, Block};
+
+/// The continuous second-order readout of the estimate (written together by
+/// [`write_readout`]): name, unit (none for the DC gain), description.
+const READOUT: [(&str, Option<&str>, &str); 5] = [
+    (
+        "wn",
+        Some("rad/s"),
+        "Natural frequency ω_n of the continuous equivalent (0 when unavailable)",
+    ),
+    (
+        "zeta",
+        Some("1"),
+        "Damping ratio ζ of the continuous equivalent (0 when unavailable)",
+    ),
+    ("dc_gain", None, "DC gain Σb/(1 + Σa) (0 when unavailable)"),
+    (
+        "overshoot",
+        Some("%"),
+        "Step-response overshoot of the continuous equivalent (0 when unavailable)",
+    ),
+    (
+        "settling_time",
+        Some("s"),
+        "2 % settling time of the continuous equivalent (0 when unavailable)",
+    ),
+];
 
 /// Value references of a `RecursiveLeastSquares` variant.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -37,11 +62,8 @@ pub struct RlsLayout {
     pub y: usize,
     pub theta: Block,
     pub y_hat: usize,
-    pub wn: usize,
-    pub zeta: usize,
-    pub dc_gain: usize,
-    pub overshoot: usize,
-    pub settling_time: usize,
+    /// The readout outputs, in the order of [`READOUT`].
+    pub readout: [usize; 5],
     pub lambda: usize,
     pub p0_scale: usize,
     pub ts: usize,
@@ -81,29 +103,13 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
     });
     let y_hat =
         t.add(Variable::discrete_output("y_hat").describe("One-step prediction φᵀθ(t−1) of y(t)"));
-    let wn = t.add(discrete_output(
-        "wn",
-        "rad/s",
-        "Natural frequency ω_n of the continuous equivalent (0 when unavailable)",
-    ));
-    let zeta = t.add(discrete_output(
-        "zeta",
-        "1",
-        "Damping ratio ζ of the continuous equivalent (0 when unavailable)",
-    ));
-    let dc_gain = t.add(
-        Variable::discrete_output("dc_gain").describe("DC gain Σb/(1 + Σa) (0 when unavailable)"),
-    );
-    let overshoot = t.add(discrete_output(
-        "overshoot",
-        "%",
-        "Step-response overshoot of the continuous equivalent (0 when unavailable)",
-    ));
-    let settling_time = t.add(discrete_output(
-        "settling_time",
-        "s",
-        "2 % settling time of the continuous equivalent (0 when unavailable)",
-    ));
+    let readout = READOUT.map(|(name, unit, what)| {
+        let output = Variable::discrete_output(name).describe(what);
+        t.add(match unit {
+            Some(unit) => output.unit(unit),
+            None => output,
+        })
+    });
     let lambda = t.add(
         Variable::parameter("lambda", 1.0)
             .min(0.0)
@@ -155,11 +161,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
             y,
             theta,
             y_hat,
-            wn,
-            zeta,
-            dc_gain,
-            overshoot,
-            settling_time,
+            readout,
             lambda,
             p0_scale,
             ts,
@@ -172,8 +174,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
 }
 
 fn write_readout(l: &RlsLayout, values: &mut Values, figures: [f64; 5]) {
-    let indices = [l.wn, l.zeta, l.dc_gain, l.overshoot, l.settling_time];
-    for (index, value) in indices.into_iter().zip(figures) {
+    for (index, value) in l.readout.into_iter().zip(figures) {
         values.set_real(index, value);
     }
 }
@@ -361,18 +362,11 @@ mod tests {
         h.get_real(&[vr("wn"), vr("zeta")], &mut out).unwrap();
         assert!((out[0] - 5.196607).abs() < 1e-3, "{out:?}");
         assert!((out[1] - 0.499362).abs() < 1e-3, "{out:?}");
-        assert!(
-            h.log().iter().any(|(_, _, t)| t.contains("logged once")),
-            "{:?}",
-            h.log()
-        );
+        assert!(h.logged(&["logged once"]), "{:?}", h.log());
 
         let mut bad = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
         assert!(bad.set_real(&[vr("lambda")], &[1.5]).is_err());
-        assert!(bad
-            .log()
-            .iter()
-            .any(|(_, _, t)| t.contains("`lambda` = 1.5")));
+        assert!(bad.logged(&["`lambda` = 1.5"]));
         let mut unstable = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
         unstable.set_boolean(&[vr("prefilter")], &[true]).unwrap();
         unstable
@@ -380,22 +374,13 @@ mod tests {
             .unwrap();
         assert!(unstable.initialize(0.0).is_err());
         assert!(
-            unstable
-                .log()
-                .iter()
-                .any(|(_, _, t)| t.contains("parameter `prefilter_a`")),
+            unstable.logged(&["parameter `prefilter_a`"]),
             "{:?}",
             unstable.log()
         );
 
         bad.set_real(&[vr("lambda")], &[0.0]).unwrap();
         assert!(bad.initialize(0.0).is_err());
-        assert!(
-            bad.log()
-                .iter()
-                .any(|(_, _, t)| t.contains("parameter `lambda`")),
-            "{:?}",
-            bad.log()
-        );
+        assert!(bad.logged(&["parameter `lambda`"]), "{:?}", bad.log());
     }
 }

@@ -22,11 +22,9 @@
 //! (presets, pole parameters, error messages) live in [`spurio_fmu_common::controller`].
 
 use spurio::control::{
-    ackermann_with_options, InputLimits, PolePlacementOptions, StateController, StateFeedback,
+    ackermann_with_options, PolePlacementOptions, StateController, StateFeedback,
 };
-use spurio_export::{
-    Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable, VariableTable,
-};
+use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable};
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -48,25 +46,17 @@ pub struct Layout {
     pub a: Block,
     /// Parameter `B[i,1]`.
     pub b: Block,
-    /// Parameter `pole_re[i]`.
-    pub pole_re: Block,
-    /// Parameter `pole_im[i]`.
-    pub pole_im: Block,
-    /// Parameter `u_min`.
-    pub u_min: usize,
-    /// Parameter `u_max`.
-    pub u_max: usize,
+    /// Parameters `pole_re[i]`, `pole_im[i]`, `u_min`, `u_max`.
+    pub design: DesignBlocks,
     /// Boolean parameter `require_stable`.
     pub require_stable: usize,
 }
 
 /// The variable table of a variant and where each variable is.
 pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
-    let defaults = variant_defaults(config)?;
+    let (defaults, mut t, x_hat) = start_table(config)?;
     let n = defaults.states();
     let preset = defaults.preset;
-    let mut t = VariableTable::new();
-    let x_hat = add_estimated_state(&mut t, preset, n);
     let x_ref = add_vector(&mut t, "x_ref", n, |name, i| {
         let (meaning, unit) = state_meaning(preset, i);
         with_unit(
@@ -97,8 +87,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         Variable::parameter(name, defaults.b[(i, 0)])
             .describe("Discrete input matrix (single input: one column)")
     });
-    let (pole_re, pole_im) = add_pole_parameters(&mut t, &defaults);
-    let (u_min, u_max) = add_limit_parameters(&mut t, preset);
+    let design = DesignBlocks::add(&mut t, &defaults);
     let require_stable = t.add(
         Variable::boolean_parameter("require_stable", true).describe(
             "Reject desired poles on or outside the unit circle (|z| ≥ 1) with fmi2Error",
@@ -112,10 +101,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         gain,
         a,
         b,
-        pole_re,
-        pole_im,
-        u_min,
-        u_max,
+        design,
         require_stable,
     };
     Ok((layout, t.into_variables()))
@@ -166,11 +152,10 @@ impl FmuModel for StateFeedbackFmu {
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let layout = self.layout;
         let values = &*ctx.values;
-        let limits = InputLimits::new(values.real(layout.u_min), values.real(layout.u_max))
-            .map_err(Failure::error)?;
+        let limits = layout.design.limits(values).map_err(Failure::error)?;
         let a = layout.a.matrix(values);
         let b = layout.b.matrix(values);
-        let poles = read_poles(values, &layout.pole_re, &layout.pole_im);
+        let poles = layout.design.poles(values);
         let options = PolePlacementOptions {
             require_stable: values.boolean(layout.require_stable),
             ..PolePlacementOptions::default()
@@ -217,10 +202,10 @@ mod tests {
         assert_eq!(v[layout.gain.index(0, 3)].name, "L[1,4]");
         assert_eq!(v[layout.a.index(3, 3)].name, "A[4,4]");
         assert_eq!(v[layout.b.index(3, 0)].name, "B[4,1]");
-        assert_eq!(v[layout.pole_re.first].name, "pole_re[1]");
-        assert_eq!(v[layout.pole_im.index(3, 0)].name, "pole_im[4]");
-        assert_eq!(v[layout.u_min].name, "u_min");
-        assert_eq!(v[layout.u_max].name, "u_max");
+        assert_eq!(v[layout.design.pole_re.first].name, "pole_re[1]");
+        assert_eq!(v[layout.design.pole_im.index(3, 0)].name, "pole_im[4]");
+        assert_eq!(v[layout.design.u_min].name, "u_min");
+        assert_eq!(v[layout.design.u_max].name, "u_max");
         assert_eq!(v[layout.require_stable].name, "require_stable");
         assert_eq!(v.len(), layout.require_stable + 1);
         assert_eq!(v[layout.u].unit.as_deref(), Some("N"));

@@ -6,14 +6,14 @@
 //! Run: `cargo bench -p spurio-fmu-common --bench estimators`. Prints the median (and IQR) over
 //! many batches, so a noisy machine shifts it little.
 
-use spurio_export::harness::Harness;
+use spurio_export::harness::{Harness, Timing};
 use spurio_export::{Config, FmuModel};
 use spurio_fmu_common::dual::DkfRsKfFmu;
 use spurio_fmu_common::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
 use std::hint::black_box;
 
 /// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> (f64, f64, f64) {
+fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> Timing {
     spurio_export::harness::time_per_call(per_batch * 10, batches, per_batch, call)
 }
 
@@ -31,7 +31,7 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
     let step = 0.05;
     let mut t = 0.0;
     let mut k = 0u64;
-    let (median, q1, q3) = measure(300, 100, || {
+    let timing = measure(300, 100, || {
         for (i, v) in values.iter_mut().enumerate() {
             let phase = k as f64 * 0.05 * (i + 1) as f64;
             let outlier = if (k * 7 + i as u64).is_multiple_of(20) {
@@ -41,18 +41,15 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
             };
             *v = phase.sin() + outlier;
         }
-        h.set_real(&input_vrs, &values).expect("set");
-        h.do_step(t, step).expect("step");
-        h.get_real(&output_vrs, &mut out).expect("get");
+        h.exchange(&input_vrs, &values, (t, step), &output_vrs, &mut out)
+            .expect("step");
         black_box(&out);
         t += step;
         k += 1;
     });
     println!(
-        "{label}: median {:.2} µs per sample (IQR {:.2}–{:.2} µs), {} inputs set, {} outputs read",
-        median / 1e3,
-        q1 / 1e3,
-        q3 / 1e3,
+        "{label}: {}, {} inputs set, {} outputs read",
+        timing.summary("sample"),
         input_vrs.len(),
         output_vrs.len()
     );

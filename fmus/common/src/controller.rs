@@ -6,9 +6,10 @@ use crate::structured::{add_vector, Block};
 use nalgebra::{Complex, DMatrix};
 use spurio::control::pole_placement::check_poles;
 use spurio::control::{
-    ackermann_with_options, crane_reference_design, PolePlacementError, PolePlacementOptions,
-    CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
+    ackermann_with_options, crane_reference_design, InputLimits, PolePlacementError,
+    PolePlacementOptions, CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
 };
+use spurio::ParameterError;
 use spurio_export::{
     Causality, Cause, Config, DefaultExperiment, Initial, ModelInfo, Values, Variability, Variable,
     VariableTable,
@@ -173,11 +174,60 @@ pub fn add_estimated_state(table: &mut VariableTable, preset: Preset, n: usize) 
     })
 }
 
+/// The start of a controller's variable table: the variant's defaults and the table with
+/// the state-estimate inputs `x_hat[i]` (the first variables of every controller).
+pub fn start_table(config: &Config) -> Result<(VariantDefaults, VariableTable, Block), Cause> {
+    let defaults = variant_defaults(config)?;
+    let mut table = VariableTable::new();
+    let x_hat = add_estimated_state(&mut table, defaults.preset, defaults.states());
+    Ok((defaults, table, x_hat))
+}
+
+/// The design parameters every controller has: the desired poles
+/// `pole_re[i] + j·pole_im[i]` and the input limits `u_min`, `u_max`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DesignBlocks {
+    /// Parameter `pole_re[i]`.
+    pub pole_re: Block,
+    /// Parameter `pole_im[i]`.
+    pub pole_im: Block,
+    /// Parameter `u_min`.
+    pub u_min: usize,
+    /// Parameter `u_max`.
+    pub u_max: usize,
+}
+
+impl DesignBlocks {
+    /// Adds `pole_re[i]`, `pole_im[i]` (with the variant's default poles), then `u_min`,
+    /// `u_max`.
+    pub fn add(table: &mut VariableTable, defaults: &VariantDefaults) -> Self {
+        let (pole_re, pole_im) = add_pole_parameters(table, defaults);
+        let (u_min, u_max) = add_limit_parameters(table, defaults.preset);
+        Self {
+            pole_re,
+            pole_im,
+            u_min,
+            u_max,
+        }
+    }
+
+    /// The desired poles `pole_re[i] + j·pole_im[i]`.
+    pub fn poles(&self, values: &Values) -> Vec<Complex<f64>> {
+        self.pole_re
+            .indices()
+            .zip(self.pole_im.indices())
+            .map(|(r, i)| Complex::new(values.real(r), values.real(i)))
+            .collect()
+    }
+
+    /// The input limits `[u_min, u_max]`, checked.
+    pub fn limits(&self, values: &Values) -> Result<InputLimits, ParameterError> {
+        InputLimits::new(values.real(self.u_min), values.real(self.u_max))
+    }
+}
+
 /// Adds `pole_re[i]`, `pole_im[i]` with the defaults; returns their blocks.
-pub fn add_pole_parameters(
-    table: &mut VariableTable,
-    defaults: &VariantDefaults,
-) -> (Block, Block) {
+fn add_pole_parameters(table: &mut VariableTable, defaults: &VariantDefaults) -> (Block, Block) {
     let origin = |i: usize| match defaults.preset {
         Preset::Crane => CRANE_CONTINUOUS_POLES.get(i).map_or(String::new(), |s| {
             format!(
@@ -206,7 +256,7 @@ pub fn add_pole_parameters(
 }
 
 /// Adds `u_min`, `u_max`; returns their indices.
-pub fn add_limit_parameters(table: &mut VariableTable, preset: Preset) -> (usize, usize) {
+fn add_limit_parameters(table: &mut VariableTable, preset: Preset) -> (usize, usize) {
     let unit = input_unit(preset);
     let u_min = table.add(with_unit(
         Variable::parameter("u_min", -DEFAULT_INPUT_LIMIT)
@@ -219,14 +269,6 @@ pub fn add_limit_parameters(table: &mut VariableTable, preset: Preset) -> (usize
         unit,
     ));
     (u_min, u_max)
-}
-
-/// The desired poles `pole_re[i] + j·pole_im[i]`.
-pub fn read_poles(values: &Values, re: &Block, im: &Block) -> Vec<Complex<f64>> {
-    re.indices()
-        .zip(im.indices())
-        .map(|(r, i)| Complex::new(values.real(r), values.real(i)))
-        .collect()
 }
 
 /// The FMU parameters a pole-placement error is about, and why.

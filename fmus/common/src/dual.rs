@@ -21,19 +21,18 @@
 //! `fix_output_matrices` (C and D known: their rows of Θ never change; default true, which
 //! removes the similarity-transform ambiguity of identifying from outputs).
 
-use crate::estimator::{error, read_inputs, write_matrix_view, DynamicState, Estimator};
+use crate::estimator::{error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered};
 use crate::kalman::{
     add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
 };
 use crate::structured::{add_matrix, add_vector, Block};
-use nalgebra::DVector;
 use spurio::estimation::{
-    DkfRsKf, DualKalmanConfig, DualKalmanFilter, EstimationError, RobustKalmanFilter,
-    StateEstimator,
+    DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel, RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
+use std::marker::PhantomData;
 
 /// Value references of the cleaner's parameters (DkfRsKf).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -229,8 +228,7 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     let q_theta = scalar(values, layout.q_theta, "q_theta", false)?;
     let p0_theta = scalar(values, layout.p0_theta, "p0_theta", false)?;
     let r_theta = scalar(values, layout.r_theta, "r_theta", true)?;
-    let mm = layout.model.read(values);
-    let mut config = DualKalmanConfig::new(mm.a, mm.b, mm.c, mm.d, mm.q, mm.r, mm.x0, mm.p0);
+    let mut config = DualKalmanConfig::new(layout.model.read(values));
     config.parameter_q.fill(q_theta);
     config.parameter_p0.fill(p0_theta);
     config.parameter_r.fill(r_theta);
@@ -300,14 +298,16 @@ impl DualFilter for DkfRsKf {
         let eye = nalgebra::DMatrix::<f64>::identity(p_out, p_out);
         let start = dual.c() * dual.state();
         let cleaner = RobustKalmanFilter::new(
-            eye.clone(),
-            nalgebra::DMatrix::zeros(p_out, 0),
-            eye.clone(),
-            nalgebra::DMatrix::zeros(p_out, 0),
-            &eye * q,
-            &eye * r,
-            start,
-            &eye * p0,
+            GaussianModel {
+                a: eye.clone(),
+                b: nalgebra::DMatrix::zeros(p_out, 0),
+                c: eye.clone(),
+                d: nalgebra::DMatrix::zeros(p_out, 0),
+                q: &eye * q,
+                r: &eye * r,
+                x0: start,
+                p0: &eye * p0,
+            },
             psi,
         )
         .map_err(error)?;
@@ -329,61 +329,45 @@ impl DualFilter for DkfRsKf {
     }
 }
 
-/// The one adapter of the dual filters (DKF, DKF-rsKF) and its input buffers.
+/// The family of the dual filters (DKF, DKF-rsKF) behind the one [`Filtered`] adapter.
 #[derive(Debug, Clone)]
-pub struct Dual<F: DualFilter> {
-    filter: F,
-    u: DVector<f64>,
-    y: DVector<f64>,
-}
+pub struct Dual<F: DualFilter>(PhantomData<F>);
 
-impl<F: DualFilter> Estimator for Dual<F> {
+impl<F: DualFilter> FilterFamily for Dual<F> {
+    type Filter = F;
     type Layout = DualLayout;
     fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), Cause> {
         interface(config, F::CLEANED)
     }
 
-    fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure> {
-        Ok(Self {
-            filter: F::build(layout, values)?,
-            u: DVector::zeros(layout.dims.m),
-            y: DVector::zeros(layout.dims.p),
-        })
+    fn build(layout: &DualLayout, values: &Values) -> Result<F, Failure> {
+        F::build(layout, values)
     }
 
-    fn write_initial(&self, layout: &DualLayout, ctx: &mut Context) {
-        write_initial_dual(layout, ctx, self.filter.dual());
+    fn inputs(layout: &DualLayout) -> (&Block, &Block) {
+        (&layout.u, &layout.y)
+    }
+
+    fn write_initial(filter: &F, layout: &DualLayout, ctx: &mut Context) {
+        write_initial_dual(layout, ctx, filter.dual());
         if let Some(c) = &layout.cleaner {
-            self.filter.write_cleaner(c, ctx.values, true);
+            filter.write_cleaner(c, ctx.values, true);
         }
     }
 
-    fn step(&mut self, l: &DualLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
-        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
-        self.filter.step(&self.u, &self.y).map_err(error)?;
-        write_dual_outputs(l, ctx.values, self.filter.dual());
-        l.y_hat.write_vector(ctx.values, self.filter.output());
+    fn write_outputs(filter: &F, l: &DualLayout, values: &mut Values) {
+        write_dual_outputs(l, values, filter.dual());
+        l.y_hat.write_vector(values, filter.output());
         if let Some(c) = &l.cleaner {
-            self.filter.write_cleaner(c, ctx.values, false);
+            filter.write_cleaner(c, values, false);
         }
-        Ok(())
-    }
-}
-
-impl<F: DualFilter> DynamicState for Dual<F> {
-    fn dynamic_state(&self) -> Vec<f64> {
-        StateEstimator::dynamic_state(&self.filter)
-    }
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        StateEstimator::set_dynamic_state(&mut self.filter, state)
     }
 }
 
 /// `DualKalmanFilter.fmu`.
-pub type DualKalmanFilterFmu = crate::estimator::EstimatorFmu<Dual<DualKalmanFilter>>;
+pub type DualKalmanFilterFmu = EstimatorFmu<Filtered<Dual<DualKalmanFilter>>>;
 /// `DkfRsKf.fmu`.
-pub type DkfRsKfFmu = crate::estimator::EstimatorFmu<Dual<DkfRsKf>>;
+pub type DkfRsKfFmu = EstimatorFmu<Filtered<Dual<DkfRsKf>>>;
 
 #[cfg(test)]
 mod tests {
@@ -453,12 +437,6 @@ mod tests {
         let q = info.index_of("Q[1,2]").unwrap() as u32;
         h.set_real(&[q], &[0.5]).unwrap();
         assert!(h.initialize(0.0).is_err());
-        assert!(
-            h.log()
-                .iter()
-                .any(|(_, _, t)| t.contains("parameter `Q`") && t.contains("symmetric")),
-            "{:?}",
-            h.log()
-        );
+        assert!(h.logged(&["parameter `Q`", "symmetric"]), "{:?}", h.log());
     }
 }

@@ -17,15 +17,17 @@
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
-use crate::estimator::{count, error, leading_identity, read_inputs, DynamicState, Estimator};
+use crate::estimator::{count, error, leading_identity, EstimatorFmu, FilterFamily, Filtered};
 use crate::structured::{add_matrix, add_vector, Block};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use spurio::estimation::{
-    EstimationError, InfluenceFunction, KalmanFilter, RobustKalmanFilter, StateEstimator,
+    EstimationError, GaussianModel, InfluenceFunction, KalmanFilter, RobustKalmanFilter,
+    StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
+use std::marker::PhantomData;
 
 /// Dimensions of a linear-Gaussian estimator variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -68,19 +70,6 @@ pub struct ModelBlocks {
     pub r: Block,
     pub p0: Block,
     pub x0: Block,
-}
-
-/// The model matrices as read from the parameters.
-#[derive(Debug, Clone)]
-pub struct ModelMatrices {
-    pub a: DMatrix<f64>,
-    pub b: DMatrix<f64>,
-    pub c: DMatrix<f64>,
-    pub d: DMatrix<f64>,
-    pub q: DMatrix<f64>,
-    pub r: DMatrix<f64>,
-    pub p0: DMatrix<f64>,
-    pub x0: DVector<f64>,
 }
 
 impl ModelBlocks {
@@ -134,8 +123,8 @@ impl ModelBlocks {
     }
 
     /// Reads the matrices.
-    pub fn read(&self, values: &Values) -> ModelMatrices {
-        ModelMatrices {
+    pub fn read(&self, values: &Values) -> GaussianModel {
+        GaussianModel {
             a: self.a.matrix(values),
             b: self.b.matrix(values),
             c: self.c.matrix(values),
@@ -313,7 +302,7 @@ pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
     const ROBUST: bool;
     /// The filter for the model `m`.
-    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError>;
+    fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError>;
     /// The last step's weights `w_j` (robust filter only).
     fn weights(&self) -> Option<&DVector<f64>> {
         None
@@ -322,80 +311,62 @@ pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
 
 impl LinearFilter for KalmanFilter {
     const ROBUST: bool = false;
-    fn from_model(m: ModelMatrices, _: InfluenceFunction) -> Result<Self, EstimationError> {
-        KalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0)
+    fn from_model(m: GaussianModel, _: InfluenceFunction) -> Result<Self, EstimationError> {
+        KalmanFilter::new(m)
     }
 }
 
 impl LinearFilter for RobustKalmanFilter {
     const ROBUST: bool = true;
-    fn from_model(m: ModelMatrices, psi: InfluenceFunction) -> Result<Self, EstimationError> {
-        RobustKalmanFilter::new(m.a, m.b, m.c, m.d, m.q, m.r, m.x0, m.p0, psi)
+    fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError> {
+        RobustKalmanFilter::new(m, psi)
     }
     fn weights(&self) -> Option<&DVector<f64>> {
         Some(RobustKalmanFilter::weights(self))
     }
 }
 
-/// The one adapter of the linear-model filters (sKF, rsKF) and its input buffers.
+/// The family of the linear-model filters (sKF, rsKF) behind the one [`Filtered`] adapter.
 #[derive(Debug, Clone)]
-pub struct Linear<F: LinearFilter> {
-    filter: F,
-    u: DVector<f64>,
-    y: DVector<f64>,
-}
+pub struct Linear<F: LinearFilter>(PhantomData<F>);
 
-impl<F: LinearFilter> Estimator for Linear<F> {
+impl<F: LinearFilter> FilterFamily for Linear<F> {
+    type Filter = F;
     type Layout = LinearLayout;
     fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
         interface(config, F::ROBUST)
     }
 
-    fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
+    fn build(layout: &LinearLayout, values: &Values) -> Result<F, Failure> {
         let psi = match layout.psi {
             Some(indices) => read_influence(values, indices)?,
             None => InfluenceFunction::default(),
         };
-        let filter = F::from_model(layout.model.read(values), psi).map_err(error)?;
-        Ok(Self {
-            filter,
-            u: DVector::zeros(layout.dims.m),
-            y: DVector::zeros(layout.dims.p),
-        })
+        F::from_model(layout.model.read(values), psi).map_err(error)
     }
 
-    fn write_initial(&self, layout: &LinearLayout, ctx: &mut Context) {
+    fn inputs(layout: &LinearLayout) -> (&Block, &Block) {
+        (&layout.u, &layout.y)
+    }
+
+    fn write_initial(_: &F, layout: &LinearLayout, ctx: &mut Context) {
         write_initial_linear(layout, ctx);
     }
 
-    fn step(&mut self, l: &LinearLayout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        read_inputs(ctx.values, &l.u, "u", &mut self.u)?;
-        read_inputs(ctx.values, &l.y, "y", &mut self.y)?;
-        self.filter.step(&self.u, &self.y).map_err(error)?;
-        l.x_hat.write_vector(ctx.values, self.filter.state());
-        l.y_hat.write_vector(ctx.values, self.filter.output());
-        l.innovation
-            .write_vector(ctx.values, self.filter.innovation());
-        if let (Some(w), Some(weights)) = (&l.w, self.filter.weights()) {
-            w.write_vector(ctx.values, weights);
+    fn write_outputs(filter: &F, l: &LinearLayout, values: &mut Values) {
+        l.x_hat.write_vector(values, filter.state());
+        l.y_hat.write_vector(values, filter.output());
+        l.innovation.write_vector(values, filter.innovation());
+        if let (Some(w), Some(weights)) = (&l.w, filter.weights()) {
+            w.write_vector(values, weights);
         }
-        Ok(())
-    }
-}
-
-impl<F: LinearFilter> DynamicState for Linear<F> {
-    fn dynamic_state(&self) -> Vec<f64> {
-        StateEstimator::dynamic_state(&self.filter)
-    }
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        StateEstimator::set_dynamic_state(&mut self.filter, state)
     }
 }
 
 /// `KalmanFilter.fmu`.
-pub type KalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<KalmanFilter>>;
+pub type KalmanFilterFmu = EstimatorFmu<Filtered<Linear<KalmanFilter>>>;
 /// `RobustKalmanFilter.fmu`.
-pub type RobustKalmanFilterFmu = crate::estimator::EstimatorFmu<Linear<RobustKalmanFilter>>;
+pub type RobustKalmanFilterFmu = EstimatorFmu<Filtered<Linear<RobustKalmanFilter>>>;
 
 /// The configuration of a variant of dimensions n, m, p.
 pub fn dims_config(n: usize, m: usize, p: usize) -> Config {

@@ -66,6 +66,15 @@ impl<M: FmuModel> Harness<M> {
         self.log.0.borrow().clone()
     }
 
+    /// Whether a message logged so far contains every one of `words`.
+    pub fn logged(&self, words: &[&str]) -> bool {
+        self.log
+            .0
+            .borrow()
+            .iter()
+            .any(|(_, _, text)| words.iter().all(|w| text.contains(w)))
+    }
+
     /// `fmi2SetupExperiment` + `fmi2EnterInitializationMode` + `fmi2ExitInitializationMode`.
     pub fn initialize(&mut self, start_time: f64) -> Result<Status, Status> {
         // SAFETY: `component` is a live component created by `into_component`.
@@ -128,6 +137,21 @@ impl<M: FmuModel> Harness<M> {
         // SAFETY: live component.
         status(unsafe { ffi::do_step::<M>(self.component, time, step, fmi2True) })
     }
+
+    /// One communication step as a master takes it: `fmi2SetReal` of `values` into `inputs`,
+    /// `fmi2DoStep(time, step)`, `fmi2GetReal` of `outputs` into `out`.
+    pub fn exchange(
+        &mut self,
+        inputs: &[u32],
+        values: &[f64],
+        (time, step): (f64, f64),
+        outputs: &[u32],
+        out: &mut [f64],
+    ) -> Result<Status, Status> {
+        self.set_real(inputs, values)?;
+        self.do_step(time, step)?;
+        self.get_real(outputs, out)
+    }
 }
 
 impl<M: FmuModel> Drop for Harness<M> {
@@ -137,14 +161,34 @@ impl<M: FmuModel> Drop for Harness<M> {
     }
 }
 
-/// For benchmarks: the median, first and third quartiles of the time per call (ns) of `call`
-/// over `batches` batches of `per_batch` calls, after `warm_up` calls (NaN without batches).
+/// For benchmarks: the median, first and third quartiles of a time per call (ns).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timing {
+    pub median: f64,
+    pub q1: f64,
+    pub q3: f64,
+}
+
+impl Timing {
+    /// `median 1.23 µs per {what} (IQR 1.20–1.30 µs)`.
+    pub fn summary(&self, what: &str) -> String {
+        format!(
+            "median {:.2} µs per {what} (IQR {:.2}–{:.2} µs)",
+            self.median / 1e3,
+            self.q1 / 1e3,
+            self.q3 / 1e3
+        )
+    }
+}
+
+/// For benchmarks: the [`Timing`] of `call` over `batches` batches of `per_batch` calls, after
+/// `warm_up` calls (NaN without batches).
 pub fn time_per_call(
     warm_up: usize,
     batches: usize,
     per_batch: usize,
     mut call: impl FnMut(),
-) -> (f64, f64, f64) {
+) -> Timing {
     for _ in 0..warm_up {
         call();
     }
@@ -165,5 +209,9 @@ pub fn time_per_call(
             .copied()
             .unwrap_or(f64::NAN)
     };
-    (q(0.5), q(0.25), q(0.75))
+    Timing {
+        median: q(0.5),
+        q1: q(0.25),
+        q3: q(0.75),
+    }
 }
