@@ -3,20 +3,12 @@
 //! the temporary folder it is pointed at and leaves that folder empty; `spurio run` on a
 //! system using such an FMU exits with 1 and the message (never Rust's panic exit 101).
 
+mod common;
+
+use common::{crane, rewrite};
 use spurio_master::fmu::{FmuFile, LoadError, LoadLimits, LoadOptions};
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn fmus() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
-    assert!(
-        dir.join("GantryCrane.fmu").is_file(),
-        "{} has no FMUs: run scripts/build-fmus first",
-        dir.display()
-    );
-    dir
-}
 
 /// A fresh folder for one case: the bad FMU goes in it, `tmp/` is the loader's temp folder.
 struct Case {
@@ -54,6 +46,18 @@ impl Case {
         };
         self.assert_clean(expected);
         e
+    }
+
+    /// Writes `bytes` as the FMU `name` in the case folder and loads it with `options`,
+    /// expecting a refusal (see [`Case::refuse`]) whose message names the FMU; returns the
+    /// error and its message.
+    fn refuse_bytes(&self, name: &str, bytes: &[u8], options: &LoadOptions) -> (LoadError, String) {
+        let fmu = self.fmu(name);
+        std::fs::write(&fmu, bytes).unwrap();
+        let e = self.refuse(&fmu, options, &[name]);
+        let text = e.to_string();
+        assert!(text.contains(name), "{text}");
+        (e, text)
     }
 
     fn assert_clean(&self, expected: &[&str]) {
@@ -116,43 +120,6 @@ fn spurio() -> PathBuf {
         bin.display()
     );
     bin
-}
-
-/// Bytes of a copy of `source` with each entry passed through `edit` (None drops it) and
-/// `extra` entries appended (name, data, Unix mode; a mode of 0o120777 writes a symlink).
-fn rewrite(
-    source: &Path,
-    edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
-    extra: &[(&str, &[u8], u32)],
-) -> Vec<u8> {
-    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
-    let mut out = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-    let options = zip::write::SimpleFileOptions::default();
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).unwrap();
-        let name = entry.name().unwrap().to_string();
-        let mut data = Vec::new();
-        entry.read_to_end(&mut data).unwrap();
-        if let Some(data) = edit(&name, data) {
-            out.start_file(name, options).unwrap();
-            out.write_all(&data).unwrap();
-        }
-    }
-    for (name, data, mode) in extra {
-        if *mode == 0o120_777 {
-            out.add_symlink(*name, std::str::from_utf8(data).unwrap(), options)
-                .unwrap();
-        } else {
-            out.start_file(*name, options.unix_permissions(*mode))
-                .unwrap();
-            out.write_all(data).unwrap();
-        }
-    }
-    out.finish().unwrap().into_inner()
-}
-
-fn crane() -> PathBuf {
-    fmus().join("GantryCrane.fmu")
 }
 
 const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
@@ -245,13 +212,9 @@ fn entries_that_are_not_plain_files_or_folders_are_refused() {
         &[("resources/pipe", b"", 0o100_644)],
     );
     let bytes = set_unix_mode(bytes, "resources/pipe", 0o010_644);
-    let fmu = case.fmu("Fifo.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Fifo.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("Fifo.fmu", &bytes, &case.options());
     assert!(
-        text.contains("Fifo.fmu")
-            && text.contains("`resources/pipe`")
+        text.contains("`resources/pipe`")
             && text.contains("not a plain file or folder (Unix mode 10644)"),
         "{text}"
     );
@@ -266,14 +229,8 @@ fn absolute_entries_are_refused_not_re_rooted() {
         |_, d| Some(d),
         &[(target.to_str().unwrap(), b"planted", 0o100_644)],
     );
-    let fmu = case.fmu("Absolute.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Absolute.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("Absolute.fmu") && text.contains("absolute path"),
-        "{text}"
-    );
+    let (_, text) = case.refuse_bytes("Absolute.fmu", &bytes, &case.options());
+    assert!(text.contains("absolute path"), "{text}");
 }
 
 #[test]
@@ -289,16 +246,13 @@ fn missing_entry_point_is_named_not_a_panic() {
         }),
         &[],
     );
-    let fmu = case.fmu("NoDoStep.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["NoDoStep.fmu"]);
+    let (e, text) = case.refuse_bytes("NoDoStep.fmu", &bytes, &case.options());
     match &e {
         LoadError::MissingFunctions { missing, .. } => assert_eq!(missing, &["fmi2DoStep"]),
         other => panic!("{other}"),
     }
-    let text = e.to_string();
     assert!(
-        text.contains("NoDoStep.fmu") && text.contains(LIBRARY) && text.contains("fmi2DoStep"),
+        text.contains(LIBRARY) && text.contains("fmi2DoStep"),
         "{text}"
     );
     let (code, stderr) = case.run_cli("NoDoStep.fmu");
@@ -322,14 +276,10 @@ fn library_for_another_architecture_is_named() {
         }),
         &[],
     );
-    let fmu = case.fmu("Arm.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Arm.fmu"]);
+    let (e, text) = case.refuse_bytes("Arm.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::WrongBinary { .. }), "{e}");
-    let text = e.to_string();
     assert!(
-        text.contains("Arm.fmu")
-            && text.contains("is an ELF shared library for aarch64 (64-bit)")
+        text.contains("is an ELF shared library for aarch64 (64-bit)")
             && text.contains(&format!(
                 "needs an ELF shared library for {}",
                 std::env::consts::ARCH
@@ -351,12 +301,9 @@ fn file_that_is_not_a_library_is_named() {
         edit_library(|_| b"this is not a shared library\n".to_vec()),
         &[],
     );
-    let fmu = case.fmu("Text.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Text.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("Text.fmu", &bytes, &case.options());
     assert!(
-        text.contains("Text.fmu") && text.contains("is a text file, not a shared library"),
+        text.contains("is a text file, not a shared library"),
         "{text}"
     );
 }
@@ -384,11 +331,8 @@ fn damaged_zip_is_not_a_valid_fmu_archive() {
 fn refuse_xml(case_name: &str, edit: impl Fn(String) -> String) -> String {
     let case = Case::new(case_name);
     let bytes = rewrite(&crane(), edit_xml(edit), &[]);
-    let fmu = case.fmu("Bad.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Bad.fmu"]);
+    let (e, text) = case.refuse_bytes("Bad.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
-    let text = e.to_string();
     assert!(text.contains("Bad.fmu: modelDescription.xml"), "{text}");
     text
 }
@@ -518,18 +462,12 @@ fn a_zip_bomb_stops_at_the_declared_size_limit() {
         &[("resources/bomb.bin", &zeros, 0o100_644)],
     );
     assert!(bytes.len() < 1 << 20, "the bomb compresses");
-    let fmu = case.fmu("Bomb.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
-    let e = case.refuse(&fmu, &options, &["Bomb.fmu"]);
+    let (e, text) = case.refuse_bytes("Bomb.fmu", &bytes, &options);
     assert!(matches!(e, LoadError::TooLarge { .. }), "{e}");
-    let text = e.to_string();
     assert!(
-        text.contains("Bomb.fmu")
-            && text.contains(
-                "declare more than 4194304 bytes unpacked (reached at `resources/bomb.bin`)"
-            )
+        text.contains("declare more than 4194304 bytes unpacked (reached at `resources/bomb.bin`)")
             && text.contains("at most 4194304 bytes (max_unpacked)"),
         "{text}"
     );
@@ -545,16 +483,10 @@ fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
         &[("resources/bomb.bin", &zeros, 0o100_644)],
     );
     let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
-    let fmu = case.fmu("Liar.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
-    let e = case.refuse(&fmu, &options, &["Liar.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("Liar.fmu") && text.contains("resources/bomb.bin"),
-        "{text}"
-    );
+    let (e, text) = case.refuse_bytes("Liar.fmu", &bytes, &options);
+    assert!(text.contains("resources/bomb.bin"), "{text}");
     // Either the count while inflating stops it at the limit, or the zip reader itself
     // refuses data beyond the declared size: never 8 MiB on disk.
     assert!(
@@ -576,12 +508,9 @@ fn an_oversized_model_description_is_refused_before_parsing() {
         }),
         &[],
     );
-    let fmu = case.fmu("BigXml.fmu");
-    std::fs::write(&fmu, &bytes).unwrap();
     let mut options = case.options();
     options.limits.max_model_description = 64 << 10;
-    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("BigXml.fmu", &bytes, &options);
     assert!(
         text.contains("BigXml.fmu: modelDescription.xml declares")
             && text.contains("at most 65536 bytes (max_model_description)"),
@@ -589,14 +518,12 @@ fn an_oversized_model_description_is_refused_before_parsing() {
     );
     // The same archive with its declared size forged small is stopped while inflating.
     let case = Case::new("bigxml-lying");
-    let fmu = case.fmu("BigXml.fmu");
-    std::fs::write(&fmu, lie_about_size(bytes, "modelDescription.xml", 100)).unwrap();
-    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("BigXml.fmu") && text.contains("modelDescription.xml"),
-        "{text}"
+    let (_, text) = case.refuse_bytes(
+        "BigXml.fmu",
+        &lie_about_size(bytes, "modelDescription.xml", 100),
+        &options,
     );
+    assert!(text.contains("modelDescription.xml"), "{text}");
 }
 
 #[test]
@@ -608,12 +535,9 @@ fn too_many_entries_are_refused() {
         .map(|n| (n.as_str(), b"x".as_slice(), 0o100_644))
         .collect();
     let bytes = rewrite(&crane(), |_, d| Some(d), &extra);
-    let fmu = case.fmu("Many.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_entries = 10;
-    let e = case.refuse(&fmu, &options, &["Many.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("Many.fmu", &bytes, &options);
     assert!(
         text.contains("Many.fmu: the archive has 23 entries")
             && text.contains("at most 10 entries (max_entries)"),
