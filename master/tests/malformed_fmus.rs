@@ -124,18 +124,30 @@ fn spurio() -> PathBuf {
 
 const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
 
-fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| {
-        if name == "modelDescription.xml" {
-            Some(f(String::from_utf8(data).unwrap()).into_bytes())
+/// GantryCrane.fmu's bytes with the text of its model description passed through `f`.
+fn crane_with_xml(f: impl Fn(String) -> String) -> Vec<u8> {
+    let edit = |name: &str, data: Vec<u8>| {
+        Some(if name == "modelDescription.xml" {
+            f(String::from_utf8(data).unwrap()).into_bytes()
         } else {
-            Some(data)
-        }
-    }
+            data
+        })
+    };
+    rewrite(&crane(), edit, &[])
 }
 
-fn edit_library(f: impl Fn(Vec<u8>) -> Vec<u8>) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| Some(if name == LIBRARY { f(data) } else { data })
+/// GantryCrane.fmu's bytes with its Linux library passed through `f`.
+fn crane_with_library(f: impl Fn(Vec<u8>) -> Vec<u8>) -> Vec<u8> {
+    rewrite(
+        &crane(),
+        |name, data| Some(if name == LIBRARY { f(data) } else { data }),
+        &[],
+    )
+}
+
+/// GantryCrane.fmu's bytes with `extra` entries appended (see [`rewrite`]).
+fn crane_with_entries(extra: &[(&str, &[u8], u32)]) -> Vec<u8> {
+    rewrite(&crane(), |_, data| Some(data), extra)
 }
 
 fn replace_all(data: &[u8], from: &[u8], to: &[u8]) -> (Vec<u8>, usize) {
@@ -206,11 +218,7 @@ fn symlink_to_a_library_outside_the_archive_is_refused() {
 fn entries_that_are_not_plain_files_or_folders_are_refused() {
     let case = Case::new("fifo");
     // A named pipe (S_IFIFO).
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/pipe", b"", 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/pipe", b"", 0o100_644)]);
     let bytes = set_unix_mode(bytes, "resources/pipe", 0o010_644);
     let (_, text) = case.refuse_bytes("Fifo.fmu", &bytes, &case.options());
     assert!(
@@ -224,11 +232,7 @@ fn entries_that_are_not_plain_files_or_folders_are_refused() {
 fn absolute_entries_are_refused_not_re_rooted() {
     let case = Case::new("absolute");
     let target = case.dir.join("planted.txt");
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[(target.to_str().unwrap(), b"planted", 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[(target.to_str().unwrap(), b"planted", 0o100_644)]);
     let (_, text) = case.refuse_bytes("Absolute.fmu", &bytes, &case.options());
     assert!(text.contains("absolute path"), "{text}");
 }
@@ -236,16 +240,12 @@ fn absolute_entries_are_refused_not_re_rooted() {
 #[test]
 fn missing_entry_point_is_named_not_a_panic() {
     let case = Case::new("entry");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|lib| {
-            // Rename the exported symbol in the dynamic string table (same length).
-            let (lib, n) = replace_all(&lib, b"\0fmi2DoStep\0", b"\0fmi2DoStoq\0");
-            assert!(n >= 1, "fmi2DoStep not found in the library");
-            lib
-        }),
-        &[],
-    );
+    let bytes = crane_with_library(|lib| {
+        // Rename the exported symbol in the dynamic string table (same length).
+        let (lib, n) = replace_all(&lib, b"\0fmi2DoStep\0", b"\0fmi2DoStoq\0");
+        assert!(n >= 1, "fmi2DoStep not found in the library");
+        lib
+    });
     let (e, text) = case.refuse_bytes("NoDoStep.fmu", &bytes, &case.options());
     match &e {
         LoadError::MissingFunctions { missing, .. } => assert_eq!(missing, &["fmi2DoStep"]),
@@ -267,15 +267,11 @@ fn missing_entry_point_is_named_not_a_panic() {
 #[test]
 fn library_for_another_architecture_is_named() {
     let case = Case::new("arch");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|mut lib| {
-            // e_machine (ELF header offset 18, little-endian): 183 = AArch64.
-            lib[18..20].copy_from_slice(&183u16.to_le_bytes());
-            lib
-        }),
-        &[],
-    );
+    let bytes = crane_with_library(|mut lib| {
+        // e_machine (ELF header offset 18, little-endian): 183 = AArch64.
+        lib[18..20].copy_from_slice(&183u16.to_le_bytes());
+        lib
+    });
     let (e, text) = case.refuse_bytes("Arm.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::WrongBinary { .. }), "{e}");
     assert!(
@@ -296,11 +292,7 @@ fn library_for_another_architecture_is_named() {
 #[test]
 fn file_that_is_not_a_library_is_named() {
     let case = Case::new("notelf");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|_| b"this is not a shared library\n".to_vec()),
-        &[],
-    );
+    let bytes = crane_with_library(|_| b"this is not a shared library\n".to_vec());
     let (_, text) = case.refuse_bytes("Text.fmu", &bytes, &case.options());
     assert!(
         text.contains("is a text file, not a shared library"),
@@ -330,7 +322,7 @@ fn damaged_zip_is_not_a_valid_fmu_archive() {
 
 fn refuse_xml(case_name: &str, edit: impl Fn(String) -> String) -> String {
     let case = Case::new(case_name);
-    let bytes = rewrite(&crane(), edit_xml(edit), &[]);
+    let bytes = crane_with_xml(edit);
     let (e, text) = case.refuse_bytes("Bad.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
     assert!(text.contains("Bad.fmu: modelDescription.xml"), "{text}");
@@ -367,16 +359,12 @@ fn two_parameters_on_one_value_reference_are_refused() {
 fn an_output_aliasing_another_output_is_accepted() {
     // `theta` (vr 2) as an alias of `x` (vr 1): same base type, no start values: allowed.
     let case = Case::new("alias-ok");
-    let bytes = rewrite(
-        &crane(),
-        edit_xml(|x| {
-            x.replace(
-                "name=\"theta\" valueReference=\"2\"",
-                "name=\"theta\" valueReference=\"1\"",
-            )
-        }),
-        &[],
-    );
+    let bytes = crane_with_xml(|x| {
+        x.replace(
+            "name=\"theta\" valueReference=\"2\"",
+            "name=\"theta\" valueReference=\"1\"",
+        )
+    });
     let fmu = case.fmu("Alias.fmu");
     std::fs::write(&fmu, bytes).unwrap();
     let f = FmuFile::open_with(&fmu, &case.options()).unwrap();
@@ -456,11 +444,7 @@ fn lie_about_size(mut zip: Vec<u8>, name: &str, size: u32) -> Vec<u8> {
 fn a_zip_bomb_stops_at_the_declared_size_limit() {
     let case = Case::new("bomb-declared");
     let zeros = vec![0u8; 8 << 20];
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/bomb.bin", &zeros, 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
     assert!(bytes.len() < 1 << 20, "the bomb compresses");
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
@@ -477,11 +461,7 @@ fn a_zip_bomb_stops_at_the_declared_size_limit() {
 fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
     let case = Case::new("bomb-lying");
     let zeros = vec![0u8; 8 << 20];
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/bomb.bin", &zeros, 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
     let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
@@ -498,16 +478,12 @@ fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
 #[test]
 fn an_oversized_model_description_is_refused_before_parsing() {
     let case = Case::new("bigxml");
-    let bytes = rewrite(
-        &crane(),
-        edit_xml(|x| {
-            x.replace(
-                "</fmiModelDescription>",
-                &format!("<!--{}--></fmiModelDescription>", " ".repeat(1 << 20)),
-            )
-        }),
-        &[],
-    );
+    let bytes = crane_with_xml(|x| {
+        x.replace(
+            "</fmiModelDescription>",
+            &format!("<!--{}--></fmiModelDescription>", " ".repeat(1 << 20)),
+        )
+    });
     let mut options = case.options();
     options.limits.max_model_description = 64 << 10;
     let (_, text) = case.refuse_bytes("BigXml.fmu", &bytes, &options);
@@ -534,7 +510,7 @@ fn too_many_entries_are_refused() {
         .iter()
         .map(|n| (n.as_str(), b"x".as_slice(), 0o100_644))
         .collect();
-    let bytes = rewrite(&crane(), |_, d| Some(d), &extra);
+    let bytes = crane_with_entries(&extra);
     let mut options = case.options();
     options.limits.max_entries = 10;
     let (_, text) = case.refuse_bytes("Many.fmu", &bytes, &options);
