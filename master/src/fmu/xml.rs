@@ -2,6 +2,7 @@
 //! `ModelStructure` as written (so indices can be checked and an absent `dependencies` told
 //! from an empty one), each variable's unit and whether it declares a start value.
 
+use crate::xml::{tags, Tag};
 use std::collections::HashMap;
 
 /// One `<Unknown>` of `ModelStructure`, as written.
@@ -17,21 +18,19 @@ pub(super) struct Unknown {
 
 /// Every `<Unknown>` of `ModelStructure`, in file order.
 pub(super) fn model_structure(xml: &str) -> Result<Vec<Unknown>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let mut list: Option<&'static str> = None;
     let mut out = Vec::new();
-    loop {
-        match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => match e.name().as_ref() {
-                "Outputs" => list = Some("Outputs"),
-                "Derivatives" => list = Some("Derivatives"),
-                "InitialUnknowns" => list = Some("InitialUnknowns"),
+    for tag in tags(xml) {
+        match tag? {
+            // A self-closing list (`<Outputs/>`) holds nothing and has no end tag.
+            Tag::Start { element: e, empty } => match e.name().as_ref() {
+                "Outputs" if !empty => list = Some("Outputs"),
+                "Derivatives" if !empty => list = Some("Derivatives"),
+                "InitialUnknowns" if !empty => list = Some("InitialUnknowns"),
                 "Unknown" => out.extend(unknown(list, &e)),
                 _ => {}
             },
-            Event::Empty(e) if e.name().as_ref() == "Unknown" => out.extend(unknown(list, &e)),
-            Event::End(e)
+            Tag::End(e)
                 if matches!(
                     e.name().as_ref(),
                     "Outputs" | "Derivatives" | "InitialUnknowns"
@@ -39,8 +38,7 @@ pub(super) fn model_structure(xml: &str) -> Result<Vec<Unknown>, String> {
             {
                 list = None
             }
-            Event::Eof => break,
-            _ => {}
+            Tag::End(_) => {}
         }
     }
     Ok(out)
@@ -69,22 +67,17 @@ fn unknown(list: Option<&'static str>, e: &quick_xml::events::BytesStart) -> Opt
 
 /// For every `ScalarVariable`, in file order: whether its type element has a `start`.
 pub(super) fn variable_has_start(xml: &str) -> Result<Vec<bool>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let mut in_variable = false;
     let mut out = Vec::new();
-    loop {
-        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => (e, false),
-            Event::Empty(e) => (e, true),
-            Event::End(e) => {
+    for tag in tags(xml) {
+        let (e, empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            Tag::End(e) => {
                 if e.name().as_ref() == "ScalarVariable" {
                     in_variable = false;
                 }
                 continue;
             }
-            Event::Eof => break,
-            _ => continue,
         };
         match e.name().as_ref() {
             "ScalarVariable" => {
@@ -107,8 +100,6 @@ pub(super) fn variable_has_start(xml: &str) -> Result<Vec<bool>, String> {
 /// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
 /// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
 pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
         e.attributes()
             .flatten()
@@ -124,11 +115,10 @@ pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
     let mut in_variable = false;
     // (own unit, declared type) per variable.
     let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
-    loop {
-        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => (e.into_owned(), false),
-            Event::Empty(e) => (e.into_owned(), true),
-            Event::End(e) => {
+    for tag in tags(xml) {
+        let (e, empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            Tag::End(e) => {
                 match e.name().as_ref() {
                     "SimpleType" => simple_type = None,
                     "ScalarVariable" => in_variable = false,
@@ -136,8 +126,6 @@ pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
                 }
                 continue;
             }
-            Event::Eof => break,
-            _ => continue,
         };
         match e.name().as_ref() {
             "SimpleType" if !empty => simple_type = attribute(&e, "name"),
