@@ -243,8 +243,8 @@ impl FmuFile {
                 model: md.model_name.clone(),
             });
         };
-        let units = xml::variable_units(xml).map_err(|e| md_error(path, e))?;
-        let has_start = xml::variable_has_start(xml).map_err(|e| md_error(path, e))?;
+        let xml::VariableExtras { units, has_start } =
+            xml::variable_extras(xml).map_err(|e| md_error(path, e))?;
         let structure = xml::model_structure(xml).map_err(|e| md_error(path, e))?;
         let mut variables = Vec::with_capacity(md.model_variables.variables.len());
         let mut constant = Vec::with_capacity(md.model_variables.variables.len());

@@ -65,41 +65,17 @@ fn unknown(list: Option<&'static str>, e: &quick_xml::events::BytesStart) -> Opt
     })
 }
 
-/// For every `ScalarVariable`, in file order: whether its type element has a `start`.
-pub(super) fn variable_has_start(xml: &str) -> Result<Vec<bool>, String> {
-    let mut in_variable = false;
-    let mut out = Vec::new();
-    for tag in tags(xml) {
-        let (e, empty) = match tag? {
-            Tag::Start { element, empty } => (element, empty),
-            Tag::End(e) => {
-                if e.name().as_ref() == "ScalarVariable" {
-                    in_variable = false;
-                }
-                continue;
-            }
-        };
-        match e.name().as_ref() {
-            "ScalarVariable" => {
-                out.push(false);
-                in_variable = !empty;
-            }
-            "Real" | "Integer" | "Boolean" | "String" | "Enumeration"
-                if in_variable && e.attributes().flatten().any(|a| a.key.as_ref() == "start") =>
-            {
-                if let Some(last) = out.last_mut() {
-                    *last = true;
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(out)
+/// What rust-fmi's schema does not keep of the `ScalarVariable`s, each list in file order.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct VariableExtras {
+    /// The unit: the variable's own `unit` attribute, else that of its `declaredType`.
+    pub units: Vec<Option<String>>,
+    /// Whether its type element has a `start`.
+    pub has_start: Vec<bool>,
 }
 
-/// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
-/// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
-pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
+/// The units and start flags of every `ScalarVariable`, in one walk.
+pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
     let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
         e.attributes()
             .flatten()
@@ -115,44 +91,47 @@ pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
     let mut in_variable = false;
     // (own unit, declared type) per variable.
     let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
+    let mut has_start = Vec::new();
     for tag in tags(xml) {
-        let (e, empty) = match tag? {
-            Tag::Start { element, empty } => (element, empty),
-            Tag::End(e) => {
-                match e.name().as_ref() {
-                    "SimpleType" => simple_type = None,
-                    "ScalarVariable" => in_variable = false,
-                    _ => {}
+        match tag? {
+            Tag::End(e) => match e.name().as_ref() {
+                "SimpleType" => simple_type = None,
+                "ScalarVariable" => in_variable = false,
+                _ => {}
+            },
+            Tag::Start { element: e, empty } => match e.name().as_ref() {
+                "SimpleType" if !empty => simple_type = attribute(&e, "name"),
+                "ScalarVariable" => {
+                    declared.push((None, None));
+                    has_start.push(false);
+                    in_variable = !empty;
                 }
-                continue;
-            }
-        };
-        match e.name().as_ref() {
-            "SimpleType" if !empty => simple_type = attribute(&e, "name"),
-            "ScalarVariable" => {
-                declared.push((None, None));
-                in_variable = !empty;
-            }
-            "Real" | "Integer" | "Enumeration" => {
-                if let Some(name) = &simple_type {
-                    if let Some(unit) = attribute(&e, "unit") {
-                        type_units.insert(name.clone(), unit);
-                    }
-                } else if in_variable {
-                    if let Some(last) = declared.last_mut() {
-                        *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                kind @ ("Real" | "Integer" | "Boolean" | "String" | "Enumeration") => {
+                    let has_unit = matches!(kind, "Real" | "Integer" | "Enumeration");
+                    if let Some(name) = &simple_type {
+                        if let Some(unit) = attribute(&e, "unit").filter(|_| has_unit) {
+                            type_units.insert(name.clone(), unit);
+                        }
+                    } else if in_variable {
+                        if let Some(last) = declared.last_mut().filter(|_| has_unit) {
+                            *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                        }
+                        if let Some(last) = has_start.last_mut() {
+                            *last |= e.attributes().flatten().any(|a| a.key.as_ref() == "start");
+                        }
                     }
                 }
-            }
-            _ => {}
+                _ => {}
+            },
         }
     }
-    Ok(declared
+    let units = declared
         .into_iter()
         .map(|(unit, declared_type)| {
             unit.or_else(|| declared_type.and_then(|t| type_units.get(&t).cloned()))
         })
-        .collect())
+        .collect();
+    Ok(VariableExtras { units, has_start })
 }
 
 #[cfg(test)]
@@ -196,7 +175,7 @@ mod tests {
             <ScalarVariable name="d" valueReference="0"><Enumeration declaredType="E"/></ScalarVariable>
         </ModelVariables></m>"#;
         assert_eq!(
-            variable_has_start(xml).unwrap(),
+            variable_extras(xml).unwrap().has_start,
             vec![true, false, true, false]
         );
     }
@@ -214,7 +193,7 @@ mod tests {
               <ScalarVariable name="v" valueReference="3"><Real unit="m/s"/></ScalarVariable>
             </ModelVariables></fmiModelDescription>"#;
         assert_eq!(
-            variable_units(xml).unwrap(),
+            variable_extras(xml).unwrap().units,
             vec![Some("m".into()), Some("N".into()), None, Some("m/s".into())]
         );
     }
