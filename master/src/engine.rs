@@ -471,14 +471,7 @@ impl Simulation {
                         },
                     )
                     .unwrap_or_default();
-                self.read_outputs(0, end)?;
-                self.propagate(self.steps, true)?;
-                self.record(observer, end)?;
-                if let Some(bar) = progress {
-                    bar.finish_and_clear();
-                }
-                observer.finish()?;
-                self.end_time = end;
+                self.finish(observer, progress, end, end)?;
                 return Ok(RunEnd::Terminated {
                     instance,
                     time: end,
@@ -495,18 +488,31 @@ impl Simulation {
                 bar.inc(1);
             }
         }
-        let end = self.start_time + self.steps as f64 * self.step_size;
+        let last = self.start_time + self.steps as f64 * self.step_size;
         // Every instance's last step ends at the stop time.
-        self.read_outputs(0, end)?;
+        let end = last.min(self.stop_time);
+        self.finish(observer, progress, last, end)?;
+        Ok(RunEnd::StopTime { time: end })
+    }
+
+    /// Ends a run: every output read at `read_time` and propagated, recorded as the last
+    /// point at `end`; the progress bar cleared, the observer finished.
+    fn finish(
+        &mut self,
+        observer: &mut dyn Observer,
+        progress: Option<indicatif::ProgressBar>,
+        read_time: f64,
+        end: f64,
+    ) -> Result<(), RunError> {
+        self.read_outputs(0, read_time)?;
         self.propagate(self.steps, true)?;
-        let end = end.min(self.stop_time);
         self.record(observer, end)?;
         if let Some(bar) = progress {
             bar.finish_and_clear();
         }
         observer.finish()?;
         self.end_time = end;
-        Ok(RunEnd::StopTime { time: end })
+        Ok(())
     }
 
     /// `fmi2DoStep` on every member due at base step `k`: every failure is reported at once;

@@ -587,45 +587,6 @@ fn failed_message(failed: &[FailedRun]) -> String {
     s
 }
 
-/// The runs of a whole sweep, merged from its shards in run-index order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MergedSweep {
-    pub sweep: SweepIdentity,
-    pub shards: usize,
-    pub parameters: Vec<String>,
-    pub metrics: Vec<String>,
-    pub runs: Vec<RunRecord>,
-}
-
-impl MergedSweep {
-    /// The [`SweepResult`] of the runs (its `table()` is the one-machine sweep's table), or
-    /// the list of failed runs: like the one-machine sweep, a sweep with a failed run has no
-    /// table.
-    pub fn result(&self) -> Result<SweepResult, MergeError> {
-        let failed = failed_runs(&self.runs, self.runs.len(), self.shards);
-        if !failed.is_empty() {
-            return Err(MergeError::FailedRuns { failed });
-        }
-        Ok(SweepResult {
-            metrics: parse_metrics(&self.metrics)?,
-            runs: self.runs.iter().map(|r| r.metrics.clone()).collect(),
-        })
-    }
-}
-
-fn failed_runs(runs: &[RunRecord], total: usize, shards: usize) -> Vec<FailedRun> {
-    runs.iter()
-        .filter(|r| r.status == RunStatus::Failed)
-        .map(|r| FailedRun {
-            index: r.index,
-            // The runs were checked against the partition, so the run is in range.
-            shard: Shard::of_run(r.index, total, shards).map_or(0, |s| s.index),
-            parameters: r.parameters.clone(),
-            error: r.error.clone().unwrap_or_default(),
-        })
-        .collect()
-}
-
 fn parse_metrics(labels: &[String]) -> Result<Vec<Metric>, MergeError> {
     labels
         .iter()
@@ -645,12 +606,15 @@ fn parse_metrics(labels: &[String]) -> Result<Vec<Metric>, MergeError> {
         .collect()
 }
 
-/// How far a sharded sweep has come: the shards done and missing, and the running table.
-#[derive(Debug, Clone)]
+/// How far a sharded sweep has come: the shards done and missing, and the running table
+/// ([`progress`]); from [`merge`], a whole sweep, every shard present.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Progress {
     pub sweep: SweepIdentity,
     pub shards: usize,
     pub total_runs: usize,
+    /// The varied parameters, in the order of each run's values.
+    pub parameters: Vec<String>,
     /// Indices of the shards whose files are present, ascending.
     pub done: Vec<usize>,
     pub missing: Vec<MissingShard>,
@@ -662,7 +626,28 @@ pub struct Progress {
 impl Progress {
     /// The runs that failed so far.
     pub fn failed(&self) -> Vec<FailedRun> {
-        failed_runs(&self.runs, self.total_runs, self.shards)
+        self.runs
+            .iter()
+            .filter(|r| r.status == RunStatus::Failed)
+            .map(|r| FailedRun {
+                index: r.index,
+                // The runs were checked against the partition, so the run is in range.
+                shard: Shard::of_run(r.index, self.total_runs, self.shards).map_or(0, |s| s.index),
+                parameters: r.parameters.clone(),
+                error: r.error.clone().unwrap_or_default(),
+            })
+            .collect()
+    }
+
+    /// The [`SweepResult`] of the runs (its `table()` is the one-machine sweep's table), or
+    /// the list of failed runs: like the one-machine sweep, a sweep with a failed run has no
+    /// table.
+    pub fn result(&self) -> Result<SweepResult, MergeError> {
+        let failed = self.failed();
+        if !failed.is_empty() {
+            return Err(MergeError::FailedRuns { failed });
+        }
+        self.running_result()
     }
 
     /// The table over the runs that finished so far (failed runs left out), in run order.
@@ -807,6 +792,7 @@ pub fn progress(
         sweep: reference.sweep.clone(),
         shards,
         total_runs: reference.total_runs,
+        parameters: reference.parameters.clone(),
         done: by_shard.keys().copied().collect(),
         missing,
         runs: ordered.iter().flat_map(|f| f.runs.clone()).collect(),
@@ -815,11 +801,11 @@ pub fn progress(
 }
 
 /// Merges the shard files of one sweep: [`progress`]'s checks, and every shard present.
-/// The runs come back in run-index order.
+/// The runs come back in run-index order; [`Progress::result`] is the sweep's table.
 pub fn merge(
     files: &[(PathBuf, ShardFile)],
     options: &MergeOptions,
-) -> Result<MergedSweep, MergeError> {
+) -> Result<Progress, MergeError> {
     if files.is_empty() {
         if let Some(count) = options.expected_shards.filter(|n| *n > 0) {
             // Nothing ran yet: every shard is missing, and no file says how to rerun it.
@@ -843,13 +829,7 @@ pub fn merge(
             slurm_script: files.iter().find_map(|(_, f)| f.slurm_script.clone()),
         });
     }
-    Ok(MergedSweep {
-        sweep: progress.sweep,
-        shards: progress.shards,
-        parameters: files[0].1.parameters.clone(),
-        metrics: progress.metrics,
-        runs: progress.runs,
-    })
+    Ok(progress)
 }
 
 fn check_identity(

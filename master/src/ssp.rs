@@ -74,17 +74,6 @@ impl SspVersion {
     }
 }
 
-/// The SSD connector type (`ssc:`) and parameter type (`ssv:`) name of an FMI type (the
-/// names SSP 1.0 and 2.0 share).
-fn type_name(ty: VarType) -> &'static str {
-    match ty {
-        VarType::Real => "Real",
-        VarType::Integer | VarType::Enumeration => "Integer",
-        VarType::Boolean => "Boolean",
-        VarType::String => "String",
-    }
-}
-
 impl std::fmt::Display for SspVersion {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
@@ -269,7 +258,7 @@ fn component(
                 for (name, kind, ty) in connectors {
                     let attributes = [("name", name.as_str()), ("kind", *kind)];
                     element(w, "ssd:Connector", &attributes, |w| {
-                        empty(w, &format!("ssc:{}", type_name(*ty)), &[])
+                        empty(w, &format!("ssc:{}", ty.base().name()), &[])
                     })?;
                 }
                 Ok(())
@@ -306,7 +295,7 @@ fn parameter_set(
                 };
                 element(w, "ssv:Parameter", &[("name", name.as_str())], |w| {
                     let value = [("value", text.as_str())];
-                    empty(w, &format!("ssv:{}", type_name(ty)), &value)
+                    empty(w, &format!("ssv:{}", ty.base().name()), &value)
                 })?;
             }
             Ok(())

@@ -350,22 +350,23 @@ impl System {
 
     /// The instance called `name`.
     pub fn instance(&self, name: &str) -> Result<&ResolvedInstance, SystemError> {
-        self.instances
-            .iter()
-            .find(|i| i.name == name)
-            .ok_or_else(|| self.unknown_instance(name))
+        self.instance_index(name).map(|i| &self.instances[i])
     }
 
-    fn unknown_instance(&self, name: &str) -> SystemError {
-        SystemError::UnknownInstance {
-            instance: name.to_string(),
-            known: self
-                .instances
-                .iter()
-                .map(|i| i.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        }
+    /// The index of the instance called `name`, or an error listing the instances there are.
+    fn instance_index(&self, name: &str) -> Result<usize, SystemError> {
+        self.instances
+            .iter()
+            .position(|i| i.name == name)
+            .ok_or_else(|| SystemError::UnknownInstance {
+                instance: name.to_string(),
+                known: self
+                    .instances
+                    .iter()
+                    .map(|i| i.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
 
     /// The variable called `qualified` (`"instance.variable"`).
@@ -375,11 +376,7 @@ impl System {
                 "`{qualified}` is not of the form instance.variable"
             )));
         };
-        let i = self
-            .instances
-            .iter()
-            .position(|inst| inst.name == instance)
-            .ok_or_else(|| self.unknown_instance(instance))?;
+        let i = self.instance_index(instance)?;
         let fmu = &self.instances[i].fmu;
         let v = fmu
             .index_of(variable)
@@ -451,11 +448,7 @@ impl System {
     /// edits made to [`ResolvedInstance::start_values`] directly). On error the system is
     /// left as it was.
     pub fn set_fmu(&mut self, instance: &str, fmu: &Path) -> Result<(), SystemError> {
-        let i = self
-            .instances
-            .iter()
-            .position(|inst| inst.name == instance)
-            .ok_or_else(|| self.unknown_instance(instance))?;
+        let i = self.instance_index(instance)?;
         let mut description = self.source.clone();
         description.instances[i].fmu = fmu.to_path_buf();
         let mut loaded: HashMap<PathBuf, Arc<FmuFile>> = self

@@ -3,20 +3,12 @@
 //! the temporary folder it is pointed at and leaves that folder empty; `spurio run` on a
 //! system using such an FMU exits with 1 and the message (never Rust's panic exit 101).
 
+mod common;
+
+use common::{crane, rewrite};
 use spurio_master::fmu::{FmuFile, LoadError, LoadLimits, LoadOptions};
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn fmus() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
-    assert!(
-        dir.join("GantryCrane.fmu").is_file(),
-        "{} has no FMUs: run scripts/build-fmus first",
-        dir.display()
-    );
-    dir
-}
 
 /// A fresh folder for one case: the bad FMU goes in it, `tmp/` is the loader's temp folder.
 struct Case {
@@ -54,6 +46,18 @@ impl Case {
         };
         self.assert_clean(expected);
         e
+    }
+
+    /// Writes `bytes` as the FMU `name` in the case folder and loads it with `options`,
+    /// expecting a refusal (see [`Case::refuse`]) whose message names the FMU; returns the
+    /// error and its message.
+    fn refuse_bytes(&self, name: &str, bytes: &[u8], options: &LoadOptions) -> (LoadError, String) {
+        let fmu = self.fmu(name);
+        std::fs::write(&fmu, bytes).unwrap();
+        let e = self.refuse(&fmu, options, &[name]);
+        let text = e.to_string();
+        assert!(text.contains(name), "{text}");
+        (e, text)
     }
 
     fn assert_clean(&self, expected: &[&str]) {
@@ -118,57 +122,32 @@ fn spurio() -> PathBuf {
     bin
 }
 
-/// Bytes of a copy of `source` with each entry passed through `edit` (None drops it) and
-/// `extra` entries appended (name, data, Unix mode; a mode of 0o120777 writes a symlink).
-fn rewrite(
-    source: &Path,
-    edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
-    extra: &[(&str, &[u8], u32)],
-) -> Vec<u8> {
-    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
-    let mut out = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-    let options = zip::write::SimpleFileOptions::default();
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).unwrap();
-        let name = entry.name().unwrap().to_string();
-        let mut data = Vec::new();
-        entry.read_to_end(&mut data).unwrap();
-        if let Some(data) = edit(&name, data) {
-            out.start_file(name, options).unwrap();
-            out.write_all(&data).unwrap();
-        }
-    }
-    for (name, data, mode) in extra {
-        if *mode == 0o120_777 {
-            out.add_symlink(*name, std::str::from_utf8(data).unwrap(), options)
-                .unwrap();
-        } else {
-            out.start_file(*name, options.unix_permissions(*mode))
-                .unwrap();
-            out.write_all(data).unwrap();
-        }
-    }
-    out.finish().unwrap().into_inner()
-}
-
-fn crane() -> PathBuf {
-    fmus().join("GantryCrane.fmu")
-}
-
 const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
 
-fn edit_xml(f: impl Fn(String) -> String) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| {
-        if name == "modelDescription.xml" {
-            Some(f(String::from_utf8(data).unwrap()).into_bytes())
+/// GantryCrane.fmu's bytes with the text of its model description passed through `f`.
+fn crane_with_xml(f: impl Fn(String) -> String) -> Vec<u8> {
+    let edit = |name: &str, data: Vec<u8>| {
+        Some(if name == "modelDescription.xml" {
+            f(String::from_utf8(data).unwrap()).into_bytes()
         } else {
-            Some(data)
-        }
-    }
+            data
+        })
+    };
+    rewrite(&crane(), edit, &[])
 }
 
-fn edit_library(f: impl Fn(Vec<u8>) -> Vec<u8>) -> impl Fn(&str, Vec<u8>) -> Option<Vec<u8>> {
-    move |name, data| Some(if name == LIBRARY { f(data) } else { data })
+/// GantryCrane.fmu's bytes with its Linux library passed through `f`.
+fn crane_with_library(f: impl Fn(Vec<u8>) -> Vec<u8>) -> Vec<u8> {
+    rewrite(
+        &crane(),
+        |name, data| Some(if name == LIBRARY { f(data) } else { data }),
+        &[],
+    )
+}
+
+/// GantryCrane.fmu's bytes with `extra` entries appended (see [`rewrite`]).
+fn crane_with_entries(extra: &[(&str, &[u8], u32)]) -> Vec<u8> {
+    rewrite(&crane(), |_, data| Some(data), extra)
 }
 
 fn replace_all(data: &[u8], from: &[u8], to: &[u8]) -> (Vec<u8>, usize) {
@@ -239,19 +218,11 @@ fn symlink_to_a_library_outside_the_archive_is_refused() {
 fn entries_that_are_not_plain_files_or_folders_are_refused() {
     let case = Case::new("fifo");
     // A named pipe (S_IFIFO).
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/pipe", b"", 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/pipe", b"", 0o100_644)]);
     let bytes = set_unix_mode(bytes, "resources/pipe", 0o010_644);
-    let fmu = case.fmu("Fifo.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Fifo.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("Fifo.fmu", &bytes, &case.options());
     assert!(
-        text.contains("Fifo.fmu")
-            && text.contains("`resources/pipe`")
+        text.contains("`resources/pipe`")
             && text.contains("not a plain file or folder (Unix mode 10644)"),
         "{text}"
     );
@@ -261,44 +232,27 @@ fn entries_that_are_not_plain_files_or_folders_are_refused() {
 fn absolute_entries_are_refused_not_re_rooted() {
     let case = Case::new("absolute");
     let target = case.dir.join("planted.txt");
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[(target.to_str().unwrap(), b"planted", 0o100_644)],
-    );
-    let fmu = case.fmu("Absolute.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Absolute.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("Absolute.fmu") && text.contains("absolute path"),
-        "{text}"
-    );
+    let bytes = crane_with_entries(&[(target.to_str().unwrap(), b"planted", 0o100_644)]);
+    let (_, text) = case.refuse_bytes("Absolute.fmu", &bytes, &case.options());
+    assert!(text.contains("absolute path"), "{text}");
 }
 
 #[test]
 fn missing_entry_point_is_named_not_a_panic() {
     let case = Case::new("entry");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|lib| {
-            // Rename the exported symbol in the dynamic string table (same length).
-            let (lib, n) = replace_all(&lib, b"\0fmi2DoStep\0", b"\0fmi2DoStoq\0");
-            assert!(n >= 1, "fmi2DoStep not found in the library");
-            lib
-        }),
-        &[],
-    );
-    let fmu = case.fmu("NoDoStep.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["NoDoStep.fmu"]);
+    let bytes = crane_with_library(|lib| {
+        // Rename the exported symbol in the dynamic string table (same length).
+        let (lib, n) = replace_all(&lib, b"\0fmi2DoStep\0", b"\0fmi2DoStoq\0");
+        assert!(n >= 1, "fmi2DoStep not found in the library");
+        lib
+    });
+    let (e, text) = case.refuse_bytes("NoDoStep.fmu", &bytes, &case.options());
     match &e {
         LoadError::MissingFunctions { missing, .. } => assert_eq!(missing, &["fmi2DoStep"]),
         other => panic!("{other}"),
     }
-    let text = e.to_string();
     assert!(
-        text.contains("NoDoStep.fmu") && text.contains(LIBRARY) && text.contains("fmi2DoStep"),
+        text.contains(LIBRARY) && text.contains("fmi2DoStep"),
         "{text}"
     );
     let (code, stderr) = case.run_cli("NoDoStep.fmu");
@@ -313,23 +267,15 @@ fn missing_entry_point_is_named_not_a_panic() {
 #[test]
 fn library_for_another_architecture_is_named() {
     let case = Case::new("arch");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|mut lib| {
-            // e_machine (ELF header offset 18, little-endian): 183 = AArch64.
-            lib[18..20].copy_from_slice(&183u16.to_le_bytes());
-            lib
-        }),
-        &[],
-    );
-    let fmu = case.fmu("Arm.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Arm.fmu"]);
+    let bytes = crane_with_library(|mut lib| {
+        // e_machine (ELF header offset 18, little-endian): 183 = AArch64.
+        lib[18..20].copy_from_slice(&183u16.to_le_bytes());
+        lib
+    });
+    let (e, text) = case.refuse_bytes("Arm.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::WrongBinary { .. }), "{e}");
-    let text = e.to_string();
     assert!(
-        text.contains("Arm.fmu")
-            && text.contains("is an ELF shared library for aarch64 (64-bit)")
+        text.contains("is an ELF shared library for aarch64 (64-bit)")
             && text.contains(&format!(
                 "needs an ELF shared library for {}",
                 std::env::consts::ARCH
@@ -346,17 +292,10 @@ fn library_for_another_architecture_is_named() {
 #[test]
 fn file_that_is_not_a_library_is_named() {
     let case = Case::new("notelf");
-    let bytes = rewrite(
-        &crane(),
-        edit_library(|_| b"this is not a shared library\n".to_vec()),
-        &[],
-    );
-    let fmu = case.fmu("Text.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Text.fmu"]);
-    let text = e.to_string();
+    let bytes = crane_with_library(|_| b"this is not a shared library\n".to_vec());
+    let (_, text) = case.refuse_bytes("Text.fmu", &bytes, &case.options());
     assert!(
-        text.contains("Text.fmu") && text.contains("is a text file, not a shared library"),
+        text.contains("is a text file, not a shared library"),
         "{text}"
     );
 }
@@ -383,12 +322,9 @@ fn damaged_zip_is_not_a_valid_fmu_archive() {
 
 fn refuse_xml(case_name: &str, edit: impl Fn(String) -> String) -> String {
     let case = Case::new(case_name);
-    let bytes = rewrite(&crane(), edit_xml(edit), &[]);
-    let fmu = case.fmu("Bad.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
-    let e = case.refuse(&fmu, &case.options(), &["Bad.fmu"]);
+    let bytes = crane_with_xml(edit);
+    let (e, text) = case.refuse_bytes("Bad.fmu", &bytes, &case.options());
     assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
-    let text = e.to_string();
     assert!(text.contains("Bad.fmu: modelDescription.xml"), "{text}");
     text
 }
@@ -423,16 +359,12 @@ fn two_parameters_on_one_value_reference_are_refused() {
 fn an_output_aliasing_another_output_is_accepted() {
     // `theta` (vr 2) as an alias of `x` (vr 1): same base type, no start values: allowed.
     let case = Case::new("alias-ok");
-    let bytes = rewrite(
-        &crane(),
-        edit_xml(|x| {
-            x.replace(
-                "name=\"theta\" valueReference=\"2\"",
-                "name=\"theta\" valueReference=\"1\"",
-            )
-        }),
-        &[],
-    );
+    let bytes = crane_with_xml(|x| {
+        x.replace(
+            "name=\"theta\" valueReference=\"2\"",
+            "name=\"theta\" valueReference=\"1\"",
+        )
+    });
     let fmu = case.fmu("Alias.fmu");
     std::fs::write(&fmu, bytes).unwrap();
     let f = FmuFile::open_with(&fmu, &case.options()).unwrap();
@@ -512,25 +444,15 @@ fn lie_about_size(mut zip: Vec<u8>, name: &str, size: u32) -> Vec<u8> {
 fn a_zip_bomb_stops_at_the_declared_size_limit() {
     let case = Case::new("bomb-declared");
     let zeros = vec![0u8; 8 << 20];
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/bomb.bin", &zeros, 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
     let good = std::fs::metadata(crane()).unwrap().len() as usize;
     assert!(bytes.len() < good + (1 << 20), "the bomb compresses");
-    let fmu = case.fmu("Bomb.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
-    let e = case.refuse(&fmu, &options, &["Bomb.fmu"]);
+    let (e, text) = case.refuse_bytes("Bomb.fmu", &bytes, &options);
     assert!(matches!(e, LoadError::TooLarge { .. }), "{e}");
-    let text = e.to_string();
     assert!(
-        text.contains("Bomb.fmu")
-            && text.contains(
-                "declare more than 4194304 bytes unpacked (reached at `resources/bomb.bin`)"
-            )
+        text.contains("declare more than 4194304 bytes unpacked (reached at `resources/bomb.bin`)")
             && text.contains("at most 4194304 bytes (max_unpacked)"),
         "{text}"
     );
@@ -540,22 +462,12 @@ fn a_zip_bomb_stops_at_the_declared_size_limit() {
 fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
     let case = Case::new("bomb-lying");
     let zeros = vec![0u8; 8 << 20];
-    let bytes = rewrite(
-        &crane(),
-        |_, d| Some(d),
-        &[("resources/bomb.bin", &zeros, 0o100_644)],
-    );
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
     let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
-    let fmu = case.fmu("Liar.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_unpacked = 4 << 20;
-    let e = case.refuse(&fmu, &options, &["Liar.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("Liar.fmu") && text.contains("resources/bomb.bin"),
-        "{text}"
-    );
+    let (e, text) = case.refuse_bytes("Liar.fmu", &bytes, &options);
+    assert!(text.contains("resources/bomb.bin"), "{text}");
     // Either the count while inflating stops it at the limit, or the zip reader itself
     // refuses data beyond the declared size: never 8 MiB on disk.
     assert!(
@@ -567,22 +479,15 @@ fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
 #[test]
 fn an_oversized_model_description_is_refused_before_parsing() {
     let case = Case::new("bigxml");
-    let bytes = rewrite(
-        &crane(),
-        edit_xml(|x| {
-            x.replace(
-                "</fmiModelDescription>",
-                &format!("<!--{}--></fmiModelDescription>", " ".repeat(1 << 20)),
-            )
-        }),
-        &[],
-    );
-    let fmu = case.fmu("BigXml.fmu");
-    std::fs::write(&fmu, &bytes).unwrap();
+    let bytes = crane_with_xml(|x| {
+        x.replace(
+            "</fmiModelDescription>",
+            &format!("<!--{}--></fmiModelDescription>", " ".repeat(1 << 20)),
+        )
+    });
     let mut options = case.options();
     options.limits.max_model_description = 64 << 10;
-    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("BigXml.fmu", &bytes, &options);
     assert!(
         text.contains("BigXml.fmu: modelDescription.xml declares")
             && text.contains("at most 65536 bytes (max_model_description)"),
@@ -590,14 +495,12 @@ fn an_oversized_model_description_is_refused_before_parsing() {
     );
     // The same archive with its declared size forged small is stopped while inflating.
     let case = Case::new("bigxml-lying");
-    let fmu = case.fmu("BigXml.fmu");
-    std::fs::write(&fmu, lie_about_size(bytes, "modelDescription.xml", 100)).unwrap();
-    let e = case.refuse(&fmu, &options, &["BigXml.fmu"]);
-    let text = e.to_string();
-    assert!(
-        text.contains("BigXml.fmu") && text.contains("modelDescription.xml"),
-        "{text}"
+    let (_, text) = case.refuse_bytes(
+        "BigXml.fmu",
+        &lie_about_size(bytes, "modelDescription.xml", 100),
+        &options,
     );
+    assert!(text.contains("modelDescription.xml"), "{text}");
 }
 
 #[test]
@@ -608,16 +511,13 @@ fn too_many_entries_are_refused() {
         .iter()
         .map(|n| (n.as_str(), b"x".as_slice(), 0o100_644))
         .collect();
-    let bytes = rewrite(&crane(), |_, d| Some(d), &extra);
+    let bytes = crane_with_entries(&extra);
     let good_entries = zip::ZipArchive::new(std::fs::File::open(crane()).unwrap())
         .unwrap()
         .len();
-    let fmu = case.fmu("Many.fmu");
-    std::fs::write(&fmu, bytes).unwrap();
     let mut options = case.options();
     options.limits.max_entries = 10;
-    let e = case.refuse(&fmu, &options, &["Many.fmu"]);
-    let text = e.to_string();
+    let (_, text) = case.refuse_bytes("Many.fmu", &bytes, &options);
     assert!(
         text.contains(&format!(
             "Many.fmu: the archive has {} entries",

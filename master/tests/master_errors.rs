@@ -3,15 +3,14 @@
 
 mod common;
 
-use common::{assert_names, fmus, resolve};
+use common::{assert_names, crane, resolve, rewrite};
 use spurio_master::engine::{RunError, Simulation};
 use spurio_master::fmu::{FmuFile, LoadError};
 use spurio_master::system::System;
-use std::io::{Read, Write};
 use std::path::PathBuf;
 
 /// GantryCrane.fmu copied to `<tmp>/spurio-master-<pid>-<file>/<file>`, each entry passed
-/// through `edit` (None drops it), then `extra` entries appended.
+/// through `edit` (None drops it), then `extra` plain-file entries appended.
 fn crane_copy(
     file: &str,
     edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
@@ -20,25 +19,11 @@ fn crane_copy(
     let dir = std::env::temp_dir().join(format!("spurio-master-{}-{file}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let target = dir.join(file);
-    let source = std::fs::File::open(fmus().join("GantryCrane.fmu")).unwrap();
-    let mut archive = zip::ZipArchive::new(source).unwrap();
-    let mut out = zip::ZipWriter::new(std::fs::File::create(&target).unwrap());
-    let options = zip::write::SimpleFileOptions::default();
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).unwrap();
-        let name = entry.name().unwrap().to_string();
-        let mut data = Vec::new();
-        entry.read_to_end(&mut data).unwrap();
-        if let Some(data) = edit(&name, data) {
-            out.start_file(name, options).unwrap();
-            out.write_all(&data).unwrap();
-        }
-    }
-    for (name, data) in extra {
-        out.start_file(*name, options).unwrap();
-        out.write_all(data).unwrap();
-    }
-    out.finish().unwrap();
+    let extra: Vec<_> = extra
+        .iter()
+        .map(|&(name, data)| (name, data, 0o100_644))
+        .collect();
+    std::fs::write(&target, rewrite(&crane(), edit, &extra)).unwrap();
     target
 }
 

@@ -13,16 +13,6 @@ use super::xml::Unknown;
 use super::{Causality, VarType, VariableInfo};
 use std::collections::HashMap;
 
-/// The base type a value reference belongs to (Integer and Enumeration share one).
-fn base_type(t: VarType) -> &'static str {
-    match t {
-        VarType::Real => "Real",
-        VarType::Integer | VarType::Enumeration => "Integer/Enumeration",
-        VarType::Boolean => "Boolean",
-        VarType::String => "String",
-    }
-}
-
 /// Checks names and alias sets. `has_start[i]` and `constant[i]` describe variable `i`.
 pub(super) fn variables(
     vars: &[VariableInfo],
@@ -41,14 +31,14 @@ pub(super) fn variables(
         }
     }
     // The variable of each alias set that carries a start value (variability not constant).
-    let mut start_holder: HashMap<(&'static str, u32), usize> = HashMap::new();
+    let mut start_holder: HashMap<(VarType, u32), usize> = HashMap::new();
     for (i, v) in vars.iter().enumerate() {
         let starts = has_start.get(i).copied().unwrap_or(false);
         let is_constant = constant.get(i).copied().unwrap_or(false);
         if !starts || is_constant {
             continue;
         }
-        let key = (base_type(v.var_type), v.value_reference);
+        let key = (v.var_type.base(), v.value_reference);
         if let Some(&first) = start_holder.get(&key) {
             let a = &vars[first];
             return Err(format!(
@@ -59,7 +49,10 @@ pub(super) fn variables(
                 v.name,
                 causality_name(v.causality),
                 v.value_reference,
-                key.0
+                match key.0 {
+                    VarType::Integer => "Integer/Enumeration",
+                    base => base.name(),
+                }
             ));
         }
         start_holder.insert(key, i);

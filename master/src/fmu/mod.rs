@@ -95,13 +95,35 @@ pub enum LoadError {
 }
 
 /// The FMI type of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum VarType {
     Real,
     Integer,
     Boolean,
     String,
     Enumeration,
+}
+
+impl VarType {
+    /// The type whose values this one's are: an Enumeration is an Integer (FMI 2.0 moves
+    /// both through fmi2Get/SetInteger on one value-reference space; SSP names both Integer).
+    pub fn base(self) -> VarType {
+        match self {
+            VarType::Enumeration => VarType::Integer,
+            t => t,
+        }
+    }
+
+    /// The type's element name in a model description (`Real`, `Integer`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            VarType::Real => "Real",
+            VarType::Integer => "Integer",
+            VarType::Boolean => "Boolean",
+            VarType::String => "String",
+            VarType::Enumeration => "Enumeration",
+        }
+    }
 }
 
 /// `causality` of a variable.
@@ -221,8 +243,8 @@ impl FmuFile {
                 model: md.model_name.clone(),
             });
         };
-        let units = xml::variable_units(xml).map_err(|e| md_error(path, e))?;
-        let has_start = xml::variable_has_start(xml).map_err(|e| md_error(path, e))?;
+        let xml::VariableExtras { units, has_start } =
+            xml::variable_extras(xml).map_err(|e| md_error(path, e))?;
         let structure = xml::model_structure(xml).map_err(|e| md_error(path, e))?;
         let mut variables = Vec::with_capacity(md.model_variables.variables.len());
         let mut constant = Vec::with_capacity(md.model_variables.variables.len());

@@ -2,6 +2,7 @@
 //! `ModelStructure` as written (so indices can be checked and an absent `dependencies` told
 //! from an empty one), each variable's unit and whether it declares a start value.
 
+use crate::xml::{tags, Tag};
 use std::collections::HashMap;
 
 /// One `<Unknown>` of `ModelStructure`, as written.
@@ -17,21 +18,19 @@ pub(super) struct Unknown {
 
 /// Every `<Unknown>` of `ModelStructure`, in file order.
 pub(super) fn model_structure(xml: &str) -> Result<Vec<Unknown>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
     let mut list: Option<&'static str> = None;
     let mut out = Vec::new();
-    loop {
-        match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => match e.name().as_ref() {
-                "Outputs" => list = Some("Outputs"),
-                "Derivatives" => list = Some("Derivatives"),
-                "InitialUnknowns" => list = Some("InitialUnknowns"),
+    for tag in tags(xml) {
+        match tag? {
+            // A self-closing list (`<Outputs/>`) holds nothing and has no end tag.
+            Tag::Start { element: e, empty } => match e.name().as_ref() {
+                "Outputs" if !empty => list = Some("Outputs"),
+                "Derivatives" if !empty => list = Some("Derivatives"),
+                "InitialUnknowns" if !empty => list = Some("InitialUnknowns"),
                 "Unknown" => out.extend(unknown(list, &e)),
                 _ => {}
             },
-            Event::Empty(e) if e.name().as_ref() == "Unknown" => out.extend(unknown(list, &e)),
-            Event::End(e)
+            Tag::End(e)
                 if matches!(
                     e.name().as_ref(),
                     "Outputs" | "Derivatives" | "InitialUnknowns"
@@ -39,8 +38,7 @@ pub(super) fn model_structure(xml: &str) -> Result<Vec<Unknown>, String> {
             {
                 list = None
             }
-            Event::Eof => break,
-            _ => {}
+            Tag::End(_) => {}
         }
     }
     Ok(out)
@@ -67,48 +65,17 @@ fn unknown(list: Option<&'static str>, e: &quick_xml::events::BytesStart) -> Opt
     })
 }
 
-/// For every `ScalarVariable`, in file order: whether its type element has a `start`.
-pub(super) fn variable_has_start(xml: &str) -> Result<Vec<bool>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
-    let mut in_variable = false;
-    let mut out = Vec::new();
-    loop {
-        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => (e, false),
-            Event::Empty(e) => (e, true),
-            Event::End(e) => {
-                if e.name().as_ref() == "ScalarVariable" {
-                    in_variable = false;
-                }
-                continue;
-            }
-            Event::Eof => break,
-            _ => continue,
-        };
-        match e.name().as_ref() {
-            "ScalarVariable" => {
-                out.push(false);
-                in_variable = !empty;
-            }
-            "Real" | "Integer" | "Boolean" | "String" | "Enumeration"
-                if in_variable && e.attributes().flatten().any(|a| a.key.as_ref() == "start") =>
-            {
-                if let Some(last) = out.last_mut() {
-                    *last = true;
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(out)
+/// What rust-fmi's schema does not keep of the `ScalarVariable`s, each list in file order.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct VariableExtras {
+    /// The unit: the variable's own `unit` attribute, else that of its `declaredType`.
+    pub units: Vec<Option<String>>,
+    /// Whether its type element has a `start`.
+    pub has_start: Vec<bool>,
 }
 
-/// The unit of every `ScalarVariable`, in file order: its own `unit` attribute, else that of
-/// its `declaredType` (rust-fmi's schema does not keep a variable's unit).
-pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
-    use quick_xml::events::Event;
-    let mut reader = quick_xml::Reader::from_str(xml);
+/// The units and start flags of every `ScalarVariable`, in one walk.
+pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
     let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
         e.attributes()
             .flatten()
@@ -124,47 +91,47 @@ pub(super) fn variable_units(xml: &str) -> Result<Vec<Option<String>>, String> {
     let mut in_variable = false;
     // (own unit, declared type) per variable.
     let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
-    loop {
-        let (e, empty) = match reader.read_event().map_err(|e| e.to_string())? {
-            Event::Start(e) => (e.into_owned(), false),
-            Event::Empty(e) => (e.into_owned(), true),
-            Event::End(e) => {
-                match e.name().as_ref() {
-                    "SimpleType" => simple_type = None,
-                    "ScalarVariable" => in_variable = false,
-                    _ => {}
+    let mut has_start = Vec::new();
+    for tag in tags(xml) {
+        match tag? {
+            Tag::End(e) => match e.name().as_ref() {
+                "SimpleType" => simple_type = None,
+                "ScalarVariable" => in_variable = false,
+                _ => {}
+            },
+            Tag::Start { element: e, empty } => match e.name().as_ref() {
+                "SimpleType" if !empty => simple_type = attribute(&e, "name"),
+                "ScalarVariable" => {
+                    declared.push((None, None));
+                    has_start.push(false);
+                    in_variable = !empty;
                 }
-                continue;
-            }
-            Event::Eof => break,
-            _ => continue,
-        };
-        match e.name().as_ref() {
-            "SimpleType" if !empty => simple_type = attribute(&e, "name"),
-            "ScalarVariable" => {
-                declared.push((None, None));
-                in_variable = !empty;
-            }
-            "Real" | "Integer" | "Enumeration" => {
-                if let Some(name) = &simple_type {
-                    if let Some(unit) = attribute(&e, "unit") {
-                        type_units.insert(name.clone(), unit);
-                    }
-                } else if in_variable {
-                    if let Some(last) = declared.last_mut() {
-                        *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                kind @ ("Real" | "Integer" | "Boolean" | "String" | "Enumeration") => {
+                    let has_unit = matches!(kind, "Real" | "Integer" | "Enumeration");
+                    if let Some(name) = &simple_type {
+                        if let Some(unit) = attribute(&e, "unit").filter(|_| has_unit) {
+                            type_units.insert(name.clone(), unit);
+                        }
+                    } else if in_variable {
+                        if let Some(last) = declared.last_mut().filter(|_| has_unit) {
+                            *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                        }
+                        if let Some(last) = has_start.last_mut() {
+                            *last |= e.attributes().flatten().any(|a| a.key.as_ref() == "start");
+                        }
                     }
                 }
-            }
-            _ => {}
+                _ => {}
+            },
         }
     }
-    Ok(declared
+    let units = declared
         .into_iter()
         .map(|(unit, declared_type)| {
             unit.or_else(|| declared_type.and_then(|t| type_units.get(&t).cloned()))
         })
-        .collect())
+        .collect();
+    Ok(VariableExtras { units, has_start })
 }
 
 #[cfg(test)]
@@ -208,7 +175,7 @@ mod tests {
             <ScalarVariable name="d" valueReference="0"><Enumeration declaredType="E"/></ScalarVariable>
         </ModelVariables></m>"#;
         assert_eq!(
-            variable_has_start(xml).unwrap(),
+            variable_extras(xml).unwrap().has_start,
             vec![true, false, true, false]
         );
     }
@@ -226,7 +193,7 @@ mod tests {
               <ScalarVariable name="v" valueReference="3"><Real unit="m/s"/></ScalarVariable>
             </ModelVariables></fmiModelDescription>"#;
         assert_eq!(
-            variable_units(xml).unwrap(),
+            variable_extras(xml).unwrap().units,
             vec![Some("m".into()), Some("N".into()), None, Some("m/s".into())]
         );
     }

@@ -6,7 +6,8 @@
 use spurio_master::engine::{RunEnd, RunOptions, Simulation};
 use spurio_master::record::TimeSeries;
 use spurio_master::system::{System, SystemDescription, SystemError};
-use std::path::PathBuf;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
 
 /// The folder of the packaged FMUs.
 pub fn fmus() -> PathBuf {
@@ -17,6 +18,44 @@ pub fn fmus() -> PathBuf {
         dir.display()
     );
     dir
+}
+
+/// The packaged GantryCrane.fmu.
+pub fn crane() -> PathBuf {
+    fmus().join("GantryCrane.fmu")
+}
+
+/// Bytes of a copy of `source` with each entry passed through `edit` (None drops it) and
+/// `extra` entries appended (name, data, Unix mode; a mode of 0o120777 writes a symlink).
+pub fn rewrite(
+    source: &Path,
+    edit: impl Fn(&str, Vec<u8>) -> Option<Vec<u8>>,
+    extra: &[(&str, &[u8], u32)],
+) -> Vec<u8> {
+    let mut archive = zip::ZipArchive::new(std::fs::File::open(source).unwrap()).unwrap();
+    let mut out = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default();
+    for i in 0..archive.len() {
+        let mut entry = archive.by_index(i).unwrap();
+        let name = entry.name().unwrap().to_string();
+        let mut data = Vec::new();
+        entry.read_to_end(&mut data).unwrap();
+        if let Some(data) = edit(&name, data) {
+            out.start_file(name, options).unwrap();
+            out.write_all(&data).unwrap();
+        }
+    }
+    for (name, data, mode) in extra {
+        if *mode == 0o120_777 {
+            out.add_symlink(*name, std::str::from_utf8(data).unwrap(), options)
+                .unwrap();
+        } else {
+            out.start_file(*name, options.unix_permissions(*mode))
+                .unwrap();
+            out.write_all(data).unwrap();
+        }
+    }
+    out.finish().unwrap().into_inner()
 }
 
 /// The system a TOML text describes, its FMUs taken from [`fmus`].
