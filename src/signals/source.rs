@@ -73,6 +73,25 @@ pub fn frequency_from_period(period: f64) -> Result<f64, ParameterError> {
     Ok(1.0 / require_positive("period", period)?)
 }
 
+/// The periodic function of a [`Waveform::Sinusoid`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Trig {
+    /// `sin`.
+    Sine,
+    /// `cos`.
+    Cosine,
+}
+
+impl Trig {
+    /// The function at `x` [rad].
+    pub fn apply(self, x: f64) -> f64 {
+        match self {
+            Trig::Sine => x.sin(),
+            Trig::Cosine => x.cos(),
+        }
+    }
+}
+
 /// What the source generates, with its parameters (module docs for the definitions).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Waveform {
@@ -107,19 +126,10 @@ pub enum Waveform {
         /// Mean level (parameter `offset`).
         offset: f64,
     },
-    /// `offset + amplitude · sin(2π f t + phase)`.
-    Sine {
-        /// Parameter `amplitude`.
-        amplitude: f64,
-        /// Parameter `offset`.
-        offset: f64,
-        /// Frequency f [Hz] (parameter `frequency`, ≥ 0).
-        frequency: f64,
-        /// Phase [rad] (parameter `phase`).
-        phase: f64,
-    },
-    /// `offset + amplitude · cos(2π f t + phase)`.
-    Cosine {
+    /// `offset + amplitude · sin(2π f t + phase)` or the same with `cos`.
+    Sinusoid {
+        /// Sine or cosine.
+        function: Trig,
         /// Parameter `amplitude`.
         amplitude: f64,
         /// Parameter `offset`.
@@ -177,17 +187,12 @@ impl Waveform {
                 require_finite("amplitude", amplitude)?;
                 require_finite("offset", offset)?;
             }
-            Waveform::Sine {
+            Waveform::Sinusoid {
                 amplitude,
                 offset,
                 frequency,
                 phase,
-            }
-            | Waveform::Cosine {
-                amplitude,
-                offset,
-                frequency,
-                phase,
+                ..
             } => {
                 require_finite("amplitude", amplitude)?;
                 require_finite("offset", offset)?;
@@ -359,18 +364,13 @@ impl SignalSource {
                     None => f64::NAN,
                 }
             }
-            Waveform::Sine {
+            Waveform::Sinusoid {
+                function,
                 amplitude,
                 offset,
                 frequency,
                 phase,
-            } => offset + amplitude * (2.0 * PI * frequency * t + phase).sin(),
-            Waveform::Cosine {
-                amplitude,
-                offset,
-                frequency,
-                phase,
-            } => offset + amplitude * (2.0 * PI * frequency * t + phase).cos(),
+            } => offset + amplitude * function.apply(2.0 * PI * frequency * t + phase),
         }
     }
 }
@@ -389,7 +389,13 @@ fn prbs_shift(cursor: &mut PrbsCursor, order: u32) {
 }
 
 // FMU-state snapshots (plain bytes) of the types above: every field, in order.
-crate::plain_state!(enum Waveform { Step { amplitude, offset, step_time }, RandomSteps { amplitude, offset, min_hold, max_hold }, Prbs { order, bit_period, amplitude, offset }, Sine { amplitude, offset, frequency, phase }, Cosine { amplitude, offset, frequency, phase } });
+crate::plain_state!(enum Waveform { Step { amplitude, offset, step_time }, RandomSteps { amplitude, offset, min_hold, max_hold }, Prbs { order, bit_period, amplitude, offset }, Sinusoid { function, amplitude, offset, frequency, phase } });
+crate::plain_state!(
+    enum Trig {
+        Sine,
+        Cosine,
+    }
+);
 crate::plain_state!(RandomStepsCursor {
     stream,
     start,
@@ -523,7 +529,8 @@ mod tests {
         assert_eq!(step.value_at(0.1 + 0.2), 1.0);
         let f = frequency_from_period(0.25).unwrap();
         let mut sine = SignalSource::new(
-            Waveform::Sine {
+            Waveform::Sinusoid {
+                function: Trig::Sine,
                 amplitude: 2.0,
                 offset: 1.0,
                 frequency: f,
@@ -533,7 +540,8 @@ mod tests {
         )
         .unwrap();
         let mut cosine = SignalSource::new(
-            Waveform::Cosine {
+            Waveform::Sinusoid {
+                function: Trig::Cosine,
                 amplitude: 2.0,
                 offset: 1.0,
                 frequency: f,
@@ -591,7 +599,8 @@ mod tests {
             "max_hold"
         );
         assert_eq!(
-            err(Waveform::Sine {
+            err(Waveform::Sinusoid {
+                function: Trig::Sine,
                 amplitude: f64::NAN,
                 offset: 0.0,
                 frequency: 1.0,
@@ -600,7 +609,8 @@ mod tests {
             "amplitude"
         );
         assert_eq!(
-            err(Waveform::Cosine {
+            err(Waveform::Sinusoid {
+                function: Trig::Cosine,
                 amplitude: 1.0,
                 offset: 0.0,
                 frequency: -1.0,

@@ -20,7 +20,7 @@
 //! after each step, so a master that connects `y` to another FMU's input at each
 //! communication point feeds it the signal sampled there.
 
-use spurio::signals::source::{frequency_from_period, SignalSource, Waveform};
+use spurio::signals::source::{frequency_from_period, SignalSource, Trig, Waveform};
 use spurio::ParameterError;
 use spurio_export::rows::parameter;
 use spurio_export::{
@@ -90,23 +90,13 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
             "parameter `seed`: must be >= 0, got {seed}"
         )));
     }
-    let periodic = |cosine: bool| -> Result<Waveform, Failure> {
-        let frequency = frequency_from_period(v.real(vr::PERIOD)).map_err(named)?;
-        let phase = v.real(vr::PHASE);
-        Ok(if cosine {
-            Waveform::Cosine {
-                amplitude,
-                offset,
-                frequency,
-                phase,
-            }
-        } else {
-            Waveform::Sine {
-                amplitude,
-                offset,
-                frequency,
-                phase,
-            }
+    let periodic = |function: Trig| -> Result<Waveform, Failure> {
+        Ok(Waveform::Sinusoid {
+            function,
+            amplitude,
+            offset,
+            frequency: frequency_from_period(v.real(vr::PERIOD)).map_err(named)?,
+            phase: v.real(vr::PHASE),
         })
     };
     let w = match v.integer(vr::WAVEFORM) {
@@ -135,8 +125,8 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
                 offset,
             }
         }
-        waveform::SINE => periodic(false)?,
-        waveform::COSINE => periodic(true)?,
+        waveform::SINE => periodic(Trig::Sine)?,
+        waveform::COSINE => periodic(Trig::Cosine)?,
         other => {
             return Err(Failure::error(format!(
                 "parameter `waveform`: must be 1 (step), 2 (random steps), 3 (PRBS), 4 (sine) or 5 (cosine), got {other}"
