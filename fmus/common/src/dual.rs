@@ -376,12 +376,18 @@ mod tests {
     use spurio_export::harness::Harness;
     use spurio_export::FmuModel;
 
+    /// The FMU `M` for `n` states, `m` inputs and `p` outputs, and its value references by
+    /// variable name.
+    fn harness<M: FmuModel>(n: usize, m: usize, p: usize) -> (Harness<M>, impl Fn(&str) -> u32) {
+        let config = dims_config(n, m, p);
+        let info = M::describe(&config).unwrap();
+        let h = Harness::<M>::new(&config).unwrap();
+        (h, move |name: &str| info.index_of(name).unwrap() as u32)
+    }
+
     #[test]
     fn generator_variant_steps_and_reports_the_model() {
-        let config = dims_config(8, 2, 2);
-        let info = DkfRsKfFmu::describe(&config).unwrap();
-        let vr = |n: &str| info.index_of(n).unwrap() as u32;
-        let mut h = Harness::<DkfRsKfFmu>::new(&config).unwrap();
+        let (mut h, vr) = harness::<DkfRsKfFmu>(8, 2, 2);
         h.initialize(0.0).unwrap();
         let mut out = [0.0; 3];
         for k in 0..100 {
@@ -401,10 +407,7 @@ mod tests {
 
     #[test]
     fn the_cleaner_starts_at_the_initial_output_and_rejects_a_first_outlier() {
-        let config = dims_config(4, 1, 2);
-        let info = DkfRsKfFmu::describe(&config).unwrap();
-        let vr = |n: &str| info.index_of(n).unwrap() as u32;
-        let mut h = Harness::<DkfRsKfFmu>::new(&config).unwrap();
+        let (mut h, vr) = harness::<DkfRsKfFmu>(4, 1, 2);
         h.set_real(
             &[vr("x0[1]"), vr("q_clean"), vr("r_clean"), vr("p0_clean")],
             &[0.2, 1e-5, 1e-5, 1e-5],
@@ -431,11 +434,8 @@ mod tests {
 
     #[test]
     fn bad_covariances_are_errors_naming_the_parameter() {
-        let config = dims_config(2, 0, 1);
-        let info = DualKalmanFilterFmu::describe(&config).unwrap();
-        let mut h = Harness::<DualKalmanFilterFmu>::new(&config).unwrap();
-        let q = info.index_of("Q[1,2]").unwrap() as u32;
-        h.set_real(&[q], &[0.5]).unwrap();
+        let (mut h, vr) = harness::<DualKalmanFilterFmu>(2, 0, 1);
+        h.set_real(&[vr("Q[1,2]")], &[0.5]).unwrap();
         assert!(h.initialize(0.0).is_err());
         assert!(h.logged(&["parameter `Q`", "symmetric"]), "{:?}", h.log());
     }
