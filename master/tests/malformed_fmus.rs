@@ -438,15 +438,22 @@ fn lie_about_size(mut zip: Vec<u8>, name: &str, size: u32) -> Vec<u8> {
     zip
 }
 
+/// GantryCrane.fmu with 8 MiB of zeros as `resources/bomb.bin`, and `case`'s options with
+/// 4 MiB allowed unpacked.
+fn bomb(case: &Case) -> (Vec<u8>, LoadOptions) {
+    let zeros = vec![0u8; 8 << 20];
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let mut options = case.options();
+    options.limits.max_unpacked = 4 << 20;
+    (bytes, options)
+}
+
 #[test]
 fn a_zip_bomb_stops_at_the_declared_size_limit() {
     let case = Case::new("bomb-declared");
-    let zeros = vec![0u8; 8 << 20];
-    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let (bytes, options) = bomb(&case);
     let good = std::fs::metadata(crane()).unwrap().len() as usize;
     assert!(bytes.len() < good + (1 << 20), "the bomb compresses");
-    let mut options = case.options();
-    options.limits.max_unpacked = 4 << 20;
     let (e, text) = case.refuse_bytes("Bomb.fmu", &bytes, &options);
     assert!(matches!(e, LoadError::TooLarge { .. }), "{e}");
     assert!(
@@ -459,11 +466,8 @@ fn a_zip_bomb_stops_at_the_declared_size_limit() {
 #[test]
 fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
     let case = Case::new("bomb-lying");
-    let zeros = vec![0u8; 8 << 20];
-    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let (bytes, options) = bomb(&case);
     let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
-    let mut options = case.options();
-    options.limits.max_unpacked = 4 << 20;
     let (e, text) = case.refuse_bytes("Liar.fmu", &bytes, &options);
     assert!(text.contains("resources/bomb.bin"), "{text}");
     // Either the count while inflating stops it at the limit, or the zip reader itself
