@@ -213,6 +213,11 @@ impl Summary {
         mean_std(&self.rest_times)
     }
 
+    /// A count of runs (e.g. [`Summary::at_rest`]) as a fraction of all runs.
+    fn fraction(&self, count: impl Fn(&Self) -> usize) -> f64 {
+        count(self) as f64 / self.runs as f64
+    }
+
     fn rest_before(&self, limit: f64) -> usize {
         self.rest_times.iter().filter(|t| **t < limit).count()
     }
@@ -830,7 +835,7 @@ fn figures_of_merit(f: &Findings) -> Vec<(String, f64)> {
         (f.reference.rest, f.reference.x_rms, f.reference.theta_rms);
     let initial_model_error = f.initial_model_error;
     let (rs_mean, _) = rskf_sum.rest();
-    vec![
+    let mut foms = vec![
         ("reference_rest".into(), reference_rest),
         ("x_rms".into(), x_rms),
         ("theta_rms".into(), theta_rms),
@@ -838,38 +843,44 @@ fn figures_of_merit(f: &Findings) -> Vec<(String, f64)> {
         ("rskf_rest_std".into(), rskf_sum.rest().1),
         (
             "rskf_at_rest_fraction".into(),
-            rskf_sum.at_rest() as f64 / rskf_sum.runs as f64,
+            rskf_sum.fraction(Summary::at_rest),
         ),
         (
             "rskf_before_15s_fraction".into(),
-            rskf_sum.rest_before(15.0) as f64 / rskf_sum.runs as f64,
+            rskf_sum.fraction(|s| s.rest_before(15.0)),
         ),
         (
             "dkf_at_rest_fraction".into(),
-            dkf_sum.at_rest() as f64 / dkf_sum.runs as f64,
+            dkf_sum.fraction(Summary::at_rest),
         ),
         ("dkf_censored_rest_mean".into(), dkf_sum.censored_rest_mean),
         ("rest_ratio".into(), rs_mean / dkf_sum.censored_rest_mean),
-        ("rskf_effort_mean".into(), rskf_sum.effort.0),
-        ("dkf_effort_mean".into(), dkf_sum.effort.0),
-        ("rskf_max_force".into(), rskf_sum.max_force_overall),
-        ("dkf_max_force".into(), dkf_sum.max_force_overall),
-        ("rskf_variation_mean".into(), rskf_sum.variation.0),
-        ("dkf_variation_mean".into(), dkf_sum.variation.0),
-        ("rskf_late_theta_rms".into(), rskf_sum.late_theta_rms.0),
-        ("dkf_late_theta_rms".into(), dkf_sum.late_theta_rms.0),
-        ("rskf_model_error".into(), rskf_sum.model_error.0),
-        ("dkf_model_error".into(), dkf_sum.model_error.0),
+    ];
+    // The figures measured on both filters, rskf's then dkf's.
+    type Pick = fn(&Summary) -> f64;
+    let both: [(&str, Pick); 5] = [
+        ("effort_mean", |s| s.effort.0),
+        ("max_force", |s| s.max_force_overall),
+        ("variation_mean", |s| s.variation.0),
+        ("late_theta_rms", |s| s.late_theta_rms.0),
+        ("model_error", |s| s.model_error.0),
+    ];
+    for (name, pick) in both {
+        for (filter, sum) in [("rskf", rskf_sum), ("dkf", dkf_sum)] {
+            foms.push((format!("{filter}_{name}"), pick(sum)));
+        }
+    }
+    foms.extend([
         ("initial_model_error".into(), initial_model_error),
         (
             "dkf_clean_at_rest_fraction".into(),
-            dkf_clean_sum.at_rest() as f64 / dkf_clean_sum.runs as f64,
+            dkf_clean_sum.fraction(Summary::at_rest),
         ),
         ("dkf_clean_rest_mean".into(), dkf_clean_sum.rest().0),
         ("rskf_exact_rest_mean".into(), rskf_exact.rest().0),
         (
             "dkf_exact_at_rest_fraction".into(),
-            dkf_exact.at_rest() as f64 / dkf_exact.runs as f64,
+            dkf_exact.fraction(Summary::at_rest),
         ),
         ("representative_seed".into(), representative as f64),
         (
@@ -879,7 +890,8 @@ fn figures_of_merit(f: &Findings) -> Vec<(String, f64)> {
         ("representative_rskf_effort".into(), rep_rskf_score.effort),
         ("representative_dkf_effort".into(), rep_dkf_score.effort),
         ("runs".into(), seeds as f64),
-    ]
+    ]);
+    foms
 }
 
 fn write_monte_carlo_csv(path: &Path, dkf: &[RunScore], rskf: &[RunScore]) -> Result<()> {

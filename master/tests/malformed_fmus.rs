@@ -330,29 +330,51 @@ fn refuse_xml(case_name: &str, edit: impl Fn(String) -> String) -> String {
 }
 
 #[test]
-fn two_variables_with_the_same_name_are_refused() {
-    let text = refuse_xml("dupname", |x| x.replace("name=\"theta\"", "name=\"x\""));
-    assert!(
-        text.contains("two variables are called `x` (variables 2 and 3 of ModelVariables)"),
-        "{text}"
-    );
-}
-
-#[test]
-fn two_parameters_on_one_value_reference_are_refused() {
-    // `m` (vr 7) moved onto `M`'s vr 6: two start values for one value.
-    let text = refuse_xml("alias", |x| {
-        x.replace(
+fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
+    // (case, text replaced, its replacement, what the refusal must say)
+    let cases = [
+        (
+            "dupname",
+            "name=\"theta\"",
+            "name=\"x\"",
+            "two variables are called `x` (variables 2 and 3 of ModelVariables)",
+        ),
+        // `m` (vr 7) moved onto `M`'s vr 6: two start values for one value.
+        (
+            "alias",
             "name=\"m\" valueReference=\"7\"",
             "name=\"m\" valueReference=\"6\"",
-        )
-    });
-    assert!(
-        text.contains(
-            "variables `M` (parameter) and `m` (parameter) share value reference 6 (Real) and both have a start value"
+            "variables `M` (parameter) and `m` (parameter) share value reference 6 (Real) and both have a start value",
         ),
-        "{text}"
-    );
+        (
+            "index",
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"99\" dependencies=\"1\"/>",
+            "ModelStructure/Outputs: index 99 is out of range (ModelVariables has 20 variables",
+        ),
+        (
+            "dependency",
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"6\" dependencies=\"0\"/>",
+            "a dependency of `U_applied` 0 is out of range",
+        ),
+        (
+            "notoutput",
+            "<Unknown index=\"6\" dependencies=\"1\"/>",
+            "<Unknown index=\"7\" dependencies=\"1\"/>",
+            "index 7 is `M`, whose causality is parameter, not output",
+        ),
+    ];
+    for (case_name, from, to, expected) in cases {
+        let text = refuse_xml(case_name, |x| {
+            assert!(
+                x.contains(from),
+                "{case_name}: `{from}` is in the model description"
+            );
+            x.replace(from, to)
+        });
+        assert!(text.contains(expected), "{case_name}: {text}");
+    }
 }
 
 #[test]
@@ -373,82 +395,65 @@ fn an_output_aliasing_another_output_is_accepted() {
     case.assert_clean(&["Alias.fmu"]);
 }
 
-#[test]
-fn model_structure_index_out_of_range_is_refused() {
-    let text = refuse_xml("index", |x| {
-        x.replace(
-            "<Unknown index=\"6\" dependencies=\"1\"/>",
-            "<Unknown index=\"99\" dependencies=\"1\"/>",
-        )
-    });
-    assert!(
-        text.contains(
-            "ModelStructure/Outputs: index 99 is out of range (ModelVariables has 20 variables"
-        ),
-        "{text}"
-    );
-    let text = refuse_xml("dependency", |x| {
-        x.replace(
-            "<Unknown index=\"6\" dependencies=\"1\"/>",
-            "<Unknown index=\"6\" dependencies=\"0\"/>",
-        )
-    });
-    assert!(
-        text.contains("a dependency of `U_applied` 0 is out of range"),
-        "{text}"
-    );
-    let text = refuse_xml("notoutput", |x| {
-        x.replace(
-            "<Unknown index=\"6\" dependencies=\"1\"/>",
-            "<Unknown index=\"7\" dependencies=\"1\"/>",
-        )
-    });
-    assert!(
-        text.contains("index 7 is `M`, whose causality is parameter, not output"),
-        "{text}"
-    );
+/// Offsets of the zip headers with signature `sig` whose file name, `name_at` bytes in, is `name`.
+fn headers(zip: &[u8], sig: &[u8; 4], name_at: usize, name: &str) -> Vec<usize> {
+    (0..zip.len().saturating_sub(name_at + name.len()))
+        .filter(|&i| {
+            zip[i..i + 4] == *sig && zip[i + name_at..i + name_at + name.len()] == *name.as_bytes()
+        })
+        .collect()
 }
+
+const LOCAL: (&[u8; 4], usize) = (b"PK\x03\x04", 30);
+const CENTRAL: (&[u8; 4], usize) = (b"PK\x01\x02", 46);
 
 /// Sets the Unix mode (file type included) recorded for `name` in the central directory.
 fn set_unix_mode(mut zip: Vec<u8>, name: &str, mode: u32) -> Vec<u8> {
-    let mut patched = 0;
-    for i in 0..zip.len().saturating_sub(46 + name.len()) {
-        if zip[i..i + 4] == *b"PK\x01\x02" && zip[i + 46..i + 46 + name.len()] == *name.as_bytes() {
-            zip[i + 5] = 3; // made by: Unix
-            zip[i + 38..i + 42].copy_from_slice(&(mode << 16).to_le_bytes());
-            patched += 1;
-        }
+    let central = headers(&zip, CENTRAL.0, CENTRAL.1, name);
+    assert_eq!(central.len(), 1, "the central header of {name}");
+    for i in central {
+        zip[i + 5] = 3; // made by: Unix
+        zip[i + 38..i + 42].copy_from_slice(&(mode << 16).to_le_bytes());
     }
-    assert_eq!(patched, 1, "the central header of {name}");
     zip
 }
 
 /// Sets the uncompressed size recorded for `name` in both the local and the central header.
 fn lie_about_size(mut zip: Vec<u8>, name: &str, size: u32) -> Vec<u8> {
-    let mut patched = 0;
-    for i in 0..zip.len().saturating_sub(46 + name.len()) {
-        if zip[i..i + 4] == *b"PK\x03\x04" && zip[i + 30..i + 30 + name.len()] == *name.as_bytes() {
-            zip[i + 22..i + 26].copy_from_slice(&size.to_le_bytes());
-            patched += 1;
-        }
-        if zip[i..i + 4] == *b"PK\x01\x02" && zip[i + 46..i + 46 + name.len()] == *name.as_bytes() {
-            zip[i + 24..i + 28].copy_from_slice(&size.to_le_bytes());
-            patched += 1;
-        }
+    // The uncompressed size stands 22 bytes into a local header, 24 into a central one.
+    let local = headers(&zip, LOCAL.0, LOCAL.1, name);
+    let central = headers(&zip, CENTRAL.0, CENTRAL.1, name);
+    assert_eq!(
+        (local.len(), central.len()),
+        (1, 1),
+        "both headers of {name}"
+    );
+    for i in local
+        .iter()
+        .map(|i| i + 22)
+        .chain(central.iter().map(|i| i + 24))
+    {
+        zip[i..i + 4].copy_from_slice(&size.to_le_bytes());
     }
-    assert_eq!(patched, 2, "both headers of {name}");
     zip
+}
+
+/// GantryCrane.fmu with 8 MiB of zeros as `resources/bomb.bin`, and `case`'s options with
+/// 4 MiB allowed unpacked.
+fn bomb(case: &Case) -> (Vec<u8>, LoadOptions) {
+    let zeros = vec![0u8; 8 << 20];
+    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let mut options = case.options();
+    options.limits.max_unpacked = 4 << 20;
+    (bytes, options)
 }
 
 #[test]
 fn a_zip_bomb_stops_at_the_declared_size_limit() {
     let case = Case::new("bomb-declared");
-    let zeros = vec![0u8; 8 << 20];
-    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let (bytes, options) = bomb(&case);
     let good = std::fs::metadata(crane()).unwrap().len() as usize;
     assert!(bytes.len() < good + (1 << 20), "the bomb compresses");
-    let mut options = case.options();
-    options.limits.max_unpacked = 4 << 20;
     let (e, text) = case.refuse_bytes("Bomb.fmu", &bytes, &options);
     assert!(matches!(e, LoadError::TooLarge { .. }), "{e}");
     assert!(
@@ -461,11 +466,8 @@ fn a_zip_bomb_stops_at_the_declared_size_limit() {
 #[test]
 fn a_zip_bomb_that_lies_about_its_size_stops_while_inflating() {
     let case = Case::new("bomb-lying");
-    let zeros = vec![0u8; 8 << 20];
-    let bytes = crane_with_entries(&[("resources/bomb.bin", &zeros, 0o100_644)]);
+    let (bytes, options) = bomb(&case);
     let bytes = lie_about_size(bytes, "resources/bomb.bin", 1000);
-    let mut options = case.options();
-    options.limits.max_unpacked = 4 << 20;
     let (e, text) = case.refuse_bytes("Liar.fmu", &bytes, &options);
     assert!(text.contains("resources/bomb.bin"), "{text}");
     // Either the count while inflating stops it at the limit, or the zip reader itself
