@@ -1,7 +1,8 @@
 //! `DistributedObserver.fmu`: one agent of the two-agent distributed observer of paper 004
 //! (del Nozal et al., Jornadas de Automática 2017), docs/estimators.md §2.12.
 //!
-//! Plant x⁺ = A x + w, agent i measures y_i = C_i x + n_i. Each `fmi2DoStep` with inputs
+//! Plant x⁺ = A x + w, agent i measures y_i = C_i x + n_i. Each sample (a step reaching a
+//! sample instant of `sample_period`, [`spurio_fmu_common::clock`]) with inputs
 //! y_own = y_i(k) and x_neighbour = x̂_j(k) (the other agent's output, connected by the
 //! master) computes
 //!

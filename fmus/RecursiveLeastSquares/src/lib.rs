@@ -76,7 +76,7 @@ pub struct RlsLayout {
 #[derive(Debug, Clone)]
 pub struct Rls {
     rls: RecursiveLeastSquares,
-    /// Sampling period of the readout (0: the communication step).
+    /// Sampling period of the readout (0: the sample period of the clock).
     ts: f64,
     readout_logged: bool,
 }
@@ -125,7 +125,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
     );
     let ts =
         t.add(Variable::parameter("Ts", 0.0).unit("s").min(0.0).describe(
-            "Sampling period for the continuous readout; 0 = the communication step size",
+            "Sampling period for the continuous readout; 0 = the sample period (sample_period, or the first step's size)",
         ));
     let prefilter = t.add(Variable::boolean_parameter("prefilter", false).describe(
         "Steiglitz–McBride prefilter: u, y filtered through 1/Â(q) (removes the noise bias)",
@@ -216,7 +216,7 @@ impl Estimator for Rls {
         let ts = values.real(l.ts);
         if !(ts.is_finite() && ts >= 0.0) {
             return Err(Failure::error(format!(
-                "parameter `Ts`: the sampling period must be finite and >= 0 (0 = the communication step), got {ts}"
+                "parameter `Ts`: the sampling period must be finite and >= 0 (0 = the sample period), got {ts}"
             )));
         }
         Ok(Self {

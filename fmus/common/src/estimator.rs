@@ -15,20 +15,27 @@
 //! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
 //! | `DistributedObserver` | one agent of paper 004's observer | its own crate |
 //!
-//! **Sampling convention.** The estimators are discrete-time: every `fmi2DoStep(t_k, h)`
-//! processes one sample, the inputs set at t_k (u_k, y_k), and leaves the estimates of that
-//! sample in the outputs (x̂_{k|k}, ŷ_k = C x̂_{k|k} + D u_k), readable at t_k + h. The step
-//! size does not enter the filters (only the RLS readout uses it as the sampling period when
-//! `Ts` = 0).
+//! **Sampling convention.** The estimators are discrete-time and sample on the one clock of
+//! [`crate::clock`] (parameter `sample_period`, appended to every estimator's variables):
+//! a step whose end reaches the sample instant t_0 + k·T processes one sample, the inputs held
+//! over the step (u, y set before `fmi2DoStep`), and leaves the estimates of that sample in
+//! the outputs (x̂_{k|k}, ŷ_k = C x̂_{k|k} + D u_k), readable at the end of the step. A step
+//! reaching no instant (shorter than T, or a master's rounding step of 10⁻¹⁵ s) holds the
+//! outputs; one reaching several processes them all with the same inputs. With the default
+//! `sample_period` = 0 (T = the first step's size) a fixed-step master gets one sample per
+//! step. The step size does not enter the filters (only the RLS readout uses T as the
+//! sampling period when `Ts` = 0).
 //!
 //! **Errors.** Parameters are read and checked in initialization; a bad one gives
 //! `fmi2Error` with the estimator's message, which names the matrix and the reason. A
 //! non-finite input gives `fmi2Error` naming the input (`y[2]`), before the filter is touched.
 //!
-//! **FMU state.** The parameters read at initialization and the estimator's dynamic state are
-//! serialized; deserialization rebuilds the estimator from the parameters and restores the
-//! dynamic state, so a restored instance continues bit for bit.
+//! **FMU state.** The parameters read at initialization, the estimator's dynamic state and
+//! the sample clock are serialized; deserialization rebuilds the estimator from the
+//! parameters and restores the dynamic state and the clock, so a restored instance continues
+//! bit for bit.
 
+use crate::clock::{self, SampleClock};
 use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{EstimationError, StateEstimator};
@@ -68,7 +75,8 @@ pub trait Estimator: DynamicState + Clone + std::fmt::Debug + 'static {
     fn build(layout: &Self::Layout, values: &Values) -> Result<Self, Failure>;
     /// Writes the outputs (and calculated parameters) before the first step.
     fn write_initial(&self, layout: &Self::Layout, ctx: &mut Context);
-    /// One sample: reads the inputs, steps, writes the outputs.
+    /// One sample at instant `time` (the previous sample instant: the start of the sample
+    /// interval) of period `step`: reads the inputs, steps, writes the outputs.
     fn step(
         &mut self,
         layout: &Self::Layout,
@@ -145,43 +153,71 @@ impl<K: FilterFamily> DynamicState for Filtered<K> {
 }
 
 /// An FMU over an [`Estimator`]: the layout, the parameters the estimator was built from
-/// (kept for FMU state serialization) and the estimator once initialized.
+/// (kept for FMU state serialization), the estimator once initialized and its sample clock.
 #[derive(Debug, Clone)]
 pub struct EstimatorFmu<E: Estimator> {
     layout: E::Layout,
+    /// Value reference of `sample_period` (the last variable).
+    sample_period: usize,
     parameters: Values,
     estimator: Option<E>,
+    clock: SampleClock,
+}
+
+/// The estimator's interface with the parameter `sample_period` appended (value reference:
+/// the number of the estimator's own variables).
+fn with_sample_period(info: ModelInfo) -> ModelInfo {
+    let mut variables = info.variables;
+    variables.push(clock::parameter());
+    ModelInfo::new(
+        &info.model_identifier,
+        &info.description,
+        variables,
+        info.default_experiment,
+        info.config,
+    )
 }
 
 impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     fn describe(config: &Config) -> Result<ModelInfo, Cause> {
-        E::interface(config).map(|(_, info)| info)
+        E::interface(config).map(|(_, info)| with_sample_period(info))
     }
 
     fn create(info: &ModelInfo) -> Result<Self, Cause> {
-        let (layout, _) = E::interface(&info.config)?;
+        let (layout, own) = E::interface(&info.config)?;
         Ok(Self {
             layout,
+            sample_period: own.variables.len(),
             parameters: Values::from_start(&info.variables),
             estimator: None,
+            clock: SampleClock::new(0.0, 0.0)?,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let clock = SampleClock::from_parameter(ctx.values, self.sample_period, ctx.time())?;
         let estimator = E::build(&self.layout, ctx.values)?;
         estimator.write_initial(&self.layout, ctx);
         self.parameters = ctx.values.clone();
         self.estimator = Some(estimator);
+        self.clock = clock;
         Ok(())
     }
 
+    /// The samples whose instants the step's end reaches ([`crate::clock`]), each with the
+    /// inputs held over the step.
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        match &mut self.estimator {
-            Some(estimator) => estimator.step(&self.layout, ctx, time, step),
-            None => Err(Failure::Error(
+        let Some(estimator) = &mut self.estimator else {
+            return Err(Failure::Error(
                 "the estimator was not initialized (fmi2ExitInitializationMode failed?)".into(),
-            )),
+            ));
+        };
+        let (clock, samples) = self.clock.after(time, step)?;
+        for k in samples {
+            estimator.step(&self.layout, ctx, clock.instant(k - 1), clock.period())?;
         }
+        self.clock = clock;
+        Ok(())
     }
 
     fn save_state(&self, out: &mut ByteWriter) {
@@ -194,6 +230,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             }
             None => out.put_bool(false),
         }
+        out.put_bytes(&spurio::state::to_bytes(&self.clock));
     }
 
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
@@ -207,7 +244,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         }
         let mut parameters = self.parameters.clone();
         parameters.load(input)?;
-        self.estimator = if input.bool()? {
+        let estimator = if input.bool()? {
             let state = input.f64_vec()?;
             let mut estimator = E::build(&self.layout, &parameters).map_err(|f| match f {
                 Failure::Error(m) | Failure::Discard(m) => m,
@@ -217,7 +254,11 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         } else {
             None
         };
+        let clock = spurio::state::from_bytes(&input.byte_vec()?)
+            .map_err(|e| format!("estimator state: sample clock: {e}"))?;
+        self.estimator = estimator;
         self.parameters = parameters;
+        self.clock = clock;
         Ok(())
     }
 }

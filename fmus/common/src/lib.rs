@@ -1,6 +1,7 @@
 //! What several spurio FMUs share and that knows the `spurio` models (the FMI-generic
 //! plumbing is in `spurio-export`):
 //! - [`structured`]: vector and matrix variables (`x_hat[1]`, `A[1,1]`) as blocks;
+//! - [`clock`]: the one sample clock of the discrete-time FMUs (`sample_period`);
 //! - [`estimator`]: the one generic estimator adapter ([`estimator::EstimatorFmu`]) and its
 //!   input checks;
 //! - [`kalman`], [`dual`]: the sKF/rsKF and DKF/DKF-rsKF estimators behind their FMUs;
@@ -9,6 +10,7 @@
 //! An FMU binary links only what it uses of this crate.
 #![forbid(unsafe_code)]
 
+pub mod clock;
 pub mod controller;
 pub mod dual;
 pub mod estimator;
