@@ -10,7 +10,14 @@
 //! both:                             y_k = C x_k + D u_k + v_k,          v_k ~ N(0, R)
 //! ```
 //!
-//! In discrete time every `fmi2DoStep` is one sample, whatever its length. Outputs: the
+//! In discrete time the FMU samples on its own clock ([`spurio_fmu_common::clock`]): at the
+//! instants `t_0 + k·T` of the parameter `sample_period` `T` (0, the default: the size of the
+//! first step), a step whose end reaches an instant (relative tolerance 10⁻⁹) takes that
+//! sample with the input held over the step, a shorter step holds the state and the
+//! measurement noise (a master's rounding step of 10⁻¹⁵ s takes no extra sample), a step
+//! reaching several instants takes them all with the same input (at most 10 000). With a
+//! fixed-step master and the default, every step is one sample. In continuous time the step
+//! is exact for any length and `sample_period` is not used. Outputs: the
 //! measured `y[j]`, the noise-free `y_clean[j] = C x + D u` and the true state `x[i]` (for
 //! scoring). `y` and `y_clean` depend directly on `u` (through `D`); the measurement noise of a
 //! communication point is drawn once, when the point is reached, so setting `u` again at the
@@ -28,6 +35,7 @@ use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
     VariableTable,
 };
+use spurio_fmu_common::clock::{self, SampleClock};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Largest dimension a variant may have.
@@ -130,6 +138,8 @@ pub struct Layout {
     pub x0: Block,
     pub seed: usize,
     pub continuous: usize,
+    /// Parameter `sample_period` (discrete time).
+    pub sample_period: usize,
 }
 
 /// The variable table and its layout.
@@ -184,8 +194,9 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
             .describe("Seed of the noise streams (process: stream 0, measurement: stream 1)"),
     );
     let continuous = t.add(Variable::boolean_parameter("continuous", false).describe(
-        "false: x+ = A x + B u + w, one sample per step; true: dx/dt = A x + B u + w, exact over each step",
+        "false: x+ = A x + B u + w, one sample per sample_period; true: dx/dt = A x + B u + w, exact over each step",
     ));
+    let sample_period = t.add(clock::parameter());
     let layout = Layout {
         dims: *d,
         u,
@@ -201,6 +212,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         x0,
         seed,
         continuous,
+        sample_period,
     };
     (t.into_variables(), layout)
 }
@@ -210,6 +222,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
 pub struct LinearSystemFmu {
     layout: Layout,
     system: Option<LinearSystem>,
+    clock: SampleClock,
 }
 
 fn error(e: spurio::ParameterError) -> Failure {
@@ -290,12 +303,15 @@ impl FmuModel for LinearSystemFmu {
         Ok(Self {
             layout,
             system: None,
+            clock: SampleClock::new(0.0, 0.0)?,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let parameters = self.read_parameters(ctx)?;
+        let clock = SampleClock::from_parameter(ctx.values, self.layout.sample_period, ctx.time())?;
         self.system = Some(LinearSystem::new(parameters).map_err(error)?);
+        self.clock = clock;
         self.write_outputs(ctx)
     }
 
@@ -306,13 +322,24 @@ impl FmuModel for LinearSystemFmu {
             .as_mut()
             .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
         let mut next = system.clone();
-        next.advance(&u, step).map_err(error)?;
+        let mut clock = self.clock;
+        if ctx.values.boolean(self.layout.continuous) {
+            next.advance(&u, step).map_err(error)?;
+        } else {
+            // The samples whose instants this step reaches, with the input held.
+            let samples;
+            (clock, samples) = self.clock.after(time, step)?;
+            for _ in samples {
+                next.advance(&u, clock.period()).map_err(error)?;
+            }
+        }
         if next.state().iter().any(|v| !v.is_finite()) {
             return Err(Failure::error(format!(
                 "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
             )));
         }
         *system = next;
+        self.clock = clock;
         self.write_outputs(ctx)
     }
 
@@ -320,7 +347,7 @@ impl FmuModel for LinearSystemFmu {
         self.write_outputs(ctx)
     }
 
-    spurio_fmu_common::fmu_state!(system);
+    spurio_fmu_common::fmu_state!(system, clock);
 }
 
 spurio_export::export_fmu!(
@@ -364,6 +391,63 @@ mod tests {
         assert!(dimensions(&c).unwrap_err().to_string().contains("`n`"));
     }
 
+    /// `x[1]` of the default system (x⁺ = 0.9 x + … + u, no noise) after each step of
+    /// `step` with u = 1, `sample_period` = `period`.
+    fn states(period: f64, steps: &[(f64, f64)]) -> Vec<f64> {
+        use spurio_export::harness::Harness;
+        let config = Config::new();
+        let info = LinearSystemFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let mut h = Harness::<LinearSystemFmu>::new(&config).unwrap();
+        h.set_real(
+            &[
+                vr("Q[1,1]"),
+                vr("Q[2,2]"),
+                vr("R[1,1]"),
+                vr("sample_period"),
+            ],
+            &[0.0, 0.0, 0.0, period],
+        )
+        .unwrap();
+        h.set_real(&[vr("u[1]")], &[1.0]).unwrap();
+        h.initialize(steps[0].0).unwrap();
+        steps
+            .iter()
+            .map(|&(t, step)| {
+                h.do_step(t, step).unwrap();
+                h.real(vr("x[2]")).unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn discrete_time_samples_on_the_clock_and_holds_between_samples() {
+        // x₂⁺ = 0.9 x₂ + u from 0: 1, 1.9, 2.71, …
+        let exact = [1.0, 1.9, 2.71, 3.439];
+        let at_period = states(0.1, &[(0.0, 0.1), (0.1, 0.1), (0.2, 0.1), (0.3, 0.1)]);
+        assert_eq!(at_period, exact);
+        // The default takes the period from the first step.
+        assert_eq!(states(0.0, &[(0.0, 0.1), (0.1, 0.1)]), exact[..2]);
+        // Half periods: every other step holds.
+        let half = states(0.1, &[(0.0, 0.05), (0.05, 0.05), (0.1, 0.05), (0.15, 0.05)]);
+        assert_eq!(half, [0.0, 1.0, 1.0, 1.9]);
+        // Two and a half periods: the instants reached (2, then 3: five samples by 0.5 s).
+        let long = states(0.1, &[(0.0, 0.25), (0.25, 0.25)]);
+        assert_eq!(long[0], exact[1]);
+        assert!((long[1] - 4.0951).abs() < 1e-12, "{long:?}");
+        // Accumulated time and a last step of 1.8e-15 s: no extra sample.
+        let mut steps = Vec::new();
+        let mut t = 0.0;
+        for _ in 0..4 {
+            steps.push((t, 0.1));
+            t += 0.1;
+        }
+        steps.push((0.4 - 1.8e-15, 1.8e-15));
+        let accumulated = states(0.1, &steps);
+        assert_eq!(accumulated[..4], exact);
+        assert_eq!(accumulated[4], exact[3]);
+    }
+
     #[test]
     fn tables_have_no_inputs_when_m_is_zero_and_defaults_are_valid() {
         for (n, m, p) in [(2, 1, 1), (3, 0, 2), (4, 2, 3)] {
@@ -381,6 +465,8 @@ mod tests {
                 m
             );
             assert_eq!(v[l.continuous].name, "continuous");
+            assert_eq!(v[l.sample_period].name, "sample_period");
+            assert_eq!(l.sample_period, v.len() - 1);
             assert_eq!(v[l.a.index(n - 1, n - 1)].name, format!("A[{n},{n}]"));
             assert!(LinearSystem::new(default_parameters(&d)).is_ok());
         }

@@ -17,11 +17,18 @@
 //! `[outlier_t_start[i], outlier_t_end[i])` when `outlier_window[i]`); `Q` an ideal
 //! `adc_bits[i]`-bit ADC on `[adc_min[i], adc_max[i]]` (no quantisation when `adc_bits[i] = 0`).
 //!
-//! **Sampling.** One sample per communication point: at initialisation (time = start time)
-//! and at the end of every `fmi2DoStep` (time `t + h`). The noise and outlier draw of a point is
-//! made once; if the master sets `u` again at the same point (direct feedthrough), `y` is
-//! recomputed with the same draw (the channel's random streams are rewound to the state
-//! before the point's draw), so reading the outputs any number of times gives one sample.
+//! **Sampling.** The sensor samples on its own clock ([`spurio_fmu_common::clock`]): at the
+//! instants `t_k = t_0 + k·T` (`T` = the parameter `sample_period`; 0, the default, takes the
+//! size of the first step), sample 0 at initialisation, sample `k` when a step's end reaches
+//! `t_k` within a relative tolerance of 10⁻⁹ (with the input held over the step; the outlier
+//! window is tested at `t_k`). A step that reaches no instant (shorter than `T`, or a
+//! master's rounding step of 10⁻¹⁵ s) holds `y`, `y_clean` and `outlier`; a step reaching
+//! several instants draws each of them (at most 10 000) and shows the last. With a fixed-step
+//! master and the default, every communication point is one sample. The noise and outlier
+//! draw of a sample is made once; if the master sets `u` again at the point of the last
+//! sample (direct feedthrough), `y` is recomputed with the same draw (the channel's random
+//! streams are rewound to the state before the draw), so reading the outputs any number of
+//! times gives one sample; between samples the outputs hold whatever `u` is set to.
 //!
 //! **Seeds.** One Integer parameter `seed` ≥ 0; channel `i` uses the 64-bit seed
 //! `seed + (i − 1)·2³²`, so every (seed, channel) pair has its own independent streams and the
@@ -34,6 +41,7 @@ use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
     VariableTable,
 };
+use spurio_fmu_common::clock::{self, SampleClock};
 use spurio_fmu_common::param_failure;
 use spurio_fmu_common::structured::{add_vector, Block};
 
@@ -64,6 +72,8 @@ pub struct Layout {
     pub adc_max: Block,
     /// Value reference of `seed`.
     pub seed: usize,
+    /// Value reference of `sample_period`.
+    pub sample_period: usize,
 }
 
 /// Number of channels of a configuration (`channels`, default 1).
@@ -159,6 +169,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
             .min(0.0)
             .describe("Seed of the random streams; channel i uses seed + (i-1)·2^32"),
     );
+    let sample_period = t.add(clock::parameter());
     let layout = Layout {
         channels: n,
         u,
@@ -179,6 +190,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
         adc_min,
         adc_max,
         seed,
+        sample_period,
     };
     (t.into_variables(), layout)
 }
@@ -196,6 +208,7 @@ spurio::plain_state!(Channel { sensor, before });
 pub struct SensorFmu {
     layout: Layout,
     channels: Vec<Channel>,
+    clock: SampleClock,
 }
 
 impl SensorFmu {
@@ -313,6 +326,7 @@ impl FmuModel for SensorFmu {
         Ok(Self {
             layout,
             channels: Vec::new(),
+            clock: SampleClock::new(0.0, 0.0)?,
         })
     }
 
@@ -332,19 +346,30 @@ impl FmuModel for SensorFmu {
                 sensor,
             });
         }
-        self.channels = channels;
         let t = ctx.time();
+        self.clock = SampleClock::from_parameter(ctx.values, self.layout.sample_period, t)?;
+        self.channels = channels;
         self.sample(ctx, t);
         Ok(())
     }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        self.sample(ctx, time + step);
+        let (clock, samples) = self.clock.after(time, step)?;
+        for k in samples {
+            self.sample(ctx, clock.instant(k));
+        }
+        self.clock = clock;
         Ok(())
     }
 
+    /// At the point of the last sample: the same draw with the inputs just set; between
+    /// samples: nothing (the outputs hold).
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let t = ctx.time();
+        if !self.clock.at_last_sample(t) {
+            return Ok(());
+        }
+        let t = self.clock.instant(self.clock.taken());
         for i in 0..self.channels.len() {
             let u = ctx.values.real(self.layout.u.first + i);
             let c = &mut self.channels[i];
@@ -357,7 +382,7 @@ impl FmuModel for SensorFmu {
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(channels);
+    spurio_fmu_common::fmu_state!(channels, clock);
 }
 
 spurio_export::export_fmu!(
@@ -387,7 +412,77 @@ mod tests {
         assert_eq!(v[l.outlier.first + 1].name, "outlier[2]");
         assert_eq!(v[l.adc_max.first + 1].name, "adc_max[2]");
         assert_eq!(v[l.seed].name, "seed");
-        assert_eq!(v.len(), l.seed + 1);
+        assert_eq!(v[l.sample_period].name, "sample_period");
+        assert_eq!(v.len(), l.sample_period + 1);
+    }
+
+    /// `y[1]` of the one-channel sensor (u = 1) after each step, `sample_period` = `period`.
+    fn measured(period: f64, steps: &[(f64, f64)]) -> Vec<f64> {
+        let (_, l) = table(1);
+        let mut h = Harness::<SensorFmu>::new(&Config::new()).unwrap();
+        let (u, y) = (l.u.first as u32, l.y.first as u32);
+        h.set_real(&[u, l.sample_period as u32], &[1.0, period])
+            .unwrap();
+        h.initialize(steps[0].0).unwrap();
+        steps
+            .iter()
+            .map(|&(t, step)| {
+                h.do_step(t, step).unwrap();
+                h.real(y).unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn samples_are_taken_on_the_clock_whatever_the_steps() {
+        let exact: Vec<(f64, f64)> = (0..6).map(|k| (k as f64 * 0.1, 0.1)).collect();
+        let at_period = measured(0.1, &exact);
+        assert!(at_period.windows(2).all(|w| w[0] != w[1]), "{at_period:?}");
+        assert_eq!(measured(0.0, &exact), at_period);
+        // Half periods: the same samples, each held over two points.
+        let half: Vec<(f64, f64)> = (0..12).map(|k| (k as f64 * 0.05, 0.05)).collect();
+        let held = measured(0.1, &half);
+        for k in 0..6 {
+            assert_eq!(held[2 * k + 1], at_period[k], "sample {}", k + 1);
+            let before = if k == 0 { held[0] } else { at_period[k - 1] };
+            assert_eq!(held[2 * k], before, "held before sample {}", k + 1);
+        }
+        // Three periods per step: the third sample of each step is shown.
+        let long = measured(0.1, &[(0.0, 0.3), (0.3, 0.3)]);
+        assert_eq!(long, [at_period[2], at_period[5]]);
+        // Time accumulated by addition and a last step of ~1e-15 s: no extra draw.
+        let mut steps = Vec::new();
+        let mut t = 0.0;
+        for _ in 0..6 {
+            steps.push((t, 0.1));
+            t += 0.1;
+        }
+        steps.push((t, 0.6 - t + 1.8e-15));
+        let accumulated = measured(0.1, &steps);
+        assert_eq!(accumulated[..6], at_period[..]);
+        assert_eq!(accumulated[6], at_period[5]);
+    }
+
+    #[test]
+    fn between_samples_the_outputs_hold_whatever_the_input() {
+        let (_, l) = table(1);
+        let mut h = Harness::<SensorFmu>::new(&Config::new()).unwrap();
+        let (u, y, clean) = (l.u.first as u32, l.y.first as u32, l.y_clean.first as u32);
+        h.set_real(&[l.sample_period as u32], &[0.1]).unwrap();
+        h.initialize(0.0).unwrap();
+        h.set_real(&[u], &[1.0]).unwrap();
+        h.do_step(0.0, 0.05).unwrap();
+        let first = h.real(y).unwrap();
+        h.set_real(&[u], &[5.0]).unwrap();
+        assert_eq!((h.real(y).unwrap(), h.real(clean).unwrap()), (first, 0.0));
+        h.do_step(0.05, 0.05).unwrap();
+        // At the sample instant the input just set is measured, and setting it again there
+        // recomputes the same draw.
+        let sampled = h.real(y).unwrap();
+        assert_eq!(h.real(clean).unwrap(), 5.0);
+        h.set_real(&[u], &[6.0]).unwrap();
+        assert!((h.real(y).unwrap() - sampled - 1.0).abs() < 1e-12);
+        assert_eq!(h.real(clean).unwrap(), 6.0);
     }
 
     #[test]
