@@ -10,13 +10,14 @@
 //! both:                             y_k = C x_k + D u_k + v_k,          v_k ~ N(0, R)
 //! ```
 //!
-//! In discrete time the FMU samples on its own clock ([`spurio_fmu_common::clock`]): at the
-//! instants `t_0 + k·T` of the parameter `sample_period` `T` (0, the default: the size of the
-//! first step), a step whose end reaches an instant (relative tolerance 10⁻⁹) takes that
-//! sample with the input held over the step, a shorter step holds the state and the
-//! measurement noise (a master's rounding step of 10⁻¹⁵ s takes no extra sample), a step
-//! reaching several instants takes them all with the same input (at most 10 000). With a
-//! fixed-step master and the default, every step is one sample. In continuous time the step
+//! In discrete time the FMU samples on its own clock ([`spurio_fmu_common::clock`], rule
+//! `Step`): at the instants `t_k = t_0 + k·T` of the parameter `sample_period` `T` (0, the
+//! default: the size of the first step), the step from `t` to `t + h` takes the samples whose
+//! instants lie in `[t, t + h)` (relative tolerance 10⁻⁹), `x_{k+1}` from `x_k` and the input
+//! set before the step, shown at `t + h`; a step holding no instant (shorter than `T`, or a
+//! master's rounding step of 10⁻¹⁵ s) holds the state and the measurement noise, a step
+//! holding several takes them all with the same input (at most 10 000). With a fixed-step
+//! master and the default, every step is one sample. In continuous time the step
 //! is exact for any length and `sample_period` is not used. Outputs: the
 //! measured `y[j]`, the noise-free `y_clean[j] = C x + D u` and the true state `x[i]` (for
 //! scoring). `y` and `y_clean` depend directly on `u` (through `D`); the measurement noise of a
@@ -35,7 +36,7 @@ use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
     VariableTable,
 };
-use spurio_fmu_common::clock::{self, SampleClock};
+use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Largest dimension a variant may have.
@@ -303,13 +304,15 @@ impl FmuModel for LinearSystemFmu {
         Ok(Self {
             layout,
             system: None,
-            clock: SampleClock::new(0.0, 0.0)?,
+            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let parameters = self.read_parameters(ctx)?;
-        let clock = SampleClock::from_parameter(ctx.values, self.layout.sample_period, ctx.time())?;
+        let start = ctx.time();
+        let clock =
+            SampleClock::from_parameter(Rule::Step, ctx.values, self.layout.sample_period, start)?;
         self.system = Some(LinearSystem::new(parameters).map_err(error)?);
         self.clock = clock;
         self.write_outputs(ctx)
@@ -326,7 +329,7 @@ impl FmuModel for LinearSystemFmu {
         if ctx.values.boolean(self.layout.continuous) {
             next.advance(&u, step).map_err(error)?;
         } else {
-            // The samples whose instants this step reaches, with the input held.
+            // The samples whose instants lie in this step, with the input set before it.
             let samples;
             (clock, samples) = self.clock.after(time, step)?;
             for _ in samples {
@@ -428,12 +431,12 @@ mod tests {
         assert_eq!(at_period, exact);
         // The default takes the period from the first step.
         assert_eq!(states(0.0, &[(0.0, 0.1), (0.1, 0.1)]), exact[..2]);
-        // Half periods: every other step holds.
+        // Half periods: the sample of t_k in the step from t_k, held over the next.
         let half = states(0.1, &[(0.0, 0.05), (0.05, 0.05), (0.1, 0.05), (0.15, 0.05)]);
-        assert_eq!(half, [0.0, 1.0, 1.0, 1.9]);
-        // Two and a half periods: the instants reached (2, then 3: five samples by 0.5 s).
+        assert_eq!(half, [1.0, 1.0, 1.9, 1.9]);
+        // Two and a half periods: the instants each step holds (0, 0.1, 0.2, then 0.3, 0.4).
         let long = states(0.1, &[(0.0, 0.25), (0.25, 0.25)]);
-        assert_eq!(long[0], exact[1]);
+        assert_eq!(long[0], exact[2]);
         assert!((long[1] - 4.0951).abs() < 1e-12, "{long:?}");
         // Accumulated time and a last step of 1.8e-15 s: no extra sample.
         let mut steps = Vec::new();

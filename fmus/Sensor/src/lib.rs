@@ -17,7 +17,8 @@
 //! `[outlier_t_start[i], outlier_t_end[i])` when `outlier_window[i]`); `Q` an ideal
 //! `adc_bits[i]`-bit ADC on `[adc_min[i], adc_max[i]]` (no quantisation when `adc_bits[i] = 0`).
 //!
-//! **Sampling.** The sensor samples on its own clock ([`spurio_fmu_common::clock`]): at the
+//! **Sampling.** The sensor samples on its own clock ([`spurio_fmu_common::clock`], rule
+//! `Point`): at the
 //! instants `t_k = t_0 + k·T` (`T` = the parameter `sample_period`; 0, the default, takes the
 //! size of the first step), sample 0 at initialisation, sample `k` when a step's end reaches
 //! `t_k` within a relative tolerance of 10⁻⁹ (with the input held over the step; the outlier
@@ -41,7 +42,7 @@ use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
     VariableTable,
 };
-use spurio_fmu_common::clock::{self, SampleClock};
+use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_fmu_common::param_failure;
 use spurio_fmu_common::structured::{add_vector, Block};
 
@@ -326,7 +327,7 @@ impl FmuModel for SensorFmu {
         Ok(Self {
             layout,
             channels: Vec::new(),
-            clock: SampleClock::new(0.0, 0.0)?,
+            clock: SampleClock::new(Rule::Point, 0.0, 0.0)?,
         })
     }
 
@@ -347,7 +348,8 @@ impl FmuModel for SensorFmu {
             });
         }
         let t = ctx.time();
-        self.clock = SampleClock::from_parameter(ctx.values, self.layout.sample_period, t)?;
+        let period = self.layout.sample_period;
+        self.clock = SampleClock::from_parameter(Rule::Point, ctx.values, period, t)?;
         self.channels = channels;
         self.sample(ctx, t);
         Ok(())
@@ -365,11 +367,10 @@ impl FmuModel for SensorFmu {
     /// At the point of the last sample: the same draw with the inputs just set; between
     /// samples: nothing (the outputs hold).
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let t = ctx.time();
-        if !self.clock.at_last_sample(t) {
+        let Some(k) = self.clock.sample_at(ctx.time()) else {
             return Ok(());
-        }
-        let t = self.clock.instant(self.clock.taken());
+        };
+        let t = self.clock.instant(k);
         for i in 0..self.channels.len() {
             let u = ctx.values.real(self.layout.u.first + i);
             let c = &mut self.channels[i];

@@ -16,14 +16,14 @@
 //! | `DistributedObserver` | one agent of paper 004's observer | its own crate |
 //!
 //! **Sampling convention.** The estimators are discrete-time and sample on the one clock of
-//! [`crate::clock`] (parameter `sample_period`, appended to every estimator's variables):
-//! a step whose end reaches the sample instant t_0 + k·T processes one sample, the inputs held
-//! over the step (u, y set before `fmi2DoStep`), and leaves the estimates of that sample in
-//! the outputs (x̂_{k|k}, ŷ_k = C x̂_{k|k} + D u_k), readable at the end of the step. A step
-//! reaching no instant (shorter than T, or a master's rounding step of 10⁻¹⁵ s) holds the
-//! outputs; one reaching several processes them all with the same inputs. With the default
+//! [`crate::clock`] (parameter `sample_period`, appended to every estimator's variables,
+//! [`crate::clock::Rule::Step`]): the step from t to t + h processes the samples whose
+//! instants t_k = t_0 + k·T lie in [t, t + h) (relative tolerance 10⁻⁹), each with the inputs
+//! set before the step (u_k, y_k), and leaves the estimates of the last in the outputs
+//! (x̂_{k|k}, ŷ_k = C x̂_{k|k} + D u_k), readable at t + h. A step holding no instant (shorter
+//! than T, or a master's rounding step of 10⁻¹⁵ s) holds the outputs. With the default
 //! `sample_period` = 0 (T = the first step's size) a fixed-step master gets one sample per
-//! step. The step size does not enter the filters (only the RLS readout uses T as the
+//! step, processed from the inputs set at its start. The step size does not enter the filters (only the RLS readout uses T as the
 //! sampling period when `Ts` = 0).
 //!
 //! **Errors.** Parameters are read and checked in initialization; a bad one gives
@@ -35,7 +35,7 @@
 //! parameters and restores the dynamic state and the clock, so a restored instance continues
 //! bit for bit.
 
-use crate::clock::{self, SampleClock};
+use crate::clock::{self, Rule, SampleClock};
 use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{EstimationError, StateEstimator};
@@ -75,8 +75,8 @@ pub trait Estimator: DynamicState + Clone + std::fmt::Debug + 'static {
     fn build(layout: &Self::Layout, values: &Values) -> Result<Self, Failure>;
     /// Writes the outputs (and calculated parameters) before the first step.
     fn write_initial(&self, layout: &Self::Layout, ctx: &mut Context);
-    /// One sample at instant `time` (the previous sample instant: the start of the sample
-    /// interval) of period `step`: reads the inputs, steps, writes the outputs.
+    /// One sample at instant `time` of period `step`: reads the inputs, steps, writes the
+    /// outputs.
     fn step(
         &mut self,
         layout: &Self::Layout,
@@ -190,12 +190,13 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             sample_period: own.variables.len(),
             parameters: Values::from_start(&info.variables),
             estimator: None,
-            clock: SampleClock::new(0.0, 0.0)?,
+            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let clock = SampleClock::from_parameter(ctx.values, self.sample_period, ctx.time())?;
+        let start = ctx.time();
+        let clock = SampleClock::from_parameter(Rule::Step, ctx.values, self.sample_period, start)?;
         let estimator = E::build(&self.layout, ctx.values)?;
         estimator.write_initial(&self.layout, ctx);
         self.parameters = ctx.values.clone();
@@ -204,8 +205,8 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         Ok(())
     }
 
-    /// The samples whose instants the step's end reaches ([`crate::clock`]), each with the
-    /// inputs held over the step.
+    /// The samples whose instants lie in the step ([`crate::clock`]), each with the inputs set
+    /// before it.
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let Some(estimator) = &mut self.estimator else {
             return Err(Failure::Error(
@@ -214,7 +215,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         };
         let (clock, samples) = self.clock.after(time, step)?;
         for k in samples {
-            estimator.step(&self.layout, ctx, clock.instant(k - 1), clock.period())?;
+            estimator.step(&self.layout, ctx, clock.instant(k), clock.period())?;
         }
         self.clock = clock;
         Ok(())

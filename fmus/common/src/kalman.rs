@@ -416,9 +416,9 @@ mod tests {
         );
     }
 
-    /// `x_hat[1]` of the scalar filter (P0 = 1) fed y = 1, 2, 3, … at steps of `step` with the
-    /// given `sample_period`, read after each step.
-    fn filtered(sample_period: f64, step: f64, steps: usize) -> Vec<f64> {
+    /// `x_hat[1]` of the scalar filter (P0 = 1) fed `y` (one value per step) at steps of
+    /// `step` with the given `sample_period`, read after each step.
+    fn filtered(sample_period: f64, step: f64, y: &[f64]) -> Vec<f64> {
         let config = dims_config(1, 0, 1);
         let info = KalmanFilterFmu::describe(&config).unwrap();
         let vr = |n: &str| info.index_of(n).unwrap() as u32;
@@ -426,9 +426,10 @@ mod tests {
         h.set_real(&[vr("P0[1,1]"), vr("sample_period")], &[1.0, sample_period])
             .unwrap();
         h.initialize(0.0).unwrap();
-        (0..steps)
-            .map(|k| {
-                h.set_real(&[vr("y[1]")], &[(k + 1) as f64]).unwrap();
+        y.iter()
+            .enumerate()
+            .map(|(k, &y)| {
+                h.set_real(&[vr("y[1]")], &[y]).unwrap();
                 h.do_step(k as f64 * step, step).unwrap();
                 h.real(vr("x_hat[1]")).unwrap()
             })
@@ -442,33 +443,25 @@ mod tests {
             info.index_of("sample_period"),
             Some(info.variables.len() - 1)
         );
-        let at_period = filtered(0.1, 0.1, 4);
-        // The default (0) takes the period from the first step: the same samples.
-        assert_eq!(filtered(0.0, 0.1, 4), at_period);
-        // Steps of T/2: the first half reaches no instant (outputs held at x0 = 0), the
-        // second takes the sample with the input set before it (2, 4, …).
-        let half = filtered(0.1, 0.05, 4);
-        assert_eq!(half[0], 0.0);
-        assert_eq!(half[2], half[1]);
+        let at_period = filtered(0.1, 0.1, &[1.0, 3.0]);
+        // K = P⁻/(P⁻ + R) = 1.0001/1.0002 on the first sample.
         assert!(
-            (half[1] - at_period[0] * 2.0).abs() < 1e-12,
-            "{half:?} {at_period:?}"
+            (at_period[0] - 1.0001 / 1.0002).abs() < 1e-15,
+            "{at_period:?}"
+        );
+        // The default (0) takes the period from the first step: the same samples.
+        assert_eq!(filtered(0.0, 0.1, &[1.0, 3.0]), at_period);
+        // Steps of T/2: the step from t_k takes the sample with the input set at t_k (1,
+        // then 3); the step from t_k + T/2 holds the outputs (the inputs 2 and 4 are unused).
+        let half = filtered(0.1, 0.05, &[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(
+            half,
+            [at_period[0], at_period[0], at_period[1], at_period[1]]
         );
         // Steps of 2T: two samples per step with the input held (1, 1, then 2, 2).
-        let double = filtered(0.1, 0.2, 2);
-        let mut twice = Harness::<KalmanFilterFmu>::new(&dims_config(1, 0, 1)).unwrap();
-        let vr = |n: &str| info.index_of(n).unwrap() as u32;
-        twice.set_real(&[vr("P0[1,1]")], &[1.0]).unwrap();
-        twice.initialize(0.0).unwrap();
-        let mut expected = Vec::new();
-        for k in 0..4 {
-            twice
-                .set_real(&[vr("y[1]")], &[(k / 2 + 1) as f64])
-                .unwrap();
-            twice.do_step(k as f64 * 0.1, 0.1).unwrap();
-            expected.push(twice.real(vr("x_hat[1]")).unwrap());
-        }
-        assert_eq!(double, vec![expected[1], expected[3]]);
+        let double = filtered(0.1, 0.2, &[1.0, 2.0]);
+        let single = filtered(0.1, 0.1, &[1.0, 1.0, 2.0, 2.0]);
+        assert_eq!(double, [single[1], single[3]]);
         assert!(double[1] > 1.5 && double[1] < 2.0, "{double:?}");
     }
 
@@ -477,39 +470,35 @@ mod tests {
         let config = dims_config(1, 0, 1);
         let info = KalmanFilterFmu::describe(&config).unwrap();
         let index = |n: &str| info.index_of(n).unwrap();
+        let (x, y) = (index("x_hat[1]"), index("y[1]"));
         let mut values = spurio_export::Values::from_start(&info.variables);
         values.set_real(index("P0[1,1]"), 1.0);
         values.set_real(index("sample_period"), 0.1);
         let mut model = KalmanFilterFmu::create(&info).unwrap();
         let mut ctx = spurio_export::Context::new(&mut values);
         model.initialize(&mut ctx).unwrap();
-        ctx.values.set_real(index("y[1]"), 1.0);
+        ctx.values.set_real(y, 1.0);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
         let mut out = spurio_export::ByteWriter::new();
         model.save_state(&mut out);
         let bytes = out.into_bytes();
-        // The restored instance knows that sample 1 (t = 0.1) is the next: a step to 0.1
-        // takes it, a further half step does not.
+        // The restored instance knows that sample 0 was taken and sample 1 (t = 0.1) is the
+        // next: the step from 0.05 holds, the one from 0.1 takes it.
         let mut restored = KalmanFilterFmu::create(&info).unwrap();
         restored
             .load_state(&mut spurio_export::ByteReader::new(&bytes))
             .unwrap();
-        let x = index("x_hat[1]");
         let mut estimates = Vec::new();
         for m in [&mut model, &mut restored] {
-            ctx.values.set_real(x, f64::NAN);
-            m.do_step(&mut ctx, 0.05, 0.05).unwrap();
-            estimates.push(ctx.values.real(x));
             ctx.values.set_real(x, -1.0);
-            m.do_step(&mut ctx, 0.1, 0.05).unwrap();
+            m.do_step(&mut ctx, 0.05, 0.05).unwrap();
             assert_eq!(ctx.values.real(x), -1.0, "held");
+            ctx.values.set_real(y, 3.0);
+            m.do_step(&mut ctx, 0.1, 0.05).unwrap();
+            estimates.push(ctx.values.real(x));
         }
-        // K = 1.0001/1.0002 on the sample y = 1.
         assert_eq!(estimates[0], estimates[1]);
-        assert!(
-            (estimates[0] - 1.0001 / 1.0002).abs() < 1e-12,
-            "{estimates:?}"
-        );
+        assert_eq!(estimates[0], filtered(0.1, 0.1, &[1.0, 3.0])[1]);
         assert!(restored
             .load_state(&mut spurio_export::ByteReader::new(
                 &bytes[..bytes.len() - 1]
