@@ -4,9 +4,10 @@ Each FMU runs to its default stop time at the power of two nearest its default s
 (`binary_step`: n·h is exact, so fmpy's start + n·h and the tools' accumulated t += h agree
 on every communication point and nobody takes a tiny last step). The timing case, each
 FMU's own default step (0.1, 0.05, …, not exact in binary), is tested apart: there
-OMSimulator's last step of ~1e-15 s makes our discrete-time FMUs (one sample per
-fmi2DoStep) take one sample more than in fmpy; that is a known defect of those FMUs, marked
-`xfail(strict=True)` until they sample on their own clock.
+OMSimulator's accumulated time falls short of the stop time and it takes a last step of
+~1e-15 s. Our discrete-time FMUs sample on their own clock (docs/fmus.md, "Sampling": the
+instants start + k·T, k an integer, compared within 1e-9·T), so that step takes no sample
+and they match fmpy there too.
 """
 
 import subprocess
@@ -105,31 +106,11 @@ def test_omsimulator_matches_fmpy(name, workdir):
     compare_with_fmpy(fmu, stop, binary_step(step), workdir)
 
 
-# One sample per fmi2DoStep: OMSimulator's extra step of ~1e-15 s at the end (100 × 0.1 <
-# 10 in floating point) takes one more noise/sample draw, so the last row differs from
-# fmpy's by a whole sample. To be fixed in the FMUs (sampling on their own clock).
-SAMPLE_PER_STEP = {"LinearSystem", "LinearSystem2", "Sensor", "Sensor2"}
-
-
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            n,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="samples once per fmi2DoStep, so OMSimulator's final ~1e-15 s step "
-                "takes an extra sample (the FMU should sample on its own clock)",
-            ),
-        )
-        if n in SAMPLE_PER_STEP
-        else n
-        for n in FMUS
-    ],
-)
+@pytest.mark.parametrize("name", FMUS)
 def test_omsimulator_matches_fmpy_at_the_default_step(name, workdir):
     """The FMU's own default step (not exact in binary): OMSimulator accumulates time and
-    may end with a step of ~1e-15 s, fmpy does not."""
+    may end with a step of ~1e-15 s, fmpy does not; the discrete-time FMUs (LinearSystem,
+    Sensor, the estimators) take no sample in that step, as in fmpy."""
     fmu = our_fmu(name)
     stop, step = default_experiment(fmu)
     compare_with_fmpy(fmu, stop, step, workdir)

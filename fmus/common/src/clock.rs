@@ -92,7 +92,7 @@ pub fn parameter() -> Variable {
     Variable::parameter(SAMPLE_PERIOD, 0.0)
         .unit("s")
         .min(0.0)
-        .describe("Sample period T: samples at start + k·T, taken by the step whose end reaches the instant (relative tolerance 1e-9), outputs held in between; 0 = the size of the first step")
+        .describe("Sample period T: one sample at each instant start + k·T (k an integer; relative tolerance 1e-9), outputs held between samples, every instant a longer step covers taken with the inputs held; 0 = the size of the first step")
 }
 
 /// Which step takes the sample of an instant (see the module documentation).
