@@ -20,7 +20,9 @@
 //! processing the inputs held there (direct feedthrough: `u[1]` depends on `x_hat`, `A_hat`,
 //! `B_hat`; `L`, `rejected_updates` and `estimate_rejected` on `A_hat`, `B_hat`), computed on
 //! a copy when inputs are set; `fmi2DoStep` commits that update (and logs), so the gain
-//! used for `u_k` is the one from `Â_k`, `B̂_k`, as in paper 000 Fig. 6.
+//! used for `u_k` is the one from `Â_k`, `B̂_k`, as in paper 000 Fig. 6. The points are the
+//! sample instants of `sample_period` (see [`spurio_fmu_common::controller`]): between them
+//! the outputs hold, and `recompute_period` counts samples.
 
 use nalgebra::DMatrix;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
@@ -28,6 +30,7 @@ use spurio::control::{
     AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, StateController,
 };
 use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable};
+use spurio_fmu_common::clock::{Rule, SampleClock};
 use spurio_fmu_common::controller::{
     check_pole_parameters, describe_controller, format_gain, input_unit, layout_for, start_table,
     with_unit, DesignBlocks, Preset,
@@ -164,6 +167,7 @@ pub struct AdaptiveStateFeedbackFmu {
     layout: Layout,
     controller: Option<AdaptiveStateFeedback>,
     rejections_before_episode: u64,
+    clock: SampleClock,
 }
 
 impl AdaptiveStateFeedbackFmu {
@@ -261,11 +265,13 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
             layout: layout_for(info, build)?,
             controller: None,
             rejections_before_episode: 0,
+            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let config = config_from_parameters(&self.layout, ctx.values)?;
+        let clock = self.layout.design.clock(ctx.values, ctx.time())?;
         let controller = AdaptiveStateFeedback::new(config).map_err(|e| {
             let parameter = if e.parameter == "initial_gain" {
                 "L0"
@@ -276,11 +282,41 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
         })?;
         self.controller = Some(controller);
         self.rejections_before_episode = 0;
+        self.clock = clock;
         self.write_preview(ctx);
         Ok(())
     }
 
-    fn do_step(&mut self, ctx: &mut Context, time: f64, _step: f64) -> Result<(), Failure> {
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        let (clock, samples) = self.clock.after(time, step)?;
+        if samples.is_empty() {
+            // Between samples: nothing is committed and the outputs hold.
+            self.clock = clock;
+            return Ok(());
+        }
+        for k in samples {
+            self.commit(ctx, clock.instant(k))?;
+        }
+        self.clock = clock;
+        // Outputs at the new communication point, for the inputs still held.
+        self.write_preview(ctx);
+        Ok(())
+    }
+
+    /// At a sample instant the outputs follow the inputs just set; between samples they hold.
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        if self.clock.due_at(ctx.time()) {
+            self.write_preview(ctx);
+        }
+        Ok(())
+    }
+
+    spurio_fmu_common::fmu_state!(controller, rejections_before_episode, clock);
+}
+
+impl AdaptiveStateFeedbackFmu {
+    /// Commits the gain update of the sample at `time` from the inputs held (and logs).
+    fn commit(&mut self, ctx: &mut Context, time: f64) -> Result<(), Failure> {
         let (a_hat, b_hat) = self.estimate(ctx);
         let Some(controller) = self.controller.as_mut() else {
             return Err(Failure::error("the controller was not initialised"));
@@ -309,17 +345,8 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
             }
             GainUpdate::Kept { .. } | GainUpdate::Updated | GainUpdate::NotDue => {}
         }
-        // Outputs at the new communication point, for the inputs still held.
-        self.write_preview(ctx);
         Ok(())
     }
-
-    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.write_preview(ctx);
-        Ok(())
-    }
-
-    spurio_fmu_common::fmu_state!(controller, rejections_before_episode);
 }
 
 spurio_export::export_fmu! { AdaptiveStateFeedbackFmu, variants = [("AdaptiveStateFeedback", crane_controller_config())] }
@@ -378,19 +405,23 @@ mod tests {
         assert!(ctx.take_messages().is_empty());
 
         ctx.values.set_real(layout.a_hat.index(2, 1), f64::NAN);
+        let mut messages = Vec::new();
         for k in 1..4 {
-            model.update_outputs(&mut ctx).unwrap();
-            assert!(ctx.values.real(layout.u).is_finite());
-            model.do_step(&mut ctx, k as f64 * 0.05, 0.05).unwrap();
-            assert_eq!(layout.gain.matrix(ctx.values), good);
+            // A context at the instance's time, a sample instant.
+            let mut at = Context::at(&mut *ctx.values, k as f64 * 0.05);
+            model.update_outputs(&mut at).unwrap();
+            assert!(at.values.real(layout.u).is_finite());
+            model.do_step(&mut at, k as f64 * 0.05, 0.05).unwrap();
+            assert_eq!(layout.gain.matrix(at.values), good);
+            messages.extend(at.take_messages());
         }
-        let messages = ctx.take_messages();
         assert_eq!(messages.len(), 1, "{messages:?}");
         assert_eq!(messages[0].status, Status::Warning);
         assert!(messages[0].text.contains("NaN or infinity"), "{messages:?}");
         assert_eq!(ctx.values.integer(layout.rejected_updates), 4); // 3 + the preview
         assert!(ctx.values.boolean(layout.estimate_rejected));
 
+        let mut ctx = Context::at(ctx.values, 0.2);
         ctx.values.set_real(layout.x_hat.first + 2, f64::NAN);
         model.update_outputs(&mut ctx).unwrap();
         assert_eq!(ctx.values.real(layout.u), 0.0);

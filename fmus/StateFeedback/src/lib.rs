@@ -13,7 +13,8 @@
 //! model) and the desired discrete poles `p_i = pole_re[i] + j·pole_im[i]`. Ackermann's
 //! formula is single-input, so `B` is n × 1 and there is one output, `u[1]`. `u[1]` depends
 //! directly on the inputs `x_hat`, `x_ref` (direct feedthrough): it is recomputed as soon as
-//! an input is set, so a master reads it at the same communication point.
+//! an input is set, so a master reads it at the same communication point — at the sample
+//! instants of `sample_period` (see [`spurio_fmu_common::controller`]); between them it holds.
 //!
 //! Dimension-generic: the configuration key `n` (number of states) is chosen at packaging
 //! time; `preset = crane` gives the crane defaults (n = 4, ZOH of the linearised crane at
@@ -25,6 +26,7 @@ use spurio::control::{
     ackermann_with_options, PolePlacementOptions, StateController, StateFeedback,
 };
 use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable};
+use spurio_fmu_common::clock::{Rule, SampleClock};
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -112,6 +114,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
 pub struct StateFeedbackFmu {
     layout: Layout,
     controller: Option<StateFeedback>,
+    clock: SampleClock,
 }
 
 impl StateFeedbackFmu {
@@ -146,6 +149,7 @@ impl FmuModel for StateFeedbackFmu {
         Ok(Self {
             layout: layout_for(info, build)?,
             controller: None,
+            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
         })
     }
 
@@ -153,6 +157,7 @@ impl FmuModel for StateFeedbackFmu {
         let layout = self.layout;
         let values = &*ctx.values;
         let limits = layout.design.limits(values).map_err(Failure::error)?;
+        let clock = layout.design.clock(values, ctx.time())?;
         let a = layout.a.matrix(values);
         let b = layout.b.matrix(values);
         let poles = layout.design.poles(values);
@@ -165,22 +170,31 @@ impl FmuModel for StateFeedbackFmu {
         let controller = StateFeedback::from_gain(gain, limits).map_err(Failure::error)?;
         layout.gain.write(ctx.values, controller.gain());
         self.controller = Some(controller);
+        self.clock = clock;
         self.write_output(ctx);
         Ok(())
     }
 
-    fn do_step(&mut self, ctx: &mut Context, _time: f64, _step: f64) -> Result<(), Failure> {
-        // No internal state: the output follows the inputs held at the new time.
-        self.write_output(ctx);
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        // No internal state: after a step that took samples the output is the last one's,
+        // from the inputs held over the step; after one that took none it holds.
+        let (clock, samples) = self.clock.after(time, step)?;
+        self.clock = clock;
+        if !samples.is_empty() {
+            self.write_output(ctx);
+        }
         Ok(())
     }
 
+    /// At a sample instant the output follows the inputs just set; between samples it holds.
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.write_output(ctx);
+        if self.clock.due_at(ctx.time()) {
+            self.write_output(ctx);
+        }
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(controller);
+    spurio_fmu_common::fmu_state!(controller, clock);
 }
 
 spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
@@ -257,9 +271,36 @@ mod tests {
         ctx.values.set_real(layout.x_hat.first + 1, f64::NAN);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
         assert_eq!(ctx.values.real(layout.u), 0.0);
+        // At the next sample instant (the instance's time after the step), inputs set are
+        // used at once.
+        let mut ctx = Context::at(ctx.values, 0.05);
         ctx.values.set_real(layout.x_hat.first + 1, 1e3);
         model.update_outputs(&mut ctx).unwrap();
         assert_eq!(ctx.values.real(layout.u), -17.0);
+    }
+
+    #[test]
+    fn the_output_holds_between_sample_instants() {
+        use spurio_export::harness::Harness;
+        let config = crane_config();
+        let info = StateFeedbackFmu::describe(&config).unwrap();
+        let vr = |name: &str| info.index_of(name).unwrap() as u32;
+        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        h.set_real(&[vr("sample_period")], &[0.1]).unwrap();
+        h.initialize(0.0).unwrap();
+        let l1 = h.real(vr("L[1,1]")).unwrap();
+        let (x, u) = (vr("x_hat[1]"), vr("u[1]"));
+        // u = −L₁·x at each instant 0, 0.1, …; steps of 0.05 hold it in between.
+        let mut seen = Vec::new();
+        for k in 0..4 {
+            h.set_real(&[x], &[0.01 * (k + 1) as f64]).unwrap();
+            seen.push(h.real(u).unwrap());
+            h.do_step(k as f64 * 0.05, 0.05).unwrap();
+        }
+        let expected = [-0.01 * l1, -0.01 * l1, -0.03 * l1, -0.03 * l1];
+        for (got, want) in seen.iter().zip(expected) {
+            assert!((got - want).abs() < 1e-15, "{seen:?} vs {expected:?}");
+        }
     }
 
     #[test]

@@ -178,6 +178,13 @@ impl SampleClock {
         ((time - self.instant(last)).abs() <= TOLERANCE * self.period).then_some(last)
     }
 
+    /// Under [`Rule::Step`]: whether `time` is (within the tolerance) the instant of the next
+    /// sample, i.e. a communication point whose inputs the next step will sample (a
+    /// direct-feedthrough output shows that sample there).
+    pub fn due_at(&self, time: f64) -> bool {
+        (time - self.instant(self.next)).abs() <= TOLERANCE * self.period
+    }
+
     /// The clock after the step from `time` of size `step`, and the samples (their indices
     /// `k`, in order, possibly none) that step takes; `self` is not changed, so a step that
     /// fails leaves the clock as it was.
@@ -303,6 +310,7 @@ mod tests {
             run(&mut step, &steps),
             vec![vec![0], vec![], vec![1], vec![]]
         );
+        assert!(step.due_at(0.2) && !step.due_at(0.15));
         assert_eq!(
             run(&mut point, &steps),
             vec![vec![], vec![1], vec![], vec![2]]

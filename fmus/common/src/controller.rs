@@ -1,7 +1,17 @@
 //! The pieces the two state-feedback controller FMUs (`StateFeedback`,
 //! `AdaptiveStateFeedback`) share: the configuration keys and presets, the default model and
-//! poles of a variant, the pole and limit parameters, and the design error messages.
+//! poles of a variant, the pole and limit parameters, the sample clock, and the design error
+//! messages.
+//!
+//! **Sampling.** Both controllers sample on the one clock of [`crate::clock`] (parameter
+//! `sample_period`, rule [`Rule::Step`]): the sample of instant t_k uses the inputs at the
+//! communication point t_k (direct feedthrough: `u` is shown there as soon as the inputs are
+//! set) and the step from t_k commits it; between samples (a step shorter than T, a master's
+//! rounding step of 10⁻¹⁵ s) the outputs hold whatever the inputs, a step covering several
+//! instants takes them all with the inputs held. With the default `sample_period` = 0 (T =
+//! the first step's size) a fixed-step master gets one sample per step.
 
+use crate::clock::{self, ClockError, Rule, SampleClock};
 use crate::structured::{add_vector, Block};
 use nalgebra::{Complex, DMatrix};
 use spurio::control::pole_placement::check_poles;
@@ -195,20 +205,30 @@ pub struct DesignBlocks {
     pub u_min: usize,
     /// Parameter `u_max`.
     pub u_max: usize,
+    /// Parameter `sample_period`.
+    pub sample_period: usize,
 }
 
 impl DesignBlocks {
     /// Adds `pole_re[i]`, `pole_im[i]` (with the variant's default poles), then `u_min`,
-    /// `u_max`.
+    /// `u_max`, `sample_period`.
     pub fn add(table: &mut VariableTable, defaults: &VariantDefaults) -> Self {
         let (pole_re, pole_im) = add_pole_parameters(table, defaults);
         let (u_min, u_max) = add_limit_parameters(table, defaults.preset);
+        let sample_period = table.add(clock::parameter());
         Self {
             pole_re,
             pole_im,
             u_min,
             u_max,
+            sample_period,
         }
+    }
+
+    /// The controller's sample clock ([`Rule::Step`]) from `sample_period`, starting at
+    /// `start`.
+    pub fn clock(&self, values: &Values, start: f64) -> Result<SampleClock, ClockError> {
+        SampleClock::from_parameter(Rule::Step, values, self.sample_period, start)
     }
 
     /// The desired poles `pole_re[i] + j·pole_im[i]`.
