@@ -5,7 +5,7 @@ Each FMU runs to its default stop time at the power of two nearest its default s
 on every communication point and nobody takes a tiny last step). The timing case, each
 FMU's own default step (0.1, 0.05, …, not exact in binary), is tested apart: there
 OMSimulator's accumulated time falls short of the stop time and it takes a last step of
-~1e-15 s. Our discrete-time FMUs sample on their own clock (docs/fmus.md, "Sampling": the
+~1e-15 s. Our discrete-time FMUs sample on their own clock (docs/README.md, "Sampling": the
 instants start + k·T, k an integer, compared within 1e-9·T), so that step takes no sample
 and they match fmpy there too.
 """

@@ -1,4 +1,4 @@
-//! The one sample clock of the discrete-time FMUs (docs/fmus.md, "Sampling"): which samples
+//! The one sample clock of the discrete-time FMUs (docs/README.md, "Sampling"): which samples
 //! an `fmi2DoStep` takes, whatever the master's rounding of time.
 //!
 //! **The instants.** The FMU samples at `t_k = t_0 + k·T` (k = 0, 1, 2, …), with `t_0` the
