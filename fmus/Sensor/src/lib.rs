@@ -101,7 +101,7 @@ pub fn table(n: usize) -> (Vec<Variable>, Layout) {
     });
     let y_clean = add_vector(&mut t, "y_clean", n, |name, i| {
         Variable::discrete_output(name)
-            .describe("Clean value (the input at this communication point), for scoring")
+            .describe("Clean value (the input at the last sample instant), for scoring")
             .depends_on(&[u.first + i])
     });
     let outlier = add_vector(&mut t, "outlier", n, |name, _| {
