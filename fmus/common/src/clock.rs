@@ -4,7 +4,7 @@
 //! **The instants.** The FMU samples at `t_k = t_0 + k·T` (k = 0, 1, 2, …), with `t_0` the
 //! start time of `fmi2SetupExperiment` and `T` the parameter `sample_period`; `k` is counted as
 //! an integer, never accumulated, and an instant is compared with a communication point
-//! within [`TOLERANCE`]` · T` (10⁻⁹ T). `sample_period = 0` (the default) takes `T` from the
+//! within [`TOLERANCE`] · T = 10⁻⁹ T. `sample_period = 0` (the default) takes `T` from the
 //! size of the first `fmi2DoStep`: a fixed-step master's step, so that every run of a
 //! fixed-step master is one sample per step, as before; set it when the master's steps are
 //! not the sampling period.
@@ -35,7 +35,8 @@ use std::ops::Range;
 /// Name of the sample-period parameter of every discrete-time FMU.
 pub const SAMPLE_PERIOD: &str = "sample_period";
 
-/// Relative tolerance of an instant: `τ` reaches `t_k` when `t_k ≤ τ + TOLERANCE·T`.
+/// Relative tolerance of an instant, in periods: a communication point `τ` and an instant
+/// `t_k` are the same when `|τ − t_k| ≤ TOLERANCE·T`.
 pub const TOLERANCE: f64 = 1e-9;
 
 /// The most samples one `fmi2DoStep` may take (a longer step is an error).
