@@ -49,11 +49,11 @@ pub enum ClockError {
     Period(f64),
     /// A step reaching more than [`MAX_SAMPLES_PER_STEP`] instants.
     TooManySamples {
-        /// Start of the step [s].
+        /// Start of the step (s).
         time: f64,
-        /// Its size [s].
+        /// Its size (s).
         step: f64,
-        /// The sample period [s].
+        /// The sample period (s).
         period: f64,
         /// How many instants it reaches (may be infinite).
         samples: f64,
@@ -88,7 +88,7 @@ impl From<ClockError> for Failure {
     }
 }
 
-/// The parameter `sample_period` [s], start 0 (= the size of the first step).
+/// The parameter `sample_period` (s), start 0 (= the size of the first step).
 pub fn parameter() -> Variable {
     Variable::parameter(SAMPLE_PERIOD, 0.0)
         .unit("s")
