@@ -1,7 +1,7 @@
 """The discrete FMUs sample on their own clock (docs/README.md#sampling), in fmpy.
 
 A discrete FMU samples at t_0 + k·T (T = `sample_period`, k an integer, compared within
-1e-9·T), whatever the master's steps: LinearSystem (discrete time, rule "the step from t_k
+1e-9·T at the start), whatever the master's steps: LinearSystem (discrete time, rule "the step from t_k
 processes the input set at t_k") and Sensor (rule "sample k when a step's end reaches t_k")
 with fmpy stepping at T, T/2 and 2T, and with OMSimulator's timing (time accumulated by
 t += h, then a last step of ~1e-15 s to the stop time) against fmpy's own t_0 + n·h.

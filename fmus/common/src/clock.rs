@@ -4,7 +4,8 @@
 //! **The instants.** The FMU samples at `t_k = t_0 + k·T` (k = 0, 1, 2, …), with `t_0` the
 //! start time of `fmi2SetupExperiment` and `T` the parameter `sample_period`; `k` is counted as
 //! an integer, never accumulated, and an instant is compared with a communication point
-//! within [`TOLERANCE`] · T = 10⁻⁹ T. `sample_period = 0` (the default) takes `T` from the
+//! within [`tolerance`] · T (10⁻⁹ T at the start, growing with the
+//! drift of a time accumulated by addition, at most 10⁻³ T). `sample_period = 0` (the default) takes `T` from the
 //! size of the first `fmi2DoStep`: a fixed-step master's step, so that every run of a
 //! fixed-step master is one sample per step, as before; set it when the master's steps are
 //! not the sampling period.
@@ -13,11 +14,11 @@
 //! the communication point `t_k` (held over a step that starts before `t_k`).
 //! - [`Rule::Step`] (estimators, controllers, discrete plants: the sample's result is the
 //!   next state): the step from `t` to `t + h` takes the instants in `[t, t + h)`, i.e.
-//!   `t_k < t + h − 10⁻⁹ T`, with the inputs set before the step, and shows the result of the
+//!   `t_k < t + h − tol`, with the inputs set before the step, and shows the result of the
 //!   last at `t + h`.
 //! - [`Rule::Point`] (the sensor: its output at `t_k` is the sample of `t_k`, direct
 //!   feedthrough): sample 0 at initialisation, then the step takes the instants its end
-//!   reaches, `t_k ≤ t + h + 10⁻⁹ T`, and the output at `t + h` is the last.
+//!   reaches, `t_k ≤ t + h + tol`, and the output at `t + h` is the last.
 //!
 //! So a step of `T` (fmpy's `t_0 + n·h`, or a master that accumulates `t += h`) takes one
 //! sample; a shorter step that reaches no new instant (`h = T/2`, or the `1.8·10⁻¹⁵ s` last
@@ -35,9 +36,22 @@ use std::ops::Range;
 /// Name of the sample-period parameter of every discrete-time FMU.
 pub const SAMPLE_PERIOD: &str = "sample_period";
 
-/// Relative tolerance of an instant, in periods: a communication point `τ` and an instant
-/// `t_k` are the same when `|τ − t_k| ≤ TOLERANCE·T`.
+/// Relative tolerance of an instant, in periods, near the start: a communication point `τ`
+/// and an instant `t_0 + k·T` are the same when `|τ − t_k| ≤ tolerance(k)·T`.
 pub const TOLERANCE: f64 = 1e-9;
+
+/// The largest tolerance, in periods (reached after about 2·10⁶ samples).
+pub const MAX_TOLERANCE: f64 = 1e-3;
+
+/// The tolerance around instant `k`, in periods: `min(10⁻⁹ + k²·ε, 10⁻³)`, ε the machine
+/// epsilon. A master that accumulates its time by addition (`t += h`, as OMSimulator does)
+/// drifts from `k·T` by up to about `k²·ε/2` periods after `k` steps (measured: 4·10⁻⁵ T
+/// after 2·10⁶ steps of 0.001 s), so a fixed tolerance would, late in a long run, let the
+/// drift cross it and a step take two samples or none; this one grows with that bound and
+/// stays far below any step a master takes on purpose.
+pub fn tolerance(k: f64) -> f64 {
+    (TOLERANCE + k * k * f64::EPSILON).min(MAX_TOLERANCE)
+}
 
 /// The most samples one `fmi2DoStep` may take (a longer step is an error).
 pub const MAX_SAMPLES_PER_STEP: u64 = 10_000;
@@ -93,7 +107,7 @@ pub fn parameter() -> Variable {
     Variable::parameter(SAMPLE_PERIOD, 0.0)
         .unit("s")
         .min(0.0)
-        .describe("Sample period T: one sample at each instant start + k·T (k an integer; relative tolerance 1e-9), outputs held between samples, every instant a longer step covers taken with the inputs held; 0 = the size of the first step")
+        .describe("Sample period T: one sample at each instant start + k·T (k an integer; relative tolerance 1e-9, growing to 1e-3 with the drift of accumulated time), outputs held between samples, every instant a longer step covers taken with the inputs held; 0 = the size of the first step")
 }
 
 /// Which step takes the sample of an instant (see the module documentation).
@@ -176,14 +190,15 @@ impl SampleClock {
     /// taken and not one between samples.
     pub fn sample_at(&self, time: f64) -> Option<u64> {
         let last = self.next.checked_sub(1)?;
-        ((time - self.instant(last)).abs() <= TOLERANCE * self.period).then_some(last)
+        let within = tolerance(last as f64) * self.period;
+        ((time - self.instant(last)).abs() <= within).then_some(last)
     }
 
     /// Under [`Rule::Step`]: whether `time` is (within the tolerance) the instant of the next
     /// sample, i.e. a communication point whose inputs the next step will sample (a
     /// direct-feedthrough output shows that sample there).
     pub fn due_at(&self, time: f64) -> bool {
-        (time - self.instant(self.next)).abs() <= TOLERANCE * self.period
+        (time - self.instant(self.next)).abs() <= tolerance(self.next as f64) * self.period
     }
 
     /// The clock after the step from `time` of size `step`, and the samples (their indices
@@ -200,8 +215,8 @@ impl SampleClock {
         let x = (time + step - next.start) / next.period;
         // The number of instants t_k, k >= 0, the step's end has passed (Step) or reached (Point).
         let end = match next.rule {
-            Rule::Step => (x - TOLERANCE).ceil(),
-            Rule::Point => (x + TOLERANCE).floor() + 1.0,
+            Rule::Step => (x - tolerance(x)).ceil(),
+            Rule::Point => (x + tolerance(x)).floor() + 1.0,
         };
         let first = next.next;
         if end.is_nan() || end <= first as f64 {
@@ -271,6 +286,27 @@ mod tests {
             let (next, samples) = clock.after(t, last).unwrap();
             assert!(samples.is_empty());
             assert_eq!(next, clock);
+        }
+    }
+
+    #[test]
+    fn a_long_run_of_accumulated_time_takes_exactly_one_sample_per_step() {
+        // 2·10⁶ steps of 0.001 s accumulated by addition drift from k·T by up to ~4e-5 T, far
+        // beyond 1e-9 T: the growing tolerance keeps every step at exactly one sample.
+        for period in [0.001, 0.1] {
+            for mut clock in clocks(0.0, period) {
+                let first = clock.taken();
+                let mut t = 0.0_f64;
+                let mut worst = 0.0_f64;
+                for k in 0..2_000_000_u64 {
+                    let (next, samples) = clock.after(t, period).unwrap();
+                    assert_eq!(samples, first + k..first + k + 1, "step from t = {t}");
+                    clock = next;
+                    t += period;
+                    worst = worst.max((t - (k + 1) as f64 * period).abs() / period);
+                }
+                assert!(worst > 1e-6, "the drift this test is about: {worst}");
+            }
         }
     }
 
