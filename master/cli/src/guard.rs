@@ -27,7 +27,13 @@ struct Session {
     dir: PathBuf,
     flushes: Mutex<Vec<Flush>>,
     workers: Mutex<Vec<Arc<Mutex<Child>>>>,
+    /// The process id of the supervised run (see [`supervise`]), which SIGINT/SIGTERM are
+    /// passed on to.
+    supervised: Mutex<Option<u32>>,
 }
+
+/// Set in the environment of a supervised run (see [`supervise`]).
+const SUPERVISED: &str = "SPURIO_SUPERVISED_RUN";
 
 static SESSION: OnceLock<Session> = OnceLock::new();
 static ENDING: AtomicBool = AtomicBool::new(false);
@@ -54,6 +60,7 @@ pub fn start() -> anyhow::Result<()> {
         dir,
         flushes: Mutex::new(Vec::new()),
         workers: Mutex::new(Vec::new()),
+        supervised: Mutex::new(None),
     };
     if SESSION.set(session).is_err() {
         return Ok(());
@@ -62,7 +69,16 @@ pub fn start() -> anyhow::Result<()> {
     let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
         .map_err(|e| anyhow::anyhow!("cannot install the SIGINT/SIGTERM handler: {e}"))?;
     std::thread::spawn(move || {
-        if let Some(signal) = signals.forever().next() {
+        for signal in signals.forever() {
+            // A supervisor passes the signal on and waits for the run to end by it.
+            let supervised = SESSION.get().and_then(|s| *lock(&s.supervised));
+            if let Some(pid) = supervised {
+                let _ = std::process::Command::new("kill")
+                    .arg(format!("-{signal}"))
+                    .arg(pid.to_string())
+                    .status();
+                continue;
+            }
             let name = if signal == SIGINT {
                 "SIGINT"
             } else {
@@ -153,4 +169,64 @@ pub fn watchdog(timeout: Duration) -> Arc<CallMonitor> {
         }
     });
     monitor
+}
+
+/// Whether this process is a run under a supervisor.
+pub fn is_supervised() -> bool {
+    std::env::var_os(SUPERVISED).is_some()
+}
+
+/// Runs this same command line in a child process and waits for it, so that an FMU that
+/// kills the process (a segfault, an abort) cannot leave the unpacked FMUs behind or a cut
+/// row at the end of `csv`: the child's exit code is passed on; if a signal killed it, the
+/// results file is cut back to its last whole row, the session folder (holding the child's)
+/// removed, and the exit code is 128 + the signal. SIGINT and SIGTERM are passed on to the
+/// child, which ends by them cleanly.
+pub fn supervise(csv: Option<&std::path::Path>) -> anyhow::Result<i32> {
+    use std::os::unix::process::ExitStatusExt;
+    let exe = std::env::current_exe()
+        .map_err(|e| anyhow::anyhow!("cannot locate the spurio executable: {e}"))?;
+    let mut child = std::process::Command::new(exe)
+        .args(std::env::args_os().skip(1))
+        .env(SUPERVISED, "1")
+        .spawn()
+        .map_err(|e| anyhow::anyhow!("cannot start the run's process: {e}"))?;
+    if let Some(s) = SESSION.get() {
+        *lock(&s.supervised) = Some(child.id());
+    }
+    let status = child
+        .wait()
+        .map_err(|e| anyhow::anyhow!("cannot wait for the run's process: {e}"))?;
+    if let Some(s) = SESSION.get() {
+        *lock(&s.supervised) = None;
+    }
+    let Some(signal) = status.signal() else {
+        return Ok(status.code().unwrap_or(1));
+    };
+    let mut message = format!(
+        "the run crashed: its process was killed by signal {signal} ({}), most likely by an \
+         FMU; the run ended early",
+        crate::workers::signal_name(signal)
+    );
+    if let Some(path) = csv {
+        message.push_str(&match whole_rows(path) {
+            Ok(()) => format!("; the rows recorded before are in {}", path.display()),
+            Err(e) => format!("; cannot cut {} back to whole rows: {e}", path.display()),
+        });
+    }
+    eprintln!("spurio: {message}");
+    Ok(128 + signal)
+}
+
+/// Cuts `path` back to its last complete line.
+fn whole_rows(path: &std::path::Path) -> std::io::Result<()> {
+    let bytes = std::fs::read(path)?;
+    let keep = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+    if keep < bytes.len() {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)?
+            .set_len(keep as u64)?;
+    }
+    Ok(())
 }

@@ -29,6 +29,7 @@ use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 #[derive(Parser)]
 #[command(
@@ -189,7 +190,14 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
     logging::install(verbose);
-    let outcome = guard::start().and_then(|()| command(cli.command));
+    let outcome = guard::start().and_then(|()| match &cli.command {
+        // A run goes on in a supervised child process (see guard::supervise).
+        Command::Run { out, no_record, .. } if !guard::is_supervised() => {
+            let code = guard::supervise((!no_record).then_some(out.as_path()))?;
+            Ok(ExitCode::from(u8::try_from(code).unwrap_or(1)))
+        }
+        _ => command(cli.command),
+    });
     guard::finish();
     match outcome {
         Ok(code) => code,
@@ -265,6 +273,7 @@ fn run(
     let mut observer = Recorder {
         csv: csv.clone(),
         series: (!plotted.is_empty()).then(TimeSeries::default),
+        flushed: Instant::now(),
     };
     let ended = sim.run(&mut observer, &options).and_then(|end| {
         sim.terminate()?;
@@ -302,7 +311,13 @@ fn run(
 struct Recorder {
     csv: Arc<Mutex<CsvWriter<std::io::BufWriter<std::fs::File>>>>,
     series: Option<TimeSeries>,
+    /// When the rows were last flushed to the file: at most [`FLUSH_EVERY`] of rows are
+    /// lost if an FMU kills the process.
+    flushed: Instant,
 }
+
+/// How often the rows of a run are flushed to the results file.
+const FLUSH_EVERY: Duration = Duration::from_millis(50);
 
 impl Recorder {
     fn csv(&self) -> std::sync::MutexGuard<'_, CsvWriter<std::io::BufWriter<std::fs::File>>> {
@@ -317,13 +332,23 @@ impl Observer for Recorder {
         if let Some(s) = &mut self.series {
             s.start(names)?;
         }
-        self.csv().start(names)
+        let mut csv = self.csv();
+        csv.start(names)?;
+        csv.flush()
     }
     fn sample(&mut self, time: f64, values: &[f64]) -> std::io::Result<()> {
         if let Some(s) = &mut self.series {
             s.sample(time, values)?;
         }
-        self.csv().sample(time, values)
+        let flush = self.flushed.elapsed() >= FLUSH_EVERY;
+        let mut csv = self.csv();
+        csv.sample(time, values)?;
+        if flush {
+            csv.flush()?;
+            drop(csv);
+            self.flushed = Instant::now();
+        }
+        Ok(())
     }
     fn finish(&mut self) -> std::io::Result<()> {
         self.csv().finish()

@@ -169,7 +169,7 @@ fn why(status: ExitStatus, stderr: &str) -> String {
     }
 }
 
-fn signal_name(signal: i32) -> &'static str {
+pub fn signal_name(signal: i32) -> &'static str {
     match signal {
         1 => "SIGHUP",
         2 => "SIGINT",

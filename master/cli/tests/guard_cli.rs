@@ -184,6 +184,44 @@ fn a_hanging_call_ends_the_run_by_the_watchdog_keeping_the_rows_before_it() {
 }
 
 #[test]
+fn an_fmu_that_kills_the_run_leaves_whole_rows_and_no_unpacked_fmu() {
+    for (mode, code, signal) in [
+        ("segv", 139, "signal 11 (SIGSEGV)"),
+        ("abort", 134, "signal 6 (SIGABRT)"),
+    ] {
+        let case = Case::new(&format!("run-{mode}"));
+        let system = case.bad_system();
+        let csv = case.dir.join("out.csv");
+        let out = case.spurio(
+            &["run", s(&system), "--out", s(&csv)],
+            &[("MISBEHAVE", mode), ("MISBEHAVE_AT", "0.05")],
+        );
+        assert_eq!(out.status.code(), Some(code), "{mode}: {}", stderr(&out));
+        assert_names(
+            &stderr(&out),
+            &[
+                &format!("the run crashed: its process was killed by {signal}"),
+                "the run ended early",
+                &format!("the rows recorded before are in {}", csv.display()),
+            ],
+        );
+        // The header, then whole rows from the start (those flushed before the crash).
+        let text = std::fs::read_to_string(&csv).unwrap();
+        assert!(
+            text.starts_with("\"time\",\"crane.x\",\"crane.x0\"\n"),
+            "{text}"
+        );
+        for (k, row) in rows(&csv).iter().enumerate() {
+            assert!(
+                (row[0] - k as f64 * 0.01).abs() < 1e-12 && row[0] <= 0.05,
+                "{text}"
+            );
+        }
+        case.assert_clean(&["Bad.fmu", "system.toml", "out.csv"]);
+    }
+}
+
+#[test]
 fn a_failing_step_keeps_the_rows_before_it_and_says_the_run_ended_early() {
     let case = Case::new("error");
     let system = case.bad_system();
