@@ -530,6 +530,65 @@ mod tests {
     }
 
     #[test]
+    fn a_sweep_too_long_or_a_bound_that_cannot_hold_is_refused_at_parsing() {
+        let e = Variation::parse("s.seed=1..99999999999").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--vary `s.seed=1..99999999999`: 99999999999 runs, more than the 1000000 allowed \
+             (--max-runs); cut the sweep into shards or raise --max-runs"
+        );
+        assert!(Variation::parse_at_most("s.seed=1..3", 2).is_err());
+        assert!(Variation::parse_at_most("c.k=1,2,3", 2).is_err());
+        assert_eq!(
+            Variation::parse_at_most("s.seed=-9223372036854775808..9223372036854775807", 5)
+                .unwrap_err()
+                .to_string()
+                .split(": ")
+                .nth(1),
+            Some("18446744073709551616 runs, more than the 5 allowed (--max-runs); cut the sweep into shards or raise --max-runs")
+        );
+        assert_eq!(
+            Variation::parse_at_most("s.seed=1..2", 2)
+                .unwrap()
+                .values
+                .len(),
+            2
+        );
+        for bound in ["-1", "0", "nan", "inf"] {
+            let e = Metric::parse(&format!("settling(x, {bound})")).unwrap_err();
+            assert!(
+                e.to_string()
+                    .contains("the bound must be a positive number"),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn sweep_values_become_start_values_of_the_variables_type() {
+        assert_eq!(start_value(VarType::Integer, 3.0), StartValue::Integer(3));
+        assert_eq!(start_value(VarType::Integer, 0.5), StartValue::Real(0.5));
+        assert_eq!(
+            start_value(VarType::Enumeration, -2.0),
+            StartValue::Integer(-2)
+        );
+        assert_eq!(
+            start_value(VarType::Boolean, 1.0),
+            StartValue::Boolean(true)
+        );
+        assert_eq!(
+            start_value(VarType::Boolean, 0.0),
+            StartValue::Boolean(false)
+        );
+        assert_eq!(start_value(VarType::Boolean, 2.0), StartValue::Real(2.0));
+        assert_eq!(start_value(VarType::Real, 2.0), StartValue::Real(2.0));
+        assert!(matches!(
+            start_value(VarType::Integer, f64::NAN),
+            StartValue::Real(x) if x.is_nan()
+        ));
+    }
+
+    #[test]
     fn the_table_writer_gives_rows_in_round_trip_form_and_checks_their_count() {
         let result = SweepResult {
             metrics: vec![

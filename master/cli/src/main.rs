@@ -190,15 +190,21 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
     logging::install(verbose);
-    let outcome = guard::start().and_then(|()| match &cli.command {
-        // A run goes on in a supervised child process (see guard::supervise).
-        Command::Run { out, no_record, .. } if !guard::is_supervised() => {
-            let code = guard::supervise((!no_record).then_some(out.as_path()))?;
-            Ok(ExitCode::from(u8::try_from(code).unwrap_or(1)))
-        }
-        _ => command(cli.command),
-    });
+    // A panic (a bug) still removes the session folder before the process ends with 101.
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        guard::start().and_then(|()| match &cli.command {
+            // A run goes on in a supervised child process (see guard::supervise).
+            Command::Run { out, no_record, .. } if !guard::is_supervised() => {
+                let code = guard::supervise((!no_record).then_some(out.as_path()))?;
+                Ok(ExitCode::from(u8::try_from(code).unwrap_or(1)))
+            }
+            _ => command(cli.command),
+        })
+    }));
     guard::finish();
+    let Ok(outcome) = outcome else {
+        return ExitCode::from(101);
+    };
     match outcome {
         Ok(code) => code,
         Err(e) => {

@@ -454,7 +454,11 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     let merged = shard::merge(&files, &options)?;
     let result = merged.result()?;
     let values: Vec<Vec<f64>> = merged.runs.iter().map(|r| r.parameters.clone()).collect();
-    let table = sweeps::write_table(args.out.as_deref(), &merged.parameters, &values, &result)?;
-    print!("{table}");
+    // The table first: a per-run file that cannot be written does not lose it.
+    print!(
+        "{}",
+        sweeps::write_table(None, &merged.parameters, &values, &result)?
+    );
+    sweeps::write_table(args.out.as_deref(), &merged.parameters, &values, &result)?;
     Ok(())
 }

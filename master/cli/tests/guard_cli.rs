@@ -717,3 +717,76 @@ fn the_loaders_limits_are_flags() {
         &["system.toml"],
     );
 }
+
+#[test]
+fn bad_systems_are_refused_naming_what_is_wrong_and_leave_nothing_behind() {
+    require_fmus(&["GantryCrane"]);
+    let crane = repo().join("build/fmus/GantryCrane.fmu");
+    let crane = crane.display();
+    let instance = format!("[[instance]]\nname = \"crane\"\nfmu = \"{crane}\"\n");
+    let cases: [(&str, String, &[&str]); 6] = [
+        (
+            "no FMU file",
+            "stop_time = 1.0\nstep_size = 0.1\n[[instance]]\nname = \"c\"\nfmu = \"nowhere.fmu\"\n"
+                .into(),
+            &["nowhere.fmu"],
+        ),
+        (
+            "not TOML",
+            "stop_time = = 1\n".into(),
+            &["system.toml"],
+        ),
+        (
+            "zero step",
+            format!("stop_time = 1.0\nstep_size = 0.0\n{instance}"),
+            &["step_size must be > 0, got 0"],
+        ),
+        (
+            "unknown instance",
+            format!("stop_time = 1.0\nstep_size = 0.1\nconnections = [\"crane.x -> nobody.u\"]\n{instance}"),
+            &["connection `crane.x -> nobody.u`", "no instance called `nobody`"],
+        ),
+        (
+            "unknown variable",
+            format!("stop_time = 1.0\nstep_size = 0.1\nrecord = [\"crane.nothing\"]\n{instance}"),
+            &["instance `crane`", "no variable `nothing`"],
+        ),
+        (
+            "not a zip",
+            "stop_time = 1.0\nstep_size = 0.1\n[[instance]]\nname = \"c\"\nfmu = \"system.toml\"\n"
+                .into(),
+            &["system.toml", "not a valid FMU archive"],
+        ),
+    ];
+    for (what, text, parts) in cases {
+        let case = Case::new("bad-system");
+        let system = case.file("system.toml", &text);
+        let csv = case.dir.join("out.csv");
+        let out = refused(
+            &case,
+            &["run", s(&system), "--out", s(&csv)],
+            1,
+            parts,
+            &["system.toml"],
+        );
+        assert!(
+            !stderr(&out).contains("panicked"),
+            "{what}: {}",
+            stderr(&out)
+        );
+        refused(
+            &case,
+            &[
+                "sweep",
+                s(&system),
+                "--vary",
+                "crane.x0=0.1,0.2",
+                "--metric",
+                "final(crane.x)",
+            ],
+            1,
+            parts,
+            &["system.toml"],
+        );
+    }
+}
