@@ -22,6 +22,11 @@
 //! run with an error naming the instance, the FMU file, the call and the time, quoting what
 //! that instance logged; when several instances fail in the same step (or in initialisation,
 //! or in terminate), the error names every one of them.
+//!
+//! A simulation made with [`Simulation::with_monitor`] notes every FMI call it enters and
+//! leaves in a [`CallMonitor`], so that a watchdog on another thread can name a call that
+//! does not return (the instance, its FMU, the call, the time); what to do then is the
+//! caller's (the CLI ends the process, keeping the results so far).
 
 use crate::fmu::{self, LoadError, VarType};
 use crate::logging::LogKey;

@@ -281,11 +281,7 @@ fn run(
         series: (!plotted.is_empty()).then(TimeSeries::default),
         flushed: Instant::now(),
     };
-    let ended = sim.run(&mut observer, &options).and_then(|end| {
-        sim.terminate()?;
-        Ok(end)
-    });
-    let end = match ended {
+    let end = match sim.run(&mut observer, &options) {
         Ok(end) => end,
         Err(RunError::Output(e)) => bail!("cannot write {}: {e}", out.display()),
         Err(e) => {
@@ -300,6 +296,7 @@ fn run(
             return Err(anyhow::Error::new(e).context(format!("the run ended early; {note}")));
         }
     };
+    sim.terminate()?;
     if let Some(series) = &observer.series {
         let png = out.with_extension("png");
         plot::labelled_time_series_png(&png, &resolved.name, series, &plotted)?;

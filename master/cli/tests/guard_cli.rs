@@ -1,16 +1,17 @@
 //! A crashing or hanging FMU costs one run, and the CLI refuses what it cannot do sensibly.
 //!
 //! The misbehaving FMU is the packaged GantryCrane with its linux64 library replaced by
-//! `fixtures/misbehaving.c` (compiled here with `cc`), which segfaults, aborts, exits or
+//! `master/tests/fixtures/misbehaving.c` (compiled here with `cc`), which segfaults, aborts, exits or
 //! never returns in `fmi2DoStep` as the `MISBEHAVE*` environment variables say. Every case
 //! runs `spurio` with `TMPDIR` at a fresh folder and checks that the folder is empty
 //! afterwards (no unpacked FMU left behind) and that nothing but the expected files was
 //! written beside it.
 
 mod common;
+#[path = "../../tests/common/mod.rs"]
+mod engine;
 
 use common::{repo, require_fmus, s};
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -67,42 +68,7 @@ impl Case {
     /// `Bad.fmu`: the GantryCrane's model description over `fixtures/misbehaving.c`.
     fn misbehaving_fmu(&self) -> PathBuf {
         require_fmus(&["GantryCrane"]);
-        let source = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/misbehaving.c");
-        let library = self.dir.join("misbehaving.so");
-        let cc = Command::new("cc")
-            .args(["-shared", "-fPIC", "-O1", "-o"])
-            .arg(&library)
-            .arg(&source)
-            .output()
-            .expect("a C compiler (cc) builds the misbehaving FMU");
-        assert!(
-            cc.status.success(),
-            "{}",
-            String::from_utf8_lossy(&cc.stderr)
-        );
-        let so = std::fs::read(&library).unwrap();
-        std::fs::remove_file(&library).unwrap();
-        let crane = repo().join("build/fmus/GantryCrane.fmu");
-        let mut archive = zip::ZipArchive::new(std::fs::File::open(crane).unwrap()).unwrap();
-        let mut out = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-        let options = zip::write::SimpleFileOptions::default();
-        for i in 0..archive.len() {
-            let mut entry = archive.by_index(i).unwrap();
-            let name = entry.name().unwrap().to_string();
-            if name.starts_with("binaries/") && name != "binaries/linux64/GantryCrane.so" {
-                continue;
-            }
-            let mut data = Vec::new();
-            entry.read_to_end(&mut data).unwrap();
-            if name == "binaries/linux64/GantryCrane.so" {
-                data = so.clone();
-            }
-            out.start_file(name, options).unwrap();
-            out.write_all(&data).unwrap();
-        }
-        let path = self.dir.join("Bad.fmu");
-        std::fs::write(&path, out.finish().unwrap().into_inner()).unwrap();
-        path
+        engine::misbehaving_fmu(&self.dir)
     }
 
     /// `system.toml`: the misbehaving FMU as instance `crane`, 0.1 s at 0.01 s, recording
