@@ -426,6 +426,7 @@ fn command(command: Command) -> Result<ExitCode> {
             threads,
             repo,
         } => {
+            let threads = limits::workers(threads);
             let reports = spurio_experiments::run_all(&repo, &out, &only, seeds, threads)?;
             let failed: Vec<&str> = reports
                 .iter()

@@ -252,6 +252,67 @@ fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
 }
 
 #[test]
+fn sigterm_ends_a_sweep_with_its_workers_and_leaves_nothing_behind() {
+    let case = Case::new("sweep-sigterm");
+    let system = case.bad_system();
+    let child = Command::new(env!("CARGO_BIN_EXE_spurio"))
+        .args([
+            "sweep",
+            s(&system),
+            "--vary",
+            "crane.x0=0.1,0.2",
+            "--metric",
+            "final(crane.x)",
+        ])
+        .args(["--threads", "2"])
+        .env("TMPDIR", &case.tmp)
+        .env("MISBEHAVE", "hang")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until both workers are under way (each has its session folder in the sweep's).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let workers = || {
+        std::fs::read_dir(&case.tmp)
+            .unwrap()
+            .filter_map(|e| std::fs::read_dir(e.unwrap().path()).ok())
+            .flat_map(|d| d.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()))
+            .filter(|n| n.starts_with("spurio-"))
+            .count()
+    };
+    while workers() < 2 {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the workers did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+    assert_names(
+        &stderr(&out),
+        &["interrupted by SIGTERM; the run ended early"],
+    );
+    // The workers are gone with it.
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
+    let left: Vec<String> = String::from_utf8_lossy(&ps.stdout)
+        .lines()
+        .filter(|l| l.contains("sweep-run") && l.contains(s(&system)))
+        .map(String::from)
+        .collect();
+    assert!(left.is_empty(), "workers left running: {left:?}");
+    case.assert_clean(&["Bad.fmu", "system.toml"]);
+}
+
+#[test]
 fn a_run_that_crashes_or_hangs_costs_that_run_of_a_sweep_only() {
     for (mode, why) in [
         (
