@@ -98,8 +98,12 @@ pub fn folder() -> Option<PathBuf> {
     SESSION.get().map(|s| s.dir.clone())
 }
 
-/// Removes the session folder (the normal end of the process, successful or not).
+/// Removes the session folder (the normal end of the process, successful or not). If the
+/// process is being ended early ([`abort`]), waits for that to end it instead.
 pub fn finish() {
+    while ENDING.load(Ordering::SeqCst) {
+        std::thread::sleep(Duration::from_millis(100));
+    }
     if let Some(s) = SESSION.get() {
         let _ = std::fs::remove_dir_all(&s.dir);
     }

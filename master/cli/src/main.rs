@@ -168,9 +168,9 @@ enum Command {
         #[arg(long)]
         png: Option<PathBuf>,
     },
-    /// One run of a sweep in a worker process: the metrics as one line of numbers.
+    /// Runs of a sweep in a worker process: values in on standard input, metrics out.
     #[command(hide = true)]
-    SweepRun(sweep::WorkerArgs),
+    SweepWorker(sweep::WorkerArgs),
     /// Compare the committed modelDescription/*.xml with what the built FMU libraries generate.
     ModelDescriptions {
         /// Regenerate the files instead of checking them.
@@ -439,7 +439,7 @@ fn command(command: Command) -> Result<ExitCode> {
             }
         }
         Command::Sweep(args) => return sweep::run(args),
-        Command::SweepRun(args) => sweep::worker(args)?,
+        Command::SweepWorker(args) => sweep::worker(args)?,
         Command::SweepMerge(args) => sweep::merge(args)?,
         Command::SspExport {
             system,

@@ -80,14 +80,15 @@ pub struct SweepArgs {
     submit: bool,
 }
 
-/// `spurio sweep-run`: one run of a sweep, in a worker process.
+/// `spurio sweep-worker`: runs of a sweep in a worker process, one per value read from
+/// standard input (see [`crate::workers`]).
 #[derive(Args)]
 pub struct WorkerArgs {
     /// The system file.
     system: PathBuf,
-    /// `instance.variable=value`.
+    /// The varied `instance.variable`.
     #[arg(long)]
-    set: String,
+    vary: String,
     #[arg(long = "metric")]
     metrics: Vec<String>,
     #[command(flatten)]
@@ -193,16 +194,11 @@ fn run_workers(
     })
 }
 
-/// `spurio sweep-run`: prints the run's metrics as one line.
+/// `spurio sweep-worker`: loads the system once, then for each value read from standard
+/// input (one a line, until its end) runs the system with the varied variable at that value
+/// and answers one line (see [`crate::workers`]).
 pub fn worker(args: WorkerArgs) -> Result<()> {
-    let (variable, value) = args
-        .set
-        .split_once('=')
-        .context("--set: expected instance.variable=value")?;
-    let value: f64 = value
-        .trim()
-        .parse()
-        .with_context(|| format!("--set `{}`: not a number", args.set))?;
+    use std::io::{BufRead, Write};
     let metrics = args
         .metrics
         .iter()
@@ -211,16 +207,24 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
     let system = System::from_file_loading(&args.system, None, &args.limits.load_options())?;
     args.limits.check_steps(&system)?;
     let monitor = args.limits.call_timeout.map(guard::watchdog);
-    let values = sweeps::run_once(
-        &system,
-        variable.trim(),
-        value,
-        &metrics,
-        &RunOptions::default(),
-        monitor,
-    )?;
-    let line: Vec<String> = values.iter().map(|v| format!("{v:?}")).collect();
-    println!("{}", line.join(","));
+    let mut stdout = std::io::stdout().lock();
+    for line in std::io::stdin().lock().lines() {
+        let line = line.context("reading the values to run")?;
+        let value: f64 = line
+            .trim()
+            .parse()
+            .with_context(|| format!("`{line}` is not a value to run"))?;
+        let outcome = sweeps::run_once(
+            &system,
+            &args.vary,
+            value,
+            &metrics,
+            &RunOptions::default(),
+            monitor.clone(),
+        );
+        writeln!(stdout, "{}", workers::answer(&outcome))?;
+        stdout.flush()?;
+    }
     Ok(())
 }
 
