@@ -324,6 +324,11 @@ fn a_run_that_crashes_or_hangs_costs_that_run_of_a_sweep_only() {
             "the worker process was killed by signal 6 (SIGABRT)",
         ),
         ("exit", "the worker process exited with code 3"),
+        // An FMI error is an answer: that worker goes on with the next runs.
+        (
+            "error",
+            "instance `crane` (", // then the FMU and the call
+        ),
         (
             "hang",
             "instance `crane` (", // then the FMU, the call and the time
@@ -363,6 +368,9 @@ fn a_run_that_crashes_or_hangs_costs_that_run_of_a_sweep_only() {
         );
         if mode == "hang" {
             assert_names(&err, &["fmi2DoStep at t = 0 did not return within 1 s"]);
+        }
+        if mode == "error" {
+            assert_names(&err, &["fmi2DoStep returned fmi2Error at t = 0"]);
         }
         // The other three runs: final(crane.x) is the stop time, mean(crane.x0) the value.
         let table = stdout(&out);
