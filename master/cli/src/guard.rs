@@ -27,9 +27,8 @@ struct Session {
     dir: PathBuf,
     flushes: Mutex<Vec<Flush>>,
     workers: Mutex<Vec<Arc<Mutex<Child>>>>,
-    /// The process id of the supervised run (see [`supervise`]), which SIGINT/SIGTERM are
-    /// passed on to.
-    supervised: Mutex<Option<u32>>,
+    /// The supervised run (see [`supervise`]), which SIGINT/SIGTERM are passed on to.
+    supervised: Mutex<Option<Arc<Mutex<Child>>>>,
 }
 
 /// Set in the environment of a supervised run (see [`supervise`]).
@@ -71,12 +70,19 @@ pub fn start() -> anyhow::Result<()> {
     std::thread::spawn(move || {
         for signal in signals.forever() {
             // A supervisor passes the signal on and waits for the run to end by it.
-            let supervised = SESSION.get().and_then(|s| *lock(&s.supervised));
-            if let Some(pid) = supervised {
-                let _ = std::process::Command::new("kill")
+            let supervised = SESSION.get().and_then(|s| lock(&s.supervised).clone());
+            if let Some(child) = supervised {
+                let pid = lock(&child).id();
+                let passed = std::process::Command::new("kill")
                     .arg(format!("-{signal}"))
                     .arg(pid.to_string())
-                    .status();
+                    .status()
+                    .is_ok_and(|s| s.success());
+                if !passed {
+                    // No `kill` program: end the run the hard way (its rows are cut back to
+                    // whole ones by the supervisor).
+                    let _ = lock(&child).kill();
+                }
                 continue;
             }
             let name = if signal == SIGINT {
@@ -190,17 +196,23 @@ pub fn supervise(csv: Option<&std::path::Path>) -> anyhow::Result<i32> {
     use std::os::unix::process::ExitStatusExt;
     let exe = std::env::current_exe()
         .map_err(|e| anyhow::anyhow!("cannot locate the spurio executable: {e}"))?;
-    let mut child = std::process::Command::new(exe)
+    let child = std::process::Command::new(exe)
         .args(std::env::args_os().skip(1))
         .env(SUPERVISED, "1")
         .spawn()
         .map_err(|e| anyhow::anyhow!("cannot start the run's process: {e}"))?;
+    let child = Arc::new(Mutex::new(child));
     if let Some(s) = SESSION.get() {
-        *lock(&s.supervised) = Some(child.id());
+        *lock(&s.supervised) = Some(child.clone());
     }
-    let status = child
-        .wait()
-        .map_err(|e| anyhow::anyhow!("cannot wait for the run's process: {e}"))?;
+    // Polled, so that the signal thread can reach the child in between.
+    let status = loop {
+        match lock(&child).try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) => std::thread::sleep(Duration::from_millis(10)),
+            Err(e) => anyhow::bail!("cannot wait for the run's process: {e}"),
+        }
+    };
     if let Some(s) = SESSION.get() {
         *lock(&s.supervised) = None;
     }
