@@ -22,6 +22,11 @@
 //! run with an error naming the instance, the FMU file, the call and the time, quoting what
 //! that instance logged; when several instances fail in the same step (or in initialisation,
 //! or in terminate), the error names every one of them.
+//!
+//! A simulation made with [`Simulation::with_monitor`] notes every FMI call it enters and
+//! leaves in a [`CallMonitor`], so that a watchdog on another thread can name a call that
+//! does not return (the instance, its FMU, the call, the time); what to do then is the
+//! caller's (the CLI ends the process, keeping the results so far).
 
 use crate::fmu::{self, LoadError, VarType};
 use crate::logging::LogKey;
@@ -31,6 +36,7 @@ use crate::system::{System, SystemError};
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::fmi2::Fmi2Error;
 use fmi::traits::FmiInstance;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// One FMI call of one instance that did not succeed.
@@ -160,6 +166,9 @@ enum Step {
 }
 
 struct Member {
+    /// Its index in the system (for the call monitor).
+    index: usize,
+    monitor: Option<Arc<CallMonitor>>,
     name: String,
     file: String,
     instance: InstanceCS,
@@ -172,11 +181,28 @@ struct Member {
 
 impl Member {
     /// Reads this member's outputs into the buffer.
-    fn read(&mut self, buffer: &mut [f64]) -> Result<(), Fmi2Error> {
+    fn read(&mut self, buffer: &mut [f64], time: f64) -> Result<(), Fmi2Error> {
+        let (monitor, index) = (self.monitor.as_deref(), self.index);
         for b in &mut self.after_step {
-            b.get(&mut self.instance, buffer)?;
+            watched(monitor, index, "fmi2Get*", time, || {
+                b.get(&mut self.instance, buffer)
+            })?;
         }
         Ok(())
+    }
+
+    /// Runs `f` on this member's instance as FMI call `call` at `time`, noted in the
+    /// monitor.
+    fn call<T>(
+        &mut self,
+        call: &'static str,
+        time: f64,
+        f: impl FnOnce(&mut InstanceCS) -> T,
+    ) -> T {
+        let instance = &mut self.instance;
+        watched(self.monitor.as_deref(), self.index, call, time, || {
+            f(instance)
+        })
     }
 
     fn failure(&self, call: &'static str, e: Fmi2Error, time: f64) -> FmiFailure {
@@ -231,11 +257,92 @@ fn call_every<T>(
         members,
         |_| true,
         |m| {
-            call(&mut m.instance)
+            m.call(name, time, &call)
                 .map(|_| ())
                 .map_err(|e| m.failure(name, e, time))
         },
     )
+}
+
+/// The FMI call in progress, for a watchdog on another thread: which instance, which call,
+/// at which simulation time, since when.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CallInProgress {
+    pub instance: String,
+    pub file: String,
+    pub call: &'static str,
+    pub time: f64,
+    pub since: Instant,
+}
+
+impl std::fmt::Display for CallInProgress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "instance `{}` ({}): {} at t = {}",
+            self.instance, self.file, self.call, self.time
+        )
+    }
+}
+
+/// Where a [`Simulation`] made with [`Simulation::with_monitor`] notes each FMI call it
+/// enters and leaves, so that a watchdog thread can tell a call that does not return
+/// ([`CallMonitor::current`]) and name it. The loop pays one uncontended lock and one clock
+/// read per call.
+#[derive(Debug, Default)]
+pub struct CallMonitor {
+    /// (instance name, FMU file) by instance index.
+    instances: Mutex<Vec<(String, String)>>,
+    /// (instance index, call, time, since).
+    current: Mutex<Option<(usize, &'static str, f64, Instant)>>,
+}
+
+impl CallMonitor {
+    /// The call in progress, if any.
+    pub fn current(&self) -> Option<CallInProgress> {
+        let (i, call, time, since) = (*lock(&self.current))?;
+        let (instance, file) = lock(&self.instances).get(i).cloned().unwrap_or_default();
+        Some(CallInProgress {
+            instance,
+            file,
+            call,
+            time,
+            since,
+        })
+    }
+
+    fn enter(&self, member: usize, call: &'static str, time: f64) {
+        *lock(&self.current) = Some((member, call, time, Instant::now()));
+    }
+
+    fn leave(&self) {
+        *lock(&self.current) = None;
+    }
+}
+
+/// The data behind a mutex, also when another thread panicked holding it (the data here is
+/// plain values, valid at any time).
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Runs `f` as FMI call `call` of member `member` at `time`, noted in `monitor` (if any).
+fn watched<T>(
+    monitor: Option<&CallMonitor>,
+    member: usize,
+    call: &'static str,
+    time: f64,
+    f: impl FnOnce() -> T,
+) -> T {
+    match monitor {
+        None => f(),
+        Some(m) => {
+            m.enter(member, call, time);
+            let out = f();
+            m.leave();
+            out
+        }
+    }
 }
 
 /// Options of a run.
@@ -301,13 +408,32 @@ pub struct Simulation {
 impl Simulation {
     /// Instantiates and initialises every instance of `system` on this thread.
     pub fn new(system: &System) -> Result<Self, RunError> {
+        Self::with_monitor(system, None)
+    }
+
+    /// [`Simulation::new`], noting every FMI call (from `fmi2Instantiate` on) in `monitor`.
+    pub fn with_monitor(
+        system: &System,
+        monitor: Option<Arc<CallMonitor>>,
+    ) -> Result<Self, RunError> {
         let plan: &Plan = &system.plan;
         let t0 = system.start_time;
+        if let Some(m) = &monitor {
+            *lock(&m.instances) = system
+                .instances
+                .iter()
+                .map(|i| (i.name.clone(), i.fmu.path.display().to_string()))
+                .collect();
+        }
         let mut members = Vec::with_capacity(system.instances.len());
         for (i, spec) in system.instances.iter().enumerate() {
             let fmu = &spec.fmu;
-            let (instance, log) = fmu.instantiate(&spec.name, spec.logging)?;
+            let (instance, log) = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
+                fmu.instantiate(&spec.name, spec.logging)
+            })?;
             let mut m = Member {
+                index: i,
+                monitor: monitor.clone(),
                 name: spec.name.clone(),
                 file: fmu.path.display().to_string(),
                 instance,
@@ -315,8 +441,10 @@ impl Simulation {
                 multiple: u64::from(spec.step_multiple),
                 after_step: plan.after_step[i].iter().map(Batch::new).collect(),
             };
-            Common::setup_experiment(&mut m.instance, None, t0, Some(system.stop_time))
-                .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
+            m.call("fmi2SetupExperiment", t0, |inst| {
+                Common::setup_experiment(inst, None, t0, Some(system.stop_time))
+            })
+            .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
             for (index, value) in &spec.start_values {
                 let v = &fmu.variables[*index];
                 let mut b = Batch::new(&Transfer {
@@ -325,11 +453,15 @@ impl Simulation {
                     vrs: vec![v.value_reference],
                     slots: vec![0],
                 });
-                b.set(&mut m.instance, &[*value])
+                m.call("fmi2Set* (start value)", t0, |inst| b.set(inst, &[*value]))
                     .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
             }
-            Common::enter_initialization_mode(&mut m.instance)
-                .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
+            m.call(
+                "fmi2EnterInitializationMode",
+                t0,
+                Common::enter_initialization_mode,
+            )
+            .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
             members.push(m);
         }
         let mut sim = Self {
@@ -372,7 +504,7 @@ impl Simulation {
         on_every(
             &mut self.members,
             |_| true,
-            |m| m.read(buffer).map_err(|e| m.failure(call, e, time)),
+            |m| m.read(buffer, time).map_err(|e| m.failure(call, e, time)),
         )
     }
 
@@ -397,12 +529,16 @@ impl Simulation {
             if !all && !k.is_multiple_of(m.multiple) {
                 continue;
             }
-            let result = if set {
-                batch.set(&mut m.instance, &self.buffer)
-            } else {
-                batch.get(&mut m.instance, &mut self.buffer)
-            };
-            result.map_err(|e| m.failure(if set { "fmi2Set*" } else { "fmi2Get*" }, e, time))?;
+            let call = if set { "fmi2Set*" } else { "fmi2Get*" };
+            let buffer = &mut self.buffer;
+            let result = m.call(call, time, |inst| {
+                if set {
+                    batch.set(inst, buffer)
+                } else {
+                    batch.get(inst, buffer)
+                }
+            });
+            result.map_err(|e| m.failure(call, e, time))?;
         }
         Ok(())
     }
@@ -413,7 +549,10 @@ impl Simulation {
         on_every(
             &mut self.members,
             |m| k.is_multiple_of(m.multiple),
-            |m| m.read(buffer).map_err(|e| m.failure("fmi2Get*", e, time)),
+            |m| {
+                m.read(buffer, time)
+                    .map_err(|e| m.failure("fmi2Get*", e, time))
+            },
         )
     }
 
@@ -434,6 +573,14 @@ impl Simulation {
         observer: &mut dyn Observer,
         options: &RunOptions,
     ) -> Result<RunEnd, RunError> {
+        if let Some(factor) = options.real_time_factor {
+            if !(factor.is_finite() && factor > 0.0) {
+                return Err(SystemError::Invalid(format!(
+                    "the real-time factor must be a positive number, got {factor}"
+                ))
+                .into());
+            }
+        }
         observer.start(&self.record_names)?;
         let progress = options.progress.then(|| {
             let bar = indicatif::ProgressBar::new(self.steps);
@@ -478,8 +625,10 @@ impl Simulation {
                 });
             }
             if let Some(factor) = options.real_time_factor {
+                // A due time beyond Duration's range (a tiny factor) is never reached.
                 let due =
-                    Duration::from_secs_f64((time + self.step_size - self.start_time) / factor);
+                    Duration::try_from_secs_f64((time + self.step_size - self.start_time) / factor)
+                        .unwrap_or(Duration::MAX);
                 if let Some(wait) = due.checked_sub(wall_start.elapsed()) {
                     std::thread::sleep(wait);
                 }
@@ -527,12 +676,14 @@ impl Simulation {
             .filter(|m| k.is_multiple_of(m.multiple))
         {
             let h = (step_size * m.multiple as f64).min(stop_time - time);
-            match m.instance.do_step(time, h, true) {
+            match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h, true)) {
                 Ok(_) => {}
-                Err(Fmi2Error::Discard) => match fmu::termination_requested(&mut m.instance) {
-                    Some(last) => terminated.push((m.name.clone(), last.unwrap_or(time))),
-                    None => failures.push(m.failure("fmi2DoStep", Fmi2Error::Discard, time)),
-                },
+                Err(Fmi2Error::Discard) => {
+                    match m.call("fmi2GetBooleanStatus", time, fmu::termination_requested) {
+                        Some(last) => terminated.push((m.name.clone(), last.unwrap_or(time))),
+                        None => failures.push(m.failure("fmi2DoStep", Fmi2Error::Discard, time)),
+                    }
+                }
                 Err(e) => failures.push(m.failure("fmi2DoStep", e, time)),
             }
         }

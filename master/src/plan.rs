@@ -248,10 +248,18 @@ impl Plan {
                 })
                 .collect()
         } else {
-            d.record
-                .iter()
-                .map(|r| lookup(r, &format!("record {r}")))
-                .collect::<Result<Vec<_>, _>>()?
+            let mut recorded: Vec<VarRef> = Vec::with_capacity(d.record.len());
+            for r in &d.record {
+                let v = lookup(r, &format!("record {r}"))?;
+                if recorded.contains(&v) {
+                    return Err(SystemError::Invalid(format!(
+                        "record lists `{}` twice (a results file has one column per variable)",
+                        name_of(v)
+                    )));
+                }
+                recorded.push(v);
+            }
+            recorded
         };
         let order = match d.algorithm {
             Algorithm::GaussSeidel => propagation_order(instances, &connections)?,

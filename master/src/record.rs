@@ -101,6 +101,11 @@ impl<W: Write> CsvWriter<W> {
         }
     }
 
+    /// Writes the rows so far (whole rows) through to the output.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        self.rows()?.flush()
+    }
+
     fn rows(&mut self) -> std::io::Result<&mut csv::Writer<W>> {
         match &mut self.state {
             CsvState::Rows(w) => Ok(w),

@@ -2,13 +2,15 @@
 //! parallel, each run's instances created on its worker thread (rust-fmi instances are
 //! `!Send`), and chosen metrics aggregated into a mean ± std table.
 
-use crate::engine::{RunError, RunOptions, Simulation};
+use crate::engine::{CallMonitor, RunError, RunOptions, Simulation};
+use crate::fmu::VarType;
 use crate::record::Observer;
-use crate::system::{System, SystemError};
+use crate::system::{StartValue, System, SystemError};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A metric or a variation that cannot be parsed; the text says where and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -68,11 +70,18 @@ impl Metric {
                 _ => Err(format!("metric `{text}` takes two variables")),
             },
             "settling" => match args.as_slice() {
-                [a, b] => Ok(Metric::SettlingTime(
-                    a.clone(),
-                    b.parse()
-                        .map_err(|_| format!("metric `{text}`: `{b}` is not a number"))?,
-                )),
+                [a, b] => {
+                    let bound: f64 = b
+                        .parse()
+                        .map_err(|_| format!("metric `{text}`: `{b}` is not a number"))?;
+                    if !(bound.is_finite() && bound > 0.0) {
+                        return Err(format!(
+                            "metric `{text}`: the bound must be a positive number, got `{b}` \
+                             (|value| < bound never holds)"
+                        ));
+                    }
+                    Ok(Metric::SettlingTime(a.clone(), bound))
+                }
                 _ => Err(format!("metric `{text}` takes a variable and a bound")),
             },
             k => Err(format!(
@@ -81,7 +90,8 @@ impl Metric {
         }
     }
 
-    fn variables(&self) -> Vec<&str> {
+    /// The variables the metric reads.
+    pub fn variables(&self) -> Vec<&str> {
         match self {
             Metric::Final(a)
             | Metric::Mean(a)
@@ -188,13 +198,29 @@ pub struct Variation {
     pub values: Vec<f64>,
 }
 
+/// The most runs [`Variation::parse`] accepts.
+pub const DEFAULT_MAX_RUNS: u64 = 1_000_000;
+
 impl Variation {
-    /// Parses `instance.var=1..100` (integers, inclusive) or `instance.var=0.1,0.2,0.3`.
+    /// Parses `instance.var=1..100` (integers, inclusive) or `instance.var=0.1,0.2,0.3`, of
+    /// at most [`DEFAULT_MAX_RUNS`] values.
     pub fn parse(text: &str) -> Result<Self, SpecError> {
-        Self::parse_text(text).map_err(SpecError::Variation)
+        Self::parse_at_most(text, DEFAULT_MAX_RUNS)
     }
 
-    fn parse_text(text: &str) -> Result<Self, String> {
+    /// [`Variation::parse`] of at most `max_runs` values: a longer range is refused before
+    /// any value is made.
+    pub fn parse_at_most(text: &str, max_runs: u64) -> Result<Self, SpecError> {
+        Self::parse_text(text, max_runs).map_err(SpecError::Variation)
+    }
+
+    fn parse_text(text: &str, max_runs: u64) -> Result<Self, String> {
+        let too_many = |n: u128| {
+            format!(
+                "--vary `{text}`: {n} runs, more than the {max_runs} allowed (--max-runs); \
+                 cut the sweep into shards or raise --max-runs"
+            )
+        };
         let (variable, values) = text
             .split_once('=')
             .ok_or_else(|| format!("--vary `{text}`: expected instance.variable=values"))?;
@@ -207,8 +233,16 @@ impl Variation {
                     .parse()
                     .map_err(|_| format!("--vary `{text}`: `{b}` is not an integer"))?,
             );
+            let count = (i128::from(b) - i128::from(a) + 1).max(0) as u128;
+            if count > u128::from(max_runs) {
+                return Err(too_many(count));
+            }
             (a..=b).map(|v| v as f64).collect()
         } else {
+            let count = values.split(',').count() as u128;
+            if count > u128::from(max_runs) {
+                return Err(too_many(count));
+            }
             values
                 .split(',')
                 .map(|v| {
@@ -294,6 +328,78 @@ pub fn sweep(
     })
 }
 
+impl Variation {
+    /// The varied variable of `system` (instance index, variable index), every value
+    /// checked as a `parameters` entry is (a parameter or an unconnected input; an Integer
+    /// takes only whole numbers, a Boolean 0 or 1).
+    pub fn check(&self, system: &System) -> Result<(usize, usize), SystemError> {
+        let (instance, variable) = self.variable.split_once('.').ok_or_else(|| {
+            SystemError::Invalid(format!(
+                "--vary `{}`: expected instance.variable",
+                self.variable
+            ))
+        })?;
+        let i = system
+            .instances
+            .iter()
+            .position(|inst| inst.name == instance)
+            .ok_or_else(|| {
+                SystemError::Invalid(format!("--vary: no instance called `{instance}`"))
+            })?;
+        let v = system.instances[i].fmu.index_of(variable).ok_or_else(|| {
+            SystemError::Invalid(format!(
+                "--vary: instance `{instance}` has no variable `{variable}`"
+            ))
+        })?;
+        let var_type = system.instances[i].fmu.variables[v].var_type;
+        for value in &self.values {
+            system.check_start_value(&self.variable, start_value(var_type, *value))?;
+        }
+        Ok((i, v))
+    }
+}
+
+/// `x` as the start value of a variable of type `var_type`: a whole number for an Integer
+/// or Enumeration, 0 or 1 for a Boolean (anything else stays a Real, which such a variable
+/// refuses).
+pub fn start_value(var_type: VarType, x: f64) -> StartValue {
+    match var_type {
+        VarType::Integer | VarType::Enumeration
+            if x.fract() == 0.0 && x.abs() <= i64::MAX as f64 =>
+        {
+            StartValue::Integer(x as i64)
+        }
+        VarType::Boolean if x == 0.0 || x == 1.0 => StartValue::Boolean(x == 1.0),
+        _ => StartValue::Real(x),
+    }
+}
+
+/// Runs `system` once with `variable` (`instance.variable`) set to `value` and gives the
+/// metrics; `monitor` (if any) sees every FMI call (see [`CallMonitor`]).
+pub fn run_once(
+    system: &System,
+    variable: &str,
+    value: f64,
+    metrics: &[Metric],
+    options: &RunOptions,
+    monitor: Option<Arc<CallMonitor>>,
+) -> Result<Vec<f64>, RunError> {
+    let mut s = system.clone();
+    let var_type = s.variable(variable)?.var_type;
+    s.set_start_value(variable, start_value(var_type, value))?;
+    let mut sim = Simulation::with_monitor(&s, monitor)?;
+    let mut observer = MetricObserver {
+        metrics,
+        columns: Vec::new(),
+        sums: Vec::new(),
+        last: Vec::new(),
+        samples: 0,
+    };
+    sim.run(&mut observer, options)?;
+    sim.terminate()?;
+    Ok(observer.values())
+}
+
 /// Runs the runs `runs` of the sweep (run `k` takes `variation.values[k]`, whoever runs it)
 /// on `threads` worker threads (0: one per core), and gives each run's metrics or error, in
 /// run order. The error of the whole call is a sweep that cannot start (an unknown varied
@@ -305,22 +411,7 @@ pub fn sweep_runs(
     runs: Range<usize>,
     threads: usize,
 ) -> Result<Vec<Result<Vec<f64>, RunError>>, RunError> {
-    let (instance, variable) = variation.variable.split_once('.').ok_or_else(|| {
-        SystemError::Invalid(format!(
-            "--vary `{}`: expected instance.variable",
-            variation.variable
-        ))
-    })?;
-    let i = system
-        .instances
-        .iter()
-        .position(|inst| inst.name == instance)
-        .ok_or_else(|| SystemError::Invalid(format!("--vary: no instance called `{instance}`")))?;
-    let v = system.instances[i].fmu.index_of(variable).ok_or_else(|| {
-        SystemError::Invalid(format!(
-            "--vary: instance `{instance}` has no variable `{variable}`"
-        ))
-    })?;
+    variation.check(system)?;
     let Some(values) = variation.values.get(runs.clone()) else {
         return Err(SystemError::Invalid(format!(
             "runs {}..{} of a sweep of {} runs",
@@ -338,21 +429,14 @@ pub fn sweep_runs(
         values
             .par_iter()
             .map(|value| {
-                let mut s = system.clone();
-                let starts = &mut s.instances[i].start_values;
-                starts.retain(|(index, _)| *index != v);
-                starts.push((v, *value));
-                let mut sim = Simulation::new(&s)?;
-                let mut observer = MetricObserver {
+                run_once(
+                    system,
+                    &variation.variable,
+                    *value,
                     metrics,
-                    columns: Vec::new(),
-                    sums: Vec::new(),
-                    last: Vec::new(),
-                    samples: 0,
-                };
-                sim.run(&mut observer, &RunOptions::default())?;
-                sim.terminate()?;
-                Ok(observer.values())
+                    &RunOptions::default(),
+                    None,
+                )
             })
             .collect()
     }))
@@ -443,6 +527,65 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("`a` is not a number"));
+    }
+
+    #[test]
+    fn a_sweep_too_long_or_a_bound_that_cannot_hold_is_refused_at_parsing() {
+        let e = Variation::parse("s.seed=1..99999999999").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--vary `s.seed=1..99999999999`: 99999999999 runs, more than the 1000000 allowed \
+             (--max-runs); cut the sweep into shards or raise --max-runs"
+        );
+        assert!(Variation::parse_at_most("s.seed=1..3", 2).is_err());
+        assert!(Variation::parse_at_most("c.k=1,2,3", 2).is_err());
+        assert_eq!(
+            Variation::parse_at_most("s.seed=-9223372036854775808..9223372036854775807", 5)
+                .unwrap_err()
+                .to_string()
+                .split(": ")
+                .nth(1),
+            Some("18446744073709551616 runs, more than the 5 allowed (--max-runs); cut the sweep into shards or raise --max-runs")
+        );
+        assert_eq!(
+            Variation::parse_at_most("s.seed=1..2", 2)
+                .unwrap()
+                .values
+                .len(),
+            2
+        );
+        for bound in ["-1", "0", "nan", "inf"] {
+            let e = Metric::parse(&format!("settling(x, {bound})")).unwrap_err();
+            assert!(
+                e.to_string()
+                    .contains("the bound must be a positive number"),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn sweep_values_become_start_values_of_the_variables_type() {
+        assert_eq!(start_value(VarType::Integer, 3.0), StartValue::Integer(3));
+        assert_eq!(start_value(VarType::Integer, 0.5), StartValue::Real(0.5));
+        assert_eq!(
+            start_value(VarType::Enumeration, -2.0),
+            StartValue::Integer(-2)
+        );
+        assert_eq!(
+            start_value(VarType::Boolean, 1.0),
+            StartValue::Boolean(true)
+        );
+        assert_eq!(
+            start_value(VarType::Boolean, 0.0),
+            StartValue::Boolean(false)
+        );
+        assert_eq!(start_value(VarType::Boolean, 2.0), StartValue::Real(2.0));
+        assert_eq!(start_value(VarType::Real, 2.0), StartValue::Real(2.0));
+        assert!(matches!(
+            start_value(VarType::Integer, f64::NAN),
+            StartValue::Real(x) if x.is_nan()
+        ));
     }
 
     #[test]

@@ -29,7 +29,7 @@
 pub use crate::description::{Algorithm, InstanceDescription, ReadError, SystemDescription};
 pub use crate::plan::{Connection, Plan, PropagationStep, VarRef};
 
-use crate::fmu::{Causality, FmuFile, LoadError, VarType, VariableInfo};
+use crate::fmu::{Causality, FmuFile, LoadError, LoadOptions, VarType, VariableInfo};
 use crate::ssp::SspError;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -120,6 +120,9 @@ pub struct System {
     /// The temporary folder an SSP archive was unpacked into, removed with the last clone
     /// of this system.
     unpacked: Option<Arc<tempfile::TempDir>>,
+    /// How its FMUs were loaded (limits, temporary folder); [`System::set_fmu`] loads the
+    /// same way.
+    load: LoadOptions,
 }
 
 /// A value given to a parameter or an unconnected input before initialisation, as a system
@@ -181,7 +184,17 @@ pub(crate) fn split_variable(text: &str) -> Option<(&str, &str)> {
 impl System {
     /// Resolves `description`, loading FMUs relative to `base_dir`.
     pub fn resolve(description: &SystemDescription, base_dir: &Path) -> Result<Self, SystemError> {
-        Self::resolve_with(description, base_dir, &mut HashMap::new())
+        Self::resolve_loading(description, base_dir, &LoadOptions::default())
+    }
+
+    /// [`System::resolve`], loading the FMUs with `options` (the loader's limits, its
+    /// temporary folder).
+    pub fn resolve_loading(
+        description: &SystemDescription,
+        base_dir: &Path,
+        options: &LoadOptions,
+    ) -> Result<Self, SystemError> {
+        Self::resolve_with(description, base_dir, &mut HashMap::new(), options)
     }
 
     /// [`System::resolve`], taking FMUs from `loaded` (by path) before loading them.
@@ -189,6 +202,7 @@ impl System {
         description: &SystemDescription,
         base_dir: &Path,
         loaded: &mut HashMap<PathBuf, Arc<FmuFile>>,
+        options: &LoadOptions,
     ) -> Result<Self, SystemError> {
         let d = description;
         if !(d.step_size.is_finite() && d.step_size > 0.0) {
@@ -234,7 +248,7 @@ impl System {
             let fmu = match loaded.get(&path) {
                 Some(f) => f.clone(),
                 None => {
-                    let f = Arc::new(FmuFile::open(&path)?);
+                    let f = Arc::new(FmuFile::open_with(&path, options)?);
                     loaded.insert(path.clone(), f.clone());
                     f
                 }
@@ -263,6 +277,11 @@ impl System {
             });
         }
         let plan = Plan::compile(d, &instances)?;
+        for inst in &instances {
+            for (index, _) in &inst.start_values {
+                check_not_connected(&plan, &instances, inst, *index)?;
+            }
+        }
         let system = Self {
             name: d.name.clone(),
             start_time: d.start_time,
@@ -284,6 +303,7 @@ impl System {
             },
             notes: Vec::new(),
             unpacked: None,
+            load: options.clone(),
         };
         Ok(system)
     }
@@ -299,6 +319,16 @@ impl System {
     /// [`System::from_file`], unpacking an SSP archive's FMUs into `unpack_to` (kept) instead
     /// of a temporary folder when it is given.
     pub fn from_file_unpacking(path: &Path, unpack_to: Option<&Path>) -> Result<Self, SystemError> {
+        Self::from_file_loading(path, unpack_to, &LoadOptions::default())
+    }
+
+    /// [`System::from_file_unpacking`], loading the FMUs with `options` (the loader's limits,
+    /// its temporary folder).
+    pub fn from_file_loading(
+        path: &Path,
+        unpack_to: Option<&Path>,
+        options: &LoadOptions,
+    ) -> Result<Self, SystemError> {
         if path.extension().is_some_and(|e| e == "ssp") {
             let (dir, temporary) = match unpack_to {
                 Some(dir) => (dir.to_path_buf(), None),
@@ -317,10 +347,12 @@ impl System {
             };
             let imported = crate::ssp::import(path, &dir)?;
             let mut system =
-                Self::resolve(&imported.description, &dir).map_err(|e| SystemError::InArchive {
-                    ssp: path.to_path_buf(),
-                    unpacked: dir.clone(),
-                    source: Box::new(e),
+                Self::resolve_loading(&imported.description, &dir, options).map_err(|e| {
+                    SystemError::InArchive {
+                        ssp: path.to_path_buf(),
+                        unpacked: dir.clone(),
+                        source: Box::new(e),
+                    }
                 })?;
             system.notes = imported.notes;
             system.unpacked = temporary;
@@ -328,7 +360,7 @@ impl System {
         }
         let description = SystemDescription::read(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
-        Self::resolve(&description, base)
+        Self::resolve_loading(&description, base, options)
     }
 
     /// The description this system was resolved from (FMU paths as loaded, start values as
@@ -422,23 +454,41 @@ impl System {
         qualified: &str,
         value: impl Into<StartValue>,
     ) -> Result<(), SystemError> {
-        let value = toml::Value::from(value.into());
+        let value = value.into();
+        let number = self.check_start_value(qualified, value)?;
+        let value = toml::Value::from(value);
         let (i, v) = self.var_ref(qualified)?;
         let inst = &mut self.instances[i];
-        let variable = &inst.fmu.variables[v];
-        let number = start_number(variable, &value).map_err(|reason| SystemError::Parameter {
-            instance: inst.name.clone(),
-            variable: variable.name.clone(),
-            file: inst.fmu.path.clone(),
-            reason,
-        })?;
-        let name = variable.name.clone();
+        let name = inst.fmu.variables[v].name.clone();
         inst.start_values.retain(|(index, _)| *index != v);
         inst.start_values.push((v, number));
         if let Some(source) = self.source.instances.get_mut(i) {
             source.parameters.insert(name, value);
         }
         Ok(())
+    }
+
+    /// The number the engine would set for `qualified` = `value`, with the checks of
+    /// [`System::set_start_value`] (a parameter or an unconnected input, of a matching type),
+    /// without setting it.
+    pub fn check_start_value(
+        &self,
+        qualified: &str,
+        value: StartValue,
+    ) -> Result<f64, SystemError> {
+        let (i, v) = self.var_ref(qualified)?;
+        let inst = &self.instances[i];
+        let variable = &inst.fmu.variables[v];
+        let number = start_number(variable, &toml::Value::from(value)).map_err(|reason| {
+            SystemError::Parameter {
+                instance: inst.name.clone(),
+                variable: variable.name.clone(),
+                file: inst.fmu.path.clone(),
+                reason,
+            }
+        })?;
+        check_not_connected(&self.plan, &self.instances, inst, v)?;
+        Ok(number)
     }
 
     /// Runs `instance` from another FMU file (`fmu`, a path as given, not relative to the
@@ -456,7 +506,7 @@ impl System {
             .iter()
             .map(|inst| (inst.fmu.path.clone(), inst.fmu.clone()))
             .collect();
-        let mut edited = Self::resolve_with(&description, Path::new(""), &mut loaded)?;
+        let mut edited = Self::resolve_with(&description, Path::new(""), &mut loaded, &self.load)?;
         edited.notes = std::mem::take(&mut self.notes);
         edited.unpacked = self.unpacked.take();
         *self = edited;
@@ -466,6 +516,33 @@ impl System {
     /// `instance.variable`.
     pub fn variable_name(&self, r: VarRef) -> String {
         crate::plan::variable_name(&self.instances, r)
+    }
+}
+
+/// A value given to an input that a connection drives would be overwritten at the first
+/// communication point: refused, naming the input and the connection.
+fn check_not_connected(
+    plan: &Plan,
+    instances: &[ResolvedInstance],
+    inst: &ResolvedInstance,
+    index: usize,
+) -> Result<(), SystemError> {
+    let Some(i) = instances.iter().position(|x| x.name == inst.name) else {
+        return Ok(());
+    };
+    match plan.connections.iter().find(|c| c.to == (i, index)) {
+        Some(c) => Err(SystemError::Parameter {
+            instance: inst.name.clone(),
+            variable: inst.fmu.variables[index].name.clone(),
+            file: inst.fmu.path.clone(),
+            reason: format!(
+                "is an input driven by the connection `{} -> {}`, so a value given to it \
+                 would be ignored; remove the value or the connection",
+                crate::plan::variable_name(instances, c.from),
+                crate::plan::variable_name(instances, c.to)
+            ),
+        }),
+        None => Ok(()),
     }
 }
 

@@ -12,18 +12,24 @@
 #![deny(unsafe_code)]
 
 use spurio_experiments::{diagnose, plot};
-use spurio_master::engine::{RunEnd, RunOptions, Simulation};
+use spurio_master::engine::{RunEnd, RunError, RunOptions, Simulation};
 use spurio_master::logging;
-use spurio_master::record::{CsvWriter, NoRecording, TimeSeries};
+use spurio_master::record::{CsvWriter, NoRecording, Observer, TimeSeries};
 use spurio_master::system::System;
 
+mod guard;
 mod library_query;
+mod limits;
 mod package;
 mod sweep;
+mod workers;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 #[derive(Parser)]
 #[command(
@@ -64,8 +70,8 @@ enum Command {
         /// Also plot these recorded variables (comma-separated names) to a PNG beside the CSV.
         #[arg(long, value_delimiter = ',')]
         plot: Vec<String>,
-        /// Pace the run: 1 = real time, 2 = twice as fast.
-        #[arg(long)]
+        /// Pace the run: 1 = real time, 2 = twice as fast (a positive number).
+        #[arg(long, value_parser = limits::parse_positive)]
         real_time: Option<f64>,
         /// Show a progress bar.
         #[arg(long)]
@@ -73,6 +79,8 @@ enum Command {
         /// Print the FMUs' informational log messages too.
         #[arg(long)]
         verbose: bool,
+        #[command(flatten)]
+        limits: limits::Limits,
     },
     /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
     Package {
@@ -160,6 +168,9 @@ enum Command {
         #[arg(long)]
         png: Option<PathBuf>,
     },
+    /// Runs of a sweep in a worker process: values in on standard input, metrics out.
+    #[command(hide = true)]
+    SweepWorker(sweep::WorkerArgs),
     /// Compare the committed modelDescription/*.xml with what the built FMU libraries generate.
     ModelDescriptions {
         /// Regenerate the files instead of checking them.
@@ -174,13 +185,181 @@ enum Command {
     },
 }
 
-/// Each plotted variable's axis label: its name and the unit its model description gives
-/// (`crane.x [m]`).
-fn main() -> Result<()> {
+/// Runs the command; the session folder (see [`guard`]) is removed whatever the outcome.
+fn main() -> ExitCode {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
     logging::install(verbose);
-    match cli.command {
+    // A panic (a bug) still removes the session folder before the process ends with 101.
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        guard::start().and_then(|()| match &cli.command {
+            // A run goes on in a supervised child process (see guard::supervise).
+            Command::Run { out, no_record, .. } if !guard::is_supervised() => {
+                let code = guard::supervise((!no_record).then_some(out.as_path()))?;
+                Ok(ExitCode::from(u8::try_from(code).unwrap_or(1)))
+            }
+            _ => command(cli.command),
+        })
+    }));
+    guard::finish();
+    let Ok(outcome) = outcome else {
+        return ExitCode::from(101);
+    };
+    match outcome {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("Error: {e:?}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `spurio run`.
+#[allow(clippy::too_many_arguments)]
+fn run(
+    system: &Path,
+    out: &Path,
+    no_record: bool,
+    output_interval: u64,
+    unpack_to: Option<&Path>,
+    plotted: &[String],
+    real_time: Option<f64>,
+    progress: bool,
+    limits: &limits::Limits,
+) -> Result<()> {
+    let resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    for note in &resolved.notes {
+        eprintln!("spurio: {}: {note}", system.display());
+    }
+    limits.check_steps(&resolved)?;
+    // The plotted variables and their axis labels (with units), checked before the run.
+    let plotted = plotted
+        .iter()
+        .map(|name| {
+            let label = plot::axis_label(&resolved, name)?;
+            if !resolved.plan.record_names.contains(name) {
+                bail!(
+                    "cannot plot `{name}`: it is not recorded (recorded: {})",
+                    resolved.plan.record_names.join(", ")
+                );
+            }
+            Ok((name.clone(), label))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let monitor = limits.call_timeout.map(guard::watchdog);
+    let mut sim = Simulation::with_monitor(&resolved, monitor)?;
+    let options = RunOptions {
+        real_time_factor: real_time,
+        progress,
+        output_interval,
+    };
+    if no_record {
+        let end = sim.run(&mut NoRecording, &options)?;
+        sim.terminate()?;
+        if let RunEnd::Terminated { .. } = end {
+            println!("{end}");
+        }
+        return Ok(());
+    }
+    let csv = CsvWriter::create(out).with_context(|| format!("cannot write {}", out.display()))?;
+    let csv = Arc::new(Mutex::new(csv));
+    let shown = out.display().to_string();
+    guard::on_early_exit({
+        let csv = csv.clone();
+        move || {
+            let mut csv = csv
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            Some(match csv.finish() {
+                Ok(()) => format!("the rows recorded so far are in {shown}"),
+                Err(e) => format!("cannot write {shown}: {e}"),
+            })
+        }
+    });
+    let mut observer = Recorder {
+        csv: csv.clone(),
+        series: (!plotted.is_empty()).then(TimeSeries::default),
+        flushed: Instant::now(),
+    };
+    let end = match sim.run(&mut observer, &options) {
+        Ok(end) => end,
+        Err(RunError::Output(e)) => bail!("cannot write {}: {e}", out.display()),
+        Err(e) => {
+            let flushed = csv
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .finish();
+            let note = match flushed {
+                Ok(()) => format!("the rows recorded before are in {}", out.display()),
+                Err(w) => format!("cannot write {}: {w}", out.display()),
+            };
+            return Err(anyhow::Error::new(e).context(format!("the run ended early; {note}")));
+        }
+    };
+    sim.terminate()?;
+    if let Some(series) = &observer.series {
+        let png = out.with_extension("png");
+        plot::labelled_time_series_png(&png, &resolved.name, series, &plotted)?;
+        println!("wrote {}", png.display());
+    }
+    if let RunEnd::Terminated { .. } = end {
+        println!("{end}");
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// Writes every sample to the CSV (shared with the early-exit flush), and keeps them in
+/// memory too when they are to be plotted.
+struct Recorder {
+    csv: Arc<Mutex<CsvWriter<std::io::BufWriter<std::fs::File>>>>,
+    series: Option<TimeSeries>,
+    /// When the rows were last flushed to the file: at most [`FLUSH_EVERY`] of rows are
+    /// lost if an FMU kills the process.
+    flushed: Instant,
+}
+
+/// How often the rows of a run are flushed to the results file.
+const FLUSH_EVERY: Duration = Duration::from_millis(50);
+
+impl Recorder {
+    fn csv(&self) -> std::sync::MutexGuard<'_, CsvWriter<std::io::BufWriter<std::fs::File>>> {
+        self.csv
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+impl Observer for Recorder {
+    fn start(&mut self, names: &[String]) -> std::io::Result<()> {
+        if let Some(s) = &mut self.series {
+            s.start(names)?;
+        }
+        let mut csv = self.csv();
+        csv.start(names)?;
+        csv.flush()
+    }
+    fn sample(&mut self, time: f64, values: &[f64]) -> std::io::Result<()> {
+        if let Some(s) = &mut self.series {
+            s.sample(time, values)?;
+        }
+        let flush = self.flushed.elapsed() >= FLUSH_EVERY;
+        let mut csv = self.csv();
+        csv.sample(time, values)?;
+        if flush {
+            csv.flush()?;
+            drop(csv);
+            self.flushed = Instant::now();
+        }
+        Ok(())
+    }
+    fn finish(&mut self) -> std::io::Result<()> {
+        self.csv().finish()
+    }
+}
+
+fn command(command: Command) -> Result<ExitCode> {
+    match command {
         Command::Run {
             system,
             out,
@@ -191,47 +370,18 @@ fn main() -> Result<()> {
             real_time,
             progress,
             verbose: _,
-        } => {
-            let resolved = System::from_file_unpacking(&system, unpack_to.as_deref())?;
-            for note in &resolved.notes {
-                eprintln!("spurio: {}: {note}", system.display());
-            }
-            // The plotted variables and their axis labels (with units), checked before the run.
-            let plotted = plotted
-                .iter()
-                .map(|name| Ok((name.clone(), plot::axis_label(&resolved, name)?)))
-                .collect::<Result<Vec<_>>>()?;
-            let mut sim = Simulation::new(&resolved)?;
-            let options = RunOptions {
-                real_time_factor: real_time,
-                progress,
-                output_interval,
-            };
-            let end = if no_record {
-                sim.run(&mut NoRecording, &options)?
-            } else if plotted.is_empty() {
-                let mut csv = CsvWriter::create(&out)
-                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
-                sim.run(&mut csv, &options)?
-            } else {
-                let mut series = TimeSeries::default();
-                let end = sim.run(&mut series, &options)?;
-                let mut csv = CsvWriter::create(&out)
-                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
-                spurio_master::record::replay(&series, &mut csv)?;
-                let png = out.with_extension("png");
-                plot::labelled_time_series_png(&png, &resolved.name, &series, &plotted)?;
-                println!("wrote {}", png.display());
-                end
-            };
-            sim.terminate()?;
-            if let RunEnd::Terminated { .. } = end {
-                println!("{end}");
-            }
-            if !no_record {
-                println!("wrote {}", out.display());
-            }
-        }
+            limits,
+        } => run(
+            &system,
+            &out,
+            no_record,
+            output_interval,
+            unpack_to.as_deref(),
+            &plotted,
+            real_time,
+            progress,
+            &limits,
+        )?,
         Command::Package { names, packaging } => {
             let Packaging {
                 lib_dir,
@@ -276,6 +426,7 @@ fn main() -> Result<()> {
             threads,
             repo,
         } => {
+            let threads = limits::workers(threads);
             let reports = spurio_experiments::run_all(&repo, &out, &only, seeds, threads)?;
             let failed: Vec<&str> = reports
                 .iter()
@@ -287,7 +438,8 @@ fn main() -> Result<()> {
                 println!("goals not met in: {}", failed.join(", "));
             }
         }
-        Command::Sweep(args) => sweep::run(args)?,
+        Command::Sweep(args) => return sweep::run(args),
+        Command::SweepWorker(args) => sweep::worker(args)?,
         Command::SweepMerge(args) => sweep::merge(args)?,
         Command::SspExport {
             system,
@@ -344,7 +496,7 @@ fn main() -> Result<()> {
             }
         }
     }
-    Ok(())
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `--platform-dir NAME=DIR` values.

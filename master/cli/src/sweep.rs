@@ -2,13 +2,19 @@
 //! cluster (`--slurm <dir>`) — and `spurio sweep-merge`, which checks the shards of a sweep
 //! and writes the table the one-machine sweep writes, or shows how far a sweep has come.
 
+use crate::guard;
+use crate::limits::{self, Limits};
+use crate::workers;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use spurio_master::engine::RunOptions;
 use spurio_master::shard::{self, MergeOptions, RunRecord, Shard, ShardFile, SweepDefinition};
 use spurio_master::slurm::{self, Manifest, SlurmOptions, SweepArguments};
-use spurio_master::sweep::{self as sweeps, Metric, Variation};
+use spurio_master::sweep::{self as sweeps, Metric, SweepResult, Variation};
 use spurio_master::system::System;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -20,9 +26,14 @@ pub struct SweepArgs {
     /// Metrics: final(v), mean(v), rms(v), max_abs(v), e_res(a, b), settling(v, bound).
     #[arg(long = "metric", required = true)]
     metrics: Vec<String>,
-    /// Worker threads (0: one per core).
+    /// Runs at once, each in its own worker process (0: one per core; at most 4 per core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Refuse a sweep of more runs than this.
+    #[arg(long, value_name = "N", default_value_t = sweeps::DEFAULT_MAX_RUNS)]
+    max_runs: u64,
+    #[command(flatten)]
+    limits: Limits,
     /// Also write every run's metrics as CSV here.
     #[arg(long, conflicts_with_all = ["shard", "slurm"])]
     out: Option<PathBuf>,
@@ -69,6 +80,21 @@ pub struct SweepArgs {
     submit: bool,
 }
 
+/// `spurio sweep-worker`: runs of a sweep in a worker process, one per value read from
+/// standard input (see [`crate::workers`]).
+#[derive(Args)]
+pub struct WorkerArgs {
+    /// The system file.
+    system: PathBuf,
+    /// The varied `instance.variable`.
+    #[arg(long)]
+    vary: String,
+    #[arg(long = "metric")]
+    metrics: Vec<String>,
+    #[command(flatten)]
+    limits: Limits,
+}
+
 #[derive(Args)]
 pub struct MergeArgs {
     /// Shard files, folders of shard files, or a folder staged by `spurio sweep --slurm`.
@@ -86,32 +112,119 @@ pub struct MergeArgs {
     shards: Option<usize>,
 }
 
-/// `spurio sweep`.
-pub fn run(args: SweepArgs) -> Result<()> {
-    let resolved = System::from_file(&args.system)?;
-    let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics)?;
+/// `spurio sweep`: the table of the runs that completed, every failed run named on
+/// standard error (then the exit code is 1).
+pub fn run(args: SweepArgs) -> Result<ExitCode> {
+    let resolved = System::from_file_loading(&args.system, None, &args.limits.load_options())?;
+    let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics, args.max_runs)?;
+    variation.check(&resolved)?;
+    args.limits.check_steps(&resolved)?;
+    let recorded = &resolved.plan.record_names;
+    for m in &metrics {
+        for v in m.variables() {
+            if !recorded.iter().any(|r| r == v) {
+                bail!(
+                    "metric {}: `{v}` is not recorded (recorded: {})",
+                    m.label(),
+                    recorded.join(", ")
+                );
+            }
+        }
+    }
     if let Some(dir) = &args.slurm {
-        return stage(&args, &resolved, dir, &definition);
+        stage(&args, &resolved, dir, &definition)?;
+        return Ok(ExitCode::SUCCESS);
     }
+    let all = 0..variation.values.len();
+    let runs = match (args.shard, &args.shard_out) {
+        (Some(shard), Some(_)) => shard.runs(variation.values.len()),
+        _ => all,
+    };
+    let outcomes = run_workers(&args, &variation, &metrics, runs.clone())?;
+    let failed = outcomes.iter().filter(|o| o.is_err()).count();
     if let (Some(shard), Some(shard_out)) = (args.shard, &args.shard_out) {
-        return run_shard(
-            &args,
-            &resolved,
-            &variation,
-            &metrics,
-            &definition,
-            shard,
-            shard_out,
-        );
+        write_shard(&args, &definition, shard, shard_out, runs, outcomes)?;
+        return Ok(ExitCode::SUCCESS);
     }
-    let result = sweeps::sweep(&resolved, &variation, &metrics, args.threads)?;
-    let table = sweeps::write_table(
-        args.out.as_deref(),
-        &definition.parameters,
-        &definition.runs,
-        &result,
-    )?;
-    print!("{table}");
+    let result = SweepResult {
+        metrics,
+        runs: outcomes
+            .into_iter()
+            .map(|o| o.unwrap_or_else(|_| vec![f64::NAN; definition.metrics.len()]))
+            .collect(),
+    };
+    // The table first: a per-run file that cannot be written does not lose it.
+    print!("{}", result.table());
+    if let Some(out) = &args.out {
+        sweeps::write_table(Some(out), &definition.parameters, &definition.runs, &result)?;
+    }
+    if failed > 0 {
+        eprintln!(
+            "spurio: {failed} of {} runs failed (NaN in the per-run table; the table counts the others)",
+            result.runs.len()
+        );
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `runs` of the sweep in worker processes, naming each failed run on standard error
+/// as it ends.
+fn run_workers(
+    args: &SweepArgs,
+    variation: &Variation,
+    metrics: &[Metric],
+    runs: Range<usize>,
+) -> Result<Vec<workers::Outcome>> {
+    let metric_texts: Vec<String> = metrics.iter().map(Metric::label).collect();
+    let shared = workers::Runs {
+        system: &args.system,
+        variable: &variation.variable,
+        metrics: &metric_texts,
+        limits: &args.limits,
+    };
+    let list: Vec<(usize, f64)> = runs.map(|k| (k, variation.values[k])).collect();
+    shared.run(&list, limits::workers(args.threads), |k, value, outcome| {
+        if let Err(e) = outcome {
+            eprintln!(
+                "spurio: run {k} ({} = {value}) failed: {e}",
+                variation.variable
+            );
+        }
+    })
+}
+
+/// `spurio sweep-worker`: loads the system once, then for each value read from standard
+/// input (one a line, until its end) runs the system with the varied variable at that value
+/// and answers one line (see [`crate::workers`]).
+pub fn worker(args: WorkerArgs) -> Result<()> {
+    use std::io::{BufRead, Write};
+    let metrics = args
+        .metrics
+        .iter()
+        .map(|m| Metric::parse(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let system = System::from_file_loading(&args.system, None, &args.limits.load_options())?;
+    args.limits.check_steps(&system)?;
+    let monitor = args.limits.call_timeout.map(guard::watchdog);
+    let mut stdout = std::io::stdout().lock();
+    for line in std::io::stdin().lock().lines() {
+        let line = line.context("reading the values to run")?;
+        let value: f64 = line
+            .trim()
+            .parse()
+            .with_context(|| format!("`{line}` is not a value to run"))?;
+        let outcome = sweeps::run_once(
+            &system,
+            &args.vary,
+            value,
+            &metrics,
+            &RunOptions::default(),
+            monitor.clone(),
+        );
+        writeln!(stdout, "{}", workers::answer(&outcome))?;
+        stdout.flush()?;
+    }
     Ok(())
 }
 
@@ -120,8 +233,9 @@ pub fn run(args: SweepArgs) -> Result<()> {
 fn parse_sweep(
     vary: &str,
     metrics: &[String],
+    max_runs: u64,
 ) -> Result<(Variation, Vec<Metric>, SweepDefinition)> {
-    let variation = Variation::parse(vary)?;
+    let variation = Variation::parse_at_most(vary, max_runs)?;
     let metrics = metrics
         .iter()
         .map(|m| Metric::parse(m))
@@ -130,26 +244,25 @@ fn parse_sweep(
     Ok((variation, metrics, definition))
 }
 
-fn run_shard(
+/// Writes the shard file of the runs `runs` of shard `shard`.
+fn write_shard(
     args: &SweepArgs,
-    system: &System,
-    variation: &Variation,
-    metrics: &[Metric],
     definition: &SweepDefinition,
     shard: Shard,
     shard_out: &Path,
+    runs: Range<usize>,
+    outcomes: Vec<workers::Outcome>,
 ) -> Result<()> {
     let identity = shard::identity_of_system_file(&args.system, definition)?;
-    let runs = shard.runs(variation.values.len());
-    let results = sweeps::sweep_runs(system, variation, metrics, runs.clone(), args.threads)?;
+    let total = definition.runs.len();
     let records: Vec<RunRecord> = runs
         .clone()
-        .zip(results)
+        .zip(outcomes)
         .map(|(k, result)| {
             let parameters = definition.runs[k].clone();
             match result {
                 Ok(values) => RunRecord::ok(k, parameters, values),
-                Err(e) => RunRecord::failed(k, parameters, e.to_string()),
+                Err(e) => RunRecord::failed(k, parameters, e),
             }
         })
         .collect();
@@ -179,7 +292,7 @@ fn run_shard(
         "shard {shard}: runs {}..{} of {}, {failed} failed; wrote {}",
         runs.start,
         runs.end,
-        variation.values.len(),
+        total,
         path.display()
     );
     Ok(())
@@ -282,7 +395,11 @@ fn gather(args: &MergeArgs) -> Result<(Vec<PathBuf>, MergeOptions, Option<Manife
             );
         }
         // The staged system and FMUs give the identity every shard must have.
-        let (_, _, definition) = parse_sweep(&manifest.vary, &manifest.metrics)?;
+        let (_, _, definition) = parse_sweep(
+            &manifest.vary,
+            &manifest.metrics,
+            manifest.total_runs as u64,
+        )?;
         let identity = shard::identity_of_system_file(&input.join(&manifest.system), &definition)?;
         if identity != manifest.sweep {
             bail!(
@@ -341,7 +458,11 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     let merged = shard::merge(&files, &options)?;
     let result = merged.result()?;
     let values: Vec<Vec<f64>> = merged.runs.iter().map(|r| r.parameters.clone()).collect();
-    let table = sweeps::write_table(args.out.as_deref(), &merged.parameters, &values, &result)?;
-    print!("{table}");
+    // The table first: a per-run file that cannot be written does not lose it.
+    print!(
+        "{}",
+        sweeps::write_table(None, &merged.parameters, &values, &result)?
+    );
+    sweeps::write_table(args.out.as_deref(), &merged.parameters, &values, &result)?;
     Ok(())
 }

@@ -1,5 +1,6 @@
-//! What the engine's integration tests share: the packaged FMUs (`scripts/build-fmus`),
-//! systems written as TOML, running a system into memory, and checking error messages.
+//! What the engine's integration tests (and the CLI's, which include this file) share: the
+//! packaged FMUs (`scripts/build-fmus`), an FMU that misbehaves on purpose, systems written as
+//! TOML, running a system into memory, and checking error messages.
 
 #![allow(dead_code)]
 
@@ -9,9 +10,19 @@ use spurio_master::system::{System, SystemDescription, SystemError};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
+/// The `master/` folder (this file serves the engine's tests and, included by path, the
+/// CLI's).
+fn master_dir() -> PathBuf {
+    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    match manifest.parent() {
+        Some(master) if manifest.ends_with("cli") => master.to_path_buf(),
+        _ => manifest,
+    }
+}
+
 /// The folder of the packaged FMUs.
 pub fn fmus() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus");
+    let dir = master_dir().join("../build/fmus");
     assert!(
         dir.join("GantryCrane.fmu").is_file(),
         "{} has no FMUs: run scripts/build-fmus first",
@@ -56,6 +67,40 @@ pub fn rewrite(
         }
     }
     out.finish().unwrap().into_inner()
+}
+
+/// `<dir>/Bad.fmu`: the packaged GantryCrane's model description over the library of
+/// `fixtures/misbehaving.c` (compiled with `cc`), which misbehaves in `fmi2DoStep` as the
+/// `MISBEHAVE*` environment variables say (see that file); the FMU has no other binary.
+pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
+    let source = master_dir().join("tests/fixtures/misbehaving.c");
+    let library = dir.join("misbehaving.so");
+    let cc = std::process::Command::new("cc")
+        .args(["-shared", "-fPIC", "-O1", "-o"])
+        .arg(&library)
+        .arg(&source)
+        .output()
+        .expect("a C compiler (cc) builds the misbehaving FMU");
+    assert!(
+        cc.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cc.stderr)
+    );
+    let so = std::fs::read(&library).unwrap();
+    std::fs::remove_file(&library).unwrap();
+    let library_entry = "binaries/linux64/GantryCrane.so";
+    let bytes = rewrite(
+        &crane(),
+        |name, data| match name {
+            n if n == library_entry => Some(so.clone()),
+            n if n.starts_with("binaries/") => None,
+            _ => Some(data),
+        },
+        &[],
+    );
+    let path = dir.join("Bad.fmu");
+    std::fs::write(&path, bytes).unwrap();
+    path
 }
 
 /// The system a TOML text describes, its FMUs taken from [`fmus`].
