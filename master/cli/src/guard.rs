@@ -73,14 +73,14 @@ pub fn start() -> anyhow::Result<()> {
             let supervised = SESSION.get().and_then(|s| lock(&s.supervised).clone());
             if let Some(child) = supervised {
                 let pid = lock(&child).id();
-                let passed = std::process::Command::new("kill")
-                    .arg(format!("-{signal}"))
-                    .arg(pid.to_string())
-                    .status()
-                    .is_ok_and(|s| s.success());
+                let passed = i32::try_from(pid).ok().is_some_and(|pid| {
+                    nix::sys::signal::Signal::try_from(signal).is_ok_and(|sig| {
+                        nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), sig).is_ok()
+                    })
+                });
                 if !passed {
-                    // No `kill` program: end the run the hard way (its rows are cut back to
-                    // whole ones by the supervisor).
+                    // The signal could not be passed on: end the run the hard way (its rows
+                    // are cut back to whole ones by the supervisor).
                     let _ = lock(&child).kill();
                 }
                 continue;
