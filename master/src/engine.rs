@@ -15,11 +15,13 @@
 //!    in between).
 //!
 //! An instance whose `fmi2DoStep` returns `fmi2Discard` with `fmi2GetBooleanStatus(
-//! fmi2Terminated)` = true asks to end the simulation (as the Reference FMU `Stair` does; fmpy,
-//! OMSimulator and the FMU Compliance Checker stop there too): the run ends normally at that
-//! instance's last successful time (`fmi2LastSuccessfulTime`), records that point and says
-//! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`, and `fmi2Error`, stop the
-//! run with an error naming the instance, the FMU file, the call and the time, quoting what
+//! fmi2Terminated)` = true, or whose `fmi3DoStep` sets `terminateSimulation`, asks to end the
+//! simulation (as the Reference FMU `Stair` does; fmpy, OMSimulator and the FMU Compliance
+//! Checker stop there too): the run ends normally at that instance's last successful time
+//! (FMI 3.0: the end of the step unless it says otherwise), records that point and says
+//! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`/`fmi3Discard`, an error, an
+//! FMI 3.0 `earlyReturn` (never allowed) or `eventHandlingNeeded` (event mode is not run) stop
+//! the run with an error naming the instance, the FMU file, the call and the time, quoting what
 //! that instance logged; when several instances fail in the same step (or in initialisation,
 //! or in terminate), the error names every one of them.
 

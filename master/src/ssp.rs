@@ -101,17 +101,22 @@ pub struct Imported {
     pub notes: Vec<String>,
 }
 
-/// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector).
+/// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector). An
+/// FMI 3.0 array element is a connector named as the master names it (`y[2]`, 1-based,
+/// row-major), a whole array one named by the array (`y`).
 fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, VarType)> {
-    let v = fmu.variable(name)?;
-    let kind = match v.causality {
+    let (causality, var_type) = match fmu.variable(name) {
+        Some(v) => (v.causality, v.var_type),
+        None => fmu.array(name).map(|a| (a.causality, a.var_type))?,
+    };
+    let kind = match causality {
         Causality::Input => "input",
         Causality::Output => "output",
         Causality::Parameter => "parameter",
         Causality::CalculatedParameter => "calculatedParameter",
         _ => return None,
     };
-    Some((kind, v.var_type))
+    Some((kind, var_type))
 }
 
 /// The `SystemStructure.ssd` text (SSP `version`) for `d`, written with quick-xml (which

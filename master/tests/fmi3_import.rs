@@ -74,8 +74,9 @@ fn state_space_arrays_are_elements_and_wholes() {
 
 #[test]
 fn state_space_runs_with_array_start_values_and_a_whole_array_connection() {
-    // a: A = 0 set element-wise, so x' = B u = u (constant) and y = C x + D u = u (1 + t),
-    // exact in the FMU's Euler steps. b gets a.y whole as its input u.
+    // a: A = 0 set element-wise and B = 2 I set whole (a nested TOML array), so x' = B u =
+    // 2 u (constant) and y = C x + D u = u (1 + 2 t), exact in the FMU's Euler steps. b gets
+    // a.y whole as its input u.
     let fmu = reference("fmi3", "StateSpace");
     let s = system(&format!(
         r#"
@@ -86,7 +87,7 @@ fn state_space_runs_with_array_start_values_and_a_whole_array_connection() {
         [[instance]]
         name = "a"
         fmu = "{f}"
-        parameters = {{ "A[1,1]" = 0.0, "A[2,2]" = 0.0, "A[3,3]" = 0.0, "u[2]" = 5.0 }}
+        parameters = {{ "A[1,1]" = 0.0, "A[2,2]" = 0.0, "A[3,3]" = 0.0, "u[2]" = 5.0, B = [[2, 0, 0], [0, 2, 0], [0, 0, 2]] }}
         [[instance]]
         name = "b"
         fmu = "{f}"
@@ -104,12 +105,28 @@ fn state_space_runs_with_array_start_values_and_a_whole_array_connection() {
     for (k, t) in series.time.iter().enumerate() {
         for (i, u) in [1.0, 5.0, 3.0].iter().enumerate() {
             let y = column(&series, &format!("a.y[{}]", i + 1))[k];
-            assert!((y - u * (1.0 + t)).abs() < 1e-12, "y[{}]({t}) = {y}", i + 1);
+            assert!(
+                (y - u * (1.0 + 2.0 * t)).abs() < 1e-12,
+                "y[{}]({t}) = {y}",
+                i + 1
+            );
         }
         // The whole-array connection delivers every element at the same point.
         assert_eq!(column(&series, "b.u[2]")[k], column(&series, "a.y[2]")[k]);
         assert_eq!(column(&series, "b.u[3]")[k], column(&series, "a.y[3]")[k]);
     }
+}
+
+#[test]
+fn a_whole_array_parameter_takes_all_its_elements() {
+    let fmu = reference("fmi3", "StateSpace");
+    let e = system(&format!(
+        "stop_time = 1.0\nstep_size = 0.5\n[[instance]]\nname = \"a\"\nfmu = \"{}\"\nparameters = {{ x0 = [1.0, 2.0] }}\n",
+        fmu.display()
+    ))
+    .unwrap_err()
+    .to_string();
+    assert_names(&e, &["parameter `x0`", "an array of 3 elements"]);
 }
 
 #[test]

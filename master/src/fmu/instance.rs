@@ -68,8 +68,8 @@ impl From<CallError> for StepProblem {
 }
 
 enum Inner {
-    Fmi2(fmi::fmi2::instance::InstanceCS),
-    Fmi3(fmi::fmi3::instance::InstanceCS),
+    Fmi2(Box<fmi::fmi2::instance::InstanceCS>),
+    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
 }
 
 /// A Co-Simulation instance of either version, with the key its messages are kept under.
@@ -111,14 +111,14 @@ macro_rules! set3 {
 impl Instance {
     pub(super) fn fmi2(instance: fmi::fmi2::instance::InstanceCS, log: LogKey) -> Self {
         Self {
-            inner: Inner::Fmi2(instance),
+            inner: Inner::Fmi2(Box::new(instance)),
             log,
         }
     }
 
     pub(super) fn fmi3(instance: fmi::fmi3::instance::InstanceCS, log: LogKey) -> Self {
         Self {
-            inner: Inner::Fmi3(instance),
+            inner: Inner::Fmi3(Box::new(instance)),
             log,
         }
     }
@@ -134,7 +134,7 @@ impl Instance {
     /// The rust-fmi FMI 2.0 instance, for calls of its own (None for FMI 3.0).
     pub fn fmi2_mut(&mut self) -> Option<&mut fmi::fmi2::instance::InstanceCS> {
         match &mut self.inner {
-            Inner::Fmi2(i) => Some(i),
+            Inner::Fmi2(i) => Some(i.as_mut()),
             Inner::Fmi3(_) => None,
         }
     }
@@ -194,11 +194,11 @@ impl Instance {
         stop: Option<f64>,
     ) -> Result<(), CallError> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::enter_initialization_mode(i)
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::enter_initialization_mode(i.as_mut())
                 .map(|_| ())
                 .map_err(Into::into),
             Inner::Fmi3(i) => {
-                fmi::fmi3::Common::enter_initialization_mode(i, tolerance, start, stop)
+                fmi::fmi3::Common::enter_initialization_mode(i.as_mut(), tolerance, start, stop)
                     .map(|_| ())
                     .map_err(Into::into)
             }
@@ -209,10 +209,10 @@ impl Instance {
     /// mode).
     pub fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::exit_initialization_mode(i)
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::exit_initialization_mode(i.as_mut())
                 .map(|_| ())
                 .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::exit_initialization_mode(i)
+            Inner::Fmi3(i) => fmi::fmi3::Common::exit_initialization_mode(i.as_mut())
                 .map(|_| ())
                 .map_err(Into::into),
         })
@@ -221,10 +221,10 @@ impl Instance {
     /// Terminates the instance.
     pub fn terminate(&mut self) -> Result<(), CallError> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::terminate(i)
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::terminate(i.as_mut())
                 .map(|_| ())
                 .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::terminate(i)
+            Inner::Fmi3(i) => fmi::fmi3::Common::terminate(i.as_mut())
                 .map(|_| ())
                 .map_err(Into::into),
         })

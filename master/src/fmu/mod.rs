@@ -552,20 +552,20 @@ impl FmuFile {
             Import::Fmi2(import) => (
                 import
                     .instantiate_cs(key.instance_name(), false, logging_on)
-                    .map(Inner::Fmi2),
+                    .map(|i| Inner::Fmi2(Box::new(i))),
                 "fmi2Instantiate",
             ),
             Import::Fmi3(import) => (
                 crate::logging::speaking(&key, || {
                     import.instantiate_cs(key.instance_name(), false, logging_on, false, false, &[])
                 })
-                .map(Inner::Fmi3),
+                .map(|i| Inner::Fmi3(Box::new(i))),
                 "fmi3InstantiateCoSimulation",
             ),
         };
         match created {
-            Ok(Inner::Fmi2(cs)) => Ok(Instance::fmi2(cs, key)),
-            Ok(Inner::Fmi3(cs)) => Ok(Instance::fmi3(cs, key)),
+            Ok(Inner::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
+            Ok(Inner::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key)),
             Err(e) => {
                 let said = key.recent_messages();
                 let log = if said.is_empty() {
@@ -586,8 +586,8 @@ impl FmuFile {
 
 /// A new instance of either version, before it gets its key.
 enum Inner {
-    Fmi2(InstanceCS),
-    Fmi3(fmi::fmi3::instance::InstanceCS),
+    Fmi2(Box<InstanceCS>),
+    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
 }
 
 /// rust-fmi 0.8 passes FMI 3.0's `resourcePath` without the trailing separator the standard
