@@ -40,7 +40,8 @@ struct Cli {
 enum Command {
     /// Run a co-simulation system (TOML, or an SSP 1.0/2.0 archive) and write its results as
     /// CSV (fmpy's layout). The run ends at the stop time, or earlier when an FMU asks to end
-    /// the simulation (fmi2Discard with fmi2Terminated, as the Reference FMU Stair does): the
+    /// the simulation (FMI 2.0: fmi2Discard with fmi2Terminated, as the Reference FMU Stair
+    /// does; FMI 3.0: terminateSimulation from fmi3DoStep): the
     /// last point is recorded and the reason printed.
     Run {
         /// The system file (`.toml`) or SSP archive (`.ssp`; its FMUs are unpacked into a
