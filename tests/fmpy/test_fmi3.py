@@ -275,3 +275,28 @@ def test_interleaved_instances_equal_a_lone_one():
     both = run([slave3("GantryCrane", name="a"), slave3("GantryCrane", name="b")], [push, pull])
     assert both[0] == lone
     assert both[1] != lone and abs(both[1][-1][0] - lone[-1][0]) > 0.01
+
+
+FMI3_TUPLE = {"linux64": "x86_64-linux", "win64": "x86_64-windows",
+              "aarch64-linux": "aarch64-linux"}
+
+
+@pytest.mark.parametrize("stem", STEMS)
+def test_the_fmi3_archive_carries_the_fmi2_binaries_under_platform_tuples(stem):
+    """Same binaries (one library exports fmi2* and fmi3*), every platform of the build,
+    under the FMI 3.0 tuples; the same page and variant configuration."""
+    import zipfile
+
+    with zipfile.ZipFile(FMU_DIR / f"{stem}.fmu") as two, zipfile.ZipFile(fmi3_path(stem)) as three:
+        names2, names3 = set(two.namelist()), set(three.namelist())
+        binaries2 = sorted(n for n in names2 if n.startswith("binaries/"))
+        assert binaries2
+        expected = {"binaries/" + FMI3_TUPLE[n.split("/")[1]] + "/" + n.split("/")[2]
+                    for n in binaries2}
+        assert {n for n in names3 if n.startswith("binaries/")} == expected
+        for n in binaries2:
+            folder, file = n.split("/")[1:]
+            assert three.read(f"binaries/{FMI3_TUPLE[folder]}/{file}") == two.read(n), n
+        for n in names2 - {"modelDescription.xml"} - set(binaries2):
+            assert three.read(n) == two.read(n), n
+        assert "documentation/index.html" in names3

@@ -474,6 +474,13 @@ mod tests {
         )
         .unwrap();
         assert_eq!(xml, committed);
+        let xml3 = fmu.describe3(&variants[1].1).unwrap();
+        let committed3 = std::fs::read_to_string(
+            FmiVersion::Fmi3.committed_model_description(&repo(), "Sensor2"),
+        )
+        .unwrap();
+        assert_eq!(xml3, committed3);
+        assert!(xml3.contains(r#"fmiVersion="3.0""#) && xml3.contains(r#"<Dimension start="2"/>"#));
         let mut bad = Config::new();
         bad.set("channels", "0");
         let err = fmu.describe(&bad).unwrap_err().to_string();
