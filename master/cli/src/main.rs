@@ -84,7 +84,8 @@ enum Command {
     },
     /// Package one FMU for your own dimensions: e.g. `spurio package-variant KalmanFilter
     /// --set n=3 --set p=1 --set m=1 --name MyKalmanFilter` writes MyKalmanFilter.fmu whose
-    /// modelDescription has A[1,1]…A[3,3], y[1], x_hat[1]…x_hat[3], ….
+    /// modelDescription has A[1,1]…A[3,3], y[1], x_hat[1]…x_hat[3], …, and the FMI 3.0
+    /// fmi3/MyKalmanFilter.fmu with the arrays A (3×3), y, x_hat, ….
     PackageVariant {
         /// Model identifier of a dimension-generic FMU.
         model_identifier: String,
@@ -259,7 +260,7 @@ fn main() -> Result<()> {
         } => {
             let platforms = parse_platforms(&platform_dirs)?;
             let stem = name.unwrap_or_else(|| model_identifier.clone());
-            let path = package::package_custom(
+            for path in package::package_custom(
                 &repo,
                 &lib_dir,
                 &platforms,
@@ -267,8 +268,9 @@ fn main() -> Result<()> {
                 &settings,
                 &stem,
                 &out,
-            )?;
-            println!("wrote {}", path.display());
+            )? {
+                println!("wrote {}", path.display());
+            }
         }
         Command::Experiments {
             out,
