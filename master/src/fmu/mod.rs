@@ -508,8 +508,17 @@ impl FmuFile {
             .map(|(i, a)| (a.name.clone(), i))
             .collect();
         resource_path_workaround(path, &unpacked)?;
-        // rust-fmi's own reading of the model description must accept it too.
-        let import = Fmi3Import::new(unpacked.dir, xml).map_err(|e| LoadError::Import {
+        // rust-fmi 0.8's FMI 3.0 schema refuses attributes the standard allows (`unit`,
+        // `quantity`, `nominal` … on variables): it gets only what instantiation needs, the
+        // full description having been read and checked here (v3).
+        let minimal = format!(
+            r#"<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="{}" modelName="{}" instantiationToken="{}"><CoSimulation modelIdentifier="{}"/><ModelVariables/><ModelStructure/></fmiModelDescription>"#,
+            quick_xml::escape::escape(d.version.as_str()),
+            quick_xml::escape::escape(d.model_name.as_str()),
+            quick_xml::escape::escape(d.instantiation_token.as_str()),
+            quick_xml::escape::escape(model_identifier.as_str()),
+        );
+        let import = Fmi3Import::new(unpacked.dir, &minimal).map_err(|e| LoadError::Import {
             file: path.to_path_buf(),
             reason: e.to_string(),
         })?;
