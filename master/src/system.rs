@@ -251,11 +251,12 @@ impl System {
                 // flat or nested).
                 if let (None, Some(array)) = (fmu.index_of(name), fmu.array(name)) {
                     let mut values = Vec::new();
-                    flatten(value, &mut values);
+                    crate::ssp::flatten(value, &mut values);
                     if values.len() != array.elements.len() {
                         return Err(fail(format!(
-                            "is an array of {} elements; give an array of as many values (row-major), or set elements (`{name}[1]`)",
-                            array.elements.len()
+                            "is an array of {} elements; give an array of as many values (row-major), or set elements (`{}`)",
+                            array.elements.len(),
+                            array.elements.first().map_or(name.as_str(), |&e| fmu.variables[e].name.as_str())
                         )));
                     }
                     for (&index, v) in array.elements.iter().zip(values) {
@@ -484,14 +485,6 @@ impl System {
     /// `instance.variable`.
     pub fn variable_name(&self, r: VarRef) -> String {
         crate::plan::variable_name(&self.instances, r)
-    }
-}
-
-/// The values of a TOML array, nested arrays flattened in order (a scalar: itself).
-fn flatten(value: &toml::Value, out: &mut Vec<toml::Value>) {
-    match value {
-        toml::Value::Array(items) => items.iter().for_each(|v| flatten(v, out)),
-        other => out.push(other.clone()),
     }
 }
 
