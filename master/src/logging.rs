@@ -45,13 +45,13 @@ fn display_name(target: &str) -> &str {
 
 thread_local! {
     /// The unique name of the instance this thread is calling into, if any.
-    static SPEAKING: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+    static SPEAKING: std::cell::RefCell<Option<std::sync::Arc<str>>> = const { std::cell::RefCell::new(None) };
 }
 
 /// Runs `call` (a call into the instance whose key is `key`) with the messages logged
 /// meanwhile on this thread attributed to that instance.
 pub(crate) fn speaking<T>(key: &LogKey, call: impl FnOnce() -> T) -> T {
-    let before = SPEAKING.with(|s| s.replace(Some(key.unique.clone())));
+    let before = SPEAKING.with(|s| s.replace(Some(std::sync::Arc::clone(&key.unique))));
     let result = call();
     SPEAKING.with(|s| *s.borrow_mut() = before);
     result
@@ -66,7 +66,7 @@ impl log::Log for ForwardingLogger {
         // Only the FMUs' messages: rust-fmi marks them with module path "logger" (FMI 2.0,
         // the target is the instance) or "fmu" (FMI 3.0, the instance is the one speaking).
         let speaker = match record.module_path() {
-            Some("fmu") => SPEAKING.with(|s| s.borrow().clone()),
+            Some("fmu") => SPEAKING.with(|s| s.borrow().as_deref().map(str::to_string)),
             _ => None,
         };
         if record.module_path() != Some("logger") && speaker.is_none() {
@@ -105,7 +105,7 @@ pub fn install(verbose: bool) {
 /// key lives, and dropped with it.
 #[derive(Debug)]
 pub struct LogKey {
-    unique: String,
+    unique: std::sync::Arc<str>,
 }
 
 impl LogKey {
@@ -116,7 +116,9 @@ impl LogKey {
         if let Ok(mut kept) = kept().lock() {
             kept.insert(unique.clone(), VecDeque::new());
         }
-        Self { unique }
+        Self {
+            unique: unique.into(),
+        }
     }
 
     /// The name to give `fmi2Instantiate`.
@@ -129,7 +131,7 @@ impl LogKey {
         let Ok(kept) = kept().lock() else {
             return Vec::new();
         };
-        kept.get(&self.unique)
+        kept.get(&*self.unique)
             .map(|messages| {
                 messages
                     .iter()
@@ -143,7 +145,7 @@ impl LogKey {
 impl Drop for LogKey {
     fn drop(&mut self) {
         if let Ok(mut kept) = kept().lock() {
-            kept.remove(&self.unique);
+            kept.remove(&*self.unique);
         }
     }
 }

@@ -331,3 +331,45 @@ fn an_ssp_export_names_array_elements_and_wholes_and_runs_the_same() {
         assert_eq!(series.rows, direct.rows, "{version:?}");
     }
 }
+
+#[test]
+fn a_rejected_instantiation_token_is_reported_with_what_the_fmu_logged() {
+    // The FMU's messages reach the error although rust-fmi's FMI 3.0 logger does not say
+    // which instance spoke: the master attributes them to the instance it is calling.
+    spurio_master::logging::install(false);
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = dir.path().join("Dahlquist.fmu");
+    let bytes = common::rewrite(
+        &reference("fmi3", "Dahlquist"),
+        |name, data| {
+            Some(if name == "modelDescription.xml" {
+                let text = String::from_utf8(data).unwrap();
+                let token = text
+                    .split("instantiationToken=\"")
+                    .nth(1)
+                    .and_then(|rest| rest.split('"').next())
+                    .unwrap()
+                    .to_string();
+                text.replace(&token, "{00000000-0000-0000-0000-000000000000}")
+                    .into_bytes()
+            } else {
+                data
+            })
+        },
+        &[],
+    );
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = FmuFile::open(&fmu)
+        .unwrap()
+        .instantiate("dq", true)
+        .unwrap_err();
+    assert!(matches!(e, LoadError::Instantiate { .. }), "{e}");
+    assert_names(
+        &e.to_string(),
+        &[
+            "instance `dq`",
+            "fmi3InstantiateCoSimulation failed: ",
+            "ERROR",
+        ],
+    );
+}

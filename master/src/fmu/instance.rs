@@ -164,9 +164,14 @@ impl Instance {
         }
     }
 
+    /// Runs `call` on the instance; an FMI 3.0 instance's messages meanwhile are kept under
+    /// its key (FMI 2.0 messages carry the instance name themselves).
     fn with_log<T>(&mut self, call: impl FnOnce(&mut Inner) -> T) -> T {
         let Self { inner, log } = self;
-        crate::logging::speaking(log, || call(inner))
+        match inner {
+            Inner::Fmi2(_) => call(inner),
+            Inner::Fmi3(_) => crate::logging::speaking(log, || call(inner)),
+        }
     }
 
     /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
