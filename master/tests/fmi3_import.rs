@@ -373,3 +373,24 @@ fn a_rejected_instantiation_token_is_reported_with_what_the_fmu_logged() {
         ],
     );
 }
+
+#[test]
+fn an_fmi3_fmu_without_its_platform_tuple_binary_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = dir.path().join("Dahlquist.fmu");
+    let bytes = common::rewrite(
+        &reference("fmi3", "Dahlquist"),
+        |name, data| (!name.starts_with("binaries/x86_64-linux")).then_some(data),
+        &[],
+    );
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = FmuFile::open(&fmu).unwrap_err();
+    assert!(matches!(e, LoadError::MissingBinary { .. }), "{e}");
+    assert_names(
+        &e.to_string(),
+        &[
+            "Dahlquist.fmu",
+            "`binaries/x86_64-linux/Dahlquist.so` is missing",
+        ],
+    );
+}
