@@ -76,6 +76,8 @@ enum Inner {
 pub struct Instance {
     inner: Inner,
     log: LogKey,
+    /// Scratch space of the FMI 2.0 Integer and Boolean calls (no allocation per call).
+    ints: Vec<i32>,
 }
 
 impl std::fmt::Debug for Instance {
@@ -113,6 +115,7 @@ impl Instance {
         Self {
             inner: Inner::Fmi2(Box::new(instance)),
             log,
+            ints: Vec::new(),
         }
     }
 
@@ -120,6 +123,7 @@ impl Instance {
         Self {
             inner: Inner::Fmi3(Box::new(instance)),
             log,
+            ints: Vec::new(),
         }
     }
 
@@ -167,7 +171,7 @@ impl Instance {
     /// Runs `call` on the instance; an FMI 3.0 instance's messages meanwhile are kept under
     /// its key (FMI 2.0 messages carry the instance name themselves).
     fn with_log<T>(&mut self, call: impl FnOnce(&mut Inner) -> T) -> T {
-        let Self { inner, log } = self;
+        let Self { inner, log, .. } = self;
         match inner {
             Inner::Fmi2(_) => call(inner),
             Inner::Fmi3(_) => crate::logging::speaking(log, || call(inner)),
@@ -238,18 +242,22 @@ impl Instance {
     /// Reads the values of `vrs` (all of type `t`) into `out`: one value per FMI 2.0
     /// variable, an FMI 3.0 array's elements in a row (`out.len()` = nValues).
     pub fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => get2(i, t, vrs, out).map_err(Into::into),
-            Inner::Fmi3(i) => get3(i, t, vrs, out).map_err(Into::into),
-        })
+        match &mut self.inner {
+            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.ints).map_err(Into::into),
+            Inner::Fmi3(i) => {
+                crate::logging::speaking(&self.log, || get3(i, t, vrs, out)).map_err(Into::into)
+            }
+        }
     }
 
     /// Sets `vrs` (all of type `t`) from `values` (FMI 3.0: nValues = `values.len()`).
     pub fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => set2(i, t, vrs, values).map_err(Into::into),
-            Inner::Fmi3(i) => set3(i, t, vrs, values).map_err(Into::into),
-        })
+        match &mut self.inner {
+            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.ints).map_err(Into::into),
+            Inner::Fmi3(i) => {
+                crate::logging::speaking(&self.log, || set3(i, t, vrs, values)).map_err(Into::into)
+            }
+        }
     }
 
     /// One communication step from `time` over `h`.
@@ -298,25 +306,23 @@ fn get2(
     t: VarType,
     vrs: &[u32],
     out: &mut [f64],
+    ints: &mut Vec<i32>,
 ) -> Result<(), Fmi2Error> {
     use fmi::fmi2::instance::Common;
-    match t {
-        VarType::Real => {
-            Common::get_real(i, vrs, out)?;
+    if t == VarType::Real {
+        Common::get_real(i, vrs, out)?;
+        return Ok(());
+    }
+    ints.resize(out.len(), 0);
+    if t == VarType::Boolean {
+        Common::get_boolean(i, vrs, ints)?;
+        for (o, x) in out.iter_mut().zip(ints.iter()) {
+            *o = f64::from(u8::from(*x != 0));
         }
-        VarType::Boolean => {
-            let mut v = vec![0; out.len()];
-            Common::get_boolean(i, vrs, &mut v)?;
-            for (o, x) in out.iter_mut().zip(&v) {
-                *o = f64::from(u8::from(*x != 0));
-            }
-        }
-        _ => {
-            let mut v = vec![0; out.len()];
-            Common::get_integer(i, vrs, &mut v)?;
-            for (o, x) in out.iter_mut().zip(&v) {
-                *o = f64::from(*x);
-            }
+    } else {
+        Common::get_integer(i, vrs, ints)?;
+        for (o, x) in out.iter_mut().zip(ints.iter()) {
+            *o = f64::from(*x);
         }
     }
     Ok(())
@@ -327,20 +333,20 @@ fn set2(
     t: VarType,
     vrs: &[u32],
     values: &[f64],
+    ints: &mut Vec<i32>,
 ) -> Result<(), Fmi2Error> {
     use fmi::fmi2::instance::Common;
-    match t {
-        VarType::Real => {
-            Common::set_real(i, vrs, values)?;
-        }
-        VarType::Boolean => {
-            let v: Vec<i32> = values.iter().map(|x| i32::from(*x != 0.0)).collect();
-            Common::set_boolean(i, vrs, &v)?;
-        }
-        _ => {
-            let v: Vec<i32> = values.iter().map(|x| *x as i32).collect();
-            Common::set_integer(i, vrs, &v)?;
-        }
+    if t == VarType::Real {
+        Common::set_real(i, vrs, values)?;
+        return Ok(());
+    }
+    ints.clear();
+    if t == VarType::Boolean {
+        ints.extend(values.iter().map(|x| i32::from(*x != 0.0)));
+        Common::set_boolean(i, vrs, ints)?;
+    } else {
+        ints.extend(values.iter().map(|x| *x as i32));
+        Common::set_integer(i, vrs, ints)?;
     }
     Ok(())
 }
