@@ -27,19 +27,20 @@ fn bare_loop(fmu: &Path, steps: usize, batches: usize) -> f64 {
     let file = FmuFile::open(fmu).expect("open");
     let u = file.variable("u[1]").expect("u").value_reference;
     let y = file.variable("y[1]").expect("y").value_reference;
-    let (mut inst, _log) = file.instantiate("bare", false).expect("instantiate");
-    Common::setup_experiment(&mut inst, None, 0.0, None).expect("setup");
-    Common::enter_initialization_mode(&mut inst).expect("enter");
-    Common::exit_initialization_mode(&mut inst).expect("exit");
+    let mut instance = file.instantiate("bare", false).expect("instantiate");
+    let inst = instance.fmi2_mut().expect("an FMI 2.0 FMU");
+    Common::setup_experiment(inst, None, 0.0, None).expect("setup");
+    Common::enter_initialization_mode(inst).expect("enter");
+    Common::exit_initialization_mode(inst).expect("exit");
     let mut out = [0.0];
     let mut t = 0.0;
     let samples = (0..batches)
         .map(|_| {
             let start = Instant::now();
             for _ in 0..steps {
-                Common::set_real(&mut inst, &[u], &[0.5]).expect("set");
+                Common::set_real(inst, &[u], &[0.5]).expect("set");
                 inst.do_step(t, 0.01, true).expect("step");
-                Common::get_real(&mut inst, &[y], &mut out).expect("get");
+                Common::get_real(inst, &[y], &mut out).expect("get");
                 t += 0.01;
             }
             start.elapsed().as_nanos() as f64 / steps as f64

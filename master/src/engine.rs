@@ -15,11 +15,13 @@
 //!    in between).
 //!
 //! An instance whose `fmi2DoStep` returns `fmi2Discard` with `fmi2GetBooleanStatus(
-//! fmi2Terminated)` = true asks to end the simulation (as the Reference FMU `Stair` does; fmpy,
-//! OMSimulator and the FMU Compliance Checker stop there too): the run ends normally at that
-//! instance's last successful time (`fmi2LastSuccessfulTime`), records that point and says
-//! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`, and `fmi2Error`, stop the
-//! run with an error naming the instance, the FMU file, the call and the time, quoting what
+//! fmi2Terminated)` = true, or whose `fmi3DoStep` sets `terminateSimulation`, asks to end the
+//! simulation (as the Reference FMU `Stair` does; fmpy, OMSimulator and the FMU Compliance
+//! Checker stop there too): the run ends normally at that instance's last successful time
+//! (FMI 3.0: the end of the step unless it says otherwise), records that point and says
+//! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`/`fmi3Discard`, an error, an
+//! FMI 3.0 `earlyReturn` (never allowed) or `eventHandlingNeeded` (event mode is not run) stop
+//! the run with an error naming the instance, the FMU file, the call and the time, quoting what
 //! that instance logged; when several instances fail in the same step (or in initialisation,
 //! or in terminate), the error names every one of them.
 //!
@@ -28,14 +30,12 @@
 //! does not return (the instance, its FMU, the call, the time); what to do then is the
 //! caller's (the CLI ends the process, keeping the results so far).
 
-use crate::fmu::{self, LoadError, VarType};
-use crate::logging::LogKey;
-use crate::plan::{Op, Plan, Transfer};
+use crate::fmu::{
+    CallError, FmiVersion, FmuFile, Instance, LoadError, StepEnd, StepProblem, VarType,
+};
+use crate::plan::{push_op, Op, Plan, Transfer};
 use crate::record::Observer;
 use crate::system::{System, SystemError};
-use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
-use fmi::fmi2::Fmi2Error;
-use fmi::traits::FmiInstance;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -88,75 +88,100 @@ impl From<FmiFailure> for RunError {
     }
 }
 
-/// A [`Transfer`] of the plan with the scratch space of its FMI call.
+/// One value of a [`Batch`]: its buffer slot, its position among the call's values and,
+/// for an FMI 3.0 array element, (array, position in the array).
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    slot: usize,
+    position: usize,
+    element: Option<(usize, usize)>,
+}
+
+/// A [`Transfer`] of the plan as one FMI call: the value references of the call (an FMI 3.0
+/// array once, with all its values), where each value goes, and the scratch space.
 #[derive(Debug, Clone)]
 struct Batch {
-    vrs: Vec<u32>,
-    slots: Vec<usize>,
     var_type: VarType,
     member: usize,
-    reals: Vec<f64>,
-    integers: Vec<i32>,
+    vrs: Vec<u32>,
+    entries: Vec<Entry>,
+    /// (array, first position) of every array moved whole by the call.
+    arrays: Vec<(usize, usize)>,
+    values: Vec<f64>,
 }
 
 impl Batch {
-    fn new(t: &Transfer) -> Self {
+    fn new(t: &Transfer, fmu: &FmuFile) -> Self {
+        let mut vrs = Vec::with_capacity(t.vrs.len());
+        let mut entries = Vec::with_capacity(t.vrs.len());
+        let mut arrays: Vec<(usize, usize)> = Vec::new();
+        let mut count = 0;
+        for ((&vr, &slot), &var) in t.vrs.iter().zip(&t.slots).zip(&t.vars) {
+            let element = fmu.variables.get(var).and_then(|v| v.element);
+            let position = match element {
+                None => {
+                    vrs.push(vr);
+                    count += 1;
+                    count - 1
+                }
+                Some((array, k)) => match arrays.iter().find(|(a, _)| *a == array) {
+                    Some(&(_, first)) => first + k,
+                    None => {
+                        let first = count;
+                        vrs.push(vr);
+                        count += fmu.arrays.get(array).map_or(0, |a| a.elements.len());
+                        arrays.push((array, first));
+                        first + k
+                    }
+                },
+            };
+            entries.push(Entry {
+                slot,
+                position,
+                element,
+            });
+        }
         Self {
-            vrs: t.vrs.clone(),
-            slots: t.slots.clone(),
             var_type: t.var_type,
             member: t.member,
-            reals: vec![0.0; t.vrs.len()],
-            integers: vec![0; t.vrs.len()],
+            vrs,
+            entries,
+            arrays,
+            values: vec![0.0; count],
         }
     }
 
-    fn get(&mut self, inst: &mut InstanceCS, buffer: &mut [f64]) -> Result<(), Fmi2Error> {
-        match self.var_type {
-            VarType::Real => {
-                Common::get_real(inst, &self.vrs, &mut self.reals)?;
-                for (slot, v) in self.slots.iter().zip(&self.reals) {
-                    buffer[*slot] = *v;
-                }
-            }
-            VarType::Boolean => {
-                Common::get_boolean(inst, &self.vrs, &mut self.integers)?;
-                for (slot, v) in self.slots.iter().zip(&self.integers) {
-                    buffer[*slot] = f64::from(u8::from(*v != 0));
-                }
-            }
-            _ => {
-                Common::get_integer(inst, &self.vrs, &mut self.integers)?;
-                for (slot, v) in self.slots.iter().zip(&self.integers) {
-                    buffer[*slot] = f64::from(*v);
-                }
-            }
+    fn get(&mut self, inst: &mut Instance, buffer: &mut [f64]) -> Result<(), CallError> {
+        inst.get(self.var_type, &self.vrs, &mut self.values)?;
+        for e in &self.entries {
+            buffer[e.slot] = self.values[e.position];
         }
         Ok(())
     }
 
-    fn set(&mut self, inst: &mut InstanceCS, buffer: &[f64]) -> Result<(), Fmi2Error> {
-        match self.var_type {
-            VarType::Real => {
-                for (v, slot) in self.reals.iter_mut().zip(&self.slots) {
-                    *v = buffer[*slot];
+    /// Sets the values from the buffer; the elements of an array this batch does not set
+    /// keep the values last given to them (`held`, per array of the instance's FMU).
+    fn set(
+        &mut self,
+        inst: &mut Instance,
+        buffer: &[f64],
+        held: &mut [Vec<f64>],
+    ) -> Result<(), CallError> {
+        for e in &self.entries {
+            let v = buffer[e.slot];
+            self.values[e.position] = v;
+            if let Some((array, k)) = e.element {
+                if let Some(x) = held.get_mut(array).and_then(|a| a.get_mut(k)) {
+                    *x = v;
                 }
-                Common::set_real(inst, &self.vrs, &self.reals)?;
-            }
-            VarType::Boolean => {
-                for (v, slot) in self.integers.iter_mut().zip(&self.slots) {
-                    *v = i32::from(buffer[*slot] != 0.0);
-                }
-                Common::set_boolean(inst, &self.vrs, &self.integers)?;
-            }
-            _ => {
-                for (v, slot) in self.integers.iter_mut().zip(&self.slots) {
-                    *v = buffer[*slot] as i32;
-                }
-                Common::set_integer(inst, &self.vrs, &self.integers)?;
             }
         }
-        Ok(())
+        for &(array, first) in &self.arrays {
+            if let Some(a) = held.get(array) {
+                self.values[first..first + a.len()].copy_from_slice(a);
+            }
+        }
+        inst.set(self.var_type, &self.vrs, &self.values)
     }
 }
 
@@ -171,17 +196,18 @@ struct Member {
     monitor: Option<Arc<CallMonitor>>,
     name: String,
     file: String,
-    instance: InstanceCS,
-    /// Where this instance's log messages are kept (dropped after the instance).
-    log: LogKey,
+    instance: Instance,
     multiple: u64,
     /// Gets after this member's step (its slots).
     after_step: Vec<Batch>,
+    /// The values last given to each array of the FMU (start values at first): an element
+    /// is set with its whole array.
+    held: Vec<Vec<f64>>,
 }
 
 impl Member {
     /// Reads this member's outputs into the buffer.
-    fn read(&mut self, buffer: &mut [f64], time: f64) -> Result<(), Fmi2Error> {
+    fn read(&mut self, buffer: &mut [f64], time: f64) -> Result<(), CallError> {
         let (monitor, index) = (self.monitor.as_deref(), self.index);
         for b in &mut self.after_step {
             watched(monitor, index, "fmi2Get*", time, || {
@@ -193,30 +219,21 @@ impl Member {
 
     /// Runs `f` on this member's instance as FMI call `call` at `time`, noted in the
     /// monitor.
-    fn call<T>(
-        &mut self,
-        call: &'static str,
-        time: f64,
-        f: impl FnOnce(&mut InstanceCS) -> T,
-    ) -> T {
+    fn call<T>(&mut self, call: &'static str, time: f64, f: impl FnOnce(&mut Instance) -> T) -> T {
         let instance = &mut self.instance;
         watched(self.monitor.as_deref(), self.index, call, time, || {
             f(instance)
         })
     }
 
-    fn failure(&self, call: &'static str, e: Fmi2Error, time: f64) -> FmiFailure {
-        let said = self.log.recent_messages();
+    /// A failed call `call` (named by its FMI 2.0 name; an FMI 3.0 instance says its own).
+    fn failure(&self, call: &'static str, e: CallError, time: f64) -> FmiFailure {
+        let said = self.instance.log().recent_messages();
         FmiFailure {
             instance: self.name.clone(),
             file: self.file.clone(),
-            call,
-            status: match e {
-                Fmi2Error::Discard => "fmi2Discard".into(),
-                Fmi2Error::Error => "fmi2Error".into(),
-                Fmi2Error::Fatal => "fmi2Fatal".into(),
-                other => other.to_string(),
-            },
+            call: self.instance.call_name(call),
+            status: e.0,
             time,
             log: if said.is_empty() {
                 String::new()
@@ -251,7 +268,7 @@ fn call_every<T>(
     members: &mut [Member],
     name: &'static str,
     time: f64,
-    call: impl Fn(&mut InstanceCS) -> Result<T, Fmi2Error>,
+    call: impl Fn(&mut Instance) -> Result<T, CallError>,
 ) -> Result<(), RunError> {
     on_every(
         members,
@@ -362,20 +379,33 @@ pub struct RunOptions {
 pub enum RunEnd {
     /// Every instance reached the stop time.
     StopTime { time: f64 },
-    /// An instance asked to end the simulation (`fmi2DoStep` returned `fmi2Discard` and
-    /// `fmi2GetBooleanStatus(fmi2Terminated)` is true); the run ended at `time`, its last
-    /// successful time, which is the last recorded point.
-    Terminated { instance: String, time: f64 },
+    /// An instance asked to end the simulation (FMI 2.0: `fmi2DoStep` returned
+    /// `fmi2Discard` and `fmi2GetBooleanStatus(fmi2Terminated)` is true; FMI 3.0:
+    /// `fmi3DoStep` set `terminateSimulation`); the run ended at `time`, its last successful
+    /// time, which is the last recorded point.
+    Terminated {
+        instance: String,
+        time: f64,
+        version: FmiVersion,
+    },
 }
 
 impl std::fmt::Display for RunEnd {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::StopTime { time } => write!(f, "the run reached its stop time t = {time}"),
-            Self::Terminated { instance, time } => write!(
+            Self::Terminated {
+                instance,
+                time,
+                version,
+            } => write!(
                 f,
-                "instance `{instance}` asked to end the simulation at t = {time} \
-                 (fmi2DoStep returned fmi2Discard with fmi2Terminated = true)"
+                "instance `{instance}` asked to end the simulation at t = {time} ({})",
+                match version {
+                    FmiVersion::Fmi2 =>
+                        "fmi2DoStep returned fmi2Discard with fmi2Terminated = true",
+                    FmiVersion::Fmi3 => "fmi3DoStep returned terminateSimulation = true",
+                }
             ),
         }
     }
@@ -384,8 +414,9 @@ impl std::fmt::Display for RunEnd {
 /// The outcome of one `fmi2DoStep` of every due member.
 enum StepOutcome {
     Completed,
-    /// (instance, last successful time) of every member that asked to end the run.
-    Terminated(Vec<(String, f64)>),
+    /// (instance, last successful time, its version) of every member that asked to end
+    /// the run.
+    Terminated(Vec<(String, f64, FmiVersion)>),
 }
 
 /// A system ready to run: instances created, names resolved to indices.
@@ -428,7 +459,7 @@ impl Simulation {
         let mut members = Vec::with_capacity(system.instances.len());
         for (i, spec) in system.instances.iter().enumerate() {
             let fmu = &spec.fmu;
-            let (instance, log) = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
+            let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
                 fmu.instantiate(&spec.name, spec.logging)
             })?;
             let mut m = Member {
@@ -437,30 +468,57 @@ impl Simulation {
                 name: spec.name.clone(),
                 file: fmu.path.display().to_string(),
                 instance,
-                log,
                 multiple: u64::from(spec.step_multiple),
-                after_step: plan.after_step[i].iter().map(Batch::new).collect(),
+                after_step: plan.after_step[i]
+                    .iter()
+                    .map(|t| Batch::new(t, fmu))
+                    .collect(),
+                held: fmu
+                    .arrays
+                    .iter()
+                    .map(|a| {
+                        a.elements
+                            .iter()
+                            .map(|&e| fmu.variables[e].start.unwrap_or(0.0))
+                            .collect()
+                    })
+                    .collect(),
             };
+            let stop = Some(system.stop_time);
             m.call("fmi2SetupExperiment", t0, |inst| {
-                Common::setup_experiment(inst, None, t0, Some(system.stop_time))
+                inst.setup_experiment(None, t0, stop)
             })
             .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
+            // Start values, grouped by type into calls (an array's elements in one).
+            let mut sets = Vec::new();
+            let mut values = Vec::with_capacity(spec.start_values.len());
             for (index, value) in &spec.start_values {
-                let v = &fmu.variables[*index];
-                let mut b = Batch::new(&Transfer {
-                    member: i,
-                    var_type: v.var_type,
-                    vrs: vec![v.value_reference],
-                    slots: vec![0],
-                });
-                m.call("fmi2Set* (start value)", t0, |inst| b.set(inst, &[*value]))
-                    .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
+                push_op(
+                    &mut sets,
+                    true,
+                    &system.instances,
+                    (i, *index),
+                    values.len(),
+                );
+                values.push(*value);
             }
-            m.call(
-                "fmi2EnterInitializationMode",
-                t0,
-                Common::enter_initialization_mode,
-            )
+            for op in &sets {
+                if let Op::Set(t) = op {
+                    let mut batch = Batch::new(t, fmu);
+                    let (monitor, index) = (m.monitor.clone(), m.index);
+                    watched(
+                        monitor.as_deref(),
+                        index,
+                        "fmi2Set* (start value)",
+                        t0,
+                        || batch.set(&mut m.instance, &values, &mut m.held),
+                    )
+                    .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
+                }
+            }
+            m.call("fmi2EnterInitializationMode", t0, |inst| {
+                inst.enter_initialization_mode(None, t0, stop)
+            })
             .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
             members.push(m);
         }
@@ -470,8 +528,8 @@ impl Simulation {
                 .propagation
                 .iter()
                 .map(|op| match op {
-                    Op::Set(t) => Step::Set(Batch::new(t)),
-                    Op::Get(t) => Step::Get(Batch::new(t)),
+                    Op::Set(t) => Step::Set(Batch::new(t, &system.instances[t.member].fmu)),
+                    Op::Get(t) => Step::Get(Batch::new(t, &system.instances[t.member].fmu)),
                 })
                 .collect(),
             buffer: vec![0.0; plan.slot_count],
@@ -492,7 +550,7 @@ impl Simulation {
             &mut sim.members,
             "fmi2ExitInitializationMode",
             t0,
-            Common::exit_initialization_mode,
+            Instance::exit_initialization_mode,
         )?;
         sim.read_all("fmi2Get* (initial outputs)", t0)?;
         Ok(sim)
@@ -531,11 +589,12 @@ impl Simulation {
             }
             let call = if set { "fmi2Set*" } else { "fmi2Get*" };
             let buffer = &mut self.buffer;
-            let result = m.call(call, time, |inst| {
+            let (monitor, index) = (m.monitor.clone(), m.index);
+            let result = watched(monitor.as_deref(), index, call, time, || {
                 if set {
-                    batch.set(inst, buffer)
+                    batch.set(&mut m.instance, buffer, &mut m.held)
                 } else {
-                    batch.get(inst, buffer)
+                    batch.get(&mut m.instance, buffer)
                 }
             });
             result.map_err(|e| m.failure(call, e, time))?;
@@ -608,20 +667,21 @@ impl Simulation {
             if let StepOutcome::Terminated(asked) = self.step_all(k, time)? {
                 // The run ends where the earliest of them stopped: every output is read
                 // there and recorded as the last point.
-                let (instance, end) = asked
+                let (instance, end, version) = asked
                     .into_iter()
                     .fold(
                         None,
-                        |first: Option<(String, f64)>, (name, t)| match first {
-                            Some((n, t0)) if t0 <= t => Some((n, t0)),
-                            _ => Some((name, t)),
+                        |first: Option<(String, f64, FmiVersion)>, (name, t, v)| match first {
+                            Some((n, t0, v0)) if t0 <= t => Some((n, t0, v0)),
+                            _ => Some((name, t, v)),
                         },
                     )
-                    .unwrap_or_default();
+                    .unwrap_or((String::new(), time, FmiVersion::Fmi2));
                 self.finish(observer, progress, end, end)?;
                 return Ok(RunEnd::Terminated {
                     instance,
                     time: end,
+                    version,
                 });
             }
             if let Some(factor) = options.real_time_factor {
@@ -676,15 +736,40 @@ impl Simulation {
             .filter(|m| k.is_multiple_of(m.multiple))
         {
             let h = (step_size * m.multiple as f64).min(stop_time - time);
-            match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h, true)) {
-                Ok(_) => {}
-                Err(Fmi2Error::Discard) => {
-                    match m.call("fmi2GetBooleanStatus", time, fmu::termination_requested) {
-                        Some(last) => terminated.push((m.name.clone(), last.unwrap_or(time))),
-                        None => failures.push(m.failure("fmi2DoStep", Fmi2Error::Discard, time)),
-                    }
+            match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h)) {
+                Ok(StepEnd::Completed) => {}
+                Ok(StepEnd::Terminate(last)) => {
+                    // FMI 2.0 stopped within the step (fmi2Discard); FMI 3.0 completed it
+                    // unless it says otherwise.
+                    let fallback = match m.instance.version() {
+                        FmiVersion::Fmi2 => time,
+                        FmiVersion::Fmi3 => time + h,
+                    };
+                    let version = m.instance.version();
+                    terminated.push((m.name.clone(), last.unwrap_or(fallback), version));
                 }
-                Err(e) => failures.push(m.failure("fmi2DoStep", e, time)),
+                Err(StepProblem::Failed(e)) => failures.push(m.failure("fmi2DoStep", e, time)),
+                Err(StepProblem::EarlyReturn {
+                    last_successful_time,
+                }) => failures.push(m.failure(
+                    "fmi2DoStep",
+                    CallError(format!(
+                        "earlyReturn = true (lastSuccessfulTime = {last_successful_time}), \
+                         although this master instantiates without early return"
+                    )),
+                    time,
+                )),
+                Err(StepProblem::EventHandlingNeeded) => failures.push(
+                    m.failure(
+                        "fmi2DoStep",
+                        CallError(
+                            "eventHandlingNeeded = true: the FMU needs event mode, which this \
+                         master does not run (it instantiates with eventModeUsed = false)"
+                                .into(),
+                        ),
+                        time,
+                    ),
+                ),
             }
         }
         if !failures.is_empty() {
@@ -701,11 +786,6 @@ impl Simulation {
     /// every instance that fails to.
     pub fn terminate(&mut self) -> Result<(), RunError> {
         let t = self.end_time;
-        call_every(
-            &mut self.members,
-            "fmi2Terminate",
-            t,
-            FmiInstance::terminate,
-        )
+        call_every(&mut self.members, "fmi2Terminate", t, Instance::terminate)
     }
 }

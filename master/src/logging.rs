@@ -8,6 +8,11 @@
 //! and errors always, informational messages with `--verbose`) and keeps the most recent
 //! ones of each live [`LogKey`], so an error report quotes what that very instance said
 //! ([`LogKey::recent_messages`]).
+//!
+//! rust-fmi's FMI 3.0 logger does not pass the instance (its callback gets a null instance
+//! environment and emits the log category as the target, with module path `fmu`): every call
+//! into an FMI 3.0 instance runs inside [`speaking`], so its messages are kept under the key
+//! of the instance the calling thread is in.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -38,30 +43,45 @@ fn display_name(target: &str) -> &str {
     }
 }
 
+thread_local! {
+    /// The unique name of the instance this thread is calling into, if any.
+    static SPEAKING: std::cell::RefCell<Option<std::sync::Arc<str>>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `call` (a call into the instance whose key is `key`) with the messages logged
+/// meanwhile on this thread attributed to that instance.
+pub(crate) fn speaking<T>(key: &LogKey, call: impl FnOnce() -> T) -> T {
+    let before = SPEAKING.with(|s| s.replace(Some(std::sync::Arc::clone(&key.unique))));
+    let result = call();
+    SPEAKING.with(|s| *s.borrow_mut() = before);
+    result
+}
+
 impl log::Log for ForwardingLogger {
     fn enabled(&self, metadata: &log::Metadata) -> bool {
         metadata.level() <= log::Level::Info
     }
 
     fn log(&self, record: &log::Record) {
-        // Only the FMUs' messages: rust-fmi marks them with module path "logger".
-        if record.module_path() != Some("logger") {
+        // Only the FMUs' messages: rust-fmi marks them with module path "logger" (FMI 2.0,
+        // the target is the instance) or "fmu" (FMI 3.0, the instance is the one speaking).
+        let speaker = match record.module_path() {
+            Some("fmu") => SPEAKING.with(|s| s.borrow().as_deref().map(str::to_string)),
+            _ => None,
+        };
+        if record.module_path() != Some("logger") && speaker.is_none() {
             if record.level() <= log::Level::Warn && self.verbose {
                 eprintln!("spurio: {}: {}", record.level(), record.args());
             }
             return;
         }
+        let target = speaker.as_deref().unwrap_or(record.target());
         let text = record.args().to_string();
         if record.level() <= log::Level::Warn || self.verbose {
-            eprintln!(
-                "[{}] {}: {}",
-                display_name(record.target()),
-                record.level(),
-                text
-            );
+            eprintln!("[{}] {}: {}", display_name(target), record.level(), text);
         }
         if let Ok(mut kept) = kept().lock() {
-            if let Some(messages) = kept.get_mut(record.target()) {
+            if let Some(messages) = kept.get_mut(target) {
                 if messages.len() == KEPT {
                     messages.pop_front();
                 }
@@ -85,7 +105,7 @@ pub fn install(verbose: bool) {
 /// key lives, and dropped with it.
 #[derive(Debug)]
 pub struct LogKey {
-    unique: String,
+    unique: std::sync::Arc<str>,
 }
 
 impl LogKey {
@@ -96,7 +116,9 @@ impl LogKey {
         if let Ok(mut kept) = kept().lock() {
             kept.insert(unique.clone(), VecDeque::new());
         }
-        Self { unique }
+        Self {
+            unique: unique.into(),
+        }
     }
 
     /// The name to give `fmi2Instantiate`.
@@ -109,7 +131,7 @@ impl LogKey {
         let Ok(kept) = kept().lock() else {
             return Vec::new();
         };
-        kept.get(&self.unique)
+        kept.get(&*self.unique)
             .map(|messages| {
                 messages
                     .iter()
@@ -123,7 +145,7 @@ impl LogKey {
 impl Drop for LogKey {
     fn drop(&mut self) {
         if let Ok(mut kept) = kept().lock() {
-            kept.remove(&self.unique);
+            kept.remove(&*self.unique);
         }
     }
 }

@@ -41,6 +41,9 @@ pub struct Transfer {
     pub var_type: VarType,
     pub vrs: Vec<u32>,
     pub slots: Vec<usize>,
+    /// The index (in its FMU) of the variable of each value reference: an FMI 3.0 array
+    /// element is moved with its whole array.
+    pub vars: Vec<usize>,
 }
 
 /// One operation at a communication point.
@@ -52,29 +55,48 @@ pub enum Op {
     Get(Transfer),
 }
 
-/// Appends one value reference, joining the last operation when it is of the same kind,
-/// instance and type.
-fn push_op(ops: &mut Vec<Op>, set: bool, member: usize, var_type: VarType, vr: u32, slot: usize) {
+/// Appends variable `r` (of `instances`) with buffer slot `slot`, joining the last operation
+/// when it is of the same kind, instance and type.
+pub(crate) fn push_op(
+    ops: &mut Vec<Op>,
+    set: bool,
+    instances: &[ResolvedInstance],
+    r: VarRef,
+    slot: usize,
+) {
+    let v = &instances[r.0].fmu.variables[r.1];
+    let (member, var_type) = (r.0, v.var_type);
     let same = |t: &Transfer| t.member == member && t.var_type == var_type;
+    let joins = match ops.last() {
+        Some(Op::Set(t)) => set && same(t),
+        Some(Op::Get(t)) => !set && same(t),
+        None => false,
+    };
     match ops.last_mut() {
-        Some(Op::Set(t)) if set && same(t) => {
-            t.vrs.push(vr);
+        Some(Op::Set(t)) | Some(Op::Get(t)) if joins => {
+            t.vrs.push(v.value_reference);
             t.slots.push(slot);
-        }
-        Some(Op::Get(t)) if !set && same(t) => {
-            t.vrs.push(vr);
-            t.slots.push(slot);
+            t.vars.push(r.1);
         }
         _ => {
             let t = Transfer {
                 member,
                 var_type,
-                vrs: vec![vr],
+                vrs: vec![v.value_reference],
                 slots: vec![slot],
+                vars: vec![r.1],
             };
             ops.push(if set { Op::Set(t) } else { Op::Get(t) });
         }
     }
+}
+
+/// What a name in a connection or record stands for: one variable, or the elements of an
+/// FMI 3.0 array named whole.
+struct Resolved {
+    refs: Vec<VarRef>,
+    /// The array's dimensions (None: one variable).
+    dimensions: Option<Vec<usize>>,
 }
 
 /// A system compiled to indices.
@@ -139,7 +161,8 @@ impl Plan {
             .enumerate()
             .map(|(i, inst)| (inst.name.as_str(), i))
             .collect();
-        let lookup = |text: &str, connection: &str| -> Result<VarRef, SystemError> {
+        // A variable, or every element of an FMI 3.0 array named whole (with its dimensions).
+        let lookup = |text: &str, connection: &str| -> Result<Resolved, SystemError> {
             let Some((inst, var)) = split_variable(text) else {
                 return Err(SystemError::Connection {
                     connection: connection.to_string(),
@@ -153,10 +176,19 @@ impl Plan {
                 });
             };
             let fmu = &instances[i].fmu;
-            let Some(v) = fmu.index_of(var) else {
+            if let Some(v) = fmu.index_of(var) {
+                return Ok(Resolved {
+                    refs: vec![(i, v)],
+                    dimensions: None,
+                });
+            }
+            let Some(array) = fmu.array(var) else {
                 return Err(unknown(inst, var, fmu));
             };
-            Ok((i, v))
+            Ok(Resolved {
+                refs: array.elements.iter().map(|&e| (i, e)).collect(),
+                dimensions: Some(array.dimensions.clone()),
+            })
         };
         let name_of = |r: VarRef| {
             format!(
@@ -173,57 +205,74 @@ impl Plan {
                     reason: "expected `instance.output -> instance.input`".into(),
                 });
             };
+            let (from_text, to_text) = (from.trim(), to.trim());
             let (from, to) = (lookup(from, c)?, lookup(to, c)?);
-            let fv = &instances[from.0].fmu.variables[from.1];
-            let tv = &instances[to.0].fmu.variables[to.1];
-            let fail = |reason: String| SystemError::Connection {
-                connection: c.clone(),
-                reason,
-            };
-            if !matches!(fv.causality, Causality::Output) {
-                return Err(fail(format!(
-                    "`{}` has causality {:?}; a connection starts at an output",
-                    name_of(from),
-                    fv.causality
-                )));
-            }
-            if tv.causality != Causality::Input {
-                return Err(fail(format!(
-                    "`{}` has causality {:?}; a connection ends at an input",
-                    name_of(to),
-                    tv.causality
-                )));
-            }
-            if fv.var_type != tv.var_type {
-                return Err(fail(format!(
-                    "type mismatch: `{}` is {:?} but `{}` is {:?}",
-                    name_of(from),
-                    fv.var_type,
-                    name_of(to),
-                    tv.var_type
-                )));
-            }
-            if !matches!(
-                fv.var_type,
-                VarType::Real | VarType::Integer | VarType::Boolean
-            ) {
-                return Err(fail(format!(
-                    "{:?} connections are not supported",
-                    fv.var_type
-                )));
-            }
-            if let Some(first) = drivers.insert(to, name_of(from)) {
-                return Err(SystemError::DrivenTwice {
-                    input: name_of(to),
-                    first,
-                    second: name_of(from),
+            if from.dimensions != to.dimensions {
+                let shape = |d: &Option<Vec<usize>>| match d {
+                    None => "a scalar (or one array element)".to_string(),
+                    Some(d) => format!(
+                        "an array of dimensions [{}]",
+                        d.iter().map(usize::to_string).collect::<Vec<_>>().join(",")
+                    ),
+                };
+                return Err(SystemError::Connection {
+                    connection: c.clone(),
+                    reason: format!(
+                        "`{from_text}` is {} but `{to_text}` is {}; a whole array connects to an array of the same dimensions (or connect elements, `x[1,2]`)",
+                        shape(&from.dimensions),
+                        shape(&to.dimensions)
+                    ),
                 });
             }
-            connections.push(Connection {
-                from,
-                to,
-                var_type: fv.var_type,
-            });
+            for (from, to) in from.refs.into_iter().zip(to.refs) {
+                let fv = &instances[from.0].fmu.variables[from.1];
+                let tv = &instances[to.0].fmu.variables[to.1];
+                let fail = |reason: String| SystemError::Connection {
+                    connection: c.clone(),
+                    reason,
+                };
+                if !matches!(fv.causality, Causality::Output) {
+                    return Err(fail(format!(
+                        "`{}` has causality {:?}; a connection starts at an output",
+                        name_of(from),
+                        fv.causality
+                    )));
+                }
+                if tv.causality != Causality::Input {
+                    return Err(fail(format!(
+                        "`{}` has causality {:?}; a connection ends at an input",
+                        name_of(to),
+                        tv.causality
+                    )));
+                }
+                if fv.var_type != tv.var_type {
+                    return Err(fail(format!(
+                        "type mismatch: `{}` is {:?} but `{}` is {:?}",
+                        name_of(from),
+                        fv.var_type,
+                        name_of(to),
+                        tv.var_type
+                    )));
+                }
+                if !fv.var_type.is_numeric() || fv.var_type == VarType::Enumeration {
+                    return Err(fail(format!(
+                        "{:?} connections are not supported",
+                        fv.var_type
+                    )));
+                }
+                if let Some(first) = drivers.insert(to, name_of(from)) {
+                    return Err(SystemError::DrivenTwice {
+                        input: name_of(to),
+                        first,
+                        second: name_of(from),
+                    });
+                }
+                connections.push(Connection {
+                    from,
+                    to,
+                    var_type: fv.var_type,
+                });
+            }
         }
         let recorded = if d.record.is_empty() {
             instances
@@ -235,14 +284,7 @@ impl Plan {
                         .iter()
                         .enumerate()
                         .filter(|(_, v)| {
-                            v.causality == Causality::Output
-                                && matches!(
-                                    v.var_type,
-                                    VarType::Real
-                                        | VarType::Integer
-                                        | VarType::Boolean
-                                        | VarType::Enumeration
-                                )
+                            v.causality == Causality::Output && v.var_type.is_numeric()
                         })
                         .map(move |(j, _)| (i, j))
                 })
@@ -250,14 +292,15 @@ impl Plan {
         } else {
             let mut recorded: Vec<VarRef> = Vec::with_capacity(d.record.len());
             for r in &d.record {
-                let v = lookup(r, &format!("record {r}"))?;
-                if recorded.contains(&v) {
-                    return Err(SystemError::Invalid(format!(
-                        "record lists `{}` twice (a results file has one column per variable)",
-                        name_of(v)
-                    )));
+                for v in lookup(r, &format!("record {r}"))?.refs {
+                    if recorded.contains(&v) {
+                        return Err(SystemError::Invalid(format!(
+                            "record lists `{}` twice (a results file has one column per variable)",
+                            name_of(v)
+                        )));
+                    }
+                    recorded.push(v);
                 }
-                recorded.push(v);
             }
             recorded
         };
@@ -300,8 +343,7 @@ impl Plan {
                 let mut gets: Vec<Op> = Vec::new();
                 for (s, r) in by_slot.iter().enumerate() {
                     if r.0 == i {
-                        let v = variable(*r);
-                        push_op(&mut gets, false, i, v.var_type, v.value_reference, s);
+                        push_op(&mut gets, false, instances, *r, s);
                     }
                 }
                 gets.into_iter()
@@ -320,26 +362,10 @@ impl Plan {
                     let Some(c) = connections.iter().find(|c| c.to == to) else {
                         continue;
                     };
-                    let v = variable(to);
-                    push_op(
-                        &mut propagation,
-                        true,
-                        to.0,
-                        v.var_type,
-                        v.value_reference,
-                        slot_of[&c.from],
-                    );
+                    push_op(&mut propagation, true, instances, to, slot_of[&c.from]);
                 }
                 PropagationStep::GetOutput(from) => {
-                    let v = variable(from);
-                    push_op(
-                        &mut propagation,
-                        false,
-                        from.0,
-                        v.var_type,
-                        v.value_reference,
-                        slot_of[&from],
-                    );
+                    push_op(&mut propagation, false, instances, from, slot_of[&from]);
                 }
             }
         }
@@ -359,14 +385,7 @@ impl Plan {
                 && (v.causality == Causality::Input
                     || (v.causality == Causality::Output && has_feedthrough(instances, *r)));
             if refreshed {
-                push_op(
-                    &mut propagation,
-                    false,
-                    r.0,
-                    v.var_type,
-                    v.value_reference,
-                    slot_of[r],
-                );
+                push_op(&mut propagation, false, instances, *r, slot_of[r]);
             }
         }
 

@@ -101,17 +101,55 @@ pub struct Imported {
     pub notes: Vec<String>,
 }
 
-/// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector).
+/// `d` with every FMI 3.0 array parameter given whole (a TOML array) written as its elements
+/// (`B[1,1]`, …, row-major): an SSP parameter is a scalar.
+fn with_array_parameters_expanded(d: &SystemDescription, fmus: &[&FmuFile]) -> SystemDescription {
+    let mut d = d.clone();
+    for (inst, fmu) in d.instances.iter_mut().zip(fmus) {
+        let mut parameters = BTreeMap::new();
+        for (name, value) in std::mem::take(&mut inst.parameters) {
+            match (&value, fmu.index_of(&name), fmu.array(&name)) {
+                (toml::Value::Array(_), None, Some(array)) => {
+                    let mut values = Vec::new();
+                    flatten(&value, &mut values);
+                    for (&e, v) in array.elements.iter().zip(values) {
+                        parameters.insert(fmu.variables[e].name.clone(), v);
+                    }
+                }
+                _ => {
+                    parameters.insert(name, value);
+                }
+            }
+        }
+        inst.parameters = parameters;
+    }
+    d
+}
+
+/// The values of a TOML array, nested arrays flattened in order (a scalar: itself).
+pub(crate) fn flatten(value: &toml::Value, out: &mut Vec<toml::Value>) {
+    match value {
+        toml::Value::Array(items) => items.iter().for_each(|v| flatten(v, out)),
+        other => out.push(other.clone()),
+    }
+}
+
+/// The SSP connector kind and type of variable `name` of `fmu` (None: not a connector). An
+/// FMI 3.0 array element is a connector named as the master names it (`y[2]`, 1-based,
+/// row-major), a whole array one named by the array (`y`).
 fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, VarType)> {
-    let v = fmu.variable(name)?;
-    let kind = match v.causality {
+    let (causality, var_type) = match fmu.variable(name) {
+        Some(v) => (v.causality, v.var_type),
+        None => fmu.array(name).map(|a| (a.causality, a.var_type))?,
+    };
+    let kind = match causality {
         Causality::Input => "input",
         Causality::Output => "output",
         Causality::Parameter => "parameter",
         Causality::CalculatedParameter => "calculatedParameter",
         _ => return None,
     };
-    Some((kind, v.var_type))
+    Some((kind, var_type))
 }
 
 /// The `SystemStructure.ssd` text (SSP `version`) for `d`, written with quick-xml (which
@@ -346,6 +384,8 @@ pub fn export(
             format!("{} FMUs for {} instances", fmus.len(), d.instances.len()),
         ));
     }
+    let expanded = with_array_parameters_expanded(d, fmus);
+    let d = &expanded;
     let mut used: Vec<BTreeMap<String, (&'static str, VarType)>> =
         vec![BTreeMap::new(); d.instances.len()];
     let index = |name: &str| d.instances.iter().position(|i| i.name == name);

@@ -255,17 +255,36 @@ impl System {
             };
             let mut start_values = Vec::new();
             for (name, value) in &spec.parameters {
+                let fail = |reason: String| SystemError::Parameter {
+                    instance: spec.name.clone(),
+                    variable: name.clone(),
+                    file: fmu.path.clone(),
+                    reason,
+                };
+                // An FMI 3.0 array named whole takes a TOML array of its elements (row-major,
+                // flat or nested).
+                if let (None, Some(array)) = (fmu.index_of(name), fmu.array(name)) {
+                    let mut values = Vec::new();
+                    crate::ssp::flatten(value, &mut values);
+                    if values.len() != array.elements.len() {
+                        return Err(fail(format!(
+                            "is an array of {} elements; give an array of as many values (row-major), or set elements (`{}`)",
+                            array.elements.len(),
+                            array.elements.first().map_or(name.as_str(), |&e| fmu.variables[e].name.as_str())
+                        )));
+                    }
+                    for (&index, v) in array.elements.iter().zip(values) {
+                        start_values.push((
+                            index,
+                            start_number(&fmu.variables[index], &v).map_err(fail)?,
+                        ));
+                    }
+                    continue;
+                }
                 let Some(index) = fmu.index_of(name) else {
                     return Err(unknown(&spec.name, name, &fmu));
                 };
-                let number = start_number(&fmu.variables[index], value).map_err(|reason| {
-                    SystemError::Parameter {
-                        instance: spec.name.clone(),
-                        variable: name.clone(),
-                        file: fmu.path.clone(),
-                        reason,
-                    }
-                })?;
+                let number = start_number(&fmu.variables[index], value).map_err(fail)?;
                 start_values.push((index, number));
             }
             instances.push(ResolvedInstance {
@@ -547,7 +566,8 @@ fn check_not_connected(
 }
 
 /// `value` as the f64 the engine sets for variable `v`, checked as a `parameters` entry is:
-/// only parameters and inputs take values, of their own type (a Real takes an integer too).
+/// only parameters and inputs take values, of their own type (a Real or Float32 takes an
+/// integer too; an integer type only integers in its range).
 fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
     if !matches!(v.causality, Causality::Parameter | Causality::Input) {
         return Err(format!(
@@ -555,23 +575,47 @@ fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
             v.causality
         ));
     }
+    let range = |t: VarType| -> (f64, f64) {
+        match t {
+            VarType::Int8 => (i8::MIN.into(), i8::MAX.into()),
+            VarType::UInt8 => (0.0, u8::MAX.into()),
+            VarType::Int16 => (i16::MIN.into(), i16::MAX.into()),
+            VarType::UInt16 => (0.0, u16::MAX.into()),
+            VarType::UInt32 => (0.0, u32::MAX.into()),
+            VarType::UInt64 => (0.0, u64::MAX as f64),
+            _ => (i64::MIN as f64, i64::MAX as f64),
+        }
+    };
     match (v.var_type, value.clone()) {
-        (VarType::Real, toml::Value::Float(x)) => Ok(x),
-        (VarType::Real, toml::Value::Integer(i)) => Ok(i as f64),
+        (VarType::Real | VarType::Float32, toml::Value::Float(x)) => Ok(x),
+        (VarType::Real | VarType::Float32, toml::Value::Integer(i)) => Ok(i as f64),
         (VarType::Integer | VarType::Enumeration, toml::Value::Integer(i)) => i32::try_from(i)
             .map(f64::from)
             .map_err(|_| format!("{i} does not fit an Integer")),
+        (t, toml::Value::Integer(i)) if t.is_integer() => {
+            let (lo, hi) = range(t);
+            let x = i as f64;
+            if (lo..=hi).contains(&x) {
+                Ok(x)
+            } else {
+                Err(format!("{i} does not fit an {}", t.name_3()))
+            }
+        }
         (VarType::Boolean, toml::Value::Boolean(b)) => Ok(f64::from(u8::from(b))),
         (VarType::String, v) => Err(format!(
             "is of type String, and only Real, Integer, Enumeration and Boolean variables can \
              be given values (the value was `{v}`)"
         )),
+        (t @ (VarType::Binary | VarType::Clock), v) => Err(format!(
+            "is of type {}, and only numbers and Booleans can be given values (the value was `{v}`)",
+            t.name_3()
+        )),
         (t, v) => Err(format!(
             "is of type {t:?}, which takes {}; the value `{v}` is not one",
             match t {
-                VarType::Real => "a number (`1.5` or `2`)",
-                VarType::Integer | VarType::Enumeration => "an integer (`3`)",
-                _ => "`true` or `false`",
+                VarType::Real | VarType::Float32 => "a number (`1.5` or `2`)",
+                VarType::Boolean => "`true` or `false`",
+                _ => "an integer (`3`)",
             }
         )),
     }

@@ -385,7 +385,7 @@ pub fn esc(s: &str) -> String {
 
 /// The SI base-unit attributes of the units spurio uses (`BaseUnit` element), or `None` for a
 /// unit that is written without a base (allowed by the standard).
-fn base_unit(unit: &str) -> Option<&'static str> {
+pub(crate) fn base_unit(unit: &str) -> Option<&'static str> {
     Some(match unit {
         "m" => r#" m="1""#,
         "kg" => r#" kg="1""#,

@@ -63,7 +63,7 @@ impl<M: FmuModel> Drop for Slot<M> {
     }
 }
 
-fn panic_message(payload: &Box<dyn std::any::Any + Send>) -> String {
+pub(crate) fn panic_message(payload: &Box<dyn std::any::Any + Send>) -> String {
     if let Some(s) = payload.downcast_ref::<&str>() {
         (*s).to_string()
     } else if let Some(s) = payload.downcast_ref::<String>() {
@@ -106,7 +106,7 @@ unsafe fn with_instance<M: FmuModel>(
 }
 
 /// Reads `n` elements behind `p` as a slice; `None` if `p` is NULL while `n > 0`.
-unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
+pub(crate) unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
     if n == 0 {
         Some(&[])
     } else if p.is_null() {
@@ -117,7 +117,7 @@ unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
     }
 }
 
-unsafe fn string_arg(s: fmi2String) -> Option<String> {
+pub(crate) unsafe fn string_arg(s: fmi2String) -> Option<String> {
     if s.is_null() {
         None
     } else {
@@ -871,9 +871,24 @@ pub unsafe fn query_describe<M: FmuModel>(
     out: *mut u8,
     capacity: usize,
 ) -> isize {
+    // SAFETY: forwarded from the caller.
+    unsafe { query_describe_with(crate::query::describe::<M>, config, out, capacity) }
+}
+
+/// `spurio_describe` (FMI 2.0) or `spurio_describe3` (FMI 3.0): the answer of `describe` for
+/// a configuration text, or minus the length of the error message.
+///
+/// # Safety
+/// As [`query_describe`].
+pub unsafe fn query_describe_with(
+    describe: fn(&str) -> Result<String, crate::model::Cause>,
+    config: *const c_char,
+    out: *mut u8,
+    capacity: usize,
+) -> isize {
     // SAFETY: `config` is NULL or a NUL-terminated string (query contract).
     let text = unsafe { string_arg(config) }.unwrap_or_default();
-    let answer = catch_unwind(AssertUnwindSafe(|| crate::query::describe::<M>(&text)))
+    let answer = catch_unwind(AssertUnwindSafe(|| describe(&text)))
         .unwrap_or_else(|payload| Err(panic_message(&payload).into()));
     let (text, sign) = match answer {
         Ok(xml) => (xml, 1),

@@ -169,13 +169,23 @@ pub mod functions {
     f!(GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES);
 }
 
-fn state_names(mask: u32) -> String {
+/// The names of the states in `f`'s mask, in the vocabulary of `f`'s FMI version (FMI 3.0
+/// calls `StepComplete` Step Mode).
+fn state_names(f: &Function) -> String {
     ModelState::ALL
         .iter()
-        .filter(|s| mask & s.bit() != 0)
-        .map(|s| s.to_string())
+        .filter(|s| f.mask & s.bit() != 0)
+        .map(|s| state_name(f, *s))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// The name of `state` as `f`'s FMI version calls it.
+fn state_name(f: &Function, state: ModelState) -> String {
+    match (f.name.starts_with("fmi3"), state) {
+        (true, ModelState::StepComplete) => "StepMode".to_string(),
+        _ => state.to_string(),
+    }
 }
 
 /// Where log messages go: the master's callback (see [`crate::ffi`]) or memory (tests).
@@ -299,8 +309,8 @@ impl<M: FmuModel> Instance<M> {
         self.logger.error(&format!(
             "{}: illegal call sequence: not allowed in state {} (allowed in: {})",
             f.name,
-            self.core.state,
-            state_names(f.mask)
+            state_name(f, self.core.state),
+            state_names(f)
         ));
         false
     }
@@ -354,7 +364,16 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2SetDebugLogging`.
     pub fn set_debug_logging(&mut self, logging_on: bool, categories: &[String]) -> Status {
-        let f = &functions::SET_DEBUG_LOGGING;
+        self.set_debug_logging_as(&functions::SET_DEBUG_LOGGING, logging_on, categories)
+    }
+
+    /// `fmi2SetDebugLogging` or its FMI 3.0 twin `f`.
+    pub fn set_debug_logging_as(
+        &mut self,
+        f: &Function,
+        logging_on: bool,
+        categories: &[String],
+    ) -> Status {
         for c in categories {
             if !crate::description::LOG_CATEGORIES
                 .iter()
@@ -377,7 +396,16 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2SetupExperiment`.
     pub fn setup_experiment(&mut self, start_time: f64, stop_time: Option<f64>) -> Status {
-        let f = &functions::SETUP_EXPERIMENT;
+        self.setup_experiment_as(&functions::SETUP_EXPERIMENT, start_time, stop_time)
+    }
+
+    /// The experiment set up by `f` (`fmi2SetupExperiment`, `fmi3EnterInitializationMode`).
+    pub fn setup_experiment_as(
+        &mut self,
+        f: &Function,
+        start_time: f64,
+        stop_time: Option<f64>,
+    ) -> Status {
         if !start_time.is_finite() {
             return self.reject(f, &format!("startTime must be finite, got {start_time}"));
         }
@@ -404,9 +432,12 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2ExitInitializationMode`: the model reads its parameters and computes its outputs.
     pub fn exit_initialization_mode(&mut self) -> Status {
-        let status = self.run_model(&functions::EXIT_INITIALIZATION_MODE, |m, ctx| {
-            m.initialize(ctx)
-        });
+        self.exit_initialization_mode_as(&functions::EXIT_INITIALIZATION_MODE)
+    }
+
+    /// `fmi2ExitInitializationMode` or its FMI 3.0 twin `f` (into Step Mode).
+    pub fn exit_initialization_mode_as(&mut self, f: &Function) -> Status {
+        let status = self.run_model(f, |m, ctx| m.initialize(ctx));
         if status <= Status::Warning {
             self.core.state = ModelState::StepComplete;
         }
@@ -421,6 +452,11 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2Reset`: back to `Instantiated` with the start values.
     pub fn reset(&mut self) -> Status {
+        self.reset_as(&functions::RESET)
+    }
+
+    /// `fmi2Reset` or its FMI 3.0 twin `f`.
+    pub fn reset_as(&mut self, f: &Function) -> Status {
         match M::create(&self.info) {
             Ok(model) => {
                 self.core = Core {
@@ -433,7 +469,7 @@ impl<M: FmuModel> Instance<M> {
                 };
                 Status::Ok
             }
-            Err(e) => self.reject(&functions::RESET, &e.to_string()),
+            Err(e) => self.reject(f, &e.to_string()),
         }
     }
 
@@ -589,7 +625,11 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2DoStep`.
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Status {
-        let f = &functions::DO_STEP;
+        self.do_step_as(&functions::DO_STEP, current_time, step)
+    }
+
+    /// `fmi2DoStep` or its FMI 3.0 twin `f`.
+    pub fn do_step_as(&mut self, f: &Function, current_time: f64, step: f64) -> Status {
         if !step.is_finite() || step <= 0.0 {
             return self.reject(
                 f,

@@ -1,4 +1,4 @@
-//! The export layer shared by every spurio FMU (today the FMI 2.0 Co-Simulation front).
+//! The export layer shared by every spurio FMU: the FMI 2.0 and FMI 3.0 Co-Simulation fronts.
 //!
 //! One implementation of the FMI plumbing for all FMUs, with no dependencies:
 //! - [`types`]: the C types of the standard headers;
@@ -10,11 +10,13 @@
 //! - [`instance`]: the state machine with allowed-state masks per function, argument checks,
 //!   the logger (always `"%s"` + message), FMU states;
 //! - [`ffi`]: the raw C entry points, each wrapped in `catch_unwind`;
+//! - [`fmi3`]: the FMI 3.0 front over the same model, instance and table (arrays, its model
+//!   description, the `fmi3*` entry points);
 //! - [`query`]: the non-FMI questions a packager asks a built library (bundled variants,
 //!   model description of a configuration);
 //! - [`testing`]: the checks every FMU crate runs on itself;
-//! - [`export_fmu!`]: emits the `fmi2*` and query symbols of one FMU binary for a model type,
-//!   with its bundled variants.
+//! - [`export_fmu!`]: emits the `fmi2*`, `fmi3*` and query symbols of one FMU binary for a
+//!   model type, with its bundled variants.
 //!
 //! No global state: every instance owns all it uses, so any number of instances of any
 //! number of FMUs live in one process.
@@ -22,6 +24,7 @@
 pub mod bytes;
 pub mod description;
 pub mod ffi;
+pub mod fmi3;
 pub mod harness;
 pub mod instance;
 pub mod model;
@@ -39,7 +42,8 @@ pub use variables::{
 };
 
 /// Emits, in the crate that builds an FMU's `cdylib`, the FMI 2.0 Co-Simulation C API
-/// (`fmi2GetTypesPlatform` … `fmi2GetStringStatus`) for the model type `$model`, the query
+/// (`fmi2GetTypesPlatform` … `fmi2GetStringStatus`) and the FMI 3.0 one (`fmi3GetVersion` …,
+/// see [`fmi3`]) for the model type `$model`, the query
 /// symbols of [`query`] and `pub fn bundled_variants()`, and a test that the committed model
 /// descriptions of those variants are up to date.
 ///
@@ -98,7 +102,24 @@ macro_rules! export_fmu {
             ) -> isize {
                 unsafe { $crate::ffi::query_describe::<$model>(config, out, capacity) }
             }
+            #[no_mangle]
+            pub unsafe extern "C" fn spurio_describe3(
+                config: *const ::std::os::raw::c_char,
+                out: *mut u8,
+                capacity: usize,
+            ) -> isize {
+                unsafe {
+                    $crate::ffi::query_describe_with(
+                        $crate::query::describe3::<$model>,
+                        config,
+                        out,
+                        capacity,
+                    )
+                }
+            }
         }
+
+        $crate::export_fmi3!($model);
 
         mod fmi2_exports {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]

@@ -8,7 +8,7 @@
 //!   [`variants_text`] (one `[stem]` header per variant, then its configuration lines);
 //! - [`DESCRIBE_SYMBOL`] `(config, out, capacity) -> length`: the `modelDescription.xml`
 //!   for a configuration text (`key = value` lines), or, as a negative length, the error
-//!   message.
+//!   message; [`DESCRIBE3_SYMBOL`] the same for the FMI 3.0 one.
 //!
 //! Both copy at most `capacity` bytes of the UTF-8 answer into `out` (no NUL) and return the
 //! answer's full length, so a caller asks again with a larger buffer when it was too small.
@@ -20,6 +20,8 @@ use crate::model::FmuModel;
 pub const VARIANTS_SYMBOL: &str = "spurio_variants";
 /// `extern "C" fn(config: *const c_char, out: *mut u8, capacity: usize) -> isize`.
 pub const DESCRIBE_SYMBOL: &str = "spurio_describe";
+/// As [`DESCRIBE_SYMBOL`], for the FMI 3.0 `modelDescription.xml`.
+pub const DESCRIBE3_SYMBOL: &str = "spurio_describe3";
 
 /// One bundled variant: the file stem of its `.fmu` and `modelDescription/<stem>.xml`, and
 /// its packaging configuration (empty for an FMU of fixed dimensions).
@@ -89,6 +91,14 @@ pub fn parse_variants(text: &str) -> Result<Vec<Variant>, VariantListError> {
 pub fn describe<M: FmuModel>(config_text: &str) -> Result<String, crate::model::Cause> {
     let config = Config::parse(config_text)?;
     Ok(M::describe(&config)?.to_xml())
+}
+
+/// The FMI 3.0 model description of `M` for a configuration text.
+pub fn describe3<M: FmuModel>(config_text: &str) -> Result<String, crate::model::Cause> {
+    let config = Config::parse(config_text)?;
+    Ok(crate::fmi3::description::model_description(&M::describe(
+        &config,
+    )?))
 }
 
 #[cfg(test)]

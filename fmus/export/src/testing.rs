@@ -6,7 +6,8 @@ use crate::query::Variant;
 use std::path::Path;
 
 /// Each bundled variant describes itself, has unique variable names, and its generated
-/// `modelDescription.xml` equals the committed `<repo>/modelDescription/<stem>.xml`; the
+/// `modelDescription.xml` equals the committed `<repo>/modelDescription/<stem>.xml` (FMI 2.0)
+/// and `<repo>/modelDescription/fmi3/<stem>.xml` (FMI 3.0); the
 /// FMU's page (`<crate>/README.md`) starts with `# <modelIdentifier>`.
 pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Path) {
     assert!(!variants.is_empty(), "no bundled variant");
@@ -23,6 +24,17 @@ pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Pat
             std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert!(
             committed == info.to_xml(),
+            "{} differs from the variable table of {}: run `spurio model-descriptions --write`",
+            path.display(),
+            info.model_identifier
+        );
+        let path = repo
+            .join("modelDescription/fmi3")
+            .join(format!("{stem}.xml"));
+        let committed =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(
+            committed == crate::fmi3::description::model_description(&info),
             "{} differs from the variable table of {}: run `spurio model-descriptions --write`",
             path.display(),
             info.model_identifier

@@ -7,7 +7,9 @@
 //! only safe functions.
 #![allow(unsafe_code)]
 
-use spurio_export::query::{parse_variants, Variant, DESCRIBE_SYMBOL, VARIANTS_SYMBOL};
+use spurio_export::query::{
+    parse_variants, Variant, DESCRIBE3_SYMBOL, DESCRIBE_SYMBOL, VARIANTS_SYMBOL,
+};
 use spurio_export::Config;
 use std::ffi::CString;
 use std::os::raw::c_char;
@@ -88,7 +90,16 @@ impl FmuLibrary {
 
     /// The model description for `config`, or the library's message why not.
     pub fn describe(&self, config: &Config) -> Result<String, QueryError> {
-        let f: DescribeFn = self.symbol(DESCRIBE_SYMBOL)?;
+        self.describe_with(DESCRIBE_SYMBOL, config)
+    }
+
+    /// The FMI 3.0 model description for `config`, or the library's message why not.
+    pub fn describe3(&self, config: &Config) -> Result<String, QueryError> {
+        self.describe_with(DESCRIBE3_SYMBOL, config)
+    }
+
+    fn describe_with(&self, symbol: &'static str, config: &Config) -> Result<String, QueryError> {
+        let f: DescribeFn = self.symbol(symbol)?;
         let text = CString::new(config.to_text()).map_err(|_| QueryError::Answer {
             path: self.path.clone(),
             message: "the configuration contains a NUL byte".into(),

@@ -46,7 +46,8 @@ struct Cli {
 enum Command {
     /// Run a co-simulation system (TOML, or an SSP 1.0/2.0 archive) and write its results as
     /// CSV (fmpy's layout). The run ends at the stop time, or earlier when an FMU asks to end
-    /// the simulation (fmi2Discard with fmi2Terminated, as the Reference FMU Stair does): the
+    /// the simulation (FMI 2.0: fmi2Discard with fmi2Terminated, as the Reference FMU Stair
+    /// does; FMI 3.0: terminateSimulation from fmi3DoStep): the
     /// last point is recorded and the reason printed.
     Run {
         /// The system file (`.toml`) or SSP archive (`.ssp`; its FMUs are unpacked into a
@@ -91,7 +92,8 @@ enum Command {
     },
     /// Package one FMU for your own dimensions: e.g. `spurio package-variant KalmanFilter
     /// --set n=3 --set p=1 --set m=1 --name MyKalmanFilter` writes MyKalmanFilter.fmu whose
-    /// modelDescription has A[1,1]…A[3,3], y[1], x_hat[1]…x_hat[3], ….
+    /// modelDescription has A[1,1]…A[3,3], y[1], x_hat[1]…x_hat[3], …, and the FMI 3.0
+    /// fmi3/MyKalmanFilter.fmu with the arrays A (3×3), y, x_hat, ….
     PackageVariant {
         /// Model identifier of a dimension-generic FMU.
         model_identifier: String,
@@ -408,7 +410,7 @@ fn command(command: Command) -> Result<ExitCode> {
         } => {
             let platforms = parse_platforms(&platform_dirs)?;
             let stem = name.unwrap_or_else(|| model_identifier.clone());
-            let path = package::package_custom(
+            for path in package::package_custom(
                 &repo,
                 &lib_dir,
                 &platforms,
@@ -416,8 +418,9 @@ fn command(command: Command) -> Result<ExitCode> {
                 &settings,
                 &stem,
                 &out,
-            )?;
-            println!("wrote {}", path.display());
+            )? {
+                println!("wrote {}", path.display());
+            }
         }
         Command::Experiments {
             out,

@@ -12,6 +12,11 @@
 //! FMU's page, rendered from `fmus/<dir>/README.md`, with the pictures of `fmus/<dir>/img/`
 //! beside it) and, for variants of dimension-generic FMUs, `resources/variant.cfg`, which
 //! the binary reads in `fmi2Instantiate`.
+//!
+//! Every FMU is written twice from the same binaries: as FMI 2.0 (`<out>/<stem>.fmu`) and as
+//! FMI 3.0 (`<out>/fmi3/<stem>.fmu`: the FMI 3.0 model description, the binaries under the
+//! FMI 3.0 platform tuples `x86_64-linux`, `x86_64-windows`, `aarch64-linux`; FMI 3.0.2
+//! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions.
 
 use crate::library_query::{FmuLibrary, QueryError};
 use anyhow::{anyhow, bail, Context, Result};
@@ -174,17 +179,78 @@ impl BuiltFmu {
 
     /// The model description of a configuration.
     pub fn describe(&self, config: &Config) -> Result<String> {
+        self.answer(self.library.describe(config))
+    }
+
+    /// The FMI 3.0 model description of a configuration.
+    pub fn describe3(&self, config: &Config) -> Result<String> {
+        self.answer(self.library.describe3(config))
+    }
+
+    /// A model description of a configuration, with the error named after the FMU.
+    pub fn describe_as(&self, version: FmiVersion, config: &Config) -> Result<String> {
+        match version {
+            FmiVersion::Fmi2 => self.describe(config),
+            FmiVersion::Fmi3 => self.describe3(config),
+        }
+    }
+
+    fn answer(&self, answer: Result<String, QueryError>) -> Result<String> {
         let id = &self.source.model_identifier;
-        self.library.describe(config).map_err(|e| match e {
+        answer.map_err(|e| match e {
             QueryError::Answer { message, .. } => anyhow!("{id}: invalid configuration: {message}"),
             other => anyhow!(other),
         })
     }
 }
 
-/// Writes `<out_dir>/<stem>.fmu` for one variant of `fmu`, with the binaries of `platforms`
-/// (the first one is normally `linux64`).
+/// The FMI version of an archive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FmiVersion {
+    Fmi2,
+    Fmi3,
+}
+
+impl FmiVersion {
+    /// The `binaries/` folder of a platform (named the FMI 2.0 way, `linux64`, or as a
+    /// tuple, `aarch64-linux`) in an archive of this version.
+    pub fn platform_folder(self, platform: &str) -> String {
+        let fmi3 = match platform {
+            "linux64" => "x86_64-linux",
+            "linux32" => "x86-linux",
+            "win64" => "x86_64-windows",
+            "win32" => "x86-windows",
+            "darwin64" => "x86_64-darwin",
+            other => other,
+        };
+        match self {
+            FmiVersion::Fmi2 => platform.to_string(),
+            FmiVersion::Fmi3 => fmi3.to_string(),
+        }
+    }
+
+    /// Where the archives of this version go, below the output folder.
+    pub fn out_dir(self, out_dir: &Path) -> PathBuf {
+        match self {
+            FmiVersion::Fmi2 => out_dir.to_path_buf(),
+            FmiVersion::Fmi3 => out_dir.join("fmi3"),
+        }
+    }
+
+    /// The committed model description of a variant.
+    pub fn committed_model_description(self, repo: &Path, stem: &str) -> PathBuf {
+        let dir = repo.join("modelDescription");
+        match self {
+            FmiVersion::Fmi2 => dir.join(format!("{stem}.xml")),
+            FmiVersion::Fmi3 => dir.join("fmi3").join(format!("{stem}.xml")),
+        }
+    }
+}
+
+/// Writes the `version` archive of one variant of `fmu` as `<out_dir>/<stem>.fmu`, with the
+/// binaries of `platforms` (the first one is normally `linux64`).
 pub fn package_variant(
+    version: FmiVersion,
     fmu: &BuiltFmu,
     stem: &str,
     config: &Config,
@@ -192,12 +258,16 @@ pub fn package_variant(
     out_dir: &Path,
 ) -> Result<PathBuf> {
     let id = &fmu.source.model_identifier;
-    let xml = fmu.describe(config)?;
+    let xml = match version {
+        FmiVersion::Fmi2 => fmu.describe(config)?,
+        FmiVersion::Fmi3 => fmu.describe3(config)?,
+    };
     let mut binaries = Vec::new();
     for platform in platforms {
         let (path, packaged) = platform.library(id)?;
         let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-        binaries.push((format!("binaries/{}/{packaged}", platform.name), bytes));
+        let folder = version.platform_folder(&platform.name);
+        binaries.push((format!("binaries/{folder}/{packaged}"), bytes));
     }
     let page_path = fmu.source.dir.join("README.md");
     let page = std::fs::read_to_string(&page_path)
@@ -256,7 +326,7 @@ fn model_name(xml: &str) -> Option<&str> {
 }
 
 /// `spurio package`: every bundled variant of the FMUs named (all when none), written to
-/// `out_dir`; returns the paths written.
+/// `out_dir` (FMI 2.0) and `out_dir/fmi3` (FMI 3.0); returns the paths written.
 pub fn package_bundled(
     repo: &Path,
     lib_dir: &Path,
@@ -271,13 +341,19 @@ pub fn package_bundled(
     for source in select(repo, names)? {
         let fmu = BuiltFmu::load(source, lib_dir)?;
         for (stem, config) in fmu.library.variants()? {
-            written.push(package_variant(&fmu, &stem, &config, &platforms, out_dir)?);
+            for version in [FmiVersion::Fmi2, FmiVersion::Fmi3] {
+                let dir = version.out_dir(out_dir);
+                written.push(package_variant(
+                    version, &fmu, &stem, &config, &platforms, &dir,
+                )?);
+            }
         }
     }
     Ok(written)
 }
 
-/// `spurio package-variant`: one FMU for a configuration given as `KEY=VALUE` settings.
+/// `spurio package-variant`: one FMU for a configuration given as `KEY=VALUE` settings,
+/// as FMI 2.0 (`<out_dir>/<stem>.fmu`) and FMI 3.0 (`<out_dir>/fmi3/<stem>.fmu`).
 pub fn package_custom(
     repo: &Path,
     lib_dir: &Path,
@@ -286,7 +362,7 @@ pub fn package_custom(
     settings: &[String],
     stem: &str,
     out_dir: &Path,
-) -> Result<PathBuf> {
+) -> Result<Vec<PathBuf>> {
     let source = select(repo, &[model_identifier.to_string()])?
         .into_iter()
         .next()
@@ -302,30 +378,38 @@ pub fn package_custom(
         .chain(extra_platforms.iter().cloned())
         .collect();
     let fmu = BuiltFmu::load(source, lib_dir)?;
-    package_variant(&fmu, stem, &config, &platforms, out_dir)
-}
-
-/// The committed model description file of a variant.
-pub fn committed_model_description(repo: &Path, stem: &str) -> PathBuf {
-    repo.join("modelDescription").join(format!("{stem}.xml"))
+    [FmiVersion::Fmi2, FmiVersion::Fmi3]
+        .into_iter()
+        .map(|version| {
+            let dir = version.out_dir(out_dir);
+            package_variant(version, &fmu, stem, &config, &platforms, &dir)
+        })
+        .collect()
 }
 
 /// `spurio model-descriptions`: compares (or, with `write`, rewrites) the committed
-/// `modelDescription/<stem>.xml` of every bundled variant with what the built libraries
-/// generate; returns the files written or found stale.
+/// `modelDescription/<stem>.xml` (FMI 2.0) and `modelDescription/fmi3/<stem>.xml` (FMI 3.0)
+/// of every bundled variant with what the built libraries generate; returns the files
+/// written or found stale.
 pub fn model_descriptions(repo: &Path, lib_dir: &Path, write: bool) -> Result<Vec<PathBuf>> {
     let mut touched = Vec::new();
     for source in discover(repo)? {
         let fmu = BuiltFmu::load(source, lib_dir)?;
         for (stem, config) in fmu.library.variants()? {
-            let xml = fmu.describe(&config)?;
-            let path = committed_model_description(repo, &stem);
-            if write {
-                std::fs::write(&path, xml)
-                    .with_context(|| format!("writing {}", path.display()))?;
-                touched.push(path);
-            } else if std::fs::read_to_string(&path).ok().as_deref() != Some(xml.as_str()) {
-                touched.push(path);
+            for version in [FmiVersion::Fmi2, FmiVersion::Fmi3] {
+                let xml = fmu.describe_as(version, &config)?;
+                let path = version.committed_model_description(repo, &stem);
+                if write {
+                    if let Some(dir) = path.parent() {
+                        std::fs::create_dir_all(dir)
+                            .with_context(|| format!("creating {}", dir.display()))?;
+                    }
+                    std::fs::write(&path, xml)
+                        .with_context(|| format!("writing {}", path.display()))?;
+                    touched.push(path);
+                } else if std::fs::read_to_string(&path).ok().as_deref() != Some(xml.as_str()) {
+                    touched.push(path);
+                }
             }
         }
     }
@@ -385,14 +469,40 @@ mod tests {
         assert_eq!(stems, ["Sensor", "Sensor2"]);
         assert_eq!(variants[1].1.get("channels"), Some("2"));
         let xml = fmu.describe(&variants[1].1).unwrap();
-        let committed =
-            std::fs::read_to_string(committed_model_description(&repo(), "Sensor2")).unwrap();
+        let committed = std::fs::read_to_string(
+            FmiVersion::Fmi2.committed_model_description(&repo(), "Sensor2"),
+        )
+        .unwrap();
         assert_eq!(xml, committed);
+        let xml3 = fmu.describe3(&variants[1].1).unwrap();
+        let committed3 = std::fs::read_to_string(
+            FmiVersion::Fmi3.committed_model_description(&repo(), "Sensor2"),
+        )
+        .unwrap();
+        assert_eq!(xml3, committed3);
+        assert!(xml3.contains(r#"fmiVersion="3.0""#) && xml3.contains(r#"<Dimension start="2"/>"#));
         let mut bad = Config::new();
         bad.set("channels", "0");
         let err = fmu.describe(&bad).unwrap_err().to_string();
         assert!(err.starts_with("Sensor: invalid configuration: "), "{err}");
         assert!(err.contains("channels"), "{err}");
+    }
+
+    #[test]
+    fn fmi3_archives_use_platform_tuples() {
+        let v = FmiVersion::Fmi3;
+        assert_eq!(v.platform_folder("linux64"), "x86_64-linux");
+        assert_eq!(v.platform_folder("win64"), "x86_64-windows");
+        assert_eq!(v.platform_folder("aarch64-linux"), "aarch64-linux");
+        assert_eq!(FmiVersion::Fmi2.platform_folder("linux64"), "linux64");
+        assert_eq!(
+            v.out_dir(Path::new("build/fmus")),
+            Path::new("build/fmus/fmi3")
+        );
+        assert_eq!(
+            v.committed_model_description(Path::new("r"), "Sensor2"),
+            Path::new("r/modelDescription/fmi3/Sensor2.xml")
+        );
     }
 
     #[test]

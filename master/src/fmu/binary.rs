@@ -1,6 +1,6 @@
 //! What the FMU's shared library is, read from its bytes before it is loaded: the file
 //! format and architecture (so a library for another platform is named as such instead of
-//! failing with the loader's "No such file or directory"), and the fmi2 functions it exports
+//! failing with the loader's "No such file or directory"), and the fmi2/fmi3 functions it exports
 //! (so a missing entry point is reported here instead of failing inside rust-fmi at the
 //! first call). Only the headers and the dynamic symbol table are parsed, with `object`.
 
@@ -46,6 +46,74 @@ pub const REQUIRED_FUNCTIONS: [&str; 34] = [
     "fmi2GetStringStatus",
 ];
 
+/// Every function FMI 3.0 requires of a Co-Simulation FMU: the common functions (FMI 3.0
+/// §2.3; an FMU without a capability still exports the function and returns fmi3Error) and
+/// those of the Co-Simulation interface (§4.2).
+pub const REQUIRED_FUNCTIONS_3: [&str; 62] = [
+    "fmi3GetVersion",
+    "fmi3SetDebugLogging",
+    "fmi3InstantiateCoSimulation",
+    "fmi3FreeInstance",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3EnterEventMode",
+    "fmi3Terminate",
+    "fmi3Reset",
+    "fmi3GetFloat32",
+    "fmi3GetFloat64",
+    "fmi3GetInt8",
+    "fmi3GetUInt8",
+    "fmi3GetInt16",
+    "fmi3GetUInt16",
+    "fmi3GetInt32",
+    "fmi3GetUInt32",
+    "fmi3GetInt64",
+    "fmi3GetUInt64",
+    "fmi3GetBoolean",
+    "fmi3GetString",
+    "fmi3GetBinary",
+    "fmi3GetClock",
+    "fmi3SetFloat32",
+    "fmi3SetFloat64",
+    "fmi3SetInt8",
+    "fmi3SetUInt8",
+    "fmi3SetInt16",
+    "fmi3SetUInt16",
+    "fmi3SetInt32",
+    "fmi3SetUInt32",
+    "fmi3SetInt64",
+    "fmi3SetUInt64",
+    "fmi3SetBoolean",
+    "fmi3SetString",
+    "fmi3SetBinary",
+    "fmi3SetClock",
+    "fmi3GetNumberOfVariableDependencies",
+    "fmi3GetVariableDependencies",
+    "fmi3GetFMUState",
+    "fmi3SetFMUState",
+    "fmi3FreeFMUState",
+    "fmi3SerializedFMUStateSize",
+    "fmi3SerializeFMUState",
+    "fmi3DeserializeFMUState",
+    "fmi3GetDirectionalDerivative",
+    "fmi3GetAdjointDerivative",
+    "fmi3EnterConfigurationMode",
+    "fmi3ExitConfigurationMode",
+    "fmi3GetIntervalDecimal",
+    "fmi3GetIntervalFraction",
+    "fmi3GetShiftDecimal",
+    "fmi3GetShiftFraction",
+    "fmi3SetIntervalDecimal",
+    "fmi3SetIntervalFraction",
+    "fmi3SetShiftDecimal",
+    "fmi3SetShiftFraction",
+    "fmi3EvaluateDiscreteStates",
+    "fmi3UpdateDiscreteStates",
+    "fmi3EnterStepMode",
+    "fmi3GetOutputDerivatives",
+    "fmi3DoStep",
+];
+
 /// Why a library cannot be used on this machine.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum LibraryProblem {
@@ -89,8 +157,8 @@ fn architecture_name(a: Architecture) -> String {
 }
 
 /// Checks that `data` is a shared library this process can load and that it exports every
-/// function in [`REQUIRED_FUNCTIONS`].
-pub fn check(data: &[u8]) -> Result<(), LibraryProblem> {
+/// function in `required` ([`REQUIRED_FUNCTIONS`] or [`REQUIRED_FUNCTIONS_3`]).
+pub fn check(data: &[u8], required: &[&'static str]) -> Result<(), LibraryProblem> {
     let wrong = |found: String| LibraryProblem::WrongKind {
         found,
         expected: expected_kind(),
@@ -160,7 +228,7 @@ pub fn check(data: &[u8]) -> Result<(), LibraryProblem> {
             "an ELF shared library whose symbol table cannot be read ({e})"
         ))
     })?;
-    let missing: Vec<&'static str> = REQUIRED_FUNCTIONS
+    let missing: Vec<&'static str> = required
         .iter()
         .copied()
         .filter(|f| !exports.iter().any(|e| e.name() == f.as_bytes()))
@@ -182,11 +250,18 @@ mod tests {
             Err(LibraryProblem::WrongKind { found, .. }) => found,
             other => panic!("{other:?}"),
         };
-        assert_eq!(text(check(b"")), "an empty file, not a shared library");
         assert_eq!(
-            text(check(b"hello, world\n")),
+            text(check(b"", &REQUIRED_FUNCTIONS)),
+            "an empty file, not a shared library"
+        );
+        assert_eq!(
+            text(check(b"hello, world\n", &REQUIRED_FUNCTIONS)),
             "a text file, not a shared library"
         );
-        assert!(text(check(&[0xff, 0x00, 0x13, 0x37, 0x00, 0x80])).contains("neither ELF"));
+        assert!(text(check(
+            &[0xff, 0x00, 0x13, 0x37, 0x00, 0x80],
+            &REQUIRED_FUNCTIONS
+        ))
+        .contains("neither ELF"));
     }
 }

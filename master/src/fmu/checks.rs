@@ -45,9 +45,9 @@ pub(super) fn variables(
                 "variables `{}` ({}) and `{}` ({}) share value reference {} ({}) and both have a start value; \
                  FMI 2.0 allows at most one start value in a set of aliases, so the value would be ambiguous",
                 a.name,
-                causality_name(a.causality),
+                a.causality.name(),
                 v.name,
-                causality_name(v.causality),
+                v.causality.name(),
                 v.value_reference,
                 match key.0 {
                     VarType::Integer => "Integer/Enumeration",
@@ -58,17 +58,6 @@ pub(super) fn variables(
         start_holder.insert(key, i);
     }
     Ok(())
-}
-
-fn causality_name(c: Causality) -> &'static str {
-    match c {
-        Causality::Parameter => "parameter",
-        Causality::CalculatedParameter => "calculatedParameter",
-        Causality::Input => "input",
-        Causality::Output => "output",
-        Causality::Local => "local",
-        Causality::Independent => "independent",
-    }
 }
 
 /// Checks `ModelStructure` against the variables and returns, for each output's 0-based
@@ -114,7 +103,7 @@ pub(super) fn model_structure(
                         "ModelStructure/Outputs: index {} is `{}`, whose causality is {}, not output",
                         i + 1,
                         vars[i].name,
-                        causality_name(vars[i].causality)
+                        vars[i].causality.name()
                     ));
                 }
                 if outputs.insert(i, deps).is_some() {
@@ -153,6 +142,7 @@ mod tests {
             unit: None,
             description: None,
             dependencies: None,
+            element: None,
         }
     }
 

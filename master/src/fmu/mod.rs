@@ -1,30 +1,66 @@
-//! Loading an FMI 2.0 Co-Simulation FMU on rust-fmi, with the checks a master owes its user.
+//! Loading an FMI 2.0 or FMI 3.0 Co-Simulation FMU on rust-fmi, with the checks a master
+//! owes its user.
 //!
 //! [`FmuFile::open`] unpacks the archive itself ([`archive`]) into a fresh temporary folder,
 //! refusing entries that could reach outside it (absolute or `..` names, symbolic links,
-//! anything but plain files and folders) and archives beyond the [`LoadLimits`]. It then
-//! rejects, naming the file: a model description that is not FMI 2.0 or declares no
-//! Co-Simulation interface, ambiguous variables or `ModelStructure` ([`checks`]), a missing
-//! `binaries/linux64/<id>.so`, a library for another platform or one that lacks an fmi2
+//! anything but plain files and folders) and archives beyond the [`LoadLimits`]. It reads
+//! `fmiVersion` and then rejects, naming the file: a model description that is neither FMI
+//! 2.0 nor 3.0 or declares no Co-Simulation interface (an FMI 3.0 FMU with Scheduled
+//! Execution and clocks only is named as such), ambiguous variables or `ModelStructure`
+//! ([`checks`], [`v3`]), a missing `binaries/<platform>/<id>.so` (`linux64` for FMI 2.0,
+//! `x86_64-linux` for FMI 3.0), a library for another platform or one that lacks a required
 //! function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
-//! is removed. The GUID is checked by the FMU itself in `fmi2Instantiate`; when instantiation
-//! fails, the error quotes what the FMU logged. Variables are indexed by name once, here, so
-//! the simulation can work with value references only.
+//! is removed. The GUID (FMI 3.0: instantiation token) is checked by the FMU itself when it
+//! is instantiated; when instantiation fails, the error quotes what the FMU logged.
+//! Variables are indexed by name once, here, so the simulation can work with value
+//! references only; an FMI 3.0 array is indexed as its elements (`x[1,2]`, 1-based,
+//! row-major) and as a whole ([`FmuFile::array`]).
 
 mod archive;
 pub mod binary;
 mod checks;
+mod instance;
+mod v3;
 mod xml;
+
+pub use instance::{CallError, Instance, StepEnd, StepProblem};
 
 use crate::logging::LogKey;
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::InstanceCS;
+use fmi::fmi3::import::Fmi3Import;
+use fmi::fmi3::Fmi3Model;
 use fmi::schema::fmi2::{
     Causality as SchemaCausality, ScalarVariableElement, Variability as SchemaVariability,
 };
 use fmi::traits::FmiImport;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+/// The FMI version of an FMU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FmiVersion {
+    Fmi2,
+    Fmi3,
+}
+
+impl FmiVersion {
+    /// `2.0` or `3.0`.
+    pub fn number(self) -> &'static str {
+        match self {
+            Self::Fmi2 => "2.0",
+            Self::Fmi3 => "3.0",
+        }
+    }
+
+    /// The platform folder of the binaries this machine loads.
+    pub fn platform(self) -> &'static str {
+        match self {
+            Self::Fmi2 => PLATFORM,
+            Self::Fmi3 => PLATFORM_3,
+        }
+    }
+}
 
 /// What can go wrong when loading or instantiating an FMU.
 #[derive(Debug, thiserror::Error)]
@@ -61,40 +97,52 @@ pub enum LoadError {
     NoModelDescription { file: PathBuf },
     #[error("{file}: modelDescription.xml: {reason}")]
     ModelDescription { file: PathBuf, reason: String },
-    #[error("{file}: fmiVersion is `{version}`; this master runs FMI 2.0 FMUs")]
+    #[error("{file}: fmiVersion is `{version}`; this master runs FMI 2.0 and FMI 3.0 FMUs")]
     NotFmi2 { file: PathBuf, version: String },
-    #[error("{file}: `{model}` is not a Co-Simulation FMU (its modelDescription.xml has no <CoSimulation> element)")]
-    NotCoSimulation { file: PathBuf, model: String },
+    #[error("{file}: `{model}` is not a Co-Simulation FMU (its modelDescription.xml has no <CoSimulation> element{others})")]
+    NotCoSimulation {
+        file: PathBuf,
+        model: String,
+        /// What it declares instead, e.g. ": it declares Scheduled Execution (clocks), which this master does not run".
+        others: String,
+    },
     #[error("{file}: the FMU has no binary for this platform: `{expected}` is missing (it has: {found})")]
     MissingBinary {
         file: PathBuf,
         expected: String,
         found: String,
     },
-    #[error("{file}: `{library}` is {found}; this master needs {expected} (platform folder `{PLATFORM}`)")]
+    #[error("{file}: `{library}` is {found}; this master needs {expected} (platform folder `{platform}`)")]
     WrongBinary {
         file: PathBuf,
         library: String,
         found: String,
         expected: String,
+        platform: &'static str,
     },
-    #[error("{file}: `{library}` does not export {}, which every FMI 2.0 Co-Simulation FMU must provide", .missing.join(", "))]
+    #[error("{file}: `{library}` does not export {}, which every FMI {version} Co-Simulation FMU must provide", .missing.join(", "))]
     MissingFunctions {
         file: PathBuf,
         library: String,
         missing: Vec<String>,
+        version: &'static str,
     },
     #[error("{file}: rust-fmi could not import the FMU: {reason}")]
     Import { file: PathBuf, reason: String },
-    #[error("instance `{instance}` of {file}: fmi2Instantiate failed{log}")]
+    #[error("instance `{instance}` of {file}: {call} failed{log}")]
     Instantiate {
         instance: String,
         file: PathBuf,
+        /// `fmi2Instantiate` or `fmi3InstantiateCoSimulation`.
+        call: &'static str,
         log: String,
     },
 }
 
-/// The FMI type of a variable.
+/// The FMI type of a variable. FMI 3.0's `Float64` is [`VarType::Real`] and its `Int32`
+/// [`VarType::Integer`] (the same values as FMI 2.0's, so they connect across versions); the
+/// other FMI 3.0 types are their own. The engine moves every number as an f64 (an Int64 or
+/// UInt64 beyond 2^53 is rounded).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum VarType {
     Real,
@@ -102,6 +150,16 @@ pub enum VarType {
     Boolean,
     String,
     Enumeration,
+    Float32,
+    Int8,
+    UInt8,
+    Int16,
+    UInt16,
+    UInt32,
+    Int64,
+    UInt64,
+    Binary,
+    Clock,
 }
 
 impl VarType {
@@ -114,7 +172,8 @@ impl VarType {
         }
     }
 
-    /// The type's element name in a model description (`Real`, `Integer`, …).
+    /// The type's element name in an FMI 2.0 model description (`Real`, `Integer`, …; for the
+    /// FMI 3.0-only types, their FMI 3.0 name).
     pub fn name(self) -> &'static str {
         match self {
             VarType::Real => "Real",
@@ -122,7 +181,47 @@ impl VarType {
             VarType::Boolean => "Boolean",
             VarType::String => "String",
             VarType::Enumeration => "Enumeration",
+            other => other.name_3(),
         }
+    }
+
+    /// The type's element name in an FMI 3.0 model description (`Float64`, `Int32`, …).
+    pub fn name_3(self) -> &'static str {
+        match self {
+            VarType::Real => "Float64",
+            VarType::Integer => "Int32",
+            VarType::Boolean => "Boolean",
+            VarType::String => "String",
+            VarType::Enumeration => "Enumeration",
+            VarType::Float32 => "Float32",
+            VarType::Int8 => "Int8",
+            VarType::UInt8 => "UInt8",
+            VarType::Int16 => "Int16",
+            VarType::UInt16 => "UInt16",
+            VarType::UInt32 => "UInt32",
+            VarType::Int64 => "Int64",
+            VarType::UInt64 => "UInt64",
+            VarType::Binary => "Binary",
+            VarType::Clock => "Clock",
+        }
+    }
+
+    /// Whether the engine moves values of this type (numbers and Booleans).
+    pub fn is_numeric(self) -> bool {
+        !matches!(self, VarType::String | VarType::Binary | VarType::Clock)
+    }
+
+    /// Whether values of this type are integers (set rounded).
+    pub fn is_integer(self) -> bool {
+        !matches!(
+            self,
+            VarType::Real
+                | VarType::Float32
+                | VarType::Boolean
+                | VarType::String
+                | VarType::Binary
+                | VarType::Clock
+        )
     }
 }
 
@@ -135,6 +234,24 @@ pub enum Causality {
     Output,
     Local,
     Independent,
+    /// FMI 3.0: a parameter that may change array dimensions (only in configuration mode,
+    /// which this master does not use: its start value is taken).
+    StructuralParameter,
+}
+
+impl Causality {
+    /// The causality as a model description writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Causality::Parameter => "parameter",
+            Causality::CalculatedParameter => "calculatedParameter",
+            Causality::Input => "input",
+            Causality::Output => "output",
+            Causality::Local => "local",
+            Causality::Independent => "independent",
+            Causality::StructuralParameter => "structuralParameter",
+        }
+    }
 }
 
 /// One variable of a loaded FMU.
@@ -155,17 +272,45 @@ pub struct VariableInfo {
     /// For outputs: indices (into [`FmuFile::variables`]) of the inputs it depends on directly;
     /// `None` when the model description does not say (taken as: depends on every input).
     pub dependencies: Option<Vec<usize>>,
+    /// For an element of an FMI 3.0 array: (index into [`FmuFile::arrays`], position of the
+    /// element among the array's values, row-major).
+    pub element: Option<(usize, usize)>,
+}
+
+/// An FMI 3.0 array variable: its elements are variables of their own (`x[1,2]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArrayInfo {
+    pub name: String,
+    pub value_reference: u32,
+    pub var_type: VarType,
+    pub causality: Causality,
+    /// The dimensions (a structural parameter's start value where one gives it).
+    pub dimensions: Vec<usize>,
+    /// Indices (into [`FmuFile::variables`]) of the elements, row-major.
+    pub elements: Vec<usize>,
+}
+
+/// The rust-fmi import of an FMU, by version.
+pub enum Import {
+    Fmi2(Fmi2Import),
+    Fmi3(Fmi3Import),
 }
 
 /// A loaded FMU: its archive, its rust-fmi import and its variables indexed by name.
 pub struct FmuFile {
     pub path: PathBuf,
-    pub import: Fmi2Import,
+    pub version: FmiVersion,
+    pub import: Import,
     pub model_name: String,
     pub model_identifier: String,
+    /// The GUID (FMI 2.0) or instantiation token (FMI 3.0).
     pub guid: String,
+    /// Every scalar variable, and every element of every array variable.
     pub variables: Vec<VariableInfo>,
+    /// The FMI 3.0 array variables (none for FMI 2.0).
+    pub arrays: Vec<ArrayInfo>,
     by_name: HashMap<String, usize>,
+    arrays_by_name: HashMap<String, usize>,
 }
 
 impl std::fmt::Debug for FmuFile {
@@ -176,6 +321,9 @@ impl std::fmt::Debug for FmuFile {
 
 /// The platform folder of FMI 2.0 binaries on this machine.
 pub const PLATFORM: &str = "linux64";
+
+/// The platform tuple of FMI 3.0 binaries on this machine.
+pub const PLATFORM_3: &str = "x86_64-linux";
 
 /// How much an FMU archive may hold; beyond it the loader stops with [`LoadError::TooLarge`]
 /// naming the file and the limit. Sizes are checked as declared in the archive and again as
@@ -227,6 +375,12 @@ impl FmuFile {
         let temp_root = options.temp_dir.clone().unwrap_or_else(std::env::temp_dir);
         // From here on, returning drops `unpacked.dir`, which removes the folder.
         let unpacked = archive::unpack(path, &options.limits, &temp_root)?;
+        if fmi_version(&unpacked.model_description)
+            .map_err(|e| md_error(path, e))?
+            .starts_with("3.")
+        {
+            return Self::open_3(path, unpacked);
+        }
         let xml = &unpacked.model_description;
         let md: fmi::schema::fmi2::Fmi2ModelDescription = xml
             .parse()
@@ -241,6 +395,7 @@ impl FmuFile {
             return Err(LoadError::NotCoSimulation {
                 file: path.to_path_buf(),
                 model: md.model_name.clone(),
+                others: String::new(),
             });
         };
         let xml::VariableExtras { units, has_start } =
@@ -281,6 +436,7 @@ impl FmuFile {
                 unit: units.get(i).cloned().flatten(),
                 description: v.description.clone(),
                 dependencies: None,
+                element: None,
             });
         }
         checks::variables(&variables, &has_start, &constant).map_err(|e| md_error(path, e))?;
@@ -289,49 +445,7 @@ impl FmuFile {
         for (i, deps) in dependencies {
             variables[i].dependencies = deps;
         }
-        let expected = format!("binaries/{PLATFORM}/{}.so", cs.model_identifier);
-        if !unpacked.names.iter().any(|n| n == &expected) {
-            let found: Vec<&str> = unpacked
-                .names
-                .iter()
-                .filter(|n| n.starts_with("binaries/"))
-                .map(|n| n.as_str())
-                .collect();
-            return Err(LoadError::MissingBinary {
-                file: path.to_path_buf(),
-                expected,
-                found: if found.is_empty() {
-                    "no binaries at all".into()
-                } else {
-                    found.join(", ")
-                },
-            });
-        }
-        let library =
-            std::fs::read(unpacked.dir.path().join(&expected)).map_err(|e| LoadError::Unpack {
-                file: path.to_path_buf(),
-                entry: expected.clone(),
-                reason: e.to_string(),
-            })?;
-        match binary::check(&library) {
-            Ok(()) => {}
-            Err(binary::LibraryProblem::WrongKind { found, expected: e }) => {
-                return Err(LoadError::WrongBinary {
-                    file: path.to_path_buf(),
-                    library: expected,
-                    found,
-                    expected: e,
-                })
-            }
-            Err(binary::LibraryProblem::MissingFunctions(missing)) => {
-                return Err(LoadError::MissingFunctions {
-                    file: path.to_path_buf(),
-                    library: expected,
-                    missing: missing.into_iter().map(String::from).collect(),
-                })
-            }
-        }
-        drop(library);
+        check_library(path, &unpacked, FmiVersion::Fmi2, &cs.model_identifier)?;
         let by_name = variables
             .iter()
             .enumerate()
@@ -343,13 +457,88 @@ impl FmuFile {
         })?;
         Ok(Self {
             path: path.to_path_buf(),
+            version: FmiVersion::Fmi2,
             model_name: md.model_name.clone(),
             model_identifier: cs.model_identifier.clone(),
             guid: md.guid.clone(),
-            import,
+            import: Import::Fmi2(import),
             variables,
+            arrays: Vec::new(),
             by_name,
+            arrays_by_name: HashMap::new(),
         })
+    }
+
+    /// The FMI 3.0 half of [`FmuFile::open_with`].
+    fn open_3(path: &Path, unpacked: archive::Unpacked) -> Result<Self, LoadError> {
+        let xml = &unpacked.model_description;
+        let d = v3::read(xml).map_err(|e| md_error(path, e))?;
+        let Some(model_identifier) = d.co_simulation.clone() else {
+            let others = if d.other_interfaces.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; it declares {} only, which this master does not run{}",
+                    d.other_interfaces.join(" and "),
+                    if d.other_interfaces.contains(&"Scheduled Execution") {
+                        " (Scheduled Execution and clocks)"
+                    } else {
+                        ""
+                    }
+                )
+            };
+            return Err(LoadError::NotCoSimulation {
+                file: path.to_path_buf(),
+                model: d.model_name,
+                others,
+            });
+        };
+        check_library(path, &unpacked, FmiVersion::Fmi3, &model_identifier)?;
+        let mut by_name: HashMap<String, usize> = d
+            .variables
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (v.name.clone(), i))
+            .collect();
+        by_name.extend(d.aliases.iter().cloned());
+        let arrays_by_name = d
+            .arrays
+            .iter()
+            .enumerate()
+            .map(|(i, a)| (a.name.clone(), i))
+            .collect();
+        resource_path_workaround(path, &unpacked)?;
+        // rust-fmi 0.8's FMI 3.0 schema refuses attributes the standard allows (`unit`,
+        // `quantity`, `nominal` … on variables): it gets only what instantiation needs, the
+        // full description having been read and checked here (v3).
+        let minimal = format!(
+            r#"<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="{}" modelName="{}" instantiationToken="{}"><CoSimulation modelIdentifier="{}"/><ModelVariables/><ModelStructure/></fmiModelDescription>"#,
+            quick_xml::escape::escape(d.version.as_str()),
+            quick_xml::escape::escape(d.model_name.as_str()),
+            quick_xml::escape::escape(d.instantiation_token.as_str()),
+            quick_xml::escape::escape(model_identifier.as_str()),
+        );
+        let import = Fmi3Import::new(unpacked.dir, &minimal).map_err(|e| LoadError::Import {
+            file: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            version: FmiVersion::Fmi3,
+            model_name: d.model_name,
+            model_identifier,
+            guid: d.instantiation_token,
+            import: Import::Fmi3(import),
+            variables: d.variables,
+            arrays: d.arrays,
+            by_name,
+            arrays_by_name,
+        })
+    }
+
+    /// The FMI 3.0 array variable called `name` (whole).
+    pub fn array(&self, name: &str) -> Option<&ArrayInfo> {
+        self.arrays_by_name.get(name).map(|&i| &self.arrays[i])
     }
 
     /// The variable called `name`.
@@ -364,18 +553,28 @@ impl FmuFile {
 
     /// A Co-Simulation instance called `instance`, created on the calling thread (rust-fmi
     /// instances are `!Send`), with the key its log messages are kept under (see
-    /// [`crate::logging`]). On failure the error quotes what the FMU logged.
-    pub fn instantiate(
-        &self,
-        instance: &str,
-        logging_on: bool,
-    ) -> Result<(InstanceCS, LogKey), LoadError> {
+    /// [`crate::logging`]). An FMI 3.0 instance is created without event mode, early return
+    /// or intermediate update. On failure the error quotes what the FMU logged.
+    pub fn instantiate(&self, instance: &str, logging_on: bool) -> Result<Instance, LoadError> {
         let key = LogKey::new(instance);
-        match self
-            .import
-            .instantiate_cs(key.instance_name(), false, logging_on)
-        {
-            Ok(cs) => Ok((cs, key)),
+        let (created, call) = match &self.import {
+            Import::Fmi2(import) => (
+                import
+                    .instantiate_cs(key.instance_name(), false, logging_on)
+                    .map(|i| Inner::Fmi2(Box::new(i))),
+                "fmi2Instantiate",
+            ),
+            Import::Fmi3(import) => (
+                crate::logging::speaking(&key, || {
+                    import.instantiate_cs(key.instance_name(), false, logging_on, false, false, &[])
+                })
+                .map(|i| Inner::Fmi3(Box::new(i))),
+                "fmi3InstantiateCoSimulation",
+            ),
+        };
+        match created {
+            Ok(Inner::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
+            Ok(Inner::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key)),
             Err(e) => {
                 let said = key.recent_messages();
                 let log = if said.is_empty() {
@@ -386,12 +585,130 @@ impl FmuFile {
                 Err(LoadError::Instantiate {
                     instance: instance.to_string(),
                     file: self.path.clone(),
+                    call,
                     log,
                 })
             }
         }
     }
 }
+
+/// A new instance of either version, before it gets its key.
+enum Inner {
+    Fmi2(Box<InstanceCS>),
+    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
+}
+
+/// rust-fmi 0.8 passes FMI 3.0's `resourcePath` without the trailing separator the standard
+/// requires (`…/resources`, not `…/resources/`), so an FMU that appends a file name to it
+/// (`resourcePath + "y.txt"`, as the Reference FMU `Resource` does) looks for
+/// `…/resourcesy.txt`. Until rust-fmi passes the separator, every entry `resources/<e>` is
+/// also made reachable as `resources<e>` beside it (a hard link for a file, falling back to
+/// a copy; a symbolic link for a folder), inside the FMU's own temporary folder. An FMU that
+/// joins the path with a separator itself is not affected.
+fn resource_path_workaround(path: &Path, unpacked: &archive::Unpacked) -> Result<(), LoadError> {
+    let dir = unpacked.dir.path();
+    let Ok(entries) = std::fs::read_dir(dir.join("resources")) else {
+        return Ok(());
+    };
+    let fail = |entry: &str, e: std::io::Error| LoadError::Unpack {
+        file: path.to_path_buf(),
+        entry: format!("resources/{entry} (made reachable as resources{entry})"),
+        reason: e.to_string(),
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let target = dir.join(format!("resources{name}"));
+        if target.exists() {
+            continue;
+        }
+        let source = entry.path();
+        if source.is_dir() {
+            #[cfg(unix)]
+            std::os::unix::fs::symlink(&source, &target).map_err(|e| fail(&name, e))?;
+        } else if std::fs::hard_link(&source, &target).is_err() {
+            std::fs::copy(&source, &target).map_err(|e| fail(&name, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// The `fmiVersion` attribute of a model description's root element.
+fn fmi_version(xml: &str) -> Result<String, String> {
+    for tag in crate::xml::tags(xml) {
+        if let crate::xml::Tag::Start { element, .. } = tag? {
+            if element.name().as_ref() == "fmiModelDescription" {
+                return Ok(element
+                    .attributes()
+                    .flatten()
+                    .find(|a| a.key.as_ref() == "fmiVersion")
+                    .map(|a| a.value.to_string())
+                    .unwrap_or_default());
+            }
+        }
+    }
+    Err("no <fmiModelDescription> element".into())
+}
+
+/// Checks that the archive holds this platform's library of `model_identifier` and that it
+/// is a library this process loads, exporting every function the version requires.
+fn check_library(
+    path: &Path,
+    unpacked: &archive::Unpacked,
+    version: FmiVersion,
+    model_identifier: &str,
+) -> Result<(), LoadError> {
+    let platform = version.platform();
+    let expected = format!("binaries/{platform}/{model_identifier}.so");
+    if !unpacked.names.iter().any(|n| n == &expected) {
+        let found: Vec<&str> = unpacked
+            .names
+            .iter()
+            .filter(|n| n.starts_with("binaries/"))
+            .map(|n| n.as_str())
+            .collect();
+        return Err(LoadError::MissingBinary {
+            file: path.to_path_buf(),
+            expected,
+            found: if found.is_empty() {
+                "no binaries at all".into()
+            } else {
+                found.join(", ")
+            },
+        });
+    }
+    let library =
+        std::fs::read(unpacked.dir.path().join(&expected)).map_err(|e| LoadError::Unpack {
+            file: path.to_path_buf(),
+            entry: expected.clone(),
+            reason: e.to_string(),
+        })?;
+    let required: &[&'static str] = match version {
+        FmiVersion::Fmi2 => &binary::REQUIRED_FUNCTIONS,
+        FmiVersion::Fmi3 => &binary::REQUIRED_FUNCTIONS_3,
+    };
+    match binary::check(&library, required) {
+        Ok(()) => Ok(()),
+        Err(binary::LibraryProblem::WrongKind { found, expected: e }) => {
+            Err(LoadError::WrongBinary {
+                file: path.to_path_buf(),
+                library: expected,
+                found,
+                expected: e,
+                platform,
+            })
+        }
+        Err(binary::LibraryProblem::MissingFunctions(missing)) => {
+            Err(LoadError::MissingFunctions {
+                file: path.to_path_buf(),
+                library: expected,
+                missing: missing.into_iter().map(String::from).collect(),
+                version: version.number(),
+            })
+        }
+    }
+}
+
 /// Whether an instance whose `fmi2DoStep` returned `fmi2Discard` asks to end the simulation:
 /// `Some(last successful time)` when `fmi2GetBooleanStatus(fmi2Terminated)` says so (the time
 /// from `fmi2GetRealStatus(fmi2LastSuccessfulTime)`, `None` if the FMU does not give it),

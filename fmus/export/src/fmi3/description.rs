@@ -1,0 +1,280 @@
+//! The FMI 3.0 `modelDescription.xml`, generated from the same [`ModelInfo`] as the FMI 2.0
+//! one (element order of `fmi3ModelDescription.xsd`): Co-Simulation only, no event mode,
+//! `time` as the independent variable, arrays from [`Layout`], `Float64`/`Int32`/`Boolean`/
+//! `String` elements with units, descriptions, bounds and start values (arrays: start lists),
+//! `ModelStructure` with `Output` dependencies and `InitialUnknown`s.
+//!
+//! The instantiation token is the GUID of the FMI 2.0 description: one binary, one identity,
+//! whichever version a master loads.
+
+use super::arrays::Layout;
+use crate::description::{base_unit, esc, fmt_real, ModelInfo, LOG_CATEGORIES};
+use crate::variables::{Causality, Initial, Value, Variable, VariableType};
+use std::fmt::Write;
+
+/// The FMI 3.0 element name of a type.
+pub fn type_name(t: VariableType) -> &'static str {
+    match t {
+        VariableType::Real => "Float64",
+        VariableType::Integer => "Int32",
+        VariableType::Boolean => "Boolean",
+        VariableType::String => "String",
+    }
+}
+
+fn start_text(value: &Value) -> String {
+    match value {
+        Value::Real(r) => fmt_real(*r),
+        Value::Integer(i) => i.to_string(),
+        Value::Boolean(b) => b.to_string(),
+        Value::String(s) => esc(s),
+    }
+}
+
+/// Whether a variable is an initial unknown (FMI 3.0 §2.4.8: outputs with `initial` approx
+/// or calculated, calculated parameters).
+fn is_initial_unknown(v: &Variable) -> bool {
+    (v.causality == Causality::Output
+        && matches!(v.initial, Some(Initial::Approx) | Some(Initial::Calculated)))
+        || v.causality == Causality::CalculatedParameter
+}
+
+/// The FMI 3.0 `modelDescription.xml` of `info`.
+pub fn model_description(info: &ModelInfo) -> String {
+    let layout = Layout::of(&info.variables);
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        x,
+        r#"<fmiModelDescription fmiVersion="3.0" modelName="{}" instantiationToken="{}" description="{}" author="spurio" version="{}" generationTool="spurio {}" variableNamingConvention="structured">"#,
+        esc(&info.model_name),
+        esc(&info.guid),
+        esc(&info.description),
+        env!("CARGO_PKG_VERSION"),
+        env!("CARGO_PKG_VERSION"),
+    );
+    let _ = writeln!(
+        x,
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" providesPerElementDependencies="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false" providesEvaluateDiscreteStates="false"/>"#,
+        esc(&info.model_identifier)
+    );
+    // "s": the unit of `time`.
+    let mut units: Vec<&str> = info
+        .variables
+        .iter()
+        .filter_map(|v| v.unit.as_deref())
+        .chain(["s"])
+        .collect();
+    units.sort_unstable();
+    units.dedup();
+    if !units.is_empty() {
+        let _ = writeln!(x, "  <UnitDefinitions>");
+        for unit in units {
+            match base_unit(unit) {
+                Some(base) => {
+                    let _ = writeln!(x, r#"    <Unit name="{}">"#, esc(unit));
+                    let _ = writeln!(x, "      <BaseUnit{base}/>");
+                    let _ = writeln!(x, "    </Unit>");
+                }
+                None => {
+                    let _ = writeln!(x, r#"    <Unit name="{}"/>"#, esc(unit));
+                }
+            }
+        }
+        let _ = writeln!(x, "  </UnitDefinitions>");
+    }
+    let _ = writeln!(x, "  <LogCategories>");
+    for (name, description) in LOG_CATEGORIES {
+        let description = description.replace("fmi2", "fmi3");
+        let _ = writeln!(
+            x,
+            r#"    <Category name="{name}" description="{}"/>"#,
+            esc(&description)
+        );
+    }
+    let _ = writeln!(x, "  </LogCategories>");
+    if let Some(e) = &info.default_experiment {
+        let _ = writeln!(
+            x,
+            r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
+            e.start_time, e.stop_time, e.step_size
+        );
+    }
+    let _ = writeln!(x, "  <ModelVariables>");
+    let _ = writeln!(
+        x,
+        r#"    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" description="Simulation time" unit="s"/>"#
+    );
+    for (k, group) in layout.variables().iter().enumerate() {
+        let v = &info.variables[group.first];
+        let element = type_name(v.variable_type());
+        let _ = write!(
+            x,
+            r#"    <{element} name="{}" valueReference="{}""#,
+            esc(&group.name),
+            k + 1
+        );
+        let description = group.description(&info.variables);
+        if !description.is_empty() {
+            let _ = write!(x, r#" description="{}""#, esc(&description));
+        }
+        let _ = write!(
+            x,
+            r#" causality="{}" variability="{}""#,
+            v.causality.as_str(),
+            v.variability.as_str()
+        );
+        if let Some(initial) = v.initial {
+            let _ = write!(x, r#" initial="{}""#, initial.as_str());
+        }
+        if let Some(unit) = &v.unit {
+            let _ = write!(x, r#" unit="{}""#, esc(unit));
+        }
+        let bound = |b: f64| match v.start {
+            Value::Integer(_) => format!("{}", b.round() as i64),
+            _ => fmt_real(b),
+        };
+        if let Some(min) = v.min {
+            let _ = write!(x, r#" min="{}""#, bound(min));
+        }
+        if let Some(max) = v.max {
+            let _ = write!(x, r#" max="{}""#, bound(max));
+        }
+        let string = v.variable_type() == VariableType::String;
+        if v.has_start() && !string {
+            let starts: Vec<String> = group
+                .indices()
+                .map(|i| start_text(&info.variables[i].start))
+                .collect();
+            let _ = write!(x, r#" start="{}""#, starts.join(" "));
+        }
+        if group.dims.is_empty() && !(string && v.has_start()) {
+            let _ = writeln!(x, "/>");
+            continue;
+        }
+        let _ = writeln!(x, ">");
+        if string && v.has_start() {
+            for i in group.indices() {
+                let _ = writeln!(
+                    x,
+                    r#"      <Start value="{}"/>"#,
+                    start_text(&info.variables[i].start)
+                );
+            }
+        }
+        for d in &group.dims {
+            let _ = writeln!(x, r#"      <Dimension start="{d}"/>"#);
+        }
+        let _ = writeln!(x, "    </{element}>");
+    }
+    let _ = writeln!(x, "  </ModelVariables>");
+    let _ = writeln!(x, "  <ModelStructure>");
+    for (k, group) in layout.variables().iter().enumerate() {
+        let v = &info.variables[group.first];
+        if v.causality != Causality::Output {
+            continue;
+        }
+        let mut deps: Vec<u32> = group
+            .indices()
+            .flat_map(|i| info.variables[i].dependencies.iter())
+            .filter_map(|d| layout.value_reference_of(*d))
+            .collect();
+        deps.sort_unstable();
+        deps.dedup();
+        let deps: Vec<String> = deps.iter().map(u32::to_string).collect();
+        let _ = writeln!(
+            x,
+            r#"    <Output valueReference="{}" dependencies="{}"/>"#,
+            k + 1,
+            deps.join(" ")
+        );
+    }
+    for (k, group) in layout.variables().iter().enumerate() {
+        if is_initial_unknown(&info.variables[group.first]) {
+            let _ = writeln!(x, r#"    <InitialUnknown valueReference="{}"/>"#, k + 1);
+        }
+    }
+    let _ = writeln!(x, "  </ModelStructure>");
+    if !info.config.is_empty() {
+        let _ = writeln!(x, "  <Annotations>");
+        let _ = writeln!(x, r#"    <Annotation type="spurio">"#);
+        let _ = writeln!(x, "      <Variant>");
+        for line in info.config.to_text().lines() {
+            if let Some((k, v)) = line.split_once(" = ") {
+                let _ = writeln!(
+                    x,
+                    r#"        <Setting name="{}" value="{}"/>"#,
+                    esc(k),
+                    esc(v)
+                );
+            }
+        }
+        let _ = writeln!(x, "      </Variant>");
+        let _ = writeln!(x, "    </Annotation>");
+        let _ = writeln!(x, "  </Annotations>");
+    }
+    let _ = writeln!(x, "</fmiModelDescription>");
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::description::{Config, DefaultExperiment};
+
+    fn info() -> ModelInfo {
+        let mut config = Config::new();
+        config.set("n", 2);
+        ModelInfo::new(
+            "Demo",
+            "A <demo>",
+            vec![
+                Variable::parameter("A[1,1]", 1.0).unit("m"),
+                Variable::parameter("A[1,2]", 0.5).unit("m"),
+                Variable::input("u[1]", 0.0).unit("N"),
+                Variable::input("u[2]", 0.0).unit("N"),
+                Variable::output("y[1]").depends_on(&[3]),
+                Variable::output("y[2]"),
+                Variable::integer_parameter("N", 3).min(1.0),
+                Variable::boolean_output("flag"),
+            ],
+            Some(DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 1.0,
+                step_size: 0.01,
+            }),
+            config,
+        )
+    }
+
+    #[test]
+    fn arrays_dimensions_and_structure() {
+        let info = info();
+        let x = model_description(&info);
+        assert!(x.contains(&format!(r#"instantiationToken="{}""#, info.guid)));
+        assert!(x.contains(
+            r#"<Float64 name="A" valueReference="1" causality="parameter" variability="fixed" initial="exact" unit="m" start="1.0 0.5">"#
+        ));
+        assert!(x.contains(
+            "      <Dimension start=\"1\"/>\n      <Dimension start=\"2\"/>\n    </Float64>"
+        ));
+        assert!(x.contains(r#"<Float64 name="u" valueReference="2" causality="input" variability="continuous" unit="N" start="0.0 0.0">"#));
+        assert!(x.contains(r#"<Int32 name="N" valueReference="4" causality="parameter" variability="fixed" initial="exact" min="1" start="3"/>"#));
+        assert!(x.contains(r#"<Boolean name="flag" valueReference="5" causality="output" variability="discrete" initial="calculated"/>"#));
+        assert!(x.contains(r#"<Output valueReference="3" dependencies="2"/>"#));
+        assert!(x.contains(r#"<Output valueReference="5" dependencies=""/>"#));
+        assert!(x.contains(r#"<InitialUnknown valueReference="3"/>"#));
+        assert!(x.contains(r#"<Setting name="n" value="2"/>"#));
+        let order = [
+            "<CoSimulation",
+            "<UnitDefinitions>",
+            "<LogCategories>",
+            "<DefaultExperiment",
+            "<ModelVariables>",
+            "<ModelStructure>",
+            "<Annotations>",
+        ];
+        let positions: Vec<usize> = order.iter().map(|t| x.find(t).unwrap()).collect();
+        assert!(positions.windows(2).all(|w| w[0] < w[1]));
+    }
+}

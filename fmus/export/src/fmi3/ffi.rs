@@ -1,0 +1,894 @@
+//! The FMI 3.0 C ABI: raw pointers in, [`Instance`] calls out.
+//!
+//! The twin of [`crate::ffi`] for FMI 3.0, with the same guarantees: every function checks
+//! its pointers, catches panics (the instance is then `Fatal`), checks the allowed-state mask
+//! of [`super::functions`] before doing anything, and logs every error through the master's
+//! `fmi3LogMessageCallback` (which takes the message as it is: no format string). Value
+//! references are those of [`Layout`]: arrays are expanded to the instance's scalars here,
+//! and `nValues` must equal the number of elements they name.
+
+use super::arrays::{Layout, Target};
+use super::description::type_name;
+use super::functions;
+use super::types::*;
+use crate::description::{Config, CONFIG_FILE};
+use crate::ffi::{panic_message, slice, string_arg};
+use crate::instance::{Core, Function, Instance, LogSink, Logger};
+use crate::model::FmuModel;
+use crate::types::Status;
+use crate::variables::{Value, VariableType};
+use std::ffi::CString;
+use std::os::raw::c_char;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+/// Delivers log messages to the master's `fmi3LogMessageCallback`.
+pub struct CallbackSink {
+    log_message: fmi3LogMessageCallback,
+    environment: fmi3InstanceEnvironment,
+}
+
+impl LogSink for CallbackSink {
+    fn deliver(&self, _instance: &str, status: Status, category: &str, text: &str) {
+        let Some(log_message) = self.log_message else {
+            return;
+        };
+        let clean = |s: &str| CString::new(s.replace('\0', " ")).unwrap_or_default();
+        let (category, text) = (clean(category), clean(text));
+        // SAFETY: the master gave us this function pointer for exactly this call; both
+        // strings are NUL-terminated and live until it returns.
+        unsafe {
+            log_message(
+                self.environment,
+                code(status),
+                category.as_ptr(),
+                text.as_ptr(),
+            )
+        };
+    }
+}
+
+/// What an `fmi3Instance` points to.
+pub struct Slot<M: FmuModel> {
+    instance: Instance<M>,
+    /// The FMI 3.0 variables (arrays) over the instance's scalars.
+    layout: Layout,
+    /// FMU states created by this instance and not freed yet.
+    states: Vec<*mut Core<M>>,
+    /// Keeps the strings returned by `fmi3GetString` alive until the next call.
+    strings: Vec<CString>,
+}
+
+impl<M: FmuModel> Slot<M> {
+    /// A slot for `instance` (what [`instantiate_co_simulation`] returns, boxed).
+    pub fn new(instance: Instance<M>) -> Self {
+        let layout = Layout::of(&instance.info().variables);
+        Self {
+            instance,
+            layout,
+            states: Vec::new(),
+            strings: Vec::new(),
+        }
+    }
+    /// The instance.
+    pub fn instance(&self) -> &Instance<M> {
+        &self.instance
+    }
+}
+
+impl<M: FmuModel> Drop for Slot<M> {
+    fn drop(&mut self) {
+        for p in self.states.drain(..) {
+            // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from
+            // the list when freed, so each is freed exactly once.
+            drop(unsafe { Box::from_raw(p) });
+        }
+    }
+}
+
+/// Boxes a slot as an `fmi3Instance`.
+pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
+    Box::into_raw(Box::new(Slot::new(instance))) as fmi3Instance
+}
+
+/// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
+unsafe fn with_instance<M: FmuModel>(
+    c: fmi3Instance,
+    f: &Function,
+    body: impl FnOnce(&mut Slot<M>) -> Status,
+) -> fmi3Status {
+    if c.is_null() {
+        return fmi3Error;
+    }
+    let slot = c as *mut Slot<M>;
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        // SAFETY: `c` is non-null and was returned by `instantiate_co_simulation::<M>` (the
+        // master's obligation); no other reference to the slot is alive during the call.
+        let slot = unsafe { &mut *slot };
+        if !slot.instance.allows(f) {
+            return Status::Error;
+        }
+        body(slot)
+    }));
+    match result {
+        Ok(status) => code(status),
+        Err(payload) => {
+            let message = panic_message(&payload);
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                // SAFETY: as above; the closure that panicked no longer borrows the slot.
+                unsafe { &mut *slot }.instance.set_fatal(f, &message)
+            }));
+            fmi3Fatal
+        }
+    }
+}
+
+/// `fmi3GetVersion`.
+pub fn version() -> *const c_char {
+    c"3.0".as_ptr()
+}
+
+/// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
+/// the resources (`variant.cfg` of a packaged variant), then creates the instance.
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn instantiate_co_simulation<M: FmuModel>(
+    instance_name: fmi3String,
+    token: fmi3String,
+    resource_path: fmi3String,
+    logging_on: fmi3Boolean,
+    event_mode_used: fmi3Boolean,
+    early_return_allowed: fmi3Boolean,
+    n_required_intermediate: usize,
+    environment: fmi3InstanceEnvironment,
+    log_message: fmi3LogMessageCallback,
+) -> fmi3Instance {
+    const F: &str = "fmi3InstantiateCoSimulation";
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        let sink = || CallbackSink {
+            log_message,
+            environment,
+        };
+        // SAFETY: FMI strings are NULL or NUL-terminated.
+        let name = unsafe { string_arg(instance_name) };
+        let logger = Logger::new(
+            name.as_deref().unwrap_or("?"),
+            Box::new(sink()),
+            logging_on != 0,
+        );
+        let fail = |message: String| {
+            logger.error(&format!("{F}: {message}"));
+            std::ptr::null_mut()
+        };
+        if name.as_deref().is_none_or(str::is_empty) {
+            return fail("instanceName must be a non-empty string".into());
+        }
+        if n_required_intermediate > 0 {
+            return fail(format!(
+                "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
+            ));
+        }
+        // SAFETY: as above.
+        let given = unsafe { string_arg(token) }.unwrap_or_default();
+        let resources = unsafe { string_arg(resource_path) }.filter(|s| !s.is_empty());
+        let config = match resources.as_deref() {
+            Some(dir) => {
+                let path = std::path::Path::new(dir).join(CONFIG_FILE);
+                match std::fs::read_to_string(&path) {
+                    Ok(text) => match Config::parse(&text) {
+                        Ok(config) => config,
+                        Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
+                    },
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Config::new(),
+                    Err(e) => {
+                        return fail(format!(
+                            "cannot read the variant configuration {}: {e}",
+                            path.display()
+                        ))
+                    }
+                }
+            }
+            None => Config::new(),
+        };
+        let info = match M::describe(&config) {
+            Ok(info) => info,
+            Err(e) => return fail(format!("invalid variant configuration: {e}")),
+        };
+        if given != info.guid {
+            let hint = if config.is_empty() {
+                format!(
+                    " (a variant FMU needs its resources/{CONFIG_FILE}: resourcePath is {})",
+                    resources.as_deref().unwrap_or("NULL")
+                )
+            } else {
+                String::new()
+            };
+            return fail(format!(
+                "instantiationToken mismatch: the modelDescription.xml gives {given} but this binary of {} implements {}{hint}",
+                info.model_identifier, info.guid
+            ));
+        }
+        if event_mode_used != 0 || early_return_allowed != 0 {
+            logger.log(
+                Status::Ok,
+                "logEvents",
+                &format!("{F}: eventModeUsed/earlyReturnAllowed noted; the FMU has no event mode and never returns early"),
+            );
+        }
+        match Instance::<M>::new(info, logger) {
+            Ok(instance) => into_instance(instance),
+            Err(e) => {
+                Logger::new("?", Box::new(sink()), true).error(&format!("{F}: {e}"));
+                std::ptr::null_mut()
+            }
+        }
+    }));
+    result.unwrap_or(std::ptr::null_mut())
+}
+
+/// `fmi3InstantiateModelExchange`, `fmi3InstantiateScheduledExecution`: logs why not and
+/// returns NULL.
+///
+/// # Safety
+/// `log_message` is NULL or a valid callback.
+pub unsafe fn refuse_instantiation<M: FmuModel>(
+    function: &str,
+    interface: &str,
+    environment: fmi3InstanceEnvironment,
+    log_message: fmi3LogMessageCallback,
+) -> fmi3Instance {
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        let id = M::describe(&Config::new())
+            .map(|i| i.model_identifier)
+            .unwrap_or_default();
+        let sink = CallbackSink {
+            log_message,
+            environment,
+        };
+        Logger::new("?", Box::new(sink), true).error(&format!(
+            "{function}: {id} is a Co-Simulation FMU only: it does not implement {interface}"
+        ));
+    }));
+    std::ptr::null_mut()
+}
+
+/// `fmi3FreeInstance`.
+///
+/// # Safety
+/// `c` must be NULL or an instance from [`instantiate_co_simulation`] not freed yet.
+pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
+    if c.is_null() {
+        return;
+    }
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        // SAFETY: `c` came from `Box::into_raw` in `into_instance::<M>`.
+        drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
+    }));
+}
+
+/// `fmi3SetDebugLogging`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_debug_logging<M: FmuModel>(
+    c: fmi3Instance,
+    logging_on: fmi3Boolean,
+    n: usize,
+    categories: *const fmi3String,
+) -> fmi3Status {
+    let f = &functions::SET_DEBUG_LOGGING;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(raw) = slice(categories, n) else {
+                return s.instance.reject(f, "categories is NULL");
+            };
+            let names: Vec<String> = raw
+                .iter()
+                .map(|p| string_arg(*p).unwrap_or_default())
+                .collect();
+            s.instance.set_debug_logging_as(f, logging_on != 0, &names)
+        })
+    }
+}
+
+/// `fmi3EnterInitializationMode`: the experiment (start and stop time; the tolerance is not
+/// used by fixed-step models) and Initialization Mode.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn enter_initialization_mode<M: FmuModel>(
+    c: fmi3Instance,
+    start_time: fmi3Float64,
+    stop_time_defined: fmi3Boolean,
+    stop_time: fmi3Float64,
+) -> fmi3Status {
+    let f = &functions::ENTER_INITIALIZATION_MODE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let stop = (stop_time_defined != 0).then_some(stop_time);
+            let status = s.instance.setup_experiment_as(f, start_time, stop);
+            if status > Status::Warning {
+                return status;
+            }
+            s.instance.enter_initialization_mode().max(status)
+        })
+    }
+}
+
+/// `fmi3ExitInitializationMode`: into Step Mode (no event mode).
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn exit_initialization_mode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
+    let f = &functions::EXIT_INITIALIZATION_MODE;
+    unsafe { with_instance::<M>(c, f, |s| s.instance.exit_initialization_mode_as(f)) }
+}
+
+/// `fmi3Terminate`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn terminate<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
+    unsafe { with_instance::<M>(c, &functions::TERMINATE, |s| s.instance.terminate()) }
+}
+
+/// `fmi3Reset`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn reset<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
+    let f = &functions::RESET;
+    unsafe { with_instance::<M>(c, f, |s| s.instance.reset_as(f)) }
+}
+
+/// `fmi3DoStep`: one step; the FMU has no events and never returns early, so
+/// `eventHandlingNeeded`, `terminateSimulation` and `earlyReturn` are false and
+/// `lastSuccessfulTime` is the end of the step (or the start, when it failed).
+///
+/// # Safety
+/// FMI pointer contract; the output pointers may be NULL.
+pub unsafe fn do_step<M: FmuModel>(
+    c: fmi3Instance,
+    current_time: fmi3Float64,
+    step: fmi3Float64,
+    event_handling_needed: *mut fmi3Boolean,
+    terminate_simulation: *mut fmi3Boolean,
+    early_return: *mut fmi3Boolean,
+    last_successful_time: *mut fmi3Float64,
+) -> fmi3Status {
+    let f = &functions::DO_STEP;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let status = s.instance.do_step_as(f, current_time, step);
+            for flag in [event_handling_needed, terminate_simulation, early_return] {
+                if !flag.is_null() {
+                    // SAFETY: a non-NULL output argument points to one fmi3Boolean.
+                    *flag = fmi3False;
+                }
+            }
+            if !last_successful_time.is_null() {
+                // SAFETY: as above, one fmi3Float64.
+                *last_successful_time = s.instance.last_successful_time();
+            }
+            status
+        })
+    }
+}
+
+/// An element a value reference of a call names.
+#[derive(Debug, Clone, Copy)]
+enum Element {
+    Time,
+    Scalar(u32),
+}
+
+/// Expands `vrs` into the elements they name (arrays row-major), checking every reference,
+/// its type and that `n_values` is their number.
+fn expand<M: FmuModel>(
+    slot: &Slot<M>,
+    vrs: &[u32],
+    expected: VariableType,
+    n_values: usize,
+) -> Result<Vec<Element>, String> {
+    let info = slot.instance.info();
+    let mut elements = Vec::with_capacity(n_values);
+    for &vr in vrs {
+        let (name, actual) = match slot.layout.target(vr) {
+            None => {
+                return Err(format!(
+                    "unknown value reference {vr} ({} has value references 0 to {})",
+                    info.model_identifier,
+                    slot.layout.max_value_reference()
+                ))
+            }
+            Some(Target::Time) => {
+                elements.push(Element::Time);
+                ("time", VariableType::Real)
+            }
+            Some(Target::Variable(v)) => {
+                elements.extend(v.indices().map(|i| Element::Scalar(i as u32)));
+                (v.name.as_str(), info.variables[v.first].variable_type())
+            }
+        };
+        if actual != expected {
+            return Err(format!(
+                "variable `{name}` (value reference {vr}) is of type {}, not {}",
+                type_name(actual),
+                type_name(expected)
+            ));
+        }
+    }
+    if elements.len() != n_values {
+        return Err(format!(
+            "nValues = {n_values}, but the {} value references name {} values",
+            vrs.len(),
+            elements.len()
+        ));
+    }
+    Ok(elements)
+}
+
+/// The scalar indices among `elements`.
+fn scalars(elements: &[Element]) -> Vec<u32> {
+    elements
+        .iter()
+        .filter_map(|e| match e {
+            Element::Scalar(i) => Some(*i),
+            Element::Time => None,
+        })
+        .collect()
+}
+
+/// Reads the values `elements` name (after the instance computed what it must).
+fn read_values<M: FmuModel>(
+    slot: &mut Slot<M>,
+    f: &Function,
+    elements: &[Element],
+    expected: VariableType,
+) -> Result<(Vec<Value>, Status), Status> {
+    let indices = scalars(elements);
+    let mut got = Vec::with_capacity(indices.len());
+    let status = slot
+        .instance
+        .get_values(f, &indices, expected, |_, v| got.push(v.clone()));
+    if status > Status::Warning {
+        return Err(status);
+    }
+    let time = slot.instance.time();
+    let mut scalars = got.into_iter();
+    let values: Vec<Value> = elements
+        .iter()
+        .map(|e| match e {
+            Element::Time => Value::Real(time),
+            Element::Scalar(_) => scalars.next().unwrap_or(Value::Real(f64::NAN)),
+        })
+        .collect();
+    for (value, element) in values.iter().zip(elements) {
+        if let (Value::Real(x), Element::Scalar(i)) = (value, element) {
+            if !x.is_finite() {
+                let name = &slot.instance.info().variables[*i as usize].name;
+                return Err(slot.instance.reject(
+                    f,
+                    &format!("variable `{name}` is {x}: a non-finite value is never returned"),
+                ));
+            }
+        }
+    }
+    Ok((values, status))
+}
+
+/// The FMI 3.0 types exchanged through `fmi3Get*`/`fmi3Set*` with values.
+pub trait Kind {
+    /// The C type of one value.
+    type C: Copy;
+    /// The variables' type.
+    const TYPE: VariableType;
+    /// `fmi3Get*`.
+    const GET: &'static Function;
+    /// `fmi3Set*`.
+    const SET: &'static Function;
+    /// A value as the master reads it.
+    fn to_c(value: &Value) -> Self::C;
+    /// A value the master sets.
+    fn from_c(value: Self::C) -> Value;
+}
+
+/// `fmi3Float64`.
+pub struct Float64;
+impl Kind for Float64 {
+    type C = fmi3Float64;
+    const TYPE: VariableType = VariableType::Real;
+    const GET: &'static Function = &functions::GET_FLOAT64;
+    const SET: &'static Function = &functions::SET_FLOAT64;
+    fn to_c(value: &Value) -> f64 {
+        match value {
+            Value::Real(x) => *x,
+            _ => f64::NAN,
+        }
+    }
+    fn from_c(value: f64) -> Value {
+        Value::Real(value)
+    }
+}
+
+/// `fmi3Int32`.
+pub struct Int32;
+impl Kind for Int32 {
+    type C = fmi3Int32;
+    const TYPE: VariableType = VariableType::Integer;
+    const GET: &'static Function = &functions::GET_INT32;
+    const SET: &'static Function = &functions::SET_INT32;
+    fn to_c(value: &Value) -> i32 {
+        match value {
+            Value::Integer(x) => *x,
+            _ => 0,
+        }
+    }
+    fn from_c(value: i32) -> Value {
+        Value::Integer(value)
+    }
+}
+
+/// `fmi3Boolean`.
+pub struct Boolean;
+impl Kind for Boolean {
+    type C = fmi3Boolean;
+    const TYPE: VariableType = VariableType::Boolean;
+    const GET: &'static Function = &functions::GET_BOOLEAN;
+    const SET: &'static Function = &functions::SET_BOOLEAN;
+    fn to_c(value: &Value) -> u8 {
+        match value {
+            Value::Boolean(true) => fmi3True,
+            _ => fmi3False,
+        }
+    }
+    fn from_c(value: u8) -> Value {
+        Value::Boolean(value != 0)
+    }
+}
+
+/// `fmi3GetFloat64`, `fmi3GetInt32`, `fmi3GetBoolean`: the values (arrays row-major) into a C
+/// array of `n_values` elements.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get<M: FmuModel, K: Kind>(
+    c: fmi3Instance,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    out: *mut K::C,
+    n_values: usize,
+) -> fmi3Status {
+    let f = K::GET;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, nvr) else {
+                return s.instance.reject(f, "valueReferences is NULL");
+            };
+            if n_values > 0 && out.is_null() {
+                return s.instance.reject(f, "values is NULL");
+            }
+            let elements = match expand(s, vrs, K::TYPE, n_values) {
+                Ok(e) => e,
+                Err(message) => return s.instance.reject(f, &message),
+            };
+            match read_values(s, f, &elements, K::TYPE) {
+                Ok((values, status)) => {
+                    for (i, v) in values.iter().enumerate() {
+                        // SAFETY: `out` holds `n_values` elements (FMI contract) and
+                        // `values.len() == n_values` (checked by `expand`).
+                        *out.add(i) = K::to_c(v);
+                    }
+                    status
+                }
+                Err(status) => status,
+            }
+        })
+    }
+}
+
+/// Checks a set call's references and values, then hands them to the instance.
+fn write_values<M: FmuModel>(
+    slot: &mut Slot<M>,
+    f: &Function,
+    vrs: &[u32],
+    expected: VariableType,
+    values: Vec<Value>,
+) -> Status {
+    let elements = match expand(slot, vrs, expected, values.len()) {
+        Ok(e) => e,
+        Err(message) => return slot.instance.reject(f, &message),
+    };
+    if elements.iter().any(|e| matches!(e, Element::Time)) {
+        return slot.instance.reject(
+            f,
+            "variable `time` (value reference 0) is the independent variable: the master sets it through fmi3EnterInitializationMode and fmi3DoStep",
+        );
+    }
+    slot.instance.set_values(f, &scalars(&elements), values)
+}
+
+/// `fmi3SetFloat64`, `fmi3SetInt32`, `fmi3SetBoolean`: the values (arrays row-major) from a
+/// C array of `n_values` elements.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set<M: FmuModel, K: Kind>(
+    c: fmi3Instance,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    values: *const K::C,
+    n_values: usize,
+) -> fmi3Status {
+    let f = K::SET;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
+                return s.instance.reject(f, "valueReferences or values is NULL");
+            };
+            let values = raw.iter().map(|v| K::from_c(*v)).collect();
+            write_values(s, f, vrs, K::TYPE, values)
+        })
+    }
+}
+
+/// `fmi3GetString`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_string<M: FmuModel>(
+    c: fmi3Instance,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    out: *mut fmi3String,
+    n_values: usize,
+) -> fmi3Status {
+    let f = &functions::GET_STRING;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, nvr) else {
+                return s.instance.reject(f, "valueReferences is NULL");
+            };
+            if n_values > 0 && out.is_null() {
+                return s.instance.reject(f, "values is NULL");
+            }
+            let elements = match expand(s, vrs, VariableType::String, n_values) {
+                Ok(e) => e,
+                Err(message) => return s.instance.reject(f, &message),
+            };
+            match read_values(s, f, &elements, VariableType::String) {
+                Ok((values, status)) => {
+                    s.strings = values
+                        .iter()
+                        .map(|v| {
+                            let text = match v {
+                                Value::String(t) => t.as_str(),
+                                _ => "",
+                            };
+                            CString::new(text.replace('\0', " ")).unwrap_or_default()
+                        })
+                        .collect();
+                    for (i, cs) in s.strings.iter().enumerate() {
+                        // SAFETY: `out` holds `n_values` slots; the strings live in the slot
+                        // until the next fmi3GetString call.
+                        *out.add(i) = cs.as_ptr();
+                    }
+                    status
+                }
+                Err(status) => status,
+            }
+        })
+    }
+}
+
+/// `fmi3SetString`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_string<M: FmuModel>(
+    c: fmi3Instance,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    values: *const fmi3String,
+    n_values: usize,
+) -> fmi3Status {
+    let f = &functions::SET_STRING;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
+                return s.instance.reject(f, "valueReferences or values is NULL");
+            };
+            let mut texts = Vec::with_capacity(n_values);
+            for p in raw {
+                match string_arg(*p) {
+                    Some(t) => texts.push(Value::String(t)),
+                    None => return s.instance.reject(f, "a string value is NULL"),
+                }
+            }
+            write_values(s, f, vrs, VariableType::String, texts)
+        })
+    }
+}
+
+/// `fmi3GetFMUState`: a new state, or the given one overwritten.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
+    let f = &functions::GET_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            if state.is_null() {
+                return s.instance.reject(f, "FMUState is NULL");
+            }
+            let existing = *state as *mut Core<M>;
+            let snapshot = s.instance.get_state();
+            if !existing.is_null() && s.states.contains(&existing) {
+                *existing = *snapshot;
+            } else {
+                let p = Box::into_raw(snapshot);
+                s.states.push(p);
+                *state = p as fmi3FMUState;
+            }
+            Status::Ok
+        })
+    }
+}
+
+unsafe fn known_state<'a, M: FmuModel>(s: &Slot<M>, state: fmi3FMUState) -> Option<&'a Core<M>> {
+    let p = state as *mut Core<M>;
+    // SAFETY: only pointers this instance created and has not freed are dereferenced.
+    (!p.is_null() && s.states.contains(&p)).then(|| unsafe { &*p })
+}
+
+const UNKNOWN_STATE: &str =
+    "unknown FMUState: it was not created by this instance or was already freed";
+
+/// `fmi3SetFMUState`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi3Instance, state: fmi3FMUState) -> fmi3Status {
+    let f = &functions::SET_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| match known_state(s, state) {
+            Some(core) => {
+                s.instance.set_state(core);
+                Status::Ok
+            }
+            None => s.instance.reject(f, UNKNOWN_STATE),
+        })
+    }
+}
+
+/// `fmi3FreeFMUState`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn free_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
+    let f = &functions::FREE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            if state.is_null() || (*state).is_null() {
+                return Status::Ok;
+            }
+            let p = *state as *mut Core<M>;
+            match s.states.iter().position(|q| *q == p) {
+                Some(i) => {
+                    s.states.swap_remove(i);
+                    drop(Box::from_raw(p));
+                    *state = std::ptr::null_mut();
+                    Status::Ok
+                }
+                None => s.instance.reject(f, UNKNOWN_STATE),
+            }
+        })
+    }
+}
+
+/// `fmi3SerializedFMUStateSize`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
+    c: fmi3Instance,
+    state: fmi3FMUState,
+    size: *mut usize,
+) -> fmi3Status {
+    let f = &functions::SERIALIZED_FMU_STATE_SIZE;
+    unsafe {
+        with_instance::<M>(c, f, |s| match (known_state(s, state), size.is_null()) {
+            (Some(core), false) => {
+                *size = s.instance.serialize(core).len();
+                Status::Ok
+            }
+            (None, _) => s.instance.reject(f, UNKNOWN_STATE),
+            (_, true) => s.instance.reject(f, "size is NULL"),
+        })
+    }
+}
+
+/// `fmi3SerializeFMUState`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn serialize_fmu_state<M: FmuModel>(
+    c: fmi3Instance,
+    state: fmi3FMUState,
+    bytes: *mut fmi3Byte,
+    size: usize,
+) -> fmi3Status {
+    let f = &functions::SERIALIZE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(core) = known_state(s, state) else {
+                return s.instance.reject(f, UNKNOWN_STATE);
+            };
+            let data = s.instance.serialize(core);
+            if bytes.is_null() || size < data.len() {
+                return s.instance.reject(
+                    f,
+                    &format!(
+                        "the buffer holds {size} bytes, the state needs {}",
+                        data.len()
+                    ),
+                );
+            }
+            std::ptr::copy_nonoverlapping(data.as_ptr(), bytes, data.len());
+            Status::Ok
+        })
+    }
+}
+
+/// `fmi3DeserializeFMUState`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn deserialize_fmu_state<M: FmuModel>(
+    c: fmi3Instance,
+    bytes: *const fmi3Byte,
+    size: usize,
+    state: *mut fmi3FMUState,
+) -> fmi3Status {
+    let f = &functions::DESERIALIZE_FMU_STATE;
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(data) = slice(bytes, size) else {
+                return s.instance.reject(f, "serializedState is NULL");
+            };
+            if state.is_null() {
+                return s.instance.reject(f, "FMUState is NULL");
+            }
+            match s.instance.deserialize(data) {
+                Ok(core) => {
+                    let p = Box::into_raw(core);
+                    s.states.push(p);
+                    *state = p as fmi3FMUState;
+                    Status::Ok
+                }
+                Err(e) => s.instance.reject(f, &e.to_string()),
+            }
+        })
+    }
+}
+
+/// A function of a capability the FMUs do not have: rejected with `reason`, logged.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn unsupported<M: FmuModel>(
+    c: fmi3Instance,
+    name: &'static str,
+    reason: &'static str,
+) -> fmi3Status {
+    let f = Function {
+        name,
+        mask: functions::ANY_LIVE,
+    };
+    unsafe {
+        with_instance::<M>(c, &f, |s| {
+            s.instance.reject(&f, &format!("not supported: {reason}"))
+        })
+    }
+}

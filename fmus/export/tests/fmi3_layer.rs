@@ -1,0 +1,397 @@
+//! The FMI 3.0 front driven through its C entry points with a toy model that has arrays:
+//! instantiation (token, resources, the interfaces it refuses), the Co-Simulation state
+//! machine, arrays with `nValues`, argument checks, FMU states, panics, many instances, and
+//! the messages through a real `fmi3LogMessageCallback`.
+#![allow(unsafe_code)]
+
+use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
+use spurio_export::fmi3::types::*;
+use spurio_export::{
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
+};
+use std::cell::RefCell;
+use std::ffi::{c_void, CStr, CString};
+
+/// y[i] = integral of u[i]; z = u[1] + u[2] (direct feedthrough); P a 2×2 parameter added
+/// to nothing but read back; `positive` = y[1] > 0; panics when u[1] = 13.
+#[derive(Clone, Debug, Default)]
+struct Toy {
+    y: [f64; 2],
+}
+
+const U: usize = 0; // u[1], u[2]
+const Y: usize = 2; // y[1], y[2]
+const Z: usize = 4; // then P[1,1] … P[2,2] (5–8) and N (9)
+const POSITIVE: usize = 10;
+
+// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
+const VR_TIME: u32 = 0;
+const VR_U: u32 = 1;
+const VR_Y: u32 = 2;
+const VR_Z: u32 = 3;
+const VR_P: u32 = 4;
+const VR_N: u32 = 5;
+const VR_POSITIVE: u32 = 6;
+
+impl FmuModel for Toy {
+    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
+        let mut vars = vec![Variable::input("u[1]", 0.0), Variable::input("u[2]", 0.0)];
+        vars.push(Variable::output("y[1]"));
+        vars.push(Variable::output("y[2]"));
+        vars.push(Variable::output("z").depends_on(&[U, U + 1]));
+        for (i, j) in [(1, 1), (1, 2), (2, 1), (2, 2)] {
+            vars.push(Variable::parameter(&format!("P[{i},{j}]"), (10 * i + j) as f64).max(100.0));
+        }
+        vars.push(Variable::integer_parameter("N", 3).min(1.0));
+        vars.push(Variable::boolean_output("positive"));
+        Ok(ModelInfo::new("Toy", "toy", vars, None, Config::new()))
+    }
+    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self::default())
+    }
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.y = [0.0; 2];
+        self.write(ctx);
+        Ok(())
+    }
+    fn do_step(&mut self, ctx: &mut Context, _time: f64, step: f64) -> Result<(), Failure> {
+        if ctx.values.real(U) == 13.0 {
+            panic!("unlucky input");
+        }
+        for i in 0..2 {
+            self.y[i] += step * ctx.values.real(U + i);
+        }
+        self.write(ctx);
+        Ok(())
+    }
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.write(ctx);
+        Ok(())
+    }
+    fn save_state(&self, out: &mut ByteWriter) {
+        out.put_f64(self.y[0]);
+        out.put_f64(self.y[1]);
+    }
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
+        self.y = [input.f64()?, input.f64()?];
+        Ok(())
+    }
+}
+
+impl Toy {
+    fn write(&self, ctx: &mut Context) {
+        ctx.values.set_real(Y, self.y[0]);
+        ctx.values.set_real(Y + 1, self.y[1]);
+        let z = ctx.values.real(U) + ctx.values.real(U + 1);
+        ctx.values.set_real(Z, z);
+        ctx.values.set_boolean(POSITIVE, self.y[0] > 0.0);
+    }
+}
+
+thread_local! {
+    static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
+}
+
+unsafe extern "C" fn log_message(
+    _env: fmi3InstanceEnvironment,
+    status: fmi3Status,
+    category: fmi3String,
+    message: fmi3String,
+) {
+    let text = |p: fmi3String| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned();
+    LOG.with(|l| l.borrow_mut().push((status, text(category), text(message))));
+}
+
+fn last_error() -> String {
+    LOG.with(|l| {
+        l.borrow()
+            .iter()
+            .rev()
+            .find(|(s, _, _)| *s >= fmi3Error)
+            .map(|(_, _, t)| t.clone())
+            .unwrap_or_default()
+    })
+}
+
+fn token() -> CString {
+    CString::new(Toy::describe(&Config::new()).unwrap().guid).unwrap()
+}
+
+fn instantiate_with(name: &str, token: &CString) -> fmi3Instance {
+    let name = CString::new(name).unwrap();
+    unsafe {
+        ffi::instantiate_co_simulation::<Toy>(
+            name.as_ptr(),
+            token.as_ptr(),
+            std::ptr::null(),
+            fmi3False,
+            0,
+            0,
+            0,
+            std::ptr::null_mut::<c_void>(),
+            Some(log_message),
+        )
+    }
+}
+
+struct Instance(fmi3Instance);
+
+impl Drop for Instance {
+    fn drop(&mut self) {
+        unsafe { ffi::free_instance::<Toy>(self.0) }
+    }
+}
+
+impl Instance {
+    fn new(name: &str) -> Self {
+        let c = instantiate_with(name, &token());
+        assert!(!c.is_null(), "{}", last_error());
+        Self(c)
+    }
+    fn initialize(&self) -> fmi3Status {
+        let s = unsafe { ffi::enter_initialization_mode::<Toy>(self.0, 0.0, fmi3True, 10.0) };
+        if s != fmi3OK {
+            return s;
+        }
+        unsafe { ffi::exit_initialization_mode::<Toy>(self.0) }
+    }
+    fn set_f64(&self, vr: &[u32], values: &[f64]) -> fmi3Status {
+        unsafe {
+            ffi::set::<Toy, Float64>(self.0, vr.as_ptr(), vr.len(), values.as_ptr(), values.len())
+        }
+    }
+    fn get_f64(&self, vr: &[u32], n: usize) -> Result<Vec<f64>, fmi3Status> {
+        let mut out = vec![f64::NAN; n];
+        let s =
+            unsafe { ffi::get::<Toy, Float64>(self.0, vr.as_ptr(), vr.len(), out.as_mut_ptr(), n) };
+        if s == fmi3OK {
+            Ok(out)
+        } else {
+            Err(s)
+        }
+    }
+    fn step(&self, t: f64, h: f64) -> (fmi3Status, [u8; 3], f64) {
+        let mut flags = [9u8; 3];
+        let mut last = f64::NAN;
+        let [a, b, c] = &mut flags;
+        let s = unsafe { ffi::do_step::<Toy>(self.0, t, h, a, b, c, &mut last) };
+        (s, flags, last)
+    }
+}
+
+#[test]
+fn instantiation_checks_the_token_and_refuses_other_interfaces() {
+    let wrong = CString::new("{00000000-0000-0000-0000-000000000000}").unwrap();
+    assert!(instantiate_with("bad", &wrong).is_null());
+    let e = last_error();
+    assert!(
+        e.starts_with("fmi3InstantiateCoSimulation: instantiationToken mismatch")
+            && e.contains(&token().into_string().unwrap()),
+        "{e}"
+    );
+    assert!(instantiate_with("", &token()).is_null());
+    assert!(last_error().contains("instanceName must be a non-empty string"));
+    let me = unsafe {
+        ffi::refuse_instantiation::<Toy>(
+            "fmi3InstantiateModelExchange",
+            "Model Exchange",
+            std::ptr::null_mut(),
+            Some(log_message),
+        )
+    };
+    assert!(me.is_null());
+    assert!(last_error().contains("Toy is a Co-Simulation FMU only"));
+    // A variant configuration in the resource folder is read; a broken one is reported.
+    let dir = std::env::temp_dir().join(format!("fmi3_layer_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("variant.cfg"), "not a setting\n").unwrap();
+    let resources = CString::new(format!("{}/", dir.display())).unwrap();
+    let name = CString::new("cfg").unwrap();
+    let c = unsafe {
+        ffi::instantiate_co_simulation::<Toy>(
+            name.as_ptr(),
+            token().as_ptr(),
+            resources.as_ptr(),
+            0,
+            0,
+            0,
+            0,
+            std::ptr::null_mut(),
+            Some(log_message),
+        )
+    };
+    assert!(c.is_null());
+    assert!(
+        last_error().contains("variant.cfg line 1"),
+        "{}",
+        last_error()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_co_simulation_state_machine_rejects_wrong_call_orders() {
+    let i = Instance::new("order");
+    assert_eq!(i.step(0.0, 0.1).0, fmi3Error);
+    let e = last_error();
+    assert!(
+        e.contains("fmi3DoStep: illegal call sequence") && e.contains("Instantiated"),
+        "{e}"
+    );
+    assert_eq!(
+        unsafe { ffi::exit_initialization_mode::<Toy>(i.0) },
+        fmi3Error
+    );
+    assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3Error);
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(
+        unsafe { ffi::enter_initialization_mode::<Toy>(i.0, 0.0, 0, 0.0) },
+        fmi3Error
+    );
+    assert!(last_error().contains("allowed in: Instantiated") && last_error().contains("StepMode"));
+    let s = unsafe { ffi::unsupported::<Toy>(i.0, "fmi3EnterEventMode", "no event mode") };
+    assert_eq!(s, fmi3Error);
+    assert_eq!(
+        last_error(),
+        "fmi3EnterEventMode: not supported: no event mode"
+    );
+    // Nothing was lost: stepping works, with the CS outputs of fmi3DoStep.
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, -2.0]), fmi3OK);
+    let (s, flags, last) = i.step(0.0, 0.5);
+    assert_eq!((s, flags, last), (fmi3OK, [0, 0, 0], 0.5));
+    assert_eq!(i.get_f64(&[VR_Y, VR_TIME], 3).unwrap(), [0.5, -1.0, 0.5]);
+    // The stop time given in fmi3EnterInitializationMode is enforced.
+    assert_eq!(i.step(0.5, 10.0).0, fmi3Error);
+    assert!(last_error().contains("stopTime"), "{}", last_error());
+    assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3OK);
+    assert_eq!(i.step(0.5, 0.5).0, fmi3Error);
+    assert_eq!(unsafe { ffi::reset::<Toy>(i.0) }, fmi3OK);
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(i.get_f64(&[VR_Y], 2).unwrap(), [0.0, 0.0]);
+}
+
+#[test]
+fn arrays_are_one_value_reference_counted_in_elements() {
+    let i = Instance::new("arrays");
+    assert_eq!(i.initialize(), fmi3OK);
+    // P is 2×2, row-major, one value reference.
+    assert_eq!(i.get_f64(&[VR_P], 4).unwrap(), [11.0, 12.0, 21.0, 22.0]);
+    assert_eq!(i.get_f64(&[VR_P], 3), Err(fmi3Error));
+    assert!(
+        last_error().contains("nValues = 3, but the 1 value references name 4 values"),
+        "{}",
+        last_error()
+    );
+    // Inputs set as a whole; the direct feedthrough output follows without a step.
+    assert_eq!(i.set_f64(&[VR_U], &[2.0, 3.0]), fmi3OK);
+    assert_eq!(i.get_f64(&[VR_Z, VR_U], 3).unwrap(), [5.0, 2.0, 3.0]);
+    assert_eq!(i.set_f64(&[VR_U], &[2.0]), fmi3Error);
+    // Int32 and Boolean.
+    let mut n = [0i32; 1];
+    let s = unsafe { ffi::get::<Toy, Int32>(i.0, [VR_N].as_ptr(), 1, n.as_mut_ptr(), 1) };
+    assert_eq!((s, n), (fmi3OK, [3]));
+    assert_eq!(i.step(0.0, 1.0).0, fmi3OK);
+    let mut b = [7u8; 1];
+    let s = unsafe { ffi::get::<Toy, Boolean>(i.0, [VR_POSITIVE].as_ptr(), 1, b.as_mut_ptr(), 1) };
+    assert_eq!((s, b), (fmi3OK, [fmi3True]));
+}
+
+#[test]
+fn bad_references_types_and_values_are_rejected_and_change_nothing() {
+    let i = Instance::new("checks");
+    // Fixed parameter bounds before initialisation, per element of the array.
+    assert_eq!(i.set_f64(&[VR_P], &[1.0, 2.0, 3.0, 101.0]), fmi3Error);
+    assert!(last_error().contains("`P[2,2]` = 101 is above its maximum 100"));
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(i.get_f64(&[VR_P], 4).unwrap(), [11.0, 12.0, 21.0, 22.0]);
+    assert_eq!(i.get_f64(&[99], 1), Err(fmi3Error));
+    assert_eq!(
+        last_error(),
+        "fmi3GetFloat64: unknown value reference 99 (Toy has value references 0 to 6)"
+    );
+    let mut n = [0i32; 2];
+    let s = unsafe { ffi::get::<Toy, Int32>(i.0, [VR_U].as_ptr(), 1, n.as_mut_ptr(), 2) };
+    assert_eq!(s, fmi3Error);
+    assert!(last_error().contains("variable `u` (value reference 1) is of type Float64, not Int32"));
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, f64::NAN]), fmi3Error);
+    assert!(last_error().contains("`u[2]`") && last_error().contains("NaN"));
+    assert_eq!(i.set_f64(&[VR_TIME], &[1.0]), fmi3Error);
+    assert!(last_error().contains("independent variable"));
+    assert_eq!(i.set_f64(&[VR_Y], &[1.0, 1.0]), fmi3Error);
+    assert!(last_error().contains("an output"));
+    assert_eq!(i.get_f64(&[VR_U], 2).unwrap(), [0.0, 0.0]);
+}
+
+#[test]
+fn fmu_states_replay_and_serialize() {
+    let i = Instance::new("states");
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, 2.0]), fmi3OK);
+    assert_eq!(i.step(0.0, 0.5).0, fmi3OK);
+    let mut state: fmi3FMUState = std::ptr::null_mut();
+    assert_eq!(
+        unsafe { ffi::get_fmu_state::<Toy>(i.0, &mut state) },
+        fmi3OK
+    );
+    assert_eq!(i.step(0.5, 0.5).0, fmi3OK);
+    let first = i.get_f64(&[VR_Y, VR_TIME], 3).unwrap();
+    assert_eq!(unsafe { ffi::set_fmu_state::<Toy>(i.0, state) }, fmi3OK);
+    assert_eq!(i.get_f64(&[VR_TIME], 1).unwrap(), [0.5]);
+    assert_eq!(i.step(0.5, 0.5).0, fmi3OK);
+    assert_eq!(i.get_f64(&[VR_Y, VR_TIME], 3).unwrap(), first);
+    // Serialized into another instance of the same FMU.
+    let mut size = 0usize;
+    assert_eq!(
+        unsafe { ffi::serialized_fmu_state_size::<Toy>(i.0, state, &mut size) },
+        fmi3OK
+    );
+    let mut bytes = vec![0u8; size];
+    assert_eq!(
+        unsafe { ffi::serialize_fmu_state::<Toy>(i.0, state, bytes.as_mut_ptr(), size) },
+        fmi3OK
+    );
+    let other = Instance::new("other");
+    let mut copy: fmi3FMUState = std::ptr::null_mut();
+    let s = unsafe { ffi::deserialize_fmu_state::<Toy>(other.0, bytes.as_ptr(), size, &mut copy) };
+    assert_eq!(s, fmi3OK);
+    assert_eq!(unsafe { ffi::set_fmu_state::<Toy>(other.0, copy) }, fmi3OK);
+    assert_eq!(other.step(0.5, 0.5).0, fmi3OK);
+    assert_eq!(other.get_f64(&[VR_Y, VR_TIME], 3).unwrap(), first);
+    // A state of another instance, or garbage, is refused.
+    assert_eq!(
+        unsafe { ffi::set_fmu_state::<Toy>(other.0, state) },
+        fmi3Error
+    );
+    assert!(last_error().contains("unknown FMUState"));
+    let s =
+        unsafe { ffi::deserialize_fmu_state::<Toy>(other.0, [1u8, 2, 3].as_ptr(), 3, &mut copy) };
+    assert_eq!(s, fmi3Error);
+    assert_eq!(
+        unsafe { ffi::free_fmu_state::<Toy>(i.0, &mut state) },
+        fmi3OK
+    );
+    assert!(state.is_null());
+}
+
+#[test]
+fn interleaved_instances_are_independent_and_a_panic_is_fatal() {
+    let a = Instance::new("a");
+    let b = Instance::new("b");
+    assert_eq!(a.initialize(), fmi3OK);
+    assert_eq!(b.initialize(), fmi3OK);
+    for k in 0..4 {
+        let t = k as f64 * 0.25;
+        assert_eq!(a.set_f64(&[VR_U], &[1.0, 0.0]), fmi3OK);
+        assert_eq!(b.set_f64(&[VR_U], &[-1.0, 4.0]), fmi3OK);
+        assert_eq!(a.step(t, 0.25).0, fmi3OK);
+        assert_eq!(b.step(t, 0.25).0, fmi3OK);
+    }
+    assert_eq!(a.get_f64(&[VR_Y], 2).unwrap(), [1.0, 0.0]);
+    assert_eq!(b.get_f64(&[VR_Y], 2).unwrap(), [-1.0, 4.0]);
+    assert_eq!(a.set_f64(&[VR_U], &[13.0, 0.0]), fmi3OK);
+    assert_eq!(a.step(1.0, 0.25).0, fmi3Fatal);
+    assert!(last_error().contains("fmi3DoStep: internal error: unlucky input"));
+    assert_eq!(a.get_f64(&[VR_Y], 2), Err(fmi3Error));
+    // The other instance is untouched.
+    assert_eq!(b.step(1.0, 0.25).0, fmi3OK);
+}

@@ -1,0 +1,415 @@
+//! One Co-Simulation instance, FMI 2.0 or FMI 3.0, behind one set of calls: the engine
+//! moves values as f64 and steps without knowing the version. The FMI 3.0 typed getters
+//! and setters (`Float32`, `Int8` … `UInt64`, `Boolean`, Enumerations as `Int64`) convert at
+//! this boundary; an FMI 3.0 array is moved whole (`nValues` = its element count).
+
+use super::{FmiVersion, VarType};
+use crate::logging::LogKey;
+use fmi::fmi2::instance::{CoSimulation as _, Common as _};
+use fmi::fmi2::Fmi2Error;
+use fmi::fmi3::{CoSimulation as _, Fmi3Error, GetSet as _};
+
+/// A failed FMI call: the status it returned, named as its version names it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CallError(pub String);
+
+impl From<Fmi2Error> for CallError {
+    fn from(e: Fmi2Error) -> Self {
+        Self(match e {
+            Fmi2Error::Discard => "fmi2Discard".into(),
+            Fmi2Error::Error => "fmi2Error".into(),
+            Fmi2Error::Fatal => "fmi2Fatal".into(),
+            other => other.to_string(),
+        })
+    }
+}
+
+impl From<Fmi3Error> for CallError {
+    fn from(e: Fmi3Error) -> Self {
+        Self(
+            match e {
+                Fmi3Error::Discard => "fmi3Discard",
+                Fmi3Error::Error => "fmi3Error",
+                Fmi3Error::Fatal => "fmi3Fatal",
+            }
+            .into(),
+        )
+    }
+}
+
+/// How a step ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StepEnd {
+    /// The step reached its end.
+    Completed,
+    /// The instance asked to end the simulation (FMI 2.0: `fmi2Discard` with
+    /// `fmi2Terminated`; FMI 3.0: `terminateSimulation`), its last successful time if it
+    /// said one.
+    Terminate(Option<f64>),
+}
+
+/// Why a step that returned OK cannot be taken as done (FMI 3.0 flags this master does not
+/// handle: it instantiates without event mode and without early return).
+#[derive(Debug, Clone, PartialEq)]
+pub enum StepProblem {
+    Failed(CallError),
+    /// `earlyReturn` = true although early return was not allowed.
+    EarlyReturn {
+        last_successful_time: f64,
+    },
+    /// `eventHandlingNeeded` = true: the FMU needs event mode, which this master does not run.
+    EventHandlingNeeded,
+}
+
+impl From<CallError> for StepProblem {
+    fn from(e: CallError) -> Self {
+        Self::Failed(e)
+    }
+}
+
+enum Inner {
+    Fmi2(Box<fmi::fmi2::instance::InstanceCS>),
+    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
+}
+
+/// A Co-Simulation instance of either version, with the key its messages are kept under.
+pub struct Instance {
+    inner: Inner,
+    log: LogKey,
+    /// Scratch space of the FMI 2.0 Integer and Boolean calls (no allocation per call).
+    ints: Vec<i32>,
+}
+
+impl std::fmt::Debug for Instance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Instance(FMI {}, {})",
+            self.version().number(),
+            self.log.instance_name()
+        )
+    }
+}
+
+/// FMI 3.0 getters into f64: `$get` for the element type `$t`.
+macro_rules! get3 {
+    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $t:ty) => {{
+        let mut v = vec![<$t>::default(); $out.len()];
+        $inst.$get($vrs, &mut v)?;
+        for (o, x) in $out.iter_mut().zip(&v) {
+            *o = *x as f64;
+        }
+    }};
+}
+
+/// FMI 3.0 setters from f64 (rounded to the nearest integer for the integer types).
+macro_rules! set3 {
+    ($inst:expr, $vrs:expr, $values:expr, $set:ident, $t:ty) => {{
+        let v: Vec<$t> = $values.iter().map(|x| x.round() as $t).collect();
+        $inst.$set($vrs, &v)?;
+    }};
+}
+
+impl Instance {
+    pub(super) fn fmi2(instance: fmi::fmi2::instance::InstanceCS, log: LogKey) -> Self {
+        Self {
+            inner: Inner::Fmi2(Box::new(instance)),
+            log,
+            ints: Vec::new(),
+        }
+    }
+
+    pub(super) fn fmi3(instance: fmi::fmi3::instance::InstanceCS, log: LogKey) -> Self {
+        Self {
+            inner: Inner::Fmi3(Box::new(instance)),
+            log,
+            ints: Vec::new(),
+        }
+    }
+
+    /// The FMI version of the instance.
+    pub fn version(&self) -> FmiVersion {
+        match self.inner {
+            Inner::Fmi2(_) => FmiVersion::Fmi2,
+            Inner::Fmi3(_) => FmiVersion::Fmi3,
+        }
+    }
+
+    /// The rust-fmi FMI 2.0 instance, for calls of its own (None for FMI 3.0).
+    pub fn fmi2_mut(&mut self) -> Option<&mut fmi::fmi2::instance::InstanceCS> {
+        match &mut self.inner {
+            Inner::Fmi2(i) => Some(i.as_mut()),
+            Inner::Fmi3(_) => None,
+        }
+    }
+
+    /// Where this instance's log messages are kept.
+    pub fn log(&self) -> &LogKey {
+        &self.log
+    }
+
+    /// The name of a call in this instance's version, from its FMI 2.0 name
+    /// (`fmi2DoStep` → `fmi3DoStep`; `fmi2SetupExperiment` → `fmi3EnterInitializationMode`,
+    /// which takes its arguments in FMI 3.0).
+    pub fn call_name(&self, fmi2: &'static str) -> &'static str {
+        if self.version() == FmiVersion::Fmi2 {
+            return fmi2;
+        }
+        match fmi2 {
+            "fmi2SetupExperiment" | "fmi2EnterInitializationMode" => "fmi3EnterInitializationMode",
+            "fmi2ExitInitializationMode" => "fmi3ExitInitializationMode",
+            "fmi2DoStep" => "fmi3DoStep",
+            "fmi2Terminate" => "fmi3Terminate",
+            "fmi2Set*" => "fmi3Set*",
+            "fmi2Get*" => "fmi3Get*",
+            "fmi2Set* (start value)" => "fmi3Set* (start value)",
+            "fmi2Get* (initial outputs)" => "fmi3Get* (initial outputs)",
+            other => other,
+        }
+    }
+
+    /// Runs `call` on the instance; an FMI 3.0 instance's messages meanwhile are kept under
+    /// its key (FMI 2.0 messages carry the instance name themselves).
+    fn with_log<T>(&mut self, call: impl FnOnce(&mut Inner) -> T) -> T {
+        let Self { inner, log, .. } = self;
+        match inner {
+            Inner::Fmi2(_) => call(inner),
+            Inner::Fmi3(_) => crate::logging::speaking(log, || call(inner)),
+        }
+    }
+
+    /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
+    /// `fmi3EnterInitializationMode` takes the experiment).
+    pub fn setup_experiment(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<(), CallError> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => i
+                .setup_experiment(tolerance, start, stop)
+                .map(|_| ())
+                .map_err(Into::into),
+            Inner::Fmi3(_) => Ok(()),
+        })
+    }
+
+    /// Enters initialization mode (FMI 3.0 with the tolerance, start and stop time).
+    pub fn enter_initialization_mode(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<(), CallError> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::enter_initialization_mode(i.as_mut())
+                .map(|_| ())
+                .map_err(Into::into),
+            Inner::Fmi3(i) => {
+                fmi::fmi3::Common::enter_initialization_mode(i.as_mut(), tolerance, start, stop)
+                    .map(|_| ())
+                    .map_err(Into::into)
+            }
+        })
+    }
+
+    /// Leaves initialization mode (an FMI 3.0 instance without event mode is then in step
+    /// mode).
+    pub fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::exit_initialization_mode(i.as_mut())
+                .map(|_| ())
+                .map_err(Into::into),
+            Inner::Fmi3(i) => fmi::fmi3::Common::exit_initialization_mode(i.as_mut())
+                .map(|_| ())
+                .map_err(Into::into),
+        })
+    }
+
+    /// Terminates the instance.
+    pub fn terminate(&mut self) -> Result<(), CallError> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => fmi::fmi2::instance::Common::terminate(i.as_mut())
+                .map(|_| ())
+                .map_err(Into::into),
+            Inner::Fmi3(i) => fmi::fmi3::Common::terminate(i.as_mut())
+                .map(|_| ())
+                .map_err(Into::into),
+        })
+    }
+
+    /// Reads the values of `vrs` (all of type `t`) into `out`: one value per FMI 2.0
+    /// variable, an FMI 3.0 array's elements in a row (`out.len()` = nValues).
+    pub fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError> {
+        match &mut self.inner {
+            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.ints).map_err(Into::into),
+            Inner::Fmi3(i) => {
+                crate::logging::speaking(&self.log, || get3(i, t, vrs, out)).map_err(Into::into)
+            }
+        }
+    }
+
+    /// Sets `vrs` (all of type `t`) from `values` (FMI 3.0: nValues = `values.len()`).
+    pub fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
+        match &mut self.inner {
+            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.ints).map_err(Into::into),
+            Inner::Fmi3(i) => {
+                crate::logging::speaking(&self.log, || set3(i, t, vrs, values)).map_err(Into::into)
+            }
+        }
+    }
+
+    /// One communication step from `time` over `h`.
+    pub fn do_step(&mut self, time: f64, h: f64) -> Result<StepEnd, StepProblem> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => match i.do_step(time, h, true) {
+                Ok(_) => Ok(StepEnd::Completed),
+                Err(Fmi2Error::Discard) => match super::termination_requested(i) {
+                    Some(last) => Ok(StepEnd::Terminate(last)),
+                    None => Err(CallError::from(Fmi2Error::Discard).into()),
+                },
+                Err(e) => Err(CallError::from(e).into()),
+            },
+            Inner::Fmi3(i) => {
+                let (mut event, mut terminate, mut early) = (false, false, false);
+                let mut last = f64::NAN;
+                i.do_step(
+                    time,
+                    h,
+                    true,
+                    &mut event,
+                    &mut terminate,
+                    &mut early,
+                    &mut last,
+                )
+                .map_err(CallError::from)?;
+                if terminate {
+                    return Ok(StepEnd::Terminate(Some(last).filter(|t| t.is_finite())));
+                }
+                if early {
+                    return Err(StepProblem::EarlyReturn {
+                        last_successful_time: last,
+                    });
+                }
+                if event {
+                    return Err(StepProblem::EventHandlingNeeded);
+                }
+                Ok(StepEnd::Completed)
+            }
+        })
+    }
+}
+
+fn get2(
+    i: &mut fmi::fmi2::instance::InstanceCS,
+    t: VarType,
+    vrs: &[u32],
+    out: &mut [f64],
+    ints: &mut Vec<i32>,
+) -> Result<(), Fmi2Error> {
+    use fmi::fmi2::instance::Common;
+    if t == VarType::Real {
+        Common::get_real(i, vrs, out)?;
+        return Ok(());
+    }
+    ints.resize(out.len(), 0);
+    if t == VarType::Boolean {
+        Common::get_boolean(i, vrs, ints)?;
+        for (o, x) in out.iter_mut().zip(ints.iter()) {
+            *o = f64::from(u8::from(*x != 0));
+        }
+    } else {
+        Common::get_integer(i, vrs, ints)?;
+        for (o, x) in out.iter_mut().zip(ints.iter()) {
+            *o = f64::from(*x);
+        }
+    }
+    Ok(())
+}
+
+fn set2(
+    i: &mut fmi::fmi2::instance::InstanceCS,
+    t: VarType,
+    vrs: &[u32],
+    values: &[f64],
+    ints: &mut Vec<i32>,
+) -> Result<(), Fmi2Error> {
+    use fmi::fmi2::instance::Common;
+    if t == VarType::Real {
+        Common::set_real(i, vrs, values)?;
+        return Ok(());
+    }
+    ints.clear();
+    if t == VarType::Boolean {
+        ints.extend(values.iter().map(|x| i32::from(*x != 0.0)));
+        Common::set_boolean(i, vrs, ints)?;
+    } else {
+        ints.extend(values.iter().map(|x| *x as i32));
+        Common::set_integer(i, vrs, ints)?;
+    }
+    Ok(())
+}
+
+fn get3(
+    i: &mut fmi::fmi3::instance::InstanceCS,
+    t: VarType,
+    vrs: &[u32],
+    out: &mut [f64],
+) -> Result<(), Fmi3Error> {
+    match t {
+        VarType::Real => {
+            i.get_float64(vrs, out)?;
+        }
+        VarType::Float32 => get3!(i, vrs, out, get_float32, f32),
+        VarType::Int8 => get3!(i, vrs, out, get_int8, i8),
+        VarType::UInt8 => get3!(i, vrs, out, get_uint8, u8),
+        VarType::Int16 => get3!(i, vrs, out, get_int16, i16),
+        VarType::UInt16 => get3!(i, vrs, out, get_uint16, u16),
+        VarType::Integer => get3!(i, vrs, out, get_int32, i32),
+        VarType::UInt32 => get3!(i, vrs, out, get_uint32, u32),
+        VarType::Int64 | VarType::Enumeration => get3!(i, vrs, out, get_int64, i64),
+        VarType::UInt64 => get3!(i, vrs, out, get_uint64, u64),
+        VarType::Boolean => {
+            let mut v = vec![false; out.len()];
+            i.get_boolean(vrs, &mut v)?;
+            for (o, x) in out.iter_mut().zip(&v) {
+                *o = f64::from(u8::from(*x));
+            }
+        }
+        // Never planned (the plan moves numbers and Booleans only).
+        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+    }
+    Ok(())
+}
+
+fn set3(
+    i: &mut fmi::fmi3::instance::InstanceCS,
+    t: VarType,
+    vrs: &[u32],
+    values: &[f64],
+) -> Result<(), Fmi3Error> {
+    match t {
+        VarType::Real => {
+            i.set_float64(vrs, values)?;
+        }
+        VarType::Float32 => {
+            let v: Vec<f32> = values.iter().map(|x| *x as f32).collect();
+            i.set_float32(vrs, &v)?;
+        }
+        VarType::Int8 => set3!(i, vrs, values, set_int8, i8),
+        VarType::UInt8 => set3!(i, vrs, values, set_uint8, u8),
+        VarType::Int16 => set3!(i, vrs, values, set_int16, i16),
+        VarType::UInt16 => set3!(i, vrs, values, set_uint16, u16),
+        VarType::Integer => set3!(i, vrs, values, set_int32, i32),
+        VarType::UInt32 => set3!(i, vrs, values, set_uint32, u32),
+        VarType::Int64 | VarType::Enumeration => set3!(i, vrs, values, set_int64, i64),
+        VarType::UInt64 => set3!(i, vrs, values, set_uint64, u64),
+        VarType::Boolean => {
+            let v: Vec<bool> = values.iter().map(|x| *x != 0.0).collect();
+            i.set_boolean(vrs, &v)?;
+        }
+        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+    }
+    Ok(())
+}
