@@ -536,7 +536,15 @@ impl Saved for DualKalmanFilter {
         input.fill(self.y_prev.as_mut_slice())?;
         input.fill(self.predicted_output.as_mut_slice())?;
         input.fill(self.moment.as_mut_slice())?;
-        self.excitation = input.scalar()?;
+        require_finite_matrix("state: excitation moment M", &self.moment)?;
+        let excitation = input.scalar()?;
+        if !(excitation.is_finite() && excitation >= 0.0) {
+            return Err(parameter_error(
+                "state",
+                format!("the saved excitation measure must be finite and >= 0, got {excitation}"),
+            ));
+        }
+        self.excitation = excitation;
         self.frozen_steps = input.counter()?;
         Ok(())
     }
@@ -790,5 +798,85 @@ mod tests {
         cfg.parameter_q = DMatrix::zeros(3, 3);
         let e = DualKalmanFilter::new(cfg).unwrap_err();
         assert!(e.to_string().contains("Q_theta"), "{e}");
+        for (bounds, name) in [
+            (
+                AdaptationBounds {
+                    excitation_window: 0.5,
+                    ..AdaptationBounds::default()
+                },
+                "excitation_window",
+            ),
+            (
+                AdaptationBounds {
+                    excitation_min: f64::NAN,
+                    ..AdaptationBounds::default()
+                },
+                "excitation_min",
+            ),
+            (
+                AdaptationBounds {
+                    max_variance: 0.0,
+                    ..AdaptationBounds::default()
+                },
+                "max_variance",
+            ),
+        ] {
+            let mut cfg = config(1e-4);
+            cfg.bounds = bounds;
+            let e = DualKalmanFilter::new(cfg).unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+        }
+    }
+
+    /// With no data (Φ = 0) Σ grows by Q_θ per step: without a bound to 1 + 1000·1e-3 = 2,
+    /// with σ²_max = 1.5 to 1.5 exactly.
+    #[test]
+    fn the_variance_bound_caps_the_random_walk() {
+        let run = |max_variance: f64| {
+            let mut cfg = config(1e-4);
+            cfg.parameter_q.rows_mut(0, 2).fill(1e-3);
+            cfg.initial.x0 = DVector::zeros(2);
+            cfg.bounds.max_variance = max_variance;
+            let mut dkf = DualKalmanFilter::new(cfg).unwrap();
+            let (u, y) = (DVector::zeros(1), DVector::zeros(2));
+            for _ in 0..1001 {
+                dkf.step(&u, &y).unwrap();
+            }
+            dkf.parameter_covariance(0).unwrap().diagonal()
+        };
+        let free = run(f64::INFINITY);
+        assert!((free.amax() - 2.0).abs() < 1e-9, "Σ = {free}");
+        let bounded = run(1.5);
+        assert_eq!(bounded, DVector::from_element(3, 1.5));
+    }
+
+    /// The gate's moment, ε and frozen count travel with the dynamic state; a corrupt ε is
+    /// refused.
+    #[test]
+    fn the_gate_state_round_trips_and_is_checked() {
+        let mut dkf = DualKalmanFilter::new(gated_config()).unwrap();
+        for (u, _, y) in &simulate(3, 50, 0.01, 0.01, 0.0) {
+            dkf.step(u, y).unwrap();
+        }
+        assert!(dkf.excitation() > 0.0);
+        let state = dkf.dynamic_state();
+        let mut copy = DualKalmanFilter::new(gated_config()).unwrap();
+        copy.set_dynamic_state(&state).unwrap();
+        assert_eq!(copy.excitation(), dkf.excitation());
+        assert_eq!(copy.frozen_steps(), dkf.frozen_steps());
+        assert_eq!(copy.dynamic_state(), state);
+        let mut bad = state.clone();
+        let at = bad.len() - 2;
+        bad[at] = f64::NAN;
+        let e = copy.set_dynamic_state(&bad).unwrap_err();
+        assert!(e.to_string().contains("excitation"), "{e}");
+    }
+
+    /// [`config`] with the excitation gate on (ε_min = 1e-2 over 10 samples).
+    fn gated_config() -> DualKalmanConfig {
+        let mut cfg = config(1e-4);
+        cfg.bounds.excitation_min = 1e-2;
+        cfg.bounds.excitation_window = 10.0;
+        cfg
     }
 }
