@@ -347,8 +347,9 @@ fn a_dither_opens_the_gate_and_the_loop_identifies() {
     assert!(o.model_error < 0.13, "rows 3–4 error {}", o.model_error);
 }
 
-/// The 10⁷-sample table of the closing note (`scripts/long-run-adaptive`; one to two
-/// minutes per row in release). `SPURIO_LONG_RUN_SAMPLES` changes the length.
+/// The 10⁷-sample table of docs/estimators.md §2.9 (`scripts/long-run-adaptive`; 2–4
+/// minutes per row in release, 17 min for the four on a busy 2-core machine).
+/// `SPURIO_LONG_RUN_SAMPLES` changes the length, `SPURIO_LONG_RUN_ROW` picks one row (0–3).
 #[test]
 #[ignore = "long run: scripts/long-run-adaptive"]
 fn long_run_table() {
