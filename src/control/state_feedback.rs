@@ -164,6 +164,15 @@ pub trait StateController {
             .and_then(|gain| feedback_term(gain, x_hat, None));
         self.input_limits().saturate(u.unwrap_or(0.0))
     }
+    /// `u = sat(−L x̂ + v)`: regulation with an exogenous input `v` added before the
+    /// saturation (e.g. a small dither that makes a closed loop identifiable,
+    /// docs/controllers.md §2.14). `v = 0` gives [`StateController::control`].
+    fn control_plus(&self, x_hat: &DVector<f64>, v: f64) -> f64 {
+        let u = self
+            .current_gain()
+            .and_then(|gain| feedback_term(gain, x_hat, None));
+        self.input_limits().saturate(u.unwrap_or(0.0) + v)
+    }
     /// `u = sat(−L (x̂ − x_ref))`: regulation to a reference state `x_ref`, which must be an
     /// equilibrium with zero input (e.g. any cart position of the crane, at rest).
     fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {

@@ -22,6 +22,8 @@
 //! first call), then corrects with y_k. The initial x̂₀, P₀ given to a constructor are the
 //! estimate one sample before the first call.
 
+#[cfg(test)]
+mod adaptive_loop;
 mod distributed;
 mod dual;
 mod estimator;
@@ -30,7 +32,7 @@ mod rls;
 mod robust;
 
 pub use distributed::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
-pub use dual::{DkfRsKf, DualKalmanConfig, DualKalmanFilter};
+pub use dual::{AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter};
 pub use estimator::StateEstimator;
 pub use kalman::{GaussianModel, KalmanFilter};
 pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};

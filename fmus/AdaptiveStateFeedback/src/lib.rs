@@ -6,10 +6,12 @@
 //! `recompute_period`-th point it recomputes
 //!
 //! ```text
-//! L = [0 … 0 1] 𝒞(Â, B̂)⁻¹ φ(Â),      u = sat_[u_min, u_max](−L x̂)
+//! L = [0 … 0 1] 𝒞(Â, B̂)⁻¹ φ(Â),      u = sat_[u_min, u_max](−L x̂ + v)
 //! ```
 //!
-//! (Ackermann, paper 000 eq. 15) for the fixed desired poles. An estimate that is not
+//! (Ackermann, paper 000 eq. 15) for the fixed desired poles; `v` (input `v[1]`, default 0)
+//! is an exogenous input, e.g. a small dither from a SignalSource that makes the closed loop
+//! identifiable (docs/controllers.md §2.14). An estimate that is not
 //! reachable (condition number of 𝒞 above `max_condition_number`), not finite, or whose gain
 //! has a norm above `max_gain_norm` is rejected: the last good gain stays (at first `L0`),
 //! the output is never NaN, and the first rejection of each episode of consecutive
@@ -54,6 +56,8 @@ pub struct Layout {
     pub a_hat: Block,
     /// Input `B_hat[i,1]`.
     pub b_hat: Block,
+    /// Input `v[1]`: added to −L x̂ before the saturation.
+    pub v: usize,
     /// Output `u[1]`.
     pub u: usize,
     /// Output `L[1,j]`: the gain in use.
@@ -87,11 +91,21 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         Variable::input(name, defaults.b[(i, 0)])
             .describe("Estimated discrete input matrix B̂ (one column)")
     });
+    let v = t.add(with_unit(
+        Variable::input("v[1]", 0.0).describe(
+            "Exogenous input added before the saturation, u = sat(−L·x_hat + v): e.g. a small dither that makes the closed loop identifiable (default 0)",
+        ),
+        input_unit(preset),
+    ));
     let estimate: Vec<usize> = a_hat.indices().chain(b_hat.indices()).collect();
-    let all_inputs: Vec<usize> = x_hat.indices().chain(estimate.iter().copied()).collect();
+    let all_inputs: Vec<usize> = x_hat
+        .indices()
+        .chain(estimate.iter().copied())
+        .chain([v])
+        .collect();
     let u = t.add(with_unit(
         Variable::output("u[1]")
-            .describe("Control input u = sat(−L·x_hat) to [u_min, u_max]; never NaN")
+            .describe("Control input u = sat(−L·x_hat + v) to [u_min, u_max]; never NaN")
             .depends_on(&all_inputs),
         input_unit(preset),
     ));
@@ -147,6 +161,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         x_hat,
         a_hat,
         b_hat,
+        v,
         u,
         gain,
         rejected_updates,
@@ -182,7 +197,7 @@ impl AdaptiveStateFeedbackFmu {
     fn write_outputs(&self, ctx: &mut Context, controller: &AdaptiveStateFeedback) {
         let layout = &self.layout;
         let x_hat = layout.x_hat.vector(ctx.values);
-        let u = controller.control(&x_hat);
+        let u = controller.control_plus(&x_hat, ctx.values.real(layout.v));
         ctx.values.set_real(layout.u, u);
         let gain = controller
             .gain()
@@ -365,6 +380,7 @@ mod tests {
         assert_eq!(v[layout.x_hat.index(3, 0)].name, "x_hat[4]");
         assert_eq!(v[layout.a_hat.index(1, 2)].name, "A_hat[2,3]");
         assert_eq!(v[layout.b_hat.index(3, 0)].name, "B_hat[4,1]");
+        assert_eq!(v[layout.v].name, "v[1]");
         assert_eq!(v[layout.u].name, "u[1]");
         assert_eq!(v[layout.gain.index(0, 0)].name, "L[1,1]");
         assert_eq!(v[layout.rejected_updates].name, "rejected_updates");
@@ -375,7 +391,29 @@ mod tests {
         assert_eq!(v[layout.max_condition_number].name, "max_condition_number");
         assert_eq!(v[layout.initial_gain.index(0, 3)].name, "L0[1,4]");
         assert_eq!(v.len(), layout.initial_gain.index(0, 3) + 1);
-        assert_eq!(v[layout.u].dependencies.len(), 4 + 16 + 4);
+        assert_eq!(v[layout.u].dependencies.len(), 4 + 16 + 4 + 1);
+    }
+
+    /// u = sat(−L x̂ + v): the exogenous input adds before the saturation (±17 N).
+    #[test]
+    fn the_exogenous_input_adds_before_the_saturation() {
+        let (_, model, mut values) = initialized_crane_variant();
+        let layout = model.layout;
+        let x_hat = [0.1, 0.0, 0.0, 0.0];
+        for (i, x) in x_hat.iter().enumerate() {
+            values.set_real(layout.x_hat.index(i, 0), *x);
+        }
+        let u_at = |values: &mut Values, v: f64| {
+            values.set_real(layout.v, v);
+            let mut ctx = Context::new(values);
+            model.write_preview(&mut ctx);
+            values.real(layout.u)
+        };
+        let feedback = u_at(&mut values, 0.0);
+        let l11 = values.real(layout.gain.index(0, 0));
+        assert_eq!(feedback, -l11 * 0.1);
+        assert!((u_at(&mut values, 0.05) - (feedback + 0.05)).abs() < 1e-15);
+        assert_eq!(u_at(&mut values, 100.0), 17.0);
     }
 
     /// The crane variant's description, the model created from it and initialised straight

@@ -20,6 +20,12 @@
 //! and `r_theta` (measurement variance of every row, papers: 0.5), and
 //! `fix_output_matrices` (C and D known: their rows of Θ never change; default true, which
 //! removes the similarity-transform ambiguity of identifying from outputs).
+//!
+//! Bounded adaptation (docs/estimators.md §2.9; off by default, the papers' filter):
+//! `excitation_min` > 0 freezes Θ̂ and its covariance while the windowed excitation
+//! ε = λ_min(M), M_k = λ M_{k−1} + (1 − λ) Φ Φᵀ, λ = 1 − 1/`excitation_window`, is below it;
+//! `pmax_theta` > 0 bounds the variances the random walk can raise. Outputs `excitation` (ε)
+//! and `adapting`.
 
 use crate::estimator::{error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered};
 use crate::kalman::{
@@ -27,7 +33,8 @@ use crate::kalman::{
 };
 use crate::structured::{add_matrix, add_vector, Block};
 use spurio::estimation::{
-    DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel, RobustKalmanFilter, StateEstimator,
+    AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel,
+    RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -63,6 +70,52 @@ pub struct DualLayout {
     pub r_theta: usize,
     pub fix_output_matrices: usize,
     pub cleaner: Option<CleanerBlocks>,
+    pub bounds: BoundBlocks,
+}
+
+/// Value references of the bounded adaptation's parameters and outputs (docs/estimators.md
+/// §2.9, "Bounded adaptation").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoundBlocks {
+    pub excitation_window: usize,
+    pub excitation_min: usize,
+    pub pmax_theta: usize,
+    pub excitation: usize,
+    pub adapting: usize,
+}
+
+fn add_bounds(t: &mut VariableTable) -> BoundBlocks {
+    let excitation_window = t.add(
+        Variable::parameter("excitation_window", 200.0)
+            .min(1.0)
+            .max(1e9)
+            .describe("Bounded adaptation: effective window N_w (samples) of the excitation measure ε = λ_min(M), M = λM + (1−λ)ΦΦᵀ, λ = 1 − 1/N_w"),
+    );
+    let excitation_min = t.add(
+        Variable::parameter("excitation_min", 0.0)
+            .min(0.0)
+            .describe("Bounded adaptation: the parameter filter runs only while ε >= excitation_min (regressor units²); below it Θ and its covariance are frozen. 0 = always (papers)"),
+    );
+    let pmax_theta = t.add(
+        Variable::parameter("pmax_theta", 0.0)
+            .min(0.0)
+            .describe("Bounded adaptation: the random walk raises a variance of Θ at most to pmax_theta. 0 = no bound (papers)"),
+    );
+    let excitation =
+        t.add(Variable::discrete_output("excitation").describe(
+            "Excitation measure ε = λ_min(M) of the last step (0 while excitation_min = 0)",
+        ));
+    let adapting =
+        t.add(Variable::boolean_output("adapting").describe(
+            "Whether the last step updated Θ (false while frozen by the excitation gate)",
+        ));
+    BoundBlocks {
+        excitation_window,
+        excitation_min,
+        pmax_theta,
+        excitation,
+        adapting,
+    }
 }
 
 fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), Cause> {
@@ -155,6 +208,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
         }
         None => None,
     };
+    let bounds = add_bounds(&mut t);
     let (id, description) = if cleaned {
         (
             "DkfRsKf",
@@ -194,6 +248,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             r_theta,
             fix_output_matrices,
             cleaner,
+            bounds,
         },
         info,
     ))
@@ -235,6 +290,17 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     if values.boolean(layout.fix_output_matrices) {
         config = config.fix_output_matrices();
     }
+    let b = &layout.bounds;
+    let pmax_theta = scalar(values, b.pmax_theta, "pmax_theta", false)?;
+    config.bounds = AdaptationBounds {
+        excitation_window: values.real(b.excitation_window),
+        excitation_min: values.real(b.excitation_min),
+        max_variance: if pmax_theta == 0.0 {
+            f64::INFINITY
+        } else {
+            pmax_theta
+        },
+    };
     DualKalmanFilter::new(config).map_err(dual_error)
 }
 
@@ -246,6 +312,8 @@ fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilt
     write_matrix_view(values, &l.c_hat, &theta.view((n, 0), (p, n)));
     write_matrix_view(values, &l.d_hat, &theta.view((n, n), (p, m)));
     l.x_hat.write_vector(values, dual.state());
+    values.set_real(l.bounds.excitation, dual.excitation());
+    values.set_boolean(l.bounds.adapting, dual.adapting());
 }
 
 fn write_initial_dual(l: &DualLayout, ctx: &mut Context, dual: &DualKalmanFilter) {
@@ -430,6 +498,46 @@ mod tests {
             out[0]
         );
         assert!(out[2] < 0.05, "weight {}", out[2]);
+    }
+
+    /// Near rest (u, y a tiny wobble around 0) the papers' filter lets Σ grow and Θ̂ move;
+    /// with `excitation_min` above the rest excitation Θ̂ is frozen.
+    #[test]
+    fn the_excitation_gate_freezes_the_model_at_rest() {
+        let run = |excitation_min: f64| {
+            let (mut h, vr) = harness::<DualKalmanFilterFmu>(4, 1, 2);
+            h.set_real(
+                &[vr("excitation_min"), vr("excitation_window")],
+                &[excitation_min, 50.0],
+            )
+            .unwrap();
+            h.initialize(0.0).unwrap();
+            for k in 0..2000 {
+                let wobble = 1e-3 * ((k * 7919) % 13) as f64 / 13.0;
+                h.set_real(
+                    &[vr("u[1]"), vr("y[1]"), vr("y[2]")],
+                    &[wobble * wobble, wobble, -wobble],
+                )
+                .unwrap();
+                h.do_step(k as f64 * 0.05, 0.05).unwrap();
+            }
+            let mut out = [0.0; 3];
+            h.get_real(
+                &[vr("A_hat[1,1]"), vr("A_hat[2,2]"), vr("excitation")],
+                &mut out,
+            )
+            .unwrap();
+            out
+        };
+        let free = run(0.0);
+        assert_eq!(free[2], 0.0, "ε is not computed without the gate");
+        assert!((free[0] - 1.0).abs() > 1e-6, "Â[1,1] = {}", free[0]);
+        assert!((free[1] - 1.0).abs() > 1e-6, "Â[2,2] = {}", free[1]);
+        let gated = run(1e-3);
+        // x̂₃, x̂₄ never move (A = I, C = [I 0]): the regressor spans 3 of 5 directions.
+        assert_eq!(gated[2], 0.0, "ε = {}", gated[2]);
+        assert_eq!(gated[0], 1.0, "Â[1,1] frozen at A");
+        assert_eq!(gated[1], 1.0, "Â[2,2] frozen at A");
     }
 
     #[test]
