@@ -197,6 +197,17 @@ impl<M: FmuModel> Harness<M> {
         })
     }
 
+    /// `fmi2SetInteger`.
+    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Result<Status, Status> {
+        if vr.len() != values.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::set::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
     /// `fmi2SetBoolean` (`true` → fmi2True).
     pub fn set_boolean(&mut self, vr: &[u32], values: &[bool]) -> Result<Status, Status> {
         if vr.len() != values.len() {
