@@ -588,8 +588,9 @@ static void random_call(Inst *in) {
         unsigned char *bytes;
         size_t len;
         fmi2FMUstate st = NULL;
-        int which = pick(5);
+        int which = pick(5), other_fmu = 0;
         if (which == 0 && foreign_len) {
+            other_fmu = 1;
             len = foreign_len;
             bytes = malloc(len);
             memcpy(bytes, foreign, len);
@@ -612,6 +613,7 @@ static void random_call(Inst *in) {
         begin(in);
         s = F.DeSerializeFMUstate(in->c, (const fmi2Byte *)bytes, len, &st);
         end(in, "fmi2DeSerializeFMUstate", ANY_LIVE, s);
+        if (s == fmi2OK && other_fmu) finding("fmi2DeSerializeFMUstate", "accepted the state of another FMU");
         if (s == fmi2OK) {
             if (in->nstates < 8) {
                 in->states[in->nstates] = st;
