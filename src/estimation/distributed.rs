@@ -159,6 +159,9 @@ fn observability_matrix(a: &DMatrix<f64>, c: &DMatrix<f64>) -> DMatrix<f64> {
     o
 }
 
+/// The most steps of the Riccati value iteration of [`lq_identity_input`].
+const VALUE_ITERATION_MAX: usize = 10_000;
+
 /// The most sweeps of the SVD iteration (nalgebra's default is unbounded): an SVD of these
 /// sizes converges in tens; one that does not is reported, not waited for.
 const SVD_MAX_ITERATIONS: usize = 10_000;
@@ -258,10 +261,12 @@ fn lq_identity_input(
         return dlqr(a, &identity, u, w)
             .map_err(|e| design_error(format!("{what} Riccati equation: {e}")));
     }
-    // Singular weight: value iteration P ← Aᵀ P (W + P)⁻¹ W A + U.
+    // Singular weight: value iteration P ← Aᵀ P (W + P)⁻¹ W A + U (the paper's example
+    // converges in about a dozen iterations; the bound keeps fmi2ExitInitializationMode
+    // within about 0.1 s when it does not).
     let mut p = u.clone();
     let scale = u.amax().max(1.0);
-    for _ in 0..100_000 {
+    for _ in 0..VALUE_ITERATION_MAX {
         let sum = w + &p;
         let gain_w = cholesky_solve(&sum, &(w * a), "W + P")
             .map_err(|e| design_error(format!("{what} Riccati iteration: {e}")))?;
@@ -281,7 +286,7 @@ fn lq_identity_input(
         }
     }
     Err(design_error(format!(
-        "{what} Riccati iteration did not converge in 100000 steps"
+        "{what} Riccati iteration did not converge in {VALUE_ITERATION_MAX} steps"
     )))
 }
 
