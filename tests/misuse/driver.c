@@ -589,11 +589,12 @@ static void random_call(Inst *in) {
         size_t len;
         fmi2FMUstate st = NULL;
         int which = pick(5), other_fmu = 0;
-        if (which == 0 && foreign_len) {
-            other_fmu = 1;
-            len = foreign_len;
+        if (which == 0) { /* another FMU's state (none: a fixed non-state), no random draw */
+            static const char not_a_state[] = "not a serialized FMU state";
+            other_fmu = foreign_len > 0;
+            len = other_fmu ? foreign_len : sizeof not_a_state;
             bytes = malloc(len);
-            memcpy(bytes, foreign, len);
+            memcpy(bytes, other_fmu ? (const void *)foreign : (const void *)not_a_state, len);
         } else if (own_len) {
             len = own_len;
             bytes = malloc(len);
