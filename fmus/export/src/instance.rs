@@ -374,7 +374,8 @@ impl<M: FmuModel> Instance<M> {
                     self.core.state = ModelState::Error;
                     self.logger.error(&format!(
                         "{}: variable `{}` (value reference {index}) came out as {value}: not published (the variables keep their values from before the call; fmi2Reset or fmi2SetFMUstate lead on)",
-                        f.name, self.info.variables[index].name
+                        f.name,
+                        self.info.variables.get(index).map_or("?", |v| v.name.as_str())
                     ));
                     Status::Error
                 }
