@@ -7,7 +7,8 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, init, open_slave, simulate_packaged
+from conftest import (assert_initialization_fails_naming, assert_set_rejected, fmu_path, init, open_slave,
+                      simulate_packaged)
 
 
 def simulate(stop=5.0, h=1e-3, u=1.0, **start):
@@ -106,8 +107,17 @@ def test_two_instances_interleaved_equal_separate_runs():
     b.freeInstance()
 
 
-@pytest.mark.parametrize("name,value", [("R1", 0.0), ("C2", -1e-6), ("V_sat_low", 20.0),
-                                        ("h_max", 0.5)])
+@pytest.mark.parametrize("name,value,bound", [("R1", 0.0, "below its minimum 1"),
+                                              ("C2", -1e-6, "below its minimum"),
+                                              ("h_max", 1e-300, "below its minimum"),
+                                              ("v_C1_0", 1e308, "above its maximum 1000")])
+def test_parameter_outside_its_declared_range_is_refused_when_set(name, value, bound):
+    s, vr, sink = open_slave("OpAmpFilter")
+    assert_set_rejected(s, vr, sink, name, value, f"`{name}`", bound)
+    s.freeInstance()
+
+
+@pytest.mark.parametrize("name,value", [("V_sat_low", 20.0), ("h_max", 0.5)])
 def test_bad_parameter_is_an_error_naming_it(name, value):
     s, vr, sink = open_slave("OpAmpFilter")
     s.setReal([vr[name]], [value])

@@ -8,7 +8,8 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import assert_initialization_fails_naming, fmu_path, init, open_initialized_pair, open_slave, simulate_packaged
+from conftest import (assert_initialization_fails_naming, assert_set_rejected, fmu_path, init,
+                      open_initialized_pair, open_slave, simulate_packaged)
 
 def simulate(rows, stop, h=0.01, **start):
     return simulate_packaged("WindGenerator", stop, h, start, rows, ["u_drive", "u_field"])
@@ -124,8 +125,14 @@ def test_two_instances_and_fmu_state():
     b.freeInstance()
 
 
-@pytest.mark.parametrize("name,value", [("R_load", 0.0), ("J", -1.0), ("h_max", 0.01),
-                                        ("M_f", 3.0)])
+@pytest.mark.parametrize("name,value", [("J", -1.0), ("pole_pairs", 1e308), ("h_max", 1e-300)])
+def test_parameter_outside_its_declared_range_is_refused_when_set(name, value):
+    s, vr, sink = open_slave("WindGenerator")
+    assert_set_rejected(s, vr, sink, name, value, f"`{name}`", "its m")
+    s.freeInstance()
+
+
+@pytest.mark.parametrize("name,value", [("R_load", 0.0), ("h_max", 0.01), ("M_f", 3.0)])
 def test_bad_parameter_is_an_error_naming_it(name, value):
     s, vr, sink = open_slave("WindGenerator")
     s.setReal([vr[name]], [value])

@@ -65,10 +65,11 @@ impl InputLimits {
         self.max
     }
 
-    /// `u` clipped to the limits; NaN becomes the admissible value closest to zero.
+    /// `u` clipped to the limits; NaN becomes the admissible value closest to zero. (Written
+    /// with `max`/`min`, which never panic, rather than `clamp`.)
     pub fn saturate(&self, u: f64) -> f64 {
         let value = if u.is_nan() { 0.0 } else { u };
-        value.clamp(self.min, self.max)
+        value.max(self.min).min(self.max)
     }
 }
 
@@ -193,8 +194,45 @@ impl StateController for StateFeedback {
 }
 
 // FMU-state snapshots (plain bytes) of the types above: every field, in order.
-crate::plain_state!(InputLimits { min, max });
+// Limits read back from a saved state are checked as `InputLimits::new` checks them, so a
+// corrupted FMU state cannot bring NaN limits (or min ≥ max) into the controller.
+impl crate::state::PlainState for InputLimits {
+    fn save(&self, out: &mut Vec<u8>) {
+        self.min.save(out);
+        self.max.save(out);
+    }
+    fn read(input: &mut &[u8]) -> Result<Self, crate::state::StateError> {
+        let (min, max) = (f64::read(input)?, f64::read(input)?);
+        Self::new(min, max).map_err(|_| crate::state::StateError::Invalid {
+            what: "input limits (NaN, or min >= max)",
+            value: min.to_bits(),
+        })
+    }
+}
 crate::plain_state!(StateFeedback { gain, limits });
+
+#[cfg(test)]
+mod limit_state_tests {
+    use super::*;
+    use crate::state::PlainState;
+
+    #[test]
+    fn saved_limits_are_checked_when_read() {
+        let limits = InputLimits::symmetric(17.0).unwrap();
+        let mut bytes = Vec::new();
+        limits.save(&mut bytes);
+        assert_eq!(InputLimits::read(&mut bytes.as_slice()), Ok(limits));
+        // a NaN lower limit (the misuse suite's corrupted state, which made saturate panic)
+        bytes[..8].copy_from_slice(&f64::NAN.to_le_bytes());
+        assert!(InputLimits::read(&mut bytes.as_slice()).is_err());
+        let mut swapped = Vec::new();
+        17.0f64.save(&mut swapped);
+        (-17.0f64).save(&mut swapped);
+        assert!(InputLimits::read(&mut swapped.as_slice()).is_err());
+        assert_eq!(limits.saturate(f64::NAN), 0.0);
+        assert_eq!(limits.saturate(1e308), 17.0);
+    }
+}
 
 #[cfg(test)]
 mod tests {

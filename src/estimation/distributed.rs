@@ -159,14 +159,38 @@ fn observability_matrix(a: &DMatrix<f64>, c: &DMatrix<f64>) -> DMatrix<f64> {
     o
 }
 
-/// Orthogonal projector onto the row space of `m` and its rank (relative tolerance).
-fn row_space_projector(m: &DMatrix<f64>, tolerance: f64) -> (DMatrix<f64>, usize) {
+/// The most steps of the Riccati value iteration of [`lq_identity_input`].
+const VALUE_ITERATION_MAX: usize = 10_000;
+
+/// The most sweeps of the SVD iteration (nalgebra's default is unbounded): an SVD of these
+/// sizes converges in tens; one that does not is reported, not waited for.
+const SVD_MAX_ITERATIONS: usize = 10_000;
+
+/// Orthogonal projector onto the row space of `m` and its rank (relative tolerance), for the
+/// observability matrix of `what`. Errors when `m` is not finite (A^k overflowed: the
+/// parameters are too large) or its SVD does not converge within [`SVD_MAX_ITERATIONS`].
+fn row_space_projector(
+    m: &DMatrix<f64>,
+    tolerance: f64,
+    what: &str,
+) -> Result<(DMatrix<f64>, usize), EstimationError> {
     let n = m.ncols();
     let mut projector = DMatrix::zeros(n, n);
-    if m.nrows() == 0 || m.amax() == 0.0 {
-        return (projector, 0);
+    if !m.iter().all(|v| v.is_finite()) {
+        return Err(design_error(format!(
+            "the observability matrix of {what} overflows (entries of A or C too large: A^k is not finite)"
+        )));
     }
-    let svd = SVD::new(m.clone(), false, true);
+    if m.nrows() == 0 || m.amax() == 0.0 {
+        return Ok((projector, 0));
+    }
+    let svd = SVD::try_new(m.clone(), false, true, f64::EPSILON, SVD_MAX_ITERATIONS)
+        .filter(|svd| svd.singular_values.iter().all(|s| s.is_finite()))
+        .ok_or_else(|| {
+            design_error(format!(
+                "the SVD of the observability matrix of {what} did not converge in {SVD_MAX_ITERATIONS} iterations (badly scaled A or C?)"
+            ))
+        })?;
     let largest = svd.singular_values.max();
     let mut rank = 0;
     if let Some(v_t) = &svd.v_t {
@@ -178,7 +202,7 @@ fn row_space_projector(m: &DMatrix<f64>, tolerance: f64) -> (DMatrix<f64>, usize
             }
         }
     }
-    (projector, rank)
+    Ok((projector, rank))
 }
 
 /// An orthonormal basis (n×dim) of the range of the orthogonal projector `projector`,
@@ -237,10 +261,12 @@ fn lq_identity_input(
         return dlqr(a, &identity, u, w)
             .map_err(|e| design_error(format!("{what} Riccati equation: {e}")));
     }
-    // Singular weight: value iteration P ← Aᵀ P (W + P)⁻¹ W A + U.
+    // Singular weight: value iteration P ← Aᵀ P (W + P)⁻¹ W A + U (the paper's example
+    // converges in about a dozen iterations; the bound keeps fmi2ExitInitializationMode
+    // within about 0.1 s when it does not).
     let mut p = u.clone();
     let scale = u.amax().max(1.0);
-    for _ in 0..100_000 {
+    for _ in 0..VALUE_ITERATION_MAX {
         let sum = w + &p;
         let gain_w = cholesky_solve(&sum, &(w * a), "W + P")
             .map_err(|e| design_error(format!("{what} Riccati iteration: {e}")))?;
@@ -260,7 +286,7 @@ fn lq_identity_input(
         }
     }
     Err(design_error(format!(
-        "{what} Riccati iteration did not converge in 100000 steps"
+        "{what} Riccati iteration did not converge in {VALUE_ITERATION_MAX} steps"
     )))
 }
 
@@ -316,8 +342,11 @@ impl DistributedObserver {
         stacked
             .rows_mut(p, c_neighbour.nrows())
             .copy_from(&c_neighbour);
-        let (_, joint_rank) =
-            row_space_projector(&observability_matrix(&a, &stacked), rank_tolerance);
+        let (_, joint_rank) = row_space_projector(
+            &observability_matrix(&a, &stacked),
+            rank_tolerance,
+            "(A, [C_own; C_neighbour])",
+        )?;
         if joint_rank < n {
             return Err(design_error(format!(
                 "the agents together do not observe the state: (A, [C_own; C_neighbour]) has \
@@ -326,8 +355,11 @@ impl DistributedObserver {
         }
 
         // Split T_i = [V̄ V]ᵀ.
-        let (observable_projector, n_observable) =
-            row_space_projector(&observability_matrix(&a, &c_own), rank_tolerance);
+        let (observable_projector, n_observable) = row_space_projector(
+            &observability_matrix(&a, &c_own),
+            rank_tolerance,
+            "(A, C_own)",
+        )?;
         let unobservable_projector = DMatrix::identity(n, n) - &observable_projector;
         let v = canonical_basis(&observable_projector, n_observable);
         let v_bar = canonical_basis(&unobservable_projector, n - n_observable);
@@ -711,5 +743,39 @@ mod tests {
         config.distance = Some(DVector::from_element(3, 1.0));
         let e = DistributedObserver::new(config).unwrap_err();
         assert!(e.to_string().contains("distance"), "{e}");
+    }
+
+    #[test]
+    fn extreme_finite_parameters_fail_in_bounded_time() {
+        // A[1,1] = -1e308 made the SVD of [C; C A; C A²] (with an infinite entry) loop forever
+        for (i, j, v) in [(0, 0, -1e308), (1, 2, -1e308), (2, 1, 1e200), (0, 0, 1e150)] {
+            let mut a = paper_a();
+            a[(i, j)] = v;
+            let config = DistributedObserverConfig::new(
+                a,
+                c1(),
+                c2(),
+                DMatrix::identity(3, 3) * 0.2,
+                DMatrix::from_element(1, 1, 0.1),
+            );
+            let start = std::time::Instant::now();
+            let result = DistributedObserver::new(config);
+            assert!(start.elapsed().as_secs_f64() < 1.0, "A[{i},{j}] = {v}");
+            if let Err(e) = result {
+                assert!(e.to_string().contains("distributed observer gains"), "{e}");
+            }
+        }
+        let mut a = paper_a();
+        a[(0, 0)] = -1e308;
+        let config = DistributedObserverConfig::new(
+            a,
+            c1(),
+            c2(),
+            DMatrix::identity(3, 3) * 0.2,
+            DMatrix::from_element(1, 1, 0.1),
+        );
+        let e = DistributedObserver::new(config).unwrap_err();
+        assert!(e.to_string().contains("observability matrix"), "{e}");
+        assert!(e.to_string().contains("overflows"), "{e}");
     }
 }

@@ -31,6 +31,13 @@
 //! returns the same value for the same `t`. Hence the state is only a cache: an FMU saves
 //! and restores it by cloning, or serialises nothing but the parameters (a fresh source
 //! gives the same signal). Times before 0 give the first level / first bit.
+//!
+//! **Bounded work per sample.** The PRBS is periodic (2ⁿ − 1 bits), so a jump forward skips
+//! whole periods and shifts the register at most 2ⁿ − 1 ≤ 16 777 215 times. The random steps
+//! cannot skip (each hold is drawn): [`SignalSource::try_value_at`] draws at most
+//! [`MAX_SEGMENTS_PER_SAMPLE`] segments and otherwise fails with [`TooFar`] (a sample at
+//! `t = 10¹²` s with holds of seconds, say), leaving the cursor further on (it is a cache) —
+//! sampling more often gets there.
 
 use super::rng::RandomGenerator;
 use crate::{require_finite, require_non_negative, require_positive, ParameterError};
@@ -38,6 +45,32 @@ use std::f64::consts::PI;
 
 /// Relative tolerance on switching instants (module docs).
 const BOUNDARY_TOLERANCE: f64 = 1e-9;
+
+/// The most random-steps segments one sample may draw (module docs): 10⁷, well under a
+/// second.
+pub const MAX_SEGMENTS_PER_SAMPLE: u64 = 10_000_000;
+
+/// A sample of the random steps too far from the cursor: more than
+/// [`MAX_SEGMENTS_PER_SAMPLE`] segments to draw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TooFar {
+    /// The time asked for [s].
+    pub t: f64,
+    /// Where the drawn segments reached [s].
+    pub reached: f64,
+}
+
+impl std::fmt::Display for TooFar {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "random steps: the signal at t = {} s needs more than {MAX_SEGMENTS_PER_SAMPLE} holds drawn in one call (they reached t = {} s); sample more often, start nearer t = 0 or use longer holds",
+            self.t, self.reached
+        )
+    }
+}
+
+impl std::error::Error for TooFar {}
 
 /// Feedback taps of the maximum-length LFSR for orders 2 to 24: `PRBS_TAPS[n − 2]` lists
 /// the exponents of the primitive polynomial `xⁿ + … + 1` (without the constant term).
@@ -290,12 +323,24 @@ impl SignalSource {
         }
     }
 
-    /// The signal at time `t` [s] (module docs; a non-finite `t` gives NaN).
+    /// The signal at time `t` [s] (module docs; a non-finite `t`, or a sample
+    /// [`SignalSource::try_value_at`] refuses, gives NaN).
     pub fn value_at(&mut self, t: f64) -> f64 {
+        self.try_value_at(t).unwrap_or(f64::NAN)
+    }
+
+    /// The signal at time `t` [s] in bounded time (module docs): [`TooFar`] when the random
+    /// steps would draw more than [`MAX_SEGMENTS_PER_SAMPLE`] segments; NaN for a non-finite
+    /// `t`.
+    pub fn try_value_at(&mut self, t: f64) -> Result<f64, TooFar> {
         if !t.is_finite() {
-            return f64::NAN;
+            return Ok(f64::NAN);
         }
-        match self.waveform {
+        self.sample(t)
+    }
+
+    fn sample(&mut self, t: f64) -> Result<f64, TooFar> {
+        Ok(match self.waveform {
             Waveform::Step {
                 amplitude,
                 offset,
@@ -324,7 +369,12 @@ impl SignalSource {
                 }
                 match self.random_steps.as_mut() {
                     Some(c) => {
+                        let mut drawn = 0;
                         while t >= c.end - tolerance {
+                            if drawn == MAX_SEGMENTS_PER_SAMPLE {
+                                return Err(TooFar { t, reached: c.end });
+                            }
+                            drawn += 1;
                             c.start = c.end;
                             c.level = c
                                 .stream
@@ -352,6 +402,13 @@ impl SignalSource {
                 }
                 match self.prbs.as_mut() {
                     Some(c) => {
+                        // The register repeats every 2ⁿ − 1 bits: skip whole periods.
+                        let period = (1i128 << order) - 1;
+                        let ahead = i128::from(index) - i128::from(c.index);
+                        if ahead > period {
+                            let skip = ahead / period * period;
+                            c.index = (i128::from(c.index) + skip) as i64;
+                        }
                         while c.index < index {
                             prbs_shift(c, order);
                         }
@@ -371,7 +428,7 @@ impl SignalSource {
                 frequency,
                 phase,
             } => offset + amplitude * function.apply(2.0 * PI * frequency * t + phase),
-        }
+        })
     }
 }
 
@@ -557,6 +614,56 @@ mod tests {
             assert!((cosine.value_at(t) - want).abs() < 1e-12);
         }
         assert!((sine.value_at(0.0625) - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn far_samples_take_bounded_work() {
+        // PRBS: a sample 10¹² bit periods on equals the one a whole number of periods back
+        let prbs = Waveform::Prbs {
+            order: 24,
+            bit_period: 1e-300,
+            amplitude: 1.0,
+            offset: 0.0,
+        };
+        let mut far = SignalSource::new(prbs, 3).unwrap();
+        let start = std::time::Instant::now();
+        let v = far.value_at(1e300);
+        assert!(v == 1.0 || v == -1.0, "{v}");
+        let mut slow = SignalSource::new(
+            Waveform::Prbs {
+                order: 7,
+                bit_period: 1.0,
+                amplitude: 1.0,
+                offset: 0.0,
+            },
+            5,
+        )
+        .unwrap();
+        let mut replay = slow.clone();
+        let k = 127.0 * 1e9 + 42.0;
+        assert_eq!(slow.value_at(k + 0.5), replay.value_at(42.5));
+        assert!(start.elapsed().as_secs_f64() < 5.0);
+        // random steps: 10¹² s of holds of 1 s to 5 s is refused, not drawn
+        let mut random = SignalSource::new(
+            Waveform::RandomSteps {
+                amplitude: 1.0,
+                offset: 0.0,
+                min_hold: 1.0,
+                max_hold: 5.0,
+            },
+            1,
+        )
+        .unwrap();
+        let start = std::time::Instant::now();
+        let e = random.try_value_at(1e12).unwrap_err();
+        assert!(start.elapsed().as_secs_f64() < 5.0);
+        assert!(e.to_string().contains("more than 10000000 holds"), "{e}");
+        assert!(e.reached > 1e7 && e.reached < 6e7, "{}", e.reached);
+        assert!(random.value_at(1e12).is_nan());
+        // and still right where it can go
+        let mut fresh = random.clone();
+        fresh.rewind();
+        assert_eq!(random.try_value_at(100.0), fresh.try_value_at(100.0));
     }
 
     #[test]

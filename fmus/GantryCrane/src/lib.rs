@@ -3,6 +3,11 @@
 //! Input `U` [N] (saturated at ±`U_max`), outputs `x`, `theta`, `v`, `omega` and the applied
 //! force `U_applied`; the physical parameters of Annex A, the initial state and the RK4
 //! substep bound `h_max`. The mathematics is [`spurio::plants::gantry_crane`].
+//!
+//! Bounded work: every parameter has a declared range (a laboratory crane up to 10⁴ kg and
+//! 100 m, |ω₀| ≤ 10³ rad/s, 10⁻⁹ s ≤ `h_max` ≤ 1 s), checked when it is set, and a step that
+//! would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused (`fmi2Error`,
+//! nothing changed).
 
 use spurio::plants::gantry_crane::{GantryCrane, GantryCraneParameters};
 use spurio_export::rows::{input, output, parameter};
@@ -21,26 +26,26 @@ spurio_export::declare_variables! {
             U_APPLIED = output("U_applied", "N",
                 "Force actually applied during the last step (U saturated)").depends_on(&[vr::U]),
             M_CART = parameter("M", p.cart_mass, "kg",
-                "Cart mass: cart 619.25 g + lid 90.55 g + positioners 134.05 g (paper 000, Annex A)").min(0.0),
-            M_LOAD = parameter("m", p.load_mass, "kg", "Load mass").min(0.0),
+                "Cart mass: cart 619.25 g + lid 90.55 g + positioners 134.05 g (paper 000, Annex A)").min(0.0).max(1e4),
+            M_LOAD = parameter("m", p.load_mass, "kg", "Load mass").min(0.0).max(1e4),
             L = parameter("l", p.rod_length, "m",
-                "Distance from the pivot to the load's centre of mass").min(0.0),
-            J = parameter("J", p.inertia, "kg.m2", "Moment of inertia of the load about the pivot").min(0.0),
+                "Distance from the pivot to the load's centre of mass").min(0.0).max(100.0),
+            J = parameter("J", p.inertia, "kg.m2", "Moment of inertia of the load about the pivot").min(0.0).max(1e4),
             F_C = parameter("f_c", p.cart_friction, "N.s/m",
-                "Viscous friction of the cart on the rail").min(0.0),
+                "Viscous friction of the cart on the rail").min(0.0).max(1e4),
             F_P = parameter("f_p", p.pivot_friction, "kg.m2/(rad.s)",
-                "Viscous friction at the pivot").min(0.0),
-            G = parameter("g", p.gravity, "m/s2", "Gravitational acceleration").min(0.0),
+                "Viscous friction at the pivot").min(0.0).max(1e4),
+            G = parameter("g", p.gravity, "m/s2", "Gravitational acceleration").min(0.0).max(100.0),
             U_MAX = parameter("U_max", p.max_force, "N",
-                "Actuator limit: the applied force is U clipped to ±U_max").min(0.0),
+                "Actuator limit: the applied force is U clipped to ±U_max").min(0.0).max(1e6),
             X_LIMIT = parameter("x_limit", p.rail_limit, "m",
-                "Rail end stops at ±x_limit (perfectly inelastic)").min(0.0),
-            X0 = parameter("x0", 0.0, "m", "Initial cart position"),
-            THETA0 = parameter("theta0", 0.0, "rad", "Initial load angle"),
-            V0 = parameter("v0", 0.0, "m/s", "Initial cart velocity"),
-            OMEGA0 = parameter("omega0", 0.0, "rad/s", "Initial load angular velocity"),
+                "Rail end stops at ±x_limit (perfectly inelastic)").min(0.0).max(1e3),
+            X0 = parameter("x0", 0.0, "m", "Initial cart position").min(-1e3).max(1e3),
+            THETA0 = parameter("theta0", 0.0, "rad", "Initial load angle").min(-100.0).max(100.0),
+            V0 = parameter("v0", 0.0, "m/s", "Initial cart velocity").min(-1e3).max(1e3),
+            OMEGA0 = parameter("omega0", 0.0, "rad/s", "Initial load angular velocity").min(-1e3).max(1e3),
             H_MAX = parameter("h_max", 1e-3, "s",
-                "Longest RK4 substep inside fmi2DoStep; steps are cut into equal substeps no longer than this").min(0.0),
+                "Longest RK4 substep inside fmi2DoStep; steps are cut into equal substeps no longer than this (at most 100000 per step)").min(1e-9).max(1.0),
         ]
     }
 }
@@ -112,6 +117,11 @@ impl FmuModel for GantryCraneFmu {
         Ok(())
     }
 
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        spurio::ode::check_substeps(step, self.h_max)?;
+        Ok(())
+    }
+
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(vr::U);
         let report = self.crane.advance(time, u, step, self.h_max);
@@ -125,7 +135,127 @@ impl FmuModel for GantryCraneFmu {
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(crane, h_max, stop_logged);
+    spurio_fmu_common::fmu_state!(crane, h_max, stop_logged; check = |m: &Self| {
+        GantryCrane::new(m.crane.parameters, m.crane.state)?;
+        spurio::require_positive("h_max", m.h_max)?;
+        Ok(())
+    });
 }
 
 spurio_export::export_fmu!(GantryCraneFmu);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spurio_export::harness::Harness;
+    use spurio_export::types::Status;
+    use std::time::Instant;
+
+    fn crane() -> Harness<GantryCraneFmu> {
+        Harness::new(&Config::new()).unwrap()
+    }
+
+    #[test]
+    fn a_step_needing_too_many_substeps_is_refused_at_once() {
+        let mut h = crane();
+        h.set_real(&[vr::H_MAX as u32, vr::THETA0 as u32], &[1e-9, 0.1])
+            .unwrap();
+        h.initialize(0.0).unwrap();
+        for step in [1.0, 1e308] {
+            let start = Instant::now();
+            assert_eq!(h.do_step(0.0, step), Err(Status::Error));
+            assert!(start.elapsed().as_secs_f64() < 0.1);
+            assert!(
+                h.logged(&[
+                    "fmi2DoStep: step refused",
+                    "h_max = 0.000000001",
+                    "more than the 100000"
+                ]),
+                "{:?}",
+                h.log()
+            );
+        }
+        // nothing changed: the next step within the bound is taken from t = 0, theta = 0.1
+        assert_eq!(h.real(vr::THETA as u32).unwrap(), 0.1);
+        h.do_step(0.0, 1e-5).unwrap();
+        assert!((h.real(vr::THETA as u32).unwrap() - 0.1).abs() < 1e-6);
+        assert_eq!(h.last_successful_time().unwrap(), 1e-5);
+    }
+
+    #[test]
+    fn the_largest_step_allowed_returns_quickly() {
+        let mut h = crane();
+        h.initialize(0.0).unwrap();
+        let start = Instant::now();
+        // 100 s at h_max = 1 ms: 10⁵ substeps, the bound
+        h.do_step(0.0, 100.0).unwrap();
+        assert!(start.elapsed().as_secs_f64() < 1.0);
+        assert!(h.real(vr::X as u32).unwrap().is_finite());
+    }
+
+    #[test]
+    fn parameters_outside_their_declared_range_are_refused() {
+        let mut h = crane();
+        for (vr, value, words) in [
+            (
+                vr::OMEGA0,
+                1e6,
+                "`omega0` = 1000000 is above its maximum 1000",
+            ),
+            (vr::H_MAX, 1e-300, "`h_max` = 0.000"),
+            (vr::M_CART, -1e308, "`M` = -1"),
+        ] {
+            assert_eq!(h.set_real(&[vr as u32], &[value]), Err(Status::Error));
+            assert!(h.logged(&[words]), "{words}: {:?}", h.log());
+        }
+    }
+
+    #[test]
+    fn a_loaded_state_with_impossible_parameters_is_refused() {
+        let mut h = crane();
+        h.initialize(0.0).unwrap();
+        let good = h.serialized_state().unwrap();
+        // the model's part ends with the plain bytes of crane (9 parameters, 4 states),
+        // h_max and stop_logged: make the cart mass (first parameter) negative
+        let model_part = good.len() - (9 + 4 + 1) * 8 - 1;
+        let mut bad = good.clone();
+        bad[model_part..model_part + 8].copy_from_slice(&(-1.0f64).to_le_bytes());
+        assert_eq!(h.restore_state(&bad), Err(Status::Error));
+        assert!(
+            h.logged(&["fmi2DeSerializeFMUstate", "parameter `M`"]),
+            "{:?}",
+            h.log()
+        );
+        h.restore_state(&good).unwrap();
+    }
+
+    #[test]
+    fn an_unstable_configuration_ends_in_an_error_never_in_a_nan_output() {
+        // RK4 with 1 s substeps on a pendulum spinning at 10³ rad/s blows up within steps
+        let mut h = crane();
+        h.set_real(
+            &[vr::H_MAX as u32, vr::OMEGA0 as u32, vr::V0 as u32],
+            &[1.0, 1e3, 1e3],
+        )
+        .unwrap();
+        h.initialize(0.0).unwrap();
+        let outputs = [vr::X, vr::THETA, vr::V, vr::OMEGA].map(|v| v as u32);
+        let mut out = [0.0; 4];
+        let mut k = 0;
+        while h.do_step(k as f64, 1.0).is_ok() {
+            h.get_real(&outputs, &mut out).unwrap();
+            assert!(out.iter().all(|v| v.is_finite()), "{out:?} with fmi2OK");
+            k += 1;
+            assert!(k < 100, "the configuration was expected to overflow");
+        }
+        assert!(
+            h.logged(&["fmi2DoStep: variable `", "came out as", "not published"]),
+            "{:?}",
+            h.log()
+        );
+        // the values stay those of the last communication point, all finite
+        h.get_real(&outputs, &mut out).unwrap();
+        assert!(out.iter().all(|v| v.is_finite()), "{out:?}");
+        assert!(k >= 1);
+    }
+}

@@ -350,7 +350,16 @@ impl FmuModel for LinearSystemFmu {
         self.write_outputs(ctx)
     }
 
-    spurio_fmu_common::fmu_state!(system, clock);
+    spurio_fmu_common::fmu_state!(system, clock; check = |m: &Self| {
+        if let Some(system) = &m.system {
+            let p = system.parameters();
+            p.validate()?;
+            if system.state().len() != p.states() || system.state().iter().any(|v| !v.is_finite()) {
+                return Err("the saved state x is not a finite vector of n entries".into());
+            }
+        }
+        Ok(())
+    });
 }
 
 spurio_export::export_fmu!(
@@ -485,5 +494,35 @@ mod tests {
             spurio_export::Value::Real(-0.08757)
         );
         assert_eq!(v[l.x0.first].start, spurio_export::Value::Real(1.0));
+    }
+
+    #[test]
+    fn a_loaded_state_with_a_nan_state_is_refused() {
+        use spurio_export::harness::Harness;
+        use spurio_export::types::Status;
+        let d = dimensions(&Config::new()).unwrap();
+        let (_, l) = table(&d);
+        let mut h = Harness::<LinearSystemFmu>::new(&Config::new()).unwrap();
+        let marker = 0.123_456_789_012_345_f64;
+        h.set_real(&[l.x0.first as u32], &[marker]).unwrap();
+        h.initialize(0.0).unwrap();
+        let good = h.serialized_state().unwrap();
+        // the last copy of x0[1] in the bytes is the model's current state x[1]
+        let at = good
+            .windows(8)
+            .rposition(|w| w == marker.to_le_bytes())
+            .unwrap();
+        let mut bad = good.clone();
+        bad[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+        assert_eq!(h.restore_state(&bad), Err(Status::Error));
+        assert!(
+            h.logged(&[
+                "fmi2DeSerializeFMUstate",
+                "the saved state x is not a finite vector"
+            ]),
+            "{:?}",
+            h.log()
+        );
+        h.restore_state(&good).unwrap();
     }
 }

@@ -15,6 +15,11 @@
 //! `h_max` inside `fmi2DoStep`. A substep too long for RK4 to be stable on the circuit's
 //! fastest mode (`h_max · |λ|max > 2.5`, |λ|max over the linear poles and the saturated
 //! modes `(1/R1 + 1/R2)/C1`, `1/(R2 C2)`) is refused with an error naming `h_max`.
+//!
+//! Bounded work: every parameter has a declared range (1 Ω to 1 GΩ, 1 fF to 1 F, rails and
+//! initial voltages within ±1 kV, 10⁻⁹ s ≤ `h_max` ≤ 1 s), checked when it is set, and a step
+//! that would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused
+//! (`fmi2Error`, nothing changed).
 
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
 use spurio_export::rows::{input, output, parameter};
@@ -37,17 +42,19 @@ spurio_export::declare_variables! {
             SATURATED = Variable::boolean_output("saturated")
                 .describe("Whether the output sits on a rail at this communication point"),
             R1 = parameter("R1", p.r1, "Ohm",
-                "Input resistor (default: with R2, C1, C2 gives H(s) = 27/(s^2 + 5.19 s + 27))"),
-            R2 = parameter("R2", p.r2, "Ohm", "Resistor between node A and node B"),
-            C1 = parameter("C1", p.c1, "F", "Feedback capacitor from node A to the output (4.7 uF)"),
-            C2 = parameter("C2", p.c2, "F", "Capacitor from node B to ground (1 uF)"),
+                "Input resistor (default: with R2, C1, C2 gives H(s) = 27/(s^2 + 5.19 s + 27))").min(1.0).max(1e9),
+            R2 = parameter("R2", p.r2, "Ohm", "Resistor between node A and node B").min(1.0).max(1e9),
+            C1 = parameter("C1", p.c1, "F", "Feedback capacitor from node A to the output (4.7 uF)").min(1e-15).max(1.0),
+            C2 = parameter("C2", p.c2, "F", "Capacitor from node B to ground (1 uF)").min(1e-15).max(1.0),
             V_SAT_HIGH = parameter("V_sat_high", p.v_sat_high, "V",
-                "Upper output saturation (positive rail less headroom)"),
+                "Upper output saturation (positive rail less headroom)").min(-1e3).max(1e3),
             V_SAT_LOW = parameter("V_sat_low", p.v_sat_low, "V",
-                "Lower output saturation (negative rail less headroom)"),
-            V_C1_0 = parameter("v_C1_0", 0.0, "V", "Initial voltage across C1"),
-            V_C2_0 = parameter("v_C2_0", 0.0, "V", "Initial voltage across C2"),
-            H_MAX = parameter("h_max", 1e-3, "s", "Longest RK4 substep inside fmi2DoStep"),
+                "Lower output saturation (negative rail less headroom)").min(-1e3).max(1e3),
+            V_C1_0 = parameter("v_C1_0", 0.0, "V", "Initial voltage across C1").min(-1e3).max(1e3),
+            V_C2_0 = parameter("v_C2_0", 0.0, "V", "Initial voltage across C2").min(-1e3).max(1e3),
+            H_MAX = parameter("h_max", 1e-3, "s", "Longest RK4 substep inside fmi2DoStep (at most 100000 per step)")
+                .min(1e-9)
+                .max(1.0),
         ]
     }
 }
@@ -131,6 +138,11 @@ impl FmuModel for OpAmpFilterFmu {
         Ok(())
     }
 
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        spurio::ode::check_substeps(step, self.h_max)?;
+        Ok(())
+    }
+
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(vr::U);
         let mut next = self.filter.clone();
@@ -145,7 +157,11 @@ impl FmuModel for OpAmpFilterFmu {
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(filter, h_max);
+    spurio_fmu_common::fmu_state!(filter, h_max; check = |m: &Self| {
+        OpAmpFilter::with_state(m.filter.parameters, m.filter.state)?;
+        spurio::require_positive("h_max", m.h_max)?;
+        Ok(())
+    });
 }
 
 spurio_export::export_fmu!(OpAmpFilterFmu);
@@ -160,5 +176,36 @@ mod tests {
         // Linear poles |λ| = √27; saturated modes (1/R1 + 1/R2)/C1 ≈ 5.19, 1/(R2 C2) ≈ 16.9.
         let f = fastest_mode(&p);
         assert!((f - 1.0 / (p.r2 * p.c2)).abs() < 1e-9, "{f}");
+    }
+
+    #[test]
+    fn a_step_needing_too_many_substeps_is_refused_at_once() {
+        use spurio_export::harness::Harness;
+        use spurio_export::types::Status;
+        let mut h = Harness::<OpAmpFilterFmu>::new(&Config::new()).unwrap();
+        assert_eq!(
+            h.set_real(&[vr::H_MAX as u32], &[1e-300]),
+            Err(Status::Error)
+        );
+        assert!(
+            h.logged(&["`h_max`", "below its minimum 0.000000001"]),
+            "{:?}",
+            h.log()
+        );
+        h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
+        h.initialize(0.0).unwrap();
+        h.set_real(&[vr::U as u32], &[1.0]).unwrap();
+        let start = std::time::Instant::now();
+        assert_eq!(h.do_step(0.0, 1e308), Err(Status::Error));
+        assert_eq!(h.do_step(0.0, 1.0), Err(Status::Error));
+        assert!(start.elapsed().as_secs_f64() < 0.1);
+        assert!(
+            h.logged(&["step refused", "more than the 100000"]),
+            "{:?}",
+            h.log()
+        );
+        // nothing changed: a step within the bound is taken from t = 0
+        h.do_step(0.0, 1e-5).unwrap();
+        assert_eq!(h.last_successful_time().unwrap(), 1e-5);
     }
 }

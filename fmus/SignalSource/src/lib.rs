@@ -19,6 +19,12 @@
 //! point `t` is the signal at `t`: at the start time after initialisation and at `t + h`
 //! after each step, so a master that connects `y` to another FMU's input at each
 //! communication point feeds it the signal sampled there.
+//!
+//! Bounded work: the times and levels have declared ranges (periods and holds of 10⁻⁹ s or
+//! 10⁻⁶ s to 10¹² s, levels within ±10¹⁵), a PRBS sample skips whole periods of the register,
+//! and a random-steps sample that would draw more than
+//! [`spurio::signals::source::MAX_SEGMENTS_PER_SAMPLE`] holds (a start time of 10¹² s with
+//! holds of seconds) is an error naming the time, not a hang.
 
 use spurio::signals::source::{frequency_from_period, SignalSource, Trig, Waveform};
 use spurio::ParameterError;
@@ -36,6 +42,9 @@ pub mod waveform {
     pub const COSINE: i32 = 5;
 }
 
+/// The largest |amplitude| and |offset| (declared range).
+const LEVEL: f64 = 1e15;
+
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
     pub fn variables() {
@@ -45,19 +54,23 @@ spurio_export::declare_variables! {
                 .min(1.0)
                 .max(5.0)
                 .describe("1 step, 2 random steps, 3 PRBS, 4 sine, 5 cosine"),
-            AMPLITUDE = Variable::parameter("amplitude", 1.0).describe(
+            AMPLITUDE = Variable::parameter("amplitude", 1.0).min(-LEVEL).max(LEVEL).describe(
                 "Step height; half-width of the random levels (>= 0); PRBS half swing; sine/cosine amplitude",
                 ),
             OFFSET = Variable::parameter("offset", 0.0)
+                .min(-LEVEL)
+                .max(LEVEL)
                 .describe("Level before the step; centre of the random levels, PRBS and sine/cosine"),
-            PERIOD = parameter("period", 1.0, "s", "Period of the sine/cosine (> 0)"),
-            PHASE = parameter("phase", 0.0, "rad", "Phase of the sine/cosine"),
-            STEP_TIME = parameter("step_time", 1.0, "s", "Time of the step"),
-            MIN_HOLD = parameter("min_hold", 1.0, "s", "Shortest hold of a random step (> 0)"),
-            MAX_HOLD = parameter("max_hold", 5.0, "s", "Longest hold of a random step (>= min_hold)"),
+            PERIOD = parameter("period", 1.0, "s", "Period of the sine/cosine (> 0)").min(1e-9).max(1e12),
+            PHASE = parameter("phase", 0.0, "rad", "Phase of the sine/cosine").min(-1e6).max(1e6),
+            STEP_TIME = parameter("step_time", 1.0, "s", "Time of the step").min(-1e15).max(1e15),
+            MIN_HOLD = parameter("min_hold", 1.0, "s", "Shortest hold of a random step (> 0)").min(1e-6).max(1e12),
+            MAX_HOLD = parameter("max_hold", 5.0, "s", "Longest hold of a random step (>= min_hold)").min(1e-6).max(1e12),
             PRBS_ORDER = Variable::integer_parameter("prbs_order", 7)
+                .min(2.0)
+                .max(24.0)
                 .describe("PRBS register length n, 2 to 24 (period 2^n - 1 bits)"),
-            BIT_PERIOD = parameter("bit_period", 0.1, "s", "Duration of one PRBS bit (> 0)"),
+            BIT_PERIOD = parameter("bit_period", 0.1, "s", "Duration of one PRBS bit (> 0)").min(1e-9).max(1e12),
             SEED = Variable::integer_parameter("seed", 1)
                 .min(0.0)
                 .describe("Seed of the random steps and of the PRBS start register"),
@@ -158,7 +171,7 @@ impl FmuModel for SignalSourceFmu {
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let (w, seed) = read_waveform(ctx)?;
         let mut source = SignalSource::new(w, seed).map_err(named)?;
-        let y = source.value_at(ctx.time());
+        let y = source.try_value_at(ctx.time()).map_err(Failure::error)?;
         ctx.values.set_real(vr::Y, y);
         self.source = Some(source);
         Ok(())
@@ -169,11 +182,69 @@ impl FmuModel for SignalSourceFmu {
             .source
             .as_mut()
             .ok_or_else(|| Failure::error("SignalSource: not initialised"))?;
-        ctx.values.set_real(vr::Y, source.value_at(time + step));
+        let mut next = source.clone();
+        let y = next.try_value_at(time + step).map_err(Failure::error)?;
+        *source = next;
+        ctx.values.set_real(vr::Y, y);
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(source);
+    spurio_fmu_common::fmu_state!(source; check = |m: &Self| {
+        if let Some(source) = &m.source {
+            source.waveform().validate()?;
+        }
+        Ok(())
+    });
 }
 
 spurio_export::export_fmu!(SignalSourceFmu);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spurio_export::harness::Harness;
+    use spurio_export::types::Status;
+    use std::time::Instant;
+
+    fn source(waveform: i32) -> Harness<SignalSourceFmu> {
+        let mut h = Harness::<SignalSourceFmu>::new(&Config::new()).unwrap();
+        h.set_integer(&[vr::WAVEFORM as u32], &[waveform]).unwrap();
+        h
+    }
+
+    #[test]
+    fn a_start_far_in_the_future_is_an_error_not_a_hang() {
+        let mut h = source(waveform::RANDOM_STEPS);
+        h.setup_experiment(1e12, None).unwrap();
+        h.enter_initialization_mode().unwrap();
+        let start = Instant::now();
+        assert_eq!(h.exit_initialization_mode(), Err(Status::Error));
+        assert!(start.elapsed().as_secs_f64() < 5.0);
+        assert!(
+            h.logged(&["fmi2ExitInitializationMode", "t = 1000000000000 s", "holds"]),
+            "{:?}",
+            h.log()
+        );
+    }
+
+    #[test]
+    fn a_prbs_at_a_far_time_and_tiny_periods_returns() {
+        let mut h = source(waveform::PRBS);
+        assert_eq!(
+            h.set_real(&[vr::BIT_PERIOD as u32], &[1e-300]),
+            Err(Status::Error)
+        );
+        assert!(
+            h.logged(&["`bit_period`", "below its minimum"]),
+            "{:?}",
+            h.log()
+        );
+        h.set_real(&[vr::BIT_PERIOD as u32], &[1e-9]).unwrap();
+        h.set_integer(&[vr::PRBS_ORDER as u32], &[24]).unwrap();
+        let start = Instant::now();
+        h.initialize(1e12).unwrap();
+        h.do_step(1e12, 1e11).unwrap();
+        assert!(start.elapsed().as_secs_f64() < 5.0);
+        assert_eq!(h.real(vr::Y as u32).unwrap().abs(), 1.0);
+    }
+}

@@ -40,6 +40,28 @@ use std::f64::consts::PI;
 use spurio_fmu_common::rk4_substep;
 pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 
+/// The declared range (min, max) of each physical parameter, in [`PARAMETER_NAMES`] order:
+/// a laboratory machine set with room to spare, and no value that makes the model divide by
+/// zero or overflow in a step.
+pub const PARAMETER_RANGES: [(f64, f64); 16] = [
+    (1.0, 32.0), // pole_pairs
+    (0.0, 1e4),  // R_s
+    (1e-6, 1e3), // L_d
+    (1e-6, 1e3), // L_q
+    (0.0, 1e5),  // R_f
+    (1e-6, 1e4), // L_f
+    (0.0, 1e3),  // M_f
+    (0.0, 1e6),  // R_load
+    (1e-6, 1e4), // J
+    (0.0, 1e3),  // B
+    (0.0, 1e4),  // k_s
+    (0.0, 1e5),  // T_max
+    (1e-6, 1e3), // tau_drive
+    (1e-6, 1e3), // tau_scr
+    (1e-6, 1e3), // tau_tach
+    (0.0, 1e3),  // f_rated
+];
+
 /// The physical parameters: (name, unit, description), in value-reference order.
 pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
     ("pole_pairs", "1", "Pole pairs p (4 poles)"),
@@ -138,15 +160,20 @@ spurio_export::declare_variables! {
             FIRST_PARAMETER[16] = PARAMETER_NAMES
                 .iter()
                 .zip(parameter_values(&p))
-                .map(|((name, unit, description), value)| parameter(name, value, unit, description)),
+                .zip(PARAMETER_RANGES)
+                .map(|(((name, unit, description), value), (min, max))| {
+                    parameter(name, value, unit, description).min(min).max(max)
+                }),
             H_MAX = parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP, "s",
-                "Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms)"),
+                "Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
+                .min(1e-9)
+                .max(1.0),
             START_AT_OPERATING_POINT = Variable::boolean_parameter("start_at_operating_point", false)
                 .describe("Start in the steady state of u_drive_0, u_field_0 (true) or at rest (false)"),
             U_DRIVE_0 = parameter("u_drive_0", RATED_DRIVE_REFERENCE, "V",
-                "Drive reference of the initial steady state"),
+                "Drive reference of the initial steady state").min(-1e3).max(1e3),
             U_FIELD_0 = parameter("u_field_0", RATED_FIELD_REFERENCE, "V",
-                "Field reference of the initial steady state"),
+                "Field reference of the initial steady state").min(-1e3).max(1e3),
         ]
     }
 }
@@ -261,6 +288,11 @@ impl FmuModel for WindGeneratorFmu {
         Ok(())
     }
 
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        spurio::ode::check_substeps(step, self.h_max)?;
+        Ok(())
+    }
+
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let (u_drive, u_field) = (ctx.values.real(vr::U_DRIVE), ctx.values.real(vr::U_FIELD));
         let mut next = self.generator.clone();
@@ -275,7 +307,14 @@ impl FmuModel for WindGeneratorFmu {
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(generator, h_max);
+    spurio_fmu_common::fmu_state!(generator, h_max; check = |m: &Self| {
+        if m.generator.state.iter().any(|v| !v.is_finite()) {
+            return Err("the saved generator state is not finite".into());
+        }
+        m.generator.parameters.validate()?;
+        spurio::require_positive("h_max", m.h_max)?;
+        Ok(())
+    });
 }
 
 spurio_export::export_fmu!(WindGeneratorFmu);
@@ -288,5 +327,37 @@ mod tests {
     fn stability_bound_of_the_defaults_is_about_2_ms() {
         let limit = RK4_STABILITY_MARGIN / fastest_mode(&WindGeneratorParameters::default());
         assert!(limit > 1.5e-3 && limit < 2.2e-3, "{limit}");
+    }
+
+    #[test]
+    fn a_step_needing_too_many_substeps_is_refused_at_once() {
+        use spurio_export::harness::Harness;
+        use spurio_export::types::Status;
+        let mut h = Harness::<WindGeneratorFmu>::new(&Config::new()).unwrap();
+        h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
+        h.initialize(0.0).unwrap();
+        let start = std::time::Instant::now();
+        assert_eq!(h.do_step(0.0, 1e308), Err(Status::Error));
+        assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
+        assert!(start.elapsed().as_secs_f64() < 0.1);
+        assert!(
+            h.logged(&["step refused", "more than the 100000"]),
+            "{:?}",
+            h.log()
+        );
+        h.do_step(0.0, 1e-5).unwrap();
+        assert_eq!(h.last_successful_time().unwrap(), 1e-5);
+        // every physical parameter has a declared range, checked when set
+        let table = variables();
+        for k in 0..PARAMETER_NAMES.len() {
+            let v = &table[vr::FIRST_PARAMETER + k];
+            assert!(v.min.is_some() && v.max.is_some(), "{}", v.name);
+        }
+        assert_eq!(h.reset(), Ok(Status::Ok));
+        assert_eq!(
+            h.set_real(&[vr::FIRST_PARAMETER as u32 + 8], &[-1e308]),
+            Err(Status::Error)
+        );
+        assert!(h.logged(&["`J` = -1"]), "{:?}", h.log());
     }
 }

@@ -62,9 +62,16 @@ pub mod reexport {
 /// plain-bytes snapshots ([`spurio::state::PlainState`]) of the listed fields, in order: the
 /// FMU state is derived from the model's own types, not written by hand. Fields rebuilt from
 /// the configuration (layouts) are left out. A failed load changes nothing.
+///
+/// With `; check = f` (`f: fn(&Self) -> Result<(), Cause>`), the loaded model is validated by
+/// `f` before it is accepted (parameters in range, finite state…): bytes that decode but
+/// describe a model that could not exist are refused, and the model is left as it was.
 #[macro_export]
 macro_rules! fmu_state {
     ($($field:ident),+ $(,)?) => {
+        $crate::fmu_state!($($field),+; check = |_: &Self| ::std::result::Result::Ok(()));
+    };
+    ($($field:ident),+; check = $check:expr) => {
         fn save_state(&self, out: &mut $crate::reexport::ByteWriter) {
             let mut bytes = ::std::vec::Vec::new();
             $($crate::reexport::PlainState::save(&self.$field, &mut bytes);)+
@@ -79,8 +86,14 @@ macro_rules! fmu_state {
             let mut rest = bytes.as_slice();
             $(let $field = $crate::reexport::PlainState::read(&mut rest)
                 .map_err(|e| format!("{}: {e}", stringify!($field)))?;)+
-            $(self.$field = $field;)+
-            Ok(())
+            // Swap the loaded fields in (the locals then hold the previous ones).
+            $(let $field = ::std::mem::replace(&mut self.$field, $field);)+
+            let check: fn(&Self) -> ::std::result::Result<(), $crate::reexport::Cause> = $check;
+            if let ::std::result::Result::Err(e) = check(&*self) {
+                $(self.$field = $field;)+
+                return ::std::result::Result::Err(e);
+            }
+            ::std::result::Result::Ok(())
         }
     };
 }

@@ -6,6 +6,12 @@
 //! FMU binary. Every function checks its pointers, catches panics (`catch_unwind`: a panic
 //! never crosses the ABI; the instance is then `Fatal`) and checks the allowed-state mask
 //! before doing anything.
+//!
+//! **Panic text goes to the FMI logger only.** A panic hook (installed once, by the first
+//! call) captures the message and location of a panic raised inside one of these calls on
+//! this thread and prints nothing; the catching site logs it as `fmi2Fatal`. Panics outside
+//! an FMU call go to the hook that was there before. An FMU `cdylib` links its own `std`, so
+//! the hook is the FMU's and never the importing tool's.
 
 use crate::description::{Config, CONFIG_FILE};
 use crate::instance::{functions, Core, Function, Instance, LogSink, Logger};
@@ -13,9 +19,11 @@ use crate::model::FmuModel;
 use crate::types::*;
 use crate::uri::resource_path;
 use crate::variables::{Value, VariableType};
+use std::cell::{Cell, RefCell};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::Once;
 
 /// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
 pub struct CallbackSink {
@@ -63,7 +71,7 @@ impl<M: FmuModel> Drop for Slot<M> {
     }
 }
 
-pub(crate) fn panic_message(payload: &Box<dyn std::any::Any + Send>) -> String {
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     if let Some(s) = payload.downcast_ref::<&str>() {
         (*s).to_string()
     } else if let Some(s) = payload.downcast_ref::<String>() {
@@ -71,6 +79,47 @@ pub(crate) fn panic_message(payload: &Box<dyn std::any::Any + Send>) -> String {
     } else {
         "panic".to_string()
     }
+}
+
+thread_local! {
+    /// This thread is inside an FMU call ([`guarded`]).
+    static IN_CALL: Cell<bool> = const { Cell::new(false) };
+    /// The text of the last panic raised inside an FMU call on this thread.
+    static PANIC_TEXT: RefCell<Option<String>> = const { RefCell::new(None) };
+}
+
+static HOOK: Once = Once::new();
+
+/// Installs (once) the hook that keeps panics inside FMU calls off stderr (module docs).
+fn install_panic_hook() {
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if IN_CALL.with(Cell::get) {
+                let mut text = panic_message(info.payload());
+                if let Some(location) = info.location() {
+                    text.push_str(&format!(" (at {location})"));
+                }
+                PANIC_TEXT.with(|t| *t.borrow_mut() = Some(text));
+            } else {
+                previous(info);
+            }
+        }));
+    });
+}
+
+/// Runs `body` as an FMU call: panics are caught and their text (message and location)
+/// returned instead of printed.
+pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
+    install_panic_hook();
+    let outer = IN_CALL.with(|c| c.replace(true));
+    let result = catch_unwind(AssertUnwindSafe(body));
+    IN_CALL.with(|c| c.set(outer));
+    result.map_err(|payload| {
+        PANIC_TEXT
+            .with(|t| t.borrow_mut().take())
+            .unwrap_or_else(|| panic_message(payload.as_ref()))
+    })
 }
 
 /// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
@@ -83,7 +132,7 @@ unsafe fn with_instance<M: FmuModel>(
         return fmi2Error;
     }
     let slot = c as *mut Slot<M>;
-    let result = catch_unwind(AssertUnwindSafe(|| {
+    let result = guarded(|| {
         // SAFETY: `c` is non-null and was returned by `instantiate::<M>` (the master's
         // obligation); no other reference to the slot is alive during the call.
         let slot = unsafe { &mut *slot };
@@ -91,15 +140,14 @@ unsafe fn with_instance<M: FmuModel>(
             return Status::Error;
         }
         body(slot)
-    }));
+    });
     match result {
         Ok(status) => status.code(),
-        Err(payload) => {
-            let message = panic_message(&payload);
-            let _ = catch_unwind(AssertUnwindSafe(|| {
+        Err(message) => {
+            let _ = guarded(|| {
                 // SAFETY: as above; the closure that panicked no longer borrows the slot.
                 unsafe { &mut *slot }.instance.set_fatal(f, &message)
-            }));
+            });
             fmi2Fatal
         }
     }
@@ -149,7 +197,7 @@ pub unsafe fn instantiate<M: FmuModel>(
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
 ) -> fmi2Component {
-    let result = catch_unwind(AssertUnwindSafe(|| {
+    let result = guarded(|| {
         if functions.is_null() {
             return std::ptr::null_mut();
         }
@@ -255,7 +303,7 @@ pub unsafe fn instantiate<M: FmuModel>(
                 std::ptr::null_mut()
             }
         }
-    }));
+    });
     result.unwrap_or(std::ptr::null_mut())
 }
 
@@ -276,10 +324,10 @@ pub unsafe fn free_instance<M: FmuModel>(c: fmi2Component) {
     if c.is_null() {
         return;
     }
-    let _ = catch_unwind(AssertUnwindSafe(|| {
+    let _ = guarded(|| {
         // SAFETY: `c` came from `Box::into_raw` in `instantiate::<M>`.
         drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
-    }));
+    });
 }
 
 /// `fmi2SetDebugLogging`.
@@ -853,7 +901,7 @@ pub unsafe fn query_variants(
     out: *mut u8,
     capacity: usize,
 ) -> usize {
-    let text = catch_unwind(variants)
+    let text = guarded(variants)
         .map(|v| crate::query::variants_text(&v))
         .unwrap_or_default();
     // SAFETY: forwarded from the caller.
@@ -888,8 +936,7 @@ pub unsafe fn query_describe_with(
 ) -> isize {
     // SAFETY: `config` is NULL or a NUL-terminated string (query contract).
     let text = unsafe { string_arg(config) }.unwrap_or_default();
-    let answer = catch_unwind(AssertUnwindSafe(|| describe(&text)))
-        .unwrap_or_else(|payload| Err(panic_message(&payload).into()));
+    let answer = guarded(|| describe(&text)).unwrap_or_else(|m| Err(m.into()));
     let (text, sign) = match answer {
         Ok(xml) => (xml, 1),
         Err(cause) => (cause.to_string(), -1),

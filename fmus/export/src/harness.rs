@@ -92,6 +92,100 @@ impl<M: FmuModel> Harness<M> {
         }
     }
 
+    /// `fmi2SetupExperiment(start_time, stop_time)` (no tolerance).
+    pub fn setup_experiment(
+        &mut self,
+        start_time: f64,
+        stop_time: Option<f64>,
+    ) -> Result<Status, Status> {
+        // SAFETY: live component.
+        status(unsafe {
+            ffi::setup_experiment::<M>(
+                self.component,
+                0,
+                0.0,
+                start_time,
+                fmi2Boolean::from(stop_time.is_some()),
+                stop_time.unwrap_or(0.0),
+            )
+        })
+    }
+
+    /// `fmi2EnterInitializationMode`.
+    pub fn enter_initialization_mode(&mut self) -> Result<Status, Status> {
+        // SAFETY: live component.
+        status(unsafe { ffi::enter_initialization_mode::<M>(self.component) })
+    }
+
+    /// `fmi2ExitInitializationMode`.
+    pub fn exit_initialization_mode(&mut self) -> Result<Status, Status> {
+        // SAFETY: live component.
+        status(unsafe { ffi::exit_initialization_mode::<M>(self.component) })
+    }
+
+    /// `fmi2Reset`.
+    pub fn reset(&mut self) -> Result<Status, Status> {
+        // SAFETY: live component.
+        status(unsafe { ffi::reset::<M>(self.component) })
+    }
+
+    /// `fmi2GetFMUstate` (a new state), `fmi2SerializedFMUstateSize`, `fmi2SerializeFMUstate`
+    /// and `fmi2FreeFMUstate`: the bytes of the current state.
+    pub fn serialized_state(&mut self) -> Result<Vec<u8>, Status> {
+        let mut state: fmi2FMUstate = std::ptr::null_mut();
+        let mut size = 0usize;
+        // SAFETY: live component; `state` and `size` are valid out-pointers; the buffer holds
+        // `size` bytes.
+        unsafe {
+            status(ffi::get_fmu_state::<M>(self.component, &mut state))?;
+            let bytes = status(ffi::serialized_fmu_state_size::<M>(
+                self.component,
+                state,
+                &mut size,
+            ))
+            .and_then(|_| {
+                let mut bytes = vec![0u8; size];
+                status(ffi::serialize_fmu_state::<M>(
+                    self.component,
+                    state,
+                    bytes.as_mut_ptr() as *mut fmi2Byte,
+                    size,
+                ))
+                .map(|_| bytes)
+            });
+            status(ffi::free_fmu_state::<M>(self.component, &mut state))?;
+            bytes
+        }
+    }
+
+    /// `fmi2DeSerializeFMUstate` of `bytes`, then `fmi2SetFMUstate` and `fmi2FreeFMUstate`.
+    pub fn restore_state(&mut self, bytes: &[u8]) -> Result<Status, Status> {
+        let mut state: fmi2FMUstate = std::ptr::null_mut();
+        // SAFETY: live component; `bytes` holds `bytes.len()` bytes; `state` is a valid
+        // out-pointer.
+        unsafe {
+            status(ffi::deserialize_fmu_state::<M>(
+                self.component,
+                bytes.as_ptr() as *const fmi2Byte,
+                bytes.len(),
+                &mut state,
+            ))?;
+            let set = status(ffi::set_fmu_state::<M>(self.component, state));
+            status(ffi::free_fmu_state::<M>(self.component, &mut state))?;
+            set
+        }
+    }
+
+    /// `fmi2GetRealStatus(fmi2LastSuccessfulTime)`.
+    pub fn last_successful_time(&mut self) -> Result<f64, Status> {
+        let mut t = f64::NAN;
+        // SAFETY: live component; `t` is a valid out-pointer.
+        status(unsafe {
+            ffi::get_real_status::<M>(self.component, fmi2LastSuccessfulTime, &mut t)
+        })?;
+        Ok(t)
+    }
+
     /// `fmi2SetReal`.
     pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Result<Status, Status> {
         if vr.len() != values.len() {
@@ -100,6 +194,17 @@ impl<M: FmuModel> Harness<M> {
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
             ffi::set::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    /// `fmi2SetInteger`.
+    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Result<Status, Status> {
+        if vr.len() != values.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::set::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
         })
     }
 

@@ -7,9 +7,22 @@
 //! the expected vs. actual value.
 //!
 //! Calls that the instance rejects (illegal call sequence, unknown value reference, a NaN
-//! input, a value out of bounds) return `fmi2Error` and leave the instance as it was; a model
-//! that fails inside initialisation or a step moves the instance to the `Error` state, from
-//! which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
+//! input, a value out of bounds, a step whose end `t + h` is not finite or that the model
+//! refuses in [`FmuModel::check_step`]) return `fmi2Error` and leave the instance as it was; a
+//! model that fails inside initialisation or a step moves the instance to the `Error` state,
+//! from which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
+//!
+//! **No non-finite value is ever published.** After every model call that computes values
+//! (initialisation, a step, direct feedthrough, tunable parameters), every Real is checked; a
+//! NaN or ±∞ is `fmi2Error` naming the variable, the values go back to those before the call
+//! (so `fmi2GetReal` in the `Error` state reads the last finite values, never the NaN), the
+//! time does not advance, and the instance moves to the `Error` state (the model's internal
+//! state may have advanced: as after any model error, `fmi2SetFMUstate` or `fmi2Reset` lead on).
+//!
+//! **A serialized state is checked before it is accepted**: format version, model identifier,
+//! GUID, value count and types, a state-machine state that a saved state can carry
+//! ([`ModelState::can_be_saved`]), finite time and stop time, finite Reals within their declared
+//! bounds, then the model's own part ([`FmuModel::load_state`] validates what it reads).
 
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
@@ -53,7 +66,21 @@ impl ModelState {
     }
 
     fn from_bits_index(i: u64) -> Option<Self> {
-        Self::ALL.get(i as usize).copied()
+        Self::ALL.get(usize::try_from(i).ok()?).copied()
+    }
+
+    /// Whether an instance can be in this state when `fmi2GetFMUstate` is called: steps are
+    /// synchronous (never `StepInProgress`, `StepFailed` or `StepCanceled`), `Fatal` and
+    /// `StartAndEnd` have no instance to save.
+    pub fn can_be_saved(self) -> bool {
+        matches!(
+            self,
+            ModelState::Instantiated
+                | ModelState::InitializationMode
+                | ModelState::StepComplete
+                | ModelState::Terminated
+                | ModelState::Error
+        )
     }
 }
 
@@ -252,13 +279,16 @@ pub struct Core<M> {
     inputs_changed: bool,
 }
 
-const STATE_MAGIC: &str = "spurio-fmu-state/1";
+const STATE_MAGIC: &str = "spurio-fmu-state/2";
 
 /// An instance of model `M`.
 pub struct Instance<M: FmuModel> {
     info: ModelInfo,
     logger: Logger,
     core: Core<M>,
+    /// The values before the current model call (reused buffer), restored when the call
+    /// produces a non-finite value.
+    before: Values,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -269,6 +299,7 @@ impl<M: FmuModel> Instance<M> {
         Ok(Self {
             info,
             logger,
+            before: values.clone(),
             core: Core {
                 model,
                 values,
@@ -336,6 +367,7 @@ impl<M: FmuModel> Instance<M> {
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
     ) -> Status {
+        self.before.clone_from(&self.core.values);
         let mut ctx = Context::at(&mut self.core.values, self.core.time);
         let result = call(&mut self.core.model, &mut ctx);
         let messages = ctx.take_messages();
@@ -345,7 +377,19 @@ impl<M: FmuModel> Instance<M> {
             status = status.max(m.status);
         }
         match result {
-            Ok(()) => status,
+            Ok(()) => match self.first_non_finite() {
+                None => status,
+                Some((index, value)) => {
+                    self.core.values.clone_from(&self.before);
+                    self.core.state = ModelState::Error;
+                    self.logger.error(&format!(
+                        "{}: variable `{}` (value reference {index}) came out as {value}: not published (the variables keep their values from before the call; fmi2Reset or fmi2SetFMUstate lead on)",
+                        f.name,
+                        self.info.variables.get(index).map_or("?", |v| v.name.as_str())
+                    ));
+                    Status::Error
+                }
+            },
             Err(Failure::Discard(message)) => {
                 self.logger.log(
                     Status::Discard,
@@ -360,6 +404,19 @@ impl<M: FmuModel> Instance<M> {
                 Status::Error
             }
         }
+    }
+
+    /// The first Real that is NaN or infinite: (value reference, value).
+    fn first_non_finite(&self) -> Option<(usize, f64)> {
+        self.core
+            .values
+            .all()
+            .iter()
+            .enumerate()
+            .find_map(|(i, v)| match v {
+                Value::Real(x) if !x.is_finite() => Some((i, *x)),
+                _ => None,
+            })
     }
 
     /// `fmi2SetDebugLogging`.
@@ -410,11 +467,11 @@ impl<M: FmuModel> Instance<M> {
             return self.reject(f, &format!("startTime must be finite, got {start_time}"));
         }
         if let Some(stop) = stop_time {
-            if stop.is_nan() || stop < start_time {
+            if !stop.is_finite() || stop < start_time {
                 return self.reject(
                     f,
                     &format!(
-                        "stopTime = {stop:.16} must not be before startTime = {start_time:.16}"
+                        "stopTime = {stop:.16} must be finite and not before startTime = {start_time:.16}"
                     ),
                 );
             }
@@ -645,8 +702,24 @@ impl<M: FmuModel> Instance<M> {
                 ),
             );
         }
+        let end = current_time + step;
+        if !end.is_finite() {
+            return self.reject(
+                f,
+                &format!(
+                    "the step ends at currentCommunicationPoint + communicationStepSize = {current_time:.16} + {step:.16} = {end}, not a finite time"
+                ),
+            );
+        }
+        if end <= current_time {
+            return self.reject(
+                f,
+                &format!(
+                    "communicationStepSize = {step:.16} is below the time resolution at currentCommunicationPoint = {current_time:.16}: the time would not advance"
+                ),
+            );
+        }
         if let Some(stop) = self.core.stop_time {
-            let end = current_time + step;
             if end > stop + 1e-9 * stop.abs().max(1.0) {
                 return self.reject(
                     f,
@@ -654,9 +727,16 @@ impl<M: FmuModel> Instance<M> {
                 );
             }
         }
+        let refusal = {
+            let ctx = Context::at(&mut self.core.values, current_time);
+            self.core.model.check_step(&ctx, current_time, step)
+        };
+        if let Err(cause) = refusal {
+            return self.reject(f, &format!("step refused: {cause}"));
+        }
         let status = self.run_model(f, |m, ctx| m.do_step(ctx, current_time, step));
         if status <= Status::Warning {
-            self.core.time = current_time + step;
+            self.core.time = end;
             self.core.inputs_changed = false;
         }
         status
@@ -681,6 +761,7 @@ impl<M: FmuModel> Instance<M> {
     pub fn serialize(&self, core: &Core<M>) -> Vec<u8> {
         let mut w = ByteWriter::new();
         w.put_str(STATE_MAGIC);
+        w.put_str(&self.info.model_identifier);
         w.put_str(&self.info.guid);
         w.put_u64(
             ModelState::ALL
@@ -702,8 +783,22 @@ impl<M: FmuModel> Instance<M> {
     /// instance of the same FMU.
     pub fn deserialize(&self, bytes: &[u8]) -> Result<Box<Core<M>>, StateError> {
         let mut r = ByteReader::new(bytes);
-        if r.string().ok().as_deref() != Some(STATE_MAGIC) {
-            return Err(StateError::NotAState);
+        match r.string() {
+            Ok(magic) if magic == STATE_MAGIC => {}
+            Ok(magic) if magic.starts_with("spurio-fmu-state/") => {
+                return Err(StateError::Version {
+                    saved: magic,
+                    this: STATE_MAGIC,
+                })
+            }
+            _ => return Err(StateError::NotAState),
+        }
+        let model = r.string()?;
+        if model != self.info.model_identifier {
+            return Err(StateError::OtherModel {
+                saved: model,
+                this: self.info.model_identifier.clone(),
+            });
         }
         let guid = r.string()?;
         if guid != self.info.guid {
@@ -712,10 +807,19 @@ impl<M: FmuModel> Instance<M> {
                 this: self.info.guid.clone(),
             });
         }
-        let state = ModelState::from_bits_index(r.u64()?).ok_or(StateError::MachineState)?;
+        let index = r.u64()?;
+        let state = ModelState::from_bits_index(index)
+            .filter(|s| s.can_be_saved())
+            .ok_or(StateError::MachineState(index))?;
         let time = r.f64()?;
+        if !time.is_finite() {
+            return Err(StateError::Time("time", time));
+        }
         let has_stop = r.bool()?;
         let stop = r.f64()?;
+        if has_stop && (!stop.is_finite() || stop < time - 1e-9 * time.abs().max(1.0)) {
+            return Err(StateError::Time("stop time", stop));
+        }
         let inputs_changed = r.bool()?;
         let n = r.u64()?;
         if n != self.info.variables.len() as u64 {
@@ -726,6 +830,22 @@ impl<M: FmuModel> Instance<M> {
         }
         let mut values = Values::from_start(&self.info.variables);
         values.load(&mut r)?;
+        for (v, value) in self.info.variables.iter().zip(values.all()) {
+            let x = match value {
+                Value::Real(x) => *x,
+                Value::Integer(i) => f64::from(*i),
+                _ => continue,
+            };
+            if !x.is_finite()
+                || v.min.is_some_and(|min| x < min)
+                || v.max.is_some_and(|max| x > max)
+            {
+                return Err(StateError::Value {
+                    name: v.name.clone(),
+                    value: x,
+                });
+            }
+        }
         let mut model = self.core.model.clone();
         model.load_state(&mut r).map_err(StateError::Model)?;
         if r.remaining() != 0 {
@@ -747,10 +867,18 @@ impl<M: FmuModel> Instance<M> {
 pub enum StateError {
     /// The bytes do not start with the spurio state header.
     NotAState,
+    /// The state was written by another version of the state format.
+    Version { saved: String, this: &'static str },
+    /// The state belongs to another model.
+    OtherModel { saved: String, this: String },
     /// The state belongs to an FMU with another GUID.
     OtherFmu { saved: String, this: String },
-    /// The saved state-machine state is unknown.
-    MachineState,
+    /// The saved state-machine state (its index) is unknown or one no saved state can carry.
+    MachineState(u64),
+    /// The saved time or stop time is not finite (or the stop time is before the time).
+    Time(&'static str, f64),
+    /// A saved value is not finite or outside its variable's declared bounds.
+    Value { name: String, value: f64 },
     /// The number of saved values is not the number of variables.
     ValueCount { saved: u64, variables: usize },
     /// The bytes are malformed.
@@ -765,11 +893,35 @@ impl std::fmt::Display for StateError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::NotAState => write!(f, "the bytes are not a serialized spurio FMU state"),
+            Self::Version { saved, this } => write!(
+                f,
+                "serialized FMU state of format {saved}, this FMU reads {this}"
+            ),
+            Self::OtherModel { saved, this } => write!(
+                f,
+                "the state was serialized by model {saved}, this FMU is {this}"
+            ),
             Self::OtherFmu { saved, this } => write!(
                 f,
                 "the state was serialized by an FMU with GUID {saved}, this one is {this}"
             ),
-            Self::MachineState => write!(f, "serialized FMU state: invalid state machine state"),
+            Self::MachineState(index) => write!(
+                f,
+                "serialized FMU state: state machine state {index} is not one a saved state can carry ({})",
+                ModelState::ALL
+                    .iter()
+                    .filter(|s| s.can_be_saved())
+                    .map(|s| s.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            Self::Time(what, value) => {
+                write!(f, "serialized FMU state: its {what} {value} is not valid")
+            }
+            Self::Value { name, value } => write!(
+                f,
+                "serialized FMU state: variable `{name}` = {value} is not finite or outside its declared bounds"
+            ),
             Self::ValueCount { saved, variables } => write!(
                 f,
                 "serialized FMU state has {saved} values, the FMU has {variables} variables"

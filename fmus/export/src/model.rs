@@ -144,6 +144,15 @@ pub trait FmuModel: Clone + 'static {
     /// there) and at `fmi2ExitInitializationMode`; it must give the same result each time.
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure>;
 
+    /// Whether the model can take the step from `time` over `step` within its bounded work
+    /// per call (a cap on RK4 substeps, say). Called by `fmi2DoStep` before [`FmuModel::do_step`];
+    /// an `Err` refuses the step: `fmi2Error` with the cause logged, and the instance stays as
+    /// it was (state machine, time, values and model). The default accepts every step.
+    fn check_step(&self, ctx: &Context, time: f64, step: f64) -> Result<(), Cause> {
+        let _ = (ctx, time, step);
+        Ok(())
+    }
+
     /// Advances from `time` to `time + step` with the current inputs, then writes the outputs.
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure>;
 

@@ -1,5 +1,7 @@
 //! The export layer driven through its C entry points (in-process harness) with a toy model:
-//! state masks, argument checks, panics caught as fmi2Fatal, direct feedthrough.
+//! state masks, argument checks, panics caught as fmi2Fatal (their text on the logger only),
+//! direct feedthrough, refused steps, no non-finite value published, time overflow, and the
+//! checks of a serialized FMU state.
 
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
@@ -7,7 +9,9 @@ use spurio_export::{
     ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
 };
 
-/// y = integral of u (Euler per step); z = 2 u (direct feedthrough); panics when u = 13.
+/// y = integral of u (Euler per step); z = 2 u (direct feedthrough); panics when u = 13;
+/// refuses steps longer than 1000 s (its bounded work per call); overflows to y = ±∞ when
+/// u · h does.
 #[derive(Clone, Debug, Default)]
 struct Integrator {
     state: f64,
@@ -41,6 +45,12 @@ impl FmuModel for Integrator {
         ctx.values.set_real(Y, self.state);
         self.update_outputs(ctx)
     }
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        if step > 1000.0 {
+            return Err(format!("a step of {step} s is longer than 1000 s").into());
+        }
+        Ok(())
+    }
     fn do_step(&mut self, ctx: &mut Context, _time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(U);
         if u == 13.0 {
@@ -62,7 +72,11 @@ impl FmuModel for Integrator {
         out.put_f64(self.state);
     }
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        self.state = input.f64()?;
+        let state = input.f64()?;
+        if !state.is_finite() {
+            return Err(format!("the integrator's state {state} is not finite").into());
+        }
+        self.state = state;
         Ok(())
     }
 }
@@ -171,4 +185,262 @@ fn communication_point_and_step_size_are_checked() {
     assert!(last_error(&h).contains("communicationStepSize must be finite and > 0"));
     h.do_step(1.0, 0.1).unwrap();
     h.do_step(1.1, 0.1).unwrap();
+}
+
+#[test]
+fn a_step_the_model_refuses_changes_nothing() {
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    h.initialize(0.0).unwrap();
+    h.set_real(&[U as u32], &[1.0]).unwrap();
+    assert_eq!(h.do_step(0.0, 2000.0), Err(Status::Error));
+    assert!(
+        last_error(&h).contains("fmi2DoStep: step refused: a step of 2000 s is longer than 1000 s"),
+        "{}",
+        last_error(&h)
+    );
+    // still StepComplete at t = 0 with y = 0: the next step is taken from there
+    assert_eq!(h.real(Y as u32).unwrap(), 0.0);
+    h.do_step(0.0, 3.0).unwrap();
+    assert_eq!(h.real(Y as u32).unwrap(), 3.0);
+}
+
+#[test]
+fn a_non_finite_result_is_an_error_and_is_not_published() {
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    h.initialize(0.0).unwrap();
+    h.set_real(&[U as u32], &[1.0]).unwrap();
+    h.do_step(0.0, 1.0).unwrap();
+    // 1e308 · 10 overflows: y would be +inf
+    h.set_real(&[U as u32], &[1e308]).unwrap();
+    assert_eq!(h.do_step(1.0, 10.0), Err(Status::Error));
+    let e = last_error(&h);
+    assert!(
+        e.contains("fmi2DoStep: variable `y` (value reference 1) came out as inf: not published"),
+        "{e}"
+    );
+    // the last published values stay readable (Error state), the time did not advance
+    assert_eq!(h.real(Y as u32).unwrap(), 1.0);
+    assert_eq!(h.real(Z as u32).unwrap(), 2.0);
+    assert_eq!(h.do_step(11.0, 1.0), Err(Status::Error));
+    assert!(last_error(&h).contains("not allowed in state Error"));
+    // fmi2Reset leads on
+    h.reset().unwrap();
+    h.initialize(0.0).unwrap();
+    assert_eq!(h.real(Y as u32).unwrap(), 0.0);
+}
+
+#[test]
+fn a_step_whose_end_is_not_a_finite_time_is_rejected() {
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    h.initialize(1e308).unwrap();
+    assert_eq!(h.do_step(1e308, 1e308), Err(Status::Error));
+    assert!(
+        last_error(&h).contains("= inf, not a finite time"),
+        "{}",
+        last_error(&h)
+    );
+    assert_eq!(h.last_successful_time().unwrap(), 1e308);
+    // a step below the time resolution at 1e308 would not advance the time
+    assert_eq!(h.do_step(1e308, 1.0), Err(Status::Error));
+    assert!(last_error(&h).contains("below the time resolution"));
+    // the communication point is still checked (time stayed finite)
+    assert_eq!(h.do_step(0.0, 1.0), Err(Status::Error));
+    assert!(last_error(&h).contains("expected currentCommunicationPoint = 1"));
+    // a finite end passes the time checks (and reaches the model's own refusal)
+    assert_eq!(h.do_step(1e308, 1e307), Err(Status::Error));
+    assert!(last_error(&h).contains("step refused"));
+    assert_eq!(h.last_successful_time().unwrap(), 1e308);
+}
+
+#[test]
+fn an_infinite_stop_time_is_rejected() {
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    assert_eq!(
+        h.setup_experiment(0.0, Some(f64::INFINITY)),
+        Err(Status::Error)
+    );
+    assert!(last_error(&h).contains("stopTime = inf must be finite"));
+    h.setup_experiment(0.0, Some(1e12)).unwrap();
+}
+
+/// Where the fields of a serialized state of [`Integrator`] start: the header strings
+/// (format, model identifier, GUID), then the state-machine index, time, stop time, the
+/// inputs-changed flag, the value count and the values.
+struct Layout {
+    state_index: usize,
+    time: usize,
+    stop: usize,
+    values: usize,
+}
+
+fn layout() -> Layout {
+    let guid = Integrator::describe(&Config::new()).unwrap().guid;
+    let header = [
+        8 + "spurio-fmu-state/2".len(),
+        8 + "Integrator".len(),
+        8 + guid.len(),
+    ];
+    let state_index = header.iter().sum::<usize>();
+    let time = state_index + 8;
+    let stop = time + 8 + 1;
+    let values = stop + 8 + 1 + 8;
+    Layout {
+        state_index,
+        time,
+        stop,
+        values,
+    }
+}
+
+fn put_f64(bytes: &mut [u8], at: usize, x: f64) {
+    bytes[at..at + 8].copy_from_slice(&x.to_le_bytes());
+}
+
+#[test]
+fn a_serialized_state_is_validated_before_it_is_accepted() {
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    h.set_real(&[Y0 as u32], &[1.5]).unwrap();
+    h.setup_experiment(0.0, Some(100.0)).unwrap();
+    h.enter_initialization_mode().unwrap();
+    h.exit_initialization_mode().unwrap();
+    h.set_real(&[U as u32], &[2.0]).unwrap();
+    h.do_step(0.0, 1.0).unwrap();
+    let good = h.serialized_state().unwrap();
+    let at = layout();
+    assert_eq!(&good[at.values..at.values + 8], &2.0f64.to_le_bytes()); // u
+    assert_eq!(&good[at.values + 8..at.values + 16], &3.5f64.to_le_bytes()); // y
+
+    let corrupt = |edit: &dyn Fn(&mut Vec<u8>)| {
+        let mut bytes = good.clone();
+        edit(&mut bytes);
+        bytes
+    };
+    let mut other_version = good.clone();
+    other_version[8 + "spurio-fmu-state/".len()] = b'1';
+    let mut other_model = good.clone();
+    other_model[16 + "spurio-fmu-state/2".len()] = b'J';
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("version", other_version, "of format spurio-fmu-state/1"),
+        (
+            "model",
+            other_model,
+            "by model Jntegrator, this FMU is Integrator",
+        ),
+        (
+            "not a state",
+            b"hello".to_vec(),
+            "not a serialized spurio FMU state",
+        ),
+        ("truncated", good[..good.len() - 3].to_vec(), "truncated"),
+        ("left over", corrupt(&|b| b.push(0)), "1 bytes left over"),
+        (
+            "StartAndEnd",
+            corrupt(&|b| b[at.state_index] = 0),
+            "state machine state 0",
+        ),
+        (
+            "StepInProgress",
+            corrupt(&|b| b[at.state_index] = 4),
+            "state machine state 4",
+        ),
+        (
+            "Fatal",
+            corrupt(&|b| b[at.state_index] = 9),
+            "state machine state 9",
+        ),
+        (
+            "unknown",
+            corrupt(&|b| b[at.state_index] = 77),
+            "state machine state 77",
+        ),
+        (
+            "NaN time",
+            corrupt(&|b| put_f64(b, at.time, f64::NAN)),
+            "its time NaN",
+        ),
+        (
+            "inf time",
+            corrupt(&|b| put_f64(b, at.time, f64::INFINITY)),
+            "its time inf",
+        ),
+        (
+            "stop before time",
+            corrupt(&|b| put_f64(b, at.stop, 0.5)),
+            "its stop time 0.5",
+        ),
+        (
+            "NaN value",
+            corrupt(&|b| put_f64(b, at.values + 8, f64::NAN)),
+            "`y` = NaN",
+        ),
+        (
+            "out of bounds",
+            corrupt(&|b| put_f64(b, at.values + 24, 11.0)),
+            "`y0` = 11",
+        ),
+        (
+            "model part",
+            corrupt(&|b| {
+                let n = b.len();
+                put_f64(b, n - 8, f64::NEG_INFINITY)
+            }),
+            "the integrator's state -inf is not finite",
+        ),
+    ];
+    for (case, bytes, reason) in cases {
+        assert_eq!(h.restore_state(&bytes), Err(Status::Error), "{case}");
+        let e = last_error(&h);
+        assert!(
+            e.contains("fmi2DeSerializeFMUstate") && e.contains(reason),
+            "{case}: {e}"
+        );
+    }
+    // every rejection left the instance as it was
+    assert_eq!(h.real(Y as u32).unwrap(), 3.5);
+    h.do_step(1.0, 1.0).unwrap();
+    assert_eq!(h.real(Y as u32).unwrap(), 5.5);
+    // and the good bytes restore the saved point
+    h.restore_state(&good).unwrap();
+    assert_eq!(h.real(Y as u32).unwrap(), 3.5);
+    assert_eq!(h.last_successful_time().unwrap(), 1.0);
+}
+
+/// Run by [`a_panic_prints_nothing_on_stderr`] in a child process: a panicking step.
+#[test]
+fn panicking_step_child() {
+    if std::env::var_os("SPURIO_PANIC_CHILD").is_none() {
+        return;
+    }
+    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    h.initialize(0.0).unwrap();
+    h.set_real(&[U as u32], &[13.0]).unwrap();
+    assert_eq!(h.do_step(0.0, 0.1), Err(Status::Fatal));
+    let (_, _, text) = h.log().pop().unwrap();
+    assert!(
+        text.contains("internal error: unlucky input (at "),
+        "{text}"
+    );
+    assert!(text.contains("export_layer.rs"), "{text}");
+    eprintln!("child done");
+}
+
+#[test]
+fn a_panic_prints_nothing_on_stderr() {
+    let output = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "panicking_step_child",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env("SPURIO_PANIC_CHILD", "1")
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "child failed: {stdout}\n{stderr}");
+    assert!(stdout.contains("1 passed"), "{stdout}");
+    // the only line on stderr is the child's own
+    assert_eq!(stderr.trim(), "child done", "{stderr}");
 }

@@ -112,7 +112,7 @@ unsafe fn with_instance<M: FmuModel>(
     match result {
         Ok(status) => code(status),
         Err(payload) => {
-            let message = panic_message(&payload);
+            let message = panic_message(&*payload);
             let _ = catch_unwind(AssertUnwindSafe(|| {
                 // SAFETY: as above; the closure that panicked no longer borrows the slot.
                 unsafe { &mut *slot }.instance.set_fatal(f, &message)

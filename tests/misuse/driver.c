@@ -1,0 +1,789 @@
+/* The misuse driver: drives one FMI 2.0 Co-Simulation FMU through its C ABI with a seeded
+ * random sequence of calls -- legal and illegal call sequences, NULL pointers, unknown value
+ * references, NaN/+-inf/1e308 values, huge, tiny, negative and non-finite steps, FMU states
+ * that are foreign, corrupted or freed, several interleaved instances -- and checks after
+ * every call:
+ *
+ *   - the state machine: a call that the FMI 2.0 state machine does not allow in any state
+ *     the instance may be in returns fmi2Error (and changes nothing that is tracked);
+ *   - every return other than fmi2OK/fmi2Warning on an instance logged why (at least one
+ *     message with status >= fmi2Discard during the call), always with the format "%s";
+ *   - no fmi2Fatal (a caught panic is a bug), no fmi2Pending;
+ *   - no call takes longer than the bound (default 1 s);
+ *   - every Real read with fmi2OK is finite; after every fmi2OK step all Reals are read.
+ *
+ * A crash, a hang or an AddressSanitizer report ends the process (the run script reports it).
+ *
+ *   driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE]]
+ *
+ * MANIFEST is written by manifest.py. The driver prints one summary line and each finding
+ * with the call number, so `driver MANIFEST SEED N` replays it. Exit status: 0 no finding,
+ * 1 findings, 2 usage or load error.
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <signal.h>
+#include <time.h>
+#include <unistd.h>
+
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef char fmi2Char;
+typedef const fmi2Char *fmi2String;
+typedef char fmi2Byte;
+typedef int fmi2Status;
+enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending };
+enum { fmi2ModelExchange, fmi2CoSimulation };
+enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated };
+
+typedef void (*Logger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String,
+                       ...);
+typedef struct {
+    Logger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+/* ---- the FMU's entry points ---------------------------------------------------------- */
+static struct {
+    fmi2Component (*Instantiate)(fmi2String, int, fmi2String, fmi2String,
+                                 const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+    void (*FreeInstance)(fmi2Component);
+    fmi2Status (*SetDebugLogging)(fmi2Component, fmi2Boolean, size_t, const fmi2String *);
+    fmi2Status (*SetupExperiment)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean,
+                                  fmi2Real);
+    fmi2Status (*EnterInitializationMode)(fmi2Component);
+    fmi2Status (*ExitInitializationMode)(fmi2Component);
+    fmi2Status (*Terminate)(fmi2Component);
+    fmi2Status (*Reset)(fmi2Component);
+    fmi2Status (*GetReal)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Real *);
+    fmi2Status (*GetInteger)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Integer *);
+    fmi2Status (*GetBoolean)(fmi2Component, const fmi2ValueReference *, size_t, fmi2Boolean *);
+    fmi2Status (*GetString)(fmi2Component, const fmi2ValueReference *, size_t, fmi2String *);
+    fmi2Status (*SetReal)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2Real *);
+    fmi2Status (*SetInteger)(fmi2Component, const fmi2ValueReference *, size_t,
+                             const fmi2Integer *);
+    fmi2Status (*SetBoolean)(fmi2Component, const fmi2ValueReference *, size_t,
+                             const fmi2Boolean *);
+    fmi2Status (*SetString)(fmi2Component, const fmi2ValueReference *, size_t, const fmi2String *);
+    fmi2Status (*GetFMUstate)(fmi2Component, fmi2FMUstate *);
+    fmi2Status (*SetFMUstate)(fmi2Component, fmi2FMUstate);
+    fmi2Status (*FreeFMUstate)(fmi2Component, fmi2FMUstate *);
+    fmi2Status (*SerializedFMUstateSize)(fmi2Component, fmi2FMUstate, size_t *);
+    fmi2Status (*SerializeFMUstate)(fmi2Component, fmi2FMUstate, fmi2Byte *, size_t);
+    fmi2Status (*DeSerializeFMUstate)(fmi2Component, const fmi2Byte *, size_t, fmi2FMUstate *);
+    fmi2Status (*DoStep)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+    fmi2Status (*CancelStep)(fmi2Component);
+    fmi2Status (*GetStatus)(fmi2Component, int, fmi2Status *);
+    fmi2Status (*GetRealStatus)(fmi2Component, int, fmi2Real *);
+    fmi2Status (*GetIntegerStatus)(fmi2Component, int, fmi2Integer *);
+    fmi2Status (*GetBooleanStatus)(fmi2Component, int, fmi2Boolean *);
+    fmi2Status (*GetStringStatus)(fmi2Component, int, fmi2String *);
+} F;
+
+/* ---- the FMI 2.0 CS state machine (as the standard's tables give it) ------------------- */
+enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEP = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32 };
+#define ANY_LIVE (S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR)
+#define AFTER_INIT (S_INIT | S_STEP | S_TERMINATED | S_ERROR)
+#define SETTABLE (S_INSTANTIATED | S_INIT | S_STEP)
+#define STATUS_QUERIES (S_STEP | S_TERMINATED)
+
+/* ---- the model ----------------------------------------------------------------------- */
+typedef struct {
+    unsigned vr;
+    char type; /* R I B S */
+    char causality[24];
+    char variability[16];
+    int has_min, has_max;
+    double min, max;
+    char name[128];
+} Var;
+
+static char label[128], model_id[128], guid[128], library[1024], resources[1200];
+static Var *vars;
+static int nvars;
+static unsigned max_vr;
+
+/* ---- bookkeeping --------------------------------------------------------------------- */
+typedef struct {
+    fmi2Component c;
+    int possible;      /* the states the instance may be in (bit set) */
+    double time;       /* communication point when known */
+    int time_known;
+    int log_count;     /* messages with status >= fmi2Discard during the current call */
+    int bad_format;    /* a message whose format was not "%s" */
+    char last[600];
+    fmi2FMUstate states[8];
+    int state_possible[8];
+    int nstates;
+} Inst;
+
+#define NINST 4
+static Inst inst[NINST];
+static unsigned long long rng;
+static long call_no, findings, calls_total;
+static double bound_ms = 1000.0, slowest_ms;
+static char slowest_what[64];
+static unsigned char *foreign;
+static size_t foreign_len;
+static unsigned char *own_bytes;
+static size_t own_len;
+static const char *dump_path;
+
+static unsigned long long next_u64(void) {
+    /* splitmix64 */
+    unsigned long long z = (rng += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+}
+static int pick(int n) { return (int)(next_u64() % (unsigned long long)n); }
+static double unit(void) { return (double)(next_u64() >> 11) / 9007199254740992.0; }
+
+static void finding(const char *what, const char *fmt, ...) {
+    va_list ap;
+    findings++;
+    if (findings > 50) return;
+    printf("FINDING %s call %ld (%s): ", label, call_no, what);
+    va_start(ap, fmt);
+    vprintf(fmt, ap);
+    va_end(ap);
+    printf("\n");
+}
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
+                   fmi2String category, fmi2String message, ...) {
+    Inst *in = (Inst *)env;
+    char text[600];
+    va_list ap;
+    (void)name;
+    (void)category;
+    if (!message) {
+        if (in) in->bad_format = 1;
+        return;
+    }
+    va_start(ap, message);
+    vsnprintf(text, sizeof text, message, ap);
+    va_end(ap);
+    if (!in) return;
+    if (strcmp(message, "%s") != 0) in->bad_format = 1;
+    if (status >= fmi2Discard) {
+        in->log_count++;
+        snprintf(in->last, sizeof in->last, "%s", text);
+    }
+}
+
+static fmi2CallbackFunctions callbacks_for(Inst *in) {
+    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, in};
+    return cb;
+}
+
+static double now_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
+}
+
+/* Wraps a call on an instance: timing, the log and the state-machine checks.
+ * `mask` is where the call is allowed; returns the status. */
+static double t0;
+static unsigned hang_seconds = 10;
+
+/* A call that does not return: the alarm reports it (the process then ends). */
+static void on_alarm(int sig) {
+    char text[160];
+    int n = snprintf(text, sizeof text, "HANG %s: call %ld did not return within %u s\n", label,
+                     call_no, hang_seconds);
+    (void)sig;
+    if (n > 0) { ssize_t ignored = write(1, text, (size_t)n); (void)ignored; }
+    _exit(3);
+}
+
+static void begin(Inst *in) {
+    alarm(hang_seconds);
+    in->log_count = 0;
+    in->last[0] = 0;
+    t0 = now_ms();
+    call_no++;
+    calls_total++;
+}
+
+static fmi2Status end(Inst *in, const char *what, int mask, fmi2Status s) {
+    double ms = now_ms() - t0;
+    alarm(0);
+    if (ms > slowest_ms) {
+        slowest_ms = ms;
+        snprintf(slowest_what, sizeof slowest_what, "%s", what);
+    }
+    if (ms > bound_ms) finding(what, "took %.0f ms (bound %.0f ms)", ms, bound_ms);
+    if (s == fmi2Fatal) {
+        finding(what, "fmi2Fatal: %s", in->last);
+        in->possible = S_FATAL;
+    }
+    if (s < fmi2OK || s > fmi2Fatal) finding(what, "status %d is not an fmi2Status here", s);
+    if (s >= fmi2Discard && in->log_count == 0) finding(what, "returned %d without logging why", s);
+    if (in->bad_format) {
+        finding(what, "logged with a format other than \"%%s\"");
+        in->bad_format = 0;
+    }
+    if (mask >= 0 && (mask & in->possible) == 0 && s != fmi2Error && s != fmi2Fatal)
+        finding(what, "allowed in none of the states 0x%x but returned %d", in->possible, s);
+    if (mask >= 0 && s == fmi2Error && strstr(in->last, "illegal call sequence")) {
+        if ((in->possible & ~mask) == 0)
+            finding(what, "refused as an illegal call sequence in an allowed state: %s", in->last);
+        in->possible &= ~mask;
+        if (!in->possible) in->possible = ANY_LIVE;
+    } else if (mask >= 0 && s <= fmi2Warning) {
+        in->possible &= mask;
+        if (!in->possible) in->possible = mask;
+    }
+    return s;
+}
+
+/* ---- values -------------------------------------------------------------------------- */
+static double nasty_real(const Var *v) {
+    switch (pick(16)) {
+    case 0: return NAN;
+    case 1: return INFINITY;
+    case 2: return -INFINITY;
+    case 3: return 1e308;
+    case 4: return -1e308;
+    case 5: return 1e-300;
+    case 6: return -1.0;
+    case 7: return 0.0;
+    case 8: return v && v->has_min ? v->min : 1.0;
+    case 9: return v && v->has_max ? v->max : 2.0;
+    case 10: return v && v->has_max ? v->max * (1 + 1e-12) + 1e-300 : 1e6;
+    default: {
+        double lo = v && v->has_min ? v->min : -10.0, hi = v && v->has_max ? v->max : 10.0;
+        if (hi - lo > 100.0) { lo = fmax(lo, -10.0); hi = fmin(hi, 10.0); }
+        if (hi < lo) hi = lo;
+        return lo + (hi - lo) * unit();
+    }
+    }
+}
+
+static int nasty_int(const Var *v) {
+    switch (pick(10)) {
+    case 0: return 2147483647;
+    case 1: return -2147483647 - 1;
+    case 2: return -1;
+    case 3: return 0;
+    case 4: return v && v->has_min ? (int)v->min : 1;
+    case 5: return v && v->has_max ? (int)v->max : 3;
+    default: {
+        int lo = v && v->has_min ? (int)v->min : 0, hi = v && v->has_max ? (int)v->max : 5;
+        if (hi - lo > 50) hi = lo + 50;
+        return lo + pick(hi - lo + 1);
+    }
+    }
+}
+
+/* A value reference of type `t` (sometimes of another type or unknown). */
+static unsigned some_vr(char t, const Var **var) {
+    int k, tries;
+    *var = NULL;
+    if (pick(20) == 0) return pick(2) ? max_vr + 1 + (unsigned)pick(5) : 0xFFFFFFFFu;
+    for (tries = 0; tries < 50; tries++) {
+        k = pick(nvars);
+        if (vars[k].type == t || pick(30) == 0) {
+            *var = &vars[k];
+            return vars[k].vr;
+        }
+    }
+    return 0;
+}
+
+/* ---- reading every Real (the finiteness check) ---------------------------------------- */
+static void check_all_reals(Inst *in, const char *after) {
+    fmi2ValueReference *vr = malloc(sizeof *vr * (nvars + 1));
+    fmi2Real *x = malloc(sizeof *x * (nvars + 1));
+    int n = 0, i;
+    fmi2Status s;
+    for (i = 0; i < nvars; i++)
+        if (vars[i].type == 'R') vr[n++] = vars[i].vr;
+    begin(in);
+    s = F.GetReal(in->c, vr, n, x);
+    end(in, "fmi2GetReal(all)", AFTER_INIT, s);
+    if (s == fmi2OK)
+        for (i = 0; i < n; i++)
+            if (!isfinite(x[i])) {
+                const char *name = "?";
+                int k;
+                for (k = 0; k < nvars; k++)
+                    if (vars[k].vr == vr[i] && vars[k].type == 'R') name = vars[k].name;
+                finding("fmi2GetReal", "after %s: `%s` = %g with fmi2OK", after, name, x[i]);
+            }
+    free(vr);
+    free(x);
+}
+
+/* ---- instances ----------------------------------------------------------------------- */
+static void free_states(Inst *in) { in->nstates = 0; /* freed with the instance */ }
+
+static void instantiate(Inst *in) {
+    char name[32];
+    fmi2CallbackFunctions cb;
+    const char *g = guid;
+    const char *res = resources;
+    int variant = pick(12);
+    snprintf(name, sizeof name, "i%d", (int)(in - inst));
+    in->log_count = 0;
+    cb = callbacks_for(in);
+    if (variant == 0) g = "{00000000-0000-0000-0000-000000000000}";
+    if (variant == 1) res = NULL;
+    t0 = now_ms();
+    call_no++;
+    calls_total++;
+    in->c = F.Instantiate(variant == 2 ? "" : name, variant == 3 ? fmi2ModelExchange : fmi2CoSimulation,
+                          g, res, variant == 4 ? NULL : &cb, 0, pick(2));
+    if (!in->c) {
+        if (variant > 4 && variant != 1)
+            finding("fmi2Instantiate", "returned NULL for a valid call: %s", in->last);
+        if (variant != 4 && in->log_count == 0 && variant != 1)
+            finding("fmi2Instantiate", "returned NULL without logging why");
+        return;
+    }
+    if (variant <= 4 && variant != 1)
+        finding("fmi2Instantiate", "accepted an invalid call (case %d)", variant);
+    in->possible = S_INSTANTIATED;
+    in->time = 0;
+    in->time_known = 1;
+    in->nstates = 0;
+}
+
+static void free_instance(Inst *in) {
+    call_no++;
+    calls_total++;
+    F.FreeInstance(in->c);
+    in->c = NULL;
+    free_states(in);
+}
+
+/* ---- one random call ----------------------------------------------------------------- */
+static void save_bytes(Inst *in, fmi2FMUstate st) {
+    size_t size = 0;
+    fmi2Status s;
+    begin(in);
+    s = F.SerializedFMUstateSize(in->c, st, &size);
+    end(in, "fmi2SerializedFMUstateSize", ANY_LIVE, s);
+    if (s != fmi2OK) return;
+    if (size > (1u << 26)) {
+        finding("fmi2SerializedFMUstateSize", "%zu bytes", size);
+        return;
+    }
+    free(own_bytes);
+    own_bytes = malloc(size ? size : 1);
+    own_len = size;
+    begin(in);
+    s = F.SerializeFMUstate(in->c, st, (fmi2Byte *)own_bytes, pick(10) == 0 && size ? size - 1 : size);
+    end(in, "fmi2SerializeFMUstate", ANY_LIVE, s);
+    if (s != fmi2OK) own_len = 0;
+}
+
+static void random_call(Inst *in) {
+    fmi2Status s;
+    int op = pick(100), n, i;
+    fmi2ValueReference vrs[8];
+    const Var *var[8];
+    if (!in->c) {
+        instantiate(in);
+        return;
+    }
+    if (op < 3) { /* free and come back later */
+        free_instance(in);
+        return;
+    }
+    if (op < 6) {
+        double start = pick(4) == 0 ? nasty_real(NULL) : (pick(3) == 0 ? 1e12 : 0.0);
+        double stop = pick(3) == 0 ? nasty_real(NULL) : start + 10.0;
+        int stop_defined = pick(2);
+        begin(in);
+        s = F.SetupExperiment(in->c, pick(2), 1e-6, start, stop_defined, stop);
+        end(in, "fmi2SetupExperiment", S_INSTANTIATED, s);
+        if (s == fmi2OK) { in->time = start; in->time_known = 1; }
+        return;
+    }
+    if (op < 12) {
+        begin(in);
+        s = F.EnterInitializationMode(in->c);
+        end(in, "fmi2EnterInitializationMode", S_INSTANTIATED, s);
+        if (s == fmi2OK) in->possible = S_INIT;
+        return;
+    }
+    if (op < 18) {
+        begin(in);
+        s = F.ExitInitializationMode(in->c);
+        end(in, "fmi2ExitInitializationMode", S_INIT, s);
+        if (s <= fmi2Warning) {
+            in->possible = S_STEP;
+            check_all_reals(in, "fmi2ExitInitializationMode");
+        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+            in->possible |= S_ERROR;
+        return;
+    }
+    if (op < 20) {
+        begin(in);
+        s = F.Terminate(in->c);
+        end(in, "fmi2Terminate", S_STEP, s);
+        if (s == fmi2OK) in->possible = S_TERMINATED;
+        return;
+    }
+    if (op < 23) {
+        begin(in);
+        s = F.Reset(in->c);
+        end(in, "fmi2Reset", ANY_LIVE, s);
+        if (s == fmi2OK) { in->possible = S_INSTANTIATED; in->time = 0; in->time_known = 1; }
+        return;
+    }
+    if (op < 45) { /* fmi2DoStep */
+        static const double steps[] = {0.01, 0.05, 0.1, 0.001, 1.0, 10.0, 1e3, 1e308, 1e-300,
+                                       0.0, -0.1, NAN, INFINITY, 1e-12, 0.02, 0.5};
+        double h = steps[pick(4) == 0 ? pick(16) : pick(4)];
+        double t;
+        if (!in->time_known && pick(2)) {
+            fmi2Real last = NAN;
+            begin(in);
+            s = F.GetRealStatus(in->c, fmi2LastSuccessfulTime, &last);
+            end(in, "fmi2GetRealStatus", -1, s);
+            if (s == fmi2OK) { in->time = last; in->time_known = 1; }
+        }
+        t = in->time_known && pick(10) ? in->time : nasty_real(NULL);
+        begin(in);
+        s = F.DoStep(in->c, t, h, 1);
+        end(in, "fmi2DoStep", S_STEP, s);
+        if (s <= fmi2Warning) {
+            in->time = t + h;
+            if (!isfinite(in->time)) finding("fmi2DoStep", "accepted a step to t = %g", in->time);
+            check_all_reals(in, "fmi2DoStep");
+        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+            in->possible |= S_ERROR;
+        return;
+    }
+    n = 1 + pick(4);
+    if (op < 60) { /* fmi2SetReal / Integer / Boolean */
+        int kind = pick(3);
+        char t = kind == 0 ? 'R' : kind == 1 ? 'I' : 'B';
+        fmi2Real xr[8];
+        fmi2Integer xi[8];
+        for (i = 0; i < n; i++) {
+            vrs[i] = some_vr(t, &var[i]);
+            xr[i] = nasty_real(var[i]);
+            xi[i] = t == 'B' ? pick(3) - (pick(4) == 0) : nasty_int(var[i]);
+        }
+        begin(in);
+        if (pick(25) == 0)
+            s = t == 'R' ? F.SetReal(in->c, NULL, n, xr) : F.SetInteger(in->c, vrs, n, NULL);
+        else if (t == 'R')
+            s = F.SetReal(in->c, vrs, n, xr);
+        else if (t == 'I')
+            s = F.SetInteger(in->c, vrs, n, xi);
+        else
+            s = F.SetBoolean(in->c, vrs, n, xi);
+        end(in, "fmi2Set*", SETTABLE, s);
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") && (in->possible & S_STEP))
+            in->possible |= S_ERROR; /* tunable parameters may fail in the model */
+        return;
+    }
+    if (op < 75) { /* fmi2Get* */
+        int kind = pick(4);
+        char t = "RIBS"[kind];
+        fmi2Real xr[8];
+        fmi2Integer xi[8];
+        fmi2String xs[8];
+        for (i = 0; i < n; i++) vrs[i] = some_vr(t, &var[i]);
+        begin(in);
+        if (pick(25) == 0)
+            s = F.GetReal(in->c, vrs, n, NULL);
+        else if (t == 'R')
+            s = F.GetReal(in->c, vrs, n, xr);
+        else if (t == 'I')
+            s = F.GetInteger(in->c, vrs, n, xi);
+        else if (t == 'B')
+            s = F.GetBoolean(in->c, vrs, n, xi);
+        else
+            s = F.GetString(in->c, vrs, n, xs);
+        end(in, "fmi2Get*", AFTER_INIT, s);
+        if (s == fmi2OK && t == 'R')
+            for (i = 0; i < n; i++)
+                if (!isfinite(xr[i])) finding("fmi2GetReal", "vr %u = %g with fmi2OK", vrs[i], xr[i]);
+        if (s == fmi2OK && t == 'S')
+            for (i = 0; i < n; i++)
+                if (!xs[i] || strlen(xs[i]) > 1000000) finding("fmi2GetString", "bad string");
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") && (in->possible & S_INIT))
+            in->possible |= S_ERROR; /* outputs computed in initialization mode may fail */
+        return;
+    }
+    if (op < 80) { /* fmi2GetFMUstate */
+        fmi2FMUstate st = NULL;
+        int slot = in->nstates < 8 ? in->nstates : pick(8);
+        if (slot < in->nstates) st = in->states[slot];
+        begin(in);
+        s = F.GetFMUstate(in->c, pick(30) ? &st : NULL);
+        end(in, "fmi2GetFMUstate", ANY_LIVE, s);
+        if (s == fmi2OK && st) {
+            in->states[slot] = st;
+            in->state_possible[slot] = in->possible;
+            if (slot == in->nstates) in->nstates++;
+            if (pick(3) == 0) save_bytes(in, st);
+        }
+        return;
+    }
+    if (op < 85) { /* fmi2SetFMUstate: own, another instance's, or garbage */
+        fmi2FMUstate st;
+        int slot = in->nstates ? pick(in->nstates) : -1;
+        int which = pick(6), not_ours = 0;
+        Inst *other = &inst[pick(NINST)];
+        if (which == 0 && other != in && other->c && other->nstates) {
+            st = other->states[0];
+            not_ours = 1;
+        } else if (which == 1) {
+            st = (fmi2FMUstate)(uintptr_t)0x1000;
+            not_ours = 1;
+        } else
+            st = slot >= 0 ? in->states[slot] : NULL;
+        begin(in);
+        s = F.SetFMUstate(in->c, st);
+        end(in, "fmi2SetFMUstate", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            int k;
+            in->possible = S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR;
+            for (k = 0; k < in->nstates; k++)
+                if (in->states[k] == st) in->possible = in->state_possible[k];
+            in->time_known = 0;
+            if (not_ours) finding("fmi2SetFMUstate", "accepted a state it did not create");
+        }
+        return;
+    }
+    if (op < 88) { /* fmi2FreeFMUstate */
+        if (in->nstates) {
+            int slot = pick(in->nstates);
+            fmi2FMUstate st = in->states[slot];
+            begin(in);
+            s = F.FreeFMUstate(in->c, &st);
+            end(in, "fmi2FreeFMUstate", ANY_LIVE | S_FATAL, s);
+            if (s == fmi2OK) {
+                in->nstates--;
+                in->states[slot] = in->states[in->nstates];
+                in->state_possible[slot] = in->state_possible[in->nstates];
+                if (st) finding("fmi2FreeFMUstate", "did not set the state to NULL");
+            }
+        }
+        return;
+    }
+    if (op < 94) { /* fmi2DeSerializeFMUstate: own bytes, corrupted, truncated, foreign */
+        unsigned char *bytes;
+        size_t len;
+        fmi2FMUstate st = NULL;
+        int which = pick(5), other_fmu = 0;
+        if (which == 0) { /* another FMU's state (none: a fixed non-state), no random draw */
+            static const char not_a_state[] = "not a serialized FMU state";
+            other_fmu = foreign_len > 0;
+            len = other_fmu ? foreign_len : sizeof not_a_state;
+            bytes = malloc(len);
+            memcpy(bytes, other_fmu ? (const void *)foreign : (const void *)not_a_state, len);
+        } else if (own_len) {
+            len = own_len;
+            bytes = malloc(len);
+            memcpy(bytes, own_bytes, len);
+            if (which == 1) bytes[pick((int)len)] ^= (unsigned char)(1 + pick(255));
+            if (which == 2) len = (size_t)pick((int)len);
+            if (which == 3) { /* a NaN or an extreme number somewhere after the header */
+                size_t at = (size_t)pick((int)len);
+                double bad = pick(2) ? NAN : -1e308;
+                if (at + 8 <= len) memcpy(bytes + at, &bad, 8);
+            }
+        } else {
+            len = 1 + pick(64);
+            bytes = malloc(len);
+            for (size_t k = 0; k < len; k++) bytes[k] = (unsigned char)pick(256);
+        }
+        begin(in);
+        s = F.DeSerializeFMUstate(in->c, (const fmi2Byte *)bytes, len, &st);
+        end(in, "fmi2DeSerializeFMUstate", ANY_LIVE, s);
+        if (s == fmi2OK && other_fmu) finding("fmi2DeSerializeFMUstate", "accepted the state of another FMU");
+        if (s == fmi2OK) {
+            if (in->nstates < 8) {
+                in->states[in->nstates] = st;
+                in->state_possible[in->nstates] = S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR;
+                in->nstates++;
+            } else {
+                begin(in);
+                end(in, "fmi2FreeFMUstate", ANY_LIVE, F.FreeFMUstate(in->c, &st));
+            }
+        }
+        free(bytes);
+        return;
+    }
+    if (op < 97) { /* status queries */
+        fmi2Real r;
+        fmi2Boolean b;
+        fmi2Status st;
+        int kind = pick(5);
+        begin(in);
+        if (kind == 0) s = F.GetRealStatus(in->c, fmi2LastSuccessfulTime, pick(20) ? &r : NULL);
+        else if (kind == 1) s = F.GetBooleanStatus(in->c, fmi2Terminated, &b);
+        else if (kind == 2) s = F.GetStatus(in->c, fmi2DoStepStatus, &st);
+        else if (kind == 3) s = F.CancelStep(in->c);
+        else s = F.GetRealStatus(in->c, pick(7) - 1, &r);
+        end(in, "status query", kind == 3 ? 0 : -1, s);
+        if (kind == 0 && s == fmi2OK && !isfinite(r)) finding("fmi2GetRealStatus", "time %g", r);
+        return;
+    }
+    { /* fmi2SetDebugLogging, fmi2SetString, NULL component */
+        int kind = pick(3);
+        if (kind == 0) {
+            fmi2String cats[2] = {"logStatusError", pick(2) ? "noSuchCategory" : "logAll"};
+            begin(in);
+            s = F.SetDebugLogging(in->c, pick(2), 1 + pick(2), pick(20) ? cats : NULL);
+            end(in, "fmi2SetDebugLogging", ANY_LIVE, s);
+        } else if (kind == 1) {
+            fmi2String v[1] = {pick(5) ? "text" : NULL};
+            fmi2ValueReference r = some_vr('S', &var[0]);
+            begin(in);
+            s = F.SetString(in->c, &r, 1, v);
+            end(in, "fmi2SetString", SETTABLE, s);
+        } else {
+            double ms = now_ms();
+            calls_total++;
+            call_no++;
+            if (F.DoStep(NULL, 0, 0.1, 1) != fmi2Error || F.GetReal(NULL, NULL, 0, NULL) != fmi2Error ||
+                F.EnterInitializationMode(NULL) != fmi2Error)
+                finding("NULL component", "not fmi2Error");
+            F.FreeInstance(NULL);
+            if (now_ms() - ms > bound_ms) finding("NULL component", "slow");
+        }
+    }
+}
+
+/* ---- loading ------------------------------------------------------------------------- */
+static int read_manifest(const char *path) {
+    FILE *f = fopen(path, "r");
+    char line[2048];
+    int cap = 64;
+    if (!f) return 0;
+    vars = calloc(cap, sizeof *vars);
+    while (fgets(line, sizeof line, f)) {
+        char *fields[8];
+        int nf = 0;
+        char *p = line, *tab;
+        line[strcspn(line, "\n")] = 0;
+        while (nf < 8) {
+            fields[nf++] = p;
+            tab = strchr(p, '\t');
+            if (!tab) break;
+            *tab = 0;
+            p = tab + 1;
+        }
+        if (!strcmp(fields[0], "label") && nf > 1) snprintf(label, sizeof label, "%s", fields[1]);
+        else if (!strcmp(fields[0], "id") && nf > 1) snprintf(model_id, sizeof model_id, "%s", fields[1]);
+        else if (!strcmp(fields[0], "guid") && nf > 1) snprintf(guid, sizeof guid, "%s", fields[1]);
+        else if (!strcmp(fields[0], "library") && nf > 1) snprintf(library, sizeof library, "%s", fields[1]);
+        else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
+        else if (!strcmp(fields[0], "var") && nf == 8) {
+            Var *v;
+            if (nvars == cap) vars = realloc(vars, sizeof *vars * (cap *= 2));
+            v = &vars[nvars++];
+            memset(v, 0, sizeof *v);
+            v->vr = (unsigned)strtoul(fields[1], NULL, 10);
+            v->type = fields[2][0];
+            snprintf(v->causality, sizeof v->causality, "%s", fields[3]);
+            snprintf(v->variability, sizeof v->variability, "%s", fields[4]);
+            if (strcmp(fields[5], "-")) { v->has_min = 1; v->min = strtod(fields[5], NULL); }
+            if (strcmp(fields[6], "-")) { v->has_max = 1; v->max = strtod(fields[6], NULL); }
+            snprintf(v->name, sizeof v->name, "%s", fields[7]);
+            if (v->vr > max_vr) max_vr = v->vr;
+        }
+    }
+    fclose(f);
+    return nvars > 0 && model_id[0] && library[0];
+}
+
+#define LOAD(field, symbol)                                                                   \
+    do {                                                                                      \
+        *(void **)(&F.field) = dlsym(lib, symbol);                                            \
+        if (!F.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
+    } while (0)
+
+static int load(void) {
+    void *lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 0; }
+    LOAD(Instantiate, "fmi2Instantiate"); LOAD(FreeInstance, "fmi2FreeInstance");
+    LOAD(SetDebugLogging, "fmi2SetDebugLogging"); LOAD(SetupExperiment, "fmi2SetupExperiment");
+    LOAD(EnterInitializationMode, "fmi2EnterInitializationMode");
+    LOAD(ExitInitializationMode, "fmi2ExitInitializationMode");
+    LOAD(Terminate, "fmi2Terminate"); LOAD(Reset, "fmi2Reset");
+    LOAD(GetReal, "fmi2GetReal"); LOAD(GetInteger, "fmi2GetInteger");
+    LOAD(GetBoolean, "fmi2GetBoolean"); LOAD(GetString, "fmi2GetString");
+    LOAD(SetReal, "fmi2SetReal"); LOAD(SetInteger, "fmi2SetInteger");
+    LOAD(SetBoolean, "fmi2SetBoolean"); LOAD(SetString, "fmi2SetString");
+    LOAD(GetFMUstate, "fmi2GetFMUstate"); LOAD(SetFMUstate, "fmi2SetFMUstate");
+    LOAD(FreeFMUstate, "fmi2FreeFMUstate");
+    LOAD(SerializedFMUstateSize, "fmi2SerializedFMUstateSize");
+    LOAD(SerializeFMUstate, "fmi2SerializeFMUstate");
+    LOAD(DeSerializeFMUstate, "fmi2DeSerializeFMUstate");
+    LOAD(DoStep, "fmi2DoStep"); LOAD(CancelStep, "fmi2CancelStep");
+    LOAD(GetStatus, "fmi2GetStatus"); LOAD(GetRealStatus, "fmi2GetRealStatus");
+    LOAD(GetIntegerStatus, "fmi2GetIntegerStatus"); LOAD(GetBooleanStatus, "fmi2GetBooleanStatus");
+    LOAD(GetStringStatus, "fmi2GetStringStatus");
+    return 1;
+}
+
+int main(int argc, char **argv) {
+    long calls, k;
+    unsigned long long seed;
+    int i;
+    if (argc < 4) {
+        fprintf(stderr, "usage: driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE [DUMP_FILE]]]\n");
+        return 2;
+    }
+    seed = strtoull(argv[2], NULL, 10);
+    calls = strtol(argv[3], NULL, 10);
+    if (argc > 4) bound_ms = strtod(argv[4], NULL);
+    if (argc > 5) {
+        FILE *f = fopen(argv[5], "rb");
+        if (f) {
+            foreign = malloc(1 << 20);
+            foreign_len = fread(foreign, 1, 1 << 20, f);
+            fclose(f);
+        }
+    }
+    if (argc > 6) dump_path = argv[6];
+    if (!read_manifest(argv[1])) { fprintf(stderr, "%s: cannot read the manifest\n", argv[1]); return 2; }
+    if (!load()) return 2;
+    hang_seconds = (unsigned)(bound_ms / 1000.0 * 10.0) + 1;
+    signal(SIGALRM, on_alarm);
+    rng = seed ^ 0x53505552494F0000ULL;
+    if (!label[0]) snprintf(label, sizeof label, "%s", model_id);
+    for (i = 0; i < (int)strlen(label); i++) rng = rng * 31 + (unsigned char)label[i];
+    for (k = 0; k < calls; k++) {
+        Inst *in = &inst[pick(5) == 0 ? pick(NINST) : 0];
+        if (in->c && in->possible == S_FATAL) free_instance(in);
+        random_call(in);
+    }
+    for (i = 0; i < NINST; i++)
+        if (inst[i].c) free_instance(&inst[i]);
+    if (dump_path && own_len) {
+        FILE *f = fopen(dump_path, "wb");
+        if (f) { fwrite(own_bytes, 1, own_len, f); fclose(f); }
+    }
+    printf("%-34s %8ld calls  %3ld findings  slowest %.1f ms (%s)\n", label, calls_total,
+           findings, slowest_ms, slowest_what);
+    free(own_bytes);
+    free(foreign);
+    free(vars);
+    return findings ? 1 : 0;
+}
