@@ -180,6 +180,16 @@ fn state_names(f: &Function) -> String {
         .join(", ")
 }
 
+/// ` (value reference N)` for a scalar of the table, in `f`'s messages; nothing for FMI 3.0,
+/// whose value references name whole arrays (the element's name says which).
+fn reference(f: &Function, vr: u32) -> String {
+    if f.name.starts_with("fmi3") {
+        String::new()
+    } else {
+        format!(" (value reference {vr})")
+    }
+}
+
 /// The name of `state` as `f`'s FMI version calls it.
 fn state_name(f: &Function, state: ModelState) -> String {
     match (f.name.starts_with("fmi3"), state) {
@@ -562,6 +572,9 @@ impl<M: FmuModel> Instance<M> {
             };
             if !settable {
                 let what = match (v.causality, v.variability) {
+                    (Causality::Parameter, Variability::Fixed) if f.name.starts_with("fmi3") => {
+                        "a fixed parameter: it can be set only before fmi3ExitInitializationMode"
+                    }
                     (Causality::Parameter, Variability::Fixed) => {
                         "a fixed parameter: it can be set only before fmi2ExitInitializationMode"
                     }
@@ -574,8 +587,10 @@ impl<M: FmuModel> Instance<M> {
                 return self.reject(
                     f,
                     &format!(
-                        "variable `{}` (value reference {vr}) is {what} (state {state})",
-                        v.name
+                        "variable `{}`{} is {what} (state {})",
+                        v.name,
+                        reference(f, *vr),
+                        state_name(f, state)
                     ),
                 );
             }
@@ -584,8 +599,9 @@ impl<M: FmuModel> Instance<M> {
                     return self.reject(
                         f,
                         &format!(
-                            "variable `{}` (value reference {vr}): {x} rejected, values must be finite",
-                            v.name
+                            "variable `{}`{}: {x} rejected, values must be finite",
+                            v.name,
+                            reference(f, *vr)
                         ),
                     );
                 }
