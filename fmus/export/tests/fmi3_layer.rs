@@ -189,6 +189,22 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
             && e.contains(&token().into_string().unwrap()),
         "{e}"
     );
+    let name = CString::new("events").unwrap();
+    let c = unsafe {
+        ffi::instantiate_co_simulation::<Toy>(
+            name.as_ptr(),
+            token().as_ptr(),
+            std::ptr::null(),
+            0,
+            fmi3True,
+            0,
+            0,
+            std::ptr::null_mut(),
+            Some(log_message),
+        )
+    };
+    assert!(c.is_null());
+    assert!(last_error().contains("eventModeUsed = true, but the FMU declares hasEventMode"));
     assert!(instantiate_with("", &token()).is_null());
     assert!(last_error().contains("instanceName must be a non-empty string"));
     let me = unsafe {
