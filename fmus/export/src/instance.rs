@@ -1,4 +1,6 @@
-//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a safe [`FmuModel`].
+//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a safe [`FmuModel`], which
+//! the FMI 3.0 front ([`crate::fmi3`]) drives too (Step Mode is `StepComplete`; the methods
+//! named `…_as` take the calling function, so messages name the `fmi3*` one).
 //!
 //! Every entry point is checked against an allowed-state mask (as the Reference-FMUs do in
 //! `fmi2Functions.c`), every value reference against the variable table, every value against
