@@ -300,3 +300,25 @@ def test_the_fmi3_archive_carries_the_fmi2_binaries_under_platform_tuples(stem):
         for n in names2 - {"modelDescription.xml"} - set(binaries2):
             assert three.read(n) == two.read(n), n
         assert "documentation/index.html" in names3
+
+
+def test_package_variant_writes_an_fmi3_variant_with_arrays_of_its_dimensions(tmp_path):
+    import subprocess
+
+    spurio = REPO / "target" / "release" / "spurio"
+    assert spurio.is_file(), "build with scripts/build-fmus first"
+    subprocess.run(
+        [str(spurio), "package-variant", "KalmanFilter", "--set", "n=3", "--set", "m=1",
+         "--set", "p=2", "--name", "Kf312", "--lib-dir", str(REPO / "target" / "release"),
+         "--out", str(tmp_path)],
+        check=True, capture_output=True,
+    )
+    path = str(tmp_path / "fmi3" / "Kf312.fmu")
+    assert validate_fmu(path) == []
+    md = read_model_description(path)
+    shapes = {v.name: v.shape for v in md.modelVariables}
+    assert (shapes["A"], shapes["B"], shapes["C"], shapes["x_hat"], shapes["y"]) == (
+        (3, 3), (3, 1), (2, 3), (3,), (2,))
+    assert md.guid == read_model_description(str(tmp_path / "Kf312.fmu")).guid
+    result = simulate_fmu(path, stop_time=0.01)
+    assert result["x_hat"].shape[1:] == (3,)

@@ -1,4 +1,6 @@
-//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a safe [`FmuModel`].
+//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a safe [`FmuModel`], which
+//! the FMI 3.0 front ([`crate::fmi3`]) drives too (Step Mode is `StepComplete`; the methods
+//! named `…_as` take the calling function, so messages name the `fmi3*` one).
 //!
 //! Every entry point is checked against an allowed-state mask (as the Reference-FMUs do in
 //! `fmi2Functions.c`), every value reference against the variable table, every value against
@@ -205,6 +207,16 @@ fn state_names(f: &Function) -> String {
         .map(|s| state_name(f, *s))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// ` (value reference N)` for a scalar of the table, in `f`'s messages; nothing for FMI 3.0,
+/// whose value references name whole arrays (the element's name says which).
+fn reference(f: &Function, vr: u32) -> String {
+    if f.name.starts_with("fmi3") {
+        String::new()
+    } else {
+        format!(" (value reference {vr})")
+    }
 }
 
 /// The name of `state` as `f`'s FMI version calls it.
@@ -619,6 +631,9 @@ impl<M: FmuModel> Instance<M> {
             };
             if !settable {
                 let what = match (v.causality, v.variability) {
+                    (Causality::Parameter, Variability::Fixed) if f.name.starts_with("fmi3") => {
+                        "a fixed parameter: it can be set only before fmi3ExitInitializationMode"
+                    }
                     (Causality::Parameter, Variability::Fixed) => {
                         "a fixed parameter: it can be set only before fmi2ExitInitializationMode"
                     }
@@ -631,8 +646,10 @@ impl<M: FmuModel> Instance<M> {
                 return self.reject(
                     f,
                     &format!(
-                        "variable `{}` (value reference {vr}) is {what} (state {state})",
-                        v.name
+                        "variable `{}`{} is {what} (state {})",
+                        v.name,
+                        reference(f, *vr),
+                        state_name(f, state)
                     ),
                 );
             }
@@ -641,8 +658,9 @@ impl<M: FmuModel> Instance<M> {
                     return self.reject(
                         f,
                         &format!(
-                            "variable `{}` (value reference {vr}): {x} rejected, values must be finite",
-                            v.name
+                            "variable `{}`{}: {x} rejected, values must be finite",
+                            v.name,
+                            reference(f, *vr)
                         ),
                     );
                 }

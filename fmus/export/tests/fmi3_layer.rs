@@ -189,6 +189,22 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
             && e.contains(&token().into_string().unwrap()),
         "{e}"
     );
+    let name = CString::new("events").unwrap();
+    let c = unsafe {
+        ffi::instantiate_co_simulation::<Toy>(
+            name.as_ptr(),
+            token().as_ptr(),
+            std::ptr::null(),
+            0,
+            fmi3True,
+            0,
+            0,
+            std::ptr::null_mut(),
+            Some(log_message),
+        )
+    };
+    assert!(c.is_null());
+    assert!(last_error().contains("eventModeUsed = true, but the FMU declares hasEventMode"));
     assert!(instantiate_with("", &token()).is_null());
     assert!(last_error().contains("instanceName must be a non-empty string"));
     let me = unsafe {
@@ -318,7 +334,13 @@ fn bad_references_types_and_values_are_rejected_and_change_nothing() {
     assert_eq!(i.set_f64(&[VR_TIME], &[1.0]), fmi3Error);
     assert!(last_error().contains("independent variable"));
     assert_eq!(i.set_f64(&[VR_Y], &[1.0, 1.0]), fmi3Error);
-    assert!(last_error().contains("an output"));
+    assert_eq!(
+        last_error(),
+        "fmi3SetFloat64: variable `y[1]` is an output: the FMU computes it (state StepMode)"
+    );
+    let p = [1.0, 2.0, 3.0, 4.0];
+    assert_eq!(i.set_f64(&[VR_P], &p), fmi3Error);
+    assert!(last_error().contains("it can be set only before fmi3ExitInitializationMode"));
     assert_eq!(i.get_f64(&[VR_U], 2).unwrap(), [0.0, 0.0]);
 }
 

@@ -164,6 +164,12 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
         if name.as_deref().is_none_or(str::is_empty) {
             return fail("instanceName must be a non-empty string".into());
         }
+        if event_mode_used != 0 {
+            // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
+            return fail(
+                "eventModeUsed = true, but the FMU declares hasEventMode=\"false\": instantiate it with eventModeUsed = false (it never needs Event Mode)".into(),
+            );
+        }
         if n_required_intermediate > 0 {
             return fail(format!(
                 "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
@@ -209,11 +215,11 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
                 info.model_identifier, info.guid
             ));
         }
-        if event_mode_used != 0 || early_return_allowed != 0 {
+        if early_return_allowed != 0 {
             logger.log(
                 Status::Ok,
                 "logEvents",
-                &format!("{F}: eventModeUsed/earlyReturnAllowed noted; the FMU has no event mode and never returns early"),
+                &format!("{F}: earlyReturnAllowed noted; the FMU never returns early"),
             );
         }
         match Instance::<M>::new(info, logger) {

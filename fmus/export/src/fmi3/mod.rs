@@ -334,13 +334,13 @@ macro_rules! export_fmi3 {
                 fmi3GetClock(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Clock);
                 fmi3SetClock(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Clock);
                 fmi3GetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64, _q: *mut fmi3IntervalQualifier);
-                fmi3GetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _c: *mut fmi3UInt64, _r: *mut fmi3UInt64, _q: *mut fmi3IntervalQualifier);
+                fmi3GetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64, _q: *mut fmi3IntervalQualifier);
                 fmi3GetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64);
-                fmi3GetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _c: *mut fmi3UInt64, _r: *mut fmi3UInt64);
+                fmi3GetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64);
                 fmi3SetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
-                fmi3SetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _c: *const fmi3UInt64, _r: *const fmi3UInt64);
+                fmi3SetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
                 fmi3SetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
-                fmi3SetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _c: *const fmi3UInt64, _r: *const fmi3UInt64);
+                fmi3SetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
                 fmi3ActivateModelPartition(_clock: fmi3ValueReference, _t: fmi3Float64);
             }
             $crate::fmi3_unsupported! {
@@ -353,7 +353,7 @@ macro_rules! export_fmi3 {
                 fmi3EnterEventMode();
                 fmi3EnterStepMode();
                 fmi3EvaluateDiscreteStates();
-                fmi3UpdateDiscreteStates(_a: *mut fmi3Boolean, _b: *mut fmi3Boolean, _c: *mut fmi3Boolean, _d: *mut fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Float64);
+                fmi3UpdateDiscreteStates(_a: *mut fmi3Boolean, _b: *mut fmi3Boolean, _counters: *mut fmi3Boolean, _d: *mut fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Float64);
             }
             $crate::fmi3_unsupported! {
                 "the FMU is Co-Simulation only";
