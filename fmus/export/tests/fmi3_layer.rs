@@ -417,3 +417,41 @@ fn interleaved_instances_are_independent_and_a_panic_is_fatal() {
     // The other instance is untouched.
     assert_eq!(b.step(1.0, 0.25).0, fmi3OK);
 }
+
+/// Run by [`an_fmi3_panic_prints_nothing_on_stderr`] in a child process: a panicking
+/// `fmi3DoStep`, whose text goes to the logger only.
+#[test]
+fn panicking_fmi3_step_child() {
+    if std::env::var_os("SPURIO_PANIC_CHILD").is_none() {
+        return;
+    }
+    let a = Instance::new("a");
+    assert_eq!(a.initialize(), fmi3OK);
+    assert_eq!(a.set_f64(&[VR_U], &[13.0, 0.0]), fmi3OK);
+    assert_eq!(a.step(0.0, 0.25).0, fmi3Fatal);
+    let text = last_error();
+    assert!(text.contains("unlucky input (at "), "{text}");
+    assert!(text.contains("fmi3_layer.rs"), "{text}");
+    eprintln!("child done");
+}
+
+#[test]
+fn an_fmi3_panic_prints_nothing_on_stderr() {
+    let output = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "panicking_fmi3_step_child",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env("SPURIO_PANIC_CHILD", "1")
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "child failed: {stdout}\n{stderr}");
+    assert!(stdout.contains("1 passed"), "{stdout}");
+    // the only line on stderr is the child's own
+    assert_eq!(stderr.trim(), "child done", "{stderr}");
+}

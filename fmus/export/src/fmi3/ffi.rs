@@ -12,14 +12,13 @@ use super::description::type_name;
 use super::functions;
 use super::types::*;
 use crate::description::{Config, CONFIG_FILE};
-use crate::ffi::{panic_message, slice, string_arg};
+use crate::ffi::{guarded, slice, string_arg};
 use crate::instance::{Core, Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
 use std::ffi::CString;
 use std::os::raw::c_char;
-use std::panic::{catch_unwind, AssertUnwindSafe};
 
 /// Delivers log messages to the master's `fmi3LogMessageCallback`.
 pub struct CallbackSink {
@@ -100,7 +99,7 @@ unsafe fn with_instance<M: FmuModel>(
         return fmi3Error;
     }
     let slot = c as *mut Slot<M>;
-    let result = catch_unwind(AssertUnwindSafe(|| {
+    let result = guarded(|| {
         // SAFETY: `c` is non-null and was returned by `instantiate_co_simulation::<M>` (the
         // master's obligation); no other reference to the slot is alive during the call.
         let slot = unsafe { &mut *slot };
@@ -108,15 +107,14 @@ unsafe fn with_instance<M: FmuModel>(
             return Status::Error;
         }
         body(slot)
-    }));
+    });
     match result {
         Ok(status) => code(status),
-        Err(payload) => {
-            let message = panic_message(&*payload);
-            let _ = catch_unwind(AssertUnwindSafe(|| {
+        Err(message) => {
+            let _ = guarded(|| {
                 // SAFETY: as above; the closure that panicked no longer borrows the slot.
                 unsafe { &mut *slot }.instance.set_fatal(f, &message)
-            }));
+            });
             fmi3Fatal
         }
     }
@@ -145,7 +143,7 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     log_message: fmi3LogMessageCallback,
 ) -> fmi3Instance {
     const F: &str = "fmi3InstantiateCoSimulation";
-    let result = catch_unwind(AssertUnwindSafe(|| {
+    let result = guarded(|| {
         let sink = || CallbackSink {
             log_message,
             environment,
@@ -229,7 +227,7 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
                 std::ptr::null_mut()
             }
         }
-    }));
+    });
     result.unwrap_or(std::ptr::null_mut())
 }
 
@@ -244,7 +242,7 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
     environment: fmi3InstanceEnvironment,
     log_message: fmi3LogMessageCallback,
 ) -> fmi3Instance {
-    let _ = catch_unwind(AssertUnwindSafe(|| {
+    let _ = guarded(|| {
         let id = M::describe(&Config::new())
             .map(|i| i.model_identifier)
             .unwrap_or_default();
@@ -255,7 +253,7 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
         Logger::new("?", Box::new(sink), true).error(&format!(
             "{function}: {id} is a Co-Simulation FMU only: it does not implement {interface}"
         ));
-    }));
+    });
     std::ptr::null_mut()
 }
 
@@ -267,10 +265,10 @@ pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
     if c.is_null() {
         return;
     }
-    let _ = catch_unwind(AssertUnwindSafe(|| {
+    let _ = guarded(|| {
         // SAFETY: `c` came from `Box::into_raw` in `into_instance::<M>`.
         drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
-    }));
+    });
 }
 
 /// `fmi3SetDebugLogging`.
