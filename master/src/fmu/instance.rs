@@ -93,7 +93,7 @@ impl std::fmt::Debug for Instance {
 
 /// FMI 3.0 getters into f64: `$get` for the element type `$t`.
 macro_rules! get3 {
-    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $t:ty) => {{
+    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $set:ident, $t:ty) => {{
         let mut v = vec![<$t>::default(); $out.len()];
         $inst.$get($vrs, &mut v)?;
         for (o, x) in $out.iter_mut().zip(&v) {
@@ -104,10 +104,29 @@ macro_rules! get3 {
 
 /// FMI 3.0 setters from f64 (rounded to the nearest integer for the integer types).
 macro_rules! set3 {
-    ($inst:expr, $vrs:expr, $values:expr, $set:ident, $t:ty) => {{
+    ($inst:expr, $vrs:expr, $values:expr, $get:ident, $set:ident, $t:ty) => {{
         let v: Vec<$t> = $values.iter().map(|x| x.round() as $t).collect();
         $inst.$set($vrs, &v)?;
     }};
+}
+
+/// The FMI 3.0 integer types (and enumerations, Int64 in FMI 3.0) with their getter, setter
+/// and element type: `$apply!(args, getter, setter, type)` for the one `$t` is, `$other`
+/// for every other type.
+macro_rules! fmi3_integer {
+    ($t:expr, $apply:ident!($($args:tt)*), $other:expr) => {
+        match $t {
+            VarType::Int8 => $apply!($($args)*, get_int8, set_int8, i8),
+            VarType::UInt8 => $apply!($($args)*, get_uint8, set_uint8, u8),
+            VarType::Int16 => $apply!($($args)*, get_int16, set_int16, i16),
+            VarType::UInt16 => $apply!($($args)*, get_uint16, set_uint16, u16),
+            VarType::Integer => $apply!($($args)*, get_int32, set_int32, i32),
+            VarType::UInt32 => $apply!($($args)*, get_uint32, set_uint32, u32),
+            VarType::Int64 | VarType::Enumeration => $apply!($($args)*, get_int64, set_int64, i64),
+            VarType::UInt64 => $apply!($($args)*, get_uint64, set_uint64, u64),
+            _ => $other,
+        }
+    };
 }
 
 impl Instance {
@@ -361,15 +380,7 @@ fn get3(
         VarType::Real => {
             i.get_float64(vrs, out)?;
         }
-        VarType::Float32 => get3!(i, vrs, out, get_float32, f32),
-        VarType::Int8 => get3!(i, vrs, out, get_int8, i8),
-        VarType::UInt8 => get3!(i, vrs, out, get_uint8, u8),
-        VarType::Int16 => get3!(i, vrs, out, get_int16, i16),
-        VarType::UInt16 => get3!(i, vrs, out, get_uint16, u16),
-        VarType::Integer => get3!(i, vrs, out, get_int32, i32),
-        VarType::UInt32 => get3!(i, vrs, out, get_uint32, u32),
-        VarType::Int64 | VarType::Enumeration => get3!(i, vrs, out, get_int64, i64),
-        VarType::UInt64 => get3!(i, vrs, out, get_uint64, u64),
+        VarType::Float32 => get3!(i, vrs, out, get_float32, set_float32, f32),
         VarType::Boolean => {
             let mut v = vec![false; out.len()];
             i.get_boolean(vrs, &mut v)?;
@@ -377,8 +388,9 @@ fn get3(
                 *o = f64::from(u8::from(*x));
             }
         }
-        // Never planned (the plan moves numbers and Booleans only).
-        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+        // Strings, Binaries and Clocks are never planned (the plan moves numbers and
+        // Booleans only).
+        _ => fmi3_integer!(t, get3!(i, vrs, out), return Err(Fmi3Error::Error)),
     }
     Ok(())
 }
@@ -397,19 +409,11 @@ fn set3(
             let v: Vec<f32> = values.iter().map(|x| *x as f32).collect();
             i.set_float32(vrs, &v)?;
         }
-        VarType::Int8 => set3!(i, vrs, values, set_int8, i8),
-        VarType::UInt8 => set3!(i, vrs, values, set_uint8, u8),
-        VarType::Int16 => set3!(i, vrs, values, set_int16, i16),
-        VarType::UInt16 => set3!(i, vrs, values, set_uint16, u16),
-        VarType::Integer => set3!(i, vrs, values, set_int32, i32),
-        VarType::UInt32 => set3!(i, vrs, values, set_uint32, u32),
-        VarType::Int64 | VarType::Enumeration => set3!(i, vrs, values, set_int64, i64),
-        VarType::UInt64 => set3!(i, vrs, values, set_uint64, u64),
         VarType::Boolean => {
             let v: Vec<bool> = values.iter().map(|x| *x != 0.0).collect();
             i.set_boolean(vrs, &v)?;
         }
-        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+        _ => fmi3_integer!(t, set3!(i, vrs, values), return Err(Fmi3Error::Error)),
     }
     Ok(())
 }

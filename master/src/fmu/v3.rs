@@ -13,7 +13,7 @@
 //! entry refers to a known variable, an `<Output>` to an output listed once.
 
 use super::{ArrayInfo, Causality, VarType, VariableInfo};
-use crate::xml::{tags, Tag};
+use crate::xml::{attribute, tags, Tag};
 use std::collections::HashMap;
 
 /// What the master takes from an FMI 3.0 model description.
@@ -74,17 +74,6 @@ fn var_type(element: &str) -> Option<VarType> {
         "Clock" => VarType::Clock,
         _ => return None,
     })
-}
-
-fn attribute(e: &quick_xml::events::BytesStart, key: &str) -> Option<String> {
-    e.attributes()
-        .flatten()
-        .find(|a| a.key.as_ref() == key)
-        .and_then(|a| {
-            a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
-                .ok()
-                .map(|v| v.to_string())
-        })
 }
 
 fn number<T: std::str::FromStr>(text: &str, what: &str) -> Result<T, String> {
