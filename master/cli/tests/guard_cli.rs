@@ -12,8 +12,10 @@ mod common;
 mod engine;
 
 use common::{repo, require_fmus, s};
+use engine::assert_names;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// A fresh folder for one case, with `tmp/` as the TMPDIR of the runs.
 struct Case {
@@ -36,33 +38,58 @@ impl Case {
         path
     }
 
-    /// Runs `spurio args` with TMPDIR at `tmp/` and the environment `env`.
-    fn spurio(&self, args: &[&str], env: &[(&str, &str)]) -> Output {
+    /// `spurio args` with TMPDIR at `tmp/` and the environment `env`.
+    fn command(&self, args: &[&str], env: &[(&str, &str)]) -> Command {
         let mut command = Command::new(env!("CARGO_BIN_EXE_spurio"));
         command.args(args).env("TMPDIR", &self.tmp);
         for (k, v) in env {
             command.env(k, v);
         }
-        command.output().unwrap()
+        command
+    }
+
+    /// Runs `spurio args` with TMPDIR at `tmp/` and the environment `env`.
+    fn spurio(&self, args: &[&str], env: &[(&str, &str)]) -> Output {
+        self.command(args, env).output().unwrap()
+    }
+
+    /// Starts `spurio args` with the environment `env`, waits (30 s at most) until
+    /// `under_way` says the `what` is under way, then `settle` longer, and sends it SIGTERM;
+    /// returns its output, checked to end with the exit code of SIGTERM (143).
+    fn terminated(
+        &self,
+        args: &[&str],
+        env: &[(&str, &str)],
+        what: &str,
+        under_way: impl Fn() -> bool,
+        settle: Duration,
+    ) -> Output {
+        let child = self
+            .command(args, env)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while !under_way() {
+            assert!(Instant::now() < deadline, "the {what} did not start");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        std::thread::sleep(settle);
+        let kill = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+        out
     }
 
     /// Asserts that the temp folder is empty and the case folder holds only `expected`
     /// besides it.
     fn assert_clean(&self, expected: &[&str]) {
-        let left: Vec<_> = std::fs::read_dir(&self.tmp)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert!(left.is_empty(), "left in the temp folder: {left:?}");
-        let mut found: Vec<String> = std::fs::read_dir(&self.dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n != "tmp")
-            .collect();
-        found.sort();
-        let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
-        expected.sort();
-        assert_eq!(found, expected, "written outside the temp folder");
+        engine::assert_only_left(&self.dir, &self.tmp, expected);
     }
 
     /// `Bad.fmu`: the GantryCrane's model description over `fixtures/misbehaving.c`.
@@ -80,6 +107,16 @@ impl Case {
             "stop_time = 0.1\nstep_size = 0.01\nrecord = [\"crane.x\", \"crane.x0\"]\n\
              [[instance]]\nname = \"crane\"\nfmu = \"Bad.fmu\"\n",
         )
+    }
+
+    /// Runs [`Case::bad_system`] with `spurio run … --out out.csv` (then `extra`), its FMU
+    /// misbehaving as `mode` at the time `at`; returns the output and the CSV's path.
+    fn run_bad(&self, mode: &str, at: &str, extra: &[&str]) -> (Output, PathBuf) {
+        let system = self.bad_system();
+        let csv = self.dir.join("out.csv");
+        let args = [&["run", s(&system), "--out", s(&csv)], extra].concat();
+        let out = self.spurio(&args, &[("MISBEHAVE", mode), ("MISBEHAVE_AT", at)]);
+        (out, csv)
     }
 }
 
@@ -113,22 +150,11 @@ fn rows(csv: &Path) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn assert_names(text: &str, parts: &[&str]) {
-    for part in parts {
-        assert!(text.contains(part), "no `{part}` in: {text}");
-    }
-}
-
 #[test]
 fn a_hanging_call_ends_the_run_by_the_watchdog_keeping_the_rows_before_it() {
     let case = Case::new("hang");
-    let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
-    let started = std::time::Instant::now();
-    let out = case.spurio(
-        &["run", s(&system), "--out", s(&csv), "--call-timeout", "0.5"],
-        &[("MISBEHAVE", "hang"), ("MISBEHAVE_AT", "0.05")],
-    );
+    let started = Instant::now();
+    let (out, csv) = case.run_bad("hang", "0.05", &["--call-timeout", "0.5"]);
     assert!(started.elapsed().as_secs_f64() < 20.0);
     assert_eq!(out.status.code(), Some(124), "{}", stderr(&out));
     assert_names(
@@ -156,12 +182,7 @@ fn an_fmu_that_kills_the_run_leaves_whole_rows_and_no_unpacked_fmu() {
         ("abort", 134, "signal 6 (SIGABRT)"),
     ] {
         let case = Case::new(&format!("run-{mode}"));
-        let system = case.bad_system();
-        let csv = case.dir.join("out.csv");
-        let out = case.spurio(
-            &["run", s(&system), "--out", s(&csv)],
-            &[("MISBEHAVE", mode), ("MISBEHAVE_AT", "0.05")],
-        );
+        let (out, csv) = case.run_bad(mode, "0.05", &[]);
         assert_eq!(out.status.code(), Some(code), "{mode}: {}", stderr(&out));
         assert_names(
             &stderr(&out),
@@ -190,12 +211,7 @@ fn an_fmu_that_kills_the_run_leaves_whole_rows_and_no_unpacked_fmu() {
 #[test]
 fn a_failing_step_keeps_the_rows_before_it_and_says_the_run_ended_early() {
     let case = Case::new("error");
-    let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
-    let out = case.spurio(
-        &["run", s(&system), "--out", s(&csv)],
-        &[("MISBEHAVE", "error"), ("MISBEHAVE_AT", "0.03")],
-    );
+    let (out, csv) = case.run_bad("error", "0.03", &[]);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert_names(
         &stderr(&out),
@@ -214,31 +230,14 @@ fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
     let case = Case::new("sigterm");
     let system = case.bad_system();
     let csv = case.dir.join("out.csv");
-    let child = Command::new(env!("CARGO_BIN_EXE_spurio"))
-        .args(["run", s(&system), "--out", s(&csv)])
-        .env("TMPDIR", &case.tmp)
-        .env("MISBEHAVE", "hang")
-        .env("MISBEHAVE_AT", "0.02")
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until the FMU is unpacked and the run is under way (hanging at t = 0.02).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    while std::fs::read_dir(&case.tmp).unwrap().count() == 0 || !csv.exists() {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the run did not start"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let kill = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+    // Once the FMU is unpacked and the run under way (hanging at t = 0.02).
+    let out = case.terminated(
+        &["run", s(&system), "--out", s(&csv)],
+        &[("MISBEHAVE", "hang"), ("MISBEHAVE_AT", "0.02")],
+        "run",
+        || std::fs::read_dir(&case.tmp).unwrap().count() > 0 && csv.exists(),
+        Duration::from_millis(500),
+    );
     assert_names(
         &stderr(&out),
         &[
@@ -255,24 +254,7 @@ fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
 fn sigterm_ends_a_sweep_with_its_workers_and_leaves_nothing_behind() {
     let case = Case::new("sweep-sigterm");
     let system = case.bad_system();
-    let child = Command::new(env!("CARGO_BIN_EXE_spurio"))
-        .args([
-            "sweep",
-            s(&system),
-            "--vary",
-            "crane.x0=0.1,0.2",
-            "--metric",
-            "final(crane.x)",
-        ])
-        .args(["--threads", "2"])
-        .env("TMPDIR", &case.tmp)
-        .env("MISBEHAVE", "hang")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until both workers are under way (each has its session folder in the sweep's).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    // Once both workers are under way (each has its session folder in the sweep's).
     let workers = || {
         std::fs::read_dir(&case.tmp)
             .unwrap()
@@ -281,27 +263,28 @@ fn sigterm_ends_a_sweep_with_its_workers_and_leaves_nothing_behind() {
             .filter(|n| n.starts_with("spurio-"))
             .count()
     };
-    while workers() < 2 {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the workers did not start"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    let kill = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+    let out = case.terminated(
+        &[
+            "sweep",
+            s(&system),
+            "--vary",
+            "crane.x0=0.1,0.2",
+            "--metric",
+            "final(crane.x)",
+            "--threads",
+            "2",
+        ],
+        &[("MISBEHAVE", "hang")],
+        "workers",
+        || workers() >= 2,
+        Duration::from_millis(300),
+    );
     assert_names(
         &stderr(&out),
         &["interrupted by SIGTERM; the run ended early"],
     );
     // The workers are gone with it.
-    std::thread::sleep(std::time::Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(200));
     let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
     let left: Vec<String> = String::from_utf8_lossy(&ps.stdout)
         .lines()

@@ -146,3 +146,23 @@ pub fn assert_names(text: &str, parts: &[&str]) {
         assert!(text.contains(part), "no `{part}` in: {text}");
     }
 }
+
+/// Asserts that the temporary folder `tmp` is empty and that `dir` holds nothing but the
+/// files `expected` besides it: what a refused FMU or an ended run may leave behind.
+pub fn assert_only_left(dir: &Path, tmp: &Path, expected: &[&str]) {
+    let left: Vec<_> = std::fs::read_dir(tmp)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "left in the temp folder: {left:?}");
+    let mut found: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p != tmp)
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    found.sort();
+    let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
+    expected.sort();
+    assert_eq!(found, expected, "written outside the temp folder");
+}
