@@ -119,16 +119,31 @@ pub fn crane_sensor(stop_time: f64, crane_parameters: &str) -> System {
         step_size = 0.01
         connections = ["crane.x -> sensor.u[1]", "crane.theta -> sensor.u[2]"]
         record = ["crane.x", "sensor.y[1]", "sensor.y_clean[1]"]
-        [[instance]]
-        name = "crane"
-        fmu = "GantryCrane.fmu"
-        parameters = {{ {crane_parameters} }}
-        [[instance]]
-        name = "sensor"
-        fmu = "Sensor2.fmu"
-        "#
+        {}"#,
+        instance_tables(&[
+            ("crane", Path::new("GantryCrane.fmu"), crane_parameters),
+            ("sensor", Path::new("Sensor2.fmu"), ""),
+        ])
     ))
     .unwrap()
+}
+
+/// The `[[instance]]` tables of a system's TOML, one for each (name, FMU, parameters: the
+/// inside of an inline table, e.g. `x0 = 0.1, "u[2]" = 5.0`, empty for none).
+pub fn instance_tables(instances: &[(&str, &Path, &str)]) -> String {
+    instances
+        .iter()
+        .map(|(name, fmu, parameters)| {
+            let mut table = format!(
+                "[[instance]]\nname = \"{name}\"\nfmu = \"{}\"\n",
+                fmu.display()
+            );
+            if !parameters.is_empty() {
+                table += &format!("parameters = {{ {parameters} }}\n");
+            }
+            table
+        })
+        .collect()
 }
 
 /// Runs `system` into memory with `options`, then terminates it.
