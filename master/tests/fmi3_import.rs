@@ -44,6 +44,14 @@ fn system(head: &str, instances: &[(&str, &Path, &str)]) -> Result<System, Syste
     System::resolve(&description, Path::new("."))
 }
 
+/// The FMI 2.0 and the FMI 3.0 Reference FMU `Feedthrough`.
+fn feedthroughs() -> (PathBuf, PathBuf) {
+    (
+        reference("fmi2", "Feedthrough"),
+        reference("fmi3", "Feedthrough"),
+    )
+}
+
 fn column(series: &spurio_master::record::TimeSeries, name: &str) -> Vec<f64> {
     let j = series
         .names
@@ -198,10 +206,7 @@ fn scheduled_execution_is_refused_with_the_reason() {
 fn values_cross_fmi_versions_and_fmi3_types() {
     // FMI 2.0 Feedthrough -> FMI 3.0 Feedthrough -> FMI 2.0 Feedthrough, and the FMI 3.0
     // one's Int8/UInt64/Float32 outputs into a second FMI 3.0 instance.
-    let (fmu2, fmu3) = (
-        reference("fmi2", "Feedthrough"),
-        reference("fmi3", "Feedthrough"),
-    );
+    let (fmu2, fmu3) = feedthroughs();
     let s = system(
         r#"
         stop_time = 1.0
@@ -249,10 +254,7 @@ fn values_cross_fmi_versions_and_fmi3_types() {
 
 #[test]
 fn types_must_match_across_versions() {
-    let (fmu2, fmu3) = (
-        reference("fmi2", "Feedthrough"),
-        reference("fmi3", "Feedthrough"),
-    );
+    let (fmu2, fmu3) = feedthroughs();
     let e = system(
         r#"
         stop_time = 1.0

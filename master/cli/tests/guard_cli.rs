@@ -696,44 +696,35 @@ fn the_loaders_limits_are_flags() {
     let case = Case::new("limits");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
     let csv = case.dir.join("out.csv");
-    refused(
-        &case,
-        &[
-            "run",
-            s(&system),
-            "--out",
-            s(&csv),
+    let cases: [(&str, &str, &[&str]); 3] = [
+        (
             "--max-model-description",
             "1K",
-        ],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "modelDescription.xml",
-            "beyond the loader's limit of at most 1024 bytes",
-        ],
-        &["system.toml"],
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-entries", "2"],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "beyond the loader's limit of at most 2 entries",
-        ],
-        &["system.toml"],
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-unpacked", "64K"],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "beyond the loader's limit of at most 65536 bytes",
-        ],
-        &["system.toml"],
-    );
+            &[
+                "modelDescription.xml",
+                "beyond the loader's limit of at most 1024 bytes",
+            ],
+        ),
+        (
+            "--max-entries",
+            "2",
+            &["beyond the loader's limit of at most 2 entries"],
+        ),
+        (
+            "--max-unpacked",
+            "64K",
+            &["beyond the loader's limit of at most 65536 bytes"],
+        ),
+    ];
+    for (flag, value, parts) in cases {
+        refused(
+            &case,
+            &["run", s(&system), "--out", s(&csv), flag, value],
+            1,
+            &[&["GantryCrane.fmu"], parts].concat(),
+            &["system.toml"],
+        );
+    }
 }
 
 #[test]
