@@ -197,6 +197,19 @@ impl Instance {
         }
     }
 
+    /// Makes the call `fmi2` or `fmi3`, as the instance's version is (see [`Self::with_log`]),
+    /// for its success alone.
+    fn call<A, B, E2: Into<CallError>, E3: Into<CallError>>(
+        &mut self,
+        fmi2: impl FnOnce(&mut fmi::fmi2::instance::InstanceCS) -> Result<A, E2>,
+        fmi3: impl FnOnce(&mut fmi::fmi3::instance::InstanceCS) -> Result<B, E3>,
+    ) -> Result<(), CallError> {
+        self.with_log(|inner| match inner {
+            Inner::Fmi2(i) => fmi2(i.as_mut()).map(|_| ()).map_err(Into::into),
+            Inner::Fmi3(i) => fmi3(i.as_mut()).map(|_| ()).map_err(Into::into),
+        })
+    }
+
     /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
     /// `fmi3EnterInitializationMode` takes the experiment).
     pub fn setup_experiment(
@@ -205,13 +218,10 @@ impl Instance {
         start: f64,
         stop: Option<f64>,
     ) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => i
-                .setup_experiment(tolerance, start, stop)
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(_) => Ok(()),
-        })
+        self.call(
+            |i| i.setup_experiment(tolerance, start, stop),
+            |_| Ok::<(), Fmi3Error>(()),
+        )
     }
 
     /// Enters initialization mode (FMI 3.0 with the tolerance, start and stop time).
@@ -221,41 +231,27 @@ impl Instance {
         start: f64,
         stop: Option<f64>,
     ) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::enter_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => {
-                fmi::fmi3::Common::enter_initialization_mode(i.as_mut(), tolerance, start, stop)
-                    .map(|_| ())
-                    .map_err(Into::into)
-            }
-        })
+        self.call(
+            fmi::fmi2::instance::Common::enter_initialization_mode,
+            |i| fmi::fmi3::Common::enter_initialization_mode(i, tolerance, start, stop),
+        )
     }
 
     /// Leaves initialization mode (an FMI 3.0 instance without event mode is then in step
     /// mode).
     pub fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::exit_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::exit_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-        })
+        self.call(
+            fmi::fmi2::instance::Common::exit_initialization_mode,
+            fmi::fmi3::Common::exit_initialization_mode,
+        )
     }
 
     /// Terminates the instance.
     pub fn terminate(&mut self) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::terminate(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::terminate(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-        })
+        self.call(
+            fmi::fmi2::instance::Common::terminate,
+            fmi::fmi3::Common::terminate,
+        )
     }
 
     /// Reads the values of `vrs` (all of type `t`) into `out`: one value per FMI 2.0
