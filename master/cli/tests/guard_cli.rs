@@ -109,14 +109,26 @@ impl Case {
         )
     }
 
+    /// The results file of `spurio run` in the case folder.
+    fn csv(&self) -> PathBuf {
+        self.dir.join("out.csv")
+    }
+
     /// Runs [`Case::bad_system`] with `spurio run … --out out.csv` (then `extra`), its FMU
     /// misbehaving as `mode` at the time `at`; returns the output and the CSV's path.
     fn run_bad(&self, mode: &str, at: &str, extra: &[&str]) -> (Output, PathBuf) {
-        let system = self.bad_system();
-        let csv = self.dir.join("out.csv");
+        let (system, csv) = (self.bad_system(), self.csv());
         let args = [&["run", s(&system), "--out", s(&csv)], extra].concat();
         let out = self.spurio(&args, &[("MISBEHAVE", mode), ("MISBEHAVE_AT", at)]);
         (out, csv)
+    }
+
+    /// `spurio run system --out out.csv` (then `extra`) is [`refused`] with exit code `code`
+    /// and a message naming every one of `parts`, having written nothing but `system.toml`.
+    fn refused_run(&self, system: &Path, extra: &[&str], code: i32, parts: &[&str]) -> Output {
+        let csv = self.csv();
+        let args = [&["run", s(system), "--out", s(&csv)], extra].concat();
+        refused(self, &args, code, parts, &["system.toml"])
     }
 }
 
@@ -229,7 +241,7 @@ fn a_failing_step_keeps_the_rows_before_it_and_says_the_run_ended_early() {
 fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
     let case = Case::new("sigterm");
     let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
+    let csv = case.csv();
     // Once the FMU is unpacked and the run under way (hanging at t = 0.02).
     let out = case.terminated(
         &["run", s(&system), "--out", s(&csv)],
@@ -421,23 +433,15 @@ fn refused(case: &Case, args: &[&str], code: i32, parts: &[&str], files: &[&str]
 fn run_refuses_a_real_time_factor_that_is_not_positive() {
     let case = Case::new("real-time");
     let system = crane_sensor(&case, "stop_time = 0.1\nstep_size = 0.01", "");
-    let csv = case.dir.join("out.csv");
     for bad in ["0", "-1", "nan", "inf"] {
-        refused(
-            &case,
-            &[
-                "run",
-                s(&system),
-                "--out",
-                s(&csv),
-                &format!("--real-time={bad}"),
-            ],
+        case.refused_run(
+            &system,
+            &[&format!("--real-time={bad}")],
             2,
             &[
                 &format!("invalid value '{bad}' for '--real-time"),
                 "is not a positive number",
             ],
-            &["system.toml"],
         );
     }
 }
@@ -446,16 +450,15 @@ fn run_refuses_a_real_time_factor_that_is_not_positive() {
 fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
     let case = Case::new("max-steps");
     let system = crane_sensor(&case, "stop_time = 1e300\nstep_size = 1e-300", "");
-    let csv = case.dir.join("out.csv");
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
+    let csv = case.csv();
+    case.refused_run(
+        &system,
+        &[],
         1,
         &[
             "the run would take infinitely many steps",
             "more than --max-steps 100000000",
         ],
-        &["system.toml"],
     );
     refused(
         &case,
@@ -473,12 +476,11 @@ fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
     );
     // Asked for: 20 steps against a limit of 20 run.
     let system = crane_sensor(&case, "stop_time = 0.2\nstep_size = 0.01", "");
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-steps", "19"],
+    case.refused_run(
+        &system,
+        &["--max-steps", "19"],
         1,
         &["the run would take 20 steps", "more than --max-steps 19"],
-        &["system.toml"],
     );
     let out = case.spurio(
         &["run", s(&system), "--out", s(&csv), "--max-steps", "20"],
@@ -601,35 +603,27 @@ fn sweep_refuses_a_value_run_would_refuse_and_a_bound_that_cannot_hold() {
 #[test]
 fn a_parameter_for_a_connected_input_and_a_duplicated_record_are_refused() {
     let case = Case::new("system");
-    let csv = case.dir.join("out.csv");
     let system = crane_sensor(
         &case,
         "stop_time = 0.05\nstep_size = 0.01",
         "\"u[1]\" = 0.3",
     );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
+    case.refused_run(
+        &system,
+        &[],
         1,
         &[
             "instance `sensor`",
             "parameter `u[1]`",
             "driven by the connection `crane.x -> sensor.u[1]`",
         ],
-        &["system.toml"],
     );
     let system = crane_sensor(
         &case,
         "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\", \"sensor.y[1]\", \"crane.x\"]",
         "",
     );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
-        1,
-        &["record lists `crane.x` twice"],
-        &["system.toml"],
-    );
+    case.refused_run(&system, &[], 1, &["record lists `crane.x` twice"]);
 }
 
 #[test]
@@ -640,21 +634,12 @@ fn plotting_an_unrecorded_variable_is_refused_before_the_run() {
         "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\"]",
         "",
     );
-    let csv = case.dir.join("out.csv");
     // Nothing written: the check comes before the run.
-    refused(
-        &case,
-        &[
-            "run",
-            s(&system),
-            "--out",
-            s(&csv),
-            "--plot",
-            "crane.x,crane.v",
-        ],
+    case.refused_run(
+        &system,
+        &["--plot", "crane.x,crane.v"],
         1,
         &["cannot plot `crane.v`: it is not recorded (recorded: crane.x)"],
-        &["system.toml"],
     );
 }
 
@@ -695,7 +680,6 @@ fn write_errors_name_the_file_and_a_sweep_still_prints_its_table() {
 fn the_loaders_limits_are_flags() {
     let case = Case::new("limits");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    let csv = case.dir.join("out.csv");
     let cases: [(&str, &str, &[&str]); 3] = [
         (
             "--max-model-description",
@@ -717,12 +701,11 @@ fn the_loaders_limits_are_flags() {
         ),
     ];
     for (flag, value, parts) in cases {
-        refused(
-            &case,
-            &["run", s(&system), "--out", s(&csv), flag, value],
+        case.refused_run(
+            &system,
+            &[flag, value],
             1,
             &[&["GantryCrane.fmu"], parts].concat(),
-            &["system.toml"],
         );
     }
 }
@@ -770,14 +753,7 @@ fn bad_systems_are_refused_naming_what_is_wrong_and_leave_nothing_behind() {
     for (what, text, parts) in cases {
         let case = Case::new("bad-system");
         let system = case.file("system.toml", &text);
-        let csv = case.dir.join("out.csv");
-        let out = refused(
-            &case,
-            &["run", s(&system), "--out", s(&csv)],
-            1,
-            parts,
-            &["system.toml"],
-        );
+        let out = case.refused_run(&system, &[], 1, parts);
         assert!(
             !stderr(&out).contains("panicked"),
             "{what}: {}",
