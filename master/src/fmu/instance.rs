@@ -91,6 +91,18 @@ impl std::fmt::Debug for Instance {
     }
 }
 
+/// The experiment an instance is initialized for: FMI 2.0 takes it in
+/// `fmi2SetupExperiment`, FMI 3.0 in `fmi3EnterInitializationMode`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Experiment {
+    /// The tolerance, if one is asked for.
+    pub tolerance: Option<f64>,
+    /// The start time.
+    pub start: f64,
+    /// The stop time, if one is defined.
+    pub stop: Option<f64>,
+}
+
 /// FMI 3.0 getters into f64: `$get` for the element type `$t`.
 macro_rules! get3 {
     ($inst:expr, $vrs:expr, $out:expr, $get:ident, $set:ident, $t:ty) => {{
@@ -212,28 +224,18 @@ impl Instance {
 
     /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
     /// `fmi3EnterInitializationMode` takes the experiment).
-    pub fn setup_experiment(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError> {
+    pub fn setup_experiment(&mut self, e: Experiment) -> Result<(), CallError> {
         self.call(
-            |i| i.setup_experiment(tolerance, start, stop),
+            |i| i.setup_experiment(e.tolerance, e.start, e.stop),
             |_| Ok::<(), Fmi3Error>(()),
         )
     }
 
-    /// Enters initialization mode (FMI 3.0 with the tolerance, start and stop time).
-    pub fn enter_initialization_mode(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError> {
+    /// Enters initialization mode (FMI 3.0 with the experiment).
+    pub fn enter_initialization_mode(&mut self, e: Experiment) -> Result<(), CallError> {
         self.call(
             fmi::fmi2::instance::Common::enter_initialization_mode,
-            |i| fmi::fmi3::Common::enter_initialization_mode(i, tolerance, start, stop),
+            |i| fmi::fmi3::Common::enter_initialization_mode(i, e.tolerance, e.start, e.stop),
         )
     }
 
