@@ -123,6 +123,21 @@ impl Case {
         (out, csv)
     }
 
+    /// `spurio sweep system --vary vary --metric metric` (then `extra`) is [`refused`] with
+    /// exit code 1 and a message naming every one of `parts`, having written nothing but
+    /// `system.toml`.
+    fn refused_sweep(
+        &self,
+        system: &Path,
+        vary: &str,
+        metric: &str,
+        extra: &[&str],
+        parts: &[&str],
+    ) -> Output {
+        let args = sweep_args(system, vary, metric, extra);
+        refused(self, &args, 1, parts, &["system.toml"])
+    }
+
     /// `spurio run system --out out.csv` (then `extra`) is [`refused`] with exit code `code`
     /// and a message naming every one of `parts`, having written nothing but `system.toml`.
     fn refused_run(&self, system: &Path, extra: &[&str], code: i32, parts: &[&str]) -> Output {
@@ -419,6 +434,20 @@ fn crane_sensor(case: &Case, extra: &str, sensor_parameters: &str) -> PathBuf {
     )
 }
 
+/// `sweep system --vary vary --metric metric`, then `extra`.
+fn sweep_args<'a>(
+    system: &'a Path,
+    vary: &'a str,
+    metric: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    [
+        &["sweep", s(system), "--vary", vary, "--metric", metric],
+        extra,
+    ]
+    .concat()
+}
+
 /// `spurio args` fails with exit code `code` and a message naming every one of `parts`;
 /// the temp folder is left empty and only `files` were written.
 fn refused(case: &Case, args: &[&str], code: i32, parts: &[&str], files: &[&str]) -> Output {
@@ -460,19 +489,12 @@ fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
             "more than --max-steps 100000000",
         ],
     );
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1..2",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..2",
+        "final(crane.x)",
+        &[],
         &["more than --max-steps 100000000"],
-        &["system.toml"],
     );
     // Asked for: 20 steps against a limit of 20 run.
     let system = crane_sensor(&case, "stop_time = 0.2\nstep_size = 0.01", "");
@@ -495,38 +517,27 @@ fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
 fn sweep_refuses_too_many_runs_before_making_them_and_caps_threads() {
     let case = Case::new("sweep-size");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    let sweep = |vary: &str, more: &[&str]| {
-        let mut args = vec![
-            "sweep",
-            s(&system),
-            "--vary",
-            vary,
-            "--metric",
-            "final(crane.x)",
-        ];
-        args.extend(more);
-        args.into_iter().map(String::from).collect::<Vec<_>>()
-    };
-    let args = sweep("sensor.seed=1..99999999999", &[]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    refused(
-        &case,
-        &args,
-        1,
+    let metric = "final(crane.x)";
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..99999999999",
+        metric,
+        &[],
         &["99999999999 runs, more than the 1000000 allowed (--max-runs)"],
-        &["system.toml"],
     );
-    let args = sweep("sensor.seed=1..3", &["--max-runs", "2"]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    refused(
-        &case,
-        &args,
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..3",
+        metric,
+        &["--max-runs", "2"],
         &["3 runs, more than the 2 allowed"],
-        &["system.toml"],
     );
-    let args = sweep("sensor.seed=1..3", &["--threads", "100000"]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let args = sweep_args(
+        &system,
+        "sensor.seed=1..3",
+        metric,
+        &["--threads", "100000"],
+    );
     let out = case.spurio(&args, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let cores = std::thread::available_parallelism().unwrap().get();
@@ -545,102 +556,74 @@ fn sweep_refuses_too_many_runs_before_making_them_and_caps_threads() {
 fn sweep_refuses_a_value_run_would_refuse_and_a_bound_that_cannot_hold() {
     let case = Case::new("sweep-values");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1,0.5",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1,0.5",
+        "final(crane.x)",
+        &[],
         &[
             "instance `sensor`",
             "parameter `seed`",
             "is of type Integer",
             "`0.5` is not one",
         ],
-        &["system.toml"],
     );
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.u[1]=1,2",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.u[1]=1,2",
+        "final(crane.x)",
+        &[],
         &[
             "parameter `u[1]`",
             "driven by the connection `crane.x -> sensor.u[1]`",
         ],
-        &["system.toml"],
     );
     for bound in ["-1", "0", "nan"] {
         let metric = format!("settling(crane.x, {bound})");
-        refused(
-            &case,
-            &[
-                "sweep",
-                s(&system),
-                "--vary",
-                "sensor.seed=1,2",
-                "--metric",
-                &metric,
-            ],
-            1,
+        case.refused_sweep(
+            &system,
+            "sensor.seed=1,2",
+            &metric,
+            &[],
             &["the bound must be a positive number", &format!("`{bound}`")],
-            &["system.toml"],
         );
     }
 }
 
 #[test]
-fn a_parameter_for_a_connected_input_and_a_duplicated_record_are_refused() {
-    let case = Case::new("system");
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01",
-        "\"u[1]\" = 0.3",
-    );
-    case.refused_run(
-        &system,
-        &[],
-        1,
-        &[
-            "instance `sensor`",
-            "parameter `u[1]`",
-            "driven by the connection `crane.x -> sensor.u[1]`",
-        ],
-    );
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\", \"sensor.y[1]\", \"crane.x\"]",
-        "",
-    );
-    case.refused_run(&system, &[], 1, &["record lists `crane.x` twice"]);
-}
-
-#[test]
-fn plotting_an_unrecorded_variable_is_refused_before_the_run() {
-    let case = Case::new("plot");
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\"]",
-        "",
-    );
-    // Nothing written: the check comes before the run.
-    case.refused_run(
-        &system,
-        &["--plot", "crane.x,crane.v"],
-        1,
-        &["cannot plot `crane.v`: it is not recorded (recorded: crane.x)"],
-    );
+fn a_connected_input_parameter_a_repeated_record_and_an_unrecorded_plot_are_refused() {
+    // (the system's record line, the sensor's parameters, more arguments, the refusal);
+    // nothing is written: the checks come before the run.
+    let cases: [(&str, &str, &[&str], &[&str]); 3] = [
+        (
+            "",
+            "\"u[1]\" = 0.3",
+            &[],
+            &[
+                "instance `sensor`",
+                "parameter `u[1]`",
+                "driven by the connection `crane.x -> sensor.u[1]`",
+            ],
+        ),
+        (
+            "record = [\"crane.x\", \"sensor.y[1]\", \"crane.x\"]",
+            "",
+            &[],
+            &["record lists `crane.x` twice"],
+        ),
+        (
+            "record = [\"crane.x\"]",
+            "",
+            &["--plot", "crane.x,crane.v"],
+            &["cannot plot `crane.v`: it is not recorded (recorded: crane.x)"],
+        ),
+    ];
+    for (record, sensor_parameters, extra, parts) in cases {
+        let case = Case::new("system");
+        let head = format!("stop_time = 0.05\nstep_size = 0.01\n{record}");
+        let system = crane_sensor(&case, &head, sensor_parameters);
+        case.refused_run(&system, extra, 1, parts);
+    }
 }
 
 #[test]
@@ -654,21 +637,12 @@ fn write_errors_name_the_file_and_a_sweep_still_prints_its_table() {
         &["cannot write /dev/full", "No space left on device"],
         &["system.toml"],
     );
-    let out = refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1,2",
-            "--metric",
-            "final(crane.x)",
-            "--out",
-            "/dev/full",
-        ],
-        1,
+    let out = case.refused_sweep(
+        &system,
+        "sensor.seed=1,2",
+        "final(crane.x)",
+        &["--out", "/dev/full"],
         &["cannot write /dev/full", "No space left on device"],
-        &["system.toml"],
     );
     assert_names(
         &stdout(&out),
@@ -759,19 +733,6 @@ fn bad_systems_are_refused_naming_what_is_wrong_and_leave_nothing_behind() {
             "{what}: {}",
             stderr(&out)
         );
-        refused(
-            &case,
-            &[
-                "sweep",
-                s(&system),
-                "--vary",
-                "crane.x0=0.1,0.2",
-                "--metric",
-                "final(crane.x)",
-            ],
-            1,
-            parts,
-            &["system.toml"],
-        );
+        case.refused_sweep(&system, "crane.x0=0.1,0.2", "final(crane.x)", &[], parts);
     }
 }
