@@ -31,7 +31,7 @@
 //! caller's (the CLI ends the process, keeping the results so far).
 
 use crate::fmu::{
-    CallError, FmiVersion, FmuFile, Instance, LoadError, StepEnd, StepProblem, VarType,
+    CallError, Experiment, FmiVersion, FmuFile, Instance, LoadError, StepEnd, StepProblem, VarType,
 };
 use crate::plan::{push_op, Op, Plan, Transfer};
 use crate::record::Observer;
@@ -484,9 +484,13 @@ impl Simulation {
                     })
                     .collect(),
             };
-            let stop = Some(system.stop_time);
+            let experiment = Experiment {
+                tolerance: None,
+                start: t0,
+                stop: Some(system.stop_time),
+            };
             m.call("fmi2SetupExperiment", t0, |inst| {
-                inst.setup_experiment(None, t0, stop)
+                inst.setup_experiment(experiment)
             })
             .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
             // Start values, grouped by type into calls (an array's elements in one).
@@ -517,7 +521,7 @@ impl Simulation {
                 }
             }
             m.call("fmi2EnterInitializationMode", t0, |inst| {
-                inst.enter_initialization_mode(None, t0, stop)
+                inst.enter_initialization_mode(experiment)
             })
             .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
             members.push(m);

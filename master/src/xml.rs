@@ -43,3 +43,17 @@ impl Iterator for Tags<'_> {
         }
     }
 }
+
+/// The value of the attribute `key` of `element` (entities resolved, white space as XML 1.0
+/// normalises it); `None` when it is absent or malformed.
+pub(crate) fn attribute(element: &BytesStart, key: &str) -> Option<String> {
+    element
+        .attributes()
+        .flatten()
+        .find(|a| a.key.as_ref() == key)
+        .and_then(|a| {
+            a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                .ok()
+                .map(|v| v.to_string())
+        })
+}

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{assert_names, run};
+use common::{assert_names, instance_tables, run};
 use spurio_master::engine::{RunEnd, RunOptions};
 use spurio_master::fmu::{Causality, FmiVersion, FmuFile, LoadError, VarType};
 use spurio_master::ssp::SspVersion;
@@ -36,9 +36,29 @@ fn reference(version: &str, model: &str) -> PathBuf {
     fmu
 }
 
-fn system(toml_text: &str) -> Result<System, SystemError> {
-    let description: SystemDescription = toml::from_str(toml_text).unwrap();
+/// The system of the TOML `head` (times, connections, record) and `instances` (see
+/// [`instance_tables`]).
+fn system(head: &str, instances: &[(&str, &Path, &str)]) -> Result<System, SystemError> {
+    let toml_text = format!("{head}\n{}", instance_tables(instances));
+    let description: SystemDescription = toml::from_str(&toml_text).unwrap();
     System::resolve(&description, Path::new("."))
+}
+
+/// Asserts that the system of `head` and `instances` (see [`system`]) is refused with a
+/// message naming every one of `parts`.
+fn assert_refused(head: &str, instances: &[(&str, &Path, &str)], parts: &[&str]) {
+    match system(head, instances) {
+        Ok(_) => panic!("the system was accepted:\n{head}"),
+        Err(e) => assert_names(&e.to_string(), parts),
+    }
+}
+
+/// The FMI 2.0 and the FMI 3.0 Reference FMU `Feedthrough`.
+fn feedthroughs() -> (PathBuf, PathBuf) {
+    (
+        reference("fmi2", "Feedthrough"),
+        reference("fmi3", "Feedthrough"),
+    )
 }
 
 fn column(series: &spurio_master::record::TimeSeries, name: &str) -> Vec<f64> {
@@ -79,22 +99,22 @@ fn state_space_runs_with_array_start_values_and_a_whole_array_connection() {
     // 2 u (constant) and y = C x + D u = u (1 + 2 t), exact in the FMU's Euler steps. b gets
     // a.y whole as its input u.
     let fmu = reference("fmi3", "StateSpace");
-    let s = system(&format!(
+    let s = system(
         r#"
         stop_time = 2.0
         step_size = 0.5
         connections = ["a.y -> b.u"]
         record = ["a.y", "b.u[2]", "b.u[3]"]
-        [[instance]]
-        name = "a"
-        fmu = "{f}"
-        parameters = {{ "A[1,1]" = 0.0, "A[2,2]" = 0.0, "A[3,3]" = 0.0, "u[2]" = 5.0, B = [[2, 0, 0], [0, 2, 0], [0, 0, 2]] }}
-        [[instance]]
-        name = "b"
-        fmu = "{f}"
         "#,
-        f = fmu.display()
-    ))
+        &[
+            (
+                "a",
+                &fmu,
+                r#""A[1,1]" = 0.0, "A[2,2]" = 0.0, "A[3,3]" = 0.0, "u[2]" = 5.0, B = [[2, 0, 0], [0, 2, 0], [0, 0, 2]]"#,
+            ),
+            ("b", &fmu, ""),
+        ],
+    )
     .unwrap();
     let (series, end) = run(&s, &RunOptions::default());
     assert_eq!(end, RunEnd::StopTime { time: 2.0 });
@@ -121,36 +141,23 @@ fn state_space_runs_with_array_start_values_and_a_whole_array_connection() {
 #[test]
 fn a_whole_array_parameter_takes_all_its_elements() {
     let fmu = reference("fmi3", "StateSpace");
-    let e = system(&format!(
-        "stop_time = 1.0\nstep_size = 0.5\n[[instance]]\nname = \"a\"\nfmu = \"{}\"\nparameters = {{ x0 = [1.0, 2.0] }}\n",
-        fmu.display()
-    ))
-    .unwrap_err()
-    .to_string();
-    assert_names(&e, &["parameter `x0`", "an array of 3 elements"]);
+    assert_refused(
+        "stop_time = 1.0\nstep_size = 0.5",
+        &[("a", &fmu, "x0 = [1.0, 2.0]")],
+        &["parameter `x0`", "an array of 3 elements"],
+    );
 }
 
 #[test]
 fn a_whole_array_connects_only_to_an_array_of_its_dimensions() {
     let fmu = reference("fmi3", "StateSpace");
-    let e = system(&format!(
+    assert_refused(
         r#"
         stop_time = 1.0
         step_size = 0.5
         connections = ["a.y -> b.u[1]"]
-        [[instance]]
-        name = "a"
-        fmu = "{f}"
-        [[instance]]
-        name = "b"
-        fmu = "{f}"
         "#,
-        f = fmu.display()
-    ))
-    .unwrap_err()
-    .to_string();
-    assert_names(
-        &e,
+        &[("a", &fmu, ""), ("b", &fmu, "")],
         &[
             "a.y -> b.u[1]",
             "`a.y` is an array of dimensions [3]",
@@ -162,11 +169,7 @@ fn a_whole_array_connects_only_to_an_array_of_its_dimensions() {
 #[test]
 fn stair_ends_the_run_normally_at_its_terminate_time() {
     let fmu = reference("fmi3", "Stair");
-    let s = system(&format!(
-        "stop_time = 10.0\nstep_size = 0.2\n[[instance]]\nname = \"stair\"\nfmu = \"{}\"\n",
-        fmu.display()
-    ))
-    .unwrap();
+    let s = system("stop_time = 10.0\nstep_size = 0.2", &[("stair", &fmu, "")]).unwrap();
     let (series, end) = run(&s, &RunOptions::default());
     let RunEnd::Terminated {
         instance,
@@ -205,11 +208,8 @@ fn scheduled_execution_is_refused_with_the_reason() {
 fn values_cross_fmi_versions_and_fmi3_types() {
     // FMI 2.0 Feedthrough -> FMI 3.0 Feedthrough -> FMI 2.0 Feedthrough, and the FMI 3.0
     // one's Int8/UInt64/Float32 outputs into a second FMI 3.0 instance.
-    let (fmu2, fmu3) = (
-        reference("fmi2", "Feedthrough"),
-        reference("fmi3", "Feedthrough"),
-    );
-    let s = system(&format!(
+    let (fmu2, fmu3) = feedthroughs();
+    let s = system(
         r#"
         stop_time = 1.0
         step_size = 0.25
@@ -226,24 +226,22 @@ fn values_cross_fmi_versions_and_fmi3_types() {
         ]
         record = ["c.Float64_continuous_output", "c.Int32_output", "c.Boolean_output",
                   "d.Int8_output", "d.UInt64_output", "d.Float32_continuous_output"]
-        [[instance]]
-        name = "a"
-        fmu = "{fmu2}"
-        parameters = {{ Float64_continuous_input = 2.5, Int32_input = -7, Boolean_input = true }}
-        [[instance]]
-        name = "b"
-        fmu = "{fmu3}"
-        parameters = {{ Int8_input = -100, UInt64_input = 4000000000, Float32_continuous_input = 0.25 }}
-        [[instance]]
-        name = "c"
-        fmu = "{fmu2}"
-        [[instance]]
-        name = "d"
-        fmu = "{fmu3}"
         "#,
-        fmu2 = fmu2.display(),
-        fmu3 = fmu3.display()
-    ))
+        &[
+            (
+                "a",
+                &fmu2,
+                "Float64_continuous_input = 2.5, Int32_input = -7, Boolean_input = true",
+            ),
+            (
+                "b",
+                &fmu3,
+                "Int8_input = -100, UInt64_input = 4000000000, Float32_continuous_input = 0.25",
+            ),
+            ("c", &fmu2, ""),
+            ("d", &fmu3, ""),
+        ],
+    )
     .unwrap();
     assert_eq!(
         s.instances[1].fmu.variable("Int8_output").unwrap().var_type,
@@ -258,28 +256,16 @@ fn values_cross_fmi_versions_and_fmi3_types() {
 
 #[test]
 fn types_must_match_across_versions() {
-    let (fmu2, fmu3) = (
-        reference("fmi2", "Feedthrough"),
-        reference("fmi3", "Feedthrough"),
-    );
-    let e = system(&format!(
+    let (fmu2, fmu3) = feedthroughs();
+    assert_refused(
         r#"
         stop_time = 1.0
         step_size = 0.5
         connections = ["a.Float64_continuous_output -> b.Float32_continuous_input"]
-        [[instance]]
-        name = "a"
-        fmu = "{}"
-        [[instance]]
-        name = "b"
-        fmu = "{}"
         "#,
-        fmu2.display(),
-        fmu3.display()
-    ))
-    .unwrap_err()
-    .to_string();
-    assert_names(&e, &["type mismatch", "Real", "Float32"]);
+        &[("a", &fmu2, ""), ("b", &fmu3, "")],
+        &["type mismatch", "Real", "Float32"],
+    );
 }
 
 #[test]
@@ -290,26 +276,23 @@ fn an_ssp_export_names_array_elements_and_wholes_and_runs_the_same() {
         reference("fmi3", "StateSpace"),
         reference("fmi2", "Feedthrough"),
     );
-    let s = system(&format!(
+    let s = system(
         r#"
         stop_time = 2.0
         step_size = 0.5
         connections = ["a.y -> b.u", "a.y[1] -> c.Float64_continuous_input"]
         record = ["a.y", "b.y[2]", "c.Float64_continuous_output"]
-        [[instance]]
-        name = "a"
-        fmu = "{space}"
-        parameters = {{ "A[1,1]" = 0.0, B = [[2, 0, 0], [0, 2, 0], [0, 0, 2]] }}
-        [[instance]]
-        name = "b"
-        fmu = "{space}"
-        [[instance]]
-        name = "c"
-        fmu = "{feed}"
         "#,
-        space = space.display(),
-        feed = feed.display()
-    ))
+        &[
+            (
+                "a",
+                &space,
+                r#""A[1,1]" = 0.0, B = [[2, 0, 0], [0, 2, 0], [0, 0, 2]]"#,
+            ),
+            ("b", &space, ""),
+            ("c", &feed, ""),
+        ],
+    )
     .unwrap();
     let (direct, _) = run(&s, &RunOptions::default());
     // a.y[1] = u1 (1 + 2 t) with u1 = 1, A[1,1] = 0, B = 2 I.

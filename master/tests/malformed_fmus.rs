@@ -61,20 +61,7 @@ impl Case {
     }
 
     fn assert_clean(&self, expected: &[&str]) {
-        let left: Vec<_> = std::fs::read_dir(&self.tmp)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert!(left.is_empty(), "left in the temp folder: {left:?}");
-        let mut found: Vec<String> = std::fs::read_dir(&self.dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n != "tmp")
-            .collect();
-        found.sort();
-        let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
-        expected.sort();
-        assert_eq!(found, expected, "written outside the temp folder");
+        common::assert_only_left(&self.dir, &self.tmp, expected);
     }
 
     /// Runs `spurio run` on a one-instance system using `fmu`, with TMPDIR at the temp folder;

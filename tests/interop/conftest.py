@@ -153,6 +153,46 @@ def default_experiment(fmu) -> tuple[float, float]:
     return stop, step
 
 
+def run_alone(fmu, workdir):
+    """`fmu` as the one instance `m` of a system at its default experiment, run by `spurio
+    run` and by fmpy's `simulate_fmu` (CS, a point every step): spurio's process, the names
+    and rows of its results, fmpy's results and the stop time."""
+    from fmpy import simulate_fmu
+
+    stop, step = default_experiment(fmu)
+    system = workdir / "system.toml"
+    system.write_text(
+        f'stop_time = {stop!r}\nstep_size = {step!r}\n'
+        f'[[instance]]\nname = "m"\nfmu = "{fmu}"\n'
+    )
+    out = workdir / "spurio.csv"
+    run = spurio("run", system, "--out", out)
+    names, rows = read_csv(out)
+    expected = simulate_fmu(
+        str(fmu),
+        fmi_type="CoSimulation",
+        stop_time=stop,
+        step_size=step,
+        output_interval=step,
+    )
+    assert rows.shape[0] == len(expected), (rows[-3:], expected[-3:])
+    np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=0, atol=1e-12)
+    return run, names, rows, expected, stop
+
+
+def assert_ends_as_fmpy(model, run, rows, expected, stop, stair_reason: str):
+    """Both runs end at the stop time, but the Reference FMU `Stair`'s, which asks to end the
+    simulation at t = 9: both stop there, with the last point recorded, and spurio says why
+    (`stair_reason`: how the FMI version asks)."""
+    if model == "Stair":
+        assert rows[-1, 0] == pytest.approx(9.0, abs=1e-12)
+        assert expected["time"][-1] == pytest.approx(9.0, abs=1e-12)
+        assert "asked to end the simulation at t = 9" in run.stdout
+        assert stair_reason in run.stdout
+    else:
+        assert rows[-1, 0] == pytest.approx(stop, abs=1e-12)
+
+
 @pytest.fixture
 def workdir(tmp_path):
     return tmp_path

@@ -8,9 +8,9 @@ Real -> Float64, Integer -> Int32 and Boolean across the versions."""
 
 import numpy as np
 import pytest
-from fmpy import read_model_description, simulate_fmu
+from fmpy import read_model_description
 
-from conftest import THIRD_PARTY, REFERENCE_FMUS, default_experiment, read_csv, require, spurio
+from conftest import THIRD_PARTY, REFERENCE_FMUS, assert_ends_as_fmpy, read_csv, require, run_alone, spurio
 
 REFERENCE_FMUS_3 = THIRD_PARTY / "reference-fmus" / "fmi3"
 CO_SIMULATION = ["BouncingBall", "Dahlquist", "Feedthrough", "Resource", "Stair", "StateSpace", "VanDerPol"]
@@ -47,41 +47,15 @@ def test_the_fmi3_reference_fmus_are_there():
 @pytest.mark.parametrize("model", CO_SIMULATION)
 def test_spurio_run_matches_fmpy(model, workdir):
     fmu = REFERENCE_FMUS_3 / f"{model}.fmu"
-    stop, step = default_experiment(fmu)
-    system = workdir / "system.toml"
-    system.write_text(
-        f'stop_time = {stop!r}\nstep_size = {step!r}\n'
-        f'[[instance]]\nname = "m"\nfmu = "{fmu}"\n'
-    )
-    out = workdir / "spurio.csv"
-    run = spurio("run", system, "--out", out)
-    names, rows = read_csv(out)
-
-    expected = simulate_fmu(
-        str(fmu),
-        fmi_type="CoSimulation",
-        stop_time=stop,
-        step_size=step,
-        output_interval=step,
-    )
+    run, names, rows, expected, stop = run_alone(fmu, workdir)
     cols = columns(fmu)
     assert sorted(names) == sorted(["time"] + [f"m.{c}" for c, _, _ in cols])
-    assert rows.shape[0] == len(expected), (rows[-3:], expected[-3:])
-    np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=0, atol=1e-12)
     for column, variable, index in cols:
         got = rows[:, names.index(f"m.{column}")]
         want = expected[variable]
         want = want[(slice(None), *index)] if index else want
         np.testing.assert_allclose(got, want.astype(float), rtol=0, atol=1e-12, err_msg=column)
-
-    if model == "Stair":
-        # Ends at 9, not at the stop time 10, with the last point recorded and the reason said.
-        assert rows[-1, 0] == pytest.approx(9.0, abs=1e-12)
-        assert expected["time"][-1] == pytest.approx(9.0, abs=1e-12)
-        assert "asked to end the simulation at t = 9" in run.stdout
-        assert "terminateSimulation = true" in run.stdout
-    else:
-        assert rows[-1, 0] == pytest.approx(stop, abs=1e-12)
+    assert_ends_as_fmpy(model, run, rows, expected, stop, "terminateSimulation = true")
     if model == "StateSpace":
         # y = C x + D u with C = D = I: y[i] > u[i] = 1, 2, 3 once x grows (x' = x + u).
         assert [n for n in names if n.startswith("m.y")] == ["m.y[1]", "m.y[2]", "m.y[3]"]

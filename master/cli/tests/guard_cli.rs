@@ -12,8 +12,10 @@ mod common;
 mod engine;
 
 use common::{repo, require_fmus, s};
+use engine::assert_names;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// A fresh folder for one case, with `tmp/` as the TMPDIR of the runs.
 struct Case {
@@ -36,33 +38,58 @@ impl Case {
         path
     }
 
-    /// Runs `spurio args` with TMPDIR at `tmp/` and the environment `env`.
-    fn spurio(&self, args: &[&str], env: &[(&str, &str)]) -> Output {
+    /// `spurio args` with TMPDIR at `tmp/` and the environment `env`.
+    fn command(&self, args: &[&str], env: &[(&str, &str)]) -> Command {
         let mut command = Command::new(env!("CARGO_BIN_EXE_spurio"));
         command.args(args).env("TMPDIR", &self.tmp);
         for (k, v) in env {
             command.env(k, v);
         }
-        command.output().unwrap()
+        command
+    }
+
+    /// Runs `spurio args` with TMPDIR at `tmp/` and the environment `env`.
+    fn spurio(&self, args: &[&str], env: &[(&str, &str)]) -> Output {
+        self.command(args, env).output().unwrap()
+    }
+
+    /// Starts `spurio args` with the environment `env`, waits (30 s at most) until
+    /// `under_way` says the `what` is under way, then `settle` longer, and sends it SIGTERM;
+    /// returns its output, checked to end with the exit code of SIGTERM (143).
+    fn terminated(
+        &self,
+        args: &[&str],
+        env: &[(&str, &str)],
+        what: &str,
+        under_way: impl Fn() -> bool,
+        settle: Duration,
+    ) -> Output {
+        let child = self
+            .command(args, env)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while !under_way() {
+            assert!(Instant::now() < deadline, "the {what} did not start");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        std::thread::sleep(settle);
+        let kill = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+        out
     }
 
     /// Asserts that the temp folder is empty and the case folder holds only `expected`
     /// besides it.
     fn assert_clean(&self, expected: &[&str]) {
-        let left: Vec<_> = std::fs::read_dir(&self.tmp)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert!(left.is_empty(), "left in the temp folder: {left:?}");
-        let mut found: Vec<String> = std::fs::read_dir(&self.dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n != "tmp")
-            .collect();
-        found.sort();
-        let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
-        expected.sort();
-        assert_eq!(found, expected, "written outside the temp folder");
+        engine::assert_only_left(&self.dir, &self.tmp, expected);
     }
 
     /// `Bad.fmu`: the GantryCrane's model description over `fixtures/misbehaving.c`.
@@ -80,6 +107,43 @@ impl Case {
             "stop_time = 0.1\nstep_size = 0.01\nrecord = [\"crane.x\", \"crane.x0\"]\n\
              [[instance]]\nname = \"crane\"\nfmu = \"Bad.fmu\"\n",
         )
+    }
+
+    /// The results file of `spurio run` in the case folder.
+    fn csv(&self) -> PathBuf {
+        self.dir.join("out.csv")
+    }
+
+    /// Runs [`Case::bad_system`] with `spurio run … --out out.csv` (then `extra`), its FMU
+    /// misbehaving as `mode` at the time `at`; returns the output and the CSV's path.
+    fn run_bad(&self, mode: &str, at: &str, extra: &[&str]) -> (Output, PathBuf) {
+        let (system, csv) = (self.bad_system(), self.csv());
+        let args = [&["run", s(&system), "--out", s(&csv)], extra].concat();
+        let out = self.spurio(&args, &[("MISBEHAVE", mode), ("MISBEHAVE_AT", at)]);
+        (out, csv)
+    }
+
+    /// `spurio sweep system --vary vary --metric metric` (then `extra`) is [`refused`] with
+    /// exit code 1 and a message naming every one of `parts`, having written nothing but
+    /// `system.toml`.
+    fn refused_sweep(
+        &self,
+        system: &Path,
+        vary: &str,
+        metric: &str,
+        extra: &[&str],
+        parts: &[&str],
+    ) -> Output {
+        let args = sweep_args(system, vary, metric, extra);
+        refused(self, &args, 1, parts, &["system.toml"])
+    }
+
+    /// `spurio run system --out out.csv` (then `extra`) is [`refused`] with exit code `code`
+    /// and a message naming every one of `parts`, having written nothing but `system.toml`.
+    fn refused_run(&self, system: &Path, extra: &[&str], code: i32, parts: &[&str]) -> Output {
+        let csv = self.csv();
+        let args = [&["run", s(system), "--out", s(&csv)], extra].concat();
+        refused(self, &args, code, parts, &["system.toml"])
     }
 }
 
@@ -113,22 +177,11 @@ fn rows(csv: &Path) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn assert_names(text: &str, parts: &[&str]) {
-    for part in parts {
-        assert!(text.contains(part), "no `{part}` in: {text}");
-    }
-}
-
 #[test]
 fn a_hanging_call_ends_the_run_by_the_watchdog_keeping_the_rows_before_it() {
     let case = Case::new("hang");
-    let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
-    let started = std::time::Instant::now();
-    let out = case.spurio(
-        &["run", s(&system), "--out", s(&csv), "--call-timeout", "0.5"],
-        &[("MISBEHAVE", "hang"), ("MISBEHAVE_AT", "0.05")],
-    );
+    let started = Instant::now();
+    let (out, csv) = case.run_bad("hang", "0.05", &["--call-timeout", "0.5"]);
     assert!(started.elapsed().as_secs_f64() < 20.0);
     assert_eq!(out.status.code(), Some(124), "{}", stderr(&out));
     assert_names(
@@ -156,12 +209,7 @@ fn an_fmu_that_kills_the_run_leaves_whole_rows_and_no_unpacked_fmu() {
         ("abort", 134, "signal 6 (SIGABRT)"),
     ] {
         let case = Case::new(&format!("run-{mode}"));
-        let system = case.bad_system();
-        let csv = case.dir.join("out.csv");
-        let out = case.spurio(
-            &["run", s(&system), "--out", s(&csv)],
-            &[("MISBEHAVE", mode), ("MISBEHAVE_AT", "0.05")],
-        );
+        let (out, csv) = case.run_bad(mode, "0.05", &[]);
         assert_eq!(out.status.code(), Some(code), "{mode}: {}", stderr(&out));
         assert_names(
             &stderr(&out),
@@ -190,12 +238,7 @@ fn an_fmu_that_kills_the_run_leaves_whole_rows_and_no_unpacked_fmu() {
 #[test]
 fn a_failing_step_keeps_the_rows_before_it_and_says_the_run_ended_early() {
     let case = Case::new("error");
-    let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
-    let out = case.spurio(
-        &["run", s(&system), "--out", s(&csv)],
-        &[("MISBEHAVE", "error"), ("MISBEHAVE_AT", "0.03")],
-    );
+    let (out, csv) = case.run_bad("error", "0.03", &[]);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert_names(
         &stderr(&out),
@@ -213,32 +256,15 @@ fn a_failing_step_keeps_the_rows_before_it_and_says_the_run_ended_early() {
 fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
     let case = Case::new("sigterm");
     let system = case.bad_system();
-    let csv = case.dir.join("out.csv");
-    let child = Command::new(env!("CARGO_BIN_EXE_spurio"))
-        .args(["run", s(&system), "--out", s(&csv)])
-        .env("TMPDIR", &case.tmp)
-        .env("MISBEHAVE", "hang")
-        .env("MISBEHAVE_AT", "0.02")
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until the FMU is unpacked and the run is under way (hanging at t = 0.02).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    while std::fs::read_dir(&case.tmp).unwrap().count() == 0 || !csv.exists() {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the run did not start"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let kill = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+    let csv = case.csv();
+    // Once the FMU is unpacked and the run under way (hanging at t = 0.02).
+    let out = case.terminated(
+        &["run", s(&system), "--out", s(&csv)],
+        &[("MISBEHAVE", "hang"), ("MISBEHAVE_AT", "0.02")],
+        "run",
+        || std::fs::read_dir(&case.tmp).unwrap().count() > 0 && csv.exists(),
+        Duration::from_millis(500),
+    );
     assert_names(
         &stderr(&out),
         &[
@@ -255,24 +281,7 @@ fn sigterm_ends_a_run_cleanly_with_the_rows_so_far() {
 fn sigterm_ends_a_sweep_with_its_workers_and_leaves_nothing_behind() {
     let case = Case::new("sweep-sigterm");
     let system = case.bad_system();
-    let child = Command::new(env!("CARGO_BIN_EXE_spurio"))
-        .args([
-            "sweep",
-            s(&system),
-            "--vary",
-            "crane.x0=0.1,0.2",
-            "--metric",
-            "final(crane.x)",
-        ])
-        .args(["--threads", "2"])
-        .env("TMPDIR", &case.tmp)
-        .env("MISBEHAVE", "hang")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until both workers are under way (each has its session folder in the sweep's).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    // Once both workers are under way (each has its session folder in the sweep's).
     let workers = || {
         std::fs::read_dir(&case.tmp)
             .unwrap()
@@ -281,27 +290,28 @@ fn sigterm_ends_a_sweep_with_its_workers_and_leaves_nothing_behind() {
             .filter(|n| n.starts_with("spurio-"))
             .count()
     };
-    while workers() < 2 {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the workers did not start"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    let kill = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(143), "{}", stderr(&out));
+    let out = case.terminated(
+        &[
+            "sweep",
+            s(&system),
+            "--vary",
+            "crane.x0=0.1,0.2",
+            "--metric",
+            "final(crane.x)",
+            "--threads",
+            "2",
+        ],
+        &[("MISBEHAVE", "hang")],
+        "workers",
+        || workers() >= 2,
+        Duration::from_millis(300),
+    );
     assert_names(
         &stderr(&out),
         &["interrupted by SIGTERM; the run ended early"],
     );
     // The workers are gone with it.
-    std::thread::sleep(std::time::Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(200));
     let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
     let left: Vec<String> = String::from_utf8_lossy(&ps.stdout)
         .lines()
@@ -424,6 +434,20 @@ fn crane_sensor(case: &Case, extra: &str, sensor_parameters: &str) -> PathBuf {
     )
 }
 
+/// `sweep system --vary vary --metric metric`, then `extra`.
+fn sweep_args<'a>(
+    system: &'a Path,
+    vary: &'a str,
+    metric: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    [
+        &["sweep", s(system), "--vary", vary, "--metric", metric],
+        extra,
+    ]
+    .concat()
+}
+
 /// `spurio args` fails with exit code `code` and a message naming every one of `parts`;
 /// the temp folder is left empty and only `files` were written.
 fn refused(case: &Case, args: &[&str], code: i32, parts: &[&str], files: &[&str]) -> Output {
@@ -438,23 +462,15 @@ fn refused(case: &Case, args: &[&str], code: i32, parts: &[&str], files: &[&str]
 fn run_refuses_a_real_time_factor_that_is_not_positive() {
     let case = Case::new("real-time");
     let system = crane_sensor(&case, "stop_time = 0.1\nstep_size = 0.01", "");
-    let csv = case.dir.join("out.csv");
     for bad in ["0", "-1", "nan", "inf"] {
-        refused(
-            &case,
-            &[
-                "run",
-                s(&system),
-                "--out",
-                s(&csv),
-                &format!("--real-time={bad}"),
-            ],
+        case.refused_run(
+            &system,
+            &[&format!("--real-time={bad}")],
             2,
             &[
                 &format!("invalid value '{bad}' for '--real-time"),
                 "is not a positive number",
             ],
-            &["system.toml"],
         );
     }
 }
@@ -463,39 +479,30 @@ fn run_refuses_a_real_time_factor_that_is_not_positive() {
 fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
     let case = Case::new("max-steps");
     let system = crane_sensor(&case, "stop_time = 1e300\nstep_size = 1e-300", "");
-    let csv = case.dir.join("out.csv");
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
+    let csv = case.csv();
+    case.refused_run(
+        &system,
+        &[],
         1,
         &[
             "the run would take infinitely many steps",
             "more than --max-steps 100000000",
         ],
-        &["system.toml"],
     );
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1..2",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..2",
+        "final(crane.x)",
+        &[],
         &["more than --max-steps 100000000"],
-        &["system.toml"],
     );
     // Asked for: 20 steps against a limit of 20 run.
     let system = crane_sensor(&case, "stop_time = 0.2\nstep_size = 0.01", "");
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-steps", "19"],
+    case.refused_run(
+        &system,
+        &["--max-steps", "19"],
         1,
         &["the run would take 20 steps", "more than --max-steps 19"],
-        &["system.toml"],
     );
     let out = case.spurio(
         &["run", s(&system), "--out", s(&csv), "--max-steps", "20"],
@@ -510,38 +517,27 @@ fn run_and_sweep_refuse_more_steps_than_max_steps_unless_asked() {
 fn sweep_refuses_too_many_runs_before_making_them_and_caps_threads() {
     let case = Case::new("sweep-size");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    let sweep = |vary: &str, more: &[&str]| {
-        let mut args = vec![
-            "sweep",
-            s(&system),
-            "--vary",
-            vary,
-            "--metric",
-            "final(crane.x)",
-        ];
-        args.extend(more);
-        args.into_iter().map(String::from).collect::<Vec<_>>()
-    };
-    let args = sweep("sensor.seed=1..99999999999", &[]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    refused(
-        &case,
-        &args,
-        1,
+    let metric = "final(crane.x)";
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..99999999999",
+        metric,
+        &[],
         &["99999999999 runs, more than the 1000000 allowed (--max-runs)"],
-        &["system.toml"],
     );
-    let args = sweep("sensor.seed=1..3", &["--max-runs", "2"]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    refused(
-        &case,
-        &args,
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1..3",
+        metric,
+        &["--max-runs", "2"],
         &["3 runs, more than the 2 allowed"],
-        &["system.toml"],
     );
-    let args = sweep("sensor.seed=1..3", &["--threads", "100000"]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let args = sweep_args(
+        &system,
+        "sensor.seed=1..3",
+        metric,
+        &["--threads", "100000"],
+    );
     let out = case.spurio(&args, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let cores = std::thread::available_parallelism().unwrap().get();
@@ -560,119 +556,74 @@ fn sweep_refuses_too_many_runs_before_making_them_and_caps_threads() {
 fn sweep_refuses_a_value_run_would_refuse_and_a_bound_that_cannot_hold() {
     let case = Case::new("sweep-values");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1,0.5",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.seed=1,0.5",
+        "final(crane.x)",
+        &[],
         &[
             "instance `sensor`",
             "parameter `seed`",
             "is of type Integer",
             "`0.5` is not one",
         ],
-        &["system.toml"],
     );
-    refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.u[1]=1,2",
-            "--metric",
-            "final(crane.x)",
-        ],
-        1,
+    case.refused_sweep(
+        &system,
+        "sensor.u[1]=1,2",
+        "final(crane.x)",
+        &[],
         &[
             "parameter `u[1]`",
             "driven by the connection `crane.x -> sensor.u[1]`",
         ],
-        &["system.toml"],
     );
     for bound in ["-1", "0", "nan"] {
         let metric = format!("settling(crane.x, {bound})");
-        refused(
-            &case,
-            &[
-                "sweep",
-                s(&system),
-                "--vary",
-                "sensor.seed=1,2",
-                "--metric",
-                &metric,
-            ],
-            1,
+        case.refused_sweep(
+            &system,
+            "sensor.seed=1,2",
+            &metric,
+            &[],
             &["the bound must be a positive number", &format!("`{bound}`")],
-            &["system.toml"],
         );
     }
 }
 
 #[test]
-fn a_parameter_for_a_connected_input_and_a_duplicated_record_are_refused() {
-    let case = Case::new("system");
-    let csv = case.dir.join("out.csv");
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01",
-        "\"u[1]\" = 0.3",
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
-        1,
-        &[
-            "instance `sensor`",
-            "parameter `u[1]`",
-            "driven by the connection `crane.x -> sensor.u[1]`",
-        ],
-        &["system.toml"],
-    );
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\", \"sensor.y[1]\", \"crane.x\"]",
-        "",
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv)],
-        1,
-        &["record lists `crane.x` twice"],
-        &["system.toml"],
-    );
-}
-
-#[test]
-fn plotting_an_unrecorded_variable_is_refused_before_the_run() {
-    let case = Case::new("plot");
-    let system = crane_sensor(
-        &case,
-        "stop_time = 0.05\nstep_size = 0.01\nrecord = [\"crane.x\"]",
-        "",
-    );
-    let csv = case.dir.join("out.csv");
-    // Nothing written: the check comes before the run.
-    refused(
-        &case,
-        &[
-            "run",
-            s(&system),
-            "--out",
-            s(&csv),
-            "--plot",
-            "crane.x,crane.v",
-        ],
-        1,
-        &["cannot plot `crane.v`: it is not recorded (recorded: crane.x)"],
-        &["system.toml"],
-    );
+fn a_connected_input_parameter_a_repeated_record_and_an_unrecorded_plot_are_refused() {
+    // (the system's record line, the sensor's parameters, more arguments, the refusal);
+    // nothing is written: the checks come before the run.
+    let cases: [(&str, &str, &[&str], &[&str]); 3] = [
+        (
+            "",
+            "\"u[1]\" = 0.3",
+            &[],
+            &[
+                "instance `sensor`",
+                "parameter `u[1]`",
+                "driven by the connection `crane.x -> sensor.u[1]`",
+            ],
+        ),
+        (
+            "record = [\"crane.x\", \"sensor.y[1]\", \"crane.x\"]",
+            "",
+            &[],
+            &["record lists `crane.x` twice"],
+        ),
+        (
+            "record = [\"crane.x\"]",
+            "",
+            &["--plot", "crane.x,crane.v"],
+            &["cannot plot `crane.v`: it is not recorded (recorded: crane.x)"],
+        ),
+    ];
+    for (record, sensor_parameters, extra, parts) in cases {
+        let case = Case::new("system");
+        let head = format!("stop_time = 0.05\nstep_size = 0.01\n{record}");
+        let system = crane_sensor(&case, &head, sensor_parameters);
+        case.refused_run(&system, extra, 1, parts);
+    }
 }
 
 #[test]
@@ -686,21 +637,12 @@ fn write_errors_name_the_file_and_a_sweep_still_prints_its_table() {
         &["cannot write /dev/full", "No space left on device"],
         &["system.toml"],
     );
-    let out = refused(
-        &case,
-        &[
-            "sweep",
-            s(&system),
-            "--vary",
-            "sensor.seed=1,2",
-            "--metric",
-            "final(crane.x)",
-            "--out",
-            "/dev/full",
-        ],
-        1,
+    let out = case.refused_sweep(
+        &system,
+        "sensor.seed=1,2",
+        "final(crane.x)",
+        &["--out", "/dev/full"],
         &["cannot write /dev/full", "No space left on device"],
-        &["system.toml"],
     );
     assert_names(
         &stdout(&out),
@@ -712,45 +654,34 @@ fn write_errors_name_the_file_and_a_sweep_still_prints_its_table() {
 fn the_loaders_limits_are_flags() {
     let case = Case::new("limits");
     let system = crane_sensor(&case, "stop_time = 0.05\nstep_size = 0.01", "");
-    let csv = case.dir.join("out.csv");
-    refused(
-        &case,
-        &[
-            "run",
-            s(&system),
-            "--out",
-            s(&csv),
+    let cases: [(&str, &str, &[&str]); 3] = [
+        (
             "--max-model-description",
             "1K",
-        ],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "modelDescription.xml",
-            "beyond the loader's limit of at most 1024 bytes",
-        ],
-        &["system.toml"],
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-entries", "2"],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "beyond the loader's limit of at most 2 entries",
-        ],
-        &["system.toml"],
-    );
-    refused(
-        &case,
-        &["run", s(&system), "--out", s(&csv), "--max-unpacked", "64K"],
-        1,
-        &[
-            "GantryCrane.fmu",
-            "beyond the loader's limit of at most 65536 bytes",
-        ],
-        &["system.toml"],
-    );
+            &[
+                "modelDescription.xml",
+                "beyond the loader's limit of at most 1024 bytes",
+            ],
+        ),
+        (
+            "--max-entries",
+            "2",
+            &["beyond the loader's limit of at most 2 entries"],
+        ),
+        (
+            "--max-unpacked",
+            "64K",
+            &["beyond the loader's limit of at most 65536 bytes"],
+        ),
+    ];
+    for (flag, value, parts) in cases {
+        case.refused_run(
+            &system,
+            &[flag, value],
+            1,
+            &[&["GantryCrane.fmu"], parts].concat(),
+        );
+    }
 }
 
 #[test]
@@ -796,32 +727,12 @@ fn bad_systems_are_refused_naming_what_is_wrong_and_leave_nothing_behind() {
     for (what, text, parts) in cases {
         let case = Case::new("bad-system");
         let system = case.file("system.toml", &text);
-        let csv = case.dir.join("out.csv");
-        let out = refused(
-            &case,
-            &["run", s(&system), "--out", s(&csv)],
-            1,
-            parts,
-            &["system.toml"],
-        );
+        let out = case.refused_run(&system, &[], 1, parts);
         assert!(
             !stderr(&out).contains("panicked"),
             "{what}: {}",
             stderr(&out)
         );
-        refused(
-            &case,
-            &[
-                "sweep",
-                s(&system),
-                "--vary",
-                "crane.x0=0.1,0.2",
-                "--metric",
-                "final(crane.x)",
-            ],
-            1,
-            parts,
-            &["system.toml"],
-        );
+        case.refused_sweep(&system, "crane.x0=0.1,0.2", "final(crane.x)", &[], parts);
     }
 }

@@ -91,9 +91,21 @@ impl std::fmt::Debug for Instance {
     }
 }
 
+/// The experiment an instance is initialized for: FMI 2.0 takes it in
+/// `fmi2SetupExperiment`, FMI 3.0 in `fmi3EnterInitializationMode`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Experiment {
+    /// The tolerance, if one is asked for.
+    pub tolerance: Option<f64>,
+    /// The start time.
+    pub start: f64,
+    /// The stop time, if one is defined.
+    pub stop: Option<f64>,
+}
+
 /// FMI 3.0 getters into f64: `$get` for the element type `$t`.
 macro_rules! get3 {
-    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $t:ty) => {{
+    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $set:ident, $t:ty) => {{
         let mut v = vec![<$t>::default(); $out.len()];
         $inst.$get($vrs, &mut v)?;
         for (o, x) in $out.iter_mut().zip(&v) {
@@ -104,10 +116,29 @@ macro_rules! get3 {
 
 /// FMI 3.0 setters from f64 (rounded to the nearest integer for the integer types).
 macro_rules! set3 {
-    ($inst:expr, $vrs:expr, $values:expr, $set:ident, $t:ty) => {{
+    ($inst:expr, $vrs:expr, $values:expr, $get:ident, $set:ident, $t:ty) => {{
         let v: Vec<$t> = $values.iter().map(|x| x.round() as $t).collect();
         $inst.$set($vrs, &v)?;
     }};
+}
+
+/// The FMI 3.0 integer types (and enumerations, Int64 in FMI 3.0) with their getter, setter
+/// and element type: `$apply!(args, getter, setter, type)` for the one `$t` is, `$other`
+/// for every other type.
+macro_rules! fmi3_integer {
+    ($t:expr, $apply:ident!($($args:tt)*), $other:expr) => {
+        match $t {
+            VarType::Int8 => $apply!($($args)*, get_int8, set_int8, i8),
+            VarType::UInt8 => $apply!($($args)*, get_uint8, set_uint8, u8),
+            VarType::Int16 => $apply!($($args)*, get_int16, set_int16, i16),
+            VarType::UInt16 => $apply!($($args)*, get_uint16, set_uint16, u16),
+            VarType::Integer => $apply!($($args)*, get_int32, set_int32, i32),
+            VarType::UInt32 => $apply!($($args)*, get_uint32, set_uint32, u32),
+            VarType::Int64 | VarType::Enumeration => $apply!($($args)*, get_int64, set_int64, i64),
+            VarType::UInt64 => $apply!($($args)*, get_uint64, set_uint64, u64),
+            _ => $other,
+        }
+    };
 }
 
 impl Instance {
@@ -178,65 +209,51 @@ impl Instance {
         }
     }
 
-    /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
-    /// `fmi3EnterInitializationMode` takes the experiment).
-    pub fn setup_experiment(
+    /// Makes the call `fmi2` or `fmi3`, as the instance's version is (see [`Self::with_log`]),
+    /// for its success alone.
+    fn call<A, B, E2: Into<CallError>, E3: Into<CallError>>(
         &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
+        fmi2: impl FnOnce(&mut fmi::fmi2::instance::InstanceCS) -> Result<A, E2>,
+        fmi3: impl FnOnce(&mut fmi::fmi3::instance::InstanceCS) -> Result<B, E3>,
     ) -> Result<(), CallError> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => i
-                .setup_experiment(tolerance, start, stop)
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(_) => Ok(()),
+            Inner::Fmi2(i) => fmi2(i.as_mut()).map(|_| ()).map_err(Into::into),
+            Inner::Fmi3(i) => fmi3(i.as_mut()).map(|_| ()).map_err(Into::into),
         })
     }
 
-    /// Enters initialization mode (FMI 3.0 with the tolerance, start and stop time).
-    pub fn enter_initialization_mode(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::enter_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => {
-                fmi::fmi3::Common::enter_initialization_mode(i.as_mut(), tolerance, start, stop)
-                    .map(|_| ())
-                    .map_err(Into::into)
-            }
-        })
+    /// FMI 2.0: `fmi2SetupExperiment` (before start values are set); FMI 3.0: nothing (its
+    /// `fmi3EnterInitializationMode` takes the experiment).
+    pub fn setup_experiment(&mut self, e: Experiment) -> Result<(), CallError> {
+        self.call(
+            |i| i.setup_experiment(e.tolerance, e.start, e.stop),
+            |_| Ok::<(), Fmi3Error>(()),
+        )
+    }
+
+    /// Enters initialization mode (FMI 3.0 with the experiment).
+    pub fn enter_initialization_mode(&mut self, e: Experiment) -> Result<(), CallError> {
+        self.call(
+            fmi::fmi2::instance::Common::enter_initialization_mode,
+            |i| fmi::fmi3::Common::enter_initialization_mode(i, e.tolerance, e.start, e.stop),
+        )
     }
 
     /// Leaves initialization mode (an FMI 3.0 instance without event mode is then in step
     /// mode).
     pub fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::exit_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::exit_initialization_mode(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-        })
+        self.call(
+            fmi::fmi2::instance::Common::exit_initialization_mode,
+            fmi::fmi3::Common::exit_initialization_mode,
+        )
     }
 
     /// Terminates the instance.
     pub fn terminate(&mut self) -> Result<(), CallError> {
-        self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi::fmi2::instance::Common::terminate(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-            Inner::Fmi3(i) => fmi::fmi3::Common::terminate(i.as_mut())
-                .map(|_| ())
-                .map_err(Into::into),
-        })
+        self.call(
+            fmi::fmi2::instance::Common::terminate,
+            fmi::fmi3::Common::terminate,
+        )
     }
 
     /// Reads the values of `vrs` (all of type `t`) into `out`: one value per FMI 2.0
@@ -361,15 +378,7 @@ fn get3(
         VarType::Real => {
             i.get_float64(vrs, out)?;
         }
-        VarType::Float32 => get3!(i, vrs, out, get_float32, f32),
-        VarType::Int8 => get3!(i, vrs, out, get_int8, i8),
-        VarType::UInt8 => get3!(i, vrs, out, get_uint8, u8),
-        VarType::Int16 => get3!(i, vrs, out, get_int16, i16),
-        VarType::UInt16 => get3!(i, vrs, out, get_uint16, u16),
-        VarType::Integer => get3!(i, vrs, out, get_int32, i32),
-        VarType::UInt32 => get3!(i, vrs, out, get_uint32, u32),
-        VarType::Int64 | VarType::Enumeration => get3!(i, vrs, out, get_int64, i64),
-        VarType::UInt64 => get3!(i, vrs, out, get_uint64, u64),
+        VarType::Float32 => get3!(i, vrs, out, get_float32, set_float32, f32),
         VarType::Boolean => {
             let mut v = vec![false; out.len()];
             i.get_boolean(vrs, &mut v)?;
@@ -377,8 +386,9 @@ fn get3(
                 *o = f64::from(u8::from(*x));
             }
         }
-        // Never planned (the plan moves numbers and Booleans only).
-        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+        // Strings, Binaries and Clocks are never planned (the plan moves numbers and
+        // Booleans only).
+        _ => fmi3_integer!(t, get3!(i, vrs, out), return Err(Fmi3Error::Error)),
     }
     Ok(())
 }
@@ -397,19 +407,11 @@ fn set3(
             let v: Vec<f32> = values.iter().map(|x| *x as f32).collect();
             i.set_float32(vrs, &v)?;
         }
-        VarType::Int8 => set3!(i, vrs, values, set_int8, i8),
-        VarType::UInt8 => set3!(i, vrs, values, set_uint8, u8),
-        VarType::Int16 => set3!(i, vrs, values, set_int16, i16),
-        VarType::UInt16 => set3!(i, vrs, values, set_uint16, u16),
-        VarType::Integer => set3!(i, vrs, values, set_int32, i32),
-        VarType::UInt32 => set3!(i, vrs, values, set_uint32, u32),
-        VarType::Int64 | VarType::Enumeration => set3!(i, vrs, values, set_int64, i64),
-        VarType::UInt64 => set3!(i, vrs, values, set_uint64, u64),
         VarType::Boolean => {
             let v: Vec<bool> = values.iter().map(|x| *x != 0.0).collect();
             i.set_boolean(vrs, &v)?;
         }
-        VarType::String | VarType::Binary | VarType::Clock => return Err(Fmi3Error::Error),
+        _ => fmi3_integer!(t, set3!(i, vrs, values), return Err(Fmi3Error::Error)),
     }
     Ok(())
 }

@@ -23,7 +23,7 @@ mod instance;
 mod v3;
 mod xml;
 
-pub use instance::{CallError, Instance, StepEnd, StepProblem};
+pub use instance::{CallError, Experiment, Instance, StepEnd, StepProblem};
 
 use crate::logging::LogKey;
 use fmi::fmi2::import::Fmi2Import;

@@ -13,7 +13,7 @@
 //! entry refers to a known variable, an `<Output>` to an output listed once.
 
 use super::{ArrayInfo, Causality, VarType, VariableInfo};
-use crate::xml::{tags, Tag};
+use crate::xml::{attribute, tags, Tag};
 use std::collections::HashMap;
 
 /// What the master takes from an FMI 3.0 model description.
@@ -74,17 +74,6 @@ fn var_type(element: &str) -> Option<VarType> {
         "Clock" => VarType::Clock,
         _ => return None,
     })
-}
-
-fn attribute(e: &quick_xml::events::BytesStart, key: &str) -> Option<String> {
-    e.attributes()
-        .flatten()
-        .find(|a| a.key.as_ref() == key)
-        .and_then(|a| {
-            a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
-                .ok()
-                .map(|v| v.to_string())
-        })
 }
 
 fn number<T: std::str::FromStr>(text: &str, what: &str) -> Result<T, String> {
@@ -502,39 +491,33 @@ mod tests {
 
     #[test]
     fn ambiguous_names_and_references_are_refused() {
-        let clash = md(
-            r#"<Float64 name="x" valueReference="1" causality="output"><Dimension start="2"/></Float64>
+        // (variables, model structure, what the refusal says)
+        let cases = [
+            (
+                r#"<Float64 name="x" valueReference="1" causality="output"><Dimension start="2"/></Float64>
                <Float64 name="x[2]" valueReference="2" causality="output"/>"#,
-            "",
-        );
-        let e = read(&clash).unwrap_err();
-        assert!(
-            e.contains("`x[2]` is ambiguous: it names `x` and `x[2]`"),
-            "{e}"
-        );
-        let shared = md(
-            r#"<Float64 name="a" valueReference="1"/><Int32 name="b" valueReference="1"/>"#,
-            "",
-        );
-        let e = read(&shared).unwrap_err();
-        assert!(e.contains("`a` and `b` share value reference 1"), "{e}");
-        let unknown_dim = md(
-            r#"<Float64 name="y" valueReference="1" causality="output"><Dimension valueReference="9"/></Float64>"#,
-            "",
-        );
-        let e = read(&unknown_dim).unwrap_err();
-        assert!(
-            e.contains("refers to value reference 9, which no variable has"),
-            "{e}"
-        );
-        let not_output = md(
-            r#"<Float64 name="u" valueReference="1" causality="input"/>"#,
-            r#"<Output valueReference="1"/>"#,
-        );
-        let e = read(&not_output).unwrap_err();
-        assert!(
-            e.contains("`u`, whose causality is input, not output"),
-            "{e}"
-        );
+                "",
+                "`x[2]` is ambiguous: it names `x` and `x[2]`",
+            ),
+            (
+                r#"<Float64 name="a" valueReference="1"/><Int32 name="b" valueReference="1"/>"#,
+                "",
+                "`a` and `b` share value reference 1",
+            ),
+            (
+                r#"<Float64 name="y" valueReference="1" causality="output"><Dimension valueReference="9"/></Float64>"#,
+                "",
+                "refers to value reference 9, which no variable has",
+            ),
+            (
+                r#"<Float64 name="u" valueReference="1" causality="input"/>"#,
+                r#"<Output valueReference="1"/>"#,
+                "`u`, whose causality is input, not output",
+            ),
+        ];
+        for (variables, structure, says) in cases {
+            let e = read(&md(variables, structure)).unwrap_err();
+            assert!(e.contains(says), "{e}");
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! `ModelStructure` as written (so indices can be checked and an absent `dependencies` told
 //! from an empty one), each variable's unit and whether it declares a start value.
 
-use crate::xml::{tags, Tag};
+use crate::xml::{attribute, tags, Tag};
 use std::collections::HashMap;
 
 /// One `<Unknown>` of `ModelStructure`, as written.
@@ -76,16 +76,6 @@ pub(super) struct VariableExtras {
 
 /// The units and start flags of every `ScalarVariable`, in one walk.
 pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
-    let attribute = |e: &quick_xml::events::BytesStart, key: &str| -> Option<String> {
-        e.attributes()
-            .flatten()
-            .find(|a| a.key.as_ref() == key)
-            .and_then(|a| {
-                a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
-                    .ok()
-                    .map(|v| v.to_string())
-            })
-    };
     let mut type_units: HashMap<String, String> = HashMap::new();
     let mut simple_type: Option<String> = None;
     let mut in_variable = false;

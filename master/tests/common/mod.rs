@@ -119,16 +119,31 @@ pub fn crane_sensor(stop_time: f64, crane_parameters: &str) -> System {
         step_size = 0.01
         connections = ["crane.x -> sensor.u[1]", "crane.theta -> sensor.u[2]"]
         record = ["crane.x", "sensor.y[1]", "sensor.y_clean[1]"]
-        [[instance]]
-        name = "crane"
-        fmu = "GantryCrane.fmu"
-        parameters = {{ {crane_parameters} }}
-        [[instance]]
-        name = "sensor"
-        fmu = "Sensor2.fmu"
-        "#
+        {}"#,
+        instance_tables(&[
+            ("crane", Path::new("GantryCrane.fmu"), crane_parameters),
+            ("sensor", Path::new("Sensor2.fmu"), ""),
+        ])
     ))
     .unwrap()
+}
+
+/// The `[[instance]]` tables of a system's TOML, one for each (name, FMU, parameters: the
+/// inside of an inline table, e.g. `x0 = 0.1, "u[2]" = 5.0`, empty for none).
+pub fn instance_tables(instances: &[(&str, &Path, &str)]) -> String {
+    instances
+        .iter()
+        .map(|(name, fmu, parameters)| {
+            let mut table = format!(
+                "[[instance]]\nname = \"{name}\"\nfmu = \"{}\"\n",
+                fmu.display()
+            );
+            if !parameters.is_empty() {
+                table += &format!("parameters = {{ {parameters} }}\n");
+            }
+            table
+        })
+        .collect()
 }
 
 /// Runs `system` into memory with `options`, then terminates it.
@@ -145,4 +160,24 @@ pub fn assert_names(text: &str, parts: &[&str]) {
     for part in parts {
         assert!(text.contains(part), "no `{part}` in: {text}");
     }
+}
+
+/// Asserts that the temporary folder `tmp` is empty and that `dir` holds nothing but the
+/// files `expected` besides it: what a refused FMU or an ended run may leave behind.
+pub fn assert_only_left(dir: &Path, tmp: &Path, expected: &[&str]) {
+    let left: Vec<_> = std::fs::read_dir(tmp)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "left in the temp folder: {left:?}");
+    let mut found: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p != tmp)
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    found.sort();
+    let mut expected: Vec<String> = expected.iter().map(|s| s.to_string()).collect();
+    expected.sort();
+    assert_eq!(found, expected, "written outside the temp folder");
 }
