@@ -358,6 +358,28 @@ simple_call!(
 /// kinds of [`crate::front`]).
 pub use crate::front::{Boolean, Integer, Real};
 
+/// The value references of a get call, after its pointer checks (`Err`: the rejection's
+/// status).
+///
+/// # Safety
+/// FMI pointer contract.
+unsafe fn get_references<'a, M: FmuModel>(
+    s: &Slot<M>,
+    f: &Function,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    out_is_null: bool,
+) -> Result<&'a [fmi2ValueReference], Status> {
+    // SAFETY: forwarded from the caller.
+    let Some(vrs) = (unsafe { slice(vr, n) }) else {
+        return Err(s.instance.reject(f, "vr is NULL"));
+    };
+    if n > 0 && out_is_null {
+        return Err(s.instance.reject(f, "value is NULL"));
+    }
+    Ok(vrs)
+}
+
 /// `fmi2GetReal`, `fmi2GetInteger`, `fmi2GetBoolean`: the values into a C array.
 ///
 /// # Safety
@@ -370,17 +392,12 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
 ) -> fmi2Status {
     let f = T::GET;
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, n) else {
-                return s.instance.reject(f, "vr is NULL");
-            };
-            if n > 0 && out.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            s.instance.get_values(f, vrs, T::TYPE, |i, v| {
+        with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
+            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, v| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
                 *out.add(i) = T::to_c(v)
-            })
+            }),
+            Err(status) => status,
         })
     }
 }
@@ -398,12 +415,10 @@ pub unsafe fn get_string<M: FmuModel>(
     let f = &functions::GET_STRING;
     unsafe {
         with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, n) else {
-                return s.instance.reject(f, "vr is NULL");
+            let vrs = match get_references(s, f, vr, n, value.is_null()) {
+                Ok(vrs) => vrs,
+                Err(status) => return status,
             };
-            if n > 0 && value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
             let mut values = Vec::with_capacity(n);
             let status = s
                 .instance
@@ -486,70 +501,7 @@ pub unsafe fn cancel_step<M: FmuModel>(c: fmi2Component) -> fmi2Status {
     unsafe { with_instance::<M>(c, &functions::CANCEL_STEP, |_| Status::Ok) }
 }
 
-/// `fmi2GetFMUstate`: a new state, or the given one overwritten.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
-    unsafe { STATES.get::<M, ()>(c, state) }
-}
-
-/// `fmi2SetFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
-    unsafe { STATES.set::<M, ()>(c, state) }
-}
-
-/// `fmi2FreeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn free_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    state: *mut fmi2FMUstate,
-) -> fmi2Status {
-    unsafe { STATES.free::<M, ()>(c, state) }
-}
-
-/// `fmi2SerializedFMUstateSize`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
-    c: fmi2Component,
-    state: fmi2FMUstate,
-    size: *mut usize,
-) -> fmi2Status {
-    unsafe { STATES.size::<M, ()>(c, state, size) }
-}
-
-/// `fmi2SerializeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialize_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    state: fmi2FMUstate,
-    bytes: *mut fmi2Byte,
-    size: usize,
-) -> fmi2Status {
-    unsafe { STATES.serialize::<M, ()>(c, state, bytes as *mut u8, size) }
-}
-
-/// `fmi2DeSerializeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn deserialize_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    bytes: *const fmi2Byte,
-    size: usize,
-    state: *mut fmi2FMUstate,
-) -> fmi2Status {
-    unsafe { STATES.deserialize::<M, ()>(c, bytes as *const u8, size, state) }
-}
+front::state_functions!(fmi2Component, fmi2FMUstate, fmi2Byte, (), STATES);
 
 /// Functions of capabilities the FMUs do not declare: rejected with a reason.
 ///

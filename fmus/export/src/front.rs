@@ -112,7 +112,7 @@ pub unsafe fn with_slot<M: FmuModel, X>(
     c: *mut c_void,
     f: &Function,
     body: impl FnOnce(&mut Slot<M, X>) -> Status,
-) -> c_int {
+) -> std::os::raw::c_int {
     if c.is_null() {
         return Status::Error.code();
     }
@@ -292,6 +292,83 @@ impl StateFunctions {
     }
 }
 
+/// Emits, in a front's `ffi` module, its six FMU-state functions (`get_fmu_state`,
+/// `set_fmu_state`, `free_fmu_state`, `serialized_fmu_state_size`, `serialize_fmu_state`,
+/// `deserialize_fmu_state`) over `$states` ([`StateFunctions`]) and the front's handle, state
+/// and byte types and slot data.
+macro_rules! state_functions {
+    ($handle:ty, $state:ty, $byte:ty, $extra:ty, $states:expr) => {
+        /// `fmi*GetFMUstate`: a new state, or the given one overwritten.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn get_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { $states.get::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*SetFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn set_fmu_state<M: FmuModel>(c: $handle, state: $state) -> std::os::raw::c_int {
+            unsafe { $states.set::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*FreeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn free_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { $states.free::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*SerializedFMUstateSize`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
+            c: $handle,
+            state: $state,
+            size: *mut usize,
+        ) -> std::os::raw::c_int {
+            unsafe { $states.size::<M, $extra>(c, state, size) }
+        }
+
+        /// `fmi*SerializeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn serialize_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: $state,
+            bytes: *mut $byte,
+            size: usize,
+        ) -> std::os::raw::c_int {
+            unsafe { $states.serialize::<M, $extra>(c, state, bytes as *mut u8, size) }
+        }
+
+        /// `fmi*DeSerializeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn deserialize_fmu_state<M: FmuModel>(
+            c: $handle,
+            bytes: *const $byte,
+            size: usize,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { $states.deserialize::<M, $extra>(c, bytes as *const u8, size, state) }
+        }
+    };
+}
+pub(crate) use state_functions;
+
 unsafe fn known_state<'a, M: FmuModel, X>(
     s: &Slot<M, X>,
     state: *mut c_void,
@@ -306,7 +383,11 @@ impl StateFunctions {
     ///
     /// # Safety
     /// FMI pointer contract.
-    pub unsafe fn get<M: FmuModel, X>(&self, c: *mut c_void, state: *mut *mut c_void) -> c_int {
+    pub unsafe fn get<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut *mut c_void,
+    ) -> std::os::raw::c_int {
         let f = self.get;
         unsafe {
             with_slot::<M, X>(c, f, |s| {
@@ -331,7 +412,11 @@ impl StateFunctions {
     ///
     /// # Safety
     /// FMI pointer contract.
-    pub unsafe fn set<M: FmuModel, X>(&self, c: *mut c_void, state: *mut c_void) -> c_int {
+    pub unsafe fn set<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut c_void,
+    ) -> std::os::raw::c_int {
         let f = self.set;
         unsafe {
             with_slot::<M, X>(c, f, |s| match known_state(s, state) {
@@ -348,7 +433,11 @@ impl StateFunctions {
     ///
     /// # Safety
     /// FMI pointer contract.
-    pub unsafe fn free<M: FmuModel, X>(&self, c: *mut c_void, state: *mut *mut c_void) -> c_int {
+    pub unsafe fn free<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut *mut c_void,
+    ) -> std::os::raw::c_int {
         let f = self.free;
         unsafe {
             with_slot::<M, X>(c, f, |s| {
@@ -378,7 +467,7 @@ impl StateFunctions {
         c: *mut c_void,
         state: *mut c_void,
         size: *mut usize,
-    ) -> c_int {
+    ) -> std::os::raw::c_int {
         let f = self.size;
         unsafe {
             with_slot::<M, X>(c, f, |s| match (known_state(s, state), size.is_null()) {
@@ -402,7 +491,7 @@ impl StateFunctions {
         state: *mut c_void,
         bytes: *mut u8,
         size: usize,
-    ) -> c_int {
+    ) -> std::os::raw::c_int {
         let f = self.serialize;
         unsafe {
             with_slot::<M, X>(c, f, |s| {
@@ -435,7 +524,7 @@ impl StateFunctions {
         bytes: *const u8,
         size: usize,
         state: *mut *mut c_void,
-    ) -> c_int {
+    ) -> std::os::raw::c_int {
         let f = self.deserialize;
         unsafe {
             with_slot::<M, X>(c, f, |s| {

@@ -429,6 +429,45 @@ fn read_values<M: FmuModel>(
 /// [`crate::front`]): `fmi3Float64`, `fmi3Int32`, `fmi3Boolean`.
 pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
 
+/// A get call: checks the pointers and the references, reads the values `vr` name (arrays
+/// row-major; `n_values` of them) and hands them to `write` unless the read failed.
+///
+/// # Safety
+/// FMI pointer contract.
+#[allow(clippy::too_many_arguments)]
+unsafe fn get_call<M: FmuModel>(
+    c: fmi3Instance,
+    f: &Function,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    out_is_null: bool,
+    n_values: usize,
+    expected: VariableType,
+    write: impl FnOnce(&mut Slot<M>, &[Value]),
+) -> fmi3Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, nvr) else {
+                return s.instance.reject(f, "valueReferences is NULL");
+            };
+            if n_values > 0 && out_is_null {
+                return s.instance.reject(f, "values is NULL");
+            }
+            let elements = match expand(s, vrs, expected, n_values) {
+                Ok(e) => e,
+                Err(message) => return s.instance.reject(f, &message),
+            };
+            match read_values(s, f, &elements, expected) {
+                Ok((values, status)) => {
+                    write(s, &values);
+                    status
+                }
+                Err(status) => status,
+            }
+        })
+    }
+}
+
 /// `fmi3GetFloat64`, `fmi3GetInt32`, `fmi3GetBoolean`: the values (arrays row-major) into a C
 /// array of `n_values` elements.
 ///
@@ -441,29 +480,13 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     out: *mut K::C,
     n_values: usize,
 ) -> fmi3Status {
-    let f = K::GET;
+    let null = out.is_null();
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, nvr) else {
-                return s.instance.reject(f, "valueReferences is NULL");
-            };
-            if n_values > 0 && out.is_null() {
-                return s.instance.reject(f, "values is NULL");
-            }
-            let elements = match expand(s, vrs, K::TYPE, n_values) {
-                Ok(e) => e,
-                Err(message) => return s.instance.reject(f, &message),
-            };
-            match read_values(s, f, &elements, K::TYPE) {
-                Ok((values, status)) => {
-                    for (i, v) in values.iter().enumerate() {
-                        // SAFETY: `out` holds `n_values` elements (FMI contract) and
-                        // `values.len() == n_values` (checked by `expand`).
-                        *out.add(i) = K::to_c(v);
-                    }
-                    status
-                }
-                Err(status) => status,
+        get_call::<M>(c, K::GET, vr, nvr, null, n_values, K::TYPE, |_, values| {
+            for (i, v) in values.iter().enumerate() {
+                // SAFETY: `out` holds `n_values` elements (FMI contract) and
+                // `values.len() == n_values` (checked by `expand`).
+                *out.add(i) = K::to_c(v);
             }
         })
     }
@@ -525,28 +548,21 @@ pub unsafe fn get_string<M: FmuModel>(
     out: *mut fmi3String,
     n_values: usize,
 ) -> fmi3Status {
-    let f = &functions::GET_STRING;
+    let (f, null) = (&functions::GET_STRING, out.is_null());
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, nvr) else {
-                return s.instance.reject(f, "valueReferences is NULL");
-            };
-            if n_values > 0 && out.is_null() {
-                return s.instance.reject(f, "values is NULL");
-            }
-            let elements = match expand(s, vrs, VariableType::String, n_values) {
-                Ok(e) => e,
-                Err(message) => return s.instance.reject(f, &message),
-            };
-            match read_values(s, f, &elements, VariableType::String) {
-                Ok((values, status)) => {
-                    // SAFETY: `out` holds `n_values` slots, the number of `values`.
-                    s.return_strings(&values, out);
-                    status
-                }
-                Err(status) => status,
-            }
-        })
+        get_call::<M>(
+            c,
+            f,
+            vr,
+            nvr,
+            null,
+            n_values,
+            VariableType::String,
+            |s, values| {
+                // SAFETY: `out` holds `n_values` slots, the number of `values`.
+                s.return_strings(values, out)
+            },
+        )
     }
 }
 
@@ -575,67 +591,7 @@ pub unsafe fn set_string<M: FmuModel>(
     }
 }
 
-/// `fmi3GetFMUState`: a new state, or the given one overwritten.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
-    unsafe { STATES.get::<M, Layout>(c, state) }
-}
-
-/// `fmi3SetFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi3Instance, state: fmi3FMUState) -> fmi3Status {
-    unsafe { STATES.set::<M, Layout>(c, state) }
-}
-
-/// `fmi3FreeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn free_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
-    unsafe { STATES.free::<M, Layout>(c, state) }
-}
-
-/// `fmi3SerializedFMUStateSize`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
-    c: fmi3Instance,
-    state: fmi3FMUState,
-    size: *mut usize,
-) -> fmi3Status {
-    unsafe { STATES.size::<M, Layout>(c, state, size) }
-}
-
-/// `fmi3SerializeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialize_fmu_state<M: FmuModel>(
-    c: fmi3Instance,
-    state: fmi3FMUState,
-    bytes: *mut fmi3Byte,
-    size: usize,
-) -> fmi3Status {
-    unsafe { STATES.serialize::<M, Layout>(c, state, bytes, size) }
-}
-
-/// `fmi3DeserializeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn deserialize_fmu_state<M: FmuModel>(
-    c: fmi3Instance,
-    bytes: *const fmi3Byte,
-    size: usize,
-    state: *mut fmi3FMUState,
-) -> fmi3Status {
-    unsafe { STATES.deserialize::<M, Layout>(c, bytes, size, state) }
-}
+front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Layout, STATES);
 
 /// A function of a capability the FMUs do not have: rejected with `reason`, logged.
 ///
