@@ -14,7 +14,7 @@
 //! the hook is the FMU's and never the importing tool's.
 
 use crate::description::{Config, CONFIG_FILE};
-use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind, StateFunctions};
+use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind};
 use crate::instance::{functions, Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::*;
@@ -55,17 +55,6 @@ impl LogSink for CallbackSink {
 
 /// What an `fmi2Component` points to.
 pub type Slot<M> = crate::front::Slot<M>;
-
-/// The FMU-state functions of FMI 2.0.
-const STATES: StateFunctions = StateFunctions {
-    get: &functions::GET_FMU_STATE,
-    set: &functions::SET_FMU_STATE,
-    free: &functions::FREE_FMU_STATE,
-    size: &functions::SERIALIZED_FMU_STATE_SIZE,
-    serialize: &functions::SERIALIZE_FMU_STATE,
-    deserialize: &functions::DESERIALIZE_FMU_STATE,
-    noun: "FMUstate",
-};
 
 pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     if let Some(s) = payload.downcast_ref::<&str>() {
@@ -501,7 +490,7 @@ pub unsafe fn cancel_step<M: FmuModel>(c: fmi2Component) -> fmi2Status {
     unsafe { with_instance::<M>(c, &functions::CANCEL_STEP, |_| Status::Ok) }
 }
 
-front::state_functions!(fmi2Component, fmi2FMUstate, fmi2Byte, (), STATES);
+front::state_functions!(fmi2Component, fmi2FMUstate, fmi2Byte, (), "FMUstate");
 
 /// Functions of capabilities the FMUs do not declare: rejected with a reason.
 ///

@@ -294,10 +294,22 @@ impl StateFunctions {
 
 /// Emits, in a front's `ffi` module, its six FMU-state functions (`get_fmu_state`,
 /// `set_fmu_state`, `free_fmu_state`, `serialized_fmu_state_size`, `serialize_fmu_state`,
-/// `deserialize_fmu_state`) over `$states` ([`StateFunctions`]) and the front's handle, state
-/// and byte types and slot data.
+/// `deserialize_fmu_state`) over the front's handle, state and byte types and slot data, as
+/// the [`StateFunctions`] `STATES` of the `functions` module in scope (every front names its
+/// FMU-state `Function`s alike) and `$noun`, the front's spelling of an FMU state.
 macro_rules! state_functions {
-    ($handle:ty, $state:ty, $byte:ty, $extra:ty, $states:expr) => {
+    ($handle:ty, $state:ty, $byte:ty, $extra:ty, $noun:literal) => {
+        /// The FMU-state functions of this front.
+        const STATES: $crate::front::StateFunctions = $crate::front::StateFunctions {
+            get: &functions::GET_FMU_STATE,
+            set: &functions::SET_FMU_STATE,
+            free: &functions::FREE_FMU_STATE,
+            size: &functions::SERIALIZED_FMU_STATE_SIZE,
+            serialize: &functions::SERIALIZE_FMU_STATE,
+            deserialize: &functions::DESERIALIZE_FMU_STATE,
+            noun: $noun,
+        };
+
         /// `fmi*GetFMUstate`: a new state, or the given one overwritten.
         ///
         /// # Safety
@@ -306,7 +318,7 @@ macro_rules! state_functions {
             c: $handle,
             state: *mut $state,
         ) -> std::os::raw::c_int {
-            unsafe { $states.get::<M, $extra>(c, state) }
+            unsafe { STATES.get::<M, $extra>(c, state) }
         }
 
         /// `fmi*SetFMUstate`.
@@ -314,7 +326,7 @@ macro_rules! state_functions {
         /// # Safety
         /// FMI pointer contract.
         pub unsafe fn set_fmu_state<M: FmuModel>(c: $handle, state: $state) -> std::os::raw::c_int {
-            unsafe { $states.set::<M, $extra>(c, state) }
+            unsafe { STATES.set::<M, $extra>(c, state) }
         }
 
         /// `fmi*FreeFMUstate`.
@@ -325,7 +337,7 @@ macro_rules! state_functions {
             c: $handle,
             state: *mut $state,
         ) -> std::os::raw::c_int {
-            unsafe { $states.free::<M, $extra>(c, state) }
+            unsafe { STATES.free::<M, $extra>(c, state) }
         }
 
         /// `fmi*SerializedFMUstateSize`.
@@ -337,7 +349,7 @@ macro_rules! state_functions {
             state: $state,
             size: *mut usize,
         ) -> std::os::raw::c_int {
-            unsafe { $states.size::<M, $extra>(c, state, size) }
+            unsafe { STATES.size::<M, $extra>(c, state, size) }
         }
 
         /// `fmi*SerializeFMUstate`.
@@ -350,7 +362,7 @@ macro_rules! state_functions {
             bytes: *mut $byte,
             size: usize,
         ) -> std::os::raw::c_int {
-            unsafe { $states.serialize::<M, $extra>(c, state, bytes as *mut u8, size) }
+            unsafe { STATES.serialize::<M, $extra>(c, state, bytes as *mut u8, size) }
         }
 
         /// `fmi*DeSerializeFMUstate`.
@@ -363,7 +375,7 @@ macro_rules! state_functions {
             size: usize,
             state: *mut $state,
         ) -> std::os::raw::c_int {
-            unsafe { $states.deserialize::<M, $extra>(c, bytes as *const u8, size, state) }
+            unsafe { STATES.deserialize::<M, $extra>(c, bytes as *const u8, size, state) }
         }
     };
 }

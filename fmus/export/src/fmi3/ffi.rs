@@ -13,7 +13,7 @@ use super::functions;
 use super::types::*;
 use crate::description::{Config, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
-use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind, StateFunctions};
+use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
 use crate::instance::{Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::Status;
@@ -50,17 +50,6 @@ impl LogSink for CallbackSink {
 /// What an `fmi3Instance` points to: the shared slot with the FMI 3.0 variables (arrays)
 /// over the instance's scalars.
 pub type Slot<M> = crate::front::Slot<M, Layout>;
-
-/// The FMU-state functions of FMI 3.0.
-const STATES: StateFunctions = StateFunctions {
-    get: &functions::GET_FMU_STATE,
-    set: &functions::SET_FMU_STATE,
-    free: &functions::FREE_FMU_STATE,
-    size: &functions::SERIALIZED_FMU_STATE_SIZE,
-    serialize: &functions::SERIALIZE_FMU_STATE,
-    deserialize: &functions::DESERIALIZE_FMU_STATE,
-    noun: "FMUState",
-};
 
 /// Boxes a slot as an `fmi3Instance`.
 pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
@@ -591,7 +580,7 @@ pub unsafe fn set_string<M: FmuModel>(
     }
 }
 
-front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Layout, STATES);
+front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Layout, "FMUState");
 
 /// A function of a capability the FMUs do not have: rejected with `reason`, logged.
 ///
