@@ -487,7 +487,7 @@ pub fn guid_of(text: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::variables::{Initial, Variable};
 
@@ -509,19 +509,29 @@ mod tests {
         )
     }
 
+    /// The elements both versions' descriptions have, in the schemas' order.
+    pub(crate) const SCHEMA_ORDER: [&str; 6] = [
+        "<CoSimulation",
+        "<UnitDefinitions>",
+        "<LogCategories>",
+        "<DefaultExperiment",
+        "<ModelVariables>",
+        "<ModelStructure>",
+    ];
+
+    /// Each of `tags` stands in `xml`, each after the one before.
+    pub(crate) fn assert_in_order(xml: &str, tags: &[&str]) {
+        let positions: Vec<usize> = tags
+            .iter()
+            .map(|t| xml.find(t).unwrap_or_else(|| panic!("no {t}")))
+            .collect();
+        assert!(positions.windows(2).all(|w| w[0] < w[1]), "{positions:?}");
+    }
+
     #[test]
     fn xml_has_the_schema_order_and_escapes() {
         let x = info().to_xml();
-        let order = [
-            "<CoSimulation",
-            "<UnitDefinitions>",
-            "<LogCategories>",
-            "<DefaultExperiment",
-            "<ModelVariables>",
-            "<ModelStructure>",
-        ];
-        let positions: Vec<usize> = order.iter().map(|t| x.find(t).unwrap()).collect();
-        assert!(positions.windows(2).all(|w| w[0] < w[1]));
+        assert_in_order(&x, &SCHEMA_ORDER);
         assert!(x.contains(r#"description="A &lt;demo&gt; &amp; test""#));
         assert!(x.contains(r#"<Unknown index="3" dependencies="2"/>"#));
         assert!(!x.contains(r#"causality="input" variability="continuous" initial"#));

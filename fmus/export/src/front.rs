@@ -164,26 +164,25 @@ pub trait Kind<V: Version> {
     fn from_c(value: Self::C) -> Value;
 }
 
-/// Declares the [`Kind`] of a marker type in one FMI version: its C type, its functions (a
-/// path to the `Function` constants) and the conversions (a value of another type reads as
-/// `$default`).
+/// Declares the [`Kind`] of the marker type of `Value::$name` in one FMI version: its C type,
+/// its functions (paths to the `Function` constants), the C value a value of another type
+/// reads as, and how a C value becomes a value (a value becomes a C value by `From`).
 macro_rules! kind {
-    ($version:ty, $name:ident($c:ty, $variant:ident, $get:path, $set:path, $default:expr) {
-        to_c: |$x:ident| $to_c:expr, from_c: |$v:ident| $from_c:expr $(,)?
-    }) => {
+    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $default:expr, $from_c:expr) => {
         impl Kind<$version> for $name {
             type C = $c;
-            const TYPE: VariableType = VariableType::$variant;
+            const TYPE: VariableType = VariableType::$name;
             const GET: &'static Function = &$get;
             const SET: &'static Function = &$set;
             fn to_c(value: &Value) -> $c {
                 match value {
-                    Value::$variant($x) => $to_c,
+                    Value::$name(x) => <$c>::from(*x),
                     _ => $default,
                 }
             }
-            fn from_c($v: $c) -> Value {
-                Value::$variant($from_c)
+            fn from_c(value: $c) -> Value {
+                let from_c: fn($c) -> _ = $from_c;
+                Value::$name(from_c(value))
             }
         }
     };
@@ -201,24 +200,13 @@ mod kinds {
     use crate::fmi3::functions as f3;
     use crate::instance::functions as f2;
 
-    kind!(Fmi2, Real(f64, Real, f2::GET_REAL, f2::SET_REAL, f64::NAN) {
-        to_c: |x| *x, from_c: |v| v
-    });
-    kind!(Fmi2, Integer(c_int, Integer, f2::GET_INTEGER, f2::SET_INTEGER, 0) {
-        to_c: |x| *x, from_c: |v| v
-    });
-    kind!(Fmi2, Boolean(c_int, Boolean, f2::GET_BOOLEAN, f2::SET_BOOLEAN, 0) {
-        to_c: |x| c_int::from(*x), from_c: |v| v != 0
-    });
-    kind!(Fmi3, Real(f64, Real, f3::GET_FLOAT64, f3::SET_FLOAT64, f64::NAN) {
-        to_c: |x| *x, from_c: |v| v
-    });
-    kind!(Fmi3, Integer(i32, Integer, f3::GET_INT32, f3::SET_INT32, 0) {
-        to_c: |x| *x, from_c: |v| v
-    });
-    kind!(Fmi3, Boolean(u8, Boolean, f3::GET_BOOLEAN, f3::SET_BOOLEAN, 0) {
-        to_c: |x| u8::from(*x), from_c: |v| v != 0
-    });
+    // fmi2Real, fmi2Integer, fmi2Boolean (an int); fmi3Float64, fmi3Int32, fmi3Boolean (a bool)
+    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, f64::NAN, |v| v }
+    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, 0, |v| v }
+    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, 0, |v| v != 0 }
+    kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, f64::NAN, |v| v }
+    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, 0, |v| v }
+    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, 0, |v| v != 0 }
 }
 
 /// Reads the C strings of a set-string call as values; `Err` with the rejection's status

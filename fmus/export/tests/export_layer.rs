@@ -3,6 +3,8 @@
 //! direct feedthrough, refused steps, no non-finite value published, time overflow, and the
 //! checks of a serialized FMU state.
 
+mod common;
+
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
 use spurio_export::{
@@ -426,21 +428,5 @@ fn panicking_step_child() {
 
 #[test]
 fn a_panic_prints_nothing_on_stderr() {
-    let output = std::process::Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--exact",
-            "panicking_step_child",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .env("SPURIO_PANIC_CHILD", "1")
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "child failed: {stdout}\n{stderr}");
-    assert!(stdout.contains("1 passed"), "{stdout}");
-    // the only line on stderr is the child's own
-    assert_eq!(stderr.trim(), "child done", "{stderr}");
+    common::assert_child_prints_only_its_line("panicking_step_child");
 }

@@ -145,6 +145,7 @@ pub fn model_description(info: &ModelInfo) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::description::tests::{assert_in_order, SCHEMA_ORDER};
     use crate::description::{Config, DefaultExperiment};
     use crate::variables::Variable;
 
@@ -191,16 +192,7 @@ mod tests {
         assert!(x.contains(r#"<Output valueReference="5" dependencies=""/>"#));
         assert!(x.contains(r#"<InitialUnknown valueReference="3"/>"#));
         assert!(x.contains(r#"<Setting name="n" value="2"/>"#));
-        let order = [
-            "<CoSimulation",
-            "<UnitDefinitions>",
-            "<LogCategories>",
-            "<DefaultExperiment",
-            "<ModelVariables>",
-            "<ModelStructure>",
-            "<Annotations>",
-        ];
-        let positions: Vec<usize> = order.iter().map(|t| x.find(t).unwrap()).collect();
-        assert!(positions.windows(2).all(|w| w[0] < w[1]));
+        let order: Vec<&str> = SCHEMA_ORDER.into_iter().chain(["<Annotations>"]).collect();
+        assert_in_order(&x, &order);
     }
 }
