@@ -192,57 +192,16 @@ impl ModelInfo {
             r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
             esc(&self.model_identifier)
         );
-        let units = self.units();
-        if !units.is_empty() {
-            let _ = writeln!(x, "  <UnitDefinitions>");
-            for unit in units {
-                match base_unit(unit) {
-                    Some(base) => {
-                        let _ = writeln!(x, r#"    <Unit name="{}">"#, esc(unit));
-                        let _ = writeln!(x, "      <BaseUnit{base}/>");
-                        let _ = writeln!(x, "    </Unit>");
-                    }
-                    None => {
-                        let _ = writeln!(x, r#"    <Unit name="{}"/>"#, esc(unit));
-                    }
-                }
-            }
-            let _ = writeln!(x, "  </UnitDefinitions>");
-        }
-        let _ = writeln!(x, "  <LogCategories>");
-        for (name, description) in LOG_CATEGORIES {
-            let _ = writeln!(
-                x,
-                r#"    <Category name="{name}" description="{}"/>"#,
-                esc(description)
-            );
-        }
-        let _ = writeln!(x, "  </LogCategories>");
-        if let Some(e) = &self.default_experiment {
-            let _ = writeln!(
-                x,
-                r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-                e.start_time, e.stop_time, e.step_size
-            );
-        }
-        if !self.config.is_empty() {
-            let _ = writeln!(x, "  <VendorAnnotations>");
-            let _ = writeln!(x, r#"    <Tool name="spurio">"#);
-            let _ = writeln!(x, "      <Variant>");
-            for line in self.config.to_text().lines() {
-                if let Some((k, v)) = line.split_once(" = ") {
-                    let _ = writeln!(
-                        x,
-                        r#"        <Setting name="{}" value="{}"/>"#,
-                        esc(k),
-                        esc(v)
-                    );
-                }
-            }
-            let _ = writeln!(x, "      </Variant>");
-            let _ = writeln!(x, "    </Tool>");
-            let _ = writeln!(x, "  </VendorAnnotations>");
-        }
+        write_units(&mut x, self.units());
+        write_log_categories(&mut x, "fmi2");
+        write_default_experiment(&mut x, self.default_experiment.as_ref());
+        write_variant(
+            &mut x,
+            &self.config,
+            "VendorAnnotations",
+            r#"Tool name="spurio""#,
+            "Tool",
+        );
         let _ = writeln!(x, "  <ModelVariables>");
         for (i, v) in self.variables.iter().enumerate() {
             let _ = writeln!(x, "    <!-- {} -->", i + 1);
@@ -255,39 +214,12 @@ impl ModelInfo {
             if !v.description.is_empty() {
                 let _ = write!(x, r#" description="{}""#, esc(&v.description));
             }
-            let _ = write!(
-                x,
-                r#" causality="{}" variability="{}""#,
-                v.causality.as_str(),
-                v.variability.as_str()
-            );
-            if let Some(initial) = v.initial {
-                let _ = write!(x, r#" initial="{}""#, initial.as_str());
-            }
+            write_causality(&mut x, v);
             let _ = writeln!(x, ">");
             let _ = write!(x, "      <{}", v.variable_type());
-            if let Some(unit) = &v.unit {
-                let _ = write!(x, r#" unit="{}""#, esc(unit));
-            }
-            let bound = |b: f64| match v.start {
-                // xs:int bounds: an integer literal, not "1.0".
-                Value::Integer(_) => format!("{}", b.round() as i64),
-                _ => fmt_real(b),
-            };
-            if let Some(min) = v.min {
-                let _ = write!(x, r#" min="{}""#, bound(min));
-            }
-            if let Some(max) = v.max {
-                let _ = write!(x, r#" max="{}""#, bound(max));
-            }
+            write_unit_and_bounds(&mut x, v);
             if v.has_start() {
-                let start = match &v.start {
-                    Value::Real(r) => fmt_real(*r),
-                    Value::Integer(i) => i.to_string(),
-                    Value::Boolean(b) => b.to_string(),
-                    Value::String(s) => esc(s),
-                };
-                let _ = write!(x, r#" start="{start}""#);
+                let _ = write!(x, r#" start="{}""#, start_text(&v.start));
             }
             let _ = writeln!(x, "/>");
             let _ = writeln!(x, "    </ScalarVariable>");
@@ -318,15 +250,7 @@ impl ModelInfo {
             .variables
             .iter()
             .enumerate()
-            .filter(|(_, v)| {
-                (v.causality == Causality::Output
-                    && matches!(
-                        v.initial,
-                        Some(crate::variables::Initial::Approx)
-                            | Some(crate::variables::Initial::Calculated)
-                    ))
-                    || v.causality == Causality::CalculatedParameter
-            })
+            .filter(|(_, v)| is_initial_unknown(v))
             .map(|(i, _)| i)
             .collect();
         if !initial_unknowns.is_empty() {
@@ -341,7 +265,8 @@ impl ModelInfo {
         x
     }
 
-    fn units(&self) -> Vec<&str> {
+    /// The units of the variables, sorted, once each.
+    pub(crate) fn units(&self) -> Vec<&str> {
         let mut units: Vec<&str> = self
             .variables
             .iter()
@@ -351,6 +276,137 @@ impl ModelInfo {
         units.dedup();
         units
     }
+}
+
+// The parts of `modelDescription.xml` both FMI versions write alike.
+
+/// `<UnitDefinitions>` of `units` (nothing if there are none).
+pub(crate) fn write_units(x: &mut String, units: Vec<&str>) {
+    if units.is_empty() {
+        return;
+    }
+    let _ = writeln!(x, "  <UnitDefinitions>");
+    for unit in units {
+        match base_unit(unit) {
+            Some(base) => {
+                let _ = writeln!(x, r#"    <Unit name="{}">"#, esc(unit));
+                let _ = writeln!(x, "      <BaseUnit{base}/>");
+                let _ = writeln!(x, "    </Unit>");
+            }
+            None => {
+                let _ = writeln!(x, r#"    <Unit name="{}"/>"#, esc(unit));
+            }
+        }
+    }
+    let _ = writeln!(x, "  </UnitDefinitions>");
+}
+
+/// `<LogCategories>`, their descriptions naming the functions of the version whose prefix is
+/// `fmi` (`"fmi2"`, `"fmi3"`).
+pub(crate) fn write_log_categories(x: &mut String, fmi: &str) {
+    let _ = writeln!(x, "  <LogCategories>");
+    for (name, description) in LOG_CATEGORIES {
+        let description = description.replace("fmi2", fmi);
+        let _ = writeln!(
+            x,
+            r#"    <Category name="{name}" description="{}"/>"#,
+            esc(&description)
+        );
+    }
+    let _ = writeln!(x, "  </LogCategories>");
+}
+
+/// `<DefaultExperiment>`, if there is one.
+pub(crate) fn write_default_experiment(x: &mut String, e: Option<&DefaultExperiment>) {
+    if let Some(e) = e {
+        let _ = writeln!(
+            x,
+            r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
+            e.start_time, e.stop_time, e.step_size
+        );
+    }
+}
+
+/// The variant configuration as `<Variant>` settings in the annotation element of the
+/// version (`<$outer><$tool>…</$tool_end></$outer>`); nothing for the default configuration.
+pub(crate) fn write_variant(
+    x: &mut String,
+    config: &Config,
+    outer: &str,
+    tool: &str,
+    tool_end: &str,
+) {
+    if config.is_empty() {
+        return;
+    }
+    let _ = writeln!(x, "  <{outer}>");
+    let _ = writeln!(x, "    <{tool}>");
+    let _ = writeln!(x, "      <Variant>");
+    for line in config.to_text().lines() {
+        if let Some((k, v)) = line.split_once(" = ") {
+            let _ = writeln!(
+                x,
+                r#"        <Setting name="{}" value="{}"/>"#,
+                esc(k),
+                esc(v)
+            );
+        }
+    }
+    let _ = writeln!(x, "      </Variant>");
+    let _ = writeln!(x, "    </{tool_end}>");
+    let _ = writeln!(x, "  </{outer}>");
+}
+
+/// The ` causality=… variability=… initial=…` attributes of a variable.
+pub(crate) fn write_causality(x: &mut String, v: &Variable) {
+    let _ = write!(
+        x,
+        r#" causality="{}" variability="{}""#,
+        v.causality.as_str(),
+        v.variability.as_str()
+    );
+    if let Some(initial) = v.initial {
+        let _ = write!(x, r#" initial="{}""#, initial.as_str());
+    }
+}
+
+/// The ` unit=… min=… max=…` attributes of a variable's type.
+pub(crate) fn write_unit_and_bounds(x: &mut String, v: &Variable) {
+    if let Some(unit) = &v.unit {
+        let _ = write!(x, r#" unit="{}""#, esc(unit));
+    }
+    let bound = |b: f64| match v.start {
+        // xs:int bounds: an integer literal, not "1.0".
+        Value::Integer(_) => format!("{}", b.round() as i64),
+        _ => fmt_real(b),
+    };
+    if let Some(min) = v.min {
+        let _ = write!(x, r#" min="{}""#, bound(min));
+    }
+    if let Some(max) = v.max {
+        let _ = write!(x, r#" max="{}""#, bound(max));
+    }
+}
+
+/// A start value as its XML attribute text.
+pub(crate) fn start_text(value: &Value) -> String {
+    match value {
+        Value::Real(r) => fmt_real(*r),
+        Value::Integer(i) => i.to_string(),
+        Value::Boolean(b) => b.to_string(),
+        Value::String(s) => esc(s),
+    }
+}
+
+/// Whether a variable is an initial unknown (outputs with `initial` approx or calculated,
+/// calculated parameters: FMI 2.0.4 §2.2.8, FMI 3.0.2 §2.4.8).
+pub(crate) fn is_initial_unknown(v: &Variable) -> bool {
+    (v.causality == Causality::Output
+        && matches!(
+            v.initial,
+            Some(crate::variables::Initial::Approx) | Some(crate::variables::Initial::Calculated)
+        ))
+        || v.causality == Causality::CalculatedParameter
 }
 
 /// Writes a Real so that it reads back to the same `f64` (shortest round-trip form).
@@ -431,7 +487,7 @@ pub fn guid_of(text: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::variables::{Initial, Variable};
 
@@ -453,19 +509,29 @@ mod tests {
         )
     }
 
+    /// The elements both versions' descriptions have, in the schemas' order.
+    pub(crate) const SCHEMA_ORDER: [&str; 6] = [
+        "<CoSimulation",
+        "<UnitDefinitions>",
+        "<LogCategories>",
+        "<DefaultExperiment",
+        "<ModelVariables>",
+        "<ModelStructure>",
+    ];
+
+    /// Each of `tags` stands in `xml`, each after the one before.
+    pub(crate) fn assert_in_order(xml: &str, tags: &[&str]) {
+        let positions: Vec<usize> = tags
+            .iter()
+            .map(|t| xml.find(t).unwrap_or_else(|| panic!("no {t}")))
+            .collect();
+        assert!(positions.windows(2).all(|w| w[0] < w[1]), "{positions:?}");
+    }
+
     #[test]
     fn xml_has_the_schema_order_and_escapes() {
         let x = info().to_xml();
-        let order = [
-            "<CoSimulation",
-            "<UnitDefinitions>",
-            "<LogCategories>",
-            "<DefaultExperiment",
-            "<ModelVariables>",
-            "<ModelStructure>",
-        ];
-        let positions: Vec<usize> = order.iter().map(|t| x.find(t).unwrap()).collect();
-        assert!(positions.windows(2).all(|w| w[0] < w[1]));
+        assert_in_order(&x, &SCHEMA_ORDER);
         assert!(x.contains(r#"description="A &lt;demo&gt; &amp; test""#));
         assert!(x.contains(r#"<Unknown index="3" dependencies="2"/>"#));
         assert!(!x.contains(r#"causality="input" variability="continuous" initial"#));

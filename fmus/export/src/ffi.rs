@@ -14,11 +14,12 @@
 //! the hook is the FMU's and never the importing tool's.
 
 use crate::description::{Config, CONFIG_FILE};
-use crate::instance::{functions, Core, Function, Instance, LogSink, Logger};
+use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind};
+use crate::instance::{functions, Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::*;
 use crate::uri::resource_path;
-use crate::variables::{Value, VariableType};
+use crate::variables::VariableType;
 use std::cell::{Cell, RefCell};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
@@ -53,23 +54,7 @@ impl LogSink for CallbackSink {
 }
 
 /// What an `fmi2Component` points to.
-pub struct Slot<M: FmuModel> {
-    instance: Instance<M>,
-    /// FMU states created by this instance and not freed yet.
-    states: Vec<*mut Core<M>>,
-    /// Keeps the strings returned by `fmi2GetString` alive until the next call.
-    strings: Vec<CString>,
-}
-
-impl<M: FmuModel> Drop for Slot<M> {
-    fn drop(&mut self) {
-        for p in self.states.drain(..) {
-            // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from the
-            // list when freed, so each is freed exactly once.
-            drop(unsafe { Box::from_raw(p) });
-        }
-    }
-}
+pub type Slot<M> = crate::front::Slot<M>;
 
 pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     if let Some(s) = payload.downcast_ref::<&str>() {
@@ -128,29 +113,8 @@ unsafe fn with_instance<M: FmuModel>(
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
 ) -> fmi2Status {
-    if c.is_null() {
-        return fmi2Error;
-    }
-    let slot = c as *mut Slot<M>;
-    let result = guarded(|| {
-        // SAFETY: `c` is non-null and was returned by `instantiate::<M>` (the master's
-        // obligation); no other reference to the slot is alive during the call.
-        let slot = unsafe { &mut *slot };
-        if !slot.instance.allows(f) {
-            return Status::Error;
-        }
-        body(slot)
-    });
-    match result {
-        Ok(status) => status.code(),
-        Err(message) => {
-            let _ = guarded(|| {
-                // SAFETY: as above; the closure that panicked no longer borrows the slot.
-                unsafe { &mut *slot }.instance.set_fatal(f, &message)
-            });
-            fmi2Fatal
-        }
-    }
+    // SAFETY: `c` is NULL or was returned by `instantiate::<M>` (the master's obligation).
+    unsafe { with_slot::<M, ()>(c, f, body) }
 }
 
 /// Reads `n` elements behind `p` as a slice; `None` if `p` is NULL while `n > 0`.
@@ -238,30 +202,17 @@ pub unsafe fn instantiate<M: FmuModel>(
         };
         let location = unsafe { string_arg(resource_location) }.filter(|s| !s.is_empty());
         let config = match location.as_deref().map(resource_path) {
-            Some(Ok(dir)) => {
-                let path = dir.join(CONFIG_FILE);
-                match std::fs::read_to_string(&path) {
-                    Ok(text) => match Config::parse(&text) {
-                        Ok(config) => config,
-                        Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
-                    },
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                        if !is_default {
-                            return without_config(format!(
-                                "the variant configuration {} cannot be read: {e}",
-                                path.display()
-                            ));
-                        }
-                        Config::new()
-                    }
-                    Err(e) => {
-                        return fail(format!(
-                            "cannot read the variant configuration {}: {e}",
-                            path.display()
-                        ))
-                    }
+            Some(Ok(dir)) => match front::read_config(&dir) {
+                Ok(ConfigFile::Found(config)) => config,
+                Ok(ConfigFile::Missing(e)) if !is_default => {
+                    return without_config(format!(
+                        "the variant configuration {} cannot be read: {e}",
+                        dir.join(CONFIG_FILE).display()
+                    ))
                 }
-            }
+                Ok(ConfigFile::Missing(_)) => Config::new(),
+                Err(message) => return fail(message),
+            },
             Some(Err(e)) if !is_default => {
                 return without_config(format!(
                     "resources/{CONFIG_FILE} cannot be located: fmuResourceLocation `{}`: {e}",
@@ -309,11 +260,7 @@ pub unsafe fn instantiate<M: FmuModel>(
 
 /// Boxes an instance as an `fmi2Component` (what `fmi2Instantiate` returns).
 pub fn into_component<M: FmuModel>(instance: Instance<M>) -> fmi2Component {
-    Box::into_raw(Box::new(Slot {
-        instance,
-        states: Vec::new(),
-        strings: Vec::new(),
-    })) as fmi2Component
+    Slot::new(instance, ()).into_handle()
 }
 
 /// `fmi2FreeInstance`.
@@ -321,13 +268,8 @@ pub fn into_component<M: FmuModel>(instance: Instance<M>) -> fmi2Component {
 /// # Safety
 /// `c` must be NULL or a component from [`instantiate`] not freed yet.
 pub unsafe fn free_instance<M: FmuModel>(c: fmi2Component) {
-    if c.is_null() {
-        return;
-    }
-    let _ = guarded(|| {
-        // SAFETY: `c` came from `Box::into_raw` in `instantiate::<M>`.
-        drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
-    });
+    // SAFETY: forwarded from the caller.
+    unsafe { free_slot::<M, ()>(c) }
 }
 
 /// `fmi2SetDebugLogging`.
@@ -401,71 +343,37 @@ simple_call!(
     /// `fmi2Reset`.
     reset, functions::RESET, reset);
 
-/// The numeric FMI types as exchanged through `fmi2Get*`/`fmi2Set*`: the C type, the
-/// functions and how a value crosses the boundary. (`fmi2Integer` and `fmi2Boolean` are both
-/// `int` in C, so the types are marker types rather than the C types themselves.)
-pub trait Scalar {
-    /// The C type of one value.
-    type C: Copy;
-    /// The variables' type.
-    const TYPE: VariableType;
-    /// `fmi2Get*`.
-    const GET: &'static Function;
-    /// `fmi2Set*`.
-    const SET: &'static Function;
-    /// A value of this type as the master reads it.
-    fn to_c(value: &Value) -> Self::C;
-    /// A value the master sets.
-    fn from_c(value: Self::C) -> Value;
-}
+/// The numeric FMI 2.0 types exchanged through `fmi2Get*`/`fmi2Set*` (the shared value
+/// kinds of [`crate::front`]).
+pub use crate::front::{Boolean, Integer, Real};
 
-/// Declares a [`Scalar`] marker type: its C type, its `fmi2Get*`/`fmi2Set*` functions and the
-/// conversions (a value of another type reads as `$default`).
-macro_rules! scalar {
-    ($(#[$doc:meta])* $name:ident($c:ty, $get:ident, $set:ident, $default:expr) {
-        to_c: |$x:ident| $to_c:expr, from_c: |$v:ident| $from_c:expr $(,)?
-    }) => {
-        $(#[$doc])*
-        pub struct $name;
-        impl Scalar for $name {
-            type C = $c;
-            const TYPE: VariableType = VariableType::$name;
-            const GET: &'static Function = &functions::$get;
-            const SET: &'static Function = &functions::$set;
-            fn to_c(value: &Value) -> $c {
-                match value {
-                    Value::$name($x) => $to_c,
-                    _ => $default,
-                }
-            }
-            fn from_c($v: $c) -> Value {
-                Value::$name($from_c)
-            }
-        }
+/// The value references of a get call, after its pointer checks (`Err`: the rejection's
+/// status).
+///
+/// # Safety
+/// FMI pointer contract.
+unsafe fn get_references<'a, M: FmuModel>(
+    s: &Slot<M>,
+    f: &Function,
+    vr: *const fmi2ValueReference,
+    n: usize,
+    out_is_null: bool,
+) -> Result<&'a [fmi2ValueReference], Status> {
+    // SAFETY: forwarded from the caller.
+    let Some(vrs) = (unsafe { slice(vr, n) }) else {
+        return Err(s.instance.reject(f, "vr is NULL"));
     };
-}
-
-scalar!(
-    /// `fmi2Real`.
-    Real(fmi2Real, GET_REAL, SET_REAL, f64::NAN) { to_c: |x| *x, from_c: |v| v }
-);
-scalar!(
-    /// `fmi2Integer`.
-    Integer(fmi2Integer, GET_INTEGER, SET_INTEGER, 0) { to_c: |x| *x, from_c: |v| v }
-);
-scalar!(
-    /// `fmi2Boolean`.
-    Boolean(fmi2Boolean, GET_BOOLEAN, SET_BOOLEAN, fmi2False) {
-        to_c: |x| if *x { fmi2True } else { fmi2False },
-        from_c: |v| v != 0,
+    if n > 0 && out_is_null {
+        return Err(s.instance.reject(f, "value is NULL"));
     }
-);
+    Ok(vrs)
+}
 
 /// `fmi2GetReal`, `fmi2GetInteger`, `fmi2GetBoolean`: the values into a C array.
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn get<M: FmuModel, T: Scalar>(
+pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
     n: usize,
@@ -473,17 +381,12 @@ pub unsafe fn get<M: FmuModel, T: Scalar>(
 ) -> fmi2Status {
     let f = T::GET;
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, n) else {
-                return s.instance.reject(f, "vr is NULL");
-            };
-            if n > 0 && out.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            s.instance.get_values(f, vrs, T::TYPE, |i, v| {
+        with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
+            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, v| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
                 *out.add(i) = T::to_c(v)
-            })
+            }),
+            Err(status) => status,
         })
     }
 }
@@ -501,26 +404,16 @@ pub unsafe fn get_string<M: FmuModel>(
     let f = &functions::GET_STRING;
     unsafe {
         with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, n) else {
-                return s.instance.reject(f, "vr is NULL");
+            let vrs = match get_references(s, f, vr, n, value.is_null()) {
+                Ok(vrs) => vrs,
+                Err(status) => return status,
             };
-            if n > 0 && value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            let mut strings = Vec::with_capacity(n);
-            let status = s.instance.get_values(f, vrs, VariableType::String, |_, v| {
-                let text = match v {
-                    Value::String(t) => t.as_str(),
-                    _ => "",
-                };
-                strings.push(CString::new(text.replace('\0', " ")).unwrap_or_default());
-            });
-            for (i, cs) in strings.iter().enumerate() {
-                // SAFETY: `value` points to `n` slots; the strings live in the slot until the
-                // next fmi2GetString call.
-                *value.add(i) = cs.as_ptr();
-            }
-            s.strings = strings;
+            let mut values = Vec::with_capacity(n);
+            let status = s
+                .instance
+                .get_values(f, vrs, VariableType::String, |_, v| values.push(v.clone()));
+            // SAFETY: `value` points to `n` slots and `values` has at most `n` elements.
+            s.return_strings(&values, value);
             status
         })
     }
@@ -530,7 +423,7 @@ pub unsafe fn get_string<M: FmuModel>(
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn set<M: FmuModel, T: Scalar>(
+pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
     n: usize,
@@ -564,14 +457,10 @@ pub unsafe fn set_string<M: FmuModel>(
             let (Some(vrs), Some(raw)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let mut values = Vec::with_capacity(n);
-            for p in raw {
-                match string_arg(*p) {
-                    Some(t) => values.push(Value::String(t)),
-                    None => return s.instance.reject(f, "a string value is NULL"),
-                }
+            match front::string_values(s, f, raw) {
+                Ok(values) => s.instance.set_values(f, vrs, values),
+                Err(status) => status,
             }
-            s.instance.set_values(f, vrs, values)
         })
     }
 }
@@ -601,170 +490,7 @@ pub unsafe fn cancel_step<M: FmuModel>(c: fmi2Component) -> fmi2Status {
     unsafe { with_instance::<M>(c, &functions::CANCEL_STEP, |_| Status::Ok) }
 }
 
-/// `fmi2GetFMUstate`: a new state, or the given one overwritten.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
-    let f = &functions::GET_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if state.is_null() {
-                return s.instance.reject(f, "FMUstate is NULL");
-            }
-            let existing = *state as *mut Core<M>;
-            let snapshot = s.instance.get_state();
-            if !existing.is_null() && s.states.contains(&existing) {
-                *existing = *snapshot;
-            } else {
-                let p = Box::into_raw(snapshot);
-                s.states.push(p);
-                *state = p as fmi2FMUstate;
-            }
-            Status::Ok
-        })
-    }
-}
-
-unsafe fn known_state<'a, M: FmuModel>(s: &Slot<M>, state: fmi2FMUstate) -> Option<&'a Core<M>> {
-    let p = state as *mut Core<M>;
-    // SAFETY: only pointers this instance created and has not freed are dereferenced.
-    (!p.is_null() && s.states.contains(&p)).then(|| unsafe { &*p })
-}
-
-const UNKNOWN_STATE: &str =
-    "unknown FMUstate: it was not created by this instance or was already freed";
-
-/// `fmi2SetFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
-    let f = &functions::SET_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| match known_state(s, state) {
-            Some(core) => {
-                s.instance.set_state(core);
-                Status::Ok
-            }
-            None => s.instance.reject(f, UNKNOWN_STATE),
-        })
-    }
-}
-
-/// `fmi2FreeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn free_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    state: *mut fmi2FMUstate,
-) -> fmi2Status {
-    let f = &functions::FREE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if state.is_null() || (*state).is_null() {
-                return Status::Ok;
-            }
-            let p = *state as *mut Core<M>;
-            match s.states.iter().position(|q| *q == p) {
-                Some(i) => {
-                    s.states.swap_remove(i);
-                    drop(Box::from_raw(p));
-                    *state = std::ptr::null_mut();
-                    Status::Ok
-                }
-                None => s.instance.reject(f, UNKNOWN_STATE),
-            }
-        })
-    }
-}
-
-/// `fmi2SerializedFMUstateSize`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
-    c: fmi2Component,
-    state: fmi2FMUstate,
-    size: *mut usize,
-) -> fmi2Status {
-    let f = &functions::SERIALIZED_FMU_STATE_SIZE;
-    unsafe {
-        with_instance::<M>(c, f, |s| match (known_state(s, state), size.is_null()) {
-            (Some(core), false) => {
-                *size = s.instance.serialize(core).len();
-                Status::Ok
-            }
-            (None, _) => s.instance.reject(f, UNKNOWN_STATE),
-            (_, true) => s.instance.reject(f, "size is NULL"),
-        })
-    }
-}
-
-/// `fmi2SerializeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialize_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    state: fmi2FMUstate,
-    bytes: *mut fmi2Byte,
-    size: usize,
-) -> fmi2Status {
-    let f = &functions::SERIALIZE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(core) = known_state(s, state) else {
-                return s.instance.reject(f, UNKNOWN_STATE);
-            };
-            let data = s.instance.serialize(core);
-            if bytes.is_null() || size < data.len() {
-                return s.instance.reject(
-                    f,
-                    &format!(
-                        "the buffer holds {size} bytes, the state needs {}",
-                        data.len()
-                    ),
-                );
-            }
-            std::ptr::copy_nonoverlapping(data.as_ptr() as *const fmi2Byte, bytes, data.len());
-            Status::Ok
-        })
-    }
-}
-
-/// `fmi2DeSerializeFMUstate`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn deserialize_fmu_state<M: FmuModel>(
-    c: fmi2Component,
-    bytes: *const fmi2Byte,
-    size: usize,
-    state: *mut fmi2FMUstate,
-) -> fmi2Status {
-    let f = &functions::DESERIALIZE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(data) = slice(bytes as *const u8, size) else {
-                return s.instance.reject(f, "serializedState is NULL");
-            };
-            if state.is_null() {
-                return s.instance.reject(f, "FMUstate is NULL");
-            }
-            match s.instance.deserialize(data) {
-                Ok(core) => {
-                    let p = Box::into_raw(core);
-                    s.states.push(p);
-                    *state = p as fmi2FMUstate;
-                    Status::Ok
-                }
-                Err(e) => s.instance.reject(f, &e.to_string()),
-            }
-        })
-    }
-}
+front::state_functions!(fmi2Component, fmi2FMUstate, fmi2Byte, (), "FMUstate");
 
 /// Functions of capabilities the FMUs do not declare: rejected with a reason.
 ///

@@ -137,65 +137,37 @@ pub mod functions {
             };
         };
     }
-    f!(SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE);
-    f!(FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL);
-    f!(SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED);
-    f!(
-        ENTER_INITIALIZATION_MODE,
-        "fmi2EnterInitializationMode",
-        INSTANTIATED
-    );
-    f!(
-        EXIT_INITIALIZATION_MODE,
-        "fmi2ExitInitializationMode",
-        INIT_MODE
-    );
-    f!(
-        TERMINATE,
-        "fmi2Terminate",
-        STEP_COMPLETE | STEP_FAILED | STEP_CANCELED
-    );
-    f!(RESET, "fmi2Reset", STATE_OPS);
-    f!(GET_REAL, "fmi2GetReal", AFTER_INIT);
-    f!(GET_INTEGER, "fmi2GetInteger", AFTER_INIT);
-    f!(GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT);
-    f!(GET_STRING, "fmi2GetString", AFTER_INIT);
-    f!(SET_REAL, "fmi2SetReal", SETTABLE);
-    f!(SET_INTEGER, "fmi2SetInteger", SETTABLE);
-    f!(SET_BOOLEAN, "fmi2SetBoolean", SETTABLE);
-    f!(SET_STRING, "fmi2SetString", SETTABLE);
-    f!(GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS);
-    f!(SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS);
-    f!(FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL);
-    f!(
-        SERIALIZED_FMU_STATE_SIZE,
-        "fmi2SerializedFMUstateSize",
-        STATE_OPS
-    );
-    f!(SERIALIZE_FMU_STATE, "fmi2SerializeFMUstate", STATE_OPS);
-    f!(DESERIALIZE_FMU_STATE, "fmi2DeSerializeFMUstate", STATE_OPS);
-    f!(
-        GET_DIRECTIONAL_DERIVATIVE,
-        "fmi2GetDirectionalDerivative",
-        AFTER_INIT
-    );
-    f!(
-        SET_REAL_INPUT_DERIVATIVES,
-        "fmi2SetRealInputDerivatives",
-        SETTABLE
-    );
-    f!(
-        GET_REAL_OUTPUT_DERIVATIVES,
-        "fmi2GetRealOutputDerivatives",
-        STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR
-    );
-    f!(DO_STEP, "fmi2DoStep", STEP_COMPLETE);
-    f!(CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS);
-    f!(GET_STATUS, "fmi2GetStatus", STATUS_QUERIES);
-    f!(GET_REAL_STATUS, "fmi2GetRealStatus", STATUS_QUERIES);
-    f!(GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES);
-    f!(GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES);
-    f!(GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES);
+    f! { SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE }
+    f! { FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL }
+    f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }
+    f! { ENTER_INITIALIZATION_MODE, "fmi2EnterInitializationMode", INSTANTIATED }
+    f! { EXIT_INITIALIZATION_MODE, "fmi2ExitInitializationMode", INIT_MODE }
+    f! { TERMINATE, "fmi2Terminate", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
+    f! { RESET, "fmi2Reset", STATE_OPS }
+    f! { GET_REAL, "fmi2GetReal", AFTER_INIT }
+    f! { GET_INTEGER, "fmi2GetInteger", AFTER_INIT }
+    f! { GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT }
+    f! { GET_STRING, "fmi2GetString", AFTER_INIT }
+    f! { SET_REAL, "fmi2SetReal", SETTABLE }
+    f! { SET_INTEGER, "fmi2SetInteger", SETTABLE }
+    f! { SET_BOOLEAN, "fmi2SetBoolean", SETTABLE }
+    f! { SET_STRING, "fmi2SetString", SETTABLE }
+    f! { GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS }
+    f! { SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS }
+    f! { FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL }
+    f! { SERIALIZED_FMU_STATE_SIZE, "fmi2SerializedFMUstateSize", STATE_OPS }
+    f! { SERIALIZE_FMU_STATE, "fmi2SerializeFMUstate", STATE_OPS }
+    f! { DESERIALIZE_FMU_STATE, "fmi2DeSerializeFMUstate", STATE_OPS }
+    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi2GetDirectionalDerivative", AFTER_INIT }
+    f! { SET_REAL_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", SETTABLE }
+    f! { GET_REAL_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR }
+    f! { DO_STEP, "fmi2DoStep", STEP_COMPLETE }
+    f! { CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS }
+    f! { GET_STATUS, "fmi2GetStatus", STATUS_QUERIES }
+    f! { GET_REAL_STATUS, "fmi2GetRealStatus", STATUS_QUERIES }
+    f! { GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES }
+    f! { GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES }
+    f! { GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES }
 }
 
 /// The names of the states in `f`'s mask, in the vocabulary of `f`'s FMI version (FMI 3.0

@@ -25,6 +25,7 @@ pub mod bytes;
 pub mod description;
 pub mod ffi;
 pub mod fmi3;
+pub mod front;
 pub mod harness;
 pub mod instance;
 pub mod model;

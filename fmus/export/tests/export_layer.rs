@@ -3,6 +3,8 @@
 //! direct feedthrough, refused steps, no non-finite value published, time overflow, and the
 //! checks of a serialized FMU state.
 
+mod common;
+
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
 use spurio_export::{
@@ -319,7 +321,7 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
     other_version[8 + "spurio-fmu-state/".len()] = b'1';
     let mut other_model = good.clone();
     other_model[16 + "spurio-fmu-state/2".len()] = b'J';
-    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("version", other_version, "of format spurio-fmu-state/1"),
         (
             "model",
@@ -333,26 +335,6 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
         ),
         ("truncated", good[..good.len() - 3].to_vec(), "truncated"),
         ("left over", corrupt(&|b| b.push(0)), "1 bytes left over"),
-        (
-            "StartAndEnd",
-            corrupt(&|b| b[at.state_index] = 0),
-            "state machine state 0",
-        ),
-        (
-            "StepInProgress",
-            corrupt(&|b| b[at.state_index] = 4),
-            "state machine state 4",
-        ),
-        (
-            "Fatal",
-            corrupt(&|b| b[at.state_index] = 9),
-            "state machine state 9",
-        ),
-        (
-            "unknown",
-            corrupt(&|b| b[at.state_index] = 77),
-            "state machine state 77",
-        ),
         (
             "NaN time",
             corrupt(&|b| put_f64(b, at.time, f64::NAN)),
@@ -387,8 +369,20 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
             "the integrator's state -inf is not finite",
         ),
     ];
+    // the state machine's StartAndEnd, StepInProgress, Fatal and a code that is no state
+    let machine_states = [0u8, 4, 9, 77].map(|code| {
+        let reason = format!("state machine state {code}");
+        (corrupt(&|b| b[at.state_index] = code), reason)
+    });
+    for (bytes, reason) in &machine_states {
+        cases.push(("machine state", bytes.clone(), reason.as_str()));
+    }
     for (case, bytes, reason) in cases {
-        assert_eq!(h.restore_state(&bytes), Err(Status::Error), "{case}");
+        assert_eq!(
+            h.restore_state(&bytes),
+            Err(Status::Error),
+            "{case}: {reason}"
+        );
         let e = last_error(&h);
         assert!(
             e.contains("fmi2DeSerializeFMUstate") && e.contains(reason),
@@ -426,21 +420,5 @@ fn panicking_step_child() {
 
 #[test]
 fn a_panic_prints_nothing_on_stderr() {
-    let output = std::process::Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--exact",
-            "panicking_step_child",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .env("SPURIO_PANIC_CHILD", "1")
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "child failed: {stdout}\n{stderr}");
-    assert!(stdout.contains("1 passed"), "{stdout}");
-    // the only line on stderr is the child's own
-    assert_eq!(stderr.trim(), "child done", "{stderr}");
+    common::assert_child_prints_only_its_line("panicking_step_child");
 }

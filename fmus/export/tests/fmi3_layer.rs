@@ -4,6 +4,8 @@
 //! the messages through a real `fmi3LogMessageCallback`.
 #![allow(unsafe_code)]
 
+mod common;
+
 use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
 use spurio_export::fmi3::types::*;
 use spurio_export::{
@@ -437,21 +439,5 @@ fn panicking_fmi3_step_child() {
 
 #[test]
 fn an_fmi3_panic_prints_nothing_on_stderr() {
-    let output = std::process::Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--exact",
-            "panicking_fmi3_step_child",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .env("SPURIO_PANIC_CHILD", "1")
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "child failed: {stdout}\n{stderr}");
-    assert!(stdout.contains("1 passed"), "{stdout}");
-    // the only line on stderr is the child's own
-    assert_eq!(stderr.trim(), "child done", "{stderr}");
+    common::assert_child_prints_only_its_line("panicking_fmi3_step_child");
 }

@@ -8,8 +8,11 @@
 //! whichever version a master loads.
 
 use super::arrays::Layout;
-use crate::description::{base_unit, esc, fmt_real, ModelInfo, LOG_CATEGORIES};
-use crate::variables::{Causality, Initial, Value, Variable, VariableType};
+use crate::description::{
+    esc, is_initial_unknown, start_text, write_causality, write_default_experiment,
+    write_log_categories, write_unit_and_bounds, write_units, write_variant, ModelInfo,
+};
+use crate::variables::{Causality, VariableType};
 use std::fmt::Write;
 
 /// The FMI 3.0 element name of a type.
@@ -20,23 +23,6 @@ pub fn type_name(t: VariableType) -> &'static str {
         VariableType::Boolean => "Boolean",
         VariableType::String => "String",
     }
-}
-
-fn start_text(value: &Value) -> String {
-    match value {
-        Value::Real(r) => fmt_real(*r),
-        Value::Integer(i) => i.to_string(),
-        Value::Boolean(b) => b.to_string(),
-        Value::String(s) => esc(s),
-    }
-}
-
-/// Whether a variable is an initial unknown (FMI 3.0 §2.4.8: outputs with `initial` approx
-/// or calculated, calculated parameters).
-fn is_initial_unknown(v: &Variable) -> bool {
-    (v.causality == Causality::Output
-        && matches!(v.initial, Some(Initial::Approx) | Some(Initial::Calculated)))
-        || v.causality == Causality::CalculatedParameter
 }
 
 /// The FMI 3.0 `modelDescription.xml` of `info`.
@@ -67,39 +53,9 @@ pub fn model_description(info: &ModelInfo) -> String {
         .collect();
     units.sort_unstable();
     units.dedup();
-    if !units.is_empty() {
-        let _ = writeln!(x, "  <UnitDefinitions>");
-        for unit in units {
-            match base_unit(unit) {
-                Some(base) => {
-                    let _ = writeln!(x, r#"    <Unit name="{}">"#, esc(unit));
-                    let _ = writeln!(x, "      <BaseUnit{base}/>");
-                    let _ = writeln!(x, "    </Unit>");
-                }
-                None => {
-                    let _ = writeln!(x, r#"    <Unit name="{}"/>"#, esc(unit));
-                }
-            }
-        }
-        let _ = writeln!(x, "  </UnitDefinitions>");
-    }
-    let _ = writeln!(x, "  <LogCategories>");
-    for (name, description) in LOG_CATEGORIES {
-        let description = description.replace("fmi2", "fmi3");
-        let _ = writeln!(
-            x,
-            r#"    <Category name="{name}" description="{}"/>"#,
-            esc(&description)
-        );
-    }
-    let _ = writeln!(x, "  </LogCategories>");
-    if let Some(e) = &info.default_experiment {
-        let _ = writeln!(
-            x,
-            r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-            e.start_time, e.stop_time, e.step_size
-        );
-    }
+    write_units(&mut x, units);
+    write_log_categories(&mut x, "fmi3");
+    write_default_experiment(&mut x, info.default_experiment.as_ref());
     let _ = writeln!(x, "  <ModelVariables>");
     let _ = writeln!(
         x,
@@ -118,28 +74,8 @@ pub fn model_description(info: &ModelInfo) -> String {
         if !description.is_empty() {
             let _ = write!(x, r#" description="{}""#, esc(&description));
         }
-        let _ = write!(
-            x,
-            r#" causality="{}" variability="{}""#,
-            v.causality.as_str(),
-            v.variability.as_str()
-        );
-        if let Some(initial) = v.initial {
-            let _ = write!(x, r#" initial="{}""#, initial.as_str());
-        }
-        if let Some(unit) = &v.unit {
-            let _ = write!(x, r#" unit="{}""#, esc(unit));
-        }
-        let bound = |b: f64| match v.start {
-            Value::Integer(_) => format!("{}", b.round() as i64),
-            _ => fmt_real(b),
-        };
-        if let Some(min) = v.min {
-            let _ = write!(x, r#" min="{}""#, bound(min));
-        }
-        if let Some(max) = v.max {
-            let _ = write!(x, r#" max="{}""#, bound(max));
-        }
+        write_causality(&mut x, v);
+        write_unit_and_bounds(&mut x, v);
         let string = v.variable_type() == VariableType::String;
         if v.has_start() && !string {
             let starts: Vec<String> = group
@@ -195,24 +131,13 @@ pub fn model_description(info: &ModelInfo) -> String {
         }
     }
     let _ = writeln!(x, "  </ModelStructure>");
-    if !info.config.is_empty() {
-        let _ = writeln!(x, "  <Annotations>");
-        let _ = writeln!(x, r#"    <Annotation type="spurio">"#);
-        let _ = writeln!(x, "      <Variant>");
-        for line in info.config.to_text().lines() {
-            if let Some((k, v)) = line.split_once(" = ") {
-                let _ = writeln!(
-                    x,
-                    r#"        <Setting name="{}" value="{}"/>"#,
-                    esc(k),
-                    esc(v)
-                );
-            }
-        }
-        let _ = writeln!(x, "      </Variant>");
-        let _ = writeln!(x, "    </Annotation>");
-        let _ = writeln!(x, "  </Annotations>");
-    }
+    write_variant(
+        &mut x,
+        &info.config,
+        "Annotations",
+        r#"Annotation type="spurio""#,
+        "Annotation",
+    );
     let _ = writeln!(x, "</fmiModelDescription>");
     x
 }
@@ -220,7 +145,9 @@ pub fn model_description(info: &ModelInfo) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::description::tests::{assert_in_order, SCHEMA_ORDER};
     use crate::description::{Config, DefaultExperiment};
+    use crate::variables::Variable;
 
     fn info() -> ModelInfo {
         let mut config = Config::new();
@@ -265,16 +192,7 @@ mod tests {
         assert!(x.contains(r#"<Output valueReference="5" dependencies=""/>"#));
         assert!(x.contains(r#"<InitialUnknown valueReference="3"/>"#));
         assert!(x.contains(r#"<Setting name="n" value="2"/>"#));
-        let order = [
-            "<CoSimulation",
-            "<UnitDefinitions>",
-            "<LogCategories>",
-            "<DefaultExperiment",
-            "<ModelVariables>",
-            "<ModelStructure>",
-            "<Annotations>",
-        ];
-        let positions: Vec<usize> = order.iter().map(|t| x.find(t).unwrap()).collect();
-        assert!(positions.windows(2).all(|w| w[0] < w[1]));
+        let order: Vec<&str> = SCHEMA_ORDER.into_iter().chain(["<Annotations>"]).collect();
+        assert_in_order(&x, &order);
     }
 }

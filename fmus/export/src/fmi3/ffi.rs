@@ -13,7 +13,8 @@ use super::functions;
 use super::types::*;
 use crate::description::{Config, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
-use crate::instance::{Core, Function, Instance, LogSink, Logger};
+use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
+use crate::instance::{Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
@@ -46,47 +47,14 @@ impl LogSink for CallbackSink {
     }
 }
 
-/// What an `fmi3Instance` points to.
-pub struct Slot<M: FmuModel> {
-    instance: Instance<M>,
-    /// The FMI 3.0 variables (arrays) over the instance's scalars.
-    layout: Layout,
-    /// FMU states created by this instance and not freed yet.
-    states: Vec<*mut Core<M>>,
-    /// Keeps the strings returned by `fmi3GetString` alive until the next call.
-    strings: Vec<CString>,
-}
-
-impl<M: FmuModel> Slot<M> {
-    /// A slot for `instance` (what [`instantiate_co_simulation`] returns, boxed).
-    pub fn new(instance: Instance<M>) -> Self {
-        let layout = Layout::of(&instance.info().variables);
-        Self {
-            instance,
-            layout,
-            states: Vec::new(),
-            strings: Vec::new(),
-        }
-    }
-    /// The instance.
-    pub fn instance(&self) -> &Instance<M> {
-        &self.instance
-    }
-}
-
-impl<M: FmuModel> Drop for Slot<M> {
-    fn drop(&mut self) {
-        for p in self.states.drain(..) {
-            // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from
-            // the list when freed, so each is freed exactly once.
-            drop(unsafe { Box::from_raw(p) });
-        }
-    }
-}
+/// What an `fmi3Instance` points to: the shared slot with the FMI 3.0 variables (arrays)
+/// over the instance's scalars.
+pub type Slot<M> = crate::front::Slot<M, Layout>;
 
 /// Boxes a slot as an `fmi3Instance`.
 pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
-    Box::into_raw(Box::new(Slot::new(instance))) as fmi3Instance
+    let layout = Layout::of(&instance.info().variables);
+    Slot::new(instance, layout).into_handle()
 }
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
@@ -95,29 +63,9 @@ unsafe fn with_instance<M: FmuModel>(
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
 ) -> fmi3Status {
-    if c.is_null() {
-        return fmi3Error;
-    }
-    let slot = c as *mut Slot<M>;
-    let result = guarded(|| {
-        // SAFETY: `c` is non-null and was returned by `instantiate_co_simulation::<M>` (the
-        // master's obligation); no other reference to the slot is alive during the call.
-        let slot = unsafe { &mut *slot };
-        if !slot.instance.allows(f) {
-            return Status::Error;
-        }
-        body(slot)
-    });
-    match result {
-        Ok(status) => code(status),
-        Err(message) => {
-            let _ = guarded(|| {
-                // SAFETY: as above; the closure that panicked no longer borrows the slot.
-                unsafe { &mut *slot }.instance.set_fatal(f, &message)
-            });
-            fmi3Fatal
-        }
-    }
+    // SAFETY: `c` is NULL or was returned by `instantiate_co_simulation::<M>` (the master's
+    // obligation).
+    unsafe { with_slot::<M, Layout>(c, f, body) }
 }
 
 /// `fmi3GetVersion`.
@@ -177,22 +125,11 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
         let given = unsafe { string_arg(token) }.unwrap_or_default();
         let resources = unsafe { string_arg(resource_path) }.filter(|s| !s.is_empty());
         let config = match resources.as_deref() {
-            Some(dir) => {
-                let path = std::path::Path::new(dir).join(CONFIG_FILE);
-                match std::fs::read_to_string(&path) {
-                    Ok(text) => match Config::parse(&text) {
-                        Ok(config) => config,
-                        Err(e) => return fail(format!("cannot read {}: {e}", path.display())),
-                    },
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Config::new(),
-                    Err(e) => {
-                        return fail(format!(
-                            "cannot read the variant configuration {}: {e}",
-                            path.display()
-                        ))
-                    }
-                }
-            }
+            Some(dir) => match front::read_config(std::path::Path::new(dir)) {
+                Ok(ConfigFile::Found(config)) => config,
+                Ok(ConfigFile::Missing(_)) => Config::new(),
+                Err(message) => return fail(message),
+            },
             None => Config::new(),
         };
         let info = match M::describe(&config) {
@@ -262,13 +199,8 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
 /// # Safety
 /// `c` must be NULL or an instance from [`instantiate_co_simulation`] not freed yet.
 pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
-    if c.is_null() {
-        return;
-    }
-    let _ = guarded(|| {
-        // SAFETY: `c` came from `Box::into_raw` in `into_instance::<M>`.
-        drop(unsafe { Box::from_raw(c as *mut Slot<M>) });
-    });
+    // SAFETY: forwarded from the caller.
+    unsafe { free_slot::<M, Layout>(c) }
 }
 
 /// `fmi3SetDebugLogging`.
@@ -398,12 +330,12 @@ fn expand<M: FmuModel>(
     let info = slot.instance.info();
     let mut elements = Vec::with_capacity(n_values);
     for &vr in vrs {
-        let (name, actual) = match slot.layout.target(vr) {
+        let (name, actual) = match slot.extra.target(vr) {
             None => {
                 return Err(format!(
                     "unknown value reference {vr} ({} has value references 0 to {})",
                     info.model_identifier,
-                    slot.layout.max_value_reference()
+                    slot.extra.max_value_reference()
                 ))
             }
             Some(Target::Time) => {
@@ -482,73 +414,46 @@ fn read_values<M: FmuModel>(
     Ok((values, status))
 }
 
-/// The FMI 3.0 types exchanged through `fmi3Get*`/`fmi3Set*` with values.
-pub trait Kind {
-    /// The C type of one value.
-    type C: Copy;
-    /// The variables' type.
-    const TYPE: VariableType;
-    /// `fmi3Get*`.
-    const GET: &'static Function;
-    /// `fmi3Set*`.
-    const SET: &'static Function;
-    /// A value as the master reads it.
-    fn to_c(value: &Value) -> Self::C;
-    /// A value the master sets.
-    fn from_c(value: Self::C) -> Value;
-}
+/// The FMI 3.0 types exchanged through `fmi3Get*`/`fmi3Set*` (the shared value kinds of
+/// [`crate::front`]): `fmi3Float64`, `fmi3Int32`, `fmi3Boolean`.
+pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
 
-/// `fmi3Float64`.
-pub struct Float64;
-impl Kind for Float64 {
-    type C = fmi3Float64;
-    const TYPE: VariableType = VariableType::Real;
-    const GET: &'static Function = &functions::GET_FLOAT64;
-    const SET: &'static Function = &functions::SET_FLOAT64;
-    fn to_c(value: &Value) -> f64 {
-        match value {
-            Value::Real(x) => *x,
-            _ => f64::NAN,
-        }
-    }
-    fn from_c(value: f64) -> Value {
-        Value::Real(value)
-    }
-}
-
-/// `fmi3Int32`.
-pub struct Int32;
-impl Kind for Int32 {
-    type C = fmi3Int32;
-    const TYPE: VariableType = VariableType::Integer;
-    const GET: &'static Function = &functions::GET_INT32;
-    const SET: &'static Function = &functions::SET_INT32;
-    fn to_c(value: &Value) -> i32 {
-        match value {
-            Value::Integer(x) => *x,
-            _ => 0,
-        }
-    }
-    fn from_c(value: i32) -> Value {
-        Value::Integer(value)
-    }
-}
-
-/// `fmi3Boolean`.
-pub struct Boolean;
-impl Kind for Boolean {
-    type C = fmi3Boolean;
-    const TYPE: VariableType = VariableType::Boolean;
-    const GET: &'static Function = &functions::GET_BOOLEAN;
-    const SET: &'static Function = &functions::SET_BOOLEAN;
-    fn to_c(value: &Value) -> u8 {
-        match value {
-            Value::Boolean(true) => fmi3True,
-            _ => fmi3False,
-        }
-    }
-    fn from_c(value: u8) -> Value {
-        Value::Boolean(value != 0)
+/// A get call: checks the pointers and the references, reads the values `vr` name (arrays
+/// row-major; `n_values` of them) and hands them to `write` unless the read failed.
+///
+/// # Safety
+/// FMI pointer contract.
+#[allow(clippy::too_many_arguments)]
+unsafe fn get_call<M: FmuModel>(
+    c: fmi3Instance,
+    f: &Function,
+    vr: *const fmi3ValueReference,
+    nvr: usize,
+    out_is_null: bool,
+    n_values: usize,
+    expected: VariableType,
+    write: impl FnOnce(&mut Slot<M>, &[Value]),
+) -> fmi3Status {
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let Some(vrs) = slice(vr, nvr) else {
+                return s.instance.reject(f, "valueReferences is NULL");
+            };
+            if n_values > 0 && out_is_null {
+                return s.instance.reject(f, "values is NULL");
+            }
+            let elements = match expand(s, vrs, expected, n_values) {
+                Ok(e) => e,
+                Err(message) => return s.instance.reject(f, &message),
+            };
+            match read_values(s, f, &elements, expected) {
+                Ok((values, status)) => {
+                    write(s, &values);
+                    status
+                }
+                Err(status) => status,
+            }
+        })
     }
 }
 
@@ -557,36 +462,20 @@ impl Kind for Boolean {
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn get<M: FmuModel, K: Kind>(
+pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     c: fmi3Instance,
     vr: *const fmi3ValueReference,
     nvr: usize,
     out: *mut K::C,
     n_values: usize,
 ) -> fmi3Status {
-    let f = K::GET;
+    let null = out.is_null();
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, nvr) else {
-                return s.instance.reject(f, "valueReferences is NULL");
-            };
-            if n_values > 0 && out.is_null() {
-                return s.instance.reject(f, "values is NULL");
-            }
-            let elements = match expand(s, vrs, K::TYPE, n_values) {
-                Ok(e) => e,
-                Err(message) => return s.instance.reject(f, &message),
-            };
-            match read_values(s, f, &elements, K::TYPE) {
-                Ok((values, status)) => {
-                    for (i, v) in values.iter().enumerate() {
-                        // SAFETY: `out` holds `n_values` elements (FMI contract) and
-                        // `values.len() == n_values` (checked by `expand`).
-                        *out.add(i) = K::to_c(v);
-                    }
-                    status
-                }
-                Err(status) => status,
+        get_call::<M>(c, K::GET, vr, nvr, null, n_values, K::TYPE, |_, values| {
+            for (i, v) in values.iter().enumerate() {
+                // SAFETY: `out` holds `n_values` elements (FMI contract) and
+                // `values.len() == n_values` (checked by `expand`).
+                *out.add(i) = K::to_c(v);
             }
         })
     }
@@ -618,7 +507,7 @@ fn write_values<M: FmuModel>(
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn set<M: FmuModel, K: Kind>(
+pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
     c: fmi3Instance,
     vr: *const fmi3ValueReference,
     nvr: usize,
@@ -648,41 +537,21 @@ pub unsafe fn get_string<M: FmuModel>(
     out: *mut fmi3String,
     n_values: usize,
 ) -> fmi3Status {
-    let f = &functions::GET_STRING;
+    let (f, null) = (&functions::GET_STRING, out.is_null());
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, nvr) else {
-                return s.instance.reject(f, "valueReferences is NULL");
-            };
-            if n_values > 0 && out.is_null() {
-                return s.instance.reject(f, "values is NULL");
-            }
-            let elements = match expand(s, vrs, VariableType::String, n_values) {
-                Ok(e) => e,
-                Err(message) => return s.instance.reject(f, &message),
-            };
-            match read_values(s, f, &elements, VariableType::String) {
-                Ok((values, status)) => {
-                    s.strings = values
-                        .iter()
-                        .map(|v| {
-                            let text = match v {
-                                Value::String(t) => t.as_str(),
-                                _ => "",
-                            };
-                            CString::new(text.replace('\0', " ")).unwrap_or_default()
-                        })
-                        .collect();
-                    for (i, cs) in s.strings.iter().enumerate() {
-                        // SAFETY: `out` holds `n_values` slots; the strings live in the slot
-                        // until the next fmi3GetString call.
-                        *out.add(i) = cs.as_ptr();
-                    }
-                    status
-                }
-                Err(status) => status,
-            }
-        })
+        get_call::<M>(
+            c,
+            f,
+            vr,
+            nvr,
+            null,
+            n_values,
+            VariableType::String,
+            |s, values| {
+                // SAFETY: `out` holds `n_values` slots, the number of `values`.
+                s.return_strings(values, out)
+            },
+        )
     }
 }
 
@@ -703,179 +572,15 @@ pub unsafe fn set_string<M: FmuModel>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
-            let mut texts = Vec::with_capacity(n_values);
-            for p in raw {
-                match string_arg(*p) {
-                    Some(t) => texts.push(Value::String(t)),
-                    None => return s.instance.reject(f, "a string value is NULL"),
-                }
-            }
-            write_values(s, f, vrs, VariableType::String, texts)
-        })
-    }
-}
-
-/// `fmi3GetFMUState`: a new state, or the given one overwritten.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
-    let f = &functions::GET_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if state.is_null() {
-                return s.instance.reject(f, "FMUState is NULL");
-            }
-            let existing = *state as *mut Core<M>;
-            let snapshot = s.instance.get_state();
-            if !existing.is_null() && s.states.contains(&existing) {
-                *existing = *snapshot;
-            } else {
-                let p = Box::into_raw(snapshot);
-                s.states.push(p);
-                *state = p as fmi3FMUState;
-            }
-            Status::Ok
-        })
-    }
-}
-
-unsafe fn known_state<'a, M: FmuModel>(s: &Slot<M>, state: fmi3FMUState) -> Option<&'a Core<M>> {
-    let p = state as *mut Core<M>;
-    // SAFETY: only pointers this instance created and has not freed are dereferenced.
-    (!p.is_null() && s.states.contains(&p)).then(|| unsafe { &*p })
-}
-
-const UNKNOWN_STATE: &str =
-    "unknown FMUState: it was not created by this instance or was already freed";
-
-/// `fmi3SetFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_fmu_state<M: FmuModel>(c: fmi3Instance, state: fmi3FMUState) -> fmi3Status {
-    let f = &functions::SET_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| match known_state(s, state) {
-            Some(core) => {
-                s.instance.set_state(core);
-                Status::Ok
-            }
-            None => s.instance.reject(f, UNKNOWN_STATE),
-        })
-    }
-}
-
-/// `fmi3FreeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn free_fmu_state<M: FmuModel>(c: fmi3Instance, state: *mut fmi3FMUState) -> fmi3Status {
-    let f = &functions::FREE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if state.is_null() || (*state).is_null() {
-                return Status::Ok;
-            }
-            let p = *state as *mut Core<M>;
-            match s.states.iter().position(|q| *q == p) {
-                Some(i) => {
-                    s.states.swap_remove(i);
-                    drop(Box::from_raw(p));
-                    *state = std::ptr::null_mut();
-                    Status::Ok
-                }
-                None => s.instance.reject(f, UNKNOWN_STATE),
+            match front::string_values(s, f, raw) {
+                Ok(texts) => write_values(s, f, vrs, VariableType::String, texts),
+                Err(status) => status,
             }
         })
     }
 }
 
-/// `fmi3SerializedFMUStateSize`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
-    c: fmi3Instance,
-    state: fmi3FMUState,
-    size: *mut usize,
-) -> fmi3Status {
-    let f = &functions::SERIALIZED_FMU_STATE_SIZE;
-    unsafe {
-        with_instance::<M>(c, f, |s| match (known_state(s, state), size.is_null()) {
-            (Some(core), false) => {
-                *size = s.instance.serialize(core).len();
-                Status::Ok
-            }
-            (None, _) => s.instance.reject(f, UNKNOWN_STATE),
-            (_, true) => s.instance.reject(f, "size is NULL"),
-        })
-    }
-}
-
-/// `fmi3SerializeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn serialize_fmu_state<M: FmuModel>(
-    c: fmi3Instance,
-    state: fmi3FMUState,
-    bytes: *mut fmi3Byte,
-    size: usize,
-) -> fmi3Status {
-    let f = &functions::SERIALIZE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(core) = known_state(s, state) else {
-                return s.instance.reject(f, UNKNOWN_STATE);
-            };
-            let data = s.instance.serialize(core);
-            if bytes.is_null() || size < data.len() {
-                return s.instance.reject(
-                    f,
-                    &format!(
-                        "the buffer holds {size} bytes, the state needs {}",
-                        data.len()
-                    ),
-                );
-            }
-            std::ptr::copy_nonoverlapping(data.as_ptr(), bytes, data.len());
-            Status::Ok
-        })
-    }
-}
-
-/// `fmi3DeserializeFMUState`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn deserialize_fmu_state<M: FmuModel>(
-    c: fmi3Instance,
-    bytes: *const fmi3Byte,
-    size: usize,
-    state: *mut fmi3FMUState,
-) -> fmi3Status {
-    let f = &functions::DESERIALIZE_FMU_STATE;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(data) = slice(bytes, size) else {
-                return s.instance.reject(f, "serializedState is NULL");
-            };
-            if state.is_null() {
-                return s.instance.reject(f, "FMUState is NULL");
-            }
-            match s.instance.deserialize(data) {
-                Ok(core) => {
-                    let p = Box::into_raw(core);
-                    s.states.push(p);
-                    *state = p as fmi3FMUState;
-                    Status::Ok
-                }
-                Err(e) => s.instance.reject(f, &e.to_string()),
-            }
-        })
-    }
-}
+front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Layout, "FMUState");
 
 /// A function of a capability the FMUs do not have: rejected with `reason`, logged.
 ///

@@ -47,39 +47,27 @@ pub mod functions {
             };
         };
     }
-    f!(SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE);
-    f!(FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL);
-    f!(
-        ENTER_INITIALIZATION_MODE,
-        "fmi3EnterInitializationMode",
-        INSTANTIATED
-    );
-    f!(
-        EXIT_INITIALIZATION_MODE,
-        "fmi3ExitInitializationMode",
-        INIT_MODE
-    );
-    f!(TERMINATE, "fmi3Terminate", STEP_MODE);
-    f!(RESET, "fmi3Reset", ANY_LIVE);
-    f!(GET_FLOAT64, "fmi3GetFloat64", GETTABLE);
-    f!(GET_INT32, "fmi3GetInt32", GETTABLE);
-    f!(GET_BOOLEAN, "fmi3GetBoolean", GETTABLE);
-    f!(GET_STRING, "fmi3GetString", GETTABLE);
-    f!(SET_FLOAT64, "fmi3SetFloat64", SETTABLE);
-    f!(SET_INT32, "fmi3SetInt32", SETTABLE);
-    f!(SET_BOOLEAN, "fmi3SetBoolean", SETTABLE);
-    f!(SET_STRING, "fmi3SetString", SETTABLE);
-    f!(GET_FMU_STATE, "fmi3GetFMUState", ANY_LIVE);
-    f!(SET_FMU_STATE, "fmi3SetFMUState", ANY_LIVE);
-    f!(FREE_FMU_STATE, "fmi3FreeFMUState", ANY_LIVE | FATAL);
-    f!(
-        SERIALIZED_FMU_STATE_SIZE,
-        "fmi3SerializedFMUStateSize",
-        ANY_LIVE
-    );
-    f!(SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE);
-    f!(DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE);
-    f!(DO_STEP, "fmi3DoStep", STEP_MODE);
+    f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
+    f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
+    f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }
+    f! { EXIT_INITIALIZATION_MODE, "fmi3ExitInitializationMode", INIT_MODE }
+    f! { TERMINATE, "fmi3Terminate", STEP_MODE }
+    f! { RESET, "fmi3Reset", ANY_LIVE }
+    f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
+    f! { GET_INT32, "fmi3GetInt32", GETTABLE }
+    f! { GET_BOOLEAN, "fmi3GetBoolean", GETTABLE }
+    f! { GET_STRING, "fmi3GetString", GETTABLE }
+    f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
+    f! { SET_INT32, "fmi3SetInt32", SETTABLE }
+    f! { SET_BOOLEAN, "fmi3SetBoolean", SETTABLE }
+    f! { SET_STRING, "fmi3SetString", SETTABLE }
+    f! { GET_FMU_STATE, "fmi3GetFMUState", ANY_LIVE }
+    f! { SET_FMU_STATE, "fmi3SetFMUState", ANY_LIVE }
+    f! { FREE_FMU_STATE, "fmi3FreeFMUState", ANY_LIVE | FATAL }
+    f! { SERIALIZED_FMU_STATE_SIZE, "fmi3SerializedFMUStateSize", ANY_LIVE }
+    f! { SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE }
+    f! { DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE }
+    f! { DO_STEP, "fmi3DoStep", STEP_MODE }
 }
 
 /// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 C API of the model type

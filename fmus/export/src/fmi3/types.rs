@@ -68,13 +68,17 @@ pub type fmi3ClockUpdateCallback = Option<unsafe extern "C" fn(fmi3InstanceEnvir
 /// `fmi3LockPreemptionCallback` / `fmi3UnlockPreemptionCallback`.
 pub type fmi3PreemptionCallback = Option<unsafe extern "C" fn()>;
 
+// The FMI 3.0 status codes are those of FMI 2.0, so one mapping ([`Status::code`]) and one
+// guarded call (`crate::front::with_slot`) serve both fronts.
+const _: () = assert!(
+    fmi3OK == crate::types::fmi2OK
+        && fmi3Warning == crate::types::fmi2Warning
+        && fmi3Discard == crate::types::fmi2Discard
+        && fmi3Error == crate::types::fmi2Error
+        && fmi3Fatal == crate::types::fmi2Fatal
+);
+
 /// The `fmi3Status` integer of a status.
 pub fn code(status: Status) -> fmi3Status {
-    match status {
-        Status::Ok => fmi3OK,
-        Status::Warning => fmi3Warning,
-        Status::Discard => fmi3Discard,
-        Status::Error => fmi3Error,
-        Status::Fatal => fmi3Fatal,
-    }
+    status.code()
 }

@@ -1,0 +1,549 @@
+//! What every FMI front (FMI 2.0 [`crate::ffi`], FMI 3.0 [`crate::fmi3::ffi`]) shares below
+//! its C entry points: the slot an instance pointer points to, the guarded call on it (null
+//! check, panic catch, allowed-state mask), the value kinds of the typed get/set functions,
+//! the FMU-state handling and its serialization, the string conversions and the reading of
+//! the variant configuration. A front only maps its C signatures and names onto these.
+//!
+//! Both versions' status codes are the same integers (`fmi2OK` = `fmi3OK` = 0 … `Fatal` =
+//! 4: [`Status::code`]), and their instance and FMU-state handles are both `void*`, so one
+//! path serves them.
+
+use crate::description::{Config, CONFIG_FILE};
+use crate::ffi::{guarded, slice, string_arg};
+use crate::instance::{Core, Function, Instance};
+use crate::model::FmuModel;
+use crate::types::Status;
+use crate::variables::{Value, VariableType};
+use std::ffi::CString;
+use std::os::raw::{c_char, c_int, c_void};
+use std::path::Path;
+
+/// What an instance handle (`fmi2Component`, `fmi3Instance`) points to: the instance, the
+/// front's own data `X` (the FMI 3.0 array layout), the FMU states it created and the
+/// strings it last returned.
+pub struct Slot<M: FmuModel, X = ()> {
+    pub(crate) instance: Instance<M>,
+    pub(crate) extra: X,
+    /// FMU states created by this instance and not freed yet.
+    states: Vec<*mut Core<M>>,
+    /// Keeps the strings returned by `fmi*GetString` alive until the next call.
+    strings: Vec<CString>,
+}
+
+impl<M: FmuModel, X> Slot<M, X> {
+    /// A slot for `instance` with the front's data.
+    pub fn new(instance: Instance<M>, extra: X) -> Self {
+        Self {
+            instance,
+            extra,
+            states: Vec::new(),
+            strings: Vec::new(),
+        }
+    }
+
+    /// The instance.
+    pub fn instance(&self) -> &Instance<M> {
+        &self.instance
+    }
+
+    /// Boxes the slot as an instance handle.
+    pub fn into_handle(self) -> *mut c_void {
+        Box::into_raw(Box::new(self)) as *mut c_void
+    }
+
+    /// Keeps `values` as C strings until the next call and writes pointers to them into
+    /// `out`.
+    ///
+    /// # Safety
+    /// `out` points to at least `values.len()` writable slots.
+    pub(crate) unsafe fn return_strings<'v>(
+        &mut self,
+        values: impl IntoIterator<Item = &'v Value>,
+        out: *mut *const c_char,
+    ) {
+        self.strings = values
+            .into_iter()
+            .map(|v| {
+                let text = match v {
+                    Value::String(t) => t.as_str(),
+                    _ => "",
+                };
+                CString::new(text.replace('\0', " ")).unwrap_or_default()
+            })
+            .collect();
+        for (i, cs) in self.strings.iter().enumerate() {
+            // SAFETY: `out` holds the slots (caller); the strings live in the slot until the
+            // next get-string call.
+            unsafe { *out.add(i) = cs.as_ptr() };
+        }
+    }
+}
+
+impl<M: FmuModel, X> Drop for Slot<M, X> {
+    fn drop(&mut self) {
+        for p in self.states.drain(..) {
+            // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from the
+            // list when freed, so each is freed exactly once.
+            drop(unsafe { Box::from_raw(p) });
+        }
+    }
+}
+
+/// Frees a slot boxed by [`Slot::into_handle`] (`fmi*FreeInstance`).
+///
+/// # Safety
+/// `c` must be NULL or a handle of a `Slot<M, X>` not freed yet.
+pub unsafe fn free_slot<M: FmuModel, X>(c: *mut c_void) {
+    if c.is_null() {
+        return;
+    }
+    let _ = guarded(|| {
+        // SAFETY: `c` came from `Box::into_raw` in `Slot::into_handle`.
+        drop(unsafe { Box::from_raw(c as *mut Slot<M, X>) });
+    });
+}
+
+/// Runs `body` on the slot behind `c` after the null and state checks, catching panics (the
+/// instance is then `Fatal`); the status as its C code.
+///
+/// # Safety
+/// `c` must be NULL or a live handle of a `Slot<M, X>` (the master's obligation).
+pub unsafe fn with_slot<M: FmuModel, X>(
+    c: *mut c_void,
+    f: &Function,
+    body: impl FnOnce(&mut Slot<M, X>) -> Status,
+) -> std::os::raw::c_int {
+    if c.is_null() {
+        return Status::Error.code();
+    }
+    let slot = c as *mut Slot<M, X>;
+    let result = guarded(|| {
+        // SAFETY: `c` is non-null and a live slot (the caller's obligation); no other reference
+        // to the slot is alive during the call.
+        let slot = unsafe { &mut *slot };
+        if !slot.instance.allows(f) {
+            return Status::Error;
+        }
+        body(slot)
+    });
+    match result {
+        Ok(status) => status.code(),
+        Err(message) => {
+            let _ = guarded(|| {
+                // SAFETY: as above; the closure that panicked no longer borrows the slot.
+                unsafe { &mut *slot }.instance.set_fatal(f, &message)
+            });
+            Status::Fatal.code()
+        }
+    }
+}
+
+/// The FMI versions, for the functions a [`Kind`] has in each.
+pub trait Version {}
+/// FMI 2.0.
+pub struct Fmi2;
+impl Version for Fmi2 {}
+/// FMI 3.0.
+pub struct Fmi3;
+impl Version for Fmi3 {}
+
+/// A kind of value exchanged through the typed `fmi*Get*`/`fmi*Set*` functions of FMI version
+/// `V`: its C type, its functions and how a value crosses the boundary.
+pub trait Kind<V: Version> {
+    /// The C type of one value.
+    type C: Copy;
+    /// The variables' type.
+    const TYPE: VariableType;
+    /// The get function (`fmi2GetReal`, `fmi3GetFloat64`, …).
+    const GET: &'static Function;
+    /// The set function.
+    const SET: &'static Function;
+    /// A value of this kind as the master reads it.
+    fn to_c(value: &Value) -> Self::C;
+    /// A value the master sets.
+    fn from_c(value: Self::C) -> Value;
+}
+
+/// Declares the [`Kind`] of the marker type of `Value::$name` in one FMI version: its C type,
+/// its functions (paths to the `Function` constants), the C value a value of another type
+/// reads as, and how a C value becomes a value (a value becomes a C value by `From`).
+macro_rules! kind {
+    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $default:expr, $from_c:expr) => {
+        impl Kind<$version> for $name {
+            type C = $c;
+            const TYPE: VariableType = VariableType::$name;
+            const GET: &'static Function = &$get;
+            const SET: &'static Function = &$set;
+            fn to_c(value: &Value) -> $c {
+                match value {
+                    Value::$name(x) => <$c>::from(*x),
+                    _ => $default,
+                }
+            }
+            fn from_c(value: $c) -> Value {
+                let from_c: fn($c) -> _ = $from_c;
+                Value::$name(from_c(value))
+            }
+        }
+    };
+}
+
+/// Real values: `fmi2Real`, `fmi3Float64`.
+pub struct Real;
+/// Integer values: `fmi2Integer`, `fmi3Int32`.
+pub struct Integer;
+/// Boolean values: `fmi2Boolean` (an `int`), `fmi3Boolean` (a C99 `bool`).
+pub struct Boolean;
+
+mod kinds {
+    use super::*;
+    use crate::fmi3::functions as f3;
+    use crate::instance::functions as f2;
+
+    // fmi2Real, fmi2Integer, fmi2Boolean (an int); fmi3Float64, fmi3Int32, fmi3Boolean (a bool)
+    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, f64::NAN, |v| v }
+    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, 0, |v| v }
+    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, 0, |v| v != 0 }
+    kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, f64::NAN, |v| v }
+    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, 0, |v| v }
+    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, 0, |v| v != 0 }
+}
+
+/// Reads the C strings of a set-string call as values; `Err` with the rejection's status
+/// if one is NULL.
+///
+/// # Safety
+/// Every pointer in `raw` is NULL or a NUL-terminated string.
+pub(crate) unsafe fn string_values<M: FmuModel, X>(
+    slot: &Slot<M, X>,
+    f: &Function,
+    raw: &[*const c_char],
+) -> Result<Vec<Value>, Status> {
+    raw.iter()
+        // SAFETY: the caller's obligation.
+        .map(|p| match unsafe { string_arg(*p) } {
+            Some(t) => Ok(Value::String(t)),
+            None => Err(slot.instance.reject(f, "a string value is NULL")),
+        })
+        .collect()
+}
+
+/// What the resources directory holds of a variant configuration.
+pub(crate) enum ConfigFile {
+    /// `variant.cfg`, parsed.
+    Found(Config),
+    /// No `variant.cfg` (the error that says so).
+    Missing(std::io::Error),
+}
+
+/// The variant configuration in the resources directory `dir`; `Err` with the message if it
+/// cannot be read or parsed.
+pub(crate) fn read_config(dir: &Path) -> Result<ConfigFile, String> {
+    let path = dir.join(CONFIG_FILE);
+    match std::fs::read_to_string(&path) {
+        Ok(text) => Config::parse(&text)
+            .map(ConfigFile::Found)
+            .map_err(|e| format!("cannot read {}: {e}", path.display())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(ConfigFile::Missing(e)),
+        Err(e) => Err(format!(
+            "cannot read the variant configuration {}: {e}",
+            path.display()
+        )),
+    }
+}
+
+/// The FMU-state functions of one front: their `Function`s and how the front spells an FMU
+/// state in its messages (`FMUstate`, `FMUState`).
+pub struct StateFunctions {
+    /// `fmi*GetFMUstate`.
+    pub get: &'static Function,
+    /// `fmi*SetFMUstate`.
+    pub set: &'static Function,
+    /// `fmi*FreeFMUstate`.
+    pub free: &'static Function,
+    /// `fmi*SerializedFMUstateSize`.
+    pub size: &'static Function,
+    /// `fmi*SerializeFMUstate`.
+    pub serialize: &'static Function,
+    /// `fmi*DeSerializeFMUstate`.
+    pub deserialize: &'static Function,
+    /// `FMUstate` or `FMUState`.
+    pub noun: &'static str,
+}
+
+impl StateFunctions {
+    fn unknown(&self) -> String {
+        format!(
+            "unknown {}: it was not created by this instance or was already freed",
+            self.noun
+        )
+    }
+}
+
+/// Emits, in a front's `ffi` module, its six FMU-state functions (`get_fmu_state`,
+/// `set_fmu_state`, `free_fmu_state`, `serialized_fmu_state_size`, `serialize_fmu_state`,
+/// `deserialize_fmu_state`) over the front's handle, state and byte types and slot data, as
+/// the [`StateFunctions`] `STATES` of the `functions` module in scope (every front names its
+/// FMU-state `Function`s alike) and `$noun`, the front's spelling of an FMU state.
+macro_rules! state_functions {
+    ($handle:ty, $state:ty, $byte:ty, $extra:ty, $noun:literal) => {
+        /// The FMU-state functions of this front.
+        const STATES: $crate::front::StateFunctions = $crate::front::StateFunctions {
+            get: &functions::GET_FMU_STATE,
+            set: &functions::SET_FMU_STATE,
+            free: &functions::FREE_FMU_STATE,
+            size: &functions::SERIALIZED_FMU_STATE_SIZE,
+            serialize: &functions::SERIALIZE_FMU_STATE,
+            deserialize: &functions::DESERIALIZE_FMU_STATE,
+            noun: $noun,
+        };
+
+        /// `fmi*GetFMUstate`: a new state, or the given one overwritten.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn get_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { STATES.get::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*SetFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn set_fmu_state<M: FmuModel>(c: $handle, state: $state) -> std::os::raw::c_int {
+            unsafe { STATES.set::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*FreeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn free_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { STATES.free::<M, $extra>(c, state) }
+        }
+
+        /// `fmi*SerializedFMUstateSize`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn serialized_fmu_state_size<M: FmuModel>(
+            c: $handle,
+            state: $state,
+            size: *mut usize,
+        ) -> std::os::raw::c_int {
+            unsafe { STATES.size::<M, $extra>(c, state, size) }
+        }
+
+        /// `fmi*SerializeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn serialize_fmu_state<M: FmuModel>(
+            c: $handle,
+            state: $state,
+            bytes: *mut $byte,
+            size: usize,
+        ) -> std::os::raw::c_int {
+            unsafe { STATES.serialize::<M, $extra>(c, state, bytes as *mut u8, size) }
+        }
+
+        /// `fmi*DeSerializeFMUstate`.
+        ///
+        /// # Safety
+        /// FMI pointer contract.
+        pub unsafe fn deserialize_fmu_state<M: FmuModel>(
+            c: $handle,
+            bytes: *const $byte,
+            size: usize,
+            state: *mut $state,
+        ) -> std::os::raw::c_int {
+            unsafe { STATES.deserialize::<M, $extra>(c, bytes as *const u8, size, state) }
+        }
+    };
+}
+pub(crate) use state_functions;
+
+unsafe fn known_state<'a, M: FmuModel, X>(
+    s: &Slot<M, X>,
+    state: *mut c_void,
+) -> Option<&'a Core<M>> {
+    let p = state as *mut Core<M>;
+    // SAFETY: only pointers this instance created and has not freed are dereferenced.
+    (!p.is_null() && s.states.contains(&p)).then(|| unsafe { &*p })
+}
+
+impl StateFunctions {
+    /// `fmi*GetFMUstate`: a new state, or the given one overwritten.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn get<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut *mut c_void,
+    ) -> std::os::raw::c_int {
+        let f = self.get;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| {
+                if state.is_null() {
+                    return s.instance.reject(f, &format!("{} is NULL", self.noun));
+                }
+                let existing = *state as *mut Core<M>;
+                let snapshot = s.instance.get_state();
+                if !existing.is_null() && s.states.contains(&existing) {
+                    *existing = *snapshot;
+                } else {
+                    let p = Box::into_raw(snapshot);
+                    s.states.push(p);
+                    *state = p as *mut c_void;
+                }
+                Status::Ok
+            })
+        }
+    }
+
+    /// `fmi*SetFMUstate`.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn set<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut c_void,
+    ) -> std::os::raw::c_int {
+        let f = self.set;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| match known_state(s, state) {
+                Some(core) => {
+                    s.instance.set_state(core);
+                    Status::Ok
+                }
+                None => s.instance.reject(f, &self.unknown()),
+            })
+        }
+    }
+
+    /// `fmi*FreeFMUstate`.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn free<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut *mut c_void,
+    ) -> std::os::raw::c_int {
+        let f = self.free;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| {
+                if state.is_null() || (*state).is_null() {
+                    return Status::Ok;
+                }
+                let p = *state as *mut Core<M>;
+                match s.states.iter().position(|q| *q == p) {
+                    Some(i) => {
+                        s.states.swap_remove(i);
+                        drop(Box::from_raw(p));
+                        *state = std::ptr::null_mut();
+                        Status::Ok
+                    }
+                    None => s.instance.reject(f, &self.unknown()),
+                }
+            })
+        }
+    }
+
+    /// `fmi*SerializedFMUstateSize`.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn size<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut c_void,
+        size: *mut usize,
+    ) -> std::os::raw::c_int {
+        let f = self.size;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| match (known_state(s, state), size.is_null()) {
+                (Some(core), false) => {
+                    *size = s.instance.serialize(core).len();
+                    Status::Ok
+                }
+                (None, _) => s.instance.reject(f, &self.unknown()),
+                (_, true) => s.instance.reject(f, "size is NULL"),
+            })
+        }
+    }
+
+    /// `fmi*SerializeFMUstate`.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn serialize<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        state: *mut c_void,
+        bytes: *mut u8,
+        size: usize,
+    ) -> std::os::raw::c_int {
+        let f = self.serialize;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| {
+                let Some(core) = known_state(s, state) else {
+                    return s.instance.reject(f, &self.unknown());
+                };
+                let data = s.instance.serialize(core);
+                if bytes.is_null() || size < data.len() {
+                    return s.instance.reject(
+                        f,
+                        &format!(
+                            "the buffer holds {size} bytes, the state needs {}",
+                            data.len()
+                        ),
+                    );
+                }
+                std::ptr::copy_nonoverlapping(data.as_ptr(), bytes, data.len());
+                Status::Ok
+            })
+        }
+    }
+
+    /// `fmi*DeSerializeFMUstate`.
+    ///
+    /// # Safety
+    /// FMI pointer contract.
+    pub unsafe fn deserialize<M: FmuModel, X>(
+        &self,
+        c: *mut c_void,
+        bytes: *const u8,
+        size: usize,
+        state: *mut *mut c_void,
+    ) -> std::os::raw::c_int {
+        let f = self.deserialize;
+        unsafe {
+            with_slot::<M, X>(c, f, |s| {
+                let Some(data) = slice(bytes, size) else {
+                    return s.instance.reject(f, "serializedState is NULL");
+                };
+                if state.is_null() {
+                    return s.instance.reject(f, &format!("{} is NULL", self.noun));
+                }
+                match s.instance.deserialize(data) {
+                    Ok(core) => {
+                        let p = Box::into_raw(core);
+                        s.states.push(p);
+                        *state = p as *mut c_void;
+                        Status::Ok
+                    }
+                    Err(e) => s.instance.reject(f, &e.to_string()),
+                }
+            })
+        }
+    }
+}
