@@ -117,10 +117,7 @@ impl FmuModel for GantryCraneFmu {
         Ok(())
     }
 
-    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
-        spurio::ode::check_substeps(step, self.h_max)?;
-        Ok(())
-    }
+    spurio_fmu_common::rk4_check_step!(h_max);
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(vr::U);

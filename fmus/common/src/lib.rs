@@ -54,8 +54,45 @@ pub fn crane_controller_config() -> Config {
 /// What [`fmu_state!`] expands to refers to.
 #[doc(hidden)]
 pub mod reexport {
+    pub use spurio::ode::check_substeps;
     pub use spurio::state::PlainState;
-    pub use spurio_export::{ByteReader, ByteWriter, Cause};
+    pub use spurio_export::{ByteReader, ByteWriter, Cause, Context};
+}
+
+/// Implements `FmuModel::check_step`, inside `impl FmuModel for …`, for a plant integrated in
+/// RK4 substeps of at most `self.<h_max>`: a communication step that would need more substeps
+/// than one call may take ([`spurio::ode::check_substeps`]) is refused before anything moves.
+#[macro_export]
+macro_rules! rk4_check_step {
+    ($h_max:ident) => {
+        fn check_step(
+            &self,
+            _ctx: &$crate::reexport::Context,
+            _time: f64,
+            step: f64,
+        ) -> ::std::result::Result<(), $crate::reexport::Cause> {
+            $crate::reexport::check_substeps(step, self.$h_max)?;
+            ::std::result::Result::Ok(())
+        }
+    };
+}
+
+/// One communication step of a plant, taken on a copy by `advance`: the copy replaces `plant`
+/// only if `finite` holds for it; otherwise the step fails with the message `non_finite()` and
+/// `plant` is left as it was.
+pub fn advance_finite<P: Clone>(
+    plant: &mut P,
+    advance: impl FnOnce(&mut P),
+    finite: impl FnOnce(&P) -> bool,
+    non_finite: impl FnOnce() -> String,
+) -> Result<(), Failure> {
+    let mut next = plant.clone();
+    advance(&mut next);
+    if !finite(&next) {
+        return Err(Failure::error(non_finite()));
+    }
+    *plant = next;
+    Ok(())
 }
 
 /// Implements `FmuModel::save_state` and `load_state`, inside `impl FmuModel for …`, as the
