@@ -193,15 +193,7 @@ mod tests {
         h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
         h.initialize(0.0).unwrap();
         h.set_real(&[vr::U as u32], &[1.0]).unwrap();
-        let start = std::time::Instant::now();
-        assert_eq!(h.do_step(0.0, 1e308), Err(Status::Error));
-        assert_eq!(h.do_step(0.0, 1.0), Err(Status::Error));
-        assert!(start.elapsed().as_secs_f64() < 0.1);
-        assert!(
-            h.logged(&["step refused", "more than the 100000"]),
-            "{:?}",
-            h.log()
-        );
+        spurio_fmu_common::refuses_too_many_substeps(&mut h, 1.0).unwrap();
         // nothing changed: a step within the bound is taken from t = 0
         h.do_step(0.0, 1e-5).unwrap();
         assert_eq!(h.last_successful_time().unwrap(), 1e-5);

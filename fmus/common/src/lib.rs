@@ -77,6 +77,37 @@ macro_rules! rk4_check_step {
     };
 }
 
+/// The check every RK4 plant FMU passes, on a harness `h` initialised with `h_max` = 1 ns: a
+/// step of `long_step` and one of 1e308 s, each needing more substeps than one call may take,
+/// are refused at once (in well under 0.1 s) with `fmi2Error`, and the log names the step, `h_max`
+/// and the bound. What went otherwise is the error. The caller checks that the FMU stayed where
+/// it was.
+pub fn refuses_too_many_substeps<M: spurio_export::FmuModel>(
+    h: &mut spurio_export::harness::Harness<M>,
+    long_step: f64,
+) -> Result<(), String> {
+    for step in [long_step, 1e308] {
+        let start = std::time::Instant::now();
+        let status = h.do_step(0.0, step);
+        if status != Err(spurio_export::types::Status::Error) {
+            return Err(format!("a step of {step} s gave {status:?}, not fmi2Error"));
+        }
+        let took = start.elapsed().as_secs_f64();
+        if took >= 0.1 {
+            return Err(format!("refusing a step of {step} s took {took} s"));
+        }
+        let words = [
+            "fmi2DoStep: step refused",
+            "h_max = 0.000000001",
+            "more than the 100000",
+        ];
+        if !h.logged(&words) {
+            return Err(format!("{words:?} not all in the log {:?}", h.log()));
+        }
+    }
+    Ok(())
+}
+
 /// One communication step of a plant, taken on a copy by `advance`: the copy replaces `plant`
 /// only if `finite` holds for it; otherwise the step fails with the message `non_finite()` and
 /// `plant` is left as it was.
