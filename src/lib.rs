@@ -72,6 +72,26 @@ pub fn require_non_negative(parameter: &str, value: f64) -> Result<f64, Paramete
     }
 }
 
+/// Checks that the whole number `value` lies in `range` (both ends included).
+pub fn require_between(
+    parameter: &str,
+    value: u32,
+    range: std::ops::RangeInclusive<u32>,
+) -> Result<u32, ParameterError> {
+    if range.contains(&value) {
+        Ok(value)
+    } else {
+        Err(ParameterError::new(
+            parameter,
+            format!(
+                "must be between {} and {}, got {value}",
+                range.start(),
+                range.end()
+            ),
+        ))
+    }
+}
+
 /// Checks that `value` is finite.
 pub fn require_finite(parameter: &str, value: f64) -> Result<f64, ParameterError> {
     if value.is_finite() {

@@ -579,18 +579,26 @@ mod tests {
     fn c2() -> DMatrix<f64> {
         DMatrix::from_row_slice(1, 3, &[0.0, 1.0, 0.0])
     }
+    /// The configuration of the paper's agents (Q = 0.2 I, R = 0.1) for `a`, `c_own`, `c_other`.
+    fn config_of(
+        a: DMatrix<f64>,
+        c_own: DMatrix<f64>,
+        c_other: DMatrix<f64>,
+    ) -> DistributedObserverConfig {
+        DistributedObserverConfig::new(
+            a,
+            c_own,
+            c_other,
+            DMatrix::identity(3, 3) * 0.2,
+            DMatrix::from_element(1, 1, 0.1),
+        )
+    }
     fn agent(
         c_own: DMatrix<f64>,
         c_other: DMatrix<f64>,
         design: ObserverDesign,
     ) -> DistributedObserver {
-        let mut config = DistributedObserverConfig::new(
-            paper_a(),
-            c_own,
-            c_other,
-            DMatrix::identity(3, 3) * 0.2,
-            DMatrix::from_element(1, 1, 0.1),
-        );
+        let mut config = config_of(paper_a(), c_own, c_other);
         config.design = design;
         DistributedObserver::new(config).unwrap()
     }
@@ -649,13 +657,7 @@ mod tests {
     fn joint_unobservability_is_an_error() {
         // Nobody measures x3, and it is decoupled: (A, [C1; C2]) not observable.
         let a = DMatrix::from_diagonal(&DVector::from_vec(vec![0.9, 0.8, 0.7]));
-        let config = DistributedObserverConfig::new(
-            a,
-            c1(),
-            c2(),
-            DMatrix::identity(3, 3) * 0.2,
-            DMatrix::from_element(1, 1, 0.1),
-        );
+        let config = config_of(a, c1(), c2());
         let e = DistributedObserver::new(config).unwrap_err();
         println!("{e}");
         assert!(e.to_string().contains("do not observe"), "{e}");
@@ -729,13 +731,7 @@ mod tests {
 
     #[test]
     fn rejects_bad_parameters() {
-        let mut config = DistributedObserverConfig::new(
-            paper_a(),
-            c1(),
-            c2(),
-            DMatrix::identity(3, 3) * 0.2,
-            DMatrix::from_element(1, 1, 0.1),
-        );
+        let mut config = config_of(paper_a(), c1(), c2());
         config.rho = -1.0;
         let e = DistributedObserver::new(config.clone()).unwrap_err();
         assert!(e.to_string().contains("rho"), "{e}");
@@ -751,13 +747,7 @@ mod tests {
         for (i, j, v) in [(0, 0, -1e308), (1, 2, -1e308), (2, 1, 1e200), (0, 0, 1e150)] {
             let mut a = paper_a();
             a[(i, j)] = v;
-            let config = DistributedObserverConfig::new(
-                a,
-                c1(),
-                c2(),
-                DMatrix::identity(3, 3) * 0.2,
-                DMatrix::from_element(1, 1, 0.1),
-            );
+            let config = config_of(a, c1(), c2());
             let start = std::time::Instant::now();
             let result = DistributedObserver::new(config);
             assert!(start.elapsed().as_secs_f64() < 1.0, "A[{i},{j}] = {v}");
@@ -767,13 +757,7 @@ mod tests {
         }
         let mut a = paper_a();
         a[(0, 0)] = -1e308;
-        let config = DistributedObserverConfig::new(
-            a,
-            c1(),
-            c2(),
-            DMatrix::identity(3, 3) * 0.2,
-            DMatrix::from_element(1, 1, 0.1),
-        );
+        let config = config_of(a, c1(), c2());
         let e = DistributedObserver::new(config).unwrap_err();
         assert!(e.to_string().contains("observability matrix"), "{e}");
         assert!(e.to_string().contains("overflows"), "{e}");

@@ -96,12 +96,7 @@ pub struct Quantiser {
 impl Quantiser {
     /// Checks `bits` ∈ [1, 32] and a finite, non-empty range.
     pub fn validate(&self) -> Result<(), ParameterError> {
-        if !(1..=32).contains(&self.bits) {
-            return Err(ParameterError::new(
-                "bits",
-                format!("must be between 1 and 32, got {}", self.bits),
-            ));
-        }
+        crate::require_between("bits", self.bits, 1..=32)?;
         require_finite("adc_min", self.min)?;
         require_finite("adc_max", self.max)?;
         if self.max <= self.min {

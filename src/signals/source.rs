@@ -125,112 +125,107 @@ impl Trig {
     }
 }
 
+/// `offset + amplitude · [t ≥ step_time]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    /// Height of the step (parameter `amplitude`).
+    pub amplitude: f64,
+    /// Value before the step (parameter `offset`).
+    pub offset: f64,
+    /// When the step happens [s] (parameter `step_time`).
+    pub step_time: f64,
+}
+
+/// Levels uniform in `[offset − amplitude, offset + amplitude]` held for random times.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RandomSteps {
+    /// Half-width of the level range (parameter `amplitude`, ≥ 0).
+    pub amplitude: f64,
+    /// Centre of the level range (parameter `offset`).
+    pub offset: f64,
+    /// Shortest hold [s] (parameter `min_hold`, > 0).
+    pub min_hold: f64,
+    /// Longest hold [s] (parameter `max_hold`, ≥ `min_hold`).
+    pub max_hold: f64,
+}
+
+/// Pseudo-random binary sequence `offset ± amplitude`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prbs {
+    /// Register length n, 2 to 24 (parameter `order`).
+    pub order: u32,
+    /// Duration of one bit `T_b` [s] (parameter `bit_period`, > 0).
+    pub bit_period: f64,
+    /// Half the peak-to-peak swing (parameter `amplitude`).
+    pub amplitude: f64,
+    /// Mean level (parameter `offset`).
+    pub offset: f64,
+}
+
+/// `offset + amplitude · sin(2π f t + phase)` or the same with `cos`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sinusoid {
+    /// Sine or cosine.
+    pub function: Trig,
+    /// Parameter `amplitude`.
+    pub amplitude: f64,
+    /// Parameter `offset`.
+    pub offset: f64,
+    /// Frequency f [Hz] (parameter `frequency`, ≥ 0).
+    pub frequency: f64,
+    /// Phase [rad] (parameter `phase`).
+    pub phase: f64,
+}
+
 /// What the source generates, with its parameters (module docs for the definitions).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Waveform {
-    /// `offset + amplitude · [t ≥ step_time]`.
-    Step {
-        /// Height of the step (parameter `amplitude`).
-        amplitude: f64,
-        /// Value before the step (parameter `offset`).
-        offset: f64,
-        /// When the step happens [s] (parameter `step_time`).
-        step_time: f64,
-    },
-    /// Levels uniform in `[offset − amplitude, offset + amplitude]` held for random times.
-    RandomSteps {
-        /// Half-width of the level range (parameter `amplitude`, ≥ 0).
-        amplitude: f64,
-        /// Centre of the level range (parameter `offset`).
-        offset: f64,
-        /// Shortest hold [s] (parameter `min_hold`, > 0).
-        min_hold: f64,
-        /// Longest hold [s] (parameter `max_hold`, ≥ `min_hold`).
-        max_hold: f64,
-    },
-    /// Pseudo-random binary sequence `offset ± amplitude`.
-    Prbs {
-        /// Register length n, 2 to 24 (parameter `order`).
-        order: u32,
-        /// Duration of one bit `T_b` [s] (parameter `bit_period`, > 0).
-        bit_period: f64,
-        /// Half the peak-to-peak swing (parameter `amplitude`).
-        amplitude: f64,
-        /// Mean level (parameter `offset`).
-        offset: f64,
-    },
-    /// `offset + amplitude · sin(2π f t + phase)` or the same with `cos`.
-    Sinusoid {
-        /// Sine or cosine.
-        function: Trig,
-        /// Parameter `amplitude`.
-        amplitude: f64,
-        /// Parameter `offset`.
-        offset: f64,
-        /// Frequency f [Hz] (parameter `frequency`, ≥ 0).
-        frequency: f64,
-        /// Phase [rad] (parameter `phase`).
-        phase: f64,
-    },
+    /// A step.
+    Step(Step),
+    /// Random steps.
+    RandomSteps(RandomSteps),
+    /// A PRBS.
+    Prbs(Prbs),
+    /// A sine or cosine.
+    Sinusoid(Sinusoid),
+}
+
+/// Checks the `amplitude` and `offset` of a waveform whose amplitude may have either sign.
+fn require_levels(amplitude: f64, offset: f64) -> Result<(), ParameterError> {
+    require_finite("amplitude", amplitude)?;
+    require_finite("offset", offset)?;
+    Ok(())
 }
 
 impl Waveform {
     /// Checks every parameter, naming the first one that is not acceptable.
     pub fn validate(&self) -> Result<(), ParameterError> {
-        match *self {
-            Waveform::Step {
-                amplitude,
-                offset,
-                step_time,
-            } => {
-                require_finite("amplitude", amplitude)?;
-                require_finite("offset", offset)?;
-                require_finite("step_time", step_time)?;
+        match self {
+            Waveform::Step(w) => {
+                require_levels(w.amplitude, w.offset)?;
+                require_finite("step_time", w.step_time)?;
             }
-            Waveform::RandomSteps {
-                amplitude,
-                offset,
-                min_hold,
-                max_hold,
-            } => {
-                require_non_negative("amplitude", amplitude)?;
-                require_finite("offset", offset)?;
-                require_positive("min_hold", min_hold)?;
-                require_positive("max_hold", max_hold)?;
-                if max_hold < min_hold {
+            Waveform::RandomSteps(w) => {
+                require_non_negative("amplitude", w.amplitude)?;
+                require_finite("offset", w.offset)?;
+                require_positive("min_hold", w.min_hold)?;
+                require_positive("max_hold", w.max_hold)?;
+                if w.max_hold < w.min_hold {
                     return Err(ParameterError::new(
                         "max_hold",
-                        format!("must be >= min_hold = {min_hold}, got {max_hold}"),
+                        format!("must be >= min_hold = {}, got {}", w.min_hold, w.max_hold),
                     ));
                 }
             }
-            Waveform::Prbs {
-                order,
-                bit_period,
-                amplitude,
-                offset,
-            } => {
-                if !(2..=24).contains(&order) {
-                    return Err(ParameterError::new(
-                        "order",
-                        format!("must be between 2 and 24, got {order}"),
-                    ));
-                }
-                require_positive("bit_period", bit_period)?;
-                require_finite("amplitude", amplitude)?;
-                require_finite("offset", offset)?;
+            Waveform::Prbs(w) => {
+                crate::require_between("order", w.order, 2..=24)?;
+                require_positive("bit_period", w.bit_period)?;
+                require_levels(w.amplitude, w.offset)?;
             }
-            Waveform::Sinusoid {
-                amplitude,
-                offset,
-                frequency,
-                phase,
-                ..
-            } => {
-                require_finite("amplitude", amplitude)?;
-                require_finite("offset", offset)?;
-                require_non_negative("frequency", frequency)?;
-                require_finite("phase", phase)?;
+            Waveform::Sinusoid(w) => {
+                require_levels(w.amplitude, w.offset)?;
+                require_non_negative("frequency", w.frequency)?;
+                require_finite("phase", w.phase)?;
             }
         }
         Ok(())
@@ -244,6 +239,18 @@ struct RandomStepsCursor {
     start: f64,
     end: f64,
     level: f64,
+}
+
+impl RandomStepsCursor {
+    /// Moves on to the next segment, which starts where the current one ends: its level, then
+    /// its hold, drawn in turn from the stream.
+    fn draw_segment(&mut self, w: &RandomSteps) {
+        self.start = self.end;
+        self.level = self
+            .stream
+            .uniform_range(w.offset - w.amplitude, w.offset + w.amplitude);
+        self.end += self.stream.uniform_range(w.min_hold, w.max_hold);
+    }
 }
 
 /// Cursor of the PRBS: the register after producing bit `index`, and that bit.
@@ -292,23 +299,17 @@ impl SignalSource {
     /// back).
     pub fn rewind(&mut self) {
         match self.waveform {
-            Waveform::RandomSteps {
-                amplitude,
-                offset,
-                min_hold,
-                max_hold,
-            } => {
-                let mut stream = RandomGenerator::new(self.seed);
-                let level = stream.uniform_range(offset - amplitude, offset + amplitude);
-                let hold = stream.uniform_range(min_hold, max_hold);
-                self.random_steps = Some(RandomStepsCursor {
-                    stream,
+            Waveform::RandomSteps(w) => {
+                let mut cursor = RandomStepsCursor {
+                    stream: RandomGenerator::new(self.seed),
                     start: 0.0,
-                    end: hold,
-                    level,
-                });
+                    end: 0.0,
+                    level: f64::NAN,
+                };
+                cursor.draw_segment(&w);
+                self.random_steps = Some(cursor);
             }
-            Waveform::Prbs { order, .. } => {
+            Waveform::Prbs(Prbs { order, .. }) => {
                 let period = (1u64 << order) - 1;
                 let register = (1 + self.seed % period) as u32;
                 let mut cursor = PrbsCursor {
@@ -341,11 +342,11 @@ impl SignalSource {
 
     fn sample(&mut self, t: f64) -> Result<f64, TooFar> {
         Ok(match self.waveform {
-            Waveform::Step {
+            Waveform::Step(Step {
                 amplitude,
                 offset,
                 step_time,
-            } => {
+            }) => {
                 let tolerance = BOUNDARY_TOLERANCE * step_time.abs().max(1.0);
                 if t >= step_time - tolerance {
                     offset + amplitude
@@ -353,18 +354,10 @@ impl SignalSource {
                     offset
                 }
             }
-            Waveform::RandomSteps {
-                amplitude,
-                offset,
-                min_hold,
-                max_hold,
-            } => {
-                let tolerance = BOUNDARY_TOLERANCE * max_hold;
-                let behind = match &self.random_steps {
-                    Some(c) => t < c.start - tolerance && c.start > 0.0,
-                    None => true,
-                };
-                if behind {
+            Waveform::RandomSteps(w) => {
+                let tolerance = BOUNDARY_TOLERANCE * w.max_hold;
+                let behind = |c: &RandomStepsCursor| t < c.start - tolerance && c.start > 0.0;
+                if self.random_steps.as_ref().is_none_or(behind) {
                     self.rewind();
                 }
                 match self.random_steps.as_mut() {
@@ -375,29 +368,21 @@ impl SignalSource {
                                 return Err(TooFar { t, reached: c.end });
                             }
                             drawn += 1;
-                            c.start = c.end;
-                            c.level = c
-                                .stream
-                                .uniform_range(offset - amplitude, offset + amplitude);
-                            c.end += c.stream.uniform_range(min_hold, max_hold);
+                            c.draw_segment(&w);
                         }
                         c.level
                     }
                     None => f64::NAN,
                 }
             }
-            Waveform::Prbs {
+            Waveform::Prbs(Prbs {
                 order,
                 bit_period,
                 amplitude,
                 offset,
-            } => {
+            }) => {
                 let index = ((t / bit_period + BOUNDARY_TOLERANCE).floor() as i64).max(0);
-                let behind = match &self.prbs {
-                    Some(c) => index < c.index,
-                    None => true,
-                };
-                if behind {
+                if self.prbs.as_ref().is_none_or(|c| index < c.index) {
                     self.rewind();
                 }
                 match self.prbs.as_mut() {
@@ -421,13 +406,13 @@ impl SignalSource {
                     None => f64::NAN,
                 }
             }
-            Waveform::Sinusoid {
+            Waveform::Sinusoid(Sinusoid {
                 function,
                 amplitude,
                 offset,
                 frequency,
                 phase,
-            } => offset + amplitude * function.apply(2.0 * PI * frequency * t + phase),
+            }) => offset + amplitude * function.apply(2.0 * PI * frequency * t + phase),
         })
     }
 }
@@ -446,7 +431,38 @@ fn prbs_shift(cursor: &mut PrbsCursor, order: u32) {
 }
 
 // FMU-state snapshots (plain bytes) of the types above: every field, in order.
-crate::plain_state!(enum Waveform { Step { amplitude, offset, step_time }, RandomSteps { amplitude, offset, min_hold, max_hold }, Prbs { order, bit_period, amplitude, offset }, Sinusoid { function, amplitude, offset, frequency, phase } });
+crate::plain_state!(Step {
+    amplitude,
+    offset,
+    step_time
+});
+crate::plain_state!(RandomSteps {
+    amplitude,
+    offset,
+    min_hold,
+    max_hold
+});
+crate::plain_state!(Prbs {
+    order,
+    bit_period,
+    amplitude,
+    offset
+});
+crate::plain_state!(Sinusoid {
+    function,
+    amplitude,
+    offset,
+    frequency,
+    phase
+});
+crate::plain_state!(
+    enum Waveform {
+        Step(w),
+        RandomSteps(w),
+        Prbs(w),
+        Sinusoid(w),
+    }
+);
 crate::plain_state!(
     enum Trig {
         Sine,
@@ -501,12 +517,12 @@ mod tests {
 
     #[test]
     fn prbs_levels_bits_and_replay() {
-        let w = Waveform::Prbs {
+        let w = Waveform::Prbs(Prbs {
             order: 7,
             bit_period: 0.2,
             amplitude: 1.5,
             offset: 2.0,
-        };
+        });
         let mut s = SignalSource::new(w, 11).unwrap();
         let forward: Vec<f64> = (0..2000).map(|k| s.value_at(k as f64 * 0.05)).collect();
         for v in &forward {
@@ -532,12 +548,12 @@ mod tests {
 
     #[test]
     fn random_steps_are_held_within_range_and_independent_of_sampling() {
-        let w = Waveform::RandomSteps {
+        let w = Waveform::RandomSteps(RandomSteps {
             amplitude: 2.0,
             offset: 5.0,
             min_hold: 1.0,
             max_hold: 3.0,
-        };
+        });
         let mut fine = SignalSource::new(w, 7).unwrap();
         let mut coarse = SignalSource::new(w, 7).unwrap();
         let mut changes = Vec::new();
@@ -572,11 +588,11 @@ mod tests {
     #[test]
     fn step_and_sinusoids() {
         let mut step = SignalSource::new(
-            Waveform::Step {
+            Waveform::Step(Step {
                 amplitude: 2.0,
                 offset: -1.0,
                 step_time: 0.3,
-            },
+            }),
             0,
         )
         .unwrap();
@@ -586,24 +602,24 @@ mod tests {
         assert_eq!(step.value_at(0.1 + 0.2), 1.0);
         let f = frequency_from_period(0.25).unwrap();
         let mut sine = SignalSource::new(
-            Waveform::Sinusoid {
+            Waveform::Sinusoid(Sinusoid {
                 function: Trig::Sine,
                 amplitude: 2.0,
                 offset: 1.0,
                 frequency: f,
                 phase: 0.0,
-            },
+            }),
             0,
         )
         .unwrap();
         let mut cosine = SignalSource::new(
-            Waveform::Sinusoid {
+            Waveform::Sinusoid(Sinusoid {
                 function: Trig::Cosine,
                 amplitude: 2.0,
                 offset: 1.0,
                 frequency: f,
                 phase: -PI / 2.0,
-            },
+            }),
             0,
         )
         .unwrap();
@@ -619,23 +635,23 @@ mod tests {
     #[test]
     fn far_samples_take_bounded_work() {
         // PRBS: a sample 10¹² bit periods on equals the one a whole number of periods back
-        let prbs = Waveform::Prbs {
+        let prbs = Waveform::Prbs(Prbs {
             order: 24,
             bit_period: 1e-300,
             amplitude: 1.0,
             offset: 0.0,
-        };
+        });
         let mut far = SignalSource::new(prbs, 3).unwrap();
         let start = std::time::Instant::now();
         let v = far.value_at(1e300);
         assert!(v == 1.0 || v == -1.0, "{v}");
         let mut slow = SignalSource::new(
-            Waveform::Prbs {
+            Waveform::Prbs(Prbs {
                 order: 7,
                 bit_period: 1.0,
                 amplitude: 1.0,
                 offset: 0.0,
-            },
+            }),
             5,
         )
         .unwrap();
@@ -645,12 +661,12 @@ mod tests {
         assert!(start.elapsed().as_secs_f64() < 5.0);
         // random steps: 10¹² s of holds of 1 s to 5 s is refused, not drawn
         let mut random = SignalSource::new(
-            Waveform::RandomSteps {
+            Waveform::RandomSteps(RandomSteps {
                 amplitude: 1.0,
                 offset: 0.0,
                 min_hold: 1.0,
                 max_hold: 5.0,
-            },
+            }),
             1,
         )
         .unwrap();
@@ -670,67 +686,67 @@ mod tests {
     fn bad_parameters_are_named() {
         let err = |w: Waveform| SignalSource::new(w, 0).unwrap_err().parameter;
         assert_eq!(
-            err(Waveform::Prbs {
+            err(Waveform::Prbs(Prbs {
                 order: 1,
                 bit_period: 1.0,
                 amplitude: 1.0,
                 offset: 0.0
-            }),
+            })),
             "order"
         );
         assert_eq!(
-            err(Waveform::Prbs {
+            err(Waveform::Prbs(Prbs {
                 order: 5,
                 bit_period: 0.0,
                 amplitude: 1.0,
                 offset: 0.0
-            }),
+            })),
             "bit_period"
         );
         assert_eq!(
-            err(Waveform::RandomSteps {
+            err(Waveform::RandomSteps(RandomSteps {
                 amplitude: 1.0,
                 offset: 0.0,
                 min_hold: -1.0,
                 max_hold: 1.0
-            }),
+            })),
             "min_hold"
         );
         assert_eq!(
-            err(Waveform::RandomSteps {
+            err(Waveform::RandomSteps(RandomSteps {
                 amplitude: 1.0,
                 offset: 0.0,
                 min_hold: 2.0,
                 max_hold: 1.0
-            }),
+            })),
             "max_hold"
         );
         assert_eq!(
-            err(Waveform::Sinusoid {
+            err(Waveform::Sinusoid(Sinusoid {
                 function: Trig::Sine,
                 amplitude: f64::NAN,
                 offset: 0.0,
                 frequency: 1.0,
                 phase: 0.0
-            }),
+            })),
             "amplitude"
         );
         assert_eq!(
-            err(Waveform::Sinusoid {
+            err(Waveform::Sinusoid(Sinusoid {
                 function: Trig::Cosine,
                 amplitude: 1.0,
                 offset: 0.0,
                 frequency: -1.0,
                 phase: 0.0
-            }),
+            })),
             "frequency"
         );
         assert_eq!(
-            err(Waveform::Step {
+            err(Waveform::Step(Step {
                 amplitude: 1.0,
                 offset: 0.0,
                 step_time: f64::INFINITY
-            }),
+            })),
             "step_time"
         );
         assert_eq!(frequency_from_period(0.0).unwrap_err().parameter, "period");

@@ -26,7 +26,9 @@
 //! [`spurio::signals::source::MAX_SEGMENTS_PER_SAMPLE`] holds (a start time of 10¹² s with
 //! holds of seconds) is an error naming the time, not a hang.
 
-use spurio::signals::source::{frequency_from_period, SignalSource, Trig, Waveform};
+use spurio::signals::source::{
+    frequency_from_period, Prbs, RandomSteps, SignalSource, Sinusoid, Step, Trig, Waveform,
+};
 use spurio::ParameterError;
 use spurio_export::rows::parameter;
 use spurio_export::{
@@ -104,26 +106,26 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
         )));
     }
     let periodic = |function: Trig| -> Result<Waveform, Failure> {
-        Ok(Waveform::Sinusoid {
+        Ok(Waveform::Sinusoid(Sinusoid {
             function,
             amplitude,
             offset,
             frequency: frequency_from_period(v.real(vr::PERIOD)).map_err(named)?,
             phase: v.real(vr::PHASE),
-        })
+        }))
     };
     let w = match v.integer(vr::WAVEFORM) {
-        waveform::STEP => Waveform::Step {
+        waveform::STEP => Waveform::Step(Step {
             amplitude,
             offset,
             step_time: v.real(vr::STEP_TIME),
-        },
-        waveform::RANDOM_STEPS => Waveform::RandomSteps {
+        }),
+        waveform::RANDOM_STEPS => Waveform::RandomSteps(RandomSteps {
             amplitude,
             offset,
             min_hold: v.real(vr::MIN_HOLD),
             max_hold: v.real(vr::MAX_HOLD),
-        },
+        }),
         waveform::PRBS => {
             let order = v.integer(vr::PRBS_ORDER);
             if !(2..=24).contains(&order) {
@@ -131,12 +133,12 @@ fn read_waveform(ctx: &Context) -> Result<(Waveform, u64), Failure> {
                     "parameter `prbs_order`: must be between 2 and 24, got {order}"
                 )));
             }
-            Waveform::Prbs {
+            Waveform::Prbs(Prbs {
                 order: order as u32,
                 bit_period: v.real(vr::BIT_PERIOD),
                 amplitude,
                 offset,
-            }
+            })
         }
         waveform::SINE => periodic(Trig::Sine)?,
         waveform::COSINE => periodic(Trig::Cosine)?,

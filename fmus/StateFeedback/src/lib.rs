@@ -203,6 +203,7 @@ spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", cra
 mod tests {
     use super::*;
     use nalgebra::DMatrix;
+    use spurio_export::harness::Harness;
     use spurio_export::types::Status;
     use spurio_export::Values;
     use spurio_fmu_common::crane_controller_config as crane_config;
@@ -279,13 +280,17 @@ mod tests {
         assert_eq!(ctx.values.real(layout.u), -17.0);
     }
 
-    #[test]
-    fn the_output_holds_between_sample_instants() {
-        use spurio_export::harness::Harness;
+    /// The crane variant through the C API, and the value reference of a variable name.
+    fn crane_harness() -> (Harness<StateFeedbackFmu>, impl Fn(&str) -> u32) {
         let config = crane_config();
         let info = StateFeedbackFmu::describe(&config).unwrap();
-        let vr = |name: &str| info.index_of(name).unwrap() as u32;
-        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        let vr = move |name: &str| info.index_of(name).unwrap() as u32;
+        (Harness::new(&config).unwrap(), vr)
+    }
+
+    #[test]
+    fn the_output_holds_between_sample_instants() {
+        let (mut h, vr) = crane_harness();
         h.set_real(&[vr("sample_period")], &[0.1]).unwrap();
         h.initialize(0.0).unwrap();
         let l1 = h.real(vr("L[1,1]")).unwrap();
@@ -305,11 +310,7 @@ mod tests {
 
     #[test]
     fn bad_poles_are_named_through_the_c_api() {
-        use spurio_export::harness::Harness;
-        let config = crane_config();
-        let info = StateFeedbackFmu::describe(&config).unwrap();
-        let vr = |name: &str| info.index_of(name).unwrap() as u32;
-        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        let (mut h, vr) = crane_harness();
         h.set_real(&[vr("pole_im[2]")], &[0.3]).unwrap();
         assert_eq!(h.initialize(0.0), Err(Status::Error));
         let log = h.log();
@@ -319,7 +320,7 @@ mod tests {
                 && t.contains("conjugate")),
             "{log:?}"
         );
-        let mut h = Harness::<StateFeedbackFmu>::new(&config).unwrap();
+        let (mut h, _) = crane_harness();
         assert_eq!(h.initialize(0.0), Ok(Status::Ok));
         h.set_real(&[vr("x_hat[2]")], &[0.01]).unwrap();
         let u = h.real(vr("u[1]")).unwrap();

@@ -54,8 +54,76 @@ pub fn crane_controller_config() -> Config {
 /// What [`fmu_state!`] expands to refers to.
 #[doc(hidden)]
 pub mod reexport {
+    pub use spurio::ode::check_substeps;
     pub use spurio::state::PlainState;
-    pub use spurio_export::{ByteReader, ByteWriter, Cause};
+    pub use spurio_export::{ByteReader, ByteWriter, Cause, Context};
+}
+
+/// Implements `FmuModel::check_step`, inside `impl FmuModel for …`, for a plant integrated in
+/// RK4 substeps of at most `self.<h_max>`: a communication step that would need more substeps
+/// than one call may take ([`spurio::ode::check_substeps`]) is refused before anything moves.
+#[macro_export]
+macro_rules! rk4_check_step {
+    ($h_max:ident) => {
+        fn check_step(
+            &self,
+            _ctx: &$crate::reexport::Context,
+            _time: f64,
+            step: f64,
+        ) -> ::std::result::Result<(), $crate::reexport::Cause> {
+            $crate::reexport::check_substeps(step, self.$h_max)?;
+            ::std::result::Result::Ok(())
+        }
+    };
+}
+
+/// The check every RK4 plant FMU passes, on a harness `h` initialised with `h_max` = 1 ns: a
+/// step of `long_step` and one of 1e308 s, each needing more substeps than one call may take,
+/// are refused at once (in well under 0.1 s) with `fmi2Error`, and the log names the step, `h_max`
+/// and the bound. What went otherwise is the error. The caller checks that the FMU stayed where
+/// it was.
+pub fn refuses_too_many_substeps<M: spurio_export::FmuModel>(
+    h: &mut spurio_export::harness::Harness<M>,
+    long_step: f64,
+) -> Result<(), String> {
+    for step in [long_step, 1e308] {
+        let start = std::time::Instant::now();
+        let status = h.do_step(0.0, step);
+        if status != Err(spurio_export::types::Status::Error) {
+            return Err(format!("a step of {step} s gave {status:?}, not fmi2Error"));
+        }
+        let took = start.elapsed().as_secs_f64();
+        if took >= 0.1 {
+            return Err(format!("refusing a step of {step} s took {took} s"));
+        }
+        let words = [
+            "fmi2DoStep: step refused",
+            "h_max = 0.000000001",
+            "more than the 100000",
+        ];
+        if !h.logged(&words) {
+            return Err(format!("{words:?} not all in the log {:?}", h.log()));
+        }
+    }
+    Ok(())
+}
+
+/// One communication step of a plant, taken on a copy by `advance`: the copy replaces `plant`
+/// only if `finite` holds for it; otherwise the step fails with the message `non_finite()` and
+/// `plant` is left as it was.
+pub fn advance_finite<P: Clone>(
+    plant: &mut P,
+    advance: impl FnOnce(&mut P),
+    finite: impl FnOnce(&P) -> bool,
+    non_finite: impl FnOnce() -> String,
+) -> Result<(), Failure> {
+    let mut next = plant.clone();
+    advance(&mut next);
+    if !finite(&next) {
+        return Err(Failure::error(non_finite()));
+    }
+    *plant = next;
+    Ok(())
 }
 
 /// Implements `FmuModel::save_state` and `load_state`, inside `impl FmuModel for …`, as the
