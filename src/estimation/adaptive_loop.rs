@@ -17,7 +17,7 @@
 //! seconds in release); `scripts/long-run-adaptive` runs the 10⁷-sample table (ignored test
 //! `long_run_table`).
 
-use super::{AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter};
+use super::{AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement};
 use super::{GaussianModel, InfluenceFunction, RobustKalmanFilter};
 use crate::control::crane::{crane_reference_design, CRANE_SAMPLE_TIME};
 use crate::control::state_feedback::InputLimits;
@@ -37,6 +37,15 @@ struct Setup {
     /// Samples each dither level is held.
     hold: u64,
     seed: u64,
+    /// Rows of [A B] fixed (structural knowledge): 0 = none (the TOML), 2 = the kinematic
+    /// rows 1–2, set to the true ZOH values.
+    known_rows: usize,
+    /// The state filter's process variance on the velocity states 3–4 (the TOML: 1e-4).
+    velocity_q: f64,
+    measurement: ParameterMeasurement,
+    /// Σ₀ and Q_θ of every entry of [A B] (the TOML: 1, 1e-6).
+    theta_p0: f64,
+    theta_q: f64,
 }
 
 impl Setup {
@@ -48,6 +57,11 @@ impl Setup {
             dither: 0.0,
             hold: 10,
             seed: 1,
+            known_rows: 0,
+            velocity_q: 1e-4,
+            measurement: ParameterMeasurement::FilteredState,
+            theta_p0: 1.0,
+            theta_q: 1e-6,
         }
     }
 }
@@ -135,8 +149,13 @@ fn run(setup: &Setup) -> Outcome {
         cart_friction: exact.cart_friction * 0.8,
         ..exact
     };
-    let (a0, b0) = zoh(&wrong);
+    let (mut a0, mut b0) = zoh(&wrong);
     let (a_true, b_true) = zoh(&exact);
+    let known: Vec<usize> = (0..setup.known_rows).collect();
+    for &i in &known {
+        a0.row_mut(i).copy_from(&a_true.row(i));
+        b0.row_mut(i).copy_from(&b_true.row(i));
+    }
     let truth = dynamics_rows(&a_true, &b_true);
     let x0 = DVector::from_vec(vec![0.2, 0.0, 0.0, 0.0]);
     let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
@@ -150,9 +169,14 @@ fn run(setup: &Setup) -> Outcome {
         x0: x0.clone(),
         p0: DMatrix::identity(4, 4) * 1e-4,
     });
+    config.initial.q[(2, 2)] = setup.velocity_q;
+    config.initial.q[(3, 3)] = setup.velocity_q;
     // The papers' parameter filter, as the TOML: q_θ = 1e-6, Σ₀ = 1, r_θ = 0.5 (the defaults).
     config.bounds = setup.bounds;
-    let dual = DualKalmanFilter::new(config.fix_output_matrices()).unwrap();
+    config.measurement = setup.measurement;
+    config.parameter_p0.fill(setup.theta_p0);
+    config.parameter_q.fill(setup.theta_q);
+    let dual = DualKalmanFilter::new(config.fix_output_matrices().fix_state_rows(&known)).unwrap();
     let eye = DMatrix::<f64>::identity(2, 2);
     let cleaner = RobustKalmanFilter::new(
         GaussianModel {
@@ -223,7 +247,10 @@ fn run(setup: &Setup) -> Outcome {
     let (a, b) = (dual.a(), dual.b());
     controller.update(&a, &b);
     let model = dynamics_rows(&a, &b);
-    let max_sigma = dual.parameter_covariance(0).unwrap().diagonal().amax();
+    let max_sigma = match dual.output_error_covariance() {
+        Some(sigma) => sigma.diagonal().amax(),
+        None => dual.parameter_covariance(0).unwrap().diagonal().amax(),
+    };
     Outcome {
         b11: b[(0, 0)],
         a44: a[(3, 3)],
@@ -347,9 +374,24 @@ fn a_dither_opens_the_gate_and_the_loop_identifies() {
     assert!(o.model_error < 0.13, "rows 3–4 error {}", o.model_error);
 }
 
+/// The structured loop: the kinematic rows 1–2 of [A B] known (the true ZOH values), the
+/// output-error parameter filter (Σ₀ = 1e-2, Q_θ = 1e-9 on the free rows 3–4), the gate of
+/// [`gate`], a ±`dither` N PRBS held 0.5 s (0: none).
+fn identifying(samples: u64, dither: f64, seed: u64) -> Setup {
+    Setup {
+        known_rows: 2,
+        measurement: ParameterMeasurement::OutputError,
+        theta_p0: 1e-2,
+        theta_q: 1e-9,
+        dither,
+        seed,
+        ..dithered(samples, gate())
+    }
+}
+
 /// The 10⁷-sample table of docs/estimators.md §2.9 (`scripts/long-run-adaptive`; 2–4
-/// minutes per row in release, 17 min for the four on a busy 2-core machine).
-/// `SPURIO_LONG_RUN_SAMPLES` changes the length, `SPURIO_LONG_RUN_ROW` picks one row (0–3).
+/// minutes per row in release, 17 min for the first four on a busy 2-core machine).
+/// `SPURIO_LONG_RUN_SAMPLES` changes the length, `SPURIO_LONG_RUN_ROW` picks one row (0–5).
 #[test]
 #[ignore = "long run: scripts/long-run-adaptive"]
 fn long_run_table() {
@@ -372,6 +414,14 @@ fn long_run_table() {
             "bounded adaptation, dither ±0.05 N",
             dithered(samples, gate()),
         ),
+        (
+            "known rows 1–2 + output error, no dither",
+            identifying(samples, 0.0, 1),
+        ),
+        (
+            "known rows 1–2 + output error, dither",
+            identifying(samples, 0.05, 1),
+        ),
     ];
     println!("{samples} samples of Ts = 0.05 s");
     let only: Option<usize> = std::env::var("SPURIO_LONG_RUN_ROW")
@@ -385,8 +435,63 @@ fn long_run_table() {
         show(label, &o);
         assert!(o.b11.is_finite() && o.a44.is_finite() && o.l12.is_finite());
         if setup.bounds == gate() && setup.dither == 0.0 {
+            // Frozen at rest with either parameter filter.
             assert_eq!(o.theta_end, o.theta_early, "{label}: Θ̂ frozen at rest");
             assert!(o.max_sigma <= 1.0, "{label}: Σ = {}", o.max_sigma);
         }
     }
+}
+
+/// L* of the reference design on the true model: L[1,2] = 1.132.
+const L12_TRUE: f64 = 1.132;
+
+#[test]
+fn known_rows_and_the_output_error_filter_identify_a_and_b() {
+    // Measured (1e5 samples, seeds 1–3): rows 3–4 error 0.0251–0.0260 (from 0.124), gain
+    // error 0.138–0.154, impulse-response error 0.085–0.093, L[1,2] 1.33–1.38 (L* 1.132).
+    let (a_true, b_true) = zoh(&GantryCraneParameters::default());
+    for seed in [1, 2, 3] {
+        let o = run(&identifying(100_000, 0.05, seed));
+        show(
+            &format!("known rows + output error + dither, seed {seed}"),
+            &o,
+        );
+        assert!(
+            o.model_error < 0.035,
+            "seed {seed}: rows 3–4 error {}",
+            o.model_error
+        );
+        assert!(
+            o.gain_error < 0.2,
+            "seed {seed}: gain error {}",
+            o.gain_error
+        );
+        assert!(
+            o.markov_error < 0.12,
+            "seed {seed}: impulse-response error {}",
+            o.markov_error
+        );
+        assert!(
+            (o.l12 - L12_TRUE).abs() < 0.3,
+            "seed {seed}: L[1,2] = {}",
+            o.l12
+        );
+        assert!(
+            o.late_x < 0.1 && o.late_theta < 0.05 && o.late_u < 0.2,
+            "{o:?}"
+        );
+        // Rows 1–2 are the truth's, bit for bit.
+        assert_eq!(o.theta_end.view((0, 0), (2, 4)), a_true.rows(0, 2));
+        assert_eq!(o.theta_end.view((0, 4), (2, 1)), b_true.rows(0, 2));
+    }
+    // Without the dither the gate keeps the initial model.
+    let o = run(&identifying(100_000, 0.0, 1));
+    show("known rows + output error, no dither", &o);
+    assert_eq!(o.theta_end, o.theta_early, "Θ̂ frozen at rest");
+    assert!(
+        (o.model_error - 0.1241).abs() < 1e-3,
+        "rows 3–4 error {}",
+        o.model_error
+    );
+    assert!(o.frozen > 99_000, "frozen {}", o.frozen);
 }

@@ -46,6 +46,30 @@
 //!   A non-negative diagonal keeps Σ⁻ positive semidefinite; Σ's diagonal never exceeds
 //!   max(Σ₀, σ²_max) (the measurement update only shrinks it).
 //!
+//! **Identifying A and B** (docs/estimators.md §2.9, "Identifying A and B"; both off by
+//! default). In the papers' filter the prediction error of the rows of A and B,
+//! x̂_k − Â x̂_{k−1} − B̂ u_{k−1}, is the state filter's correction K e_k: the filtered states
+//! follow the model they are filtered with, and regressing them on themselves returns that
+//! model (the adaptive crane with a dither keeps its rows 3–4 error at 0.124). Two options:
+//!
+//! * **Known rows** ([`DualKalmanConfig::fix_state_rows`]): rows of [A B] fixed at their
+//!   initial values. With C = [I 0] known the model is unique only up to x ↦ T x with
+//!   T = [I 0; T₂₁ T₂₂]; known rows [A₁₁ A₁₂] with A₁₂ invertible leave T = I.
+//! * **Output-error parameter filter** ([`ParameterMeasurement::OutputError`], the dual EKF
+//!   of Haykin ch. 5): on the free entries ϑ of [A B] (C, D must be known), with the
+//!   sensitivity S_k = ∂x̂_k/∂ϑ (S₀ = 0) and J(Φ) = ∂(Â x + B̂ u)/∂ϑ at Φ = [x̂_{k−1}; u_{k−1}]
+//!   (column of entry (i, j): Φ_j in row i), after the state filter's correction:
+//!
+//!   ```text
+//!   S⁻ = Â S_{k−1} + J(Φ),   H = Ĉ S⁻                        (p × nϑ)
+//!   Σ⁻ = Σ + diag(q̃),  Γ = H Σ⁻ Hᵀ + Ĉ P⁻ Ĉᵀ + R,  G = Σ⁻ Hᵀ Γ⁻¹
+//!   ϑ ← ϑ + G e_k   (e_k = y_k − Ĉ x⁻ − D̂ u_k, the state filter's innovation)
+//!   Σ = Σ⁻ − G H Σ⁻,   S_k = (I − K Ĉ) S⁻   (K: the state filter's gain; dK/dϑ neglected)
+//!   ```
+//!
+//!   The gate and the variance bound act as above (a frozen step still propagates S).
+//!   Σ₀ and Q_θ of the free entries come from `parameter_p0`, `parameter_q`; R_θ is unused.
+//!
 //! Identifiability: (A, B, C, D) from output data alone is defined only up to a similarity
 //! transform x ↦ T x. Fix C and D (zero Q_θ and Σ₀ on their rows, see
 //! [`DualKalmanConfig::fix_output_matrices`]) or measure the states (C = I) so the truth is
@@ -79,6 +103,20 @@ pub struct DualKalmanConfig {
     pub parameter_r: DVector<f64>,
     /// The bounds on the parameter filter's adaptation (module documentation). Default: none.
     pub bounds: AdaptationBounds,
+    /// The parameter filter's measurement (module documentation, "Output-error parameter
+    /// filter"). Default [`ParameterMeasurement::FilteredState`] (papers).
+    pub measurement: ParameterMeasurement,
+}
+
+/// What the parameter filter takes as its measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ParameterMeasurement {
+    /// The papers' filter: Y = [x̂_k; y_{k−1}] against Φ = [x̂_{k−1}; u_{k−1}], row by row.
+    #[default]
+    FilteredState,
+    /// The dual EKF's output error (Haykin ch. 5): the state filter's innovation
+    /// e_k = y_k − Ĉ x⁻_k against its recurrent sensitivity to the free entries of [A B].
+    OutputError,
 }
 
 /// Bounds on the parameter filter (see the module documentation, "Bounded adaptation").
@@ -150,7 +188,26 @@ impl DualKalmanConfig {
             parameter_p0: DMatrix::from_element(rows, cols, 1.0),
             parameter_r: DVector::from_element(rows, 0.5),
             bounds: AdaptationBounds::default(),
+            measurement: ParameterMeasurement::default(),
         }
+    }
+
+    /// Marks rows of [A B] as known (structural knowledge, docs/estimators.md §2.9, "Known
+    /// rows"): zero Q_θ and Σ₀ on row i of Θ for every i in `rows` (< n), so
+    /// [Â B̂]ᵢ = [A₀ B₀]ᵢ forever. Rows out of range are ignored.
+    ///
+    /// With C known the model is defined only up to x ↦ T x with C T = C; fixing rows of A
+    /// removes that freedom when the fixed rows and C together pin T. For the crane
+    /// (C = [I 0], x = [x, θ, v, ω]) fixing the kinematic rows 1–2 of A, whose velocity block
+    /// A₁₂ is invertible (≈ Ts I), leaves T = I only: from [A₁₁ A₁₂] T⁻¹ = [A₁₁ A₁₂] follow
+    /// T₂₁ = 0 and T₂₂ = I. The velocity rows 3–4 are then unique.
+    pub fn fix_state_rows(mut self, rows: &[usize]) -> Self {
+        let n = self.initial.a.nrows();
+        for &row in rows.iter().filter(|r| **r < n) {
+            self.parameter_q.row_mut(row).fill(0.0);
+            self.parameter_p0.row_mut(row).fill(0.0);
+        }
+        self
     }
 
     /// Marks C and D as known: zero Q_θ and Σ₀ on their rows, so Ĉ = C₀ and D̂ = D₀ forever.
@@ -200,6 +257,23 @@ pub struct DualKalmanFilter {
     excitation: f64,
     /// Parameter steps skipped by the excitation gate.
     frozen_steps: u64,
+    /// The output-error parameter filter, when configured.
+    output_error: Option<OutputErrorFilter>,
+}
+
+/// The output-error parameter filter (module documentation, "Output-error parameter
+/// filter") on the free entries ϑ of [A B].
+#[derive(Debug, Clone)]
+struct OutputErrorFilter {
+    /// (row, column) in Θ of every free entry.
+    entries: Vec<(usize, usize)>,
+    q_diag: DVector<f64>,
+    /// Σ (nϑ×nϑ).
+    sigma: DMatrix<f64>,
+    /// S_{k−1} = ∂x̂_{k−1}/∂ϑ (n×nϑ).
+    sensitivity: DMatrix<f64>,
+    /// S⁻_k (n×nϑ).
+    sensitivity_prior: DMatrix<f64>,
 }
 
 impl DualKalmanFilter {
@@ -212,6 +286,7 @@ impl DualKalmanFilter {
             parameter_p0,
             parameter_r,
             bounds,
+            measurement,
         } = config;
         bounds.validate()?;
         let n = initial.a.nrows();
@@ -260,6 +335,38 @@ impl DualKalmanFilter {
         theta.view_mut((n, n), (p, m)).copy_from(&initial.d);
         require_finite_matrix("Theta0", &theta)?;
 
+        let output_error = match measurement {
+            ParameterMeasurement::FilteredState => None,
+            ParameterMeasurement::OutputError => {
+                let fixed =
+                    |r: usize, c: usize| parameter_q[(r, c)] == 0.0 && parameter_p0[(r, c)] == 0.0;
+                if (n..rows).any(|r| (0..cols).any(|c| !fixed(r, c))) {
+                    return Err(parameter_error(
+                        "Q_theta",
+                        "the output-error parameter filter needs C and D known (zero Q_theta and P0_theta on their rows)",
+                    ));
+                }
+                let entries: Vec<(usize, usize)> = (0..n)
+                    .flat_map(|r| (0..cols).map(move |c| (r, c)))
+                    .filter(|&(r, c)| !fixed(r, c))
+                    .collect();
+                let count = entries.len();
+                Some(OutputErrorFilter {
+                    q_diag: DVector::from_iterator(
+                        count,
+                        entries.iter().map(|&(r, c)| parameter_q[(r, c)]),
+                    ),
+                    sigma: DMatrix::from_diagonal(&DVector::from_iterator(
+                        count,
+                        entries.iter().map(|&(r, c)| parameter_p0[(r, c)]),
+                    )),
+                    sensitivity: DMatrix::zeros(n, count),
+                    sensitivity_prior: DMatrix::zeros(n, count),
+                    entries,
+                })
+            }
+        };
+
         let mut groups: Vec<ParameterGroup> = Vec::new();
         for row in 0..rows {
             let q_row = parameter_q.row(row).transpose();
@@ -301,6 +408,7 @@ impl DualKalmanFilter {
             moment: DMatrix::zeros(cols, cols),
             excitation: 0.0,
             frozen_steps: 0,
+            output_error,
         })
     }
 
@@ -327,6 +435,17 @@ impl DualKalmanFilter {
             self.predicted_output -= &self.core.innovation;
             self.core.correct(&c, &self.c_t, &self.r)?;
             self.core.finish(&c, &d, u);
+        }
+
+        if self.output_error.is_some() {
+            // 2'. Output-error parameter filter on the innovation of this sample.
+            let excited = self.core.steps > 1 && self.excited();
+            if self.core.steps > 1 && !excited {
+                self.frozen_steps += 1;
+            }
+            self.update_output_error(excited)?;
+            self.y_prev.copy_from(y);
+            return Ok(());
         }
 
         // 2. Parameter filter on (Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}]).
@@ -379,6 +498,60 @@ impl DualKalmanFilter {
             0.0
         };
         self.excitation >= self.bounds.excitation_min
+    }
+
+    /// One step of the output-error parameter filter (after the state filter's correction
+    /// with Θ̂_{k−1}): S⁻ = Â S + J(Φ), H = Ĉ S⁻, then, when `excited`, the Kalman update of ϑ
+    /// with the innovation e_k and its covariance Ĉ P⁻ Ĉᵀ + R; finally S = (I − K Ĉ) S⁻.
+    fn update_output_error(&mut self, excited: bool) -> Result<(), EstimationError> {
+        let (n, p) = (self.n, self.p);
+        let Some(oe) = self.output_error.as_mut() else {
+            return Ok(());
+        };
+        let a = self.theta.view((0, 0), (n, n));
+        let c = self.theta.view((n, 0), (p, n)).into_owned();
+        oe.sensitivity_prior.gemm(1.0, &a, &oe.sensitivity, 0.0);
+        for (e, &(row, col)) in oe.entries.iter().enumerate() {
+            oe.sensitivity_prior[(row, e)] += self.regressor[col];
+        }
+        if excited {
+            let cap = self.bounds.max_variance;
+            for (i, q) in oe.q_diag.iter().enumerate() {
+                let room = (cap - oe.sigma[(i, i)]).max(0.0);
+                oe.sigma[(i, i)] += q.min(room);
+            }
+            let h = &c * &oe.sensitivity_prior;
+            let sigma_ht = &oe.sigma * h.transpose();
+            let mut s = &c * &self.core.p_prior * c.transpose() + &self.r + &h * &sigma_ht;
+            symmetrize_in_place(&mut s);
+            // Gᵀ = S⁻¹ H Σ⁻.
+            let mut gain_t = sigma_ht.transpose();
+            super::cholesky_solve_in_place(
+                &mut s,
+                &mut gain_t,
+                "output-error innovation covariance H Σ Hᵀ + C P⁻ Cᵀ + R",
+                self.core.steps,
+            )?;
+            let delta = gain_t.tr_mul(&self.core.innovation);
+            for (e, &(row, col)) in oe.entries.iter().enumerate() {
+                self.theta[(row, col)] += delta[e];
+            }
+            // Σ = Σ⁻ − G H Σ⁻.
+            oe.sigma -= gain_t.tr_mul(&sigma_ht.transpose());
+            symmetrize_in_place(&mut oe.sigma);
+            if self.theta.iter().any(|v| !v.is_finite()) || oe.sigma.iter().any(|v| !v.is_finite())
+            {
+                return Err(EstimationError::NonFinite {
+                    what: "parameter estimate Θ or its covariance",
+                    step: self.core.steps,
+                });
+            }
+        }
+        // S = (I − K C) S⁻, K = (Kᵀ)ᵀ.
+        let kc = self.core.gain_t.tr_mul(&c);
+        oe.sensitivity.copy_from(&oe.sensitivity_prior);
+        oe.sensitivity.gemm(-1.0, &kc, &oe.sensitivity_prior, 1.0);
+        Ok(())
     }
 
     fn update_parameters(&mut self) -> Result<(), EstimationError> {
@@ -477,6 +650,11 @@ impl DualKalmanFilter {
             .find(|g| g.rows.contains(&row))
             .map(|g| &g.sigma)
     }
+    /// Covariance Σ of the free entries of [A B] (in row-major order of Θ) of the output-error
+    /// parameter filter, when configured.
+    pub fn output_error_covariance(&self) -> Option<&DMatrix<f64>> {
+        self.output_error.as_ref().map(|oe| &oe.sigma)
+    }
     /// Number of steps processed.
     pub fn steps(&self) -> u64 {
         self.core.steps
@@ -525,6 +703,10 @@ impl Saved for DualKalmanFilter {
         out.extend_from_slice(self.moment.as_slice());
         out.push(self.excitation);
         out.push(self.frozen_steps as f64);
+        if let Some(oe) = &self.output_error {
+            out.extend_from_slice(oe.sigma.as_slice());
+            out.extend_from_slice(oe.sensitivity.as_slice());
+        }
     }
 
     fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
@@ -546,6 +728,12 @@ impl Saved for DualKalmanFilter {
         }
         self.excitation = excitation;
         self.frozen_steps = input.counter()?;
+        if let Some(oe) = &mut self.output_error {
+            input.fill(oe.sigma.as_mut_slice())?;
+            input.fill(oe.sensitivity.as_mut_slice())?;
+            require_finite_matrix("state: output-error covariance", &oe.sigma)?;
+            require_finite_matrix("state: output-error sensitivity", &oe.sensitivity)?;
+        }
         Ok(())
     }
 }
@@ -870,6 +1058,41 @@ mod tests {
         bad[at] = f64::NAN;
         let e = copy.set_dynamic_state(&bad).unwrap_err();
         assert!(e.to_string().contains("excitation"), "{e}");
+    }
+
+    /// The output-error filter with C = I: every entry of [A B] free, learnt from the
+    /// innovation; its Σ and sensitivity travel with the dynamic state; free C is refused.
+    #[test]
+    fn the_output_error_filter_recovers_the_system_and_round_trips() {
+        let t = truth();
+        let oe_config = || {
+            let mut cfg = config(1e-4);
+            cfg.parameter_p0.rows_mut(0, 2).fill(1e-1);
+            cfg.measurement = ParameterMeasurement::OutputError;
+            cfg
+        };
+        let mut dkf = DualKalmanFilter::new(oe_config()).unwrap();
+        let data = simulate(11, 3000, 0.01, 0.01, 0.0);
+        for (u, _, y) in &data[..1500] {
+            dkf.step(u, y).unwrap();
+        }
+        let state = dkf.dynamic_state();
+        let mut copy = DualKalmanFilter::new(oe_config()).unwrap();
+        copy.set_dynamic_state(&state).unwrap();
+        for (u, _, y) in &data[1500..] {
+            dkf.step(u, y).unwrap();
+            copy.step(u, y).unwrap();
+        }
+        assert_eq!(copy.theta(), dkf.theta());
+        let a_error = (dkf.a() - &t.a).amax();
+        let b_error = (dkf.b() - &t.b).amax();
+        assert!(a_error < 0.02, "Â = {}", dkf.a());
+        assert!(b_error < 0.02, "B̂ = {}", dkf.b());
+        assert_eq!(dkf.output_error_covariance().unwrap().nrows(), 6);
+        let mut free_c = oe_config();
+        free_c.parameter_p0.fill(1.0);
+        let e = DualKalmanFilter::new(free_c).unwrap_err();
+        assert!(e.to_string().contains("C and D known"), "{e}");
     }
 
     /// [`config`] with the excitation gate on (ε_min = 1e-2 over 10 samples).

@@ -32,7 +32,9 @@ mod rls;
 mod robust;
 
 pub use distributed::{DistributedObserver, DistributedObserverConfig, ObserverDesign};
-pub use dual::{AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter};
+pub use dual::{
+    AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
+};
 pub use estimator::StateEstimator;
 pub use kalman::{GaussianModel, KalmanFilter};
 pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};

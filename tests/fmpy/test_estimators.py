@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2True, fmi2ValueReference
 from fmpy.validation import validate_fmu
 
-from conftest import LogSink, REPO, assert_set_rejected, fmu_path, init, make_callbacks, open_initialized_pair, open_slave
+from conftest import LogSink, REPO, assert_set_rejected, fmu_path, init, make_callbacks, open_initialized_pair, open_slave, set_values
 
 VARIANTS = [
     "KalmanFilter",
@@ -181,6 +181,31 @@ def expect_init_error(name, settings, *fragments, integers=None):
     assert any(all(f in t for f in fragments) for t in errors), errors
     slave.freeInstance()
     return errors
+
+
+@pytest.mark.parametrize("name", ["DualKalmanFilter", "DkfRsKf"])
+def test_known_rows_stay_and_the_output_error_filter_learns_the_rest(name):
+    """known_rows = 2 keeps rows 1–2 of [Â B̂] at A, B exactly; output_error moves rows 3–4
+    (docs/estimators.md §2.9, "Identifying A and B"); known_rows > n is refused."""
+    slave, vr, sink = open_slave(name)
+    set_values(slave, vr, {"known_rows": 2, "output_error": True, "A[1,3]": 0.05, "p0_theta": 1e-2})
+    init(slave)
+    driver = Driver(slave, [vr["u[1]"], vr["y[1]"], vr["y[2]"]],
+                    [vr[f"A_hat[{i},{j}]"] for i in range(1, 5) for j in range(1, 5)]
+                    + [vr[f"B_hat[{i},1]"] for i in range(1, 5)], 0.05)
+    for k in range(400):
+        t = 0.05 * k
+        out = driver.step([1.0 if (k // 10) % 2 == 0 else -1.0, 0.1 * np.sin(t), 0.05 * np.cos(2 * t)])
+    a = np.array(out[:16]).reshape(4, 4)
+    b = np.array(out[16:])
+    assert a[0].tolist() == [1.0, 0.0, 0.05, 0.0] and a[1].tolist() == [0.0, 1.0, 0.0, 0.0]
+    assert b[0] == 0.0 and b[1] == 0.0
+    assert abs(a[2, 2] - 1.0) > 1e-6 and abs(b[2]) > 1e-3, (a, b)
+    slave.terminate()
+    slave.freeInstance()
+    slave, vr, sink = open_slave(name)
+    assert_set_rejected(slave, vr, sink, "known_rows", 5)
+    slave.freeInstance()
 
 
 def test_negative_definite_q_is_named():

@@ -26,6 +26,11 @@
 //! ε = λ_min(M), M_k = λ M_{k−1} + (1 − λ) Φ Φᵀ, λ = 1 − 1/`excitation_window`, is below it;
 //! `pmax_theta` > 0 bounds the variances the random walk can raise. Outputs `excitation` (ε)
 //! and `adapting`.
+//!
+//! Identifying A and B (docs/estimators.md §2.9; off by default): `known_rows` = k fixes rows
+//! 1..k of [A B] at their initial values (zero Q_θ and Σ₀ there); `output_error` = true makes
+//! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
+//! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
 use crate::estimator::{error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered};
 use crate::kalman::{
@@ -34,7 +39,7 @@ use crate::kalman::{
 use crate::structured::{add_matrix, add_vector, Block};
 use spurio::estimation::{
     AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel,
-    RobustKalmanFilter, StateEstimator,
+    ParameterMeasurement, RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -82,9 +87,12 @@ pub struct BoundBlocks {
     pub pmax_theta: usize,
     pub excitation: usize,
     pub adapting: usize,
+    /// Structural knowledge (docs/estimators.md §2.9, "Identifying A and B").
+    pub known_rows: usize,
+    pub output_error: usize,
 }
 
-fn add_bounds(t: &mut VariableTable) -> BoundBlocks {
+fn add_bounds(t: &mut VariableTable, n: usize) -> BoundBlocks {
     let excitation_window = t.add(
         Variable::parameter("excitation_window", 200.0)
             .min(1.0)
@@ -109,12 +117,24 @@ fn add_bounds(t: &mut VariableTable) -> BoundBlocks {
         t.add(Variable::boolean_output("adapting").describe(
             "Whether the last step updated Θ (false while frozen by the excitation gate)",
         ));
+    let known_rows = t.add(
+        Variable::integer_parameter("known_rows", 0)
+            .min(0.0)
+            .max(n as f64)
+            .describe("Structural knowledge: rows 1..known_rows of [A B] are known (their initial values) and never change; 2 for the crane's kinematic rows with C = [I 0] makes A and B unique. 0 = none (papers)"),
+    );
+    let output_error = t.add(
+        Variable::boolean_parameter("output_error", false)
+            .describe("Parameter filter measurement: false = Y = [x̂_k; y_{k−1}] row by row (papers); true = the state filter's innovation against its recurrent sensitivity to the free entries of [A B] (dual EKF); needs fix_output_matrices"),
+    );
     BoundBlocks {
         excitation_window,
         excitation_min,
         pmax_theta,
         excitation,
         adapting,
+        known_rows,
+        output_error,
     }
 }
 
@@ -208,7 +228,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
         }
         None => None,
     };
-    let bounds = add_bounds(&mut t);
+    let bounds = add_bounds(&mut t, n);
     let (id, description) = if cleaned {
         (
             "DkfRsKf",
@@ -291,6 +311,20 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
         config = config.fix_output_matrices();
     }
     let b = &layout.bounds;
+    let known_rows = values.integer(b.known_rows);
+    let n = layout.dims.n;
+    let known = usize::try_from(known_rows)
+        .ok()
+        .filter(|k| *k <= n)
+        .ok_or_else(|| {
+            Failure::error(format!(
+                "parameter `known_rows`: must be between 0 and n = {n}, got {known_rows}"
+            ))
+        })?;
+    config = config.fix_state_rows(&(0..known).collect::<Vec<_>>());
+    if values.boolean(b.output_error) {
+        config.measurement = ParameterMeasurement::OutputError;
+    }
     let pmax_theta = scalar(values, b.pmax_theta, "pmax_theta", false)?;
     config.bounds = AdaptationBounds {
         excitation_window: values.real(b.excitation_window),
@@ -538,6 +572,58 @@ mod tests {
         assert_eq!(gated[2], 0.0, "ε = {}", gated[2]);
         assert_eq!(gated[0], 1.0, "Â[1,1] frozen at A");
         assert_eq!(gated[1], 1.0, "Â[2,2] frozen at A");
+    }
+
+    /// `known_rows` = 2 keeps rows 1–2 of [Â B̂] at A, B bit for bit while the output-error
+    /// filter moves rows 3–4 (default A = I except Â[1,3] = 0.05, B = 0, C = [I 0]); `known_rows` > n and `output_error` with free C are refused.
+    #[test]
+    fn known_rows_stay_and_the_output_error_filter_moves_the_rest() {
+        let (mut h, vr) = harness::<DualKalmanFilterFmu>(4, 1, 2);
+        h.set_integer(&[vr("known_rows")], &[2]).unwrap();
+        h.set_boolean(&[vr("output_error")], &[true]).unwrap();
+        h.set_real(&[vr("A[1,3]"), vr("p0_theta")], &[0.05, 1e-2])
+            .unwrap();
+        h.initialize(0.0).unwrap();
+        for k in 0..200 {
+            let t = k as f64 * 0.05;
+            let u = if (k / 10) % 2 == 0 { 1.0 } else { -1.0 };
+            h.set_real(
+                &[vr("u[1]"), vr("y[1]"), vr("y[2]")],
+                &[u, 0.1 * t.sin(), 0.05 * (2.0 * t).cos()],
+            )
+            .unwrap();
+            h.do_step(t, 0.05).unwrap();
+        }
+        let mut out = [0.0; 5];
+        h.get_real(
+            &[
+                vr("A_hat[1,1]"),
+                vr("A_hat[1,3]"),
+                vr("B_hat[2,1]"),
+                vr("A_hat[3,3]"),
+                vr("B_hat[3,1]"),
+            ],
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(&out[..3], &[1.0, 0.05, 0.0], "rows 1–2 known");
+        assert!((out[3] - 1.0).abs() > 1e-6, "Â[3,3] = {}", out[3]);
+        // x₃ reaches y₁ through Â[1,3] = 0.05: B̂[3,1] is learnt from the output error.
+        assert!(out[4].abs() > 1e-3, "B̂[3,1] = {}", out[4]);
+
+        let (mut h, vr) = harness::<DualKalmanFilterFmu>(4, 1, 2);
+        // Refused when set (above the declared max) or at initialisation.
+        let refused =
+            h.set_integer(&[vr("known_rows")], &[5]).is_err() || h.initialize(0.0).is_err();
+        assert!(refused && h.logged(&["known_rows"]), "{:?}", h.log());
+        let (mut h, vr) = harness::<DualKalmanFilterFmu>(4, 1, 2);
+        h.set_boolean(
+            &[vr("output_error"), vr("fix_output_matrices")],
+            &[true, false],
+        )
+        .unwrap();
+        assert!(h.initialize(0.0).is_err());
+        assert!(h.logged(&["C and D known"]), "{:?}", h.log());
     }
 
     #[test]
