@@ -1,4 +1,4 @@
-"""Runs every FMI 3.0 FMU (build/fmus/fmi3/) through the FMI 3.0 C driver (driver3.c) on
+"""Runs every FMI 3.0 FMU (build/fmus/fmi3/) through the C driver built for FMI 3.0 (driver.c
 x86_64-linux, x86_64-windows (wine) and aarch64-linux (qemu), with the model's cross-check
 scenario, arrays set and read whole (`nValues`).
 
@@ -43,11 +43,11 @@ TYPES = {"Float64": "r", "Int32": "i", "Boolean": "b"}
 
 def build_driver(bin_dir: Path, platforms: list[str]) -> None:
     bin_dir.mkdir(parents=True, exist_ok=True)
-    flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror"]
+    flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-DFMI3"]
     for platform in platforms:
         cc, name, _, _ = PLATFORMS[platform]
         libs = ["-lshell32"] if platform == "win64" else ["-ldl"]
-        subprocess.run([cc, *flags, "-o", str(bin_dir / name), str(HERE / "driver3.c"), *libs],
+        subprocess.run([cc, *flags, "-o", str(bin_dir / name), str(HERE / "driver.c"), *libs],
                        check=True)
 
 
