@@ -394,6 +394,17 @@ static void save_bytes(Inst *in, fmi2FMUstate st) {
     if (s != fmi2OK) own_len = 0;
 }
 
+/* One checked call of a function that takes the instance alone (fmi2EnterInitializationMode,
+ * fmi2ExitInitializationMode, fmi2Terminate, fmi2Reset). */
+static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
+                             int mask) {
+    fmi2Status s;
+    begin(in);
+    s = call(in->c);
+    end(in, what, mask, s);
+    return s;
+}
+
 static void random_call(Inst *in) {
     fmi2Status s;
     int op = pick(100), n, i;
@@ -418,16 +429,12 @@ static void random_call(Inst *in) {
         return;
     }
     if (op < 12) {
-        begin(in);
-        s = F.EnterInitializationMode(in->c);
-        end(in, "fmi2EnterInitializationMode", S_INSTANTIATED, s);
+        s = plain_call(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED);
         if (s == fmi2OK) in->possible = S_INIT;
         return;
     }
     if (op < 18) {
-        begin(in);
-        s = F.ExitInitializationMode(in->c);
-        end(in, "fmi2ExitInitializationMode", S_INIT, s);
+        s = plain_call(in, F.ExitInitializationMode, "fmi2ExitInitializationMode", S_INIT);
         if (s <= fmi2Warning) {
             in->possible = S_STEP;
             check_all_reals(in, "fmi2ExitInitializationMode");
@@ -436,16 +443,12 @@ static void random_call(Inst *in) {
         return;
     }
     if (op < 20) {
-        begin(in);
-        s = F.Terminate(in->c);
-        end(in, "fmi2Terminate", S_STEP, s);
+        s = plain_call(in, F.Terminate, "fmi2Terminate", S_STEP);
         if (s == fmi2OK) in->possible = S_TERMINATED;
         return;
     }
     if (op < 23) {
-        begin(in);
-        s = F.Reset(in->c);
-        end(in, "fmi2Reset", ANY_LIVE, s);
+        s = plain_call(in, F.Reset, "fmi2Reset", ANY_LIVE);
         if (s == fmi2OK) { in->possible = S_INSTANTIATED; in->time = 0; in->time_known = 1; }
         return;
     }
