@@ -91,12 +91,24 @@ def build_driver(bin_dir: Path, platforms: list[str], fmi3: bool = False) -> Non
                        check=True)
 
 
-def build_tools(bin_dir: Path) -> None:
-    """The driver for each platform and the win64 ProcessPrng shim (wine 8 lacks it)."""
-    build_driver(bin_dir, list(PLATFORMS))
-    subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
-                    str(bin_dir / "bcryptprimitives.dll"), str(HERE / "process_prng_shim.c"),
-                    "-ladvapi32"], check=True)
+def prepare(args: argparse.Namespace, work: Path, bin_dir: Path,
+            fmi3: bool = False) -> tuple[dict[str, str], list[Path]]:
+    """Builds the driver (FMI 2.0: for every platform; fmi3: for --platforms) and, with win64,
+    the ProcessPrng shim (wine 8 lacks it) and the wine prefix; returns the wine environment
+    and the FMUs of --fmus (--only), logging when there is none."""
+    built = args.platforms if fmi3 else list(PLATFORMS)
+    build_driver(bin_dir, built, fmi3)
+    if "win64" in built:
+        subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
+                        str(bin_dir / "bcryptprimitives.dll"), str(HERE / "process_prng_shim.c"),
+                        "-ladvapi32"], check=True)
+    env = wine_env(work)
+    if "win64" in args.platforms:
+        run([wine(), "wineboot", "-i"], env)  # creates the prefix once
+    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    if not fmus:
+        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
+    return env, fmus
 
 
 def wine_env(work: Path) -> dict[str, str]:
@@ -209,14 +221,8 @@ def main() -> int:
     for d in (unpacked, work / "out"):
         shutil.rmtree(d, ignore_errors=True)
         d.mkdir(parents=True)
-    build_tools(bin_dir)
-    env = wine_env(work)
-    if "win64" in args.platforms:
-        run([wine(), "wineboot", "-i"], env)  # creates the prefix once
-
-    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    env, fmus = prepare(args, work, bin_dir)
     if not fmus:
-        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
         return 1
     failures: list[str] = []
     table = []

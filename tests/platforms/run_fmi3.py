@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import shutil
-import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -31,7 +30,7 @@ REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 import run_driver  # noqa: E402
 from run_driver import (  # noqa: E402
-    EXPLAINED, MAX_RELATIVE, PLATFORMS, build_driver, compare, driver_name, log, read_outputs,
+    EXPLAINED, MAX_RELATIVE, PLATFORMS, compare, driver_name, log, read_outputs,
     read_reference)
 
 TYPES = {"Float64": "r", "Int32": "i", "Boolean": "b"}
@@ -125,18 +124,8 @@ def main() -> int:
     unpacked = work / "unpacked FMI 3.0 FMUs é"
     shutil.rmtree(unpacked, ignore_errors=True)
     (work / "out3").mkdir(parents=True, exist_ok=True)
-    build_driver(bin_dir, args.platforms, fmi3=True)
-    env = run_driver.wine_env(work)
-    if "win64" in args.platforms:
-        # The ProcessPrng shim (wine 8 lacks it) next to the driver, as run_driver.py does.
-        subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
-                        str(bin_dir / "bcryptprimitives.dll"),
-                        str(HERE / "process_prng_shim.c"), "-ladvapi32"], check=True)
-        run_driver.run([run_driver.wine(), "wineboot", "-i"], env)
-
-    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    env, fmus = run_driver.prepare(args, work, bin_dir, fmi3=True)
     if not fmus:
-        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
         return 1
     failures: list[str] = []
     table = []
