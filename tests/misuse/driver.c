@@ -394,6 +394,17 @@ static void save_bytes(Inst *in, fmi2FMUstate st) {
     if (s != fmi2OK) own_len = 0;
 }
 
+/* One checked call of a function that takes the instance alone (fmi2EnterInitializationMode,
+ * fmi2ExitInitializationMode, fmi2Terminate, fmi2Reset). */
+static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
+                             int mask) {
+    fmi2Status s;
+    begin(in);
+    s = call(in->c);
+    end(in, what, mask, s);
+    return s;
+}
+
 static void random_call(Inst *in) {
     fmi2Status s;
     int op = pick(100), n, i;
@@ -417,36 +428,27 @@ static void random_call(Inst *in) {
         if (s == fmi2OK) { in->time = start; in->time_known = 1; }
         return;
     }
-    if (op < 12) {
-        begin(in);
-        s = F.EnterInitializationMode(in->c);
-        end(in, "fmi2EnterInitializationMode", S_INSTANTIATED, s);
-        if (s == fmi2OK) in->possible = S_INIT;
-        return;
-    }
-    if (op < 18) {
-        begin(in);
-        s = F.ExitInitializationMode(in->c);
-        end(in, "fmi2ExitInitializationMode", S_INIT, s);
-        if (s <= fmi2Warning) {
-            in->possible = S_STEP;
-            check_all_reals(in, "fmi2ExitInitializationMode");
-        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
-            in->possible |= S_ERROR;
-        return;
-    }
-    if (op < 20) {
-        begin(in);
-        s = F.Terminate(in->c);
-        end(in, "fmi2Terminate", S_STEP, s);
-        if (s == fmi2OK) in->possible = S_TERMINATED;
-        return;
-    }
-    if (op < 23) {
-        begin(in);
-        s = F.Reset(in->c);
-        end(in, "fmi2Reset", ANY_LIVE, s);
-        if (s == fmi2OK) { in->possible = S_INSTANTIATED; in->time = 0; in->time_known = 1; }
+    if (op < 23) { /* the instance-only calls: 6-11, 12-17, 18-19 and 20-22 */
+        static const char *const names[] = {"fmi2EnterInitializationMode",
+                                            "fmi2ExitInitializationMode", "fmi2Terminate",
+                                            "fmi2Reset"};
+        static const int masks[] = {S_INSTANTIATED, S_INIT, S_STEP, ANY_LIVE};
+        static const int next[] = {S_INIT, S_STEP, S_TERMINATED, S_INSTANTIATED};
+        fmi2Status (*const calls[])(fmi2Component) = {F.EnterInitializationMode,
+                                                      F.ExitInitializationMode, F.Terminate,
+                                                      F.Reset};
+        int k = op < 12 ? 0 : op < 18 ? 1 : op < 20 ? 2 : 3;
+        s = plain_call(in, calls[k], names[k], masks[k]);
+        if (k == 1) { /* fmi2ExitInitializationMode: a warning also enters Step Mode */
+            if (s <= fmi2Warning) {
+                in->possible = S_STEP;
+                check_all_reals(in, names[k]);
+            } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+                in->possible |= S_ERROR;
+        } else if (s == fmi2OK) {
+            in->possible = next[k];
+            if (k == 3) { in->time = 0; in->time_known = 1; }
+        }
         return;
     }
     if (op < 45) { /* fmi2DoStep */

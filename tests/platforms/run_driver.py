@@ -40,10 +40,13 @@ sys.path.insert(0, str(HERE))
 import scenario  # noqa: E402
 
 PLATFORMS = {
-    # platform: (C compiler, driver file name, binary extension, Rust target triple)
-    "linux64": ("gcc", "driver", "so", "x86_64-unknown-linux-gnu"),
-    "win64": ("x86_64-w64-mingw32-gcc", "driver.exe", "dll", "x86_64-pc-windows-gnu"),
-    "aarch64-linux": ("aarch64-linux-gnu-gcc", "driver-aarch64", "so", "aarch64-unknown-linux-gnu"),
+    # platform: (C compiler, driver file name, binary extension, Rust target triple,
+    #            FMI 3.0 binaries folder)
+    "linux64": ("gcc", "driver", "so", "x86_64-unknown-linux-gnu", "x86_64-linux"),
+    "win64": ("x86_64-w64-mingw32-gcc", "driver.exe", "dll", "x86_64-pc-windows-gnu",
+              "x86_64-windows"),
+    "aarch64-linux": ("aarch64-linux-gnu-gcc", "driver-aarch64", "so", "aarch64-unknown-linux-gnu",
+                      "aarch64-linux"),
 }
 # Differences between platforms that are understood, per (FMU stem, platform): a text saying
 # why. Only these may differ, and by at most MAX_RELATIVE.
@@ -71,17 +74,41 @@ def log(text: str) -> None:
     print(text, flush=True)
 
 
-def build_tools(bin_dir: Path) -> None:
-    """The driver for each platform and the win64 ProcessPrng shim (wine 8 lacks it)."""
+def driver_name(platform: str, fmi3: bool = False) -> str:
+    """The file name of the driver for `platform`: driver.c's FMI 3.0 build is driver3…."""
+    name = PLATFORMS[platform][1]
+    return name.replace("driver", "driver3", 1) if fmi3 else name
+
+
+def build_driver(bin_dir: Path, platforms: list[str], fmi3: bool = False) -> None:
+    """driver.c for each of `platforms`, for FMI 2.0 or (fmi3, -DFMI3) FMI 3.0."""
     bin_dir.mkdir(parents=True, exist_ok=True)
-    flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror"]
-    for platform, (cc, name, _, _) in PLATFORMS.items():
-        libs = [] if platform == "win64" else ["-ldl"]
-        subprocess.run([cc, *flags, "-o", str(bin_dir / name), str(HERE / "driver.c"), *libs],
+    flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", *(["-DFMI3"] if fmi3 else [])]
+    for platform in platforms:
+        libs = ["-lshell32"] if platform == "win64" else ["-ldl"]
+        subprocess.run([PLATFORMS[platform][0], *flags, "-o",
+                        str(bin_dir / driver_name(platform, fmi3)), str(HERE / "driver.c"), *libs],
                        check=True)
-    subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
-                    str(bin_dir / "bcryptprimitives.dll"), str(HERE / "process_prng_shim.c"),
-                    "-ladvapi32"], check=True)
+
+
+def prepare(args: argparse.Namespace, work: Path, bin_dir: Path,
+            fmi3: bool = False) -> tuple[dict[str, str], list[Path]]:
+    """Builds the driver (FMI 2.0: for every platform; fmi3: for --platforms) and, with win64,
+    the ProcessPrng shim (wine 8 lacks it) and the wine prefix; returns the wine environment
+    and the FMUs of --fmus (--only), logging when there is none."""
+    built = args.platforms if fmi3 else list(PLATFORMS)
+    build_driver(bin_dir, built, fmi3)
+    if "win64" in built:
+        subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
+                        str(bin_dir / "bcryptprimitives.dll"), str(HERE / "process_prng_shim.c"),
+                        "-ladvapi32"], check=True)
+    env = wine_env(work)
+    if "win64" in args.platforms:
+        run([wine(), "wineboot", "-i"], env)  # creates the prefix once
+    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    if not fmus:
+        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
+    return env, fmus
 
 
 def wine_env(work: Path) -> dict[str, str]:
@@ -92,7 +119,7 @@ def wine_env(work: Path) -> dict[str, str]:
 
 
 def command(platform: str, bin_dir: Path, args: list[str]) -> list[str]:
-    exe = str(bin_dir / PLATFORMS[platform][1])
+    exe = str(bin_dir / driver_name(platform))
     if platform == "win64":
         return [wine(), exe, *args]
     if platform == "aarch64-linux":
@@ -194,14 +221,8 @@ def main() -> int:
     for d in (unpacked, work / "out"):
         shutil.rmtree(d, ignore_errors=True)
         d.mkdir(parents=True)
-    build_tools(bin_dir)
-    env = wine_env(work)
-    if "win64" in args.platforms:
-        run([wine(), "wineboot", "-i"], env)  # creates the prefix once
-
-    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    env, fmus = prepare(args, work, bin_dir)
     if not fmus:
-        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
         return 1
     failures: list[str] = []
     table = []

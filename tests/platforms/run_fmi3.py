@@ -1,4 +1,4 @@
-"""Runs every FMI 3.0 FMU (build/fmus/fmi3/) through the FMI 3.0 C driver (driver3.c) on
+"""Runs every FMI 3.0 FMU (build/fmus/fmi3/) through the C driver built for FMI 3.0 (driver.c
 x86_64-linux, x86_64-windows (wine) and aarch64-linux (qemu), with the model's cross-check
 scenario, arrays set and read whole (`nValues`).
 
@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import shutil
-import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -30,25 +29,11 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 import run_driver  # noqa: E402
-from run_driver import EXPLAINED, MAX_RELATIVE, compare, log, read_outputs, read_reference  # noqa: E402
+from run_driver import (  # noqa: E402
+    EXPLAINED, MAX_RELATIVE, PLATFORMS, compare, driver_name, log, read_outputs,
+    read_reference)
 
-# platform (as run_driver names it): (C compiler, driver file, FMI 3.0 tuple, extension)
-PLATFORMS = {
-    "linux64": ("gcc", "driver3", "x86_64-linux", "so"),
-    "win64": ("x86_64-w64-mingw32-gcc", "driver3.exe", "x86_64-windows", "dll"),
-    "aarch64-linux": ("aarch64-linux-gnu-gcc", "driver3-aarch64", "aarch64-linux", "so"),
-}
 TYPES = {"Float64": "r", "Int32": "i", "Boolean": "b"}
-
-
-def build_driver(bin_dir: Path, platforms: list[str]) -> None:
-    bin_dir.mkdir(parents=True, exist_ok=True)
-    flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror"]
-    for platform in platforms:
-        cc, name, _, _ = PLATFORMS[platform]
-        libs = ["-lshell32"] if platform == "win64" else ["-ldl"]
-        subprocess.run([cc, *flags, "-o", str(bin_dir / name), str(HERE / "driver3.c"), *libs],
-                       check=True)
 
 
 def elements(var: ET.Element) -> list[str]:
@@ -99,7 +84,7 @@ def resource_path(platform: str, folder: Path) -> str:
 
 
 def command(platform: str, bin_dir: Path, args: list[str]) -> list[str]:
-    exe = str(bin_dir / PLATFORMS[platform][1])
+    exe = str(bin_dir / driver_name(platform, fmi3=True))
     if platform == "win64":
         return [run_driver.wine(), exe, *args]
     if platform == "aarch64-linux":
@@ -114,7 +99,7 @@ def missing_config_check(stem: str, identifier: str, folder: Path, scen: Path, b
     empty = folder.parent / f"{stem} without config" / "resources"
     empty.mkdir(parents=True, exist_ok=True)
     for platform in platforms:
-        _, _, tuple_, ext = PLATFORMS[platform]
+        _, _, ext, _, tuple_ = PLATFORMS[platform]
         binary = folder / "binaries" / tuple_ / f"{identifier}.{ext}"
         out = folder.parent / f"{stem}.{platform}.noconfig.csv"
         result = run_driver.run(command(platform, bin_dir, [
@@ -139,18 +124,8 @@ def main() -> int:
     unpacked = work / "unpacked FMI 3.0 FMUs é"
     shutil.rmtree(unpacked, ignore_errors=True)
     (work / "out3").mkdir(parents=True, exist_ok=True)
-    build_driver(bin_dir, args.platforms)
-    env = run_driver.wine_env(work)
-    if "win64" in args.platforms:
-        # The ProcessPrng shim (wine 8 lacks it) next to the driver, as run_driver.py does.
-        subprocess.run(["x86_64-w64-mingw32-gcc", "-O2", "-Wall", "-Werror", "-shared", "-o",
-                        str(bin_dir / "bcryptprimitives.dll"),
-                        str(HERE / "process_prng_shim.c"), "-ladvapi32"], check=True)
-        run_driver.run([run_driver.wine(), "wineboot", "-i"], env)
-
-    fmus = sorted(p for p in args.fmus.glob("*.fmu") if not args.only or p.stem in args.only)
+    env, fmus = run_driver.prepare(args, work, bin_dir, fmi3=True)
     if not fmus:
-        log(f"no FMUs in {args.fmus} (run scripts/build-fmus)")
         return 1
     failures: list[str] = []
     table = []
@@ -171,7 +146,7 @@ def main() -> int:
         reference = read_reference(own / f"{stem}_ref.csv")
         outputs = {}
         for platform in args.platforms:
-            _, _, tuple_, ext = PLATFORMS[platform]
+            _, _, ext, _, tuple_ = PLATFORMS[platform]
             binary = folder / "binaries" / tuple_ / f"{identifier}.{ext}"
             if not binary.exists():
                 failures.append(f"{stem}: no binary for {tuple_} in {fmu} (build it with "
