@@ -4,8 +4,23 @@
 /// Runs the test `child` of this test binary in a child process (with `SPURIO_PANIC_CHILD`
 /// set, so that it does its work) and asserts that it passed and that the only line it wrote
 /// on stderr is its own `child done`: a panic inside an FMU call prints nothing there.
+///
+/// Under an emulator (the aarch64 suites run in qemu-user, `tests/platforms/rust-suites`), the
+/// child is started through the command in `SPURIO_TEST_RUNNER` (e.g. `qemu-aarch64 -L
+/// /usr/aarch64-linux-gnu`), as cargo starts the test binary itself.
 pub fn assert_child_prints_only_its_line(child: &str) {
-    let output = std::process::Command::new(std::env::current_exe().unwrap())
+    let runner = std::env::var("SPURIO_TEST_RUNNER").unwrap_or_default();
+    let mut runner = runner.split_whitespace();
+    let exe = std::env::current_exe().unwrap();
+    let mut command = match runner.next() {
+        Some(program) => {
+            let mut c = std::process::Command::new(program);
+            c.args(runner).arg(exe);
+            c
+        }
+        None => std::process::Command::new(exe),
+    };
+    let output = command
         .args(["--exact", child, "--nocapture", "--test-threads=1"])
         .env("SPURIO_PANIC_CHILD", "1")
         .env("RUST_BACKTRACE", "1")
