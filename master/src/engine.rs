@@ -509,10 +509,9 @@ impl Simulation {
             for op in &sets {
                 if let Op::Set(t) = op {
                     let mut batch = Batch::new(t, fmu);
-                    let (monitor, index) = (m.monitor.clone(), m.index);
                     watched(
-                        monitor.as_deref(),
-                        index,
+                        m.monitor.as_deref(),
+                        m.index,
                         "fmi2Set* (start value)",
                         t0,
                         || batch.set(&mut m.instance, &values, &mut m.held),
@@ -593,8 +592,7 @@ impl Simulation {
             }
             let call = if set { "fmi2Set*" } else { "fmi2Get*" };
             let buffer = &mut self.buffer;
-            let (monitor, index) = (m.monitor.clone(), m.index);
-            let result = watched(monitor.as_deref(), index, call, time, || {
+            let result = watched(m.monitor.as_deref(), m.index, call, time, || {
                 if set {
                     batch.set(&mut m.instance, buffer, &mut m.held)
                 } else {
