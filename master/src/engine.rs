@@ -509,13 +509,19 @@ impl Simulation {
             for op in &sets {
                 if let Op::Set(t) = op {
                     let mut batch = Batch::new(t, fmu);
-                    let (monitor, index) = (m.monitor.clone(), m.index);
+                    let Member {
+                        monitor,
+                        index,
+                        instance,
+                        held,
+                        ..
+                    } = &mut m;
                     watched(
                         monitor.as_deref(),
-                        index,
+                        *index,
                         "fmi2Set* (start value)",
                         t0,
-                        || batch.set(&mut m.instance, &values, &mut m.held),
+                        || batch.set(instance, &values, held),
                     )
                     .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
                 }
@@ -593,12 +599,18 @@ impl Simulation {
             }
             let call = if set { "fmi2Set*" } else { "fmi2Get*" };
             let buffer = &mut self.buffer;
-            let (monitor, index) = (m.monitor.clone(), m.index);
-            let result = watched(monitor.as_deref(), index, call, time, || {
+            let Member {
+                monitor,
+                index,
+                instance,
+                held,
+                ..
+            } = &mut *m;
+            let result = watched(monitor.as_deref(), *index, call, time, || {
                 if set {
-                    batch.set(&mut m.instance, buffer, &mut m.held)
+                    batch.set(instance, buffer, held)
                 } else {
-                    batch.get(&mut m.instance, buffer)
+                    batch.get(instance, buffer)
                 }
             });
             result.map_err(|e| m.failure(call, e, time))?;
