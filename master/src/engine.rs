@@ -671,13 +671,7 @@ impl Simulation {
                 // there and recorded as the last point.
                 let (instance, end, version) = asked
                     .into_iter()
-                    .fold(
-                        None,
-                        |first: Option<(String, f64, FmiVersion)>, (name, t, v)| match first {
-                            Some((n, t0, v0)) if t0 <= t => Some((n, t0, v0)),
-                            _ => Some((name, t, v)),
-                        },
-                    )
+                    .reduce(|first, other| if first.1 <= other.1 { first } else { other })
                     .unwrap_or((String::new(), time, FmiVersion::Fmi2));
                 self.finish(observer, progress, end, end)?;
                 return Ok(RunEnd::Terminated {
@@ -743,11 +737,11 @@ impl Simulation {
                 Ok(StepEnd::Terminate(last)) => {
                     // FMI 2.0 stopped within the step (fmi2Discard); FMI 3.0 completed it
                     // unless it says otherwise.
-                    let fallback = match m.instance.version() {
+                    let version = m.instance.version();
+                    let fallback = match version {
                         FmiVersion::Fmi2 => time,
                         FmiVersion::Fmi3 => time + h,
                     };
-                    let version = m.instance.version();
                     terminated.push((m.name.clone(), last.unwrap_or(fallback), version));
                 }
                 Err(StepProblem::Failed(e)) => failures.push(m.failure("fmi2DoStep", e, time)),

@@ -375,6 +375,7 @@ impl Plan {
         // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
         // which feeds no connection, for the input just set) rather than those read after the
         // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
+        // An output the order already re-reads (a connection source) is not read again.
         let connected: Vec<usize> = match d.algorithm {
             Algorithm::GaussSeidel => connections.iter().map(|c| c.to.0).collect(),
             Algorithm::Jacobi => Vec::new(),
@@ -383,7 +384,9 @@ impl Plan {
             let v = variable(*r);
             let refreshed = connected.contains(&r.0)
                 && (v.causality == Causality::Input
-                    || (v.causality == Causality::Output && has_feedthrough(instances, *r)));
+                    || (v.causality == Causality::Output
+                        && has_feedthrough(instances, *r)
+                        && !order.contains(&PropagationStep::GetOutput(*r))));
             if refreshed {
                 push_op(&mut propagation, false, instances, *r, slot_of[r]);
             }

@@ -37,7 +37,8 @@ const SUPERVISED: &str = "SPURIO_SUPERVISED_RUN";
 static SESSION: OnceLock<Session> = OnceLock::new();
 static ENDING: AtomicBool = AtomicBool::new(false);
 
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+/// The data behind a mutex, also when another thread panicked holding it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 

@@ -269,9 +269,7 @@ fn run(
     guard::on_early_exit({
         let csv = csv.clone();
         move || {
-            let mut csv = csv
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut csv = guard::lock(&csv);
             Some(match csv.finish() {
                 Ok(()) => format!("the rows recorded so far are in {shown}"),
                 Err(e) => format!("cannot write {shown}: {e}"),
@@ -287,10 +285,7 @@ fn run(
         Ok(end) => end,
         Err(RunError::Output(e)) => bail!("cannot write {}: {e}", out.display()),
         Err(e) => {
-            let flushed = csv
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .finish();
+            let flushed = guard::lock(&csv).finish();
             let note = match flushed {
                 Ok(()) => format!("the rows recorded before are in {}", out.display()),
                 Err(w) => format!("cannot write {}: {w}", out.display()),
@@ -326,9 +321,7 @@ const FLUSH_EVERY: Duration = Duration::from_millis(50);
 
 impl Recorder {
     fn csv(&self) -> std::sync::MutexGuard<'_, CsvWriter<std::io::BufWriter<std::fs::File>>> {
-        self.csv
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+        guard::lock(&self.csv)
     }
 }
 

@@ -74,10 +74,7 @@ struct Worker {
 
 impl Drop for Worker {
     fn drop(&mut self) {
-        let mut child = self
-            .child
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut child = guard::lock(&self.child);
         let _ = child.kill();
         let _ = child.wait();
         let _ = std::fs::remove_file(&self.stderr);
@@ -185,10 +182,7 @@ impl Runs<'_> {
 
 /// Whether the worker's process still runs (`None`: cannot tell).
 fn child_alive(w: &Worker) -> Option<bool> {
-    let mut child = w
-        .child
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut child = guard::lock(&w.child);
     child.try_wait().ok().map(|s| s.is_none())
 }
 
@@ -206,10 +200,7 @@ fn ask(w: &mut Worker, value: f64) -> Outcome {
     }
     // No answer: the worker ended (or its pipes broke); wait for it to say how.
     let status = {
-        let mut child = w
-            .child
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut child = guard::lock(&w.child);
         child.wait()
     };
     let said = std::fs::File::open(&w.stderr)
