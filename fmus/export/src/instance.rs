@@ -109,6 +109,18 @@ pub struct Function {
     pub mask: u32,
 }
 
+/// `function! { ID, "fmiXName", MASK }` declares `pub const ID: Function`: the one form of
+/// the FMI 2.0 and FMI 3.0 tables of allowed states.
+macro_rules! function {
+    ($id:ident, $name:literal, $mask:expr) => {
+        pub const $id: $crate::instance::Function = $crate::instance::Function {
+            name: $name,
+            mask: $mask,
+        };
+    };
+}
+pub(crate) use function;
+
 /// Allowed-state masks of the FMI 2.0 CS functions (FMI 2.0.4, §4.2.4 state machine).
 pub mod functions {
     use super::*;
@@ -129,14 +141,7 @@ pub mod functions {
     const STATUS_QUERIES: u32 =
         STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
 
-    macro_rules! f {
-        ($id:ident, $name:literal, $mask:expr) => {
-            pub const $id: Function = Function {
-                name: $name,
-                mask: $mask,
-            };
-        };
-    }
+    use super::function as f;
     f! { SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE }
     f! { FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL }
     f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }

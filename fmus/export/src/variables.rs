@@ -94,12 +94,30 @@ impl Initial {
 }
 
 /// A value of one variable.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub enum Value {
     Real(f64),
     Integer(i32),
     Boolean(bool),
     String(String),
+}
+
+/// Written out so that `clone_from` reuses a String's buffer (see [`Values`]).
+impl Clone for Value {
+    fn clone(&self) -> Self {
+        match self {
+            Self::Real(v) => Self::Real(*v),
+            Self::Integer(v) => Self::Integer(*v),
+            Self::Boolean(v) => Self::Boolean(*v),
+            Self::String(v) => Self::String(v.clone()),
+        }
+    }
+    fn clone_from(&mut self, source: &Self) {
+        match (self, source) {
+            (Self::String(to), Self::String(from)) => to.clone_from(from),
+            (to, from) => *to = from.clone(),
+        }
+    }
 }
 
 impl Value {
@@ -330,9 +348,23 @@ impl VariableTable {
 }
 
 /// The current values of an instance, one per variable, indexed like the table.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Values {
     values: Vec<Value>,
+}
+
+/// Written out because the derived `clone_from` clones afresh: this one reuses the buffer
+/// (and each String's), so the per-call snapshot of the values allocates nothing after
+/// the first.
+impl Clone for Values {
+    fn clone(&self) -> Self {
+        Self {
+            values: self.values.clone(),
+        }
+    }
+    fn clone_from(&mut self, source: &Self) {
+        self.values.clone_from(&source.values);
+    }
 }
 
 impl Values {
@@ -484,4 +516,38 @@ macro_rules! declare_variables {
         $table.extend($block);
         debug_assert_eq!($table.len() - first, $count, "block size");
     }};
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clone_from_reuses_the_buffers_and_copies_every_value() {
+        let table = [
+            Variable::parameter("x", 1.5),
+            Variable::integer_parameter("n", 3),
+            Variable::string_parameter("s", "abc"),
+        ];
+        let mut current = Values::from_start(&table);
+        let mut before = current.clone();
+        let buffer = before.all().as_ptr();
+        let string = match &before.all()[2] {
+            Value::String(s) => s.as_ptr(),
+            other => panic!("{other:?}"),
+        };
+        current.set_real(0, -2.25);
+        current.set_integer(1, 7);
+        current.set(2, Value::String("xy".to_string()));
+        before.clone_from(&current);
+        assert_eq!(before, current);
+        assert_eq!(before.real(0), -2.25);
+        assert_eq!(before.integer(1), 7);
+        assert_eq!(before.string(2), "xy");
+        assert_eq!(before.all().as_ptr(), buffer);
+        match &before.all()[2] {
+            Value::String(s) => assert_eq!(s.as_ptr(), string),
+            other => panic!("{other:?}"),
+        }
+    }
 }

@@ -39,7 +39,7 @@ impl LogSink for CallbackSink {
         unsafe {
             log_message(
                 self.environment,
-                code(status),
+                status.code(),
                 category.as_ptr(),
                 text.as_ptr(),
             )

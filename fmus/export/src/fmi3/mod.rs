@@ -26,7 +26,7 @@ pub mod types;
 /// Allowed-state masks of the FMI 3.0 Co-Simulation functions (FMI 3.0.2 §4.3.4 state
 /// machine; Step Mode is the shared machine's `StepComplete`).
 pub mod functions {
-    use crate::instance::{Function, ModelState};
+    use crate::instance::{function as f, ModelState};
 
     const INSTANTIATED: u32 = ModelState::Instantiated.bit();
     const INIT_MODE: u32 = ModelState::InitializationMode.bit();
@@ -39,14 +39,6 @@ pub mod functions {
     const GETTABLE: u32 = INIT_MODE | STEP_MODE | TERMINATED | ERROR;
     const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_MODE;
 
-    macro_rules! f {
-        ($id:ident, $name:literal, $mask:expr) => {
-            pub const $id: Function = Function {
-                name: $name,
-                mask: $mask,
-            };
-        };
-    }
     f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
     f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
     f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }

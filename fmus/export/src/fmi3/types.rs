@@ -5,7 +5,6 @@
 //! undefined behaviour. Enumerations are plain integers for the same reason.
 #![allow(non_camel_case_types, non_upper_case_globals)]
 
-use crate::types::Status;
 use std::os::raw::{c_char, c_int, c_void};
 
 pub type fmi3Instance = *mut c_void;
@@ -77,8 +76,3 @@ const _: () = assert!(
         && fmi3Error == crate::types::fmi2Error
         && fmi3Fatal == crate::types::fmi2Fatal
 );
-
-/// The `fmi3Status` integer of a status.
-pub fn code(status: Status) -> fmi3Status {
-    status.code()
-}
