@@ -486,7 +486,6 @@ impl DualKalmanFilter {
         symmetrize_in_place(&mut self.moment);
         let smallest = self
             .moment
-            .clone()
             .symmetric_eigenvalues()
             .iter()
             .copied()
