@@ -55,6 +55,18 @@ pub fn crane_reference_design() -> Result<DiscreteDesign, PolePlacementError> {
     )
 }
 
+/// The discrete model `(A_d, B_d)` (4×4, 4×1): ZOH of the crane's linearisation
+/// ([`GantryCraneParameters::linearised`]) at `sample_time`.
+pub fn crane_zoh(
+    parameters: &GantryCraneParameters,
+    sample_time: f64,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (a4, b4) = parameters.linearised();
+    let a_c = DMatrix::from_iterator(4, 4, a4.iter().copied());
+    let b_c = DMatrix::from_iterator(4, 1, b4.iter().copied());
+    crate::linalg::zoh(&a_c, &b_c, sample_time)
+}
+
 /// Pole placement for a crane with parameters `parameters`: ZOH of the linearisation at
 /// `sample_time`, continuous poles mapped by `z = e^{s Ts}`, Ackermann (stability required).
 pub fn crane_design(
@@ -62,10 +74,7 @@ pub fn crane_design(
     continuous_poles: &[Complex<f64>],
     sample_time: f64,
 ) -> Result<DiscreteDesign, PolePlacementError> {
-    let (a4, b4) = parameters.linearised();
-    let a_c = DMatrix::from_iterator(4, 4, a4.iter().copied());
-    let b_c = DMatrix::from_iterator(4, 1, b4.iter().copied());
-    let (a, b) = crate::linalg::zoh(&a_c, &b_c, sample_time);
+    let (a, b) = crane_zoh(parameters, sample_time);
     let poles = poles_from_continuous(continuous_poles, sample_time);
     let options = PolePlacementOptions {
         require_stable: true,

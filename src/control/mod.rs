@@ -18,7 +18,8 @@ pub use adaptive::{
     AdaptiveProgress, AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainRejection, GainUpdate,
 };
 pub use crane::{
-    crane_design, crane_reference_design, DiscreteDesign, CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
+    crane_design, crane_reference_design, crane_zoh, DiscreteDesign, CRANE_CONTINUOUS_POLES,
+    CRANE_SAMPLE_TIME,
 };
 pub use pole_placement::{
     ackermann, ackermann_with_options, characteristic_polynomial, poles_from_continuous,

@@ -19,7 +19,7 @@
 
 use super::{AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement};
 use super::{GaussianModel, InfluenceFunction, RobustKalmanFilter};
-use crate::control::crane::{crane_reference_design, CRANE_SAMPLE_TIME};
+use crate::control::crane::{crane_reference_design, crane_zoh, CRANE_SAMPLE_TIME};
 use crate::control::state_feedback::InputLimits;
 use crate::control::{AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, StateController};
 use crate::plants::gantry_crane::{CraneState, GantryCrane, GantryCraneParameters};
@@ -110,10 +110,7 @@ fn markov(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>) -> DVector<f64> 
 }
 
 fn zoh(parameters: &GantryCraneParameters) -> (DMatrix<f64>, DMatrix<f64>) {
-    let (a4, b4) = parameters.linearised();
-    let a = DMatrix::from_iterator(4, 4, a4.iter().copied());
-    let b = DMatrix::from_iterator(4, 1, b4.iter().copied());
-    crate::linalg::zoh(&a, &b, CRANE_SAMPLE_TIME)
+    crane_zoh(parameters, CRANE_SAMPLE_TIME)
 }
 
 fn dynamics_rows(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {

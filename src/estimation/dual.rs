@@ -486,7 +486,6 @@ impl DualKalmanFilter {
         symmetrize_in_place(&mut self.moment);
         let smallest = self
             .moment
-            .clone()
             .symmetric_eigenvalues()
             .iter()
             .copied()
@@ -509,8 +508,10 @@ impl DualKalmanFilter {
             return Ok(());
         };
         let a = self.theta.view((0, 0), (n, n));
-        let c = self.theta.view((n, 0), (p, n)).into_owned();
+        let c = self.theta.view((n, 0), (p, n));
         oe.sensitivity_prior.gemm(1.0, &a, &oe.sensitivity, 0.0);
+        // K Ĉ with Ĉ of Θ̂_{k−1}, taken before the update of ϑ below changes Θ̂.
+        let kc = self.core.gain_t.tr_mul(&c);
         for (e, &(row, col)) in oe.entries.iter().enumerate() {
             oe.sensitivity_prior[(row, e)] += self.regressor[col];
         }
@@ -520,9 +521,9 @@ impl DualKalmanFilter {
                 let room = (cap - oe.sigma[(i, i)]).max(0.0);
                 oe.sigma[(i, i)] += q.min(room);
             }
-            let h = &c * &oe.sensitivity_prior;
+            let h = c * &oe.sensitivity_prior;
             let sigma_ht = &oe.sigma * h.transpose();
-            let mut s = &c * &self.core.p_prior * c.transpose() + &self.r + &h * &sigma_ht;
+            let mut s = c * &self.core.p_prior * c.transpose() + &self.r + &h * &sigma_ht;
             symmetrize_in_place(&mut s);
             // Gᵀ = S⁻¹ H Σ⁻.
             let mut gain_t = sigma_ht.transpose();
@@ -548,7 +549,6 @@ impl DualKalmanFilter {
             }
         }
         // S = (I − K C) S⁻, K = (Kᵀ)ᵀ.
-        let kc = self.core.gain_t.tr_mul(&c);
         oe.sensitivity.copy_from(&oe.sensitivity_prior);
         oe.sensitivity.gemm(-1.0, &kc, &oe.sensitivity_prior, 1.0);
         Ok(())

@@ -158,7 +158,7 @@ impl RobustKalmanFilter {
     }
 
     /// A scalar-per-channel random-walk filter (A = C = I_p, B, D empty, Q = q I, R = r I,
-    /// x̂₀ = 0, P₀ = p0 I): the outlier cleaner of the cosine experiment and of the DKF-rsKF.
+    /// x̂₀ = 0, P₀ = p0 I): the outlier cleaner of the cosine experiment.
     pub fn random_walk(
         channels: usize,
         q: f64,
@@ -166,6 +166,19 @@ impl RobustKalmanFilter {
         p0: f64,
         psi: InfluenceFunction,
     ) -> Result<Self, EstimationError> {
+        Self::random_walk_from(DVector::zeros(channels), q, r, p0, psi)
+    }
+
+    /// [`RobustKalmanFilter::random_walk`] started at x̂₀ = `start` (one entry per channel):
+    /// the outlier cleaner of the DKF-rsKF, started at the DKF's initial output.
+    pub fn random_walk_from(
+        start: DVector<f64>,
+        q: f64,
+        r: f64,
+        p0: f64,
+        psi: InfluenceFunction,
+    ) -> Result<Self, EstimationError> {
+        let channels = start.len();
         let eye = DMatrix::<f64>::identity(channels, channels);
         Self::new(
             GaussianModel {
@@ -175,7 +188,7 @@ impl RobustKalmanFilter {
                 d: DMatrix::zeros(channels, 0),
                 q: &eye * q,
                 r: &eye * r,
-                x0: DVector::zeros(channels),
+                x0: start,
                 p0: &eye * p0,
             },
             psi,

@@ -38,8 +38,8 @@ use crate::kalman::{
 };
 use crate::structured::{add_matrix, add_vector, Block};
 use spurio::estimation::{
-    AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, GaussianModel,
-    ParameterMeasurement, RobustKalmanFilter, StateEstimator,
+    AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
+    RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
@@ -396,23 +396,8 @@ impl DualFilter for DkfRsKf {
         // The cleaner starts at the DKF's initial output ŷ₀ = C x̂₀ (0 with the default x0):
         // a robust filter started far from the signal trusts its first samples whatever
         // they are, so a known initial state must reach the cleaner too.
-        let p_out = layout.dims.p;
-        let eye = nalgebra::DMatrix::<f64>::identity(p_out, p_out);
         let start = dual.c() * dual.state();
-        let cleaner = RobustKalmanFilter::new(
-            GaussianModel {
-                a: eye.clone(),
-                b: nalgebra::DMatrix::zeros(p_out, 0),
-                c: eye.clone(),
-                d: nalgebra::DMatrix::zeros(p_out, 0),
-                q: &eye * q,
-                r: &eye * r,
-                x0: start,
-                p0: &eye * p0,
-            },
-            psi,
-        )
-        .map_err(error)?;
+        let cleaner = RobustKalmanFilter::random_walk_from(start, q, r, p0, psi).map_err(error)?;
         DkfRsKf::new(cleaner, dual).map_err(error)
     }
     fn dual(&self) -> &DualKalmanFilter {
