@@ -77,19 +77,11 @@ fn true_dynamics_rows() -> DMatrix<f64> {
 
 /// Rows 3–4 of [A B], the ZOH model of the crane with `parameters`.
 fn dynamics_rows(parameters: &GantryCraneParameters) -> DMatrix<f64> {
-    let (a, b) = zoh_model(parameters);
+    let (a, b) = spurio::control::crane_zoh(parameters, SAMPLE_TIME);
     let mut rows = DMatrix::zeros(2, 5);
     rows.view_mut((0, 0), (2, 4)).copy_from(&a.rows(2, 2));
     rows.view_mut((0, 4), (2, 1)).copy_from(&b.rows(2, 2));
     rows
-}
-
-/// ZOH (Ts = 0.05 s) of the crane's linearisation with `parameters`.
-fn zoh_model(parameters: &GantryCraneParameters) -> (DMatrix<f64>, DMatrix<f64>) {
-    let (a4, b4) = parameters.linearised();
-    let a = DMatrix::from_iterator(4, 4, a4.iter().copied());
-    let b = DMatrix::from_iterator(4, 1, b4.iter().copied());
-    spurio::linalg::zoh(&a, &b, SAMPLE_TIME)
 }
 
 /// The first time after which |x| < 5 mm and |θ| < 0.01 rad hold to the end of the run.
@@ -310,7 +302,7 @@ fn perturbed_crane() -> GantryCraneParameters {
 
 /// The names and values of the estimator's initial [A B] for the crane `parameters`.
 fn model_start_values(parameters: &GantryCraneParameters) -> Vec<(String, f64)> {
-    let (a, b) = zoh_model(parameters);
+    let (a, b) = spurio::control::crane_zoh(parameters, SAMPLE_TIME);
     let mut values = Vec::new();
     for i in 0..4 {
         for j in 0..4 {
