@@ -6,35 +6,12 @@
 
 mod common;
 
-use common::{assert_names, instance_tables, run};
+use common::{assert_names, instance_tables, reference, run};
 use spurio_master::engine::{RunEnd, RunOptions};
 use spurio_master::fmu::{Causality, FmiVersion, FmuFile, LoadError, VarType};
 use spurio_master::ssp::SspVersion;
 use spurio_master::system::{System, SystemDescription, SystemError};
 use std::path::{Path, PathBuf};
-
-/// The Reference FMUs of FMI `version` (`fmi2`, `fmi3`) in the third-party folder
-/// (`SPURIO_THIRD_PARTY`, or `shared/third-party` next to the repository or its worktree).
-fn reference(version: &str, model: &str) -> PathBuf {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let third_party = std::env::var_os("SPURIO_THIRD_PARTY")
-        .map(PathBuf::from)
-        .or_else(|| {
-            [
-                repo.join("../shared/third-party"),
-                repo.join("../../shared/third-party"),
-            ]
-            .into_iter()
-            .find(|p| p.is_dir())
-        })
-        .expect("no third-party folder: see its README");
-    let fmu = third_party
-        .join("reference-fmus")
-        .join(version)
-        .join(format!("{model}.fmu"));
-    assert!(fmu.is_file(), "{} is missing", fmu.display());
-    fmu
-}
 
 /// The system of the TOML `head` (times, connections, record) and `instances` (see
 /// [`instance_tables`]).

@@ -229,7 +229,11 @@ fn run(
     progress: bool,
     limits: &limits::Limits,
 ) -> Result<()> {
-    let resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    let mut resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    if no_record {
+        // Only the outputs that feed connections are read after a step.
+        resolved.record_nothing()?;
+    }
     for note in &resolved.notes {
         eprintln!("spurio: {}: {note}", system.display());
     }
