@@ -12,23 +12,52 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// One row of the table: an FMU, its communication step, and what it is measured against.
+/// One row of the table: an FMU (its file stem in `build/fmus`), its label and communication
+/// step, what it is measured against (issue 17's floor and targets, where it gives them), and
+/// how its inputs move (sines of `amplitude` around their start values, with a 5 % sprinkling
+/// of outliers for the robust estimators).
 pub struct Row {
-    /// The packaged FMU's file stem in `build/fmus`.
     pub fmu: &'static str,
-    /// The row's label.
     pub label: &'static str,
     pub step: f64,
-    /// The arithmetic floor per step (ns), issue 17's estimate, if it gives one.
+    /// Nanoseconds per step.
     pub floor_ns: Option<f64>,
-    /// Issue 17's target per step (ns), if it names one.
     pub target_ns: Option<f64>,
-    /// Issue 17's target in instructions per step, if it names one.
+    /// Instructions per step.
     pub target_instructions: Option<f64>,
-    /// The amplitude of the sines added to the inputs' start values.
     pub amplitude: f64,
-    /// Inputs with a 5 % sprinkling of outliers (the robust estimators' case).
     pub outliers: bool,
+}
+
+impl Row {
+    const fn new(fmu: &'static str, label: &'static str, step: f64) -> Self {
+        Self {
+            fmu,
+            label,
+            step,
+            floor_ns: None,
+            target_ns: None,
+            target_instructions: None,
+            amplitude: 0.1,
+            outliers: false,
+        }
+    }
+
+    /// Issue 17's floor and target per step (ns).
+    const fn against(self, floor_ns: f64, target_ns: f64) -> Self {
+        Self {
+            floor_ns: Some(floor_ns),
+            target_ns: Some(target_ns),
+            ..self
+        }
+    }
+
+    const fn with_outliers(self) -> Self {
+        Self {
+            outliers: true,
+            ..self
+        }
+    }
 }
 
 /// The rows, with their constants. Where they come from (issue 17, measured on an AMD Zen 4,
@@ -44,75 +73,27 @@ pub struct Row {
 /// - scalar KalmanFilter / RobustKalmanFilter: ≈ 25 flops ≈ 10 ns; target ≤ 40 ns.
 pub const ROWS: &[Row] = &[
     Row {
-        fmu: "DkfRsKfGenerator",
-        label: "DkfRsKfGenerator n=8 m=p=2",
-        step: 0.05,
-        floor_ns: Some(200.0),
-        target_ns: Some(1000.0),
         target_instructions: Some(20_000.0),
-        amplitude: 0.1,
-        outliers: true,
+        ..Row::new("DkfRsKfGenerator", "DkfRsKfGenerator n=8 m=p=2", 0.05)
+            .against(200.0, 1000.0)
+            .with_outliers()
     },
+    Row::new("LinearSystem", "LinearSystem n=2", 0.1).against(85.0, 120.0),
     Row {
-        fmu: "LinearSystem",
-        label: "LinearSystem n=2",
-        step: 0.1,
-        floor_ns: Some(85.0),
-        target_ns: Some(120.0),
-        target_instructions: None,
-        amplitude: 0.1,
-        outliers: false,
-    },
-    Row {
-        fmu: "AdaptiveStateFeedback",
-        label: "AdaptiveStateFeedback",
-        step: 0.05,
-        floor_ns: None,
-        target_ns: None,
-        target_instructions: None,
         amplitude: 1e-4,
-        outliers: false,
+        ..Row::new("AdaptiveStateFeedback", "AdaptiveStateFeedback", 0.05)
     },
     Row {
-        fmu: "WindGenerator",
-        label: "WindGenerator h=0.1 s",
-        step: 0.1,
-        floor_ns: None,
         target_ns: Some(12_000.0),
-        target_instructions: None,
-        amplitude: 0.1,
-        outliers: false,
+        ..Row::new("WindGenerator", "WindGenerator h=0.1 s", 0.1)
     },
-    Row {
-        fmu: "GantryCrane",
-        label: "GantryCrane h=50 ms",
-        step: 0.05,
-        floor_ns: None,
-        target_ns: None,
-        target_instructions: None,
-        amplitude: 0.1,
-        outliers: false,
-    },
-    Row {
-        fmu: "KalmanFilter",
-        label: "KalmanFilter n=p=1",
-        step: 0.001,
-        floor_ns: Some(10.0),
-        target_ns: Some(40.0),
-        target_instructions: None,
-        amplitude: 0.1,
-        outliers: true,
-    },
-    Row {
-        fmu: "RobustKalmanFilter",
-        label: "RobustKalmanFilter n=p=1",
-        step: 0.001,
-        floor_ns: Some(10.0),
-        target_ns: Some(40.0),
-        target_instructions: None,
-        amplitude: 0.1,
-        outliers: true,
-    },
+    Row::new("GantryCrane", "GantryCrane h=50 ms", 0.05),
+    Row::new("KalmanFilter", "KalmanFilter n=p=1", 0.001)
+        .against(10.0, 40.0)
+        .with_outliers(),
+    Row::new("RobustKalmanFilter", "RobustKalmanFilter n=p=1", 0.001)
+        .against(10.0, 40.0)
+        .with_outliers(),
 ];
 
 /// One initialised instance of a row's FMU and what a step moves.
@@ -254,7 +235,7 @@ pub fn measure(fmus: &Path, rounds: usize, batch_ms: f64) -> Result<Vec<Measured
         .iter()
         .zip(samples)
         .map(|(s, samples)| Measured {
-            ns: median(samples),
+            ns: median(&samples),
             outputs_read: s.stepper.outputs_read(),
         })
         .collect())

@@ -1,18 +1,6 @@
-//! Medians and the interleaving of measurements.
+//! The interleaving of measurements (medians: the experiments' [`median`]).
 
-/// The median of `samples` (NaN for none).
-pub fn median(mut samples: Vec<f64>) -> f64 {
-    if samples.is_empty() {
-        return f64::NAN;
-    }
-    samples.sort_by(f64::total_cmp);
-    let n = samples.len();
-    if n % 2 == 1 {
-        samples[n / 2]
-    } else {
-        0.5 * (samples[n / 2 - 1] + samples[n / 2])
-    }
-}
+pub use spurio_experiments::runner::median;
 
 /// Runs every measurement of `subjects` once per round, in turn (A, B, A, B …, so that a
 /// drift of the machine hits all of them alike), and gives each one's samples.
@@ -33,13 +21,6 @@ pub fn interleaved<T>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn medians_of_odd_and_even_counts() {
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(vec![4.0, 1.0, 3.0, 2.0]), 2.5);
-        assert!(median(Vec::new()).is_nan());
-    }
 
     #[test]
     fn rounds_alternate_between_the_subjects() {

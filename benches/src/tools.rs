@@ -116,7 +116,7 @@ pub fn per_step(runners: &mut [Runner], short: u64, long: u64, rounds: usize) ->
         let b = r.seconds(long)?;
         Ok((b - a) * 1e9 / (long - short) as f64)
     })?;
-    Ok(samples.into_iter().map(median).collect())
+    Ok(samples.into_iter().map(|s| median(&s)).collect())
 }
 
 /// Writes a system TOML of `steps` steps of [`STEP`] with `instances` (name, FMU) and
@@ -246,5 +246,5 @@ pub fn bare_chain(third: &ThirdParty, count: usize, steps: u64, rounds: usize) -
     };
     batch()?;
     let samples = (0..rounds).map(|_| batch()).collect::<Result<Vec<_>>>()?;
-    Ok(median(samples))
+    Ok(median(&samples))
 }

@@ -30,6 +30,13 @@ fn assert_refused(head: &str, instances: &[(&str, &Path, &str)], parts: &[&str])
     }
 }
 
+/// Asserts that connecting `a` to `b` by `connection` (one step of 0.5 s to t = 1) is refused
+/// with a message naming every one of `parts`.
+fn assert_connection_refused(connection: &str, a: &Path, b: &Path, parts: &[&str]) {
+    let head = format!("stop_time = 1.0\nstep_size = 0.5\nconnections = [{connection:?}]");
+    assert_refused(&head, &[("a", a, ""), ("b", b, "")], parts);
+}
+
 /// The FMI 2.0 and the FMI 3.0 Reference FMU `Feedthrough`.
 fn feedthroughs() -> (PathBuf, PathBuf) {
     (
@@ -128,13 +135,10 @@ fn a_whole_array_parameter_takes_all_its_elements() {
 #[test]
 fn a_whole_array_connects_only_to_an_array_of_its_dimensions() {
     let fmu = reference("fmi3", "StateSpace");
-    assert_refused(
-        r#"
-        stop_time = 1.0
-        step_size = 0.5
-        connections = ["a.y -> b.u[1]"]
-        "#,
-        &[("a", &fmu, ""), ("b", &fmu, "")],
+    assert_connection_refused(
+        "a.y -> b.u[1]",
+        &fmu,
+        &fmu,
         &[
             "a.y -> b.u[1]",
             "`a.y` is an array of dimensions [3]",
@@ -234,13 +238,10 @@ fn values_cross_fmi_versions_and_fmi3_types() {
 #[test]
 fn types_must_match_across_versions() {
     let (fmu2, fmu3) = feedthroughs();
-    assert_refused(
-        r#"
-        stop_time = 1.0
-        step_size = 0.5
-        connections = ["a.Float64_continuous_output -> b.Float32_continuous_input"]
-        "#,
-        &[("a", &fmu2, ""), ("b", &fmu3, "")],
+    assert_connection_refused(
+        "a.Float64_continuous_output -> b.Float32_continuous_input",
+        &fmu2,
+        &fmu3,
         &["type mismatch", "Real", "Float32"],
     );
 }
