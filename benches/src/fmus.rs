@@ -15,18 +15,17 @@ use std::time::Instant;
 /// One row of the table: an FMU (its file stem in `build/fmus`), its label and communication
 /// step, what it is measured against (issue 17's floor and targets, where it gives them), and
 /// how its inputs move (sines of `amplitude` around their start values, with a 5 % sprinkling
-/// of outliers for the robust estimators).
+/// of outliers for the robust estimators). Floor and target in ns per step, the other target
+/// in instructions per step.
 pub struct Row {
-    pub fmu: &'static str,
-    pub label: &'static str,
-    pub step: f64,
-    /// Nanoseconds per step.
-    pub floor_ns: Option<f64>,
-    pub target_ns: Option<f64>,
-    /// Instructions per step.
-    pub target_instructions: Option<f64>,
-    pub amplitude: f64,
-    pub outliers: bool,
+    pub(crate) fmu: &'static str,
+    pub(crate) label: &'static str,
+    pub(crate) step: f64,
+    pub(crate) floor_ns: Option<f64>,
+    pub(crate) target_ns: Option<f64>,
+    pub(crate) target_instructions: Option<f64>,
+    pub(crate) amplitude: f64,
+    pub(crate) outliers: bool,
 }
 
 impl Row {
