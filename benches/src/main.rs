@@ -68,6 +68,9 @@ fn main() -> Result<()> {
         .spurio
         .clone()
         .unwrap_or_else(|| repo.join("target/release/spurio"));
+    if args.quick {
+        println!("(--quick: a smoke run with tiny counts; its figures measure nothing)\n");
+    }
     our_fmus(&args, &fmus)?;
     match ThirdParty::find(&repo) {
         Some(third) => side_by_side(&args, &spurio, &third)?,
