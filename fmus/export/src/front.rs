@@ -8,15 +8,76 @@
 //! 4: [`Status::code`]), and their instance and FMU-state handles are both `void*`, so one
 //! path serves them.
 
-use crate::description::{Config, CONFIG_FILE};
+use crate::description::{Config, ModelInfo, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
-use crate::instance::{Core, Function, Instance};
-use crate::model::FmuModel;
+use crate::fmi3::arrays::Layout;
+use crate::instance::{Access, Core, Function, Instance};
+use crate::model::{Cause, FmuModel};
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
+use std::any::TypeId;
 use std::ffi::CString;
 use std::os::raw::{c_char, c_int, c_void};
 use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// What every instance of one configuration of a model shares, built once per configuration
+/// ([`interface`]): the model description, the access table that get/set calls check values
+/// against (value reference = index), and the FMI 3.0 arrays over the table.
+#[derive(Debug)]
+pub struct Interface {
+    /// The model description.
+    pub info: ModelInfo,
+    /// How each variable may be accessed, by value reference.
+    pub access: Vec<Access>,
+    /// The FMI 3.0 variables (arrays) over the table.
+    pub layout: Layout,
+}
+
+impl Interface {
+    /// The interface of `info`.
+    pub fn new(info: ModelInfo) -> Self {
+        let access = info.variables.iter().map(Access::of).collect();
+        let layout = Layout::of(&info.variables);
+        Self {
+            info,
+            access,
+            layout,
+        }
+    }
+}
+
+/// Interfaces built so far in this process, by model type and configuration. Bounded: a
+/// process that instantiates more configurations than this rebuilds the oldest.
+static INTERFACES: Mutex<Vec<(TypeId, Config, Arc<Interface>)>> = Mutex::new(Vec::new());
+const INTERFACES_KEPT: usize = 64;
+
+/// The interface of model `M` for `config`: built by [`FmuModel::describe`] on first use,
+/// then shared by every instance of that configuration in the process (so an instance
+/// carries no copy of its description, and instantiating needs no XML hashing).
+pub fn interface<M: FmuModel>(config: &Config) -> Result<Arc<Interface>, Cause> {
+    let key = TypeId::of::<M>();
+    let find = |cache: &[(TypeId, Config, Arc<Interface>)]| {
+        cache
+            .iter()
+            .find(|(t, c, _)| *t == key && c == config)
+            .map(|(_, _, i)| Arc::clone(i))
+    };
+    if let Some(found) = find(&INTERFACES.lock().unwrap_or_else(|e| e.into_inner())) {
+        return Ok(found);
+    }
+    // Described outside the lock: a model's `describe` may take a while.
+    let built = Arc::new(Interface::new(M::describe(config)?));
+    let mut cache = INTERFACES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(found) = find(&cache) {
+        return Ok(found);
+    }
+    if cache.len() >= INTERFACES_KEPT {
+        cache.remove(0);
+    }
+    cache.push((key, config.clone(), Arc::clone(&built)));
+    Ok(built)
+}
 
 /// What an instance handle (`fmi2Component`, `fmi3Instance`) points to: the instance, the
 /// front's own data `X` (the FMI 3.0 array layout), the FMU states it created and the
@@ -39,6 +100,11 @@ impl<M: FmuModel, X> Slot<M, X> {
             states: Vec::new(),
             strings: Vec::new(),
         }
+    }
+
+    /// The front's own data.
+    pub fn extra(&self) -> &X {
+        &self.extra
     }
 
     /// The instance.
