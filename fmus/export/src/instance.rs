@@ -29,7 +29,7 @@
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
 use crate::front::Interface;
-use crate::model::{Cause, Context, Failure, FmuModel};
+use crate::model::{Cause, Context, Failure, FmuModel, EVENTS};
 use crate::types::Status;
 use crate::variables::{Causality, Initial, Value, Values, Variability, Variable, VariableType};
 use std::fmt;
@@ -233,20 +233,23 @@ impl Logger {
             categories: Vec::new(),
         }
     }
+    /// Whether a message with `status` under `category` is delivered: always for warnings
+    /// and worse, for `Ok` when debug logging is on and the category enabled.
+    pub fn enabled(&self, status: Status, category: &str) -> bool {
+        status != Status::Ok
+            || (self.logging_on
+                && (self.categories.is_empty()
+                    || self
+                        .categories
+                        .iter()
+                        .any(|c| c == category || c == "logAll")))
+    }
     /// Logs `text` with `status` under `category`.
     pub fn log(&self, status: Status, category: &str, text: &str) {
-        if status == Status::Ok {
-            let enabled = self.categories.is_empty()
-                || self
-                    .categories
-                    .iter()
-                    .any(|c| c == category || c == "logAll");
-            if !self.logging_on || !enabled {
-                return;
-            }
+        if self.enabled(status, category) {
+            self.sink
+                .deliver(&self.instance_name, status, category, text);
         }
-        self.sink
-            .deliver(&self.instance_name, status, category, text);
     }
     /// Logs an error.
     pub fn error(&self, text: &str) {
@@ -420,6 +423,7 @@ impl<M: FmuModel> Instance<M> {
     ) -> Status {
         self.before.clone_from(&self.core.values);
         let mut ctx = Context::at(&mut self.core.values, self.core.time);
+        ctx.log_events = self.logger.enabled(Status::Ok, EVENTS);
         let result = call(&mut self.core.model, &mut ctx);
         let messages = ctx.take_messages();
         let mut status = Status::Ok;
