@@ -384,9 +384,9 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
     let f = T::GET;
     unsafe {
         with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
-            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, v| {
+            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, values, index| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = T::to_c(v)
+                *out.add(i) = T::to_c(values.number(index))
             }),
             Err(status) => status,
         })
@@ -413,7 +413,9 @@ pub unsafe fn get_string<M: FmuModel>(
             let mut values = Vec::with_capacity(n);
             let status = s
                 .instance
-                .get_values(f, vrs, VariableType::String, |_, v| values.push(v.clone()));
+                .get_values(f, vrs, VariableType::String, |_, all, index| {
+                    values.push(all.string(index).to_string())
+                });
             // SAFETY: `value` points to `n` slots and `values` has at most `n` elements.
             s.return_strings(&values, value);
             status

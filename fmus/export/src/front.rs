@@ -117,25 +117,15 @@ impl<M: FmuModel, X> Slot<M, X> {
         Box::into_raw(Box::new(self)) as *mut c_void
     }
 
-    /// Keeps `values` as C strings until the next call and writes pointers to them into
+    /// Keeps `texts` as C strings until the next call and writes pointers to them into
     /// `out`.
     ///
     /// # Safety
-    /// `out` points to at least `values.len()` writable slots.
-    pub(crate) unsafe fn return_strings<'v>(
-        &mut self,
-        values: impl IntoIterator<Item = &'v Value>,
-        out: *mut *const c_char,
-    ) {
-        self.strings = values
-            .into_iter()
-            .map(|v| {
-                let text = match v {
-                    Value::String(t) => t.as_str(),
-                    _ => "",
-                };
-                CString::new(text.replace('\0', " ")).unwrap_or_default()
-            })
+    /// `out` points to at least `texts.len()` writable slots.
+    pub(crate) unsafe fn return_strings(&mut self, texts: &[String], out: *mut *const c_char) {
+        self.strings = texts
+            .iter()
+            .map(|text| CString::new(text.replace('\0', " ")).unwrap_or_default())
             .collect();
         for (i, cs) in self.strings.iter().enumerate() {
             // SAFETY: `out` holds the slots (caller); the strings live in the slot until the
@@ -224,27 +214,26 @@ pub trait Kind<V: Version> {
     const GET: &'static Function;
     /// The set function.
     const SET: &'static Function;
-    /// A value of this kind as the master reads it.
-    fn to_c(value: &Value) -> Self::C;
+    /// A value of this kind (as [`crate::Values::number`] stores it) as the master reads it.
+    fn to_c(number: f64) -> Self::C;
     /// A value the master sets.
     fn from_c(value: Self::C) -> Value;
 }
 
 /// Declares the [`Kind`] of the marker type of `Value::$name` in one FMI version: its C type,
-/// its functions (paths to the `Function` constants), the C value a value of another type
-/// reads as, and how a C value becomes a value (a value becomes a C value by `From`).
+/// its functions (paths to the `Function` constants), how a stored number becomes a C value
+/// and how a C value becomes a value.
 macro_rules! kind {
-    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $default:expr, $from_c:expr) => {
+    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $to_c:expr, $from_c:expr) => {
         impl Kind<$version> for $name {
             type C = $c;
             const TYPE: VariableType = VariableType::$name;
             const GET: &'static Function = &$get;
             const SET: &'static Function = &$set;
-            fn to_c(value: &Value) -> $c {
-                match value {
-                    Value::$name(x) => <$c>::from(*x),
-                    _ => $default,
-                }
+            #[inline]
+            fn to_c(number: f64) -> $c {
+                let to_c: fn(f64) -> $c = $to_c;
+                to_c(number)
             }
             fn from_c(value: $c) -> Value {
                 let from_c: fn($c) -> _ = $from_c;
@@ -267,12 +256,12 @@ mod kinds {
     use crate::instance::functions as f2;
 
     // fmi2Real, fmi2Integer, fmi2Boolean (an int); fmi3Float64, fmi3Int32, fmi3Boolean (a bool)
-    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, f64::NAN, |v| v }
-    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, 0, |v| v }
-    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, 0, |v| v != 0 }
-    kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, f64::NAN, |v| v }
-    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, 0, |v| v }
-    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, 0, |v| v != 0 }
+    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, |x| x, |v| v }
+    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, |x| x as c_int, |v| v }
+    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(x != 0.0), |v| v != 0 }
+    kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, |x| x, |v| v }
+    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, |x| x as i32, |v| v }
+    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| v != 0 }
 }
 
 /// Reads the C strings of a set-string call as values; `Err` with the rejection's status

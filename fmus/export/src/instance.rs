@@ -463,15 +463,7 @@ impl<M: FmuModel> Instance<M> {
 
     /// The first Real that is NaN or infinite: (value reference, value).
     fn first_non_finite(&self) -> Option<(usize, f64)> {
-        self.core
-            .values
-            .all()
-            .iter()
-            .enumerate()
-            .find_map(|(i, v)| match v {
-                Value::Real(x) if !x.is_finite() => Some((i, *x)),
-                _ => None,
-            })
+        self.core.values.first_non_finite()
     }
 
     /// `fmi2SetDebugLogging`.
@@ -585,14 +577,14 @@ impl<M: FmuModel> Instance<M> {
         }
     }
 
-    /// `fmi2Get{Real,Integer,Boolean,String}`: checks every reference, then hands each value
-    /// to `out` in order.
+    /// `fmi2Get{Real,Integer,Boolean,String}`: checks every reference, then hands each
+    /// value's position in the call, the values and its index to `out`, in order.
     pub fn get_values(
         &mut self,
         f: &Function,
         vrs: &[u32],
         expected: VariableType,
-        mut out: impl FnMut(usize, &Value),
+        mut out: impl FnMut(usize, &Values, usize),
     ) -> Status {
         if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
             return self.reject(f, &self.type_error(vr, expected));
@@ -601,9 +593,9 @@ impl<M: FmuModel> Instance<M> {
         if status > Status::Warning {
             return status;
         }
-        let all = self.core.values.all();
+        let values = &self.core.values;
         for (i, vr) in vrs.iter().enumerate() {
-            out(i, &all[*vr as usize]);
+            out(i, values, *vr as usize);
         }
         status
     }
@@ -830,7 +822,7 @@ impl<M: FmuModel> Instance<M> {
         w.put_bool(core.stop_time.is_some());
         w.put_f64(core.stop_time.unwrap_or(0.0));
         w.put_bool(core.inputs_changed);
-        w.put_u64(core.values.all().len() as u64);
+        w.put_u64(core.values.len() as u64);
         core.values.save(&mut w);
         core.model.save_state(&mut w);
         w.into_bytes()
@@ -887,10 +879,9 @@ impl<M: FmuModel> Instance<M> {
         }
         let mut values = Values::from_start(&self.interface.info.variables);
         values.load(&mut r)?;
-        for (v, value) in self.interface.info.variables.iter().zip(values.all()) {
-            let x = match value {
-                Value::Real(x) => *x,
-                Value::Integer(i) => f64::from(*i),
+        for (i, v) in self.interface.info.variables.iter().enumerate() {
+            let x = match values.variable_type(i) {
+                Some(VariableType::Real | VariableType::Integer) => values.number(i),
                 _ => continue,
             };
             if !x.is_finite()

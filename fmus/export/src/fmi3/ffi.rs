@@ -18,7 +18,7 @@ use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
 use crate::instance::{Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::Status;
-use crate::variables::{Value, VariableType};
+use crate::variables::{Value, Values, VariableType};
 use std::ffi::CString;
 use std::os::raw::c_char;
 use std::sync::Arc;
@@ -364,8 +364,9 @@ fn check_references<M: FmuModel>(
 pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
 
 /// A get call on the slot: checks the pointers and the references, lets the instance compute
-/// what it must, then hands the `n_values` values `vr` names (arrays row-major, `time` for
-/// value reference 0) to `write` with their positions. No buffer.
+/// what it must, then hands the `n_values` values `vr` names (arrays row-major) to `write`:
+/// their positions, the values and their indices (`None` for `time`, value reference 0). No
+/// buffer.
 ///
 /// # Safety
 /// FMI pointer contract.
@@ -378,7 +379,7 @@ unsafe fn read<M: FmuModel>(
     out_is_null: bool,
     n_values: usize,
     expected: VariableType,
-    mut write: impl FnMut(usize, &Value),
+    mut write: impl FnMut(usize, &Values, Option<usize>),
 ) -> Status {
     // SAFETY: forwarded from the caller.
     let Some(vrs) = (unsafe { slice(vr, nvr) }) else {
@@ -394,18 +395,17 @@ unsafe fn read<M: FmuModel>(
     if status > Status::Warning {
         return status;
     }
-    let (interface, all) = (s.instance.interface(), s.instance.values().all());
-    let time = Value::Real(s.instance.time());
+    let (interface, values) = (s.instance.interface(), s.instance.values());
     let mut k = 0;
     for &vr in vrs {
         match interface.layout.target(vr) {
             Some(Target::Time) => {
-                write(k, &time);
+                write(k, values, None);
                 k += 1;
             }
             Some(Target::Variable(v)) => {
-                for value in &all[v.indices()] {
-                    write(k, value);
+                for index in v.indices() {
+                    write(k, values, Some(index));
                     k += 1;
                 }
             }
@@ -430,11 +430,21 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     let (f, null) = (K::GET, out.is_null());
     unsafe {
         with_instance::<M>(c, f, |s| {
-            read(s, f, vr, nvr, null, n_values, K::TYPE, |i, v| {
-                // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
-                // (checked by `check_references`).
-                *out.add(i) = K::to_c(v)
-            })
+            let time = s.instance.time();
+            read(
+                s,
+                f,
+                vr,
+                nvr,
+                null,
+                n_values,
+                K::TYPE,
+                |i, values, index| {
+                    // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
+                    // (checked by `check_references`).
+                    *out.add(i) = K::to_c(index.map_or(time, |index| values.number(index)))
+                },
+            )
         })
     }
 }
@@ -516,7 +526,7 @@ pub unsafe fn get_string<M: FmuModel>(
                 null,
                 n_values,
                 VariableType::String,
-                |_, v| values.push(v.clone()),
+                |_, all, i| values.push(i.map_or("", |i| all.string(i)).to_string()),
             );
             if status <= Status::Warning {
                 // SAFETY: `out` holds `n_values` slots, the number of `values`.
