@@ -11,7 +11,7 @@ use spurio_export::fmi3::types::*;
 use spurio_export::types::*;
 use spurio_export::{
     ffi, ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo,
-    Variability, Variable,
+    Value, Variability, Variable,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -64,98 +64,89 @@ fn count(f: impl FnOnce()) -> usize {
     EVENTS.with(|n| n.get())
 }
 
-/// u[1], u[2] (Real inputs, an array in FMI 3.0), k (Integer input), b (Boolean input);
-/// y[1], y[2] = gain · ∫u; z = u[1] + k (direct feedthrough); n = steps taken; on = b and
-/// y[1] > 0; gain a tunable parameter.
-#[derive(Clone, Debug, Default)]
-struct Toy {
-    y: [f64; 2],
-    steps: i32,
+/// An input of another type than Real: discrete, no `initial`.
+fn input(v: Variable) -> Variable {
+    Variable {
+        causality: Causality::Input,
+        variability: Variability::Discrete,
+        initial: None,
+        ..v
+    }
 }
 
-const U: usize = 0;
-const K: usize = 2;
-const B: usize = 3;
-const Y: usize = 4;
-const Z: usize = 6;
-const N: usize = 7;
-const ON: usize = 8;
-const GAIN: usize = 9;
+spurio_export::declare_variables! {
+    /// u (Real inputs, an array in FMI 3.0), k (Integer input), b (Boolean input);
+    /// y = gain · ∫u; z = u[1] + k (direct feedthrough); n = steps taken; on = b and
+    /// y[1] > 0; gain a tunable parameter.
+    fn variables() {
+        table: [
+            U[2] = ["u[1]", "u[2]"].map(|n| Variable::input(n, 0.0)),
+            K = input(Variable::integer_parameter("k", 0)).min(-5.0).max(5.0),
+            B = input(Variable::boolean_parameter("b", false)),
+            Y[2] = ["y[1]", "y[2]"].map(Variable::output),
+            Z = Variable::output("z").depends_on(&[vr::U, vr::K]),
+            N = Variable { start: Value::Integer(0), ..Variable::discrete_output("n") },
+            ON = Variable::boolean_output("on"),
+            GAIN = Variable::parameter("gain", 1.0).tunable().min(0.0),
+        ]
+    }
+}
+
+/// The toy: its state is ∫u[1], ∫u[2] and the number of steps.
+#[derive(Clone, Debug, Default)]
+struct Toy([f64; 3]);
 
 impl FmuModel for Toy {
     fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
-        let input = |v: Variable| Variable {
-            causality: Causality::Input,
-            variability: Variability::Discrete,
-            initial: None,
-            ..v
-        };
-        let vars = vec![
-            Variable::input("u[1]", 0.0),
-            Variable::input("u[2]", 0.0),
-            input(Variable::integer_parameter("k", 0))
-                .min(-5.0)
-                .max(5.0),
-            input(Variable::boolean_parameter("b", false)),
-            Variable::output("y[1]"),
-            Variable::output("y[2]"),
-            Variable::output("z").depends_on(&[U, K]),
-            Variable {
-                start: spurio_export::Value::Integer(0),
-                ..Variable::discrete_output("n")
-            },
-            Variable::boolean_output("on"),
-            Variable::parameter("gain", 1.0).tunable().min(0.0),
-        ];
-        Ok(ModelInfo::new("Toy", "toy", vars, None, Config::new()))
+        Ok(ModelInfo::new(
+            "Toy",
+            "toy",
+            variables(),
+            None,
+            Config::new(),
+        ))
     }
     fn create(_info: &ModelInfo) -> Result<Self, Cause> {
         Ok(Self::default())
     }
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         *self = Self::default();
-        self.write(ctx);
-        Ok(())
+        self.write(ctx)
     }
     fn do_step(&mut self, ctx: &mut Context, _time: f64, step: f64) -> Result<(), Failure> {
-        for i in 0..2 {
-            self.y[i] += step * ctx.values.real(U + i);
-        }
-        self.steps += 1;
+        self.0[0] += step * ctx.values.real(vr::U);
+        self.0[1] += step * ctx.values.real(vr::U + 1);
+        self.0[2] += 1.0;
         ctx.log_event("a step taken");
-        self.write(ctx);
-        Ok(())
+        self.write(ctx)
     }
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.write(ctx);
-        Ok(())
+        self.write(ctx)
     }
     fn parameters_changed(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.write(ctx);
-        Ok(())
+        self.write(ctx)
     }
     fn save_state(&self, out: &mut ByteWriter) {
-        out.put_f64(self.y[0]);
-        out.put_f64(self.y[1]);
-        out.put_i32(self.steps);
+        self.0.iter().for_each(|x| out.put_f64(*x));
     }
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        self.y = [input.f64()?, input.f64()?];
-        self.steps = input.i32()?;
+        for x in &mut self.0 {
+            *x = input.f64()?;
+        }
         Ok(())
     }
 }
 
 impl Toy {
-    fn write(&self, ctx: &mut Context) {
-        let gain = ctx.values.real(GAIN);
-        ctx.values.set_real(Y, gain * self.y[0]);
-        ctx.values.set_real(Y + 1, gain * self.y[1]);
-        let z = ctx.values.real(U) + f64::from(ctx.values.integer(K));
-        ctx.values.set_real(Z, z);
-        ctx.values.set_integer(N, self.steps);
-        let on = ctx.values.boolean(B) && self.y[0] > 0.0;
-        ctx.values.set_boolean(ON, on);
+    fn write(&self, ctx: &mut Context) -> Result<(), Failure> {
+        let v = &mut *ctx.values;
+        let gain = v.real(vr::GAIN);
+        v.set_real(vr::Y, gain * self.0[0]);
+        v.set_real(vr::Y + 1, gain * self.0[1]);
+        v.set_real(vr::Z, v.real(vr::U) + f64::from(v.integer(vr::K)));
+        v.set_integer(vr::N, self.0[2] as i32);
+        v.set_boolean(vr::ON, v.boolean(vr::B) && self.0[0] > 0.0);
+        Ok(())
     }
 }
 
@@ -165,6 +156,40 @@ fn token() -> CString {
 
 const STEPS: usize = 100;
 const H: f64 = 0.01;
+/// Every step sets u = (1, −2), k = 3, b = true, gain = 2.
+const INPUTS: ([f64; 2], i32, f64) = ([1.0, -2.0], 3, 2.0);
+
+/// Runs `STEPS` exchanges under the counter: `exchange(t)` sets the inputs, steps from `t`
+/// and reads the outputs, returning its calls' statuses and y[1], y[2], z, n, on. Checks
+/// that every call succeeded, the outputs, and that nothing was allocated or freed.
+fn check(version: &str, mut exchange: impl FnMut(f64) -> ([i32; 8], [f64; 5])) {
+    let mut statuses = Vec::with_capacity(STEPS);
+    let mut outputs = [f64::NAN; 5];
+    let allocations = count(|| {
+        for i in 0..STEPS {
+            let (status, read) = exchange(i as f64 * H);
+            statuses.push(status);
+            outputs = read;
+        }
+    });
+    assert!(
+        statuses.iter().flatten().all(|s| *s == 0),
+        "{version}: {statuses:?}"
+    );
+    // y = gain · Σ h u, z = u[1] + k, every step counted, on = b and y[1] > 0.
+    let integral = INPUTS.2 * STEPS as f64 * H;
+    let expected = [integral, -2.0 * integral, 4.0, STEPS as f64, 1.0];
+    for (got, want) in outputs.iter().zip(expected) {
+        assert!(
+            (got - want).abs() < 1e-12,
+            "{version}: {outputs:?}, not {expected:?}"
+        );
+    }
+    assert_eq!(
+        allocations, 0,
+        "{version}: allocations and frees in {STEPS} steps"
+    );
+}
 
 #[test]
 fn fmi2_set_step_get_allocates_nothing() {
@@ -176,16 +201,17 @@ fn fmi2_set_step_get_allocates_nothing() {
         stepFinished: None,
         componentEnvironment: std::ptr::null_mut(),
     };
-    let token = token();
+    let (token, null) = (token(), std::ptr::null());
+    let (cs, off) = (fmi2CoSimulation, fmi2False);
     let c = unsafe {
         ffi::instantiate::<Toy>(
             name.as_ptr(),
-            fmi2CoSimulation,
+            cs,
             token.as_ptr(),
-            std::ptr::null(),
+            null,
             &callbacks,
-            fmi2False,
-            fmi2False,
+            off,
+            off,
         )
     };
     assert!(!c.is_null());
@@ -194,94 +220,56 @@ fn fmi2_set_step_get_allocates_nothing() {
         assert_eq!(ffi::enter_initialization_mode::<Toy>(c), fmi2OK);
         assert_eq!(ffi::exit_initialization_mode::<Toy>(c), fmi2OK);
     }
-    let (u, k, b) = ([U as u32, U as u32 + 1], [K as u32], [B as u32]);
-    let (reals, n, on, gain) = (
-        [Y as u32, Y as u32 + 1, Z as u32],
-        [N as u32],
-        [ON as u32],
-        [GAIN as u32],
-    );
-    let mut y = [0.0; 3];
-    let (mut steps, mut positive) = ([0], [0]);
-    let mut statuses = Vec::with_capacity(8 * STEPS);
-    let allocations = count(|| {
-        for i in 0..STEPS {
-            let t = i as f64 * H;
-            unsafe {
-                statuses.push(ffi::set::<Toy, ffi::Real>(
-                    c,
-                    u.as_ptr(),
-                    2,
-                    [1.0, -2.0].as_ptr(),
-                ));
-                statuses.push(ffi::set::<Toy, ffi::Integer>(
-                    c,
-                    k.as_ptr(),
-                    1,
-                    [3].as_ptr(),
-                ));
-                statuses.push(ffi::set::<Toy, ffi::Boolean>(
-                    c,
-                    b.as_ptr(),
-                    1,
-                    [fmi2True].as_ptr(),
-                ));
-                statuses.push(ffi::set::<Toy, ffi::Real>(
-                    c,
-                    gain.as_ptr(),
-                    1,
-                    [2.0].as_ptr(),
-                ));
-                statuses.push(ffi::do_step::<Toy>(c, t, H, fmi2True));
-                statuses.push(ffi::get::<Toy, ffi::Real>(
-                    c,
-                    reals.as_ptr(),
-                    3,
-                    y.as_mut_ptr(),
-                ));
-                statuses.push(ffi::get::<Toy, ffi::Integer>(
-                    c,
-                    n.as_ptr(),
-                    1,
-                    steps.as_mut_ptr(),
-                ));
-                statuses.push(ffi::get::<Toy, ffi::Boolean>(
-                    c,
-                    on.as_ptr(),
-                    1,
-                    positive.as_mut_ptr(),
-                ));
-            }
-        }
+    let [u1, u2, k, b, gain, y1, y2, z, n, on] = [
+        vr::U,
+        vr::U + 1,
+        vr::K,
+        vr::B,
+        vr::GAIN,
+        vr::Y,
+        vr::Y + 1,
+        vr::Z,
+        vr::N,
+        vr::ON,
+    ]
+    .map(|i| i as u32);
+    let (u, (reals, integers, booleans)) = ([u1, u2], ([y1, y2, z], [k, n], [b, on]));
+    let (k_value, gain_value) = (INPUTS.1, INPUTS.2);
+    check("FMI 2.0", |t| unsafe {
+        let (mut y, mut ints, mut bools) = ([0.0; 3], [0; 2], [0; 2]);
+        let status = [
+            ffi::set::<Toy, ffi::Real>(c, u.as_ptr(), 2, INPUTS.0.as_ptr()),
+            ffi::set::<Toy, ffi::Integer>(c, &k, 1, &k_value),
+            ffi::set::<Toy, ffi::Boolean>(c, &b, 1, &fmi2True),
+            ffi::set::<Toy, ffi::Real>(c, &gain, 1, &gain_value),
+            ffi::do_step::<Toy>(c, t, H, fmi2True),
+            ffi::get::<Toy, ffi::Real>(c, reals.as_ptr(), 3, y.as_mut_ptr()),
+            ffi::get::<Toy, ffi::Integer>(c, integers.as_ptr(), 2, ints.as_mut_ptr()),
+            ffi::get::<Toy, ffi::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr()),
+        ];
+        (
+            status,
+            [y[0], y[1], y[2], f64::from(ints[1]), f64::from(bools[1])],
+        )
     });
     unsafe { ffi::free_instance::<Toy>(c) };
-    assert!(statuses.iter().all(|s| *s == fmi2OK), "{statuses:?}");
-    // The model ran: y = gain · Σ h u, z = u[1] + k, every step counted.
-    let integral = STEPS as f64 * H;
-    assert!((y[0] - 2.0 * integral).abs() < 1e-12, "{y:?}");
-    assert!((y[1] + 4.0 * integral).abs() < 1e-12, "{y:?}");
-    assert_eq!(y[2], 4.0);
-    assert_eq!((steps[0], positive[0]), (STEPS as i32, fmi2True));
-    assert_eq!(
-        allocations, 0,
-        "allocations and frees in {STEPS} FMI 2.0 steps"
-    );
 }
 
 #[test]
 fn fmi3_set_step_get_allocates_nothing() {
     let name = CString::new("toy").unwrap();
-    let token = token();
+    let (token, off) = (token(), fmi3False);
+    let env = std::ptr::null_mut();
     let c = unsafe {
         ffi3::instantiate_co_simulation::<Toy>(
             name.as_ptr(),
             token.as_ptr(),
             std::ptr::null(),
-            fmi3False,
-            fmi3False,
-            fmi3False,
+            off,
+            off,
+            off,
             0,
-            std::ptr::null_mut(),
+            env,
             None,
         )
     };
@@ -293,89 +281,28 @@ fn fmi3_set_step_get_allocates_nothing() {
         );
         assert_eq!(ffi3::exit_initialization_mode::<Toy>(c), fmi3OK);
     }
-    // FMI 3.0 value references: 0 time, 1 u (array of 2), 2 k, 3 b, 4 y (array), 5 z, 6 n,
-    // 7 on, 8 gain.
-    let (u, k, b, gain) = ([1u32], [2u32], [3u32], [8u32]);
-    let (reals, n, on) = ([0u32, 4, 5], [6u32], [7u32]);
-    let mut y = [0.0; 4];
-    let (mut steps, mut positive) = ([0], [0u8]);
-    let mut statuses = Vec::with_capacity(8 * STEPS);
-    let allocations = count(|| {
-        for i in 0..STEPS {
-            let t = i as f64 * H;
-            let (mut event, mut terminate, mut early, mut last) = (0, 0, 0, 0.0);
-            unsafe {
-                statuses.push(ffi3::set::<Toy, ffi3::Float64>(
-                    c,
-                    u.as_ptr(),
-                    1,
-                    [1.0, -2.0].as_ptr(),
-                    2,
-                ));
-                statuses.push(ffi3::set::<Toy, ffi3::Int32>(
-                    c,
-                    k.as_ptr(),
-                    1,
-                    [3].as_ptr(),
-                    1,
-                ));
-                statuses.push(ffi3::set::<Toy, ffi3::Boolean>(
-                    c,
-                    b.as_ptr(),
-                    1,
-                    [fmi3True].as_ptr(),
-                    1,
-                ));
-                statuses.push(ffi3::set::<Toy, ffi3::Float64>(
-                    c,
-                    gain.as_ptr(),
-                    1,
-                    [2.0].as_ptr(),
-                    1,
-                ));
-                statuses.push(ffi3::do_step::<Toy>(
-                    c,
-                    t,
-                    H,
-                    &mut event,
-                    &mut terminate,
-                    &mut early,
-                    &mut last,
-                ));
-                statuses.push(ffi3::get::<Toy, ffi3::Float64>(
-                    c,
-                    reals.as_ptr(),
-                    3,
-                    y.as_mut_ptr(),
-                    4,
-                ));
-                statuses.push(ffi3::get::<Toy, ffi3::Int32>(
-                    c,
-                    n.as_ptr(),
-                    1,
-                    steps.as_mut_ptr(),
-                    1,
-                ));
-                statuses.push(ffi3::get::<Toy, ffi3::Boolean>(
-                    c,
-                    on.as_ptr(),
-                    1,
-                    positive.as_mut_ptr(),
-                    1,
-                ));
-            }
-        }
+    // FMI 3.0 value references: 0 time, 1 u (array of 2), 2 k, 3 b, 4 y (array of 2), 5 z,
+    // 6 n, 7 on, 8 gain.
+    let (u, k, b, gain) = (1u32, 2u32, 3u32, 8u32);
+    let (reals, integers, booleans) = ([4u32, 5], [2u32, 6], [3u32, 7]);
+    let (k_value, gain_value) = (INPUTS.1, INPUTS.2);
+    check("FMI 3.0", |t| unsafe {
+        let (mut y, mut ints, mut bools) = ([0.0; 3], [0; 2], [0u8; 2]);
+        let (mut event, mut terminate, mut early, mut last) = (0, 0, 0, 0.0);
+        let status = [
+            ffi3::set::<Toy, ffi3::Float64>(c, &u, 1, INPUTS.0.as_ptr(), 2),
+            ffi3::set::<Toy, ffi3::Int32>(c, &k, 1, &k_value, 1),
+            ffi3::set::<Toy, ffi3::Boolean>(c, &b, 1, &fmi3True, 1),
+            ffi3::set::<Toy, ffi3::Float64>(c, &gain, 1, &gain_value, 1),
+            ffi3::do_step::<Toy>(c, t, H, &mut event, &mut terminate, &mut early, &mut last),
+            ffi3::get::<Toy, ffi3::Float64>(c, reals.as_ptr(), 2, y.as_mut_ptr(), 3),
+            ffi3::get::<Toy, ffi3::Int32>(c, integers.as_ptr(), 2, ints.as_mut_ptr(), 2),
+            ffi3::get::<Toy, ffi3::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr(), 2),
+        ];
+        (
+            status,
+            [y[0], y[1], y[2], f64::from(ints[1]), f64::from(bools[1])],
+        )
     });
     unsafe { ffi3::free_instance::<Toy>(c) };
-    assert!(statuses.iter().all(|s| *s == fmi3OK), "{statuses:?}");
-    let integral = STEPS as f64 * H;
-    assert!((y[0] - STEPS as f64 * H).abs() < 1e-12, "time {y:?}");
-    assert!((y[1] - 2.0 * integral).abs() < 1e-12, "{y:?}");
-    assert!((y[2] + 4.0 * integral).abs() < 1e-12, "{y:?}");
-    assert_eq!(y[3], 4.0);
-    assert_eq!((steps[0], positive[0]), (STEPS as i32, fmi3True));
-    assert_eq!(
-        allocations, 0,
-        "allocations and frees in {STEPS} FMI 3.0 steps"
-    );
 }
