@@ -184,14 +184,9 @@ static void log_fmi3(void *env, Status status, const char *category, const char 
     counting = was;
 }
 
-typedef struct {
-    void (*logger)(void *, const char *, Status, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(void *, Status);
-    void *componentEnvironment;
-} Callbacks2;
-static Callbacks2 callbacks2 = {log_fmi2, calloc, free, NULL, NULL};
+/* fmi2CallbackFunctions: logger, allocateMemory, freeMemory, stepFinished,
+ * componentEnvironment -- five pointers. */
+static void *callbacks2[5];
 
 /* Per type (R I B): the value references and the number of values of the parameters, of
  * the inputs and of the outputs, and a buffer for the values. */
@@ -258,51 +253,51 @@ static void fill(Group *G, int t, int nudge, long n) {
     }
 }
 
+/* The typed get/set functions by type (R I B): FMI 2.0 (instance, vrs, nvr, values), FMI 3.0
+ * (instance, vrs, nvr, values, nValues); the set ones take const values. */
+typedef Status (*Call2)(Instance, const unsigned *, size_t, void *);
+typedef Status (*Call3)(Instance, const unsigned *, size_t, void *, size_t);
+static const char *const CALLS[2][2][3] = {
+    {{"fmi2GetReal", "fmi2GetInteger", "fmi2GetBoolean"},
+     {"fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean"}},
+    {{"fmi3GetFloat64", "fmi3GetInt32", "fmi3GetBoolean"},
+     {"fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean"}},
+};
+static void *calls[2][3]; /* [get, set][type] of the loaded version */
+
 static struct {
-    Instance (*instantiate2)(const char *, int, const char *, const char *, const Callbacks2 *,
-                             int, int);
+    Instance (*instantiate2)(const char *, int, const char *, const char *, void *const *, int,
+                             int);
     Instance (*instantiate3)(const char *, const char *, const char *, bool, bool, bool, bool,
                              const unsigned *, size_t, void *, void *, void *);
-    void (*free2)(Instance), (*free3)(Instance);
+    void (*free)(Instance);
     Status (*setup2)(Instance, int, double, double, int, double);
-    Status (*enter2)(Instance), (*exit2)(Instance), (*terminate2)(Instance);
+    Status (*enter2)(Instance);
     Status (*enter3)(Instance, bool, double, double, bool, double);
-    Status (*exit3)(Instance), (*terminate3)(Instance);
+    Status (*exit)(Instance), (*terminate)(Instance);
     Status (*step2)(Instance, double, double, int);
     Status (*step3)(Instance, double, double, bool, bool *, bool *, bool *, double *);
-    Status (*getReal2)(Instance, const unsigned *, size_t, double *);
-    Status (*getInteger2)(Instance, const unsigned *, size_t, int *);
-    Status (*getBoolean2)(Instance, const unsigned *, size_t, int *);
-    Status (*setReal2)(Instance, const unsigned *, size_t, const double *);
-    Status (*setInteger2)(Instance, const unsigned *, size_t, const int *);
-    Status (*setBoolean2)(Instance, const unsigned *, size_t, const int *);
-    Status (*getFloat64)(Instance, const unsigned *, size_t, double *, size_t);
-    Status (*getInt32)(Instance, const unsigned *, size_t, int *, size_t);
-    Status (*getBoolean3)(Instance, const unsigned *, size_t, bool *, size_t);
-    Status (*setFloat64)(Instance, const unsigned *, size_t, const double *, size_t);
-    Status (*setInt32)(Instance, const unsigned *, size_t, const int *, size_t);
-    Status (*setBoolean3)(Instance, const unsigned *, size_t, const bool *, size_t);
 } F;
 
 static void load(void) {
     lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
     if (!lib) { fprintf(stderr, "%s: %s\n", label, dlerror()); exit(2); }
-#define S(field, name) *(void **)&F.field = sym(name)
-    if (version == 2) {
-        S(instantiate2, "fmi2Instantiate"); S(free2, "fmi2FreeInstance");
-        S(setup2, "fmi2SetupExperiment"); S(enter2, "fmi2EnterInitializationMode");
-        S(exit2, "fmi2ExitInitializationMode"); S(terminate2, "fmi2Terminate");
-        S(step2, "fmi2DoStep");
-        S(getReal2, "fmi2GetReal"); S(getInteger2, "fmi2GetInteger");
-        S(getBoolean2, "fmi2GetBoolean"); S(setReal2, "fmi2SetReal");
-        S(setInteger2, "fmi2SetInteger"); S(setBoolean2, "fmi2SetBoolean");
+    int v = version - 2;
+    for (int get_set = 0; get_set < 2; get_set++)
+        for (int t = 0; t < 3; t++) calls[get_set][t] = sym(CALLS[v][get_set][t]);
+#define S(field, name2, name3) *(void **)&F.field = sym(v ? name3 : name2)
+    S(free, "fmi2FreeInstance", "fmi3FreeInstance");
+    S(exit, "fmi2ExitInitializationMode", "fmi3ExitInitializationMode");
+    S(terminate, "fmi2Terminate", "fmi3Terminate");
+    if (v) {
+        S(instantiate3, "", "fmi3InstantiateCoSimulation");
+        S(enter3, "", "fmi3EnterInitializationMode");
+        S(step3, "", "fmi3DoStep");
     } else {
-        S(instantiate3, "fmi3InstantiateCoSimulation"); S(free3, "fmi3FreeInstance");
-        S(enter3, "fmi3EnterInitializationMode"); S(exit3, "fmi3ExitInitializationMode");
-        S(terminate3, "fmi3Terminate"); S(step3, "fmi3DoStep");
-        S(getFloat64, "fmi3GetFloat64"); S(getInt32, "fmi3GetInt32");
-        S(getBoolean3, "fmi3GetBoolean"); S(setFloat64, "fmi3SetFloat64");
-        S(setInt32, "fmi3SetInt32"); S(setBoolean3, "fmi3SetBoolean");
+        S(instantiate2, "fmi2Instantiate", "");
+        S(setup2, "fmi2SetupExperiment", "");
+        S(enter2, "fmi2EnterInitializationMode", "");
+        S(step2, "fmi2DoStep", "");
     }
 #undef S
 }
@@ -315,41 +310,20 @@ static void check(Status s, const char *what) {
     }
 }
 
-/* Sets group g of every type (nudged inputs at step n). */
-static void set_group(Instance c, int g, long n) {
+/* Gets (get_set 0) or sets (1) group g of every type; the inputs set at step n are nudged. */
+static void exchange(Instance c, int g, int get_set, long n) {
     for (int t = 0; t < 3; t++) {
         Group *G = &groups[g][t];
         if (!G->nvr) continue;
-        fill(G, t, g == INPUTS, n);
-        if (version == 2) {
-            size_t m = (size_t)G->nvr;
-            if (t == 0) check(F.setReal2(c, G->vrs, m, G->real), "fmi2SetReal");
-            if (t == 1) check(F.setInteger2(c, G->vrs, m, G->integer), "fmi2SetInteger");
-            if (t == 2) check(F.setBoolean2(c, G->vrs, m, G->integer), "fmi2SetBoolean");
-        } else {
-            size_t m = (size_t)G->nvr, v = (size_t)G->nvalues;
-            if (t == 0) check(F.setFloat64(c, G->vrs, m, G->real, v), "fmi3SetFloat64");
-            if (t == 1) check(F.setInt32(c, G->vrs, m, G->integer, v), "fmi3SetInt32");
-            if (t == 2) check(F.setBoolean3(c, G->vrs, m, G->boolean, v), "fmi3SetBoolean");
-        }
-    }
-}
-
-static void get_outputs(Instance c) {
-    for (int t = 0; t < 3; t++) {
-        Group *G = &groups[OUTPUTS][t];
-        if (!G->nvr) continue;
-        if (version == 2) {
-            size_t m = (size_t)G->nvr;
-            if (t == 0) check(F.getReal2(c, G->vrs, m, G->real), "fmi2GetReal");
-            if (t == 1) check(F.getInteger2(c, G->vrs, m, G->integer), "fmi2GetInteger");
-            if (t == 2) check(F.getBoolean2(c, G->vrs, m, G->integer), "fmi2GetBoolean");
-        } else {
-            size_t m = (size_t)G->nvr, v = (size_t)G->nvalues;
-            if (t == 0) check(F.getFloat64(c, G->vrs, m, G->real, v), "fmi3GetFloat64");
-            if (t == 1) check(F.getInt32(c, G->vrs, m, G->integer, v), "fmi3GetInt32");
-            if (t == 2) check(F.getBoolean3(c, G->vrs, m, G->boolean, v), "fmi3GetBoolean");
-        }
+        if (get_set) fill(G, t, g == INPUTS, n);
+        /* fmi3Boolean is a bool; fmi2Boolean and the Integers are ints. */
+        void *values = t == 0 ? (void *)G->real
+                       : t == 2 && version == 3 ? (void *)G->boolean : (void *)G->integer;
+        void *call = calls[get_set][t];
+        size_t m = (size_t)G->nvr;
+        Status s = version == 2 ? (*(Call2 *)&call)(c, G->vrs, m, values)
+                                : (*(Call3 *)&call)(c, G->vrs, m, values, (size_t)G->nvalues);
+        check(s, CALLS[version - 2][get_set][t]);
     }
 }
 
@@ -357,31 +331,29 @@ static void get_outputs(Instance c) {
 static Instance start(void) {
     Instance c;
     if (version == 2) {
-        c = F.instantiate2("alloc", 1, token, resources, &callbacks2, 0, 0);
+        callbacks2[0] = (void *)log_fmi2;
+        callbacks2[1] = (void *)calloc;
+        callbacks2[2] = (void *)free;
+        c = F.instantiate2("alloc", 1, token, resources, callbacks2, 0, 0);
         if (!c) { fprintf(stderr, "%s: fmi2Instantiate failed\n", label); exit(2); }
-        set_group(c, PARAMETERS, 0);
+        exchange(c, PARAMETERS, 1, 0);
         check(F.setup2(c, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment");
         check(F.enter2(c), "fmi2EnterInitializationMode");
-        check(F.exit2(c), "fmi2ExitInitializationMode");
+        check(F.exit(c), "fmi2ExitInitializationMode");
     } else {
         c = F.instantiate3("alloc", token, resources, false, false, false, false, NULL, 0, NULL,
                            (void *)log_fmi3, NULL);
         if (!c) { fprintf(stderr, "%s: fmi3InstantiateCoSimulation failed\n", label); exit(2); }
-        set_group(c, PARAMETERS, 0);
+        exchange(c, PARAMETERS, 1, 0);
         check(F.enter3(c, false, 0.0, 0.0, false, 0.0), "fmi3EnterInitializationMode");
-        check(F.exit3(c), "fmi3ExitInitializationMode");
+        check(F.exit(c), "fmi3ExitInitializationMode");
     }
     return c;
 }
 
 static void stop(Instance c) {
-    if (version == 2) {
-        F.terminate2(c);
-        F.free2(c);
-    } else {
-        F.terminate3(c);
-        F.free3(c);
-    }
+    F.terminate(c);
+    F.free(c);
 }
 
 static double now(void) {
@@ -428,7 +400,7 @@ int main(int argc, char **argv) {
     double t = 0.0;
     counting = 1;
     for (long n = 0; n < steps; n++) {
-        set_group(c, INPUTS, n);
+        exchange(c, INPUTS, 1, n);
         if (version == 2) {
             check(F.step2(c, t, step, 1), "fmi2DoStep");
         } else {
@@ -437,7 +409,7 @@ int main(int argc, char **argv) {
             check(F.step3(c, t, step, true, &event, &terminate, &early, &last), "fmi3DoStep");
         }
         t += step;
-        get_outputs(c);
+        exchange(c, OUTPUTS, 0, n);
     }
     counting = 0;
     stop(c);

@@ -50,15 +50,10 @@ def variables3(root):
 
 
 def main(fmu: str, out: str) -> None:
-    out_dir = pathlib.Path(out).resolve()
-    unpacked = out_dir / "fmu"
-    with zipfile.ZipFile(fmu) as archive:
-        archive.extractall(unpacked)
+    unpacked = pathlib.Path(out).resolve() / "fmu"
+    zipfile.ZipFile(fmu).extractall(unpacked)
     root = ET.parse(unpacked / "modelDescription.xml").getroot()
-    cs = root.find("CoSimulation")
-    if cs is None:
-        raise SystemExit(f"{fmu}: not a Co-Simulation FMU")
-    model_id = cs.get("modelIdentifier")
+    model_id = next(cs.get("modelIdentifier") for cs in root.iter("CoSimulation"))
     version = root.get("fmiVersion")[0]
     experiment = root.find("DefaultExperiment")
     step = experiment.get("stepSize") if experiment is not None else None
@@ -81,7 +76,7 @@ def main(fmu: str, out: str) -> None:
         fields = [vr, kind, causality, variability, str(count), start or "-", low or "-",
                   high or "-", name]
         lines.append("\t".join(["var"] + fields))
-    (out_dir / "manifest.txt").write_text("\n".join(lines) + "\n")
+    (unpacked.parent / "manifest.txt").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
