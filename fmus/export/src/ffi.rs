@@ -384,9 +384,9 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
     let f = T::GET;
     unsafe {
         with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
-            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, values, index| {
+            Ok(vrs) => s.instance.get_numbers(f, vrs, T::TYPE, |i, number| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = T::to_c(values.number(index))
+                *out.add(i) = T::to_c(number)
             }),
             Err(status) => status,
         })
@@ -439,8 +439,11 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let targets = vrs.iter().zip(values).map(|(vr, v)| (*vr, T::from_c(*v)));
-            s.instance.set_values(f, targets)
+            let targets = vrs
+                .iter()
+                .zip(values)
+                .map(|(vr, v)| (*vr, T::to_number(*v)));
+            s.instance.set_numbers(f, T::TYPE, targets)
         })
     }
 }

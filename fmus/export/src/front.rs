@@ -216,15 +216,15 @@ pub trait Kind<V: Version> {
     const SET: &'static Function;
     /// A value of this kind (as [`crate::Values::number`] stores it) as the master reads it.
     fn to_c(number: f64) -> Self::C;
-    /// A value the master sets.
-    fn from_c(value: Self::C) -> Value;
+    /// A value the master sets, as a number (see [`crate::Values::numbers`]).
+    fn to_number(value: Self::C) -> f64;
 }
 
 /// Declares the [`Kind`] of the marker type of `Value::$name` in one FMI version: its C type,
 /// its functions (paths to the `Function` constants), how a stored number becomes a C value
-/// and how a C value becomes a value.
+/// and how a C value becomes a stored number.
 macro_rules! kind {
-    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $to_c:expr, $from_c:expr) => {
+    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $to_c:expr, $to_number:expr) => {
         impl Kind<$version> for $name {
             type C = $c;
             const TYPE: VariableType = VariableType::$name;
@@ -235,9 +235,10 @@ macro_rules! kind {
                 let to_c: fn(f64) -> $c = $to_c;
                 to_c(number)
             }
-            fn from_c(value: $c) -> Value {
-                let from_c: fn($c) -> _ = $from_c;
-                Value::$name(from_c(value))
+            #[inline]
+            fn to_number(value: $c) -> f64 {
+                let to_number: fn($c) -> f64 = $to_number;
+                to_number(value)
             }
         }
     };
@@ -257,11 +258,11 @@ mod kinds {
 
     // fmi2Real, fmi2Integer, fmi2Boolean (an int); fmi3Float64, fmi3Int32, fmi3Boolean (a bool)
     kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, |x| x, |v| v }
-    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, |x| x as c_int, |v| v }
-    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(x != 0.0), |v| v != 0 }
+    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, |x| x as c_int, f64::from }
+    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
     kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, |x| x, |v| v }
-    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, |x| x as i32, |v| v }
-    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| v != 0 }
+    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, |x| x as i32, f64::from }
+    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
 }
 
 /// Reads the C strings of a set-string call as values; `Err` with the rejection's status

@@ -600,10 +600,49 @@ impl<M: FmuModel> Instance<M> {
         status
     }
 
+    /// `fmi2Get{Real,Integer,Boolean}`: checks every reference, then hands each value's
+    /// position in the call and its number ([`Values::numbers`]) to `out`, in order. The
+    /// path of a master's every step: one pass over the references with the table and the
+    /// numbers in registers (the references checked first only when the model computes
+    /// before the read; on an error the values already handed over are undefined, as FMI
+    /// 2.0.4 §2.1.3 allows).
+    pub fn get_numbers(
+        &mut self,
+        f: &Function,
+        vrs: &[u32],
+        expected: VariableType,
+        mut out: impl FnMut(usize, f64),
+    ) -> Status {
+        let mut status = Status::Ok;
+        if self.needs_refresh() {
+            if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
+                return self.reject(f, &self.type_error(vr, expected));
+            }
+            status = self.refresh_outputs(f);
+            if status > Status::Warning {
+                return status;
+            }
+        }
+        let access: &[Access] = &self.interface.access;
+        let Some(numbers) = self.core.values.numbers().get(..access.len()) else {
+            return self.reject(f, "internal: the values do not match the variable table");
+        };
+        for (i, &vr) in vrs.iter().enumerate() {
+            match access.get(vr as usize) {
+                Some(a) if a.variable_type == expected => out(i, numbers[vr as usize]),
+                _ => return self.reject(f, &self.type_error(vr, expected)),
+            }
+        }
+        status
+    }
+
     /// Before values are read by `f`: in Initialization Mode the model computes the outputs
     /// and calculated parameters from the current parameters; in Step Mode, after inputs
     /// were set, it recomputes the direct-feedthrough outputs. Otherwise nothing to do.
     pub fn refresh_outputs(&mut self, f: &Function) -> Status {
+        if !self.needs_refresh() {
+            return Status::Ok;
+        }
         if self.core.state == ModelState::InitializationMode {
             self.run_model(f, |m, ctx| m.initialize(ctx))
         } else if self.core.inputs_changed && self.core.state == ModelState::StepComplete {
@@ -615,6 +654,13 @@ impl<M: FmuModel> Instance<M> {
         } else {
             Status::Ok
         }
+    }
+
+    /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
+    #[inline]
+    fn needs_refresh(&self) -> bool {
+        self.core.state == ModelState::InitializationMode
+            || (self.core.inputs_changed && self.core.state == ModelState::StepComplete)
     }
 
     /// Whether value reference `vr` names a variable of type `expected`.
@@ -665,6 +711,78 @@ impl<M: FmuModel> Instance<M> {
         )
     }
 
+    /// Checks that `f` may set the variable at `vr` to a value of type `actual` (`number`: its
+    /// value as a number, for the finiteness and bounds checks) in the current state (its
+    /// bit `bit`); its access rules, or the rejection's status.
+    #[inline(always)]
+    fn check_set(
+        &self,
+        f: &Function,
+        bit: u32,
+        vr: u32,
+        actual: VariableType,
+        number: Option<f64>,
+    ) -> Result<&Access, Status> {
+        match self.interface.access.get(vr as usize) {
+            Some(a)
+                if a.variable_type == actual
+                    && a.settable & bit != 0
+                    && number.is_none_or(|x| x.is_finite() && x >= a.min && x <= a.max) =>
+            {
+                Ok(a)
+            }
+            _ => Err(self.reject_set(f, bit, vr, actual, number)),
+        }
+    }
+
+    /// The rejection of a value [`Instance::check_set`] refuses.
+    #[cold]
+    #[inline(never)]
+    fn reject_set(
+        &self,
+        f: &Function,
+        bit: u32,
+        vr: u32,
+        actual: VariableType,
+        number: Option<f64>,
+    ) -> Status {
+        let message = match self.interface.access.get(vr as usize) {
+            Some(a) if a.variable_type == actual && a.settable & bit == 0 => {
+                self.not_settable(f, vr)
+            }
+            Some(a) if a.variable_type == actual => {
+                self.out_of_range(f, vr, number.unwrap_or(f64::NAN), a)
+            }
+            _ => self.type_error(vr, actual),
+        };
+        self.reject(f, &message)
+    }
+
+    /// Why `x` is not a value the variable at `vr` accepts: not finite or out of its bounds.
+    fn out_of_range(&self, f: &Function, vr: u32, x: f64, a: &Access) -> String {
+        let name = &self.interface.info.variables[vr as usize].name;
+        if !x.is_finite() {
+            format!(
+                "variable `{name}`{}: {x} rejected, values must be finite",
+                reference(f, vr)
+            )
+        } else if x < a.min {
+            format!("variable `{name}` = {x} is below its minimum {}", a.min)
+        } else {
+            format!("variable `{name}` = {x} is above its maximum {}", a.max)
+        }
+    }
+
+    /// After values were set: inputs changed (the direct-feedthrough outputs are stale),
+    /// parameters changed in Step Mode (the model is told).
+    fn values_set(&mut self, f: &Function, inputs: bool, parameters: bool) -> Status {
+        self.core.inputs_changed |= inputs;
+        if parameters && self.core.state == ModelState::StepComplete {
+            return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
+        }
+        Status::Ok
+    }
+
     /// `fmi2Set{Real,Integer,Boolean,String}`: the `(value reference, value)` pairs of
     /// `targets`. Checks every value first (reference, type, whether it may be set in this
     /// state, finiteness, bounds: from the precomputed [`Access`] table), then sets them all,
@@ -674,59 +792,47 @@ impl<M: FmuModel> Instance<M> {
     where
         I: Iterator<Item = (u32, Value)> + Clone,
     {
-        let state = self.core.state;
-        let bit = state.bit();
-        let mut parameters_changed = false;
-        let mut inputs_changed = false;
+        let bit = self.core.state.bit();
+        let (mut inputs, mut parameters) = (false, false);
         for (vr, value) in targets.clone() {
-            let actual = value.variable_type();
-            let Some(a) = self
-                .interface
-                .access
-                .get(vr as usize)
-                .filter(|a| a.variable_type == actual)
-                .copied()
-            else {
-                return self.reject(f, &self.type_error(vr, actual));
-            };
-            if a.settable & bit == 0 {
-                return self.reject(f, &self.not_settable(f, vr));
-            }
-            let numeric = match value {
-                Value::Real(x) if !x.is_finite() => {
-                    let name = &self.interface.info.variables[vr as usize].name;
-                    return self.reject(
-                        f,
-                        &format!(
-                            "variable `{name}`{}: {x} rejected, values must be finite",
-                            reference(f, vr)
-                        ),
-                    );
-                }
+            let number = match value {
                 Value::Real(x) => Some(x),
                 Value::Integer(i) => Some(f64::from(i)),
                 _ => None,
             };
-            if let Some(x) = numeric.filter(|x| *x < a.min || *x > a.max) {
-                let name = &self.interface.info.variables[vr as usize].name;
-                let message = if x < a.min {
-                    format!("variable `{name}` = {x} is below its minimum {}", a.min)
-                } else {
-                    format!("variable `{name}` = {x} is above its maximum {}", a.max)
-                };
-                return self.reject(f, &message);
+            match self.check_set(f, bit, vr, value.variable_type(), number) {
+                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Err(status) => return status,
             }
-            parameters_changed |= a.parameter;
-            inputs_changed |= a.input;
         }
         for (vr, value) in targets {
             self.core.values.set(vr as usize, value);
         }
-        self.core.inputs_changed |= inputs_changed;
-        if parameters_changed && state == ModelState::StepComplete {
-            return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
+        self.values_set(f, inputs, parameters)
+    }
+
+    /// `fmi2Set{Real,Integer,Boolean}`: as [`Instance::set_values`] for values of type
+    /// `actual` given as numbers ([`Values::numbers`]), the path of a master's every step:
+    /// no value enum, stored in place.
+    pub fn set_numbers<I>(&mut self, f: &Function, actual: VariableType, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, f64)> + Clone,
+    {
+        let bit = self.core.state.bit();
+        let (mut inputs, mut parameters) = (false, false);
+        for (vr, x) in targets.clone() {
+            match self.check_set(f, bit, vr, actual, Some(x)) {
+                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Err(status) => return status,
+            }
         }
-        Status::Ok
+        let numbers = self.core.values.numbers_mut();
+        for (vr, x) in targets {
+            if let Some(slot) = numbers.get_mut(vr as usize) {
+                *slot = x;
+            }
+        }
+        self.values_set(f, inputs, parameters)
     }
 
     /// `fmi2DoStep`.

@@ -429,6 +429,18 @@ impl Values {
             _ => typed(t, self.numbers[index]),
         })
     }
+    /// Every value as a number (see [`Values::number`]; a String is 0 here), by index: what
+    /// the typed getters read once the type is checked.
+    #[inline]
+    pub fn numbers(&self) -> &[f64] {
+        &self.numbers
+    }
+    /// The numbers, to set in place values whose types were checked (an Integer exactly, a
+    /// Boolean as 0 or 1: see [`Values::numbers`]).
+    #[inline]
+    pub(crate) fn numbers_mut(&mut self) -> &mut [f64] {
+        &mut self.numbers
+    }
     /// The type of the value at `index`.
     pub fn variable_type(&self, index: usize) -> Option<VariableType> {
         self.types.get(index).copied()

@@ -442,7 +442,7 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
                 |i, values, index| {
                     // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
                     // (checked by `check_references`).
-                    *out.add(i) = K::to_c(index.map_or(time, |index| values.number(index)))
+                    *out.add(i) = K::to_c(index.map_or(time, |index| values.numbers()[index]))
                 },
             )
         })
@@ -451,13 +451,14 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
 
 /// Checks a set call's references, then hands the `(scalar index, value)` pairs they name
 /// (arrays row-major; the `k`-th value is `value_at(k)`) to the instance. No buffer.
-fn write_values<M: FmuModel>(
+fn write_values<M: FmuModel, T>(
     slot: &mut Slot<M>,
     f: &Function,
     vrs: &[u32],
     expected: VariableType,
     n_values: usize,
-    value_at: impl Fn(usize) -> Value + Clone,
+    value_at: impl Fn(usize) -> T + Clone,
+    store: impl Store<T>,
 ) -> Status {
     if let Err(message) = check_references(slot, vrs, expected, n_values) {
         return slot.instance.reject(f, &message);
@@ -477,7 +478,36 @@ fn write_values<M: FmuModel>(
         })
         .enumerate()
         .map(|(k, index)| (index as u32, value_at(k)));
-    slot.instance.set_values(f, targets)
+    store.store(&mut slot.instance, f, targets)
+}
+
+/// How the values of a set call reach the instance: numbers of one type, or values.
+trait Store<T> {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, T)> + Clone;
+}
+
+/// Numbers of one type ([`Instance::set_numbers`]).
+struct AsNumbers(VariableType);
+impl Store<f64> for AsNumbers {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, f64)> + Clone,
+    {
+        instance.set_numbers(f, self.0, targets)
+    }
+}
+
+/// Values ([`Instance::set_values`]).
+struct AsValues;
+impl Store<Value> for AsValues {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, Value)> + Clone,
+    {
+        instance.set_values(f, targets)
+    }
 }
 
 /// `fmi3SetFloat64`, `fmi3SetInt32`, `fmi3SetBoolean`: the values (arrays row-major) from a
@@ -498,7 +528,8 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
-            write_values(s, f, vrs, K::TYPE, n_values, |k| K::from_c(raw[k]))
+            let number = |k: usize| K::to_number(raw[k]);
+            write_values(s, f, vrs, K::TYPE, n_values, number, AsNumbers(K::TYPE))
         })
     }
 }
@@ -555,9 +586,10 @@ pub unsafe fn set_string<M: FmuModel>(
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
             match front::string_values(s, f, raw) {
-                Ok(texts) => write_values(s, f, vrs, VariableType::String, n_values, |k| {
-                    texts[k].clone()
-                }),
+                Ok(texts) => {
+                    let text = |k: usize| texts[k].clone();
+                    write_values(s, f, vrs, VariableType::String, n_values, text, AsValues)
+                }
                 Err(status) => status,
             }
         })
