@@ -8,88 +8,48 @@
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use std::fmt;
 
-/// `causality` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Causality {
-    Parameter,
-    CalculatedParameter,
-    Input,
-    Output,
-    Local,
+/// `attribute! { Name { Variant = "text", … } }`: an enumeration whose values are written to
+/// `modelDescription.xml` as the texts given, with `as_str` giving the text.
+macro_rules! attribute {
+    ($(#[$m:meta])* $name:ident { $($variant:ident = $text:literal),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum $name { $($variant),* }
+        impl $name {
+            /// The value's text in `modelDescription.xml`.
+            pub fn as_str(self) -> &'static str {
+                match self { $($name::$variant => $text),* }
+            }
+        }
+    };
 }
 
-/// `variability` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Variability {
-    Constant,
-    Fixed,
-    Tunable,
-    Discrete,
-    Continuous,
+attribute! {
+    /// `causality` of a variable.
+    Causality {
+        Parameter = "parameter", CalculatedParameter = "calculatedParameter", Input = "input",
+        Output = "output", Local = "local",
+    }
 }
-
-/// `initial` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Initial {
-    Exact,
-    Approx,
-    Calculated,
+attribute! {
+    /// `variability` of a variable.
+    Variability {
+        Constant = "constant", Fixed = "fixed", Tunable = "tunable", Discrete = "discrete",
+        Continuous = "continuous",
+    }
 }
-
-/// The FMI type of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum VariableType {
-    Real,
-    Integer,
-    Boolean,
-    String,
+attribute! {
+    /// `initial` of a variable.
+    Initial { Exact = "exact", Approx = "approx", Calculated = "calculated" }
+}
+attribute! {
+    /// The FMI type of a variable (its element name in an FMI 2.0 `ScalarVariable`).
+    VariableType { Real = "Real", Integer = "Integer", Boolean = "Boolean", String = "String" }
 }
 
 impl fmt::Display for VariableType {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            VariableType::Real => "Real",
-            VariableType::Integer => "Integer",
-            VariableType::Boolean => "Boolean",
-            VariableType::String => "String",
-        })
-    }
-}
-
-impl Causality {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-            Causality::Local => "local",
-        }
-    }
-}
-
-impl Variability {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Variability::Constant => "constant",
-            Variability::Fixed => "fixed",
-            Variability::Tunable => "tunable",
-            Variability::Discrete => "discrete",
-            Variability::Continuous => "continuous",
-        }
-    }
-}
-
-impl Initial {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Initial::Exact => "exact",
-            Initial::Approx => "approx",
-            Initial::Calculated => "calculated",
-        }
+        f.write_str(self.as_str())
     }
 }
 
