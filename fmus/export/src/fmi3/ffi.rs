@@ -18,7 +18,7 @@ use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
 use crate::instance::{Function, Instance, LogSink, Logger};
 use crate::model::FmuModel;
 use crate::types::Status;
-use crate::variables::{Value, Values, VariableType};
+use crate::variables::{Value, VariableType};
 use std::ffi::CString;
 use std::os::raw::c_char;
 use std::sync::Arc;
@@ -365,8 +365,7 @@ pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
 
 /// A get call on the slot: checks the pointers and the references, lets the instance compute
 /// what it must, then hands the `n_values` values `vr` names (arrays row-major) to `write`:
-/// their positions, the values and their indices (`None` for `time`, value reference 0). No
-/// buffer.
+/// their positions and values (`time` for value reference 0). No buffer.
 ///
 /// # Safety
 /// FMI pointer contract.
@@ -379,7 +378,7 @@ unsafe fn read<M: FmuModel>(
     out_is_null: bool,
     n_values: usize,
     expected: VariableType,
-    mut write: impl FnMut(usize, &Values, Option<usize>),
+    mut write: impl FnMut(usize, Element<'_>),
 ) -> Status {
     // SAFETY: forwarded from the caller.
     let Some(vrs) = (unsafe { slice(vr, nvr) }) else {
@@ -396,16 +395,24 @@ unsafe fn read<M: FmuModel>(
         return status;
     }
     let (interface, values) = (s.instance.interface(), s.instance.values());
+    let (numbers, time) = (values.numbers(), s.instance.time());
+    let texts = expected == VariableType::String;
     let mut k = 0;
     for &vr in vrs {
         match interface.layout.target(vr) {
             Some(Target::Time) => {
-                write(k, values, None);
+                write(k, Element::Number(time));
                 k += 1;
             }
-            Some(Target::Variable(v)) => {
+            Some(Target::Variable(v)) if texts => {
                 for index in v.indices() {
-                    write(k, values, Some(index));
+                    write(k, Element::Text(values.string(index)));
+                    k += 1;
+                }
+            }
+            Some(Target::Variable(v)) => {
+                for &x in numbers.get(v.indices()).unwrap_or_default() {
+                    write(k, Element::Number(x));
                     k += 1;
                 }
             }
@@ -413,6 +420,12 @@ unsafe fn read<M: FmuModel>(
         }
     }
     status
+}
+
+/// A value a get call reads: a number ([`crate::Values::numbers`]) or a String's text.
+enum Element<'a> {
+    Number(f64),
+    Text(&'a str),
 }
 
 /// `fmi3GetFloat64`, `fmi3GetInt32`, `fmi3GetBoolean`: the values (arrays row-major) into a C
@@ -430,21 +443,13 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     let (f, null) = (K::GET, out.is_null());
     unsafe {
         with_instance::<M>(c, f, |s| {
-            let time = s.instance.time();
-            read(
-                s,
-                f,
-                vr,
-                nvr,
-                null,
-                n_values,
-                K::TYPE,
-                |i, values, index| {
+            read(s, f, vr, nvr, null, n_values, K::TYPE, |i, value| {
+                if let Element::Number(x) = value {
                     // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
                     // (checked by `check_references`).
-                    *out.add(i) = K::to_c(index.map_or(time, |index| values.numbers()[index]))
-                },
-            )
+                    *out.add(i) = K::to_c(x)
+                }
+            })
         })
     }
 }
@@ -557,7 +562,11 @@ pub unsafe fn get_string<M: FmuModel>(
                 null,
                 n_values,
                 VariableType::String,
-                |_, all, i| values.push(i.map_or("", |i| all.string(i)).to_string()),
+                |_, value| {
+                    if let Element::Text(text) = value {
+                        values.push(text.to_string())
+                    }
+                },
             );
             if status <= Status::Warning {
                 // SAFETY: `out` holds `n_values` slots, the number of `values`.
