@@ -731,27 +731,21 @@ impl<M: FmuModel> Instance<M> {
             {
                 Ok(a)
             }
-            _ => Err(self.reject_set(f, bit, vr, actual, number)),
+            _ => Err(self.reject_set(f, vr, actual, number)),
         }
     }
 
     /// The rejection of a value [`Instance::check_set`] refuses.
     #[cold]
     #[inline(never)]
-    fn reject_set(
-        &self,
-        f: &Function,
-        bit: u32,
-        vr: u32,
-        actual: VariableType,
-        number: Option<f64>,
-    ) -> Status {
+    fn reject_set(&self, f: &Function, vr: u32, actual: VariableType, x: Option<f64>) -> Status {
+        let bit = self.core.state.bit();
         let message = match self.interface.access.get(vr as usize) {
             Some(a) if a.variable_type == actual && a.settable & bit == 0 => {
                 self.not_settable(f, vr)
             }
             Some(a) if a.variable_type == actual => {
-                self.out_of_range(f, vr, number.unwrap_or(f64::NAN), a)
+                self.out_of_range(f, vr, x.unwrap_or(f64::NAN), a)
             }
             _ => self.type_error(vr, actual),
         };

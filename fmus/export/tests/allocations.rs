@@ -97,17 +97,12 @@ spurio_export::declare_variables! {
 struct Toy([f64; 3]);
 
 impl FmuModel for Toy {
-    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
-        Ok(ModelInfo::new(
-            "Toy",
-            "toy",
-            variables(),
-            None,
-            Config::new(),
-        ))
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        let info = ModelInfo::new("Toy", "toy", variables(), None, config.clone());
+        Ok(info)
     }
     fn create(_info: &ModelInfo) -> Result<Self, Cause> {
-        Ok(Self::default())
+        Ok(Toy([0.0; 3]))
     }
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         *self = Self::default();
