@@ -24,7 +24,7 @@ use std::cell::{Cell, RefCell};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::Once;
+use std::sync::{Arc, Once};
 
 /// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
 pub struct CallbackSink {
@@ -190,10 +190,11 @@ pub unsafe fn instantiate<M: FmuModel>(
         // that of the default configuration may go without one; any other failure to read it
         // is an error that names the file (or the URI) and the reason.
         let given = unsafe { string_arg(guid) }.unwrap_or_default();
-        let default = M::describe(&Config::new()).ok();
-        let is_default = default.as_ref().is_some_and(|info| info.guid == given);
+        let default = front::interface::<M>(&Config::new()).ok();
+        let default = default.as_ref().map(|i| &i.info);
+        let is_default = default.is_some_and(|info| info.guid == given);
         let without_config = |reason: String| {
-            let (id, guid) = default.as_ref().map_or(("this FMU", "?"), |i| {
+            let (id, guid) = default.map_or(("this FMU", "?"), |i| {
                 (i.model_identifier.as_str(), i.guid.as_str())
             });
             fail(format!(
@@ -226,10 +227,11 @@ pub unsafe fn instantiate<M: FmuModel>(
             }
             _ => Config::new(),
         };
-        let info = match M::describe(&config) {
-            Ok(info) => info,
+        let interface = match front::interface::<M>(&config) {
+            Ok(interface) => interface,
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
         };
+        let info = &interface.info;
         if fmu_type != fmi2CoSimulation {
             return fail(format!(
                 "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
@@ -242,7 +244,7 @@ pub unsafe fn instantiate<M: FmuModel>(
                 info.model_identifier, info.guid
             ));
         }
-        match Instance::<M>::new(info, logger) {
+        match Instance::<M>::of(Arc::clone(&interface), logger) {
             Ok(instance) => into_component(instance),
             Err(e) => {
                 // The logger moved into the failed constructor call; report through a new one.
@@ -382,9 +384,9 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
     let f = T::GET;
     unsafe {
         with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
-            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, v| {
+            Ok(vrs) => s.instance.get_numbers(f, vrs, T::TYPE, |i, number| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = T::to_c(v)
+                *out.add(i) = T::to_c(number)
             }),
             Err(status) => status,
         })
@@ -411,7 +413,9 @@ pub unsafe fn get_string<M: FmuModel>(
             let mut values = Vec::with_capacity(n);
             let status = s
                 .instance
-                .get_values(f, vrs, VariableType::String, |_, v| values.push(v.clone()));
+                .get_values(f, vrs, VariableType::String, |_, all, index| {
+                    values.push(all.string(index).to_string())
+                });
             // SAFETY: `value` points to `n` slots and `values` has at most `n` elements.
             s.return_strings(&values, value);
             status
@@ -435,8 +439,11 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let values = values.iter().map(|v| T::from_c(*v)).collect();
-            s.instance.set_values(f, vrs, values)
+            let targets = vrs
+                .iter()
+                .zip(values)
+                .map(|(vr, v)| (*vr, T::to_number(*v)));
+            s.instance.set_numbers(f, T::TYPE, targets)
         })
     }
 }
@@ -458,7 +465,7 @@ pub unsafe fn set_string<M: FmuModel>(
                 return s.instance.reject(f, "vr or value is NULL");
             };
             match front::string_values(s, f, raw) {
-                Ok(values) => s.instance.set_values(f, vrs, values),
+                Ok(values) => s.instance.set_values(f, vrs.iter().copied().zip(values)),
                 Err(status) => status,
             }
         })

@@ -19,22 +19,25 @@ struct Integrator {
     state: f64,
 }
 
-const U: usize = 0;
-const Y: usize = 1;
-const Z: usize = 2;
-const Y0: usize = 3;
+spurio_export::declare_variables! {
+    /// u (input), y = ∫u, z = 2u (direct feedthrough), y0 the start of y.
+    fn variables() {
+        table: [
+            U = Variable::input("u", 0.0),
+            Y = Variable::output("y"),
+            Z = Variable::output("z").depends_on(&[vr::U]),
+            Y0 = Variable::parameter("y0", 0.0).min(-10.0).max(10.0),
+        ]
+    }
+}
+use vr::{U, Y, Y0, Z};
 
 impl FmuModel for Integrator {
     fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         Ok(ModelInfo::new(
             "Integrator",
             "test model",
-            vec![
-                Variable::input("u", 0.0),
-                Variable::output("y"),
-                Variable::output("z").depends_on(&[U]),
-                Variable::parameter("y0", 0.0).min(-10.0).max(10.0),
-            ],
+            variables(),
             None,
             Config::new(),
         ))

@@ -26,14 +26,17 @@ const Y: usize = 2; // y[1], y[2]
 const Z: usize = 4; // then P[1,1] … P[2,2] (5–8) and N (9)
 const POSITIVE: usize = 10;
 
+/// `value_references! { A, B, … }`: `const A: u32 = 0`, `B = 1`, …
+macro_rules! value_references {
+    (@ $n:expr;) => {};
+    (@ $n:expr; $name:ident $(, $rest:ident)*) => {
+        const $name: u32 = $n;
+        value_references!(@ $name + 1; $($rest),*);
+    };
+    ($($name:ident),*) => { value_references!(@ 0; $($name),*); };
+}
 // FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
-const VR_TIME: u32 = 0;
-const VR_U: u32 = 1;
-const VR_Y: u32 = 2;
-const VR_Z: u32 = 3;
-const VR_P: u32 = 4;
-const VR_N: u32 = 5;
-const VR_POSITIVE: u32 = 6;
+value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE }
 
 impl FmuModel for Toy {
     fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
