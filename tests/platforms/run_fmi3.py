@@ -116,13 +116,14 @@ def main() -> int:
                                                           fmi3=True)
     if not fmus:
         return 1
+    skipped = [f for f in fmus
+               if not (REPO / "modelDescription" / "fmi3" / f"{f.stem}.xml").exists()]
+    for fmu in skipped:
+        log(f"skipped {fmu.name}: not a bundled FMU")
     failures: list[str] = []
     table = []
-    for fmu in fmus:
+    for fmu in (f for f in fmus if f not in skipped):
         stem = fmu.stem
-        if not (REPO / "modelDescription" / "fmi3" / f"{stem}.xml").exists():
-            log(f"skipped {fmu.name}: not a bundled FMU")
-            continue
         folder = unpacked / stem
         with zipfile.ZipFile(fmu) as z:
             z.extractall(folder)
