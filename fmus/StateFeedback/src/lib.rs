@@ -118,6 +118,11 @@ pub struct FeedbackLaw {
 }
 spurio::plain_state!(FeedbackLaw { controller, work });
 
+/// The StateFeedback FMU.
+pub type StateFeedbackFmu = SampledController<FeedbackLaw>;
+
+spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
+
 impl FeedbackLaw {
     /// The controller in use.
     pub fn controller(&self) -> &StateFeedback {
@@ -175,11 +180,6 @@ impl ControlLaw for FeedbackLaw {
     }
 }
 
-/// The StateFeedback FMU.
-pub type StateFeedbackFmu = SampledController<FeedbackLaw>;
-
-spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -191,18 +191,24 @@ mod tests {
 
     #[test]
     fn layout_matches_the_table() {
-        let (layout, v) = build(&crane_config()).unwrap();
-        assert_eq!(v[layout.x_hat.first].name, "x_hat[1]");
-        assert_eq!(v[layout.x_ref.index(3, 0)].name, "x_ref[4]");
-        assert_eq!(v[layout.u].name, "u[1]");
-        assert_eq!(v[layout.gain.index(0, 3)].name, "L[1,4]");
-        assert_eq!(v[layout.a.index(3, 3)].name, "A[4,4]");
-        assert_eq!(v[layout.b.index(3, 0)].name, "B[4,1]");
-        assert_eq!(v[layout.design.pole_re.first].name, "pole_re[1]");
-        assert_eq!(v[layout.design.pole_im.index(3, 0)].name, "pole_im[4]");
-        assert_eq!(v[layout.design.u_min].name, "u_min");
-        assert_eq!(v[layout.design.u_max].name, "u_max");
-        assert_eq!(v[layout.require_stable].name, "require_stable");
+        let (l, v) = build(&crane_config()).unwrap();
+        let named = [
+            (l.x_hat.first, "x_hat[1]"),
+            (l.x_ref.index(3, 0), "x_ref[4]"),
+            (l.u, "u[1]"),
+            (l.gain.index(0, 3), "L[1,4]"),
+            (l.a.index(3, 3), "A[4,4]"),
+            (l.b.index(3, 0), "B[4,1]"),
+            (l.design.pole_re.first, "pole_re[1]"),
+            (l.design.pole_im.index(3, 0), "pole_im[4]"),
+            (l.design.u_min, "u_min"),
+            (l.design.u_max, "u_max"),
+            (l.require_stable, "require_stable"),
+        ];
+        for (index, name) in named {
+            assert_eq!(v[index].name, name);
+        }
+        let layout = l;
         assert_eq!(v.len(), layout.require_stable + 1);
         assert_eq!(v[layout.u].unit.as_deref(), Some("N"));
         assert_eq!(v[layout.u].dependencies.len(), 8);
