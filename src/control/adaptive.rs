@@ -647,6 +647,30 @@ mod tests {
         assert_eq!(accepted, 199);
     }
 
+    /// A saved state is read back only if it could have been built: a zero recompute period
+    /// (which would make the next commit underflow), poles outside the unit circle or a
+    /// mis-sized gain are refused; a good one comes back equal, its polynomial derived again.
+    #[test]
+    fn a_state_read_back_is_checked_like_a_new_controller() {
+        let design = crane_reference_design().unwrap();
+        let good = crane_controller(Some(design.gain.clone()));
+        let read = |c: &AdaptiveStateFeedback| {
+            let mut bytes = Vec::new();
+            c.save(&mut bytes);
+            AdaptiveStateFeedback::read(&mut bytes.as_slice())
+        };
+        assert_eq!(read(&good), Ok(good.clone()));
+        let mut bad = good.clone();
+        bad.config.recompute_period = 0;
+        assert!(read(&bad).is_err());
+        let mut bad = good.clone();
+        bad.config.poles[0] = Complex::new(1.5, 0.0);
+        assert!(read(&bad).is_err());
+        let mut bad = good;
+        bad.gain = Some(DMatrix::zeros(1, 3));
+        assert!(read(&bad).is_err());
+    }
+
     #[test]
     fn recomputes_only_every_nth_call() {
         let (design, mut config) = crane_config();
