@@ -20,6 +20,9 @@ fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> Timing {
 /// Steps `M` on a deterministic test signal (sines plus a 5 % sprinkling of outliers) and
 /// reports the median cost.
 fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[&str]) {
+    if std::env::var("ESTIMATORS_ONLY").is_ok_and(|only| !label.starts_with(&only)) {
+        return;
+    }
     let info = M::describe(config).expect("describe");
     let vr = |name: &str| info.index_of(name).expect("variable") as u32;
     let input_vrs: Vec<u32> = inputs.iter().map(|n| vr(n)).collect();
@@ -31,7 +34,7 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
     let step = 0.05;
     let mut t = 0.0;
     let mut k = 0u64;
-    let timing = measure(300, 100, || {
+    let mut sample = || {
         for (i, v) in values.iter_mut().enumerate() {
             let phase = k as f64 * 0.05 * (i + 1) as f64;
             let outlier = if (k * 7 + i as u64).is_multiple_of(20) {
@@ -46,13 +49,30 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
         black_box(&out);
         t += step;
         k += 1;
-    });
+    };
+    if let Some(steps) = profile_steps() {
+        // Under callgrind: a fixed number of samples, untimed.
+        for _ in 0..steps {
+            sample();
+        }
+        println!("{label}: {steps} samples");
+        return;
+    }
+    let timing = measure(300, 100, sample);
     println!(
         "{label}: {}, {} inputs set, {} outputs read",
         timing.summary("sample"),
         input_vrs.len(),
         output_vrs.len()
     );
+}
+
+/// `ESTIMATORS_PROFILE_STEPS=N`: run N samples of each FMU untimed (for instruction counts
+/// under `valgrind --tool=callgrind`: the difference between two N over the difference of
+/// the N is the cost of one sample). `ESTIMATORS_ONLY=<label start>` runs only the FMUs whose
+/// label starts so.
+fn profile_steps() -> Option<u64> {
+    std::env::var("ESTIMATORS_PROFILE_STEPS").ok()?.parse().ok()
 }
 
 fn main() {
