@@ -127,31 +127,16 @@ impl FilterCore {
     pub(crate) fn predict(&mut self, a: View<'_>, b: View<'_>, q: &DMatrix<f64>) {
         self.steps += 1;
         let n = self.x.len();
-        dense::gemv(self.x_prior.as_mut_slice(), 1.0, a, self.x.as_slice(), 0.0);
-        dense::gemv(
-            self.x_prior.as_mut_slice(),
-            1.0,
-            b,
-            self.u_prev.as_slice(),
-            1.0,
-        );
-        // P Aᵀ, then A (P Aᵀ) + Q.
-        dense::gemm(
-            self.work_nn.as_mut_slice(),
-            1.0,
-            View::of(&self.p),
-            a.t(),
-            0.0,
-        );
+        let x_prior = self.x_prior.as_mut_slice();
+        dense::gemv(x_prior, 1.0, a, self.x.as_slice(), 0.0);
+        dense::gemv(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
+        // W = P Aᵀ, then P⁻ = Q + A W.
+        let w = self.work_nn.as_mut_slice();
+        dense::gemm(w, 1.0, View::of(&self.p), a.t(), 0.0);
         self.p_prior.copy_from(q);
-        dense::gemm(
-            self.p_prior.as_mut_slice(),
-            1.0,
-            a,
-            View::of(&self.work_nn),
-            1.0,
-        );
-        dense::symmetrize(self.p_prior.as_mut_slice(), n);
+        let p_prior = self.p_prior.as_mut_slice();
+        dense::gemm(p_prior, 1.0, a, View::of(&self.work_nn), 1.0);
+        dense::symmetrize(p_prior, n);
     }
 
     /// e = y − C x⁻ − D u.
@@ -182,22 +167,12 @@ impl FilterCore {
         r_eff: &DMatrix<f64>,
     ) -> Result<(), EstimationError> {
         let n = self.x.len();
-        // Kᵀ = S⁻¹ C P⁻ (S symmetric).
-        dense::gemm(
-            self.gain_t.as_mut_slice(),
-            1.0,
-            c,
-            View::of(&self.p_prior),
-            0.0,
-        );
+        // Kᵀ = S⁻¹ C P⁻ (S symmetric), S = R + (C P⁻) Cᵀ.
+        let p_prior = View::of(&self.p_prior);
+        dense::gemm(self.gain_t.as_mut_slice(), 1.0, c, p_prior, 0.0);
         self.work_s.copy_from(r_eff);
-        dense::gemm(
-            self.work_s.as_mut_slice(),
-            1.0,
-            View::of(&self.gain_t),
-            c.t(),
-            1.0,
-        );
+        let s = self.work_s.as_mut_slice();
+        dense::gemm(s, 1.0, View::of(&self.gain_t), c.t(), 1.0);
         cholesky_solve_in_place(
             &mut self.work_s,
             &mut self.gain_t,
@@ -205,45 +180,23 @@ impl FilterCore {
             self.steps,
         )?;
         self.gain.tr_copy_from(&self.gain_t);
+        let (gain, gain_t) = (View::of(&self.gain), View::of(&self.gain_t));
         // x̂ = x⁻ + K e.
         let ke = self.work_n.as_mut_slice();
-        dense::gemv(
-            ke,
-            1.0,
-            View::of(&self.gain),
-            self.innovation.as_slice(),
-            0.0,
-        );
+        dense::gemv(ke, 1.0, gain, self.innovation.as_slice(), 0.0);
         for ((x, prior), ke) in self.x.iter_mut().zip(self.x_prior.iter()).zip(ke.iter()) {
             *x = prior + ke;
         }
-        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C.
+        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C, as M (P⁻ Mᵀ) + K (R Kᵀ).
         self.work_m.fill_with_identity();
-        dense::gemm(
-            self.work_m.as_mut_slice(),
-            -1.0,
-            View::of(&self.gain),
-            c,
-            1.0,
-        );
+        dense::gemm(self.work_m.as_mut_slice(), -1.0, gain, c, 1.0);
         let m = View::of(&self.work_m);
-        dense::gemm(
-            self.work_nn.as_mut_slice(),
-            1.0,
-            View::of(&self.p_prior),
-            m.t(),
-            0.0,
-        );
+        dense::gemm(self.work_nn.as_mut_slice(), 1.0, p_prior, m.t(), 0.0);
         dense::gemm(self.p.as_mut_slice(), 1.0, m, View::of(&self.work_nn), 0.0);
-        dense::gemm(
-            self.work_rk.as_mut_slice(),
-            1.0,
-            View::of(r_eff),
-            View::of(&self.gain_t),
-            0.0,
-        );
+        let rk = self.work_rk.as_mut_slice();
+        dense::gemm(rk, 1.0, View::of(r_eff), gain_t, 0.0);
         let krk = self.work_nn.as_mut_slice();
-        dense::gemm(krk, 1.0, View::of(&self.gain), View::of(&self.work_rk), 0.0);
+        dense::gemm(krk, 1.0, gain, View::of(&self.work_rk), 0.0);
         for (p, krk) in self.p.iter_mut().zip(krk.iter()) {
             *p += krk;
         }

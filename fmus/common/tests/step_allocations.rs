@@ -90,55 +90,29 @@ fn allocations<M: FmuModel>(config: &Config, set: &[(&str, f64)], flags: &[(&str
 
 #[test]
 fn estimator_steps_do_not_allocate() {
+    let kf = |n, m, p| allocations::<KalmanFilterFmu>(&dims_config(n, m, p), &[], &[]);
+    let rkf = |n, m, p| allocations::<RobustKalmanFilterFmu>(&dims_config(n, m, p), &[], &[]);
+    let dkf = |n, m, p, set: &[(&str, f64)], flags: &[(&str, bool)]| {
+        allocations::<DualKalmanFilterFmu>(&dims_config(n, m, p), set, flags)
+    };
+    let dkf_rskf = |n, m, p| allocations::<DkfRsKfFmu>(&dims_config(n, m, p), &[], &[]);
     let cases = [
+        ("KalmanFilter 1,0,1", kf(1, 0, 1)),
+        ("KalmanFilter 3,1,2", kf(3, 1, 2)),
+        ("KalmanFilter 8,2,2", kf(8, 2, 2)),
+        ("RobustKalmanFilter 1,0,1", rkf(1, 0, 1)),
+        ("RobustKalmanFilter 2,1,2", rkf(2, 1, 2)),
+        ("DualKalmanFilter 2,1,1", dkf(2, 1, 1, &[], &[])),
         (
-            "KalmanFilter 1,0,1",
-            allocations::<KalmanFilterFmu>(&dims_config(1, 0, 1), &[], &[]),
+            "DualKalmanFilter 4,1,2, C and D free",
+            dkf(4, 1, 2, &[], &[("fix_output_matrices", false)]),
         ),
         (
-            "KalmanFilter 3,1,2",
-            allocations::<KalmanFilterFmu>(&dims_config(3, 1, 2), &[], &[]),
+            "DualKalmanFilter 4,1,2, output error, bounded variance",
+            dkf(4, 1, 2, &[("pmax_theta", 2.0)], &[("output_error", true)]),
         ),
-        (
-            "KalmanFilter 8,2,2",
-            allocations::<KalmanFilterFmu>(&dims_config(8, 2, 2), &[], &[]),
-        ),
-        (
-            "RobustKalmanFilter 1,0,1",
-            allocations::<RobustKalmanFilterFmu>(&dims_config(1, 0, 1), &[], &[]),
-        ),
-        (
-            "RobustKalmanFilter 2,1,2",
-            allocations::<RobustKalmanFilterFmu>(&dims_config(2, 1, 2), &[], &[]),
-        ),
-        (
-            "DualKalmanFilter 2,1,1",
-            allocations::<DualKalmanFilterFmu>(&dims_config(2, 1, 1), &[], &[]),
-        ),
-        (
-            "DualKalmanFilter 4,1,2 C, D free",
-            allocations::<DualKalmanFilterFmu>(
-                &dims_config(4, 1, 2),
-                &[],
-                &[("fix_output_matrices", false)],
-            ),
-        ),
-        (
-            "DualKalmanFilter 4,1,2 output error",
-            allocations::<DualKalmanFilterFmu>(
-                &dims_config(4, 1, 2),
-                &[("pmax_theta", 2.0)],
-                &[("output_error", true)],
-            ),
-        ),
-        (
-            "DkfRsKf 4,1,2",
-            allocations::<DkfRsKfFmu>(&dims_config(4, 1, 2), &[], &[]),
-        ),
-        (
-            "DkfRsKf 8,2,2",
-            allocations::<DkfRsKfFmu>(&dims_config(8, 2, 2), &[], &[]),
-        ),
+        ("DkfRsKf 4,1,2", dkf_rskf(4, 1, 2)),
+        ("DkfRsKf 8,2,2 (DkfRsKfGenerator)", dkf_rskf(8, 2, 2)),
     ];
     for (name, count) in &cases {
         eprintln!("{name}: {count} allocations in 50 steps");
