@@ -559,8 +559,8 @@ pub fn kalman_gain_steady(
 }
 
 /// Allocation-free dense kernels on column-major storage for the estimators' steps
-/// (docs/estimators.md §2.7–§2.10): `y ← α A x + β y`, `C ← α A B + β C`, `y ← α Aᵀ x + β y`,
-/// `C ← α Aᵀ B + β C`, `M ← α x yᵀ + β M`, the dot product and the symmetrisation.
+/// (docs/estimators.md §2.7–§2.10): `y ← α A x + β y`, `C ← α A B + β C` (A or B may be a
+/// transposed view), the dot product and the symmetrisation.
 ///
 /// They sum in the order of nalgebra's small-matrix BLAS (a product term by term from the
 /// first column, `(α aᵢₖ) bₖⱼ` added to the running sum; a dot product in eight interleaved
@@ -594,16 +594,6 @@ pub(crate) mod dense {
                 cols: m.ncols(),
                 rs: 1,
                 cs: m.nrows(),
-            }
-        }
-        /// A vector as a column.
-        pub(crate) fn column(v: &'a [f64]) -> Self {
-            Self {
-                data: v,
-                rows: v.len(),
-                cols: 1,
-                rs: 1,
-                cs: v.len(),
             }
         }
         /// The `shape` block of `m` starting at `start` (an empty block when it would leave `m`).
@@ -785,17 +775,6 @@ pub(crate) mod dense {
                 let mean = 0.5 * (m[i + j * n] + m[j + i * n]);
                 m[i + j * n] = mean;
                 m[j + i * n] = mean;
-            }
-        }
-    }
-
-    /// `M ← α x yᵀ + β M` for `M` stored contiguously (`x.len()` rows): column j is
-    /// `(α yⱼ) x + β mⱼ`.
-    pub(crate) fn ger(m: &mut [f64], alpha: f64, x: &[f64], y: &[f64], beta: f64) {
-        let rows = x.len();
-        for (j, yj) in y.iter().enumerate() {
-            if let Some(column) = m.get_mut(j * rows..(j + 1) * rows) {
-                combine(column, alpha * yj, View::column(x), |_| 1.0, beta);
             }
         }
     }

@@ -684,18 +684,36 @@ impl DualKalmanFilter {
             for (g, s) in g.iter_mut().zip(s.iter()) {
                 *g = s / denominator;
             }
+            let ld = self.theta.nrows();
+            let theta = self.theta.as_mut_slice();
             for &row in &group.rows {
-                let prediction: f64 = (0..cols).map(|j| self.theta[(row, j)] * phi[j]).sum();
+                let Some(theta_row) = theta.get_mut(row..) else {
+                    continue;
+                };
+                let prediction: f64 = theta_row
+                    .iter()
+                    .step_by(ld)
+                    .zip(phi)
+                    .map(|(t, f)| t * f)
+                    .sum();
                 let error = self.target[row] - prediction;
-                for (j, g) in g.iter().enumerate() {
-                    self.theta[(row, j)] += g * error;
+                for (t, g) in theta_row.iter_mut().step_by(ld).zip(g.iter()) {
+                    *t += g * error;
                 }
             }
-            let sigma = group.sigma.as_mut_slice();
-            dense::ger(sigma, -1.0, g, s, 1.0);
-            dense::ger(sigma, -1.0, s, g, 1.0);
-            dense::ger(sigma, denominator, g, g, 1.0);
-            dense::symmetrize(sigma, cols);
+            // Σ = Σ⁻ − g sᵀ − s gᵀ + d g gᵀ, the three rank-one terms added in turn.
+            for (j, column) in group
+                .sigma
+                .as_mut_slice()
+                .chunks_exact_mut(cols)
+                .enumerate()
+            {
+                let (minus_s, minus_g, d_g) = (-s[j], -g[j], denominator * g[j]);
+                for ((sigma, gi), si) in column.iter_mut().zip(g.iter()).zip(s.iter()) {
+                    *sigma = d_g * gi + (minus_g * si + (minus_s * gi + *sigma));
+                }
+            }
+            dense::symmetrize(group.sigma.as_mut_slice(), cols);
         }
         if self.theta.iter().any(|v| !v.is_finite()) {
             return Err(EstimationError::NonFinite {
