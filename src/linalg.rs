@@ -726,12 +726,14 @@ pub(crate) mod dense {
     }
 
     /// `y ← α A x + β y` (β = 0: `y` is not read).
+    #[inline]
     pub(crate) fn gemv(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
         combine(y, alpha, a, |k| x.get(k).copied().unwrap_or(0.0), beta);
     }
 
     /// `C ← α A B + β C` for a `C` stored contiguously (`A.rows` rows; any strides, e.g. a
     /// transposed view; β = 0: `C` is not read).
+    #[inline]
     pub(crate) fn gemm(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
         let rows = a.rows;
         for j in 0..b.cols {
