@@ -726,20 +726,45 @@ pub(crate) mod dense {
     }
 
     /// `y ← α A x + β y` (β = 0: `y` is not read).
-    #[inline]
     pub(crate) fn gemv(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
-        combine(y, alpha, a, |k| x.get(k).copied().unwrap_or(0.0), beta);
+        let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
+        if a.rs == 1 && a.cols > 0 {
+            match a.rows {
+                1 => return combine_block::<1>(y, 0, alpha, a, &x, beta),
+                2 => return combine_block::<2>(y, 0, alpha, a, &x, beta),
+                4 => return combine_block::<4>(y, 0, alpha, a, &x, beta),
+                8 => return combine_block::<8>(y, 0, alpha, a, &x, beta),
+                _ => {}
+            }
+        }
+        combine(y, alpha, a, x, beta);
     }
 
     /// `C ← α A B + β C` for a `C` stored contiguously (`A.rows` rows; any strides, e.g. a
-    /// transposed view; β = 0: `C` is not read).
-    #[inline]
+    /// transposed view; β = 0: `C` is not read). The common row counts (1, 2, 4, 8) take a
+    /// kernel of their own, so a small product pays no more than its own block's set-up.
     pub(crate) fn gemm(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
+        if a.rs == 1 && a.cols > 0 {
+            match a.rows {
+                1 => return gemm_rows::<1>(c, alpha, a, b, beta),
+                2 => return gemm_rows::<2>(c, alpha, a, b, beta),
+                4 => return gemm_rows::<4>(c, alpha, a, b, beta),
+                8 => return gemm_rows::<8>(c, alpha, a, b, beta),
+                _ => {}
+            }
+        }
         let rows = a.rows;
         for j in 0..b.cols {
             if let Some(column) = c.get_mut(j * rows..(j + 1) * rows) {
                 combine(column, alpha, a, |k| b.at(k, j), beta);
             }
+        }
+    }
+
+    /// [`gemm`] for an `A` of `L` rows with contiguous columns.
+    fn gemm_rows<const L: usize>(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
+        for (j, column) in c.chunks_exact_mut(L).take(b.cols).enumerate() {
+            combine_block::<L>(column, 0, alpha, a, &|k| b.at(k, j), beta);
         }
     }
 
