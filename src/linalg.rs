@@ -558,6 +558,255 @@ pub fn kalman_gain_steady(
     Ok((gain_t.transpose(), p))
 }
 
+/// Allocation-free dense kernels on column-major storage for the estimators' steps
+/// (docs/estimators.md §2.7–§2.10): `y ← α A x + β y`, `C ← α A B + β C` (A or B may be a
+/// transposed view), the dot product and the symmetrisation.
+///
+/// They sum in the order of nalgebra's small-matrix BLAS (a product term by term from the
+/// first column, `(α aᵢₖ) bₖⱼ` added to the running sum; a dot product in eight interleaved
+/// partial sums), so a filter moved onto them reproduces its earlier results bit for bit
+/// where nalgebra took that path. They never allocate and never go through matrixmultiply.
+///
+/// One code path serves every size: the rows of a product go in blocks of 8, 4, 2 and 1,
+/// each block's sums held in registers (the kernel monomorphised per block size, its loops
+/// unrolled and vectorised by the compiler), so an 8-state filter runs at fixed-size speed
+/// and any other size runs the same code.
+pub(crate) mod dense {
+    use nalgebra::DMatrix;
+
+    /// A read-only matrix (or block of one): `rows × cols`, element (i, j) at
+    /// `data[i·rs + j·cs]`.
+    #[derive(Debug, Clone, Copy)]
+    pub(crate) struct View<'a> {
+        data: &'a [f64],
+        rows: usize,
+        cols: usize,
+        rs: usize,
+        cs: usize,
+    }
+
+    impl<'a> View<'a> {
+        /// The whole matrix.
+        pub(crate) fn of(m: &'a DMatrix<f64>) -> Self {
+            Self {
+                data: m.as_slice(),
+                rows: m.nrows(),
+                cols: m.ncols(),
+                rs: 1,
+                cs: m.nrows(),
+            }
+        }
+        /// The `shape` block of `m` starting at `start` (an empty block when it would leave `m`).
+        pub(crate) fn block(
+            m: &'a DMatrix<f64>,
+            start: (usize, usize),
+            shape: (usize, usize),
+        ) -> Self {
+            let ld = m.nrows();
+            let fits = start.0 + shape.0 <= m.nrows() && start.1 + shape.1 <= m.ncols();
+            let (rows, cols) = if fits { shape } else { (0, 0) };
+            let data = m
+                .as_slice()
+                .get(start.0 + start.1 * ld..)
+                .filter(|_| fits)
+                .unwrap_or(&[]);
+            Self {
+                data,
+                rows,
+                cols,
+                rs: 1,
+                cs: ld,
+            }
+        }
+        /// The transpose (no copy).
+        pub(crate) fn t(self) -> Self {
+            Self {
+                rows: self.cols,
+                cols: self.rows,
+                rs: self.cs,
+                cs: self.rs,
+                ..self
+            }
+        }
+        /// Element (i, j) (0 outside).
+        #[inline(always)]
+        pub(crate) fn at(&self, i: usize, j: usize) -> f64 {
+            self.data
+                .get(i * self.rs + j * self.cs)
+                .copied()
+                .unwrap_or(0.0)
+        }
+    }
+
+    /// Rows `i0..i0 + L` of `y ← α A x + β y` for `A` with contiguous columns, the `L` sums
+    /// kept in registers: term by term from the first column, `aᵢₖ (α xₖ)` added to the
+    /// running sum (β = 0: `y` is not read). `aᵢₖ (α xₖ)` equals nalgebra's `(α aᵢₖ) xₖ`
+    /// whenever α = ±1 or xₖ = 1, which is every use here.
+    #[inline(always)]
+    fn combine_block<const L: usize>(
+        y: &mut [f64],
+        i0: usize,
+        alpha: f64,
+        a: View<'_>,
+        x: &impl Fn(usize) -> f64,
+        beta: f64,
+    ) {
+        let Some(Ok(y)) = y.get_mut(i0..i0 + L).map(<&mut [f64; L]>::try_from) else {
+            return;
+        };
+        let column = |k: usize| {
+            let start = i0 + k * a.cs;
+            a.data
+                .get(start..start + L)
+                .and_then(|c| <&[f64; L]>::try_from(c).ok())
+        };
+        let Some(first) = column(0) else {
+            return;
+        };
+        let mut acc = [0.0; L];
+        let s = alpha * x(0);
+        if beta == 0.0 {
+            for r in 0..L {
+                acc[r] = first[r] * s;
+            }
+        } else {
+            for r in 0..L {
+                acc[r] = first[r] * s + beta * y[r];
+            }
+        }
+        for k in 1..a.cols {
+            let s = alpha * x(k);
+            if let Some(c) = column(k) {
+                for r in 0..L {
+                    acc[r] += c[r] * s;
+                }
+            }
+        }
+        *y = acc;
+    }
+
+    /// `y ← α A x + β y` with `x(k)` the k-th entry of x: row blocks of 8, 4, 2, 1 when the
+    /// columns of A are contiguous, element by element (same order) otherwise.
+    #[inline(always)]
+    fn combine(y: &mut [f64], alpha: f64, a: View<'_>, x: impl Fn(usize) -> f64, beta: f64) {
+        let rows = a.rows;
+        if a.cols == 0 {
+            for y in y.iter_mut().take(rows) {
+                *y = if beta == 0.0 { 0.0 } else { *y * beta };
+            }
+            return;
+        }
+        if a.rs != 1 {
+            for (i, y) in y.iter_mut().enumerate().take(rows) {
+                let t = a.at(i, 0) * (alpha * x(0));
+                let mut acc = if beta == 0.0 { t } else { t + beta * *y };
+                for k in 1..a.cols {
+                    acc += a.at(i, k) * (alpha * x(k));
+                }
+                *y = acc;
+            }
+            return;
+        }
+        let mut i0 = 0;
+        while rows - i0 >= 8 {
+            combine_block::<8>(y, i0, alpha, a, &x, beta);
+            i0 += 8;
+        }
+        if rows - i0 >= 4 {
+            combine_block::<4>(y, i0, alpha, a, &x, beta);
+            i0 += 4;
+        }
+        if rows - i0 >= 2 {
+            combine_block::<2>(y, i0, alpha, a, &x, beta);
+            i0 += 2;
+        }
+        if rows > i0 {
+            combine_block::<1>(y, i0, alpha, a, &x, beta);
+        }
+    }
+
+    /// `y ← α A x + β y` (β = 0: `y` is not read).
+    pub(crate) fn gemv(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
+        let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
+        if a.rs == 1 && a.cols > 0 {
+            match a.rows {
+                1 => return combine_block::<1>(y, 0, alpha, a, &x, beta),
+                2 => return combine_block::<2>(y, 0, alpha, a, &x, beta),
+                4 => return combine_block::<4>(y, 0, alpha, a, &x, beta),
+                8 => return combine_block::<8>(y, 0, alpha, a, &x, beta),
+                _ => {}
+            }
+        }
+        combine(y, alpha, a, x, beta);
+    }
+
+    /// `C ← α A B + β C` for a `C` stored contiguously (`A.rows` rows; any strides, e.g. a
+    /// transposed view; β = 0: `C` is not read). The common row counts (1, 2, 4, 8) take a
+    /// kernel of their own, so a small product pays no more than its own block's set-up.
+    pub(crate) fn gemm(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
+        if a.rs == 1 && a.cols > 0 {
+            match a.rows {
+                1 => return gemm_rows::<1>(c, alpha, a, b, beta),
+                2 => return gemm_rows::<2>(c, alpha, a, b, beta),
+                4 => return gemm_rows::<4>(c, alpha, a, b, beta),
+                8 => return gemm_rows::<8>(c, alpha, a, b, beta),
+                _ => {}
+            }
+        }
+        let rows = a.rows;
+        for j in 0..b.cols {
+            if let Some(column) = c.get_mut(j * rows..(j + 1) * rows) {
+                combine(column, alpha, a, |k| b.at(k, j), beta);
+            }
+        }
+    }
+
+    /// [`gemm`] for an `A` of `L` rows with contiguous columns.
+    fn gemm_rows<const L: usize>(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
+        for (j, column) in c.chunks_exact_mut(L).take(b.cols).enumerate() {
+            combine_block::<L>(column, 0, alpha, a, &|k| b.at(k, j), beta);
+        }
+    }
+
+    /// `aᵀ b` in nalgebra's order: eight interleaved partial sums over blocks of eight,
+    /// then the rest one by one.
+    pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+        let len = a.len().min(b.len());
+        let (a, b) = (&a[..len], &b[..len]);
+        let mut res = 0.0;
+        let mut chunks_a = a.chunks_exact(8);
+        let mut chunks_b = b.chunks_exact(8);
+        let mut acc = [0.0; 8];
+        for (ca, cb) in (&mut chunks_a).zip(&mut chunks_b) {
+            for r in 0..8 {
+                acc[r] += ca[r] * cb[r];
+            }
+        }
+        res += acc[0] + acc[4];
+        res += acc[1] + acc[5];
+        res += acc[2] + acc[6];
+        res += acc[3] + acc[7];
+        for (x, y) in chunks_a.remainder().iter().zip(chunks_b.remainder()) {
+            res += x * y;
+        }
+        res
+    }
+
+    /// Replaces the square `n × n` matrix stored in `m` by (m + mᵀ)/2.
+    pub(crate) fn symmetrize(m: &mut [f64], n: usize) {
+        if m.len() < n * n {
+            return;
+        }
+        for j in 0..n {
+            for i in j + 1..n {
+                let mean = 0.5 * (m[i + j * n] + m[j + i * n]);
+                m[i + j * n] = mean;
+                m[j + i * n] = mean;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -84,6 +84,7 @@ use super::{
     parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
     require_shape, require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
 };
+use crate::linalg::dense::{self, View};
 use nalgebra::{DMatrix, DVector};
 
 /// Everything a [`DualKalmanFilter`] needs. Build it with [`DualKalmanConfig::new`] (which
@@ -229,6 +230,25 @@ struct ParameterGroup {
     q_diag: DVector<f64>,
     r: f64,
     sigma: DMatrix<f64>,
+    /// Zero Q_θ and zero Σ: the rows are known and the update would leave them (and Σ) as
+    /// they are, so it is skipped.
+    fixed: bool,
+}
+
+impl ParameterGroup {
+    fn is_fixed(q_diag: &DVector<f64>, sigma: &DMatrix<f64>) -> bool {
+        q_diag.iter().all(|v| *v == 0.0) && sigma.iter().all(|v| *v == 0.0)
+    }
+}
+
+/// Views of Â, B̂, Ĉ, D̂ in Θ̂ = [Â B̂; Ĉ D̂].
+fn theta_blocks(theta: &DMatrix<f64>, n: usize, m: usize, p: usize) -> [View<'_>; 4] {
+    [
+        View::block(theta, (0, 0), (n, n)),
+        View::block(theta, (0, n), (n, m)),
+        View::block(theta, (n, 0), (p, n)),
+        View::block(theta, (n, n), (p, m)),
+    ]
 }
 
 /// Dual Kalman filter: states and Θ = [A B; C D]. See the module documentation.
@@ -241,8 +261,6 @@ pub struct DualKalmanFilter {
     q: DMatrix<f64>,
     r: DMatrix<f64>,
     core: FilterCore,
-    a_t: DMatrix<f64>,
-    c_t: DMatrix<f64>,
     groups: Vec<ParameterGroup>,
     predicted_output: DVector<f64>,
     y_prev: DVector<f64>,
@@ -274,6 +292,42 @@ struct OutputErrorFilter {
     sensitivity: DMatrix<f64>,
     /// S⁻_k (n×nϑ).
     sensitivity_prior: DMatrix<f64>,
+    /// Work space of one step, allocated once.
+    work: OutputErrorWork,
+}
+
+/// The output-error filter's work space: K Ĉ (n×n), H (p×nϑ), Σ⁻Hᵀ (nϑ×p), its transpose
+/// twice (p×nϑ: one becomes Gᵀ), Ĉ P⁻ (p×n), the innovation covariance and H Σ⁻ Hᵀ (p×p),
+/// G H Σ⁻ (nϑ×nϑ) and the step of ϑ.
+#[derive(Debug, Clone)]
+struct OutputErrorWork {
+    kc: DMatrix<f64>,
+    h: DMatrix<f64>,
+    sigma_ht: DMatrix<f64>,
+    h_sigma: DMatrix<f64>,
+    gain_t: DMatrix<f64>,
+    cp: DMatrix<f64>,
+    s: DMatrix<f64>,
+    hsh: DMatrix<f64>,
+    gh_sigma: DMatrix<f64>,
+    delta: DVector<f64>,
+}
+
+impl OutputErrorWork {
+    fn new(n: usize, p: usize, count: usize) -> Self {
+        Self {
+            kc: DMatrix::zeros(n, n),
+            h: DMatrix::zeros(p, count),
+            sigma_ht: DMatrix::zeros(count, p),
+            h_sigma: DMatrix::zeros(p, count),
+            gain_t: DMatrix::zeros(p, count),
+            cp: DMatrix::zeros(p, n),
+            s: DMatrix::zeros(p, p),
+            hsh: DMatrix::zeros(p, p),
+            gh_sigma: DMatrix::zeros(count, count),
+            delta: DVector::zeros(count),
+        }
+    }
 }
 
 impl DualKalmanFilter {
@@ -362,6 +416,7 @@ impl DualKalmanFilter {
                     )),
                     sensitivity: DMatrix::zeros(n, count),
                     sensitivity_prior: DMatrix::zeros(n, count),
+                    work: OutputErrorWork::new(n, p, count),
                     entries,
                 })
             }
@@ -380,6 +435,7 @@ impl DualKalmanFilter {
                 Some(group) => group.rows.push(row),
                 None => groups.push(ParameterGroup {
                     rows: vec![row],
+                    fixed: ParameterGroup::is_fixed(&q_row, &sigma0),
                     q_diag: q_row,
                     r: r_row,
                     sigma: sigma0,
@@ -391,8 +447,6 @@ impl DualKalmanFilter {
             n,
             m,
             p,
-            a_t: initial.a.transpose(),
-            c_t: initial.c.transpose(),
             theta,
             q: initial.q,
             r: initial.r,
@@ -423,18 +477,13 @@ impl DualKalmanFilter {
 
         // 1. State filter with Θ̂_{k−1}.
         {
-            let a = self.theta.view((0, 0), (n, n));
-            let b = self.theta.view((0, n), (n, m));
-            let c = self.theta.view((n, 0), (p, n));
-            let d = self.theta.view((n, n), (p, m));
-            self.a_t.tr_copy_from(&a);
-            self.c_t.tr_copy_from(&c);
-            self.core.predict(&a, &self.a_t, &b, &self.q);
-            self.core.compute_innovation(&c, &d, u, y)?;
+            let [a, b, c, d] = theta_blocks(&self.theta, n, m, p);
+            self.core.predict(a, b, &self.q);
+            self.core.compute_innovation(c, d, u, y)?;
             self.predicted_output.copy_from(y);
             self.predicted_output -= &self.core.innovation;
-            self.core.correct(&c, &self.c_t, &self.r)?;
-            self.core.finish(&c, &d, u);
+            self.core.correct(c, &self.r)?;
+            self.core.finish(c, d, u);
         }
 
         if self.output_error.is_some() {
@@ -503,15 +552,21 @@ impl DualKalmanFilter {
     /// with Θ̂_{k−1}): S⁻ = Â S + J(Φ), H = Ĉ S⁻, then, when `excited`, the Kalman update of ϑ
     /// with the innovation e_k and its covariance Ĉ P⁻ Ĉᵀ + R; finally S = (I − K Ĉ) S⁻.
     fn update_output_error(&mut self, excited: bool) -> Result<(), EstimationError> {
-        let (n, p) = (self.n, self.p);
+        let (n, m, p) = (self.n, self.m, self.p);
         let Some(oe) = self.output_error.as_mut() else {
             return Ok(());
         };
-        let a = self.theta.view((0, 0), (n, n));
-        let c = self.theta.view((n, 0), (p, n));
-        oe.sensitivity_prior.gemm(1.0, &a, &oe.sensitivity, 0.0);
+        let [a, _, c, _] = theta_blocks(&self.theta, n, m, p);
+        let w = &mut oe.work;
+        dense::gemm(
+            oe.sensitivity_prior.as_mut_slice(),
+            1.0,
+            a,
+            View::of(&oe.sensitivity),
+            0.0,
+        );
         // K Ĉ with Ĉ of Θ̂_{k−1}, taken before the update of ϑ below changes Θ̂.
-        let kc = self.core.gain_t.tr_mul(&c);
+        dense::gemm(w.kc.as_mut_slice(), 1.0, View::of(&self.core.gain), c, 0.0);
         for (e, &(row, col)) in oe.entries.iter().enumerate() {
             oe.sensitivity_prior[(row, e)] += self.regressor[col];
         }
@@ -521,24 +576,70 @@ impl DualKalmanFilter {
                 let room = (cap - oe.sigma[(i, i)]).max(0.0);
                 oe.sigma[(i, i)] += q.min(room);
             }
-            let h = c * &oe.sensitivity_prior;
-            let sigma_ht = &oe.sigma * h.transpose();
-            let mut s = c * &self.core.p_prior * c.transpose() + &self.r + &h * &sigma_ht;
-            symmetrize_in_place(&mut s);
+            // H = Ĉ S⁻, Σ⁻ Hᵀ, and S = Ĉ P⁻ Ĉᵀ + R + H Σ⁻ Hᵀ.
+            dense::gemm(
+                w.h.as_mut_slice(),
+                1.0,
+                c,
+                View::of(&oe.sensitivity_prior),
+                0.0,
+            );
+            dense::gemm(
+                w.sigma_ht.as_mut_slice(),
+                1.0,
+                View::of(&oe.sigma),
+                View::of(&w.h).t(),
+                0.0,
+            );
+            dense::gemm(
+                w.cp.as_mut_slice(),
+                1.0,
+                c,
+                View::of(&self.core.p_prior),
+                0.0,
+            );
+            dense::gemm(w.s.as_mut_slice(), 1.0, View::of(&w.cp), c.t(), 0.0);
+            dense::gemm(
+                w.hsh.as_mut_slice(),
+                1.0,
+                View::of(&w.h),
+                View::of(&w.sigma_ht),
+                0.0,
+            );
+            for ((s, r), hsh) in w.s.iter_mut().zip(self.r.iter()).zip(w.hsh.iter()) {
+                *s = *s + r + hsh;
+            }
+            symmetrize_in_place(&mut w.s);
             // Gᵀ = S⁻¹ H Σ⁻.
-            let mut gain_t = sigma_ht.transpose();
+            w.h_sigma.tr_copy_from(&w.sigma_ht);
+            w.gain_t.copy_from(&w.h_sigma);
             super::cholesky_solve_in_place(
-                &mut s,
-                &mut gain_t,
+                &mut w.s,
+                &mut w.gain_t,
                 "output-error innovation covariance H Σ Hᵀ + C P⁻ Cᵀ + R",
                 self.core.steps,
             )?;
-            let delta = gain_t.tr_mul(&self.core.innovation);
+            dense::gemv(
+                w.delta.as_mut_slice(),
+                1.0,
+                View::of(&w.gain_t).t(),
+                self.core.innovation.as_slice(),
+                0.0,
+            );
             for (e, &(row, col)) in oe.entries.iter().enumerate() {
-                self.theta[(row, col)] += delta[e];
+                self.theta[(row, col)] += w.delta[e];
             }
             // Σ = Σ⁻ − G H Σ⁻.
-            oe.sigma -= gain_t.tr_mul(&sigma_ht.transpose());
+            dense::gemm(
+                w.gh_sigma.as_mut_slice(),
+                1.0,
+                View::of(&w.gain_t).t(),
+                View::of(&w.h_sigma),
+                0.0,
+            );
+            for (sigma, gh_sigma) in oe.sigma.iter_mut().zip(w.gh_sigma.iter()) {
+                *sigma -= gh_sigma;
+            }
             symmetrize_in_place(&mut oe.sigma);
             if self.theta.iter().any(|v| !v.is_finite()) || oe.sigma.iter().any(|v| !v.is_finite())
             {
@@ -550,43 +651,69 @@ impl DualKalmanFilter {
         }
         // S = (I − K C) S⁻, K = (Kᵀ)ᵀ.
         oe.sensitivity.copy_from(&oe.sensitivity_prior);
-        oe.sensitivity.gemm(-1.0, &kc, &oe.sensitivity_prior, 1.0);
+        dense::gemm(
+            oe.sensitivity.as_mut_slice(),
+            -1.0,
+            View::of(&w.kc),
+            View::of(&oe.sensitivity_prior),
+            1.0,
+        );
         Ok(())
     }
 
     fn update_parameters(&mut self) -> Result<(), EstimationError> {
-        let phi = &self.regressor;
+        let phi = self.regressor.as_slice();
+        let cols = phi.len();
         let cap = self.bounds.max_variance;
-        for group in &mut self.groups {
+        for group in self.groups.iter_mut().filter(|g| !g.fixed) {
             for (i, q) in group.q_diag.iter().enumerate() {
                 // q̃ᵢ = min(qᵢ, max(0, σ²_max − Σᵢᵢ)): = qᵢ with σ²_max = +∞.
                 let room = (cap - group.sigma[(i, i)]).max(0.0);
                 group.sigma[(i, i)] += q.min(room);
             }
-            self.work_s.gemv(1.0, &group.sigma, phi, 0.0);
-            let denominator = phi.dot(&self.work_s) + group.r;
+            let s = self.work_s.as_mut_slice();
+            dense::gemv(s, 1.0, View::of(&group.sigma), phi, 0.0);
+            let denominator = dense::dot(phi, s) + group.r;
             if !(denominator.is_finite() && denominator > 0.0) {
                 return Err(EstimationError::NonFinite {
                     what: "parameter-filter innovation variance Φᵀ Σ⁻ Φ + R_θ",
                     step: self.core.steps,
                 });
             }
-            self.work_g.copy_from(&self.work_s);
-            self.work_g /= denominator;
-            let cols = phi.len();
+            let g = self.work_g.as_mut_slice();
+            for (g, s) in g.iter_mut().zip(s.iter()) {
+                *g = s / denominator;
+            }
+            let ld = self.theta.nrows();
+            let theta = self.theta.as_mut_slice();
             for &row in &group.rows {
-                let prediction: f64 = (0..cols).map(|j| self.theta[(row, j)] * phi[j]).sum();
+                let Some(theta_row) = theta.get_mut(row..) else {
+                    continue;
+                };
+                let prediction: f64 = theta_row
+                    .iter()
+                    .step_by(ld)
+                    .zip(phi)
+                    .map(|(t, f)| t * f)
+                    .sum();
                 let error = self.target[row] - prediction;
-                for j in 0..cols {
-                    self.theta[(row, j)] += self.work_g[j] * error;
+                for (t, g) in theta_row.iter_mut().step_by(ld).zip(g.iter()) {
+                    *t += g * error;
                 }
             }
-            group.sigma.ger(-1.0, &self.work_g, &self.work_s, 1.0);
-            group.sigma.ger(-1.0, &self.work_s, &self.work_g, 1.0);
-            group
+            // Σ = Σ⁻ − g sᵀ − s gᵀ + d g gᵀ, the three rank-one terms added in turn.
+            for (j, column) in group
                 .sigma
-                .ger(denominator, &self.work_g, &self.work_g, 1.0);
-            symmetrize_in_place(&mut group.sigma);
+                .as_mut_slice()
+                .chunks_exact_mut(cols)
+                .enumerate()
+            {
+                let (minus_s, minus_g, d_g) = (-s[j], -g[j], denominator * g[j]);
+                for ((sigma, gi), si) in column.iter_mut().zip(g.iter()).zip(s.iter()) {
+                    *sigma = d_g * gi + (minus_g * si + (minus_s * gi + *sigma));
+                }
+            }
+            dense::symmetrize(group.sigma.as_mut_slice(), cols);
         }
         if self.theta.iter().any(|v| !v.is_finite()) {
             return Err(EstimationError::NonFinite {
@@ -714,6 +841,7 @@ impl Saved for DualKalmanFilter {
         input.fill(self.theta.as_mut_slice())?;
         for group in &mut self.groups {
             input.fill(group.sigma.as_mut_slice())?;
+            group.fixed = ParameterGroup::is_fixed(&group.q_diag, &group.sigma);
         }
         input.fill(self.y_prev.as_mut_slice())?;
         input.fill(self.predicted_output.as_mut_slice())?;

@@ -19,9 +19,10 @@
 
 use super::{
     cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
-    require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
+    require_spd, EstimationError, Saved, StateReader,
 };
-use nalgebra::{DMatrix, DMatrixView, DVector};
+use crate::linalg::dense::{self, View};
+use nalgebra::{DMatrix, DVector};
 
 /// The accessors of a filter built on a [`FilterCore`] (field `core`) and a [`LinearModel`]
 /// (field `model`): the sKF and the rsKF.
@@ -85,10 +86,14 @@ pub(crate) struct FilterCore {
     pub(crate) output: DVector<f64>,
     /// Kᵀ (p×n).
     pub(crate) gain_t: DMatrix<f64>,
+    /// K (n×p), the transpose of `gain_t`.
+    pub(crate) gain: DMatrix<f64>,
     /// n×n scratch.
     work_nn: DMatrix<f64>,
-    /// (I − K C)ᵀ, n×n.
-    work_mt: DMatrix<f64>,
+    /// I − K C, n×n.
+    work_m: DMatrix<f64>,
+    /// n scratch.
+    work_n: DVector<f64>,
     /// S, then its Cholesky factor, p×p.
     work_s: DMatrix<f64>,
     /// R Kᵀ, p×n.
@@ -108,43 +113,45 @@ impl FilterCore {
             innovation: DVector::zeros(outputs),
             output: DVector::zeros(outputs),
             gain_t: DMatrix::zeros(outputs, n),
+            gain: DMatrix::zeros(n, outputs),
             work_nn: DMatrix::zeros(n, n),
-            work_mt: DMatrix::zeros(n, n),
+            work_m: DMatrix::zeros(n, n),
+            work_n: DVector::zeros(n),
             work_s: DMatrix::zeros(outputs, outputs),
             work_rk: DMatrix::zeros(outputs, n),
             steps: 0,
         }
     }
 
-    /// x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q. `a_t` is Aᵀ.
-    pub(crate) fn predict(
-        &mut self,
-        a: &DMatrixView<'_, f64>,
-        a_t: &DMatrix<f64>,
-        b: &DMatrixView<'_, f64>,
-        q: &DMatrix<f64>,
-    ) {
+    /// x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q.
+    pub(crate) fn predict(&mut self, a: View<'_>, b: View<'_>, q: &DMatrix<f64>) {
         self.steps += 1;
-        self.x_prior.gemv(1.0, a, &self.x, 0.0);
-        self.x_prior.gemv(1.0, b, &self.u_prev, 1.0);
-        self.work_nn.gemm(1.0, &self.p, a_t, 0.0);
+        let n = self.x.len();
+        let x_prior = self.x_prior.as_mut_slice();
+        dense::gemv(x_prior, 1.0, a, self.x.as_slice(), 0.0);
+        dense::gemv(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
+        // W = P Aᵀ, then P⁻ = Q + A W.
+        let w = self.work_nn.as_mut_slice();
+        dense::gemm(w, 1.0, View::of(&self.p), a.t(), 0.0);
         self.p_prior.copy_from(q);
-        self.p_prior.gemm(1.0, a, &self.work_nn, 1.0);
-        symmetrize_in_place(&mut self.p_prior);
+        let p_prior = self.p_prior.as_mut_slice();
+        dense::gemm(p_prior, 1.0, a, View::of(&self.work_nn), 1.0);
+        dense::symmetrize(p_prior, n);
     }
 
     /// e = y − C x⁻ − D u.
     pub(crate) fn compute_innovation(
         &mut self,
-        c: &DMatrixView<'_, f64>,
-        d: &DMatrixView<'_, f64>,
+        c: View<'_>,
+        d: View<'_>,
         u: &DVector<f64>,
         y: &DVector<f64>,
     ) -> Result<(), EstimationError> {
         self.innovation.copy_from(y);
-        self.innovation.gemv(-1.0, c, &self.x_prior, 1.0);
-        self.innovation.gemv(-1.0, d, u, 1.0);
-        if self.innovation.iter().any(|v| !v.is_finite()) {
+        let e = self.innovation.as_mut_slice();
+        dense::gemv(e, -1.0, c, self.x_prior.as_slice(), 1.0);
+        dense::gemv(e, -1.0, d, u.as_slice(), 1.0);
+        if e.iter().any(|v| !v.is_finite()) {
             return Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
                 step: self.steps,
@@ -154,34 +161,46 @@ impl FilterCore {
     }
 
     /// Gain from S = C P⁻ Cᵀ + R_eff, state update and Joseph covariance update with R_eff.
-    /// `c_t` is Cᵀ.
     pub(crate) fn correct(
         &mut self,
-        c: &DMatrixView<'_, f64>,
-        c_t: &DMatrix<f64>,
+        c: View<'_>,
         r_eff: &DMatrix<f64>,
     ) -> Result<(), EstimationError> {
-        // Kᵀ = S⁻¹ C P⁻ (S symmetric).
-        self.gain_t.gemm(1.0, c, &self.p_prior, 0.0);
+        let n = self.x.len();
+        // Kᵀ = S⁻¹ C P⁻ (S symmetric), S = R + (C P⁻) Cᵀ.
+        let p_prior = View::of(&self.p_prior);
+        dense::gemm(self.gain_t.as_mut_slice(), 1.0, c, p_prior, 0.0);
         self.work_s.copy_from(r_eff);
-        self.work_s.gemm(1.0, &self.gain_t, c_t, 1.0);
+        let s = self.work_s.as_mut_slice();
+        dense::gemm(s, 1.0, View::of(&self.gain_t), c.t(), 1.0);
         cholesky_solve_in_place(
             &mut self.work_s,
             &mut self.gain_t,
             "innovation covariance C P⁻ Cᵀ + R",
             self.steps,
         )?;
+        self.gain.tr_copy_from(&self.gain_t);
+        let (gain, gain_t) = (View::of(&self.gain), View::of(&self.gain_t));
         // x̂ = x⁻ + K e.
-        self.x.copy_from(&self.x_prior);
-        self.x.gemv_tr(1.0, &self.gain_t, &self.innovation, 1.0);
-        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C, Mᵀ = I − Cᵀ Kᵀ.
-        self.work_mt.fill_with_identity();
-        self.work_mt.gemm(-1.0, c_t, &self.gain_t, 1.0);
-        self.work_nn.gemm(1.0, &self.p_prior, &self.work_mt, 0.0);
-        self.p.gemm_tr(1.0, &self.work_mt, &self.work_nn, 0.0);
-        self.work_rk.gemm(1.0, r_eff, &self.gain_t, 0.0);
-        self.p.gemm_tr(1.0, &self.gain_t, &self.work_rk, 1.0);
-        symmetrize_in_place(&mut self.p);
+        let ke = self.work_n.as_mut_slice();
+        dense::gemv(ke, 1.0, gain, self.innovation.as_slice(), 0.0);
+        for ((x, prior), ke) in self.x.iter_mut().zip(self.x_prior.iter()).zip(ke.iter()) {
+            *x = prior + ke;
+        }
+        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C, as M (P⁻ Mᵀ) + K (R Kᵀ).
+        self.work_m.fill_with_identity();
+        dense::gemm(self.work_m.as_mut_slice(), -1.0, gain, c, 1.0);
+        let m = View::of(&self.work_m);
+        dense::gemm(self.work_nn.as_mut_slice(), 1.0, p_prior, m.t(), 0.0);
+        dense::gemm(self.p.as_mut_slice(), 1.0, m, View::of(&self.work_nn), 0.0);
+        let rk = self.work_rk.as_mut_slice();
+        dense::gemm(rk, 1.0, View::of(r_eff), gain_t, 0.0);
+        let krk = self.work_nn.as_mut_slice();
+        dense::gemm(krk, 1.0, gain, View::of(&self.work_rk), 0.0);
+        for (p, krk) in self.p.iter_mut().zip(krk.iter()) {
+            *p += krk;
+        }
+        dense::symmetrize(self.p.as_mut_slice(), n);
         if self.x.iter().any(|v| !v.is_finite()) || self.p.iter().any(|v| !v.is_finite()) {
             return Err(EstimationError::NonFinite {
                 what: "state estimate or its covariance",
@@ -192,14 +211,10 @@ impl FilterCore {
     }
 
     /// ŷ = C x̂ + D u, and remembers u for the next prediction.
-    pub(crate) fn finish(
-        &mut self,
-        c: &DMatrixView<'_, f64>,
-        d: &DMatrixView<'_, f64>,
-        u: &DVector<f64>,
-    ) {
-        self.output.gemv(1.0, c, &self.x, 0.0);
-        self.output.gemv(1.0, d, u, 1.0);
+    pub(crate) fn finish(&mut self, c: View<'_>, d: View<'_>, u: &DVector<f64>) {
+        let y = self.output.as_mut_slice();
+        dense::gemv(y, 1.0, c, self.x.as_slice(), 0.0);
+        dense::gemv(y, 1.0, d, u.as_slice(), 1.0);
         self.u_prev.copy_from(u);
     }
 }
@@ -258,10 +273,8 @@ pub struct GaussianModel {
 #[derive(Debug, Clone)]
 pub(crate) struct LinearModel {
     pub(crate) a: DMatrix<f64>,
-    pub(crate) a_t: DMatrix<f64>,
     pub(crate) b: DMatrix<f64>,
     pub(crate) c: DMatrix<f64>,
-    pub(crate) c_t: DMatrix<f64>,
     pub(crate) d: DMatrix<f64>,
     pub(crate) q: DMatrix<f64>,
     pub(crate) r: DMatrix<f64>,
@@ -274,10 +287,10 @@ impl LinearModel {
         &self,
         u: &DVector<f64>,
         y: &DVector<f64>,
-    ) -> Result<[DMatrixView<'_, f64>; 4], EstimationError> {
+    ) -> Result<[View<'_>; 4], EstimationError> {
         require_input_length("u", u, self.inputs())?;
         require_input_length("y", y, self.outputs())?;
-        Ok([&self.a, &self.b, &self.c, &self.d].map(|m| m.view((0, 0), m.shape())))
+        Ok([&self.a, &self.b, &self.c, &self.d].map(View::of))
     }
 
     /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
@@ -314,16 +327,7 @@ impl LinearModel {
         require_length("x0", &x0, n, "one entry per state")?;
         require_psd("P0", &p0, n)?;
         let core = FilterCore::new(x0, p0, m, p);
-        let model = Self {
-            a_t: a.transpose(),
-            c_t: c.transpose(),
-            a,
-            b,
-            c,
-            d,
-            q,
-            r,
-        };
+        let model = Self { a, b, c, d, q, r };
         Ok((model, core))
     }
 
@@ -359,10 +363,10 @@ impl KalmanFilter {
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
         let [a, b, c, d] = m.sample_views(u, y)?;
-        self.core.predict(&a, &m.a_t, &b, &m.q);
-        self.core.compute_innovation(&c, &d, u, y)?;
-        self.core.correct(&c, &m.c_t, &m.r)?;
-        self.core.finish(&c, &d, u);
+        self.core.predict(a, b, &m.q);
+        self.core.compute_innovation(c, d, u, y)?;
+        self.core.correct(c, &m.r)?;
+        self.core.finish(c, d, u);
         Ok(())
     }
 

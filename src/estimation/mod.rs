@@ -37,7 +37,7 @@ pub use dual::{
 };
 pub use estimator::StateEstimator;
 pub use kalman::{GaussianModel, KalmanFilter};
-pub use rls::{ContinuousSecondOrder, RecursiveLeastSquares};
+pub use rls::{ContinuousSecondOrder, ReadoutUnavailable, RecursiveLeastSquares};
 pub use robust::{InfluenceFunction, RobustKalmanFilter};
 
 use crate::ParameterError;

@@ -68,6 +68,8 @@ struct Prefilter {
     denominator: Vec<f64>,
     filtered_past_u: Vec<f64>,
     filtered_past_y: Vec<f64>,
+    /// Work space of the stability test (na + 1 coefficients).
+    work: Vec<f64>,
 }
 
 impl RecursiveLeastSquares {
@@ -134,6 +136,7 @@ impl RecursiveLeastSquares {
             denominator: vec![0.0; na],
             filtered_past_u: vec![0.0; na],
             filtered_past_y: vec![0.0; na],
+            work: Vec::with_capacity(na + 1),
         });
         Ok(rls)
     }
@@ -315,16 +318,69 @@ impl RecursiveLeastSquares {
         &self,
         sample_time: f64,
     ) -> Result<ContinuousSecondOrder, EstimationError> {
+        self.readout(sample_time).map_err(EstimationError::from)
+    }
+
+    /// [`RecursiveLeastSquares::continuous_second_order`] with the reason it is unavailable as a
+    /// plain value: no allocation, for callers that read it every sample and report the
+    /// reason rarely.
+    pub fn readout(&self, sample_time: f64) -> Result<ContinuousSecondOrder, ReadoutUnavailable> {
         if self.na != 2 || !(1..=2).contains(&self.nb) {
-            return Err(EstimationError::Design {
-                what: "continuous second-order readout",
-                reason: format!(
-                    "needs na = 2 and nb = 1 or 2, the model has na = {}, nb = {}",
-                    self.na, self.nb
-                ),
+            return Err(ReadoutUnavailable::Structure {
+                na: self.na,
+                nb: self.nb,
             });
         }
-        ContinuousSecondOrder::from_arx(self.theta[0], self.theta[1], self.b(), sample_time)
+        ContinuousSecondOrder::readout(self.theta[0], self.theta[1], self.b(), sample_time)
+    }
+}
+
+/// Why an ARX model has no continuous second-order readout
+/// ([`RecursiveLeastSquares::readout`]); [`EstimationError`] carries it as a message.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReadoutUnavailable {
+    /// The model is not ARX(2, 1) or ARX(2, 2).
+    Structure { na: usize, nb: usize },
+    /// The sample time is not finite and > 0.
+    SampleTime(f64),
+    /// A pole on the negative real axis.
+    NegativePole { z1: f64, z2: f64 },
+    /// A pole on or outside the unit circle.
+    Unstable {
+        natural_frequency: f64,
+        damping: f64,
+        a1: f64,
+        a2: f64,
+    },
+}
+
+impl From<ReadoutUnavailable> for EstimationError {
+    fn from(why: ReadoutUnavailable) -> Self {
+        let design_error = |reason: String| EstimationError::Design {
+            what: "continuous second-order readout",
+            reason,
+        };
+        match why {
+            ReadoutUnavailable::Structure { na, nb } => design_error(format!(
+                "needs na = 2 and nb = 1 or 2, the model has na = {na}, nb = {nb}"
+            )),
+            ReadoutUnavailable::SampleTime(sample_time) => parameter_error(
+                "Ts",
+                format!("the sample time must be finite and > 0, got {sample_time}"),
+            ),
+            ReadoutUnavailable::NegativePole { z1, z2 } => design_error(format!(
+                "a pole on the negative real axis (z = {z1}, {z2}) has no continuous equivalent"
+            )),
+            ReadoutUnavailable::Unstable {
+                natural_frequency,
+                damping,
+                a1,
+                a2,
+            } => design_error(format!(
+                "the model is not stable (ω_n = {natural_frequency}, ζ = {damping}): poles of \
+                 z² + {a1} z + {a2} must lie inside the unit circle"
+            )),
+        }
     }
 }
 
@@ -350,7 +406,7 @@ impl Prefilter {
     }
 
     fn refresh_denominator(&mut self, a: &[f64]) {
-        if polynomial_is_stable(a) {
+        if polynomial_is_stable_in(a, &mut self.work) {
             self.denominator.copy_from_slice(a);
         }
     }
@@ -359,17 +415,30 @@ impl Prefilter {
 /// Whether all roots of z^na + a₁ z^{na−1} + … + a_na lie strictly inside the unit circle
 /// (Jury / Schur–Cohn recursion).
 fn polynomial_is_stable(a: &[f64]) -> bool {
-    let mut coefficients: Vec<f64> = std::iter::once(1.0).chain(a.iter().copied()).collect();
+    polynomial_is_stable_in(a, &mut Vec::with_capacity(a.len() + 1))
+}
+
+/// [`polynomial_is_stable`] in the work space `coefficients` (no allocation when it holds
+/// `a.len() + 1` values): each step of the recursion replaces c by cᵢ − k c_{deg−i}, in
+/// place pair by pair.
+fn polynomial_is_stable_in(a: &[f64], coefficients: &mut Vec<f64>) -> bool {
+    coefficients.clear();
+    coefficients.push(1.0);
+    coefficients.extend_from_slice(a);
     while coefficients.len() > 1 {
         let degree = coefficients.len() - 1;
         let reflection = coefficients[degree] / coefficients[0];
         if !reflection.is_finite() || reflection.abs() >= 1.0 {
             return false;
         }
-        let next: Vec<f64> = (0..degree)
-            .map(|i| coefficients[i] - reflection * coefficients[degree - i])
-            .collect();
-        coefficients = next;
+        for i in 0..=degree / 2 {
+            let (low, high) = (coefficients[i], coefficients[degree - i]);
+            coefficients[i] = low - reflection * high;
+            if i > 0 && degree - i != i {
+                coefficients[degree - i] = high - reflection * low;
+            }
+        }
+        coefficients.truncate(degree);
     }
     true
 }
@@ -402,15 +471,18 @@ impl ContinuousSecondOrder {
         b: &[f64],
         sample_time: f64,
     ) -> Result<Self, EstimationError> {
-        let design_error = |reason: String| EstimationError::Design {
-            what: "continuous second-order readout",
-            reason,
-        };
+        Self::readout(a1, a2, b, sample_time).map_err(EstimationError::from)
+    }
+
+    /// [`ContinuousSecondOrder::from_arx`] with the reason as a plain value.
+    pub fn readout(
+        a1: f64,
+        a2: f64,
+        b: &[f64],
+        sample_time: f64,
+    ) -> Result<Self, ReadoutUnavailable> {
         if !(sample_time.is_finite() && sample_time > 0.0) {
-            return Err(parameter_error(
-                "Ts",
-                format!("the sample time must be finite and > 0, got {sample_time}"),
-            ));
+            return Err(ReadoutUnavailable::SampleTime(sample_time));
         }
         let discriminant = a1 * a1 - 4.0 * a2;
         let (natural_frequency, damping) = if discriminant < 0.0 {
@@ -426,9 +498,7 @@ impl ContinuousSecondOrder {
             let z1 = (-a1 + root) / 2.0;
             let z2 = (-a1 - root) / 2.0;
             if z1 <= 0.0 || z2 <= 0.0 {
-                return Err(design_error(format!(
-                    "a pole on the negative real axis (z = {z1}, {z2}) has no continuous equivalent"
-                )));
+                return Err(ReadoutUnavailable::NegativePole { z1, z2 });
             }
             let s1 = z1.ln() / sample_time;
             let s2 = z2.ln() / sample_time;
@@ -436,10 +506,12 @@ impl ContinuousSecondOrder {
             (wn, -(s1 + s2) / (2.0 * wn))
         };
         if !(natural_frequency.is_finite() && natural_frequency > 0.0 && damping > 0.0) {
-            return Err(design_error(format!(
-                "the model is not stable (ω_n = {natural_frequency}, ζ = {damping}): poles of \
-                 z² + {a1} z + {a2} must lie inside the unit circle"
-            )));
+            return Err(ReadoutUnavailable::Unstable {
+                natural_frequency,
+                damping,
+                a1,
+                a2,
+            });
         }
         let dc_gain = b.iter().sum::<f64>() / (1.0 + a1 + a2);
         let (overshoot_percent, peak_time) = if damping < 1.0 {

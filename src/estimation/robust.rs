@@ -211,8 +211,8 @@ impl RobustKalmanFilter {
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
         let [a, b, c, d] = m.sample_views(u, y)?;
-        self.core.predict(&a, &m.a_t, &b, &m.q);
-        self.core.compute_innovation(&c, &d, u, y)?;
+        self.core.predict(a, b, &m.q);
+        self.core.compute_innovation(c, d, u, y)?;
         // r = R^{-1/2} e.
         self.standardized.copy_from(&self.core.innovation);
         if !self
@@ -241,8 +241,8 @@ impl RobustKalmanFilter {
             self.r_effective
                 .gemm_tr(1.0, &self.work_g, &self.work_g, 0.0);
         }
-        self.core.correct(&c, &m.c_t, &self.r_effective)?;
-        self.core.finish(&c, &d, u);
+        self.core.correct(c, &self.r_effective)?;
+        self.core.finish(c, d, u);
         Ok(())
     }
 

@@ -255,7 +255,7 @@ impl Estimator for Rls {
         }
         ctx.values.set_real(l.y_hat, y - prediction_error);
         let ts = if self.ts > 0.0 { self.ts } else { step };
-        match self.rls.continuous_second_order(ts) {
+        match self.rls.readout(ts) {
             Ok(c)
                 if [
                     c.natural_frequency,
@@ -284,7 +284,7 @@ impl Estimator for Rls {
                 if !self.readout_logged {
                     self.readout_logged = true;
                     let reason = match result {
-                        Err(e) => e.to_string(),
+                        Err(why) => EstimationError::from(why).to_string(),
                         Ok(_) => "a figure of the continuous equivalent is not finite".into(),
                     };
                     ctx.log_event(format!(
