@@ -283,13 +283,17 @@ impl Estimator for Rls {
                 write_readout(l, ctx.values, [0.0; 5]);
                 if !self.readout_logged {
                     self.readout_logged = true;
-                    let reason = match result {
-                        Err(why) => EstimationError::from(why).to_string(),
-                        Ok(_) => "a figure of the continuous equivalent is not finite".into(),
-                    };
-                    ctx.log_event(format!(
-                        "t = {time}: no continuous second-order readout ({reason}); wn, zeta, dc_gain, overshoot and settling_time are 0 while it is unavailable (logged once)"
-                    ));
+                    // the message is built only when it will be shown: no allocation in a
+                    // step otherwise
+                    if ctx.logs_events() {
+                        let reason = match result {
+                            Err(why) => EstimationError::from(why).to_string(),
+                            Ok(_) => "a figure of the continuous equivalent is not finite".into(),
+                        };
+                        ctx.log_event(format!(
+                            "t = {time}: no continuous second-order readout ({reason}); wn, zeta, dc_gain, overshoot and settling_time are 0 while it is unavailable (logged once)"
+                        ));
+                    }
                 }
             }
         }
