@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use spurio_master::engine::RunOptions;
 use spurio_master::shard::{self, MergeOptions, RunRecord, Shard, ShardFile, SweepDefinition};
-use spurio_master::slurm::{self, Manifest, SlurmOptions, SweepArguments};
+use spurio_master::slurm::{self, Manifest, Queue, SlurmOptions, SweepArguments};
 use spurio_master::sweep::{self as sweeps, Metric, SweepResult, Variation};
 use spurio_master::system::System;
 use std::ops::Range;
@@ -325,8 +325,10 @@ fn stage(
 ) -> Result<()> {
     let options = SlurmOptions {
         shards: args.shards,
-        partition: args.partition.clone(),
-        time: args.time.clone(),
+        queue: Queue {
+            partition: args.partition.clone(),
+            time: args.time.clone(),
+        },
         cpus_per_task: args.cpus_per_task,
         mem: args.mem.clone(),
         max_requeues: args.max_requeues,
