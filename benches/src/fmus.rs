@@ -119,18 +119,20 @@ impl Stepper {
         let mut starts = Vec::new();
         let mut outputs: Vec<(VarType, Vec<u32>, Vec<f64>)> = Vec::new();
         for v in &file.variables {
-            match v.causality {
-                Causality::Input if v.var_type == VarType::Real => {
-                    inputs.push(v.value_reference);
+            match v.head.causality {
+                Causality::Input if v.head.var_type == VarType::Real => {
+                    inputs.push(v.head.value_reference);
                     starts.push(v.start.unwrap_or(0.0));
                 }
-                Causality::Output if v.var_type.is_numeric() => {
-                    match outputs.iter_mut().find(|(t, _, _)| *t == v.var_type) {
+                Causality::Output if v.head.var_type.is_numeric() => {
+                    match outputs.iter_mut().find(|(t, _, _)| *t == v.head.var_type) {
                         Some((_, vrs, out)) => {
-                            vrs.push(v.value_reference);
+                            vrs.push(v.head.value_reference);
                             out.push(0.0);
                         }
-                        None => outputs.push((v.var_type, vec![v.value_reference], vec![0.0])),
+                        None => {
+                            outputs.push((v.head.var_type, vec![v.head.value_reference], vec![0.0]))
+                        }
                     }
                 }
                 _ => {}

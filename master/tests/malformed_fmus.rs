@@ -163,7 +163,7 @@ fn the_good_fmu_unpacks_in_the_given_folder_and_leaves_it_clean() {
     let fmu = FmuFile::open_with(&crane(), &case.options()).unwrap();
     let inside: Vec<_> = std::fs::read_dir(&case.tmp).unwrap().collect();
     assert_eq!(inside.len(), 1, "one unpacked FMU folder");
-    assert_eq!(fmu.variable("theta").unwrap().value_reference, 2);
+    assert_eq!(fmu.variable("theta").unwrap().head.value_reference, 2);
     assert_eq!(
         fmu.variable("U_applied").unwrap().dependencies,
         Some(vec![0])
@@ -371,7 +371,7 @@ fn an_output_aliasing_another_output_is_accepted() {
     let fmu = case.fmu("Alias.fmu");
     std::fs::write(&fmu, bytes).unwrap();
     let f = FmuFile::open_with(&fmu, &case.options()).unwrap();
-    assert_eq!(f.variable("theta").unwrap().value_reference, 1);
+    assert_eq!(f.variable("theta").unwrap().head.value_reference, 1);
     drop(f);
     case.assert_clean(&["Alias.fmu"]);
 }
