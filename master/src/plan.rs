@@ -99,17 +99,23 @@ struct Resolved {
     dimensions: Option<Vec<usize>>,
 }
 
+/// The recorded variables, in record order (three lists of one length).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    pub vars: Vec<VarRef>,
+    /// `instance.variable` of each.
+    pub names: Vec<String>,
+    /// Buffer slot of each.
+    pub slots: Vec<usize>,
+}
+
 /// A system compiled to indices.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
     /// The connections, resolved.
     pub connections: Vec<Connection>,
-    /// The recorded variables, in record order.
-    pub recorded: Vec<VarRef>,
-    /// `instance.variable` of each recorded variable.
-    pub record_names: Vec<String>,
-    /// Buffer slot of each recorded variable.
-    pub record_slots: Vec<usize>,
+    /// The recorded variables.
+    pub recorded: Recorded,
     /// Size of the value buffer.
     pub slot_count: usize,
     /// Per instance: the reads after its step (the values it feeds or records).
@@ -342,7 +348,14 @@ impl Plan {
         for c in &connections {
             slot(c.from);
         }
-        let record_slots: Vec<usize> = recorded.iter().map(|r| slot(*r)).collect();
+        let recorded = Recorded {
+            slots: recorded.iter().map(|r| slot(*r)).collect(),
+            names: recorded
+                .iter()
+                .map(|r| variable_name(instances, *r))
+                .collect(),
+            vars: recorded,
+        };
         let mut by_slot: Vec<VarRef> = vec![(0, 0); slot_of.len()];
         for (r, s) in &slot_of {
             by_slot[*s] = *r;
@@ -391,7 +404,7 @@ impl Plan {
             Algorithm::GaussSeidel => connections.iter().map(|c| c.to.0).collect(),
             Algorithm::Jacobi => Vec::new(),
         };
-        for r in &recorded {
+        for r in &recorded.vars {
             let v = variable(*r);
             let refreshed = connected.contains(&r.0)
                 && (v.head.causality == Causality::Input
@@ -407,11 +420,6 @@ impl Plan {
             .ceil()
             .max(0.0) as u64;
         Self {
-            record_names: recorded
-                .iter()
-                .map(|r| variable_name(instances, *r))
-                .collect(),
-            record_slots,
             slot_count: slot_of.len(),
             after_step,
             propagation,

@@ -119,7 +119,7 @@ pub fn run(args: SweepArgs) -> Result<ExitCode> {
     let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics, args.max_runs)?;
     variation.check(&resolved)?;
     args.limits.check_steps(&resolved)?;
-    let recorded = &resolved.plan.record_names;
+    let recorded = &resolved.plan.recorded.names;
     for m in &metrics {
         for v in m.variables() {
             if !recorded.iter().any(|r| r == v) {
