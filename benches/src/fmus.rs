@@ -119,18 +119,22 @@ impl Stepper {
         let mut starts = Vec::new();
         let mut outputs: Vec<(VarType, Vec<u32>, Vec<f64>)> = Vec::new();
         for v in &file.variables {
-            match v.causality {
-                Causality::Input if v.var_type == VarType::Real => {
-                    inputs.push(v.value_reference);
+            let (t, vr) = (v.head.var_type, v.head.value_reference);
+            match v.head.causality {
+                Causality::Input if t == VarType::Real => {
+                    inputs.push(vr);
                     starts.push(v.start.unwrap_or(0.0));
                 }
-                Causality::Output if v.var_type.is_numeric() => {
-                    match outputs.iter_mut().find(|(t, _, _)| *t == v.var_type) {
+                Causality::Output if t.is_numeric() => {
+                    match outputs
+                        .iter_mut()
+                        .find(|(output_type, _, _)| *output_type == t)
+                    {
                         Some((_, vrs, out)) => {
-                            vrs.push(v.value_reference);
+                            vrs.push(vr);
                             out.push(0.0);
                         }
-                        None => outputs.push((v.var_type, vec![v.value_reference], vec![0.0])),
+                        None => outputs.push((t, vec![vr], vec![0.0])),
                     }
                 }
                 _ => {}

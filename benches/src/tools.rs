@@ -194,6 +194,7 @@ pub fn bare_chain(third: &ThirdParty, count: usize, steps: u64, rounds: usize) -
     let vr = |f: &FmuFile, name: &str| -> Result<u32> {
         Ok(f.variable(name)
             .with_context(|| format!("no variable {name}"))?
+            .head
             .value_reference)
     };
     let (x0, input, output) = (

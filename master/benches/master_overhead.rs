@@ -25,8 +25,8 @@ fn repo() -> PathBuf {
 /// Bare rust-fmi calls: setReal(u), doStep, getReal(y) on one LinearSystem instance.
 fn bare_loop(fmu: &Path, steps: usize, batches: usize) -> f64 {
     let file = FmuFile::open(fmu).expect("open");
-    let u = file.variable("u[1]").expect("u").value_reference;
-    let y = file.variable("y[1]").expect("y").value_reference;
+    let u = file.variable("u[1]").expect("u").head.value_reference;
+    let y = file.variable("y[1]").expect("y").head.value_reference;
     let mut instance = file.instantiate("bare", false).expect("instantiate");
     let inst = instance.fmi2_mut().expect("an FMI 2.0 FMU");
     Common::setup_experiment(inst, None, 0.0, None).expect("setup");

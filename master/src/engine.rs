@@ -536,9 +536,9 @@ impl Simulation {
                 })
                 .collect(),
             buffer: vec![0.0; plan.slot_count],
-            record_names: plan.record_names.clone(),
-            record_slots: plan.record_slots.clone(),
-            record_values: vec![0.0; plan.recorded.len()],
+            record_names: plan.recorded.names.clone(),
+            record_slots: plan.recorded.slots.clone(),
+            record_values: vec![0.0; plan.recorded.vars.len()],
             start_time: system.start_time,
             stop_time: system.stop_time,
             step_size: system.step_size,

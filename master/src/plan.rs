@@ -65,7 +65,7 @@ pub(crate) fn push_op(
     slot: usize,
 ) {
     let v = &instances[r.0].fmu.variables[r.1];
-    let (member, var_type) = (r.0, v.var_type);
+    let (member, var_type) = (r.0, v.head.var_type);
     let same = |t: &Transfer| t.member == member && t.var_type == var_type;
     let joins = match ops.last() {
         Some(Op::Set(t)) => set && same(t),
@@ -74,7 +74,7 @@ pub(crate) fn push_op(
     };
     match ops.last_mut() {
         Some(Op::Set(t)) | Some(Op::Get(t)) if joins => {
-            t.vrs.push(v.value_reference);
+            t.vrs.push(v.head.value_reference);
             t.slots.push(slot);
             t.vars.push(r.1);
         }
@@ -82,7 +82,7 @@ pub(crate) fn push_op(
             let t = Transfer {
                 member,
                 var_type,
-                vrs: vec![v.value_reference],
+                vrs: vec![v.head.value_reference],
                 slots: vec![slot],
                 vars: vec![r.1],
             };
@@ -99,17 +99,23 @@ struct Resolved {
     dimensions: Option<Vec<usize>>,
 }
 
+/// The recorded variables, in record order (three lists of one length).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    pub vars: Vec<VarRef>,
+    /// `instance.variable` of each.
+    pub names: Vec<String>,
+    /// Buffer slot of each.
+    pub slots: Vec<usize>,
+}
+
 /// A system compiled to indices.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
     /// The connections, resolved.
     pub connections: Vec<Connection>,
-    /// The recorded variables, in record order.
-    pub recorded: Vec<VarRef>,
-    /// `instance.variable` of each recorded variable.
-    pub record_names: Vec<String>,
-    /// Buffer slot of each recorded variable.
-    pub record_slots: Vec<usize>,
+    /// The recorded variables.
+    pub recorded: Recorded,
     /// Size of the value buffer.
     pub slot_count: usize,
     /// Per instance: the reads after its step (the values it feeds or records).
@@ -136,7 +142,7 @@ pub fn has_feedthrough(instances: &[ResolvedInstance], output: VarRef) -> bool {
             .fmu
             .variables
             .iter()
-            .any(|v| v.causality == Causality::Input),
+            .any(|v| v.head.causality == Causality::Input),
         Some(deps) => !deps.is_empty(),
     }
 }
@@ -145,7 +151,7 @@ pub fn has_feedthrough(instances: &[ResolvedInstance], output: VarRef) -> bool {
 pub fn variable_name(instances: &[ResolvedInstance], r: VarRef) -> String {
     format!(
         "{}.{}",
-        instances[r.0].name, instances[r.0].fmu.variables[r.1].name
+        instances[r.0].name, instances[r.0].fmu.variables[r.1].head.name
     )
 }
 
@@ -193,7 +199,7 @@ impl Plan {
         let name_of = |r: VarRef| {
             format!(
                 "{}.{}",
-                instances[r.0].name, instances[r.0].fmu.variables[r.1].name
+                instances[r.0].name, instances[r.0].fmu.variables[r.1].head.name
             )
         };
         let mut connections = Vec::new();
@@ -231,33 +237,33 @@ impl Plan {
                     connection: c.clone(),
                     reason,
                 };
-                if !matches!(fv.causality, Causality::Output) {
+                if !matches!(fv.head.causality, Causality::Output) {
                     return Err(fail(format!(
                         "`{}` has causality {:?}; a connection starts at an output",
                         name_of(from),
-                        fv.causality
+                        fv.head.causality
                     )));
                 }
-                if tv.causality != Causality::Input {
+                if tv.head.causality != Causality::Input {
                     return Err(fail(format!(
                         "`{}` has causality {:?}; a connection ends at an input",
                         name_of(to),
-                        tv.causality
+                        tv.head.causality
                     )));
                 }
-                if fv.var_type != tv.var_type {
+                if fv.head.var_type != tv.head.var_type {
                     return Err(fail(format!(
                         "type mismatch: `{}` is {:?} but `{}` is {:?}",
                         name_of(from),
-                        fv.var_type,
+                        fv.head.var_type,
                         name_of(to),
-                        tv.var_type
+                        tv.head.var_type
                     )));
                 }
-                if !fv.var_type.is_numeric() || fv.var_type == VarType::Enumeration {
+                if !fv.head.var_type.is_numeric() || fv.head.var_type == VarType::Enumeration {
                     return Err(fail(format!(
                         "{:?} connections are not supported",
-                        fv.var_type
+                        fv.head.var_type
                     )));
                 }
                 if let Some(first) = drivers.insert(to, name_of(from)) {
@@ -270,7 +276,7 @@ impl Plan {
                 connections.push(Connection {
                     from,
                     to,
-                    var_type: fv.var_type,
+                    var_type: fv.head.var_type,
                 });
             }
         }
@@ -284,7 +290,7 @@ impl Plan {
                         .iter()
                         .enumerate()
                         .filter(|(_, v)| {
-                            v.causality == Causality::Output && v.var_type.is_numeric()
+                            v.head.causality == Causality::Output && v.head.var_type.is_numeric()
                         })
                         .map(move |(j, _)| (i, j))
                 })
@@ -342,7 +348,14 @@ impl Plan {
         for c in &connections {
             slot(c.from);
         }
-        let record_slots: Vec<usize> = recorded.iter().map(|r| slot(*r)).collect();
+        let recorded = Recorded {
+            slots: recorded.iter().map(|r| slot(*r)).collect(),
+            names: recorded
+                .iter()
+                .map(|r| variable_name(instances, *r))
+                .collect(),
+            vars: recorded,
+        };
         let mut by_slot: Vec<VarRef> = vec![(0, 0); slot_of.len()];
         for (r, s) in &slot_of {
             by_slot[*s] = *r;
@@ -391,11 +404,11 @@ impl Plan {
             Algorithm::GaussSeidel => connections.iter().map(|c| c.to.0).collect(),
             Algorithm::Jacobi => Vec::new(),
         };
-        for r in &recorded {
+        for r in &recorded.vars {
             let v = variable(*r);
             let refreshed = connected.contains(&r.0)
-                && (v.causality == Causality::Input
-                    || (v.causality == Causality::Output
+                && (v.head.causality == Causality::Input
+                    || (v.head.causality == Causality::Output
                         && has_feedthrough(instances, *r)
                         && !order.contains(&PropagationStep::GetOutput(*r))));
             if refreshed {
@@ -407,11 +420,6 @@ impl Plan {
             .ceil()
             .max(0.0) as u64;
         Self {
-            record_names: recorded
-                .iter()
-                .map(|r| variable_name(instances, *r))
-                .collect(),
-            record_slots,
             slot_count: slot_of.len(),
             after_step,
             propagation,

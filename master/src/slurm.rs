@@ -69,9 +69,8 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SlurmError + '_ {
 pub struct SlurmOptions {
     /// Array tasks, one shard each.
     pub shards: usize,
-    pub partition: Option<String>,
-    /// Time limit of a task (`--time`, e.g. `00:30:00`).
-    pub time: Option<String>,
+    /// Where and how long the jobs run (the array's tasks and the merge job alike).
+    pub queue: Queue,
     /// CPUs of a task; its runs go on that many threads.
     pub cpus_per_task: usize,
     /// Memory of a task (`--mem`, e.g. `2G`).
@@ -84,11 +83,31 @@ impl Default for SlurmOptions {
     fn default() -> Self {
         Self {
             shards: 4,
-            partition: None,
-            time: None,
+            queue: Queue::default(),
             cpus_per_task: 1,
             mem: None,
             max_requeues: 2,
+        }
+    }
+}
+
+/// The directives every job of a sweep carries: its partition and time limit (each the
+/// cluster's default when not given).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Queue {
+    pub partition: Option<String>,
+    /// Time limit of a job (`--time`, e.g. `00:30:00`).
+    pub time: Option<String>,
+}
+
+impl Queue {
+    /// Appends the `#SBATCH` lines of the directives given.
+    fn write_directives(&self, s: &mut String) {
+        if let Some(p) = &self.partition {
+            let _ = writeln!(s, "#SBATCH --partition={p}");
+        }
+        if let Some(t) = &self.time {
+            let _ = writeln!(s, "#SBATCH --time={t}");
         }
     }
 }
@@ -294,15 +313,6 @@ fn job_name(system_name: &str) -> String {
     }
 }
 
-fn resource_lines(s: &mut String, options: &SlurmOptions) {
-    if let Some(p) = &options.partition {
-        let _ = writeln!(s, "#SBATCH --partition={p}");
-    }
-    if let Some(t) = &options.time {
-        let _ = writeln!(s, "#SBATCH --time={t}");
-    }
-}
-
 /// The job-array batch script: task `i` runs shard `i/N`.
 pub fn array_script(staged: &Staged, system_name: &str, options: &SlurmOptions) -> String {
     let dir = staged.dir.display().to_string();
@@ -314,7 +324,7 @@ pub fn array_script(staged: &Staged, system_name: &str, options: &SlurmOptions) 
     s.push_str("#SBATCH --requeue\n");
     s.push_str("#SBATCH --ntasks=1\n");
     let _ = writeln!(s, "#SBATCH --cpus-per-task={}", options.cpus_per_task);
-    resource_lines(&mut s, options);
+    options.queue.write_directives(&mut s);
     if let Some(mem) = &options.mem {
         let _ = writeln!(s, "#SBATCH --mem={mem}");
     }
@@ -385,7 +395,7 @@ pub fn merge_script(staged: &Staged, system_name: &str, options: &SlurmOptions) 
     let mut s = String::from("#!/bin/bash\n");
     let _ = writeln!(s, "#SBATCH --job-name={}-merge", job_name(system_name));
     s.push_str("#SBATCH --ntasks=1\n");
-    resource_lines(&mut s, options);
+    options.queue.write_directives(&mut s);
     let _ = writeln!(s, "#SBATCH --output={dir}/logs/merge.out");
     s.push_str(
         "# Submitted with --dependency=afterok:<array job>: runs when every shard succeeded.\n",
@@ -486,8 +496,10 @@ mod tests {
     fn the_array_script_runs_one_shard_per_task_and_requeues_itself() {
         let options = SlurmOptions {
             shards: 8,
-            partition: Some("compute".into()),
-            time: Some("00:20:00".into()),
+            queue: Queue {
+                partition: Some("compute".into()),
+                time: Some("00:20:00".into()),
+            },
             cpus_per_task: 4,
             mem: Some("2G".into()),
             max_requeues: 3,

@@ -113,7 +113,7 @@ fn with_array_parameters_expanded(d: &SystemDescription, fmus: &[&FmuFile]) -> S
                     let mut values = Vec::new();
                     flatten(&value, &mut values);
                     for (&e, v) in array.elements.iter().zip(values) {
-                        parameters.insert(fmu.variables[e].name.clone(), v);
+                        parameters.insert(fmu.variables[e].head.name.clone(), v);
                     }
                 }
                 _ => {
@@ -139,8 +139,10 @@ pub(crate) fn flatten(value: &toml::Value, out: &mut Vec<toml::Value>) {
 /// row-major), a whole array one named by the array (`y`).
 fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, VarType)> {
     let (causality, var_type) = match fmu.variable(name) {
-        Some(v) => (v.causality, v.var_type),
-        None => fmu.array(name).map(|a| (a.causality, a.var_type))?,
+        Some(v) => (v.head.causality, v.head.var_type),
+        None => fmu
+            .array(name)
+            .map(|a| (a.head.causality, a.head.var_type))?,
     };
     let kind = match causality {
         Causality::Input => "input",

@@ -351,7 +351,7 @@ impl Variation {
                 "--vary: instance `{instance}` has no variable `{variable}`"
             ))
         })?;
-        let var_type = system.instances[i].fmu.variables[v].var_type;
+        let var_type = system.instances[i].fmu.variables[v].head.var_type;
         for value in &self.values {
             system.check_start_value(&self.variable, start_value(var_type, *value))?;
         }
@@ -385,7 +385,7 @@ pub fn run_once(
     monitor: Option<Arc<CallMonitor>>,
 ) -> Result<Vec<f64>, RunError> {
     let mut s = system.clone();
-    let var_type = s.variable(variable)?.var_type;
+    let var_type = s.variable(variable)?.head.var_type;
     s.set_start_value(variable, start_value(var_type, value))?;
     let mut sim = Simulation::with_monitor(&s, monitor)?;
     let mut observer = MetricObserver {

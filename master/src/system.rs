@@ -270,7 +270,7 @@ impl System {
                         return Err(fail(format!(
                             "is an array of {} elements; give an array of as many values (row-major), or set elements (`{}`)",
                             array.elements.len(),
-                            array.elements.first().map_or(name.as_str(), |&e| fmu.variables[e].name.as_str())
+                            array.elements.first().map_or(name.as_str(), |&e| fmu.variables[e].head.name.as_str())
                         )));
                     }
                     for (&index, v) in array.elements.iter().zip(values) {
@@ -478,7 +478,7 @@ impl System {
         let value = toml::Value::from(value);
         let (i, v) = self.var_ref(qualified)?;
         let inst = &mut self.instances[i];
-        let name = inst.fmu.variables[v].name.clone();
+        let name = inst.fmu.variables[v].head.name.clone();
         inst.start_values.retain(|(index, _)| *index != v);
         inst.start_values.push((v, number));
         if let Some(source) = self.source.instances.get_mut(i) {
@@ -501,7 +501,7 @@ impl System {
         let number = start_number(variable, &toml::Value::from(value)).map_err(|reason| {
             SystemError::Parameter {
                 instance: inst.name.clone(),
-                variable: variable.name.clone(),
+                variable: variable.head.name.clone(),
                 file: inst.fmu.path.clone(),
                 reason,
             }
@@ -561,7 +561,7 @@ fn check_not_connected(
     match plan.connections.iter().find(|c| c.to == (i, index)) {
         Some(c) => Err(SystemError::Parameter {
             instance: inst.name.clone(),
-            variable: inst.fmu.variables[index].name.clone(),
+            variable: inst.fmu.variables[index].head.name.clone(),
             file: inst.fmu.path.clone(),
             reason: format!(
                 "is an input driven by the connection `{} -> {}`, so a value given to it \
@@ -578,10 +578,10 @@ fn check_not_connected(
 /// only parameters and inputs take values, of their own type (a Real or Float32 takes an
 /// integer too; an integer type only integers in its range).
 fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
-    if !matches!(v.causality, Causality::Parameter | Causality::Input) {
+    if !matches!(v.head.causality, Causality::Parameter | Causality::Input) {
         return Err(format!(
             "has causality {:?}: only parameters and inputs can be given values",
-            v.causality
+            v.head.causality
         ));
     }
     let range = |t: VarType| -> (f64, f64) {
@@ -595,7 +595,7 @@ fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
             _ => (i64::MIN as f64, i64::MAX as f64),
         }
     };
-    match (v.var_type, value.clone()) {
+    match (v.head.var_type, value.clone()) {
         (VarType::Real | VarType::Float32, toml::Value::Float(x)) => Ok(x),
         (VarType::Real | VarType::Float32, toml::Value::Integer(i)) => Ok(i as f64),
         (VarType::Integer | VarType::Enumeration, toml::Value::Integer(i)) => i32::try_from(i)
@@ -634,7 +634,7 @@ pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemEr
     let close: Vec<&str> = fmu
         .variables
         .iter()
-        .map(|v| v.name.as_str())
+        .map(|v| v.head.name.as_str())
         .filter(|n| {
             let base = variable.split('[').next().unwrap_or(variable);
             n.starts_with(base) || base.starts_with(n.split('[').next().unwrap_or(n))

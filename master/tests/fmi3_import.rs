@@ -64,14 +64,17 @@ fn state_space_arrays_are_elements_and_wholes() {
     assert_eq!(a.dimensions, [3, 3]);
     assert_eq!(a.elements.len(), 9);
     let a23 = fmu.variable("A[2,3]").unwrap();
-    assert_eq!((a23.value_reference, a23.start), (4, Some(0.0)));
+    assert_eq!((a23.head.value_reference, a23.start), (4, Some(0.0)));
     assert_eq!(fmu.variable("A[2,2]").unwrap().start, Some(1.0));
     let u = fmu.array("u").unwrap();
     let starts: Vec<_> = u.elements.iter().map(|&e| fmu.variables[e].start).collect();
     assert_eq!(starts, [Some(1.0), Some(2.0), Some(3.0)]);
-    assert_eq!(fmu.variable("y[3]").unwrap().causality, Causality::Output);
     assert_eq!(
-        fmu.variable("n").unwrap().causality,
+        fmu.variable("y[3]").unwrap().head.causality,
+        Causality::Output
+    );
+    assert_eq!(
+        fmu.variable("n").unwrap().head.causality,
         Causality::StructuralParameter
     );
     assert!(fmu.variable("y[4]").is_none() && fmu.variable("y").is_none());
@@ -225,7 +228,12 @@ fn values_cross_fmi_versions_and_fmi3_types() {
     )
     .unwrap();
     assert_eq!(
-        s.instances[1].fmu.variable("Int8_output").unwrap().var_type,
+        s.instances[1]
+            .fmu
+            .variable("Int8_output")
+            .unwrap()
+            .head
+            .var_type,
         VarType::Int8
     );
     let (series, _) = run(&s, &RunOptions::default());

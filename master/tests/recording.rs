@@ -79,7 +79,7 @@ fn recording_nothing_reads_only_the_outputs_that_feed_connections() {
     assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 2));
     let (recorded, _) = run_every(&system, 1);
     system.record_nothing().unwrap();
-    assert!(system.plan.record_names.is_empty());
+    assert!(system.plan.recorded.names.is_empty());
     // crane.x and crane.theta feed the sensor; nothing of the sensor is read.
     assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 0));
     let (series, end) = run_every(&system, 1);

@@ -244,10 +244,10 @@ fn run(
         .iter()
         .map(|name| {
             let label = plot::axis_label(&resolved, name)?;
-            if !resolved.plan.record_names.contains(name) {
+            if !resolved.plan.recorded.names.contains(name) {
                 bail!(
                     "cannot plot `{name}`: it is not recorded (recorded: {})",
-                    resolved.plan.record_names.join(", ")
+                    resolved.plan.recorded.names.join(", ")
                 );
             }
             Ok((name.clone(), label))

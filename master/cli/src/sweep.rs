@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use spurio_master::engine::RunOptions;
 use spurio_master::shard::{self, MergeOptions, RunRecord, Shard, ShardFile, SweepDefinition};
-use spurio_master::slurm::{self, Manifest, SlurmOptions, SweepArguments};
+use spurio_master::slurm::{self, Manifest, Queue, SlurmOptions, SweepArguments};
 use spurio_master::sweep::{self as sweeps, Metric, SweepResult, Variation};
 use spurio_master::system::System;
 use std::ops::Range;
@@ -119,7 +119,7 @@ pub fn run(args: SweepArgs) -> Result<ExitCode> {
     let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics, args.max_runs)?;
     variation.check(&resolved)?;
     args.limits.check_steps(&resolved)?;
-    let recorded = &resolved.plan.record_names;
+    let recorded = &resolved.plan.recorded.names;
     for m in &metrics {
         for v in m.variables() {
             if !recorded.iter().any(|r| r == v) {
@@ -325,8 +325,10 @@ fn stage(
 ) -> Result<()> {
     let options = SlurmOptions {
         shards: args.shards,
-        partition: args.partition.clone(),
-        time: args.time.clone(),
+        queue: Queue {
+            partition: args.partition.clone(),
+            time: args.time.clone(),
+        },
         cpus_per_task: args.cpus_per_task,
         mem: args.mem.clone(),
         max_requeues: args.max_requeues,

@@ -21,10 +21,10 @@ pub(super) fn variables(
 ) -> Result<(), String> {
     let mut by_name: HashMap<&str, usize> = HashMap::with_capacity(vars.len());
     for (i, v) in vars.iter().enumerate() {
-        if let Some(first) = by_name.insert(&v.name, i) {
+        if let Some(first) = by_name.insert(&v.head.name, i) {
             return Err(format!(
                 "two variables are called `{}` (variables {} and {} of ModelVariables); names must be unique",
-                v.name,
+                v.head.name,
                 first + 1,
                 i + 1
             ));
@@ -38,17 +38,17 @@ pub(super) fn variables(
         if !starts || is_constant {
             continue;
         }
-        let key = (v.var_type.base(), v.value_reference);
+        let key = (v.head.var_type.base(), v.head.value_reference);
         if let Some(&first) = start_holder.get(&key) {
             let a = &vars[first];
             return Err(format!(
                 "variables `{}` ({}) and `{}` ({}) share value reference {} ({}) and both have a start value; \
                  FMI 2.0 allows at most one start value in a set of aliases, so the value would be ambiguous",
-                a.name,
-                a.causality.name(),
-                v.name,
-                v.causality.name(),
-                v.value_reference,
+                a.head.name,
+                a.head.causality.name(),
+                v.head.name,
+                v.head.causality.name(),
+                v.head.value_reference,
                 match key.0 {
                     VarType::Integer => "Integer/Enumeration",
                     base => base.name(),
@@ -91,34 +91,38 @@ pub(super) fn model_structure(
         if let Some(list) = &u.dependencies {
             let mut d = Vec::with_capacity(list.len());
             for text in list {
-                let j = position(&format!("a dependency of `{}`", vars[i].name), u.list, text)?;
+                let j = position(
+                    &format!("a dependency of `{}`", vars[i].head.name),
+                    u.list,
+                    text,
+                )?;
                 d.push(j);
             }
             deps = Some(d);
         }
         match u.list {
             "Outputs" => {
-                if vars[i].causality != Causality::Output {
+                if vars[i].head.causality != Causality::Output {
                     return Err(format!(
                         "ModelStructure/Outputs: index {} is `{}`, whose causality is {}, not output",
                         i + 1,
-                        vars[i].name,
-                        vars[i].causality.name()
+                        vars[i].head.name,
+                        vars[i].head.causality.name()
                     ));
                 }
                 if outputs.insert(i, deps).is_some() {
                     return Err(format!(
                         "ModelStructure/Outputs: `{}` (index {}) is listed twice",
-                        vars[i].name,
+                        vars[i].head.name,
                         i + 1
                     ));
                 }
             }
-            "Derivatives" if vars[i].var_type != VarType::Real => {
+            "Derivatives" if vars[i].head.var_type != VarType::Real => {
                 return Err(format!(
                     "ModelStructure/Derivatives: index {} is `{}`, which is not a Real",
                     i + 1,
-                    vars[i].name
+                    vars[i].head.name
                 ));
             }
             _ => {}
@@ -130,13 +134,16 @@ pub(super) fn model_structure(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmu::VariableHead;
 
     fn var(name: &str, vr: u32, t: VarType, c: Causality) -> VariableInfo {
         VariableInfo {
-            name: name.into(),
-            value_reference: vr,
-            var_type: t,
-            causality: c,
+            head: VariableHead {
+                name: name.into(),
+                value_reference: vr,
+                var_type: t,
+                causality: c,
+            },
             fixed: false,
             start: None,
             unit: None,

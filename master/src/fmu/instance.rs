@@ -289,24 +289,43 @@ impl Instance {
     /// Reads the values of `vrs` (all of type `t`) into `out`: one value per FMI 2.0
     /// variable, an FMI 3.0 array's elements in a row (`out.len()` = nValues).
     pub fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError> {
-        match &mut self.inner {
-            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.scratch.i32).map_err(Into::into),
-            Inner::Fmi3(i) => {
-                let scratch = &mut self.scratch;
-                crate::logging::speaking(&self.log, || get3(i, t, vrs, out, scratch))
-                    .map_err(Into::into)
-            }
-        }
+        self.exchange(
+            out,
+            |i, ints, out| get2(i, t, vrs, out, ints),
+            |i, scratch, out| get3(i, t, vrs, out, scratch),
+        )
     }
 
     /// Sets `vrs` (all of type `t`) from `values` (FMI 3.0: nValues = `values.len()`).
     pub fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
+        self.exchange(
+            values,
+            |i, ints, values| set2(i, t, vrs, values, ints),
+            |i, scratch, values| set3(i, t, vrs, values, scratch),
+        )
+    }
+
+    /// Moves values between `buffer` and the instance by `fmi2` or `fmi3` with the
+    /// instance's conversion buffers; an FMI 3.0 instance's log calls are heard meanwhile.
+    fn exchange<T>(
+        &mut self,
+        buffer: T,
+        fmi2: impl FnOnce(
+            &mut fmi::fmi2::instance::InstanceCS,
+            &mut Vec<i32>,
+            T,
+        ) -> Result<(), Fmi2Error>,
+        fmi3: impl FnOnce(
+            &mut fmi::fmi3::instance::InstanceCS,
+            &mut Scratch,
+            T,
+        ) -> Result<(), Fmi3Error>,
+    ) -> Result<(), CallError> {
         match &mut self.inner {
-            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.scratch.i32).map_err(Into::into),
+            Inner::Fmi2(i) => fmi2(i, &mut self.scratch.i32, buffer).map_err(Into::into),
             Inner::Fmi3(i) => {
                 let scratch = &mut self.scratch;
-                crate::logging::speaking(&self.log, || set3(i, t, vrs, values, scratch))
-                    .map_err(Into::into)
+                crate::logging::speaking(&self.log, || fmi3(i, scratch, buffer)).map_err(Into::into)
             }
         }
     }
@@ -352,6 +371,8 @@ impl Instance {
     }
 }
 
+/// Reads FMI 2.0 values of type `t` into `out`: Integers and Booleans (`fmi2Boolean` is an
+/// int) through `ints`.
 fn get2(
     i: &mut fmi::fmi2::instance::InstanceCS,
     t: VarType,
@@ -360,25 +381,30 @@ fn get2(
     ints: &mut Vec<i32>,
 ) -> Result<(), Fmi2Error> {
     use fmi::fmi2::instance::Common;
-    if t == VarType::Real {
-        Common::get_real(i, vrs, out)?;
-        return Ok(());
-    }
-    let ints = scratch(ints, out.len());
-    if t == VarType::Boolean {
-        Common::get_boolean(i, vrs, ints)?;
-        for (o, x) in out.iter_mut().zip(ints.iter()) {
-            *o = f64::from(u8::from(*x != 0));
+    let ints = match t {
+        VarType::Real => {
+            Common::get_real(i, vrs, out)?;
+            return Ok(());
         }
-    } else {
-        Common::get_integer(i, vrs, ints)?;
-        for (o, x) in out.iter_mut().zip(ints.iter()) {
-            *o = f64::from(*x);
+        VarType::Boolean => {
+            let ints = scratch(ints, out.len());
+            Common::get_boolean(i, vrs, ints)?;
+            ints.iter_mut().for_each(|x| *x = i32::from(*x != 0));
+            ints
         }
+        _ => {
+            let ints = scratch(ints, out.len());
+            Common::get_integer(i, vrs, ints)?;
+            ints
+        }
+    };
+    for (o, x) in out.iter_mut().zip(ints.iter()) {
+        *o = f64::from(*x);
     }
     Ok(())
 }
 
+/// Writes FMI 2.0 values of type `t` from `values`: Integers and Booleans through `ints`.
 fn set2(
     i: &mut fmi::fmi2::instance::InstanceCS,
     t: VarType,
@@ -387,21 +413,23 @@ fn set2(
     ints: &mut Vec<i32>,
 ) -> Result<(), Fmi2Error> {
     use fmi::fmi2::instance::Common;
+    let boolean = t == VarType::Boolean;
     if t == VarType::Real {
         Common::set_real(i, vrs, values)?;
-        return Ok(());
-    }
-    let ints = scratch(ints, values.len());
-    if t == VarType::Boolean {
-        for (o, x) in ints.iter_mut().zip(values) {
-            *o = i32::from(*x != 0.0);
-        }
-        Common::set_boolean(i, vrs, ints)?;
     } else {
+        let ints = scratch(ints, values.len());
         for (o, x) in ints.iter_mut().zip(values) {
-            *o = *x as i32;
+            *o = if boolean {
+                i32::from(*x != 0.0)
+            } else {
+                *x as i32
+            };
         }
-        Common::set_integer(i, vrs, ints)?;
+        if boolean {
+            Common::set_boolean(i, vrs, ints)?;
+        } else {
+            Common::set_integer(i, vrs, ints)?;
+        }
     }
     Ok(())
 }

@@ -254,13 +254,20 @@ impl Causality {
     }
 }
 
-/// One variable of a loaded FMU.
+/// What a scalar variable and an array variable alike declare: the name, the value
+/// reference, the type and the causality.
 #[derive(Debug, Clone, PartialEq)]
-pub struct VariableInfo {
+pub struct VariableHead {
     pub name: String,
     pub value_reference: u32,
     pub var_type: VarType,
     pub causality: Causality,
+}
+
+/// One variable of a loaded FMU.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VariableInfo {
+    pub head: VariableHead,
     /// `variability="fixed"` or `"constant"`.
     pub fixed: bool,
     /// Start value of a Real/Integer/Boolean variable, as f64.
@@ -280,10 +287,7 @@ pub struct VariableInfo {
 /// An FMI 3.0 array variable: its elements are variables of their own (`x[1,2]`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ArrayInfo {
-    pub name: String,
-    pub value_reference: u32,
-    pub var_type: VarType,
-    pub causality: Causality,
+    pub head: VariableHead,
     /// The dimensions (a structural parameter's start value where one gives it).
     pub dimensions: Vec<usize>,
     /// Indices (into [`FmuFile::variables`]) of the elements, row-major.
@@ -427,10 +431,12 @@ impl FmuFile {
             );
             constant.push(matches!(v.variability, Some(SchemaVariability::Constant)));
             variables.push(VariableInfo {
-                name: v.name.clone(),
-                value_reference: v.value_reference,
-                var_type,
-                causality,
+                head: VariableHead {
+                    name: v.name.clone(),
+                    value_reference: v.value_reference,
+                    var_type,
+                    causality,
+                },
                 fixed,
                 start,
                 unit: units.get(i).cloned().flatten(),
@@ -449,7 +455,7 @@ impl FmuFile {
         let by_name = variables
             .iter()
             .enumerate()
-            .map(|(i, v)| (v.name.clone(), i))
+            .map(|(i, v)| (v.head.name.clone(), i))
             .collect();
         let import = Fmi2Import::new(unpacked.dir, xml).map_err(|e| LoadError::Import {
             file: path.to_path_buf(),
@@ -498,14 +504,14 @@ impl FmuFile {
             .variables
             .iter()
             .enumerate()
-            .map(|(i, v)| (v.name.clone(), i))
+            .map(|(i, v)| (v.head.name.clone(), i))
             .collect();
         by_name.extend(d.aliases.iter().cloned());
         let arrays_by_name = d
             .arrays
             .iter()
             .enumerate()
-            .map(|(i, a)| (a.name.clone(), i))
+            .map(|(i, a)| (a.head.name.clone(), i))
             .collect();
         resource_path_workaround(path, &unpacked)?;
         // rust-fmi 0.8's FMI 3.0 schema refuses attributes the standard allows (`unit`,

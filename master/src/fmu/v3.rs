@@ -12,7 +12,7 @@
 //! dimension's structural parameter exists and has a start value; every `ModelStructure`
 //! entry refers to a known variable, an `<Output>` to an output listed once.
 
-use super::{ArrayInfo, Causality, VarType, VariableInfo};
+use super::{ArrayInfo, Causality, VarType, VariableHead, VariableInfo};
 use crate::xml::{attribute, tags, Tag};
 use std::collections::HashMap;
 
@@ -320,12 +320,15 @@ fn lay_out(
                 .and_then(|t| type_units.get(t).cloned())
         });
         let fixed = matches!(r.variability.as_str(), "fixed" | "constant");
+        let head = |name: String| VariableHead {
+            name,
+            value_reference: r.vr,
+            var_type: r.var_type,
+            causality: r.causality,
+        };
         let info =
             |name: String, start: Option<&str>, element: Option<(usize, usize)>| VariableInfo {
-                name,
-                value_reference: r.vr,
-                var_type: r.var_type,
-                causality: r.causality,
+                head: head(name),
                 fixed,
                 start: start.and_then(|s| start_value(r.var_type, s)),
                 unit: unit.clone(),
@@ -361,10 +364,7 @@ fn lay_out(
                 .push(info(element, start.copied(), Some((array, k))));
         }
         d.arrays.push(ArrayInfo {
-            name: r.name.clone(),
-            value_reference: r.vr,
-            var_type: r.var_type,
-            causality: r.causality,
+            head: head(r.name.clone()),
             dimensions: dims,
             elements,
         });
@@ -378,10 +378,13 @@ fn dependencies(d: &mut Description, unknowns: &[Unknown]) -> Result<(), String>
     // Value reference -> the variable indices that carry it (one, or an array's elements).
     let mut by_vr: HashMap<u32, Vec<usize>> = HashMap::new();
     for (i, v) in d.variables.iter().enumerate() {
-        by_vr.entry(v.value_reference).or_default().push(i);
+        by_vr.entry(v.head.value_reference).or_default().push(i);
     }
-    let array_vrs: Vec<(u32, &ArrayInfo)> =
-        d.arrays.iter().map(|a| (a.value_reference, a)).collect();
+    let array_vrs: Vec<(u32, &ArrayInfo)> = d
+        .arrays
+        .iter()
+        .map(|a| (a.head.value_reference, a))
+        .collect();
     let known = |vr: u32| by_vr.contains_key(&vr) || array_vrs.iter().any(|(v, _)| *v == vr);
     let mut listed: Vec<u32> = Vec::new();
     let mut given: Vec<(Vec<usize>, Option<Vec<usize>>)> = Vec::new();
@@ -410,11 +413,11 @@ fn dependencies(d: &mut Description, unknowns: &[Unknown]) -> Result<(), String>
         let targets = by_vr.get(vr).cloned().unwrap_or_default();
         if let Some(&first) = targets.first() {
             let v = &d.variables[first];
-            if v.causality != Causality::Output {
+            if v.head.causality != Causality::Output {
                 return Err(format!(
                     "ModelStructure/Output: value reference {vr} is `{}`, whose causality is {}, not output",
-                    v.name,
-                    v.causality.name()
+                    v.head.name,
+                    v.head.causality.name()
                 ));
             }
         }
@@ -468,7 +471,7 @@ mod tests {
         let d = read(&xml).unwrap();
         assert_eq!(d.co_simulation.as_deref(), Some("M"));
         assert_eq!(d.instantiation_token, "{t}");
-        let names: Vec<&str> = d.variables.iter().map(|v| v.name.as_str()).collect();
+        let names: Vec<&str> = d.variables.iter().map(|v| v.head.name.as_str()).collect();
         assert_eq!(
             names,
             [
@@ -486,7 +489,10 @@ mod tests {
         assert_eq!(d.arrays[2].elements, [9, 10]);
         assert_eq!(d.variables[10].dependencies, Some(vec![7, 8]));
         assert_eq!(d.variables[10].unit.as_deref(), Some("m"));
-        assert_eq!(d.variables[0].causality, Causality::StructuralParameter);
+        assert_eq!(
+            d.variables[0].head.causality,
+            Causality::StructuralParameter
+        );
     }
 
     #[test]
