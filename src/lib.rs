@@ -14,6 +14,7 @@ pub mod ode;
 pub mod plants;
 pub mod signals;
 pub mod state;
+pub mod state_space;
 
 use std::fmt;
 

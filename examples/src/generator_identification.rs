@@ -24,6 +24,7 @@ use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{
     DualKalmanConfig, DualKalmanFilter, GaussianModel, InfluenceFunction, RobustKalmanFilter,
 };
+use spurio::state_space::StateSpace;
 use spurio_master::record::TimeSeries;
 use spurio_master::system::System;
 use std::time::Instant;
@@ -105,12 +106,14 @@ fn vector(system: &System, instance: &str, name: &str, n: usize) -> Result<DVect
 fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFilter)> {
     let (n, m, p) = (8, 2, 2);
     let mut config = DualKalmanConfig::new(GaussianModel {
-        a: matrix(system, "dkf", "A", n, n)?,
-        b: matrix(system, "dkf", "B", n, m)?,
-        c: matrix(system, "dkf", "C", p, n)?,
-        d: matrix(system, "dkf", "D", p, m)?,
-        q: matrix(system, "dkf", "Q", n, n)?,
-        r: matrix(system, "dkf", "R", p, p)?,
+        system: StateSpace {
+            a: matrix(system, "dkf", "A", n, n)?,
+            b: matrix(system, "dkf", "B", n, m)?,
+            c: matrix(system, "dkf", "C", p, n)?,
+            d: matrix(system, "dkf", "D", p, m)?,
+            q: matrix(system, "dkf", "Q", n, n)?,
+            r: matrix(system, "dkf", "R", p, p)?,
+        },
         x0: vector(system, "dkf", "x0", n)?,
         p0: matrix(system, "dkf", "P0", n, n)?,
     })
@@ -126,12 +129,14 @@ fn library_filters(system: &System) -> Result<(DualKalmanFilter, RobustKalmanFil
     let dkf = DualKalmanFilter::new(config)?;
     let cleaner = RobustKalmanFilter::new(
         GaussianModel {
-            a: matrix(system, "cleaner", "A", p, p)?,
-            b: DMatrix::zeros(p, 0),
-            c: matrix(system, "cleaner", "C", p, p)?,
-            d: DMatrix::zeros(p, 0),
-            q: matrix(system, "cleaner", "Q", p, p)?,
-            r: matrix(system, "cleaner", "R", p, p)?,
+            system: StateSpace {
+                a: matrix(system, "cleaner", "A", p, p)?,
+                b: DMatrix::zeros(p, 0),
+                c: matrix(system, "cleaner", "C", p, p)?,
+                d: DMatrix::zeros(p, 0),
+                q: matrix(system, "cleaner", "Q", p, p)?,
+                r: matrix(system, "cleaner", "R", p, p)?,
+            },
             x0: vector(system, "cleaner", "x0", p)?,
             p0: matrix(system, "cleaner", "P0", p, p)?,
         },

@@ -25,6 +25,7 @@ use crate::control::{AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, StateCo
 use crate::plants::gantry_crane::{CraneState, GantryCrane, GantryCraneParameters};
 use crate::signals::rng::RandomGenerator;
 use crate::signals::sensor::{NoiseLevel, OutlierParameters, Sensor, SensorParameters};
+use crate::state_space::StateSpace;
 use nalgebra::{DMatrix, DVector};
 
 /// The loop's settings that the long-run table varies.
@@ -157,17 +158,19 @@ fn run(setup: &Setup) -> Outcome {
     let x0 = DVector::from_vec(vec![0.2, 0.0, 0.0, 0.0]);
     let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
     let mut config = DualKalmanConfig::new(GaussianModel {
-        a: a0,
-        b: b0,
-        c: c.clone(),
-        d: DMatrix::zeros(2, 1),
-        q: DMatrix::identity(4, 4) * 1e-4,
-        r: DMatrix::identity(2, 2) * 1e-2,
+        system: StateSpace {
+            a: a0,
+            b: b0,
+            c: c.clone(),
+            d: DMatrix::zeros(2, 1),
+            q: DMatrix::identity(4, 4) * 1e-4,
+            r: DMatrix::identity(2, 2) * 1e-2,
+        },
         x0: x0.clone(),
         p0: DMatrix::identity(4, 4) * 1e-4,
     });
-    config.initial.q[(2, 2)] = setup.velocity_q;
-    config.initial.q[(3, 3)] = setup.velocity_q;
+    config.initial.system.q[(2, 2)] = setup.velocity_q;
+    config.initial.system.q[(3, 3)] = setup.velocity_q;
     // The papers' parameter filter, as the TOML: q_θ = 1e-6, Σ₀ = 1, r_θ = 0.5 (the defaults).
     config.bounds = setup.bounds;
     config.measurement = setup.measurement;
@@ -177,12 +180,14 @@ fn run(setup: &Setup) -> Outcome {
     let eye = DMatrix::<f64>::identity(2, 2);
     let cleaner = RobustKalmanFilter::new(
         GaussianModel {
-            a: eye.clone(),
-            b: DMatrix::zeros(2, 0),
-            c: eye.clone(),
-            d: DMatrix::zeros(2, 0),
-            q: &eye * 1e-5,
-            r: &eye * 1e-5,
+            system: StateSpace {
+                a: eye.clone(),
+                b: DMatrix::zeros(2, 0),
+                c: eye.clone(),
+                d: DMatrix::zeros(2, 0),
+                q: &eye * 1e-5,
+                r: &eye * 1e-5,
+            },
             x0: &c * &x0,
             p0: &eye * 1e-5,
         },

@@ -48,7 +48,18 @@ use super::{
     EstimationError, StateReader,
 };
 use crate::linalg::{cholesky_solve, dlqr, is_positive_definite, kalman_gain_steady, symmetrize};
+use crate::state_space::StateSpace;
+use crate::ParameterError;
 use nalgebra::{DMatrix, DVector, SVD};
+
+/// The agent's name of a plant matrix: its output matrix and measurement noise are its own.
+fn agent_parameter(name: &str) -> &str {
+    match name {
+        "C" => "C_own",
+        "R" => "R_own",
+        other => other,
+    }
+}
 
 /// How L_i is designed (N_ij always comes from the paper's LQ problem).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -64,16 +75,12 @@ pub enum ObserverDesign {
 /// the LQ design, x̂₀ = 0 and a rank tolerance of 1e-9.
 #[derive(Debug, Clone)]
 pub struct DistributedObserverConfig {
-    /// A (n×n).
-    pub a: DMatrix<f64>,
-    /// This agent's output matrix C_i (p_i×n).
-    pub c_own: DMatrix<f64>,
+    /// The plant as this agent sees it: A (n×n), its own output matrix C_i (p_i×n), the
+    /// process noise covariance Q (n×n, symmetric PSD) and its own measurement noise
+    /// covariance R_i (p_i×p_i, SPD); no input (B n×0, D p_i×0).
+    pub plant: StateSpace,
     /// The neighbour's output matrix C_j (p_j×n), used to check joint observability.
     pub c_neighbour: DMatrix<f64>,
-    /// Process noise covariance Q (n×n, symmetric PSD).
-    pub q: DMatrix<f64>,
-    /// This agent's measurement noise covariance R_i (p_i×p_i, SPD).
-    pub r_own: DMatrix<f64>,
     /// ρ in U = ρ Q (> 0).
     pub rho: f64,
     /// λ in S = λ C̃ᵀRC̃ and T = λ(…) (> 0).
@@ -100,11 +107,8 @@ impl DistributedObserverConfig {
     ) -> Self {
         let n = a.nrows();
         Self {
-            a,
-            c_own,
+            plant: StateSpace::without_input(a, c_own, q, r_own),
             c_neighbour,
-            q,
-            r_own,
             rho: 1.0,
             lambda: 1.0,
             distance: None,
@@ -297,11 +301,8 @@ impl DistributedObserver {
     /// equation has no stabilising solution.
     pub fn new(config: DistributedObserverConfig) -> Result<Self, EstimationError> {
         let DistributedObserverConfig {
-            a,
-            c_own,
+            plant,
             c_neighbour,
-            q,
-            r_own,
             rho,
             lambda,
             distance,
@@ -309,19 +310,16 @@ impl DistributedObserver {
             x0,
             rank_tolerance,
         } = config;
-        let n = a.nrows();
-        if n == 0 {
-            return Err(parameter_error("A", "must have at least one state"));
-        }
-        require_shape("A", &a, n, n, "square: n×n")?;
-        let p = c_own.nrows();
-        if p == 0 {
+        plant.check_dimensions().map_err(|error| {
+            ParameterError::new(agent_parameter(&error.parameter), error.reason)
+        })?;
+        if plant.inputs() != 0 {
             return Err(parameter_error(
-                "C_own",
-                "must have at least one output row",
+                "B",
+                "the observer takes no input: must be n×0",
             ));
         }
-        require_shape("C_own", &c_own, p, n, "n columns, like A")?;
+        let (n, p) = (plant.states(), plant.outputs());
         require_shape(
             "C_neighbour",
             &c_neighbour,
@@ -329,8 +327,15 @@ impl DistributedObserver {
             n,
             "n columns, like A",
         )?;
-        require_psd("Q", &q, n)?;
-        require_spd("R_own", &r_own, p)?;
+        require_psd("Q", &plant.q, n)?;
+        require_spd("R_own", &plant.r, p)?;
+        let StateSpace {
+            a,
+            c: c_own,
+            q,
+            r: r_own,
+            ..
+        } = plant;
         crate::require_positive("rho", rho)?;
         crate::require_positive("lambda", lambda)?;
         crate::require_positive("rank_tolerance", rank_tolerance)?;
@@ -565,6 +570,7 @@ mod tests {
     use super::super::robust::test_rng::{mean_std, TestRng};
     use super::super::{GaussianModel, KalmanFilter};
     use super::*;
+    use crate::state_space::StateSpace;
 
     fn paper_a() -> DMatrix<f64> {
         DMatrix::from_row_slice(
@@ -678,12 +684,14 @@ mod tests {
             // Constructed one sample before x₀ with x̂ = 0, P = I: x̂_{0|−1} = 0,
             // P_{0|−1} = A Aᵀ + Q (the initial error [1, 1, 1] has size 1 per state).
             let mut kf = KalmanFilter::new(GaussianModel {
-                a: a.clone(),
-                b: DMatrix::zeros(3, 0),
-                c: c_all.clone(),
-                d: DMatrix::zeros(2, 0),
-                q: DMatrix::identity(3, 3) * 0.2,
-                r: DMatrix::identity(2, 2) * 0.1,
+                system: StateSpace {
+                    a: a.clone(),
+                    b: DMatrix::zeros(3, 0),
+                    c: c_all.clone(),
+                    d: DMatrix::zeros(2, 0),
+                    q: DMatrix::identity(3, 3) * 0.2,
+                    r: DMatrix::identity(2, 2) * 0.1,
+                },
                 x0: DVector::zeros(3),
                 p0: DMatrix::identity(3, 3),
             })

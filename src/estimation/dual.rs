@@ -181,8 +181,8 @@ impl DualKalmanConfig {
     /// A configuration with the papers' parameter-filter defaults: Q_θ = 1e-6, Σ₀ = 1,
     /// R_θ = 0.5 for every entry / row.
     pub fn new(initial: GaussianModel) -> Self {
-        let rows = initial.a.nrows() + initial.c.nrows();
-        let cols = initial.a.ncols() + initial.b.ncols();
+        let rows = initial.system.a.nrows() + initial.system.c.nrows();
+        let cols = initial.system.a.ncols() + initial.system.b.ncols();
         Self {
             initial,
             parameter_q: DMatrix::from_element(rows, cols, 1e-6),
@@ -203,7 +203,7 @@ impl DualKalmanConfig {
     /// A₁₂ is invertible (≈ Ts I), leaves T = I only: from [A₁₁ A₁₂] T⁻¹ = [A₁₁ A₁₂] follow
     /// T₂₁ = 0 and T₂₂ = I. The velocity rows 3–4 are then unique.
     pub fn fix_state_rows(mut self, rows: &[usize]) -> Self {
-        let n = self.initial.a.nrows();
+        let n = self.initial.system.a.nrows();
         for &row in rows.iter().filter(|r| **r < n) {
             self.parameter_q.row_mut(row).fill(0.0);
             self.parameter_p0.row_mut(row).fill(0.0);
@@ -213,7 +213,7 @@ impl DualKalmanConfig {
 
     /// Marks C and D as known: zero Q_θ and Σ₀ on their rows, so Ĉ = C₀ and D̂ = D₀ forever.
     pub fn fix_output_matrices(mut self) -> Self {
-        let n = self.initial.a.nrows();
+        let n = self.initial.system.a.nrows();
         let rows = self.parameter_q.nrows();
         if rows > n {
             self.parameter_q.rows_mut(n, rows - n).fill(0.0);
@@ -343,18 +343,18 @@ impl DualKalmanFilter {
             measurement,
         } = config;
         bounds.validate()?;
-        let n = initial.a.nrows();
+        let n = initial.system.a.nrows();
         if n == 0 {
             return Err(parameter_error("A0", "must have at least one state"));
         }
-        require_shape("A0", &initial.a, n, n, "square: n×n")?;
-        let m = initial.b.ncols();
-        require_shape("B0", &initial.b, n, m, "n rows, like A0")?;
-        let p = initial.c.nrows();
-        require_shape("C0", &initial.c, p, n, "n columns, like A0")?;
-        require_shape("D0", &initial.d, p, m, "rows of C0 × columns of B0")?;
-        require_psd("Q", &initial.q, n)?;
-        require_spd("R", &initial.r, p)?;
+        require_shape("A0", &initial.system.a, n, n, "square: n×n")?;
+        let m = initial.system.b.ncols();
+        require_shape("B0", &initial.system.b, n, m, "n rows, like A0")?;
+        let p = initial.system.c.nrows();
+        require_shape("C0", &initial.system.c, p, n, "n columns, like A0")?;
+        require_shape("D0", &initial.system.d, p, m, "rows of C0 × columns of B0")?;
+        require_psd("Q", &initial.system.q, n)?;
+        require_spd("R", &initial.system.r, p)?;
         require_length("x0", &initial.x0, n, "one entry per state")?;
         require_psd("P0", &initial.p0, n)?;
         let rows = n + p;
@@ -383,10 +383,10 @@ impl DualKalmanFilter {
         }
 
         let mut theta = DMatrix::zeros(rows, cols);
-        theta.view_mut((0, 0), (n, n)).copy_from(&initial.a);
-        theta.view_mut((0, n), (n, m)).copy_from(&initial.b);
-        theta.view_mut((n, 0), (p, n)).copy_from(&initial.c);
-        theta.view_mut((n, n), (p, m)).copy_from(&initial.d);
+        theta.view_mut((0, 0), (n, n)).copy_from(&initial.system.a);
+        theta.view_mut((0, n), (n, m)).copy_from(&initial.system.b);
+        theta.view_mut((n, 0), (p, n)).copy_from(&initial.system.c);
+        theta.view_mut((n, n), (p, m)).copy_from(&initial.system.d);
         require_finite_matrix("Theta0", &theta)?;
 
         let output_error = match measurement {
@@ -448,8 +448,8 @@ impl DualKalmanFilter {
             m,
             p,
             theta,
-            q: initial.q,
-            r: initial.r,
+            q: initial.system.q,
+            r: initial.system.r,
             core: FilterCore::new(initial.x0, initial.p0, m, p),
             groups,
             predicted_output: DVector::zeros(p),
@@ -962,6 +962,7 @@ mod tests {
     use super::super::robust::test_rng::TestRng;
     use super::super::{GaussianModel, InfluenceFunction};
     use super::*;
+    use crate::state_space::StateSpace;
 
     struct Truth {
         a: DMatrix<f64>,
@@ -1011,12 +1012,14 @@ mod tests {
 
     fn config(noise_var: f64) -> DualKalmanConfig {
         let mut config = DualKalmanConfig::new(GaussianModel {
-            a: DMatrix::identity(2, 2) * 0.5,
-            b: DMatrix::zeros(2, 1),
-            c: DMatrix::identity(2, 2),
-            d: DMatrix::zeros(2, 1),
-            q: DMatrix::identity(2, 2) * 1e-4,
-            r: DMatrix::identity(2, 2) * noise_var,
+            system: StateSpace {
+                a: DMatrix::identity(2, 2) * 0.5,
+                b: DMatrix::zeros(2, 1),
+                c: DMatrix::identity(2, 2),
+                d: DMatrix::zeros(2, 1),
+                q: DMatrix::identity(2, 2) * 1e-4,
+                r: DMatrix::identity(2, 2) * noise_var,
+            },
             x0: DVector::zeros(2),
             p0: DMatrix::identity(2, 2),
         })
@@ -1063,7 +1066,7 @@ mod tests {
         // Q = 1e-2 (model uncertainty) against R = 2.5e-3.
         let tuned = || {
             let mut cfg = config(0.0025);
-            cfg.initial.q = DMatrix::identity(2, 2) * 1e-2;
+            cfg.initial.system.q = DMatrix::identity(2, 2) * 1e-2;
             DualKalmanFilter::new(cfg).unwrap()
         };
         let mut plain = tuned();
@@ -1071,12 +1074,14 @@ mod tests {
         // random-walk cleaner lags this fast signal, since r is standardised by R only.
         let cleaner = RobustKalmanFilter::new(
             GaussianModel {
-                a: DMatrix::from_row_slice(2, 2, &[0.85, 0.25, -0.05, 0.75]),
-                b: DMatrix::from_row_slice(2, 1, &[0.45, 1.1]),
-                c: DMatrix::identity(2, 2),
-                d: DMatrix::zeros(2, 1),
-                q: DMatrix::identity(2, 2) * 1e-2,
-                r: DMatrix::identity(2, 2) * 0.0025,
+                system: StateSpace {
+                    a: DMatrix::from_row_slice(2, 2, &[0.85, 0.25, -0.05, 0.75]),
+                    b: DMatrix::from_row_slice(2, 1, &[0.45, 1.1]),
+                    c: DMatrix::identity(2, 2),
+                    d: DMatrix::zeros(2, 1),
+                    q: DMatrix::identity(2, 2) * 1e-2,
+                    r: DMatrix::identity(2, 2) * 0.0025,
+                },
                 x0: DVector::zeros(2),
                 p0: DMatrix::identity(2, 2),
             },

@@ -84,6 +84,7 @@ impl StateEstimator for DkfRsKf {
 mod tests {
     use super::*;
     use crate::estimation::GaussianModel;
+    use crate::state_space::StateSpace;
     use nalgebra::{dmatrix, dvector};
 
     /// Drives any estimator through the trait: the generic path must equal the direct one.
@@ -98,12 +99,14 @@ mod tests {
     fn the_trait_drives_the_skf_like_its_own_methods() {
         let make = || {
             KalmanFilter::new(GaussianModel {
-                a: dmatrix![0.9],
-                b: dmatrix![1.0],
-                c: dmatrix![1.0],
-                d: dmatrix![0.0],
-                q: dmatrix![0.01],
-                r: dmatrix![0.1],
+                system: StateSpace {
+                    a: dmatrix![0.9],
+                    b: dmatrix![1.0],
+                    c: dmatrix![1.0],
+                    d: dmatrix![0.0],
+                    q: dmatrix![0.01],
+                    r: dmatrix![0.1],
+                },
                 x0: dvector![0.0],
                 p0: dmatrix![1.0],
             })

@@ -18,13 +18,14 @@
 //! before the first measurement.
 
 use super::{
-    cholesky_solve_in_place, require_input_length, require_length, require_psd, require_shape,
-    require_spd, EstimationError, Saved, StateReader,
+    cholesky_solve_in_place, require_input_length, require_length, require_psd, require_spd,
+    EstimationError, Saved, StateReader,
 };
 use crate::linalg::dense::{self, View};
+use crate::state_space::StateSpace;
 use nalgebra::{DMatrix, DVector};
 
-/// The accessors of a filter built on a [`FilterCore`] (field `core`) and a [`LinearModel`]
+/// The accessors of a filter built on a [`FilterCore`] (field `core`) and a [`StateSpace`]
 /// (field `model`): the sKF and the rsKF.
 macro_rules! core_accessors {
     () => {
@@ -253,99 +254,47 @@ impl Saved for FilterCore {
     }
 }
 
-/// A linear Gaussian state-space model and the start of its estimate:
-/// x_{k+1} = A x_k + B u_k + w, y_k = C x_k + D u_k + v with Cov(w) = Q (symmetric PSD),
-/// Cov(v) = R (SPD), initial estimate `x0` with covariance `P0` (symmetric PSD). A system
-/// without input takes `B` n×0 and `D` p×0.
+/// A linear Gaussian state-space model and the start of its estimate: the model's matrices
+/// ([`StateSpace`]: Cov(w) = Q symmetric PSD, Cov(v) = R SPD; a system without input takes
+/// `B` n×0 and `D` p×0), the initial estimate `x0` and its covariance `P0` (symmetric PSD).
 #[derive(Debug, Clone, PartialEq)]
 pub struct GaussianModel {
-    pub a: DMatrix<f64>,
-    pub b: DMatrix<f64>,
-    pub c: DMatrix<f64>,
-    pub d: DMatrix<f64>,
-    pub q: DMatrix<f64>,
-    pub r: DMatrix<f64>,
+    pub system: StateSpace,
     pub x0: DVector<f64>,
     pub p0: DMatrix<f64>,
 }
 
-/// The matrices of a linear Gaussian state-space model, validated.
-#[derive(Debug, Clone)]
-pub(crate) struct LinearModel {
-    pub(crate) a: DMatrix<f64>,
-    pub(crate) b: DMatrix<f64>,
-    pub(crate) c: DMatrix<f64>,
-    pub(crate) d: DMatrix<f64>,
-    pub(crate) q: DMatrix<f64>,
-    pub(crate) r: DMatrix<f64>,
-}
-
-impl LinearModel {
-    /// Checks the lengths of a sample (u_k, y_k), naming `u` or `y`, and gives the views of
-    /// A, B, C, D the filter core's updates take.
-    pub(crate) fn sample_views(
-        &self,
-        u: &DVector<f64>,
-        y: &DVector<f64>,
-    ) -> Result<[View<'_>; 4], EstimationError> {
-        require_input_length("u", u, self.inputs())?;
-        require_input_length("y", y, self.outputs())?;
-        Ok([&self.a, &self.b, &self.c, &self.d].map(View::of))
-    }
-
+impl GaussianModel {
     /// Validates the dimensions and covariances (parameter names "A", "B", "C", "D", "Q", "R",
     /// "P0", "x0"); gives the model and a filter core started at x0 with covariance P0.
-    pub(crate) fn with_core(model: GaussianModel) -> Result<(Self, FilterCore), EstimationError> {
-        let GaussianModel {
-            a,
-            b,
-            c,
-            d,
-            q,
-            r,
-            x0,
-            p0,
-        } = model;
-        let n = a.nrows();
-        if n == 0 {
-            return Err(super::parameter_error("A", "must have at least one state"));
-        }
-        require_shape("A", &a, n, n, "square: n×n")?;
-        let m = b.ncols();
-        require_shape("B", &b, n, m, "n rows, like A")?;
-        let p = c.nrows();
-        if p == 0 {
-            return Err(super::parameter_error(
-                "C",
-                "must have at least one output row",
-            ));
-        }
-        require_shape("C", &c, p, n, "n columns, like A")?;
-        require_shape("D", &d, p, m, "rows of C × columns of B")?;
-        require_psd("Q", &q, n)?;
-        require_spd("R", &r, p)?;
+    pub(crate) fn into_filter(self) -> Result<(StateSpace, FilterCore), EstimationError> {
+        let Self { system, x0, p0 } = self;
+        system.check_dimensions()?;
+        let (n, m, p) = (system.states(), system.inputs(), system.outputs());
+        require_psd("Q", &system.q, n)?;
+        require_spd("R", &system.r, p)?;
         require_length("x0", &x0, n, "one entry per state")?;
         require_psd("P0", &p0, n)?;
-        let core = FilterCore::new(x0, p0, m, p);
-        let model = Self { a, b, c, d, q, r };
-        Ok((model, core))
+        Ok((system, FilterCore::new(x0, p0, m, p)))
     }
+}
 
-    pub(crate) fn states(&self) -> usize {
-        self.a.nrows()
-    }
-    pub(crate) fn inputs(&self) -> usize {
-        self.b.ncols()
-    }
-    pub(crate) fn outputs(&self) -> usize {
-        self.c.nrows()
-    }
+/// Checks the lengths of a sample (u_k, y_k), naming `u` or `y`, and gives the views of
+/// A, B, C, D the filter core's updates take.
+pub(crate) fn sample_views<'a>(
+    model: &'a StateSpace,
+    u: &DVector<f64>,
+    y: &DVector<f64>,
+) -> Result<[View<'a>; 4], EstimationError> {
+    require_input_length("u", u, model.inputs())?;
+    require_input_length("y", y, model.outputs())?;
+    Ok([&model.a, &model.b, &model.c, &model.d].map(View::of))
 }
 
 /// Standard Kalman filter (sKF). See the module documentation for the equations.
 #[derive(Debug, Clone)]
 pub struct KalmanFilter {
-    model: LinearModel,
+    model: StateSpace,
     core: FilterCore,
 }
 
@@ -353,7 +302,7 @@ impl KalmanFilter {
     /// Builds a filter for the model (errors name the matrix: "A", "B", "C", "D", "Q", "R",
     /// "P0", "x0", and say why).
     pub fn new(model: GaussianModel) -> Result<Self, EstimationError> {
-        let (model, core) = LinearModel::with_core(model)?;
+        let (model, core) = model.into_filter()?;
         Ok(Self { model, core })
     }
 
@@ -362,7 +311,7 @@ impl KalmanFilter {
     /// the caller should stop or rebuild the filter.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
-        let [a, b, c, d] = m.sample_views(u, y)?;
+        let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
         self.core.correct(c, &m.r)?;
@@ -403,12 +352,14 @@ pub(crate) mod tests {
     /// x̂₀ = 0, P₀ = p0.
     pub(crate) fn scalar_filter(a: f64, q: f64, r: f64, p0: f64) -> KalmanFilter {
         KalmanFilter::new(GaussianModel {
-            a: scalar(a),
-            b: DMatrix::zeros(1, 0),
-            c: scalar(1.0),
-            d: DMatrix::zeros(1, 0),
-            q: scalar(q),
-            r: scalar(r),
+            system: StateSpace {
+                a: scalar(a),
+                b: DMatrix::zeros(1, 0),
+                c: scalar(1.0),
+                d: DMatrix::zeros(1, 0),
+                q: scalar(q),
+                r: scalar(r),
+            },
             x0: DVector::zeros(1),
             p0: scalar(p0),
         })
@@ -440,12 +391,14 @@ pub(crate) mod tests {
         let q = DMatrix::from_diagonal(&DVector::from_vec(vec![0.1, 0.2, 0.05]));
         let r = DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.1, 0.3]);
         let mut filter = KalmanFilter::new(GaussianModel {
-            a: a.clone(),
-            b,
-            c: c.clone(),
-            d,
-            q: q.clone(),
-            r: r.clone(),
+            system: StateSpace {
+                a: a.clone(),
+                b,
+                c: c.clone(),
+                d,
+                q: q.clone(),
+                r: r.clone(),
+            },
             x0: DVector::zeros(3),
             p0: DMatrix::identity(3, 3),
         })
@@ -465,12 +418,14 @@ pub(crate) mod tests {
     fn covariance_stays_symmetric_positive_definite() {
         let a = DMatrix::from_row_slice(2, 2, &[1.0, 0.05, 0.0, 1.0]);
         let mut filter = KalmanFilter::new(GaussianModel {
-            a,
-            b: DMatrix::zeros(2, 0),
-            c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
-            d: DMatrix::zeros(1, 0),
-            q: DMatrix::from_diagonal(&DVector::from_vec(vec![1e-12, 1e-10])),
-            r: scalar(1e-8),
+            system: StateSpace {
+                a,
+                b: DMatrix::zeros(2, 0),
+                c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+                d: DMatrix::zeros(1, 0),
+                q: DMatrix::from_diagonal(&DVector::from_vec(vec![1e-12, 1e-10])),
+                r: scalar(1e-8),
+            },
             x0: DVector::zeros(2),
             p0: DMatrix::identity(2, 2) * 1e6,
         })
@@ -491,12 +446,14 @@ pub(crate) mod tests {
     #[test]
     fn constructor_names_the_bad_matrix() {
         let ok = GaussianModel {
-            a: DMatrix::identity(2, 2),
-            b: DMatrix::zeros(2, 1),
-            c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
-            d: DMatrix::zeros(1, 1),
-            q: DMatrix::identity(2, 2),
-            r: scalar(1.0),
+            system: StateSpace {
+                a: DMatrix::identity(2, 2),
+                b: DMatrix::zeros(2, 1),
+                c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+                d: DMatrix::zeros(1, 1),
+                q: DMatrix::identity(2, 2),
+                r: scalar(1.0),
+            },
             x0: DVector::zeros(2),
             p0: DMatrix::identity(2, 2),
         };
@@ -504,7 +461,10 @@ pub(crate) mod tests {
         let cases = [
             (
                 GaussianModel {
-                    a: DMatrix::zeros(2, 3),
+                    system: StateSpace {
+                        a: DMatrix::zeros(2, 3),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "A",
@@ -512,7 +472,10 @@ pub(crate) mod tests {
             ),
             (
                 GaussianModel {
-                    b: DMatrix::zeros(3, 1),
+                    system: StateSpace {
+                        b: DMatrix::zeros(3, 1),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "B",
@@ -520,7 +483,10 @@ pub(crate) mod tests {
             ),
             (
                 GaussianModel {
-                    c: DMatrix::zeros(1, 3),
+                    system: StateSpace {
+                        c: DMatrix::zeros(1, 3),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "C",
@@ -528,7 +494,10 @@ pub(crate) mod tests {
             ),
             (
                 GaussianModel {
-                    d: DMatrix::zeros(2, 1),
+                    system: StateSpace {
+                        d: DMatrix::zeros(2, 1),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "D",
@@ -536,7 +505,10 @@ pub(crate) mod tests {
             ),
             (
                 GaussianModel {
-                    q: DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]),
+                    system: StateSpace {
+                        q: DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "Q",
@@ -544,7 +516,10 @@ pub(crate) mod tests {
             ),
             (
                 GaussianModel {
-                    r: scalar(0.0),
+                    system: StateSpace {
+                        r: scalar(0.0),
+                        ..ok.system.clone()
+                    },
                     ..ok.clone()
                 },
                 "R",
@@ -581,12 +556,14 @@ pub(crate) mod tests {
     #[test]
     fn step_rejects_wrong_lengths_and_non_finite_measurements() {
         let mut filter = KalmanFilter::new(GaussianModel {
-            a: scalar(1.0),
-            b: scalar(1.0),
-            c: scalar(1.0),
-            d: scalar(0.0),
-            q: scalar(1.0),
-            r: scalar(1.0),
+            system: StateSpace {
+                a: scalar(1.0),
+                b: scalar(1.0),
+                c: scalar(1.0),
+                d: scalar(0.0),
+                q: scalar(1.0),
+                r: scalar(1.0),
+            },
             x0: DVector::zeros(1),
             p0: scalar(1.0),
         })

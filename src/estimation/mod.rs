@@ -385,6 +385,7 @@ impl<'a> StateReader<'a> {
 mod state_tests {
     use super::robust::test_rng::TestRng;
     use super::*;
+    use crate::state_space::StateSpace;
 
     fn dkf_rskf() -> DkfRsKf {
         let n = 2;
@@ -392,12 +393,14 @@ mod state_tests {
         let b = DMatrix::from_row_slice(n, 1, &[0.0, 1.0]);
         let c = DMatrix::from_row_slice(1, n, &[1.0, 0.0]);
         let config = DualKalmanConfig::new(GaussianModel {
-            a,
-            b,
-            c,
-            d: DMatrix::zeros(1, 1),
-            q: DMatrix::identity(n, n) * 1e-3,
-            r: DMatrix::identity(1, 1) * 1e-2,
+            system: StateSpace {
+                a,
+                b,
+                c,
+                d: DMatrix::zeros(1, 1),
+                q: DMatrix::identity(n, n) * 1e-3,
+                r: DMatrix::identity(1, 1) * 1e-2,
+            },
             x0: DVector::zeros(n),
             p0: DMatrix::identity(n, n),
         })

@@ -23,8 +23,9 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{core_accessors, FilterCore, GaussianModel, LinearModel};
+use super::kalman::{core_accessors, sample_views, FilterCore, GaussianModel};
 use super::{parameter_error, EstimationError, Saved, StateReader};
+use crate::state_space::StateSpace;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// Smallest weight used in W⁻¹ (see the module documentation).
@@ -120,7 +121,7 @@ impl Default for InfluenceFunction {
 /// Robust-statistics Kalman filter (rsKF). See the module documentation for the equations.
 #[derive(Debug, Clone)]
 pub struct RobustKalmanFilter {
-    model: LinearModel,
+    model: StateSpace,
     core: FilterCore,
     psi: InfluenceFunction,
     /// R^{1/2ᵀ} (upper triangular, p×p).
@@ -139,7 +140,7 @@ impl RobustKalmanFilter {
     /// ψ function. Errors name the matrix ("A", "B", "C", "D", "Q", "R", "P0", "x0") or "c".
     pub fn new(model: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError> {
         psi.validate()?;
-        let (model, core) = LinearModel::with_core(model)?;
+        let (model, core) = model.into_filter()?;
         let p = model.outputs();
         let r_sqrt = Cholesky::new(model.r.clone())
             .ok_or_else(|| parameter_error("R", "must be positive definite"))?
@@ -182,12 +183,14 @@ impl RobustKalmanFilter {
         let eye = DMatrix::<f64>::identity(channels, channels);
         Self::new(
             GaussianModel {
-                a: eye.clone(),
-                b: DMatrix::zeros(channels, 0),
-                c: eye.clone(),
-                d: DMatrix::zeros(channels, 0),
-                q: &eye * q,
-                r: &eye * r,
+                system: StateSpace {
+                    a: eye.clone(),
+                    b: DMatrix::zeros(channels, 0),
+                    c: eye.clone(),
+                    d: DMatrix::zeros(channels, 0),
+                    q: &eye * q,
+                    r: &eye * r,
+                },
                 x0: start,
                 p0: &eye * p0,
             },
@@ -210,7 +213,7 @@ impl RobustKalmanFilter {
     /// Processes one sample (see [`KalmanFilter::step`](super::KalmanFilter::step)).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
-        let [a, b, c, d] = m.sample_views(u, y)?;
+        let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
         // r = R^{-1/2} e.
@@ -340,6 +343,7 @@ mod tests {
     use super::*;
     use crate::estimation::kalman::tests::scalar_filter;
     use crate::estimation::KalmanFilter;
+    use crate::state_space::StateSpace;
 
     fn scalar(v: f64) -> DMatrix<f64> {
         DMatrix::from_element(1, 1, v)
@@ -369,24 +373,21 @@ mod tests {
         let x0 = DVector::zeros(2);
         let p0 = DMatrix::identity(2, 2) * 0.01;
         let mut standard = KalmanFilter::new(GaussianModel {
-            a: a.clone(),
-            b: b.clone(),
-            c: c.clone(),
-            d: d.clone(),
-            q: q.clone(),
-            r: r.clone(),
+            system: StateSpace {
+                a: a.clone(),
+                b: b.clone(),
+                c: c.clone(),
+                d: d.clone(),
+                q: q.clone(),
+                r: r.clone(),
+            },
             x0: x0.clone(),
             p0: p0.clone(),
         })
         .unwrap();
         let mut robust = RobustKalmanFilter::new(
             GaussianModel {
-                a,
-                b,
-                c,
-                d,
-                q,
-                r,
+                system: StateSpace { a, b, c, d, q, r },
                 x0,
                 p0,
             },
@@ -490,12 +491,14 @@ mod tests {
             let make = |psi| {
                 RobustKalmanFilter::new(
                     GaussianModel {
-                        a: scalar(1.0),
-                        b: DMatrix::zeros(1, 0),
-                        c: scalar(1.0),
-                        d: DMatrix::zeros(1, 0),
-                        q: scalar(1e-3),
-                        r: scalar(1e-2),
+                        system: StateSpace {
+                            a: scalar(1.0),
+                            b: DMatrix::zeros(1, 0),
+                            c: scalar(1.0),
+                            d: DMatrix::zeros(1, 0),
+                            q: scalar(1e-3),
+                            r: scalar(1e-2),
+                        },
                         x0: DVector::from_element(1, 1.0),
                         p0: scalar(1e-2),
                     },

@@ -36,6 +36,7 @@
 
 use crate::linalg;
 use crate::signals::rng::RandomGenerator;
+use crate::state_space::StateSpace;
 use crate::ParameterError;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -51,19 +52,9 @@ pub enum TimeDomain {
 /// The model, its noise and its start (parameter names as the FMU uses them).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearSystemParameters {
-    /// State matrix `A` (n × n).
-    pub a: DMatrix<f64>,
-    /// Input matrix `B` (n × m).
-    pub b: DMatrix<f64>,
-    /// Output matrix `C` (p × n).
-    pub c: DMatrix<f64>,
-    /// Feedthrough `D` (p × m).
-    pub d: DMatrix<f64>,
-    /// Process-noise covariance `Q` (n × n, PSD): per sample (discrete) or spectral
-    /// density per second (continuous).
-    pub q: DMatrix<f64>,
-    /// Measurement-noise covariance `R` (p × p, PSD).
-    pub r: DMatrix<f64>,
+    /// `A`, `B`, `C`, `D` and the noise covariances: `Q` (n × n, PSD) per sample (discrete)
+    /// or spectral density per second (continuous), `R` (p × p, PSD).
+    pub system: StateSpace,
     /// Discrete or continuous.
     pub time_domain: TimeDomain,
     /// Initial state `x0` (n).
@@ -84,12 +75,14 @@ impl LinearSystemParameters {
         let n = a.nrows();
         let p = c.nrows();
         Self {
-            a,
-            b,
-            c,
-            d,
-            q: DMatrix::zeros(n, n),
-            r: DMatrix::zeros(p, p),
+            system: StateSpace {
+                a,
+                b,
+                c,
+                d,
+                q: DMatrix::zeros(n, n),
+                r: DMatrix::zeros(p, p),
+            },
             time_domain,
             initial_state: DVector::zeros(n),
             seed: 1,
@@ -107,12 +100,12 @@ impl LinearSystemParameters {
         );
         let c = DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
         Self {
-            a,
-            b: DMatrix::zeros(3, 0),
-            c,
-            d: DMatrix::zeros(2, 0),
-            q: DMatrix::identity(3, 3) * 0.2,
-            r: DMatrix::identity(2, 2) * 0.1,
+            system: StateSpace::without_input(
+                a,
+                c,
+                DMatrix::identity(3, 3) * 0.2,
+                DMatrix::identity(2, 2) * 0.1,
+            ),
             time_domain: TimeDomain::Discrete,
             initial_state: DVector::from_element(3, 1.0),
             seed,
@@ -121,49 +114,23 @@ impl LinearSystemParameters {
 
     /// Number of states `n`.
     pub fn states(&self) -> usize {
-        self.a.nrows()
+        self.system.states()
     }
 
     /// Number of inputs `m`.
     pub fn inputs(&self) -> usize {
-        self.b.ncols()
+        self.system.inputs()
     }
 
     /// Number of outputs `p`.
     pub fn outputs(&self) -> usize {
-        self.c.nrows()
+        self.system.outputs()
     }
 
     /// Checks shapes, finiteness and the covariances, naming the first bad matrix.
     pub fn validate(&self) -> Result<(), ParameterError> {
-        let n = self.a.nrows();
-        if n == 0 || self.a.ncols() != n {
-            return Err(ParameterError::new(
-                "A",
-                format!(
-                    "must be square with at least one state, got {}×{}",
-                    self.a.nrows(),
-                    self.a.ncols()
-                ),
-            ));
-        }
-        let m = self.b.ncols();
-        let p = self.c.nrows();
-        require_shape("B", &self.b, n, m)?;
-        require_shape("C", &self.c, p, n)?;
-        require_shape("D", &self.d, p, m)?;
-        require_shape("Q", &self.q, n, n)?;
-        require_shape("R", &self.r, p, p)?;
-        for (name, matrix) in [
-            ("A", &self.a),
-            ("B", &self.b),
-            ("C", &self.c),
-            ("D", &self.d),
-            ("Q", &self.q),
-            ("R", &self.r),
-        ] {
-            require_finite_matrix(name, matrix)?;
-        }
+        self.system.check_dimensions()?;
+        let n = self.states();
         if self.initial_state.len() != n {
             return Err(ParameterError::new(
                 "x0",
@@ -173,8 +140,8 @@ impl LinearSystemParameters {
         if self.initial_state.iter().any(|v| !v.is_finite()) {
             return Err(ParameterError::new("x0", "contains NaN or infinity"));
         }
-        covariance_factor("Q", &self.q)?;
-        covariance_factor("R", &self.r)?;
+        covariance_factor("Q", &self.system.q)?;
+        covariance_factor("R", &self.system.r)?;
         Ok(())
     }
 }
@@ -216,8 +183,8 @@ impl LinearSystem {
     /// The system at `x0` with its first measurement noise drawn, after validation.
     pub fn new(parameters: LinearSystemParameters) -> Result<Self, ParameterError> {
         parameters.validate()?;
-        let process_factor = covariance_factor("Q", &parameters.q)?;
-        let measurement_factor = covariance_factor("R", &parameters.r)?;
+        let process_factor = covariance_factor("Q", &parameters.system.q)?;
+        let measurement_factor = covariance_factor("R", &parameters.system.r)?;
         let mut system = Self {
             state: parameters.initial_state.clone(),
             measurement_noise: DVector::zeros(parameters.outputs()),
@@ -255,7 +222,7 @@ impl LinearSystem {
     /// The noise-free output `C x + D u`.
     pub fn clean_output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
         self.check_input(u)?;
-        Ok(&self.parameters.c * &self.state + &self.parameters.d * u)
+        Ok(&self.parameters.system.c * &self.state + &self.parameters.system.d * u)
     }
 
     /// The measured output `y_k = C x_k + D u + v_k`.
@@ -272,7 +239,7 @@ impl LinearSystem {
         let next = match self.parameters.time_domain {
             TimeDomain::Discrete => {
                 let w = draw(&mut self.process_stream, &self.process_factor);
-                &self.parameters.a * &self.state + &self.parameters.b * u + w
+                &self.parameters.system.a * &self.state + &self.parameters.system.b * u + w
             }
             TimeDomain::Continuous => {
                 let cached = matches!(&self.cache, Some(d) if d.step == h);
@@ -299,7 +266,10 @@ impl LinearSystem {
         h: f64,
     ) -> Result<(DMatrix<f64>, DMatrix<f64>), ParameterError> {
         match self.parameters.time_domain {
-            TimeDomain::Discrete => Ok((self.parameters.a.clone(), self.parameters.b.clone())),
+            TimeDomain::Discrete => Ok((
+                self.parameters.system.a.clone(),
+                self.parameters.system.b.clone(),
+            )),
             TimeDomain::Continuous => {
                 let d = self.discretisation(h)?;
                 Ok((d.transition, d.input))
@@ -378,19 +348,23 @@ impl LinearSystem {
             ));
         }
         let p = &self.parameters;
-        let (transition, input) = linalg::try_zoh(&p.a, &p.b, h)
+        let (transition, input) = linalg::try_zoh(&p.system.a, &p.system.b, h)
             .map_err(|e| ParameterError::new("A", format!("cannot discretise: {e}")))?;
         let n = p.states();
-        let noise_factor = if p.q.iter().all(|v| *v == 0.0) {
+        let noise_factor = if p.system.q.iter().all(|v| *v == 0.0) {
             DMatrix::zeros(n, n)
         } else {
             // Van Loan: exp([[−A, Q], [0, Aᵀ]] h) = [[E11, E12], [0, E22]], Q_h = E22ᵀ E12.
             let mut van_loan = DMatrix::<f64>::zeros(2 * n, 2 * n);
-            van_loan.view_mut((0, 0), (n, n)).copy_from(&(-&p.a * h));
-            van_loan.view_mut((0, n), (n, n)).copy_from(&(&p.q * h));
+            van_loan
+                .view_mut((0, 0), (n, n))
+                .copy_from(&(-&p.system.a * h));
+            van_loan
+                .view_mut((0, n), (n, n))
+                .copy_from(&(&p.system.q * h));
             van_loan
                 .view_mut((n, n), (n, n))
-                .copy_from(&(p.a.transpose() * h));
+                .copy_from(&(p.system.a.transpose() * h));
             let e = linalg::try_expm(&van_loan)
                 .map_err(|e| ParameterError::new("Q", format!("cannot discretise: {e}")))?;
             let e12 = e.view((0, n), (n, n)).into_owned();
@@ -412,32 +386,6 @@ impl LinearSystem {
 fn draw(stream: &mut RandomGenerator, factor: &DMatrix<f64>) -> DVector<f64> {
     let z = DVector::from_fn(factor.ncols(), |_, _| stream.gaussian());
     factor * z
-}
-
-fn require_shape(
-    name: &str,
-    matrix: &DMatrix<f64>,
-    rows: usize,
-    cols: usize,
-) -> Result<(), ParameterError> {
-    if matrix.nrows() != rows || matrix.ncols() != cols {
-        return Err(ParameterError::new(
-            name,
-            format!(
-                "must be {rows}×{cols}, got {}×{}",
-                matrix.nrows(),
-                matrix.ncols()
-            ),
-        ));
-    }
-    Ok(())
-}
-
-fn require_finite_matrix(name: &str, matrix: &DMatrix<f64>) -> Result<(), ParameterError> {
-    if matrix.iter().any(|v| !v.is_finite()) {
-        return Err(ParameterError::new(name, "contains NaN or infinity"));
-    }
-    Ok(())
 }
 
 /// The eigen-factor `L = V diag(√max(λ, 0))` of a symmetric PSD covariance (module docs),
@@ -499,13 +447,9 @@ crate::plain_state!(
         Continuous,
     }
 );
+crate::plain_state!(StateSpace { a, b, c, d, q, r });
 crate::plain_state!(LinearSystemParameters {
-    a,
-    b,
-    c,
-    d,
-    q,
-    r,
+    system,
     time_domain,
     initial_state,
     seed
@@ -614,8 +558,8 @@ mod tests {
             DMatrix::zeros(1, 0),
             TimeDomain::Discrete,
         );
-        p.q = matrix(1, 1, &[1.0]);
-        p.r = matrix(1, 1, &[0.1]);
+        p.system.q = matrix(1, 1, &[1.0]);
+        p.system.r = matrix(1, 1, &[0.1]);
         let mut s = LinearSystem::new(p).unwrap();
         let u = DVector::zeros(0);
         let n = 100_000;
@@ -648,7 +592,7 @@ mod tests {
             DMatrix::zeros(1, 0),
             TimeDomain::Continuous,
         );
-        p.q = matrix(1, 1, &[q]);
+        p.system.q = matrix(1, 1, &[q]);
         let s = LinearSystem::new(p).unwrap();
         let d = s.discretisation(h).unwrap();
         let q_h = d.noise_factor[(0, 0)].powi(2);
@@ -667,7 +611,7 @@ mod tests {
             DMatrix::zeros(2, 0),
             TimeDomain::Discrete,
         );
-        p.q = matrix(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        p.system.q = matrix(2, 2, &[1.0, 1.0, 1.0, 1.0]);
         let mut s = LinearSystem::new(p).unwrap();
         let u = DVector::zeros(0);
         let mut sum2 = 0.0;
@@ -719,11 +663,11 @@ mod tests {
     fn distributed_observer_example_has_the_papers_matrices() {
         let s = LinearSystem::distributed_observer_example(1).unwrap();
         let p = s.parameters();
-        assert_eq!(p.a[(1, 2)], -0.08757);
-        assert_eq!(p.a[(2, 1)], 0.1248);
+        assert_eq!(p.system.a[(1, 2)], -0.08757);
+        assert_eq!(p.system.a[(2, 1)], 0.1248);
         assert_eq!((p.states(), p.inputs(), p.outputs()), (3, 0, 2));
-        assert_eq!(p.q, DMatrix::identity(3, 3) * 0.2);
-        assert_eq!(p.r, DMatrix::identity(2, 2) * 0.1);
+        assert_eq!(p.system.q, DMatrix::identity(3, 3) * 0.2);
+        assert_eq!(p.system.r, DMatrix::identity(2, 2) * 0.1);
         assert_eq!(s.state(), &DVector::from_element(3, 1.0));
     }
 
@@ -738,16 +682,16 @@ mod tests {
         );
         type Change = fn(&mut LinearSystemParameters);
         let cases: [(Change, &str); 10] = [
-            (|p| p.a = DMatrix::zeros(2, 3), "A"),
-            (|p| p.b = DMatrix::zeros(3, 1), "B"),
-            (|p| p.c = DMatrix::zeros(1, 3), "C"),
-            (|p| p.d = DMatrix::zeros(1, 2), "D"),
-            (|p| p.q = matrix(2, 2, &[1.0, 0.0, 0.0, -0.5]), "Q"),
+            (|p| p.system.a = DMatrix::zeros(2, 3), "A"),
+            (|p| p.system.b = DMatrix::zeros(3, 1), "B"),
+            (|p| p.system.c = DMatrix::zeros(1, 3), "C"),
+            (|p| p.system.d = DMatrix::zeros(1, 2), "D"),
+            (|p| p.system.q = matrix(2, 2, &[1.0, 0.0, 0.0, -0.5]), "Q"),
             // eigenvalues 3, −1
-            (|p| p.q = matrix(2, 2, &[1.0, 2.0, 2.0, 1.0]), "Q"),
-            (|p| p.q = matrix(2, 2, &[1.0, 0.5, 0.0, 1.0]), "Q"),
-            (|p| p.r = matrix(1, 1, &[-0.1]), "R"),
-            (|p| p.a[(0, 1)] = f64::NAN, "A"),
+            (|p| p.system.q = matrix(2, 2, &[1.0, 2.0, 2.0, 1.0]), "Q"),
+            (|p| p.system.q = matrix(2, 2, &[1.0, 0.5, 0.0, 1.0]), "Q"),
+            (|p| p.system.r = matrix(1, 1, &[-0.1]), "R"),
+            (|p| p.system.a[(0, 1)] = f64::NAN, "A"),
             (|p| p.initial_state = DVector::zeros(3), "x0"),
         ];
         for (change, name) in cases {

@@ -32,6 +32,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
+use spurio::state_space::StateSpace;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
     VariableTable,
@@ -102,20 +103,22 @@ pub fn default_parameters(d: &Dimensions) -> LinearSystemParameters {
     }
     let (n, m, p) = (d.n, d.m, d.p);
     LinearSystemParameters {
-        a: DMatrix::from_fn(n, n, |i, j| {
-            if i == j {
-                0.9
-            } else if j == i + 1 {
-                0.1
-            } else {
-                0.0
-            }
-        }),
-        b: DMatrix::from_fn(n, m, |i, j| if i + j + 1 == n { 1.0 } else { 0.0 }),
-        c: DMatrix::from_fn(p, n, |i, j| if i == j { 1.0 } else { 0.0 }),
-        d: DMatrix::zeros(p, m),
-        q: DMatrix::identity(n, n) * 0.001,
-        r: DMatrix::identity(p, p) * 0.01,
+        system: StateSpace {
+            a: DMatrix::from_fn(n, n, |i, j| {
+                if i == j {
+                    0.9
+                } else if j == i + 1 {
+                    0.1
+                } else {
+                    0.0
+                }
+            }),
+            b: DMatrix::from_fn(n, m, |i, j| if i + j + 1 == n { 1.0 } else { 0.0 }),
+            c: DMatrix::from_fn(p, n, |i, j| if i == j { 1.0 } else { 0.0 }),
+            d: DMatrix::zeros(p, m),
+            q: DMatrix::identity(n, n) * 0.001,
+            r: DMatrix::identity(p, p) * 0.01,
+        },
         time_domain: TimeDomain::Discrete,
         initial_state: DVector::zeros(n),
         seed: 1,
@@ -166,24 +169,24 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         Variable::discrete_output(name).describe("True state (for scoring)")
     });
     let a = add_matrix(&mut t, "A", n, n, |name, i, j| {
-        Variable::parameter(name, defaults.a[(i, j)]).describe("State matrix")
+        Variable::parameter(name, defaults.system.a[(i, j)]).describe("State matrix")
     });
     let b = add_matrix(&mut t, "B", n, m, |name, i, j| {
-        Variable::parameter(name, defaults.b[(i, j)]).describe("Input matrix")
+        Variable::parameter(name, defaults.system.b[(i, j)]).describe("Input matrix")
     });
     let c = add_matrix(&mut t, "C", p, n, |name, i, j| {
-        Variable::parameter(name, defaults.c[(i, j)]).describe("Output matrix")
+        Variable::parameter(name, defaults.system.c[(i, j)]).describe("Output matrix")
     });
     let dd = add_matrix(&mut t, "D", p, m, |name, i, j| {
-        Variable::parameter(name, defaults.d[(i, j)]).describe("Feedthrough matrix")
+        Variable::parameter(name, defaults.system.d[(i, j)]).describe("Feedthrough matrix")
     });
     let q = add_matrix(&mut t, "Q", n, n, |name, i, j| {
-        Variable::parameter(name, defaults.q[(i, j)]).describe(
+        Variable::parameter(name, defaults.system.q[(i, j)]).describe(
             "Process-noise covariance (symmetric PSD): per sample, or spectral density per second when continuous",
         )
     });
     let r = add_matrix(&mut t, "R", p, p, |name, i, j| {
-        Variable::parameter(name, defaults.r[(i, j)])
+        Variable::parameter(name, defaults.system.r[(i, j)])
             .describe("Measurement-noise covariance (symmetric PSD)")
     });
     let x0 = add_vector(&mut t, "x0", n, |name, i| {
@@ -259,12 +262,14 @@ impl LinearSystemFmu {
             )));
         }
         Ok(LinearSystemParameters {
-            a: l.a.matrix(v),
-            b: l.b.matrix(v),
-            c: l.c.matrix(v),
-            d: l.d.matrix(v),
-            q: l.q.matrix(v),
-            r: l.r.matrix(v),
+            system: StateSpace {
+                a: l.a.matrix(v),
+                b: l.b.matrix(v),
+                c: l.c.matrix(v),
+                d: l.d.matrix(v),
+                q: l.q.matrix(v),
+                r: l.r.matrix(v),
+            },
             time_domain: if v.boolean(l.continuous) {
                 TimeDomain::Continuous
             } else {

@@ -24,6 +24,7 @@ use spurio::estimation::{
     EstimationError, GaussianModel, InfluenceFunction, KalmanFilter, RobustKalmanFilter,
     StateEstimator,
 };
+use spurio::state_space::StateSpace;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
@@ -62,12 +63,7 @@ pub struct Defaults {
 /// The parameter blocks A, B, C, D, Q, R, P0, x0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ModelBlocks {
-    pub a: Block,
-    pub b: Block,
-    pub c: Block,
-    pub d: Block,
-    pub q: Block,
-    pub r: Block,
+    pub system: StateSpace<Block>,
     pub p0: Block,
     pub x0: Block,
 }
@@ -88,7 +84,7 @@ impl ModelBlocks {
         let q_default = diag(defaults.q);
         let r_default = diag(defaults.r);
         let p0_default = diag(defaults.p0);
-        Self {
+        let system = StateSpace {
             a: add_matrix(table, "A", n, n, |name, i, j| {
                 Variable::parameter(name, a_default(i, j))
                     .describe(&format!("{what}state matrix A (x⁺ = A x + B u + w)"))
@@ -111,6 +107,9 @@ impl ModelBlocks {
                 Variable::parameter(name, r_default(i, j))
                     .describe("Measurement noise covariance R (symmetric positive definite)")
             }),
+        };
+        Self {
+            system,
             p0: add_matrix(table, "P0", n, n, |name, i, j| {
                 Variable::parameter(name, p0_default(i, j))
                     .describe("Covariance of x0 (symmetric positive semidefinite; 0 = x0 is exact)")
@@ -125,12 +124,7 @@ impl ModelBlocks {
     /// Reads the matrices.
     pub fn read(&self, values: &Values) -> GaussianModel {
         GaussianModel {
-            a: self.a.matrix(values),
-            b: self.b.matrix(values),
-            c: self.c.matrix(values),
-            d: self.d.matrix(values),
-            q: self.q.matrix(values),
-            r: self.r.matrix(values),
+            system: self.system.map(|block| block.matrix(values)),
             p0: self.p0.matrix(values),
             x0: self.x0.vector(values),
         }
@@ -283,7 +277,7 @@ fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo),
 fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
     let m = layout.model.read(ctx.values);
     let u = layout.u.vector(ctx.values);
-    let y_hat = &m.c * &m.x0 + &m.d * &u;
+    let y_hat = &m.system.c * &m.x0 + &m.system.d * &u;
     layout.x_hat.write_vector(ctx.values, &m.x0);
     layout.y_hat.write_vector(ctx.values, &y_hat);
     for k in layout.innovation.indices() {
