@@ -11,7 +11,7 @@
 //! * [`zoh`]: zero-order-hold discretisation. With `M = [[A, B], [0, 0]]·Ts`,
 //!   `e^M = [[A_d, B_d], [0, I]]`, i.e. `A_d = e^{A Ts}`, `B_d = ∫₀^Ts e^{A τ} dτ B`
 //!   (used for the crane of paper 000 at Ts = 0.05 s).
-//! * [`solve_dare`]: the stabilising solution of the control discrete algebraic Riccati
+//! * [`Dare::solve`]: the stabilising solution of the control discrete algebraic Riccati
 //!   equation
 //!   `P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q`
 //!   by the structured doubling algorithm (SDA; Chu, Fan, Lin & Wang, "Structure-preserving
@@ -21,7 +21,7 @@
 //!   `H_{k+1} = H_k + A_kᵀ H_k W_k⁻¹ A_k`; `H_k → P` quadratically when (A, B) is
 //!   stabilisable and (A, Q^{1/2}) has no unobservable mode on the unit circle. The result
 //!   is symmetrised and checked: finite, residual small, and `A − B K` Schur stable.
-//! * [`dlqr`]: discrete LQ regulator, `K = (R + BᵀPB)⁻¹ BᵀPA`, `u = −K x`.
+//! * [`Dare::regulator`]: discrete LQ regulator, `K = (R + BᵀPB)⁻¹ BᵀPA`, `u = −K x`.
 //! * [`kalman_gain_steady`]: steady-state Kalman filter by duality: the predicted covariance
 //!   `P⁻` solves DARE(Aᵀ, Cᵀ, Q, R), the filter gain is `K = P⁻Cᵀ (C P⁻ Cᵀ + R)⁻¹`
 //!   (docs/estimators.md §2.7; scalar A = C = 1, Q = R gives K = (√5 − 1)/2, docs/reference-values.md §6).
@@ -134,7 +134,7 @@ impl std::error::Error for LinalgError {}
 
 /// Relative asymmetry accepted for a "symmetric" matrix: `|m_ij − m_ji| ≤ tol · max|m|`.
 const SYMMETRY_TOLERANCE: f64 = 1e-8;
-/// Maximum number of doubling steps in [`solve_dare`] (each one squares the convergence
+/// Maximum number of doubling steps in [`Dare::solve`] (each one squares the convergence
 /// factor, so 100 is far beyond what any stabilisable problem needs).
 const DARE_MAX_ITERATIONS: usize = 100;
 /// Relative change below which the doubling iteration is converged.
@@ -380,53 +380,147 @@ pub fn zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, ts: f64) -> (DMatrix<f64>, DMatri
     })
 }
 
-fn check_dare_inputs(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    q: &DMatrix<f64>,
-    r: &DMatrix<f64>,
-) -> Result<(), LinalgError> {
-    let n = require_square("A", a)?;
-    require_shape("B", b, n, b.ncols())?;
-    let m = b.ncols();
-    require_shape("Q", q, n, n)?;
-    require_shape("R", r, m, m)?;
-    for (what, mat) in [("A", a), ("B", b), ("Q", q), ("R", r)] {
-        require_finite(what, mat)?;
-    }
-    let q_is_semidefinite = is_symmetric(q) && {
-        let mut q_sym = q.clone();
-        symmetrize(&mut q_sym);
-        let smallest = q_sym.symmetric_eigenvalues().min();
-        n == 0 || smallest >= -SYMMETRY_TOLERANCE * q.amax()
-    };
-    if !q_is_semidefinite {
-        return Err(LinalgError::NotPositiveDefinite {
-            what: "Q (must be symmetric positive semidefinite)".to_string(),
-        });
-    }
-    if !is_positive_definite(r) {
-        return Err(LinalgError::NotPositiveDefinite {
-            what: "R".to_string(),
-        });
-    }
-    Ok(())
+/// A control discrete algebraic Riccati equation
+/// `P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q`: its four matrices, `A` n×n, `B` n×m, `Q` n×n
+/// symmetric positive semidefinite, `R` m×m symmetric positive definite, all finite.
+#[derive(Debug, Clone, Copy)]
+pub struct Dare<'a> {
+    pub a: &'a DMatrix<f64>,
+    pub b: &'a DMatrix<f64>,
+    pub q: &'a DMatrix<f64>,
+    pub r: &'a DMatrix<f64>,
 }
 
-/// Residual of the control DARE, `AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q − P`.
-pub fn dare_residual(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    q: &DMatrix<f64>,
-    r: &DMatrix<f64>,
-    p: &DMatrix<f64>,
-) -> Result<DMatrix<f64>, LinalgError> {
-    check_dare_inputs(a, b, q, r)?;
-    require_shape("P", p, a.nrows(), a.nrows())?;
-    let btpa = b.transpose() * p * a;
-    let s = r + b.transpose() * p * b;
-    let k = cholesky_solve(&s, &btpa, "R + BᵀPB")?;
-    Ok(a.transpose() * p * a - btpa.transpose() * k + q - p)
+impl Dare<'_> {
+    /// Checks the requirements on the four matrices (see [`Dare`]), naming the bad one.
+    fn check(&self) -> Result<(), LinalgError> {
+        let Dare { a, b, q, r } = *self;
+        let n = require_square("A", a)?;
+        require_shape("B", b, n, b.ncols())?;
+        let m = b.ncols();
+        require_shape("Q", q, n, n)?;
+        require_shape("R", r, m, m)?;
+        for (what, mat) in [("A", a), ("B", b), ("Q", q), ("R", r)] {
+            require_finite(what, mat)?;
+        }
+        let q_is_semidefinite = is_symmetric(q) && {
+            let mut q_sym = q.clone();
+            symmetrize(&mut q_sym);
+            let smallest = q_sym.symmetric_eigenvalues().min();
+            n == 0 || smallest >= -SYMMETRY_TOLERANCE * q.amax()
+        };
+        if !q_is_semidefinite {
+            return Err(LinalgError::NotPositiveDefinite {
+                what: "Q (must be symmetric positive semidefinite)".to_string(),
+            });
+        }
+        if !is_positive_definite(r) {
+            return Err(LinalgError::NotPositiveDefinite {
+                what: "R".to_string(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Residual of the equation at `P`, `AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q − P`.
+    pub fn residual(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
+        self.check()?;
+        let Dare { a, b, q, r } = *self;
+        require_shape("P", p, a.nrows(), a.nrows())?;
+        let btpa = b.transpose() * p * a;
+        let s = r + b.transpose() * p * b;
+        let k = cholesky_solve(&s, &btpa, "R + BᵀPB")?;
+        Ok(a.transpose() * p * a - btpa.transpose() * k + q - p)
+    }
+
+    /// The regulator gain at `P`, `K = (R + BᵀPB)⁻¹ BᵀPA`.
+    pub fn gain(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
+        let Dare { a, b, r, .. } = *self;
+        let s = r + b.transpose() * p * b;
+        cholesky_solve(&s, &(b.transpose() * p * a), "R + BᵀPB")
+    }
+
+    /// The discrete LQ regulator: `(K, P)` with `P` from [`Dare::solve`] and
+    /// `K = (R + BᵀPB)⁻¹ BᵀPA`, so that `u = −K x` minimises `Σ xᵀQx + uᵀRu`.
+    pub fn regulator(&self) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
+        let p = self.solve()?;
+        let k = self.gain(&p)?;
+        Ok((k, p))
+    }
+
+    /// Its stabilising solution `P` (structured doubling; see the module doc). Errors when an
+    /// input is malformed, when the iteration does not converge (typically (A, B) not
+    /// stabilisable), when the relative residual exceeds 1e-8, or when `A − B K` is not Schur
+    /// stable. The result is symmetric.
+    pub fn solve(&self) -> Result<DMatrix<f64>, LinalgError> {
+        self.check()?;
+        let Dare { a, b, q, r } = *self;
+        let n = a.nrows();
+        let identity = DMatrix::<f64>::identity(n, n);
+        // G = B R⁻¹ Bᵀ
+        let r_inv_bt = cholesky_solve(r, &b.transpose(), "R")?;
+        let mut g = b * r_inv_bt;
+        symmetrize(&mut g);
+        let mut h = q.clone();
+        symmetrize(&mut h);
+        let mut a_k = a.clone();
+        let mut relative_change = f64::INFINITY;
+        let mut converged = false;
+        let mut iterations = 0;
+        while iterations < DARE_MAX_ITERATIONS {
+            iterations += 1;
+            let w = &identity + &g * &h;
+            // W⁻¹ A_k and W⁻¹ G_k in one solve.
+            let mut rhs = DMatrix::<f64>::zeros(n, 2 * n);
+            rhs.view_mut((0, 0), (n, n)).copy_from(&a_k);
+            rhs.view_mut((0, n), (n, n)).copy_from(&g);
+            let solved = lu_solve(&w, &rhs, "I + G H (doubling step)")?;
+            let w_inv_a = solved.view((0, 0), (n, n)).into_owned();
+            let w_inv_g = solved.view((0, n), (n, n)).into_owned();
+            let h_next = &h + a_k.transpose() * &h * &w_inv_a;
+            let g_next = &g + &a_k * w_inv_g * a_k.transpose();
+            let a_next = &a_k * &w_inv_a;
+            if !(h_next.iter().all(|v| v.is_finite())
+                && g_next.iter().all(|v| v.is_finite())
+                && a_next.iter().all(|v| v.is_finite()))
+            {
+                return Err(LinalgError::NoConvergence {
+                    iterations,
+                    relative_change,
+                });
+            }
+            relative_change = norm1(&(&h_next - &h)) / norm1(&h_next).max(1.0);
+            h = h_next;
+            g = g_next;
+            a_k = a_next;
+            symmetrize(&mut h);
+            symmetrize(&mut g);
+            if relative_change <= DARE_TOLERANCE {
+                converged = true;
+                break;
+            }
+        }
+        if !converged {
+            return Err(LinalgError::NoConvergence {
+                iterations,
+                relative_change,
+            });
+        }
+        let p = h;
+        let residual = self.residual(&p)?;
+        let relative_residual = norm1(&residual) / norm1(&p).max(1.0);
+        if relative_residual.is_nan() || relative_residual > DARE_RESIDUAL_LIMIT {
+            return Err(LinalgError::InaccurateSolution { relative_residual });
+        }
+        let gain = self.gain(&p)?;
+        let rho = spectral_radius(&(a - b * gain));
+        if rho.is_nan() || rho >= 1.0 - STABILITY_MARGIN {
+            return Err(LinalgError::NotStabilising {
+                spectral_radius: rho,
+            });
+        }
+        Ok(p)
+    }
 }
 
 fn spectral_radius(m: &DMatrix<f64>) -> f64 {
@@ -434,110 +528,6 @@ fn spectral_radius(m: &DMatrix<f64>) -> f64 {
         .iter()
         .map(|z| z.norm())
         .fold(0.0, f64::max)
-}
-
-/// Stabilising solution `P` of the control DARE
-/// `P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q` (structured doubling; see the module doc).
-///
-/// Requirements: `A` n×n, `B` n×m, `Q` n×n symmetric positive semidefinite, `R` m×m
-/// symmetric positive definite, all finite. Errors when an input is malformed, when the
-/// iteration does not converge (typically (A, B) not stabilisable), when the relative
-/// residual exceeds 1e-8, or when `A − B K` is not Schur stable. The result is symmetric.
-pub fn solve_dare(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    q: &DMatrix<f64>,
-    r: &DMatrix<f64>,
-) -> Result<DMatrix<f64>, LinalgError> {
-    check_dare_inputs(a, b, q, r)?;
-    let n = a.nrows();
-    let identity = DMatrix::<f64>::identity(n, n);
-    // G = B R⁻¹ Bᵀ
-    let r_inv_bt = cholesky_solve(r, &b.transpose(), "R")?;
-    let mut g = b * r_inv_bt;
-    symmetrize(&mut g);
-    let mut h = q.clone();
-    symmetrize(&mut h);
-    let mut a_k = a.clone();
-    let mut relative_change = f64::INFINITY;
-    let mut converged = false;
-    let mut iterations = 0;
-    while iterations < DARE_MAX_ITERATIONS {
-        iterations += 1;
-        let w = &identity + &g * &h;
-        // W⁻¹ A_k and W⁻¹ G_k in one solve.
-        let mut rhs = DMatrix::<f64>::zeros(n, 2 * n);
-        rhs.view_mut((0, 0), (n, n)).copy_from(&a_k);
-        rhs.view_mut((0, n), (n, n)).copy_from(&g);
-        let solved = lu_solve(&w, &rhs, "I + G H (doubling step)")?;
-        let w_inv_a = solved.view((0, 0), (n, n)).into_owned();
-        let w_inv_g = solved.view((0, n), (n, n)).into_owned();
-        let h_next = &h + a_k.transpose() * &h * &w_inv_a;
-        let g_next = &g + &a_k * w_inv_g * a_k.transpose();
-        let a_next = &a_k * &w_inv_a;
-        if !(h_next.iter().all(|v| v.is_finite())
-            && g_next.iter().all(|v| v.is_finite())
-            && a_next.iter().all(|v| v.is_finite()))
-        {
-            return Err(LinalgError::NoConvergence {
-                iterations,
-                relative_change,
-            });
-        }
-        relative_change = norm1(&(&h_next - &h)) / norm1(&h_next).max(1.0);
-        h = h_next;
-        g = g_next;
-        a_k = a_next;
-        symmetrize(&mut h);
-        symmetrize(&mut g);
-        if relative_change <= DARE_TOLERANCE {
-            converged = true;
-            break;
-        }
-    }
-    if !converged {
-        return Err(LinalgError::NoConvergence {
-            iterations,
-            relative_change,
-        });
-    }
-    let p = h;
-    let residual = dare_residual(a, b, q, r, &p)?;
-    let relative_residual = norm1(&residual) / norm1(&p).max(1.0);
-    if relative_residual.is_nan() || relative_residual > DARE_RESIDUAL_LIMIT {
-        return Err(LinalgError::InaccurateSolution { relative_residual });
-    }
-    let gain = lqr_gain(a, b, r, &p)?;
-    let rho = spectral_radius(&(a - b * gain));
-    if rho.is_nan() || rho >= 1.0 - STABILITY_MARGIN {
-        return Err(LinalgError::NotStabilising {
-            spectral_radius: rho,
-        });
-    }
-    Ok(p)
-}
-
-fn lqr_gain(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    r: &DMatrix<f64>,
-    p: &DMatrix<f64>,
-) -> Result<DMatrix<f64>, LinalgError> {
-    let s = r + b.transpose() * p * b;
-    cholesky_solve(&s, &(b.transpose() * p * a), "R + BᵀPB")
-}
-
-/// Discrete LQ regulator: `(K, P)` with `P` from [`solve_dare`] and
-/// `K = (R + BᵀPB)⁻¹ BᵀPA`, so that `u = −K x` minimises `Σ xᵀQx + uᵀRu`.
-pub fn dlqr(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    q: &DMatrix<f64>,
-    r: &DMatrix<f64>,
-) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
-    let p = solve_dare(a, b, q, r)?;
-    let k = lqr_gain(a, b, r, &p)?;
-    Ok((k, p))
 }
 
 /// Steady-state Kalman filter for `x⁺ = A x + w`, `y = C x + v`, `cov(w) = Q`, `cov(v) = R`:
@@ -551,7 +541,14 @@ pub fn kalman_gain_steady(
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
     let n = require_square("A", a)?;
     require_shape("C", c, c.nrows(), n)?;
-    let p = solve_dare(&a.transpose(), &c.transpose(), q, r)?;
+    let (a_t, c_t) = (a.transpose(), c.transpose());
+    let p = Dare {
+        a: &a_t,
+        b: &c_t,
+        q,
+        r,
+    }
+    .solve()?;
     let innovation_covariance = c * &p * c.transpose() + r;
     // K = P Cᵀ S⁻¹  ⇔  Kᵀ = S⁻¹ C P (S, P symmetric).
     let gain_t = cholesky_solve(&innovation_covariance, &(c * &p), "C P Cᵀ + R")?;
@@ -907,8 +904,14 @@ mod tests {
         let (a_d, b_d) = zoh(&a, &b, 0.05);
         let q = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![10.0, 1.0, 0.1, 0.1]));
         let r = dmatrix![0.5];
-        let (k, p) = dlqr(&a_d, &b_d, &q, &r).unwrap();
-        let res = dare_residual(&a_d, &b_d, &q, &r, &p).unwrap();
+        let dare = Dare {
+            a: &a_d,
+            b: &b_d,
+            q: &q,
+            r: &r,
+        };
+        let (k, p) = dare.regulator().unwrap();
+        let res = dare.residual(&p).unwrap();
         let relative = res.amax() / p.amax();
         eprintln!("crane DARE relative residual {relative:e}");
         assert!(relative < 1e-10, "relative DARE residual {relative:e}");
@@ -923,8 +926,14 @@ mod tests {
         let b = dmatrix![1.0, 0.0; 0.0, 0.0; 0.0, 1.0];
         let q = DMatrix::identity(3, 3);
         let r = dmatrix![2.0, 0.3; 0.3, 1.0];
-        let p = solve_dare(&a, &b, &q, &r).unwrap();
-        let res = dare_residual(&a, &b, &q, &r, &p).unwrap();
+        let dare = Dare {
+            a: &a,
+            b: &b,
+            q: &q,
+            r: &r,
+        };
+        let p = dare.solve().unwrap();
+        let res = dare.residual(&p).unwrap();
         let relative = res.amax() / p.amax();
         eprintln!("two-input DARE relative residual {relative:e}");
         assert!(relative < 1e-10, "residual {relative:e}");
@@ -932,25 +941,33 @@ mod tests {
 
     #[test]
     fn dare_rejects_unstabilisable_pairs_and_bad_weights() {
+        fn solve(
+            a: &DMatrix<f64>,
+            b: &DMatrix<f64>,
+            q: &DMatrix<f64>,
+            r: &DMatrix<f64>,
+        ) -> Result<DMatrix<f64>, LinalgError> {
+            Dare { a, b, q, r }.solve()
+        }
         let one = dmatrix![1.0];
         // Unstable mode that B cannot touch.
-        let e = solve_dare(&dmatrix![2.0], &dmatrix![0.0], &one, &one).unwrap_err();
+        let e = solve(&dmatrix![2.0], &dmatrix![0.0], &one, &one).unwrap_err();
         assert!(matches!(e, LinalgError::NoConvergence { .. }), "{e}");
         // Marginal mode invisible to Q: P = 0 does not stabilise.
-        let e = solve_dare(&one, &dmatrix![0.0], &dmatrix![0.0], &one).unwrap_err();
+        let e = solve(&one, &dmatrix![0.0], &dmatrix![0.0], &one).unwrap_err();
         assert!(matches!(e, LinalgError::NotStabilising { .. }), "{e}");
-        let e = solve_dare(&one, &one, &dmatrix![-1.0], &one).unwrap_err();
+        let e = solve(&one, &one, &dmatrix![-1.0], &one).unwrap_err();
         assert!(e.to_string().contains("Q (must be"), "{e}");
-        let e = solve_dare(&one, &one, &one, &dmatrix![-1.0]).unwrap_err();
+        let e = solve(&one, &one, &one, &dmatrix![-1.0]).unwrap_err();
         assert_eq!(
             e,
             LinalgError::NotPositiveDefinite {
                 what: "R".to_string()
             }
         );
-        let e = solve_dare(&one, &dmatrix![1.0, 1.0], &one, &one).unwrap_err();
+        let e = solve(&one, &dmatrix![1.0, 1.0], &one, &one).unwrap_err();
         assert!(matches!(e, LinalgError::DimensionMismatch { .. }), "{e}");
-        let e = solve_dare(&dmatrix![f64::NAN], &one, &one, &one).unwrap_err();
+        let e = solve(&dmatrix![f64::NAN], &one, &one, &one).unwrap_err();
         assert!(matches!(e, LinalgError::NonFinite { .. }), "{e}");
     }
 

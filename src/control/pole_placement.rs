@@ -21,7 +21,7 @@
 //! The poles must come as a self-conjugate set (complex ones in conjugate pairs) so that L is
 //! real. Ackermann's formula is single-input: `B` must be one column (the crane and every
 //! controller of the papers are single-input). A multi-input design needs another method
-//! (e.g. [`crate::linalg::dlqr`]).
+//! (e.g. [`crate::linalg::Dare::regulator`]).
 //!
 //! [`poles_from_continuous`] maps continuous poles `s` to discrete ones `z = e^{s Ts}`, which
 //! is exactly where the ZOH discretisation sends them.

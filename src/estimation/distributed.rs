@@ -31,7 +31,7 @@
 //! K_L (n_o×n_o) need not factor through C̃ (p×n_o). When S is singular (agent 2 of the
 //! example: one output, two observable states) L C̃ cannot reproduce K_L and the local error
 //! dynamics A^o − L C̃ keep a slow mode (0.9935 in the example, docs/experiments.md §4). With S positive
-//! definite the Riccati equations are solved by [`crate::linalg::dlqr`] (B = I); with S only
+//! definite the Riccati equations are solved by [`crate::linalg::Dare::regulator`] (B = I); with S only
 //! semidefinite by the value iteration P ← A^oᵀ P (S + P)⁻¹ S A^o + VᵀUV from P = VᵀUV
 //! (P − P(S+P)⁻¹P = P(S+P)⁻¹S), which converges to the stabilising solution.
 //!
@@ -47,7 +47,7 @@ use super::{
     parameter_error, require_input_length, require_length, require_psd, require_shape, require_spd,
     EstimationError, StateReader,
 };
-use crate::linalg::{cholesky_solve, dlqr, is_positive_definite, kalman_gain_steady, symmetrize};
+use crate::linalg::{cholesky_solve, is_positive_definite, kalman_gain_steady, symmetrize, Dare};
 use crate::state_space::StateSpace;
 use crate::ParameterError;
 use nalgebra::{DMatrix, DVector, SVD};
@@ -262,7 +262,14 @@ fn lq_identity_input(
     }
     let identity = DMatrix::identity(n, n);
     if is_positive_definite(w) {
-        return dlqr(a, &identity, u, w)
+        let dare = Dare {
+            a,
+            b: &identity,
+            q: u,
+            r: w,
+        };
+        return dare
+            .regulator()
             .map_err(|e| design_error(format!("{what} Riccati equation: {e}")));
     }
     // Singular weight: value iteration P ← Aᵀ P (W + P)⁻¹ W A + U (the paper's example
