@@ -35,7 +35,8 @@ use spurio_export::{
     Variability, Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{
-    choice, count, error, leading_identity, read_inputs, DynamicState, Estimator,
+    add_choice, add_tuning, choice, count, error, leading_identity, read_inputs, DynamicState,
+    Estimator,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -141,28 +142,19 @@ fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), Cause> {
         Variable::parameter(name, if i == j { 0.1 } else { 0.0 })
             .describe("This agent's measurement noise covariance R_i (symmetric positive definite)")
     });
-    let rho = t.add(
-        Variable::parameter("rho", 1.0)
-            .min(0.0)
-            .describe("ρ in U = ρ Q (> 0; only ρ/λ matters)"),
-    );
-    let lambda = t.add(
-        Variable::parameter("lambda", 1.0)
-            .min(0.0)
-            .describe("λ in S = λ C̃ᵀRC̃ and T = λ(…) (> 0)"),
-    );
+    let rho = add_tuning(&mut t, "rho", 1.0, "ρ in U = ρ Q (> 0; only ρ/λ matters)");
+    let lambda = add_tuning(&mut t, "lambda", 1.0, "λ in S = λ C̃ᵀRC̃ and T = λ(…) (> 0)");
     let distance = add_vector(&mut t, "D", n, |name, _| {
         Variable::parameter(name, 1.0).min(0.0).describe(
             "Distance to the neighbour (diagonal of D_i, > 0); the first n_ō entries are used",
         )
     });
-    let design = t.add(
-        Variable::integer_parameter("design", 1)
-            .min(1.0)
-            .max(2.0)
-            .describe(
-                "Design of L_i: 1 = paper's LQ (least squares), 2 = local steady-state Kalman",
-            ),
+    let design = add_choice(
+        &mut t,
+        "design",
+        1,
+        2,
+        "Design of L_i: 1 = paper's LQ (least squares), 2 = local steady-state Kalman",
     );
     let x0 = add_vector(&mut t, "x0", n, |name, _| {
         Variable::parameter(name, 0.0).describe("Initial estimate x̂_i(0)")

@@ -24,7 +24,7 @@ use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
-use spurio_fmu_common::estimator::{count, error, DynamicState, Estimator};
+use spurio_fmu_common::estimator::{add_tuning, count, error, DynamicState, Estimator};
 use spurio_fmu_common::structured::{add_vector, Block};
 
 /// The continuous second-order readout of the estimate (written together by
@@ -118,10 +118,11 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
             "Forgetting factor λ in (0, 1] (paper 002: 0.98; 1 keeps a single step's transient)",
         ),
     );
-    let p0_scale = t.add(
-        Variable::parameter("p0_scale", 1e4)
-            .min(0.0)
-            .describe("Initial covariance P₀ = p0_scale·I (large: no prior knowledge); θ₀ = 0"),
+    let p0_scale = add_tuning(
+        &mut t,
+        "p0_scale",
+        1e4,
+        "Initial covariance P₀ = p0_scale·I (large: no prior knowledge); θ₀ = 0",
     );
     let ts =
         t.add(Variable::parameter("Ts", 0.0).unit("s").min(0.0).describe(

@@ -32,7 +32,9 @@
 //! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
 //! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
-use crate::estimator::{error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered};
+use crate::estimator::{
+    add_tuning, error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered,
+};
 use crate::kalman::{
     add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
 };
@@ -99,16 +101,8 @@ fn add_bounds(t: &mut VariableTable, n: usize) -> BoundBlocks {
             .max(1e9)
             .describe("Bounded adaptation: effective window N_w (samples) of the excitation measure ε = λ_min(M), M = λM + (1−λ)ΦΦᵀ, λ = 1 − 1/N_w"),
     );
-    let excitation_min = t.add(
-        Variable::parameter("excitation_min", 0.0)
-            .min(0.0)
-            .describe("Bounded adaptation: the parameter filter runs only while ε >= excitation_min (regressor units²); below it Θ and its covariance are frozen. 0 = always (papers)"),
-    );
-    let pmax_theta = t.add(
-        Variable::parameter("pmax_theta", 0.0)
-            .min(0.0)
-            .describe("Bounded adaptation: the random walk raises a variance of Θ at most to pmax_theta. 0 = no bound (papers)"),
-    );
+    let excitation_min = add_tuning(t, "excitation_min", 0.0, "Bounded adaptation: the parameter filter runs only while ε >= excitation_min (regressor units²); below it Θ and its covariance are frozen. 0 = always (papers)");
+    let pmax_theta = add_tuning(t, "pmax_theta", 0.0, "Bounded adaptation: the random walk raises a variance of Θ at most to pmax_theta. 0 = no bound (papers)");
     let excitation =
         t.add(Variable::discrete_output("excitation").describe(
             "Excitation measure ε = λ_min(M) of the last step (0 while excitation_min = 0)",
@@ -183,39 +177,43 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
         },
         "Initial ",
     );
-    let q_theta =
-        t.add(Variable::parameter("q_theta", 1e-6).min(0.0).describe(
-            "Parameter filter: random-walk variance Q_θ of every entry of Θ = [A B; C D]",
-        ));
-    let p0_theta = t.add(
-        Variable::parameter("p0_theta", 1.0)
-            .min(0.0)
-            .describe("Parameter filter: initial variance of every entry of Θ"),
+    let q_theta = add_tuning(
+        &mut t,
+        "q_theta",
+        1e-6,
+        "Parameter filter: random-walk variance Q_θ of every entry of Θ = [A B; C D]",
     );
-    let r_theta = t.add(Variable::parameter("r_theta", 0.5).min(0.0).describe(
+    let p0_theta = add_tuning(
+        &mut t,
+        "p0_theta",
+        1.0,
+        "Parameter filter: initial variance of every entry of Θ",
+    );
+    let r_theta = add_tuning(
+        &mut t,
+        "r_theta",
+        0.5,
         "Parameter filter: measurement variance R_θ of every row of Y = [x⁺; y] (papers: 0.5)",
-    ));
+    );
     let fix_output_matrices = t.add(
         Variable::boolean_parameter("fix_output_matrices", true)
             .describe("C and D are known: Ĉ = C, D̂ = D forever (removes the similarity ambiguity)"),
     );
     let cleaner = match cleaner_outputs {
         Some((w, y_clean)) => {
-            let q_clean = t.add(
-                Variable::parameter("q_clean", 1e-3)
-                    .min(0.0)
-                    .describe("rsKF cleaner (random walk per channel): process variance"),
+            let q_clean = add_tuning(
+                &mut t,
+                "q_clean",
+                1e-3,
+                "rsKF cleaner (random walk per channel): process variance",
             );
-            let r_clean = t.add(
-                Variable::parameter("r_clean", 1e-2)
-                    .min(0.0)
-                    .describe("rsKF cleaner: measurement noise variance of each channel"),
+            let r_clean = add_tuning(
+                &mut t,
+                "r_clean",
+                1e-2,
+                "rsKF cleaner: measurement noise variance of each channel",
             );
-            let p0_clean = t.add(
-                Variable::parameter("p0_clean", 1.0)
-                    .min(0.0)
-                    .describe("rsKF cleaner: initial variance (its estimate starts at C·x0, the DKF's initial output)"),
-            );
+            let p0_clean = add_tuning(&mut t, "p0_clean", 1.0, "rsKF cleaner: initial variance (its estimate starts at C·x0, the DKF's initial output)");
             let psi = add_influence(&mut t);
             Some(CleanerBlocks {
                 w,

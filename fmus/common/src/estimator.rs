@@ -40,7 +40,8 @@ use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::{EstimationError, StateEstimator};
 use spurio_export::{
-    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Values,
+    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Values, Variable,
+    VariableTable,
 };
 
 /// The largest dimension a variant may ask for (keeps the variable table and the matrices
@@ -311,6 +312,23 @@ pub fn write_vector(values: &mut Values, block: &Block, v: &DVector<f64>) {
     block.write_vector(values, v);
 }
 
+/// Adds an integer-valued choice parameter with the options 1..=`last` (read back with
+/// [`choice`]); returns its value reference.
+pub fn add_choice(
+    table: &mut VariableTable,
+    name: &str,
+    start: i32,
+    last: i32,
+    description: &str,
+) -> usize {
+    table.add(
+        Variable::integer_parameter(name, start)
+            .min(1.0)
+            .max(f64::from(last))
+            .describe(description),
+    )
+}
+
 /// Reads an integer-valued choice parameter, with the allowed values in the message.
 pub fn choice(
     values: &Values,
@@ -331,6 +349,16 @@ pub fn choice(
             list.join(", ")
         )))
     }
+}
+
+/// Adds a real tuning parameter that may not be negative (a variance, a weight, a tuning
+/// constant): `name`, start value `start`, minimum 0; returns its value reference.
+pub fn add_tuning(table: &mut VariableTable, name: &str, start: f64, description: &str) -> usize {
+    table.add(
+        Variable::parameter(name, start)
+            .min(0.0)
+            .describe(description),
+    )
 }
 
 /// Turns an estimation error into `fmi2Error` with its message.

@@ -17,7 +17,9 @@
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
-use crate::estimator::{count, error, leading_identity, EstimatorFmu, FilterFamily, Filtered};
+use crate::estimator::{
+    add_choice, add_tuning, count, error, leading_identity, EstimatorFmu, FilterFamily, Filtered,
+};
 use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::DVector;
 use spurio::estimation::{
@@ -171,17 +173,14 @@ pub fn add_estimates(table: &mut VariableTable, dims: Dimensions) -> (Block, Blo
 
 /// Adds `psi` and `c` (rsKF): returns their value references.
 pub fn add_influence(table: &mut VariableTable) -> (usize, usize) {
-    let psi = table.add(
-        Variable::integer_parameter("psi", 1)
-            .min(1.0)
-            .max(2.0)
-            .describe("Influence function ψ: 1 = Huber, 2 = Tukey bisquare"),
+    let psi = add_choice(
+        table,
+        "psi",
+        1,
+        2,
+        "Influence function ψ: 1 = Huber, 2 = Tukey bisquare",
     );
-    let c = table.add(
-        Variable::parameter("c", 1.645)
-            .min(0.0)
-            .describe("Tuning constant of ψ in standard deviations (Huber 1.645 = 5 % contamination; Tukey usually 4.685)"),
-    );
+    let c = add_tuning(table, "c", 1.645, "Tuning constant of ψ in standard deviations (Huber 1.645 = 5 % contamination; Tukey usually 4.685)");
     (psi, c)
 }
 
