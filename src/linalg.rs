@@ -722,8 +722,37 @@ pub(crate) mod dense {
         }
     }
 
-    /// `y ← α A x + β y` (β = 0: `y` is not read).
+    /// `y ← a (α x) + β y` for 1×1 operands, in the order of the kernels' `L = 1` block.
+    #[inline(always)]
+    fn scalar(y: &mut f64, alpha: f64, a: f64, x: f64, beta: f64) {
+        let s = alpha * x;
+        *y = if beta == 0.0 {
+            a * s
+        } else {
+            a * s + beta * *y
+        };
+    }
+
+    /// `y ← α A x + β y` (β = 0: `y` is not read). A 1×1 `A` is one multiply-add here, at
+    /// the call site, and an `A` without columns (no input) scales `y` by β; any other size
+    /// goes to the kernels.
+    #[inline]
     pub(crate) fn gemv(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
+        if let ((1, 1), Some(y0), Some(&a0), Some(&x0)) =
+            ((a.rows, a.cols), y.first_mut(), a.data.first(), x.first())
+        {
+            return scalar(y0, alpha, a0, x0, beta);
+        }
+        if a.cols == 0 {
+            for y in y.iter_mut().take(a.rows) {
+                *y = if beta == 0.0 { 0.0 } else { *y * beta };
+            }
+            return;
+        }
+        gemv_kernels(y, alpha, a, x, beta);
+    }
+
+    pub(super) fn gemv_kernels(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
         let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
         if a.rs == 1 && a.cols > 0 {
             match a.rows {
@@ -739,8 +768,22 @@ pub(crate) mod dense {
 
     /// `C ← α A B + β C` for a `C` stored contiguously (`A.rows` rows; any strides, e.g. a
     /// transposed view; β = 0: `C` is not read). The common row counts (1, 2, 4, 8) take a
-    /// kernel of their own, so a small product pays no more than its own block's set-up.
+    /// kernel of their own, so a small product pays no more than its own block's set-up; a
+    /// 1×1 by 1×1 product is one multiply-add at the call site.
+    #[inline]
     pub(crate) fn gemm(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
+        if let ((1, 1, 1), Some(c0), Some(&a0), Some(&b0)) = (
+            (a.rows, a.cols, b.cols),
+            c.first_mut(),
+            a.data.first(),
+            b.data.first(),
+        ) {
+            return scalar(c0, alpha, a0, b0, beta);
+        }
+        gemm_kernels(c, alpha, a, b, beta);
+    }
+
+    pub(super) fn gemm_kernels(c: &mut [f64], alpha: f64, a: View<'_>, b: View<'_>, beta: f64) {
         if a.rs == 1 && a.cols > 0 {
             match a.rows {
                 1 => return gemm_rows::<1>(c, alpha, a, b, beta),
@@ -807,6 +850,36 @@ pub(crate) mod dense {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scalar_products_match_the_kernels_bit_for_bit() {
+        use dense::View;
+        let values = [0.1, -3.7, 1.0 / 3.0, 2.5e-8, 7.0];
+        for &a in &values {
+            for &b in &values {
+                for &c0 in &values {
+                    for (alpha, beta) in [(1.0, 0.0), (-1.0, 1.0), (1.0, 1.0), (0.3, -2.0)] {
+                        let (am, bm) = (dmatrix![a], dmatrix![b]);
+                        let (mut fast, mut kernel) = ([c0], [c0]);
+                        dense::gemm(&mut fast, alpha, View::of(&am), View::of(&bm).t(), beta);
+                        dense::gemm_kernels(&mut kernel, alpha, View::of(&am), View::of(&bm), beta);
+                        assert_eq!(fast[0].to_bits(), kernel[0].to_bits(), "gemm {a} {b} {c0}");
+                        let (mut fast, mut kernel) = ([c0], [c0]);
+                        dense::gemv(&mut fast, alpha, View::of(&am), &[b], beta);
+                        dense::gemv_kernels(&mut kernel, alpha, View::of(&am), &[b], beta);
+                        assert_eq!(fast[0].to_bits(), kernel[0].to_bits(), "gemv {a} {b} {c0}");
+                    }
+                }
+            }
+        }
+        // No input: y ← β y.
+        let empty = DMatrix::<f64>::zeros(2, 0);
+        let mut y = [3.0, -1.5];
+        dense::gemv(&mut y, 1.0, View::of(&empty), &[], 0.5);
+        assert_eq!(y, [1.5, -0.75]);
+        dense::gemv(&mut y, 1.0, View::of(&empty), &[], 0.0);
+        assert_eq!(y, [0.0, 0.0]);
+    }
     use crate::plants::gantry_crane::GantryCraneParameters;
     use nalgebra::{dmatrix, Vector4};
 

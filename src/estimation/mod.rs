@@ -265,6 +265,19 @@ pub(crate) fn cholesky_solve_in_place(
     if s.iter().any(|v| !v.is_finite()) {
         return Err(EstimationError::NonFinite { what, step });
     }
+    if let [s0] = s.as_mut_slice() {
+        // 1×1: L = √s, then L y = b and Lᵀ x = y, in nalgebra's order (bit-identical).
+        if *s0 > 0.0 {
+            let l = s0.sqrt();
+            *s0 = l;
+            for b in rhs.iter_mut() {
+                *b = *b / l / l;
+            }
+            return Ok(());
+        }
+        *s0 = 0.0;
+        return Err(EstimationError::Factorisation { what, step });
+    }
     let matrix = std::mem::replace(s, DMatrix::zeros(0, 0));
     match Cholesky::new(matrix) {
         Some(factor) => {
@@ -442,5 +455,34 @@ mod state_tests {
         let error = copy.set_dynamic_state(too_short).unwrap_err().to_string();
         assert!(error.contains("state"), "{error}");
         assert!(rls_copy.set_dynamic_state(&[1.0]).is_err());
+    }
+}
+
+#[cfg(test)]
+mod factor_tests {
+    use super::*;
+
+    #[test]
+    fn one_by_one_solve_matches_nalgebra_bit_for_bit_and_rejects_non_positive() {
+        for s0 in [0.37, 1.0, 2.0, 1e-9, 12345.678] {
+            let rhs = DMatrix::from_row_slice(1, 3, &[1.0, -0.3, 1.0 / 7.0]);
+            let mut expected = rhs.clone();
+            let factor = Cholesky::new(DMatrix::from_element(1, 1, s0)).unwrap();
+            factor.solve_mut(&mut expected);
+            let (mut s, mut x) = (DMatrix::from_element(1, 1, s0), rhs);
+            cholesky_solve_in_place(&mut s, &mut x, "S", 1).unwrap();
+            for (x, e) in x.iter().zip(expected.iter()) {
+                assert_eq!(x.to_bits(), e.to_bits(), "s = {s0}");
+            }
+            assert_eq!(s[(0, 0)], factor.l()[(0, 0)]);
+        }
+        for s0 in [0.0, -1.0] {
+            let (mut s, mut x) = (DMatrix::from_element(1, 1, s0), DMatrix::zeros(1, 1));
+            let e = cholesky_solve_in_place(&mut s, &mut x, "S", 4).unwrap_err();
+            assert!(
+                matches!(e, EstimationError::Factorisation { step: 4, .. }),
+                "{e}"
+            );
+        }
     }
 }
