@@ -8,6 +8,7 @@ mod common;
 
 use common::toy::*;
 use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
+use spurio_export::fmi3::me;
 use spurio_export::fmi3::types::*;
 use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
@@ -385,4 +386,167 @@ fn panicking_fmi3_step_child() {
 #[test]
 fn an_fmi3_panic_prints_nothing_on_stderr() {
     common::assert_child_prints_only_its_line("panicking_fmi3_step_child");
+}
+
+/// The toy instantiated for FMI 3.0 Model Exchange.
+fn instantiate_model_exchange() -> Instance {
+    let name = CString::new("me").unwrap();
+    let c = unsafe {
+        ffi::instantiate_model_exchange::<Toy>(
+            name.as_ptr(),
+            token().as_ptr(),
+            std::ptr::null(),
+            fmi3False,
+            std::ptr::null_mut(),
+            Some(log_message),
+            Some(spurio_export::me::hooks::<Toy>()),
+        )
+    };
+    assert!(!c.is_null(), "{}", last_error());
+    Instance(c)
+}
+
+/// The directional (`adjoint` false) or adjoint derivative through the C entry point.
+fn derivative(
+    i: &Instance,
+    adjoint: bool,
+    unknowns: &[u32],
+    knowns: &[u32],
+    seed: &[f64],
+    n_out: usize,
+) -> Result<Vec<f64>, fmi3Status> {
+    let mut out = vec![f64::NAN; n_out];
+    let call = me::DerivativeCall {
+        unknowns: unknowns.as_ptr(),
+        n_unknowns: unknowns.len(),
+        knowns: knowns.as_ptr(),
+        n_knowns: knowns.len(),
+        seed: seed.as_ptr(),
+        n_seed: seed.len(),
+        sensitivity: out.as_mut_ptr(),
+        n_sensitivity: n_out,
+    };
+    let kind = if adjoint {
+        me::Derivative::Adjoint
+    } else {
+        me::Derivative::Directional
+    };
+    match unsafe { me::derivative::<Toy>(i.0, call, kind) } {
+        0 => Ok(out),
+        s => Err(s),
+    }
+}
+
+#[test]
+fn model_exchange_runs_through_event_and_continuous_time_mode() {
+    let i = instantiate_model_exchange();
+    let get = |which| {
+        let mut out = [f64::NAN; 2];
+        let s = unsafe { me::array::<Toy>(i.0, out.as_mut_ptr(), 2, which) };
+        (s, out)
+    };
+    let mut n = 0usize;
+    assert_eq!(
+        unsafe { me::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 2);
+    assert_eq!(
+        unsafe { me::number_of_event_indicators::<Toy>(i.0, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 1);
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, -2.0]), fmi3OK);
+    assert_eq!(i.initialize(), fmi3OK);
+    // Event Mode after initialization: the first event iteration
+    let mut flags = [9u8; 5];
+    let mut next = f64::NAN;
+    let [a, b, c, d, e] = &mut flags;
+    let events = me::EventFlags {
+        need_update: a,
+        terminate: b,
+        nominals_changed: c,
+        values_changed: d,
+        next_defined: e,
+        next_time: &mut next,
+    };
+    assert_eq!(
+        unsafe { me::update_discrete_states::<Toy>(i.0, events) },
+        fmi3OK
+    );
+    assert_eq!(flags, [fmi3False; 5]);
+    assert_eq!(i.step(0.0, 0.1).0, fmi3Error);
+    assert!(
+        last_error().contains("fmi3DoStep: illegal call sequence: not allowed in state EventMode")
+    );
+    assert_eq!(
+        unsafe { me::enter_continuous_time_mode::<Toy>(i.0) },
+        fmi3OK
+    );
+    assert_eq!(unsafe { me::set_time::<Toy>(i.0, 0.5) }, fmi3OK);
+    let x = [0.5, -1.0];
+    assert_eq!(
+        unsafe { me::set_continuous_states::<Toy>(i.0, x.as_ptr(), 2) },
+        fmi3OK
+    );
+    assert_eq!(get(me::Array::get_derivatives), (fmi3OK, [1.0, -2.0]));
+    assert_eq!(get(me::Array::get_continuous_states), (fmi3OK, x));
+    assert_eq!(get(me::Array::get_nominals), (fmi3OK, [2.0, 2.0]));
+    assert_eq!(
+        i.get_f64(&[VR_DER_Y, VR_TIME], 3).unwrap(),
+        [1.0, -2.0, 0.5]
+    );
+    // wrong counts
+    let mut z = [0.0; 2];
+    let s = unsafe { me::array::<Toy>(i.0, z.as_mut_ptr(), 2, me::Array::get_event_indicators) };
+    assert_eq!(s, fmi3Error);
+    assert!(last_error().contains("fmi3GetEventIndicators: ni = 2, but Toy has 1"));
+    let (mut event, mut terminate) = (9u8, 9u8);
+    let s = unsafe { me::completed_integrator_step::<Toy>(i.0, &mut event, &mut terminate) };
+    assert_eq!((s, event, terminate), (fmi3OK, fmi3False, fmi3False));
+    // directional derivatives over arrays: d der(y) = du, dz = du[1] + du[2]
+    assert_eq!(
+        derivative(&i, false, &[VR_DER_Y, VR_Z], &[VR_U], &[3.0, 4.0], 3).unwrap(),
+        [3.0, 4.0, 7.0]
+    );
+    // the adjoint is the transpose: seed over der(y), z; result over u
+    assert_eq!(
+        derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], &[1.0, 2.0, 10.0], 2).unwrap(),
+        [11.0, 12.0]
+    );
+    assert_eq!(
+        derivative(&i, false, &[VR_Z], &[VR_TIME], &[1.0], 1),
+        Err(fmi3Error)
+    );
+    assert!(last_error().contains("`time` (value reference 0) is neither a known nor an unknown"));
+    assert_eq!(
+        derivative(&i, false, &[VR_Z], &[VR_U], &[1.0], 1),
+        Err(fmi3Error)
+    );
+    assert!(last_error()
+        .contains("nSeed = 1 and nSensitivity = 1, but the references name 2 and 1 values"));
+    assert_eq!(unsafe { me::enter_event_mode::<Toy>(i.0) }, fmi3OK);
+    assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3OK);
+}
+
+#[test]
+fn a_co_simulation_instance_refuses_the_model_exchange_functions() {
+    let i = Instance::new("cs");
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(unsafe { me::set_time::<Toy>(i.0, 1.0) }, fmi3Error);
+    assert!(last_error().contains("fmi3SetTime: illegal call sequence"));
+    assert_eq!(unsafe { me::enter_event_mode::<Toy>(i.0) }, fmi3Error);
+    let mut n = 9usize;
+    assert_eq!(
+        unsafe { me::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 2);
+    // its directional derivative is there (the model has it): dy[1]/dy[1] after a step
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, 1.0]), fmi3OK);
+    assert_eq!(i.step(0.0, 0.5).0, fmi3OK);
+    assert_eq!(
+        derivative(&i, false, &[VR_Y], &[VR_Y], &[1.0, 1.0], 2).unwrap(),
+        [1.0, 1.0]
+    );
 }
