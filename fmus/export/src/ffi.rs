@@ -109,7 +109,7 @@ pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
 }
 
 /// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
-unsafe fn with_instance<M: FmuModel>(
+pub(crate) unsafe fn with_instance<M: FmuModel>(
     c: fmi2Component,
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,

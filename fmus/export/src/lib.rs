@@ -357,15 +357,12 @@ macro_rules! export_fmu {
                 seed: *const fmi2Real,
                 out: *mut fmi2Real,
             ) -> fmi2Status {
-                unsafe {
-                    me::get_directional_derivative::<M>(
-                        c, unknowns, n_unknowns, knowns, n_knowns, seed, out,
-                    )
-                }
+                let (u, k) = ((unknowns, n_unknowns), (knowns, n_knowns));
+                unsafe { me::get_directional_derivative::<M>(c, u, k, seed, out) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
-                unsafe { me::set_time::<M>(c, time) }
+                unsafe { me::set_time::<M, ()>(c, &functions::SET_TIME, time) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetContinuousStates(
@@ -373,18 +370,19 @@ macro_rules! export_fmu {
                 x: *const fmi2Real,
                 nx: usize,
             ) -> fmi2Status {
-                unsafe { me::set_continuous_states::<M>(c, x, nx) }
+                let f = &functions::SET_CONTINUOUS_STATES;
+                unsafe { me::set_continuous_states::<M, ()>(c, f, x, nx) }
             }
-            $crate::fmi2_array_getter!(fmi2GetContinuousStates, get_continuous_states);
-            $crate::fmi2_array_getter!(fmi2GetDerivatives, get_derivatives);
-            $crate::fmi2_array_getter!(fmi2GetEventIndicators, get_event_indicators);
-            $crate::fmi2_array_getter!(
-                fmi2GetNominalsOfContinuousStates,
-                get_nominals_of_continuous_states
+            $crate::model_exchange_arrays!(
+                fmi2Component, (), functions;
+                fmi2GetContinuousStates = GET_CONTINUOUS_STATES, ContinuousStates;
+                fmi2GetDerivatives = GET_DERIVATIVES, Derivatives;
+                fmi2GetEventIndicators = GET_EVENT_INDICATORS, EventIndicators;
+                fmi2GetNominalsOfContinuousStates = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
             );
             #[no_mangle]
             pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
-                unsafe { me::enter_event_mode::<M>(c) }
+                unsafe { me::enter_mode::<M, ()>(c, &functions::ENTER_EVENT_MODE, true) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2NewDiscreteStates(
@@ -395,7 +393,8 @@ macro_rules! export_fmu {
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
-                unsafe { me::enter_continuous_time_mode::<M>(c) }
+                let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
+                unsafe { me::enter_mode::<M, ()>(c, f, false) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
@@ -404,14 +403,10 @@ macro_rules! export_fmu {
                 enter_event_mode: *mut fmi2Boolean,
                 terminate_simulation: *mut fmi2Boolean,
             ) -> fmi2Status {
-                unsafe {
-                    me::completed_integrator_step::<M>(
-                        c,
-                        no_set_prior,
-                        enter_event_mode,
-                        terminate_simulation,
-                    )
-                }
+                let _ = no_set_prior;
+                let f = &functions::COMPLETED_INTEGRATOR_STEP;
+                let (event, stop) = (enter_event_mode, terminate_simulation);
+                unsafe { me::completed_integrator_step::<M, (), _>(c, f, event, stop) }
             }
             $crate::unsupported_fmi2_function!(
                 fmi2SetRealInputDerivatives(
@@ -517,19 +512,19 @@ macro_rules! unsupported_fmi2_function {
     };
 }
 
-/// Emits, inside [`export_fmu!`], an FMI 2.0 Model Exchange function that fills the caller's
-/// Real array (`fmi2GetDerivatives`, …).
+/// Emits, inside [`export_fmu!`] or [`export_fmi3!`], the Model Exchange functions that fill
+/// the caller's Real array (`fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`, …) for
+/// the front's handle type, slot data and `functions` module.
 #[doc(hidden)]
 #[macro_export]
-macro_rules! fmi2_array_getter {
-    ($name:ident, $function:ident) => {
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(
-            c: fmi2Component,
-            out: *mut fmi2Real,
-            n: usize,
-        ) -> fmi2Status {
-            unsafe { me::$function::<M>(c, out, n) }
-        }
+macro_rules! model_exchange_arrays {
+    ($handle:ty, $extra:ty, $functions:ident; $($name:ident = $function:ident, $array:ident;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(c: $handle, out: *mut f64, n: usize) -> ::std::os::raw::c_int {
+                let (f, which) = (&$functions::$function, $crate::me::ffi::Array::$array);
+                unsafe { $crate::me::ffi::get_array::<M, $extra>(c, f, which, out, n) }
+            }
+        )+
     };
 }

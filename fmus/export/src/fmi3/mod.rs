@@ -27,55 +27,31 @@ pub mod types;
 /// Allowed-state masks of the FMI 3.0 functions (FMI 3.0.2 §4.3.4 Co-Simulation and §3.3
 /// Model Exchange state machines; Step Mode is the shared machine's `StepComplete`).
 pub mod functions {
-    use crate::instance::{function as f, ModelState, CONTINUOUS_TIME_MODE, EVENT_MODE, ME_MODES};
-
-    const INSTANTIATED: u32 = ModelState::Instantiated.bit();
-    const INIT_MODE: u32 = ModelState::InitializationMode.bit();
-    const STEP_MODE: u32 = ModelState::StepComplete.bit();
-    const TERMINATED: u32 = ModelState::Terminated.bit();
-    const ERROR: u32 = ModelState::Error.bit();
-    const FATAL: u32 = ModelState::Fatal.bit();
+    use crate::instance::bits::*;
     /// Every state of an instance that is not fatally broken.
-    pub const ANY_LIVE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE;
-    const ME_AFTER_INIT: u32 = ME_MODES | INIT_MODE | TERMINATED | ERROR;
+    pub const ANY_LIVE: u32 =
+        ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
 
-    f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
-    f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
-    f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }
-    f! { EXIT_INITIALIZATION_MODE, "fmi3ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi3Terminate", STEP_MODE | ME_MODES }
-    f! { RESET, "fmi3Reset", ANY_LIVE }
+    crate::instance::shared_functions!(
+        "fmi3",
+        "FMUState",
+        "DeserializeFMUState",
+        ANY_LIVE,
+        ANY_LIVE,
+        GETTABLE,
+        SETTABLE
+    );
+    f! { TERMINATE, "fmi3Terminate", STEP_COMPLETE | ME_MODES }
     f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
     f! { GET_INT32, "fmi3GetInt32", GETTABLE }
-    f! { GET_BOOLEAN, "fmi3GetBoolean", GETTABLE }
-    f! { GET_STRING, "fmi3GetString", GETTABLE }
     f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
     f! { SET_INT32, "fmi3SetInt32", SETTABLE }
-    f! { SET_BOOLEAN, "fmi3SetBoolean", SETTABLE }
-    f! { SET_STRING, "fmi3SetString", SETTABLE }
-    f! { GET_FMU_STATE, "fmi3GetFMUState", ANY_LIVE }
-    f! { SET_FMU_STATE, "fmi3SetFMUState", ANY_LIVE }
-    f! { FREE_FMU_STATE, "fmi3FreeFMUState", ANY_LIVE | FATAL }
-    f! { SERIALIZED_FMU_STATE_SIZE, "fmi3SerializedFMUStateSize", ANY_LIVE }
-    f! { SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE }
-    f! { DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE }
-    f! { DO_STEP, "fmi3DoStep", STEP_MODE }
-    // Model Exchange (FMI 3.0.2 §3.3).
-    f! { SET_TIME, "fmi3SetTime", ME_MODES }
-    f! { SET_CONTINUOUS_STATES, "fmi3SetContinuousStates", CONTINUOUS_TIME_MODE }
-    f! { GET_CONTINUOUS_STATES, "fmi3GetContinuousStates", ME_AFTER_INIT }
     f! { GET_CONTINUOUS_STATE_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
-    f! { GET_EVENT_INDICATORS, "fmi3GetEventIndicators", ME_AFTER_INIT }
-    f! { GET_NOMINALS_OF_CONTINUOUS_STATES, "fmi3GetNominalsOfContinuousStates", INSTANTIATED | ME_AFTER_INIT }
     f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
     f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
-    f! { ENTER_EVENT_MODE, "fmi3EnterEventMode", ME_MODES }
     f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
-    f! { ENTER_CONTINUOUS_TIME_MODE, "fmi3EnterContinuousTimeMode", EVENT_MODE }
-    f! { COMPLETED_INTEGRATOR_STEP, "fmi3CompletedIntegratorStep", CONTINUOUS_TIME_MODE }
-    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi3GetDirectionalDerivative", GETTABLE }
     f! { GET_ADJOINT_DERIVATIVE, "fmi3GetAdjointDerivative", GETTABLE }
 }
 
@@ -91,6 +67,7 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
+            use $crate::fmi3::arrays::Layout;
             use $crate::fmi3::ffi;
             use $crate::fmi3::functions;
             use $crate::fmi3::me;
@@ -126,18 +103,17 @@ macro_rules! export_fmi3 {
                 intermediate_update: fmi3IntermediateUpdateCallback,
             ) -> fmi3Instance {
                 let _ = (visible, required, intermediate_update);
+                let args = ffi::Instantiation::new(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                let me = super::spurio_model_exchange();
                 unsafe {
                     ffi::instantiate_co_simulation::<M>(
-                        name,
-                        token,
-                        resources,
-                        logging_on,
+                        args,
                         event_mode_used,
                         early_return_allowed,
                         n_required,
-                        environment,
-                        log_message,
-                        super::spurio_model_exchange(),
+                        me,
                     )
                 }
             }
@@ -152,17 +128,11 @@ macro_rules! export_fmi3 {
                 log_message: fmi3LogMessageCallback,
             ) -> fmi3Instance {
                 let _ = visible;
-                unsafe {
-                    ffi::instantiate_model_exchange::<M>(
-                        name,
-                        token,
-                        resources,
-                        logging_on,
-                        environment,
-                        log_message,
-                        super::spurio_model_exchange(),
-                    )
-                }
+                let args = ffi::Instantiation::new(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                let me = super::spurio_model_exchange();
+                unsafe { ffi::instantiate_model_exchange::<M>(args, me) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
@@ -420,11 +390,13 @@ macro_rules! export_fmi3_model_exchange {
     () => {
         #[no_mangle]
         pub unsafe extern "C" fn fmi3EnterEventMode(c: fmi3Instance) -> fmi3Status {
-            unsafe { me::enter_event_mode::<M>(c) }
+            let f = &functions::ENTER_EVENT_MODE;
+            unsafe { $crate::me::ffi::enter_mode::<M, Layout>(c, f, true) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3EnterContinuousTimeMode(c: fmi3Instance) -> fmi3Status {
-            unsafe { me::enter_continuous_time_mode::<M>(c) }
+            let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
+            unsafe { $crate::me::ffi::enter_mode::<M, Layout>(c, f, false) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
@@ -454,11 +426,13 @@ macro_rules! export_fmi3_model_exchange {
             terminate: *mut fmi3Boolean,
         ) -> fmi3Status {
             let _ = no_set_prior;
-            unsafe { me::completed_integrator_step::<M>(c, enter_event_mode, terminate) }
+            let f = &functions::COMPLETED_INTEGRATOR_STEP;
+            let flags = (enter_event_mode, terminate);
+            unsafe { $crate::me::ffi::completed_integrator_step::<M, Layout, _>(c, f, flags.0, flags.1) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3SetTime(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
-            unsafe { me::set_time::<M>(c, time) }
+            unsafe { $crate::me::ffi::set_time::<M, Layout>(c, &functions::SET_TIME, time) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3SetContinuousStates(
@@ -466,12 +440,16 @@ macro_rules! export_fmi3_model_exchange {
             x: *const fmi3Float64,
             n: usize,
         ) -> fmi3Status {
-            unsafe { me::set_continuous_states::<M>(c, x, n) }
+            let f = &functions::SET_CONTINUOUS_STATES;
+            unsafe { $crate::me::ffi::set_continuous_states::<M, Layout>(c, f, x, n) }
         }
-        $crate::fmi3_array_getter!(fmi3GetContinuousStates, get_continuous_states);
-        $crate::fmi3_array_getter!(fmi3GetContinuousStateDerivatives, get_derivatives);
-        $crate::fmi3_array_getter!(fmi3GetEventIndicators, get_event_indicators);
-        $crate::fmi3_array_getter!(fmi3GetNominalsOfContinuousStates, get_nominals);
+        $crate::model_exchange_arrays!(
+            fmi3Instance, Layout, functions;
+            fmi3GetContinuousStates = GET_CONTINUOUS_STATES, ContinuousStates;
+            fmi3GetContinuousStateDerivatives = GET_CONTINUOUS_STATE_DERIVATIVES, Derivatives;
+            fmi3GetEventIndicators = GET_EVENT_INDICATORS, EventIndicators;
+            fmi3GetNominalsOfContinuousStates = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
+        );
         #[no_mangle]
         pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
             c: fmi3Instance,
@@ -488,23 +466,6 @@ macro_rules! export_fmi3_model_exchange {
         }
         $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
         $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
-    };
-}
-
-/// Emits, inside [`export_fmi3!`], an FMI 3.0 Model Exchange function that fills the
-/// caller's Float64 array.
-#[doc(hidden)]
-#[macro_export]
-macro_rules! fmi3_array_getter {
-    ($name:ident, $function:ident) => {
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(
-            c: fmi3Instance,
-            out: *mut fmi3Float64,
-            n: usize,
-        ) -> fmi3Status {
-            unsafe { me::array::<M>(c, out, n, me::Array::$function) }
-        }
     };
 }
 
