@@ -567,13 +567,7 @@ unsafe fn get_known_status<M: FmuModel, T>(
         if kind != known {
             return get_status::<M>(c, f, kind);
         }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = answer(s);
-            Status::Ok
-        })
+        crate::front::write_out::<M, (), T>(c, f, (value, "value"), answer)
     }
 }
 

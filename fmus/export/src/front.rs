@@ -547,3 +547,26 @@ impl StateFunctions {
         }
     }
 }
+
+/// Writes what `answer` says of the instance behind `c` into the one value behind `out`
+/// (rejected when NULL, naming the argument `what`): the size and status queries.
+///
+/// # Safety
+/// `c` as for [`with_slot`]; `out` is NULL or points to one writable `T`.
+pub unsafe fn write_out<M: FmuModel, X, T>(
+    c: *mut c_void,
+    f: &Function,
+    (out, what): (*mut T, &str),
+    answer: impl FnOnce(&Slot<M, X>) -> T,
+) -> std::os::raw::c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            if out.is_null() {
+                return s.instance.reject(f, &format!("{what} is NULL"));
+            }
+            // SAFETY: checked non-NULL; the caller's obligation otherwise.
+            *out = answer(s);
+            Status::Ok
+        })
+    }
+}

@@ -360,53 +360,16 @@ macro_rules! export_fmu {
                 let (u, k) = ((unknowns, n_unknowns), (knowns, n_knowns));
                 unsafe { me::get_directional_derivative::<M>(c, u, k, seed, out) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
-                unsafe { me::set_time::<M, ()>(c, &functions::SET_TIME, time) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetContinuousStates(
-                c: fmi2Component,
-                x: *const fmi2Real,
-                nx: usize,
-            ) -> fmi2Status {
-                let f = &functions::SET_CONTINUOUS_STATES;
-                unsafe { me::set_continuous_states::<M, ()>(c, f, x, nx) }
-            }
-            $crate::model_exchange_arrays!(
-                fmi2Component, (), functions;
-                fmi2GetContinuousStates = GET_CONTINUOUS_STATES, ContinuousStates;
-                fmi2GetDerivatives = GET_DERIVATIVES, Derivatives;
-                fmi2GetEventIndicators = GET_EVENT_INDICATORS, EventIndicators;
-                fmi2GetNominalsOfContinuousStates = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
-            );
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
-                unsafe { me::enter_mode::<M, ()>(c, &functions::ENTER_EVENT_MODE, true) }
-            }
+            $crate::model_exchange_entries!(fmi2Component, (), fmi2Boolean, functions;
+                fmi2SetTime, fmi2SetContinuousStates, fmi2EnterEventMode, fmi2EnterContinuousTimeMode,
+                fmi2CompletedIntegratorStep, fmi2GetContinuousStates, fmi2GetDerivatives,
+                fmi2GetEventIndicators, fmi2GetNominalsOfContinuousStates);
             #[no_mangle]
             pub unsafe extern "C" fn fmi2NewDiscreteStates(
                 c: fmi2Component,
                 event_info: *mut me::fmi2EventInfo,
             ) -> fmi2Status {
                 unsafe { me::new_discrete_states::<M>(c, event_info) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
-                let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
-                unsafe { me::enter_mode::<M, ()>(c, f, false) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
-                c: fmi2Component,
-                no_set_prior: fmi2Boolean,
-                enter_event_mode: *mut fmi2Boolean,
-                terminate_simulation: *mut fmi2Boolean,
-            ) -> fmi2Status {
-                let _ = no_set_prior;
-                let f = &functions::COMPLETED_INTEGRATOR_STEP;
-                let (event, stop) = (enter_event_mode, terminate_simulation);
-                unsafe { me::completed_integrator_step::<M, (), _>(c, f, event, stop) }
             }
             $crate::unsupported_fmi2_function!(
                 fmi2SetRealInputDerivatives(
@@ -512,13 +475,62 @@ macro_rules! unsupported_fmi2_function {
     };
 }
 
-/// Emits, inside [`export_fmu!`] or [`export_fmi3!`], the Model Exchange functions that fill
-/// the caller's Real array (`fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`, …) for
-/// the front's handle type, slot data and `functions` module.
+/// Emits, inside [`export_fmu!`] or [`export_fmi3!`], the Model Exchange functions both
+/// versions have alike (`fmi2SetTime`/`fmi3SetTime`, …, and those that fill the caller's Real
+/// array: `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`, …) for the front's handle
+/// type, slot data, Boolean type and `functions` module; the names in the standard's order.
 #[doc(hidden)]
 #[macro_export]
-macro_rules! model_exchange_arrays {
-    ($handle:ty, $extra:ty, $functions:ident; $($name:ident = $function:ident, $array:ident;)+) => {
+macro_rules! model_exchange_entries {
+    (
+        $handle:ty, $extra:ty, $boolean:ty, $functions:ident;
+        $set_time:ident, $set_states:ident, $event_mode:ident, $continuous_mode:ident,
+        $completed:ident, $states:ident, $derivatives:ident, $indicators:ident, $nominals:ident
+    ) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $set_time(c: $handle, time: f64) -> ::std::os::raw::c_int {
+            let f = &$functions::SET_TIME;
+            unsafe { $crate::me::ffi::set_time::<M, $extra>(c, f, time) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $set_states(
+            c: $handle,
+            x: *const f64,
+            n: usize,
+        ) -> ::std::os::raw::c_int {
+            let f = &$functions::SET_CONTINUOUS_STATES;
+            unsafe { $crate::me::ffi::set_continuous_states::<M, $extra>(c, f, x, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $event_mode(c: $handle) -> ::std::os::raw::c_int {
+            let f = &$functions::ENTER_EVENT_MODE;
+            unsafe { $crate::me::ffi::enter_mode::<M, $extra>(c, f, true) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $continuous_mode(c: $handle) -> ::std::os::raw::c_int {
+            let f = &$functions::ENTER_CONTINUOUS_TIME_MODE;
+            unsafe { $crate::me::ffi::enter_mode::<M, $extra>(c, f, false) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $completed(
+            c: $handle,
+            no_set_prior: $boolean,
+            enter_event_mode: *mut $boolean,
+            terminate_simulation: *mut $boolean,
+        ) -> ::std::os::raw::c_int {
+            let _ = no_set_prior;
+            let f = &$functions::COMPLETED_INTEGRATOR_STEP;
+            let (event, stop) = (enter_event_mode, terminate_simulation);
+            unsafe { $crate::me::ffi::completed_integrator_step::<M, $extra, _>(c, f, event, stop) }
+        }
+        $crate::model_exchange_entries!(@array $handle, $extra, $functions;
+            $states = GET_CONTINUOUS_STATES, ContinuousStates;
+            $derivatives = GET_DERIVATIVES, Derivatives;
+            $indicators = GET_EVENT_INDICATORS, EventIndicators;
+            $nominals = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
+        );
+    };
+    (@array $handle:ty, $extra:ty, $functions:ident; $($name:ident = $function:ident, $array:ident;)+) => {
         $(
             #[no_mangle]
             pub unsafe extern "C" fn $name(c: $handle, out: *mut f64, n: usize) -> ::std::os::raw::c_int {

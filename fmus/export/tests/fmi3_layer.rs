@@ -16,6 +16,17 @@ use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
 use std::ffi::{c_void, CStr, CString};
 
+// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
+const VR_TIME: u32 = 0;
+const VR_U: u32 = 1;
+const VR_Y: u32 = 2;
+const VR_Z: u32 = 3;
+const VR_P: u32 = 4;
+const VR_N: u32 = 5;
+const VR_POSITIVE: u32 = 6;
+// then y0, der(y), to_wrap, y_max.
+const VR_DER_Y: u32 = 8;
+
 thread_local! {
     static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
 }
@@ -47,7 +58,7 @@ fn args(
     token: *const std::os::raw::c_char,
     resources: *const std::os::raw::c_char,
 ) -> ffi::Instantiation {
-    ffi::Instantiation::new(
+    ffi::Instantiation(
         name,
         token,
         resources,
@@ -441,12 +452,12 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     };
     let mut n = 0usize;
     assert_eq!(
-        unsafe { me3::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 2);
     assert_eq!(
-        unsafe { me3::number_of_event_indicators::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::EventIndicators, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 1);
@@ -496,10 +507,7 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         fmi3OK
     );
     assert_eq!(
-        get((
-            &functions::GET_CONTINUOUS_STATE_DERIVATIVES,
-            Array::Derivatives
-        )),
+        get((&functions::GET_DERIVATIVES, Array::Derivatives)),
         (fmi3OK, [1.0, -2.0])
     );
     assert_eq!(
@@ -572,7 +580,7 @@ fn a_co_simulation_instance_refuses_the_model_exchange_functions() {
     );
     let mut n = 9usize;
     assert_eq!(
-        unsafe { me3::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 2);

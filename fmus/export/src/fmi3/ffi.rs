@@ -74,37 +74,18 @@ pub fn version() -> *const c_char {
     c"3.0".as_ptr()
 }
 
-/// The arguments every `fmi3Instantiate*` function has.
+/// The arguments every `fmi3Instantiate*` function has, in the order of the C functions:
+/// instanceName, instantiationToken, resourcePath, loggingOn, instanceEnvironment,
+/// logMessage.
 #[derive(Clone, Copy)]
-pub struct Instantiation {
-    instance_name: fmi3String,
-    token: fmi3String,
-    resource_path: fmi3String,
-    logging_on: fmi3Boolean,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
-}
-
-impl Instantiation {
-    /// The arguments, in the order of the C functions.
-    pub fn new(
-        instance_name: fmi3String,
-        token: fmi3String,
-        resource_path: fmi3String,
-        logging_on: fmi3Boolean,
-        environment: fmi3InstanceEnvironment,
-        log_message: fmi3LogMessageCallback,
-    ) -> Self {
-        Self {
-            instance_name,
-            token,
-            resource_path,
-            logging_on,
-            environment,
-            log_message,
-        }
-    }
-}
+pub struct Instantiation(
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3Boolean,
+    pub fmi3InstanceEnvironment,
+    pub fmi3LogMessageCallback,
+);
 
 /// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
 /// the resources (`variant.cfg` of a packaged variant), then creates the instance (with the
@@ -172,14 +153,8 @@ unsafe fn instantiate<M: FmuModel>(
     interface: Interface,
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    let Instantiation {
-        instance_name,
-        token,
-        resource_path,
-        logging_on,
-        environment,
-        log_message,
-    } = args;
+    let Instantiation(instance_name, token, resource_path, logging_on, environment, log_message) =
+        args;
     let (refusal, note, model_exchange) = match interface {
         Interface::CoSimulation { refusal, note } => (refusal, note, false),
         Interface::ModelExchange => (None, None, true),

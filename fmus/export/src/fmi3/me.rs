@@ -8,7 +8,6 @@ use super::ffi::{expand, with_instance, Element, Slot};
 use super::functions;
 use super::types::*;
 use crate::ffi::slice;
-use crate::instance::Function;
 use crate::me::ffi::slice_mut;
 use crate::model::FmuModel;
 use crate::types::Status;
@@ -53,47 +52,35 @@ pub unsafe fn update_discrete_states<M: FmuModel>(c: fmi3Instance, out: EventFla
     }
 }
 
-/// Writes a count of the instance behind `c` into `n`.
-unsafe fn count<M: FmuModel>(
-    c: fmi3Instance,
-    f: &Function,
-    n: *mut usize,
-    of: impl FnOnce(&Slot<M>) -> usize,
-) -> fmi3Status {
+/// What `fmi3GetNumberOf…` counts.
+#[derive(Debug, Clone, Copy)]
+pub enum Count {
+    /// `fmi3GetNumberOfEventIndicators`.
+    EventIndicators,
+    /// `fmi3GetNumberOfContinuousStates`.
+    ContinuousStates,
+}
+
+/// `fmi3GetNumberOfEventIndicators`, `fmi3GetNumberOfContinuousStates`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn number_of<M: FmuModel>(c: fmi3Instance, what: Count, n: *mut usize) -> fmi3Status {
+    let f = match what {
+        Count::EventIndicators => &functions::GET_NUMBER_OF_EVENT_INDICATORS,
+        Count::ContinuousStates => &functions::GET_NUMBER_OF_CONTINUOUS_STATES,
+    };
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            if n.is_null() {
-                return s.instance.reject(f, "the size argument is NULL");
-            }
-            // SAFETY: checked non-NULL; one writable size_t.
-            *n = of(s);
-            Status::Ok
-        })
+        crate::front::write_out::<M, Layout, usize>(
+            c,
+            f,
+            (n, "the size argument"),
+            |s| match what {
+                Count::EventIndicators => s.instance.event_indicator_count(),
+                Count::ContinuousStates => s.instance.state_count(),
+            },
+        )
     }
-}
-
-/// `fmi3GetNumberOfEventIndicators`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn number_of_event_indicators<M: FmuModel>(
-    c: fmi3Instance,
-    n: *mut usize,
-) -> fmi3Status {
-    let f = &functions::GET_NUMBER_OF_EVENT_INDICATORS;
-    unsafe { count::<M>(c, f, n, |s| s.instance.event_indicator_count()) }
-}
-
-/// `fmi3GetNumberOfContinuousStates`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn number_of_continuous_states<M: FmuModel>(
-    c: fmi3Instance,
-    n: *mut usize,
-) -> fmi3Status {
-    let f = &functions::GET_NUMBER_OF_CONTINUOUS_STATES;
-    unsafe { count::<M>(c, f, n, |s| s.instance.state_count()) }
 }
 
 /// Which derivative a call asks for.

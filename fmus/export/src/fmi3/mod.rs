@@ -48,7 +48,7 @@ pub mod functions {
     f! { GET_INT32, "fmi3GetInt32", GETTABLE }
     f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
     f! { SET_INT32, "fmi3SetInt32", SETTABLE }
-    f! { GET_CONTINUOUS_STATE_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
+    f! { GET_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
     f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
     f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
     f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
@@ -103,7 +103,7 @@ macro_rules! export_fmi3 {
                 intermediate_update: fmi3IntermediateUpdateCallback,
             ) -> fmi3Instance {
                 let _ = (visible, required, intermediate_update);
-                let args = ffi::Instantiation::new(
+                let args = ffi::Instantiation(
                     name, token, resources, logging_on, environment, log_message,
                 );
                 let me = super::spurio_model_exchange();
@@ -128,7 +128,7 @@ macro_rules! export_fmi3 {
                 log_message: fmi3LogMessageCallback,
             ) -> fmi3Instance {
                 let _ = visible;
-                let args = ffi::Instantiation::new(
+                let args = ffi::Instantiation(
                     name, token, resources, logging_on, environment, log_message,
                 );
                 let me = super::spurio_model_exchange();
@@ -388,16 +388,10 @@ macro_rules! fmi3_unsupported {
 #[macro_export]
 macro_rules! export_fmi3_model_exchange {
     () => {
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3EnterEventMode(c: fmi3Instance) -> fmi3Status {
-            let f = &functions::ENTER_EVENT_MODE;
-            unsafe { $crate::me::ffi::enter_mode::<M, Layout>(c, f, true) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3EnterContinuousTimeMode(c: fmi3Instance) -> fmi3Status {
-            let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
-            unsafe { $crate::me::ffi::enter_mode::<M, Layout>(c, f, false) }
-        }
+        $crate::model_exchange_entries!(fmi3Instance, Layout, fmi3Boolean, functions;
+            fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
+            fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
+            fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
         #[no_mangle]
         pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
             c: fmi3Instance,
@@ -419,50 +413,18 @@ macro_rules! export_fmi3_model_exchange {
             unsafe { me::update_discrete_states::<M>(c, flags) }
         }
         #[no_mangle]
-        pub unsafe extern "C" fn fmi3CompletedIntegratorStep(
-            c: fmi3Instance,
-            no_set_prior: fmi3Boolean,
-            enter_event_mode: *mut fmi3Boolean,
-            terminate: *mut fmi3Boolean,
-        ) -> fmi3Status {
-            let _ = no_set_prior;
-            let f = &functions::COMPLETED_INTEGRATOR_STEP;
-            let flags = (enter_event_mode, terminate);
-            unsafe { $crate::me::ffi::completed_integrator_step::<M, Layout, _>(c, f, flags.0, flags.1) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3SetTime(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
-            unsafe { $crate::me::ffi::set_time::<M, Layout>(c, &functions::SET_TIME, time) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3SetContinuousStates(
-            c: fmi3Instance,
-            x: *const fmi3Float64,
-            n: usize,
-        ) -> fmi3Status {
-            let f = &functions::SET_CONTINUOUS_STATES;
-            unsafe { $crate::me::ffi::set_continuous_states::<M, Layout>(c, f, x, n) }
-        }
-        $crate::model_exchange_arrays!(
-            fmi3Instance, Layout, functions;
-            fmi3GetContinuousStates = GET_CONTINUOUS_STATES, ContinuousStates;
-            fmi3GetContinuousStateDerivatives = GET_CONTINUOUS_STATE_DERIVATIVES, Derivatives;
-            fmi3GetEventIndicators = GET_EVENT_INDICATORS, EventIndicators;
-            fmi3GetNominalsOfContinuousStates = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
-        );
-        #[no_mangle]
         pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
             c: fmi3Instance,
             n: *mut usize,
         ) -> fmi3Status {
-            unsafe { me::number_of_event_indicators::<M>(c, n) }
+            unsafe { me::number_of::<M>(c, me::Count::EventIndicators, n) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
             c: fmi3Instance,
             n: *mut usize,
         ) -> fmi3Status {
-            unsafe { me::number_of_continuous_states::<M>(c, n) }
+            unsafe { me::number_of::<M>(c, me::Count::ContinuousStates, n) }
         }
         $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
         $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
