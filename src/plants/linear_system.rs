@@ -303,8 +303,9 @@ impl LinearSystem {
                 format!("must have {} entries, got {}", p.outputs(), out.len()),
             ));
         }
-        p.c.mul_to(&self.state, out);
-        add_product(out, &p.d, u);
+        for (i, y) in out.iter_mut().enumerate() {
+            *y = row_product(&p.c, i, &self.state) + row_product(&p.d, i, u);
+        }
         Ok(())
     }
 
@@ -325,8 +326,9 @@ impl LinearSystem {
                 format!("must have {} entries", p.states()),
             ));
         }
-        p.a.mul_to(x, dx);
-        add_product(dx, &p.b, u);
+        for (i, dx) in dx.iter_mut().enumerate() {
+            *dx = row_product(&p.a, i, x) + row_product(&p.b, i, u);
+        }
         Ok(())
     }
 
@@ -408,11 +410,11 @@ impl LinearSystem {
         for z in w.process_deviates.iter_mut() {
             *z = self.process_stream.gaussian();
         }
-        transition.mul_to(&self.state, &mut w.transition);
-        input.mul_to(u, &mut w.input);
-        factor.mul_to(&w.process_deviates, &mut w.noise);
-        w.transition += &w.input;
-        w.transition += &w.noise;
+        for (i, next) in w.transition.iter_mut().enumerate() {
+            *next = row_product(transition, i, &self.state)
+                + row_product(input, i, u)
+                + row_product(factor, i, &w.process_deviates);
+        }
         std::mem::swap(&mut self.state, &mut w.transition);
         self.draw_measurement_noise();
     }
@@ -489,8 +491,9 @@ impl LinearSystem {
         for z in self.work.measurement_deviates.iter_mut() {
             *z = self.measurement_stream.gaussian();
         }
-        self.measurement_factor
-            .mul_to(&self.work.measurement_deviates, &mut self.measurement_noise);
+        for (i, v) in self.measurement_noise.iter_mut().enumerate() {
+            *v = row_product(&self.measurement_factor, i, &self.work.measurement_deviates);
+        }
     }
 
     /// The cached discretisation for `h`, or a fresh one.
@@ -537,19 +540,20 @@ impl LinearSystem {
     }
 }
 
-/// `out += M v` without a temporary, each `(M v)ᵢ` summed over the columns in order as
-/// nalgebra's `&M * &v` sums it, so `(C x) + (D u)` is bit-identical to `&C * &x + &D * u`.
-fn add_product(out: &mut DVector<f64>, m: &DMatrix<f64>, v: &DVector<f64>) {
-    if m.ncols() == 0 {
-        return;
+/// `(M v)ᵢ` without a temporary, summed over the columns in order as nalgebra's `&M * &v`
+/// sums it (column by column), so `(C x)ᵢ + (D u)ᵢ` is bit-identical to `&C * &x + &D * u`;
+/// 0 for a matrix without columns. `M` is column-major with `v.len()` columns.
+fn row_product(m: &DMatrix<f64>, i: usize, v: &DVector<f64>) -> f64 {
+    let (rows, cols) = m.shape();
+    let (entries, values) = (m.as_slice(), v.as_slice());
+    if cols == 0 || i >= rows || values.len() < cols {
+        return 0.0;
     }
-    for (i, out) in out.iter_mut().enumerate() {
-        let mut sum = m[(i, 0)] * v[0];
-        for j in 1..m.ncols() {
-            sum += m[(i, j)] * v[j];
-        }
-        *out += sum;
+    let mut sum = entries[i] * values[0];
+    for j in 1..cols {
+        sum += entries[i + j * rows] * values[j];
     }
+    sum
 }
 
 fn require_shape(

@@ -224,6 +224,9 @@ pub struct LinearSystemFmu {
     layout: Layout,
     system: Option<LinearSystem>,
     clock: SampleClock,
+    /// The input `u` and the noise-free output, preallocated so a step allocates nothing.
+    input: DVector<f64>,
+    clean: DVector<f64>,
 }
 
 fn error(e: spurio::ParameterError) -> Failure {
@@ -231,21 +234,29 @@ fn error(e: spurio::ParameterError) -> Failure {
 }
 
 impl LinearSystemFmu {
-    fn input(&self, ctx: &Context) -> DVector<f64> {
-        self.layout.u.vector(ctx.values)
+    /// Reads the inputs into the preallocated `u`.
+    fn read_input(&mut self, ctx: &Context) {
+        for (u, k) in self.input.iter_mut().zip(self.layout.u.indices()) {
+            *u = ctx.values.real(k);
+        }
     }
 
-    fn write_outputs(&self, ctx: &mut Context) -> Result<(), Failure> {
+    fn write_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.read_input(ctx);
         let system = self
             .system
             .as_ref()
             .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
-        let u = self.input(ctx);
-        let clean = system.clean_output(&u).map_err(error)?;
-        let measured = &clean + system.measurement_noise();
-        self.layout.y.write_vector(ctx.values, &measured);
-        self.layout.y_clean.write_vector(ctx.values, &clean);
-        self.layout.x.write_vector(ctx.values, system.state());
+        system
+            .clean_output_into(&self.input, &mut self.clean)
+            .map_err(error)?;
+        let l = &self.layout;
+        let noise = system.measurement_noise();
+        for (j, (y, y_clean)) in l.y.indices().zip(l.y_clean.indices()).enumerate() {
+            ctx.values.set_real(y, self.clean[j] + noise[j]);
+            ctx.values.set_real(y_clean, self.clean[j]);
+        }
+        l.x.write_vector(ctx.values, system.state());
         Ok(())
     }
 
@@ -305,6 +316,8 @@ impl FmuModel for LinearSystemFmu {
             layout,
             system: None,
             clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
+            input: DVector::zeros(d.m),
+            clean: DVector::zeros(d.p),
         })
     }
 
@@ -319,29 +332,32 @@ impl FmuModel for LinearSystemFmu {
     }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        let u = self.input(ctx);
+        self.read_input(ctx);
         let system = self
             .system
             .as_mut()
             .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
-        let mut next = system.clone();
-        let mut clock = self.clock;
-        if ctx.values.boolean(self.layout.continuous) {
-            next.advance(&u, step).map_err(error)?;
+        // In place and all or nothing: a failed step leaves the system as it was.
+        let (clock, advanced) = if ctx.values.boolean(self.layout.continuous) {
+            (self.clock, system.advance(&self.input, step))
         } else {
             // The samples whose instants lie in this step, with the input set before it.
-            let samples;
-            (clock, samples) = self.clock.after(time, step)?;
-            for _ in samples {
-                next.advance(&u, clock.period()).map_err(error)?;
+            let (clock, samples) = self.clock.after(time, step)?;
+            let count = samples.end - samples.start;
+            (
+                clock,
+                system.advance_samples(&self.input, clock.period(), count),
+            )
+        };
+        advanced.map_err(|e| {
+            if e.parameter == "x" {
+                Failure::error(format!(
+                    "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
+                ))
+            } else {
+                error(e)
             }
-        }
-        if next.state().iter().any(|v| !v.is_finite()) {
-            return Err(Failure::error(format!(
-                "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
-            )));
-        }
-        *system = next;
+        })?;
         self.clock = clock;
         self.write_outputs(ctx)
     }
