@@ -28,6 +28,7 @@ pub mod fmi3;
 pub mod front;
 pub mod harness;
 pub mod instance;
+pub mod me;
 pub mod model;
 pub mod query;
 pub mod testing;
@@ -37,7 +38,8 @@ pub mod variables;
 
 pub use bytes::{ByteReader, ByteWriter};
 pub use description::{Config, DefaultExperiment, ModelInfo};
-pub use model::{Cause, Context, Failure, FmuModel};
+pub use me::ModelExchangeInfo;
+pub use model::{Cause, Context, EventUpdate, Failure, FmuModel, ModelExchange};
 pub use variables::{
     rows, Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
 };
@@ -54,13 +56,20 @@ pub use variables::{
 /// ```ignore
 /// spurio_export::export_fmu!(GantryCraneFmu);
 /// spurio_export::export_fmu!(SensorFmu, variants = [("Sensor", Config::new()), ("Sensor2", two)]);
+/// // Model Exchange too (the model implements `ModelExchange` and its description says
+/// // `.with_model_exchange()`):
+/// spurio_export::export_fmu!(GantryCraneFmu, model_exchange);
+/// spurio_export::export_fmu!(LinearSystemFmu, model_exchange, variants = [("LinearSystem", c)]);
 /// ```
 #[macro_export]
 macro_rules! export_fmu {
-    ($model:ty) => {
-        $crate::export_fmu!($model, variants = []);
-    };
-    ($model:ty, variants = [$(($stem:expr, $config:expr)),* $(,)?]) => {
+    (@with $model:ty, $me:expr, variants = [$(($stem:expr, $config:expr)),* $(,)?]) => {
+        /// The Model Exchange functions of this FMU's model, if it offers the interface.
+        #[doc(hidden)]
+        pub fn spurio_model_exchange() -> ::std::option::Option<$crate::me::Hooks<$model>> {
+            $me
+        }
+
         /// The variants of this FMU that are bundled and whose model descriptions are
         /// committed: (file stem, configuration).
         pub fn bundled_variants() -> Vec<$crate::query::Variant> {
@@ -82,6 +91,13 @@ macro_rules! export_fmu {
                 $crate::testing::check_bundled_variants::<$model>(
                     &super::bundled_variants(),
                     ::std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+                );
+            }
+            #[test]
+            fn model_exchange_is_declared_where_it_is_exported() {
+                $crate::testing::check_interfaces::<$model>(
+                    &super::bundled_variants(),
+                    super::spurio_model_exchange().is_some(),
                 );
             }
         }
@@ -128,6 +144,7 @@ macro_rules! export_fmu {
             use super::*;
             use $crate::ffi;
             use $crate::instance::functions;
+            use $crate::me::ffi as me;
             use $crate::types::*;
             type M = $model;
 
@@ -160,7 +177,14 @@ macro_rules! export_fmu {
             ) -> fmi2Component {
                 unsafe {
                     ffi::instantiate::<M>(
-                        name, kind, guid, resources, callbacks, visible, logging_on,
+                        name,
+                        kind,
+                        guid,
+                        resources,
+                        callbacks,
+                        visible,
+                        logging_on,
+                        super::spurio_model_exchange(),
                     )
                 }
             }
@@ -323,16 +347,72 @@ macro_rules! export_fmu {
             ) -> fmi2Status {
                 unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
             }
-            $crate::unsupported_fmi2_function!(
-                fmi2GetDirectionalDerivative(
-                    _u: *const fmi2ValueReference,
-                    _nu: usize,
-                    _z: *const fmi2ValueReference,
-                    _nz: usize,
-                    _dv: *const fmi2Real,
-                    _dz: *mut fmi2Real,
-                ) => GET_DIRECTIONAL_DERIVATIVE, "providesDirectionalDerivative=\"false\""
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+                c: fmi2Component,
+                unknowns: *const fmi2ValueReference,
+                n_unknowns: usize,
+                knowns: *const fmi2ValueReference,
+                n_knowns: usize,
+                seed: *const fmi2Real,
+                out: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    me::get_directional_derivative::<M>(
+                        c, unknowns, n_unknowns, knowns, n_knowns, seed, out,
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+                unsafe { me::set_time::<M>(c, time) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetContinuousStates(
+                c: fmi2Component,
+                x: *const fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                unsafe { me::set_continuous_states::<M>(c, x, nx) }
+            }
+            $crate::fmi2_array_getter!(fmi2GetContinuousStates, get_continuous_states);
+            $crate::fmi2_array_getter!(fmi2GetDerivatives, get_derivatives);
+            $crate::fmi2_array_getter!(fmi2GetEventIndicators, get_event_indicators);
+            $crate::fmi2_array_getter!(
+                fmi2GetNominalsOfContinuousStates,
+                get_nominals_of_continuous_states
             );
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
+                unsafe { me::enter_event_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2NewDiscreteStates(
+                c: fmi2Component,
+                event_info: *mut me::fmi2EventInfo,
+            ) -> fmi2Status {
+                unsafe { me::new_discrete_states::<M>(c, event_info) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
+                unsafe { me::enter_continuous_time_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
+                c: fmi2Component,
+                no_set_prior: fmi2Boolean,
+                enter_event_mode: *mut fmi2Boolean,
+                terminate_simulation: *mut fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe {
+                    me::completed_integrator_step::<M>(
+                        c,
+                        no_set_prior,
+                        enter_event_mode,
+                        terminate_simulation,
+                    )
+                }
+            }
             $crate::unsupported_fmi2_function!(
                 fmi2SetRealInputDerivatives(
                     _vr: *const fmi2ValueReference,
@@ -406,6 +486,22 @@ macro_rules! export_fmu {
             }
         }
     };
+    ($model:ty) => {
+        $crate::export_fmu!(@with $model, None, variants = []);
+    };
+    ($model:ty, model_exchange) => {
+        $crate::export_fmu!(@with $model, Some($crate::me::hooks::<$model>()), variants = []);
+    };
+    ($model:ty, variants = [$($variants:tt)*]) => {
+        $crate::export_fmu!(@with $model, None, variants = [$($variants)*]);
+    };
+    ($model:ty, model_exchange, variants = [$($variants:tt)*]) => {
+        $crate::export_fmu!(
+            @with $model,
+            Some($crate::me::hooks::<$model>()),
+            variants = [$($variants)*]
+        );
+    };
 }
 
 /// Emits, inside [`export_fmu!`], an `fmi2*` entry point of a capability the FMUs do not
@@ -417,6 +513,23 @@ macro_rules! unsupported_fmi2_function {
         #[no_mangle]
         pub unsafe extern "C" fn $name(c: fmi2Component, $($arg: $type),*) -> fmi2Status {
             unsafe { $crate::ffi::unsupported::<M>(c, &functions::$function, $capability) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`], an FMI 2.0 Model Exchange function that fills the caller's
+/// Real array (`fmi2GetDerivatives`, …).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_array_getter {
+    ($name:ident, $function:ident) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            out: *mut fmi2Real,
+            n: usize,
+        ) -> fmi2Status {
+            unsafe { me::$function::<M>(c, out, n) }
         }
     };
 }
