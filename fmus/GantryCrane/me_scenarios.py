@@ -76,24 +76,35 @@ def crane_reference(s0, force, stop_time, h=5e-4, **p):
     return events, s
 
 
-# One entry a scenario (contract of tests/fmpy/test_model_exchange.py): start values, constant
-# inputs from t = 0, stop time, the outputs compared, the grid, the relative agreement with
-# Co-Simulation, and the independent event times.
+# One entry a scenario (the contract of tests/fmpy/test_model_exchange.py): start values,
+# inputs, stop time, the outputs compared with Co-Simulation (RK4, 1 ms substeps, communication
+# step = output_interval) and how closely, and the independent event times (1e-6 s).
 _HIT = crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, 2.0)[0]
 _BOUNCES = crane_reference([0.45, 0.3, 0.5, 0.0], 0.02, 3.0)[0]
+_STATES = ["x", "theta", "v", "omega"]
 
 SCENARIOS = [
-    dict(name="free_swing", start_values={"theta0": 0.2}, inputs=[(0.0, {"U": 0.0})],
-         stop_time=10.0, outputs=["x", "theta", "v", "omega"], output_interval=0.01,
-         rtol_vs_cs=1e-5, event_times=[]),
-    dict(name="step_force", start_values={"U": 1.0}, inputs=[(0.0, {"U": 1.0})],
-         stop_time=1.0, outputs=["x", "theta", "v", "omega"], output_interval=0.01,
-         rtol_vs_cs=1e-5, event_times=[]),
-    dict(name="rail_stop_sustained_push", start_values={"U": 3.0}, inputs=[(0.0, {"U": 3.0})],
-         stop_time=2.0, outputs=["x", "theta", "v", "omega"], output_interval=0.01,
-         rtol_vs_cs=2e-2, event_times=[t for t, _ in _HIT]),
-    dict(name="held_and_released_by_the_swing",
+    # off the stops: CVode (1e-8) against RK4 (1 ms), measured 2.0e-6 relative
+    dict(fmu="GantryCrane", name="free_swing", start_values={"theta0": 0.2}, stop_time=10.0,
+         output_interval=0.01, outputs=_STATES, rtol=1e-5, atol=1e-6, event_times=[]),
+    dict(fmu="GantryCrane", name="step_force", start_values={"U": 1.0},
+         inputs=[(0.0, {"U": 1.0})], stop_time=1.0, output_interval=0.01, outputs=_STATES,
+         rtol=1e-5, atol=1e-6, event_times=[]),
+    # at a stop Co-Simulation resolves the contact to one RK4 substep (1 ms): measured 8e-4
+    # of the largest value, so the agreement asked for is that of a 1 ms contact time
+    dict(fmu="GantryCrane", name="rail_stop_sustained_push", start_values={"U": 3.0},
+         inputs=[(0.0, {"U": 3.0})], stop_time=2.0, output_interval=0.01, outputs=_STATES,
+         rtol=1e-2, atol=5e-3, event_times=[t for t, _ in _HIT]),
+    dict(fmu="GantryCrane", name="held_and_released_by_the_swing",
          start_values={"U": 0.02, "x0": 0.45, "v0": 0.5, "theta0": 0.3},
-         inputs=[(0.0, {"U": 0.02})], stop_time=3.0, outputs=["x", "theta", "v", "omega"],
-         output_interval=0.01, rtol_vs_cs=5e-2, event_times=[t for t, _ in _BOUNCES]),
+         inputs=[(0.0, {"U": 0.02})], stop_time=3.0, output_interval=0.01, outputs=_STATES,
+         rtol=1e-2, atol=5e-3, event_times=[t for t, _ in _BOUNCES]),
 ]
+
+
+def random_point(rng, start):
+    """States anywhere on the rail and swinging, a force inside ±U_max (the Jacobian of the
+    saturation is 0 beyond): for the directional-derivative check."""
+    states = dict(x=rng.uniform(-0.4, 0.4), theta=rng.uniform(-1.5, 1.5), v=rng.uniform(-2, 2),
+                  omega=rng.uniform(-4, 4))
+    return states, {"U": rng.uniform(-15.0, 15.0)}

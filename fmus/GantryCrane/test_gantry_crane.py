@@ -286,81 +286,47 @@ def test_reset_returns_to_start_values():
 # --- Model Exchange: fmpy's CVode against the Co-Simulation FMU and an independent reference --
 
 
-import importlib.util  # noqa: E402
-import pathlib  # noqa: E402
 import re  # noqa: E402
 
+from conftest import me_scenarios_of  # noqa: E402
 
-def _scenarios_module():
-    """This folder's me_scenarios.py, loaded under its own name (every plant has one)."""
-    path = pathlib.Path(__file__).with_name("me_scenarios.py")
-    spec = importlib.util.spec_from_file_location(f"{path.parent.name}_me_scenarios", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+crane_scenarios = me_scenarios_of(__file__)
+# (tests/fmpy/test_model_exchange.py runs every scenario against Co-Simulation and checks the
+# event times; here: what the crane logs at its events and where the load ends up)
 
 
-crane_scenarios = _scenarios_module()
-SCENARIOS = crane_scenarios.SCENARIOS
-
-
-def simulate_me_and_cs(scenario):
-    """The scenario through Model Exchange (CVode, relative tolerance 1e-8, events logged) and
-    Co-Simulation on the same output grid."""
+def simulate_me(start_values, stop_time):
+    """fmpy's CVode (relative tolerance 1e-8) on the Model Exchange interface, events logged."""
     sink = LogSink()
-    common = dict(stop_time=scenario["stop_time"], output_interval=scenario["output_interval"],
-                  start_values=scenario["start_values"], output=scenario["outputs"])
-    me = simulate_fmu(fmu_path("GantryCrane"), fmi_type="ModelExchange", solver="CVode",
-                      relative_tolerance=1e-8, debug_logging=True, logger=sink, **common)
-    cs = simulate_fmu(fmu_path("GantryCrane"), fmi_type="CoSimulation", **common)
+    result = simulate_fmu(fmu_path("GantryCrane"), fmi_type="ModelExchange", solver="CVode",
+                          relative_tolerance=1e-8, stop_time=stop_time, output_interval=0.01,
+                          start_values=start_values, debug_logging=True, logger=sink)
     events = [(float(m.group(1)), m.group(2)) for m in
-              (re.search(r"t = (\S+) s: the cart is (free|held)", t) for t in sink.texts()) if m]
-    return me, cs, events
+              (re.search(r"t = (\S+) s: the cart is (free on the rail after|free|held)", t)
+               for t in sink.texts()) if m]
+    return result, events
 
 
-def on_grid(me, times):
-    """Model Exchange results at the grid times (fmpy adds rows at events: the last row of a time)."""
-    idx = [np.where(np.isclose(me["time"], t, rtol=0, atol=1e-9))[0][-1] for t in times]
-    return me[idx]
-
-
-@pytest.mark.parametrize("scenario", SCENARIOS, ids=[s["name"] for s in SCENARIOS])
-def test_model_exchange_agrees_with_co_simulation_and_finds_the_events(scenario):
-    me, cs, events = simulate_me_and_cs(scenario)
-    grid = on_grid(me, cs["time"])
-    worst = 0.0
-    for name in scenario["outputs"]:
-        scale = max(np.max(np.abs(cs[name])), 1e-3)
-        diff = np.max(np.abs(grid[name] - cs[name])) / scale
-        worst = max(worst, diff)
-    times = [t for t, _ in events]
-    errors = [abs(a - b) for a, b in zip(times, scenario["event_times"])]
-    print(f"{scenario['name']}: ME vs CS largest relative difference {worst:.2e}; "
-          f"events {len(times)} (reference {len(scenario['event_times'])}), "
-          f"largest event-time error {max(errors, default=0.0):.2e} s")
-    assert worst <= scenario["rtol_vs_cs"]
-    assert len(times) == len(scenario["event_times"]), (events, scenario["event_times"])
-    assert max(errors, default=0.0) < 1e-6
+def test_model_exchange_logs_each_contact_change_at_the_reference_time():
+    start = {"U": 0.02, "x0": 0.45, "v0": 0.5, "theta0": 0.3}
+    me, events = simulate_me(start, 3.0)
+    reference, _ = crane_scenarios.crane_reference([0.45, 0.3, 0.5, 0.0], 0.02, 3.0)
+    kinds = {"bounce": "free on the rail after", "held": "held", "release": "free"}
+    assert [k for _, k in events] == [kinds[k] for _, k in reference], (events, reference)
+    errors = [abs(t - r) for (t, _), (r, _) in zip(events, reference)]
+    print(f"held/released: {len(events)} events, largest time error {max(errors):.2e} s")
+    assert max(errors) < 1e-6
     assert np.max(np.abs(me["x"])) <= 0.5 * (1 + 1e-9)  # the pre-event row: the located root
 
 
-def test_model_exchange_holds_the_cart_at_the_stop_and_agrees_with_the_reference_state():
-    scenario = SCENARIOS[2]
-    me, cs, _ = simulate_me_and_cs(scenario)
-    _, final = crane_scenarios.crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, scenario["stop_time"])
+def test_model_exchange_holds_the_cart_at_the_stop_and_swings_like_the_reference():
+    me, events = simulate_me({"U": 3.0}, 2.0)
+    (hit, _), = crane_scenarios.crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, 0.9)[0]
+    _, final = crane_scenarios.crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, 2.0)
+    assert [k for _, k in events] == ["held"] and abs(events[0][0] - hit) < 1e-6
     end = me[-1]
     assert end["x"] == 0.5 and end["v"] == 0.0
-    # after the event both interfaces hold the cart; the swing agrees with the reference
+    print(f"rail stop at {events[0][0]:.9f} s (reference {hit:.9f} s); final theta "
+          f"{end['theta']:.9f} (reference {final[1]:.9f}), omega {end['omega']:.9f} "
+          f"(reference {final[3]:.9f})")
     assert abs(end["theta"] - final[1]) < 1e-6 and abs(end["omega"] - final[3]) < 1e-5
-    print(f"rail stop: final theta ME {end['theta']:.9f}, reference {final[1]:.9f}, "
-          f"CS {cs[-1]['theta']:.9f}")
-
-
-def test_model_exchange_validates_and_offers_directional_derivatives(crane_fmu):
-    from fmpy import read_model_description
-    md = read_model_description(crane_fmu)
-    assert md.modelExchange is not None and md.coSimulation is not None
-    assert md.modelExchange.providesDirectionalDerivative
-    assert md.numberOfEventIndicators == 3
-    assert [v.name for v in md.modelVariables if v.derivative is not None] == [
-        "der(x)", "der(theta)", "der(v)", "der(omega)"]

@@ -209,7 +209,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
     ));
     let sample_period = t.add(clock::parameter());
     let der_x = add_vector(&mut t, "der(x)", n, |_, i| {
-        Variable::derivative(&format!("der(x)[{}]", i + 1), x.first + i)
+        Variable::derivative(&format!("der(x[{}])", i + 1), x.first + i)
             .describe("dx/dt = A x + B u (Model Exchange, continuous = true)")
             .depends_on(&states_and_inputs)
     });
@@ -613,7 +613,7 @@ mod tests {
             assert_eq!(v[l.continuous].name, "continuous");
             assert_eq!(v[l.sample_period].name, "sample_period");
             assert_eq!(l.sample_period, v.len() - 1 - n);
-            assert_eq!(v[l.der_x.first].name, "der(x)[1]");
+            assert_eq!(v[l.der_x.first].name, "der(x[1])");
             assert_eq!(v[l.der_x.first].derivative_of, Some(l.x.first));
             assert_eq!(v[l.a.index(n - 1, n - 1)].name, format!("A[{n},{n}]"));
             assert!(LinearSystem::new(default_parameters(&d)).is_ok());
