@@ -1,4 +1,5 @@
-//! The export layer shared by every spurio FMU: the FMI 2.0 and FMI 3.0 Co-Simulation fronts.
+//! The export layer shared by every spurio FMU: the FMI 2.0 and FMI 3.0 fronts, Co-Simulation
+//! and (for the models that offer it) Model Exchange.
 //!
 //! One implementation of the FMI plumbing for all FMUs, with no dependencies:
 //! - [`types`]: the C types of the standard headers;
@@ -10,6 +11,10 @@
 //! - [`instance`]: the state machine with allowed-state masks per function, argument checks,
 //!   the logger (always `"%s"` + message), FMU states;
 //! - [`ffi`]: the raw C entry points, each wrapped in `catch_unwind`;
+//! - [`me`]: Model Exchange for both versions — the states, derivatives and event indicators
+//!   a model declares in its table, the [`ModelExchange`] calls of an instance (the Model
+//!   Exchange state machine: Instantiated → Initialization → Event ↔ Continuous-Time →
+//!   Terminated), and the entry points both fronts share;
 //! - [`fmi3`]: the FMI 3.0 front over the same model, instance and table (arrays, its model
 //!   description, the `fmi3*` entry points);
 //! - [`query`]: the non-FMI questions a packager asks a built library (bundled variants,

@@ -9,7 +9,31 @@
 //! ([`crate::ModelInfo::with_model_exchange`]) and
 //! exporting with `export_fmu!(Model, model_exchange)`. The layer derives everything else
 //! from the one table: the number and order of the states (value-reference order), their
-//! nominals, the `derivative="…"` attributes and the ModelStructure of both versions.
+//! nominals, the `derivative="…"` attributes and the ModelStructure of both versions
+//! (`<Derivatives>`/`<ContinuousStateDerivative>` with the dependencies declared by
+//! `depends_on` — states and inputs —, `<InitialUnknowns>` with the states and derivatives,
+//! FMI 3.0 `<EventIndicator>`s).
+//!
+//! ```ignore
+//! declare_variables! { pub fn variables() { table: [
+//!     U = rows::input("U", 0.0, "N", "Force on the cart"),
+//!     X = rows::output("x", "m", "Cart position").state().nominal(0.1).depends_on(&[vr::X]),
+//!     V = rows::output("v", "m/s", "Cart velocity").state().depends_on(&[vr::V]),
+//!     DER_X = rows::derivative("der(x)", vr::X, "m/s", "").depends_on(&[vr::V]),
+//!     DER_V = rows::derivative("der(v)", vr::V, "m/s2", "").depends_on(&[vr::U]),
+//!     TO_STOP = rows::event_indicator("to_stop", "m", "Distance to the rail stop"),
+//! ] } }
+//! // describe: ModelInfo::new(…, variables(), …).with_model_exchange()?
+//! // impl ModelExchange for Model { evaluate, event_indicators, update_discrete_states,
+//! //                                directional_derivative }
+//! spurio_export::export_fmu!(Model, model_exchange);
+//! ```
+//!
+//! The instance keeps the states in the variable values (so FMU states carry them), evaluates
+//! the model when states, inputs or time changed and something is read, checks every result
+//! for finiteness (a non-finite derivative, output or event indicator is an error naming it,
+//! never published), and refuses the Model Exchange functions on a Co-Simulation instance.
+//! Directional derivatives serve Co-Simulation instances too, at the values of the last step.
 
 pub mod ffi;
 pub mod instance;
