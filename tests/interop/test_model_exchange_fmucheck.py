@@ -7,8 +7,8 @@ Model Exchange interface within the Euler method's accuracy.
 
 The step is a power of two (`binary_step`) and the input rows are moved onto its grid."""
 
-import importlib.util
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -16,28 +16,13 @@ from fmpy import read_model_description, simulate_fmu
 
 from conftest import FMUCHECK, REPO, binary_step, column, our_fmu, read_csv, require
 
+sys.path.insert(0, str(REPO / "scripts"))
+import me_scenarios  # noqa: E402
+
 # fmuCheck integrates with forward Euler at h (error O(h)) and applies an input change one
 # step late; at h ≈ output_interval / 100 that is well within 1 % of each output's range,
 # while a wrong derivative, event indicator or discrete change is not.
 EULER_RTOL = 0.01
-
-
-def stems():
-    return [
-        p.stem
-        for p in sorted((REPO / "modelDescription").glob("*.xml"))
-        if "<ModelExchange " in p.read_text()
-    ]
-
-
-def scenarios():
-    scenarios = []
-    for path in sorted((REPO / "fmus").glob("*/me_scenarios.py")):
-        spec = importlib.util.spec_from_file_location(f"me_scenarios_{path.parent.name}", path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        scenarios += module.SCENARIOS
-    return scenarios
 
 
 def usable_scenario(stem, fmu):
@@ -47,7 +32,7 @@ def usable_scenario(stem, fmu):
         v.name for v in read_model_description(str(fmu)).modelVariables
         if v.causality == "input" and v.type == "Real"
     }
-    for s in scenarios():
+    for s in me_scenarios.load(REPO)[0]:
         start = s.get("start_values", {})
         if s["fmu"] != stem or not set(start) <= inputs:
             continue
@@ -63,7 +48,7 @@ def on_grid(rows, h):
     return [(round(t / h) * h, values) for t, values in rows]
 
 
-@pytest.mark.parametrize("stem", stems())
+@pytest.mark.parametrize("stem", me_scenarios.stems(REPO))
 def test_fmucheck_me_passes_and_matches_fmpy_cvode(stem, workdir):
     fmu = our_fmu(stem)
     s, rows = usable_scenario(stem, fmu)
