@@ -144,18 +144,26 @@ macro_rules! function {
 pub(crate) use function;
 
 /// Declares, in a version's `functions` module, the functions both versions have under the
-/// same name but for the prefix `$fmi` (and the spellings `$state` of "FMU state" and
-/// `$deserialize` of its deserialization), with the
-/// version's masks: every live state, where FMU states may be taken, where values may be
-/// read and set.
+/// same name but for the prefix `$fmi` (and the spellings `$state` of "FMU state",
+/// `$deserialize` of its deserialization, `$real` and `$integer` of the numeric types), with
+/// the version's masks: every live state, where FMU states may be taken, where values may be
+/// read and set, where the instance may be terminated.
 macro_rules! shared_functions {
-    ($fmi:literal, $state:literal, $deserialize:literal, $any_live:expr, $state_ops:expr, $get:expr, $set:expr) => {
+    (
+        $fmi:literal, $state:literal, $deserialize:literal, $real:literal, $integer:literal,
+        $any_live:expr, $state_ops:expr, $get:expr, $set:expr, $terminable:expr
+    ) => {
         use $crate::instance::function as f;
         f! { SET_DEBUG_LOGGING, concat!($fmi, "SetDebugLogging"), $any_live }
         f! { FREE_INSTANCE, concat!($fmi, "FreeInstance"), $any_live | FATAL }
         f! { ENTER_INITIALIZATION_MODE, concat!($fmi, "EnterInitializationMode"), INSTANTIATED }
         f! { EXIT_INITIALIZATION_MODE, concat!($fmi, "ExitInitializationMode"), INIT_MODE }
         f! { RESET, concat!($fmi, "Reset"), $state_ops }
+        f! { TERMINATE, concat!($fmi, "Terminate"), $terminable }
+        f! { GET_REAL, concat!($fmi, "Get", $real), $get }
+        f! { GET_INTEGER, concat!($fmi, "Get", $integer), $get }
+        f! { SET_REAL, concat!($fmi, "Set", $real), $set }
+        f! { SET_INTEGER, concat!($fmi, "Set", $integer), $set }
         f! { GET_BOOLEAN, concat!($fmi, "GetBoolean"), $get }
         f! { GET_STRING, concat!($fmi, "GetString"), $get }
         f! { SET_BOOLEAN, concat!($fmi, "SetBoolean"), $set }
@@ -204,21 +212,20 @@ pub mod functions {
     const STATUS_QUERIES: u32 =
         STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
 
+    const TERMINABLE: u32 = ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED;
     super::shared_functions!(
         "fmi2",
         "FMUstate",
         "DeSerializeFMUstate",
+        "Real",
+        "Integer",
         ANY_LIVE,
         STATE_OPS,
         AFTER_INIT,
-        SETTABLE
+        SETTABLE,
+        TERMINABLE
     );
-    f! { TERMINATE, "fmi2Terminate", ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
     f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }
-    f! { GET_REAL, "fmi2GetReal", AFTER_INIT }
-    f! { GET_INTEGER, "fmi2GetInteger", AFTER_INIT }
-    f! { SET_REAL, "fmi2SetReal", SETTABLE }
-    f! { SET_INTEGER, "fmi2SetInteger", SETTABLE }
     f! { SET_REAL_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", SETTABLE }
     f! { GET_REAL_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR }
     f! { CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS }

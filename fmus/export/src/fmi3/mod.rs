@@ -38,16 +38,14 @@ pub mod functions {
         "fmi3",
         "FMUState",
         "DeserializeFMUState",
+        "Float64",
+        "Int32",
         ANY_LIVE,
         ANY_LIVE,
         GETTABLE,
-        SETTABLE
+        SETTABLE,
+        STEP_COMPLETE | ME_MODES
     );
-    f! { TERMINATE, "fmi3Terminate", STEP_COMPLETE | ME_MODES }
-    f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
-    f! { GET_INT32, "fmi3GetInt32", GETTABLE }
-    f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
-    f! { SET_INT32, "fmi3SetInt32", SETTABLE }
     f! { GET_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
     f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
     f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
