@@ -217,22 +217,10 @@ macro_rules! export_fmu {
                     )
                 }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
-                unsafe { ffi::enter_initialization_mode::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
-                unsafe { ffi::exit_initialization_mode::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
-                unsafe { ffi::terminate::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
-                unsafe { ffi::reset::<M>(c) }
-            }
+            $crate::instance_entries!(fmi2Component;
+                fmi2EnterInitializationMode = enter_initialization_mode,
+                fmi2ExitInitializationMode = exit_initialization_mode,
+                fmi2Terminate = terminate, fmi2Reset = reset);
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetReal(
                 c: fmi2Component,
@@ -305,53 +293,11 @@ macro_rules! export_fmu {
             ) -> fmi2Status {
                 unsafe { ffi::set_string::<M>(c, vr, n, value) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetFMUstate(
-                c: fmi2Component,
-                state: *mut fmi2FMUstate,
-            ) -> fmi2Status {
-                unsafe { ffi::get_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetFMUstate(
-                c: fmi2Component,
-                state: fmi2FMUstate,
-            ) -> fmi2Status {
-                unsafe { ffi::set_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2FreeFMUstate(
-                c: fmi2Component,
-                state: *mut fmi2FMUstate,
-            ) -> fmi2Status {
-                unsafe { ffi::free_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
-                c: fmi2Component,
-                state: fmi2FMUstate,
-                size: *mut usize,
-            ) -> fmi2Status {
-                unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SerializeFMUstate(
-                c: fmi2Component,
-                state: fmi2FMUstate,
-                bytes: *mut fmi2Byte,
-                size: usize,
-            ) -> fmi2Status {
-                unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
-                c: fmi2Component,
-                bytes: *const fmi2Byte,
-                size: usize,
-                state: *mut fmi2FMUstate,
-            ) -> fmi2Status {
-                unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
-            }
+            $crate::fmu_state_entries!(
+                fmi2Component, fmi2FMUstate, fmi2Byte;
+                fmi2GetFMUstate, fmi2SetFMUstate, fmi2FreeFMUstate,
+                fmi2SerializedFMUstateSize, fmi2SerializeFMUstate, fmi2DeSerializeFMUstate
+            );
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
                 c: fmi2Component,
@@ -405,47 +351,18 @@ macro_rules! export_fmu {
             pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
                 unsafe { ffi::cancel_step::<M>(c) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetStatus(
-                c: fmi2Component,
-                kind: fmi2StatusKind,
-                value: *mut fmi2Status,
-            ) -> fmi2Status {
-                let _ = value;
-                unsafe { ffi::get_status::<M>(c, &functions::GET_STATUS, kind) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetRealStatus(
-                c: fmi2Component,
-                kind: fmi2StatusKind,
-                value: *mut fmi2Real,
-            ) -> fmi2Status {
-                unsafe { ffi::get_real_status::<M>(c, kind, value) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetIntegerStatus(
-                c: fmi2Component,
-                kind: fmi2StatusKind,
-                value: *mut fmi2Integer,
-            ) -> fmi2Status {
-                let _ = value;
-                unsafe { ffi::get_status::<M>(c, &functions::GET_INTEGER_STATUS, kind) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetBooleanStatus(
-                c: fmi2Component,
-                kind: fmi2StatusKind,
-                value: *mut fmi2Boolean,
-            ) -> fmi2Status {
-                unsafe { ffi::get_boolean_status::<M>(c, kind, value) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetStringStatus(
-                c: fmi2Component,
-                kind: fmi2StatusKind,
-                value: *mut fmi2String,
-            ) -> fmi2Status {
-                unsafe { ffi::get_string_status::<M>(c, kind, value) }
+            $crate::fmi2_status_queries! {
+                fmi2GetStatus(c, kind, value: fmi2Status) => {
+                    let _ = value;
+                    ffi::get_status::<M>(c, &functions::GET_STATUS, kind)
+                };
+                fmi2GetRealStatus(c, kind, value: fmi2Real) => ffi::get_real_status::<M>(c, kind, value);
+                fmi2GetIntegerStatus(c, kind, value: fmi2Integer) => {
+                    let _ = value;
+                    ffi::get_status::<M>(c, &functions::GET_INTEGER_STATUS, kind)
+                };
+                fmi2GetBooleanStatus(c, kind, value: fmi2Boolean) => ffi::get_boolean_status::<M>(c, kind, value);
+                fmi2GetStringStatus(c, kind, value: fmi2String) => ffi::get_string_status::<M>(c, kind, value);
             }
         }
     };
@@ -541,6 +458,91 @@ macro_rules! model_exchange_entries {
             pub unsafe extern "C" fn $name(c: $handle, out: *mut f64, n: usize) -> ::std::os::raw::c_int {
                 let (f, which) = (&$functions::$function, $crate::me::ffi::Array::$array);
                 unsafe { $crate::me::ffi::get_array::<M, $extra>(c, f, which, out, n) }
+            }
+        )+
+    };
+}
+
+/// Emits, inside [`export_fmu!`] or [`export_fmi3!`], the six FMU-state functions of a front
+/// (its handle, FMU-state and byte types; the names in the standard's order) over the `ffi`
+/// module in scope.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmu_state_entries {
+    (
+        $handle:ty, $state:ty, $byte:ty;
+        $get:ident, $set:ident, $free:ident, $size:ident, $serialize:ident, $deserialize:ident
+    ) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $get(c: $handle, state: *mut $state) -> ::std::os::raw::c_int {
+            unsafe { ffi::get_fmu_state::<M>(c, state) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $set(c: $handle, state: $state) -> ::std::os::raw::c_int {
+            unsafe { ffi::set_fmu_state::<M>(c, state) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $free(c: $handle, state: *mut $state) -> ::std::os::raw::c_int {
+            unsafe { ffi::free_fmu_state::<M>(c, state) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $size(
+            c: $handle,
+            state: $state,
+            size: *mut usize,
+        ) -> ::std::os::raw::c_int {
+            unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $serialize(
+            c: $handle,
+            state: $state,
+            bytes: *mut $byte,
+            size: usize,
+        ) -> ::std::os::raw::c_int {
+            unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $deserialize(
+            c: $handle,
+            bytes: *const $byte,
+            size: usize,
+            state: *mut $state,
+        ) -> ::std::os::raw::c_int {
+            unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`], the `fmi2Get*Status` functions: each name with its
+/// parameters' names and value type, and the call that answers it.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_status_queries {
+    ($($name:ident($c:ident, $kind:ident, $value:ident: $t:ty) => $body:expr;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                $c: fmi2Component,
+                $kind: fmi2StatusKind,
+                $value: *mut $t,
+            ) -> fmi2Status {
+                unsafe { $body }
+            }
+        )+
+    };
+}
+
+/// Emits, inside [`export_fmu!`] or [`export_fmi3!`], the entry points that take only the
+/// instance: each name with the function of the `ffi` module in scope that it calls.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! instance_entries {
+    ($handle:ty; $($name:ident = $function:ident),+ $(,)?) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(c: $handle) -> ::std::os::raw::c_int {
+                unsafe { ffi::$function::<M>(c) }
             }
         )+
     };

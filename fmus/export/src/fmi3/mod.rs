@@ -172,18 +172,9 @@ macro_rules! export_fmi3 {
                 let _ = (tolerance_defined, tolerance);
                 unsafe { ffi::enter_initialization_mode::<M>(c, start, stop_defined, stop) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3ExitInitializationMode(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::exit_initialization_mode::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Terminate(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::terminate::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Reset(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::reset::<M>(c) }
-            }
+            $crate::instance_entries!(fmi3Instance;
+                fmi3ExitInitializationMode = exit_initialization_mode,
+                fmi3Terminate = terminate, fmi3Reset = reset);
             #[no_mangle]
             pub unsafe extern "C" fn fmi3DoStep(
                 c: fmi3Instance,
@@ -231,53 +222,11 @@ macro_rules! export_fmi3 {
             ) -> fmi3Status {
                 unsafe { ffi::set_string::<M>(c, vr, nvr, values, n_values) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3GetFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::get_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SetFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::set_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3FreeFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::free_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                size: *mut usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializeFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                bytes: *mut fmi3Byte,
-                size: usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3DeserializeFMUState(
-                c: fmi3Instance,
-                bytes: *const fmi3Byte,
-                size: usize,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
-            }
+            $crate::fmu_state_entries!(
+                fmi3Instance, fmi3FMUState, fmi3Byte;
+                fmi3GetFMUState, fmi3SetFMUState, fmi3FreeFMUState,
+                fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3DeserializeFMUState
+            );
             $crate::fmi3_unsupported! {
                 "the FMU declares only Float64, Int32, Boolean and String variables";
                 fmi3GetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float32, _m: usize);
