@@ -158,8 +158,7 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
         ffi::refuse_instantiation::<Toy>(
             "fmi3InstantiateScheduledExecution",
             "Scheduled Execution",
-            std::ptr::null_mut(),
-            Some(log_message),
+            args(std::ptr::null(), std::ptr::null(), std::ptr::null()),
         )
     };
     assert!(se.is_null());

@@ -241,16 +241,15 @@ unsafe fn instantiate<M: FmuModel>(
 pub unsafe fn refuse_instantiation<M: FmuModel>(
     function: &str,
     interface: &str,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
+    args: Instantiation,
 ) -> fmi3Instance {
     let _ = guarded(|| {
         let id = M::describe(&Config::new())
             .map(|i| i.model_identifier)
             .unwrap_or_default();
         let sink = CallbackSink {
-            log_message,
-            environment,
+            log_message: args.5,
+            environment: args.4,
         };
         Logger::new("?", Box::new(sink), true)
             .error(&format!("{function}: {id} does not implement {interface}"));
