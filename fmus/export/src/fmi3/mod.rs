@@ -65,7 +65,7 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
-            use $crate::fmi3::arrays::Layout;
+            use $crate::front::Fmi3;
             use $crate::fmi3::ffi;
             use $crate::fmi3::functions;
             use $crate::fmi3::me;
@@ -308,7 +308,7 @@ macro_rules! fmi3_unsupported {
 #[macro_export]
 macro_rules! export_fmi3_model_exchange {
     () => {
-        $crate::model_exchange_entries!(fmi3Instance, Layout, fmi3Boolean, functions;
+        $crate::model_exchange_entries!(fmi3Instance, Fmi3, fmi3Boolean, functions;
             fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
             fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
             fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);

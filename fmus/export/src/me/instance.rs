@@ -43,7 +43,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The number of continuous states (0 for a model without Model Exchange).
     pub fn state_count(&self) -> usize {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or(0, |m| m.states.len())
@@ -51,7 +52,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The number of event indicators (0 for a model without Model Exchange).
     pub fn event_indicator_count(&self) -> usize {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or(0, |m| m.event_indicators.len())
@@ -66,7 +68,7 @@ impl<M: FmuModel> Instance<M> {
                 f,
                 &format!(
                     "{what} = {n}, but {} has {expected}",
-                    self.info.model_identifier
+                    self.interface.info.model_identifier
                 ),
             )
         }
@@ -127,7 +129,7 @@ impl<M: FmuModel> Instance<M> {
                     f,
                     &format!(
                         "state `{}`: {value} rejected, values must be finite",
-                        self.info.variables[i].name
+                        self.interface.info.variables[i].name
                     ),
                 );
             }
@@ -141,7 +143,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The indices of the states.
     fn states(&self) -> Vec<usize> {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or_else(Vec::new, |m| m.states.clone())
@@ -149,7 +152,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The indices of the derivatives, in state order.
     fn derivatives(&self) -> Vec<usize> {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or_else(Vec::new, |m| m.derivatives.clone())
@@ -194,10 +198,11 @@ impl<M: FmuModel> Instance<M> {
             return status;
         }
         let nominals = self
+            .interface
             .info
             .model_exchange
             .as_ref()
-            .map_or_else(Vec::new, |m| m.nominals(&self.info.variables));
+            .map_or_else(Vec::new, |m| m.nominals(&self.interface.info.variables));
         let status = self.check_count(f, "nx", out.len(), nominals.len());
         if status == Status::Ok {
             out.copy_from_slice(&nominals);
@@ -236,6 +241,7 @@ impl<M: FmuModel> Instance<M> {
             );
         }
         let indicators = self
+            .interface
             .info
             .model_exchange
             .as_ref()
@@ -338,13 +344,13 @@ impl<M: FmuModel> Instance<M> {
             .map(|i| (i, true))
             .chain(knowns.iter().map(|i| (i, false)))
         {
-            let Some(v) = self.info.variables.get(i) else {
+            let Some(v) = self.interface.info.variables.get(i) else {
                 return self.reject(
                     f,
                     &format!(
                         "unknown value reference {i} ({} has value references 0 to {})",
-                        self.info.model_identifier,
-                        self.info.variables.len().saturating_sub(1)
+                        self.interface.info.model_identifier,
+                        self.interface.info.variables.len().saturating_sub(1)
                     ),
                 );
             };
@@ -381,7 +387,7 @@ impl<M: FmuModel> Instance<M> {
             return status;
         }
         if let Some((k, value)) = result.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-            let name = &self.info.variables[unknowns[k]].name;
+            let name = &self.interface.info.variables[unknowns[k]].name;
             return self.reject(
                 f,
                 &format!(
