@@ -5,7 +5,7 @@
 //! serialize) carry them with everything else.
 
 use crate::instance::{Function, Instance, ModelState};
-use crate::me::Hooks;
+use crate::me::{Hooks, ModelExchangeInfo};
 use crate::model::{EventUpdate, FmuModel};
 use crate::types::Status;
 use crate::variables::{Causality, VariableType};
@@ -122,7 +122,7 @@ impl<M: FmuModel> Instance<M> {
         if status != Status::Ok {
             return status;
         }
-        let states = self.states();
+        let states = self.indices(|m| &m.states);
         for (&i, value) in states.iter().zip(x) {
             if !value.is_finite() {
                 return self.reject(
@@ -141,22 +141,14 @@ impl<M: FmuModel> Instance<M> {
         Status::Ok
     }
 
-    /// The indices of the states.
-    fn states(&self) -> Vec<usize> {
+    /// What `pick` takes of the Model Exchange interface (the states', the derivatives' or
+    /// the event indicators' indices); empty for a model without it.
+    fn indices(&self, pick: impl FnOnce(&ModelExchangeInfo) -> &Vec<usize>) -> Vec<usize> {
         self.interface
             .info
             .model_exchange
             .as_ref()
-            .map_or_else(Vec::new, |m| m.states.clone())
-    }
-
-    /// The indices of the derivatives, in state order.
-    fn derivatives(&self) -> Vec<usize> {
-        self.interface
-            .info
-            .model_exchange
-            .as_ref()
-            .map_or_else(Vec::new, |m| m.derivatives.clone())
+            .map_or_else(Vec::new, |m| pick(m).clone())
     }
 
     /// Reads the Reals at `indices` into `out` after evaluating (`fmi2GetContinuousStates`,
@@ -181,14 +173,14 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2GetContinuousStates`, `fmi3GetContinuousStates`.
     pub fn get_continuous_states(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let states = self.states();
+        let states = self.indices(|m| &m.states);
         self.read_reals(f, &states, out)
     }
 
     /// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`; a non-finite derivative is
     /// `Error` naming it (the values keep those from before, see [`Instance`]).
     pub fn get_derivatives(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let derivatives = self.derivatives();
+        let derivatives = self.indices(|m| &m.derivatives);
         self.read_reals(f, &derivatives, out)
     }
 
@@ -240,12 +232,7 @@ impl<M: FmuModel> Instance<M> {
                 ),
             );
         }
-        let indicators = self
-            .interface
-            .info
-            .model_exchange
-            .as_ref()
-            .map_or_else(Vec::new, |m| m.event_indicators.clone());
+        let indicators = self.indices(|m| &m.event_indicators);
         for (&i, value) in indicators.iter().zip(&z) {
             self.core.values.set_real(i, *value);
         }
