@@ -16,16 +16,17 @@ use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
 use std::ffi::{c_void, CStr, CString};
 
-// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
-const VR_TIME: u32 = 0;
-const VR_U: u32 = 1;
-const VR_Y: u32 = 2;
-const VR_Z: u32 = 3;
-const VR_P: u32 = 4;
-const VR_N: u32 = 5;
-const VR_POSITIVE: u32 = 6;
-// then y0, der(y), to_wrap, y_max.
-const VR_DER_Y: u32 = 8;
+macro_rules! value_references {
+    (@ $n:expr;) => {};
+    (@ $n:expr; $name:ident $(, $rest:ident)*) => {
+        #[allow(dead_code)]
+        const $name: u32 = $n;
+        value_references!(@ $name + 1; $($rest),*);
+    };
+    ($($name:ident),*) => { value_references!(@ 0; $($name),*); };
+}
+// FMI 3.0 value references of the toy: 0 time, then its variables (arrays as one).
+value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE, VR_Y0, VR_DER_Y }
 
 thread_local! {
     static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
