@@ -9,7 +9,9 @@
 //! would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused (`fmi2Error`,
 //! nothing changed).
 
-use spurio::plants::gantry_crane::{CraneState, GantryCrane, GantryCraneParameters, RailContact};
+use spurio::plants::gantry_crane::{
+    CraneState, GantryCrane, GantryCraneParameters, Integrator, RailContact,
+};
 use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
@@ -181,13 +183,17 @@ impl FmuModel for GantryCraneFmu {
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(vr::U);
-        let report = if self.tolerance > 0.0 {
-            self.crane
-                .advance_adaptive(time, u, step, self.tolerance, &mut self.step_guess)
-                .map_err(Failure::error)?
+        let integrator = if self.tolerance > 0.0 {
+            Integrator::DormandPrince {
+                tolerance: self.tolerance,
+            }
         } else {
-            self.crane.advance(time, u, step, self.h_max)
+            Integrator::Rk4 { h_max: self.h_max }
         };
+        let report = self
+            .crane
+            .advance_with(time, u, step, integrator, &mut self.step_guess)
+            .map_err(Failure::error)?;
         if let (Some((t, x)), false) = (report.hit_stop, self.stop_logged) {
             self.stop_logged = true;
             ctx.log_event(format!(

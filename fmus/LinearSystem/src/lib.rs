@@ -248,6 +248,11 @@ pub struct LinearSystemFmu {
     derivatives: DVector<f64>,
 }
 
+/// The system once initialised, or the error of a call before initialisation.
+fn initialised<T>(system: Option<T>) -> Result<T, Failure> {
+    system.ok_or_else(|| Failure::error("LinearSystem: not initialised"))
+}
+
 fn error(e: spurio::ParameterError) -> Failure {
     Failure::error(e.to_string())
 }
@@ -262,10 +267,7 @@ impl LinearSystemFmu {
 
     fn write_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_ref()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_ref())?;
         system
             .clean_output_into(&self.input, &mut self.clean)
             .map_err(error)?;
@@ -355,10 +357,7 @@ impl FmuModel for LinearSystemFmu {
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_mut())?;
         // In place and all or nothing: a failed step leaves the system as it was.
         let (clock, advanced) = if ctx.values.boolean(self.layout.continuous) {
             (self.clock, system.advance(&self.input, step))
@@ -419,10 +418,7 @@ impl ModelExchange for LinearSystemFmu {
             *x = ctx.values.real(k);
         }
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_mut())?;
         system
             .derivative_into(&self.states, &self.input, &mut self.derivatives)
             .map_err(error)?;
@@ -454,10 +450,7 @@ impl ModelExchange for LinearSystemFmu {
         seed: &[f64],
         out: &mut [f64],
     ) -> Result<(), Failure> {
-        let system = self
-            .system
-            .as_ref()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_ref())?;
         let p = system.parameters();
         let l = &self.layout;
         let position = |block: &Block, k: usize| block.indices().position(|i| i == k);
