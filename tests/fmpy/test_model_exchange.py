@@ -28,7 +28,7 @@ directional-derivative check (default: the initial states and inputs, each moved
 half its nominal/magnitude, seeded).
 """
 
-import importlib.util
+import sys
 import zipfile
 from ctypes import POINTER, c_double
 
@@ -40,6 +40,9 @@ from fmpy.validation import validate_fmu
 
 from conftest import FMU_DIR, REPO
 
+sys.path.insert(0, str(REPO / "scripts"))
+import me_scenarios  # noqa: E402
+
 CVODE_RTOL = 1e-8
 # Central differences with a relative step of 1e-6 have a truncation error of ~1e-12 and a
 # rounding error of ~1e-10 of the column's scale: 1e-6 is far above both.
@@ -47,31 +50,8 @@ DERIVATIVE_RTOL = 1e-6
 RANDOM_POINTS = 20
 
 
-def model_exchange_stems():
-    """The bundled variants whose committed FMI 2.0 description declares Model Exchange."""
-    return [
-        p.stem
-        for p in sorted((REPO / "modelDescription").glob("*.xml"))
-        if "<ModelExchange " in p.read_text()
-    ]
-
-
-def load_scenarios():
-    """Every fmus/<Id>/me_scenarios.py's SCENARIOS (and random_point, by FMU)."""
-    scenarios, samplers = [], {}
-    for path in sorted((REPO / "fmus").glob("*/me_scenarios.py")):
-        spec = importlib.util.spec_from_file_location(f"me_scenarios_{path.parent.name}", path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        for s in module.SCENARIOS:
-            scenarios.append(s)
-            if hasattr(module, "random_point"):
-                samplers[s["fmu"]] = module.random_point
-    return scenarios, samplers
-
-
-STEMS = model_exchange_stems()
-SCENARIOS, SAMPLERS = load_scenarios()
+STEMS = me_scenarios.stems(REPO)
+SCENARIOS, SAMPLERS = me_scenarios.load(REPO)
 
 
 def fmu_path(stem, fmi3=False):
