@@ -1,8 +1,13 @@
-//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (docs/models.md §2.1) as an FMI 2.0 CS FMU.
+//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (docs/models.md §2.1) as one FMU with
+//! both interfaces, Co-Simulation and Model Exchange.
 //!
 //! Input `U` [N] (saturated at ±`U_max`), outputs `x`, `theta`, `v`, `omega` and the applied
-//! force `U_applied`; the physical parameters of Annex A, the initial state and the RK4
-//! substep bound `h_max`. The mathematics is [`spurio::plants::gantry_crane`].
+//! force `U_applied`; the physical parameters of Annex A, the initial state, the RK4 substep
+//! bound `h_max` and the adaptive integrator's `tolerance` (0: RK4). Model Exchange: the
+//! outputs `x`…`omega` are the continuous states, `der(x)`…`der(omega)` their derivatives, the
+//! rail contact (free, held left, held right) the discrete state, with three event indicators
+//! (each stop, the force limit); exact directional derivatives on both interfaces. The
+//! mathematics, one right-hand side for both, is [`spurio::plants::gantry_crane`].
 //!
 //! Bounded work: every parameter has a declared range (a laboratory crane up to 10⁴ kg and
 //! 100 m, |ω₀| ≤ 10³ rad/s, 10⁻⁹ s ≤ `h_max` ≤ 1 s), checked when it is set, and a step that

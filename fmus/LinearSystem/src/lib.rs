@@ -26,6 +26,11 @@
 //! matrix exponential, Van Loan's method for `Q_h`, eigen-factor sampling of PSD covariances)
 //! is [`spurio::plants::linear_system`].
 //!
+//! Model Exchange (every variant declares it): the outputs `x[i]` are the continuous states,
+//! `der(x[i])` their derivatives, of the noise-free `dx/dt = A x + B u` with `y = y_clean =
+//! C x + D u`; no events; refused (`fmi2Error` naming `continuous`) in discrete time. The
+//! directional derivatives are `A`, `B`, `C`, `D` exactly, on both interfaces.
+//!
 //! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
 //! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
 //! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
