@@ -142,12 +142,22 @@ const DP_E: [f64; 7] = [
     -1.0 / 40.0,
 ];
 
-/// Integrates `ẋ = f(t, x)` over `[t, t + h]` with the Dormand–Prince 5(4) pair and error
+/// The error control of [`integrate_adaptive`]: its tolerance and the step to try next.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepControl {
+    /// Mixed absolute/relative error tolerance per step.
+    pub tolerance: f64,
+    /// The step to try first (carried from call to call; ≤ 0 or not finite: the whole span).
+    pub next_step: f64,
+}
+
+/// Integrates `ẋ = f(t, x)` from `x` over the span `(t, h)`, `[t, t + h]`, with the
+/// Dormand–Prince 5(4) pair and error
 /// control: a step is accepted when every component's error estimate is at most
 /// `tolerance · (1 + max(|xᵢ|, |xᵢ⁺|))` (mixed absolute/relative), and the next step is
-/// `0.9 · err^(−1/5)` times the last (between 0.2× and 5×). `step_guess` is the step to try
-/// first and receives the one to try next (carry it from call to call; any value ≤ 0 or not
-/// finite starts from `h`). The last step is cut to end exactly at `t + h`.
+/// `0.9 · err^(−1/5)` times the last (between 0.2× and 5×). `control.next_step` is the step
+/// to try first and receives the one to try next. The last step is cut to end exactly at
+/// `t + h`.
 ///
 /// `after_step` runs after every accepted step and may modify the state (a hard constraint such
 /// as a rail end stop). At most [`MAX_SUBSTEPS`] steps, accepted or rejected, are tried: more
@@ -156,17 +166,16 @@ const DP_E: [f64; 7] = [
 pub fn integrate_adaptive<const N: usize>(
     mut f: impl FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
     mut after_step: impl FnMut(f64, &mut SVector<f64, N>),
-    t: f64,
+    control: &mut StepControl,
+    (t, h): (f64, f64),
     x: &SVector<f64, N>,
-    h: f64,
-    tolerance: f64,
-    step_guess: &mut f64,
 ) -> Result<SVector<f64, N>, ParameterError> {
+    let tolerance = control.tolerance;
     let end = t + h;
     let mut time = t;
     let mut state = *x;
-    let mut step = if step_guess.is_finite() && *step_guess > 0.0 {
-        step_guess.min(h)
+    let mut step = if control.next_step.is_finite() && control.next_step > 0.0 {
+        control.next_step.min(h)
     } else {
         h
     };
@@ -229,7 +238,7 @@ pub fn integrate_adaptive<const N: usize>(
             }
         }
     }
-    *step_guess = step;
+    control.next_step = step;
     Ok(state)
 }
 
@@ -262,19 +271,14 @@ mod tests {
     fn the_adaptive_integrator_meets_its_tolerance_and_is_fifth_order() {
         let f = |_t: f64, x: &Vector2<f64>| Vector2::new(x[1], -x[0]);
         let run = |tolerance: f64| {
-            let mut guess = 0.0;
+            let mut control = StepControl {
+                tolerance,
+                next_step: 0.0,
+            };
             let mut x = Vector2::new(1.0, 0.0);
             for k in 0..20 {
-                x = integrate_adaptive(
-                    f,
-                    |_, _| {},
-                    k as f64 * 0.5,
-                    &x,
-                    0.5,
-                    tolerance,
-                    &mut guess,
-                )
-                .unwrap();
+                x = integrate_adaptive(f, |_, _| {}, &mut control, (k as f64 * 0.5, 0.5), &x)
+                    .unwrap();
             }
             (x[0] - 10f64.cos()).abs().max((x[1] + 10f64.sin()).abs())
         };
@@ -289,15 +293,16 @@ mod tests {
         let ratio = run(1e-8) / run(1e-9);
         assert!((2.0..30.0).contains(&ratio), "ratio {ratio}");
         // an impossible tolerance ends in an error, quickly
-        let mut guess = 0.0;
+        let mut control = StepControl {
+            tolerance: 1e-300,
+            next_step: 0.0,
+        };
         let e = integrate_adaptive(
             f,
             |_, _| {},
-            0.0,
+            &mut control,
+            (0.0, 1e3),
             &Vector2::new(1.0, 0.0),
-            1e3,
-            1e-300,
-            &mut guess,
         )
         .unwrap_err();
         assert_eq!(e.parameter, "tolerance");

@@ -697,6 +697,17 @@ mod tests {
         DMatrix::from_row_slice(rows, cols, values)
     }
 
+    /// The scalar system `x⁺ = a x` (or `dx/dt = a x`), `y = x`, no input, no noise.
+    fn scalar(a: f64, time_domain: TimeDomain) -> LinearSystemParameters {
+        LinearSystemParameters::noise_free(
+            matrix(1, 1, &[a]),
+            DMatrix::zeros(1, 0),
+            matrix(1, 1, &[1.0]),
+            DMatrix::zeros(1, 0),
+            time_domain,
+        )
+    }
+
     #[test]
     fn discrete_system_matches_matrix_powers() {
         let a = matrix(2, 2, &[0.9, 0.2, -0.1, 0.7]);
@@ -801,13 +812,7 @@ mod tests {
 
     #[test]
     fn a_step_to_a_non_finite_state_is_refused_and_rolled_back() {
-        let mut p = LinearSystemParameters::noise_free(
-            matrix(1, 1, &[1e200]),
-            DMatrix::zeros(1, 0),
-            matrix(1, 1, &[1.0]),
-            DMatrix::zeros(1, 0),
-            TimeDomain::Discrete,
-        );
+        let mut p = scalar(1e200, TimeDomain::Discrete);
         p.initial_state = DVector::from_element(1, 1.0);
         p.r = matrix(1, 1, &[1.0]);
         let mut s = LinearSystem::new(p).unwrap();
@@ -859,13 +864,7 @@ mod tests {
     #[test]
     fn process_and_measurement_noise_have_the_set_covariances() {
         // x⁺ = 0.5 x + w, Q = 1: stationary variance 1/(1 − 0.25) = 4/3; y = x + v, R = 0.1.
-        let mut p = LinearSystemParameters::noise_free(
-            matrix(1, 1, &[0.5]),
-            DMatrix::zeros(1, 0),
-            matrix(1, 1, &[1.0]),
-            DMatrix::zeros(1, 0),
-            TimeDomain::Discrete,
-        );
+        let mut p = scalar(0.5, TimeDomain::Discrete);
         p.q = matrix(1, 1, &[1.0]);
         p.r = matrix(1, 1, &[0.1]);
         let mut s = LinearSystem::new(p).unwrap();
@@ -893,13 +892,7 @@ mod tests {
     fn continuous_process_noise_uses_the_van_loan_covariance() {
         // dx/dt = −a x + w, spectral density q: Q_h = q (1 − e^{−2 a h}) / (2 a).
         let (a, q, h) = (2.0, 0.3, 0.25);
-        let mut p = LinearSystemParameters::noise_free(
-            matrix(1, 1, &[-a]),
-            DMatrix::zeros(1, 0),
-            matrix(1, 1, &[1.0]),
-            DMatrix::zeros(1, 0),
-            TimeDomain::Continuous,
-        );
+        let mut p = scalar(-a, TimeDomain::Continuous);
         p.q = matrix(1, 1, &[q]);
         let s = LinearSystem::new(p).unwrap();
         let d = s.discretisation(h).unwrap();

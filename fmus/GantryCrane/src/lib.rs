@@ -1,15 +1,22 @@
-//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (docs/models.md §2.1) as an FMI 2.0 CS FMU.
+//! `GantryCrane.fmu`: the nonlinear crane of paper 000 (docs/models.md §2.1) as one FMU with
+//! both interfaces, Co-Simulation and Model Exchange.
 //!
 //! Input `U` [N] (saturated at ±`U_max`), outputs `x`, `theta`, `v`, `omega` and the applied
-//! force `U_applied`; the physical parameters of Annex A, the initial state and the RK4
-//! substep bound `h_max`. The mathematics is [`spurio::plants::gantry_crane`].
+//! force `U_applied`; the physical parameters of Annex A, the initial state, the RK4 substep
+//! bound `h_max` and the adaptive integrator's `tolerance` (0: RK4). Model Exchange: the
+//! outputs `x`…`omega` are the continuous states, `der(x)`…`der(omega)` their derivatives, the
+//! rail contact (free, held left, held right) the discrete state, with three event indicators
+//! (each stop, the force limit); exact directional derivatives on both interfaces. The
+//! mathematics, one right-hand side for both, is [`spurio::plants::gantry_crane`].
 //!
 //! Bounded work: every parameter has a declared range (a laboratory crane up to 10⁴ kg and
 //! 100 m, |ω₀| ≤ 10³ rad/s, 10⁻⁹ s ≤ `h_max` ≤ 1 s), checked when it is set, and a step that
 //! would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused (`fmi2Error`,
 //! nothing changed).
 
-use spurio::plants::gantry_crane::{CraneState, GantryCrane, GantryCraneParameters, RailContact};
+use spurio::plants::gantry_crane::{
+    CraneState, GantryCrane, GantryCraneParameters, Integrator, RailContact,
+};
 use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
@@ -181,13 +188,17 @@ impl FmuModel for GantryCraneFmu {
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let u = ctx.values.real(vr::U);
-        let report = if self.tolerance > 0.0 {
-            self.crane
-                .advance_adaptive(time, u, step, self.tolerance, &mut self.step_guess)
-                .map_err(Failure::error)?
+        let integrator = if self.tolerance > 0.0 {
+            Integrator::DormandPrince {
+                tolerance: self.tolerance,
+            }
         } else {
-            self.crane.advance(time, u, step, self.h_max)
+            Integrator::Rk4 { h_max: self.h_max }
         };
+        let report = self
+            .crane
+            .advance_with(time, u, step, integrator, &mut self.step_guess)
+            .map_err(Failure::error)?;
         if let (Some((t, x)), false) = (report.hit_stop, self.stop_logged) {
             self.stop_logged = true;
             ctx.log_event(format!(

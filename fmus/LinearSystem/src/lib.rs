@@ -26,6 +26,11 @@
 //! matrix exponential, Van Loan's method for `Q_h`, eigen-factor sampling of PSD covariances)
 //! is [`spurio::plants::linear_system`].
 //!
+//! Model Exchange (every variant declares it): the outputs `x[i]` are the continuous states,
+//! `der(x[i])` their derivatives, of the noise-free `dx/dt = A x + B u` with `y = y_clean =
+//! C x + D u`; no events; refused (`fmi2Error` naming `continuous`) in discrete time. The
+//! directional derivatives are `A`, `B`, `C`, `D` exactly, on both interfaces.
+//!
 //! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
 //! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
 //! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
@@ -248,6 +253,11 @@ pub struct LinearSystemFmu {
     derivatives: DVector<f64>,
 }
 
+/// The system once initialised, or the error of a call before initialisation.
+fn initialised<T>(system: Option<T>) -> Result<T, Failure> {
+    system.ok_or_else(|| Failure::error("LinearSystem: not initialised"))
+}
+
 fn error(e: spurio::ParameterError) -> Failure {
     Failure::error(e.to_string())
 }
@@ -262,10 +272,7 @@ impl LinearSystemFmu {
 
     fn write_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_ref()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_ref())?;
         system
             .clean_output_into(&self.input, &mut self.clean)
             .map_err(error)?;
@@ -355,10 +362,7 @@ impl FmuModel for LinearSystemFmu {
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_mut())?;
         // In place and all or nothing: a failed step leaves the system as it was.
         let (clock, advanced) = if ctx.values.boolean(self.layout.continuous) {
             (self.clock, system.advance(&self.input, step))
@@ -419,10 +423,7 @@ impl ModelExchange for LinearSystemFmu {
             *x = ctx.values.real(k);
         }
         self.read_input(ctx);
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_mut())?;
         system
             .derivative_into(&self.states, &self.input, &mut self.derivatives)
             .map_err(error)?;
@@ -454,10 +455,7 @@ impl ModelExchange for LinearSystemFmu {
         seed: &[f64],
         out: &mut [f64],
     ) -> Result<(), Failure> {
-        let system = self
-            .system
-            .as_ref()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
+        let system = initialised(self.system.as_ref())?;
         let p = system.parameters();
         let l = &self.layout;
         let position = |block: &Block, k: usize| block.indices().position(|i| i == k);
