@@ -123,6 +123,9 @@ pub struct ModelInfo {
     pub default_experiment: Option<DefaultExperiment>,
     /// The configuration this interface was built for.
     pub config: Config,
+    /// The Model Exchange interface, if the model offers it
+    /// ([`ModelInfo::with_model_exchange`]).
+    pub model_exchange: Option<crate::me::ModelExchangeInfo>,
     /// `guid`, derived from all of the above.
     pub guid: String,
 }
@@ -159,10 +162,27 @@ impl ModelInfo {
             variables,
             default_experiment,
             config,
+            model_exchange: None,
             guid: String::new(),
         };
         info.guid = guid_of(&info.to_xml_with_guid(""));
         info
+    }
+
+    /// The same model offering Model Exchange too, with `event_indicators` event indicators:
+    /// the states and derivatives come from the table ([`crate::Variable::state`],
+    /// [`crate::Variable::derivative_of`]), checked here (every state has exactly one
+    /// derivative, every derivative's state is a continuous Real state). The GUID covers it.
+    pub fn with_model_exchange(
+        mut self,
+        event_indicators: usize,
+    ) -> Result<Self, crate::me::DeclarationError> {
+        self.model_exchange = Some(crate::me::ModelExchangeInfo::from_table(
+            &self.variables,
+            event_indicators,
+        )?);
+        self.guid = guid_of(&self.to_xml_with_guid(""));
+        Ok(self)
     }
 
     /// Index of the variable called `name`.

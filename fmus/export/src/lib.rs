@@ -28,6 +28,7 @@ pub mod fmi3;
 pub mod front;
 pub mod harness;
 pub mod instance;
+pub mod me;
 pub mod model;
 pub mod query;
 pub mod testing;
@@ -37,7 +38,8 @@ pub mod variables;
 
 pub use bytes::{ByteReader, ByteWriter};
 pub use description::{Config, DefaultExperiment, ModelInfo};
-pub use model::{Cause, Context, Failure, FmuModel};
+pub use me::ModelExchangeInfo;
+pub use model::{Cause, Context, EventUpdate, Failure, FmuModel, ModelExchange};
 pub use variables::{
     rows, Causality, Initial, Value, Values, Variability, Variable, VariableTable, VariableType,
 };
@@ -54,13 +56,20 @@ pub use variables::{
 /// ```ignore
 /// spurio_export::export_fmu!(GantryCraneFmu);
 /// spurio_export::export_fmu!(SensorFmu, variants = [("Sensor", Config::new()), ("Sensor2", two)]);
+/// // Model Exchange too (the model implements `ModelExchange` and its description says
+/// // `.with_model_exchange(n_event_indicators)`):
+/// spurio_export::export_fmu!(GantryCraneFmu, model_exchange);
+/// spurio_export::export_fmu!(LinearSystemFmu, model_exchange, variants = [("LinearSystem", c)]);
 /// ```
 #[macro_export]
 macro_rules! export_fmu {
-    ($model:ty) => {
-        $crate::export_fmu!($model, variants = []);
-    };
-    ($model:ty, variants = [$(($stem:expr, $config:expr)),* $(,)?]) => {
+    (@with $model:ty, $me:expr, variants = [$(($stem:expr, $config:expr)),* $(,)?]) => {
+        /// The Model Exchange functions of this FMU's model, if it offers the interface.
+        #[doc(hidden)]
+        pub fn spurio_model_exchange() -> ::std::option::Option<$crate::me::Hooks<$model>> {
+            $me
+        }
+
         /// The variants of this FMU that are bundled and whose model descriptions are
         /// committed: (file stem, configuration).
         pub fn bundled_variants() -> Vec<$crate::query::Variant> {
@@ -82,6 +91,13 @@ macro_rules! export_fmu {
                 $crate::testing::check_bundled_variants::<$model>(
                     &super::bundled_variants(),
                     ::std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+                );
+            }
+            #[test]
+            fn model_exchange_is_declared_where_it_is_exported() {
+                $crate::testing::check_interfaces::<$model>(
+                    &super::bundled_variants(),
+                    super::spurio_model_exchange().is_some(),
                 );
             }
         }
@@ -405,6 +421,22 @@ macro_rules! export_fmu {
                 unsafe { ffi::get_string_status::<M>(c, kind, value) }
             }
         }
+    };
+    ($model:ty) => {
+        $crate::export_fmu!(@with $model, None, variants = []);
+    };
+    ($model:ty, model_exchange) => {
+        $crate::export_fmu!(@with $model, Some($crate::me::hooks::<$model>()), variants = []);
+    };
+    ($model:ty, variants = [$($variants:tt)*]) => {
+        $crate::export_fmu!(@with $model, None, variants = [$($variants)*]);
+    };
+    ($model:ty, model_exchange, variants = [$($variants:tt)*]) => {
+        $crate::export_fmu!(
+            @with $model,
+            Some($crate::me::hooks::<$model>()),
+            variants = [$($variants)*]
+        );
     };
 }
 

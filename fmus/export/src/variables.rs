@@ -153,8 +153,16 @@ pub struct Variable {
     /// Upper bound, checked on `fmi2Set*`.
     pub max: Option<f64>,
     /// For outputs: the indices of the inputs this output depends on directly (direct
-    /// feedthrough). Empty: the output depends on no input within a step.
+    /// feedthrough). Empty: the output depends on no input within a step. For a Model
+    /// Exchange FMU, outputs and derivatives list the states and inputs they depend on.
     pub dependencies: Vec<usize>,
+    /// A continuous state of the Model Exchange interface ([`Variable::state`]).
+    pub state: bool,
+    /// For a state derivative `der(x)`: the index of its state `x`
+    /// ([`Variable::derivative_of`]).
+    pub derivative_of: Option<usize>,
+    /// The nominal value of a Real (`nominal="…"`; a state's for the solver's error control).
+    pub nominal: Option<f64>,
 }
 
 impl Variable {
@@ -175,6 +183,9 @@ impl Variable {
             min: None,
             max: None,
             dependencies: Vec::new(),
+            state: false,
+            derivative_of: None,
+            nominal: None,
         }
     }
 
@@ -280,6 +291,34 @@ impl Variable {
         self.dependencies = inputs.to_vec();
         self
     }
+    /// Marks a continuous Real (an output or a local) as a continuous state of the Model
+    /// Exchange interface; its derivative is declared by [`Variable::derivative_of`]. States
+    /// are ordered by value reference.
+    pub fn state(mut self) -> Self {
+        self.state = true;
+        self
+    }
+    /// A local Real `der(x)`: the time derivative of the state at index `state`
+    /// (`derivative="…"` in the model description), calculated by the model.
+    pub fn derivative(name: &str, state: usize) -> Self {
+        Self::new(
+            name,
+            Causality::Local,
+            Variability::Continuous,
+            Value::Real(0.0),
+        )
+        .derivative_of(state)
+    }
+    /// Declares this Real the time derivative of the state at index `state`.
+    pub fn derivative_of(mut self, state: usize) -> Self {
+        self.derivative_of = Some(state);
+        self
+    }
+    /// Sets the nominal value (`nominal="…"`, a state's scale for the solver; default 1).
+    pub fn nominal(mut self, nominal: f64) -> Self {
+        self.nominal = Some(nominal);
+        self
+    }
     /// The FMI type of the variable.
     pub fn variable_type(&self) -> VariableType {
         self.start.variable_type()
@@ -312,6 +351,13 @@ pub mod rows {
     /// A continuous Real output ([`Variable::output`]) with its unit and description.
     pub fn output(name: &str, unit: &str, description: &str) -> Variable {
         Variable::output(name).unit(unit).describe(description)
+    }
+    /// A state derivative `der(x)` ([`Variable::derivative`]) of the state at index `state`,
+    /// with its unit and description.
+    pub fn derivative(name: &str, state: usize, unit: &str, description: &str) -> Variable {
+        Variable::derivative(name, state)
+            .unit(unit)
+            .describe(description)
     }
     /// A discrete Real output ([`Variable::discrete_output`]) with its unit and description.
     pub fn discrete_output(name: &str, unit: &str, description: &str) -> Variable {

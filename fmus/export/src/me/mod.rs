@@ -1,0 +1,182 @@
+//! Model Exchange, shared by the FMI 2.0 and FMI 3.0 fronts: the continuous states and
+//! derivatives a model declares in its variable table, and the [`ModelExchange`] calls an
+//! instance makes.
+//!
+//! A model offers Model Exchange by marking the Real variables that are continuous states
+//! ([`Variable::state`]), declaring one derivative variable per state
+//! ([`Variable::derivative_of`]), declaring the interface in its description
+//! ([`crate::ModelInfo::with_model_exchange`], with its number of event indicators) and
+//! exporting with `export_fmu!(Model, model_exchange)`. The layer derives everything else
+//! from the one table: the number and order of the states (value-reference order), their
+//! nominals, the `derivative="…"` attributes and the ModelStructure of both versions.
+
+use crate::model::{Context, EventUpdate, Failure, ModelExchange};
+use crate::variables::{Causality, Variability, Variable, VariableType};
+use std::fmt;
+
+/// The Model Exchange interface of a model, derived from its variable table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelExchangeInfo {
+    /// Number of event indicators.
+    pub event_indicators: usize,
+    /// The indices of the continuous states, in value-reference order (the state vector's).
+    pub states: Vec<usize>,
+    /// The index of each state's derivative, in the order of `states`.
+    pub derivatives: Vec<usize>,
+}
+
+/// Why a variable table does not declare a consistent Model Exchange interface.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DeclarationError {
+    /// A state that is not a continuous Real output or local.
+    NotAContinuousReal(String),
+    /// A state without a derivative.
+    NoDerivative(String),
+    /// A state with more than one derivative.
+    TwoDerivatives {
+        state: String,
+        first: String,
+        second: String,
+    },
+    /// A derivative whose `derivative_of` index is not a declared state.
+    NotAState { derivative: String, index: usize },
+    /// A derivative that is not a continuous Real local or output.
+    BadDerivative(String),
+    /// No state at all.
+    NoState,
+}
+
+impl fmt::Display for DeclarationError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotAContinuousReal(name) => write!(
+                f,
+                "state `{name}` must be a continuous Real output or local variable"
+            ),
+            Self::NoDerivative(name) => write!(
+                f,
+                "state `{name}` has no derivative: declare `der({name})` with derivative_of"
+            ),
+            Self::TwoDerivatives {
+                state,
+                first,
+                second,
+            } => write!(
+                f,
+                "state `{state}` has two derivatives, `{first}` and `{second}`"
+            ),
+            Self::NotAState { derivative, index } => write!(
+                f,
+                "derivative `{derivative}` is declared of index {index}, which is not a variable marked .state()"
+            ),
+            Self::BadDerivative(name) => write!(
+                f,
+                "derivative `{name}` must be a continuous Real output or local variable"
+            ),
+            Self::NoState => write!(f, "a Model Exchange model needs at least one state"),
+        }
+    }
+}
+
+impl std::error::Error for DeclarationError {}
+
+/// A continuous Real that the model calculates (output or local).
+fn continuous_real(v: &Variable) -> bool {
+    v.variable_type() == VariableType::Real
+        && v.variability == Variability::Continuous
+        && matches!(v.causality, Causality::Output | Causality::Local)
+}
+
+impl ModelExchangeInfo {
+    /// The interface the table `variables` declares, with `event_indicators` indicators.
+    pub fn from_table(
+        variables: &[Variable],
+        event_indicators: usize,
+    ) -> Result<Self, DeclarationError> {
+        let mut states = Vec::new();
+        let mut derivatives = Vec::new();
+        for (i, v) in variables.iter().enumerate().filter(|(_, v)| v.state) {
+            if !continuous_real(v) {
+                return Err(DeclarationError::NotAContinuousReal(v.name.clone()));
+            }
+            let mut of_this = variables
+                .iter()
+                .enumerate()
+                .filter(|(_, d)| d.derivative_of == Some(i));
+            let Some((d, _)) = of_this.next() else {
+                return Err(DeclarationError::NoDerivative(v.name.clone()));
+            };
+            if let Some((e, _)) = of_this.next() {
+                return Err(DeclarationError::TwoDerivatives {
+                    state: v.name.clone(),
+                    first: variables[d].name.clone(),
+                    second: variables[e].name.clone(),
+                });
+            }
+            states.push(i);
+            derivatives.push(d);
+        }
+        for d in variables.iter().filter(|d| d.derivative_of.is_some()) {
+            let index = d.derivative_of.unwrap_or(usize::MAX);
+            if !variables.get(index).is_some_and(|s| s.state) {
+                return Err(DeclarationError::NotAState {
+                    derivative: d.name.clone(),
+                    index,
+                });
+            }
+            if !continuous_real(d) {
+                return Err(DeclarationError::BadDerivative(d.name.clone()));
+            }
+        }
+        if states.is_empty() {
+            return Err(DeclarationError::NoState);
+        }
+        Ok(Self {
+            event_indicators,
+            states,
+            derivatives,
+        })
+    }
+
+    /// The nominal of each state (its declared `nominal`, 1 by default).
+    pub fn nominals(&self, variables: &[Variable]) -> Vec<f64> {
+        self.states
+            .iter()
+            .map(|&i| variables[i].nominal.unwrap_or(1.0))
+            .collect()
+    }
+}
+
+/// The [`ModelExchange`] functions of a model, as plain function pointers: what
+/// `export_fmu!(Model, model_exchange)` hands the version-neutral instance, so the shared code
+/// needs no `ModelExchange` bound and models without it export the same symbols (which then
+/// refuse Model Exchange with a logged reason).
+pub struct Hooks<M> {
+    /// [`ModelExchange::evaluate`].
+    pub evaluate: fn(&mut M, &mut Context) -> Result<(), Failure>,
+    /// [`ModelExchange::event_indicators`].
+    pub event_indicators: fn(&mut M, &mut Context, &mut [f64]) -> Result<(), Failure>,
+    /// [`ModelExchange::update_discrete_states`].
+    pub update_discrete_states: fn(&mut M, &mut Context) -> Result<EventUpdate, Failure>,
+    /// [`ModelExchange::directional_derivative`].
+    #[allow(clippy::type_complexity)]
+    pub directional_derivative:
+        fn(&mut M, &mut Context, &[usize], &[usize], &[f64], &mut [f64]) -> Result<(), Failure>,
+}
+
+impl<M> Clone for Hooks<M> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<M> Copy for Hooks<M> {}
+
+/// The hooks of a [`ModelExchange`] model.
+pub fn hooks<M: ModelExchange>() -> Hooks<M> {
+    Hooks {
+        evaluate: M::evaluate,
+        event_indicators: M::event_indicators,
+        update_discrete_states: M::update_discrete_states,
+        directional_derivative: M::directional_derivative,
+    }
+}
