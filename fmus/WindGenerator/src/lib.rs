@@ -38,6 +38,7 @@
 //! back to [0, 2π), a state change). Directional derivatives (on both interfaces) are the
 //! analytic Jacobians of the math crate.
 
+use spurio::ode::rosenbrock::Tolerance;
 use spurio::plants::wind_generator::{
     wrap_angle, GeneratorState, TorqueLimit, WindGenerator, WindGeneratorParameters,
     EVENT_INDICATORS, OUTPUTS, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
@@ -106,47 +107,32 @@ pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
     ("f_rated", "Hz", "Supply frequency at u_drive = 10 V"),
 ];
 
-fn parameter_values(p: &WindGeneratorParameters) -> [f64; 16] {
+/// The 16 physical parameters' fields, in [`PARAMETER_NAMES`] order (read and written
+/// through this one list).
+fn parameter_fields(p: &mut WindGeneratorParameters) -> [&mut f64; 16] {
     [
-        p.pole_pairs,
-        p.stator_resistance,
-        p.d_inductance,
-        p.q_inductance,
-        p.field_resistance,
-        p.field_inductance,
-        p.mutual_inductance,
-        p.load_resistance,
-        p.inertia,
-        p.friction,
-        p.slip_stiffness,
-        p.max_motor_torque,
-        p.drive_time_constant,
-        p.scr_time_constant,
-        p.tachometer_time_constant,
-        p.rated_frequency,
+        &mut p.pole_pairs,
+        &mut p.stator_resistance,
+        &mut p.d_inductance,
+        &mut p.q_inductance,
+        &mut p.field_resistance,
+        &mut p.field_inductance,
+        &mut p.mutual_inductance,
+        &mut p.load_resistance,
+        &mut p.inertia,
+        &mut p.friction,
+        &mut p.slip_stiffness,
+        &mut p.max_motor_torque,
+        &mut p.drive_time_constant,
+        &mut p.scr_time_constant,
+        &mut p.tachometer_time_constant,
+        &mut p.rated_frequency,
     ]
 }
 
-fn parameters_from(v: &[f64]) -> WindGeneratorParameters {
-    let g = |i: usize| v.get(i).copied().unwrap_or(f64::NAN);
-    WindGeneratorParameters {
-        pole_pairs: g(0),
-        stator_resistance: g(1),
-        d_inductance: g(2),
-        q_inductance: g(3),
-        field_resistance: g(4),
-        field_inductance: g(5),
-        mutual_inductance: g(6),
-        load_resistance: g(7),
-        inertia: g(8),
-        friction: g(9),
-        slip_stiffness: g(10),
-        max_motor_torque: g(11),
-        drive_time_constant: g(12),
-        scr_time_constant: g(13),
-        tachometer_time_constant: g(14),
-        rated_frequency: g(15),
-    }
+/// The physical parameters' values, in [`PARAMETER_NAMES`] order.
+fn parameter_values(mut p: WindGeneratorParameters) -> [f64; 16] {
+    parameter_fields(&mut p).map(|field| *field)
 }
 
 spurio_export::declare_variables! {
@@ -189,13 +175,13 @@ spurio_export::declare_variables! {
             // The 16 physical parameters, in `PARAMETER_NAMES` order.
             FIRST_PARAMETER[16] = PARAMETER_NAMES
                 .iter()
-                .zip(parameter_values(&p))
+                .zip(parameter_values(p))
                 .zip(PARAMETER_RANGES)
                 .map(|(((name, unit, description), value), (min, max))| {
                     parameter(name, value, unit, description).min(min).max(max)
                 }),
             H_MAX = parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP, "s",
-                "Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
+                "Longest RK4 substep inside fmi2DoStep when fixed_step_rk4 (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
                 .min(1e-9)
                 .max(1.0),
             START_AT_OPERATING_POINT = Variable::boolean_parameter("start_at_operating_point", false)
@@ -204,6 +190,12 @@ spurio_export::declare_variables! {
                 "Drive reference of the initial steady state").min(-1e3).max(1e3),
             U_FIELD_0 = parameter("u_field_0", RATED_FIELD_REFERENCE, "V",
                 "Field reference of the initial steady state").min(-1e3).max(1e3),
+            FIXED_STEP_RK4 = Variable::boolean_parameter("fixed_step_rk4", false)
+                .describe("Integrate with RK4 on fixed substeps of h_max (true) instead of the adaptive Rosenbrock method RODAS3 with relative tolerance rtol (false, the default)"),
+            RTOL = parameter("rtol", WindGenerator::DEFAULT_RELATIVE_TOLERANCE, "1",
+                "Relative tolerance of the adaptive integrator (absolute: rtol times 0.5 A, 100 rad/s, 100 V)")
+                .min(1e-12)
+                .max(1e-2),
             // The states that are no output, then the eight derivatives (math order).
             OMEGA_M = state_local("omega_m", "rad/s", "Shaft speed (state)", 100.0),
             THETA_E = state_local("theta_e", "rad", "Electrical rotor angle, in [0, 2 pi) (state)", 1.0),
@@ -357,11 +349,20 @@ pub fn fastest_mode(p: &WindGeneratorParameters) -> f64 {
     .fold(0.0, f64::max)
 }
 
+/// The adaptive integrator's first step after initialisation [s].
+const INITIAL_STEP: f64 = 1e-3;
+
 /// The WindGenerator FMU.
 #[derive(Debug, Clone)]
 pub struct WindGeneratorFmu {
     generator: WindGenerator,
     h_max: f64,
+    /// RK4 on fixed substeps of `h_max` (`fixed_step_rk4`) instead of the adaptive RODAS3.
+    fixed_step: bool,
+    /// The adaptive integrator's tolerances (`rtol`).
+    tolerance: Tolerance<8>,
+    /// The adaptive integrator's next step, carried from one `fmi2DoStep` to the next.
+    step: f64,
     /// The motor torque's limit: on Model Exchange held between events (switched in event
     /// mode), on Co-Simulation the limit of the state the last step left.
     limit: TorqueLimit,
@@ -422,14 +423,17 @@ impl FmuModel for WindGeneratorFmu {
             },
             h_max: WindGenerator::RECOMMENDED_MAX_SUBSTEP,
             limit: TorqueLimit::Linear,
+            fixed_step: false,
+            tolerance: WindGenerator::tolerance(WindGenerator::DEFAULT_RELATIVE_TOLERANCE),
+            step: INITIAL_STEP,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let values: Vec<f64> = (0..PARAMETER_NAMES.len())
-            .map(|k| ctx.values.real(vr::FIRST_PARAMETER + k))
-            .collect();
-        let parameters = parameters_from(&values);
+        let mut parameters = WindGeneratorParameters::default();
+        for (k, field) in parameter_fields(&mut parameters).into_iter().enumerate() {
+            *field = ctx.values.real(vr::FIRST_PARAMETER + k);
+        }
         let generator = if ctx.values.boolean(vr::START_AT_OPERATING_POINT) {
             let (u_drive, u_field) = (
                 ctx.values.real(vr::U_DRIVE_0),
@@ -448,9 +452,16 @@ impl FmuModel for WindGeneratorFmu {
         } else {
             WindGenerator::new(parameters).map_err(Failure::error)?
         };
-        let fastest = fastest_mode(&parameters);
-        let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
-        let h_max = rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?;
+        self.fixed_step = ctx.values.boolean(vr::FIXED_STEP_RK4);
+        let h_max = if self.fixed_step {
+            let fastest = fastest_mode(&parameters);
+            let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
+            rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?
+        } else {
+            ctx.values.real(vr::H_MAX)
+        };
+        self.tolerance = WindGenerator::tolerance(ctx.values.real(vr::RTOL));
+        self.step = INITIAL_STEP;
         let state = generator.state;
         self.limit = parameters.torque_limit_of(state[5], state[3]);
         self.generator = generator;
@@ -459,17 +470,29 @@ impl FmuModel for WindGeneratorFmu {
         Ok(())
     }
 
-    spurio_fmu_common::rk4_check_step!(h_max);
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        if self.fixed_step {
+            spurio::ode::check_substeps(step, self.h_max)?;
+        }
+        Ok(())
+    }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let (u_drive, u_field) = (ctx.values.real(vr::U_DRIVE), ctx.values.real(vr::U_FIELD));
-        let h_max = self.h_max;
-        advance_finite(
-            &mut self.generator,
-            |g| g.advance(time, u_drive, u_field, step, h_max),
-            |g| g.state.iter().all(|v| v.is_finite()),
-            || format!("the state became non-finite in the step from t = {time}"),
-        )?;
+        if self.fixed_step {
+            let h_max = self.h_max;
+            advance_finite(
+                &mut self.generator,
+                |g| g.advance(time, u_drive, u_field, step, h_max),
+                |g| g.state.iter().all(|v| v.is_finite()),
+                || format!("the state became non-finite in the step from t = {time}"),
+            )?;
+        } else {
+            // On an error the generator keeps its state (advance_adaptive's contract).
+            self.generator
+                .advance_adaptive(u_drive, u_field, step, &self.tolerance, &mut self.step)
+                .map_err(|e| Failure::error(format!("the step from t = {time}: {e}")))?;
+        }
         let state = self.generator.state;
         self.limit = self
             .generator
@@ -479,7 +502,7 @@ impl FmuModel for WindGeneratorFmu {
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(generator, h_max, limit; check = |m: &Self| {
+    spurio_fmu_common::fmu_state!(generator, h_max, limit, step; check = |m: &Self| {
         if m.generator.state.iter().any(|v| !v.is_finite()) {
             return Err("the saved generator state is not finite".into());
         }
@@ -759,10 +782,47 @@ mod tests {
     }
 
     #[test]
+    fn adaptive_default_agrees_with_fixed_step_rk4_and_fails_cleanly() {
+        use spurio_export::harness::Harness;
+        use spurio_export::types::Status;
+        let run = |fixed: bool| {
+            let mut h = Harness::<WindGeneratorFmu>::new(&Config::new()).unwrap();
+            h.set_boolean(&[vr::FIXED_STEP_RK4 as u32], &[fixed])
+                .unwrap();
+            h.initialize(0.0).unwrap();
+            let mut out = [0.0; 2];
+            let mut samples = Vec::new();
+            for k in 0..60 {
+                let u = if k < 30 { [10.0, 8.0] } else { [6.0, 5.0] };
+                let io = [vr::U_DRIVE as u32, vr::U_FIELD as u32];
+                let read = [vr::SPEED as u32, vr::VOLTAGE as u32];
+                h.exchange(&io, &u, (k as f64 * 0.1, 0.1), &read, &mut out)
+                    .unwrap();
+                samples.push(out);
+            }
+            (h, samples)
+        };
+        let (_, rk4) = run(true);
+        let (mut h, adaptive) = run(false);
+        for (a, b) in adaptive.iter().zip(&rk4) {
+            assert!((a[0] - b[0]).abs() < 3e-7 * 1800.0, "{a:?} {b:?}");
+            assert!((a[1] - b[1]).abs() < 3e-7 * 240.0, "{a:?} {b:?}");
+        }
+        // A step the adaptive integrator cannot finish in its bounded work is refused and the
+        // instance stays where it was.
+        let before = h.real(vr::SPEED as u32).unwrap();
+        assert_eq!(h.do_step(6.0, 1e308), Err(Status::Error));
+        assert!(h.logged(&["the step from t = 6"]), "{:?}", h.log());
+        assert_eq!(h.real(vr::SPEED as u32).unwrap(), before);
+    }
+
+    #[test]
     fn a_step_needing_too_many_substeps_is_refused_at_once() {
         use spurio_export::harness::Harness;
         use spurio_export::types::Status;
         let mut h = Harness::<WindGeneratorFmu>::new(&Config::new()).unwrap();
+        h.set_boolean(&[vr::FIXED_STEP_RK4 as u32], &[true])
+            .unwrap();
         h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
         h.initialize(0.0).unwrap();
         spurio_fmu_common::refuses_too_many_substeps(&mut h, 0.1).unwrap();
