@@ -16,6 +16,7 @@
 use crate::description::{Config, CONFIG_FILE};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind};
 use crate::instance::{functions, Function, Instance, LogSink, Logger};
+use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::*;
 use crate::uri::resource_path;
@@ -148,10 +149,12 @@ pub fn version() -> *const c_char {
     c"2.0".as_ptr()
 }
 
-/// `fmi2Instantiate`: checks the type, the GUID and the resources, then creates the instance.
+/// `fmi2Instantiate`: checks the type, the GUID and the resources, then creates the instance
+/// (for Model Exchange if the model has its functions `me` and its description declares it).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
+#[allow(clippy::too_many_arguments)]
 pub unsafe fn instantiate<M: FmuModel>(
     instance_name: fmi2String,
     fmu_type: fmi2Type,
@@ -160,6 +163,7 @@ pub unsafe fn instantiate<M: FmuModel>(
     functions: *const fmi2CallbackFunctions,
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
+    me: Option<Hooks<M>>,
 ) -> fmi2Component {
     let result = guarded(|| {
         if functions.is_null() {
@@ -230,12 +234,22 @@ pub unsafe fn instantiate<M: FmuModel>(
             Ok(info) => info,
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
         };
-        if fmu_type != fmi2CoSimulation {
-            return fail(format!(
-                "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
-                info.model_identifier
-            ));
-        }
+        let offered = me.filter(|_| info.model_exchange.is_some());
+        let model_exchange = match (fmu_type, offered) {
+            (t, _) if t == fmi2CoSimulation => None,
+            (t, Some(hooks)) if t == fmi2ModelExchange => Some(hooks),
+            (_, None) => {
+                return fail(format!(
+                    "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
+                    info.model_identifier
+                ))
+            }
+            (_, Some(_)) => {
+                return fail(format!(
+                    "fmuType must be fmi2ModelExchange (0) or fmi2CoSimulation (1), got {fmu_type}"
+                ))
+            }
+        };
         if given != info.guid {
             return fail(format!(
                 "GUID mismatch: the modelDescription.xml gives {given} but this binary of {} implements {} (the binary and the XML come from different builds or variants)",
@@ -243,7 +257,10 @@ pub unsafe fn instantiate<M: FmuModel>(
             ));
         }
         match Instance::<M>::new(info, logger) {
-            Ok(instance) => into_component(instance),
+            Ok(instance) => into_component(match model_exchange {
+                Some(hooks) => instance.into_model_exchange(hooks),
+                None => instance.with_hooks(me),
+            }),
             Err(e) => {
                 // The logger moved into the failed constructor call; report through a new one.
                 let sink = CallbackSink {

@@ -28,6 +28,7 @@
 
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
+use crate::me::Hooks;
 use crate::model::{Cause, Context, Failure, FmuModel};
 use crate::types::Status;
 use crate::variables::{Causality, Initial, Value, Values, Variability, VariableType};
@@ -46,10 +47,16 @@ pub enum ModelState {
     Terminated,
     Error,
     Fatal,
+    /// Model Exchange: Event Mode (discrete changes, event iteration).
+    EventMode,
+    /// Model Exchange: Continuous-Time Mode (the importer's solver integrates the states).
+    ContinuousTimeMode,
 }
 
 impl ModelState {
-    const ALL: [ModelState; 10] = [
+    /// Every state, in the order of their indices in a serialized FMU state (new states go
+    /// at the end, so saved states keep their meaning).
+    const ALL: [ModelState; 12] = [
         ModelState::StartAndEnd,
         ModelState::Instantiated,
         ModelState::InitializationMode,
@@ -60,6 +67,8 @@ impl ModelState {
         ModelState::Terminated,
         ModelState::Error,
         ModelState::Fatal,
+        ModelState::EventMode,
+        ModelState::ContinuousTimeMode,
     ];
 
     /// This state's bit in the masks.
@@ -82,6 +91,8 @@ impl ModelState {
                 | ModelState::StepComplete
                 | ModelState::Terminated
                 | ModelState::Error
+                | ModelState::EventMode
+                | ModelState::ContinuousTimeMode
         )
     }
 }
@@ -101,6 +112,10 @@ const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
 const TERMINATED: u32 = ModelState::Terminated.bit();
 const ERROR: u32 = ModelState::Error.bit();
 const FATAL: u32 = ModelState::Fatal.bit();
+pub(crate) const EVENT_MODE: u32 = ModelState::EventMode.bit();
+pub(crate) const CONTINUOUS_TIME_MODE: u32 = ModelState::ContinuousTimeMode.bit();
+/// The two states of a Model Exchange instance between initialization and termination.
+pub(crate) const ME_MODES: u32 = EVENT_MODE | CONTINUOUS_TIME_MODE;
 
 /// An FMI function and the states in which it may be called.
 #[derive(Debug, Clone, Copy)]
@@ -121,10 +136,13 @@ macro_rules! function {
 }
 pub(crate) use function;
 
-/// Allowed-state masks of the FMI 2.0 CS functions (FMI 2.0.4, §4.2.4 state machine).
+/// Allowed-state masks of the FMI 2.0 functions (FMI 2.0.4, §4.2.4 Co-Simulation and §3.2.3
+/// Model Exchange state machines; a Co-Simulation instance never is in the Model Exchange
+/// states and vice versa).
 pub mod functions {
     use super::*;
-    const ANY_LIVE: u32 = INSTANTIATED
+    const ANY_LIVE: u32 = ME_MODES
+        | INSTANTIATED
         | INIT_MODE
         | STEP_COMPLETE
         | STEP_IN_PROGRESS
@@ -133,10 +151,10 @@ pub mod functions {
         | TERMINATED
         | ERROR;
     const AFTER_INIT: u32 =
-        INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
+        ME_MODES | INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
     const STATE_OPS: u32 = ANY_LIVE & !STEP_IN_PROGRESS;
     /// Where `fmi2Set*` (and the input derivatives) may be called.
-    const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_COMPLETE;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
     /// Where the `fmi2Get*Status` queries may be called: once stepping has begun.
     const STATUS_QUERIES: u32 =
         STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
@@ -147,7 +165,7 @@ pub mod functions {
     f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }
     f! { ENTER_INITIALIZATION_MODE, "fmi2EnterInitializationMode", INSTANTIATED }
     f! { EXIT_INITIALIZATION_MODE, "fmi2ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi2Terminate", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
+    f! { TERMINATE, "fmi2Terminate", ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
     f! { RESET, "fmi2Reset", STATE_OPS }
     f! { GET_REAL, "fmi2GetReal", AFTER_INIT }
     f! { GET_INTEGER, "fmi2GetInteger", AFTER_INIT }
@@ -173,6 +191,18 @@ pub mod functions {
     f! { GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES }
     f! { GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES }
     f! { GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES }
+    // Model Exchange (FMI 2.0.4 §3.2.3).
+    const ME_AFTER_INIT: u32 = INIT_MODE | ME_MODES | TERMINATED | ERROR;
+    f! { SET_TIME, "fmi2SetTime", ME_MODES }
+    f! { SET_CONTINUOUS_STATES, "fmi2SetContinuousStates", CONTINUOUS_TIME_MODE }
+    f! { GET_CONTINUOUS_STATES, "fmi2GetContinuousStates", ME_AFTER_INIT }
+    f! { GET_DERIVATIVES, "fmi2GetDerivatives", ME_AFTER_INIT }
+    f! { GET_EVENT_INDICATORS, "fmi2GetEventIndicators", ME_AFTER_INIT }
+    f! { GET_NOMINALS_OF_CONTINUOUS_STATES, "fmi2GetNominalsOfContinuousStates", INSTANTIATED | ME_AFTER_INIT }
+    f! { ENTER_EVENT_MODE, "fmi2EnterEventMode", ME_MODES }
+    f! { NEW_DISCRETE_STATES, "fmi2NewDiscreteStates", EVENT_MODE }
+    f! { ENTER_CONTINUOUS_TIME_MODE, "fmi2EnterContinuousTimeMode", EVENT_MODE }
+    f! { COMPLETED_INTEGRATOR_STEP, "fmi2CompletedIntegratorStep", CONTINUOUS_TIME_MODE }
 }
 
 /// The names of the states in `f`'s mask, in the vocabulary of `f`'s FMI version (FMI 3.0
@@ -259,22 +289,28 @@ impl Logger {
 /// The part of an instance that an FMU state captures.
 #[derive(Clone)]
 pub struct Core<M> {
-    model: M,
-    values: Values,
-    time: f64,
-    state: ModelState,
+    pub(crate) model: M,
+    pub(crate) values: Values,
+    pub(crate) time: f64,
+    pub(crate) state: ModelState,
     stop_time: Option<f64>,
-    /// Inputs were set since the outputs were last computed.
-    inputs_changed: bool,
+    /// Inputs were set since the outputs were last computed (Model Exchange: inputs, states
+    /// or time were set since the derivatives were last evaluated).
+    pub(crate) inputs_changed: bool,
 }
 
 const STATE_MAGIC: &str = "spurio-fmu-state/2";
 
 /// An instance of model `M`.
 pub struct Instance<M: FmuModel> {
-    info: ModelInfo,
+    pub(crate) info: ModelInfo,
     logger: Logger,
-    core: Core<M>,
+    pub(crate) core: Core<M>,
+    /// The model's Model Exchange functions, if it has them (directional derivatives serve
+    /// Co-Simulation too).
+    pub(crate) me: Option<Hooks<M>>,
+    /// Whether the instance was instantiated for Model Exchange.
+    pub(crate) model_exchange: bool,
     /// The values before the current model call (reused buffer), restored when the call
     /// produces a non-finite value.
     before: Values,
@@ -288,6 +324,8 @@ impl<M: FmuModel> Instance<M> {
         Ok(Self {
             info,
             logger,
+            me: None,
+            model_exchange: false,
             before: values.clone(),
             core: Core {
                 model,
@@ -351,7 +389,7 @@ impl<M: FmuModel> Instance<M> {
         );
     }
 
-    fn run_model(
+    pub(crate) fn run_model(
         &mut self,
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
@@ -485,7 +523,12 @@ impl<M: FmuModel> Instance<M> {
     pub fn exit_initialization_mode_as(&mut self, f: &Function) -> Status {
         let status = self.run_model(f, |m, ctx| m.initialize(ctx));
         if status <= Status::Warning {
-            self.core.state = ModelState::StepComplete;
+            self.core.state = if self.model_exchange {
+                self.core.inputs_changed = true;
+                ModelState::EventMode
+            } else {
+                ModelState::StepComplete
+            };
         }
         status
     }
@@ -534,7 +577,13 @@ impl<M: FmuModel> Instance<M> {
             }
         }
         let mut status = Status::Ok;
-        if self.core.state == ModelState::InitializationMode {
+        if self.model_exchange {
+            // Outputs and derivatives from the current states, inputs and time.
+            status = self.evaluate(f);
+            if status > Status::Warning {
+                return status;
+            }
+        } else if self.core.state == ModelState::InitializationMode {
             // Outputs and calculated parameters are computed from the current parameters.
             status = self.run_model(f, |m, ctx| m.initialize(ctx));
             if status > Status::Warning {
@@ -599,11 +648,12 @@ impl<M: FmuModel> Instance<M> {
                     v.variability != Variability::Constant
                         && (v.causality == Causality::Input || v.initial == Some(Initial::Exact))
                 }
-                ModelState::StepComplete => {
+                ModelState::StepComplete | ModelState::EventMode => {
                     v.causality == Causality::Input
                         || (v.causality == Causality::Parameter
                             && v.variability == Variability::Tunable)
                 }
+                ModelState::ContinuousTimeMode => v.causality == Causality::Input,
                 _ => false,
             };
             if !settable {
@@ -661,8 +711,8 @@ impl<M: FmuModel> Instance<M> {
                     );
                 }
             }
-            tunable_changed |=
-                state == ModelState::StepComplete && v.causality == Causality::Parameter;
+            tunable_changed |= matches!(state, ModelState::StepComplete | ModelState::EventMode)
+                && v.causality == Causality::Parameter;
             inputs_changed |= v.causality == Causality::Input;
         }
         for (vr, value) in vrs.iter().zip(values) {
@@ -805,6 +855,11 @@ impl<M: FmuModel> Instance<M> {
         let index = r.u64()?;
         let state = ModelState::from_bits_index(index)
             .filter(|s| s.can_be_saved())
+            .filter(|s| {
+                let me_only = s.bit() & ME_MODES != 0;
+                let cs_only = *s == ModelState::StepComplete;
+                !(me_only && !self.model_exchange || cs_only && self.model_exchange)
+            })
             .ok_or(StateError::MachineState(index))?;
         let time = r.f64()?;
         if !time.is_finite() {

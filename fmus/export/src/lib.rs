@@ -57,7 +57,7 @@ pub use variables::{
 /// spurio_export::export_fmu!(GantryCraneFmu);
 /// spurio_export::export_fmu!(SensorFmu, variants = [("Sensor", Config::new()), ("Sensor2", two)]);
 /// // Model Exchange too (the model implements `ModelExchange` and its description says
-/// // `.with_model_exchange(n_event_indicators)`):
+/// // `.with_model_exchange()`):
 /// spurio_export::export_fmu!(GantryCraneFmu, model_exchange);
 /// spurio_export::export_fmu!(LinearSystemFmu, model_exchange, variants = [("LinearSystem", c)]);
 /// ```
@@ -144,6 +144,7 @@ macro_rules! export_fmu {
             use super::*;
             use $crate::ffi;
             use $crate::instance::functions;
+            use $crate::me::ffi as me;
             use $crate::types::*;
             type M = $model;
 
@@ -176,7 +177,14 @@ macro_rules! export_fmu {
             ) -> fmi2Component {
                 unsafe {
                     ffi::instantiate::<M>(
-                        name, kind, guid, resources, callbacks, visible, logging_on,
+                        name,
+                        kind,
+                        guid,
+                        resources,
+                        callbacks,
+                        visible,
+                        logging_on,
+                        super::spurio_model_exchange(),
                     )
                 }
             }
@@ -339,16 +347,72 @@ macro_rules! export_fmu {
             ) -> fmi2Status {
                 unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
             }
-            $crate::unsupported_fmi2_function!(
-                fmi2GetDirectionalDerivative(
-                    _u: *const fmi2ValueReference,
-                    _nu: usize,
-                    _z: *const fmi2ValueReference,
-                    _nz: usize,
-                    _dv: *const fmi2Real,
-                    _dz: *mut fmi2Real,
-                ) => GET_DIRECTIONAL_DERIVATIVE, "providesDirectionalDerivative=\"false\""
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+                c: fmi2Component,
+                unknowns: *const fmi2ValueReference,
+                n_unknowns: usize,
+                knowns: *const fmi2ValueReference,
+                n_knowns: usize,
+                seed: *const fmi2Real,
+                out: *mut fmi2Real,
+            ) -> fmi2Status {
+                unsafe {
+                    me::get_directional_derivative::<M>(
+                        c, unknowns, n_unknowns, knowns, n_knowns, seed, out,
+                    )
+                }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+                unsafe { me::set_time::<M>(c, time) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetContinuousStates(
+                c: fmi2Component,
+                x: *const fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                unsafe { me::set_continuous_states::<M>(c, x, nx) }
+            }
+            $crate::fmi2_array_getter!(fmi2GetContinuousStates, get_continuous_states);
+            $crate::fmi2_array_getter!(fmi2GetDerivatives, get_derivatives);
+            $crate::fmi2_array_getter!(fmi2GetEventIndicators, get_event_indicators);
+            $crate::fmi2_array_getter!(
+                fmi2GetNominalsOfContinuousStates,
+                get_nominals_of_continuous_states
             );
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
+                unsafe { me::enter_event_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2NewDiscreteStates(
+                c: fmi2Component,
+                event_info: *mut me::fmi2EventInfo,
+            ) -> fmi2Status {
+                unsafe { me::new_discrete_states::<M>(c, event_info) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
+                unsafe { me::enter_continuous_time_mode::<M>(c) }
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
+                c: fmi2Component,
+                no_set_prior: fmi2Boolean,
+                enter_event_mode: *mut fmi2Boolean,
+                terminate_simulation: *mut fmi2Boolean,
+            ) -> fmi2Status {
+                unsafe {
+                    me::completed_integrator_step::<M>(
+                        c,
+                        no_set_prior,
+                        enter_event_mode,
+                        terminate_simulation,
+                    )
+                }
+            }
             $crate::unsupported_fmi2_function!(
                 fmi2SetRealInputDerivatives(
                     _vr: *const fmi2ValueReference,
@@ -449,6 +513,23 @@ macro_rules! unsupported_fmi2_function {
         #[no_mangle]
         pub unsafe extern "C" fn $name(c: fmi2Component, $($arg: $type),*) -> fmi2Status {
             unsafe { $crate::ffi::unsupported::<M>(c, &functions::$function, $capability) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`], an FMI 2.0 Model Exchange function that fills the caller's
+/// Real array (`fmi2GetDerivatives`, …).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_array_getter {
+    ($name:ident, $function:ident) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            out: *mut fmi2Real,
+            n: usize,
+        ) -> fmi2Status {
+            unsafe { me::$function::<M>(c, out, n) }
         }
     };
 }

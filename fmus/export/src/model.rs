@@ -151,8 +151,7 @@ pub struct EventUpdate {
 /// there, [`FmuModel::initialize`] sets their initial values there, and
 /// [`ModelExchange::update_discrete_states`] changes them there at an event. A model offers
 /// the interface by declaring it in [`FmuModel::describe`]
-/// ([`crate::ModelInfo::with_model_exchange`], with its number of event indicators) and
-/// exporting with `export_fmu!(Model, model_exchange)`.
+/// ([`crate::ModelInfo::with_model_exchange`]) and exporting with `export_fmu!(Model, model_exchange)`.
 ///
 /// Value references here are the indices of the variable table (the FMI 2.0 value
 /// references, the `vr::…` constants of `declare_variables!`), also for FMI 3.0 calls.
@@ -163,7 +162,8 @@ pub trait ModelExchange: FmuModel {
     /// calling it any number of times with the same values gives the same result.
     fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure>;
 
-    /// The event indicators `z` (as many as declared in `with_model_exchange`) from the same
+    /// The event indicators `z` (one per variable declared
+    /// [`crate::Variable::event_indicator`], in table order; the layer writes them there) from the same
     /// values as [`ModelExchange::evaluate`] (called after it); a sign change of one is a
     /// state event the solver locates.
     fn event_indicators(&mut self, ctx: &mut Context, z: &mut [f64]) -> Result<(), Failure>;

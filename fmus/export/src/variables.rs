@@ -163,6 +163,8 @@ pub struct Variable {
     pub derivative_of: Option<usize>,
     /// The nominal value of a Real (`nominal="…"`; a state's for the solver's error control).
     pub nominal: Option<f64>,
+    /// An event indicator of the Model Exchange interface ([`Variable::event_indicator`]).
+    pub event_indicator: bool,
 }
 
 impl Variable {
@@ -186,6 +188,7 @@ impl Variable {
             state: false,
             derivative_of: None,
             nominal: None,
+            event_indicator: false,
         }
     }
 
@@ -314,6 +317,20 @@ impl Variable {
         self.derivative_of = Some(state);
         self
     }
+    /// A local Real that is an event indicator of the Model Exchange interface: the layer
+    /// writes into it what [`crate::ModelExchange::event_indicators`] returns (in table order),
+    /// so it can be read like any variable; a sign change is a state event. FMI 3.0 lists it
+    /// as `<EventIndicator>`, FMI 2.0 counts it in `numberOfEventIndicators`.
+    pub fn event_indicator(name: &str) -> Self {
+        let mut v = Self::new(
+            name,
+            Causality::Local,
+            Variability::Continuous,
+            Value::Real(0.0),
+        );
+        v.event_indicator = true;
+        v
+    }
     /// Sets the nominal value (`nominal="…"`, a state's scale for the solver; default 1).
     pub fn nominal(mut self, nominal: f64) -> Self {
         self.nominal = Some(nominal);
@@ -356,6 +373,12 @@ pub mod rows {
     /// with its unit and description.
     pub fn derivative(name: &str, state: usize, unit: &str, description: &str) -> Variable {
         Variable::derivative(name, state)
+            .unit(unit)
+            .describe(description)
+    }
+    /// An event indicator ([`Variable::event_indicator`]) with its unit and description.
+    pub fn event_indicator(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::event_indicator(name)
             .unit(unit)
             .describe(description)
     }

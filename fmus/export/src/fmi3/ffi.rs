@@ -15,6 +15,7 @@ use crate::description::{Config, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
 use crate::instance::{Function, Instance, LogSink, Logger};
+use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
@@ -58,7 +59,7 @@ pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
 }
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
-unsafe fn with_instance<M: FmuModel>(
+pub(crate) unsafe fn with_instance<M: FmuModel>(
     c: fmi3Instance,
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
@@ -74,7 +75,8 @@ pub fn version() -> *const c_char {
 }
 
 /// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
-/// the resources (`variant.cfg` of a packaged variant), then creates the instance.
+/// the resources (`variant.cfg` of a packaged variant), then creates the instance (with the
+/// model's Model Exchange functions `me`, for its directional derivatives).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
@@ -89,8 +91,105 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     n_required_intermediate: usize,
     environment: fmi3InstanceEnvironment,
     log_message: fmi3LogMessageCallback,
+    me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    const F: &str = "fmi3InstantiateCoSimulation";
+    // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
+    let refusal = if event_mode_used != 0 {
+        Some("eventModeUsed = true, but the FMU declares hasEventMode=\"false\": instantiate it with eventModeUsed = false (it never needs Event Mode)".to_string())
+    } else if n_required_intermediate > 0 {
+        Some(format!(
+            "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
+        ))
+    } else {
+        None
+    };
+    let request = Request {
+        function: "fmi3InstantiateCoSimulation",
+        instance_name,
+        token,
+        resource_path,
+        logging_on,
+        environment,
+        log_message,
+        refusal,
+        note: (early_return_allowed != 0)
+            .then_some("earlyReturnAllowed noted; the FMU never returns early"),
+        me,
+        model_exchange: false,
+    };
+    unsafe { instantiate(request) }
+}
+
+/// `fmi3InstantiateModelExchange`: as [`instantiate_co_simulation`], for a model with Model
+/// Exchange functions `me` whose description declares the interface (otherwise refused, the
+/// reason logged).
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn instantiate_model_exchange<M: FmuModel>(
+    instance_name: fmi3String,
+    token: fmi3String,
+    resource_path: fmi3String,
+    logging_on: fmi3Boolean,
+    environment: fmi3InstanceEnvironment,
+    log_message: fmi3LogMessageCallback,
+    me: Option<Hooks<M>>,
+) -> fmi3Instance {
+    let request = Request {
+        function: "fmi3InstantiateModelExchange",
+        instance_name,
+        token,
+        resource_path,
+        logging_on,
+        environment,
+        log_message,
+        refusal: None,
+        note: None,
+        me,
+        model_exchange: true,
+    };
+    unsafe { instantiate(request) }
+}
+
+/// The arguments of an `fmi3Instantiate*` call, after its interface's own checks.
+struct Request<M> {
+    function: &'static str,
+    instance_name: fmi3String,
+    token: fmi3String,
+    resource_path: fmi3String,
+    logging_on: fmi3Boolean,
+    environment: fmi3InstanceEnvironment,
+    log_message: fmi3LogMessageCallback,
+    /// Why the interface's arguments are refused, if they are.
+    refusal: Option<String>,
+    /// Logged (`logEvents`) when the instance is created.
+    note: Option<&'static str>,
+    /// The model's Model Exchange functions, if it has them.
+    me: Option<Hooks<M>>,
+    /// Whether Model Exchange is asked for.
+    model_exchange: bool,
+}
+
+/// The shared part of the `fmi3Instantiate*` functions: name, refusal, token, resources,
+/// interface, then the instance.
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+unsafe fn instantiate<M: FmuModel>(request: Request<M>) -> fmi3Instance {
+    let Request {
+        function,
+        instance_name,
+        token,
+        resource_path,
+        logging_on,
+        environment,
+        log_message,
+        refusal,
+        note,
+        me,
+        model_exchange,
+    } = request;
     let result = guarded(|| {
         let sink = || CallbackSink {
             log_message,
@@ -104,22 +203,14 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
             logging_on != 0,
         );
         let fail = |message: String| {
-            logger.error(&format!("{F}: {message}"));
+            logger.error(&format!("{function}: {message}"));
             std::ptr::null_mut()
         };
         if name.as_deref().is_none_or(str::is_empty) {
             return fail("instanceName must be a non-empty string".into());
         }
-        if event_mode_used != 0 {
-            // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
-            return fail(
-                "eventModeUsed = true, but the FMU declares hasEventMode=\"false\": instantiate it with eventModeUsed = false (it never needs Event Mode)".into(),
-            );
-        }
-        if n_required_intermediate > 0 {
-            return fail(format!(
-                "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
-            ));
+        if let Some(refusal) = refusal {
+            return fail(refusal);
         }
         // SAFETY: as above.
         let given = unsafe { string_arg(token) }.unwrap_or_default();
@@ -150,17 +241,23 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
                 info.model_identifier, info.guid
             ));
         }
-        if early_return_allowed != 0 {
-            logger.log(
-                Status::Ok,
-                "logEvents",
-                &format!("{F}: earlyReturnAllowed noted; the FMU never returns early"),
-            );
+        let offered = me.filter(|_| info.model_exchange.is_some());
+        if model_exchange && offered.is_none() {
+            return fail(format!(
+                "{} is a Co-Simulation FMU only: it does not implement Model Exchange",
+                info.model_identifier
+            ));
+        }
+        if let Some(note) = note {
+            logger.log(Status::Ok, "logEvents", &format!("{function}: {note}"));
         }
         match Instance::<M>::new(info, logger) {
-            Ok(instance) => into_instance(instance),
+            Ok(instance) => into_instance(match offered.filter(|_| model_exchange) {
+                Some(hooks) => instance.into_model_exchange(hooks),
+                None => instance.with_hooks(me),
+            }),
             Err(e) => {
-                Logger::new("?", Box::new(sink()), true).error(&format!("{F}: {e}"));
+                Logger::new("?", Box::new(sink()), true).error(&format!("{function}: {e}"));
                 std::ptr::null_mut()
             }
         }
@@ -168,8 +265,7 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     result.unwrap_or(std::ptr::null_mut())
 }
 
-/// `fmi3InstantiateModelExchange`, `fmi3InstantiateScheduledExecution`: logs why not and
-/// returns NULL.
+/// `fmi3InstantiateScheduledExecution`: logs why not and returns NULL.
 ///
 /// # Safety
 /// `log_message` is NULL or a valid callback.
@@ -187,9 +283,8 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
             log_message,
             environment,
         };
-        Logger::new("?", Box::new(sink), true).error(&format!(
-            "{function}: {id} is a Co-Simulation FMU only: it does not implement {interface}"
-        ));
+        Logger::new("?", Box::new(sink), true)
+            .error(&format!("{function}: {id} does not implement {interface}"));
     });
     std::ptr::null_mut()
 }
@@ -314,14 +409,14 @@ pub unsafe fn do_step<M: FmuModel>(
 
 /// An element a value reference of a call names.
 #[derive(Debug, Clone, Copy)]
-enum Element {
+pub(crate) enum Element {
     Time,
     Scalar(u32),
 }
 
 /// Expands `vrs` into the elements they name (arrays row-major), checking every reference,
 /// its type and that `n_values` is their number.
-fn expand<M: FmuModel>(
+pub(crate) fn expand<M: FmuModel>(
     slot: &Slot<M>,
     vrs: &[u32],
     expected: VariableType,

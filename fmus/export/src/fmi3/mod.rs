@@ -21,12 +21,13 @@
 pub mod arrays;
 pub mod description;
 pub mod ffi;
+pub mod me;
 pub mod types;
 
-/// Allowed-state masks of the FMI 3.0 Co-Simulation functions (FMI 3.0.2 §4.3.4 state
-/// machine; Step Mode is the shared machine's `StepComplete`).
+/// Allowed-state masks of the FMI 3.0 functions (FMI 3.0.2 §4.3.4 Co-Simulation and §3.3
+/// Model Exchange state machines; Step Mode is the shared machine's `StepComplete`).
 pub mod functions {
-    use crate::instance::{function as f, ModelState};
+    use crate::instance::{function as f, ModelState, CONTINUOUS_TIME_MODE, EVENT_MODE, ME_MODES};
 
     const INSTANTIATED: u32 = ModelState::Instantiated.bit();
     const INIT_MODE: u32 = ModelState::InitializationMode.bit();
@@ -35,15 +36,16 @@ pub mod functions {
     const ERROR: u32 = ModelState::Error.bit();
     const FATAL: u32 = ModelState::Fatal.bit();
     /// Every state of an instance that is not fatally broken.
-    pub const ANY_LIVE: u32 = INSTANTIATED | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const GETTABLE: u32 = INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_MODE;
+    pub const ANY_LIVE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
+    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE;
+    const ME_AFTER_INIT: u32 = ME_MODES | INIT_MODE | TERMINATED | ERROR;
 
     f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
     f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
     f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }
     f! { EXIT_INITIALIZATION_MODE, "fmi3ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi3Terminate", STEP_MODE }
+    f! { TERMINATE, "fmi3Terminate", STEP_MODE | ME_MODES }
     f! { RESET, "fmi3Reset", ANY_LIVE }
     f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
     f! { GET_INT32, "fmi3GetInt32", GETTABLE }
@@ -60,6 +62,21 @@ pub mod functions {
     f! { SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE }
     f! { DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE }
     f! { DO_STEP, "fmi3DoStep", STEP_MODE }
+    // Model Exchange (FMI 3.0.2 §3.3).
+    f! { SET_TIME, "fmi3SetTime", ME_MODES }
+    f! { SET_CONTINUOUS_STATES, "fmi3SetContinuousStates", CONTINUOUS_TIME_MODE }
+    f! { GET_CONTINUOUS_STATES, "fmi3GetContinuousStates", ME_AFTER_INIT }
+    f! { GET_CONTINUOUS_STATE_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
+    f! { GET_EVENT_INDICATORS, "fmi3GetEventIndicators", ME_AFTER_INIT }
+    f! { GET_NOMINALS_OF_CONTINUOUS_STATES, "fmi3GetNominalsOfContinuousStates", INSTANTIATED | ME_AFTER_INIT }
+    f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
+    f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
+    f! { ENTER_EVENT_MODE, "fmi3EnterEventMode", ME_MODES }
+    f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
+    f! { ENTER_CONTINUOUS_TIME_MODE, "fmi3EnterContinuousTimeMode", EVENT_MODE }
+    f! { COMPLETED_INTEGRATOR_STEP, "fmi3CompletedIntegratorStep", CONTINUOUS_TIME_MODE }
+    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi3GetDirectionalDerivative", GETTABLE }
+    f! { GET_ADJOINT_DERIVATIVE, "fmi3GetAdjointDerivative", GETTABLE }
 }
 
 /// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 C API of the model type
@@ -75,8 +92,9 @@ macro_rules! export_fmi3 {
             #[allow(unused_imports)]
             use super::*;
             use $crate::fmi3::ffi;
-            use $crate::fmi3::types::*;
             use $crate::fmi3::functions;
+            use $crate::fmi3::me;
+            use $crate::fmi3::types::*;
             type M = $model;
 
             #[no_mangle]
@@ -119,6 +137,7 @@ macro_rules! export_fmi3 {
                         n_required,
                         environment,
                         log_message,
+                        super::spurio_model_exchange(),
                     )
                 }
             }
@@ -132,13 +151,16 @@ macro_rules! export_fmi3 {
                 environment: fmi3InstanceEnvironment,
                 log_message: fmi3LogMessageCallback,
             ) -> fmi3Instance {
-                let _ = (name, token, resources, visible, logging_on);
+                let _ = visible;
                 unsafe {
-                    ffi::refuse_instantiation::<M>(
-                        "fmi3InstantiateModelExchange",
-                        "Model Exchange",
+                    ffi::instantiate_model_exchange::<M>(
+                        name,
+                        token,
+                        resources,
+                        logging_on,
                         environment,
                         log_message,
+                        super::spurio_model_exchange(),
                     )
                 }
             }
@@ -329,30 +351,11 @@ macro_rules! export_fmi3 {
                 fmi3ExitConfigurationMode();
             }
             $crate::fmi3_unsupported! {
-                "the FMU has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
-                fmi3EnterEventMode();
+                "the Co-Simulation interface has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
                 fmi3EnterStepMode();
                 fmi3EvaluateDiscreteStates();
-                fmi3UpdateDiscreteStates(_a: *mut fmi3Boolean, _b: *mut fmi3Boolean, _counters: *mut fmi3Boolean, _d: *mut fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Float64);
             }
-            $crate::fmi3_unsupported! {
-                "the FMU is Co-Simulation only";
-                fmi3EnterContinuousTimeMode();
-                fmi3CompletedIntegratorStep(_p: fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Boolean);
-                fmi3SetTime(_t: fmi3Float64);
-                fmi3SetContinuousStates(_x: *const fmi3Float64, _n: usize);
-                fmi3GetContinuousStateDerivatives(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetEventIndicators(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetContinuousStates(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetNominalsOfContinuousStates(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetNumberOfEventIndicators(_n: *mut usize);
-                fmi3GetNumberOfContinuousStates(_n: *mut usize);
-            }
-            $crate::fmi3_unsupported! {
-                "providesDirectionalDerivatives=\"false\", providesAdjointDerivatives=\"false\"";
-                fmi3GetDirectionalDerivative(_u: *const fmi3ValueReference, _nu: usize, _k: *const fmi3ValueReference, _nk: usize, _s: *const fmi3Float64, _ns: usize, _x: *mut fmi3Float64, _nx: usize);
-                fmi3GetAdjointDerivative(_u: *const fmi3ValueReference, _nu: usize, _k: *const fmi3ValueReference, _nk: usize, _s: *const fmi3Float64, _ns: usize, _x: *mut fmi3Float64, _nx: usize);
-            }
+            $crate::export_fmi3_model_exchange!();
             $crate::fmi3_unsupported! {
                 "maxOutputDerivativeOrder=\"0\"";
                 fmi3GetOutputDerivatives(_v: *const fmi3ValueReference, _n: usize, _o: *const fmi3Int32, _x: *mut fmi3Float64, _m: usize);
@@ -406,5 +409,134 @@ macro_rules! fmi3_unsupported {
                 unsafe { ffi::unsupported::<M>(c, stringify!($name), $reason) }
             }
         )+
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], the FMI 3.0 Model Exchange functions and the directional
+/// and adjoint derivatives (which serve Co-Simulation too) over [`me`].
+#[doc(hidden)]
+#[macro_export]
+macro_rules! export_fmi3_model_exchange {
+    () => {
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3EnterEventMode(c: fmi3Instance) -> fmi3Status {
+            unsafe { me::enter_event_mode::<M>(c) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3EnterContinuousTimeMode(c: fmi3Instance) -> fmi3Status {
+            unsafe { me::enter_continuous_time_mode::<M>(c) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
+            c: fmi3Instance,
+            need_update: *mut fmi3Boolean,
+            terminate: *mut fmi3Boolean,
+            nominals_changed: *mut fmi3Boolean,
+            values_changed: *mut fmi3Boolean,
+            next_defined: *mut fmi3Boolean,
+            next_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let flags = me::EventFlags {
+                need_update,
+                terminate,
+                nominals_changed,
+                values_changed,
+                next_defined,
+                next_time,
+            };
+            unsafe { me::update_discrete_states::<M>(c, flags) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3CompletedIntegratorStep(
+            c: fmi3Instance,
+            no_set_prior: fmi3Boolean,
+            enter_event_mode: *mut fmi3Boolean,
+            terminate: *mut fmi3Boolean,
+        ) -> fmi3Status {
+            let _ = no_set_prior;
+            unsafe { me::completed_integrator_step::<M>(c, enter_event_mode, terminate) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3SetTime(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
+            unsafe { me::set_time::<M>(c, time) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3SetContinuousStates(
+            c: fmi3Instance,
+            x: *const fmi3Float64,
+            n: usize,
+        ) -> fmi3Status {
+            unsafe { me::set_continuous_states::<M>(c, x, n) }
+        }
+        $crate::fmi3_array_getter!(fmi3GetContinuousStates, get_continuous_states);
+        $crate::fmi3_array_getter!(fmi3GetContinuousStateDerivatives, get_derivatives);
+        $crate::fmi3_array_getter!(fmi3GetEventIndicators, get_event_indicators);
+        $crate::fmi3_array_getter!(fmi3GetNominalsOfContinuousStates, get_nominals);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of_event_indicators::<M>(c, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of_continuous_states::<M>(c, n) }
+        }
+        $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
+        $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], an FMI 3.0 Model Exchange function that fills the
+/// caller's Float64 array.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_array_getter {
+    ($name:ident, $function:ident) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi3Instance,
+            out: *mut fmi3Float64,
+            n: usize,
+        ) -> fmi3Status {
+            unsafe { me::array::<M>(c, out, n, me::Array::$function) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], `fmi3GetDirectionalDerivative` or
+/// `fmi3GetAdjointDerivative`.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_derivative {
+    ($name:ident, $kind:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi3Instance,
+            unknowns: *const fmi3ValueReference,
+            n_unknowns: usize,
+            knowns: *const fmi3ValueReference,
+            n_knowns: usize,
+            seed: *const fmi3Float64,
+            n_seed: usize,
+            sensitivity: *mut fmi3Float64,
+            n_sensitivity: usize,
+        ) -> fmi3Status {
+            let call = me::DerivativeCall {
+                unknowns,
+                n_unknowns,
+                knowns,
+                n_knowns,
+                seed,
+                n_seed,
+                sensitivity,
+                n_sensitivity,
+            };
+            unsafe { me::derivative::<M>(c, call, $kind) }
+        }
     };
 }

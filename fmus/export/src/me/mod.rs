@@ -4,11 +4,15 @@
 //!
 //! A model offers Model Exchange by marking the Real variables that are continuous states
 //! ([`Variable::state`]), declaring one derivative variable per state
-//! ([`Variable::derivative_of`]), declaring the interface in its description
-//! ([`crate::ModelInfo::with_model_exchange`], with its number of event indicators) and
+//! ([`Variable::derivative_of`]) and one local variable per event indicator
+//! ([`Variable::event_indicator`]), declaring the interface in its description
+//! ([`crate::ModelInfo::with_model_exchange`]) and
 //! exporting with `export_fmu!(Model, model_exchange)`. The layer derives everything else
 //! from the one table: the number and order of the states (value-reference order), their
 //! nominals, the `derivative="…"` attributes and the ModelStructure of both versions.
+
+pub mod ffi;
+pub mod instance;
 
 use crate::model::{Context, EventUpdate, Failure, ModelExchange};
 use crate::variables::{Causality, Variability, Variable, VariableType};
@@ -17,8 +21,8 @@ use std::fmt;
 /// The Model Exchange interface of a model, derived from its variable table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelExchangeInfo {
-    /// Number of event indicators.
-    pub event_indicators: usize,
+    /// The indices of the event indicators, in table order.
+    pub event_indicators: Vec<usize>,
     /// The indices of the continuous states, in value-reference order (the state vector's).
     pub states: Vec<usize>,
     /// The index of each state's derivative, in the order of `states`.
@@ -42,6 +46,8 @@ pub enum DeclarationError {
     NotAState { derivative: String, index: usize },
     /// A derivative that is not a continuous Real local or output.
     BadDerivative(String),
+    /// An event indicator that is not a continuous Real local.
+    BadEventIndicator(String),
     /// No state at all.
     NoState,
 }
@@ -73,6 +79,10 @@ impl fmt::Display for DeclarationError {
                 f,
                 "derivative `{name}` must be a continuous Real output or local variable"
             ),
+            Self::BadEventIndicator(name) => write!(
+                f,
+                "event indicator `{name}` must be a continuous Real local variable"
+            ),
             Self::NoState => write!(f, "a Model Exchange model needs at least one state"),
         }
     }
@@ -88,11 +98,8 @@ fn continuous_real(v: &Variable) -> bool {
 }
 
 impl ModelExchangeInfo {
-    /// The interface the table `variables` declares, with `event_indicators` indicators.
-    pub fn from_table(
-        variables: &[Variable],
-        event_indicators: usize,
-    ) -> Result<Self, DeclarationError> {
+    /// The interface the table `variables` declares.
+    pub fn from_table(variables: &[Variable]) -> Result<Self, DeclarationError> {
         let mut states = Vec::new();
         let mut derivatives = Vec::new();
         for (i, v) in variables.iter().enumerate().filter(|(_, v)| v.state) {
@@ -130,6 +137,17 @@ impl ModelExchangeInfo {
         }
         if states.is_empty() {
             return Err(DeclarationError::NoState);
+        }
+        let mut event_indicators = Vec::new();
+        for (i, v) in variables
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.event_indicator)
+        {
+            if !(continuous_real(v) && v.causality == Causality::Local) {
+                return Err(DeclarationError::BadEventIndicator(v.name.clone()));
+            }
+            event_indicators.push(i);
         }
         Ok(Self {
             event_indicators,
