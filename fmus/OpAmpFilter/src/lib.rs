@@ -31,7 +31,7 @@
 
 use nalgebra::Vector2;
 use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters, Rail};
-use spurio_export::rows::{derivative, input, output, parameter};
+use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
     ModelInfo, Variable,
@@ -74,6 +74,10 @@ spurio_export::declare_variables! {
                 .depends_on(&[vr::U, vr::V_C1, vr::V_C2]),
             DER_V_C2 = derivative("der(v_C2)", vr::V_C2, "V/s", "Time derivative of v_C2")
                 .depends_on(&[vr::V_C1, vr::V_C2]),
+            Z_RAIL_HIGH = event_indicator("z_rail_high", "V",
+                "Event indicator V_sat_high - v_C2: the output reaches or leaves the upper rail where it changes sign"),
+            Z_RAIL_LOW = event_indicator("z_rail_low", "V",
+                "Event indicator v_C2 - V_sat_low: the output reaches or leaves the lower rail where it changes sign"),
         ]
     }
 }
@@ -93,7 +97,7 @@ pub fn fastest_mode(p: &OpAmpFilterParameters) -> f64 {
     linear.max(saturated)
 }
 
-/// Number of event indicators: the upper and the lower rail.
+/// Number of event indicators (`z_rail_high`, `z_rail_low`).
 pub const EVENT_INDICATORS: usize = 2;
 
 /// The OpAmpFilter FMU.
@@ -174,7 +178,7 @@ impl FmuModel for OpAmpFilterFmu {
             }),
             Config::new(),
         )
-        .with_model_exchange(EVENT_INDICATORS)
+        .with_model_exchange()
         .map_err(|e| e.to_string())?)
     }
 

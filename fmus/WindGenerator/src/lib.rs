@@ -40,10 +40,10 @@
 
 use spurio::ode::rosenbrock::Tolerance;
 use spurio::plants::wind_generator::{
-    wrap_angle, GeneratorState, TorqueLimit, WindGenerator, WindGeneratorParameters,
-    EVENT_INDICATORS, OUTPUTS, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
+    wrap_angle, GeneratorState, TorqueLimit, WindGenerator, WindGeneratorParameters, OUTPUTS,
+    RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
 };
-use spurio_export::rows::{derivative, input, output, parameter};
+use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
     Causality, Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, Initial,
     ModelExchange, ModelInfo, Variable,
@@ -206,6 +206,12 @@ spurio_export::declare_variables! {
                 derivative(DERIVATIVE_NAMES[k], state, DERIVATIVE_UNITS[k], "Time derivative of the state")
                     .depends_on(&derivative_dependencies(k))
             }),
+            Z_TORQUE_UPPER = event_indicator("z_torque_upper", "N.m",
+                "Event indicator T_max - k_s (omega_s - omega_m): the motor torque reaches or leaves +T_max where it changes sign"),
+            Z_TORQUE_LOWER = event_indicator("z_torque_lower", "N.m",
+                "Event indicator k_s (omega_s - omega_m) + T_max: the motor torque reaches or leaves -T_max where it changes sign"),
+            Z_TURN = event_indicator("z_turn", "rad",
+                "Event indicator 2 pi - theta_e: the angle completes a turn (wrapped back to [0, 2 pi) at the event)"),
         ]
     }
 }
@@ -411,7 +417,7 @@ impl FmuModel for WindGeneratorFmu {
             }),
             Config::new(),
         )
-        .with_model_exchange(EVENT_INDICATORS)
+        .with_model_exchange()
         .map_err(|e| e.to_string())?)
     }
 
@@ -610,6 +616,7 @@ mod tests {
         assert!(limit > 1.5e-3 && limit < 2.2e-3, "{limit}");
     }
 
+    use spurio::plants::wind_generator::EVENT_INDICATORS;
     use spurio_export::Values;
 
     /// A model initialised from the start values, with the state `x` in its variables.
@@ -626,7 +633,11 @@ mod tests {
     fn model_exchange_declares_the_eight_states_and_their_derivatives() {
         let info = WindGeneratorFmu::describe(&Config::new()).unwrap();
         let me = info.model_exchange.as_ref().unwrap();
-        assert_eq!(me.event_indicators, EVENT_INDICATORS);
+        assert_eq!(
+            me.event_indicators,
+            [vr::Z_TORQUE_UPPER, vr::Z_TORQUE_LOWER, vr::Z_TURN]
+        );
+        assert_eq!(me.event_indicators.len(), EVENT_INDICATORS);
         let mut by_reference = STATE_VRS;
         by_reference.sort_unstable();
         assert_eq!(me.states, by_reference);
