@@ -1,0 +1,60 @@
+"""Model Exchange scenarios of WindGenerator for tests/fmpy/test_model_exchange.py.
+
+Start-up from rest at the rated references with a weaker motor (T_max = 2 N.m instead of
+3.4, still above the 1.4 N.m the rated point needs), so that the motor torque reaches its
+breakdown limit +T_max during the start-up and leaves it as the shaft catches up (two state
+events); then the drive reference steps down to 6 V at 3 s. The angle's wrap-arounds (one per electrical turn, 60 a second at 1800 rpm) are state
+events too. The Co-Simulation side runs its adaptive integrator at rtol 1e-10 so its error is
+far below CVode's.
+"""
+
+import numpy as np
+
+T_MAX = 2.0
+
+
+def torque_events_agree(me, cs):
+    """Each time CS sees the torque at a limit, ME holds it there too (and the other way
+    round), away from the switching instants."""
+    t = cs["time"]
+    me_t_m = np.interp(t, me["time"], me["T_m"])
+    on_limit_cs = np.isclose(np.abs(cs["T_m"]), T_MAX, rtol=0, atol=1e-9)
+    on_limit_me = np.isclose(np.abs(me_t_m), T_MAX, rtol=0, atol=1e-6)
+    assert on_limit_cs.any(), "the start-up never reached T_max"
+    assert np.mean(on_limit_cs == on_limit_me) > 0.97
+
+
+SCENARIOS = [
+    dict(
+        fmu="WindGenerator",
+        name="start_up",
+        stop_time=5.0,
+        output_interval=0.01,
+        start_values={"rtol": 1e-10, "T_max": T_MAX},
+        inputs=[(0.0, {"u_drive": 10.0, "u_field": 8.0}), (3.0, {"u_drive": 10.0, "u_field": 8.0}),
+                (3.0, {"u_drive": 6.0, "u_field": 8.0}), (5.0, {"u_drive": 6.0, "u_field": 8.0})],
+        outputs=["speed", "voltage", "T_m", "T_e", "field_current", "i_d", "i_q"],
+        rtol=1e-5,
+        atol=1e-6,
+        check=torque_events_agree,
+    ),
+]
+
+
+def random_point(rng, start):
+    """States across the working range (speeds up to 250 rad/s, currents of a few A) and
+    references inside (0, 10) V, where they are not clipped."""
+    states = {
+        "i_d": rng.uniform(-2, 2),
+        "i_q": rng.uniform(-2, 2),
+        "field_current": rng.uniform(0, 1),
+        "field_voltage": rng.uniform(0, 125),
+        "omega_m": rng.uniform(0, 250),
+        "theta_e": rng.uniform(0, 6),
+        "omega_s": rng.uniform(0, 250),
+        "omega_tach": rng.uniform(0, 250),
+    }
+    # keep the motor torque off its limits (the limit held since the last event is Linear)
+    states["omega_s"] = states["omega_m"] + rng.uniform(-15, 15)
+    inputs = {"u_drive": rng.uniform(0.5, 9.5), "u_field": rng.uniform(0.5, 9.5)}
+    return states, inputs
