@@ -304,13 +304,19 @@ impl Variable {
     /// A local Real `der(x)`: the time derivative of the state at index `state`
     /// (`derivative="…"` in the model description), calculated by the model.
     pub fn derivative(name: &str, state: usize) -> Self {
-        Self::new(
-            name,
-            Causality::Local,
-            Variability::Continuous,
-            Value::Real(0.0),
-        )
-        .derivative_of(state)
+        Self::calculated_local(name).derivative_of(state)
+    }
+    /// A continuous Real local the model calculates (`initial="calculated"`).
+    fn calculated_local(name: &str) -> Self {
+        Self {
+            initial: Some(Initial::Calculated),
+            ..Self::new(
+                name,
+                Causality::Local,
+                Variability::Continuous,
+                Value::Real(0.0),
+            )
+        }
     }
     /// Declares this Real the time derivative of the state at index `state`.
     pub fn derivative_of(mut self, state: usize) -> Self {
@@ -322,14 +328,10 @@ impl Variable {
     /// so it can be read like any variable; a sign change is a state event. FMI 3.0 lists it
     /// as `<EventIndicator>`, FMI 2.0 counts it in `numberOfEventIndicators`.
     pub fn event_indicator(name: &str) -> Self {
-        let mut v = Self::new(
-            name,
-            Causality::Local,
-            Variability::Continuous,
-            Value::Real(0.0),
-        );
-        v.event_indicator = true;
-        v
+        Self {
+            event_indicator: true,
+            ..Self::calculated_local(name)
+        }
     }
     /// Sets the nominal value (`nominal="…"`, a state's scale for the solver; default 1).
     pub fn nominal(mut self, nominal: f64) -> Self {

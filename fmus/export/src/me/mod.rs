@@ -198,3 +198,151 @@ pub fn hooks<M: ModelExchange>() -> Hooks<M> {
         directional_derivative: M::directional_derivative,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::description::{Config, ModelInfo};
+
+    /// x (output, state), v (local state), u (input), der(x) = v, der(v) = u − x, z = x.
+    fn table() -> Vec<Variable> {
+        vec![
+            Variable::output("x").state().nominal(0.5).depends_on(&[0]),
+            Variable::derivative("v", 0).state().describe("velocity"),
+            Variable::input("u", 0.0),
+            Variable::derivative("der(v)", 1).depends_on(&[0, 2]),
+            Variable::event_indicator("z"),
+        ]
+    }
+
+    fn info(variables: Vec<Variable>) -> Result<ModelInfo, DeclarationError> {
+        ModelInfo::new("Osc", "", variables, None, Config::new()).with_model_exchange()
+    }
+
+    #[test]
+    fn the_interface_comes_from_the_table() {
+        let info = info(table()).unwrap();
+        let me = info.model_exchange.as_ref().unwrap();
+        assert_eq!(
+            (me.states.clone(), me.derivatives.clone()),
+            (vec![0, 1], vec![1, 3])
+        );
+        assert_eq!(me.event_indicators, [4]);
+        assert_eq!(me.nominals(&info.variables), [0.5, 1.0]);
+        // the GUID covers the interface
+        let cs = ModelInfo::new("Osc", "", table(), None, Config::new());
+        assert_ne!(cs.guid, info.guid);
+    }
+
+    #[test]
+    fn both_descriptions_declare_it() {
+        let info = info(table()).unwrap();
+        let x = info.to_xml();
+        crate::description::tests::assert_in_order(
+            &x,
+            &[
+                "numberOfEventIndicators=\"1\"",
+                "<ModelExchange modelIdentifier=\"Osc\"",
+                "<CoSimulation",
+            ],
+        );
+        assert!(x.contains(r#"providesDirectionalDerivative="true"/>"#));
+        assert!(x.contains(r#"<Real nominal="0.5"/>"#));
+        assert!(x.contains(r#"name="v" valueReference="1" description="velocity" causality="local" variability="continuous" initial="calculated">"#));
+        assert!(x.contains(r#"<Real derivative="1"/>"#));
+        assert!(x.contains(r#"<Real derivative="2"/>"#));
+        let structure = &x[x.find("<ModelStructure>").unwrap()..];
+        crate::description::tests::assert_in_order(
+            structure,
+            &[
+                "<Outputs>",
+                r#"<Unknown index="1" dependencies="1"/>"#,
+                "<Derivatives>",
+                r#"<Unknown index="2"/>"#,
+                r#"<Unknown index="4" dependencies="1 3"/>"#,
+                "<InitialUnknowns>",
+            ],
+        );
+        let initial = &structure[structure.find("<InitialUnknowns>").unwrap()..];
+        crate::description::tests::assert_in_order(
+            initial,
+            &[
+                r#"<Unknown index="1"/>"#,
+                r#"<Unknown index="2"/>"#,
+                r#"<Unknown index="4"/>"#,
+                "</InitialUnknowns>",
+            ],
+        );
+        assert!(
+            !initial.contains(r#"index="5""#),
+            "an event indicator is no initial unknown"
+        );
+        let x3 = crate::fmi3::description::model_description(&info);
+        crate::description::tests::assert_in_order(
+            &x3,
+            &[
+                r#"<ModelExchange modelIdentifier="Osc""#,
+                r#"providesDirectionalDerivatives="true" providesAdjointDerivatives="true""#,
+                "<CoSimulation",
+                r#"name="x" valueReference="1""#,
+                r#"name="v" valueReference="2""#,
+                r#"derivative="1""#,
+                r#"name="der(v)" valueReference="4""#,
+                r#"derivative="2""#,
+                r#"<Output valueReference="1" dependencies="1"/>"#,
+                r#"<ContinuousStateDerivative valueReference="2"/>"#,
+                r#"<ContinuousStateDerivative valueReference="4" dependencies="1 3"/>"#,
+                r#"<InitialUnknown valueReference="1"/>"#,
+                r#"<EventIndicator valueReference="5"/>"#,
+            ],
+        );
+    }
+
+    #[test]
+    fn inconsistent_declarations_are_errors() {
+        let mut t = table();
+        t[3].derivative_of = None;
+        assert_eq!(
+            info(t).unwrap_err(),
+            DeclarationError::NoDerivative("v".into())
+        );
+        let mut t = table();
+        t[4].derivative_of = Some(1);
+        assert!(matches!(
+            info(t).unwrap_err(),
+            DeclarationError::TwoDerivatives { .. }
+        ));
+        let mut t = table();
+        t[3].derivative_of = Some(2);
+        assert_eq!(
+            info(t).unwrap_err().to_string(),
+            "state `v` has no derivative: declare `der(v)` with derivative_of"
+        );
+        let mut t = table();
+        t[2].state = true;
+        assert_eq!(
+            info(t).unwrap_err(),
+            DeclarationError::NotAContinuousReal("u".into())
+        );
+        let mut t = table();
+        t.push(Variable::parameter("k", 1.0).derivative_of(0));
+        assert!(matches!(
+            info(t).unwrap_err(),
+            DeclarationError::TwoDerivatives { .. }
+        ));
+        let mut t = table();
+        t.push(Variable::output("w").derivative_of(2));
+        assert!(matches!(
+            info(t).unwrap_err(),
+            DeclarationError::NotAState { index: 2, .. }
+        ));
+        let mut t = table();
+        t[4].causality = crate::variables::Causality::Output;
+        assert_eq!(
+            info(t).unwrap_err(),
+            DeclarationError::BadEventIndicator("z".into())
+        );
+        let plain = vec![Variable::output("y")];
+        assert_eq!(info(plain).unwrap_err(), DeclarationError::NoState);
+    }
+}
