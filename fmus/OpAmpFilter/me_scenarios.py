@@ -97,4 +97,18 @@ SCENARIOS = [
         # fmpy's loop also records the input's steps (time events) as events.
         event_times=sorted([0.5, 3.0] + exact_event_times()),
     ),
+    # The same with the defaults (the CS side's RK4 at h_max = 1 ms), which is also the one
+    # tests/interop runs in fmuCheck -k me (it cannot set start values).
+    dict(
+        fmu="OpAmpFilter",
+        name="step_into_saturation_defaults",
+        stop_time=STOP,
+        output_interval=0.01,
+        inputs=[(0.0, {"u": 0.0}), (0.5, {"u": 0.0}), (0.5, {"u": 20.0}),
+                (3.0, {"u": 20.0}), (3.0, {"u": -20.0}), (STOP, {"u": -20.0})],
+        outputs=["y", "v_C1", "v_C2"],
+        rtol=1e-5,
+        atol=1e-5,
+        event_times=sorted([0.5, 3.0] + exact_event_times()),
+    ),
 ]

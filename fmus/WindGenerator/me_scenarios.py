@@ -38,6 +38,19 @@ SCENARIOS = [
         atol=1e-6,
         check=torque_events_agree,
     ),
+    # The defaults (T_max = 3.4 N.m: the torque stays off its limit; CS at rtol 1e-7), which is
+    # also the one tests/interop runs in fmuCheck -k me (it cannot set start values).
+    dict(
+        fmu="WindGenerator",
+        name="start_up_defaults",
+        stop_time=5.0,
+        output_interval=0.01,
+        inputs=[(0.0, {"u_drive": 10.0, "u_field": 8.0}), (3.0, {"u_drive": 10.0, "u_field": 8.0}),
+                (3.0, {"u_drive": 6.0, "u_field": 8.0}), (5.0, {"u_drive": 6.0, "u_field": 8.0})],
+        outputs=["speed", "voltage", "T_m", "T_e", "field_current", "i_d", "i_q"],
+        rtol=1e-5,
+        atol=1e-6,
+    ),
 ]
 
 
