@@ -12,6 +12,12 @@ import numpy as np
 
 T_MAX = 2.0
 
+# When the start-up with T_max = 2 N.m enters and leaves the torque limit, located without
+# any FMU or solver (src/plants/wind_generator.rs, test
+# start_up_with_a_weak_motor_enters_and_leaves_the_torque_limit_at_the_pinned_times: RK4 on
+# 1 us steps and bisection of the indicator).
+TORQUE_LIMIT_EVENTS = [0.0519131345, 0.9296098032]
+
 
 def torque_events_agree(me, cs):
     """Each time CS sees the torque at a limit, ME holds it there too (and the other way
@@ -22,6 +28,13 @@ def torque_events_agree(me, cs):
     on_limit_me = np.isclose(np.abs(me_t_m), T_MAX, rtol=0, atol=1e-6)
     assert on_limit_cs.any(), "the start-up never reached T_max"
     assert np.mean(on_limit_cs == on_limit_me) > 0.97
+    # CVode locates both torque-limit events within 1e-6 s (the angle's turns are events too,
+    # ~16 ms apart, so the nearest event to each expected time is the torque's).
+    t_me = me["time"]
+    events = t_me[1:][np.diff(t_me) == 0]
+    for expected in TORQUE_LIMIT_EVENTS:
+        error = np.min(np.abs(events - expected))
+        assert error < 1e-6, f"no event within 1e-6 s of {expected} (nearest {error:.3g} s away)"
 
 
 SCENARIOS = [

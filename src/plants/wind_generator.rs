@@ -1124,6 +1124,56 @@ mod tests {
         assert!(tight < 2e-11, "{tight}");
     }
 
+    /// The times at which the start-up from rest at the rated references with `T_max` = 2 N·m
+    /// enters and leaves the torque limit, located independently of any FMU or solver: RK4 on
+    /// 1 µs steps, each sign change of the indicator refined by bisection (one RK4 step from
+    /// the last grid point), and the integration restarted from the located state.
+    pub(crate) fn torque_limit_event_times() -> [f64; 2] {
+        let p = WindGeneratorParameters {
+            max_motor_torque: 2.0,
+            ..Default::default()
+        };
+        let mut f = |_t: f64, x: &GeneratorState| p.derivative(x, 10.0, 8.0);
+        let mut x = GeneratorState::zeros();
+        let mut t = 0.0;
+        let h = 1e-6;
+        let mut times = [0.0; 2];
+        for (k, time) in times.iter_mut().enumerate() {
+            // k = 0: z_upper goes ≤ 0 (entering); k = 1: back > 0 (leaving).
+            let crossed = |x: &GeneratorState| (p.event_indicators(x)[0] <= 0.0) == (k == 0);
+            loop {
+                let next = ode::rk4_step(&mut f, t, &x, h);
+                if crossed(&next) {
+                    let (mut a, mut b) = (0.0, h);
+                    while b - a > 1e-14 {
+                        let mid = 0.5 * (a + b);
+                        if crossed(&ode::rk4_step(&mut f, t, &x, mid)) {
+                            b = mid;
+                        } else {
+                            a = mid;
+                        }
+                    }
+                    x = ode::rk4_step(&mut f, t, &x, b);
+                    t += b;
+                    *time = t;
+                    break;
+                }
+                x = next;
+                t += h;
+            }
+        }
+        times
+    }
+
+    #[test]
+    fn start_up_with_a_weak_motor_enters_and_leaves_the_torque_limit_at_the_pinned_times() {
+        // The times fmus/WindGenerator/me_scenarios.py asks CVode's events to match (1e-6 s).
+        let [enter, leave] = torque_limit_event_times();
+        eprintln!("torque limit: enters at {enter:.10} s, leaves at {leave:.10} s");
+        assert!((enter - 0.051_913_134_5).abs() < 1e-9, "{enter}");
+        assert!((leave - 0.929_609_803_2).abs() < 1e-9, "{leave}");
+    }
+
     #[test]
     fn bad_parameters_are_named() {
         let base = WindGeneratorParameters::default();
