@@ -81,34 +81,28 @@ def exact_event_times():
     return events
 
 
+INPUTS = [(0.0, {"u": 0.0}), (0.5, {"u": 0.0}), (0.5, {"u": 20.0}),
+          (3.0, {"u": 20.0}), (3.0, {"u": -20.0}), (STOP, {"u": -20.0})]
+
+STEP_INTO_SATURATION = dict(
+    fmu="OpAmpFilter",
+    name="step_into_saturation",
+    stop_time=STOP,
+    output_interval=0.01,
+    # The CS side on a fine RK4 grid, so its error at the rails' kinks is below CVode's.
+    start_values={"h_max": 1e-5},
+    inputs=INPUTS,
+    outputs=["y", "v_C1", "v_C2"],
+    rtol=1e-6,
+    atol=1e-6,
+    # fmpy's loop also records the input's steps (time events) as events.
+    event_times=sorted([0.5, 3.0] + exact_event_times()),
+)
+
 SCENARIOS = [
-    dict(
-        fmu="OpAmpFilter",
-        name="step_into_saturation",
-        stop_time=STOP,
-        output_interval=0.01,
-        # The CS side on a fine RK4 grid, so its error at the rails' kinks is below CVode's.
-        start_values={"h_max": 1e-5},
-        inputs=[(0.0, {"u": 0.0}), (0.5, {"u": 0.0}), (0.5, {"u": 20.0}),
-                (3.0, {"u": 20.0}), (3.0, {"u": -20.0}), (STOP, {"u": -20.0})],
-        outputs=["y", "v_C1", "v_C2"],
-        rtol=1e-6,
-        atol=1e-6,
-        # fmpy's loop also records the input's steps (time events) as events.
-        event_times=sorted([0.5, 3.0] + exact_event_times()),
-    ),
+    STEP_INTO_SATURATION,
     # The same with the defaults (the CS side's RK4 at h_max = 1 ms), which is also the one
     # tests/interop runs in fmuCheck -k me (it cannot set start values).
-    dict(
-        fmu="OpAmpFilter",
-        name="step_into_saturation_defaults",
-        stop_time=STOP,
-        output_interval=0.01,
-        inputs=[(0.0, {"u": 0.0}), (0.5, {"u": 0.0}), (0.5, {"u": 20.0}),
-                (3.0, {"u": 20.0}), (3.0, {"u": -20.0}), (STOP, {"u": -20.0})],
-        outputs=["y", "v_C1", "v_C2"],
-        rtol=1e-5,
-        atol=1e-5,
-        event_times=sorted([0.5, 3.0] + exact_event_times()),
-    ),
+    dict(STEP_INTO_SATURATION, name="step_into_saturation_defaults", start_values={},
+         rtol=1e-5, atol=1e-5),
 ]

@@ -301,6 +301,16 @@ impl WindGeneratorParameters {
         Ok(())
     }
 
+    /// `(L_d, L_q, L_f, M_f)`.
+    fn inductances(&self) -> (f64, f64, f64, f64) {
+        (
+            self.d_inductance,
+            self.q_inductance,
+            self.field_inductance,
+            self.mutual_inductance,
+        )
+    }
+
     /// `L_d L_f − (3/2) M_f²`.
     fn d_field_determinant(&self) -> f64 {
         self.d_inductance * self.field_inductance
@@ -373,12 +383,7 @@ impl WindGeneratorParameters {
         let (omega_s, v_f, omega_t) = (x[5], x[6], x[7]);
         let omega_e = self.pole_pairs * omega_m;
         let resistance = self.stator_resistance + self.load_resistance;
-        let (l_d, l_q, l_f, m_f) = (
-            self.d_inductance,
-            self.q_inductance,
-            self.field_inductance,
-            self.mutual_inductance,
-        );
+        let (l_d, l_q, l_f, m_f) = self.inductances();
         // [L_d, −M_f; −1.5 M_f, L_f] [di_d; di_f] = [r_d; r_f]
         let r_d = -resistance * i_d + omega_e * l_q * i_q;
         let r_f = v_f - self.field_resistance * i_f;
@@ -419,12 +424,7 @@ impl WindGeneratorParameters {
         let p = self.pole_pairs;
         let omega_e = p * omega_m;
         let r = self.stator_resistance + self.load_resistance;
-        let (l_d, l_q, l_f, m_f) = (
-            self.d_inductance,
-            self.q_inductance,
-            self.field_inductance,
-            self.mutual_inductance,
-        );
+        let (l_d, l_q, l_f, m_f) = self.inductances();
         let det = self.d_field_determinant();
         // ∂r_d/∂(i_d, i_q, ω_m) and ∂r_f/∂(i_f, v_f).
         let (rd_id, rd_iq, rd_wm) = (-r, omega_e * l_q, p * l_q * i_q);

@@ -83,25 +83,13 @@ pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
     ("L_q", "H", "q-axis synchronous inductance"),
     ("R_f", "Ohm", "Field winding resistance"),
     ("L_f", "H", "Field winding self-inductance"),
-    (
-        "M_f",
-        "H",
-        "Stator-field mutual inductance (sets 240 V at the rated point)",
-    ),
+    ("M_f", "H", "Stator-field mutual inductance"),
     ("R_load", "Ohm", "Load resistance per phase, star-connected"),
     ("J", "kg.m2", "Inertia of both rotors"),
     ("B", "N.m.s/rad", "Viscous friction of the shaft"),
-    (
-        "k_s",
-        "N.m.s/rad",
-        "Induction motor torque per rad/s of slip (rated torque / rated slip)",
-    ),
+    ("k_s", "N.m.s/rad", "Motor torque per rad/s of slip"),
     ("T_max", "N.m", "Motor breakdown torque"),
-    (
-        "tau_drive",
-        "s",
-        "Drive slip-compensation / frequency filter time constant",
-    ),
+    ("tau_drive", "s", "Drive slip-compensation lag"),
     ("tau_scr", "s", "SCR field supply lag"),
     ("tau_tach", "s", "Tachogenerator lag"),
     ("f_rated", "Hz", "Supply frequency at u_drive = 10 V"),
@@ -152,26 +140,14 @@ spurio_export::declare_variables! {
                 .depends_on(&[vr::OMEGA_M]),
             SHAFT_SPEED = output("shaft_speed", "rpm", "True shaft speed (without the tachometer lag)")
                 .depends_on(&[vr::OMEGA_M]),
-            FIELD_CURRENT = output("field_current", "A", "Field current i_f")
-                .state()
-                .nominal(0.5)
-                .depends_on(&[vr::FIELD_CURRENT]),
-            FIELD_VOLTAGE = output("field_voltage", "V", "Field voltage from the SCR module")
-                .state()
-                .nominal(100.0)
-                .depends_on(&[vr::FIELD_VOLTAGE]),
+            FIELD_CURRENT = state(output("field_current", "A", "Field current i_f"), 0.5, vr::FIELD_CURRENT),
+            FIELD_VOLTAGE = state(output("field_voltage", "V", "Field voltage from the SCR module"), 100.0, vr::FIELD_VOLTAGE),
             T_E = output("T_e", "N.m", "Electrical (braking) torque of the generator")
                 .depends_on(&[vr::FIELD_CURRENT, vr::I_D, vr::I_Q]),
             T_M = output("T_m", "N.m", "Motor torque")
                 .depends_on(&[vr::OMEGA_M, vr::OMEGA_S]),
-            I_D = output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)")
-                .state()
-                .nominal(0.5)
-                .depends_on(&[vr::I_D]),
-            I_Q = output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)")
-                .state()
-                .nominal(0.5)
-                .depends_on(&[vr::I_Q]),
+            I_D = state(output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_D),
+            I_Q = state(output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_Q),
             // The 16 physical parameters, in `PARAMETER_NAMES` order.
             FIRST_PARAMETER[16] = PARAMETER_NAMES
                 .iter()
@@ -216,15 +192,18 @@ spurio_export::declare_variables! {
     }
 }
 
+/// `variable` (a continuous Real output) as the state at `own` (its own index) with `nominal`:
+/// as an output it depends on itself only.
+fn state(variable: Variable, nominal: f64, own: usize) -> Variable {
+    variable.state().nominal(nominal).depends_on(&[own])
+}
+
 /// A local continuous Real that is a state of the Model Exchange interface.
 fn state_local(name: &str, unit: &str, description: &str, nominal: f64) -> Variable {
     Variable {
         causality: Causality::Local,
         initial: Some(Initial::Calculated),
-        ..output(name, unit, description)
-            .state()
-            .nominal(nominal)
-            .depends_on(&[])
+        ..output(name, unit, description).state().nominal(nominal)
     }
 }
 
