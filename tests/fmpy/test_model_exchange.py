@@ -28,7 +28,7 @@ directional-derivative check (default: the initial states and inputs, each moved
 half its nominal/magnitude, seeded).
 """
 
-import importlib.util
+import sys
 import zipfile
 from ctypes import POINTER, c_double
 
@@ -40,6 +40,9 @@ from fmpy.validation import validate_fmu
 
 from conftest import FMU_DIR, REPO
 
+sys.path.insert(0, str(REPO / "scripts"))
+import me_scenarios  # noqa: E402
+
 CVODE_RTOL = 1e-8
 # Central differences with a relative step of 1e-6 have a truncation error of ~1e-12 and a
 # rounding error of ~1e-10 of the column's scale: 1e-6 is far above both.
@@ -47,31 +50,8 @@ DERIVATIVE_RTOL = 1e-6
 RANDOM_POINTS = 20
 
 
-def model_exchange_stems():
-    """The bundled variants whose committed FMI 2.0 description declares Model Exchange."""
-    return [
-        p.stem
-        for p in sorted((REPO / "modelDescription").glob("*.xml"))
-        if "<ModelExchange " in p.read_text()
-    ]
-
-
-def load_scenarios():
-    """Every fmus/<Id>/me_scenarios.py's SCENARIOS (and random_point, by FMU)."""
-    scenarios, samplers = [], {}
-    for path in sorted((REPO / "fmus").glob("*/me_scenarios.py")):
-        spec = importlib.util.spec_from_file_location(f"me_scenarios_{path.parent.name}", path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        for s in module.SCENARIOS:
-            scenarios.append(s)
-            if hasattr(module, "random_point"):
-                samplers[s["fmu"]] = module.random_point
-    return scenarios, samplers
-
-
-STEMS = model_exchange_stems()
-SCENARIOS, SAMPLERS = load_scenarios()
+STEMS = me_scenarios.stems(REPO)
+SCENARIOS, SAMPLERS = me_scenarios.load(REPO)
 
 
 def fmu_path(stem, fmi3=False):
@@ -89,13 +69,34 @@ def signals(rows):
     return np.array([(t, *[values[n] for n in names]) for t, values in rows], dtype=dtype)
 
 
+def fmi3_start_values(start, path):
+    """FMI 2.0 structured start values (`A[1,2]`) as the FMI 3.0 arrays they are elements of
+    (row-major, the other elements at their start values); scalars as they are."""
+    arrays = {v.name: v for v in read_model_description(path).modelVariables if v.shape}
+    out = {}
+    for name, value in start.items():
+        base, _, index = name.partition("[")
+        if base not in arrays or not index:
+            out[name] = value
+            continue
+        v = arrays[base]
+        values = out.setdefault(base, [v._python_type(e) for e in str(v.start).split()])
+        position = [int(i) - 1 for i in index.rstrip("]").split(",")]
+        values[int(np.ravel_multi_index(position, v.shape))] = value
+    return out
+
+
 def simulate(s, fmi_type, fmi3=False):
+    start = s.get("start_values", {})
+    outputs = s["outputs"]
+    if fmi3:  # the arrays the structured outputs are elements of
+        outputs = list(dict.fromkeys(name.partition("[")[0] for name in outputs))
     options = dict(
         stop_time=s["stop_time"],
         output_interval=s["output_interval"],
-        start_values=s.get("start_values", {}),
+        start_values=fmi3_start_values(start, fmu_path(s["fmu"], fmi3)) if fmi3 else start,
         input=signals(s.get("inputs")),
-        output=s["outputs"],
+        output=outputs,
         fmi_type=fmi_type,
     )
     if fmi_type == "ModelExchange":
@@ -109,13 +110,24 @@ def event_times(result):
     return t[1:][np.diff(t) == 0]
 
 
+def column(result, name):
+    """`name` of `result`; an FMI 2.0 structured name `x[2]` in an FMI 3.0 result is element 2
+    of the array `x` (row-major)."""
+    if name in result.dtype.names:
+        return result[name]
+    base, _, index = name.partition("[")
+    values = result[base].reshape(len(result), -1)
+    return values[:, int(index.rstrip("]").split(",")[0]) - 1]
+
+
 def on_grid(result, name, times):
     """`name` of `result` at `times` (the last row at a time: after an event)."""
     t = result["time"]
+    values_at = column(result, name)
     index = np.searchsorted(t, times, side="right") - 1
     exact = np.isclose(t[np.clip(index, 0, len(t) - 1)], times, rtol=0, atol=1e-12)
-    values = np.interp(times, t, result[name])
-    values[exact] = result[name][index[exact]]
+    values = np.interp(times, t, values_at)
+    values[exact] = values_at[index[exact]]
     return values
 
 
@@ -181,8 +193,10 @@ class Model:
         )
         self.fmu.instantiate()
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        types = {v.name: v.type for v in self.md.modelVariables}
         for name, value in start_values.items():
-            self.fmu.setReal([self.vr[name]], [value])
+            set_value = self.fmu.setBoolean if types[name] == "Boolean" else self.fmu.setReal
+            set_value([self.vr[name]], [value])
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()

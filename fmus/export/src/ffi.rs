@@ -109,7 +109,7 @@ pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
 }
 
 /// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
-unsafe fn with_instance<M: FmuModel>(
+pub(crate) unsafe fn with_instance<M: FmuModel>(
     c: fmi2Component,
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
@@ -567,13 +567,7 @@ unsafe fn get_known_status<M: FmuModel, T>(
         if kind != known {
             return get_status::<M>(c, f, kind);
         }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = answer(s);
-            Status::Ok
-        })
+        crate::front::write_out::<M, (), T>(c, f, (value, "value"), answer)
     }
 }
 

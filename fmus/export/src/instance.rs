@@ -103,19 +103,26 @@ impl fmt::Display for ModelState {
     }
 }
 
-const INSTANTIATED: u32 = ModelState::Instantiated.bit();
-const INIT_MODE: u32 = ModelState::InitializationMode.bit();
-const STEP_COMPLETE: u32 = ModelState::StepComplete.bit();
-const STEP_IN_PROGRESS: u32 = ModelState::StepInProgress.bit();
-const STEP_FAILED: u32 = ModelState::StepFailed.bit();
-const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
-const TERMINATED: u32 = ModelState::Terminated.bit();
-const ERROR: u32 = ModelState::Error.bit();
-const FATAL: u32 = ModelState::Fatal.bit();
-pub(crate) const EVENT_MODE: u32 = ModelState::EventMode.bit();
-pub(crate) const CONTINUOUS_TIME_MODE: u32 = ModelState::ContinuousTimeMode.bit();
-/// The two states of a Model Exchange instance between initialization and termination.
-pub(crate) const ME_MODES: u32 = EVENT_MODE | CONTINUOUS_TIME_MODE;
+/// The states' bits, for the masks of both versions' function tables.
+pub(crate) mod bits {
+    use super::ModelState;
+    pub const INSTANTIATED: u32 = ModelState::Instantiated.bit();
+    pub const INIT_MODE: u32 = ModelState::InitializationMode.bit();
+    pub const STEP_COMPLETE: u32 = ModelState::StepComplete.bit();
+    pub const STEP_IN_PROGRESS: u32 = ModelState::StepInProgress.bit();
+    pub const STEP_FAILED: u32 = ModelState::StepFailed.bit();
+    pub const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
+    pub const TERMINATED: u32 = ModelState::Terminated.bit();
+    pub const ERROR: u32 = ModelState::Error.bit();
+    pub const FATAL: u32 = ModelState::Fatal.bit();
+    pub const EVENT_MODE: u32 = ModelState::EventMode.bit();
+    pub const CONTINUOUS_TIME_MODE: u32 = ModelState::ContinuousTimeMode.bit();
+    /// The two states of a Model Exchange instance between initialization and termination.
+    pub const ME_MODES: u32 = EVENT_MODE | CONTINUOUS_TIME_MODE;
+    /// Where the Model Exchange getters may be called.
+    pub const ME_AFTER_INIT: u32 = INIT_MODE | ME_MODES | TERMINATED | ERROR;
+}
+use bits::*;
 
 /// An FMI function and the states in which it may be called.
 #[derive(Debug, Clone, Copy)]
@@ -127,7 +134,7 @@ pub struct Function {
 /// `function! { ID, "fmiXName", MASK }` declares `pub const ID: Function`: the one form of
 /// the FMI 2.0 and FMI 3.0 tables of allowed states.
 macro_rules! function {
-    ($id:ident, $name:literal, $mask:expr) => {
+    ($id:ident, $name:expr, $mask:expr) => {
         pub const $id: $crate::instance::Function = $crate::instance::Function {
             name: $name,
             mask: $mask,
@@ -136,11 +143,57 @@ macro_rules! function {
 }
 pub(crate) use function;
 
+/// Declares, in a version's `functions` module, the functions both versions have under the
+/// same name but for the prefix `$fmi` (and the spellings `$state` of "FMU state",
+/// `$deserialize` of its deserialization, `$real` and `$integer` of the numeric types), with
+/// the version's masks: every live state, where FMU states may be taken, where values may be
+/// read and set, where the instance may be terminated.
+macro_rules! shared_functions {
+    (
+        $fmi:literal, $state:literal, $deserialize:literal, $real:literal, $integer:literal,
+        $any_live:expr, $state_ops:expr, $get:expr, $set:expr, $terminable:expr
+    ) => {
+        use $crate::instance::function as f;
+        f! { SET_DEBUG_LOGGING, concat!($fmi, "SetDebugLogging"), $any_live }
+        f! { FREE_INSTANCE, concat!($fmi, "FreeInstance"), $any_live | FATAL }
+        f! { ENTER_INITIALIZATION_MODE, concat!($fmi, "EnterInitializationMode"), INSTANTIATED }
+        f! { EXIT_INITIALIZATION_MODE, concat!($fmi, "ExitInitializationMode"), INIT_MODE }
+        f! { RESET, concat!($fmi, "Reset"), $state_ops }
+        f! { TERMINATE, concat!($fmi, "Terminate"), $terminable }
+        f! { GET_REAL, concat!($fmi, "Get", $real), $get }
+        f! { GET_INTEGER, concat!($fmi, "Get", $integer), $get }
+        f! { SET_REAL, concat!($fmi, "Set", $real), $set }
+        f! { SET_INTEGER, concat!($fmi, "Set", $integer), $set }
+        f! { GET_BOOLEAN, concat!($fmi, "GetBoolean"), $get }
+        f! { GET_STRING, concat!($fmi, "GetString"), $get }
+        f! { SET_BOOLEAN, concat!($fmi, "SetBoolean"), $set }
+        f! { SET_STRING, concat!($fmi, "SetString"), $set }
+        f! { GET_FMU_STATE, concat!($fmi, "Get", $state), $state_ops }
+        f! { SET_FMU_STATE, concat!($fmi, "Set", $state), $state_ops }
+        f! { FREE_FMU_STATE, concat!($fmi, "Free", $state), $state_ops | FATAL }
+        f! { SERIALIZED_FMU_STATE_SIZE, concat!($fmi, "Serialized", $state, "Size"), $state_ops }
+        f! { SERIALIZE_FMU_STATE, concat!($fmi, "Serialize", $state), $state_ops }
+        f! { DESERIALIZE_FMU_STATE, concat!($fmi, $deserialize), $state_ops }
+        f! { DO_STEP, concat!($fmi, "DoStep"), STEP_COMPLETE }
+        f! { GET_DIRECTIONAL_DERIVATIVE, concat!($fmi, "GetDirectionalDerivative"), $get }
+        // Model Exchange (FMI 2.0.4 §3.2.3, FMI 3.0.2 §3.3).
+        f! { SET_TIME, concat!($fmi, "SetTime"), ME_MODES }
+        f! { SET_CONTINUOUS_STATES, concat!($fmi, "SetContinuousStates"), CONTINUOUS_TIME_MODE }
+        f! { GET_CONTINUOUS_STATES, concat!($fmi, "GetContinuousStates"), ME_AFTER_INIT }
+        f! { GET_EVENT_INDICATORS, concat!($fmi, "GetEventIndicators"), ME_AFTER_INIT }
+        f! { GET_NOMINALS_OF_CONTINUOUS_STATES, concat!($fmi, "GetNominalsOfContinuousStates"), INSTANTIATED | ME_AFTER_INIT }
+        f! { ENTER_EVENT_MODE, concat!($fmi, "EnterEventMode"), ME_MODES }
+        f! { ENTER_CONTINUOUS_TIME_MODE, concat!($fmi, "EnterContinuousTimeMode"), EVENT_MODE }
+        f! { COMPLETED_INTEGRATOR_STEP, concat!($fmi, "CompletedIntegratorStep"), CONTINUOUS_TIME_MODE }
+    };
+}
+pub(crate) use shared_functions;
+
 /// Allowed-state masks of the FMI 2.0 functions (FMI 2.0.4, §4.2.4 Co-Simulation and §3.2.3
 /// Model Exchange state machines; a Co-Simulation instance never is in the Model Exchange
 /// states and vice versa).
 pub mod functions {
-    use super::*;
+    use super::bits::*;
     const ANY_LIVE: u32 = ME_MODES
         | INSTANTIATED
         | INIT_MODE
@@ -159,50 +212,30 @@ pub mod functions {
     const STATUS_QUERIES: u32 =
         STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
 
-    use super::function as f;
-    f! { SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE }
-    f! { FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL }
+    const TERMINABLE: u32 = ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED;
+    super::shared_functions!(
+        "fmi2",
+        "FMUstate",
+        "DeSerializeFMUstate",
+        "Real",
+        "Integer",
+        ANY_LIVE,
+        STATE_OPS,
+        AFTER_INIT,
+        SETTABLE,
+        TERMINABLE
+    );
     f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }
-    f! { ENTER_INITIALIZATION_MODE, "fmi2EnterInitializationMode", INSTANTIATED }
-    f! { EXIT_INITIALIZATION_MODE, "fmi2ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi2Terminate", ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
-    f! { RESET, "fmi2Reset", STATE_OPS }
-    f! { GET_REAL, "fmi2GetReal", AFTER_INIT }
-    f! { GET_INTEGER, "fmi2GetInteger", AFTER_INIT }
-    f! { GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT }
-    f! { GET_STRING, "fmi2GetString", AFTER_INIT }
-    f! { SET_REAL, "fmi2SetReal", SETTABLE }
-    f! { SET_INTEGER, "fmi2SetInteger", SETTABLE }
-    f! { SET_BOOLEAN, "fmi2SetBoolean", SETTABLE }
-    f! { SET_STRING, "fmi2SetString", SETTABLE }
-    f! { GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS }
-    f! { SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS }
-    f! { FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL }
-    f! { SERIALIZED_FMU_STATE_SIZE, "fmi2SerializedFMUstateSize", STATE_OPS }
-    f! { SERIALIZE_FMU_STATE, "fmi2SerializeFMUstate", STATE_OPS }
-    f! { DESERIALIZE_FMU_STATE, "fmi2DeSerializeFMUstate", STATE_OPS }
-    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi2GetDirectionalDerivative", AFTER_INIT }
     f! { SET_REAL_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", SETTABLE }
     f! { GET_REAL_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR }
-    f! { DO_STEP, "fmi2DoStep", STEP_COMPLETE }
     f! { CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS }
     f! { GET_STATUS, "fmi2GetStatus", STATUS_QUERIES }
     f! { GET_REAL_STATUS, "fmi2GetRealStatus", STATUS_QUERIES }
     f! { GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES }
     f! { GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES }
     f! { GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES }
-    // Model Exchange (FMI 2.0.4 §3.2.3).
-    const ME_AFTER_INIT: u32 = INIT_MODE | ME_MODES | TERMINATED | ERROR;
-    f! { SET_TIME, "fmi2SetTime", ME_MODES }
-    f! { SET_CONTINUOUS_STATES, "fmi2SetContinuousStates", CONTINUOUS_TIME_MODE }
-    f! { GET_CONTINUOUS_STATES, "fmi2GetContinuousStates", ME_AFTER_INIT }
     f! { GET_DERIVATIVES, "fmi2GetDerivatives", ME_AFTER_INIT }
-    f! { GET_EVENT_INDICATORS, "fmi2GetEventIndicators", ME_AFTER_INIT }
-    f! { GET_NOMINALS_OF_CONTINUOUS_STATES, "fmi2GetNominalsOfContinuousStates", INSTANTIATED | ME_AFTER_INIT }
-    f! { ENTER_EVENT_MODE, "fmi2EnterEventMode", ME_MODES }
     f! { NEW_DISCRETE_STATES, "fmi2NewDiscreteStates", EVENT_MODE }
-    f! { ENTER_CONTINUOUS_TIME_MODE, "fmi2EnterContinuousTimeMode", EVENT_MODE }
-    f! { COMPLETED_INTEGRATOR_STEP, "fmi2CompletedIntegratorStep", CONTINUOUS_TIME_MODE }
 }
 
 /// The names of the states in `f`'s mask, in the vocabulary of `f`'s FMI version (FMI 3.0

@@ -11,6 +11,13 @@ use spurio_export::harness::Harness;
 use spurio_export::types::Status;
 use spurio_export::{Config, FmuModel};
 
+/// A toy instance initialized at `start_time`.
+fn started(start_time: f64) -> Harness<Toy> {
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
+    h.initialize(start_time).unwrap();
+    h
+}
+
 fn errors(h: &Harness<Toy>) -> Vec<String> {
     h.log()
         .into_iter()
@@ -63,8 +70,7 @@ fn rejected_sets_change_nothing_and_say_why() {
 
 #[test]
 fn direct_feedthrough_outputs_follow_their_inputs_between_steps() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[4.0]).unwrap();
     assert_eq!(h.real(Z as u32).unwrap(), 4.0);
     assert_eq!(
@@ -76,8 +82,7 @@ fn direct_feedthrough_outputs_follow_their_inputs_between_steps() {
 
 #[test]
 fn a_panic_is_caught_and_reported_as_fatal() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[13.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Fatal));
     let log = h.log();
@@ -94,8 +99,7 @@ fn a_panic_is_caught_and_reported_as_fatal() {
 
 #[test]
 fn a_model_error_moves_the_instance_to_the_error_state() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[-200.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
     assert!(last_error(&h).contains("fmi2DoStep: u below -100 is not integrable"));
@@ -107,8 +111,7 @@ fn a_model_error_moves_the_instance_to_the_error_state() {
 
 #[test]
 fn communication_point_and_step_size_are_checked() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(1.0).unwrap();
+    let mut h = started(1.0);
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
     assert!(last_error(&h).contains("expected currentCommunicationPoint = 1"));
     assert_eq!(h.do_step(1.0, 0.0), Err(Status::Error));
@@ -119,8 +122,7 @@ fn communication_point_and_step_size_are_checked() {
 
 #[test]
 fn a_step_the_model_refuses_changes_nothing() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[1.0]).unwrap();
     assert_eq!(h.do_step(0.0, 2000.0), Err(Status::Error));
     assert!(
@@ -136,8 +138,7 @@ fn a_step_the_model_refuses_changes_nothing() {
 
 #[test]
 fn a_non_finite_result_is_an_error_and_is_not_published() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[1.0]).unwrap();
     h.do_step(0.0, 1.0).unwrap();
     // 1e308 · 10 overflows: y would be +inf
@@ -163,8 +164,7 @@ fn a_non_finite_result_is_an_error_and_is_not_published() {
 
 #[test]
 fn a_step_whose_end_is_not_a_finite_time_is_rejected() {
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(1e308).unwrap();
+    let mut h = started(1e308);
     assert_eq!(h.do_step(1e308, 1e308), Err(Status::Error));
     assert!(
         last_error(&h).contains("= inf, not a finite time"),
@@ -335,8 +335,7 @@ fn panicking_step_child() {
     if std::env::var_os("SPURIO_PANIC_CHILD").is_none() {
         return;
     }
-    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[13.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Fatal));
     let (_, _, text) = h.log().pop().unwrap();

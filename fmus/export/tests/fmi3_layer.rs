@@ -7,12 +7,25 @@
 mod common;
 
 use common::toy::*;
+use spurio_export::fmi3::arrays::Layout;
 use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
-use spurio_export::fmi3::me;
 use spurio_export::fmi3::types::*;
+use spurio_export::fmi3::{functions, me as me3};
+use spurio_export::me::ffi::{self as me, Array};
 use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
 use std::ffi::{c_void, CStr, CString};
+
+// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
+const VR_TIME: u32 = 0;
+const VR_U: u32 = 1;
+const VR_Y: u32 = 2;
+const VR_Z: u32 = 3;
+const VR_P: u32 = 4;
+const VR_N: u32 = 5;
+const VR_POSITIVE: u32 = 6;
+// then y0, der(y), to_wrap, y_max.
+const VR_DER_Y: u32 = 8;
 
 thread_local! {
     static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
@@ -39,6 +52,22 @@ fn last_error() -> String {
     })
 }
 
+/// The arguments every instantiation function has: no logging, the test's log callback.
+fn args(
+    name: *const std::os::raw::c_char,
+    token: *const std::os::raw::c_char,
+    resources: *const std::os::raw::c_char,
+) -> ffi::Instantiation {
+    ffi::Instantiation(
+        name,
+        token,
+        resources,
+        fmi3False,
+        std::ptr::null_mut::<c_void>(),
+        Some(log_message),
+    )
+}
+
 fn token() -> CString {
     CString::new(Toy::describe(&Config::new()).unwrap().guid).unwrap()
 }
@@ -47,15 +76,10 @@ fn instantiate_with(name: &str, token: &CString) -> fmi3Instance {
     let name = CString::new(name).unwrap();
     unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token.as_ptr(),
-            std::ptr::null(),
-            fmi3False,
+            args(name.as_ptr(), token.as_ptr(), std::ptr::null()),
             0,
             0,
             0,
-            std::ptr::null_mut::<c_void>(),
-            Some(log_message),
             Some(spurio_export::me::hooks::<Toy>()),
         )
     }
@@ -119,15 +143,10 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
     let name = CString::new("events").unwrap();
     let c = unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            std::ptr::null(),
-            0,
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
             fmi3True,
             0,
             0,
-            std::ptr::null_mut(),
-            Some(log_message),
             None,
         )
     };
@@ -149,12 +168,7 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
     let name = CString::new("me").unwrap();
     let me = unsafe {
         ffi::instantiate_model_exchange::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            std::ptr::null(),
-            0,
-            std::ptr::null_mut(),
-            Some(log_message),
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
             None,
         )
     };
@@ -172,15 +186,10 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
     let name = CString::new("cfg").unwrap();
     let c = unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            resources.as_ptr(),
+            args(name.as_ptr(), token().as_ptr(), resources.as_ptr()),
             0,
             0,
             0,
-            0,
-            std::ptr::null_mut(),
-            Some(log_message),
             None,
         )
     };
@@ -393,12 +402,7 @@ fn instantiate_model_exchange() -> Instance {
     let name = CString::new("me").unwrap();
     let c = unsafe {
         ffi::instantiate_model_exchange::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            std::ptr::null(),
-            fmi3False,
-            std::ptr::null_mut(),
-            Some(log_message),
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
             Some(spurio_export::me::hooks::<Toy>()),
         )
     };
@@ -416,7 +420,7 @@ fn derivative(
     n_out: usize,
 ) -> Result<Vec<f64>, fmi3Status> {
     let mut out = vec![f64::NAN; n_out];
-    let call = me::DerivativeCall {
+    let call = me3::DerivativeCall {
         unknowns: unknowns.as_ptr(),
         n_unknowns: unknowns.len(),
         knowns: knowns.as_ptr(),
@@ -427,11 +431,11 @@ fn derivative(
         n_sensitivity: n_out,
     };
     let kind = if adjoint {
-        me::Derivative::Adjoint
+        me3::Derivative::Adjoint
     } else {
-        me::Derivative::Directional
+        me3::Derivative::Directional
     };
-    match unsafe { me::derivative::<Toy>(i.0, call, kind) } {
+    match unsafe { me3::derivative::<Toy>(i.0, call, kind) } {
         0 => Ok(out),
         s => Err(s),
     }
@@ -442,17 +446,18 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     let i = instantiate_model_exchange();
     let get = |which| {
         let mut out = [f64::NAN; 2];
-        let s = unsafe { me::array::<Toy>(i.0, out.as_mut_ptr(), 2, which) };
+        let (f, which) = which;
+        let s = unsafe { me::get_array::<Toy, Layout>(i.0, f, which, out.as_mut_ptr(), 2) };
         (s, out)
     };
     let mut n = 0usize;
     assert_eq!(
-        unsafe { me::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 2);
     assert_eq!(
-        unsafe { me::number_of_event_indicators::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::EventIndicators, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 1);
@@ -462,7 +467,7 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     let mut flags = [9u8; 5];
     let mut next = f64::NAN;
     let [a, b, c, d, e] = &mut flags;
-    let events = me::EventFlags {
+    let events = me3::EventFlags {
         need_update: a,
         terminate: b,
         nominals_changed: c,
@@ -471,7 +476,7 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         next_time: &mut next,
     };
     assert_eq!(
-        unsafe { me::update_discrete_states::<Toy>(i.0, events) },
+        unsafe { me3::update_discrete_states::<Toy>(i.0, events) },
         fmi3OK
     );
     assert_eq!(flags, [fmi3False; 5]);
@@ -480,29 +485,57 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         last_error().contains("fmi3DoStep: illegal call sequence: not allowed in state EventMode")
     );
     assert_eq!(
-        unsafe { me::enter_continuous_time_mode::<Toy>(i.0) },
+        unsafe {
+            me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_CONTINUOUS_TIME_MODE, false)
+        },
         fmi3OK
     );
-    assert_eq!(unsafe { me::set_time::<Toy>(i.0, 0.5) }, fmi3OK);
+    assert_eq!(
+        unsafe { me::set_time::<Toy, Layout>(i.0, &functions::SET_TIME, 0.5) },
+        fmi3OK
+    );
     let x = [0.5, -1.0];
     assert_eq!(
-        unsafe { me::set_continuous_states::<Toy>(i.0, x.as_ptr(), 2) },
+        unsafe {
+            me::set_continuous_states::<Toy, Layout>(
+                i.0,
+                &functions::SET_CONTINUOUS_STATES,
+                x.as_ptr(),
+                2,
+            )
+        },
         fmi3OK
     );
-    assert_eq!(get(me::Array::get_derivatives), (fmi3OK, [1.0, -2.0]));
-    assert_eq!(get(me::Array::get_continuous_states), (fmi3OK, x));
-    assert_eq!(get(me::Array::get_nominals), (fmi3OK, [2.0, 2.0]));
+    assert_eq!(
+        get((&functions::GET_DERIVATIVES, Array::Derivatives)),
+        (fmi3OK, [1.0, -2.0])
+    );
+    assert_eq!(
+        get((&functions::GET_CONTINUOUS_STATES, Array::ContinuousStates)),
+        (fmi3OK, x)
+    );
+    assert_eq!(
+        get((
+            &functions::GET_NOMINALS_OF_CONTINUOUS_STATES,
+            Array::Nominals
+        )),
+        (fmi3OK, [2.0, 2.0])
+    );
     assert_eq!(
         i.get_f64(&[VR_DER_Y, VR_TIME], 3).unwrap(),
         [1.0, -2.0, 0.5]
     );
     // wrong counts
     let mut z = [0.0; 2];
-    let s = unsafe { me::array::<Toy>(i.0, z.as_mut_ptr(), 2, me::Array::get_event_indicators) };
+    let (f, which) = (&functions::GET_EVENT_INDICATORS, Array::EventIndicators);
+    let s = unsafe { me::get_array::<Toy, Layout>(i.0, f, which, z.as_mut_ptr(), 2) };
     assert_eq!(s, fmi3Error);
     assert!(last_error().contains("fmi3GetEventIndicators: ni = 2, but Toy has 1"));
     let (mut event, mut terminate) = (9u8, 9u8);
-    let s = unsafe { me::completed_integrator_step::<Toy>(i.0, &mut event, &mut terminate) };
+    let f = &functions::COMPLETED_INTEGRATOR_STEP;
+    let s = unsafe {
+        me::completed_integrator_step::<Toy, Layout, _>(i.0, f, &mut event, &mut terminate)
+    };
     assert_eq!((s, event, terminate), (fmi3OK, fmi3False, fmi3False));
     // directional derivatives over arrays: d der(y) = du, dz = du[1] + du[2]
     assert_eq!(
@@ -525,7 +558,10 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     );
     assert!(last_error()
         .contains("nSeed = 1 and nSensitivity = 1, but the references name 2 and 1 values"));
-    assert_eq!(unsafe { me::enter_event_mode::<Toy>(i.0) }, fmi3OK);
+    assert_eq!(
+        unsafe { me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        fmi3OK
+    );
     assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3OK);
 }
 
@@ -533,12 +569,18 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
 fn a_co_simulation_instance_refuses_the_model_exchange_functions() {
     let i = Instance::new("cs");
     assert_eq!(i.initialize(), fmi3OK);
-    assert_eq!(unsafe { me::set_time::<Toy>(i.0, 1.0) }, fmi3Error);
+    assert_eq!(
+        unsafe { me::set_time::<Toy, Layout>(i.0, &functions::SET_TIME, 1.0) },
+        fmi3Error
+    );
     assert!(last_error().contains("fmi3SetTime: illegal call sequence"));
-    assert_eq!(unsafe { me::enter_event_mode::<Toy>(i.0) }, fmi3Error);
+    assert_eq!(
+        unsafe { me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        fmi3Error
+    );
     let mut n = 9usize;
     assert_eq!(
-        unsafe { me::number_of_continuous_states::<Toy>(i.0, &mut n) },
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
         fmi3OK
     );
     assert_eq!(n, 2);

@@ -8,7 +8,8 @@ mod common;
 
 use common::toy::{Toy, DER_Y, TO_WRAP, U, Y, Y0, Y_MAX, Z};
 use spurio_export::harness::Harness;
-use spurio_export::me::ffi::{self as me, fmi2EventInfo};
+use spurio_export::instance::{functions, Function};
+use spurio_export::me::ffi::{self as me, fmi2EventInfo, Array};
 use spurio_export::types::*;
 use spurio_export::{Config, FmuModel};
 
@@ -36,30 +37,37 @@ impl Me {
         self.0.component()
     }
     fn set_time(&self, t: f64) -> fmi2Status {
-        unsafe { me::set_time::<Toy>(self.c(), t) }
+        unsafe { me::set_time::<Toy, ()>(self.c(), &functions::SET_TIME, t) }
     }
     fn set_states(&self, x: &[f64]) -> fmi2Status {
-        unsafe { me::set_continuous_states::<Toy>(self.c(), x.as_ptr(), x.len()) }
+        unsafe {
+            let f = &functions::SET_CONTINUOUS_STATES;
+            me::set_continuous_states::<Toy, ()>(self.c(), f, x.as_ptr(), x.len())
+        }
     }
     fn states(&self, n: usize) -> Result<Vec<f64>, fmi2Status> {
-        self.array(n, me::get_continuous_states::<Toy>)
+        self.array(
+            n,
+            &functions::GET_CONTINUOUS_STATES,
+            Array::ContinuousStates,
+        )
     }
     fn derivatives(&self, n: usize) -> Result<Vec<f64>, fmi2Status> {
-        self.array(n, me::get_derivatives::<Toy>)
+        self.array(n, &functions::GET_DERIVATIVES, Array::Derivatives)
     }
     fn indicators(&self, n: usize) -> Result<Vec<f64>, fmi2Status> {
-        self.array(n, me::get_event_indicators::<Toy>)
+        self.array(n, &functions::GET_EVENT_INDICATORS, Array::EventIndicators)
     }
     fn nominals(&self, n: usize) -> Result<Vec<f64>, fmi2Status> {
-        self.array(n, me::get_nominals_of_continuous_states::<Toy>)
+        self.array(
+            n,
+            &functions::GET_NOMINALS_OF_CONTINUOUS_STATES,
+            Array::Nominals,
+        )
     }
-    fn array(
-        &self,
-        n: usize,
-        get: unsafe fn(fmi2Component, *mut f64, usize) -> fmi2Status,
-    ) -> Result<Vec<f64>, fmi2Status> {
+    fn array(&self, n: usize, f: &Function, which: Array) -> Result<Vec<f64>, fmi2Status> {
         let mut out = vec![f64::NAN; n];
-        let s = unsafe { get(self.c(), out.as_mut_ptr(), n) };
+        let s = unsafe { me::get_array::<Toy, ()>(self.c(), f, which, out.as_mut_ptr(), n) };
         if s == fmi2OK {
             Ok(out)
         } else {
@@ -67,10 +75,13 @@ impl Me {
         }
     }
     fn enter_event_mode(&self) -> fmi2Status {
-        unsafe { me::enter_event_mode::<Toy>(self.c()) }
+        unsafe { me::enter_mode::<Toy, ()>(self.c(), &functions::ENTER_EVENT_MODE, true) }
     }
     fn enter_continuous_time_mode(&self) -> fmi2Status {
-        unsafe { me::enter_continuous_time_mode::<Toy>(self.c()) }
+        unsafe {
+            let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
+            me::enter_mode::<Toy, ()>(self.c(), f, false)
+        }
     }
     fn new_discrete_states(&self) -> Result<fmi2EventInfo, fmi2Status> {
         let mut info = fmi2EventInfo {
@@ -87,7 +98,10 @@ impl Me {
     fn completed_integrator_step(&self) -> (fmi2Status, fmi2Boolean, fmi2Boolean) {
         let (mut event, mut terminate) = (7, 7);
         let s = unsafe {
-            me::completed_integrator_step::<Toy>(self.c(), fmi2True, &mut event, &mut terminate)
+            {
+                let f = &functions::COMPLETED_INTEGRATOR_STEP;
+                me::completed_integrator_step::<Toy, (), _>(self.c(), f, &mut event, &mut terminate)
+            }
         };
         (s, event, terminate)
     }
@@ -110,15 +124,8 @@ fn directional(
     let k: Vec<u32> = knowns.iter().map(|&i| i as u32).collect();
     let mut out = vec![f64::NAN; u.len()];
     let s = unsafe {
-        me::get_directional_derivative::<Toy>(
-            c,
-            u.as_ptr(),
-            u.len(),
-            k.as_ptr(),
-            k.len(),
-            seed.as_ptr(),
-            out.as_mut_ptr(),
-        )
+        let (u, k) = ((u.as_ptr(), u.len()), (k.as_ptr(), k.len()));
+        me::get_directional_derivative::<Toy>(c, u, k, seed.as_ptr(), out.as_mut_ptr())
     };
     if s == fmi2OK {
         Ok(out)
@@ -209,9 +216,11 @@ fn states_inputs_and_time_determine_the_derivatives_and_outputs() {
     assert!(last_error(&m.0).contains("fmi2GetEventIndicators: ni = 2, but Toy has 1"));
     assert_eq!(m.set_states(&[1.0, f64::NAN]), fmi2Error);
     assert!(last_error(&m.0).contains("state `y[2]`: NaN rejected"));
-    let s = unsafe { me::set_continuous_states::<Toy>(m.c(), std::ptr::null(), 2) };
+    let f = &functions::SET_CONTINUOUS_STATES;
+    let s = unsafe { me::set_continuous_states::<Toy, ()>(m.c(), f, std::ptr::null(), 2) };
     assert_eq!(s, fmi2Error);
-    let s = unsafe { me::get_derivatives::<Toy>(m.c(), std::ptr::null_mut(), 2) };
+    let (f, which) = (&functions::GET_DERIVATIVES, Array::Derivatives);
+    let s = unsafe { me::get_array::<Toy, ()>(m.c(), f, which, std::ptr::null_mut(), 2) };
     assert_eq!(s, fmi2Error);
     assert_eq!(m.set_time(f64::INFINITY), fmi2Error);
     assert_eq!(m.states(2).unwrap(), [0.5, 3.0]);
@@ -357,10 +366,14 @@ fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_on
             [1.0, 10.0]
         );
         // but not the Model Exchange functions
-        assert_eq!(me::set_time::<Toy>(c, 1.0), fmi2Error);
-        let mut x = [0.0; 2];
         assert_eq!(
-            me::get_continuous_states::<Toy>(c, x.as_mut_ptr(), 2),
+            me::set_time::<Toy, ()>(c, &functions::SET_TIME, 1.0),
+            fmi2Error
+        );
+        let mut x = [0.0; 2];
+        let (f, which) = (&functions::GET_CONTINUOUS_STATES, Array::ContinuousStates);
+        assert_eq!(
+            me::get_array::<Toy, ()>(c, f, which, x.as_mut_ptr(), 2),
             fmi2Error
         );
         spurio_export::ffi::free_instance::<Toy>(c);

@@ -74,23 +74,30 @@ pub fn version() -> *const c_char {
     c"3.0".as_ptr()
 }
 
+/// The arguments every `fmi3Instantiate*` function has, in the order of the C functions:
+/// instanceName, instantiationToken, resourcePath, loggingOn, instanceEnvironment,
+/// logMessage.
+#[derive(Clone, Copy)]
+pub struct Instantiation(
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3Boolean,
+    pub fmi3InstanceEnvironment,
+    pub fmi3LogMessageCallback,
+);
+
 /// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
 /// the resources (`variant.cfg` of a packaged variant), then creates the instance (with the
 /// model's Model Exchange functions `me`, for its directional derivatives).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
-#[allow(clippy::too_many_arguments)]
 pub unsafe fn instantiate_co_simulation<M: FmuModel>(
-    instance_name: fmi3String,
-    token: fmi3String,
-    resource_path: fmi3String,
-    logging_on: fmi3Boolean,
+    args: Instantiation,
     event_mode_used: fmi3Boolean,
     early_return_allowed: fmi3Boolean,
     n_required_intermediate: usize,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
     // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
@@ -103,21 +110,10 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     } else {
         None
     };
-    let request = Request {
-        function: "fmi3InstantiateCoSimulation",
-        instance_name,
-        token,
-        resource_path,
-        logging_on,
-        environment,
-        log_message,
-        refusal,
-        note: (early_return_allowed != 0)
-            .then_some("earlyReturnAllowed noted; the FMU never returns early"),
-        me,
-        model_exchange: false,
-    };
-    unsafe { instantiate(request) }
+    let note = (early_return_allowed != 0)
+        .then_some("earlyReturnAllowed noted; the FMU never returns early");
+    let interface = Interface::CoSimulation { refusal, note };
+    unsafe { instantiate("fmi3InstantiateCoSimulation", args, interface, me) }
 }
 
 /// `fmi3InstantiateModelExchange`: as [`instantiate_co_simulation`], for a model with Model
@@ -126,70 +122,43 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
-#[allow(clippy::too_many_arguments)]
 pub unsafe fn instantiate_model_exchange<M: FmuModel>(
-    instance_name: fmi3String,
-    token: fmi3String,
-    resource_path: fmi3String,
-    logging_on: fmi3Boolean,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
+    args: Instantiation,
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    let request = Request {
-        function: "fmi3InstantiateModelExchange",
-        instance_name,
-        token,
-        resource_path,
-        logging_on,
-        environment,
-        log_message,
-        refusal: None,
-        note: None,
-        me,
-        model_exchange: true,
-    };
-    unsafe { instantiate(request) }
+    let f = "fmi3InstantiateModelExchange";
+    unsafe { instantiate(f, args, Interface::ModelExchange, me) }
 }
 
-/// The arguments of an `fmi3Instantiate*` call, after its interface's own checks.
-struct Request<M> {
-    function: &'static str,
-    instance_name: fmi3String,
-    token: fmi3String,
-    resource_path: fmi3String,
-    logging_on: fmi3Boolean,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
-    /// Why the interface's arguments are refused, if they are.
-    refusal: Option<String>,
-    /// Logged (`logEvents`) when the instance is created.
-    note: Option<&'static str>,
-    /// The model's Model Exchange functions, if it has them.
-    me: Option<Hooks<M>>,
-    /// Whether Model Exchange is asked for.
-    model_exchange: bool,
+/// The interface an `fmi3Instantiate*` function asks for.
+enum Interface {
+    /// Co-Simulation: why its own arguments are refused, if they are, and what to log when
+    /// the instance is created.
+    CoSimulation {
+        refusal: Option<String>,
+        note: Option<&'static str>,
+    },
+    ModelExchange,
 }
 
 /// The shared part of the `fmi3Instantiate*` functions: name, refusal, token, resources,
-/// interface, then the instance.
+/// interface, then the instance (for Model Exchange if asked, with the model's functions
+/// `me`).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
-unsafe fn instantiate<M: FmuModel>(request: Request<M>) -> fmi3Instance {
-    let Request {
-        function,
-        instance_name,
-        token,
-        resource_path,
-        logging_on,
-        environment,
-        log_message,
-        refusal,
-        note,
-        me,
-        model_exchange,
-    } = request;
+unsafe fn instantiate<M: FmuModel>(
+    function: &str,
+    args: Instantiation,
+    interface: Interface,
+    me: Option<Hooks<M>>,
+) -> fmi3Instance {
+    let Instantiation(instance_name, token, resource_path, logging_on, environment, log_message) =
+        args;
+    let (refusal, note, model_exchange) = match interface {
+        Interface::CoSimulation { refusal, note } => (refusal, note, false),
+        Interface::ModelExchange => (None, None, true),
+    };
     let result = guarded(|| {
         let sink = || CallbackSink {
             log_message,

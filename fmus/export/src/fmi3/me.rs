@@ -1,13 +1,14 @@
-//! The FMI 3.0 Model Exchange C entry points (and the directional and adjoint derivatives,
-//! which serve Co-Simulation too): pointer and count checks, FMI 3.0 value references (arrays)
-//! expanded to the table's scalars, then the version-neutral calls of
-//! [`crate::me::instance`] that the FMI 2.0 front makes too.
+//! The FMI 3.0 Model Exchange C entry points that FMI 2.0 has not (the others are those of
+//! [`crate::me::ffi`]): the counts, `fmi3UpdateDiscreteStates`' flags, and the directional
+//! and adjoint derivatives (which serve Co-Simulation too) with FMI 3.0 value references
+//! (arrays) expanded to the table's scalars.
 
+use super::arrays::Layout;
 use super::ffi::{expand, with_instance, Element, Slot};
 use super::functions;
 use super::types::*;
 use crate::ffi::slice;
-use crate::instance::Function;
+use crate::me::ffi::slice_mut;
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::VariableType;
@@ -21,24 +22,6 @@ unsafe fn put<T>(p: *mut T, value: T) {
         // SAFETY: the caller's obligation.
         unsafe { *p = value };
     }
-}
-
-/// `fmi3EnterEventMode`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn enter_event_mode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    let f = &functions::ENTER_EVENT_MODE;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.enter_event_mode(f)) }
-}
-
-/// `fmi3EnterContinuousTimeMode`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn enter_continuous_time_mode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.enter_continuous_time_mode(f)) }
 }
 
 /// The output arguments of `fmi3UpdateDiscreteStates` (each may be NULL).
@@ -58,156 +41,46 @@ pub struct EventFlags {
 pub unsafe fn update_discrete_states<M: FmuModel>(c: fmi3Instance, out: EventFlags) -> fmi3Status {
     let f = &functions::UPDATE_DISCRETE_STATES;
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (status, update) = s.instance.update_discrete_states(f);
-            if status <= Status::Warning {
-                put(out.need_update, update.discrete_states_need_update.into());
-                put(out.terminate, update.terminate_simulation.into());
-                put(out.nominals_changed, update.nominals_changed.into());
-                put(out.values_changed, update.states_changed.into());
-                put(out.next_defined, update.next_event_time.is_some().into());
-                put(out.next_time, update.next_event_time.unwrap_or(0.0));
-            }
-            status
+        crate::me::ffi::update_discrete_states::<M, Layout>(c, f, None, |update| {
+            put(out.need_update, update.discrete_states_need_update.into());
+            put(out.terminate, update.terminate_simulation.into());
+            put(out.nominals_changed, update.nominals_changed.into());
+            put(out.values_changed, update.states_changed.into());
+            put(out.next_defined, update.next_event_time.is_some().into());
+            put(out.next_time, update.next_event_time.unwrap_or(0.0));
         })
     }
 }
 
-/// `fmi3CompletedIntegratorStep`.
+/// What `fmi3GetNumberOf…` counts.
+#[derive(Debug, Clone, Copy)]
+pub enum Count {
+    /// `fmi3GetNumberOfEventIndicators`.
+    EventIndicators,
+    /// `fmi3GetNumberOfContinuousStates`.
+    ContinuousStates,
+}
+
+/// `fmi3GetNumberOfEventIndicators`, `fmi3GetNumberOfContinuousStates`.
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn completed_integrator_step<M: FmuModel>(
-    c: fmi3Instance,
-    enter_event_mode: *mut fmi3Boolean,
-    terminate: *mut fmi3Boolean,
-) -> fmi3Status {
-    let f = &functions::COMPLETED_INTEGRATOR_STEP;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (status, event, stop) = s.instance.completed_integrator_step(f);
-            put(enter_event_mode, event.into());
-            put(terminate, stop.into());
-            status
-        })
-    }
-}
-
-/// `fmi3SetTime`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_time<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
-    let f = &functions::SET_TIME;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.set_time(f, time)) }
-}
-
-/// `fmi3SetContinuousStates`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_continuous_states<M: FmuModel>(
-    c: fmi3Instance,
-    x: *const fmi3Float64,
-    n: usize,
-) -> fmi3Status {
-    let f = &functions::SET_CONTINUOUS_STATES;
-    unsafe {
-        with_instance::<M>(c, f, |s| match slice(x, n) {
-            Some(x) => s.instance.set_continuous_states(f, x),
-            None => s.instance.reject(f, "continuousStates is NULL"),
-        })
-    }
-}
-
-/// The Float64 arrays of the Model Exchange interface.
-#[allow(non_camel_case_types)]
-pub enum Array {
-    get_continuous_states,
-    get_derivatives,
-    get_event_indicators,
-    get_nominals,
-}
-
-/// `fmi3GetContinuousStates`, `fmi3GetContinuousStateDerivatives`, `fmi3GetEventIndicators`,
-/// `fmi3GetNominalsOfContinuousStates`: the array into the caller's `n` elements.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn array<M: FmuModel>(
-    c: fmi3Instance,
-    out: *mut fmi3Float64,
-    n: usize,
-    which: Array,
-) -> fmi3Status {
-    let f = match which {
-        Array::get_continuous_states => &functions::GET_CONTINUOUS_STATES,
-        Array::get_derivatives => &functions::GET_CONTINUOUS_STATE_DERIVATIVES,
-        Array::get_event_indicators => &functions::GET_EVENT_INDICATORS,
-        Array::get_nominals => &functions::GET_NOMINALS_OF_CONTINUOUS_STATES,
+pub unsafe fn number_of<M: FmuModel>(c: fmi3Instance, what: Count, n: *mut usize) -> fmi3Status {
+    let f = match what {
+        Count::EventIndicators => &functions::GET_NUMBER_OF_EVENT_INDICATORS,
+        Count::ContinuousStates => &functions::GET_NUMBER_OF_CONTINUOUS_STATES,
     };
     unsafe {
-        with_instance::<M>(c, f, |s| {
-            if out.is_null() && n > 0 {
-                return s.instance.reject(f, "the array argument is NULL");
-            }
-            let out: &mut [f64] = if n == 0 {
-                &mut []
-            } else {
-                // SAFETY: the master passes `n` writable elements (FMI contract).
-                std::slice::from_raw_parts_mut(out, n)
-            };
-            match which {
-                Array::get_continuous_states => s.instance.get_continuous_states(f, out),
-                Array::get_derivatives => s.instance.get_derivatives(f, out),
-                Array::get_event_indicators => s.instance.get_event_indicators(f, out),
-                Array::get_nominals => s.instance.get_nominals(f, out),
-            }
-        })
+        crate::front::write_out::<M, Layout, usize>(
+            c,
+            f,
+            (n, "the size argument"),
+            |s| match what {
+                Count::EventIndicators => s.instance.event_indicator_count(),
+                Count::ContinuousStates => s.instance.state_count(),
+            },
+        )
     }
-}
-
-/// Writes a count of the instance behind `c` into `n`.
-unsafe fn count<M: FmuModel>(
-    c: fmi3Instance,
-    f: &Function,
-    n: *mut usize,
-    of: impl FnOnce(&Slot<M>) -> usize,
-) -> fmi3Status {
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if n.is_null() {
-                return s.instance.reject(f, "the size argument is NULL");
-            }
-            // SAFETY: checked non-NULL; one writable size_t.
-            *n = of(s);
-            Status::Ok
-        })
-    }
-}
-
-/// `fmi3GetNumberOfEventIndicators`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn number_of_event_indicators<M: FmuModel>(
-    c: fmi3Instance,
-    n: *mut usize,
-) -> fmi3Status {
-    let f = &functions::GET_NUMBER_OF_EVENT_INDICATORS;
-    unsafe { count::<M>(c, f, n, |s| s.instance.event_indicator_count()) }
-}
-
-/// `fmi3GetNumberOfContinuousStates`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn number_of_continuous_states<M: FmuModel>(
-    c: fmi3Instance,
-    n: *mut usize,
-) -> fmi3Status {
-    let f = &functions::GET_NUMBER_OF_CONTINUOUS_STATES;
-    unsafe { count::<M>(c, f, n, |s| s.instance.state_count()) }
 }
 
 /// Which derivative a call asks for.
@@ -273,9 +146,9 @@ pub unsafe fn derivative<M: FmuModel>(
             ) else {
                 return s.instance.reject(f, "unknowns, knowns or seed is NULL");
             };
-            if call.sensitivity.is_null() && call.n_sensitivity > 0 {
+            let Some(sensitivity) = slice_mut(call.sensitivity, call.n_sensitivity) else {
                 return s.instance.reject(f, "sensitivity is NULL");
-            }
+            };
             let (unknowns, knowns) = match (scalars_of(s, u), scalars_of(s, k)) {
                 (Ok(u), Ok(k)) => (u, k),
                 (Err(message), _) | (_, Err(message)) => return s.instance.reject(f, &message),
@@ -317,9 +190,8 @@ pub unsafe fn derivative<M: FmuModel>(
                     status
                 }
             };
-            if status <= Status::Warning && n_out > 0 {
-                // SAFETY: `sensitivity` holds `n_sensitivity == n_out` elements.
-                std::ptr::copy_nonoverlapping(out.as_ptr(), call.sensitivity, n_out);
+            if status <= Status::Warning {
+                sensitivity.copy_from_slice(&out);
             }
             status
         })

@@ -27,55 +27,29 @@ pub mod types;
 /// Allowed-state masks of the FMI 3.0 functions (FMI 3.0.2 §4.3.4 Co-Simulation and §3.3
 /// Model Exchange state machines; Step Mode is the shared machine's `StepComplete`).
 pub mod functions {
-    use crate::instance::{function as f, ModelState, CONTINUOUS_TIME_MODE, EVENT_MODE, ME_MODES};
-
-    const INSTANTIATED: u32 = ModelState::Instantiated.bit();
-    const INIT_MODE: u32 = ModelState::InitializationMode.bit();
-    const STEP_MODE: u32 = ModelState::StepComplete.bit();
-    const TERMINATED: u32 = ModelState::Terminated.bit();
-    const ERROR: u32 = ModelState::Error.bit();
-    const FATAL: u32 = ModelState::Fatal.bit();
+    use crate::instance::bits::*;
     /// Every state of an instance that is not fatally broken.
-    pub const ANY_LIVE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_MODE;
-    const ME_AFTER_INIT: u32 = ME_MODES | INIT_MODE | TERMINATED | ERROR;
+    pub const ANY_LIVE: u32 =
+        ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
 
-    f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
-    f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
-    f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }
-    f! { EXIT_INITIALIZATION_MODE, "fmi3ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi3Terminate", STEP_MODE | ME_MODES }
-    f! { RESET, "fmi3Reset", ANY_LIVE }
-    f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
-    f! { GET_INT32, "fmi3GetInt32", GETTABLE }
-    f! { GET_BOOLEAN, "fmi3GetBoolean", GETTABLE }
-    f! { GET_STRING, "fmi3GetString", GETTABLE }
-    f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
-    f! { SET_INT32, "fmi3SetInt32", SETTABLE }
-    f! { SET_BOOLEAN, "fmi3SetBoolean", SETTABLE }
-    f! { SET_STRING, "fmi3SetString", SETTABLE }
-    f! { GET_FMU_STATE, "fmi3GetFMUState", ANY_LIVE }
-    f! { SET_FMU_STATE, "fmi3SetFMUState", ANY_LIVE }
-    f! { FREE_FMU_STATE, "fmi3FreeFMUState", ANY_LIVE | FATAL }
-    f! { SERIALIZED_FMU_STATE_SIZE, "fmi3SerializedFMUStateSize", ANY_LIVE }
-    f! { SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE }
-    f! { DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE }
-    f! { DO_STEP, "fmi3DoStep", STEP_MODE }
-    // Model Exchange (FMI 3.0.2 §3.3).
-    f! { SET_TIME, "fmi3SetTime", ME_MODES }
-    f! { SET_CONTINUOUS_STATES, "fmi3SetContinuousStates", CONTINUOUS_TIME_MODE }
-    f! { GET_CONTINUOUS_STATES, "fmi3GetContinuousStates", ME_AFTER_INIT }
-    f! { GET_CONTINUOUS_STATE_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
-    f! { GET_EVENT_INDICATORS, "fmi3GetEventIndicators", ME_AFTER_INIT }
-    f! { GET_NOMINALS_OF_CONTINUOUS_STATES, "fmi3GetNominalsOfContinuousStates", INSTANTIATED | ME_AFTER_INIT }
+    crate::instance::shared_functions!(
+        "fmi3",
+        "FMUState",
+        "DeserializeFMUState",
+        "Float64",
+        "Int32",
+        ANY_LIVE,
+        ANY_LIVE,
+        GETTABLE,
+        SETTABLE,
+        STEP_COMPLETE | ME_MODES
+    );
+    f! { GET_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
     f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
     f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
-    f! { ENTER_EVENT_MODE, "fmi3EnterEventMode", ME_MODES }
     f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
-    f! { ENTER_CONTINUOUS_TIME_MODE, "fmi3EnterContinuousTimeMode", EVENT_MODE }
-    f! { COMPLETED_INTEGRATOR_STEP, "fmi3CompletedIntegratorStep", CONTINUOUS_TIME_MODE }
-    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi3GetDirectionalDerivative", GETTABLE }
     f! { GET_ADJOINT_DERIVATIVE, "fmi3GetAdjointDerivative", GETTABLE }
 }
 
@@ -91,6 +65,7 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
+            use $crate::fmi3::arrays::Layout;
             use $crate::fmi3::ffi;
             use $crate::fmi3::functions;
             use $crate::fmi3::me;
@@ -126,18 +101,17 @@ macro_rules! export_fmi3 {
                 intermediate_update: fmi3IntermediateUpdateCallback,
             ) -> fmi3Instance {
                 let _ = (visible, required, intermediate_update);
+                let args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                let me = super::spurio_model_exchange();
                 unsafe {
                     ffi::instantiate_co_simulation::<M>(
-                        name,
-                        token,
-                        resources,
-                        logging_on,
+                        args,
                         event_mode_used,
                         early_return_allowed,
                         n_required,
-                        environment,
-                        log_message,
-                        super::spurio_model_exchange(),
+                        me,
                     )
                 }
             }
@@ -152,17 +126,11 @@ macro_rules! export_fmi3 {
                 log_message: fmi3LogMessageCallback,
             ) -> fmi3Instance {
                 let _ = visible;
-                unsafe {
-                    ffi::instantiate_model_exchange::<M>(
-                        name,
-                        token,
-                        resources,
-                        logging_on,
-                        environment,
-                        log_message,
-                        super::spurio_model_exchange(),
-                    )
-                }
+                let args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                let me = super::spurio_model_exchange();
+                unsafe { ffi::instantiate_model_exchange::<M>(args, me) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
@@ -204,18 +172,9 @@ macro_rules! export_fmi3 {
                 let _ = (tolerance_defined, tolerance);
                 unsafe { ffi::enter_initialization_mode::<M>(c, start, stop_defined, stop) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3ExitInitializationMode(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::exit_initialization_mode::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Terminate(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::terminate::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Reset(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::reset::<M>(c) }
-            }
+            $crate::instance_entries!(fmi3Instance;
+                fmi3ExitInitializationMode = exit_initialization_mode,
+                fmi3Terminate = terminate, fmi3Reset = reset);
             #[no_mangle]
             pub unsafe extern "C" fn fmi3DoStep(
                 c: fmi3Instance,
@@ -263,53 +222,11 @@ macro_rules! export_fmi3 {
             ) -> fmi3Status {
                 unsafe { ffi::set_string::<M>(c, vr, nvr, values, n_values) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3GetFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::get_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SetFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::set_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3FreeFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::free_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                size: *mut usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializeFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                bytes: *mut fmi3Byte,
-                size: usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3DeserializeFMUState(
-                c: fmi3Instance,
-                bytes: *const fmi3Byte,
-                size: usize,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
-            }
+            $crate::fmu_state_entries!(
+                fmi3Instance, fmi3FMUState, fmi3Byte;
+                fmi3GetFMUState, fmi3SetFMUState, fmi3FreeFMUState,
+                fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3DeserializeFMUState
+            );
             $crate::fmi3_unsupported! {
                 "the FMU declares only Float64, Int32, Boolean and String variables";
                 fmi3GetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float32, _m: usize);
@@ -418,14 +335,10 @@ macro_rules! fmi3_unsupported {
 #[macro_export]
 macro_rules! export_fmi3_model_exchange {
     () => {
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3EnterEventMode(c: fmi3Instance) -> fmi3Status {
-            unsafe { me::enter_event_mode::<M>(c) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3EnterContinuousTimeMode(c: fmi3Instance) -> fmi3Status {
-            unsafe { me::enter_continuous_time_mode::<M>(c) }
-        }
+        $crate::model_exchange_entries!(fmi3Instance, Layout, fmi3Boolean, functions;
+            fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
+            fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
+            fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
         #[no_mangle]
         pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
             c: fmi3Instance,
@@ -447,64 +360,21 @@ macro_rules! export_fmi3_model_exchange {
             unsafe { me::update_discrete_states::<M>(c, flags) }
         }
         #[no_mangle]
-        pub unsafe extern "C" fn fmi3CompletedIntegratorStep(
-            c: fmi3Instance,
-            no_set_prior: fmi3Boolean,
-            enter_event_mode: *mut fmi3Boolean,
-            terminate: *mut fmi3Boolean,
-        ) -> fmi3Status {
-            let _ = no_set_prior;
-            unsafe { me::completed_integrator_step::<M>(c, enter_event_mode, terminate) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3SetTime(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
-            unsafe { me::set_time::<M>(c, time) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn fmi3SetContinuousStates(
-            c: fmi3Instance,
-            x: *const fmi3Float64,
-            n: usize,
-        ) -> fmi3Status {
-            unsafe { me::set_continuous_states::<M>(c, x, n) }
-        }
-        $crate::fmi3_array_getter!(fmi3GetContinuousStates, get_continuous_states);
-        $crate::fmi3_array_getter!(fmi3GetContinuousStateDerivatives, get_derivatives);
-        $crate::fmi3_array_getter!(fmi3GetEventIndicators, get_event_indicators);
-        $crate::fmi3_array_getter!(fmi3GetNominalsOfContinuousStates, get_nominals);
-        #[no_mangle]
         pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
             c: fmi3Instance,
             n: *mut usize,
         ) -> fmi3Status {
-            unsafe { me::number_of_event_indicators::<M>(c, n) }
+            unsafe { me::number_of::<M>(c, me::Count::EventIndicators, n) }
         }
         #[no_mangle]
         pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
             c: fmi3Instance,
             n: *mut usize,
         ) -> fmi3Status {
-            unsafe { me::number_of_continuous_states::<M>(c, n) }
+            unsafe { me::number_of::<M>(c, me::Count::ContinuousStates, n) }
         }
         $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
         $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
-    };
-}
-
-/// Emits, inside [`export_fmi3!`], an FMI 3.0 Model Exchange function that fills the
-/// caller's Float64 array.
-#[doc(hidden)]
-#[macro_export]
-macro_rules! fmi3_array_getter {
-    ($name:ident, $function:ident) => {
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(
-            c: fmi3Instance,
-            out: *mut fmi3Float64,
-            n: usize,
-        ) -> fmi3Status {
-            unsafe { me::array::<M>(c, out, n, me::Array::$function) }
-        }
     };
 }
 

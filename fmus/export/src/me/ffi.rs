@@ -1,13 +1,18 @@
-//! The FMI 2.0 Model Exchange C entry points (and `fmi2GetDirectionalDerivative`, which
-//! serves Co-Simulation too): pointer and count checks, then the version-neutral calls of
-//! [`crate::me::instance`], each inside the same `catch_unwind` and state-mask check as
-//! every other entry point ([`crate::front::with_slot`]).
+//! The Model Exchange C entry points of both versions: pointer and count checks, then the
+//! version-neutral calls of [`crate::me::instance`], each inside the same `catch_unwind` and
+//! state-mask check as every other entry point ([`crate::front::with_slot`]). Each function is
+//! generic over the model `M` and the front's slot data `X` and takes the calling
+//! [`Function`] (`fmi2SetTime` or `fmi3SetTime`, …), so the `fmi2*` and `fmi3*` symbols that
+//! [`export_fmu!`](crate::export_fmu) emits are one call each. Also
+//! `fmi2GetDirectionalDerivative` (FMI 3.0's, over arrays, is in [`crate::fmi3::me`]).
 
-use crate::ffi::{slice, Slot};
-use crate::front::with_slot;
+use crate::ffi::{slice, with_instance};
+use crate::front::{with_slot, Slot};
 use crate::instance::{functions, Function};
-use crate::model::FmuModel;
+use crate::model::{EventUpdate, FmuModel};
 use crate::types::*;
+use std::ffi::c_void;
+use std::os::raw::c_int;
 
 /// `fmi2EventInfo` of `fmi2FunctionTypes.h`.
 #[repr(C)]
@@ -22,113 +27,166 @@ pub struct fmi2EventInfo {
     pub nextEventTime: fmi2Real,
 }
 
-unsafe fn with_instance<M: FmuModel>(
-    c: fmi2Component,
-    f: &Function,
-    body: impl FnOnce(&mut Slot<M>) -> Status,
-) -> fmi2Status {
-    // SAFETY: `c` is NULL or was returned by `instantiate::<M>` (the master's obligation).
-    unsafe { with_slot::<M, ()>(c, f, body) }
-}
-
-/// Runs `body` on the `n` elements behind `p` as a mutable slice (NULL with `n > 0`:
-/// rejected).
-unsafe fn with_out<M: FmuModel>(
-    c: fmi2Component,
-    f: &Function,
-    p: *mut f64,
-    n: usize,
-    body: impl FnOnce(&mut Slot<M>, &mut [f64]) -> Status,
-) -> fmi2Status {
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if p.is_null() && n > 0 {
-                return s.instance.reject(f, "the array argument is NULL");
-            }
-            let out: &mut [f64] = if n == 0 {
-                &mut []
-            } else {
-                // SAFETY: the master passes `n` writable elements (FMI contract).
-                std::slice::from_raw_parts_mut(p, n)
-            };
-            body(s, out)
-        })
-    }
-}
-
-/// `fmi2SetTime`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_time<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2Status {
-    let f = &functions::SET_TIME;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.set_time(f, time)) }
-}
-
-/// `fmi2SetContinuousStates`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_continuous_states<M: FmuModel>(
-    c: fmi2Component,
-    x: *const fmi2Real,
-    nx: usize,
-) -> fmi2Status {
-    let f = &functions::SET_CONTINUOUS_STATES;
-    unsafe {
-        with_instance::<M>(c, f, |s| match slice(x, nx) {
-            Some(x) => s.instance.set_continuous_states(f, x),
-            None => s.instance.reject(f, "x is NULL"),
-        })
-    }
-}
-
-/// Emits the FMI 2.0 functions that fill a caller's Real array from one instance method.
-macro_rules! array_getter {
-    ($(#[$doc:meta])* $name:ident, $function:ident, $method:ident) => {
-        $(#[$doc])*
-        ///
-        /// # Safety
-        /// FMI pointer contract.
-        pub unsafe fn $name<M: FmuModel>(c: fmi2Component, out: *mut fmi2Real, n: usize) -> fmi2Status {
-            let f = &functions::$function;
-            unsafe { with_out::<M>(c, f, out, n, |s, out| s.instance.$method(f, out)) }
+impl From<EventUpdate> for fmi2EventInfo {
+    fn from(update: EventUpdate) -> Self {
+        Self {
+            newDiscreteStatesNeeded: update.discrete_states_need_update.into(),
+            terminateSimulation: update.terminate_simulation.into(),
+            nominalsOfContinuousStatesChanged: update.nominals_changed.into(),
+            valuesOfContinuousStatesChanged: update.states_changed.into(),
+            nextEventTimeDefined: update.next_event_time.is_some().into(),
+            nextEventTime: update.next_event_time.unwrap_or(0.0),
         }
-    };
+    }
 }
 
-array_getter!(
-    /// `fmi2GetContinuousStates`.
-    get_continuous_states, GET_CONTINUOUS_STATES, get_continuous_states);
-array_getter!(
-    /// `fmi2GetDerivatives`.
-    get_derivatives, GET_DERIVATIVES, get_derivatives);
-array_getter!(
-    /// `fmi2GetEventIndicators`.
-    get_event_indicators, GET_EVENT_INDICATORS, get_event_indicators);
-array_getter!(
-    /// `fmi2GetNominalsOfContinuousStates`.
-    get_nominals_of_continuous_states, GET_NOMINALS_OF_CONTINUOUS_STATES, get_nominals);
+/// The `n` writable elements behind `p` (empty when `n` is 0); `None` for NULL with `n > 0`.
+///
+/// # Safety
+/// `p` is NULL or points to `n` writable elements (FMI contract).
+pub(crate) unsafe fn slice_mut<'a, T>(p: *mut T, n: usize) -> Option<&'a mut [T]> {
+    if n == 0 {
+        Some(&mut [])
+    } else if p.is_null() {
+        None
+    } else {
+        // SAFETY: the caller's obligation.
+        Some(unsafe { std::slice::from_raw_parts_mut(p, n) })
+    }
+}
 
-/// `fmi2EnterEventMode`.
+/// `fmi*SetTime`.
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn enter_event_mode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    let f = &functions::ENTER_EVENT_MODE;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.enter_event_mode(f)) }
+pub unsafe fn set_time<M: FmuModel, X>(c: *mut c_void, f: &Function, time: f64) -> c_int {
+    unsafe { with_slot::<M, X>(c, f, |s| s.instance.set_time(f, time)) }
 }
 
-/// `fmi2EnterContinuousTimeMode`.
+/// `fmi*SetContinuousStates`.
 ///
 /// # Safety
 /// FMI pointer contract.
-pub unsafe fn enter_continuous_time_mode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    let f = &functions::ENTER_CONTINUOUS_TIME_MODE;
-    unsafe { with_instance::<M>(c, f, |s| s.instance.enter_continuous_time_mode(f)) }
+pub unsafe fn set_continuous_states<M: FmuModel, X>(
+    c: *mut c_void,
+    f: &Function,
+    x: *const f64,
+    n: usize,
+) -> c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| match slice(x, n) {
+            Some(x) => s.instance.set_continuous_states(f, x),
+            None => s.instance.reject(f, "the states argument is NULL"),
+        })
+    }
 }
 
-/// `fmi2NewDiscreteStates`: the model's discrete change, reported in `event_info`.
+/// The Real arrays of the Model Exchange interface.
+#[derive(Debug, Clone, Copy)]
+pub enum Array {
+    /// `fmi*GetContinuousStates`.
+    ContinuousStates,
+    /// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`.
+    Derivatives,
+    /// `fmi*GetEventIndicators`.
+    EventIndicators,
+    /// `fmi*GetNominalsOfContinuousStates`.
+    Nominals,
+}
+
+/// `which` array into the caller's `n` elements behind `out`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn get_array<M: FmuModel, X>(
+    c: *mut c_void,
+    f: &Function,
+    which: Array,
+    out: *mut f64,
+    n: usize,
+) -> c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            let Some(out) = slice_mut(out, n) else {
+                return s.instance.reject(f, "the array argument is NULL");
+            };
+            match which {
+                Array::ContinuousStates => s.instance.get_continuous_states(f, out),
+                Array::Derivatives => s.instance.get_derivatives(f, out),
+                Array::EventIndicators => s.instance.get_event_indicators(f, out),
+                Array::Nominals => s.instance.get_nominals(f, out),
+            }
+        })
+    }
+}
+
+/// `fmi*EnterEventMode` (`event` true) or `fmi*EnterContinuousTimeMode`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn enter_mode<M: FmuModel, X>(c: *mut c_void, f: &Function, event: bool) -> c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            if event {
+                s.instance.enter_event_mode(f)
+            } else {
+                s.instance.enter_continuous_time_mode(f)
+            }
+        })
+    }
+}
+
+/// `fmi2NewDiscreteStates`, `fmi3UpdateDiscreteStates`: the model's discrete change, handed
+/// to `write` when it succeeded; `missing` names a NULL output argument the call must refuse.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn update_discrete_states<M: FmuModel, X>(
+    c: *mut c_void,
+    f: &Function,
+    missing: Option<&str>,
+    write: impl FnOnce(EventUpdate),
+) -> c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            if let Some(what) = missing {
+                return s.instance.reject(f, &format!("{what} is NULL"));
+            }
+            let (status, update) = s.instance.update_discrete_states(f);
+            if status <= Status::Warning {
+                write(update);
+            }
+            status
+        })
+    }
+}
+
+/// `fmi*CompletedIntegratorStep`: (enterEventMode, terminateSimulation) into the two flags,
+/// each NULL or one writable value (FMI 2.0 requires both).
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn completed_integrator_step<M: FmuModel, X, B: From<bool>>(
+    c: *mut c_void,
+    f: &Function,
+    enter_event_mode: *mut B,
+    terminate_simulation: *mut B,
+) -> c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            let (status, event, terminate) = s.instance.completed_integrator_step(f);
+            for (flag, value) in [(enter_event_mode, event), (terminate_simulation, terminate)] {
+                if !flag.is_null() {
+                    // SAFETY: a non-NULL flag points to one writable value.
+                    *flag = value.into();
+                }
+            }
+            status
+        })
+    }
+}
+
+/// `fmi2NewDiscreteStates`.
 ///
 /// # Safety
 /// FMI pointer contract.
@@ -137,79 +195,38 @@ pub unsafe fn new_discrete_states<M: FmuModel>(
     event_info: *mut fmi2EventInfo,
 ) -> fmi2Status {
     let f = &functions::NEW_DISCRETE_STATES;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if event_info.is_null() {
-                return s.instance.reject(f, "eventInfo is NULL");
-            }
-            let (status, update) = s.instance.update_discrete_states(f);
-            if status <= Status::Warning {
-                // SAFETY: checked non-NULL; the master passes one fmi2EventInfo.
-                *event_info = fmi2EventInfo {
-                    newDiscreteStatesNeeded: update.discrete_states_need_update.into(),
-                    terminateSimulation: update.terminate_simulation.into(),
-                    nominalsOfContinuousStatesChanged: update.nominals_changed.into(),
-                    valuesOfContinuousStatesChanged: update.states_changed.into(),
-                    nextEventTimeDefined: update.next_event_time.is_some().into(),
-                    nextEventTime: update.next_event_time.unwrap_or(0.0),
-                };
-            }
-            status
-        })
-    }
+    let missing = event_info.is_null().then_some("eventInfo");
+    // SAFETY: written only when non-NULL; the master passes one fmi2EventInfo.
+    unsafe { update_discrete_states::<M, ()>(c, f, missing, |update| *event_info = update.into()) }
 }
 
-/// `fmi2CompletedIntegratorStep`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn completed_integrator_step<M: FmuModel>(
-    c: fmi2Component,
-    _no_set_fmu_state_prior: fmi2Boolean,
-    enter_event_mode: *mut fmi2Boolean,
-    terminate_simulation: *mut fmi2Boolean,
-) -> fmi2Status {
-    let f = &functions::COMPLETED_INTEGRATOR_STEP;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            if enter_event_mode.is_null() || terminate_simulation.is_null() {
-                return s
-                    .instance
-                    .reject(f, "enterEventMode or terminateSimulation is NULL");
-            }
-            let (status, event, terminate) = s.instance.completed_integrator_step(f);
-            // SAFETY: checked non-NULL; each points to one fmi2Boolean.
-            *enter_event_mode = event.into();
-            *terminate_simulation = terminate.into();
-            status
-        })
-    }
-}
+/// The value references and seed of `fmi2GetDirectionalDerivative`: (pointer, count) pairs.
+pub type References = (*const fmi2ValueReference, usize);
 
-/// `fmi2GetDirectionalDerivative` (Model Exchange and Co-Simulation).
+/// `fmi2GetDirectionalDerivative` (Model Exchange and Co-Simulation): `out` (one per
+/// unknown) = J · `seed` (one per known).
 ///
 /// # Safety
 /// FMI pointer contract.
 pub unsafe fn get_directional_derivative<M: FmuModel>(
     c: fmi2Component,
-    unknowns: *const fmi2ValueReference,
-    n_unknowns: usize,
-    knowns: *const fmi2ValueReference,
-    n_knowns: usize,
+    (unknowns, n_unknowns): References,
+    (knowns, n_knowns): References,
     seed: *const fmi2Real,
     out: *mut fmi2Real,
 ) -> fmi2Status {
     let f = &functions::GET_DIRECTIONAL_DERIVATIVE;
     unsafe {
-        with_out::<M>(c, f, out, n_unknowns, |s, out| {
-            let (Some(u), Some(k), Some(seed)) = (
+        with_instance::<M>(c, f, |s: &mut Slot<M, ()>| {
+            let (Some(u), Some(k), Some(seed), Some(out)) = (
                 slice(unknowns, n_unknowns),
                 slice(knowns, n_knowns),
                 slice(seed, n_knowns),
+                slice_mut(out, n_unknowns),
             ) else {
                 return s
                     .instance
-                    .reject(f, "vUnknown_ref, vKnown_ref or dvKnown is NULL");
+                    .reject(f, "vUnknown_ref, vKnown_ref, dvKnown or dvUnknown is NULL");
             };
             let u: Vec<usize> = u.iter().map(|&r| r as usize).collect();
             let k: Vec<usize> = k.iter().map(|&r| r as usize).collect();

@@ -9,7 +9,31 @@
 //! ([`crate::ModelInfo::with_model_exchange`]) and
 //! exporting with `export_fmu!(Model, model_exchange)`. The layer derives everything else
 //! from the one table: the number and order of the states (value-reference order), their
-//! nominals, the `derivative="…"` attributes and the ModelStructure of both versions.
+//! nominals, the `derivative="…"` attributes and the ModelStructure of both versions
+//! (`<Derivatives>`/`<ContinuousStateDerivative>` with the dependencies declared by
+//! `depends_on` — states and inputs —, `<InitialUnknowns>` with the states and derivatives,
+//! FMI 3.0 `<EventIndicator>`s).
+//!
+//! ```ignore
+//! declare_variables! { pub fn variables() { table: [
+//!     U = rows::input("U", 0.0, "N", "Force on the cart"),
+//!     X = rows::output("x", "m", "Cart position").state().nominal(0.1).depends_on(&[vr::X]),
+//!     V = rows::output("v", "m/s", "Cart velocity").state().depends_on(&[vr::V]),
+//!     DER_X = rows::derivative("der(x)", vr::X, "m/s", "").depends_on(&[vr::V]),
+//!     DER_V = rows::derivative("der(v)", vr::V, "m/s2", "").depends_on(&[vr::U]),
+//!     TO_STOP = rows::event_indicator("to_stop", "m", "Distance to the rail stop"),
+//! ] } }
+//! // describe: ModelInfo::new(…, variables(), …).with_model_exchange()?
+//! // impl ModelExchange for Model { evaluate, event_indicators, update_discrete_states,
+//! //                                directional_derivative }
+//! spurio_export::export_fmu!(Model, model_exchange);
+//! ```
+//!
+//! The instance keeps the states in the variable values (so FMU states carry them), evaluates
+//! the model when states, inputs or time changed and something is read, checks every result
+//! for finiteness (a non-finite derivative, output or event indicator is an error naming it,
+//! never published), and refuses the Model Exchange functions on a Co-Simulation instance.
+//! Directional derivatives serve Co-Simulation instances too, at the values of the last step.
 
 pub mod ffi;
 pub mod instance;
@@ -300,49 +324,44 @@ mod tests {
 
     #[test]
     fn inconsistent_declarations_are_errors() {
-        let mut t = table();
-        t[3].derivative_of = None;
-        assert_eq!(
-            info(t).unwrap_err(),
-            DeclarationError::NoDerivative("v".into())
-        );
-        let mut t = table();
-        t[4].derivative_of = Some(1);
-        assert!(matches!(
-            info(t).unwrap_err(),
-            DeclarationError::TwoDerivatives { .. }
-        ));
-        let mut t = table();
-        t[3].derivative_of = Some(2);
-        assert_eq!(
-            info(t).unwrap_err().to_string(),
-            "state `v` has no derivative: declare `der(v)` with derivative_of"
-        );
-        let mut t = table();
-        t[2].state = true;
-        assert_eq!(
-            info(t).unwrap_err(),
-            DeclarationError::NotAContinuousReal("u".into())
-        );
-        let mut t = table();
-        t.push(Variable::parameter("k", 1.0).derivative_of(0));
-        assert!(matches!(
-            info(t).unwrap_err(),
-            DeclarationError::TwoDerivatives { .. }
-        ));
-        let mut t = table();
-        t.push(Variable::output("w").derivative_of(2));
-        assert!(matches!(
-            info(t).unwrap_err(),
-            DeclarationError::NotAState { index: 2, .. }
-        ));
-        let mut t = table();
-        t[4].causality = crate::variables::Causality::Output;
-        assert_eq!(
-            info(t).unwrap_err(),
-            DeclarationError::BadEventIndicator("z".into())
-        );
-        let plain = vec![Variable::output("y")];
-        assert_eq!(info(plain).unwrap_err(), DeclarationError::NoState);
+        use crate::variables::Causality;
+        type Edit = fn(&mut Vec<Variable>);
+        let cases: [(Edit, &str); 8] = [
+            (|t| t[3].derivative_of = None, "state `v` has no derivative"),
+            (
+                |t| t[4].derivative_of = Some(1),
+                "state `v` has two derivatives",
+            ),
+            (
+                |t| t[3].derivative_of = Some(2),
+                "state `v` has no derivative: declare `der(v)` with derivative_of",
+            ),
+            (
+                |t| t[2].state = true,
+                "state `u` must be a continuous Real output or local variable",
+            ),
+            (
+                |t| t.push(Variable::parameter("k", 1.0).derivative_of(0)),
+                "state `x` has two derivatives, `v` and `k`",
+            ),
+            (
+                |t| t.push(Variable::output("w").derivative_of(2)),
+                "derivative `w` is declared of index 2",
+            ),
+            (
+                |t| t[4].causality = Causality::Output,
+                "event indicator `z` must be a continuous Real local",
+            ),
+            (
+                |t| t.retain(|v| !v.state && v.derivative_of.is_none()),
+                "at least one state",
+            ),
+        ];
+        for (edit, message) in cases {
+            let mut t = table();
+            edit(&mut t);
+            let e = info(t).unwrap_err().to_string();
+            assert!(e.contains(message), "{e}");
+        }
     }
 }

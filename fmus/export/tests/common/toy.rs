@@ -40,16 +40,6 @@ pub const DER_Y: usize = 12; // der(y)[1], der(y)[2]
 pub const TO_WRAP: usize = 14;
 pub const Y_MAX: usize = 15;
 
-// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive, y0, der(y), to_wrap, y_max.
-pub const VR_TIME: u32 = 0;
-pub const VR_U: u32 = 1;
-pub const VR_Y: u32 = 2;
-pub const VR_Z: u32 = 3;
-pub const VR_P: u32 = 4;
-pub const VR_N: u32 = 5;
-pub const VR_POSITIVE: u32 = 6;
-pub const VR_DER_Y: u32 = 8;
-
 impl FmuModel for Toy {
     fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
         let mut vars = vec![Variable::input("u[1]", 0.0), Variable::input("u[2]", 0.0)];
