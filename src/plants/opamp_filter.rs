@@ -412,19 +412,14 @@ mod tests {
         u: f64,
         rail: Rail,
     ) -> (Matrix2<f64>, Vector2<f64>) {
-        let mut jx = Matrix2::zeros();
-        for j in 0..2 {
-            let d = 1e-4 * v[j].abs().max(1.0);
-            let (mut plus, mut minus) = (*v, *v);
-            plus[j] += d;
-            minus[j] -= d;
-            let column =
-                (p.derivative_on(&plus, u, rail) - p.derivative_on(&minus, u, rail)) / (2.0 * d);
-            jx.set_column(j, &column);
-        }
+        let f = |v: &Vector2<f64>, u: f64| p.derivative_on(v, u, rail);
+        let along = |j: usize| {
+            let d = Vector2::ith(j, 1e-4 * v[j].abs().max(1.0));
+            (f(&(v + d), u) - f(&(v - d), u)) / (2.0 * d[j])
+        };
         let d = 1e-4 * u.abs().max(1.0);
-        let ju = (p.derivative_on(v, u + d, rail) - p.derivative_on(v, u - d, rail)) / (2.0 * d);
-        (jx, ju)
+        let ju = (f(v, u + d) - f(v, u - d)) / (2.0 * d);
+        (Matrix2::from_columns(&[along(0), along(1)]), ju)
     }
 
     /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`.
