@@ -288,6 +288,13 @@ fn scenario(ctx: &ExperimentContext, file: &str, label: &str) -> Result<Scenario
     Ok(Scenario { results, shown })
 }
 
+/// The figures [`run`] writes, with their captions.
+const FIGURES: [(&str, &str); 3] = [
+    ("paper000_signals.png", "Paper 000 scenario: measurements (outliers red), clean cosine, sKF and rsKF (paper 000 Figs 3 and 5)"),
+    ("paper000_histogram.png", "Histogram of the measured signal with the mean ± 2σ band (paper 000 Fig. 4)"),
+    ("paper001_signals.png", "Paper 001 scenario: outliers in the first 500 samples only (paper 001 Figs 3–4)"),
+];
+
 /// Runs `examples/cosine_outliers/paper000.toml` and `paper001.toml`.
 pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     let p0 = scenario(ctx, "paper000.toml", "paper000")?;
@@ -302,11 +309,10 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         title: "Cosine with outliers: sKF vs rsKF (paper 000 §VII-A, paper 001 §5)".into(),
         setup: "SignalSource (cosine, period 250 samples) → Sensor (noise variance 0.01, ε-contaminated outliers U(−4.8, 4.8)) → KalmanFilter and RobustKalmanFilter FMUs side by side (scalar, A = C = 1, Q = R = 1e-4, Huber c = 1.645), 1000 samples at 0.1 s, run by the master. E_res = (1/N)‖y_clean − x̂ₖ|ₖ‖² over all 1000 samples. Systems: examples/cosine_outliers/paper000.toml (outliers anywhere, ε = 0.05) and paper001.toml (outliers only in the first 500 samples, ε = 0.10 there).".into(),
         rows,
-        figures: vec![
-            ("paper000_signals.png".into(), "Paper 000 scenario: measurements (outliers red), clean cosine, sKF and rsKF (paper 000 Figs 3 and 5)".into()),
-            ("paper000_histogram.png".into(), "Histogram of the measured signal with the mean ± 2σ band (paper 000 Fig. 4)".into()),
-            ("paper001_signals.png".into(), "Paper 001 scenario: outliers in the first 500 samples only (paper 001 Figs 3–4)".into()),
-        ],
+        figures: FIGURES
+            .iter()
+            .map(|(file, caption)| (file.to_string(), caption.to_string()))
+            .collect(),
         notes,
         figures_of_merit: vec![
             ("e_res_skf_000".into(), over_seeds(r0, |r| r.e_skf).0),

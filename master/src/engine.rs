@@ -31,7 +31,7 @@
 //! caller's (the CLI ends the process, keeping the results so far).
 
 use crate::fmu::{
-    CallError, Experiment, FmiVersion, FmuFile, Instance, LoadError, StepEnd, StepProblem, VarType,
+    CallError, Experiment, FmiVersion, FmuFile, Instance, StepEnd, StepProblem, VarType,
 };
 use crate::plan::{push_op, Op, Plan, Transfer};
 use crate::record::Observer;
@@ -71,8 +71,7 @@ fn joined(failures: &[FmiFailure]) -> String {
 /// Why a run stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
-    #[error(transparent)]
-    Load(#[from] LoadError),
+    /// The system, or an FMU of it (loading, instantiating).
     #[error(transparent)]
     System(#[from] SystemError),
     /// One or more FMUs failed in the same step (all of them are listed).
@@ -461,7 +460,8 @@ impl Simulation {
             let fmu = &spec.fmu;
             let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
                 fmu.instantiate(&spec.name, spec.logging)
-            })?;
+            })
+            .map_err(SystemError::from)?;
             let mut m = Member {
                 index: i,
                 monitor: monitor.clone(),

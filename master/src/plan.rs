@@ -304,14 +304,25 @@ impl Plan {
             }
             recorded
         };
-        let order = match d.algorithm {
-            Algorithm::GaussSeidel => propagation_order(instances, &connections)?,
-            Algorithm::Jacobi => connections
-                .iter()
-                .map(|c| PropagationStep::SetInput(c.to))
-                .collect(),
-        };
+        let order = order_for(d.algorithm, instances, &connections)?;
         Ok(Self::lay_out(d, instances, connections, recorded, &order))
+    }
+
+    /// This plan recording nothing: after a step only the outputs that feed connections are
+    /// read (`spurio run --no-record`); an observer receives rows without values.
+    pub fn without_records(
+        &self,
+        d: &SystemDescription,
+        instances: &[ResolvedInstance],
+    ) -> Result<Self, SystemError> {
+        let order = order_for(d.algorithm, instances, &self.connections)?;
+        Ok(Self::lay_out(
+            d,
+            instances,
+            self.connections.clone(),
+            Vec::new(),
+            &order,
+        ))
     }
 
     /// Slots, batches and the propagation for resolved connections and records.
@@ -409,6 +420,22 @@ impl Plan {
             recorded,
         }
     }
+}
+
+/// The sets and re-reads of a communication point for `algorithm`: Gauss–Seidel in
+/// [`propagation_order`], Jacobi the connections as given.
+fn order_for(
+    algorithm: Algorithm,
+    instances: &[ResolvedInstance],
+    connections: &[Connection],
+) -> Result<Vec<PropagationStep>, SystemError> {
+    Ok(match algorithm {
+        Algorithm::GaussSeidel => propagation_order(instances, connections)?,
+        Algorithm::Jacobi => connections
+            .iter()
+            .map(|c| PropagationStep::SetInput(c.to))
+            .collect(),
+    })
 }
 
 /// The order in which, at a communication point, connected inputs are set and

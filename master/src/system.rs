@@ -532,6 +532,15 @@ impl System {
         Ok(())
     }
 
+    /// Records nothing: after a step the engine reads only the outputs that feed
+    /// connections, and an observer receives rows without values (`spurio run
+    /// --no-record`). Editing the system by name ([`System::set_fmu`]) records its
+    /// variables again.
+    pub fn record_nothing(&mut self) -> Result<(), SystemError> {
+        self.plan = self.plan.without_records(&self.source, &self.instances)?;
+        Ok(())
+    }
+
     /// `instance.variable`.
     pub fn variable_name(&self, r: VarRef) -> String {
         crate::plan::variable_name(&self.instances, r)

@@ -6,35 +6,12 @@
 
 mod common;
 
-use common::{assert_names, instance_tables, run};
+use common::{assert_names, instance_tables, reference, run};
 use spurio_master::engine::{RunEnd, RunOptions};
 use spurio_master::fmu::{Causality, FmiVersion, FmuFile, LoadError, VarType};
 use spurio_master::ssp::SspVersion;
 use spurio_master::system::{System, SystemDescription, SystemError};
 use std::path::{Path, PathBuf};
-
-/// The Reference FMUs of FMI `version` (`fmi2`, `fmi3`) in the third-party folder
-/// (`SPURIO_THIRD_PARTY`, or `shared/third-party` next to the repository or its worktree).
-fn reference(version: &str, model: &str) -> PathBuf {
-    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let third_party = std::env::var_os("SPURIO_THIRD_PARTY")
-        .map(PathBuf::from)
-        .or_else(|| {
-            [
-                repo.join("../shared/third-party"),
-                repo.join("../../shared/third-party"),
-            ]
-            .into_iter()
-            .find(|p| p.is_dir())
-        })
-        .expect("no third-party folder: see its README");
-    let fmu = third_party
-        .join("reference-fmus")
-        .join(version)
-        .join(format!("{model}.fmu"));
-    assert!(fmu.is_file(), "{} is missing", fmu.display());
-    fmu
-}
 
 /// The system of the TOML `head` (times, connections, record) and `instances` (see
 /// [`instance_tables`]).
@@ -51,6 +28,13 @@ fn assert_refused(head: &str, instances: &[(&str, &Path, &str)], parts: &[&str])
         Ok(_) => panic!("the system was accepted:\n{head}"),
         Err(e) => assert_names(&e.to_string(), parts),
     }
+}
+
+/// Asserts that connecting `a` to `b` by `connection` (one step of 0.5 s to t = 1) is refused
+/// with a message naming every one of `parts`.
+fn assert_connection_refused(connection: &str, a: &Path, b: &Path, parts: &[&str]) {
+    let head = format!("stop_time = 1.0\nstep_size = 0.5\nconnections = [{connection:?}]");
+    assert_refused(&head, &[("a", a, ""), ("b", b, "")], parts);
 }
 
 /// The FMI 2.0 and the FMI 3.0 Reference FMU `Feedthrough`.
@@ -151,13 +135,10 @@ fn a_whole_array_parameter_takes_all_its_elements() {
 #[test]
 fn a_whole_array_connects_only_to_an_array_of_its_dimensions() {
     let fmu = reference("fmi3", "StateSpace");
-    assert_refused(
-        r#"
-        stop_time = 1.0
-        step_size = 0.5
-        connections = ["a.y -> b.u[1]"]
-        "#,
-        &[("a", &fmu, ""), ("b", &fmu, "")],
+    assert_connection_refused(
+        "a.y -> b.u[1]",
+        &fmu,
+        &fmu,
         &[
             "a.y -> b.u[1]",
             "`a.y` is an array of dimensions [3]",
@@ -257,13 +238,10 @@ fn values_cross_fmi_versions_and_fmi3_types() {
 #[test]
 fn types_must_match_across_versions() {
     let (fmu2, fmu3) = feedthroughs();
-    assert_refused(
-        r#"
-        stop_time = 1.0
-        step_size = 0.5
-        connections = ["a.Float64_continuous_output -> b.Float32_continuous_input"]
-        "#,
-        &[("a", &fmu2, ""), ("b", &fmu3, "")],
+    assert_connection_refused(
+        "a.Float64_continuous_output -> b.Float32_continuous_input",
+        &fmu2,
+        &fmu3,
         &["type mismatch", "Real", "Float32"],
     );
 }

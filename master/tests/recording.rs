@@ -69,3 +69,21 @@ fn an_ssp_archive_is_unpacked_into_a_temporary_folder_removed_with_the_system() 
     // Nothing is written next to the archive.
     assert!(!out.path().join("crane_sensor.ssp.d").exists());
 }
+
+#[test]
+fn recording_nothing_reads_only_the_outputs_that_feed_connections() {
+    let mut system = crane_sensor(1.0, "U = 0.5");
+    let reads =
+        |s: &System, i: usize| -> usize { s.plan.after_step[i].iter().map(|t| t.vrs.len()).sum() };
+    // Recorded: crane.x (also a connection source), sensor.y[1], sensor.y_clean[1].
+    assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 2));
+    let (recorded, _) = run_every(&system, 1);
+    system.record_nothing().unwrap();
+    assert!(system.plan.record_names.is_empty());
+    // crane.x and crane.theta feed the sensor; nothing of the sensor is read.
+    assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 0));
+    let (series, end) = run_every(&system, 1);
+    assert_eq!(end, RunEnd::StopTime { time: 1.0 });
+    assert_eq!(series.time, recorded.time);
+    assert!(series.rows.iter().all(Vec::is_empty));
+}

@@ -14,12 +14,13 @@
 //! warning per episode instead of one per step. An accepted update ends the episode.
 
 use crate::control::pole_placement::{
-    ackermann_with_options, check_poles, PolePlacementError, PolePlacementOptions,
+    characteristic_polynomial, check_poles, gain_of, PolePlacementError,
     DEFAULT_MAX_CONDITION_NUMBER,
 };
 use crate::control::state_feedback::{InputLimits, StateController};
+use crate::state::PlainState;
 use crate::ParameterError;
-use nalgebra::{Complex, DMatrix};
+use nalgebra::{Complex, DMatrix, DVector, Matrix4, RowVector4, Vector4};
 use std::fmt;
 
 /// Default bound on the Euclidean norm of an accepted gain.
@@ -39,13 +40,13 @@ pub enum GainRejection {
         /// Shape of B̂.
         b_shape: (usize, usize),
     },
+    /// The new gain contains NaN or infinity.
+    NonFiniteGain,
     /// `(Â, B̂)` is not reachable.
     NotReachable {
         /// Condition number of the reachability matrix.
         condition_number: f64,
     },
-    /// The new gain contains NaN or infinity.
-    NonFiniteGain,
     /// The new gain is larger than the configured bound.
     GainTooLarge {
         /// ‖L‖₂ of the rejected gain.
@@ -162,7 +163,14 @@ pub struct AdaptiveStateFeedback {
     in_bad_episode: bool,
     rejected_updates: u64,
     episodes: u64,
+    /// `[1, φ₁, …, φ_n]` of the desired poles (derived from the configuration once).
+    characteristic: Vec<f64>,
 }
+
+/// The outcome of a gain recompute from one estimate, before it is committed: `Ok` with the
+/// candidate written to the caller's row, or why it is rejected
+/// ([`AdaptiveStateFeedback::candidate_gain_into`]).
+pub type Candidate = Result<(), GainRejection>;
 
 impl AdaptiveStateFeedback {
     /// Checks the configuration (poles, period, bounds, initial gain) and builds the
@@ -203,6 +211,7 @@ impl AdaptiveStateFeedback {
         }
         Ok(Self {
             gain: config.initial_gain.clone(),
+            characteristic: characteristic_polynomial(&config.poles),
             config,
             calls_until_due: 0,
             in_bad_episode: false,
@@ -288,39 +297,80 @@ impl AdaptiveStateFeedback {
 
     /// Feeds the latest model estimate; every `N`-th call recomputes the gain from it.
     pub fn update(&mut self, a_hat: &DMatrix<f64>, b_hat: &DMatrix<f64>) -> GainUpdate {
-        if self.calls_until_due > 0 {
-            self.calls_until_due -= 1;
+        let mut row = [0.0; 4];
+        let mut long_row = Vec::new();
+        let candidate = match self.states() {
+            n if n <= row.len() => &mut row[..n],
+            n => {
+                long_row.resize(n, 0.0);
+                &mut long_row[..]
+            }
+        };
+        let outcome = self
+            .is_due()
+            .then(|| self.candidate_gain_into(a_hat, b_hat, candidate));
+        self.commit(outcome, candidate)
+    }
+
+    /// Whether the next [`AdaptiveStateFeedback::update`] recomputes the gain.
+    pub fn is_due(&self) -> bool {
+        self.calls_until_due == 0
+    }
+
+    /// What [`AdaptiveStateFeedback::update`] does once the estimate is assessed: `outcome`
+    /// is `None` when no recompute was due, else the [`Candidate`] of
+    /// [`AdaptiveStateFeedback::candidate_gain_into`] for the row `candidate` it wrote. Lets
+    /// a caller assess an estimate once, show the result, and commit it later.
+    pub fn commit(&mut self, outcome: Option<Candidate>, candidate: &[f64]) -> GainUpdate {
+        let Some(outcome) = outcome else {
+            self.calls_until_due = self.calls_until_due.saturating_sub(1);
             return GainUpdate::NotDue;
-        }
+        };
         self.calls_until_due = self.config.recompute_period - 1;
-        match self.candidate_gain(a_hat, b_hat) {
-            Ok(gain) => {
-                self.gain = Some(gain);
+        let n = self.states();
+        match outcome {
+            Ok(()) if candidate.len() == n => {
+                match &mut self.gain {
+                    Some(gain) if gain.len() == n => gain.copy_from_slice(candidate),
+                    gain => *gain = Some(DMatrix::from_row_slice(1, n, candidate)),
+                }
                 self.in_bad_episode = false;
                 GainUpdate::Updated
             }
-            Err(reason) => {
-                let first_in_episode = !self.in_bad_episode;
-                self.in_bad_episode = true;
-                self.rejected_updates += 1;
-                if first_in_episode {
-                    self.episodes += 1;
-                }
-                GainUpdate::Kept {
-                    reason,
-                    first_in_episode,
-                }
-            }
+            Ok(()) => self.reject(GainRejection::WrongDimensions {
+                states: n,
+                a_shape: (n, n),
+                b_shape: (candidate.len(), 1),
+            }),
+            Err(reason) => self.reject(reason),
         }
     }
 
-    fn candidate_gain(
+    fn reject(&mut self, reason: GainRejection) -> GainUpdate {
+        let first_in_episode = !self.in_bad_episode;
+        self.in_bad_episode = true;
+        self.rejected_updates += 1;
+        if first_in_episode {
+            self.episodes += 1;
+        }
+        GainUpdate::Kept {
+            reason,
+            first_in_episode,
+        }
+    }
+
+    /// The gain recomputed from the estimate `Â`, `B̂` (Ackermann for the configured poles),
+    /// written to `candidate` (1 × n, row order) when it is acceptable, or why not. Changes
+    /// nothing in the controller. For n = 4 (the crane) the arithmetic runs on fixed-size
+    /// matrices, without heap allocation; its results are bit-identical to the general path.
+    pub fn candidate_gain_into(
         &self,
         a_hat: &DMatrix<f64>,
         b_hat: &DMatrix<f64>,
-    ) -> Result<DMatrix<f64>, GainRejection> {
+        candidate: &mut [f64],
+    ) -> Candidate {
         let n = self.states();
-        if a_hat.shape() != (n, n) || b_hat.shape() != (n, 1) {
+        if a_hat.shape() != (n, n) || b_hat.shape() != (n, 1) || candidate.len() != n {
             return Err(GainRejection::WrongDimensions {
                 states: n,
                 a_shape: a_hat.shape(),
@@ -330,21 +380,28 @@ impl AdaptiveStateFeedback {
         if !(a_hat.iter().all(|v| v.is_finite()) && b_hat.iter().all(|v| v.is_finite())) {
             return Err(GainRejection::NonFiniteEstimate);
         }
-        let options = PolePlacementOptions {
-            require_stable: true,
-            max_condition_number: self.config.max_condition_number,
+        let bound = self.config.max_condition_number;
+        let gain = if n == 4 {
+            let a = Matrix4::from_column_slice(a_hat.as_slice());
+            let b = Vector4::from_column_slice(b_hat.as_slice());
+            gain_of(&a, &b, &self.characteristic, bound).map(|g: RowVector4<f64>| {
+                candidate.copy_from_slice(g.as_slice());
+            })
+        } else {
+            let b = DVector::from_column_slice(b_hat.as_slice());
+            gain_of(a_hat, &b, &self.characteristic, bound).map(|g| {
+                candidate.copy_from_slice(g.as_slice());
+            })
         };
-        let gain = ackermann_with_options(a_hat, b_hat, &self.config.poles, &options).map_err(
-            |e| match e {
-                PolePlacementError::NotReachable {
-                    condition_number, ..
-                } => GainRejection::NotReachable { condition_number },
-                PolePlacementError::NonFiniteGain => GainRejection::NonFiniteGain,
-                PolePlacementError::NonFinite { .. } => GainRejection::NonFiniteEstimate,
-                other => GainRejection::PlacementFailed(other),
-            },
-        )?;
-        let norm = gain.norm();
+        gain.map_err(|e| match e {
+            PolePlacementError::NotReachable {
+                condition_number, ..
+            } => GainRejection::NotReachable { condition_number },
+            PolePlacementError::NonFiniteGain => GainRejection::NonFiniteGain,
+            PolePlacementError::NonFinite { .. } => GainRejection::NonFiniteEstimate,
+            other => GainRejection::PlacementFailed(other),
+        })?;
+        let norm = candidate.iter().map(|v| v * v).sum::<f64>().sqrt();
         if !norm.is_finite() {
             return Err(GainRejection::NonFiniteGain);
         }
@@ -354,7 +411,7 @@ impl AdaptiveStateFeedback {
                 bound: self.config.max_gain_norm,
             });
         }
-        Ok(gain)
+        Ok(())
     }
 }
 
@@ -377,14 +434,43 @@ crate::plain_state!(AdaptiveStateFeedbackConfig {
     max_condition_number,
     initial_gain
 });
-crate::plain_state!(AdaptiveStateFeedback {
-    config,
-    gain,
-    calls_until_due,
-    in_bad_episode,
-    rejected_updates,
-    episodes
-});
+// A state read back is checked as `AdaptiveStateFeedback::new` checks its configuration (a
+// corrupted state cannot bring unplaceable poles, a zero recompute period or a mis-sized
+// gain), and the
+// characteristic polynomial is derived from the poles again.
+impl crate::state::PlainState for AdaptiveStateFeedback {
+    fn save(&self, out: &mut Vec<u8>) {
+        self.config.save(out);
+        self.gain.save(out);
+        self.calls_until_due.save(out);
+        self.in_bad_episode.save(out);
+        self.rejected_updates.save(out);
+        self.episodes.save(out);
+    }
+    fn read(input: &mut &[u8]) -> Result<Self, crate::state::StateError> {
+        let config = AdaptiveStateFeedbackConfig::read(input)?;
+        let period = config.recompute_period;
+        let mut controller = Self::new(config).map_err(|_| crate::state::StateError::Invalid {
+            what: "adaptive controller configuration",
+            value: period as u64,
+        })?;
+        let progress = AdaptiveProgress {
+            gain: PlainState::read(input)?,
+            calls_until_due: PlainState::read(input)?,
+            in_rejection_episode: PlainState::read(input)?,
+            rejected_updates: PlainState::read(input)?,
+            rejection_episodes: PlainState::read(input)?,
+        };
+        let due = progress.calls_until_due;
+        controller
+            .restore_progress(progress)
+            .map_err(|_| crate::state::StateError::Invalid {
+                what: "adaptive controller gain or recompute phase",
+                value: due as u64,
+            })?;
+        Ok(controller)
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -518,6 +604,71 @@ mod tests {
         let mut bad = saved;
         bad.gain = Some(DMatrix::zeros(1, 3));
         assert_eq!(other.restore_progress(bad).unwrap_err().parameter, "gain");
+    }
+
+    /// The crane's n = 4 runs on fixed-size matrices; on perturbed estimates (and one that is
+    /// not reachable) it gives the general path's gain to the bit.
+    #[test]
+    fn the_fixed_size_gain_is_the_general_one_to_the_bit() {
+        use crate::control::pole_placement::{ackermann_with_options, PolePlacementOptions};
+        let (design, config) = crane_config();
+        let controller = AdaptiveStateFeedback::new(config).unwrap();
+        let options = PolePlacementOptions {
+            require_stable: true,
+            ..PolePlacementOptions::default()
+        };
+        let mut accepted = 0;
+        for k in 0..200 {
+            let wobble = |i: usize| 1.0 + 0.05 * ((k * 31 + i * 7) as f64 * 0.618).sin();
+            let a = DMatrix::from_fn(4, 4, |i, j| design.a[(i, j)] * wobble(i * 4 + j));
+            let scale = if k == 13 { 0.0 } else { 1.0 };
+            let b = DMatrix::from_fn(4, 1, |i, _| design.b[(i, 0)] * wobble(20 + i) * scale);
+            let mut row = [0.0; 4];
+            let fixed = controller.candidate_gain_into(&a, &b, &mut row);
+            match ackermann_with_options(&a, &b, &design.poles, &options) {
+                Ok(general) => {
+                    assert_eq!(fixed, Ok(()), "estimate {k}");
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&row), bits(general.as_slice()), "estimate {k}");
+                    accepted += 1;
+                }
+                Err(e) => assert!(
+                    matches!(
+                        (e, fixed),
+                        (
+                            PolePlacementError::NotReachable { .. },
+                            Err(GainRejection::NotReachable { .. })
+                        )
+                    ),
+                    "estimate {k}"
+                ),
+            }
+        }
+        assert_eq!(accepted, 199);
+    }
+
+    /// A saved state is read back only if it could have been built: a zero recompute period
+    /// (which would make the next commit underflow), poles outside the unit circle or a
+    /// mis-sized gain are refused; a good one comes back equal, its polynomial derived again.
+    #[test]
+    fn a_state_read_back_is_checked_like_a_new_controller() {
+        let design = crane_reference_design().unwrap();
+        let good = crane_controller(Some(design.gain.clone()));
+        let read = |c: &AdaptiveStateFeedback| {
+            let mut bytes = Vec::new();
+            c.save(&mut bytes);
+            AdaptiveStateFeedback::read(&mut bytes.as_slice())
+        };
+        assert_eq!(read(&good), Ok(good.clone()));
+        let mut bad = good.clone();
+        bad.config.recompute_period = 0;
+        assert!(read(&bad).is_err());
+        let mut bad = good.clone();
+        bad.config.poles[0] = Complex::new(1.5, 0.0);
+        assert!(read(&bad).is_err());
+        let mut bad = good;
+        bad.gain = Some(DMatrix::zeros(1, 3));
+        assert!(read(&bad).is_err());
     }
 
     #[test]

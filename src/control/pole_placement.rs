@@ -26,7 +26,11 @@
 //! [`poles_from_continuous`] maps continuous poles `s` to discrete ones `z = e^{s Ts}`, which
 //! is exactly where the ZOH discretisation sends them.
 
-use nalgebra::{Complex, DMatrix};
+use nalgebra::allocator::Allocator;
+use nalgebra::{
+    Complex, DMatrix, DVector, DefaultAllocator, Dim, DimDiff, DimMin, DimMinimum, DimSub, Matrix,
+    OMatrix, OVector, Storage, U1,
+};
 use std::fmt;
 
 /// Reachability matrices with a larger 2-norm condition number are treated as not reachable.
@@ -174,8 +178,22 @@ pub fn reachability_matrix(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     reach
 }
 
-/// 2-norm condition number `σ_max / σ_min` (∞ when singular or not finite).
-pub fn condition_number(m: &DMatrix<f64>) -> f64 {
+/// 2-norm condition number `σ_max / σ_min` (∞ when singular or not finite), for a matrix of
+/// any dimensions, static or dynamic.
+pub fn condition_number<R, C, S>(m: &Matrix<f64, R, C, S>) -> f64
+where
+    R: DimMin<C>,
+    C: Dim,
+    S: Storage<f64, R, C>,
+    DimMinimum<R, C>: DimSub<U1>,
+    DefaultAllocator: Allocator<R, C>
+        + Allocator<C>
+        + Allocator<R>
+        + Allocator<DimDiff<DimMinimum<R, C>, U1>>
+        + Allocator<DimMinimum<R, C>, C>
+        + Allocator<R, DimMinimum<R, C>>
+        + Allocator<DimMinimum<R, C>>,
+{
     if m.is_empty() || !m.iter().all(|v| v.is_finite()) {
         return f64::INFINITY;
     }
@@ -296,31 +314,67 @@ pub fn ackermann_with_options(
     }
     check_poles(poles, options.require_stable)?;
 
-    let reach = reachability_matrix(a, b);
-    let condition = condition_number(&reach);
-    if condition.is_nan() || condition > options.max_condition_number {
-        return Err(PolePlacementError::NotReachable {
-            condition_number: condition,
-            threshold: options.max_condition_number,
-        });
+    let characteristic = characteristic_polynomial(poles);
+    let b = DVector::from_column_slice(b.as_slice());
+    let gain = gain_of(a, &b, &characteristic, options.max_condition_number)?;
+    Ok(DMatrix::from_row_slice(1, n, gain.as_slice()))
+}
+
+/// The Ackermann gain `[0 … 0 1] 𝒞⁻¹ φ(A)` of a checked single-input pair (`A` square, `B`
+/// one column of as many rows, both finite) for the monic polynomial `characteristic`
+/// (`[1, φ₁, …, φ_n]`), on matrices of dimension `D`: the same arithmetic for a static
+/// dimension (no heap: what the controllers use for the packaged sizes) and for [`Dyn`].
+pub fn gain_of<D>(
+    a: &OMatrix<f64, D, D>,
+    b: &OVector<f64, D>,
+    characteristic: &[f64],
+    max_condition_number: f64,
+) -> Result<OMatrix<f64, U1, D>, PolePlacementError>
+where
+    D: DimMin<D, Output = D> + DimSub<U1>,
+    DefaultAllocator: Allocator<D, D> + Allocator<D> + Allocator<U1, D> + Allocator<DimDiff<D, U1>>,
+{
+    let (dim, _) = a.shape_generic();
+    let n = dim.value();
+    // 𝒞 = [B  A B  …  A^{n−1} B], column by column.
+    let mut reach = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
+    let mut block = b.clone_owned();
+    for k in 0..n {
+        reach.set_column(k, &block);
+        block = a * &block;
+    }
+    // yᵀ = e_nᵀ 𝒞⁻¹  ⇔  𝒞ᵀ y = e_n, by LU.
+    let lu = reach.transpose().lu();
+    // Reachable enough? First the cheap bound cond₂(𝒞) ≤ ‖𝒞‖_F ‖𝒞⁻¹‖_F from the LU; the
+    // singular values (most of the cost) only when the bound does not settle it, so an
+    // estimate is accepted or refused as by the 2-norm condition number itself.
+    let bound = lu
+        .try_inverse()
+        .map(|inverse| reach.norm() * inverse.norm());
+    if !bound.is_some_and(|b| b <= max_condition_number) {
+        let condition = condition_number(&reach);
+        if condition.is_nan() || condition > max_condition_number {
+            return Err(PolePlacementError::NotReachable {
+                condition_number: condition,
+                threshold: max_condition_number,
+            });
+        }
     }
     // φ(A) by Horner: M ← M A + φ_k I.
-    let phi = characteristic_polynomial(poles);
-    let identity = DMatrix::<f64>::identity(n, n);
+    let identity = OMatrix::<f64, D, D>::identity_generic(dim, dim);
     let mut phi_of_a = identity.clone();
-    for coefficient in &phi[1..] {
+    for coefficient in characteristic.iter().skip(1) {
         phi_of_a = &phi_of_a * a + &identity * *coefficient;
     }
-    // yᵀ = e_nᵀ 𝒞⁻¹  ⇔  𝒞ᵀ y = e_n.
-    let mut last_unit = DMatrix::<f64>::zeros(n, 1);
-    last_unit[(n - 1, 0)] = 1.0;
-    let y = reach
-        .transpose()
-        .lu()
+    let mut last_unit = OVector::<f64, D>::zeros_generic(dim, U1);
+    if let Some(last) = n.checked_sub(1) {
+        last_unit[last] = 1.0;
+    }
+    let y = lu
         .solve(&last_unit)
         .ok_or(PolePlacementError::NotReachable {
             condition_number: f64::INFINITY,
-            threshold: options.max_condition_number,
+            threshold: max_condition_number,
         })?;
     let gain = y.transpose() * phi_of_a;
     if gain.iter().all(|v| v.is_finite()) {

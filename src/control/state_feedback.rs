@@ -9,7 +9,7 @@ use crate::control::pole_placement::{
     ackermann_with_options, PolePlacementError, PolePlacementOptions,
 };
 use crate::ParameterError;
-use nalgebra::{Complex, DMatrix, DVector};
+use nalgebra::{Complex, DMatrix};
 
 /// Actuator limits `u_min < u_max` (either may be infinite).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,23 +73,17 @@ impl InputLimits {
     }
 }
 
-/// `−L (x − x_ref)` for a 1 × n gain, or `None` when dimensions differ or the result is not
-/// finite.
-pub(crate) fn feedback_term(
-    gain: &DMatrix<f64>,
-    state: &DVector<f64>,
-    reference: Option<&DVector<f64>>,
-) -> Option<f64> {
-    if gain.nrows() != 1 || gain.ncols() != state.len() {
+/// `−L (x − x_ref)` for a gain row `L` (n entries), or `None` when lengths differ or the
+/// result is not finite.
+pub fn feedback_term(gain: &[f64], state: &[f64], reference: Option<&[f64]>) -> Option<f64> {
+    if gain.is_empty() || gain.len() != state.len() {
         return None;
     }
-    if let Some(r) = reference {
-        if r.len() != state.len() {
-            return None;
-        }
+    if reference.is_some_and(|r| r.len() != state.len()) {
+        return None;
     }
     let u: f64 = -(0..state.len())
-        .map(|i| gain[(0, i)] * (state[i] - reference.map_or(0.0, |r| r[i])))
+        .map(|i| gain[i] * (state[i] - reference.map_or(0.0, |r| r[i])))
         .sum::<f64>();
     u.is_finite().then_some(u)
 }
@@ -158,28 +152,33 @@ pub trait StateController {
     fn current_gain(&self) -> Option<&DMatrix<f64>>;
     /// The actuator limits.
     fn input_limits(&self) -> InputLimits;
+    /// The gain in use as a row of n entries (empty while there is none, or if it is not
+    /// one row).
+    fn gain_row(&self) -> &[f64] {
+        self.current_gain()
+            .filter(|gain| gain.nrows() == 1)
+            .map_or(&[], |gain| gain.as_slice())
+    }
     /// `u = sat(−L x̂)` (regulation to the origin).
-    fn control(&self, x_hat: &DVector<f64>) -> f64 {
-        let u = self
-            .current_gain()
-            .and_then(|gain| feedback_term(gain, x_hat, None));
+    fn control(&self, x_hat: &(impl AsRef<[f64]> + ?Sized)) -> f64 {
+        let u = feedback_term(self.gain_row(), x_hat.as_ref(), None);
         self.input_limits().saturate(u.unwrap_or(0.0))
     }
     /// `u = sat(−L x̂ + v)`: regulation with an exogenous input `v` added before the
     /// saturation (e.g. a small dither that makes a closed loop identifiable,
     /// docs/controllers.md §2.14). `v = 0` gives [`StateController::control`].
-    fn control_plus(&self, x_hat: &DVector<f64>, v: f64) -> f64 {
-        let u = self
-            .current_gain()
-            .and_then(|gain| feedback_term(gain, x_hat, None));
+    fn control_plus(&self, x_hat: &(impl AsRef<[f64]> + ?Sized), v: f64) -> f64 {
+        let u = feedback_term(self.gain_row(), x_hat.as_ref(), None);
         self.input_limits().saturate(u.unwrap_or(0.0) + v)
     }
     /// `u = sat(−L (x̂ − x_ref))`: regulation to a reference state `x_ref`, which must be an
     /// equilibrium with zero input (e.g. any cart position of the crane, at rest).
-    fn control_towards(&self, x_hat: &DVector<f64>, x_ref: &DVector<f64>) -> f64 {
-        let u = self
-            .current_gain()
-            .and_then(|gain| feedback_term(gain, x_hat, Some(x_ref)));
+    fn control_towards(
+        &self,
+        x_hat: &(impl AsRef<[f64]> + ?Sized),
+        x_ref: &(impl AsRef<[f64]> + ?Sized),
+    ) -> f64 {
+        let u = feedback_term(self.gain_row(), x_hat.as_ref(), Some(x_ref.as_ref()));
         self.input_limits().saturate(u.unwrap_or(0.0))
     }
 }

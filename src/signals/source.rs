@@ -491,6 +491,26 @@ crate::plain_state!(SignalSource {
 mod tests {
     use super::*;
 
+    /// `offset ± amplitude`, one LFSR bit of `order` per `bit_period`.
+    fn prbs(order: u32, bit_period: f64, amplitude: f64, offset: f64) -> Waveform {
+        Waveform::Prbs(Prbs {
+            order,
+            bit_period,
+            amplitude,
+            offset,
+        })
+    }
+
+    /// Levels in `offset ± amplitude` held for `min_hold` to `max_hold`.
+    fn random_steps(amplitude: f64, offset: f64, min_hold: f64, max_hold: f64) -> Waveform {
+        Waveform::RandomSteps(RandomSteps {
+            amplitude,
+            offset,
+            min_hold,
+            max_hold,
+        })
+    }
+
     #[test]
     fn every_prbs_order_has_maximal_length() {
         for order in 2..=24u32 {
@@ -517,12 +537,7 @@ mod tests {
 
     #[test]
     fn prbs_levels_bits_and_replay() {
-        let w = Waveform::Prbs(Prbs {
-            order: 7,
-            bit_period: 0.2,
-            amplitude: 1.5,
-            offset: 2.0,
-        });
+        let w = prbs(7, 0.2, 1.5, 2.0);
         let mut s = SignalSource::new(w, 11).unwrap();
         let forward: Vec<f64> = (0..2000).map(|k| s.value_at(k as f64 * 0.05)).collect();
         for v in &forward {
@@ -548,12 +563,7 @@ mod tests {
 
     #[test]
     fn random_steps_are_held_within_range_and_independent_of_sampling() {
-        let w = Waveform::RandomSteps(RandomSteps {
-            amplitude: 2.0,
-            offset: 5.0,
-            min_hold: 1.0,
-            max_hold: 3.0,
-        });
+        let w = random_steps(2.0, 5.0, 1.0, 3.0);
         let mut fine = SignalSource::new(w, 7).unwrap();
         let mut coarse = SignalSource::new(w, 7).unwrap();
         let mut changes = Vec::new();
@@ -635,41 +645,18 @@ mod tests {
     #[test]
     fn far_samples_take_bounded_work() {
         // PRBS: a sample 10¹² bit periods on equals the one a whole number of periods back
-        let prbs = Waveform::Prbs(Prbs {
-            order: 24,
-            bit_period: 1e-300,
-            amplitude: 1.0,
-            offset: 0.0,
-        });
-        let mut far = SignalSource::new(prbs, 3).unwrap();
+        let fast = prbs(24, 1e-300, 1.0, 0.0);
+        let mut far = SignalSource::new(fast, 3).unwrap();
         let start = std::time::Instant::now();
         let v = far.value_at(1e300);
         assert!(v == 1.0 || v == -1.0, "{v}");
-        let mut slow = SignalSource::new(
-            Waveform::Prbs(Prbs {
-                order: 7,
-                bit_period: 1.0,
-                amplitude: 1.0,
-                offset: 0.0,
-            }),
-            5,
-        )
-        .unwrap();
+        let mut slow = SignalSource::new(prbs(7, 1.0, 1.0, 0.0), 5).unwrap();
         let mut replay = slow.clone();
         let k = 127.0 * 1e9 + 42.0;
         assert_eq!(slow.value_at(k + 0.5), replay.value_at(42.5));
         assert!(start.elapsed().as_secs_f64() < 5.0);
         // random steps: 10¹² s of holds of 1 s to 5 s is refused, not drawn
-        let mut random = SignalSource::new(
-            Waveform::RandomSteps(RandomSteps {
-                amplitude: 1.0,
-                offset: 0.0,
-                min_hold: 1.0,
-                max_hold: 5.0,
-            }),
-            1,
-        )
-        .unwrap();
+        let mut random = SignalSource::new(random_steps(1.0, 0.0, 1.0, 5.0), 1).unwrap();
         let start = std::time::Instant::now();
         let e = random.try_value_at(1e12).unwrap_err();
         assert!(start.elapsed().as_secs_f64() < 5.0);
@@ -685,42 +672,10 @@ mod tests {
     #[test]
     fn bad_parameters_are_named() {
         let err = |w: Waveform| SignalSource::new(w, 0).unwrap_err().parameter;
-        assert_eq!(
-            err(Waveform::Prbs(Prbs {
-                order: 1,
-                bit_period: 1.0,
-                amplitude: 1.0,
-                offset: 0.0
-            })),
-            "order"
-        );
-        assert_eq!(
-            err(Waveform::Prbs(Prbs {
-                order: 5,
-                bit_period: 0.0,
-                amplitude: 1.0,
-                offset: 0.0
-            })),
-            "bit_period"
-        );
-        assert_eq!(
-            err(Waveform::RandomSteps(RandomSteps {
-                amplitude: 1.0,
-                offset: 0.0,
-                min_hold: -1.0,
-                max_hold: 1.0
-            })),
-            "min_hold"
-        );
-        assert_eq!(
-            err(Waveform::RandomSteps(RandomSteps {
-                amplitude: 1.0,
-                offset: 0.0,
-                min_hold: 2.0,
-                max_hold: 1.0
-            })),
-            "max_hold"
-        );
+        assert_eq!(err(prbs(1, 1.0, 1.0, 0.0)), "order");
+        assert_eq!(err(prbs(5, 0.0, 1.0, 0.0)), "bit_period");
+        assert_eq!(err(random_steps(1.0, 0.0, -1.0, 1.0)), "min_hold");
+        assert_eq!(err(random_steps(1.0, 0.0, 2.0, 1.0)), "max_hold");
         assert_eq!(
             err(Waveform::Sinusoid(Sinusoid {
                 function: Trig::Sine,

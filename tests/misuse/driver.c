@@ -213,6 +213,23 @@ static void on_alarm(int sig) {
     _exit(3);
 }
 
+/* One fmi2Set* (set) or fmi2Get* of type t ('R', 'I', 'B'; 'S' to get) on n values, one call in
+   25 with a NULL array instead (fmi2SetReal's values or fmi2SetInteger's references when
+   setting, fmi2GetReal's values when getting). */
+static fmi2Status values_call(Inst *in, int set, char t, const fmi2ValueReference *vrs, size_t n,
+                              fmi2Real *xr, fmi2Integer *xi, fmi2String *xs) {
+    if (pick(25) == 0) {
+        if (!set) return F.GetReal(in->c, vrs, n, NULL);
+        return t == 'R' ? F.SetReal(in->c, NULL, n, xr) : F.SetInteger(in->c, vrs, n, NULL);
+    }
+    switch (t) {
+    case 'R': return set ? F.SetReal(in->c, vrs, n, xr) : F.GetReal(in->c, vrs, n, xr);
+    case 'I': return set ? F.SetInteger(in->c, vrs, n, xi) : F.GetInteger(in->c, vrs, n, xi);
+    case 'B': return set ? F.SetBoolean(in->c, vrs, n, xi) : F.GetBoolean(in->c, vrs, n, xi);
+    default: return F.GetString(in->c, vrs, n, xs);
+    }
+}
+
 static void begin(Inst *in) {
     alarm(hang_seconds);
     in->log_count = 0;
@@ -494,14 +511,7 @@ static void random_call(Inst *in) {
             xi[i] = t == 'B' ? pick(3) - (pick(4) == 0) : nasty_int(var[i]);
         }
         begin(in);
-        if (pick(25) == 0)
-            s = t == 'R' ? F.SetReal(in->c, NULL, n, xr) : F.SetInteger(in->c, vrs, n, NULL);
-        else if (t == 'R')
-            s = F.SetReal(in->c, vrs, n, xr);
-        else if (t == 'I')
-            s = F.SetInteger(in->c, vrs, n, xi);
-        else
-            s = F.SetBoolean(in->c, vrs, n, xi);
+        s = values_call(in, 1, t, vrs, n, xr, xi, NULL);
         end(in, "fmi2Set*", SETTABLE, s);
         if (s == fmi2Error && !strstr(in->last, "illegal call sequence") && (in->possible & S_STEP))
             in->possible |= S_ERROR; /* tunable parameters may fail in the model */
@@ -515,16 +525,7 @@ static void random_call(Inst *in) {
         fmi2String xs[8];
         for (i = 0; i < n; i++) vrs[i] = some_vr(t, &var[i]);
         begin(in);
-        if (pick(25) == 0)
-            s = F.GetReal(in->c, vrs, n, NULL);
-        else if (t == 'R')
-            s = F.GetReal(in->c, vrs, n, xr);
-        else if (t == 'I')
-            s = F.GetInteger(in->c, vrs, n, xi);
-        else if (t == 'B')
-            s = F.GetBoolean(in->c, vrs, n, xi);
-        else
-            s = F.GetString(in->c, vrs, n, xs);
+        s = values_call(in, 0, t, vrs, n, xr, xi, xs);
         end(in, "fmi2Get*", AFTER_INIT, s);
         if (s == fmi2OK && t == 'R')
             for (i = 0; i < n; i++)

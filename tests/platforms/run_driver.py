@@ -204,24 +204,68 @@ def run(cmd: list[str], env: dict[str, str] | None, timeout: float = 600) -> sub
                           errors="replace")
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--fmus", type=Path, default=REPO / "build" / "fmus")
+def arguments(doc: str, fmus: Path) -> argparse.ArgumentParser:
+    """The options of both runners: the FMUs (default `fmus`), the work folder, the FMUs and
+    platforms to run."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--fmus", type=Path, default=fmus)
     ap.add_argument("--work", type=Path, default=REPO / "target" / "platforms")
     ap.add_argument("--only", nargs="*", default=[])
     ap.add_argument("--platforms", nargs="*", default=list(PLATFORMS))
+    return ap
+
+
+def start(args: argparse.Namespace, unpacked_name: str, out_name: str, fmi3: bool = False,
+          fresh_out: bool = False) -> tuple[Path, Path, Path, dict[str, str], list[Path]]:
+    """The work folder, its `bin` folder for the drivers, a fresh folder `unpacked_name` to
+    unpack the FMUs into, the output folder `out_name` (emptied when `fresh_out`), and the
+    environment and FMUs of `prepare`."""
+    work = args.work.resolve()
+    bin_dir = work / "bin"
+    unpacked = work / unpacked_name
+    out = work / out_name
+    for d in (unpacked, out) if fresh_out else (unpacked,):
+        shutil.rmtree(d, ignore_errors=True)
+    for d in (unpacked, out):
+        d.mkdir(parents=True, exist_ok=True)
+    env, fmus = prepare(args, work, bin_dir, fmi3=fmi3)
+    return work, bin_dir, unpacked, env, fmus
+
+
+def versus_linux64(stem: str, platform: str, linux64: list[list[float]],
+                   rows: list[list[float]], failures: list[str]) -> tuple[str, dict]:
+    """A platform's outputs against linux64's: the verdict (`identical`, `explained` within
+    MAX_RELATIVE with its cause in EXPLAINED, or `DIFFERS`, which is a failure) and the
+    comparison."""
+    c = compare(linux64, rows)
+    ok = c["shape"] and (c["differing"] == 0 or (
+        c["max_rel"] <= MAX_RELATIVE and (stem, platform) in EXPLAINED))
+    verdict = "identical" if c["differing"] == 0 else ("explained" if ok else "DIFFERS")
+    if not ok:
+        failures.append(f"{stem} {platform}: {c}")
+    return verdict, c
+
+
+def report(header: list[str], table: list[tuple], failures: list[str], summary: str) -> int:
+    """Logs the table, the failures and the summary; the exit status (1 on any failure)."""
+    log("| " + " | ".join(header) + " |")
+    log("|" + "---|" * len(header))
+    for row in table:
+        log("| " + " | ".join(row) + " |")
+    for f in failures:
+        log("FAIL " + f)
+    log(f"{summary}: {'all passed' if not failures else f'{len(failures)} failures'}")
+    return 1 if failures else 0
+
+
+def main() -> int:
+    ap = arguments(__doc__, REPO / "build" / "fmus")
     ap.add_argument("--panic-fmu", action="append", default=[],
                     help="PLATFORM=BINARY of the PanicTest FMU (panic_fmu/), checked on each")
     ap.add_argument("--panic-md", type=Path, help="PanicTest's modelDescription.xml")
     args = ap.parse_args()
 
-    work = args.work.resolve()
-    bin_dir = work / "bin"
-    unpacked = work / "unpacked FMUs é"
-    for d in (unpacked, work / "out"):
-        shutil.rmtree(d, ignore_errors=True)
-        d.mkdir(parents=True)
-    env, fmus = prepare(args, work, bin_dir)
+    work, bin_dir, unpacked, env, fmus = start(args, "unpacked FMUs é", "out", fresh_out=True)
     if not fmus:
         return 1
     failures: list[str] = []
@@ -292,12 +336,8 @@ def main() -> int:
             if outputs[platform][0] != outputs["linux64"][0]:
                 failures.append(f"{stem} {platform}: different output columns")
                 continue
-            c = compare(outputs["linux64"][1], outputs[platform][1])
-            ok = c["shape"] and (c["differing"] == 0 or (
-                c["max_rel"] <= MAX_RELATIVE and (stem, platform) in EXPLAINED))
-            verdict = "identical" if c["differing"] == 0 else ("explained" if ok else "DIFFERS")
-            if not ok:
-                failures.append(f"{stem} {platform}: {c}")
+            verdict, c = versus_linux64(stem, platform, outputs["linux64"][1],
+                                        outputs[platform][1], failures)
             table.append((stem, platform, verdict, f"{c['differing']}/{c['values']}",
                           f"{c['max_abs']:.3g}", f"{c['max_rel']:.3g}", ref_note,
                           f"{elapsed:.1f}"))
@@ -309,17 +349,10 @@ def main() -> int:
     if args.panic_fmu:
         panic_checks(args.panic_fmu, args.panic_md, work, bin_dir, env, failures)
 
-    log("| FMU | platform | vs linux64 | differing values | max abs | max rel | "
-        "vs _ref.csv (differing, max rel) | driver s |")
-    log("|---|---|---|---|---|---|---|---|")
-    for row in table:
-        log("| " + " | ".join(row) + " |")
     (work / "report.md").write_text("\n".join("| " + " | ".join(r) + " |" for r in table) + "\n")
-    for f in failures:
-        log("FAIL " + f)
-    log(f"{len(fmus)} FMUs on {len(args.platforms)} platforms: "
-        f"{'all passed' if not failures else f'{len(failures)} failures'}")
-    return 1 if failures else 0
+    return report(["FMU", "platform", "vs linux64", "differing values", "max abs", "max rel",
+                   "vs _ref.csv (differing, max rel)", "driver s"], table, failures,
+                  f"{len(fmus)} FMUs on {len(args.platforms)} platforms")
 
 
 def missing_config_check(stem: str, identifier: str, folder: Path, scen: Path, bin_dir: Path,

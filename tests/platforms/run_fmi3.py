@@ -16,7 +16,6 @@ resource path holds a non-ASCII letter (passed in UTF-8, as FMI 3.0 strings are)
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import shutil
 import sys
@@ -30,8 +29,7 @@ REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 import run_driver  # noqa: E402
 from run_driver import (  # noqa: E402
-    EXPLAINED, MAX_RELATIVE, PLATFORMS, compare, driver_name, log, read_outputs,
-    read_reference)
+    MAX_RELATIVE, PLATFORMS, compare, driver_name, log, read_outputs, read_reference)
 
 TYPES = {"Float64": "r", "Int32": "i", "Boolean": "b"}
 
@@ -112,28 +110,20 @@ def missing_config_check(stem: str, identifier: str, folder: Path, scen: Path, b
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--fmus", type=Path, default=REPO / "build" / "fmus" / "fmi3")
-    ap.add_argument("--work", type=Path, default=REPO / "target" / "platforms")
-    ap.add_argument("--only", nargs="*", default=[])
-    ap.add_argument("--platforms", nargs="*", default=list(PLATFORMS))
-    args = ap.parse_args()
+    args = run_driver.arguments(__doc__, REPO / "build" / "fmus" / "fmi3").parse_args()
 
-    work = args.work.resolve()
-    bin_dir = work / "bin"
-    unpacked = work / "unpacked FMI 3.0 FMUs é"
-    shutil.rmtree(unpacked, ignore_errors=True)
-    (work / "out3").mkdir(parents=True, exist_ok=True)
-    env, fmus = run_driver.prepare(args, work, bin_dir, fmi3=True)
+    work, bin_dir, unpacked, env, fmus = run_driver.start(args, "unpacked FMI 3.0 FMUs é", "out3",
+                                                          fmi3=True)
     if not fmus:
         return 1
+    skipped = [f for f in fmus
+               if not (REPO / "modelDescription" / "fmi3" / f"{f.stem}.xml").exists()]
+    for fmu in skipped:
+        log(f"skipped {fmu.name}: not a bundled FMU")
     failures: list[str] = []
     table = []
-    for fmu in fmus:
+    for fmu in (f for f in fmus if f not in skipped):
         stem = fmu.stem
-        if not (REPO / "modelDescription" / "fmi3" / f"{stem}.xml").exists():
-            log(f"skipped {fmu.name}: not a bundled FMU")
-            continue
         folder = unpacked / stem
         with zipfile.ZipFile(fmu) as z:
             z.extractall(folder)
@@ -185,12 +175,8 @@ def main() -> int:
                 continue
             if "linux64" not in outputs:
                 continue
-            c = compare(outputs["linux64"][1], rows)
-            ok = c["shape"] and (c["differing"] == 0 or (
-                c["max_rel"] <= MAX_RELATIVE and (stem, platform) in EXPLAINED))
-            verdict = "identical" if c["differing"] == 0 else ("explained" if ok else "DIFFERS")
-            if not ok:
-                failures.append(f"{stem} {platform}: {c}")
+            verdict, c = run_driver.versus_linux64(stem, platform, outputs["linux64"][1], rows,
+                                                   failures)
             table.append((stem, platform, verdict, vs_fmi2,
                           f"{c['differing']}/{c['values']} differ, max rel {c['max_rel']:.3g}",
                           elapsed))
@@ -198,15 +184,9 @@ def main() -> int:
             missing_config_check(stem, identifier, folder, scen, bin_dir, env, args.platforms,
                                  failures)
 
-    log("| FMI 3.0 FMU | platform | vs x86_64-linux | vs FMI 2.0 | values | driver s |")
-    log("|---|---|---|---|---|---|")
-    for row in table:
-        log("| " + " | ".join(row) + " |")
-    for f in failures:
-        log("FAIL " + f)
-    log(f"{len(fmus)} FMI 3.0 FMUs on {len(args.platforms)} platforms: "
-        f"{'all passed' if not failures else f'{len(failures)} failures'}")
-    return 1 if failures else 0
+    return run_driver.report(
+        ["FMI 3.0 FMU", "platform", "vs x86_64-linux", "vs FMI 2.0", "values", "driver s"],
+        table, failures, f"{len(fmus)} FMI 3.0 FMUs on {len(args.platforms)} platforms")
 
 
 if __name__ == "__main__":

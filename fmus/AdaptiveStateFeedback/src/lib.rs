@@ -27,15 +27,16 @@
 //! the outputs hold, and `recompute_period` counts samples.
 
 use nalgebra::DMatrix;
+use spurio::control::adaptive::Candidate;
 use spurio::control::pole_placement::DEFAULT_MAX_CONDITION_NUMBER;
+use spurio::control::state_feedback::feedback_term;
 use spurio::control::{
     AdaptiveStateFeedback, AdaptiveStateFeedbackConfig, GainUpdate, StateController,
 };
-use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Value, Variable};
-use spurio_fmu_common::clock::{Rule, SampleClock};
+use spurio_export::{Cause, Config, Context, Failure, Value, Variable};
 use spurio_fmu_common::controller::{
-    check_pole_parameters, describe_controller, format_gain, input_unit, layout_for, start_table,
-    with_unit, DesignBlocks, Preset,
+    check_pole_parameters, format_gain, input_unit, read_block, start_table, with_unit, ControlLaw,
+    DesignBlocks, Preset, SampledController, Scratch,
 };
 use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, Block};
@@ -84,11 +85,11 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     let n = defaults.states();
     let preset = defaults.preset;
     let a_hat = add_matrix(&mut t, "A_hat", n, n, |name, i, j| {
-        Variable::input(name, defaults.a[(i, j)])
+        Variable::input(name, defaults.design.a[(i, j)])
             .describe("Estimated discrete state matrix Â (e.g. from the dual Kalman filter)")
     });
     let b_hat = add_matrix(&mut t, "B_hat", n, 1, |name, i, _| {
-        Variable::input(name, defaults.b[(i, 0)])
+        Variable::input(name, defaults.design.b[(i, 0)])
             .describe("Estimated discrete input matrix B̂ (one column)")
     });
     let v = t.add(with_unit(
@@ -151,7 +152,7 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
             .describe("Estimates whose reachability matrix [B AB … A^(n−1)B] has a larger 2-norm condition number are rejected as not reachable"),
     );
     let initial_gain = add_matrix(&mut t, "L0", 1, n, |name, _, j| {
-        Variable::parameter(name, defaults.gain[(0, j)]).describe(&format!(
+        Variable::parameter(name, defaults.design.gain[(0, j)]).describe(&format!(
             "Initial gain on state {} (used until the first accepted update; default: the design on the default model)",
             j + 1
         ))
@@ -173,57 +174,6 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         initial_gain,
     };
     Ok((layout, t.into_variables()))
-}
-
-/// The AdaptiveStateFeedback FMU: layout, controller (after initialisation) and the number of
-/// rejections when the current episode began (for the recovery message).
-#[derive(Debug, Clone)]
-pub struct AdaptiveStateFeedbackFmu {
-    layout: Layout,
-    controller: Option<AdaptiveStateFeedback>,
-    rejections_before_episode: u64,
-    clock: SampleClock,
-}
-
-impl AdaptiveStateFeedbackFmu {
-    fn estimate(&self, ctx: &Context) -> (DMatrix<f64>, DMatrix<f64>) {
-        (
-            self.layout.a_hat.matrix(ctx.values),
-            self.layout.b_hat.matrix(ctx.values),
-        )
-    }
-
-    /// Writes the outputs of `controller` for the current `x_hat`.
-    fn write_outputs(&self, ctx: &mut Context, controller: &AdaptiveStateFeedback) {
-        let layout = &self.layout;
-        let x_hat = layout.x_hat.vector(ctx.values);
-        let u = controller.control_plus(&x_hat, ctx.values.real(layout.v));
-        ctx.values.set_real(layout.u, u);
-        let gain = controller
-            .gain()
-            .cloned()
-            .unwrap_or_else(|| DMatrix::zeros(1, layout.states));
-        layout.gain.write(ctx.values, &gain);
-        let rejected = i32::try_from(controller.rejected_updates()).unwrap_or(i32::MAX);
-        ctx.values.set_integer(layout.rejected_updates, rejected);
-        ctx.values
-            .set_boolean(layout.estimate_rejected, controller.in_rejection_episode());
-    }
-
-    /// Outputs of the controller after processing the current inputs, without committing.
-    fn write_preview(&self, ctx: &mut Context) {
-        if let Some(controller) = &self.controller {
-            let mut preview = controller.clone();
-            let (a_hat, b_hat) = self.estimate(ctx);
-            preview.update(&a_hat, &b_hat);
-            self.write_outputs(ctx, &preview);
-        }
-    }
-
-    /// The controller in use (after initialisation).
-    pub fn controller(&self) -> Option<&AdaptiveStateFeedback> {
-        self.controller.as_ref()
-    }
 }
 
 fn config_from_parameters(
@@ -265,28 +215,92 @@ fn config_from_parameters(
     Ok(config)
 }
 
-impl FmuModel for AdaptiveStateFeedbackFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
-        describe_controller(
-            "AdaptiveStateFeedback",
-            "Adaptive pole placement: L recomputed by Ackermann from the estimated A_hat, B_hat every N steps, last good gain kept when the estimate is unusable (paper 000 Fig. 6); single input",
-            config,
-            build,
-        )
+/// The law of the AdaptiveStateFeedback FMU: the controller, the number of rejections when
+/// the current episode began (for the recovery message), and the working memory.
+#[derive(Debug, Clone)]
+pub struct AdaptiveLaw {
+    controller: AdaptiveStateFeedback,
+    rejections_before_episode: u64,
+    work: Scratch<Work>,
+}
+spurio::plain_state!(AdaptiveLaw {
+    controller,
+    rejections_before_episode,
+    work
+});
+
+/// The estimate last read and its assessment, so that the preview after the inputs are set,
+/// the commit of the step and the preview after it recompute the gain once per estimate.
+#[derive(Debug, Clone, Default)]
+struct Work {
+    x_hat: Vec<f64>,
+    a_hat: Option<(DMatrix<f64>, DMatrix<f64>)>,
+    /// The assessment of `a_hat` (`None`: not assessed yet) and the candidate row it wrote.
+    assessed: Option<Candidate>,
+    candidate: Vec<f64>,
+}
+
+/// Copies `block` into `m` (reshaped if needed); whether anything changed, to the bit.
+fn refresh(block: &Block, values: &spurio_export::Values, m: &mut DMatrix<f64>) -> bool {
+    if m.shape() != (block.rows, block.cols) {
+        *m = DMatrix::from_element(block.rows, block.cols, f64::NAN);
+    }
+    let mut changed = false;
+    for i in 0..block.rows {
+        for j in 0..block.cols {
+            let v = values.real(block.index(i, j));
+            if m[(i, j)].to_bits() != v.to_bits() {
+                m[(i, j)] = v;
+                changed = true;
+            }
+        }
+    }
+    changed
+}
+
+impl AdaptiveLaw {
+    /// The controller in use.
+    pub fn controller(&self) -> &AdaptiveStateFeedback {
+        &self.controller
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, Cause> {
-        Ok(Self {
-            layout: layout_for(info, build)?,
-            controller: None,
-            rejections_before_episode: 0,
-            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
-        })
+    /// What the update from the estimate held would do: `None` when no recompute is due,
+    /// else the assessment, the candidate row in `self.work`. An unchanged estimate is not
+    /// assessed again.
+    fn assess(&mut self, layout: &Layout, values: &spurio_export::Values) -> Option<Candidate> {
+        let work = &mut self.work.0;
+        let (a_hat, b_hat) = work.a_hat.get_or_insert_with(Default::default);
+        let changed = refresh(&layout.a_hat, values, a_hat) | refresh(&layout.b_hat, values, b_hat);
+        if changed {
+            work.assessed = None;
+        }
+        if !self.controller.is_due() {
+            return None;
+        }
+        let assessed = work.assessed.get_or_insert_with(|| {
+            work.candidate.resize(layout.states, 0.0);
+            self.controller
+                .candidate_gain_into(a_hat, b_hat, &mut work.candidate)
+        });
+        Some(assessed.clone())
+    }
+}
+
+impl ControlLaw for AdaptiveLaw {
+    type Layout = Layout;
+    const MODEL_IDENTIFIER: &'static str = "AdaptiveStateFeedback";
+    const DESCRIPTION: &'static str = "Adaptive pole placement: L recomputed by Ackermann from the estimated A_hat, B_hat every N steps, last good gain kept when the estimate is unusable (paper 000 Fig. 6); single input";
+
+    fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
+        build(config)
     }
 
-    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let config = config_from_parameters(&self.layout, ctx.values)?;
-        let clock = self.layout.design.clock(ctx.values, ctx.time())?;
+    fn design(layout: &Layout) -> &DesignBlocks {
+        &layout.design
+    }
+
+    fn initialize(layout: &Layout, ctx: &mut Context) -> Result<Self, Failure> {
+        let config = config_from_parameters(layout, ctx.values)?;
         let controller = AdaptiveStateFeedback::new(config).map_err(|e| {
             let parameter = if e.parameter == "initial_gain" {
                 "L0"
@@ -295,50 +309,27 @@ impl FmuModel for AdaptiveStateFeedbackFmu {
             };
             format!("parameter `{parameter}`: {}", e.reason)
         })?;
-        self.controller = Some(controller);
-        self.rejections_before_episode = 0;
-        self.clock = clock;
-        self.write_preview(ctx);
-        Ok(())
-    }
-
-    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        let (clock, samples) = self.clock.after(time, step)?;
-        if samples.is_empty() {
-            // Between samples: nothing is committed and the outputs hold.
-            self.clock = clock;
-            return Ok(());
-        }
-        for k in samples {
-            self.commit(ctx, clock.instant(k))?;
-        }
-        self.clock = clock;
-        // Outputs at the new communication point, for the inputs still held.
-        self.write_preview(ctx);
-        Ok(())
-    }
-
-    /// At a sample instant the outputs follow the inputs just set; between samples they hold.
-    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        if self.clock.due_at(ctx.time()) {
-            self.write_preview(ctx);
-        }
-        Ok(())
-    }
-
-    spurio_fmu_common::fmu_state!(controller, rejections_before_episode, clock);
-}
-
-impl AdaptiveStateFeedbackFmu {
-    /// Commits the gain update of the sample at `time` from the inputs held (and logs).
-    fn commit(&mut self, ctx: &mut Context, time: f64) -> Result<(), Failure> {
-        let (a_hat, b_hat) = self.estimate(ctx);
-        let Some(controller) = self.controller.as_mut() else {
-            return Err(Failure::error("the controller was not initialised"));
+        let n = layout.states;
+        let work = Work {
+            x_hat: Vec::with_capacity(n),
+            a_hat: Some((DMatrix::zeros(n, n), DMatrix::zeros(n, 1))),
+            assessed: None,
+            candidate: vec![0.0; n],
         };
+        Ok(Self {
+            controller,
+            rejections_before_episode: 0,
+            work: Scratch(work),
+        })
+    }
+
+    /// Commits the gain update of the sample at `time` from the inputs held (and logs).
+    fn commit(&mut self, layout: &Layout, ctx: &mut Context, time: f64) -> Result<(), Failure> {
+        let outcome = self.assess(layout, ctx.values);
+        let controller = &mut self.controller;
         let rejections_before = controller.rejected_updates();
         let was_rejecting = controller.in_rejection_episode();
-        match controller.update(&a_hat, &b_hat) {
+        match controller.commit(outcome, &self.work.0.candidate) {
             GainUpdate::Kept {
                 reason,
                 first_in_episode: true,
@@ -362,7 +353,45 @@ impl AdaptiveStateFeedbackFmu {
         }
         Ok(())
     }
+
+    /// The outputs of the controller after processing the inputs held, without committing:
+    /// `u = sat(−L x̂ + v)` with the gain the update would leave, `L`, `rejected_updates`,
+    /// `estimate_rejected`.
+    fn write_outputs(&mut self, layout: &Layout, ctx: &mut Context) {
+        let outcome = self.assess(layout, ctx.values);
+        let work = &mut self.work.0;
+        let controller = &self.controller;
+        let (gain, rejected, rejecting) = match outcome {
+            None => (
+                controller.gain_row(),
+                controller.rejected_updates(),
+                controller.in_rejection_episode(),
+            ),
+            Some(Ok(())) => (&work.candidate[..], controller.rejected_updates(), false),
+            Some(Err(_)) => (
+                controller.gain_row(),
+                controller.rejected_updates() + 1,
+                true,
+            ),
+        };
+        read_block(&layout.x_hat, ctx.values, &mut work.x_hat);
+        let v = ctx.values.real(layout.v);
+        let feedback = feedback_term(gain, &work.x_hat, None);
+        let u = controller
+            .input_limits()
+            .saturate(feedback.unwrap_or(0.0) + v);
+        ctx.values.set_real(layout.u, u);
+        for (k, j) in layout.gain.indices().enumerate() {
+            ctx.values.set_real(j, gain.get(k).copied().unwrap_or(0.0));
+        }
+        let rejected = i32::try_from(rejected).unwrap_or(i32::MAX);
+        ctx.values.set_integer(layout.rejected_updates, rejected);
+        ctx.values.set_boolean(layout.estimate_rejected, rejecting);
+    }
 }
+
+/// The AdaptiveStateFeedback FMU.
+pub type AdaptiveStateFeedbackFmu = SampledController<AdaptiveLaw>;
 
 spurio_export::export_fmu! { AdaptiveStateFeedbackFmu, variants = [("AdaptiveStateFeedback", crane_controller_config())] }
 
@@ -371,7 +400,7 @@ mod tests {
     use super::*;
     use spurio::control::crane_reference_design;
     use spurio_export::types::Status;
-    use spurio_export::{ByteReader, ByteWriter, Values};
+    use spurio_export::{ByteReader, ByteWriter, FmuModel, ModelInfo, Values};
     use spurio_fmu_common::crane_controller_config as crane_config;
 
     #[test]
@@ -397,16 +426,16 @@ mod tests {
     /// u = sat(−L x̂ + v): the exogenous input adds before the saturation (±17 N).
     #[test]
     fn the_exogenous_input_adds_before_the_saturation() {
-        let (_, model, mut values) = initialized_crane_variant();
-        let layout = model.layout;
+        let (_, mut model, mut values) = initialized_crane_variant();
+        let layout = *model.layout();
         let x_hat = [0.1, 0.0, 0.0, 0.0];
         for (i, x) in x_hat.iter().enumerate() {
             values.set_real(layout.x_hat.index(i, 0), *x);
         }
-        let u_at = |values: &mut Values, v: f64| {
+        let mut u_at = |values: &mut Values, v: f64| {
             values.set_real(layout.v, v);
             let mut ctx = Context::new(values);
-            model.write_preview(&mut ctx);
+            model.write_outputs(&mut ctx);
             values.real(layout.u)
         };
         let feedback = u_at(&mut values, 0.0);
@@ -434,7 +463,7 @@ mod tests {
     fn nan_estimate_keeps_the_gain_warns_once_and_never_outputs_nan() {
         let design = crane_reference_design().unwrap();
         let (_, mut model, mut values) = initialized_crane_variant();
-        let layout = model.layout;
+        let layout = *model.layout();
         let mut ctx = Context::new(&mut values);
         ctx.values.set_real(layout.x_hat.first, 0.2);
         model.do_step(&mut ctx, 0.0, 0.05).unwrap();
@@ -468,7 +497,7 @@ mod tests {
     #[test]
     fn state_serialization_round_trips() {
         let (info, mut model, mut values) = initialized_crane_variant();
-        let layout = model.layout;
+        let layout = *model.layout();
         let mut ctx = Context::new(&mut values);
         ctx.values.set_real(layout.b_hat.first + 3, 0.0);
         ctx.values.set_real(layout.b_hat.first + 2, 0.0);
@@ -478,6 +507,7 @@ mod tests {
         let bytes = out.into_bytes();
         let mut restored = AdaptiveStateFeedbackFmu::create(&info).unwrap();
         restored.load_state(&mut ByteReader::new(&bytes)).unwrap();
+        let (restored, model) = (restored.law().unwrap(), model.law().unwrap());
         assert_eq!(restored.controller, model.controller);
         assert_eq!(
             restored.rejections_before_episode,
@@ -493,7 +523,7 @@ mod tests {
     fn bad_parameters_are_named() {
         let info = AdaptiveStateFeedbackFmu::describe(&crane_config()).unwrap();
         let mut model = AdaptiveStateFeedbackFmu::create(&info).unwrap();
-        let layout = model.layout;
+        let layout = *model.layout();
         let cases: Vec<(usize, f64, &str)> = vec![
             (
                 layout.design.pole_re.first,

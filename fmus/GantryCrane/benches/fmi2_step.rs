@@ -4,15 +4,9 @@
 //! Run: `cargo bench -p fmu-gantry-crane --bench fmi2_step`. Prints the median over many batches,
 //! so a noisy machine shifts it little.
 
-use spurio_export::harness::{Harness, Timing};
+use spurio_export::harness::Harness;
 use spurio_export::{Config, FmuModel};
-use std::hint::black_box;
 use GantryCrane::{vr, GantryCraneFmu};
-
-/// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> Timing {
-    spurio_export::harness::time_per_call(per_batch, batches, per_batch, call)
-}
 
 /// `tolerance` 0: RK4 substeps of 1 ms (the default); > 0: the adaptive Dormand–Prince 5(4).
 fn crane(step: f64, tolerance: f64, label: &str) {
@@ -26,18 +20,15 @@ fn crane(step: f64, tolerance: f64, label: &str) {
         vr::V as u32,
         vr::OMEGA as u32,
     ];
-    let mut y = [0.0; 4];
-    let mut t = 0.0;
-    let mut k = 0u64;
-    let timing = measure(200, 50, || {
-        // A gentle input that keeps the cart away from the rail stops.
-        let u = 0.5 * ((k as f64) * 0.01).sin();
-        h.exchange(&[vr::U as u32], &[u], (t, step), &outputs, &mut y)
-            .expect("step");
-        black_box(&y);
-        t += step;
-        k += 1;
-    });
+    // A gentle input that keeps the cart away from the rail stops.
+    let timing = h
+        .time_exchanges(
+            (&[vr::U as u32], &outputs),
+            (0.0, step),
+            (50, 200, 50),
+            |k, u| u[0] = 0.5 * ((k as f64) * 0.01).sin(),
+        )
+        .expect("step");
     let integrator = if tolerance > 0.0 {
         format!("adaptive DP5(4) at tolerance {tolerance:e}")
     } else {

@@ -25,8 +25,7 @@
 use spurio::control::{
     ackermann_with_options, PolePlacementOptions, StateController, StateFeedback,
 };
-use spurio_export::{Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable};
-use spurio_fmu_common::clock::{Rule, SampleClock};
+use spurio_export::{Cause, Config, Context, Failure, Variable};
 pub use spurio_fmu_common::controller::*;
 use spurio_fmu_common::crane_controller_config;
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -82,11 +81,11 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
         ))
     });
     let a = add_matrix(&mut t, "A", n, n, |name, i, j| {
-        Variable::parameter(name, defaults.a[(i, j)])
+        Variable::parameter(name, defaults.design.a[(i, j)])
             .describe("Discrete state matrix of the model x⁺ = A·x + B·u")
     });
     let b = add_matrix(&mut t, "B", n, 1, |name, i, _| {
-        Variable::parameter(name, defaults.b[(i, 0)])
+        Variable::parameter(name, defaults.design.b[(i, 0)])
             .describe("Discrete input matrix (single input: one column)")
     });
     let design = DesignBlocks::add(&mut t, &defaults);
@@ -109,55 +108,44 @@ pub fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
     Ok((layout, t.into_variables()))
 }
 
-/// The StateFeedback FMU: its layout and, after initialisation, the controller.
+/// The law of the StateFeedback FMU: the controller designed at initialisation (no state
+/// that evolves: a sample only shows `u` for the inputs held).
 #[derive(Debug, Clone)]
-pub struct StateFeedbackFmu {
-    layout: Layout,
-    controller: Option<StateFeedback>,
-    clock: SampleClock,
+pub struct FeedbackLaw {
+    controller: StateFeedback,
+    /// `x_hat`, `x_ref` as last read.
+    work: Scratch<(Vec<f64>, Vec<f64>)>,
 }
+spurio::plain_state!(FeedbackLaw { controller, work });
 
-impl StateFeedbackFmu {
-    /// `u[1] = sat(−L (x̂ − x_ref))` from the current inputs.
-    fn write_output(&self, ctx: &mut Context) {
-        let x_hat = self.layout.x_hat.vector(ctx.values);
-        let x_ref = self.layout.x_ref.vector(ctx.values);
-        let u = match &self.controller {
-            Some(controller) => controller.control_towards(&x_hat, &x_ref),
-            None => 0.0,
-        };
-        ctx.values.set_real(self.layout.u, u);
-    }
+/// The StateFeedback FMU.
+pub type StateFeedbackFmu = SampledController<FeedbackLaw>;
 
-    /// The controller in use (after initialisation).
-    pub fn controller(&self) -> Option<&StateFeedback> {
-        self.controller.as_ref()
+spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
+
+impl FeedbackLaw {
+    /// The controller in use.
+    pub fn controller(&self) -> &StateFeedback {
+        &self.controller
     }
 }
 
-impl FmuModel for StateFeedbackFmu {
-    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
-        describe_controller(
-            "StateFeedback",
-            "Discrete state feedback u = sat(−L·(x_hat − x_ref)), L by Ackermann's pole placement at initialisation (paper 000 §IV); single input",
-            config,
-            build,
-        )
+impl ControlLaw for FeedbackLaw {
+    type Layout = Layout;
+    const MODEL_IDENTIFIER: &'static str = "StateFeedback";
+    const DESCRIPTION: &'static str = "Discrete state feedback u = sat(−L·(x_hat − x_ref)), L by Ackermann's pole placement at initialisation (paper 000 §IV); single input";
+
+    fn build(config: &Config) -> Result<(Layout, Vec<Variable>), Cause> {
+        build(config)
     }
 
-    fn create(info: &ModelInfo) -> Result<Self, Cause> {
-        Ok(Self {
-            layout: layout_for(info, build)?,
-            controller: None,
-            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
-        })
+    fn design(layout: &Layout) -> &DesignBlocks {
+        &layout.design
     }
 
-    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let layout = self.layout;
+    fn initialize(layout: &Layout, ctx: &mut Context) -> Result<Self, Failure> {
         let values = &*ctx.values;
         let limits = layout.design.limits(values).map_err(Failure::error)?;
-        let clock = layout.design.clock(values, ctx.time())?;
         let a = layout.a.matrix(values);
         let b = layout.b.matrix(values);
         let poles = layout.design.poles(values);
@@ -169,35 +157,28 @@ impl FmuModel for StateFeedbackFmu {
             .map_err(|e| design_error_message(&e, &poles))?;
         let controller = StateFeedback::from_gain(gain, limits).map_err(Failure::error)?;
         layout.gain.write(ctx.values, controller.gain());
-        self.controller = Some(controller);
-        self.clock = clock;
-        self.write_output(ctx);
+        let n = layout.states;
+        let work = (Vec::with_capacity(n), Vec::with_capacity(n));
+        Ok(Self {
+            controller,
+            work: Scratch(work),
+        })
+    }
+
+    /// No internal state: the output of a sample is shown by `write_outputs`.
+    fn commit(&mut self, _: &Layout, _: &mut Context, _: f64) -> Result<(), Failure> {
         Ok(())
     }
 
-    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        // No internal state: after a step that took samples the output is the last one's,
-        // from the inputs held over the step; after one that took none it holds.
-        let (clock, samples) = self.clock.after(time, step)?;
-        self.clock = clock;
-        if !samples.is_empty() {
-            self.write_output(ctx);
-        }
-        Ok(())
+    /// `u[1] = sat(−L (x̂ − x_ref))` from the current inputs.
+    fn write_outputs(&mut self, layout: &Layout, ctx: &mut Context) {
+        let (x_hat, x_ref) = &mut self.work.0;
+        read_block(&layout.x_hat, ctx.values, x_hat);
+        read_block(&layout.x_ref, ctx.values, x_ref);
+        let u = self.controller.control_towards(x_hat, x_ref);
+        ctx.values.set_real(layout.u, u);
     }
-
-    /// At a sample instant the output follows the inputs just set; between samples it holds.
-    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        if self.clock.due_at(ctx.time()) {
-            self.write_output(ctx);
-        }
-        Ok(())
-    }
-
-    spurio_fmu_common::fmu_state!(controller, clock);
 }
-
-spurio_export::export_fmu! { StateFeedbackFmu, variants = [("StateFeedback", crane_controller_config())] }
 
 #[cfg(test)]
 mod tests {
@@ -205,23 +186,29 @@ mod tests {
     use nalgebra::DMatrix;
     use spurio_export::harness::Harness;
     use spurio_export::types::Status;
-    use spurio_export::Values;
+    use spurio_export::{FmuModel, Values};
     use spurio_fmu_common::crane_controller_config as crane_config;
 
     #[test]
     fn layout_matches_the_table() {
-        let (layout, v) = build(&crane_config()).unwrap();
-        assert_eq!(v[layout.x_hat.first].name, "x_hat[1]");
-        assert_eq!(v[layout.x_ref.index(3, 0)].name, "x_ref[4]");
-        assert_eq!(v[layout.u].name, "u[1]");
-        assert_eq!(v[layout.gain.index(0, 3)].name, "L[1,4]");
-        assert_eq!(v[layout.a.index(3, 3)].name, "A[4,4]");
-        assert_eq!(v[layout.b.index(3, 0)].name, "B[4,1]");
-        assert_eq!(v[layout.design.pole_re.first].name, "pole_re[1]");
-        assert_eq!(v[layout.design.pole_im.index(3, 0)].name, "pole_im[4]");
-        assert_eq!(v[layout.design.u_min].name, "u_min");
-        assert_eq!(v[layout.design.u_max].name, "u_max");
-        assert_eq!(v[layout.require_stable].name, "require_stable");
+        let (l, v) = build(&crane_config()).unwrap();
+        let named = [
+            (l.x_hat.first, "x_hat[1]"),
+            (l.x_ref.index(3, 0), "x_ref[4]"),
+            (l.u, "u[1]"),
+            (l.gain.index(0, 3), "L[1,4]"),
+            (l.a.index(3, 3), "A[4,4]"),
+            (l.b.index(3, 0), "B[4,1]"),
+            (l.design.pole_re.first, "pole_re[1]"),
+            (l.design.pole_im.index(3, 0), "pole_im[4]"),
+            (l.design.u_min, "u_min"),
+            (l.design.u_max, "u_max"),
+            (l.require_stable, "require_stable"),
+        ];
+        for (index, name) in named {
+            assert_eq!(v[index].name, name);
+        }
+        let layout = l;
         assert_eq!(v.len(), layout.require_stable + 1);
         assert_eq!(v[layout.u].unit.as_deref(), Some("N"));
         assert_eq!(v[layout.u].dependencies.len(), 8);
@@ -242,7 +229,7 @@ mod tests {
         c.set(CONFIG_STATES, 3);
         let d = variant_defaults(&c).unwrap();
         assert_eq!(d.preset, Preset::Generic);
-        let closed = &d.a - &d.b * &d.gain;
+        let closed = &d.design.a - &d.design.b * &d.design.gain;
         // (z − 0.5)³: the closed loop minus 0.5 I is nilpotent.
         let shifted = closed - DMatrix::identity(3, 3) * GENERIC_POLE;
         assert!((&shifted * &shifted * &shifted).amax() < 1e-12);
@@ -257,7 +244,7 @@ mod tests {
         let info = StateFeedbackFmu::describe(&crane_config()).unwrap();
         let mut model = StateFeedbackFmu::create(&info).unwrap();
         let mut values = Values::from_start(&info.variables);
-        let layout = model.layout;
+        let layout = *model.layout();
         let mut ctx = Context::new(&mut values);
         model.initialize(&mut ctx).unwrap();
         let gain = layout.gain.matrix(ctx.values);

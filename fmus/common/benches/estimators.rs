@@ -6,16 +6,10 @@
 //! Run: `cargo bench -p spurio-fmu-common --bench estimators`. Prints the median (and IQR) over
 //! many batches, so a noisy machine shifts it little.
 
-use spurio_export::harness::{Harness, Timing};
+use spurio_export::harness::Harness;
 use spurio_export::{Config, FmuModel};
 use spurio_fmu_common::dual::DkfRsKfFmu;
 use spurio_fmu_common::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
-use std::hint::black_box;
-
-/// Median and inter-quartile range of per-call times (ns) over `batches` of `per_batch` calls.
-fn measure(batches: usize, per_batch: usize, call: impl FnMut()) -> Timing {
-    spurio_export::harness::time_per_call(per_batch * 10, batches, per_batch, call)
-}
 
 /// Steps `M` on a deterministic test signal (sines plus a 5 % sprinkling of outliers) and
 /// reports the median cost.
@@ -26,27 +20,24 @@ fn bench<M: FmuModel>(label: &str, config: &Config, inputs: &[&str], outputs: &[
     let output_vrs: Vec<u32> = outputs.iter().map(|n| vr(n)).collect();
     let mut h = Harness::<M>::new(config).expect("instantiate");
     h.initialize(0.0).expect("initialize");
-    let mut values = vec![0.0; input_vrs.len()];
-    let mut out = vec![0.0; output_vrs.len()];
-    let step = 0.05;
-    let mut t = 0.0;
-    let mut k = 0u64;
-    let timing = measure(300, 100, || {
-        for (i, v) in values.iter_mut().enumerate() {
-            let phase = k as f64 * 0.05 * (i + 1) as f64;
-            let outlier = if (k * 7 + i as u64).is_multiple_of(20) {
-                3.0
-            } else {
-                0.0
-            };
-            *v = phase.sin() + outlier;
-        }
-        h.exchange(&input_vrs, &values, (t, step), &output_vrs, &mut out)
-            .expect("step");
-        black_box(&out);
-        t += step;
-        k += 1;
-    });
+    let timing = h
+        .time_exchanges(
+            (&input_vrs, &output_vrs),
+            (0.0, 0.05),
+            (1000, 300, 100),
+            |k, values| {
+                for (i, v) in values.iter_mut().enumerate() {
+                    let phase = k as f64 * 0.05 * (i + 1) as f64;
+                    let outlier = if (k * 7 + i as u64).is_multiple_of(20) {
+                        3.0
+                    } else {
+                        0.0
+                    };
+                    *v = phase.sin() + outlier;
+                }
+            },
+        )
+        .expect("step");
     println!(
         "{label}: {}, {} inputs set, {} outputs read",
         timing.summary("sample"),

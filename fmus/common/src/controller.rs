@@ -1,7 +1,8 @@
 //! The pieces the two state-feedback controller FMUs (`StateFeedback`,
-//! `AdaptiveStateFeedback`) share: the configuration keys and presets, the default model and
+//! `AdaptiveStateFeedback`) share: the sampled-controller skeleton ([`SampledController`],
+//! the FMU around a [`ControlLaw`]), the configuration keys and presets, the default model and
 //! poles of a variant, the pole and limit parameters, the sample clock, and the design error
-//! messages.
+//! messages. Each controller FMU is its declaration and its law.
 //!
 //! **Sampling.** Both controllers sample on the one clock of [`crate::clock`] (parameter
 //! `sample_period`, rule [`Rule::Step`]): the sample of instant t_k uses the inputs at the
@@ -16,13 +17,14 @@ use crate::structured::{add_vector, Block};
 use nalgebra::{Complex, DMatrix};
 use spurio::control::pole_placement::check_poles;
 use spurio::control::{
-    ackermann_with_options, crane_reference_design, InputLimits, PolePlacementError,
-    PolePlacementOptions, CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
+    ackermann_with_options, crane_reference_design, DiscreteDesign, InputLimits,
+    PolePlacementError, PolePlacementOptions, CRANE_CONTINUOUS_POLES, CRANE_SAMPLE_TIME,
 };
+use spurio::state::{PlainState, StateError};
 use spurio::ParameterError;
 use spurio_export::{
-    Causality, Cause, Config, DefaultExperiment, Initial, ModelInfo, Values, Variability, Variable,
-    VariableTable,
+    Causality, Cause, Config, Context, DefaultExperiment, Failure, FmuModel, Initial, ModelInfo,
+    Values, Variability, Variable, VariableTable,
 };
 
 /// Configuration key: number of states n.
@@ -50,21 +52,16 @@ pub enum Preset {
 pub struct VariantDefaults {
     /// Which preset.
     pub preset: Preset,
-    /// Discrete `A` (n × n).
-    pub a: DMatrix<f64>,
-    /// Discrete `B` (n × 1).
-    pub b: DMatrix<f64>,
-    /// Desired discrete poles (n).
-    pub poles: Vec<Complex<f64>>,
-    /// Ackermann gain for the above (1 × n); zeros if the default design is not computable
-    /// (a generic chain so long that its reachability matrix is ill-conditioned).
-    pub gain: DMatrix<f64>,
+    /// Discrete `A` (n × n), `B` (n × 1), the desired poles (n) and their Ackermann gain
+    /// (1 × n; zeros if the default design is not computable: a generic chain so long that
+    /// its reachability matrix is ill-conditioned).
+    pub design: DiscreteDesign,
 }
 
 impl VariantDefaults {
     /// Number of states.
     pub fn states(&self) -> usize {
-        self.a.nrows()
+        self.design.a.nrows()
     }
 }
 
@@ -98,13 +95,7 @@ pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, Cause> {
                 ).into());
             }
             let design = crane_reference_design().map_err(|e| format!("crane design: {e}"))?;
-            Ok(VariantDefaults {
-                preset,
-                a: design.a,
-                b: design.b,
-                poles: design.poles,
-                gain: design.gain,
-            })
+            Ok(VariantDefaults { preset, design })
         }
         Preset::Generic => {
             let a = DMatrix::from_fn(n, n, |i, j| {
@@ -121,13 +112,14 @@ pub fn variant_defaults(config: &Config) -> Result<VariantDefaults, Cause> {
             let poles = vec![Complex::new(GENERIC_POLE, 0.0); n];
             let gain = ackermann_with_options(&a, &b, &poles, &PolePlacementOptions::default())
                 .unwrap_or_else(|_| DMatrix::zeros(1, n));
-            Ok(VariantDefaults {
-                preset,
+            let design = DiscreteDesign {
                 a,
                 b,
                 poles,
                 gain,
-            })
+                sample_time: GENERIC_SAMPLE_TIME,
+            };
+            Ok(VariantDefaults { preset, design })
         }
     }
 }
@@ -258,14 +250,16 @@ fn add_pole_parameters(table: &mut VariableTable, defaults: &VariantDefaults) ->
         Preset::Generic => String::new(),
     };
     let re = add_vector(table, "pole_re", defaults.states(), |name, i| {
-        Variable::parameter(name, defaults.poles.get(i).map_or(0.0, |p| p.re)).describe(&format!(
-            "Real part of desired closed-loop pole {} of A − B·L (discrete time, z-plane){}",
-            i + 1,
-            origin(i)
-        ))
+        Variable::parameter(name, defaults.design.poles.get(i).map_or(0.0, |p| p.re)).describe(
+            &format!(
+                "Real part of desired closed-loop pole {} of A − B·L (discrete time, z-plane){}",
+                i + 1,
+                origin(i)
+            ),
+        )
     });
     let im = add_vector(table, "pole_im", defaults.states(), |name, i| {
-        Variable::parameter(name, defaults.poles.get(i).map_or(0.0, |p| p.im)).describe(
+        Variable::parameter(name, defaults.design.poles.get(i).map_or(0.0, |p| p.im)).describe(
             &format!(
                 "Imaginary part of desired closed-loop pole {}: complex poles must come in conjugate pairs",
                 i + 1
@@ -365,4 +359,138 @@ pub fn describe_controller<L>(
         }),
         config.clone(),
     ))
+}
+
+/// A controller law behind the sampled-controller FMU skeleton [`SampledController`]: its
+/// variables, its design at initialisation, what a sample commits and the outputs it shows.
+pub trait ControlLaw: Sized + Clone + std::fmt::Debug + PlainState + 'static {
+    /// Where the law's variables are in the table.
+    type Layout: Copy + std::fmt::Debug;
+    /// The FMU's model identifier.
+    const MODEL_IDENTIFIER: &'static str;
+    /// The FMU's one-line description.
+    const DESCRIPTION: &'static str;
+    /// The variable table of a configuration and where each variable is.
+    fn build(config: &Config) -> Result<(Self::Layout, Vec<Variable>), Cause>;
+    /// The pole, limit and `sample_period` parameters of the layout.
+    fn design(layout: &Self::Layout) -> &DesignBlocks;
+    /// The law designed from the parameters (at initialisation).
+    fn initialize(layout: &Self::Layout, ctx: &mut Context) -> Result<Self, Failure>;
+    /// Commits the sample at `time` from the inputs held (and logs what is worth it).
+    fn commit(
+        &mut self,
+        layout: &Self::Layout,
+        ctx: &mut Context,
+        time: f64,
+    ) -> Result<(), Failure>;
+    /// Writes the outputs the law shows for the inputs held, without committing anything:
+    /// called any number of times, it gives the same outputs.
+    fn write_outputs(&mut self, layout: &Self::Layout, ctx: &mut Context);
+}
+
+/// The FMU of a sampled [`ControlLaw`] (see the module doc for the sampling): the law is
+/// designed at initialisation; each sample instant a step covers is committed in turn, then
+/// the outputs are shown for the inputs held; at a sample instant the outputs follow the
+/// inputs as they are set (direct feedthrough), between instants they hold.
+#[derive(Debug, Clone)]
+pub struct SampledController<L: ControlLaw> {
+    layout: L::Layout,
+    law: Option<L>,
+    clock: SampleClock,
+}
+
+impl<L: ControlLaw> SampledController<L> {
+    /// Where the variables are.
+    pub fn layout(&self) -> &L::Layout {
+        &self.layout
+    }
+
+    /// The law in use (after initialisation).
+    pub fn law(&self) -> Option<&L> {
+        self.law.as_ref()
+    }
+
+    /// Writes the outputs for the inputs held (nothing before initialisation).
+    pub fn write_outputs(&mut self, ctx: &mut Context) {
+        if let Some(law) = &mut self.law {
+            law.write_outputs(&self.layout, ctx);
+        }
+    }
+}
+
+impl<L: ControlLaw> FmuModel for SampledController<L> {
+    fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+        describe_controller(L::MODEL_IDENTIFIER, L::DESCRIPTION, config, L::build)
+    }
+
+    fn create(info: &ModelInfo) -> Result<Self, Cause> {
+        Ok(Self {
+            layout: layout_for(info, L::build)?,
+            law: None,
+            clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
+        })
+    }
+
+    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let law = L::initialize(&self.layout, ctx)?;
+        self.clock = L::design(&self.layout).clock(ctx.values, ctx.time())?;
+        self.law = Some(law);
+        self.write_outputs(ctx);
+        Ok(())
+    }
+
+    fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
+        let (clock, samples) = self.clock.after(time, step)?;
+        if samples.is_empty() {
+            // Between samples: nothing is committed and the outputs hold.
+            self.clock = clock;
+            return Ok(());
+        }
+        let Some(law) = &mut self.law else {
+            return Err(Failure::error("the controller was not initialised"));
+        };
+        for k in samples {
+            law.commit(&self.layout, ctx, clock.instant(k))?;
+        }
+        self.clock = clock;
+        // Outputs at the new communication point, for the inputs still held.
+        law.write_outputs(&self.layout, ctx);
+        Ok(())
+    }
+
+    /// At a sample instant the outputs follow the inputs just set; between samples they hold.
+    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        if self.clock.due_at(ctx.time()) {
+            self.write_outputs(ctx);
+        }
+        Ok(())
+    }
+
+    crate::fmu_state!(law, clock);
+}
+
+/// Working memory of a law (buffers filled from the inputs, cached results): not part of the
+/// FMU state. It is saved as nothing and read back as `T::default()`, so whatever it cached
+/// is recomputed, and its buffers are sized again at their first use.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scratch<T>(pub T);
+
+impl<T: Default> PlainState for Scratch<T> {
+    fn save(&self, _out: &mut Vec<u8>) {}
+    fn read(_input: &mut &[u8]) -> Result<Self, StateError> {
+        Ok(Self(T::default()))
+    }
+}
+
+/// Reads a block of Real variables into `out` (row-major), reusing its memory.
+pub fn read_block(block: &Block, values: &Values, out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(block.indices().map(|k| values.real(k)));
+}
+
+/// Writes `row` into a block of Real variables (row-major), as far as both go.
+pub fn write_block(block: &Block, values: &mut Values, row: &[f64]) {
+    for (k, v) in block.indices().zip(row) {
+        values.set_real(k, *v);
+    }
 }

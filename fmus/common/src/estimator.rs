@@ -222,7 +222,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     }
 
     fn save_state(&self, out: &mut ByteWriter) {
-        out.put_u64(self.parameters.all().len() as u64);
+        out.put_u64(self.parameters.len() as u64);
         self.parameters.save(out);
         match &self.estimator {
             Some(estimator) => {
@@ -236,10 +236,10 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
 
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
         let count = input.u64()?;
-        if count != self.parameters.all().len() as u64 {
+        if count != self.parameters.len() as u64 {
             return Err(format!(
                 "estimator state: {count} saved values, the FMU has {}",
-                self.parameters.all().len()
+                self.parameters.len()
             )
             .into());
         }

@@ -25,7 +25,7 @@ use std::cell::{Cell, RefCell};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::Once;
+use std::sync::{Arc, Once};
 
 /// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
 pub struct CallbackSink {
@@ -194,10 +194,11 @@ pub unsafe fn instantiate<M: FmuModel>(
         // that of the default configuration may go without one; any other failure to read it
         // is an error that names the file (or the URI) and the reason.
         let given = unsafe { string_arg(guid) }.unwrap_or_default();
-        let default = M::describe(&Config::new()).ok();
-        let is_default = default.as_ref().is_some_and(|info| info.guid == given);
+        let default = front::interface::<M>(&Config::new()).ok();
+        let default = default.as_ref().map(|i| &i.info);
+        let is_default = default.is_some_and(|info| info.guid == given);
         let without_config = |reason: String| {
-            let (id, guid) = default.as_ref().map_or(("this FMU", "?"), |i| {
+            let (id, guid) = default.map_or(("this FMU", "?"), |i| {
                 (i.model_identifier.as_str(), i.guid.as_str())
             });
             fail(format!(
@@ -230,10 +231,11 @@ pub unsafe fn instantiate<M: FmuModel>(
             }
             _ => Config::new(),
         };
-        let info = match M::describe(&config) {
-            Ok(info) => info,
+        let interface = match front::interface::<M>(&config) {
+            Ok(interface) => interface,
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
         };
+        let info = &interface.info;
         let offered = me.filter(|_| info.model_exchange.is_some());
         let model_exchange = match (fmu_type, offered) {
             (t, _) if t == fmi2CoSimulation => None,
@@ -256,7 +258,7 @@ pub unsafe fn instantiate<M: FmuModel>(
                 info.model_identifier, info.guid
             ));
         }
-        match Instance::<M>::new(info, logger) {
+        match Instance::<M>::of(Arc::clone(&interface), logger) {
             Ok(instance) => into_component(match model_exchange {
                 Some(hooks) => instance.into_model_exchange(hooks),
                 None => instance.with_hooks(me),
@@ -399,9 +401,9 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
     let f = T::GET;
     unsafe {
         with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
-            Ok(vrs) => s.instance.get_values(f, vrs, T::TYPE, |i, v| {
+            Ok(vrs) => s.instance.get_numbers(f, vrs, T::TYPE, |i, number| {
                 // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = T::to_c(v)
+                *out.add(i) = T::to_c(number)
             }),
             Err(status) => status,
         })
@@ -428,7 +430,9 @@ pub unsafe fn get_string<M: FmuModel>(
             let mut values = Vec::with_capacity(n);
             let status = s
                 .instance
-                .get_values(f, vrs, VariableType::String, |_, v| values.push(v.clone()));
+                .get_values(f, vrs, VariableType::String, |_, all, index| {
+                    values.push(all.string(index).to_string())
+                });
             // SAFETY: `value` points to `n` slots and `values` has at most `n` elements.
             s.return_strings(&values, value);
             status
@@ -452,8 +456,11 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let values = values.iter().map(|v| T::from_c(*v)).collect();
-            s.instance.set_values(f, vrs, values)
+            let targets = vrs
+                .iter()
+                .zip(values)
+                .map(|(vr, v)| (*vr, T::to_number(*v)));
+            s.instance.set_numbers(f, T::TYPE, targets)
         })
     }
 }
@@ -475,7 +482,7 @@ pub unsafe fn set_string<M: FmuModel>(
                 return s.instance.reject(f, "vr or value is NULL");
             };
             match front::string_values(s, f, raw) {
-                Ok(values) => s.instance.set_values(f, vrs, values),
+                Ok(values) => s.instance.set_values(f, vrs.iter().copied().zip(values)),
                 Err(status) => status,
             }
         })

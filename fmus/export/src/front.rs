@@ -8,15 +8,76 @@
 //! 4: [`Status::code`]), and their instance and FMU-state handles are both `void*`, so one
 //! path serves them.
 
-use crate::description::{Config, CONFIG_FILE};
+use crate::description::{Config, ModelInfo, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
-use crate::instance::{Core, Function, Instance};
-use crate::model::FmuModel;
+use crate::fmi3::arrays::Layout;
+use crate::instance::{Access, Core, Function, Instance};
+use crate::model::{Cause, FmuModel};
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
+use std::any::TypeId;
 use std::ffi::CString;
 use std::os::raw::{c_char, c_int, c_void};
 use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// What every instance of one configuration of a model shares, built once per configuration
+/// ([`interface`]): the model description, the access table that get/set calls check values
+/// against (value reference = index), and the FMI 3.0 arrays over the table.
+#[derive(Debug)]
+pub struct Interface {
+    /// The model description.
+    pub info: ModelInfo,
+    /// How each variable may be accessed, by value reference.
+    pub access: Vec<Access>,
+    /// The FMI 3.0 variables (arrays) over the table.
+    pub layout: Layout,
+}
+
+impl Interface {
+    /// The interface of `info`.
+    pub fn new(info: ModelInfo) -> Self {
+        let access = info.variables.iter().map(Access::of).collect();
+        let layout = Layout::of(&info.variables);
+        Self {
+            info,
+            access,
+            layout,
+        }
+    }
+}
+
+/// Interfaces built so far in this process, by model type and configuration. Bounded: a
+/// process that instantiates more configurations than this rebuilds the oldest.
+static INTERFACES: Mutex<Vec<(TypeId, Config, Arc<Interface>)>> = Mutex::new(Vec::new());
+const INTERFACES_KEPT: usize = 64;
+
+/// The interface of model `M` for `config`: built by [`FmuModel::describe`] on first use,
+/// then shared by every instance of that configuration in the process (so an instance
+/// carries no copy of its description, and instantiating needs no XML hashing).
+pub fn interface<M: FmuModel>(config: &Config) -> Result<Arc<Interface>, Cause> {
+    let key = TypeId::of::<M>();
+    let find = |cache: &[(TypeId, Config, Arc<Interface>)]| {
+        cache
+            .iter()
+            .find(|(t, c, _)| *t == key && c == config)
+            .map(|(_, _, i)| Arc::clone(i))
+    };
+    if let Some(found) = find(&INTERFACES.lock().unwrap_or_else(|e| e.into_inner())) {
+        return Ok(found);
+    }
+    // Described outside the lock: a model's `describe` may take a while.
+    let built = Arc::new(Interface::new(M::describe(config)?));
+    let mut cache = INTERFACES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(found) = find(&cache) {
+        return Ok(found);
+    }
+    if cache.len() >= INTERFACES_KEPT {
+        cache.remove(0);
+    }
+    cache.push((key, config.clone(), Arc::clone(&built)));
+    Ok(built)
+}
 
 /// What an instance handle (`fmi2Component`, `fmi3Instance`) points to: the instance, the
 /// front's own data `X` (the FMI 3.0 array layout), the FMU states it created and the
@@ -41,6 +102,11 @@ impl<M: FmuModel, X> Slot<M, X> {
         }
     }
 
+    /// The front's own data.
+    pub fn extra(&self) -> &X {
+        &self.extra
+    }
+
     /// The instance.
     pub fn instance(&self) -> &Instance<M> {
         &self.instance
@@ -51,25 +117,15 @@ impl<M: FmuModel, X> Slot<M, X> {
         Box::into_raw(Box::new(self)) as *mut c_void
     }
 
-    /// Keeps `values` as C strings until the next call and writes pointers to them into
+    /// Keeps `texts` as C strings until the next call and writes pointers to them into
     /// `out`.
     ///
     /// # Safety
-    /// `out` points to at least `values.len()` writable slots.
-    pub(crate) unsafe fn return_strings<'v>(
-        &mut self,
-        values: impl IntoIterator<Item = &'v Value>,
-        out: *mut *const c_char,
-    ) {
-        self.strings = values
-            .into_iter()
-            .map(|v| {
-                let text = match v {
-                    Value::String(t) => t.as_str(),
-                    _ => "",
-                };
-                CString::new(text.replace('\0', " ")).unwrap_or_default()
-            })
+    /// `out` points to at least `texts.len()` writable slots.
+    pub(crate) unsafe fn return_strings(&mut self, texts: &[String], out: *mut *const c_char) {
+        self.strings = texts
+            .iter()
+            .map(|text| CString::new(text.replace('\0', " ")).unwrap_or_default())
             .collect();
         for (i, cs) in self.strings.iter().enumerate() {
             // SAFETY: `out` holds the slots (caller); the strings live in the slot until the
@@ -158,31 +214,31 @@ pub trait Kind<V: Version> {
     const GET: &'static Function;
     /// The set function.
     const SET: &'static Function;
-    /// A value of this kind as the master reads it.
-    fn to_c(value: &Value) -> Self::C;
-    /// A value the master sets.
-    fn from_c(value: Self::C) -> Value;
+    /// A value of this kind (as [`crate::Values::number`] stores it) as the master reads it.
+    fn to_c(number: f64) -> Self::C;
+    /// A value the master sets, as a number (see [`crate::Values::numbers`]).
+    fn to_number(value: Self::C) -> f64;
 }
 
 /// Declares the [`Kind`] of the marker type of `Value::$name` in one FMI version: its C type,
-/// its functions (paths to the `Function` constants), the C value a value of another type
-/// reads as, and how a C value becomes a value (a value becomes a C value by `From`).
+/// its functions (paths to the `Function` constants), how a stored number becomes a C value
+/// and how a C value becomes a stored number.
 macro_rules! kind {
-    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $default:expr, $from_c:expr) => {
+    ($version:ty, $name:ident, $c:ty, $get:path, $set:path, $to_c:expr, $to_number:expr) => {
         impl Kind<$version> for $name {
             type C = $c;
             const TYPE: VariableType = VariableType::$name;
             const GET: &'static Function = &$get;
             const SET: &'static Function = &$set;
-            fn to_c(value: &Value) -> $c {
-                match value {
-                    Value::$name(x) => <$c>::from(*x),
-                    _ => $default,
-                }
+            #[inline]
+            fn to_c(number: f64) -> $c {
+                let to_c: fn(f64) -> $c = $to_c;
+                to_c(number)
             }
-            fn from_c(value: $c) -> Value {
-                let from_c: fn($c) -> _ = $from_c;
-                Value::$name(from_c(value))
+            #[inline]
+            fn to_number(value: $c) -> f64 {
+                let to_number: fn($c) -> f64 = $to_number;
+                to_number(value)
             }
         }
     };
@@ -201,12 +257,12 @@ mod kinds {
     use crate::instance::functions as f2;
 
     // fmi2Real, fmi2Integer, fmi2Boolean (an int); fmi3Float64, fmi3Int32, fmi3Boolean (a bool)
-    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, f64::NAN, |v| v }
-    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, 0, |v| v }
-    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, 0, |v| v != 0 }
-    kind! { Fmi3, Real, f64, f3::GET_REAL, f3::SET_REAL, f64::NAN, |v| v }
-    kind! { Fmi3, Integer, i32, f3::GET_INTEGER, f3::SET_INTEGER, 0, |v| v }
-    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, 0, |v| v != 0 }
+    kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, |x| x, |v| v }
+    kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, |x| x as c_int, f64::from }
+    kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
+    kind! { Fmi3, Real, f64, f3::GET_REAL, f3::SET_REAL, |x| x, |v| v }
+    kind! { Fmi3, Integer, i32, f3::GET_INTEGER, f3::SET_INTEGER, |x| x as i32, f64::from }
+    kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
 }
 
 /// Reads the C strings of a set-string call as values; `Err` with the rejection's status

@@ -277,6 +277,32 @@ impl<M: FmuModel> Harness<M> {
         self.do_step(time, step)?;
         self.get_real(outputs, out)
     }
+
+    /// For benchmarks: the [`Timing`] of one [`Harness::exchange`] per call, stepping by
+    /// `step` from where the instance is: `input_values(k, values)` gives the k-th call's
+    /// values of `inputs`; `outputs` are read into a black box. Counts as [`time_per_call`]
+    /// does (`(warm_up, batches, per_batch)`); the first failed call's status is the error.
+    pub fn time_exchanges(
+        &mut self,
+        (inputs, outputs): (&[u32], &[u32]),
+        (start, step): (f64, f64),
+        (warm_up, batches, per_batch): (usize, usize, usize),
+        mut input_values: impl FnMut(u64, &mut [f64]),
+    ) -> Result<Timing, Status> {
+        let mut values = vec![0.0; inputs.len()];
+        let mut out = vec![0.0; outputs.len()];
+        let (mut time, mut k, mut failed) = (start, 0u64, None);
+        let timing = time_per_call(warm_up, batches, per_batch, || {
+            input_values(k, &mut values);
+            if let Err(s) = self.exchange(inputs, &values, (time, step), outputs, &mut out) {
+                failed.get_or_insert(s);
+            }
+            std::hint::black_box(&out);
+            time += step;
+            k += 1;
+        });
+        failed.map_or(Ok(timing), Err)
+    }
 }
 
 impl<M: FmuModel> Drop for Harness<M> {

@@ -28,11 +28,13 @@
 
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
+use crate::front::Interface;
 use crate::me::Hooks;
-use crate::model::{Cause, Context, Failure, FmuModel};
+use crate::model::{Cause, Context, Failure, FmuModel, EVENTS};
 use crate::types::Status;
-use crate::variables::{Causality, Initial, Value, Values, Variability, VariableType};
+use crate::variables::{Causality, Initial, Value, Values, Variability, Variable, VariableType};
 use std::fmt;
+use std::sync::Arc;
 
 /// The states of the FMI 2.0 Co-Simulation state machine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -294,20 +296,23 @@ impl Logger {
             categories: Vec::new(),
         }
     }
+    /// Whether a message with `status` under `category` is delivered: always for warnings
+    /// and worse, for `Ok` when debug logging is on and the category enabled.
+    pub fn enabled(&self, status: Status, category: &str) -> bool {
+        status != Status::Ok
+            || (self.logging_on
+                && (self.categories.is_empty()
+                    || self
+                        .categories
+                        .iter()
+                        .any(|c| c == category || c == "logAll")))
+    }
     /// Logs `text` with `status` under `category`.
     pub fn log(&self, status: Status, category: &str, text: &str) {
-        if status == Status::Ok {
-            let enabled = self.categories.is_empty()
-                || self
-                    .categories
-                    .iter()
-                    .any(|c| c == category || c == "logAll");
-            if !self.logging_on || !enabled {
-                return;
-            }
+        if self.enabled(status, category) {
+            self.sink
+                .deliver(&self.instance_name, status, category, text);
         }
-        self.sink
-            .deliver(&self.instance_name, status, category, text);
     }
     /// Logs an error.
     pub fn error(&self, text: &str) {
@@ -334,9 +339,58 @@ pub struct Core<M> {
 
 const STATE_MAGIC: &str = "spurio-fmu-state/2";
 
+/// How `fmi*Set*`/`fmi*Get*` may access one variable, precomputed from its declaration
+/// (once per configuration, in [`Interface`]), so that a call checks a value in a few
+/// instructions: its type, the states in which it may be set, and its bounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Access {
+    /// The variable's type.
+    pub variable_type: VariableType,
+    /// The states ([`ModelState::bit`]) in which `fmi*Set*` may set it.
+    pub settable: u32,
+    /// Whether it is an input (setting it invalidates the direct-feedthrough outputs).
+    pub input: bool,
+    /// Whether it is a parameter (setting it in Step Mode calls `parameters_changed`).
+    pub parameter: bool,
+    /// Lower bound (−∞ when none).
+    pub min: f64,
+    /// Upper bound (+∞ when none).
+    pub max: f64,
+}
+
+impl Access {
+    /// The access rules of `v` (FMI 2.0.4 §3.2.3 / FMI 3.0.2 §2.4.7: what may be set when).
+    pub fn of(v: &Variable) -> Self {
+        let not_constant = v.variability != Variability::Constant;
+        let input = v.causality == Causality::Input;
+        let mut settable = 0;
+        if not_constant && (input || matches!(v.initial, Some(Initial::Exact | Initial::Approx))) {
+            settable |= INSTANTIATED;
+        }
+        if not_constant && (input || v.initial == Some(Initial::Exact)) {
+            settable |= INIT_MODE;
+        }
+        if input || (v.causality == Causality::Parameter && v.variability == Variability::Tunable) {
+            settable |= STEP_COMPLETE | EVENT_MODE;
+        }
+        if input {
+            settable |= CONTINUOUS_TIME_MODE;
+        }
+        Self {
+            variable_type: v.variable_type(),
+            settable,
+            input,
+            parameter: v.causality == Causality::Parameter,
+            min: v.min.unwrap_or(f64::NEG_INFINITY),
+            max: v.max.unwrap_or(f64::INFINITY),
+        }
+    }
+}
+
 /// An instance of model `M`.
 pub struct Instance<M: FmuModel> {
-    pub(crate) info: ModelInfo,
+    /// The model description and access table, shared by every instance of the configuration.
+    pub(crate) interface: Arc<Interface>,
     logger: Logger,
     pub(crate) core: Core<M>,
     /// The model's Model Exchange functions, if it has them (directional derivatives serve
@@ -352,10 +406,16 @@ pub struct Instance<M: FmuModel> {
 impl<M: FmuModel> Instance<M> {
     /// A new instance in state `Instantiated`, with the start values of `info`.
     pub fn new(info: ModelInfo, logger: Logger) -> Result<Self, Cause> {
-        let model = M::create(&info)?;
-        let values = Values::from_start(&info.variables);
+        Self::of(Arc::new(Interface::new(info)), logger)
+    }
+
+    /// A new instance of a shared interface (see [`crate::front::interface`]), in state
+    /// `Instantiated` with its start values.
+    pub fn of(interface: Arc<Interface>, logger: Logger) -> Result<Self, Cause> {
+        let model = M::create(&interface.info)?;
+        let values = Values::from_start(&interface.info.variables);
         Ok(Self {
-            info,
+            interface,
             logger,
             me: None,
             model_exchange: false,
@@ -373,7 +433,15 @@ impl<M: FmuModel> Instance<M> {
 
     /// The model description this instance was created from.
     pub fn info(&self) -> &ModelInfo {
-        &self.info
+        &self.interface.info
+    }
+    /// The shared interface: description, access table, FMI 3.0 arrays.
+    pub fn interface(&self) -> &Arc<Interface> {
+        &self.interface
+    }
+    /// The current values.
+    pub fn values(&self) -> &Values {
+        &self.core.values
     }
     /// The logger.
     pub fn logger(&self) -> &Logger {
@@ -429,6 +497,7 @@ impl<M: FmuModel> Instance<M> {
     ) -> Status {
         self.before.clone_from(&self.core.values);
         let mut ctx = Context::at(&mut self.core.values, self.core.time);
+        ctx.log_events = self.logger.enabled(Status::Ok, EVENTS);
         let result = call(&mut self.core.model, &mut ctx);
         let messages = ctx.take_messages();
         let mut status = Status::Ok;
@@ -445,7 +514,7 @@ impl<M: FmuModel> Instance<M> {
                     self.logger.error(&format!(
                         "{}: variable `{}` (value reference {index}) came out as {value}: not published (the variables keep their values from before the call; fmi2Reset or fmi2SetFMUstate lead on)",
                         f.name,
-                        self.info.variables.get(index).map_or("?", |v| v.name.as_str())
+                        self.interface.info.variables.get(index).map_or("?", |v| v.name.as_str())
                     ));
                     Status::Error
                 }
@@ -468,15 +537,7 @@ impl<M: FmuModel> Instance<M> {
 
     /// The first Real that is NaN or infinite: (value reference, value).
     fn first_non_finite(&self) -> Option<(usize, f64)> {
-        self.core
-            .values
-            .all()
-            .iter()
-            .enumerate()
-            .find_map(|(i, v)| match v {
-                Value::Real(x) if !x.is_finite() => Some((i, *x)),
-                _ => None,
-            })
+        self.core.values.first_non_finite()
     }
 
     /// `fmi2SetDebugLogging`.
@@ -579,11 +640,11 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2Reset` or its FMI 3.0 twin `f`.
     pub fn reset_as(&mut self, f: &Function) -> Status {
-        match M::create(&self.info) {
+        match M::create(&self.interface.info) {
             Ok(model) => {
                 self.core = Core {
                     model,
-                    values: Values::from_start(&self.info.variables),
+                    values: Values::from_start(&self.interface.info.variables),
                     time: 0.0,
                     state: ModelState::Instantiated,
                     stop_time: None,
@@ -595,167 +656,276 @@ impl<M: FmuModel> Instance<M> {
         }
     }
 
-    /// `fmi2Get{Real,Integer,Boolean,String}`: checks every reference, then hands each value
-    /// to `out` in order.
+    /// `fmi2Get{Real,Integer,Boolean,String}`: checks every reference, then hands each
+    /// value's position in the call, the values and its index to `out`, in order.
     pub fn get_values(
         &mut self,
         f: &Function,
         vrs: &[u32],
         expected: VariableType,
-        mut out: impl FnMut(usize, &Value),
+        mut out: impl FnMut(usize, &Values, usize),
     ) -> Status {
-        for vr in vrs {
-            if let Err(message) = self.lookup(*vr, expected) {
-                return self.reject(f, &message);
-            }
+        if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
+            return self.reject(f, &self.type_error(vr, expected));
         }
-        let mut status = Status::Ok;
-        if self.model_exchange {
-            // Outputs and derivatives from the current states, inputs and time.
-            status = self.evaluate(f);
-            if status > Status::Warning {
-                return status;
-            }
-        } else if self.core.state == ModelState::InitializationMode {
-            // Outputs and calculated parameters are computed from the current parameters.
-            status = self.run_model(f, |m, ctx| m.initialize(ctx));
-            if status > Status::Warning {
-                return status;
-            }
-        } else if self.core.inputs_changed && self.core.state == ModelState::StepComplete {
-            status = self.run_model(f, |m, ctx| m.update_outputs(ctx));
-            if status > Status::Warning {
-                return status;
-            }
-            self.core.inputs_changed = false;
+        let status = self.refresh_outputs(f);
+        if status > Status::Warning {
+            return status;
         }
-        let all = self.core.values.all();
+        let values = &self.core.values;
         for (i, vr) in vrs.iter().enumerate() {
-            out(i, &all[*vr as usize]);
+            out(i, values, *vr as usize);
         }
         status
     }
 
-    fn lookup(&self, vr: u32, expected: VariableType) -> Result<usize, String> {
-        let index = vr as usize;
-        let v = self.info.variables.get(index).ok_or_else(|| {
-            format!(
+    /// `fmi2Get{Real,Integer,Boolean}`: checks every reference, then hands each value's
+    /// position in the call and its number ([`Values::numbers`]) to `out`, in order. The
+    /// path of a master's every step: one pass over the references with the table and the
+    /// numbers in registers (the references checked first only when the model computes
+    /// before the read; on an error the values already handed over are undefined, as FMI
+    /// 2.0.4 §2.1.3 allows).
+    pub fn get_numbers(
+        &mut self,
+        f: &Function,
+        vrs: &[u32],
+        expected: VariableType,
+        mut out: impl FnMut(usize, f64),
+    ) -> Status {
+        let mut status = Status::Ok;
+        if self.needs_refresh() {
+            if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
+                return self.reject(f, &self.type_error(vr, expected));
+            }
+            status = self.refresh_outputs(f);
+            if status > Status::Warning {
+                return status;
+            }
+        }
+        let access: &[Access] = &self.interface.access;
+        let Some(numbers) = self.core.values.numbers().get(..access.len()) else {
+            return self.reject(f, "internal: the values do not match the variable table");
+        };
+        for (i, &vr) in vrs.iter().enumerate() {
+            match access.get(vr as usize) {
+                Some(a) if a.variable_type == expected => out(i, numbers[vr as usize]),
+                _ => return self.reject(f, &self.type_error(vr, expected)),
+            }
+        }
+        status
+    }
+
+    /// Before values are read by `f`: in Initialization Mode the model computes the outputs
+    /// and calculated parameters from the current parameters; in Step Mode, after inputs
+    /// were set, it recomputes the direct-feedthrough outputs; a Model Exchange instance
+    /// evaluates its derivatives and outputs when states, inputs or time changed. Otherwise
+    /// nothing to do.
+    pub fn refresh_outputs(&mut self, f: &Function) -> Status {
+        if self.model_exchange {
+            // Outputs and derivatives from the current states, inputs and time.
+            return self.evaluate(f);
+        }
+        if !self.needs_refresh() {
+            return Status::Ok;
+        }
+        if self.core.state == ModelState::InitializationMode {
+            self.run_model(f, |m, ctx| m.initialize(ctx))
+        } else if self.core.inputs_changed && self.core.state == ModelState::StepComplete {
+            let status = self.run_model(f, |m, ctx| m.update_outputs(ctx));
+            if status <= Status::Warning {
+                self.core.inputs_changed = false;
+            }
+            status
+        } else {
+            Status::Ok
+        }
+    }
+
+    /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
+    #[inline]
+    fn needs_refresh(&self) -> bool {
+        let state = self.core.state;
+        state == ModelState::InitializationMode
+            || (self.core.inputs_changed
+                && (state == ModelState::StepComplete
+                    || (self.model_exchange
+                        && matches!(
+                            state,
+                            ModelState::EventMode
+                                | ModelState::ContinuousTimeMode
+                                | ModelState::Terminated
+                        ))))
+    }
+
+    /// Whether value reference `vr` names a variable of type `expected`.
+    #[inline]
+    pub fn is_of_type(&self, vr: u32, expected: VariableType) -> bool {
+        self.interface
+            .access
+            .get(vr as usize)
+            .is_some_and(|a| a.variable_type == expected)
+    }
+
+    /// Why `vr` is not a variable of type `expected` (unknown, or of another type).
+    fn type_error(&self, vr: u32, expected: VariableType) -> String {
+        let info = &self.interface.info;
+        match info.variables.get(vr as usize) {
+            None => format!(
                 "unknown value reference {vr} ({} has value references 0 to {})",
-                self.info.model_identifier,
-                self.info.variables.len().saturating_sub(1)
-            )
-        })?;
-        if v.variable_type() != expected {
-            return Err(format!(
+                info.model_identifier,
+                info.variables.len().saturating_sub(1)
+            ),
+            Some(v) => format!(
                 "variable `{}` (value reference {vr}) is of type {}, not {expected}",
                 v.name,
                 v.variable_type()
-            ));
+            ),
         }
-        Ok(index)
     }
 
-    /// `fmi2Set{Real,Integer,Boolean,String}`: checks every value first (reference, type,
-    /// whether it may be set in this state, finiteness, bounds), then sets them all, so a
-    /// rejected call changes nothing.
-    pub fn set_values(&mut self, f: &Function, vrs: &[u32], values: Vec<Value>) -> Status {
-        if vrs.len() != values.len() {
-            return self.reject(f, "internal: value count differs from reference count");
-        }
-        let mut tunable_changed = false;
-        let mut inputs_changed = false;
-        for (vr, value) in vrs.iter().zip(&values) {
-            let index = match self.lookup(*vr, value.variable_type()) {
-                Ok(i) => i,
-                Err(message) => return self.reject(f, &message),
-            };
-            let v = &self.info.variables[index];
-            let state = self.core.state;
-            let settable = match state {
-                ModelState::Instantiated => {
-                    v.variability != Variability::Constant
-                        && (v.causality == Causality::Input
-                            || matches!(v.initial, Some(Initial::Exact) | Some(Initial::Approx)))
-                }
-                ModelState::InitializationMode => {
-                    v.variability != Variability::Constant
-                        && (v.causality == Causality::Input || v.initial == Some(Initial::Exact))
-                }
-                ModelState::StepComplete | ModelState::EventMode => {
-                    v.causality == Causality::Input
-                        || (v.causality == Causality::Parameter
-                            && v.variability == Variability::Tunable)
-                }
-                ModelState::ContinuousTimeMode => v.causality == Causality::Input,
-                _ => false,
-            };
-            if !settable {
-                let what = match (v.causality, v.variability) {
-                    (Causality::Parameter, Variability::Fixed) if f.name.starts_with("fmi3") => {
-                        "a fixed parameter: it can be set only before fmi3ExitInitializationMode"
-                    }
-                    (Causality::Parameter, Variability::Fixed) => {
-                        "a fixed parameter: it can be set only before fmi2ExitInitializationMode"
-                    }
-                    (Causality::Output, _) => "an output: the FMU computes it",
-                    (Causality::CalculatedParameter, _) => {
-                        "a calculated parameter: the FMU computes it"
-                    }
-                    _ => "not settable now",
-                };
-                return self.reject(
-                    f,
-                    &format!(
-                        "variable `{}`{} is {what} (state {})",
-                        v.name,
-                        reference(f, *vr),
-                        state_name(f, state)
-                    ),
-                );
+    /// Why the variable at `vr` cannot be set by `f` in the current state.
+    fn not_settable(&self, f: &Function, vr: u32) -> String {
+        let v = &self.interface.info.variables[vr as usize];
+        let what = match (v.causality, v.variability) {
+            (Causality::Parameter, Variability::Fixed) if f.name.starts_with("fmi3") => {
+                "a fixed parameter: it can be set only before fmi3ExitInitializationMode"
             }
-            if let Value::Real(x) = value {
-                if !x.is_finite() {
-                    return self.reject(
-                        f,
-                        &format!(
-                            "variable `{}`{}: {x} rejected, values must be finite",
-                            v.name,
-                            reference(f, *vr)
-                        ),
-                    );
-                }
+            (Causality::Parameter, Variability::Fixed) => {
+                "a fixed parameter: it can be set only before fmi2ExitInitializationMode"
             }
-            let numeric = match value {
-                Value::Real(x) => Some(*x),
-                Value::Integer(i) => Some(*i as f64),
-                _ => None,
-            };
-            if let Some(x) = numeric {
-                if let Some(min) = v.min.filter(|m| x < *m) {
-                    return self.reject(
-                        f,
-                        &format!("variable `{}` = {x} is below its minimum {min}", v.name),
-                    );
-                }
-                if let Some(max) = v.max.filter(|m| x > *m) {
-                    return self.reject(
-                        f,
-                        &format!("variable `{}` = {x} is above its maximum {max}", v.name),
-                    );
-                }
+            (Causality::Output, _) => "an output: the FMU computes it",
+            (Causality::CalculatedParameter, _) => "a calculated parameter: the FMU computes it",
+            _ => "not settable now",
+        };
+        format!(
+            "variable `{}`{} is {what} (state {})",
+            v.name,
+            reference(f, vr),
+            state_name(f, self.core.state)
+        )
+    }
+
+    /// Checks that `f` may set the variable at `vr` to a value of type `actual` (`number`: its
+    /// value as a number, for the finiteness and bounds checks) in the current state (its
+    /// bit `bit`); its access rules, or the rejection's status.
+    #[inline(always)]
+    fn check_set(
+        &self,
+        f: &Function,
+        bit: u32,
+        vr: u32,
+        actual: VariableType,
+        number: Option<f64>,
+    ) -> Result<&Access, Status> {
+        match self.interface.access.get(vr as usize) {
+            Some(a)
+                if a.variable_type == actual
+                    && a.settable & bit != 0
+                    && number.is_none_or(|x| x.is_finite() && x >= a.min && x <= a.max) =>
+            {
+                Ok(a)
             }
-            tunable_changed |= matches!(state, ModelState::StepComplete | ModelState::EventMode)
-                && v.causality == Causality::Parameter;
-            inputs_changed |= v.causality == Causality::Input;
+            _ => Err(self.reject_set(f, vr, actual, number)),
         }
-        for (vr, value) in vrs.iter().zip(values) {
-            self.core.values.set(*vr as usize, value);
+    }
+
+    /// The rejection of a value [`Instance::check_set`] refuses.
+    #[cold]
+    #[inline(never)]
+    fn reject_set(&self, f: &Function, vr: u32, actual: VariableType, x: Option<f64>) -> Status {
+        let bit = self.core.state.bit();
+        let message = match self.interface.access.get(vr as usize) {
+            Some(a) if a.variable_type == actual && a.settable & bit == 0 => {
+                self.not_settable(f, vr)
+            }
+            Some(a) if a.variable_type == actual => {
+                self.out_of_range(f, vr, x.unwrap_or(f64::NAN), a)
+            }
+            _ => self.type_error(vr, actual),
+        };
+        self.reject(f, &message)
+    }
+
+    /// Why `x` is not a value the variable at `vr` accepts: not finite or out of its bounds.
+    fn out_of_range(&self, f: &Function, vr: u32, x: f64, a: &Access) -> String {
+        let name = &self.interface.info.variables[vr as usize].name;
+        if !x.is_finite() {
+            format!(
+                "variable `{name}`{}: {x} rejected, values must be finite",
+                reference(f, vr)
+            )
+        } else if x < a.min {
+            format!("variable `{name}` = {x} is below its minimum {}", a.min)
+        } else {
+            format!("variable `{name}` = {x} is above its maximum {}", a.max)
         }
-        self.core.inputs_changed |= inputs_changed;
-        if tunable_changed {
+    }
+
+    /// After values were set: inputs changed (the direct-feedthrough outputs are stale),
+    /// parameters changed in Step Mode (the model is told).
+    fn values_set(&mut self, f: &Function, inputs: bool, parameters: bool) -> Status {
+        self.core.inputs_changed |= inputs;
+        if parameters
+            && matches!(
+                self.core.state,
+                ModelState::StepComplete | ModelState::EventMode
+            )
+        {
             return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
         }
         Status::Ok
+    }
+
+    /// `fmi2Set{Real,Integer,Boolean,String}`: the `(value reference, value)` pairs of
+    /// `targets`. Checks every value first (reference, type, whether it may be set in this
+    /// state, finiteness, bounds: from the precomputed [`Access`] table), then sets them all,
+    /// so a rejected call changes nothing. `targets` is walked twice (hence `Clone`): no
+    /// buffer.
+    pub fn set_values<I>(&mut self, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, Value)> + Clone,
+    {
+        let bit = self.core.state.bit();
+        let (mut inputs, mut parameters) = (false, false);
+        for (vr, value) in targets.clone() {
+            let number = match value {
+                Value::Real(x) => Some(x),
+                Value::Integer(i) => Some(f64::from(i)),
+                _ => None,
+            };
+            match self.check_set(f, bit, vr, value.variable_type(), number) {
+                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Err(status) => return status,
+            }
+        }
+        for (vr, value) in targets {
+            self.core.values.set(vr as usize, value);
+        }
+        self.values_set(f, inputs, parameters)
+    }
+
+    /// `fmi2Set{Real,Integer,Boolean}`: as [`Instance::set_values`] for values of type
+    /// `actual` given as numbers ([`Values::numbers`]), the path of a master's every step:
+    /// no value enum, stored in place.
+    pub fn set_numbers<I>(&mut self, f: &Function, actual: VariableType, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, f64)> + Clone,
+    {
+        let bit = self.core.state.bit();
+        let (mut inputs, mut parameters) = (false, false);
+        for (vr, x) in targets.clone() {
+            match self.check_set(f, bit, vr, actual, Some(x)) {
+                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Err(status) => return status,
+            }
+        }
+        let numbers = self.core.values.numbers_mut();
+        for (vr, x) in targets {
+            if let Some(slot) = numbers.get_mut(vr as usize) {
+                *slot = x;
+            }
+        }
+        self.values_set(f, inputs, parameters)
     }
 
     /// `fmi2DoStep`.
@@ -839,8 +1009,8 @@ impl<M: FmuModel> Instance<M> {
     pub fn serialize(&self, core: &Core<M>) -> Vec<u8> {
         let mut w = ByteWriter::new();
         w.put_str(STATE_MAGIC);
-        w.put_str(&self.info.model_identifier);
-        w.put_str(&self.info.guid);
+        w.put_str(&self.interface.info.model_identifier);
+        w.put_str(&self.interface.info.guid);
         w.put_u64(
             ModelState::ALL
                 .iter()
@@ -851,7 +1021,7 @@ impl<M: FmuModel> Instance<M> {
         w.put_bool(core.stop_time.is_some());
         w.put_f64(core.stop_time.unwrap_or(0.0));
         w.put_bool(core.inputs_changed);
-        w.put_u64(core.values.all().len() as u64);
+        w.put_u64(core.values.len() as u64);
         core.values.save(&mut w);
         core.model.save_state(&mut w);
         w.into_bytes()
@@ -872,17 +1042,17 @@ impl<M: FmuModel> Instance<M> {
             _ => return Err(StateError::NotAState),
         }
         let model = r.string()?;
-        if model != self.info.model_identifier {
+        if model != self.interface.info.model_identifier {
             return Err(StateError::OtherModel {
                 saved: model,
-                this: self.info.model_identifier.clone(),
+                this: self.interface.info.model_identifier.clone(),
             });
         }
         let guid = r.string()?;
-        if guid != self.info.guid {
+        if guid != self.interface.info.guid {
             return Err(StateError::OtherFmu {
                 saved: guid,
-                this: self.info.guid.clone(),
+                this: self.interface.info.guid.clone(),
             });
         }
         let index = r.u64()?;
@@ -905,18 +1075,17 @@ impl<M: FmuModel> Instance<M> {
         }
         let inputs_changed = r.bool()?;
         let n = r.u64()?;
-        if n != self.info.variables.len() as u64 {
+        if n != self.interface.info.variables.len() as u64 {
             return Err(StateError::ValueCount {
                 saved: n,
-                variables: self.info.variables.len(),
+                variables: self.interface.info.variables.len(),
             });
         }
-        let mut values = Values::from_start(&self.info.variables);
+        let mut values = Values::from_start(&self.interface.info.variables);
         values.load(&mut r)?;
-        for (v, value) in self.info.variables.iter().zip(values.all()) {
-            let x = match value {
-                Value::Real(x) => *x,
-                Value::Integer(i) => f64::from(*i),
+        for (i, v) in self.interface.info.variables.iter().enumerate() {
+            let x = match values.variable_type(i) {
+                Some(VariableType::Real | VariableType::Integer) => values.number(i),
                 _ => continue,
             };
             if !x.is_finite()

@@ -23,8 +23,12 @@
 //! - [`export_fmu!`]: emits the `fmi2*`, `fmi3*` and query symbols of one FMU binary for a
 //!   model type, with its bundled variants.
 //!
-//! No global state: every instance owns all it uses, so any number of instances of any
-//! number of FMUs live in one process.
+//! One piece of process-wide state: the interfaces ([`front::interface`]: the model
+//! description, the access table of the get/set checks, the FMI 3.0 arrays), built once per
+//! model and configuration and shared read-only by their instances; everything else an
+//! instance owns, so any number of instances of any number of FMUs live in one process.
+//! Once initialised, an instance's set/step/get calls allocate nothing in this layer
+//! (`tests/allocations.rs`; every FMU: `tests/allocations/run`).
 
 pub mod bytes;
 pub mod description;

@@ -79,7 +79,13 @@ pub struct Context<'a> {
     pub values: &'a mut Values,
     pub(crate) messages: Vec<LogMessage>,
     time: f64,
+    /// Whether events are logged (debug logging on, `logEvents` enabled): when not,
+    /// [`Context::log_event`] keeps nothing (and allocates nothing).
+    pub(crate) log_events: bool,
 }
+
+/// The log category of [`Context::log_event`].
+pub(crate) const EVENTS: &str = "logEvents";
 
 impl<'a> Context<'a> {
     /// A context over `values` at time 0.
@@ -92,6 +98,7 @@ impl<'a> Context<'a> {
             values,
             messages: Vec::new(),
             time,
+            log_events: true,
         }
     }
     /// The instance's current communication point [s]: the start time (from
@@ -100,13 +107,21 @@ impl<'a> Context<'a> {
     pub fn time(&self) -> f64 {
         self.time
     }
-    /// Logs an event (category `logEvents`; shown when debug logging is on).
+    /// Logs an event (category `logEvents`; shown when debug logging is on, else dropped
+    /// here). A text that costs work to format is better built only when
+    /// [`Context::logs_events`] says it will be shown.
     pub fn log_event(&mut self, text: impl Into<String>) {
-        self.messages.push(LogMessage {
-            status: Status::Ok,
-            category: "logEvents",
-            text: text.into(),
-        });
+        if self.log_events {
+            self.messages.push(LogMessage {
+                status: Status::Ok,
+                category: EVENTS,
+                text: text.into(),
+            });
+        }
+    }
+    /// Whether [`Context::log_event`] messages are shown (debug logging on).
+    pub fn logs_events(&self) -> bool {
+        self.log_events
     }
     /// Logs a warning; the call then returns `fmi2Warning`.
     pub fn warn(&mut self, text: impl Into<String>) {

@@ -6,40 +6,41 @@
 
 use std::os::raw::{c_char, c_int, c_uint, c_void};
 
-pub type fmi2Component = *mut c_void;
-pub type fmi2ComponentEnvironment = *mut c_void;
-pub type fmi2FMUstate = *mut c_void;
-pub type fmi2ValueReference = c_uint;
-pub type fmi2Real = f64;
-pub type fmi2Integer = c_int;
-pub type fmi2Boolean = c_int;
-pub type fmi2Char = c_char;
-pub type fmi2String = *const fmi2Char;
-pub type fmi2Byte = c_char;
+/// `c_types! { name = type, … }`: the type aliases of a C header.
+macro_rules! c_types {
+    ($($name:ident = $t:ty),* $(,)?) => { $(pub type $name = $t;)* };
+}
+/// `c_enum! { name: repr { CONSTANT = value, … } }`: a C enumeration as an integer type and
+/// its named values (plain integers: see the module documentation).
+macro_rules! c_enum {
+    ($(#[$m:meta])* $name:ident: $repr:ty { $($item:ident = $value:expr),* $(,)? }) => {
+        $(#[$m])* pub type $name = $repr;
+        $(pub const $item: $name = $value;)*
+    };
+}
+pub(crate) use {c_enum, c_types};
 
-pub const fmi2True: fmi2Boolean = 1;
-pub const fmi2False: fmi2Boolean = 0;
-
-/// `fmi2Status`.
-pub type fmi2Status = c_int;
-pub const fmi2OK: fmi2Status = 0;
-pub const fmi2Warning: fmi2Status = 1;
-pub const fmi2Discard: fmi2Status = 2;
-pub const fmi2Error: fmi2Status = 3;
-pub const fmi2Fatal: fmi2Status = 4;
-pub const fmi2Pending: fmi2Status = 5;
-
-/// `fmi2Type`.
-pub type fmi2Type = c_int;
-pub const fmi2ModelExchange: fmi2Type = 0;
-pub const fmi2CoSimulation: fmi2Type = 1;
-
-/// `fmi2StatusKind`.
-pub type fmi2StatusKind = c_int;
-pub const fmi2DoStepStatus: fmi2StatusKind = 0;
-pub const fmi2PendingStatus: fmi2StatusKind = 1;
-pub const fmi2LastSuccessfulTime: fmi2StatusKind = 2;
-pub const fmi2Terminated: fmi2StatusKind = 3;
+c_types! {
+    fmi2Component = *mut c_void, fmi2ComponentEnvironment = *mut c_void,
+    fmi2FMUstate = *mut c_void, fmi2ValueReference = c_uint, fmi2Real = f64,
+    fmi2Integer = c_int, fmi2Char = c_char, fmi2String = *const fmi2Char, fmi2Byte = c_char,
+}
+c_enum! { /** `fmi2Boolean`. */ fmi2Boolean: c_int { fmi2True = 1, fmi2False = 0 } }
+c_enum! {
+    /// `fmi2Status`.
+    fmi2Status: c_int {
+        fmi2OK = 0, fmi2Warning = 1, fmi2Discard = 2, fmi2Error = 3, fmi2Fatal = 4,
+        fmi2Pending = 5,
+    }
+}
+c_enum! { /** `fmi2Type`. */ fmi2Type: c_int { fmi2ModelExchange = 0, fmi2CoSimulation = 1 } }
+c_enum! {
+    /// `fmi2StatusKind`.
+    fmi2StatusKind: c_int {
+        fmi2DoStepStatus = 0, fmi2PendingStatus = 1, fmi2LastSuccessfulTime = 2,
+        fmi2Terminated = 3,
+    }
+}
 
 /// The logger is a C variadic function. We always call it with the format `"%s"` and the
 /// message as its one argument, so a `%` in a message is printed, not interpreted.

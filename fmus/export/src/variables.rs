@@ -8,88 +8,48 @@
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use std::fmt;
 
-/// `causality` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Causality {
-    Parameter,
-    CalculatedParameter,
-    Input,
-    Output,
-    Local,
+/// `attribute! { Name { Variant = "text", … } }`: an enumeration whose values are written to
+/// `modelDescription.xml` as the texts given, with `as_str` giving the text.
+macro_rules! attribute {
+    ($(#[$m:meta])* $name:ident { $($variant:ident = $text:literal),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum $name { $($variant),* }
+        impl $name {
+            /// The value's text in `modelDescription.xml`.
+            pub fn as_str(self) -> &'static str {
+                match self { $($name::$variant => $text),* }
+            }
+        }
+    };
 }
 
-/// `variability` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Variability {
-    Constant,
-    Fixed,
-    Tunable,
-    Discrete,
-    Continuous,
+attribute! {
+    /// `causality` of a variable.
+    Causality {
+        Parameter = "parameter", CalculatedParameter = "calculatedParameter", Input = "input",
+        Output = "output", Local = "local",
+    }
 }
-
-/// `initial` of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Initial {
-    Exact,
-    Approx,
-    Calculated,
+attribute! {
+    /// `variability` of a variable.
+    Variability {
+        Constant = "constant", Fixed = "fixed", Tunable = "tunable", Discrete = "discrete",
+        Continuous = "continuous",
+    }
 }
-
-/// The FMI type of a variable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum VariableType {
-    Real,
-    Integer,
-    Boolean,
-    String,
+attribute! {
+    /// `initial` of a variable.
+    Initial { Exact = "exact", Approx = "approx", Calculated = "calculated" }
+}
+attribute! {
+    /// The FMI type of a variable (its element name in an FMI 2.0 `ScalarVariable`).
+    VariableType { Real = "Real", Integer = "Integer", Boolean = "Boolean", String = "String" }
 }
 
 impl fmt::Display for VariableType {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            VariableType::Real => "Real",
-            VariableType::Integer => "Integer",
-            VariableType::Boolean => "Boolean",
-            VariableType::String => "String",
-        })
-    }
-}
-
-impl Causality {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-            Causality::Local => "local",
-        }
-    }
-}
-
-impl Variability {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Variability::Constant => "constant",
-            Variability::Fixed => "fixed",
-            Variability::Tunable => "tunable",
-            Variability::Discrete => "discrete",
-            Variability::Continuous => "continuous",
-        }
-    }
-}
-
-impl Initial {
-    /// The attribute value in `modelDescription.xml`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Initial::Exact => "exact",
-            Initial::Approx => "approx",
-            Initial::Calculated => "calculated",
-        }
+        f.write_str(self.as_str())
     }
 }
 
@@ -419,105 +379,209 @@ impl VariableTable {
 }
 
 /// The current values of an instance, one per variable, indexed like the table.
+///
+/// Stored flat for memory speed: one `f64` per variable (a Real as it is, an Integer exactly,
+/// a Boolean as 0 or 1, a String as 0 with its text kept apart), so that an instance's values
+/// take 9 bytes per variable, a get or set is one load or store, and the roll-back copy
+/// before a model call is a `memcpy`.
 #[derive(Debug, PartialEq)]
 pub struct Values {
-    values: Vec<Value>,
+    numbers: Vec<f64>,
+    types: Vec<VariableType>,
+    /// The String variables' texts, by index (ascending).
+    strings: Vec<(usize, String)>,
 }
 
-/// Written out because the derived `clone_from` clones afresh: this one reuses the buffer
+/// Written out because the derived `clone_from` clones afresh: this one reuses the buffers
 /// (and each String's), so the per-call snapshot of the values allocates nothing after
 /// the first.
 impl Clone for Values {
     fn clone(&self) -> Self {
         Self {
-            values: self.values.clone(),
+            numbers: self.numbers.clone(),
+            types: self.types.clone(),
+            strings: self.strings.clone(),
         }
     }
     fn clone_from(&mut self, source: &Self) {
-        self.values.clone_from(&source.values);
+        self.numbers.clone_from(&source.numbers);
+        self.types.clone_from(&source.types);
+        if self.strings.len() != source.strings.len() {
+            self.strings.clone_from(&source.strings);
+        } else {
+            for (to, from) in self.strings.iter_mut().zip(&source.strings) {
+                to.0 = from.0;
+                to.1.clone_from(&from.1);
+            }
+        }
+    }
+}
+
+/// A number of the flat storage as its value of type `t`.
+fn typed(t: VariableType, x: f64) -> Value {
+    match t {
+        VariableType::Real => Value::Real(x),
+        VariableType::Integer => Value::Integer(x as i32),
+        VariableType::Boolean => Value::Boolean(x != 0.0),
+        VariableType::String => Value::String(String::new()),
     }
 }
 
 impl Values {
     /// The start values of `variables`.
     pub fn from_start(variables: &[Variable]) -> Self {
-        Self {
-            values: variables.iter().map(|v| v.start.clone()).collect(),
+        let mut values = Self {
+            numbers: vec![0.0; variables.len()],
+            types: variables.iter().map(Variable::variable_type).collect(),
+            strings: Vec::new(),
+        };
+        for (i, v) in variables.iter().enumerate() {
+            if let Value::String(text) = &v.start {
+                values.strings.push((i, text.clone()));
+            } else {
+                values.set(i, v.start.clone());
+            }
+        }
+        values
+    }
+    /// The number of values.
+    pub fn len(&self) -> usize {
+        self.numbers.len()
+    }
+    /// Whether there is no value.
+    pub fn is_empty(&self) -> bool {
+        self.numbers.is_empty()
+    }
+    /// The value at `index` (a String's text is copied).
+    pub fn get(&self, index: usize) -> Option<Value> {
+        let t = *self.types.get(index)?;
+        Some(match t {
+            VariableType::String => Value::String(self.string(index).to_string()),
+            _ => typed(t, self.numbers[index]),
+        })
+    }
+    /// Every value as a number (see [`Values::number`]; a String is 0 here), by index: what
+    /// the typed getters read once the type is checked.
+    #[inline]
+    pub fn numbers(&self) -> &[f64] {
+        &self.numbers
+    }
+    /// The numbers, to set in place values whose types were checked (an Integer exactly, a
+    /// Boolean as 0 or 1: see [`Values::numbers`]).
+    #[inline]
+    pub(crate) fn numbers_mut(&mut self) -> &mut [f64] {
+        &mut self.numbers
+    }
+    /// The type of the value at `index`.
+    pub fn variable_type(&self, index: usize) -> Option<VariableType> {
+        self.types.get(index).copied()
+    }
+    /// The value at `index` as a number: a Real as it is, an Integer exactly, a Boolean as 0
+    /// or 1, a String (or an unknown index) as NaN.
+    #[inline]
+    pub fn number(&self, index: usize) -> f64 {
+        match self.types.get(index) {
+            Some(VariableType::String) | None => f64::NAN,
+            Some(_) => self.numbers[index],
         }
     }
-    /// All values.
-    pub fn all(&self) -> &[Value] {
-        &self.values
-    }
-    /// Replaces the value at `index` (the type is checked by the caller).
+    /// Replaces the value at `index` when it has the variable's type (checked by the caller).
     pub fn set(&mut self, index: usize, value: Value) {
-        if let Some(slot) = self.values.get_mut(index) {
-            *slot = value;
+        match (self.types.get(index), value) {
+            (Some(VariableType::Real), Value::Real(x)) => self.numbers[index] = x,
+            (Some(VariableType::Integer), Value::Integer(i)) => self.numbers[index] = f64::from(i),
+            (Some(VariableType::Boolean), Value::Boolean(b)) => {
+                self.numbers[index] = f64::from(u8::from(b))
+            }
+            (Some(VariableType::String), Value::String(text)) => {
+                if let Some(slot) = self.text_mut(index) {
+                    *slot = text;
+                }
+            }
+            _ => {}
         }
+    }
+    fn text_mut(&mut self, index: usize) -> Option<&mut String> {
+        let at = self
+            .strings
+            .binary_search_by_key(&index, |(i, _)| *i)
+            .ok()?;
+        Some(&mut self.strings[at].1)
     }
     /// The Real at `index`; NaN if the index is not a Real (a table bug caught by tests).
+    #[inline]
     pub fn real(&self, index: usize) -> f64 {
-        match self.values.get(index) {
-            Some(Value::Real(v)) => *v,
+        match self.types.get(index) {
+            Some(VariableType::Real) => self.numbers[index],
             _ => f64::NAN,
         }
     }
     /// Sets the Real at `index`.
+    #[inline]
     pub fn set_real(&mut self, index: usize, value: f64) {
-        if let Some(Value::Real(slot)) = self.values.get_mut(index) {
-            *slot = value;
+        if self.types.get(index) == Some(&VariableType::Real) {
+            self.numbers[index] = value;
         }
     }
     /// The Integer at `index` (0 if it is not an Integer).
     pub fn integer(&self, index: usize) -> i32 {
-        match self.values.get(index) {
-            Some(Value::Integer(v)) => *v,
+        match self.types.get(index) {
+            Some(VariableType::Integer) => self.numbers[index] as i32,
             _ => 0,
         }
     }
     /// Sets the Integer at `index`.
     pub fn set_integer(&mut self, index: usize, value: i32) {
-        if let Some(Value::Integer(slot)) = self.values.get_mut(index) {
-            *slot = value;
-        }
+        self.set(index, Value::Integer(value));
     }
     /// The Boolean at `index` (false if it is not a Boolean).
     pub fn boolean(&self, index: usize) -> bool {
-        matches!(self.values.get(index), Some(Value::Boolean(true)))
+        self.types.get(index) == Some(&VariableType::Boolean) && self.numbers[index] != 0.0
     }
     /// Sets the Boolean at `index`.
     pub fn set_boolean(&mut self, index: usize, value: bool) {
-        if let Some(Value::Boolean(slot)) = self.values.get_mut(index) {
-            *slot = value;
-        }
+        self.set(index, Value::Boolean(value));
     }
     /// The String at `index` ("" if it is not a String).
     pub fn string(&self, index: usize) -> &str {
-        match self.values.get(index) {
-            Some(Value::String(v)) => v,
-            _ => "",
+        match self.strings.binary_search_by_key(&index, |(i, _)| *i) {
+            Ok(at) => &self.strings[at].1,
+            Err(_) => "",
         }
+    }
+    /// The first Real that is NaN or infinite: (index, value). (Integers and Booleans are
+    /// always finite, Strings are stored as 0: one scan of the numbers.)
+    pub fn first_non_finite(&self) -> Option<(usize, f64)> {
+        self.numbers
+            .iter()
+            .position(|x| !x.is_finite())
+            .map(|i| (i, self.numbers[i]))
     }
     /// Writes every value in order (for an FMU state).
     pub fn save(&self, out: &mut ByteWriter) {
-        for value in &self.values {
-            match value {
-                Value::Real(v) => out.put_f64(*v),
-                Value::Integer(v) => out.put_i32(*v),
-                Value::Boolean(v) => out.put_bool(*v),
-                Value::String(v) => out.put_str(v),
+        for (i, (t, x)) in self.types.iter().zip(&self.numbers).enumerate() {
+            match t {
+                VariableType::Real => out.put_f64(*x),
+                VariableType::Integer => out.put_i32(*x as i32),
+                VariableType::Boolean => out.put_bool(*x != 0.0),
+                VariableType::String => out.put_str(self.string(i)),
             }
         }
     }
     /// Reads back in place what [`Values::save`] wrote of values of the same types.
     pub fn load(&mut self, input: &mut ByteReader) -> Result<(), StateFormatError> {
-        for value in &mut self.values {
-            *value = match value {
-                Value::Real(_) => Value::Real(input.f64()?),
-                Value::Integer(_) => Value::Integer(input.i32()?),
-                Value::Boolean(_) => Value::Boolean(input.bool()?),
-                Value::String(_) => Value::String(input.string()?),
-            };
+        for i in 0..self.numbers.len() {
+            match self.types[i] {
+                VariableType::Real => self.numbers[i] = input.f64()?,
+                VariableType::Integer => self.numbers[i] = f64::from(input.i32()?),
+                VariableType::Boolean => self.numbers[i] = f64::from(u8::from(input.bool()?)),
+                VariableType::String => {
+                    let text = input.string()?;
+                    if let Some(slot) = self.text_mut(i) {
+                        *slot = text;
+                    }
+                }
+            }
         }
         Ok(())
     }
@@ -599,26 +663,46 @@ mod tests {
             Variable::parameter("x", 1.5),
             Variable::integer_parameter("n", 3),
             Variable::string_parameter("s", "abc"),
+            Variable::boolean_parameter("b", true),
         ];
         let mut current = Values::from_start(&table);
+        assert_eq!(current.get(0), Some(Value::Real(1.5)));
+        assert_eq!(current.get(1), Some(Value::Integer(3)));
+        assert_eq!(current.get(2), Some(Value::String("abc".into())));
+        assert_eq!(current.get(3), Some(Value::Boolean(true)));
         let mut before = current.clone();
-        let buffer = before.all().as_ptr();
-        let string = match &before.all()[2] {
-            Value::String(s) => s.as_ptr(),
-            other => panic!("{other:?}"),
-        };
+        let buffer = before.numbers.as_ptr();
+        let string = before.string(2).as_ptr();
         current.set_real(0, -2.25);
         current.set_integer(1, 7);
         current.set(2, Value::String("xy".to_string()));
+        current.set_boolean(3, false);
         before.clone_from(&current);
         assert_eq!(before, current);
         assert_eq!(before.real(0), -2.25);
         assert_eq!(before.integer(1), 7);
         assert_eq!(before.string(2), "xy");
-        assert_eq!(before.all().as_ptr(), buffer);
-        match &before.all()[2] {
-            Value::String(s) => assert_eq!(s.as_ptr(), string),
-            other => panic!("{other:?}"),
-        }
+        assert!(!before.boolean(3));
+        assert_eq!(before.numbers.as_ptr(), buffer);
+        assert_eq!(before.string(2).as_ptr(), string);
+    }
+
+    #[test]
+    fn a_value_of_another_type_is_not_stored_and_reads_as_its_default() {
+        let table = [
+            Variable::parameter("x", 1.5),
+            Variable::integer_parameter("n", 3),
+        ];
+        let mut values = Values::from_start(&table);
+        values.set(0, Value::Integer(9));
+        values.set_real(1, 4.5);
+        assert_eq!((values.real(0), values.integer(1)), (1.5, 3));
+        assert!(values.real(1).is_nan());
+        assert_eq!(
+            (values.integer(0), values.number(1), values.len()),
+            (0, 3.0, 2)
+        );
+        values.set_real(0, f64::INFINITY);
+        assert_eq!(values.first_non_finite(), Some((0, f64::INFINITY)));
     }
 }

@@ -7,10 +7,10 @@
 mod common;
 
 use common::toy::*;
-use spurio_export::fmi3::arrays::Layout;
 use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
 use spurio_export::fmi3::types::*;
 use spurio_export::fmi3::{functions, me as me3};
+use spurio_export::front::Fmi3;
 use spurio_export::me::ffi::{self as me, Array};
 use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
@@ -158,8 +158,7 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
         ffi::refuse_instantiation::<Toy>(
             "fmi3InstantiateScheduledExecution",
             "Scheduled Execution",
-            std::ptr::null_mut(),
-            Some(log_message),
+            args(std::ptr::null(), std::ptr::null(), std::ptr::null()),
         )
     };
     assert!(se.is_null());
@@ -447,7 +446,7 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     let get = |which| {
         let mut out = [f64::NAN; 2];
         let (f, which) = which;
-        let s = unsafe { me::get_array::<Toy, Layout>(i.0, f, which, out.as_mut_ptr(), 2) };
+        let s = unsafe { me::get_array::<Toy, Fmi3>(i.0, f, which, out.as_mut_ptr(), 2) };
         (s, out)
     };
     let mut n = 0usize;
@@ -485,19 +484,17 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         last_error().contains("fmi3DoStep: illegal call sequence: not allowed in state EventMode")
     );
     assert_eq!(
-        unsafe {
-            me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_CONTINUOUS_TIME_MODE, false)
-        },
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_CONTINUOUS_TIME_MODE, false) },
         fmi3OK
     );
     assert_eq!(
-        unsafe { me::set_time::<Toy, Layout>(i.0, &functions::SET_TIME, 0.5) },
+        unsafe { me::set_time::<Toy, Fmi3>(i.0, &functions::SET_TIME, 0.5) },
         fmi3OK
     );
     let x = [0.5, -1.0];
     assert_eq!(
         unsafe {
-            me::set_continuous_states::<Toy, Layout>(
+            me::set_continuous_states::<Toy, Fmi3>(
                 i.0,
                 &functions::SET_CONTINUOUS_STATES,
                 x.as_ptr(),
@@ -528,13 +525,13 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     // wrong counts
     let mut z = [0.0; 2];
     let (f, which) = (&functions::GET_EVENT_INDICATORS, Array::EventIndicators);
-    let s = unsafe { me::get_array::<Toy, Layout>(i.0, f, which, z.as_mut_ptr(), 2) };
+    let s = unsafe { me::get_array::<Toy, Fmi3>(i.0, f, which, z.as_mut_ptr(), 2) };
     assert_eq!(s, fmi3Error);
     assert!(last_error().contains("fmi3GetEventIndicators: ni = 2, but Toy has 1"));
     let (mut event, mut terminate) = (9u8, 9u8);
     let f = &functions::COMPLETED_INTEGRATOR_STEP;
     let s = unsafe {
-        me::completed_integrator_step::<Toy, Layout, _>(i.0, f, &mut event, &mut terminate)
+        me::completed_integrator_step::<Toy, Fmi3, _>(i.0, f, &mut event, &mut terminate)
     };
     assert_eq!((s, event, terminate), (fmi3OK, fmi3False, fmi3False));
     // directional derivatives over arrays: d der(y) = du, dz = du[1] + du[2]
@@ -559,7 +556,7 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
     assert!(last_error()
         .contains("nSeed = 1 and nSensitivity = 1, but the references name 2 and 1 values"));
     assert_eq!(
-        unsafe { me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_EVENT_MODE, true) },
         fmi3OK
     );
     assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3OK);
@@ -570,12 +567,12 @@ fn a_co_simulation_instance_refuses_the_model_exchange_functions() {
     let i = Instance::new("cs");
     assert_eq!(i.initialize(), fmi3OK);
     assert_eq!(
-        unsafe { me::set_time::<Toy, Layout>(i.0, &functions::SET_TIME, 1.0) },
+        unsafe { me::set_time::<Toy, Fmi3>(i.0, &functions::SET_TIME, 1.0) },
         fmi3Error
     );
     assert!(last_error().contains("fmi3SetTime: illegal call sequence"));
     assert_eq!(
-        unsafe { me::enter_mode::<Toy, Layout>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_EVENT_MODE, true) },
         fmi3Error
     );
     let mut n = 9usize;

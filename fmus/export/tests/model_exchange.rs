@@ -309,13 +309,8 @@ fn directional_derivatives_are_exact_and_checked() {
 fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_only() {
     // as export_fmu!(Toy, model_exchange) instantiates for fmi2CoSimulation
     let info = Toy::describe(&Config::new()).unwrap();
-    let callbacks = fmi2CallbackFunctions {
-        logger: None,
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: std::ptr::null_mut(),
-    };
+    // no logger, no memory functions, no environment: all NULL
+    let callbacks: fmi2CallbackFunctions = unsafe { std::mem::zeroed() };
     let name = c"cs";
     let guid = std::ffi::CString::new(info.guid).unwrap();
     let instantiate = |kind, hooks| unsafe {

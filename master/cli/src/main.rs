@@ -56,8 +56,9 @@ enum Command {
         /// Where to write the results.
         #[arg(long, default_value = "results.csv")]
         out: PathBuf,
-        /// Record nothing: no CSV is written (OMSimulator's `--resultFile=""`, fmpy's
-        /// `output=[]`); for benchmarks.
+        /// Record nothing: no CSV is written, and after a step only the outputs that feed
+        /// connections are read (OMSimulator's `--resultFile=""`, fmpy's `output=[]`); for
+        /// benchmarks.
         #[arg(long, conflicts_with_all = ["out", "plot", "output_interval"])]
         no_record: bool,
         /// Record every K-th communication point (the first and the last are always
@@ -229,7 +230,11 @@ fn run(
     progress: bool,
     limits: &limits::Limits,
 ) -> Result<()> {
-    let resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    let mut resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    if no_record {
+        // Only the outputs that feed connections are read after a step.
+        resolved.record_nothing()?;
+    }
     for note in &resolved.notes {
         eprintln!("spurio: {}: {note}", system.display());
     }

@@ -76,8 +76,8 @@ enum Inner {
 pub struct Instance {
     inner: Inner,
     log: LogKey,
-    /// Scratch space of the FMI 2.0 Integer and Boolean calls (no allocation per call).
-    ints: Vec<i32>,
+    /// Scratch space of the calls whose values are not f64 (no allocation per call).
+    scratch: Scratch,
 }
 
 impl std::fmt::Debug for Instance {
@@ -103,23 +103,53 @@ pub struct Experiment {
     pub stop: Option<f64>,
 }
 
-/// FMI 3.0 getters into f64: `$get` for the element type `$t`.
+/// FMI 3.0 getters into f64: `$get` for the element type `$t`, through the scratch buffer
+/// of that type.
 macro_rules! get3 {
-    ($inst:expr, $vrs:expr, $out:expr, $get:ident, $set:ident, $t:ty) => {{
-        let mut v = vec![<$t>::default(); $out.len()];
-        $inst.$get($vrs, &mut v)?;
-        for (o, x) in $out.iter_mut().zip(&v) {
+    ($inst:expr, $vrs:expr, $out:expr, $scratch:expr, $get:ident, $set:ident, $t:ident) => {{
+        let v = scratch(&mut $scratch.$t, $out.len());
+        $inst.$get($vrs, v)?;
+        for (o, x) in $out.iter_mut().zip(v.iter()) {
             *o = *x as f64;
         }
     }};
 }
 
-/// FMI 3.0 setters from f64 (rounded to the nearest integer for the integer types).
+/// FMI 3.0 setters from f64 (rounded to the nearest integer for the integer types), through
+/// the scratch buffer of the element type.
 macro_rules! set3 {
-    ($inst:expr, $vrs:expr, $values:expr, $get:ident, $set:ident, $t:ty) => {{
-        let v: Vec<$t> = $values.iter().map(|x| x.round() as $t).collect();
-        $inst.$set($vrs, &v)?;
+    ($inst:expr, $vrs:expr, $values:expr, $scratch:expr, $get:ident, $set:ident, $t:ident) => {{
+        let v = scratch(&mut $scratch.$t, $values.len());
+        for (o, x) in v.iter_mut().zip($values) {
+            *o = x.round() as $t;
+        }
+        $inst.$set($vrs, v)?;
     }};
+}
+
+/// The values of one call in the element type of an FMI 3.0 getter or setter, one buffer per
+/// type, grown to the largest call and then reused: a get or set allocates nothing once the
+/// first call of each size has been made.
+#[derive(Debug, Default)]
+struct Scratch {
+    f32: Vec<f32>,
+    bool: Vec<bool>,
+    i8: Vec<i8>,
+    u8: Vec<u8>,
+    i16: Vec<i16>,
+    u16: Vec<u16>,
+    i32: Vec<i32>,
+    u32: Vec<u32>,
+    i64: Vec<i64>,
+    u64: Vec<u64>,
+}
+
+/// The first `n` elements of `buffer`, grown if needed.
+fn scratch<T: Default + Clone>(buffer: &mut Vec<T>, n: usize) -> &mut [T] {
+    if buffer.len() < n {
+        buffer.resize(n, T::default());
+    }
+    &mut buffer[..n]
 }
 
 /// The FMI 3.0 integer types (and enumerations, Int64 in FMI 3.0) with their getter, setter
@@ -146,7 +176,7 @@ impl Instance {
         Self {
             inner: Inner::Fmi2(Box::new(instance)),
             log,
-            ints: Vec::new(),
+            scratch: Scratch::default(),
         }
     }
 
@@ -154,7 +184,7 @@ impl Instance {
         Self {
             inner: Inner::Fmi3(Box::new(instance)),
             log,
-            ints: Vec::new(),
+            scratch: Scratch::default(),
         }
     }
 
@@ -260,9 +290,11 @@ impl Instance {
     /// variable, an FMI 3.0 array's elements in a row (`out.len()` = nValues).
     pub fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError> {
         match &mut self.inner {
-            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.ints).map_err(Into::into),
+            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.scratch.i32).map_err(Into::into),
             Inner::Fmi3(i) => {
-                crate::logging::speaking(&self.log, || get3(i, t, vrs, out)).map_err(Into::into)
+                let scratch = &mut self.scratch;
+                crate::logging::speaking(&self.log, || get3(i, t, vrs, out, scratch))
+                    .map_err(Into::into)
             }
         }
     }
@@ -270,9 +302,11 @@ impl Instance {
     /// Sets `vrs` (all of type `t`) from `values` (FMI 3.0: nValues = `values.len()`).
     pub fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
         match &mut self.inner {
-            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.ints).map_err(Into::into),
+            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.scratch.i32).map_err(Into::into),
             Inner::Fmi3(i) => {
-                crate::logging::speaking(&self.log, || set3(i, t, vrs, values)).map_err(Into::into)
+                let scratch = &mut self.scratch;
+                crate::logging::speaking(&self.log, || set3(i, t, vrs, values, scratch))
+                    .map_err(Into::into)
             }
         }
     }
@@ -330,7 +364,7 @@ fn get2(
         Common::get_real(i, vrs, out)?;
         return Ok(());
     }
-    ints.resize(out.len(), 0);
+    let ints = scratch(ints, out.len());
     if t == VarType::Boolean {
         Common::get_boolean(i, vrs, ints)?;
         for (o, x) in out.iter_mut().zip(ints.iter()) {
@@ -357,12 +391,16 @@ fn set2(
         Common::set_real(i, vrs, values)?;
         return Ok(());
     }
-    ints.clear();
+    let ints = scratch(ints, values.len());
     if t == VarType::Boolean {
-        ints.extend(values.iter().map(|x| i32::from(*x != 0.0)));
+        for (o, x) in ints.iter_mut().zip(values) {
+            *o = i32::from(*x != 0.0);
+        }
         Common::set_boolean(i, vrs, ints)?;
     } else {
-        ints.extend(values.iter().map(|x| *x as i32));
+        for (o, x) in ints.iter_mut().zip(values) {
+            *o = *x as i32;
+        }
         Common::set_integer(i, vrs, ints)?;
     }
     Ok(())
@@ -373,22 +411,23 @@ fn get3(
     t: VarType,
     vrs: &[u32],
     out: &mut [f64],
+    buffers: &mut Scratch,
 ) -> Result<(), Fmi3Error> {
     match t {
         VarType::Real => {
             i.get_float64(vrs, out)?;
         }
-        VarType::Float32 => get3!(i, vrs, out, get_float32, set_float32, f32),
+        VarType::Float32 => get3!(i, vrs, out, buffers, get_float32, set_float32, f32),
         VarType::Boolean => {
-            let mut v = vec![false; out.len()];
-            i.get_boolean(vrs, &mut v)?;
-            for (o, x) in out.iter_mut().zip(&v) {
+            let v = scratch(&mut buffers.bool, out.len());
+            i.get_boolean(vrs, v)?;
+            for (o, x) in out.iter_mut().zip(v.iter()) {
                 *o = f64::from(u8::from(*x));
             }
         }
         // Strings, Binaries and Clocks are never planned (the plan moves numbers and
         // Booleans only).
-        _ => fmi3_integer!(t, get3!(i, vrs, out), return Err(Fmi3Error::Error)),
+        _ => fmi3_integer!(t, get3!(i, vrs, out, buffers), return Err(Fmi3Error::Error)),
     }
     Ok(())
 }
@@ -398,20 +437,31 @@ fn set3(
     t: VarType,
     vrs: &[u32],
     values: &[f64],
+    buffers: &mut Scratch,
 ) -> Result<(), Fmi3Error> {
     match t {
         VarType::Real => {
             i.set_float64(vrs, values)?;
         }
         VarType::Float32 => {
-            let v: Vec<f32> = values.iter().map(|x| *x as f32).collect();
-            i.set_float32(vrs, &v)?;
+            let v = scratch(&mut buffers.f32, values.len());
+            for (o, x) in v.iter_mut().zip(values) {
+                *o = *x as f32;
+            }
+            i.set_float32(vrs, v)?;
         }
         VarType::Boolean => {
-            let v: Vec<bool> = values.iter().map(|x| *x != 0.0).collect();
-            i.set_boolean(vrs, &v)?;
+            let v = scratch(&mut buffers.bool, values.len());
+            for (o, x) in v.iter_mut().zip(values) {
+                *o = *x != 0.0;
+            }
+            i.set_boolean(vrs, v)?;
         }
-        _ => fmi3_integer!(t, set3!(i, vrs, values), return Err(Fmi3Error::Error)),
+        _ => fmi3_integer!(
+            t,
+            set3!(i, vrs, values, buffers),
+            return Err(Fmi3Error::Error)
+        ),
     }
     Ok(())
 }

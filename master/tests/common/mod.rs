@@ -31,6 +31,29 @@ pub fn fmus() -> PathBuf {
     dir
 }
 
+/// The Reference FMUs of FMI `version` (`fmi2`, `fmi3`) in the third-party folder
+/// (`SPURIO_THIRD_PARTY`, or `shared/third-party` next to the repository or its worktree).
+pub fn reference(version: &str, model: &str) -> PathBuf {
+    let repo = master_dir().join("..");
+    let third_party = std::env::var_os("SPURIO_THIRD_PARTY")
+        .map(PathBuf::from)
+        .or_else(|| {
+            [
+                repo.join("../shared/third-party"),
+                repo.join("../../shared/third-party"),
+            ]
+            .into_iter()
+            .find(|p| p.is_dir())
+        })
+        .expect("no third-party folder: see its README");
+    let fmu = third_party
+        .join("reference-fmus")
+        .join(version)
+        .join(format!("{model}.fmu"));
+    assert!(fmu.is_file(), "{} is missing", fmu.display());
+    fmu
+}
+
 /// The packaged GantryCrane.fmu.
 pub fn crane() -> PathBuf {
     fmus().join("GantryCrane.fmu")

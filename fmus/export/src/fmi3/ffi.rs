@@ -4,10 +4,11 @@
 //! its pointers, catches panics (the instance is then `Fatal`), checks the allowed-state mask
 //! of [`super::functions`] before doing anything, and logs every error through the master's
 //! `fmi3LogMessageCallback` (which takes the message as it is: no format string). Value
-//! references are those of [`Layout`]: arrays are expanded to the instance's scalars here,
-//! and `nValues` must equal the number of elements they name.
+//! references are those of the shared [`Layout`](super::arrays::Layout) of the instance's
+//! interface: arrays are expanded to the instance's scalars here, without a buffer, and
+//! `nValues` must equal the number of elements they name.
 
-use super::arrays::{Layout, Target};
+use super::arrays::{Target, TIME};
 use super::description::type_name;
 use super::functions;
 use super::types::*;
@@ -21,6 +22,7 @@ use crate::types::Status;
 use crate::variables::{Value, VariableType};
 use std::ffi::CString;
 use std::os::raw::c_char;
+use std::sync::Arc;
 
 /// Delivers log messages to the master's `fmi3LogMessageCallback`.
 pub struct CallbackSink {
@@ -48,14 +50,13 @@ impl LogSink for CallbackSink {
     }
 }
 
-/// What an `fmi3Instance` points to: the shared slot with the FMI 3.0 variables (arrays)
-/// over the instance's scalars.
-pub type Slot<M> = crate::front::Slot<M, Layout>;
+/// What an `fmi3Instance` points to: the shared slot, marked as FMI 3.0's (the FMI 3.0
+/// variables over the instance's scalars are in its shared interface).
+pub type Slot<M> = crate::front::Slot<M, Fmi3>;
 
 /// Boxes a slot as an `fmi3Instance`.
 pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
-    let layout = Layout::of(&instance.info().variables);
-    Slot::new(instance, layout).into_handle()
+    Slot::new(instance, Fmi3).into_handle()
 }
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
@@ -66,7 +67,7 @@ pub(crate) unsafe fn with_instance<M: FmuModel>(
 ) -> fmi3Status {
     // SAFETY: `c` is NULL or was returned by `instantiate_co_simulation::<M>` (the master's
     // obligation).
-    unsafe { with_slot::<M, Layout>(c, f, body) }
+    unsafe { with_slot::<M, Fmi3>(c, f, body) }
 }
 
 /// `fmi3GetVersion`.
@@ -112,8 +113,8 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     };
     let note = (early_return_allowed != 0)
         .then_some("earlyReturnAllowed noted; the FMU never returns early");
-    let interface = Interface::CoSimulation { refusal, note };
-    unsafe { instantiate("fmi3InstantiateCoSimulation", args, interface, me) }
+    let requested = Requested::CoSimulation { refusal, note };
+    unsafe { instantiate("fmi3InstantiateCoSimulation", args, requested, me) }
 }
 
 /// `fmi3InstantiateModelExchange`: as [`instantiate_co_simulation`], for a model with Model
@@ -127,11 +128,11 @@ pub unsafe fn instantiate_model_exchange<M: FmuModel>(
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
     let f = "fmi3InstantiateModelExchange";
-    unsafe { instantiate(f, args, Interface::ModelExchange, me) }
+    unsafe { instantiate(f, args, Requested::ModelExchange, me) }
 }
 
 /// The interface an `fmi3Instantiate*` function asks for.
-enum Interface {
+enum Requested {
     /// Co-Simulation: why its own arguments are refused, if they are, and what to log when
     /// the instance is created.
     CoSimulation {
@@ -150,14 +151,14 @@ enum Interface {
 unsafe fn instantiate<M: FmuModel>(
     function: &str,
     args: Instantiation,
-    interface: Interface,
+    requested: Requested,
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
     let Instantiation(instance_name, token, resource_path, logging_on, environment, log_message) =
         args;
-    let (refusal, note, model_exchange) = match interface {
-        Interface::CoSimulation { refusal, note } => (refusal, note, false),
-        Interface::ModelExchange => (None, None, true),
+    let (refusal, note, model_exchange) = match requested {
+        Requested::CoSimulation { refusal, note } => (refusal, note, false),
+        Requested::ModelExchange => (None, None, true),
     };
     let result = guarded(|| {
         let sink = || CallbackSink {
@@ -192,10 +193,11 @@ unsafe fn instantiate<M: FmuModel>(
             },
             None => Config::new(),
         };
-        let info = match M::describe(&config) {
-            Ok(info) => info,
+        let interface = match front::interface::<M>(&config) {
+            Ok(interface) => interface,
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
         };
+        let info = &interface.info;
         if given != info.guid {
             let hint = if config.is_empty() {
                 format!(
@@ -220,7 +222,7 @@ unsafe fn instantiate<M: FmuModel>(
         if let Some(note) = note {
             logger.log(Status::Ok, "logEvents", &format!("{function}: {note}"));
         }
-        match Instance::<M>::new(info, logger) {
+        match Instance::<M>::of(Arc::clone(&interface), logger) {
             Ok(instance) => into_instance(match offered.filter(|_| model_exchange) {
                 Some(hooks) => instance.into_model_exchange(hooks),
                 None => instance.with_hooks(me),
@@ -241,16 +243,15 @@ unsafe fn instantiate<M: FmuModel>(
 pub unsafe fn refuse_instantiation<M: FmuModel>(
     function: &str,
     interface: &str,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
+    args: Instantiation,
 ) -> fmi3Instance {
     let _ = guarded(|| {
         let id = M::describe(&Config::new())
             .map(|i| i.model_identifier)
             .unwrap_or_default();
         let sink = CallbackSink {
-            log_message,
-            environment,
+            log_message: args.5,
+            environment: args.4,
         };
         Logger::new("?", Box::new(sink), true)
             .error(&format!("{function}: {id} does not implement {interface}"));
@@ -264,7 +265,7 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
 /// `c` must be NULL or an instance from [`instantiate_co_simulation`] not freed yet.
 pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
     // SAFETY: forwarded from the caller.
-    unsafe { free_slot::<M, Layout>(c) }
+    unsafe { free_slot::<M, Fmi3>(c) }
 }
 
 /// `fmi3SetDebugLogging`.
@@ -376,40 +377,32 @@ pub unsafe fn do_step<M: FmuModel>(
     }
 }
 
-/// An element a value reference of a call names.
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum Element {
-    Time,
-    Scalar(u32),
-}
-
-/// Expands `vrs` into the elements they name (arrays row-major), checking every reference,
-/// its type and that `n_values` is their number.
-pub(crate) fn expand<M: FmuModel>(
+/// Checks the value references of a call: every one known and naming variables of type
+/// `expected`, and `n_values` the number of values they name (arrays row-major); `Err` with
+/// the message. Allocates nothing unless it fails.
+fn check_references<M: FmuModel>(
     slot: &Slot<M>,
     vrs: &[u32],
     expected: VariableType,
     n_values: usize,
-) -> Result<Vec<Element>, String> {
-    let info = slot.instance.info();
-    let mut elements = Vec::with_capacity(n_values);
+) -> Result<(), String> {
+    let interface = slot.instance.interface();
+    let mut count = 0;
     for &vr in vrs {
-        let (name, actual) = match slot.extra.target(vr) {
+        let (name, actual, len) = match interface.layout.target(vr) {
             None => {
                 return Err(format!(
                     "unknown value reference {vr} ({} has value references 0 to {})",
-                    info.model_identifier,
-                    slot.extra.max_value_reference()
+                    interface.info.model_identifier,
+                    interface.layout.max_value_reference()
                 ))
             }
-            Some(Target::Time) => {
-                elements.push(Element::Time);
-                ("time", VariableType::Real)
-            }
-            Some(Target::Variable(v)) => {
-                elements.extend(v.indices().map(|i| Element::Scalar(i as u32)));
-                (v.name.as_str(), info.variables[v.first].variable_type())
-            }
+            Some(Target::Time) => ("time", VariableType::Real, 1),
+            Some(Target::Variable(v)) => (
+                v.name.as_str(),
+                interface.access[v.first].variable_type,
+                v.len(),
+            ),
         };
         if actual != expected {
             return Err(format!(
@@ -418,107 +411,84 @@ pub(crate) fn expand<M: FmuModel>(
                 type_name(expected)
             ));
         }
+        count += len;
     }
-    if elements.len() != n_values {
+    if count != n_values {
         return Err(format!(
-            "nValues = {n_values}, but the {} value references name {} values",
-            vrs.len(),
-            elements.len()
+            "nValues = {n_values}, but the {} value references name {count} values",
+            vrs.len()
         ));
     }
-    Ok(elements)
-}
-
-/// The scalar indices among `elements`.
-fn scalars(elements: &[Element]) -> Vec<u32> {
-    elements
-        .iter()
-        .filter_map(|e| match e {
-            Element::Scalar(i) => Some(*i),
-            Element::Time => None,
-        })
-        .collect()
-}
-
-/// Reads the values `elements` name (after the instance computed what it must).
-fn read_values<M: FmuModel>(
-    slot: &mut Slot<M>,
-    f: &Function,
-    elements: &[Element],
-    expected: VariableType,
-) -> Result<(Vec<Value>, Status), Status> {
-    let indices = scalars(elements);
-    let mut got = Vec::with_capacity(indices.len());
-    let status = slot
-        .instance
-        .get_values(f, &indices, expected, |_, v| got.push(v.clone()));
-    if status > Status::Warning {
-        return Err(status);
-    }
-    let time = slot.instance.time();
-    let mut scalars = got.into_iter();
-    let values: Vec<Value> = elements
-        .iter()
-        .map(|e| match e {
-            Element::Time => Value::Real(time),
-            Element::Scalar(_) => scalars.next().unwrap_or(Value::Real(f64::NAN)),
-        })
-        .collect();
-    for (value, element) in values.iter().zip(elements) {
-        if let (Value::Real(x), Element::Scalar(i)) = (value, element) {
-            if !x.is_finite() {
-                let name = &slot.instance.info().variables[*i as usize].name;
-                return Err(slot.instance.reject(
-                    f,
-                    &format!("variable `{name}` is {x}: a non-finite value is never returned"),
-                ));
-            }
-        }
-    }
-    Ok((values, status))
+    Ok(())
 }
 
 /// The FMI 3.0 types exchanged through `fmi3Get*`/`fmi3Set*` (the shared value kinds of
 /// [`crate::front`]): `fmi3Float64`, `fmi3Int32`, `fmi3Boolean`.
 pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
 
-/// A get call: checks the pointers and the references, reads the values `vr` name (arrays
-/// row-major; `n_values` of them) and hands them to `write` unless the read failed.
+/// A get call on the slot: checks the pointers and the references, lets the instance compute
+/// what it must, then hands the `n_values` values `vr` names (arrays row-major) to `write`:
+/// their positions and values (`time` for value reference 0). No buffer.
 ///
 /// # Safety
 /// FMI pointer contract.
 #[allow(clippy::too_many_arguments)]
-unsafe fn get_call<M: FmuModel>(
-    c: fmi3Instance,
+unsafe fn read<M: FmuModel>(
+    s: &mut Slot<M>,
     f: &Function,
     vr: *const fmi3ValueReference,
     nvr: usize,
     out_is_null: bool,
     n_values: usize,
     expected: VariableType,
-    write: impl FnOnce(&mut Slot<M>, &[Value]),
-) -> fmi3Status {
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(vrs) = slice(vr, nvr) else {
-                return s.instance.reject(f, "valueReferences is NULL");
-            };
-            if n_values > 0 && out_is_null {
-                return s.instance.reject(f, "values is NULL");
-            }
-            let elements = match expand(s, vrs, expected, n_values) {
-                Ok(e) => e,
-                Err(message) => return s.instance.reject(f, &message),
-            };
-            match read_values(s, f, &elements, expected) {
-                Ok((values, status)) => {
-                    write(s, &values);
-                    status
-                }
-                Err(status) => status,
-            }
-        })
+    mut write: impl FnMut(usize, Element<'_>),
+) -> Status {
+    // SAFETY: forwarded from the caller.
+    let Some(vrs) = (unsafe { slice(vr, nvr) }) else {
+        return s.instance.reject(f, "valueReferences is NULL");
+    };
+    if n_values > 0 && out_is_null {
+        return s.instance.reject(f, "values is NULL");
     }
+    if let Err(message) = check_references(s, vrs, expected, n_values) {
+        return s.instance.reject(f, &message);
+    }
+    let status = s.instance.refresh_outputs(f);
+    if status > Status::Warning {
+        return status;
+    }
+    let (interface, values) = (s.instance.interface(), s.instance.values());
+    let (numbers, time) = (values.numbers(), s.instance.time());
+    let texts = expected == VariableType::String;
+    let mut k = 0;
+    for &vr in vrs {
+        match interface.layout.target(vr) {
+            Some(Target::Time) => {
+                write(k, Element::Number(time));
+                k += 1;
+            }
+            Some(Target::Variable(v)) if texts => {
+                for index in v.indices() {
+                    write(k, Element::Text(values.string(index)));
+                    k += 1;
+                }
+            }
+            Some(Target::Variable(v)) => {
+                for &x in numbers.get(v.indices()).unwrap_or_default() {
+                    write(k, Element::Number(x));
+                    k += 1;
+                }
+            }
+            None => {}
+        }
+    }
+    status
+}
+
+/// A value a get call reads: a number ([`crate::Values::numbers`]) or a String's text.
+enum Element<'a> {
+    Number(f64),
+    Text(&'a str),
 }
 
 /// `fmi3GetFloat64`, `fmi3GetInt32`, `fmi3GetBoolean`: the values (arrays row-major) into a C
@@ -533,37 +503,79 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     out: *mut K::C,
     n_values: usize,
 ) -> fmi3Status {
-    let null = out.is_null();
+    let (f, null) = (K::GET, out.is_null());
     unsafe {
-        get_call::<M>(c, K::GET, vr, nvr, null, n_values, K::TYPE, |_, values| {
-            for (i, v) in values.iter().enumerate() {
-                // SAFETY: `out` holds `n_values` elements (FMI contract) and
-                // `values.len() == n_values` (checked by `expand`).
-                *out.add(i) = K::to_c(v);
-            }
+        with_instance::<M>(c, f, |s| {
+            read(s, f, vr, nvr, null, n_values, K::TYPE, |i, value| {
+                if let Element::Number(x) = value {
+                    // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
+                    // (checked by `check_references`).
+                    *out.add(i) = K::to_c(x)
+                }
+            })
         })
     }
 }
 
-/// Checks a set call's references and values, then hands them to the instance.
-fn write_values<M: FmuModel>(
+/// Checks a set call's references, then hands the `(scalar index, value)` pairs they name
+/// (arrays row-major; the `k`-th value is `value_at(k)`) to the instance. No buffer.
+fn write_values<M: FmuModel, T>(
     slot: &mut Slot<M>,
     f: &Function,
     vrs: &[u32],
     expected: VariableType,
-    values: Vec<Value>,
+    n_values: usize,
+    value_at: impl Fn(usize) -> T + Clone,
+    store: impl Store<T>,
 ) -> Status {
-    let elements = match expand(slot, vrs, expected, values.len()) {
-        Ok(e) => e,
-        Err(message) => return slot.instance.reject(f, &message),
-    };
-    if elements.iter().any(|e| matches!(e, Element::Time)) {
+    if let Err(message) = check_references(slot, vrs, expected, n_values) {
+        return slot.instance.reject(f, &message);
+    }
+    if vrs.contains(&TIME) {
         return slot.instance.reject(
             f,
             "variable `time` (value reference 0) is the independent variable: the master sets it through fmi3EnterInitializationMode and fmi3DoStep",
         );
     }
-    slot.instance.set_values(f, &scalars(&elements), values)
+    let interface = Arc::clone(slot.instance.interface());
+    let targets = vrs
+        .iter()
+        .flat_map(|&vr| match interface.layout.target(vr) {
+            Some(Target::Variable(v)) => v.indices(),
+            _ => 0..0,
+        })
+        .enumerate()
+        .map(|(k, index)| (index as u32, value_at(k)));
+    store.store(&mut slot.instance, f, targets)
+}
+
+/// How the values of a set call reach the instance: numbers of one type, or values.
+trait Store<T> {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, T)> + Clone;
+}
+
+/// Numbers of one type ([`Instance::set_numbers`]).
+struct AsNumbers(VariableType);
+impl Store<f64> for AsNumbers {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, f64)> + Clone,
+    {
+        instance.set_numbers(f, self.0, targets)
+    }
+}
+
+/// Values ([`Instance::set_values`]).
+struct AsValues;
+impl Store<Value> for AsValues {
+    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
+    where
+        I: Iterator<Item = (u32, Value)> + Clone,
+    {
+        instance.set_values(f, targets)
+    }
 }
 
 /// `fmi3SetFloat64`, `fmi3SetInt32`, `fmi3SetBoolean`: the values (arrays row-major) from a
@@ -584,8 +596,8 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
-            let values = raw.iter().map(|v| K::from_c(*v)).collect();
-            write_values(s, f, vrs, K::TYPE, values)
+            let number = |k: usize| K::to_number(raw[k]);
+            write_values(s, f, vrs, K::TYPE, n_values, number, AsNumbers(K::TYPE))
         })
     }
 }
@@ -603,19 +615,28 @@ pub unsafe fn get_string<M: FmuModel>(
 ) -> fmi3Status {
     let (f, null) = (&functions::GET_STRING, out.is_null());
     unsafe {
-        get_call::<M>(
-            c,
-            f,
-            vr,
-            nvr,
-            null,
-            n_values,
-            VariableType::String,
-            |s, values| {
+        with_instance::<M>(c, f, |s| {
+            let mut values = Vec::with_capacity(n_values);
+            let status = read(
+                s,
+                f,
+                vr,
+                nvr,
+                null,
+                n_values,
+                VariableType::String,
+                |_, value| {
+                    if let Element::Text(text) = value {
+                        values.push(text.to_string())
+                    }
+                },
+            );
+            if status <= Status::Warning {
                 // SAFETY: `out` holds `n_values` slots, the number of `values`.
-                s.return_strings(values, out)
-            },
-        )
+                s.return_strings(&values, out);
+            }
+            status
+        })
     }
 }
 
@@ -637,14 +658,17 @@ pub unsafe fn set_string<M: FmuModel>(
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
             match front::string_values(s, f, raw) {
-                Ok(texts) => write_values(s, f, vrs, VariableType::String, texts),
+                Ok(texts) => {
+                    let text = |k: usize| texts[k].clone();
+                    write_values(s, f, vrs, VariableType::String, n_values, text, AsValues)
+                }
                 Err(status) => status,
             }
         })
     }
 }
 
-front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Layout, "FMUState");
+front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Fmi3, "FMUState");
 
 /// A function of a capability the FMUs do not have: rejected with `reason`, logged.
 ///

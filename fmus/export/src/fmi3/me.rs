@@ -3,11 +3,12 @@
 //! and adjoint derivatives (which serve Co-Simulation too) with FMI 3.0 value references
 //! (arrays) expanded to the table's scalars.
 
-use super::arrays::Layout;
-use super::ffi::{expand, with_instance, Element, Slot};
+use super::arrays::Target;
+use super::ffi::{with_instance, Slot};
 use super::functions;
 use super::types::*;
 use crate::ffi::slice;
+use crate::front::Fmi3;
 use crate::me::ffi::slice_mut;
 use crate::model::FmuModel;
 use crate::types::Status;
@@ -41,7 +42,7 @@ pub struct EventFlags {
 pub unsafe fn update_discrete_states<M: FmuModel>(c: fmi3Instance, out: EventFlags) -> fmi3Status {
     let f = &functions::UPDATE_DISCRETE_STATES;
     unsafe {
-        crate::me::ffi::update_discrete_states::<M, Layout>(c, f, None, |update| {
+        crate::me::ffi::update_discrete_states::<M, Fmi3>(c, f, None, |update| {
             put(out.need_update, update.discrete_states_need_update.into());
             put(out.terminate, update.terminate_simulation.into());
             put(out.nominals_changed, update.nominals_changed.into());
@@ -71,15 +72,10 @@ pub unsafe fn number_of<M: FmuModel>(c: fmi3Instance, what: Count, n: *mut usize
         Count::ContinuousStates => &functions::GET_NUMBER_OF_CONTINUOUS_STATES,
     };
     unsafe {
-        crate::front::write_out::<M, Layout, usize>(
-            c,
-            f,
-            (n, "the size argument"),
-            |s| match what {
-                Count::EventIndicators => s.instance.event_indicator_count(),
-                Count::ContinuousStates => s.instance.state_count(),
-            },
-        )
+        crate::front::write_out::<M, Fmi3, usize>(c, f, (n, "the size argument"), |s| match what {
+            Count::EventIndicators => s.instance.event_indicator_count(),
+            Count::ContinuousStates => s.instance.state_count(),
+        })
     }
 }
 
@@ -103,24 +99,38 @@ pub struct DerivativeCall {
     pub n_sensitivity: usize,
 }
 
-/// The table indices of the scalars FMI 3.0 value references `vrs` name (`time` refused).
+/// The table indices of the Real scalars FMI 3.0 value references `vrs` name (arrays
+/// row-major); `Err` with the message for `time`, an unknown reference or another type.
 fn scalars_of<M: FmuModel>(s: &Slot<M>, vrs: &[u32]) -> Result<Vec<usize>, String> {
-    let mut n = 0;
+    let interface = s.instance.interface();
+    let mut indices = Vec::new();
     for &vr in vrs {
-        n += match s.extra.target(vr) {
-            Some(super::arrays::Target::Variable(v)) => v.len(),
-            _ => 1,
-        };
-    }
-    expand(s, vrs, VariableType::Real, n)?
-        .into_iter()
-        .map(|e| match e {
-            Element::Scalar(i) => Ok(i as usize),
-            Element::Time => {
-                Err("`time` (value reference 0) is neither a known nor an unknown".to_string())
+        match interface.layout.target(vr) {
+            Some(Target::Variable(v)) => {
+                let first = &interface.info.variables[v.first];
+                if first.variable_type() != VariableType::Real {
+                    return Err(format!(
+                        "variable `{}` (value reference {vr}) is not a Float64",
+                        v.name
+                    ));
+                }
+                indices.extend(v.indices());
             }
-        })
-        .collect()
+            Some(Target::Time) => {
+                return Err(
+                    "`time` (value reference 0) is neither a known nor an unknown".to_string(),
+                )
+            }
+            None => {
+                return Err(format!(
+                    "unknown value reference {vr} ({} has value references 0 to {})",
+                    interface.info.model_identifier,
+                    interface.layout.max_value_reference()
+                ))
+            }
+        }
+    }
+    Ok(indices)
 }
 
 /// `fmi3GetDirectionalDerivative`, `fmi3GetAdjointDerivative`. The adjoint is the transpose:

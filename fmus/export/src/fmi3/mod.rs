@@ -65,7 +65,7 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
-            use $crate::fmi3::arrays::Layout;
+            use $crate::front::Fmi3;
             use $crate::fmi3::ffi;
             use $crate::fmi3::functions;
             use $crate::fmi3::me;
@@ -115,46 +115,19 @@ macro_rules! export_fmi3 {
                     )
                 }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3InstantiateModelExchange(
-                name: fmi3String,
-                token: fmi3String,
-                resources: fmi3String,
-                visible: fmi3Boolean,
-                logging_on: fmi3Boolean,
-                environment: fmi3InstanceEnvironment,
-                log_message: fmi3LogMessageCallback,
-            ) -> fmi3Instance {
-                let _ = visible;
-                let args = ffi::Instantiation(
-                    name, token, resources, logging_on, environment, log_message,
-                );
-                let me = super::spurio_model_exchange();
-                unsafe { ffi::instantiate_model_exchange::<M>(args, me) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
-                name: fmi3String,
-                token: fmi3String,
-                resources: fmi3String,
-                visible: fmi3Boolean,
-                logging_on: fmi3Boolean,
-                environment: fmi3InstanceEnvironment,
-                log_message: fmi3LogMessageCallback,
-                clock_update: fmi3ClockUpdateCallback,
-                lock: fmi3PreemptionCallback,
-                unlock: fmi3PreemptionCallback,
-            ) -> fmi3Instance {
-                let _ = (name, token, resources, visible, logging_on);
-                let _ = (clock_update, lock, unlock);
-                unsafe {
-                    ffi::refuse_instantiation::<M>(
-                        "fmi3InstantiateScheduledExecution",
-                        "Scheduled Execution",
-                        environment,
-                        log_message,
-                    )
-                }
+            $crate::fmi3_instantiation! {
+                fmi3InstantiateModelExchange() => |args| {
+                    ffi::instantiate_model_exchange::<M>(args, super::spurio_model_exchange())
+                };
+                fmi3InstantiateScheduledExecution(
+                    clock_update: fmi3ClockUpdateCallback,
+                    lock: fmi3PreemptionCallback,
+                    unlock: fmi3PreemptionCallback,
+                ) => |args| {
+                    let _ = (clock_update, lock, unlock);
+                    let f = "fmi3InstantiateScheduledExecution";
+                    ffi::refuse_instantiation::<M>(f, "Scheduled Execution", args)
+                };
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3FreeInstance(c: fmi3Instance) {
@@ -335,7 +308,7 @@ macro_rules! fmi3_unsupported {
 #[macro_export]
 macro_rules! export_fmi3_model_exchange {
     () => {
-        $crate::model_exchange_entries!(fmi3Instance, Layout, fmi3Boolean, functions;
+        $crate::model_exchange_entries!(fmi3Instance, Fmi3, fmi3Boolean, functions;
             fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
             fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
             fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
@@ -408,5 +381,34 @@ macro_rules! fmi3_derivative {
             };
             unsafe { me::derivative::<M>(c, call, $kind) }
         }
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], the `fmi3Instantiate*` functions whose arguments start with
+/// the common ones (name, token, resources, visible, loggingOn, environment, logMessage) and
+/// end with `$extra`; `$body` sees the common ones as `$args` (an [`ffi::Instantiation`]).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_instantiation {
+    ($($name:ident($($extra:ident: $type:ty),* $(,)?) => |$args:ident| $body:block;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                name: fmi3String,
+                token: fmi3String,
+                resources: fmi3String,
+                visible: fmi3Boolean,
+                logging_on: fmi3Boolean,
+                environment: fmi3InstanceEnvironment,
+                log_message: fmi3LogMessageCallback,
+                $($extra: $type),*
+            ) -> fmi3Instance {
+                let _ = visible;
+                let $args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                unsafe { $body }
+            }
+        )+
     };
 }

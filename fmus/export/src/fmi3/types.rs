@@ -5,46 +5,27 @@
 //! undefined behaviour. Enumerations are plain integers for the same reason.
 #![allow(non_camel_case_types, non_upper_case_globals)]
 
+use crate::types::{c_enum, c_types};
 use std::os::raw::{c_char, c_int, c_void};
 
-pub type fmi3Instance = *mut c_void;
-pub type fmi3InstanceEnvironment = *mut c_void;
-pub type fmi3FMUState = *mut c_void;
-pub type fmi3ValueReference = u32;
-pub type fmi3Float32 = f32;
-pub type fmi3Float64 = f64;
-pub type fmi3Int8 = i8;
-pub type fmi3UInt8 = u8;
-pub type fmi3Int16 = i16;
-pub type fmi3UInt16 = u16;
-pub type fmi3Int32 = i32;
-pub type fmi3UInt32 = u32;
-pub type fmi3Int64 = i64;
-pub type fmi3UInt64 = u64;
-/// C99 `bool`, as a byte.
-pub type fmi3Boolean = u8;
-pub type fmi3Char = c_char;
-pub type fmi3String = *const fmi3Char;
-pub type fmi3Byte = u8;
-pub type fmi3Binary = *const fmi3Byte;
-/// C99 `bool`, as a byte.
-pub type fmi3Clock = u8;
-
-pub const fmi3True: fmi3Boolean = 1;
-pub const fmi3False: fmi3Boolean = 0;
-
-/// `fmi3Status`.
-pub type fmi3Status = c_int;
-pub const fmi3OK: fmi3Status = 0;
-pub const fmi3Warning: fmi3Status = 1;
-pub const fmi3Discard: fmi3Status = 2;
-pub const fmi3Error: fmi3Status = 3;
-pub const fmi3Fatal: fmi3Status = 4;
-
-/// `fmi3DependencyKind`.
-pub type fmi3DependencyKind = c_int;
-/// `fmi3IntervalQualifier`.
-pub type fmi3IntervalQualifier = c_int;
+c_types! {
+    fmi3Instance = *mut c_void, fmi3InstanceEnvironment = *mut c_void,
+    fmi3FMUState = *mut c_void, fmi3ValueReference = u32,
+    fmi3Float32 = f32, fmi3Float64 = f64, fmi3Int8 = i8, fmi3UInt8 = u8, fmi3Int16 = i16,
+    fmi3UInt16 = u16, fmi3Int32 = i32, fmi3UInt32 = u32, fmi3Int64 = i64, fmi3UInt64 = u64,
+    fmi3Char = c_char, fmi3String = *const fmi3Char, fmi3Byte = u8,
+    fmi3Binary = *const fmi3Byte,
+}
+c_enum! { /** C99 `bool`, as a byte. */ fmi3Boolean: u8 { fmi3True = 1, fmi3False = 0 } }
+c_enum! { /** C99 `bool`, as a byte. */ fmi3Clock: u8 {} }
+c_enum! {
+    /// `fmi3Status`.
+    fmi3Status: c_int {
+        fmi3OK = 0, fmi3Warning = 1, fmi3Discard = 2, fmi3Error = 3, fmi3Fatal = 4,
+    }
+}
+c_enum! { /** `fmi3DependencyKind`. */ fmi3DependencyKind: c_int {} }
+c_enum! { /** `fmi3IntervalQualifier`. */ fmi3IntervalQualifier: c_int {} }
 
 /// `fmi3LogMessageCallback`: not variadic; the message is passed as it is.
 pub type fmi3LogMessageCallback =

@@ -5,7 +5,7 @@
 //! serialize) carry them with everything else.
 
 use crate::instance::{Function, Instance, ModelState};
-use crate::me::Hooks;
+use crate::me::{Hooks, ModelExchangeInfo};
 use crate::model::{EventUpdate, FmuModel};
 use crate::types::Status;
 use crate::variables::{Causality, VariableType};
@@ -43,7 +43,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The number of continuous states (0 for a model without Model Exchange).
     pub fn state_count(&self) -> usize {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or(0, |m| m.states.len())
@@ -51,7 +52,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// The number of event indicators (0 for a model without Model Exchange).
     pub fn event_indicator_count(&self) -> usize {
-        self.info
+        self.interface
+            .info
             .model_exchange
             .as_ref()
             .map_or(0, |m| m.event_indicators.len())
@@ -66,7 +68,7 @@ impl<M: FmuModel> Instance<M> {
                 f,
                 &format!(
                     "{what} = {n}, but {} has {expected}",
-                    self.info.model_identifier
+                    self.interface.info.model_identifier
                 ),
             )
         }
@@ -120,14 +122,14 @@ impl<M: FmuModel> Instance<M> {
         if status != Status::Ok {
             return status;
         }
-        let states = self.states();
+        let states = self.indices(|m| &m.states);
         for (&i, value) in states.iter().zip(x) {
             if !value.is_finite() {
                 return self.reject(
                     f,
                     &format!(
                         "state `{}`: {value} rejected, values must be finite",
-                        self.info.variables[i].name
+                        self.interface.info.variables[i].name
                     ),
                 );
             }
@@ -139,20 +141,14 @@ impl<M: FmuModel> Instance<M> {
         Status::Ok
     }
 
-    /// The indices of the states.
-    fn states(&self) -> Vec<usize> {
-        self.info
+    /// What `pick` takes of the Model Exchange interface (the states', the derivatives' or
+    /// the event indicators' indices); empty for a model without it.
+    fn indices(&self, pick: impl FnOnce(&ModelExchangeInfo) -> &Vec<usize>) -> Vec<usize> {
+        self.interface
+            .info
             .model_exchange
             .as_ref()
-            .map_or_else(Vec::new, |m| m.states.clone())
-    }
-
-    /// The indices of the derivatives, in state order.
-    fn derivatives(&self) -> Vec<usize> {
-        self.info
-            .model_exchange
-            .as_ref()
-            .map_or_else(Vec::new, |m| m.derivatives.clone())
+            .map_or_else(Vec::new, |m| pick(m).clone())
     }
 
     /// Reads the Reals at `indices` into `out` after evaluating (`fmi2GetContinuousStates`,
@@ -177,14 +173,14 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2GetContinuousStates`, `fmi3GetContinuousStates`.
     pub fn get_continuous_states(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let states = self.states();
+        let states = self.indices(|m| &m.states);
         self.read_reals(f, &states, out)
     }
 
     /// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`; a non-finite derivative is
     /// `Error` naming it (the values keep those from before, see [`Instance`]).
     pub fn get_derivatives(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let derivatives = self.derivatives();
+        let derivatives = self.indices(|m| &m.derivatives);
         self.read_reals(f, &derivatives, out)
     }
 
@@ -194,10 +190,11 @@ impl<M: FmuModel> Instance<M> {
             return status;
         }
         let nominals = self
+            .interface
             .info
             .model_exchange
             .as_ref()
-            .map_or_else(Vec::new, |m| m.nominals(&self.info.variables));
+            .map_or_else(Vec::new, |m| m.nominals(&self.interface.info.variables));
         let status = self.check_count(f, "nx", out.len(), nominals.len());
         if status == Status::Ok {
             out.copy_from_slice(&nominals);
@@ -235,11 +232,7 @@ impl<M: FmuModel> Instance<M> {
                 ),
             );
         }
-        let indicators = self
-            .info
-            .model_exchange
-            .as_ref()
-            .map_or_else(Vec::new, |m| m.event_indicators.clone());
+        let indicators = self.indices(|m| &m.event_indicators);
         for (&i, value) in indicators.iter().zip(&z) {
             self.core.values.set_real(i, *value);
         }
@@ -338,13 +331,13 @@ impl<M: FmuModel> Instance<M> {
             .map(|i| (i, true))
             .chain(knowns.iter().map(|i| (i, false)))
         {
-            let Some(v) = self.info.variables.get(i) else {
+            let Some(v) = self.interface.info.variables.get(i) else {
                 return self.reject(
                     f,
                     &format!(
                         "unknown value reference {i} ({} has value references 0 to {})",
-                        self.info.model_identifier,
-                        self.info.variables.len().saturating_sub(1)
+                        self.interface.info.model_identifier,
+                        self.interface.info.variables.len().saturating_sub(1)
                     ),
                 );
             };
@@ -381,7 +374,7 @@ impl<M: FmuModel> Instance<M> {
             return status;
         }
         if let Some((k, value)) = result.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-            let name = &self.info.variables[unknowns[k]].name;
+            let name = &self.interface.info.variables[unknowns[k]].name;
             return self.reject(
                 f,
                 &format!(

@@ -1,0 +1,302 @@
+//! Our FMUs' cost per step through their C ABI: the packaged binary (`build/fmus/<Model>.fmu`)
+//! loaded as any importer loads it, then per step `fmi2SetReal` of every input,
+//! `fmi2DoStep` and the getters of every output — against the arithmetic floor estimated in
+//! issue 17 and its target where it names one. With `--instructions`, callgrind counts the
+//! instructions of a step (two runs of different lengths under valgrind, so loading and
+//! initialisation cancel).
+
+use crate::stats::{interleaved, median};
+use anyhow::{bail, Context, Result};
+use spurio_master::fmu::{Causality, Experiment, FmuFile, Instance, VarType};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// One row of the table: an FMU (its file stem in `build/fmus`), its label and communication
+/// step, what it is measured against (issue 17's floor and targets, where it gives them), and
+/// how its inputs move (sines of `amplitude` around their start values, with a 5 % sprinkling
+/// of outliers for the robust estimators). Floor and target in ns per step, the other target
+/// in instructions per step.
+pub struct Row {
+    pub(crate) fmu: &'static str,
+    pub(crate) label: &'static str,
+    pub(crate) step: f64,
+    pub(crate) floor_ns: Option<f64>,
+    pub(crate) target_ns: Option<f64>,
+    pub(crate) target_instructions: Option<f64>,
+    pub(crate) amplitude: f64,
+    pub(crate) outliers: bool,
+}
+
+impl Row {
+    const fn new(fmu: &'static str, label: &'static str, step: f64) -> Self {
+        Self {
+            fmu,
+            label,
+            step,
+            floor_ns: None,
+            target_ns: None,
+            target_instructions: None,
+            amplitude: 0.1,
+            outliers: false,
+        }
+    }
+
+    /// Issue 17's floor and target per step (ns).
+    const fn against(self, floor_ns: f64, target_ns: f64) -> Self {
+        Self {
+            floor_ns: Some(floor_ns),
+            target_ns: Some(target_ns),
+            ..self
+        }
+    }
+
+    const fn with_outliers(self) -> Self {
+        Self {
+            outliers: true,
+            ..self
+        }
+    }
+}
+
+/// The rows, with their constants. Where they come from (issue 17, measured on an AMD Zen 4,
+/// 2 shared cores):
+/// - DkfRsKfGenerator (n = 8, m = p = 2): ≈ 8.1 kflop per step; 0.2 µs with AVX2+FMA
+///   (0.4 µs with SSE2); target ≤ 1.0 µs and ≤ 20k instructions with every output read.
+/// - LinearSystem n = 2: three Gaussian draws (state noise ×2, measurement noise) ≈ 85 ns;
+///   target ≤ 120 ns.
+/// - AdaptiveStateFeedback, GantryCrane: the issue estimates no floor and names no number
+///   (AdaptiveStateFeedback's Â, B̂ inputs move by 1e-4 around the nominal crane model, so
+///   that its gain is recomputed every step and stays within its bound).
+/// - WindGenerator at 0.1 s: target ≥ 10× faster than the 120–200 µs of then: ≤ 12 µs.
+/// - scalar KalmanFilter / RobustKalmanFilter: ≈ 25 flops ≈ 10 ns; target ≤ 40 ns.
+pub const ROWS: &[Row] = &[
+    Row {
+        target_instructions: Some(20_000.0),
+        ..Row::new("DkfRsKfGenerator", "DkfRsKfGenerator n=8 m=p=2", 0.05)
+            .against(200.0, 1000.0)
+            .with_outliers()
+    },
+    Row::new("LinearSystem", "LinearSystem n=2", 0.1).against(85.0, 120.0),
+    Row {
+        amplitude: 1e-4,
+        ..Row::new("AdaptiveStateFeedback", "AdaptiveStateFeedback", 0.05)
+    },
+    Row {
+        target_ns: Some(12_000.0),
+        ..Row::new("WindGenerator", "WindGenerator h=0.1 s", 0.1)
+    },
+    Row::new("GantryCrane", "GantryCrane h=50 ms", 0.05),
+    Row::new("KalmanFilter", "KalmanFilter n=p=1", 0.001)
+        .against(10.0, 40.0)
+        .with_outliers(),
+    Row::new("RobustKalmanFilter", "RobustKalmanFilter n=p=1", 0.001)
+        .against(10.0, 40.0)
+        .with_outliers(),
+];
+
+/// One initialised instance of a row's FMU and what a step moves.
+pub struct Stepper {
+    instance: Instance,
+    step: f64,
+    amplitude: f64,
+    outliers: bool,
+    /// Value references and start values of the Real inputs.
+    inputs: Vec<u32>,
+    starts: Vec<f64>,
+    values: Vec<f64>,
+    /// The outputs, one getter call per type.
+    outputs: Vec<(VarType, Vec<u32>, Vec<f64>)>,
+    time: f64,
+    k: u64,
+}
+
+impl Stepper {
+    /// Loads `fmu` (its model description's variables), instantiates and initialises it.
+    pub fn new(fmu: &Path, row: &Row) -> Result<Self> {
+        let file = FmuFile::open(fmu).with_context(|| format!("loading {}", fmu.display()))?;
+        let mut inputs = Vec::new();
+        let mut starts = Vec::new();
+        let mut outputs: Vec<(VarType, Vec<u32>, Vec<f64>)> = Vec::new();
+        for v in &file.variables {
+            match v.causality {
+                Causality::Input if v.var_type == VarType::Real => {
+                    inputs.push(v.value_reference);
+                    starts.push(v.start.unwrap_or(0.0));
+                }
+                Causality::Output if v.var_type.is_numeric() => {
+                    match outputs.iter_mut().find(|(t, _, _)| *t == v.var_type) {
+                        Some((_, vrs, out)) => {
+                            vrs.push(v.value_reference);
+                            out.push(0.0);
+                        }
+                        None => outputs.push((v.var_type, vec![v.value_reference], vec![0.0])),
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut instance = file.instantiate("bench", false)?;
+        let experiment = Experiment {
+            tolerance: None,
+            start: 0.0,
+            stop: None,
+        };
+        let init = |i: &mut Instance| {
+            i.setup_experiment(experiment)?;
+            i.enter_initialization_mode(experiment)?;
+            i.exit_initialization_mode()
+        };
+        init(&mut instance)
+            .map_err(|e| anyhow::anyhow!("initialising {}: {}", fmu.display(), e.0))?;
+        Ok(Self {
+            instance,
+            step: row.step,
+            amplitude: row.amplitude,
+            outliers: row.outliers,
+            values: starts.clone(),
+            inputs,
+            starts,
+            outputs,
+            time: 0.0,
+            k: 0,
+        })
+    }
+
+    /// The number of values read per step.
+    pub fn outputs_read(&self) -> usize {
+        self.outputs.iter().map(|(_, vrs, _)| vrs.len()).sum()
+    }
+
+    /// One step: every input set (its start value plus a sine of the row's amplitude, with an outlier on 5 %
+    /// of the samples for the robust estimators), `fmi2DoStep`, every output read.
+    pub fn step(&mut self) -> Result<()> {
+        let k = self.k;
+        for (i, (v, start)) in self.values.iter_mut().zip(&self.starts).enumerate() {
+            let phase = k as f64 * 0.05 * (i + 1) as f64;
+            let outlier = self.outliers && (k * 7 + i as u64).is_multiple_of(20);
+            *v = start + self.amplitude * phase.sin() + if outlier { 3.0 } else { 0.0 };
+        }
+        let failed = |call: &str, e: String| anyhow::anyhow!("{call} at t = {}: {e}", self.time);
+        if !self.inputs.is_empty() {
+            self.instance
+                .set(VarType::Real, &self.inputs, &self.values)
+                .map_err(|e| failed("fmi2SetReal", e.0))?;
+        }
+        if let Err(e) = self.instance.do_step(self.time, self.step) {
+            bail!(failed("fmi2DoStep", format!("{e:?}")));
+        }
+        for (t, vrs, out) in &mut self.outputs {
+            self.instance
+                .get(*t, vrs, out)
+                .map_err(|e| anyhow::anyhow!("fmi2Get* at t = {}: {}", self.time, e.0))?;
+        }
+        std::hint::black_box(&self.outputs);
+        self.time += self.step;
+        self.k += 1;
+        Ok(())
+    }
+
+    /// Nanoseconds per step over `steps` steps.
+    pub fn time_steps(&mut self, steps: u64) -> Result<f64> {
+        let start = Instant::now();
+        for _ in 0..steps {
+            self.step()?;
+        }
+        Ok(start.elapsed().as_nanos() as f64 / steps as f64)
+    }
+}
+
+/// A row's median over the interleaved rounds.
+pub struct Measured {
+    pub ns: f64,
+    pub outputs_read: usize,
+}
+
+/// Measures every row: `rounds` rounds, each a batch of about `batch_ms` per row, in turn.
+pub fn measure(fmus: &Path, rounds: usize, batch_ms: f64) -> Result<Vec<Measured>> {
+    struct Subject {
+        stepper: Stepper,
+        per_batch: u64,
+    }
+    let mut subjects = Vec::new();
+    for row in ROWS {
+        let mut stepper =
+            Stepper::new(&fmu_path(fmus, row.fmu)?, row).with_context(|| row.label)?;
+        // Warm-up, and the batch length that takes about `batch_ms`.
+        stepper.time_steps(20)?;
+        let estimate = stepper.time_steps(20)?;
+        let per_batch = ((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000);
+        subjects.push(Subject { stepper, per_batch });
+    }
+    let samples = interleaved(rounds, &mut subjects, |s| s.stepper.time_steps(s.per_batch))?;
+    Ok(subjects
+        .iter()
+        .zip(samples)
+        .map(|(s, samples)| Measured {
+            ns: median(&samples),
+            outputs_read: s.stepper.outputs_read(),
+        })
+        .collect())
+}
+
+/// `build/fmus/<stem>.fmu`, which must exist.
+pub fn fmu_path(fmus: &Path, stem: &str) -> Result<PathBuf> {
+    let path = fmus.join(format!("{stem}.fmu"));
+    if !path.is_file() {
+        bail!(
+            "{} is missing: run scripts/build-fmus --host-only",
+            path.display()
+        );
+    }
+    Ok(path)
+}
+
+/// `spurio-bench --count <row> --steps N`: loads and steps the row's FMU `steps` times
+/// (what callgrind counts).
+pub fn count_run(fmus: &Path, fmu: &str, steps: u64) -> Result<()> {
+    let row = ROWS
+        .iter()
+        .find(|r| r.fmu == fmu)
+        .with_context(|| format!("no row for {fmu}"))?;
+    let mut stepper = Stepper::new(&fmu_path(fmus, row.fmu)?, row)?;
+    for _ in 0..steps {
+        stepper.step()?;
+    }
+    Ok(())
+}
+
+/// Instructions per step of `fmu` under callgrind: two runs of `short` and `long` steps,
+/// the difference divided by the difference of the step counts.
+pub fn instructions(fmus: &Path, fmu: &str, short: u64, long: u64) -> Result<f64> {
+    let dir = tempfile::tempdir()?;
+    let me = std::env::current_exe()?;
+    let total = |steps: u64| -> Result<f64> {
+        let out = dir.path().join(format!("callgrind.{steps}"));
+        let run = Command::new("valgrind")
+            .arg("--tool=callgrind")
+            .arg(format!("--callgrind-out-file={}", out.display()))
+            .arg(&me)
+            .args(["--fmus".as_ref(), fmus.as_os_str()])
+            .args(["--count", fmu, "--steps", &steps.to_string()])
+            .output()
+            .context("running valgrind (scripts/setup installs it)")?;
+        if !run.status.success() {
+            bail!(
+                "callgrind on {fmu} failed: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+        }
+        let text = std::fs::read_to_string(&out)?;
+        text.lines()
+            .find_map(|l| {
+                l.strip_prefix("summary:")
+                    .or_else(|| l.strip_prefix("totals:"))
+            })
+            .and_then(|n| n.split_whitespace().next()?.parse::<f64>().ok())
+            .with_context(|| format!("no instruction total in {}", out.display()))
+    };
+    let a = total(short)?;
+    let b = total(long)?;
+    Ok((b - a) / (long - short) as f64)
+}

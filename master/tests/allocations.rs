@@ -1,0 +1,105 @@
+//! The stepping loop allocates nothing: a run of twice as many steps makes exactly as many
+//! heap allocations (instantiation, initialisation and the run's set-up only), for FMI 2.0
+//! and FMI 3.0 instances moving every numeric type through connections (Real/Float64,
+//! Float32, the integer types, Boolean), with recording off and with a CSV written every
+//! step. The Reference FMUs are C: their own memory is not counted, only the master's (and
+//! rust-fmi's).
+
+mod common;
+
+use common::{instance_tables, reference};
+use spurio_master::engine::{RunOptions, Simulation};
+use spurio_master::record::{CsvWriter, NoRecording, Observer};
+use spurio_master::system::{System, SystemDescription};
+use std::alloc::{GlobalAlloc, Layout, System as Heap};
+use std::cell::Cell;
+use std::path::Path;
+
+/// Counts the allocations of the current thread (other tests' threads are not counted).
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count() {
+    // `try_with`: a thread being torn down has no counter left, and is not the one measured.
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { Heap.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { Heap.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        unsafe { Heap.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { Heap.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+/// Two Feedthrough instances of FMI `version`, every numeric output of the first driving
+/// the same input of the second, to `stop_time` in steps of 0.01.
+fn feedthrough_pair(version: &str, types: &[&str], stop_time: f64) -> System {
+    let fmu = reference(version, "Feedthrough");
+    let connections: Vec<String> = types
+        .iter()
+        .map(|t| format!("\"a.{t}_output -> b.{t}_input\""))
+        .collect();
+    let text = format!(
+        "stop_time = {stop_time:?}\nstep_size = 0.01\nconnections = [{}]\n{}",
+        connections.join(", "),
+        instance_tables(&[("a", &fmu, ""), ("b", &fmu, "")])
+    );
+    let description: SystemDescription = toml::from_str(&text).unwrap();
+    System::resolve(&description, Path::new(".")).unwrap()
+}
+
+/// Allocations made by one run of `system` (set-up included), recording as `csv` says.
+fn run_allocations(system: &System, csv: bool) -> u64 {
+    let mut sim = Simulation::new(system).unwrap();
+    let mut none = NoRecording;
+    let mut file = CsvWriter::new(std::io::sink());
+    let observer: &mut dyn Observer = if csv { &mut file } else { &mut none };
+    let before = allocations();
+    sim.run(observer, &RunOptions::default()).unwrap();
+    allocations() - before
+}
+
+#[test]
+fn a_step_allocates_nothing() {
+    let fmi2: Vec<&str> = "Float64_continuous Float64_discrete Int32 Boolean"
+        .split_whitespace()
+        .collect();
+    // Every numeric type of FMI 3.0 (Enumerations are not connected).
+    let fmi3: Vec<&str> =
+        "Float64_continuous Float32_continuous Int8 UInt8 Int16 UInt16 Int32 UInt32 Int64 UInt64 Boolean"
+            .split_whitespace()
+            .collect();
+    for (version, types) in [("fmi2", &fmi2[..]), ("fmi3", &fmi3[..])] {
+        for csv in [false, true] {
+            let short = run_allocations(&feedthrough_pair(version, types, 1.0), csv);
+            let long = run_allocations(&feedthrough_pair(version, types, 3.0), csv);
+            assert_eq!(
+                long,
+                short,
+                "{version}, csv = {csv}: 200 more steps made {} more allocations",
+                long as i64 - short as i64
+            );
+        }
+    }
+}
