@@ -72,7 +72,8 @@ impl fmt::Display for StepError {
 
 impl std::error::Error for StepError {}
 
-/// Error tolerances: relative `rtol` and absolute per state `atol`.
+/// Error tolerances: relative `rtol` and absolute per state `atol`. An infinite absolute
+/// tolerance leaves that state out of the error norm (a state nothing depends on).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tolerance<const N: usize> {
     /// Relative tolerance.
@@ -266,13 +267,14 @@ pub fn integrate<const N: usize>(
         let j = jacobian(&state);
         let (next, error) = rosenbrock_step(method, &mut f, &j, &state, h_try)
             .ok_or(StepError::Singular { at: done })?;
-        let mut sum = 0.0;
+        let (mut sum, mut controlled) = (0.0, 0);
         for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
             let scale =
                 tolerance.absolute[i] + tolerance.relative * state[i].abs().max(next[i].abs());
             sum += (error[i] / scale).powi(2);
+            controlled += 1;
         }
-        let norm = (sum / N as f64).sqrt();
+        let norm = (sum / controlled.max(1) as f64).sqrt();
         if !norm.is_finite() || next.iter().any(|v| !v.is_finite()) {
             // A step so long that the stages overflowed: shrink hard and retry.
             if h_try < MIN_STEP_FRACTION * length * 10.0 {

@@ -97,8 +97,8 @@
 //!   [`WindGenerator::DEFAULT_RELATIVE_TOLERANCE`] = 10⁻⁷). Stability no longer bounds the
 //!   step; the accuracy of the slower modes does. Over a start-up from rest with reference
 //!   steps (test `adaptive_integrator_meets_the_accuracy_against_a_tight_reference`), speed
-//!   and voltage stay within 1.5·10⁻⁷ (relative to 1800 rpm, 240 V) of RK4 on a 2·10⁻⁵ s grid,
-//!   in 1 559 steps for 10 s where RK4 at 10⁻⁴ s takes 100 000.
+//!   and voltage stay within 1.4·10⁻⁷ (relative to 1800 rpm, 240 V) of RK4 on a 2·10⁻⁵ s grid,
+//!   in 1 599 steps for 10 s where RK4 at 10⁻⁴ s takes 100 000.
 //! - [`WindGenerator::advance`]: classical RK4 on fixed substeps. RK4 is stable for substeps
 //!   below ≈ 2 ms; [`WindGenerator::RECOMMENDED_MAX_SUBSTEP`] = 10⁻⁴ s keeps the outputs
 //!   within 10⁻⁶ relative of a twice finer grid (unit test; 1.9·10⁻¹¹ from the reference
