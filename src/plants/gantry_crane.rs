@@ -30,7 +30,7 @@
 //! Jacobian of the right-hand side for implicit solvers.
 
 use crate::ode;
-use crate::{require_non_negative, require_positive, ParameterError};
+use crate::ParameterError;
 use nalgebra::{Matrix4, SVector, Vector4};
 
 /// State `[x, θ, ẋ, θ̇]` in m, rad, m/s, rad/s.
@@ -98,16 +98,18 @@ impl Default for GantryCraneParameters {
 impl GantryCraneParameters {
     /// Checks every parameter, naming the first one that is not physical.
     pub fn validate(&self) -> Result<(), ParameterError> {
-        require_positive("M", self.cart_mass)?;
-        require_positive("m", self.load_mass)?;
-        require_positive("l", self.rod_length)?;
-        require_non_negative("J", self.inertia)?;
-        require_non_negative("f_c", self.cart_friction)?;
-        require_non_negative("f_p", self.pivot_friction)?;
-        require_positive("g", self.gravity)?;
-        require_positive("U_max", self.max_force)?;
-        require_positive("x_limit", self.rail_limit)?;
-        Ok(())
+        use crate::Requirement::{NonNegative, Positive};
+        crate::check_all(&[
+            ("M", self.cart_mass, Positive),
+            ("m", self.load_mass, Positive),
+            ("l", self.rod_length, Positive),
+            ("J", self.inertia, NonNegative),
+            ("f_c", self.cart_friction, NonNegative),
+            ("f_p", self.pivot_friction, NonNegative),
+            ("g", self.gravity, Positive),
+            ("U_max", self.max_force, Positive),
+            ("x_limit", self.rail_limit, Positive),
+        ])
     }
 
     /// The force actually applied for a requested force `u`: `u` clipped to ±`U_max`.
