@@ -196,3 +196,24 @@ def assert_ends_as_fmpy(model, run, rows, expected, stop, stair_reason: str):
 @pytest.fixture
 def workdir(tmp_path):
     return tmp_path
+
+
+def oms_system(spec: dict, cwd) -> subprocess.CompletedProcess:
+    """Runs the system `spec` in OMSimulator through its C API, in a process of its own: see
+    oms_system.py for the fields (instances, connections, the Model Exchange instance and its
+    solver, result file, SSP export)."""
+    import json
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(require(OMS_PYTHONPATH, "OMSimulator's Python API")))
+    script = pathlib.Path(__file__).with_name("oms_system.py")
+    result = subprocess.run(
+        [sys.executable, str(script), json.dumps(spec)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+        env=env,
+    )
+    assert result.returncode == 0, f"OMSimulator Python API failed:\n{result.stdout}{result.stderr}"
+    return result
