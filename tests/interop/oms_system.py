@@ -12,10 +12,13 @@ state in its shared library). One argument, a JSON object:
   as an SSP file (`oms_export`) before it runs.
 
 The root is a weakly coupled (co-simulation) system with the fixed step `step`. The ME
-instance's connections go through connectors of the `ode` system (`ode.crane_x`), not straight
-to `ode.crane.x`: a connection from the root to an element inside `ode` runs, but OMSimulator
-exports it with a connector that no element of the root has (and reports
-`[getBusConnector] "crane.x" is not a valid ident` while exporting).
+instance's connections go through connectors of the `ode` system (`ode.crane_x`), unless
+`ports` is false: a connection from the root straight to `ode.crane.x` runs, but OMSimulator
+exports it with a connector that no element of the root has (it reports
+`[getBusConnector] "crane.x" is not a valid ident` while exporting and again while running the
+SSP file). Through the connectors, OMSimulator (2.1) does not pass the ME instance's initial
+outputs on during initialization: the CS FMUs' values at t = 0 see 0 there (from the first
+step on they see the plant's values); straight connections pass them.
 """
 
 import json
@@ -53,7 +56,7 @@ def main(spec):
 
     def end(reference, causality):
         name, variable = reference.split(".", 1)
-        if not where[name].startswith("model.root.ode."):
+        if not spec.get("ports", True) or not where[name].startswith("model.root.ode."):
             return f"{where[name]}.{variable}"
         port = f"model.root.ode.{name}_" + "".join(
             "_" if c in "[," else c for c in variable if c != "]"

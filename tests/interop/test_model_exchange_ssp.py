@@ -25,7 +25,17 @@
 import numpy as np
 import pytest
 
-from conftest import by_time, column, oms_python, our_fmu, read_csv, spurio
+from conftest import (
+    OMS_RTOL,
+    REPO,
+    by_time,
+    column,
+    oms_system,
+    omsimulator,
+    our_fmu,
+    read_csv,
+    spurio,
+)
 
 STEP = 0.0078125  # 2^-7: 256 steps to t = 2, exact in binary
 STOP = 2.0
@@ -37,58 +47,37 @@ STOP = 2.0
 H_MAX = 1e-4
 SOLVERS = 1e-6
 
-# OMSimulator's C API through its Python module: a weakly coupled (co-simulation) root system
-# with the Sensor2 FMU and, for Model Exchange, a strongly coupled system of its own holding the
-# crane with CVode. (Its SSP Python API cannot place one Model Exchange FMU beside Co-Simulation
-# ones: with one solver unit it makes the root system strongly coupled, where Sensor2, a
-# Co-Simulation FMU, is refused.)
-OMS_RUN = """
-import tempfile
-from OMSimulator import Capi
-
-def ok(status, what):
-    assert status.value == 0, f"{{what}}: {{status}}"
-
-ok(Capi.setCommandLineOption("--suppressPath=true"), "options")
-ok(Capi.setTempDirectory(tempfile.mkdtemp()), "temp")
-ok(Capi.newModel("model"), "newModel")
-ok(Capi.addSystem("model.root", 1), "root (wc)")
-crane = "model.root.crane"
-if {model_exchange!r}:
-    ok(Capi.addSystem("model.root.ode", 2), "ode (sc)")
-    ok(Capi.setSolver("model.root.ode", 3), "cvode")
-    ok(Capi.setTolerance("model.root.ode", 1e-8), "tolerance")
-    ok(Capi.setVariableStepSize("model.root.ode", 1e-6, 1e-12, {h_max!r}), "step sizes")
-    crane = "model.root.ode.crane"
-ok(Capi.addSubModel(crane, {crane_fmu!r}), "crane")
-ok(Capi.addSubModel("model.root.sensor", {sensor_fmu!r}), "sensor")
-ok(Capi.addConnection(crane + ".x", "model.root.sensor.u[1]"), "x")
-ok(Capi.addConnection(crane + ".theta", "model.root.sensor.u[2]"), "theta")
-ok(Capi.setFixedStepSize("model.root", {step!r}), "step")
-ok(Capi.setResultFile("model", {out!r}), "result file")
-ok(Capi.setStopTime("model", {stop!r}), "stop time")
-ok(Capi.instantiate("model"), "instantiate")
-ok(Capi.setReal(crane + ".U", 0.5), "U")
-ok(Capi.setReal(crane + ".theta0", 0.05), "theta0")
-ok(Capi.initialize("model"), "initialize")
-ok(Capi.simulate("model"), "simulate")
-ok(Capi.terminate("model"), "terminate")
-ok(Capi.delete("model"), "delete")
-"""
+# OMSimulator's C API through its Python module (oms_system.py): a weakly coupled
+# (co-simulation) root system with the CS FMUs and, for Model Exchange, a strongly coupled
+# system of its own holding the plant with CVode. (Its SSP Python API cannot place one Model
+# Exchange FMU beside Co-Simulation ones: with one solver unit it makes the root system
+# strongly coupled, where Sensor2, a Co-Simulation FMU, is refused.)
 
 NAMES = ["crane.x", "crane.theta", "sensor.y[1]", "sensor.y[2]"]
 
 
 def omsimulator_run(workdir, model_exchange):
     out = "oms_me.csv" if model_exchange else "oms_cs.csv"
-    result = oms_python(
-        OMS_RUN.format(
-            model_exchange=model_exchange, crane_fmu=str(our_fmu("GantryCrane")),
-            sensor_fmu=str(our_fmu("Sensor2")), step=STEP, stop=STOP, out=out, h_max=H_MAX,
-        ),
-        cwd=workdir,
-    )
-    return result, by_time(*read_csv(workdir / out), keep="last")
+    spec = {
+        "instances": [
+            {
+                "name": "crane",
+                "fmu": str(our_fmu("GantryCrane")),
+                "parameters": {"U": ["Real", 0.5], "theta0": ["Real", 0.05]},
+            },
+            {"name": "sensor", "fmu": str(our_fmu("Sensor2")), "parameters": {}},
+        ],
+        "connections": [["crane.x", "sensor.u[1]"], ["crane.theta", "sensor.u[2]"]],
+        "model_exchange": "crane" if model_exchange else None,
+        "rtol": 1e-8,
+        "h_max": H_MAX,
+        "step": STEP,
+        "stop": STOP,
+        "out": out,
+        # straight connections into the CVode system: the initial outputs reach the sensor
+        "ports": False,
+    }
+    return oms_system(spec, cwd=workdir), by_time(*read_csv(workdir / out), keep="last")
 
 
 def oms_column(names, rows, name):
@@ -166,7 +155,6 @@ H_COARSE = 1e-3
 # proportion to h_max, 10x per decade for a smooth estimator. Required: at least 5x per decade
 # of h_max, for every estimate whose difference is above OMSimulator's printed precision.
 CONVERGENCE_PER_DECADE = 5.0
-RTOL = 1e-8
 
 
 def experiment_spec(toml, plant, stop, model_exchange, h_max, out, ssp=None, overrides=None):
@@ -189,7 +177,7 @@ def experiment_spec(toml, plant, stop, model_exchange, h_max, out, ssp=None, ove
         "instances": instances,
         "connections": [[s.strip() for s in c.split("->")] for c in data["connections"]],
         "model_exchange": plant if model_exchange else None,
-        "rtol": RTOL,
+        "rtol": 1e-8,
         "h_max": h_max,
         "step": data["step_size"],
         "stop": stop,
@@ -202,8 +190,6 @@ def experiment_spec(toml, plant, stop, model_exchange, h_max, out, ssp=None, ove
 def test_a_model_exchange_plant_beside_our_estimators_gives_the_co_simulation_estimates(
     experiment, workdir
 ):
-    from conftest import OMS_RTOL, REPO, oms_system, omsimulator
-
     toml, plant, stop, h_fine, estimates, overrides = EXPERIMENTS[experiment]
     toml = REPO / "examples" / toml
     runs = {}
