@@ -199,21 +199,12 @@ def workdir(tmp_path):
 
 
 def oms_system(spec: dict, cwd) -> subprocess.CompletedProcess:
-    """Runs the system `spec` in OMSimulator through its C API, in a process of its own: see
-    oms_system.py for the fields (instances, connections, the Model Exchange instance and its
-    solver, result file, SSP export)."""
+    """Runs the system `spec` in OMSimulator through its C API (oms_system.py: see there for
+    the fields), in a process of its own as `oms_python` does."""
     import json
-    import sys
 
-    env = dict(os.environ, PYTHONPATH=str(require(OMS_PYTHONPATH, "OMSimulator's Python API")))
-    script = pathlib.Path(__file__).with_name("oms_system.py")
-    result = subprocess.run(
-        [sys.executable, str(script), json.dumps(spec)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=cwd,
-        env=env,
+    return oms_python(
+        f"import json, sys\nsys.path.insert(0, {str(pathlib.Path(__file__).parent)!r})\n"
+        f"import oms_system\noms_system.main(json.loads({json.dumps(spec)!r}))\n",
+        cwd,
     )
-    assert result.returncode == 0, f"OMSimulator Python API failed:\n{result.stdout}{result.stderr}"
-    return result

@@ -1,6 +1,7 @@
-"""Builds and runs a co-simulation system in OMSimulator through its C API (run by the tests
-with OMSimulator's Python module on the path, in a process of its own: the API keeps global
-state in its shared library). One argument, a JSON object:
+"""Builds and runs a co-simulation system in OMSimulator through its C API: `main(spec)`, run by
+conftest's `oms_system` with OMSimulator's Python module on the path, in a process of its own
+(the API keeps global state in its shared library), or from the command line with the spec as
+its one argument (JSON). The spec:
 
 - `instances`: [{"name", "fmu", "parameters": {variable: [kind, value]}}], kind one of Real,
   Integer, Boolean (the variable's type in the FMU's model description);
