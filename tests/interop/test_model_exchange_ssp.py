@@ -153,8 +153,12 @@ H_COARSE = 1e-3
 # The difference to the all-CS run is the solver's (OMSimulator reads the ME plant where
 # CVode's last step ended, up to h_max past the communication point, see above): it shrinks in
 # proportion to h_max, 10x per decade for a smooth estimator. Required: at least 5x per decade
-# of h_max, for every estimate whose difference is above OMSimulator's printed precision.
+# of h_max, for every estimate whose difference is above OMSimulator's printed precision; and
+# at the fine step, agreement to 1 % of how far each signal moved in the run (measured: 0.34 %
+# at worst, the crane's least-moving parameter estimate A_hat[2,2]; 0.07 % for the op-amp's and
+# 0.04 % for the generator's; first-order ratios per decade of 6.1, 9.7 and 7.1 at worst).
 CONVERGENCE_PER_DECADE = 5.0
+FINE_OF_RANGE = 0.01
 
 
 def experiment_spec(toml, plant, stop, model_exchange, h_max, out, ssp=None, overrides=None):
@@ -218,7 +222,7 @@ def test_a_model_exchange_plant_beside_our_estimators_gives_the_co_simulation_es
         fine = np.max(np.abs(oms_column(*runs["fine"], name) - cs))
         floor = 4 * OMS_RTOL * np.max(np.abs(cs)) + 1e-300
         decades = np.log10(H_COARSE / h_fine)
-        figures[name] = (float(coarse), float(fine))
+        figures[name] = (float(coarse), float(fine), float(fine / np.ptp(cs)))
         # the estimate moved, and CVode's run differs from the plant's own integrator
         assert np.ptp(cs) > 0, name
         if name in fed:
@@ -226,7 +230,8 @@ def test_a_model_exchange_plant_beside_our_estimators_gives_the_co_simulation_es
         assert fine <= max(coarse / CONVERGENCE_PER_DECADE**decades, floor), (
             f"{name}: {coarse:.3g} at h_max {H_COARSE:g}, {fine:.3g} at {h_fine:g}"
         )
-    print(f"{experiment}: max |ME - CS| at h_max {H_COARSE:g}, {h_fine:g}:", figures)
+        assert fine <= FINE_OF_RANGE * np.ptp(cs), f"{name}: {fine:.3g} of {np.ptp(cs):.3g}"
+    print(f"{experiment}: max |ME - CS| at h_max {H_COARSE:g}, {h_fine:g}, of range:", figures)
 
     # The same model as an SSP file (oms_export: the ME plant in its CVode system, the
     # fixed-step master annotation on the root) run by OMSimulator's command line: the
