@@ -196,3 +196,15 @@ def crane_linear_model(M, m, l, J, f_c, f_p, g):
 @pytest.fixture
 def crane_fmu():
     return fmu_path("GantryCrane")
+
+
+def me_scenarios_of(test_file):
+    """The `me_scenarios.py` next to `test_file` (a plant's Model Exchange scenarios), loaded
+    under a name of its own, since every plant folder has one."""
+    import importlib.util
+
+    path = pathlib.Path(test_file).with_name("me_scenarios.py")
+    spec = importlib.util.spec_from_file_location(f"me_scenarios_{path.parent.name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -104,3 +104,27 @@ pub fn require_finite(parameter: &str, value: f64) -> Result<f64, ParameterError
         ))
     }
 }
+
+/// What one parameter of a [`check_all`] table must be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Requirement {
+    /// Finite and strictly positive ([`require_positive`]).
+    Positive,
+    /// Finite and not negative ([`require_non_negative`]).
+    NonNegative,
+    /// Finite ([`require_finite`]).
+    Finite,
+}
+
+/// Checks a table of `(name, value, requirement)` rows in order, naming the first parameter
+/// that fails its requirement (the validate functions of the plants).
+pub fn check_all(rows: &[(&str, f64, Requirement)]) -> Result<(), ParameterError> {
+    for &(name, value, requirement) in rows {
+        match requirement {
+            Requirement::Positive => require_positive(name, value)?,
+            Requirement::NonNegative => require_non_negative(name, value)?,
+            Requirement::Finite => require_finite(name, value)?,
+        };
+    }
+    Ok(())
+}

@@ -19,6 +19,8 @@
 //! step with [`check_substeps`] first and refuses it when it would need more (a huge step, a
 //! tiny `h_max`); [`integrate`] itself never loops longer, whatever its arguments.
 
+pub mod rosenbrock;
+
 use crate::ParameterError;
 use nalgebra::SVector;
 
@@ -99,6 +101,149 @@ pub fn integrate<const N: usize>(
     state
 }
 
+/// Dormand–Prince 5(4) tableau: nodes `c`, stage weights `a` (row `i` for stage `i + 1`),
+/// the fifth-order weights (the last row of `a`, first same as last) and the error weights
+/// `e = b₅ − b₄`.
+const DP_C: [f64; 6] = [1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0];
+const DP_A: [[f64; 6]; 6] = [
+    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
+    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
+    [
+        19372.0 / 6561.0,
+        -25360.0 / 2187.0,
+        64448.0 / 6561.0,
+        -212.0 / 729.0,
+        0.0,
+        0.0,
+    ],
+    [
+        9017.0 / 3168.0,
+        -355.0 / 33.0,
+        46732.0 / 5247.0,
+        49.0 / 176.0,
+        -5103.0 / 18656.0,
+        0.0,
+    ],
+    [
+        35.0 / 384.0,
+        0.0,
+        500.0 / 1113.0,
+        125.0 / 192.0,
+        -2187.0 / 6784.0,
+        11.0 / 84.0,
+    ],
+];
+const DP_E: [f64; 7] = [
+    71.0 / 57600.0,
+    0.0,
+    -71.0 / 16695.0,
+    71.0 / 1920.0,
+    -17253.0 / 339200.0,
+    22.0 / 525.0,
+    -1.0 / 40.0,
+];
+
+/// The error control of [`integrate_adaptive`]: its tolerance and the step to try next.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepControl {
+    /// Mixed absolute/relative error tolerance per step.
+    pub tolerance: f64,
+    /// The step to try first (carried from call to call; ≤ 0 or not finite: the whole span).
+    pub next_step: f64,
+}
+
+/// Integrates `ẋ = f(t, x)` from `x` over the span `(t, h)`, `[t, t + h]`, with the
+/// Dormand–Prince 5(4) pair and error
+/// control: a step is accepted when every component's error estimate is at most
+/// `tolerance · (1 + max(|xᵢ|, |xᵢ⁺|))` (mixed absolute/relative), and the next step is
+/// `0.9 · err^(−1/5)` times the last (between 0.2× and 5×). `control.next_step` is the step
+/// to try first and receives the one to try next. The last step is cut to end exactly at
+/// `t + h`.
+///
+/// `after_step` runs after every accepted step and may modify the state (a hard constraint such
+/// as a rail end stop). At most [`MAX_SUBSTEPS`] steps, accepted or rejected, are tried: more
+/// (a tolerance too tight for the problem, a step shrinking below round-off) is an error naming
+/// `tolerance`, and nothing is returned.
+pub fn integrate_adaptive<const N: usize>(
+    mut f: impl FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
+    mut after_step: impl FnMut(f64, &mut SVector<f64, N>),
+    control: &mut StepControl,
+    (t, h): (f64, f64),
+    x: &SVector<f64, N>,
+) -> Result<SVector<f64, N>, ParameterError> {
+    let tolerance = control.tolerance;
+    let end = t + h;
+    let mut time = t;
+    let mut state = *x;
+    let mut step = if control.next_step.is_finite() && control.next_step > 0.0 {
+        control.next_step.min(h)
+    } else {
+        h
+    };
+    let mut k1 = f(time, &state);
+    let mut tries = 0;
+    while time < end {
+        tries += 1;
+        if tries > MAX_SUBSTEPS || step.is_nan() || step <= f64::EPSILON * time.abs().max(h) {
+            return Err(ParameterError::new(
+                "tolerance",
+                format!("the adaptive integrator could not reach t = {end} from t = {time} within {MAX_SUBSTEPS} steps at tolerance {tolerance}: loosen the tolerance or use RK4"),
+            ));
+        }
+        let last = time + step >= end;
+        let dt = if last { end - time } else { step };
+        let mut k = [k1; 7];
+        for stage in 0..6 {
+            let mut y = state;
+            for (j, a) in DP_A[stage].iter().enumerate().take(stage + 1) {
+                if *a != 0.0 {
+                    y += k[j] * (dt * a);
+                }
+            }
+            if stage == 5 {
+                // the fifth-order solution; its derivative is the error stage and next k1
+                k[6] = f(time + dt, &y);
+                let mut error: f64 = 0.0;
+                for i in 0..N {
+                    let mut e = 0.0;
+                    for (j, w) in DP_E.iter().enumerate() {
+                        e += w * k[j][i];
+                    }
+                    let scale = tolerance * (1.0 + state[i].abs().max(y[i].abs()));
+                    error = error.max((dt * e).abs() / scale);
+                }
+                let factor = if error == 0.0 {
+                    5.0
+                } else {
+                    (0.9 * error.powf(-0.2)).clamp(0.2, 5.0)
+                };
+                if error.is_finite() && error <= 1.0 {
+                    time = if last { end } else { time + dt };
+                    let before = y;
+                    after_step(time, &mut y);
+                    state = y;
+                    k1 = if state == before {
+                        k[6]
+                    } else {
+                        f(time, &state)
+                    };
+                    // a cut last step does not shrink the next call's first step
+                    if !last || dt >= step {
+                        step = dt * factor;
+                    }
+                } else {
+                    step = dt * factor.min(1.0);
+                }
+            } else {
+                k[stage + 1] = f(time + DP_C[stage] * dt, &y);
+            }
+        }
+    }
+    control.next_step = step;
+    Ok(state)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,6 +267,47 @@ mod tests {
         };
         let ratio = err(0.1) / err(0.05);
         assert!((ratio - 16.0).abs() < 1.0, "error ratio {ratio}");
+    }
+
+    #[test]
+    fn the_adaptive_integrator_meets_its_tolerance_and_is_fifth_order() {
+        let f = |_t: f64, x: &Vector2<f64>| Vector2::new(x[1], -x[0]);
+        let run = |tolerance: f64| {
+            let mut control = StepControl {
+                tolerance,
+                next_step: 0.0,
+            };
+            let mut x = Vector2::new(1.0, 0.0);
+            for k in 0..20 {
+                x = integrate_adaptive(f, |_, _| {}, &mut control, (k as f64 * 0.5, 0.5), &x)
+                    .unwrap();
+            }
+            (x[0] - 10f64.cos()).abs().max((x[1] + 10f64.sin()).abs())
+        };
+        for tolerance in [1e-6, 1e-9, 1e-12] {
+            let error = run(tolerance);
+            assert!(
+                error < 20.0 * tolerance,
+                "error {error:e} at tolerance {tolerance:e}"
+            );
+        }
+        // a ten times tighter tolerance: about 10^(4/5)… 10 times smaller errors, not more
+        let ratio = run(1e-8) / run(1e-9);
+        assert!((2.0..30.0).contains(&ratio), "ratio {ratio}");
+        // an impossible tolerance ends in an error, quickly
+        let mut control = StepControl {
+            tolerance: 1e-300,
+            next_step: 0.0,
+        };
+        let e = integrate_adaptive(
+            f,
+            |_, _| {},
+            &mut control,
+            (0.0, 1e3),
+            &Vector2::new(1.0, 0.0),
+        )
+        .unwrap_err();
+        assert_eq!(e.parameter, "tolerance");
     }
 
     #[test]

@@ -161,9 +161,14 @@ def test_wrong_guid_and_wrong_fmu_type_are_logged():
     comp = slave.fmi2Instantiate(b"g", 1, b"{bad}", b"file:///tmp", ctypes.byref(callbacks), 0, 0)
     assert not comp
     assert any("GUID mismatch" in t for t in sink.texts(3))
-    comp = slave.fmi2Instantiate(b"g", 0, md.guid.encode(), b"file:///tmp", ctypes.byref(callbacks), 0, 0)
+    comp = slave.fmi2Instantiate(b"g", 2, md.guid.encode(), b"file:///tmp", ctypes.byref(callbacks), 0, 0)
     assert not comp
-    assert any("Co-Simulation FMU only" in t for t in sink.texts(3))
+    assert any("fmuType must be fmi2ModelExchange (0) or fmi2CoSimulation (1), got 2" in t
+               for t in sink.texts(3))
+    # both interfaces are offered: Model Exchange instantiates
+    comp = slave.fmi2Instantiate(b"g", 0, md.guid.encode(), b"file:///tmp", ctypes.byref(callbacks), 0, 0)
+    assert comp
+    slave.fmi2FreeInstance(comp)
 
 
 def run(slave, vr, n, u, h=0.01, t0=0.0):
@@ -276,3 +281,52 @@ def test_reset_returns_to_start_values():
     second = run(slave, vr, 20, lambda k: 1.0)
     assert np.array_equal(first, second)
     slave.freeInstance()
+
+
+# --- Model Exchange: fmpy's CVode against the Co-Simulation FMU and an independent reference --
+
+
+import re  # noqa: E402
+
+from conftest import me_scenarios_of  # noqa: E402
+
+crane_scenarios = me_scenarios_of(__file__)
+# (tests/fmpy/test_model_exchange.py runs every scenario against Co-Simulation and checks the
+# event times; here: what the crane logs at its events and where the load ends up)
+
+
+def simulate_me(start_values, stop_time):
+    """fmpy's CVode (relative tolerance 1e-8) on the Model Exchange interface, events logged."""
+    sink = LogSink()
+    result = simulate_fmu(fmu_path("GantryCrane"), fmi_type="ModelExchange", solver="CVode",
+                          relative_tolerance=1e-8, stop_time=stop_time, output_interval=0.01,
+                          start_values=start_values, debug_logging=True, logger=sink)
+    events = [(float(m.group(1)), m.group(2)) for m in
+              (re.search(r"t = (\S+) s: the cart is (free on the rail after|free|held)", t)
+               for t in sink.texts()) if m]
+    return result, events
+
+
+def test_model_exchange_logs_each_contact_change_at_the_reference_time():
+    start = {"U": 0.02, "x0": 0.45, "v0": 0.5, "theta0": 0.3}
+    me, events = simulate_me(start, 3.0)
+    reference, _ = crane_scenarios.crane_reference([0.45, 0.3, 0.5, 0.0], 0.02, 3.0)
+    kinds = {"bounce": "free on the rail after", "held": "held", "release": "free"}
+    assert [k for _, k in events] == [kinds[k] for _, k in reference], (events, reference)
+    errors = [abs(t - r) for (t, _), (r, _) in zip(events, reference)]
+    print(f"held/released: {len(events)} events, largest time error {max(errors):.2e} s")
+    assert max(errors) < 1e-6
+    assert np.max(np.abs(me["x"])) <= 0.5 * (1 + 1e-9)  # the pre-event row: the located root
+
+
+def test_model_exchange_holds_the_cart_at_the_stop_and_swings_like_the_reference():
+    me, events = simulate_me({"U": 3.0}, 2.0)
+    (hit, _), = crane_scenarios.crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, 0.9)[0]
+    _, final = crane_scenarios.crane_reference([0.0, 0.0, 0.0, 0.0], 3.0, 2.0)
+    assert [k for _, k in events] == ["held"] and abs(events[0][0] - hit) < 1e-6
+    end = me[-1]
+    assert end["x"] == 0.5 and end["v"] == 0.0
+    print(f"rail stop at {events[0][0]:.9f} s (reference {hit:.9f} s); final theta "
+          f"{end['theta']:.9f} (reference {final[1]:.9f}), omega {end['omega']:.9f} "
+          f"(reference {final[3]:.9f})")
+    assert abs(end["theta"] - final[1]) < 1e-6 and abs(end["omega"] - final[3]) < 1e-5

@@ -210,3 +210,55 @@ def test_custom_dimensions_through_package_variant(tmp_path):
     for _ in range(10):
         x = a @ x + b @ np.array([1.0, -1.0])
     assert np.max(np.abs(np.array([r["x[1]"][-1], r["x[2]"][-1], r["x[3]"][-1]]) - x)) < 1e-12
+
+
+# --- Model Exchange (continuous time): CVode against the analytic solution and Co-Simulation ---
+
+
+from conftest import me_scenarios_of  # noqa: E402
+
+me_scenarios = me_scenarios_of(__file__)
+ME_SCENARIOS = me_scenarios.SCENARIOS
+
+
+@pytest.mark.parametrize("scenario", [s for s in ME_SCENARIOS if s["fmu"] == "LinearSystem"],
+                         ids=lambda s: s["name"])
+def test_model_exchange_matches_the_analytic_solution(scenario):
+    # (tests/fmpy/test_model_exchange.py compares every scenario with Co-Simulation)
+    me = simulate_fmu(fmu_path("LinearSystem"), fmi_type="ModelExchange", solver="CVode",
+                      relative_tolerance=1e-8, stop_time=scenario["stop_time"],
+                      output_interval=scenario["output_interval"],
+                      start_values=scenario["start_values"], output=scenario["outputs"])
+    a, b = np.array(me_scenarios.A), np.array(me_scenarios.B)
+    c, d = np.array(me_scenarios.C), np.array(me_scenarios.D)
+    start = scenario["start_values"]
+    x0, u = np.array([start["x0[1]"], start["x0[2]"]]), start["u[1]"]
+    # x(t) = e^{At} x0 + ∫₀ᵗ e^{Aτ} dτ B u (independent Taylor expm)
+    exact = np.array([zoh(a, b, t)[0] @ x0 + zoh(a, b, t)[1][:, 0] * u for t in me["time"]])
+    x_error = max(np.max(np.abs(me[f"x[{i + 1}]"] - exact[:, i])) for i in range(2))
+    y_exact = exact @ c[0] + d[0, 0] * u
+    y_error = np.max(np.abs(me["y[1]"] - y_exact))
+    print(f"{scenario['name']}: ME vs analytic, relative: x {x_error / np.max(np.abs(exact)):.2e}, "
+          f"y {y_error / np.max(np.abs(y_exact)):.2e}")
+    assert x_error < 1e-6 * np.max(np.abs(exact)) and y_error < 1e-6 * np.max(np.abs(y_exact))
+
+
+def test_model_exchange_refuses_discrete_time_naming_the_parameter():
+    from fmpy import read_model_description
+    from fmpy.fmi2 import FMU2Model
+    from fmpy import extract
+    from conftest import LogSink, make_callbacks
+    path = fmu_path("LinearSystem")
+    md = read_model_description(path)
+    assert md.modelExchange is not None and md.numberOfEventIndicators == 0
+    sink = LogSink()
+    model = FMU2Model(guid=md.guid, unzipDirectory=extract(path),
+                      modelIdentifier=md.modelExchange.modelIdentifier, instanceName="me")
+    model.instantiate(callbacks=make_callbacks(sink), loggingOn=True)
+    model.setupExperiment(startTime=0.0)
+    model.enterInitializationMode()
+    model.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        model.newDiscreteStates()
+    assert any("set the parameter `continuous` = true" in t for t in sink.texts()), sink.messages
+    model.freeInstance()

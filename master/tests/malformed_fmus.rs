@@ -339,7 +339,7 @@ fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
             "index",
             "<Unknown index=\"6\" dependencies=\"1\"/>",
             "<Unknown index=\"99\" dependencies=\"1\"/>",
-            "ModelStructure/Outputs: index 99 is out of range (ModelVariables has 20 variables",
+            "ModelStructure/Outputs: index 99 is out of range (ModelVariables has 28 variables",
         ),
         (
             "dependency",

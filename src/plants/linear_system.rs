@@ -36,6 +36,7 @@
 
 use crate::linalg;
 use crate::signals::rng::RandomGenerator;
+use crate::state::PlainState;
 use crate::state_space::StateSpace;
 use crate::ParameterError;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
@@ -166,6 +167,34 @@ struct Discretisation {
     noise_factor: DMatrix<f64>,
 }
 
+/// Preallocated vectors of one step, so [`LinearSystem::advance`] allocates nothing: the
+/// deviates `z` (process, measurement), the products `Φ x`, `Γ u`, `L z`, and the state and
+/// measurement noise of the last time point, restored when a step fails.
+#[derive(Debug, Clone, PartialEq)]
+struct Workspace {
+    process_deviates: DVector<f64>,
+    measurement_deviates: DVector<f64>,
+    transition: DVector<f64>,
+    input: DVector<f64>,
+    noise: DVector<f64>,
+    saved_state: DVector<f64>,
+    saved_measurement_noise: DVector<f64>,
+}
+
+impl Workspace {
+    fn new(n: usize, p: usize) -> Self {
+        Self {
+            process_deviates: DVector::zeros(n),
+            measurement_deviates: DVector::zeros(p),
+            transition: DVector::zeros(n),
+            input: DVector::zeros(n),
+            noise: DVector::zeros(n),
+            saved_state: DVector::zeros(n),
+            saved_measurement_noise: DVector::zeros(p),
+        }
+    }
+}
+
 /// The plant with its state, noise streams and discretisation cache.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearSystem {
@@ -177,6 +206,7 @@ pub struct LinearSystem {
     process_stream: RandomGenerator,
     measurement_stream: RandomGenerator,
     cache: Option<Discretisation>,
+    work: Workspace,
 }
 
 impl LinearSystem {
@@ -186,6 +216,7 @@ impl LinearSystem {
         let process_factor = covariance_factor("Q", &parameters.system.q)?;
         let measurement_factor = covariance_factor("R", &parameters.system.r)?;
         let mut system = Self {
+            work: Workspace::new(parameters.states(), parameters.outputs()),
             state: parameters.initial_state.clone(),
             measurement_noise: DVector::zeros(parameters.outputs()),
             process_factor,
@@ -195,7 +226,7 @@ impl LinearSystem {
             cache: None,
             parameters,
         };
-        system.measurement_noise = system.draw_measurement_noise();
+        system.draw_measurement_noise();
         Ok(system)
     }
 
@@ -225,6 +256,62 @@ impl LinearSystem {
         Ok(&self.parameters.system.c * &self.state + &self.parameters.system.d * u)
     }
 
+    /// The noise-free output `C x + D u` written into `out` (p entries), allocating nothing.
+    pub fn clean_output_into(
+        &self,
+        u: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), ParameterError> {
+        self.check_input(u)?;
+        let p = &self.parameters;
+        if out.len() != p.outputs() {
+            return Err(ParameterError::new(
+                "y",
+                format!("must have {} entries, got {}", p.outputs(), out.len()),
+            ));
+        }
+        for (i, y) in out.iter_mut().enumerate() {
+            *y = row_product(&p.system.c, i, &self.state) + row_product(&p.system.d, i, u);
+        }
+        Ok(())
+    }
+
+    /// The right-hand side `dx/dt = A x + B u` of the noise-free continuous model (the
+    /// derivative a Model Exchange importer integrates), written into `dx`; its Jacobians
+    /// are `∂f/∂x = A`, `∂f/∂u = B`, and those of the output `C x + D u` are `C`, `D`.
+    pub fn derivative_into(
+        &self,
+        x: &DVector<f64>,
+        u: &DVector<f64>,
+        dx: &mut DVector<f64>,
+    ) -> Result<(), ParameterError> {
+        self.check_input(u)?;
+        let p = &self.parameters;
+        if x.len() != p.states() || dx.len() != p.states() {
+            return Err(ParameterError::new(
+                "x",
+                format!("must have {} entries", p.states()),
+            ));
+        }
+        for (i, dx) in dx.iter_mut().enumerate() {
+            *dx = row_product(&p.system.a, i, x) + row_product(&p.system.b, i, u);
+        }
+        Ok(())
+    }
+
+    /// Sets the state (the continuous states a Model Exchange importer integrates), checked
+    /// against the dimension and for finiteness (named `x`).
+    pub fn set_state(&mut self, x: &[f64]) -> Result<(), ParameterError> {
+        if x.len() != self.parameters.states() || x.iter().any(|v| !v.is_finite()) {
+            return Err(ParameterError::new(
+                "x",
+                format!("must hold {} finite values", self.parameters.states()),
+            ));
+        }
+        self.state.copy_from_slice(x);
+        Ok(())
+    }
+
     /// The measured output `y_k = C x_k + D u + v_k`.
     pub fn output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
         Ok(self.clean_output(u)? + &self.measurement_noise)
@@ -232,32 +319,71 @@ impl LinearSystem {
 
     /// Advances one sample (discrete) or `h` seconds with `u` held (continuous), adds the
     /// process noise and draws the measurement noise of the new time point. A wrong-length
-    /// or non-finite `u` (named `u`), or a non-positive `h` in continuous time (named `h`),
-    /// is an error and leaves the system unchanged.
+    /// or non-finite `u` (named `u`), a non-positive `h` in continuous time (named `h`), or a
+    /// state that would become non-finite (named `x`) is an error and leaves the system
+    /// unchanged. Allocates nothing once the discretisation for `h` is cached.
     pub fn advance(&mut self, u: &DVector<f64>, h: f64) -> Result<(), ParameterError> {
+        self.advance_samples(u, h, 1)
+    }
+
+    /// [`Self::advance`] `count` times with the same `u` and `h`, all or nothing: on an error
+    /// at any sample the system is as before the call.
+    pub fn advance_samples(
+        &mut self,
+        u: &DVector<f64>,
+        h: f64,
+        count: u64,
+    ) -> Result<(), ParameterError> {
         self.check_input(u)?;
-        let next = match self.parameters.time_domain {
-            TimeDomain::Discrete => {
-                let w = draw(&mut self.process_stream, &self.process_factor);
-                &self.parameters.system.a * &self.state + &self.parameters.system.b * u + w
+        if count == 0 {
+            return Ok(());
+        }
+        if self.parameters.time_domain == TimeDomain::Continuous {
+            let cached = matches!(&self.cache, Some(d) if d.step == h);
+            if !cached {
+                self.cache = Some(self.discretisation(h)?);
             }
-            TimeDomain::Continuous => {
-                let cached = matches!(&self.cache, Some(d) if d.step == h);
-                if !cached {
-                    self.cache = Some(self.discretisation(h)?);
-                }
-                match &self.cache {
-                    Some(d) => {
-                        let w = draw(&mut self.process_stream, &d.noise_factor);
-                        &d.transition * &self.state + &d.input * u + w
-                    }
-                    None => return Err(ParameterError::new("h", "no discretisation")),
-                }
+        }
+        let streams = (self.process_stream.clone(), self.measurement_stream.clone());
+        self.work.saved_state.copy_from(&self.state);
+        self.work
+            .saved_measurement_noise
+            .copy_from(&self.measurement_noise);
+        for _ in 0..count {
+            self.sample(u);
+            if self.state.iter().any(|v| !v.is_finite()) {
+                self.state.copy_from(&self.work.saved_state);
+                self.measurement_noise
+                    .copy_from(&self.work.saved_measurement_noise);
+                (self.process_stream, self.measurement_stream) = streams;
+                return Err(ParameterError::new(
+                    "x",
+                    "the state became non-finite (A has eigenvalues far outside the stable region?)",
+                ));
             }
-        };
-        self.state = next;
-        self.measurement_noise = self.draw_measurement_noise();
+        }
         Ok(())
+    }
+
+    /// One sample in place: `x⁺ = (Φ x + Γ u) + L z` (the order `&Φ * &x + &Γ * u + w` adds
+    /// in), then the measurement noise of the new point.
+    fn sample(&mut self, u: &DVector<f64>) {
+        let p = &self.parameters;
+        let (transition, input, factor) = match (&p.time_domain, &self.cache) {
+            (TimeDomain::Continuous, Some(d)) => (&d.transition, &d.input, &d.noise_factor),
+            _ => (&p.system.a, &p.system.b, &self.process_factor),
+        };
+        let w = &mut self.work;
+        for z in w.process_deviates.iter_mut() {
+            *z = self.process_stream.gaussian();
+        }
+        for (i, next) in w.transition.iter_mut().enumerate() {
+            *next = row_product(transition, i, &self.state)
+                + row_product(input, i, u)
+                + row_product(factor, i, &w.process_deviates);
+        }
+        std::mem::swap(&mut self.state, &mut w.transition);
+        self.draw_measurement_noise();
     }
 
     /// `(Φ, Γ)` for a step `h` in continuous time, or `(A, B)` in discrete time.
@@ -330,8 +456,14 @@ impl LinearSystem {
         Ok(())
     }
 
-    fn draw_measurement_noise(&mut self) -> DVector<f64> {
-        draw(&mut self.measurement_stream, &self.measurement_factor)
+    /// Draws the measurement noise of the current time point, `v = L_R z`, in place.
+    fn draw_measurement_noise(&mut self) {
+        for z in self.work.measurement_deviates.iter_mut() {
+            *z = self.measurement_stream.gaussian();
+        }
+        for (i, v) in self.measurement_noise.iter_mut().enumerate() {
+            *v = row_product(&self.measurement_factor, i, &self.work.measurement_deviates);
+        }
     }
 
     /// The cached discretisation for `h`, or a fresh one.
@@ -382,10 +514,20 @@ impl LinearSystem {
     }
 }
 
-/// `factor · z` with `z` a vector of standard normal deviates from `stream`.
-fn draw(stream: &mut RandomGenerator, factor: &DMatrix<f64>) -> DVector<f64> {
-    let z = DVector::from_fn(factor.ncols(), |_, _| stream.gaussian());
-    factor * z
+/// `(M v)ᵢ` without a temporary, summed over the columns in order as nalgebra's `&M * &v`
+/// sums it (column by column), so `(C x)ᵢ + (D u)ᵢ` is bit-identical to `&C * &x + &D * u`;
+/// 0 for a matrix without columns. `M` is column-major with `v.len()` columns.
+fn row_product(m: &DMatrix<f64>, i: usize, v: &DVector<f64>) -> f64 {
+    let (rows, cols) = m.shape();
+    let (entries, values) = (m.as_slice(), v.as_slice());
+    if cols == 0 || i >= rows || values.len() < cols {
+        return 0.0;
+    }
+    let mut sum = entries[i] * values[0];
+    for j in 1..cols {
+        sum += entries[i + j * rows] * values[j];
+    }
+    sum
 }
 
 /// The eigen-factor `L = V diag(√max(λ, 0))` of a symmetric PSD covariance (module docs),
@@ -460,16 +602,36 @@ crate::plain_state!(Discretisation {
     input,
     noise_factor
 });
-crate::plain_state!(LinearSystem {
-    parameters,
-    state,
-    measurement_noise,
-    process_factor,
-    measurement_factor,
-    process_stream,
-    measurement_stream,
-    cache
-});
+
+/// Every field but the workspace, which is rebuilt for the saved dimensions.
+impl PlainState for LinearSystem {
+    fn save(&self, out: &mut Vec<u8>) {
+        self.parameters.save(out);
+        self.state.save(out);
+        self.measurement_noise.save(out);
+        self.process_factor.save(out);
+        self.measurement_factor.save(out);
+        self.process_stream.save(out);
+        self.measurement_stream.save(out);
+        self.cache.save(out);
+    }
+
+    fn read(input: &mut &[u8]) -> Result<Self, crate::state::StateError> {
+        let parameters = LinearSystemParameters::read(input)?;
+        let work = Workspace::new(parameters.states(), parameters.outputs());
+        Ok(Self {
+            parameters,
+            state: PlainState::read(input)?,
+            measurement_noise: PlainState::read(input)?,
+            process_factor: PlainState::read(input)?,
+            measurement_factor: PlainState::read(input)?,
+            process_stream: PlainState::read(input)?,
+            measurement_stream: PlainState::read(input)?,
+            cache: PlainState::read(input)?,
+            work,
+        })
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -477,6 +639,17 @@ mod tests {
 
     fn matrix(rows: usize, cols: usize, values: &[f64]) -> DMatrix<f64> {
         DMatrix::from_row_slice(rows, cols, values)
+    }
+
+    /// The scalar system `x⁺ = a x` (or `dx/dt = a x`), `y = x`, no input, no noise.
+    fn scalar(a: f64, time_domain: TimeDomain) -> LinearSystemParameters {
+        LinearSystemParameters::noise_free(
+            matrix(1, 1, &[a]),
+            DMatrix::zeros(1, 0),
+            matrix(1, 1, &[1.0]),
+            DMatrix::zeros(1, 0),
+            time_domain,
+        )
     }
 
     #[test]
@@ -549,15 +722,93 @@ mod tests {
     }
 
     #[test]
-    fn process_and_measurement_noise_have_the_set_covariances() {
-        // x⁺ = 0.5 x + w, Q = 1: stationary variance 1/(1 − 0.25) = 4/3; y = x + v, R = 0.1.
+    fn in_place_steps_are_bit_identical_to_the_matrix_expressions() {
+        // x⁺ = A x + B u + L_Q z, y = C x + D u + L_R z with m = 2 (two columns summed)
         let mut p = LinearSystemParameters::noise_free(
-            matrix(1, 1, &[0.5]),
-            DMatrix::zeros(1, 0),
-            matrix(1, 1, &[1.0]),
-            DMatrix::zeros(1, 0),
+            matrix(2, 2, &[0.9, 0.2, -0.1, 0.7]),
+            matrix(2, 2, &[1.0, 0.5, 0.3, -0.7]),
+            matrix(2, 2, &[1.0, -1.0, 0.25, 0.5]),
+            matrix(2, 2, &[0.3, 0.1, -0.2, 0.6]),
             TimeDomain::Discrete,
         );
+        p.system.q = matrix(2, 2, &[0.2, 0.05, 0.05, 0.1]);
+        p.system.r = matrix(2, 2, &[0.1, 0.0, 0.0, 0.3]);
+        let mut s = LinearSystem::new(p.clone()).unwrap();
+        let mut process = RandomGenerator::for_stream(p.seed, 0);
+        let mut measurement = RandomGenerator::for_stream(p.seed, 1);
+        let lq = covariance_factor("Q", &p.system.q).unwrap();
+        let lr = covariance_factor("R", &p.system.r).unwrap();
+        let gauss = |g: &mut RandomGenerator| DVector::from_fn(2, |_, _| g.gaussian());
+        let mut x = p.initial_state.clone();
+        assert_eq!(s.measurement_noise(), &(&lr * gauss(&mut measurement)));
+        let mut y = DVector::zeros(2);
+        for k in 0..50 {
+            let u = DVector::from_vec(vec![(k as f64 * 0.3).sin(), 0.5]);
+            s.advance(&u, 1.0).unwrap();
+            x = &p.system.a * &x + &p.system.b * &u + &lq * gauss(&mut process);
+            let v = &lr * gauss(&mut measurement);
+            assert_eq!(s.state(), &x);
+            assert_eq!(s.measurement_noise(), &v);
+            s.clean_output_into(&u, &mut y).unwrap();
+            assert_eq!(y, &p.system.c * &x + &p.system.d * &u);
+        }
+    }
+
+    #[test]
+    fn a_step_to_a_non_finite_state_is_refused_and_rolled_back() {
+        let mut p = scalar(1e200, TimeDomain::Discrete);
+        p.initial_state = DVector::from_element(1, 1.0);
+        p.system.r = matrix(1, 1, &[1.0]);
+        let mut s = LinearSystem::new(p).unwrap();
+        let u = DVector::zeros(0);
+        s.advance(&u, 1.0).unwrap();
+        assert_eq!(s.state()[0], 1e200);
+        let before = s.saved_state();
+        // the second of three samples overflows: all three are undone
+        assert_eq!(s.advance_samples(&u, 1.0, 3).unwrap_err().parameter, "x");
+        assert_eq!(s.saved_state(), before);
+    }
+
+    #[test]
+    fn the_continuous_right_hand_side_is_a_x_plus_b_u_and_its_jacobian_is_a() {
+        let a = matrix(2, 2, &[-1.0, 2.0, -3.0, -0.5]);
+        let b = matrix(2, 1, &[0.5, 1.5]);
+        let mut s = LinearSystem::new(LinearSystemParameters::noise_free(
+            a.clone(),
+            b.clone(),
+            matrix(1, 2, &[1.0, 0.0]),
+            matrix(1, 1, &[0.0]),
+            TimeDomain::Continuous,
+        ))
+        .unwrap();
+        let x = DVector::from_vec(vec![0.3, -0.7]);
+        let u = DVector::from_vec(vec![2.0]);
+        let mut dx = DVector::zeros(2);
+        s.derivative_into(&x, &u, &mut dx).unwrap();
+        assert_eq!(dx, &a * &x + &b * &u);
+        // central differences of f reproduce A column by column
+        let (mut plus, mut minus) = (DVector::zeros(2), DVector::zeros(2));
+        for j in 0..2 {
+            let e = 1e-6;
+            let mut xp = x.clone();
+            xp[j] += e;
+            let mut xm = x.clone();
+            xm[j] -= e;
+            s.derivative_into(&xp, &u, &mut plus).unwrap();
+            s.derivative_into(&xm, &u, &mut minus).unwrap();
+            let column = (&plus - &minus) / (2.0 * e);
+            assert!((column - a.column(j)).amax() < 1e-9);
+        }
+        s.set_state(&[1.0, 2.0]).unwrap();
+        assert_eq!(s.state().as_slice(), &[1.0, 2.0]);
+        assert_eq!(s.set_state(&[f64::NAN, 0.0]).unwrap_err().parameter, "x");
+        assert_eq!(s.set_state(&[1.0]).unwrap_err().parameter, "x");
+    }
+
+    #[test]
+    fn process_and_measurement_noise_have_the_set_covariances() {
+        // x⁺ = 0.5 x + w, Q = 1: stationary variance 1/(1 − 0.25) = 4/3; y = x + v, R = 0.1.
+        let mut p = scalar(0.5, TimeDomain::Discrete);
         p.system.q = matrix(1, 1, &[1.0]);
         p.system.r = matrix(1, 1, &[0.1]);
         let mut s = LinearSystem::new(p).unwrap();
@@ -585,13 +836,7 @@ mod tests {
     fn continuous_process_noise_uses_the_van_loan_covariance() {
         // dx/dt = −a x + w, spectral density q: Q_h = q (1 − e^{−2 a h}) / (2 a).
         let (a, q, h) = (2.0, 0.3, 0.25);
-        let mut p = LinearSystemParameters::noise_free(
-            matrix(1, 1, &[-a]),
-            DMatrix::zeros(1, 0),
-            matrix(1, 1, &[1.0]),
-            DMatrix::zeros(1, 0),
-            TimeDomain::Continuous,
-        );
+        let mut p = scalar(-a, TimeDomain::Continuous);
         p.system.q = matrix(1, 1, &[q]);
         let s = LinearSystem::new(p).unwrap();
         let d = s.discretisation(h).unwrap();

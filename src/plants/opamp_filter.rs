@@ -38,7 +38,7 @@
 //! 1.555 s, 0.698 s).
 
 use crate::ode;
-use crate::{require_finite, require_positive, ParameterError};
+use crate::{require_finite, ParameterError};
 use nalgebra::{Matrix2, RowVector2, Vector2};
 
 /// Component values and supply rails (SI units: Ω, F, V).
@@ -75,12 +75,15 @@ impl Default for OpAmpFilterParameters {
 impl OpAmpFilterParameters {
     /// Checks every parameter, naming the first one that is not physical.
     pub fn validate(&self) -> Result<(), ParameterError> {
-        require_positive("R1", self.r1)?;
-        require_positive("R2", self.r2)?;
-        require_positive("C1", self.c1)?;
-        require_positive("C2", self.c2)?;
-        require_finite("V_sat_high", self.v_sat_high)?;
-        require_finite("V_sat_low", self.v_sat_low)?;
+        use crate::Requirement::{Finite, Positive};
+        crate::check_all(&[
+            ("R1", self.r1, Positive),
+            ("R2", self.r2, Positive),
+            ("C1", self.c1, Positive),
+            ("C2", self.c2, Positive),
+            ("V_sat_high", self.v_sat_high, Finite),
+            ("V_sat_low", self.v_sat_low, Finite),
+        ])?;
         if self.v_sat_low >= self.v_sat_high {
             return Err(ParameterError::new(
                 "V_sat_low",
@@ -108,15 +111,78 @@ impl OpAmpFilterParameters {
         v2.clamp(self.v_sat_low, self.v_sat_high)
     }
 
+    /// Where the output of the C2 voltage `v2` is: on a rail or between them (a voltage
+    /// exactly at a rail counts as on it, as in [`Self::output_for`]'s clamp).
+    pub fn rail_of(&self, v2: f64) -> Rail {
+        if v2 >= self.v_sat_high {
+            Rail::High
+        } else if v2 <= self.v_sat_low {
+            Rail::Low
+        } else {
+            Rail::Inside
+        }
+    }
+
+    /// The op-amp output with the rail held at `rail`: `v2` inside, the rail's voltage on it.
+    /// Equal to [`Self::output_for`] when `rail == self.rail_of(v2)`.
+    pub fn output_on(&self, v2: f64, rail: Rail) -> f64 {
+        match rail {
+            Rail::Inside => v2,
+            Rail::High => self.v_sat_high,
+            Rail::Low => self.v_sat_low,
+        }
+    }
+
     /// Right-hand side `[dv₁/dt, dv₂/dt]` for the capacitor voltages `v` and input `u`.
     pub fn derivative(&self, v: &Vector2<f64>, u: f64) -> Vector2<f64> {
-        let y = self.output_for(v[1]);
+        self.derivative_on(v, u, self.rail_of(v[1]))
+    }
+
+    /// The right-hand side with the output's rail held at `rail` (the Model Exchange side
+    /// holds it between events so the solver sees a smooth function; [`Self::derivative`]
+    /// takes the rail of `v₂` itself).
+    pub fn derivative_on(&self, v: &Vector2<f64>, u: f64, rail: Rail) -> Vector2<f64> {
+        let y = self.output_on(v[1], rail);
         let node_a = v[0] + y;
         let through_r2 = (node_a - v[1]) / self.r2;
         Vector2::new(
             ((u - node_a) / self.r1 - through_r2) / self.c1,
             through_r2 / self.c2,
         )
+    }
+
+    /// Event indicators `[V_sat_high − v₂, v₂ − V_sat_low]`: the output reaches (or leaves)
+    /// the upper rail where the first changes sign, the lower rail where the second does.
+    pub fn event_indicators(&self, v: &Vector2<f64>) -> [f64; 2] {
+        [self.v_sat_high - v[1], v[1] - self.v_sat_low]
+    }
+
+    /// `∂f/∂v` of [`Self::derivative_on`] (constant in each rail mode): with `s = ∂y/∂v₂`
+    /// (1 inside, 0 on a rail), `∂f₁/∂v₁ = −(1/R1 + 1/R2)/C1`,
+    /// `∂f₁/∂v₂ = (1/R2 − s (1/R1 + 1/R2))/C1`, `∂f₂/∂v₁ = 1/(R2 C2)`,
+    /// `∂f₂/∂v₂ = (s − 1)/(R2 C2)`.
+    pub fn jacobian_state(&self, rail: Rail) -> Matrix2<f64> {
+        let s = self.output_slope(rail);
+        let g = 1.0 / self.r1 + 1.0 / self.r2;
+        Matrix2::new(
+            -g / self.c1,
+            (1.0 / self.r2 - s * g) / self.c1,
+            1.0 / (self.r2 * self.c2),
+            (s - 1.0) / (self.r2 * self.c2),
+        )
+    }
+
+    /// `∂f/∂u = [1/(R1 C1), 0]ᵀ`.
+    pub fn jacobian_input(&self) -> Vector2<f64> {
+        Vector2::new(1.0 / (self.r1 * self.c1), 0.0)
+    }
+
+    /// `∂y/∂v₂` on `rail`: 1 between the rails, 0 on one (`∂y/∂v₁ = ∂y/∂u = 0`).
+    pub fn output_slope(&self, rail: Rail) -> f64 {
+        match rail {
+            Rail::Inside => 1.0,
+            Rail::High | Rail::Low => 0.0,
+        }
     }
 
     /// The linear model inside the rails: `(A, B, C)` of the module docs (D = 0).
@@ -130,6 +196,18 @@ impl OpAmpFilterParameters {
         let b = Vector2::new(1.0 / (self.r1 * self.c1), 0.0);
         (a, b, RowVector2::new(0.0, 1.0))
     }
+}
+
+/// Where the op-amp output sits: between the supply rails (a voltage follower, `y = v₂`) or
+/// on one of them (`y` = the rail's voltage, whatever `v₂`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rail {
+    /// `V_sat_low < v₂ < V_sat_high`: `y = v₂`.
+    Inside,
+    /// `v₂ ≥ V_sat_high`: `y = V_sat_high`.
+    High,
+    /// `v₂ ≤ V_sat_low`: `y = V_sat_low`.
+    Low,
 }
 
 /// The filter circuit with its state (capacitor voltages `[v₁, v₂]` in V).
@@ -190,6 +268,13 @@ crate::plain_state!(OpAmpFilterParameters {
     v_sat_low
 });
 crate::plain_state!(OpAmpFilter { parameters, state });
+crate::plain_state!(
+    enum Rail {
+        Inside,
+        High,
+        Low,
+    }
+);
 
 #[cfg(test)]
 mod tests {
@@ -318,6 +403,93 @@ mod tests {
             f.output()
         };
         assert!((run(0.1) - run(0.001)).abs() < 1e-9);
+    }
+
+    /// Central differences `∂f/∂v` and `∂f/∂u` of `derivative_on` at `(v, u)` on `rail`.
+    fn central_differences(
+        p: &OpAmpFilterParameters,
+        v: &Vector2<f64>,
+        u: f64,
+        rail: Rail,
+    ) -> (Matrix2<f64>, Vector2<f64>) {
+        let f = |v: &Vector2<f64>, u: f64| p.derivative_on(v, u, rail);
+        let along = |j: usize| {
+            let d = Vector2::ith(j, 1e-4 * v[j].abs().max(1.0));
+            (f(&(v + d), u) - f(&(v - d), u)) / (2.0 * d[j])
+        };
+        let d = 1e-4 * u.abs().max(1.0);
+        let ju = (f(v, u + d) - f(v, u - d)) / (2.0 * d);
+        (Matrix2::from_columns(&[along(0), along(1)]), ju)
+    }
+
+    /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`.
+    fn close_in_row(a: f64, b: f64, row_scale: f64) -> bool {
+        (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(row_scale)
+    }
+
+    #[test]
+    fn jacobians_match_central_differences_at_random_states() {
+        let mut rng = crate::signals::rng::RandomGenerator::new(15);
+        for k in 0..300 {
+            let p = OpAmpFilterParameters {
+                r1: rng.uniform_range(1e3, 1e6),
+                r2: rng.uniform_range(1e3, 1e6),
+                c1: rng.uniform_range(1e-8, 1e-5),
+                c2: rng.uniform_range(1e-8, 1e-5),
+                ..Default::default()
+            };
+            let v = Vector2::new(
+                rng.uniform_range(-20.0, 20.0),
+                rng.uniform_range(-20.0, 20.0),
+            );
+            let u = rng.uniform_range(-30.0, 30.0);
+            let rail = [Rail::Inside, Rail::High, Rail::Low][k % 3];
+            let (jx, ju) = central_differences(&p, &v, u, rail);
+            let analytic = p.jacobian_state(rail);
+            for i in 0..2 {
+                let scale = analytic.row(i).amax();
+                for j in 0..2 {
+                    assert!(
+                        close_in_row(jx[(i, j)], analytic[(i, j)], scale),
+                        "∂f{i}/∂v{j} on {rail:?}: {} vs {}",
+                        jx[(i, j)],
+                        analytic[(i, j)]
+                    );
+                }
+                assert!(close_in_row(ju[i], p.jacobian_input()[i], scale));
+            }
+            // The output y = output_on(v₂, rail): slope by differences too.
+            let d = 1e-4 * v[1].abs().max(1.0);
+            let slope = (p.output_on(v[1] + d, rail) - p.output_on(v[1] - d, rail)) / (2.0 * d);
+            assert!((slope - p.output_slope(rail)).abs() < 1e-9);
+        }
+        // Inside the rails the Jacobian is the A of the linear model.
+        let p = OpAmpFilterParameters::default();
+        assert_eq!(p.jacobian_state(Rail::Inside), p.state_space().0);
+    }
+
+    #[test]
+    fn held_rail_gives_the_clamped_right_hand_side_and_indicators_change_sign_at_the_rails() {
+        let p = OpAmpFilterParameters {
+            v_sat_low: -5.0,
+            ..Default::default()
+        };
+        for v2 in [-7.0, -5.0, -4.999, 0.0, 11.999, 12.0, 13.0] {
+            let v = Vector2::new(0.3, v2);
+            let rail = p.rail_of(v2);
+            // Bit for bit: the CS integrator's right-hand side is derivative_on of the rail.
+            assert_eq!(p.derivative(&v, 2.0), p.derivative_on(&v, 2.0, rail));
+            assert_eq!(p.output_on(v2, rail), p.output_for(v2));
+            let [high, low] = p.event_indicators(&v);
+            assert_eq!(rail == Rail::High, high <= 0.0, "v2 = {v2}");
+            assert_eq!(rail == Rail::Low, low <= 0.0, "v2 = {v2}");
+        }
+        assert_eq!(p.rail_of(12.0), Rail::High);
+        assert_eq!(p.rail_of(-5.0), Rail::Low);
+        // On a rail the output no longer follows v₂, so the loop through C1 opens: dv₂/dt
+        // depends on v₂ only through R2 C2.
+        let j = p.jacobian_state(Rail::High);
+        assert!((j[(1, 1)] + 1.0 / (p.r2 * p.c2)).abs() < 1e-12);
     }
 
     #[test]

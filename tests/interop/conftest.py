@@ -196,3 +196,15 @@ def assert_ends_as_fmpy(model, run, rows, expected, stop, stair_reason: str):
 @pytest.fixture
 def workdir(tmp_path):
     return tmp_path
+
+
+def oms_system(spec: dict, cwd) -> subprocess.CompletedProcess:
+    """Runs the system `spec` in OMSimulator through its C API (oms_system.py: see there for
+    the fields), in a process of its own as `oms_python` does."""
+    import json
+
+    return oms_python(
+        f"import json, sys\nsys.path.insert(0, {str(pathlib.Path(__file__).parent)!r})\n"
+        f"import oms_system\noms_system.main(json.loads({json.dumps(spec)!r}))\n",
+        cwd,
+    )

@@ -113,6 +113,7 @@ typedef struct {
 } Var;
 
 static char label[128], model_id[128], guid[128], library[1024], resources[1200];
+static int model_exchange; /* the FMU offers Model Exchange too: fmi2ModelExchange is valid */
 static Var *vars;
 static int nvars;
 static unsigned max_vr;
@@ -372,6 +373,12 @@ static void instantiate(Inst *in) {
             finding("fmi2Instantiate", "returned NULL for a valid call: %s", in->last);
         if (variant != 4 && in->log_count == 0 && variant != 1)
             finding("fmi2Instantiate", "returned NULL without logging why");
+        return;
+    }
+    if (variant == 3 && model_exchange) {
+        /* a valid Model Exchange instance: this driver drives Co-Simulation, so free it */
+        F.FreeInstance(in->c);
+        in->c = NULL;
         return;
     }
     if (variant <= 4 && variant != 1)
@@ -696,6 +703,7 @@ static int read_manifest(const char *path) {
         else if (!strcmp(fields[0], "guid") && nf > 1) snprintf(guid, sizeof guid, "%s", fields[1]);
         else if (!strcmp(fields[0], "library") && nf > 1) snprintf(library, sizeof library, "%s", fields[1]);
         else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
+        else if (!strcmp(fields[0], "me") && nf > 1) model_exchange = atoi(fields[1]);
         else if (!strcmp(fields[0], "var") && nf == 8) {
             Var *v;
             if (nvars == cap) vars = realloc(vars, sizeof *vars * (cap *= 2));

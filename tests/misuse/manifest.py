@@ -9,6 +9,7 @@ manifest.txt (one record a line, fields separated by a tab):
     guid     <guid>
     library  <path of binaries/linux64/<id>.so>
     resources <file URI of the resources folder>
+    me       <1 if the FMU offers Model Exchange too, else 0>
     var      <vr> <R|I|B|S> <causality> <variability> <min or -> <max or -> <name>
 Standard library only (the driver runs on a machine without the project's venv too).
 """
@@ -36,6 +37,7 @@ def main(fmu: str, out: str) -> None:
         f"guid\t{root.get('guid')}",
         f"library\t{unpacked / 'binaries' / 'linux64' / (model_id + '.so')}",
         f"resources\t{(unpacked / 'resources').as_uri()}",
+        f"me\t{int(root.find('ModelExchange') is not None)}",
     ]
     for sv in root.iter("ScalarVariable"):
         typed = next(child for child in sv if child.tag in TYPES)

@@ -26,6 +26,11 @@
 //! matrix exponential, Van Loan's method for `Q_h`, eigen-factor sampling of PSD covariances)
 //! is [`spurio::plants::linear_system`].
 //!
+//! Model Exchange (every variant declares it): the outputs `x[i]` are the continuous states,
+//! `der(x[i])` their derivatives, of the noise-free `dx/dt = A x + B u` with `y = y_clean =
+//! C x + D u`; no events; refused (`fmi2Error` naming `continuous`) in discrete time. The
+//! directional derivatives are `A`, `B`, `C`, `D` exactly, on both interfaces.
+//!
 //! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
 //! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
 //! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
@@ -34,8 +39,8 @@ use nalgebra::{DMatrix, DVector};
 use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
 use spurio::state_space::StateSpace;
 use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
-    VariableTable,
+    Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
+    ModelInfo, Variable, VariableTable,
 };
 use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -144,6 +149,8 @@ pub struct Layout {
     pub continuous: usize,
     /// Parameter `sample_period` (discrete time).
     pub sample_period: usize,
+    /// The derivatives `der(x)[i]` of the states `x[i]` (Model Exchange).
+    pub der_x: Block,
 }
 
 /// The variable table and its layout.
@@ -155,18 +162,26 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         Variable::input(name, 0.0).describe("Input (held over each step)")
     });
     let inputs: Vec<usize> = u.indices().collect();
+    // The states x come after y and y_clean; outputs and derivatives depend on them and u.
+    let first_state = m + 2 * p;
+    let states_and_inputs: Vec<usize> = (first_state..first_state + n)
+        .chain(inputs.iter().copied())
+        .collect();
     let y = add_vector(&mut t, "y", p, |name, _| {
-        Variable::discrete_output(name)
-            .describe("Measured output C x + D u + v")
-            .depends_on(&inputs)
+        Variable::output(name)
+            .describe("Measured output C x + D u + v (Model Exchange: C x + D u, noise-free)")
+            .depends_on(&states_and_inputs)
     });
     let y_clean = add_vector(&mut t, "y_clean", p, |name, _| {
-        Variable::discrete_output(name)
+        Variable::output(name)
             .describe("Noise-free output C x + D u")
-            .depends_on(&inputs)
+            .depends_on(&states_and_inputs)
     });
-    let x = add_vector(&mut t, "x", n, |name, _| {
-        Variable::discrete_output(name).describe("True state (for scoring)")
+    let x = add_vector(&mut t, "x", n, |name, i| {
+        Variable::output(name)
+            .describe("True state (for scoring); the continuous states of Model Exchange")
+            .state()
+            .depends_on(&[first_state + i])
     });
     let a = add_matrix(&mut t, "A", n, n, |name, i, j| {
         Variable::parameter(name, defaults.system.a[(i, j)]).describe("State matrix")
@@ -201,6 +216,11 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         "false: x+ = A x + B u + w, one sample per sample_period; true: dx/dt = A x + B u + w, exact over each step",
     ));
     let sample_period = t.add(clock::parameter());
+    let der_x = add_vector(&mut t, "der(x)", n, |_, i| {
+        Variable::derivative(&format!("der(x[{}])", i + 1), x.first + i)
+            .describe("dx/dt = A x + B u (Model Exchange, continuous = true)")
+            .depends_on(&states_and_inputs)
+    });
     let layout = Layout {
         dims: *d,
         u,
@@ -217,6 +237,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         seed,
         continuous,
         sample_period,
+        der_x,
     };
     (t.into_variables(), layout)
 }
@@ -227,6 +248,17 @@ pub struct LinearSystemFmu {
     layout: Layout,
     system: Option<LinearSystem>,
     clock: SampleClock,
+    /// The input `u` and the noise-free output, preallocated so a step allocates nothing.
+    input: DVector<f64>,
+    clean: DVector<f64>,
+    /// The states set by a Model Exchange solver and their derivatives.
+    states: DVector<f64>,
+    derivatives: DVector<f64>,
+}
+
+/// The system once initialised, or the error of a call before initialisation.
+fn initialised<T>(system: Option<T>) -> Result<T, Failure> {
+    system.ok_or_else(|| Failure::error("LinearSystem: not initialised"))
 }
 
 fn error(e: spurio::ParameterError) -> Failure {
@@ -234,21 +266,26 @@ fn error(e: spurio::ParameterError) -> Failure {
 }
 
 impl LinearSystemFmu {
-    fn input(&self, ctx: &Context) -> DVector<f64> {
-        self.layout.u.vector(ctx.values)
+    /// Reads the inputs into the preallocated `u`.
+    fn read_input(&mut self, ctx: &Context) {
+        for (u, k) in self.input.iter_mut().zip(self.layout.u.indices()) {
+            *u = ctx.values.real(k);
+        }
     }
 
-    fn write_outputs(&self, ctx: &mut Context) -> Result<(), Failure> {
-        let system = self
-            .system
-            .as_ref()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
-        let u = self.input(ctx);
-        let clean = system.clean_output(&u).map_err(error)?;
-        let measured = &clean + system.measurement_noise();
-        self.layout.y.write_vector(ctx.values, &measured);
-        self.layout.y_clean.write_vector(ctx.values, &clean);
-        self.layout.x.write_vector(ctx.values, system.state());
+    fn write_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        self.read_input(ctx);
+        let system = initialised(self.system.as_ref())?;
+        system
+            .clean_output_into(&self.input, &mut self.clean)
+            .map_err(error)?;
+        let l = &self.layout;
+        let noise = system.measurement_noise();
+        for (j, (y, y_clean)) in l.y.indices().zip(l.y_clean.indices()).enumerate() {
+            ctx.values.set_real(y, self.clean[j] + noise[j]);
+            ctx.values.set_real(y_clean, self.clean[j]);
+        }
+        l.x.write_vector(ctx.values, system.state());
         Ok(())
     }
 
@@ -300,7 +337,8 @@ impl FmuModel for LinearSystemFmu {
                 step_size: if d.paper004 { 1.0 } else { 0.1 },
             }),
             config.clone(),
-        ))
+        )
+        .with_model_exchange()?)
     }
 
     fn create(info: &ModelInfo) -> Result<Self, Cause> {
@@ -310,6 +348,10 @@ impl FmuModel for LinearSystemFmu {
             layout,
             system: None,
             clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
+            input: DVector::zeros(d.m),
+            clean: DVector::zeros(d.p),
+            states: DVector::zeros(d.n),
+            derivatives: DVector::zeros(d.n),
         })
     }
 
@@ -324,29 +366,29 @@ impl FmuModel for LinearSystemFmu {
     }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
-        let u = self.input(ctx);
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| Failure::error("LinearSystem: not initialised"))?;
-        let mut next = system.clone();
-        let mut clock = self.clock;
-        if ctx.values.boolean(self.layout.continuous) {
-            next.advance(&u, step).map_err(error)?;
+        self.read_input(ctx);
+        let system = initialised(self.system.as_mut())?;
+        // In place and all or nothing: a failed step leaves the system as it was.
+        let (clock, advanced) = if ctx.values.boolean(self.layout.continuous) {
+            (self.clock, system.advance(&self.input, step))
         } else {
             // The samples whose instants lie in this step, with the input set before it.
-            let samples;
-            (clock, samples) = self.clock.after(time, step)?;
-            for _ in samples {
-                next.advance(&u, clock.period()).map_err(error)?;
+            let (clock, samples) = self.clock.after(time, step)?;
+            let count = samples.end - samples.start;
+            (
+                clock,
+                system.advance_samples(&self.input, clock.period(), count),
+            )
+        };
+        advanced.map_err(|e| {
+            if e.parameter == "x" {
+                Failure::error(format!(
+                    "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
+                ))
+            } else {
+                error(e)
             }
-        }
-        if next.state().iter().any(|v| !v.is_finite()) {
-            return Err(Failure::error(format!(
-                "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
-            )));
-        }
-        *system = next;
+        })?;
         self.clock = clock;
         self.write_outputs(ctx)
     }
@@ -367,8 +409,104 @@ impl FmuModel for LinearSystemFmu {
     });
 }
 
+/// Model Exchange integrates `dx/dt = A x + B u`: refused (naming the parameter) in discrete time.
+fn require_continuous(ctx: &Context, layout: &Layout) -> Result<(), Failure> {
+    if ctx.values.boolean(layout.continuous) {
+        Ok(())
+    } else {
+        Err(Failure::error(
+            "Model Exchange integrates the continuous model dx/dt = A x + B u: set the parameter `continuous` = true (a discrete-time system is offered through Co-Simulation only)",
+        ))
+    }
+}
+
+impl ModelExchange for LinearSystemFmu {
+    fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let l = self.layout;
+        require_continuous(ctx, &l)?;
+        for (x, k) in self.states.iter_mut().zip(l.x.indices()) {
+            *x = ctx.values.real(k);
+        }
+        self.read_input(ctx);
+        let system = initialised(self.system.as_mut())?;
+        system
+            .derivative_into(&self.states, &self.input, &mut self.derivatives)
+            .map_err(error)?;
+        l.der_x.write_vector(ctx.values, &self.derivatives);
+        // The outputs of the states the solver set, noise-free.
+        system.set_state(self.states.as_slice()).map_err(error)?;
+        system
+            .clean_output_into(&self.input, &mut self.clean)
+            .map_err(error)?;
+        l.y.write_vector(ctx.values, &self.clean);
+        l.y_clean.write_vector(ctx.values, &self.clean);
+        Ok(())
+    }
+
+    fn event_indicators(&mut self, _ctx: &mut Context, _z: &mut [f64]) -> Result<(), Failure> {
+        Ok(())
+    }
+
+    fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure> {
+        require_continuous(ctx, &self.layout)?;
+        Ok(EventUpdate::default())
+    }
+
+    fn directional_derivative(
+        &mut self,
+        _ctx: &mut Context,
+        unknowns: &[usize],
+        knowns: &[usize],
+        seed: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), Failure> {
+        let system = initialised(self.system.as_ref())?;
+        let p = system.parameters();
+        let l = &self.layout;
+        let position = |block: &Block, k: usize| block.indices().position(|i| i == k);
+        for (o, &unknown) in out.iter_mut().zip(unknowns) {
+            let mut sum = 0.0;
+            for (&known, &weight) in knowns.iter().zip(seed) {
+                let (state, input) = (position(&l.x, known), position(&l.u, known));
+                if state.is_none() && input.is_none() {
+                    return Err(Failure::error(format!(
+                        "directional derivative: value reference {known} is not a state x or an input u"
+                    )));
+                }
+                // the rows of [A B], [C D] and [I 0] for der(x), y and y_clean, and x
+                let (over_state, over_input) = if let Some(i) = position(&l.der_x, unknown) {
+                    (
+                        state.map(|j| p.system.a[(i, j)]),
+                        input.map(|j| p.system.b[(i, j)]),
+                    )
+                } else if let Some(i) =
+                    position(&l.y, unknown).or_else(|| position(&l.y_clean, unknown))
+                {
+                    (
+                        state.map(|j| p.system.c[(i, j)]),
+                        input.map(|j| p.system.d[(i, j)]),
+                    )
+                } else if let Some(i) = position(&l.x, unknown) {
+                    (
+                        state.map(|j| f64::from(u8::from(i == j))),
+                        input.map(|_| 0.0),
+                    )
+                } else {
+                    return Err(Failure::error(format!(
+                        "directional derivative: value reference {unknown} is not der(x), x, y or y_clean"
+                    )));
+                };
+                sum += over_state.or(over_input).unwrap_or(0.0) * weight;
+            }
+            *o = sum;
+        }
+        Ok(())
+    }
+}
+
 spurio_export::export_fmu!(
     LinearSystemFmu,
+    model_exchange,
     variants = [
         ("LinearSystem", Config::new()),
         (
@@ -483,7 +621,9 @@ mod tests {
             );
             assert_eq!(v[l.continuous].name, "continuous");
             assert_eq!(v[l.sample_period].name, "sample_period");
-            assert_eq!(l.sample_period, v.len() - 1);
+            assert_eq!(l.sample_period, v.len() - 1 - n);
+            assert_eq!(v[l.der_x.first].name, "der(x[1])");
+            assert_eq!(v[l.der_x.first].derivative_of, Some(l.x.first));
             assert_eq!(v[l.a.index(n - 1, n - 1)].name, format!("A[{n},{n}]"));
             assert!(LinearSystem::new(default_parameters(&d)).is_ok());
         }

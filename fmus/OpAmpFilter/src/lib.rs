@@ -1,5 +1,5 @@
 //! `OpAmpFilter.fmu`: the unity-gain Sallen–Key low-pass of paper 002 (§III, eq. 9; docs/models.md
-//! §2.3) as an FMI 2.0 CS FMU.
+//! §2.3) as an FMI 2.0 FMU with both interfaces, Co-Simulation and Model Exchange.
 //!
 //! Input `u` [V], output `y` [V] (the op-amp output, clipped to `[V_sat_low, V_sat_high]`),
 //! plus the capacitor voltages. Component values are parameters; the defaults give
@@ -16,15 +16,25 @@
 //! fastest mode (`h_max · |λ|max > 2.5`, |λ|max over the linear poles and the saturated
 //! modes `(1/R1 + 1/R2)/C1`, `1/(R2 C2)`) is refused with an error naming `h_max`.
 //!
+//! **Model Exchange**: the states are the capacitor voltages `v_C1`, `v_C2` (derivatives
+//! `der(v_C1)`, `der(v_C2)`), the right-hand side is the same
+//! [`OpAmpFilterParameters::derivative_on`] the CS integrator uses, with the output's rail held
+//! between events. Two event indicators, `V_sat_high − v_C2` and `v_C2 − V_sat_low`: when one
+//! changes sign the output reaches or leaves a rail, and in event mode the rail is switched
+//! (`saturated` changes; no state jumps). Directional derivatives (on both interfaces) are the
+//! analytic Jacobians of the math crate.
+//!
 //! Bounded work: every parameter has a declared range (1 Ω to 1 GΩ, 1 fF to 1 F, rails and
 //! initial voltages within ±1 kV, 10⁻⁹ s ≤ `h_max` ≤ 1 s), checked when it is set, and a step
 //! that would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused
 //! (`fmi2Error`, nothing changed).
 
-use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters};
-use spurio_export::rows::{input, output, parameter};
+use nalgebra::Vector2;
+use spurio::plants::opamp_filter::{OpAmpFilter, OpAmpFilterParameters, Rail};
+use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
+    ModelInfo, Variable,
 };
 
 pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
@@ -36,9 +46,14 @@ spurio_export::declare_variables! {
         let p = OpAmpFilterParameters::default();
         table: [
             U = input("u", 0.0, "V", "Input voltage"),
-            Y = output("y", "V", "Output voltage of the op-amp (within the supply rails)"),
-            V_C1 = output("v_C1", "V", "Voltage across C1 (node A minus output)"),
-            V_C2 = output("v_C2", "V", "Voltage across C2 (node B to ground, the op-amp's + input)"),
+            Y = output("y", "V", "Output voltage of the op-amp (within the supply rails)")
+                .depends_on(&[vr::V_C2]),
+            V_C1 = output("v_C1", "V", "Voltage across C1 (node A minus output)")
+                .state()
+                .depends_on(&[vr::V_C1]),
+            V_C2 = output("v_C2", "V", "Voltage across C2 (node B to ground, the op-amp's + input)")
+                .state()
+                .depends_on(&[vr::V_C2]),
             SATURATED = Variable::boolean_output("saturated")
                 .describe("Whether the output sits on a rail at this communication point"),
             R1 = parameter("R1", p.r1, "Ohm",
@@ -55,6 +70,14 @@ spurio_export::declare_variables! {
             H_MAX = parameter("h_max", 1e-3, "s", "Longest RK4 substep inside fmi2DoStep (at most 100000 per step)")
                 .min(1e-9)
                 .max(1.0),
+            DER_V_C1 = derivative("der(v_C1)", vr::V_C1, "V/s", "Time derivative of v_C1")
+                .depends_on(&[vr::U, vr::V_C1, vr::V_C2]),
+            DER_V_C2 = derivative("der(v_C2)", vr::V_C2, "V/s", "Time derivative of v_C2")
+                .depends_on(&[vr::V_C1, vr::V_C2]),
+            Z_RAIL_HIGH = event_indicator("z_rail_high", "V",
+                "Event indicator V_sat_high - v_C2: the output reaches or leaves the upper rail where it changes sign"),
+            Z_RAIL_LOW = event_indicator("z_rail_low", "V",
+                "Event indicator v_C2 - V_sat_low: the output reaches or leaves the lower rail where it changes sign"),
         ]
     }
 }
@@ -74,22 +97,72 @@ pub fn fastest_mode(p: &OpAmpFilterParameters) -> f64 {
     linear.max(saturated)
 }
 
+/// Number of event indicators (`z_rail_high`, `z_rail_low`).
+pub const EVENT_INDICATORS: usize = 2;
+
 /// The OpAmpFilter FMU.
 #[derive(Debug, Clone)]
 pub struct OpAmpFilterFmu {
     filter: OpAmpFilter,
     h_max: f64,
+    /// The output's rail: on Model Exchange held between events (switched in event mode), on
+    /// Co-Simulation the rail of the state the last step left.
+    rail: Rail,
 }
 
 impl OpAmpFilterFmu {
-    fn write_outputs(&self, ctx: &mut Context) {
-        let y = self.filter.output();
-        ctx.values.set_real(vr::Y, y);
-        ctx.values.set_real(vr::V_C1, self.filter.state[0]);
-        ctx.values.set_real(vr::V_C2, self.filter.state[1]);
+    /// Writes the states and outputs of the capacitor voltages `v` on the rail held.
+    fn write_outputs(&self, ctx: &mut Context, v: &Vector2<f64>) {
+        let p = &self.filter.parameters;
+        ctx.values.set_real(vr::Y, p.output_on(v[1], self.rail));
+        ctx.values.set_real(vr::V_C1, v[0]);
+        ctx.values.set_real(vr::V_C2, v[1]);
         ctx.values
-            .set_boolean(vr::SATURATED, y != self.filter.state[1]);
+            .set_boolean(vr::SATURATED, self.rail != Rail::Inside);
     }
+
+    /// The capacitor voltages in the state variables.
+    fn states(ctx: &Context) -> Vector2<f64> {
+        Vector2::new(ctx.values.real(vr::V_C1), ctx.values.real(vr::V_C2))
+    }
+
+    /// `∂unknown/∂known` on the rail held: `unknown` one of `der(v_C1)`, `der(v_C2)`, `y`,
+    /// `v_C1`, `v_C2`; `known` one of `v_C1`, `v_C2`, `u`.
+    fn partial(&self, unknown: usize, known: usize) -> Result<f64, Failure> {
+        let p = &self.filter.parameters;
+        let column = match known {
+            vr::V_C1 => 0,
+            vr::V_C2 => 1,
+            vr::U => 2,
+            _ => return Err(not_a(known, "state or input (v_C1, v_C2, u)")),
+        };
+        let row = |derivatives: Vector2<f64>, input: f64| match column {
+            2 => input,
+            c => derivatives[c],
+        };
+        let identity = |state: usize| f64::from(u8::from(column == state));
+        let jx = p.jacobian_state(self.rail);
+        Ok(match unknown {
+            vr::DER_V_C1 => row(jx.row(0).transpose(), p.jacobian_input()[0]),
+            vr::DER_V_C2 => row(jx.row(1).transpose(), p.jacobian_input()[1]),
+            vr::Y => identity(1) * p.output_slope(self.rail),
+            vr::V_C1 => identity(0),
+            vr::V_C2 => identity(1),
+            _ => {
+                return Err(not_a(
+                    unknown,
+                    "derivative or output (der(v_C1), der(v_C2), y, v_C1, v_C2)",
+                ))
+            }
+        })
+    }
+}
+
+/// The error for a value reference that is not one the call accepts.
+fn not_a(reference: usize, what: &str) -> Failure {
+    Failure::error(format!(
+        "fmi2GetDirectionalDerivative: value reference {reference} is not a {what}"
+    ))
 }
 
 impl FmuModel for OpAmpFilterFmu {
@@ -104,7 +177,9 @@ impl FmuModel for OpAmpFilterFmu {
                 step_size: 0.01,
             }),
             Config::new(),
-        ))
+        )
+        .with_model_exchange()
+        .map_err(|e| e.to_string())?)
     }
 
     fn create(_info: &ModelInfo) -> Result<Self, Cause> {
@@ -114,27 +189,38 @@ impl FmuModel for OpAmpFilterFmu {
                 state: Default::default(),
             },
             h_max: 1e-3,
+            rail: Rail::Inside,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let r = |i| ctx.values.real(i);
+        let [r1, r2, c1, c2, v_sat_high, v_sat_low] = [
+            vr::R1,
+            vr::R2,
+            vr::C1,
+            vr::C2,
+            vr::V_SAT_HIGH,
+            vr::V_SAT_LOW,
+        ]
+        .map(r);
         let parameters = OpAmpFilterParameters {
-            r1: r(vr::R1),
-            r2: r(vr::R2),
-            c1: r(vr::C1),
-            c2: r(vr::C2),
-            v_sat_high: r(vr::V_SAT_HIGH),
-            v_sat_low: r(vr::V_SAT_LOW),
+            r1,
+            r2,
+            c1,
+            c2,
+            v_sat_high,
+            v_sat_low,
         };
         let state = [r(vr::V_C1_0), r(vr::V_C2_0)].into();
         let filter = OpAmpFilter::with_state(parameters, state).map_err(Failure::error)?;
         let fastest = fastest_mode(&parameters);
         let mode = format!("the circuit's fastest mode ({fastest:.4} 1/s)");
         let h_max = rk4_substep(r(vr::H_MAX), fastest, &mode)?;
+        self.rail = parameters.rail_of(filter.state[1]);
         self.filter = filter;
         self.h_max = h_max;
-        self.write_outputs(ctx);
+        self.write_outputs(ctx, &state);
         Ok(())
     }
 
@@ -151,18 +237,78 @@ impl FmuModel for OpAmpFilterFmu {
                 format!("the capacitor voltages became non-finite in the step from t = {time} (input u = {u})")
             },
         )?;
-        self.write_outputs(ctx);
+        let state = self.filter.state;
+        self.rail = self.filter.parameters.rail_of(state[1]);
+        self.write_outputs(ctx, &state);
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(filter, h_max; check = |m: &Self| {
+    spurio_fmu_common::fmu_state!(filter, h_max, rail; check = |m: &Self| {
         OpAmpFilter::with_state(m.filter.parameters, m.filter.state)?;
         spurio::require_positive("h_max", m.h_max)?;
         Ok(())
     });
 }
 
-spurio_export::export_fmu!(OpAmpFilterFmu);
+impl ModelExchange for OpAmpFilterFmu {
+    fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let v = Self::states(ctx);
+        let u = ctx.values.real(vr::U);
+        let dv = self.filter.parameters.derivative_on(&v, u, self.rail);
+        ctx.values.set_real(vr::DER_V_C1, dv[0]);
+        ctx.values.set_real(vr::DER_V_C2, dv[1]);
+        self.write_outputs(ctx, &v);
+        Ok(())
+    }
+
+    fn event_indicators(&mut self, ctx: &mut Context, z: &mut [f64]) -> Result<(), Failure> {
+        let indicators = self.filter.parameters.event_indicators(&Self::states(ctx));
+        for (z, value) in z.iter_mut().zip(indicators) {
+            *z = value;
+        }
+        Ok(())
+    }
+
+    fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure> {
+        let v = Self::states(ctx);
+        let rail = self.filter.parameters.rail_of(v[1]);
+        if rail != self.rail {
+            ctx.log_event(format!(
+                "t = {}: the output {} (v_C2 = {} V)",
+                ctx.time(),
+                match rail {
+                    Rail::Inside => "leaves its rail",
+                    Rail::High => "reaches the upper rail",
+                    Rail::Low => "reaches the lower rail",
+                },
+                v[1]
+            ));
+            self.rail = rail;
+            self.write_outputs(ctx, &v);
+        }
+        Ok(EventUpdate::default())
+    }
+
+    fn directional_derivative(
+        &mut self,
+        _ctx: &mut Context,
+        unknowns: &[usize],
+        knowns: &[usize],
+        seed: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), Failure> {
+        for (out, &unknown) in out.iter_mut().zip(unknowns) {
+            let mut sum = 0.0;
+            for (&known, &s) in knowns.iter().zip(seed) {
+                sum += self.partial(unknown, known)? * s;
+            }
+            *out = sum;
+        }
+        Ok(())
+    }
+}
+
+spurio_export::export_fmu!(OpAmpFilterFmu, model_exchange);
 
 #[cfg(test)]
 mod tests {
@@ -176,20 +322,110 @@ mod tests {
         assert!((f - 1.0 / (p.r2 * p.c2)).abs() < 1e-9, "{f}");
     }
 
+    use spurio_export::Values;
+
+    /// A model initialised from the start values with the capacitor voltages `v`.
+    fn model_at(values: &mut Values, v: [f64; 2]) -> OpAmpFilterFmu {
+        let info = OpAmpFilterFmu::describe(&Config::new()).unwrap();
+        let mut m = OpAmpFilterFmu::create(&info).unwrap();
+        values.set_real(vr::V_C1_0, v[0]);
+        values.set_real(vr::V_C2_0, v[1]);
+        m.initialize(&mut Context::new(values)).unwrap();
+        m
+    }
+
+    #[test]
+    fn directional_derivatives_match_central_differences_of_evaluate() {
+        let info = OpAmpFilterFmu::describe(&Config::new()).unwrap();
+        let me = info.model_exchange.as_ref().unwrap();
+        assert_eq!(me.states, [vr::V_C1, vr::V_C2]);
+        assert_eq!(me.derivatives, [vr::DER_V_C1, vr::DER_V_C2]);
+        let unknowns = [vr::DER_V_C1, vr::DER_V_C2, vr::Y, vr::V_C1, vr::V_C2];
+        let knowns = [vr::V_C1, vr::V_C2, vr::U];
+        // Inside the rails, and on each of them.
+        for v in [[0.4, 3.0], [1.0, 14.0], [-2.0, -13.0]] {
+            let mut values = Values::from_start(&info.variables);
+            let mut m = model_at(&mut values, v);
+            values.set_real(vr::U, 2.5);
+            for (j, &known) in knowns.iter().enumerate() {
+                let mut seed = [0.0; 3];
+                seed[j] = 1.0;
+                let mut analytic = [0.0; 5];
+                let mut ctx = Context::new(&mut values);
+                m.evaluate(&mut ctx).unwrap();
+                m.directional_derivative(&mut ctx, &unknowns, &knowns, &seed, &mut analytic)
+                    .unwrap();
+                let base = values.real(known);
+                let mut at = |value: f64| {
+                    values.set_real(known, value);
+                    m.evaluate(&mut Context::new(&mut values)).unwrap();
+                    unknowns.map(|u| values.real(u))
+                };
+                let (plus, minus) = (at(base + 1e-4), at(base - 1e-4));
+                values.set_real(known, base);
+                for i in 0..5 {
+                    let fd = (plus[i] - minus[i]) / 2e-4;
+                    assert!(
+                        (fd - analytic[i]).abs()
+                            <= 1e-6 * fd.abs().max(analytic[i].abs()).max(1e-3),
+                        "v = {v:?}: d{}/d{}: {fd} vs {}",
+                        info.variables[unknowns[i]].name,
+                        info.variables[known].name,
+                        analytic[i]
+                    );
+                }
+            }
+        }
+        // A value reference that is neither a state nor an input is refused.
+        let mut values = Values::from_start(&info.variables);
+        let mut m = model_at(&mut values, [0.0, 0.0]);
+        let mut out = [0.0];
+        let mut ctx = Context::new(&mut values);
+        assert!(m
+            .directional_derivative(&mut ctx, &[vr::Y], &[vr::R1], &[1.0], &mut out)
+            .is_err());
+    }
+
+    #[test]
+    fn events_switch_the_rail_and_the_output_follows() {
+        let info = OpAmpFilterFmu::describe(&Config::new()).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let mut m = model_at(&mut values, [0.0, 11.0]);
+        assert_eq!(m.rail, Rail::Inside);
+        // The solver moved v_C2 past the upper rail: the indicator has changed sign, the output
+        // still follows v_C2 (the rail is held) until the event.
+        values.set_real(vr::V_C2, 12.001);
+        let mut ctx = Context::new(&mut values);
+        m.evaluate(&mut ctx).unwrap();
+        let mut z = [0.0; EVENT_INDICATORS];
+        m.event_indicators(&mut ctx, &mut z).unwrap();
+        assert!(z[0] < 0.0 && z[1] > 0.0, "{z:?}");
+        assert_eq!(ctx.values.real(vr::Y), 12.001);
+        let update = m.update_discrete_states(&mut ctx).unwrap();
+        assert!(!update.states_changed);
+        assert_eq!(m.rail, Rail::High);
+        m.evaluate(&mut ctx).unwrap();
+        assert_eq!(ctx.values.real(vr::Y), 12.0);
+        assert!(ctx.values.boolean(vr::SATURATED));
+        // Back below the rail: the next event releases it.
+        ctx.values.set_real(vr::V_C2, 11.5);
+        m.update_discrete_states(&mut ctx).unwrap();
+        assert_eq!(m.rail, Rail::Inside);
+        m.evaluate(&mut ctx).unwrap();
+        assert_eq!(ctx.values.real(vr::Y), 11.5);
+    }
+
     #[test]
     fn a_step_needing_too_many_substeps_is_refused_at_once() {
         use spurio_export::harness::Harness;
         use spurio_export::types::Status;
         let mut h = Harness::<OpAmpFilterFmu>::new(&Config::new()).unwrap();
-        assert_eq!(
-            h.set_real(&[vr::H_MAX as u32], &[1e-300]),
-            Err(Status::Error)
-        );
-        assert!(
-            h.logged(&["`h_max`", "below its minimum 0.000000001"]),
-            "{:?}",
-            h.log()
-        );
+        // an h_max below its declared minimum (1 ns) is refused when set, naming it
+        for below in [1e-300, 5e-10] {
+            let status = h.set_real(&[vr::H_MAX as u32], &[below]);
+            assert_eq!(status, Err(Status::Error), "h_max = {below}");
+        }
+        assert!(h.logged(&["`h_max`", "below its minimum 0.000000001"]));
         h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
         h.initialize(0.0).unwrap();
         h.set_real(&[vr::U as u32], &[1.0]).unwrap();

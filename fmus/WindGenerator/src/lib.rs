@@ -1,5 +1,6 @@
 //! `WindGenerator.fmu`: the wind-generator laboratory set of paper 001 (§4, Fig. 1,
-//! appendices A–D; docs/models.md §2.2) as an FMI 2.0 CS FMU: a drive-fed induction motor turning a
+//! appendices A–D; docs/models.md §2.2) as an FMI 2.0 FMU with both interfaces, Co-Simulation
+//! and Model Exchange: a drive-fed induction motor turning a
 //! wound-field synchronous generator on a resistive load, field fed by an SCR module, speed
 //! read by a tachogenerator.
 //!
@@ -26,14 +27,26 @@
 //! naming `h_max`. Initial condition: at rest (all states 0, the default), or, with
 //! `start_at_operating_point = true`, in the steady state of the references `u_drive_0`,
 //! `u_field_0` (closed form, [`WindGeneratorParameters::operating_point`]).
+//!
+//! **Model Exchange**: the eight states are the variables `i_d`, `i_q`, `field_current`,
+//! `field_voltage` (outputs) and `omega_m`, `theta_e`, `omega_s`, `omega_tach` (locals), each
+//! with its `der(…)`; the right-hand side is the CS integrator's
+//! [`WindGeneratorParameters::derivative_on`], with the motor torque's limit held between
+//! events. Three event indicators: `T_max − k_s (ω_s − ω_m)` and `k_s (ω_s − ω_m) + T_max`
+//! (the motor torque reaches or leaves its breakdown limit; in event mode the limit is switched,
+//! no state jumps) and `2π − θ_e` (the angle completes a turn; in event mode `θ_e` is wrapped
+//! back to [0, 2π), a state change). Directional derivatives (on both interfaces) are the
+//! analytic Jacobians of the math crate.
 
+use spurio::ode::rosenbrock::Tolerance;
 use spurio::plants::wind_generator::{
-    GeneratorState, WindGenerator, WindGeneratorParameters, RATED_DRIVE_REFERENCE,
-    RATED_FIELD_REFERENCE,
+    wrap_angle, GeneratorState, TorqueLimit, WindGenerator, WindGeneratorParameters, OUTPUTS,
+    RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
 };
-use spurio_export::rows::{input, output, parameter};
+use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, FmuModel, ModelInfo, Variable,
+    Causality, Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, Initial,
+    ModelExchange, ModelInfo, Variable,
 };
 use std::f64::consts::PI;
 
@@ -70,71 +83,44 @@ pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
     ("L_q", "H", "q-axis synchronous inductance"),
     ("R_f", "Ohm", "Field winding resistance"),
     ("L_f", "H", "Field winding self-inductance"),
-    (
-        "M_f",
-        "H",
-        "Stator-field mutual inductance (sets 240 V at the rated point)",
-    ),
+    ("M_f", "H", "Stator-field mutual inductance"),
     ("R_load", "Ohm", "Load resistance per phase, star-connected"),
     ("J", "kg.m2", "Inertia of both rotors"),
     ("B", "N.m.s/rad", "Viscous friction of the shaft"),
-    (
-        "k_s",
-        "N.m.s/rad",
-        "Induction motor torque per rad/s of slip (rated torque / rated slip)",
-    ),
+    ("k_s", "N.m.s/rad", "Motor torque per rad/s of slip"),
     ("T_max", "N.m", "Motor breakdown torque"),
-    (
-        "tau_drive",
-        "s",
-        "Drive slip-compensation / frequency filter time constant",
-    ),
+    ("tau_drive", "s", "Drive slip-compensation lag"),
     ("tau_scr", "s", "SCR field supply lag"),
     ("tau_tach", "s", "Tachogenerator lag"),
     ("f_rated", "Hz", "Supply frequency at u_drive = 10 V"),
 ];
 
-fn parameter_values(p: &WindGeneratorParameters) -> [f64; 16] {
+/// The 16 physical parameters' fields, in [`PARAMETER_NAMES`] order (read and written
+/// through this one list).
+fn parameter_fields(p: &mut WindGeneratorParameters) -> [&mut f64; 16] {
     [
-        p.pole_pairs,
-        p.stator_resistance,
-        p.d_inductance,
-        p.q_inductance,
-        p.field_resistance,
-        p.field_inductance,
-        p.mutual_inductance,
-        p.load_resistance,
-        p.inertia,
-        p.friction,
-        p.slip_stiffness,
-        p.max_motor_torque,
-        p.drive_time_constant,
-        p.scr_time_constant,
-        p.tachometer_time_constant,
-        p.rated_frequency,
+        &mut p.pole_pairs,
+        &mut p.stator_resistance,
+        &mut p.d_inductance,
+        &mut p.q_inductance,
+        &mut p.field_resistance,
+        &mut p.field_inductance,
+        &mut p.mutual_inductance,
+        &mut p.load_resistance,
+        &mut p.inertia,
+        &mut p.friction,
+        &mut p.slip_stiffness,
+        &mut p.max_motor_torque,
+        &mut p.drive_time_constant,
+        &mut p.scr_time_constant,
+        &mut p.tachometer_time_constant,
+        &mut p.rated_frequency,
     ]
 }
 
-fn parameters_from(v: &[f64]) -> WindGeneratorParameters {
-    let g = |i: usize| v.get(i).copied().unwrap_or(f64::NAN);
-    WindGeneratorParameters {
-        pole_pairs: g(0),
-        stator_resistance: g(1),
-        d_inductance: g(2),
-        q_inductance: g(3),
-        field_resistance: g(4),
-        field_inductance: g(5),
-        mutual_inductance: g(6),
-        load_resistance: g(7),
-        inertia: g(8),
-        friction: g(9),
-        slip_stiffness: g(10),
-        max_motor_torque: g(11),
-        drive_time_constant: g(12),
-        scr_time_constant: g(13),
-        tachometer_time_constant: g(14),
-        rated_frequency: g(15),
-    }
+/// The physical parameters' values, in [`PARAMETER_NAMES`] order.
+fn parameter_values(mut p: WindGeneratorParameters) -> [f64; 16] {
+    parameter_fields(&mut p).map(|field| *field)
 }
 
 spurio_export::declare_variables! {
@@ -146,26 +132,32 @@ spurio_export::declare_variables! {
                 "Drive speed reference, 0-10 V for 0-60 Hz (clipped to [0, 10] V)"),
             U_FIELD = input("u_field", RATED_FIELD_REFERENCE, "V",
                 "SCR field reference, 0-10 V for 0-125 V DC (clipped to [0, 10] V)"),
-            SPEED = output("speed", "rpm", "Shaft speed read by the tachogenerator"),
-            VOLTAGE = output("voltage", "V", "Terminal voltage, RMS line to line"),
-            FREQUENCY = output("frequency", "Hz", "Electrical frequency of the generated voltage"),
-            SHAFT_SPEED = output("shaft_speed", "rpm", "True shaft speed (without the tachometer lag)"),
-            FIELD_CURRENT = output("field_current", "A", "Field current i_f"),
-            FIELD_VOLTAGE = output("field_voltage", "V", "Field voltage from the SCR module"),
-            T_E = output("T_e", "N.m", "Electrical (braking) torque of the generator"),
-            T_M = output("T_m", "N.m", "Motor torque"),
-            I_D = output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)"),
-            I_Q = output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)"),
+            SPEED = output("speed", "rpm", "Shaft speed read by the tachogenerator")
+                .depends_on(&[vr::OMEGA_TACH]),
+            VOLTAGE = output("voltage", "V", "Terminal voltage, RMS line to line")
+                .depends_on(&[vr::I_D, vr::I_Q]),
+            FREQUENCY = output("frequency", "Hz", "Electrical frequency of the generated voltage")
+                .depends_on(&[vr::OMEGA_M]),
+            SHAFT_SPEED = output("shaft_speed", "rpm", "True shaft speed (without the tachometer lag)")
+                .depends_on(&[vr::OMEGA_M]),
+            FIELD_CURRENT = state(output("field_current", "A", "Field current i_f"), 0.5, vr::FIELD_CURRENT),
+            FIELD_VOLTAGE = state(output("field_voltage", "V", "Field voltage from the SCR module"), 100.0, vr::FIELD_VOLTAGE),
+            T_E = output("T_e", "N.m", "Electrical (braking) torque of the generator")
+                .depends_on(&[vr::FIELD_CURRENT, vr::I_D, vr::I_Q]),
+            T_M = output("T_m", "N.m", "Motor torque")
+                .depends_on(&[vr::OMEGA_M, vr::OMEGA_S]),
+            I_D = state(output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_D),
+            I_Q = state(output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_Q),
             // The 16 physical parameters, in `PARAMETER_NAMES` order.
             FIRST_PARAMETER[16] = PARAMETER_NAMES
                 .iter()
-                .zip(parameter_values(&p))
+                .zip(parameter_values(p))
                 .zip(PARAMETER_RANGES)
                 .map(|(((name, unit, description), value), (min, max))| {
                     parameter(name, value, unit, description).min(min).max(max)
                 }),
             H_MAX = parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP, "s",
-                "Longest RK4 substep inside fmi2DoStep (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
+                "Longest RK4 substep inside fmi2DoStep when fixed_step_rk4 (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
                 .min(1e-9)
                 .max(1.0),
             START_AT_OPERATING_POINT = Variable::boolean_parameter("start_at_operating_point", false)
@@ -174,8 +166,149 @@ spurio_export::declare_variables! {
                 "Drive reference of the initial steady state").min(-1e3).max(1e3),
             U_FIELD_0 = parameter("u_field_0", RATED_FIELD_REFERENCE, "V",
                 "Field reference of the initial steady state").min(-1e3).max(1e3),
+            FIXED_STEP_RK4 = Variable::boolean_parameter("fixed_step_rk4", false)
+                .describe("Integrate with RK4 on fixed substeps of h_max (true) instead of the adaptive Rosenbrock method RODAS3 with relative tolerance rtol (false, the default)"),
+            RTOL = parameter("rtol", WindGenerator::DEFAULT_RELATIVE_TOLERANCE, "1",
+                "Relative tolerance of the adaptive integrator (absolute: rtol times 0.5 A, 100 rad/s, 100 V)")
+                .min(1e-12)
+                .max(1e-2),
+            // The states that are no output, then the eight derivatives (math order).
+            OMEGA_M = state_local("omega_m", "rad/s", "Shaft speed (state)", 100.0),
+            THETA_E = state_local("theta_e", "rad", "Electrical rotor angle, in [0, 2 pi) (state)", 1.0),
+            OMEGA_S = state_local("omega_s", "rad/s", "Synchronous speed of the drive, mechanical (state)", 100.0),
+            OMEGA_TACH = state_local("omega_tach", "rad/s", "Tachometer reading (state)", 100.0),
+            FIRST_DERIVATIVE[8] = (0..8).map(|k| {
+                let state = STATE_VRS[k];
+                derivative(DERIVATIVE_NAMES[k], state, DERIVATIVE_UNITS[k], "Time derivative of the state")
+                    .depends_on(&derivative_dependencies(k))
+            }),
+            Z_TORQUE_UPPER = event_indicator("z_torque_upper", "N.m",
+                "Event indicator T_max - k_s (omega_s - omega_m): the motor torque reaches or leaves +T_max where it changes sign"),
+            Z_TORQUE_LOWER = event_indicator("z_torque_lower", "N.m",
+                "Event indicator k_s (omega_s - omega_m) + T_max: the motor torque reaches or leaves -T_max where it changes sign"),
+            Z_TURN = event_indicator("z_turn", "rad",
+                "Event indicator 2 pi - theta_e: the angle completes a turn (wrapped back to [0, 2 pi) at the event)"),
         ]
     }
+}
+
+/// `variable` (a continuous Real output) as the state at `own` (its own index) with `nominal`:
+/// as an output it depends on itself only.
+fn state(variable: Variable, nominal: f64, own: usize) -> Variable {
+    variable.state().nominal(nominal).depends_on(&[own])
+}
+
+/// A local continuous Real that is a state of the Model Exchange interface.
+fn state_local(name: &str, unit: &str, description: &str, nominal: f64) -> Variable {
+    Variable {
+        causality: Causality::Local,
+        initial: Some(Initial::Calculated),
+        ..output(name, unit, description).state().nominal(nominal)
+    }
+}
+
+/// The value references of the states in the math crate's order
+/// `[i_d, i_q, i_f, ω_m, θ_e, ω_s, v_f, ω_t]`.
+pub const STATE_VRS: [usize; 8] = [
+    vr::I_D,
+    vr::I_Q,
+    vr::FIELD_CURRENT,
+    vr::OMEGA_M,
+    vr::THETA_E,
+    vr::OMEGA_S,
+    vr::FIELD_VOLTAGE,
+    vr::OMEGA_TACH,
+];
+
+/// The value references of the outputs in the order of
+/// [`WindGeneratorParameters::outputs`].
+pub const OUTPUT_VRS: [usize; OUTPUTS] = [
+    vr::SPEED,
+    vr::VOLTAGE,
+    vr::FREQUENCY,
+    vr::SHAFT_SPEED,
+    vr::FIELD_CURRENT,
+    vr::FIELD_VOLTAGE,
+    vr::T_E,
+    vr::T_M,
+    vr::I_D,
+    vr::I_Q,
+];
+
+/// The derivatives' names, in the math crate's state order.
+const DERIVATIVE_NAMES: [&str; 8] = [
+    "der(i_d)",
+    "der(i_q)",
+    "der(field_current)",
+    "der(omega_m)",
+    "der(theta_e)",
+    "der(omega_s)",
+    "der(field_voltage)",
+    "der(omega_tach)",
+];
+
+/// Their units.
+const DERIVATIVE_UNITS: [&str; 8] = [
+    "A/s", "A/s", "A/s", "rad/s2", "rad/s", "rad/s2", "V/s", "rad/s2",
+];
+
+/// The states (math order) and inputs each derivative depends on: the nonzero pattern of
+/// [`WindGeneratorParameters::jacobian_state`] and [`WindGeneratorParameters::jacobian_input`]
+/// (test `declared_dependencies_are_the_jacobians_pattern`).
+fn derivative_dependencies(k: usize) -> Vec<usize> {
+    let states: &[usize] = match k {
+        0 | 2 => &[0, 1, 2, 3, 6],
+        1 => &[0, 1, 2, 3],
+        3 => &[0, 1, 2, 3, 5],
+        4 => &[3],
+        5 => &[3, 5],
+        6 => &[6],
+        _ => &[3, 7],
+    };
+    let mut references: Vec<usize> = states.iter().map(|&i| STATE_VRS[i]).collect();
+    match k {
+        5 => references.push(vr::U_DRIVE),
+        6 => references.push(vr::U_FIELD),
+        _ => {}
+    }
+    references.sort_unstable();
+    references
+}
+
+/// Where a value reference sits among the Jacobians' rows or columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Slot {
+    /// A state (math index).
+    State(usize),
+    /// An input (0: `u_drive`, 1: `u_field`).
+    Input(usize),
+    /// A derivative (math index of its state).
+    Derivative(usize),
+    /// An output (index in [`OUTPUT_VRS`]).
+    Output(usize),
+}
+
+/// The slot of a known (state or input) of a directional derivative.
+fn known_slot(reference: usize) -> Option<Slot> {
+    match reference {
+        vr::U_DRIVE => Some(Slot::Input(0)),
+        vr::U_FIELD => Some(Slot::Input(1)),
+        _ => STATE_VRS
+            .iter()
+            .position(|&s| s == reference)
+            .map(Slot::State),
+    }
+}
+
+/// The slot of an unknown (derivative or output) of a directional derivative.
+fn unknown_slot(reference: usize) -> Option<Slot> {
+    if (vr::FIRST_DERIVATIVE..vr::FIRST_DERIVATIVE + 8).contains(&reference) {
+        return Some(Slot::Derivative(reference - vr::FIRST_DERIVATIVE));
+    }
+    OUTPUT_VRS
+        .iter()
+        .position(|&o| o == reference)
+        .map(Slot::Output)
 }
 
 /// An upper bound on the |eigenvalue| the integrator meets: the stator modes
@@ -201,34 +334,53 @@ pub fn fastest_mode(p: &WindGeneratorParameters) -> f64 {
     .fold(0.0, f64::max)
 }
 
+/// The adaptive integrator's first step after initialisation [s].
+const INITIAL_STEP: f64 = 1e-3;
+
 /// The WindGenerator FMU.
 #[derive(Debug, Clone)]
 pub struct WindGeneratorFmu {
     generator: WindGenerator,
     h_max: f64,
+    /// RK4 on fixed substeps of `h_max` (`fixed_step_rk4`) instead of the adaptive RODAS3.
+    fixed_step: bool,
+    /// The adaptive integrator's tolerances (`rtol`).
+    tolerance: Tolerance<8>,
+    /// The adaptive integrator's next step, carried from one `fmi2DoStep` to the next.
+    step: f64,
+    /// The motor torque's limit: on Model Exchange held between events (switched in event
+    /// mode), on Co-Simulation the limit of the state the last step left.
+    limit: TorqueLimit,
 }
 
 impl WindGeneratorFmu {
-    fn write_outputs(&self, ctx: &mut Context) {
-        let g = &self.generator;
-        let p = &g.parameters;
-        let s = &g.state;
-        let values = [
-            (vr::SPEED, g.speed_rpm()),
-            (vr::VOLTAGE, g.terminal_voltage()),
-            (vr::FREQUENCY, g.frequency()),
-            (vr::SHAFT_SPEED, g.shaft_speed_rpm()),
-            (vr::FIELD_CURRENT, s[2]),
-            (vr::FIELD_VOLTAGE, s[6]),
-            (vr::T_E, g.electrical_torque()),
-            (vr::T_M, p.motor_torque(s[5], s[3])),
-            (vr::I_D, s[0]),
-            (vr::I_Q, s[1]),
-        ];
-        for (i, v) in values {
-            ctx.values.set_real(i, v);
+    /// Writes the state variables and the outputs of the state `x` on the limit held.
+    fn write_outputs(&self, ctx: &mut Context, x: &GeneratorState) {
+        let outputs = self.generator.parameters.outputs(x, self.limit);
+        for (&reference, value) in OUTPUT_VRS.iter().zip(outputs) {
+            ctx.values.set_real(reference, value);
+        }
+        for (&reference, &value) in STATE_VRS.iter().zip(x.iter()) {
+            ctx.values.set_real(reference, value);
         }
     }
+
+    /// The state from the state variables.
+    fn states(ctx: &Context) -> GeneratorState {
+        GeneratorState::from_fn(|i, _| ctx.values.real(STATE_VRS[i]))
+    }
+
+    /// The inputs `(u_drive, u_field)`.
+    fn inputs(ctx: &Context) -> (f64, f64) {
+        (ctx.values.real(vr::U_DRIVE), ctx.values.real(vr::U_FIELD))
+    }
+}
+
+/// The error for a value reference that is not one the call accepts.
+fn not_a(reference: usize, what: &str) -> Failure {
+    Failure::error(format!(
+        "fmi2GetDirectionalDerivative: value reference {reference} is not a {what}"
+    ))
 }
 
 impl FmuModel for WindGeneratorFmu {
@@ -243,7 +395,9 @@ impl FmuModel for WindGeneratorFmu {
                 step_size: 0.1,
             }),
             Config::new(),
-        ))
+        )
+        .with_model_exchange()
+        .map_err(|e| e.to_string())?)
     }
 
     fn create(_info: &ModelInfo) -> Result<Self, Cause> {
@@ -253,14 +407,18 @@ impl FmuModel for WindGeneratorFmu {
                 state: GeneratorState::zeros(),
             },
             h_max: WindGenerator::RECOMMENDED_MAX_SUBSTEP,
+            limit: TorqueLimit::Linear,
+            fixed_step: false,
+            tolerance: WindGenerator::tolerance(WindGenerator::DEFAULT_RELATIVE_TOLERANCE),
+            step: INITIAL_STEP,
         })
     }
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let values: Vec<f64> = (0..PARAMETER_NAMES.len())
-            .map(|k| ctx.values.real(vr::FIRST_PARAMETER + k))
-            .collect();
-        let parameters = parameters_from(&values);
+        let mut parameters = WindGeneratorParameters::default();
+        for (k, field) in parameter_fields(&mut parameters).into_iter().enumerate() {
+            *field = ctx.values.real(vr::FIRST_PARAMETER + k);
+        }
         let generator = if ctx.values.boolean(vr::START_AT_OPERATING_POINT) {
             let (u_drive, u_field) = (
                 ctx.values.real(vr::U_DRIVE_0),
@@ -279,31 +437,57 @@ impl FmuModel for WindGeneratorFmu {
         } else {
             WindGenerator::new(parameters).map_err(Failure::error)?
         };
-        let fastest = fastest_mode(&parameters);
-        let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
-        let h_max = rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?;
+        self.fixed_step = ctx.values.boolean(vr::FIXED_STEP_RK4);
+        let h_max = if self.fixed_step {
+            let fastest = fastest_mode(&parameters);
+            let mode = format!("the machine's fastest mode (about {fastest:.1} 1/s)");
+            rk4_substep(ctx.values.real(vr::H_MAX), fastest, &mode)?
+        } else {
+            ctx.values.real(vr::H_MAX)
+        };
+        self.tolerance = WindGenerator::tolerance(ctx.values.real(vr::RTOL));
+        self.step = INITIAL_STEP;
+        let state = generator.state;
+        self.limit = parameters.torque_limit_of(state[5], state[3]);
         self.generator = generator;
         self.h_max = h_max;
-        self.write_outputs(ctx);
+        self.write_outputs(ctx, &state);
         Ok(())
     }
 
-    spurio_fmu_common::rk4_check_step!(h_max);
+    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
+        if self.fixed_step {
+            spurio::ode::check_substeps(step, self.h_max)?;
+        }
+        Ok(())
+    }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let (u_drive, u_field) = (ctx.values.real(vr::U_DRIVE), ctx.values.real(vr::U_FIELD));
-        let h_max = self.h_max;
-        advance_finite(
-            &mut self.generator,
-            |g| g.advance(time, u_drive, u_field, step, h_max),
-            |g| g.state.iter().all(|v| v.is_finite()),
-            || format!("the state became non-finite in the step from t = {time}"),
-        )?;
-        self.write_outputs(ctx);
+        if self.fixed_step {
+            let h_max = self.h_max;
+            advance_finite(
+                &mut self.generator,
+                |g| g.advance(time, u_drive, u_field, step, h_max),
+                |g| g.state.iter().all(|v| v.is_finite()),
+                || format!("the state became non-finite in the step from t = {time}"),
+            )?;
+        } else {
+            // On an error the generator keeps its state (advance_adaptive's contract).
+            self.generator
+                .advance_adaptive(u_drive, u_field, step, &self.tolerance, &mut self.step)
+                .map_err(|e| Failure::error(format!("the step from t = {time}: {e}")))?;
+        }
+        let state = self.generator.state;
+        self.limit = self
+            .generator
+            .parameters
+            .torque_limit_of(state[5], state[3]);
+        self.write_outputs(ctx, &state);
         Ok(())
     }
 
-    spurio_fmu_common::fmu_state!(generator, h_max; check = |m: &Self| {
+    spurio_fmu_common::fmu_state!(generator, h_max, limit, step; check = |m: &Self| {
         if m.generator.state.iter().any(|v| !v.is_finite()) {
             return Err("the saved generator state is not finite".into());
         }
@@ -313,7 +497,93 @@ impl FmuModel for WindGeneratorFmu {
     });
 }
 
-spurio_export::export_fmu!(WindGeneratorFmu);
+impl ModelExchange for WindGeneratorFmu {
+    fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+        let x = Self::states(ctx);
+        let (u_drive, u_field) = Self::inputs(ctx);
+        let p = &self.generator.parameters;
+        let dx = p.derivative_on(&x, u_drive, u_field, self.limit);
+        for (k, value) in dx.iter().enumerate() {
+            ctx.values.set_real(vr::FIRST_DERIVATIVE + k, *value);
+        }
+        let outputs = p.outputs(&x, self.limit);
+        for (&reference, value) in OUTPUT_VRS.iter().zip(outputs) {
+            ctx.values.set_real(reference, value);
+        }
+        Ok(())
+    }
+
+    fn event_indicators(&mut self, ctx: &mut Context, z: &mut [f64]) -> Result<(), Failure> {
+        let indicators = self
+            .generator
+            .parameters
+            .event_indicators(&Self::states(ctx));
+        for (z, value) in z.iter_mut().zip(indicators) {
+            *z = value;
+        }
+        Ok(())
+    }
+
+    fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure> {
+        let mut x = Self::states(ctx);
+        let p = self.generator.parameters;
+        let mut update = EventUpdate::default();
+        let limit = p.torque_limit_of(x[5], x[3]);
+        if limit != self.limit {
+            ctx.log_event(format!(
+                "t = {}: the motor torque {} (k_s (omega_s - omega_m) = {} N.m)",
+                ctx.time(),
+                match limit {
+                    TorqueLimit::Linear => "leaves its limit",
+                    TorqueLimit::Upper => "reaches +T_max",
+                    TorqueLimit::Lower => "reaches -T_max",
+                },
+                p.slip_stiffness * (x[5] - x[3])
+            ));
+            self.limit = limit;
+        }
+        if p.event_indicators(&x)[2] <= 0.0 {
+            wrap_angle(&mut x);
+            update.states_changed = true;
+        }
+        self.write_outputs(ctx, &x);
+        Ok(update)
+    }
+
+    fn directional_derivative(
+        &mut self,
+        ctx: &mut Context,
+        unknowns: &[usize],
+        knowns: &[usize],
+        seed: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), Failure> {
+        let x = Self::states(ctx);
+        let (u_drive, u_field) = Self::inputs(ctx);
+        let p = &self.generator.parameters;
+        let jx = p.jacobian_state(&x, self.limit);
+        let ju = p.jacobian_input(u_drive, u_field);
+        let jy = p.output_jacobian(&x, self.limit);
+        for (out, &unknown) in out.iter_mut().zip(unknowns) {
+            let row =
+                unknown_slot(unknown).ok_or_else(|| not_a(unknown, "derivative or output"))?;
+            let mut sum = 0.0;
+            for (&known, &s) in knowns.iter().zip(seed) {
+                let column = known_slot(known).ok_or_else(|| not_a(known, "state or input"))?;
+                sum += s * match (row, column) {
+                    (Slot::Derivative(i), Slot::State(j)) => jx[(i, j)],
+                    (Slot::Derivative(i), Slot::Input(j)) => ju[(i, j)],
+                    (Slot::Output(i), Slot::State(j)) => jy[(i, j)],
+                    _ => 0.0,
+                };
+            }
+            *out = sum;
+        }
+        Ok(())
+    }
+}
+
+spurio_export::export_fmu!(WindGeneratorFmu, model_exchange);
 
 #[cfg(test)]
 mod tests {
@@ -325,11 +595,224 @@ mod tests {
         assert!(limit > 1.5e-3 && limit < 2.2e-3, "{limit}");
     }
 
+    use spurio::plants::wind_generator::EVENT_INDICATORS;
+    use spurio_export::Values;
+
+    /// A model initialised from the start values, with the state `x` in its variables.
+    fn model_at(values: &mut Values, x: &GeneratorState) -> WindGeneratorFmu {
+        let info = WindGeneratorFmu::describe(&Config::new()).unwrap();
+        let mut m = WindGeneratorFmu::create(&info).unwrap();
+        m.initialize(&mut Context::new(values)).unwrap();
+        m.limit = m.generator.parameters.torque_limit_of(x[5], x[3]);
+        m.write_outputs(&mut Context::new(values), x);
+        m
+    }
+
+    #[test]
+    fn model_exchange_declares_the_eight_states_and_their_derivatives() {
+        let info = WindGeneratorFmu::describe(&Config::new()).unwrap();
+        let me = info.model_exchange.as_ref().unwrap();
+        assert_eq!(
+            me.event_indicators,
+            [vr::Z_TORQUE_UPPER, vr::Z_TORQUE_LOWER, vr::Z_TURN]
+        );
+        assert_eq!(me.event_indicators.len(), EVENT_INDICATORS);
+        let mut by_reference = STATE_VRS;
+        by_reference.sort_unstable();
+        assert_eq!(me.states, by_reference);
+        for (state, derivative) in me.states.iter().zip(&me.derivatives) {
+            let k = STATE_VRS.iter().position(|s| s == state).unwrap();
+            assert_eq!(*derivative, vr::FIRST_DERIVATIVE + k);
+        }
+    }
+
+    #[test]
+    fn declared_dependencies_are_the_jacobians_pattern() {
+        // The outputs' and derivatives' dependencies in the ModelStructure are exactly the
+        // nonzero entries of the analytic Jacobians.
+        let p = WindGeneratorParameters::default();
+        let x = GeneratorState::from_column_slice(&[0.3, 0.4, 0.5, 150.0, 1.0, 160.0, 90.0, 140.0]);
+        // The pattern over both modes of the torque (e.g. der(omega_s) depends on omega_s only
+        // at a limit, der(omega_m) on omega_s only off it).
+        let jx = p.jacobian_state(&x, TorqueLimit::Linear).abs()
+            + p.jacobian_state(&x, TorqueLimit::Upper).abs();
+        let ju = p.jacobian_input(5.0, 5.0);
+        let jy = p.output_jacobian(&x, TorqueLimit::Linear);
+        let table = variables();
+        for k in 0..8 {
+            let mut pattern: Vec<usize> = (0..8)
+                .filter(|&j| jx[(k, j)] != 0.0)
+                .map(|j| STATE_VRS[j])
+                .chain(
+                    (0..2)
+                        .filter(|&j| ju[(k, j)] != 0.0)
+                        .map(|j| [vr::U_DRIVE, vr::U_FIELD][j]),
+                )
+                .collect();
+            pattern.sort_unstable();
+            assert_eq!(
+                table[vr::FIRST_DERIVATIVE + k].dependencies,
+                pattern,
+                "{}",
+                DERIVATIVE_NAMES[k]
+            );
+        }
+        for (i, &reference) in OUTPUT_VRS.iter().enumerate() {
+            let mut pattern: Vec<usize> = (0..8)
+                .filter(|&j| jy[(i, j)] != 0.0)
+                .map(|j| STATE_VRS[j])
+                .collect();
+            pattern.sort_unstable();
+            assert_eq!(
+                table[reference].dependencies, pattern,
+                "{}",
+                table[reference].name
+            );
+        }
+    }
+
+    #[test]
+    fn directional_derivatives_match_central_differences_of_evaluate() {
+        let mut rng = spurio::signals::rng::RandomGenerator::new(15);
+        let info = WindGeneratorFmu::describe(&Config::new()).unwrap();
+        let unknowns: Vec<usize> = (vr::FIRST_DERIVATIVE..vr::FIRST_DERIVATIVE + 8)
+            .chain(OUTPUT_VRS)
+            .collect();
+        let knowns: Vec<usize> = STATE_VRS
+            .iter()
+            .copied()
+            .chain([vr::U_DRIVE, vr::U_FIELD])
+            .collect();
+        for _ in 0..50 {
+            let x = GeneratorState::from_fn(|i, _| {
+                let (low, high) = [
+                    (-2.0, 2.0),
+                    (-2.0, 2.0),
+                    (0.0, 1.0),
+                    (0.0, 250.0),
+                    (0.0, 6.0),
+                    (0.0, 260.0),
+                    (0.0, 125.0),
+                    (0.0, 250.0),
+                ][i];
+                rng.uniform_range(low, high)
+            });
+            let mut values = Values::from_start(&info.variables);
+            let mut m = model_at(&mut values, &x);
+            values.set_real(vr::U_DRIVE, rng.uniform_range(0.5, 9.5));
+            values.set_real(vr::U_FIELD, rng.uniform_range(0.5, 9.5));
+            for (j, &known) in knowns.iter().enumerate() {
+                let mut seed = vec![0.0; knowns.len()];
+                seed[j] = 1.0;
+                let mut analytic = vec![0.0; unknowns.len()];
+                let mut ctx = Context::new(&mut values);
+                m.evaluate(&mut ctx).unwrap();
+                m.directional_derivative(&mut ctx, &unknowns, &knowns, &seed, &mut analytic)
+                    .unwrap();
+                let base = values.real(known);
+                let d = 1e-5 * base.abs().max(1.0);
+                let mut at = |value: f64| {
+                    values.set_real(known, value);
+                    m.evaluate(&mut Context::new(&mut values)).unwrap();
+                    unknowns
+                        .iter()
+                        .map(|&u| values.real(u))
+                        .collect::<Vec<f64>>()
+                };
+                let (plus, minus) = (at(base + d), at(base - d));
+                values.set_real(known, base);
+                for (i, &unknown) in unknowns.iter().enumerate() {
+                    let fd = (plus[i] - minus[i]) / (2.0 * d);
+                    let scale = fd.abs().max(analytic[i].abs()).max(1e-3);
+                    assert!(
+                        (fd - analytic[i]).abs() <= 1e-6 * scale,
+                        "d{}/d{}: {fd} vs {}",
+                        info.variables[unknown].name,
+                        info.variables[known].name,
+                        analytic[i]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn events_switch_the_torque_limit_and_wrap_the_angle() {
+        let info = WindGeneratorFmu::describe(&Config::new()).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        // Far more slip than T_max allows: k_s · 30 rad/s = 5.2 N.m > 3.4 N.m.
+        let x = GeneratorState::from_column_slice(&[
+            0.1,
+            0.2,
+            0.3,
+            100.0,
+            2.0 * PI + 0.01,
+            130.0,
+            50.0,
+            90.0,
+        ]);
+        let mut m = model_at(&mut values, &x);
+        m.limit = TorqueLimit::Linear;
+        let mut ctx = Context::new(&mut values);
+        let mut z = [0.0; EVENT_INDICATORS];
+        m.evaluate(&mut ctx).unwrap();
+        m.event_indicators(&mut ctx, &mut z).unwrap();
+        assert!(z[0] < 0.0 && z[1] > 0.0 && z[2] < 0.0, "{z:?}");
+        let update = m.update_discrete_states(&mut ctx).unwrap();
+        assert!(update.states_changed);
+        assert_eq!(m.limit, TorqueLimit::Upper);
+        assert!((values.real(vr::THETA_E) - 0.01).abs() < 1e-12);
+        assert_eq!(values.real(vr::T_M), 3.4);
+        // Nothing more to do at the same point.
+        let mut ctx = Context::new(&mut values);
+        assert_eq!(
+            m.update_discrete_states(&mut ctx).unwrap(),
+            EventUpdate::default()
+        );
+    }
+
+    #[test]
+    fn adaptive_default_agrees_with_fixed_step_rk4_and_fails_cleanly() {
+        use spurio_export::harness::Harness;
+        use spurio_export::types::Status;
+        let run = |fixed: bool| {
+            let mut h = Harness::<WindGeneratorFmu>::new(&Config::new()).unwrap();
+            h.set_boolean(&[vr::FIXED_STEP_RK4 as u32], &[fixed])
+                .unwrap();
+            h.initialize(0.0).unwrap();
+            let mut out = [0.0; 2];
+            let mut samples = Vec::new();
+            for k in 0..60 {
+                let u = if k < 30 { [10.0, 8.0] } else { [6.0, 5.0] };
+                let io = [vr::U_DRIVE as u32, vr::U_FIELD as u32];
+                let read = [vr::SPEED as u32, vr::VOLTAGE as u32];
+                h.exchange(&io, &u, (k as f64 * 0.1, 0.1), &read, &mut out)
+                    .unwrap();
+                samples.push(out);
+            }
+            (h, samples)
+        };
+        let (_, rk4) = run(true);
+        let (mut h, adaptive) = run(false);
+        for (a, b) in adaptive.iter().zip(&rk4) {
+            assert!((a[0] - b[0]).abs() < 3e-7 * 1800.0, "{a:?} {b:?}");
+            assert!((a[1] - b[1]).abs() < 3e-7 * 240.0, "{a:?} {b:?}");
+        }
+        // A step the adaptive integrator cannot finish in its bounded work is refused and the
+        // instance stays where it was.
+        let before = h.real(vr::SPEED as u32).unwrap();
+        assert_eq!(h.do_step(6.0, 1e308), Err(Status::Error));
+        assert!(h.logged(&["the step from t = 6"]), "{:?}", h.log());
+        assert_eq!(h.real(vr::SPEED as u32).unwrap(), before);
+    }
+
     #[test]
     fn a_step_needing_too_many_substeps_is_refused_at_once() {
         use spurio_export::harness::Harness;
         use spurio_export::types::Status;
         let mut h = Harness::<WindGeneratorFmu>::new(&Config::new()).unwrap();
+        h.set_boolean(&[vr::FIXED_STEP_RK4 as u32], &[true])
+            .unwrap();
         h.set_real(&[vr::H_MAX as u32], &[1e-9]).unwrap();
         h.initialize(0.0).unwrap();
         spurio_fmu_common::refuses_too_many_substeps(&mut h, 0.1).unwrap();

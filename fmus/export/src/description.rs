@@ -123,6 +123,9 @@ pub struct ModelInfo {
     pub default_experiment: Option<DefaultExperiment>,
     /// The configuration this interface was built for.
     pub config: Config,
+    /// The Model Exchange interface, if the model offers it
+    /// ([`ModelInfo::with_model_exchange`]).
+    pub model_exchange: Option<crate::me::ModelExchangeInfo>,
     /// `guid`, derived from all of the above.
     pub guid: String,
 }
@@ -159,10 +162,21 @@ impl ModelInfo {
             variables,
             default_experiment,
             config,
+            model_exchange: None,
             guid: String::new(),
         };
         info.guid = guid_of(&info.to_xml_with_guid(""));
         info
+    }
+
+    /// The same model offering Model Exchange too: the states, derivatives and event
+    /// indicators come from the table ([`crate::Variable::state`],
+    /// [`crate::Variable::derivative_of`], [`crate::Variable::event_indicator`]), checked here
+    /// (every state has exactly one derivative, …). The GUID covers it.
+    pub fn with_model_exchange(mut self) -> Result<Self, crate::me::DeclarationError> {
+        self.model_exchange = Some(crate::me::ModelExchangeInfo::from_table(&self.variables)?);
+        self.guid = guid_of(&self.to_xml_with_guid(""));
+        Ok(self)
     }
 
     /// Index of the variable called `name`.
@@ -180,16 +194,27 @@ impl ModelInfo {
         let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
         let _ = writeln!(
             x,
-            r#"<fmiModelDescription fmiVersion="2.0" modelName="{}" guid="{}" description="{}" author="spurio" version="{}" generationTool="spurio {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
+            r#"<fmiModelDescription fmiVersion="2.0" modelName="{}" guid="{}" description="{}" author="spurio" version="{}" generationTool="spurio {}" variableNamingConvention="structured" numberOfEventIndicators="{}">"#,
             esc(&self.model_name),
             esc(guid),
             esc(&self.description),
             env!("CARGO_PKG_VERSION"),
             env!("CARGO_PKG_VERSION"),
+            self.model_exchange
+                .as_ref()
+                .map_or(0, |m| m.event_indicators.len()),
         );
+        let me = self.model_exchange.is_some();
+        if me {
+            let _ = writeln!(
+                x,
+                r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="true"/>"#,
+                esc(&self.model_identifier)
+            );
+        }
         let _ = writeln!(
             x,
-            r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
+            r#"  <CoSimulation modelIdentifier="{}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{me}"/>"#,
             esc(&self.model_identifier)
         );
         write_units(&mut x, self.units());
@@ -217,6 +242,9 @@ impl ModelInfo {
             write_causality(&mut x, v);
             let _ = writeln!(x, ">");
             let _ = write!(x, "      <{}", v.variable_type());
+            if let Some(state) = v.derivative_of.filter(|_| me) {
+                let _ = write!(x, r#" derivative="{}""#, state + 1);
+            }
             write_unit_and_bounds(&mut x, v);
             if v.has_start() {
                 let _ = write!(x, r#" start="{}""#, start_text(&v.start));
@@ -235,22 +263,32 @@ impl ModelInfo {
         if !outputs.is_empty() {
             let _ = writeln!(x, "    <Outputs>");
             for (i, v) in &outputs {
-                let deps: Vec<String> =
-                    v.dependencies.iter().map(|d| (d + 1).to_string()).collect();
                 let _ = writeln!(
                     x,
-                    r#"      <Unknown index="{}" dependencies="{}"/>"#,
+                    r#"      <Unknown index="{}"{}/>"#,
                     i + 1,
-                    deps.join(" ")
+                    dependencies(&references(&v.dependencies), me)
                 );
             }
             let _ = writeln!(x, "    </Outputs>");
+        }
+        if let Some(m) = &self.model_exchange {
+            let _ = writeln!(x, "    <Derivatives>");
+            for &d in &m.derivatives {
+                let _ = writeln!(
+                    x,
+                    r#"      <Unknown index="{}"{}/>"#,
+                    d + 1,
+                    dependencies(&references(&self.variables[d].dependencies), me)
+                );
+            }
+            let _ = writeln!(x, "    </Derivatives>");
         }
         let initial_unknowns: Vec<usize> = self
             .variables
             .iter()
             .enumerate()
-            .filter(|(_, v)| is_initial_unknown(v))
+            .filter(|(_, v)| is_initial_unknown(v, me))
             .map(|(i, _)| i)
             .collect();
         if !initial_unknowns.is_empty() {
@@ -386,6 +424,9 @@ pub(crate) fn write_unit_and_bounds(x: &mut String, v: &Variable) {
     if let Some(max) = v.max {
         let _ = write!(x, r#" max="{}""#, bound(max));
     }
+    if let Some(nominal) = v.nominal {
+        let _ = write!(x, r#" nominal="{}""#, fmt_real(nominal));
+    }
 }
 
 /// A start value as its XML attribute text.
@@ -398,10 +439,28 @@ pub(crate) fn start_text(value: &Value) -> String {
     }
 }
 
+/// FMI 2.0 indices (1-based) of the table indices `deps`.
+fn references(deps: &[usize]) -> Vec<u32> {
+    deps.iter().map(|d| *d as u32 + 1).collect()
+}
+
+/// The ` dependencies="…"` attribute of an output or derivative with the declared
+/// dependencies `deps` (the version's references). Co-Simulation only: the declared inputs
+/// (none: `""`, no direct feedthrough). With Model Exchange the declared states and inputs,
+/// and no attribute (depends on every known) when the model declares none.
+pub(crate) fn dependencies(deps: &[u32], model_exchange: bool) -> String {
+    if model_exchange && deps.is_empty() {
+        return String::new();
+    }
+    let deps: Vec<String> = deps.iter().map(u32::to_string).collect();
+    format!(r#" dependencies="{}""#, deps.join(" "))
+}
+
 /// Whether a variable is an initial unknown (outputs with `initial` approx or calculated,
-/// calculated parameters: FMI 2.0.4 §2.2.8, FMI 3.0.2 §2.4.8).
-pub(crate) fn is_initial_unknown(v: &Variable) -> bool {
-    (v.causality == Causality::Output
+/// calculated parameters, and with Model Exchange the states and derivatives with `initial`
+/// approx or calculated: FMI 2.0.4 §2.2.8, FMI 3.0.2 §2.4.8).
+pub(crate) fn is_initial_unknown(v: &Variable, model_exchange: bool) -> bool {
+    ((v.causality == Causality::Output || model_exchange && (v.state || v.derivative_of.is_some()))
         && matches!(
             v.initial,
             Some(crate::variables::Initial::Approx) | Some(crate::variables::Initial::Calculated)

@@ -16,6 +16,7 @@
 use crate::description::{Config, CONFIG_FILE};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind};
 use crate::instance::{functions, Function, Instance, LogSink, Logger};
+use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::*;
 use crate::uri::resource_path;
@@ -108,7 +109,7 @@ pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
 }
 
 /// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
-unsafe fn with_instance<M: FmuModel>(
+pub(crate) unsafe fn with_instance<M: FmuModel>(
     c: fmi2Component,
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
@@ -148,10 +149,12 @@ pub fn version() -> *const c_char {
     c"2.0".as_ptr()
 }
 
-/// `fmi2Instantiate`: checks the type, the GUID and the resources, then creates the instance.
+/// `fmi2Instantiate`: checks the type, the GUID and the resources, then creates the instance
+/// (for Model Exchange if the model has its functions `me` and its description declares it).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
+#[allow(clippy::too_many_arguments)]
 pub unsafe fn instantiate<M: FmuModel>(
     instance_name: fmi2String,
     fmu_type: fmi2Type,
@@ -160,6 +163,7 @@ pub unsafe fn instantiate<M: FmuModel>(
     functions: *const fmi2CallbackFunctions,
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
+    me: Option<Hooks<M>>,
 ) -> fmi2Component {
     let result = guarded(|| {
         if functions.is_null() {
@@ -232,12 +236,22 @@ pub unsafe fn instantiate<M: FmuModel>(
             Err(e) => return fail(format!("invalid variant configuration: {e}")),
         };
         let info = &interface.info;
-        if fmu_type != fmi2CoSimulation {
-            return fail(format!(
-                "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
-                info.model_identifier
-            ));
-        }
+        let offered = me.filter(|_| info.model_exchange.is_some());
+        let model_exchange = match (fmu_type, offered) {
+            (t, _) if t == fmi2CoSimulation => None,
+            (t, Some(hooks)) if t == fmi2ModelExchange => Some(hooks),
+            (_, None) => {
+                return fail(format!(
+                    "{} is a Co-Simulation FMU only: fmuType must be fmi2CoSimulation (1), got {fmu_type}",
+                    info.model_identifier
+                ))
+            }
+            (_, Some(_)) => {
+                return fail(format!(
+                    "fmuType must be fmi2ModelExchange (0) or fmi2CoSimulation (1), got {fmu_type}"
+                ))
+            }
+        };
         if given != info.guid {
             return fail(format!(
                 "GUID mismatch: the modelDescription.xml gives {given} but this binary of {} implements {} (the binary and the XML come from different builds or variants)",
@@ -245,7 +259,10 @@ pub unsafe fn instantiate<M: FmuModel>(
             ));
         }
         match Instance::<M>::of(Arc::clone(&interface), logger) {
-            Ok(instance) => into_component(instance),
+            Ok(instance) => into_component(match model_exchange {
+                Some(hooks) => instance.into_model_exchange(hooks),
+                None => instance.with_hooks(me),
+            }),
             Err(e) => {
                 // The logger moved into the failed constructor call; report through a new one.
                 let sink = CallbackSink {
@@ -557,13 +574,7 @@ unsafe fn get_known_status<M: FmuModel, T>(
         if kind != known {
             return get_status::<M>(c, f, kind);
         }
-        with_instance::<M>(c, f, |s| {
-            if value.is_null() {
-                return s.instance.reject(f, "value is NULL");
-            }
-            *value = answer(s);
-            Status::Ok
-        })
+        crate::front::write_out::<M, (), T>(c, f, (value, "value"), answer)
     }
 }
 

@@ -260,8 +260,8 @@ mod kinds {
     kind! { Fmi2, Real, f64, f2::GET_REAL, f2::SET_REAL, |x| x, |v| v }
     kind! { Fmi2, Integer, c_int, f2::GET_INTEGER, f2::SET_INTEGER, |x| x as c_int, f64::from }
     kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
-    kind! { Fmi3, Real, f64, f3::GET_FLOAT64, f3::SET_FLOAT64, |x| x, |v| v }
-    kind! { Fmi3, Integer, i32, f3::GET_INT32, f3::SET_INT32, |x| x as i32, f64::from }
+    kind! { Fmi3, Real, f64, f3::GET_REAL, f3::SET_REAL, |x| x, |v| v }
+    kind! { Fmi3, Integer, i32, f3::GET_INTEGER, f3::SET_INTEGER, |x| x as i32, f64::from }
     kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
 }
 
@@ -601,5 +601,28 @@ impl StateFunctions {
                 }
             })
         }
+    }
+}
+
+/// Writes what `answer` says of the instance behind `c` into the one value behind `out`
+/// (rejected when NULL, naming the argument `what`): the size and status queries.
+///
+/// # Safety
+/// `c` as for [`with_slot`]; `out` is NULL or points to one writable `T`.
+pub unsafe fn write_out<M: FmuModel, X, T>(
+    c: *mut c_void,
+    f: &Function,
+    (out, what): (*mut T, &str),
+    answer: impl FnOnce(&Slot<M, X>) -> T,
+) -> std::os::raw::c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            if out.is_null() {
+                return s.instance.reject(f, &format!("{what} is NULL"));
+            }
+            // SAFETY: checked non-NULL; the caller's obligation otherwise.
+            *out = answer(s);
+            Status::Ok
+        })
     }
 }

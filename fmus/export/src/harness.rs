@@ -8,6 +8,7 @@
 use crate::description::Config;
 use crate::ffi;
 use crate::instance::{Instance, LogSink, Logger};
+use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::*;
 use std::cell::RefCell;
@@ -49,10 +50,29 @@ fn status(code: fmi2Status) -> Result<Status, Status> {
 impl<M: FmuModel> Harness<M> {
     /// Instantiates `M` for `config` with debug logging on.
     pub fn new(config: &Config) -> Result<Self, crate::model::Cause> {
+        Self::with(config, |instance| instance)
+    }
+
+    /// Instantiates `M` for Model Exchange, with its Model Exchange functions `hooks`.
+    pub fn model_exchange(config: &Config, hooks: Hooks<M>) -> Result<Self, crate::model::Cause> {
+        Self::with(config, |instance| instance.into_model_exchange(hooks))
+    }
+
+    /// The component, for the calls the harness does not wrap (Model Exchange, directional
+    /// derivatives: `crate::me::ffi`).
+    pub fn component(&self) -> fmi2Component {
+        self.component
+    }
+
+    /// Instantiates `M` for `config`, the new instance set up by `setup`.
+    fn with(
+        config: &Config,
+        setup: impl FnOnce(Instance<M>) -> Instance<M>,
+    ) -> Result<Self, crate::model::Cause> {
         let info = M::describe(config)?;
         let log = MemorySink::default();
         let logger = Logger::new("harness", Box::new(log.clone()), true);
-        let instance = Instance::<M>::new(info, logger)?;
+        let instance = setup(Instance::<M>::new(info, logger)?);
         let component = ffi::into_component(instance);
         Ok(Self {
             component,

@@ -29,6 +29,7 @@
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
 use crate::front::Interface;
+use crate::me::Hooks;
 use crate::model::{Cause, Context, Failure, FmuModel, EVENTS};
 use crate::types::Status;
 use crate::variables::{Causality, Initial, Value, Values, Variability, Variable, VariableType};
@@ -48,10 +49,16 @@ pub enum ModelState {
     Terminated,
     Error,
     Fatal,
+    /// Model Exchange: Event Mode (discrete changes, event iteration).
+    EventMode,
+    /// Model Exchange: Continuous-Time Mode (the importer's solver integrates the states).
+    ContinuousTimeMode,
 }
 
 impl ModelState {
-    const ALL: [ModelState; 10] = [
+    /// Every state, in the order of their indices in a serialized FMU state (new states go
+    /// at the end, so saved states keep their meaning).
+    const ALL: [ModelState; 12] = [
         ModelState::StartAndEnd,
         ModelState::Instantiated,
         ModelState::InitializationMode,
@@ -62,6 +69,8 @@ impl ModelState {
         ModelState::Terminated,
         ModelState::Error,
         ModelState::Fatal,
+        ModelState::EventMode,
+        ModelState::ContinuousTimeMode,
     ];
 
     /// This state's bit in the masks.
@@ -84,6 +93,8 @@ impl ModelState {
                 | ModelState::StepComplete
                 | ModelState::Terminated
                 | ModelState::Error
+                | ModelState::EventMode
+                | ModelState::ContinuousTimeMode
         )
     }
 }
@@ -94,15 +105,26 @@ impl fmt::Display for ModelState {
     }
 }
 
-const INSTANTIATED: u32 = ModelState::Instantiated.bit();
-const INIT_MODE: u32 = ModelState::InitializationMode.bit();
-const STEP_COMPLETE: u32 = ModelState::StepComplete.bit();
-const STEP_IN_PROGRESS: u32 = ModelState::StepInProgress.bit();
-const STEP_FAILED: u32 = ModelState::StepFailed.bit();
-const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
-const TERMINATED: u32 = ModelState::Terminated.bit();
-const ERROR: u32 = ModelState::Error.bit();
-const FATAL: u32 = ModelState::Fatal.bit();
+/// The states' bits, for the masks of both versions' function tables.
+pub(crate) mod bits {
+    use super::ModelState;
+    pub const INSTANTIATED: u32 = ModelState::Instantiated.bit();
+    pub const INIT_MODE: u32 = ModelState::InitializationMode.bit();
+    pub const STEP_COMPLETE: u32 = ModelState::StepComplete.bit();
+    pub const STEP_IN_PROGRESS: u32 = ModelState::StepInProgress.bit();
+    pub const STEP_FAILED: u32 = ModelState::StepFailed.bit();
+    pub const STEP_CANCELED: u32 = ModelState::StepCanceled.bit();
+    pub const TERMINATED: u32 = ModelState::Terminated.bit();
+    pub const ERROR: u32 = ModelState::Error.bit();
+    pub const FATAL: u32 = ModelState::Fatal.bit();
+    pub const EVENT_MODE: u32 = ModelState::EventMode.bit();
+    pub const CONTINUOUS_TIME_MODE: u32 = ModelState::ContinuousTimeMode.bit();
+    /// The two states of a Model Exchange instance between initialization and termination.
+    pub const ME_MODES: u32 = EVENT_MODE | CONTINUOUS_TIME_MODE;
+    /// Where the Model Exchange getters may be called.
+    pub const ME_AFTER_INIT: u32 = INIT_MODE | ME_MODES | TERMINATED | ERROR;
+}
+use bits::*;
 
 /// An FMI function and the states in which it may be called.
 #[derive(Debug, Clone, Copy)]
@@ -114,7 +136,7 @@ pub struct Function {
 /// `function! { ID, "fmiXName", MASK }` declares `pub const ID: Function`: the one form of
 /// the FMI 2.0 and FMI 3.0 tables of allowed states.
 macro_rules! function {
-    ($id:ident, $name:literal, $mask:expr) => {
+    ($id:ident, $name:expr, $mask:expr) => {
         pub const $id: $crate::instance::Function = $crate::instance::Function {
             name: $name,
             mask: $mask,
@@ -123,10 +145,59 @@ macro_rules! function {
 }
 pub(crate) use function;
 
-/// Allowed-state masks of the FMI 2.0 CS functions (FMI 2.0.4, §4.2.4 state machine).
+/// Declares, in a version's `functions` module, the functions both versions have under the
+/// same name but for the prefix `$fmi` (and the spellings `$state` of "FMU state",
+/// `$deserialize` of its deserialization, `$real` and `$integer` of the numeric types), with
+/// the version's masks: every live state, where FMU states may be taken, where values may be
+/// read and set, where the instance may be terminated.
+macro_rules! shared_functions {
+    (
+        $fmi:literal, $state:literal, $deserialize:literal, $real:literal, $integer:literal,
+        $any_live:expr, $state_ops:expr, $get:expr, $set:expr, $terminable:expr
+    ) => {
+        use $crate::instance::function as f;
+        f! { SET_DEBUG_LOGGING, concat!($fmi, "SetDebugLogging"), $any_live }
+        f! { FREE_INSTANCE, concat!($fmi, "FreeInstance"), $any_live | FATAL }
+        f! { ENTER_INITIALIZATION_MODE, concat!($fmi, "EnterInitializationMode"), INSTANTIATED }
+        f! { EXIT_INITIALIZATION_MODE, concat!($fmi, "ExitInitializationMode"), INIT_MODE }
+        f! { RESET, concat!($fmi, "Reset"), $state_ops }
+        f! { TERMINATE, concat!($fmi, "Terminate"), $terminable }
+        f! { GET_REAL, concat!($fmi, "Get", $real), $get }
+        f! { GET_INTEGER, concat!($fmi, "Get", $integer), $get }
+        f! { SET_REAL, concat!($fmi, "Set", $real), $set }
+        f! { SET_INTEGER, concat!($fmi, "Set", $integer), $set }
+        f! { GET_BOOLEAN, concat!($fmi, "GetBoolean"), $get }
+        f! { GET_STRING, concat!($fmi, "GetString"), $get }
+        f! { SET_BOOLEAN, concat!($fmi, "SetBoolean"), $set }
+        f! { SET_STRING, concat!($fmi, "SetString"), $set }
+        f! { GET_FMU_STATE, concat!($fmi, "Get", $state), $state_ops }
+        f! { SET_FMU_STATE, concat!($fmi, "Set", $state), $state_ops }
+        f! { FREE_FMU_STATE, concat!($fmi, "Free", $state), $state_ops | FATAL }
+        f! { SERIALIZED_FMU_STATE_SIZE, concat!($fmi, "Serialized", $state, "Size"), $state_ops }
+        f! { SERIALIZE_FMU_STATE, concat!($fmi, "Serialize", $state), $state_ops }
+        f! { DESERIALIZE_FMU_STATE, concat!($fmi, $deserialize), $state_ops }
+        f! { DO_STEP, concat!($fmi, "DoStep"), STEP_COMPLETE }
+        f! { GET_DIRECTIONAL_DERIVATIVE, concat!($fmi, "GetDirectionalDerivative"), $get }
+        // Model Exchange (FMI 2.0.4 §3.2.3, FMI 3.0.2 §3.3).
+        f! { SET_TIME, concat!($fmi, "SetTime"), ME_MODES }
+        f! { SET_CONTINUOUS_STATES, concat!($fmi, "SetContinuousStates"), CONTINUOUS_TIME_MODE }
+        f! { GET_CONTINUOUS_STATES, concat!($fmi, "GetContinuousStates"), ME_AFTER_INIT }
+        f! { GET_EVENT_INDICATORS, concat!($fmi, "GetEventIndicators"), ME_AFTER_INIT }
+        f! { GET_NOMINALS_OF_CONTINUOUS_STATES, concat!($fmi, "GetNominalsOfContinuousStates"), INSTANTIATED | ME_AFTER_INIT }
+        f! { ENTER_EVENT_MODE, concat!($fmi, "EnterEventMode"), ME_MODES }
+        f! { ENTER_CONTINUOUS_TIME_MODE, concat!($fmi, "EnterContinuousTimeMode"), EVENT_MODE }
+        f! { COMPLETED_INTEGRATOR_STEP, concat!($fmi, "CompletedIntegratorStep"), CONTINUOUS_TIME_MODE }
+    };
+}
+pub(crate) use shared_functions;
+
+/// Allowed-state masks of the FMI 2.0 functions (FMI 2.0.4, §4.2.4 Co-Simulation and §3.2.3
+/// Model Exchange state machines; a Co-Simulation instance never is in the Model Exchange
+/// states and vice versa).
 pub mod functions {
-    use super::*;
-    const ANY_LIVE: u32 = INSTANTIATED
+    use super::bits::*;
+    const ANY_LIVE: u32 = ME_MODES
+        | INSTANTIATED
         | INIT_MODE
         | STEP_COMPLETE
         | STEP_IN_PROGRESS
@@ -135,46 +206,38 @@ pub mod functions {
         | TERMINATED
         | ERROR;
     const AFTER_INIT: u32 =
-        INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
+        ME_MODES | INIT_MODE | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR;
     const STATE_OPS: u32 = ANY_LIVE & !STEP_IN_PROGRESS;
     /// Where `fmi2Set*` (and the input derivatives) may be called.
-    const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_COMPLETE;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
     /// Where the `fmi2Get*Status` queries may be called: once stepping has begun.
     const STATUS_QUERIES: u32 =
         STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | STEP_CANCELED | TERMINATED;
 
-    use super::function as f;
-    f! { SET_DEBUG_LOGGING, "fmi2SetDebugLogging", ANY_LIVE }
-    f! { FREE_INSTANCE, "fmi2FreeInstance", ANY_LIVE | FATAL }
+    const TERMINABLE: u32 = ME_MODES | STEP_COMPLETE | STEP_FAILED | STEP_CANCELED;
+    super::shared_functions!(
+        "fmi2",
+        "FMUstate",
+        "DeSerializeFMUstate",
+        "Real",
+        "Integer",
+        ANY_LIVE,
+        STATE_OPS,
+        AFTER_INIT,
+        SETTABLE,
+        TERMINABLE
+    );
     f! { SETUP_EXPERIMENT, "fmi2SetupExperiment", INSTANTIATED }
-    f! { ENTER_INITIALIZATION_MODE, "fmi2EnterInitializationMode", INSTANTIATED }
-    f! { EXIT_INITIALIZATION_MODE, "fmi2ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi2Terminate", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED }
-    f! { RESET, "fmi2Reset", STATE_OPS }
-    f! { GET_REAL, "fmi2GetReal", AFTER_INIT }
-    f! { GET_INTEGER, "fmi2GetInteger", AFTER_INIT }
-    f! { GET_BOOLEAN, "fmi2GetBoolean", AFTER_INIT }
-    f! { GET_STRING, "fmi2GetString", AFTER_INIT }
-    f! { SET_REAL, "fmi2SetReal", SETTABLE }
-    f! { SET_INTEGER, "fmi2SetInteger", SETTABLE }
-    f! { SET_BOOLEAN, "fmi2SetBoolean", SETTABLE }
-    f! { SET_STRING, "fmi2SetString", SETTABLE }
-    f! { GET_FMU_STATE, "fmi2GetFMUstate", STATE_OPS }
-    f! { SET_FMU_STATE, "fmi2SetFMUstate", STATE_OPS }
-    f! { FREE_FMU_STATE, "fmi2FreeFMUstate", STATE_OPS | FATAL }
-    f! { SERIALIZED_FMU_STATE_SIZE, "fmi2SerializedFMUstateSize", STATE_OPS }
-    f! { SERIALIZE_FMU_STATE, "fmi2SerializeFMUstate", STATE_OPS }
-    f! { DESERIALIZE_FMU_STATE, "fmi2DeSerializeFMUstate", STATE_OPS }
-    f! { GET_DIRECTIONAL_DERIVATIVE, "fmi2GetDirectionalDerivative", AFTER_INIT }
     f! { SET_REAL_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", SETTABLE }
     f! { GET_REAL_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", STEP_COMPLETE | STEP_FAILED | STEP_CANCELED | TERMINATED | ERROR }
-    f! { DO_STEP, "fmi2DoStep", STEP_COMPLETE }
     f! { CANCEL_STEP, "fmi2CancelStep", STEP_IN_PROGRESS }
     f! { GET_STATUS, "fmi2GetStatus", STATUS_QUERIES }
     f! { GET_REAL_STATUS, "fmi2GetRealStatus", STATUS_QUERIES }
     f! { GET_INTEGER_STATUS, "fmi2GetIntegerStatus", STATUS_QUERIES }
     f! { GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", STATUS_QUERIES }
     f! { GET_STRING_STATUS, "fmi2GetStringStatus", STATUS_QUERIES }
+    f! { GET_DERIVATIVES, "fmi2GetDerivatives", ME_AFTER_INIT }
+    f! { NEW_DISCRETE_STATES, "fmi2NewDiscreteStates", EVENT_MODE }
 }
 
 /// The names of the states in `f`'s mask, in the vocabulary of `f`'s FMI version (FMI 3.0
@@ -264,13 +327,14 @@ impl Logger {
 /// The part of an instance that an FMU state captures.
 #[derive(Clone)]
 pub struct Core<M> {
-    model: M,
-    values: Values,
-    time: f64,
-    state: ModelState,
+    pub(crate) model: M,
+    pub(crate) values: Values,
+    pub(crate) time: f64,
+    pub(crate) state: ModelState,
     stop_time: Option<f64>,
-    /// Inputs were set since the outputs were last computed.
-    inputs_changed: bool,
+    /// Inputs were set since the outputs were last computed (Model Exchange: inputs, states
+    /// or time were set since the derivatives were last evaluated).
+    pub(crate) inputs_changed: bool,
 }
 
 const STATE_MAGIC: &str = "spurio-fmu-state/2";
@@ -307,7 +371,10 @@ impl Access {
             settable |= INIT_MODE;
         }
         if input || (v.causality == Causality::Parameter && v.variability == Variability::Tunable) {
-            settable |= STEP_COMPLETE;
+            settable |= STEP_COMPLETE | EVENT_MODE;
+        }
+        if input {
+            settable |= CONTINUOUS_TIME_MODE;
         }
         Self {
             variable_type: v.variable_type(),
@@ -323,9 +390,14 @@ impl Access {
 /// An instance of model `M`.
 pub struct Instance<M: FmuModel> {
     /// The model description and access table, shared by every instance of the configuration.
-    interface: Arc<Interface>,
+    pub(crate) interface: Arc<Interface>,
     logger: Logger,
-    core: Core<M>,
+    pub(crate) core: Core<M>,
+    /// The model's Model Exchange functions, if it has them (directional derivatives serve
+    /// Co-Simulation too).
+    pub(crate) me: Option<Hooks<M>>,
+    /// Whether the instance was instantiated for Model Exchange.
+    pub(crate) model_exchange: bool,
     /// The values before the current model call (reused buffer), restored when the call
     /// produces a non-finite value.
     before: Values,
@@ -345,6 +417,8 @@ impl<M: FmuModel> Instance<M> {
         Ok(Self {
             interface,
             logger,
+            me: None,
+            model_exchange: false,
             before: values.clone(),
             core: Core {
                 model,
@@ -416,7 +490,7 @@ impl<M: FmuModel> Instance<M> {
         );
     }
 
-    fn run_model(
+    pub(crate) fn run_model(
         &mut self,
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
@@ -543,7 +617,12 @@ impl<M: FmuModel> Instance<M> {
     pub fn exit_initialization_mode_as(&mut self, f: &Function) -> Status {
         let status = self.run_model(f, |m, ctx| m.initialize(ctx));
         if status <= Status::Warning {
-            self.core.state = ModelState::StepComplete;
+            self.core.state = if self.model_exchange {
+                self.core.inputs_changed = true;
+                ModelState::EventMode
+            } else {
+                ModelState::StepComplete
+            };
         }
         status
     }
@@ -638,8 +717,14 @@ impl<M: FmuModel> Instance<M> {
 
     /// Before values are read by `f`: in Initialization Mode the model computes the outputs
     /// and calculated parameters from the current parameters; in Step Mode, after inputs
-    /// were set, it recomputes the direct-feedthrough outputs. Otherwise nothing to do.
+    /// were set, it recomputes the direct-feedthrough outputs; a Model Exchange instance
+    /// evaluates its derivatives and outputs when states, inputs or time changed. Otherwise
+    /// nothing to do.
     pub fn refresh_outputs(&mut self, f: &Function) -> Status {
+        if self.model_exchange {
+            // Outputs and derivatives from the current states, inputs and time.
+            return self.evaluate(f);
+        }
         if !self.needs_refresh() {
             return Status::Ok;
         }
@@ -659,8 +744,17 @@ impl<M: FmuModel> Instance<M> {
     /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
     #[inline]
     fn needs_refresh(&self) -> bool {
-        self.core.state == ModelState::InitializationMode
-            || (self.core.inputs_changed && self.core.state == ModelState::StepComplete)
+        let state = self.core.state;
+        state == ModelState::InitializationMode
+            || (self.core.inputs_changed
+                && (state == ModelState::StepComplete
+                    || (self.model_exchange
+                        && matches!(
+                            state,
+                            ModelState::EventMode
+                                | ModelState::ContinuousTimeMode
+                                | ModelState::Terminated
+                        ))))
     }
 
     /// Whether value reference `vr` names a variable of type `expected`.
@@ -771,7 +865,12 @@ impl<M: FmuModel> Instance<M> {
     /// parameters changed in Step Mode (the model is told).
     fn values_set(&mut self, f: &Function, inputs: bool, parameters: bool) -> Status {
         self.core.inputs_changed |= inputs;
-        if parameters && self.core.state == ModelState::StepComplete {
+        if parameters
+            && matches!(
+                self.core.state,
+                ModelState::StepComplete | ModelState::EventMode
+            )
+        {
             return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
         }
         Status::Ok
@@ -959,6 +1058,11 @@ impl<M: FmuModel> Instance<M> {
         let index = r.u64()?;
         let state = ModelState::from_bits_index(index)
             .filter(|s| s.can_be_saved())
+            .filter(|s| {
+                let me_only = s.bit() & ME_MODES != 0;
+                let cs_only = *s == ModelState::StepComplete;
+                !(me_only && !self.model_exchange || cs_only && self.model_exchange)
+            })
             .ok_or(StateError::MachineState(index))?;
         let time = r.f64()?;
         if !time.is_finite() {

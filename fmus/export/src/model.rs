@@ -141,6 +141,68 @@ impl<'a> Context<'a> {
     }
 }
 
+/// What the discrete change at an event did (`fmi2NewDiscreteStates`' `fmi2EventInfo`,
+/// `fmi3UpdateDiscreteStates`' flags). The default: nothing changed, no next time event.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EventUpdate {
+    /// Another event iteration is needed at this time (`newDiscreteStatesNeeded`).
+    pub discrete_states_need_update: bool,
+    /// The model asks to end the simulation (`terminateSimulation`).
+    pub terminate_simulation: bool,
+    /// The continuous states were changed (`valuesOfContinuousStatesChanged`: a velocity
+    /// reset, say), so the solver restarts from them.
+    pub states_changed: bool,
+    /// The nominals of the states changed (`nominalsOfContinuousStatesChanged`).
+    pub nominals_changed: bool,
+    /// The time of the next time event, if there is one (`nextEventTime`).
+    pub next_event_time: Option<f64>,
+}
+
+/// The Model Exchange side of a model: the importer's solver integrates its continuous
+/// states (the variables declared [`crate::Variable::state`], in value-reference order) from
+/// their derivatives (the variables declared [`crate::Variable::derivative_of`]).
+///
+/// The layer keeps the states in the variable values: `fmi2SetContinuousStates` writes them
+/// there, [`FmuModel::initialize`] sets their initial values there, and
+/// [`ModelExchange::update_discrete_states`] changes them there at an event. A model offers
+/// the interface by declaring it in [`FmuModel::describe`]
+/// ([`crate::ModelInfo::with_model_exchange`]) and exporting with `export_fmu!(Model, model_exchange)`.
+///
+/// Value references here are the indices of the variable table (the FMI 2.0 value
+/// references, the `vr::…` constants of `declare_variables!`), also for FMI 3.0 calls.
+/// Non-finite results are caught by the layer (`fmi2Error` naming the variable).
+pub trait ModelExchange: FmuModel {
+    /// Reads the states, inputs and parameters from `ctx` at `ctx.time()` and writes the
+    /// derivative variables `der(…)` and the outputs. Pure: no internal state changes, so
+    /// calling it any number of times with the same values gives the same result.
+    fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure>;
+
+    /// The event indicators `z` (one per variable declared
+    /// [`crate::Variable::event_indicator`], in table order; the layer writes them there) from the same
+    /// values as [`ModelExchange::evaluate`] (called after it); a sign change of one is a
+    /// state event the solver locates.
+    fn event_indicators(&mut self, ctx: &mut Context, z: &mut [f64]) -> Result<(), Failure>;
+
+    /// In event mode (after initialization, at a state or time event, after
+    /// `fmi2CompletedIntegratorStep` asked for one): the discrete change — a velocity reset at
+    /// a rail stop, a mode switch — written into the state values in `ctx`.
+    fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure>;
+
+    /// The analytic directional derivative `out = J · seed` of the `unknowns` (derivatives
+    /// and outputs) with respect to the `knowns` (states and inputs), at the current values
+    /// (after [`ModelExchange::evaluate`]); `seed.len() == knowns.len()`,
+    /// `out.len() == unknowns.len()`. Exact, not finite differences. Also serves the
+    /// Co-Simulation interface, where the states are the values the last step left.
+    fn directional_derivative(
+        &mut self,
+        ctx: &mut Context,
+        unknowns: &[usize],
+        knowns: &[usize],
+        seed: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), Failure>;
+}
+
 /// An FMI 2.0 Co-Simulation model.
 ///
 /// `Clone` is how FMU states are taken (`fmi2GetFMUstate`); `save_state`/`load_state` are how

@@ -44,3 +44,18 @@ pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Pat
         assert!(page.starts_with(&format!("# {}", info.model_identifier)));
     }
 }
+
+/// Each bundled variant declares Model Exchange in its description
+/// ([`crate::ModelInfo::with_model_exchange`]) exactly when the FMU is exported with it
+/// (`export_fmu!(Model, model_exchange)`, `exported`).
+pub fn check_interfaces<M: FmuModel>(variants: &[Variant], exported: bool) {
+    for (stem, config) in variants {
+        let info = M::describe(config).unwrap_or_else(|e| panic!("{stem}: {e}"));
+        assert_eq!(
+            info.model_exchange.is_some(),
+            exported,
+            "{stem}: the description declares Model Exchange: {}, export_fmu! exports it: {exported}",
+            info.model_exchange.is_some()
+        );
+    }
+}

@@ -113,8 +113,18 @@ pub struct Variable {
     /// Upper bound, checked on `fmi2Set*`.
     pub max: Option<f64>,
     /// For outputs: the indices of the inputs this output depends on directly (direct
-    /// feedthrough). Empty: the output depends on no input within a step.
+    /// feedthrough). Empty: the output depends on no input within a step. For a Model
+    /// Exchange FMU, outputs and derivatives list the states and inputs they depend on.
     pub dependencies: Vec<usize>,
+    /// A continuous state of the Model Exchange interface ([`Variable::state`]).
+    pub state: bool,
+    /// For a state derivative `der(x)`: the index of its state `x`
+    /// ([`Variable::derivative_of`]).
+    pub derivative_of: Option<usize>,
+    /// The nominal value of a Real (`nominal="…"`; a state's for the solver's error control).
+    pub nominal: Option<f64>,
+    /// An event indicator of the Model Exchange interface ([`Variable::event_indicator`]).
+    pub event_indicator: bool,
 }
 
 impl Variable {
@@ -135,6 +145,10 @@ impl Variable {
             min: None,
             max: None,
             dependencies: Vec::new(),
+            state: false,
+            derivative_of: None,
+            nominal: None,
+            event_indicator: false,
         }
     }
 
@@ -240,6 +254,50 @@ impl Variable {
         self.dependencies = inputs.to_vec();
         self
     }
+    /// Marks a continuous Real (an output or a local) as a continuous state of the Model
+    /// Exchange interface; its derivative is declared by [`Variable::derivative_of`]. States
+    /// are ordered by value reference.
+    pub fn state(mut self) -> Self {
+        self.state = true;
+        self
+    }
+    /// A local Real `der(x)`: the time derivative of the state at index `state`
+    /// (`derivative="…"` in the model description), calculated by the model.
+    pub fn derivative(name: &str, state: usize) -> Self {
+        Self::calculated_local(name).derivative_of(state)
+    }
+    /// A continuous Real local the model calculates (`initial="calculated"`).
+    fn calculated_local(name: &str) -> Self {
+        Self {
+            initial: Some(Initial::Calculated),
+            ..Self::new(
+                name,
+                Causality::Local,
+                Variability::Continuous,
+                Value::Real(0.0),
+            )
+        }
+    }
+    /// Declares this Real the time derivative of the state at index `state`.
+    pub fn derivative_of(mut self, state: usize) -> Self {
+        self.derivative_of = Some(state);
+        self
+    }
+    /// A local Real that is an event indicator of the Model Exchange interface: the layer
+    /// writes into it what [`crate::ModelExchange::event_indicators`] returns (in table order),
+    /// so it can be read like any variable; a sign change is a state event. FMI 3.0 lists it
+    /// as `<EventIndicator>`, FMI 2.0 counts it in `numberOfEventIndicators`.
+    pub fn event_indicator(name: &str) -> Self {
+        Self {
+            event_indicator: true,
+            ..Self::calculated_local(name)
+        }
+    }
+    /// Sets the nominal value (`nominal="…"`, a state's scale for the solver; default 1).
+    pub fn nominal(mut self, nominal: f64) -> Self {
+        self.nominal = Some(nominal);
+        self
+    }
     /// The FMI type of the variable.
     pub fn variable_type(&self) -> VariableType {
         self.start.variable_type()
@@ -272,6 +330,19 @@ pub mod rows {
     /// A continuous Real output ([`Variable::output`]) with its unit and description.
     pub fn output(name: &str, unit: &str, description: &str) -> Variable {
         Variable::output(name).unit(unit).describe(description)
+    }
+    /// A state derivative `der(x)` ([`Variable::derivative`]) of the state at index `state`,
+    /// with its unit and description.
+    pub fn derivative(name: &str, state: usize, unit: &str, description: &str) -> Variable {
+        Variable::derivative(name, state)
+            .unit(unit)
+            .describe(description)
+    }
+    /// An event indicator ([`Variable::event_indicator`]) with its unit and description.
+    pub fn event_indicator(name: &str, unit: &str, description: &str) -> Variable {
+        Variable::event_indicator(name)
+            .unit(unit)
+            .describe(description)
     }
     /// A discrete Real output ([`Variable::discrete_output`]) with its unit and description.
     pub fn discrete_output(name: &str, unit: &str, description: &str) -> Variable {

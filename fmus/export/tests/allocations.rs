@@ -207,6 +207,7 @@ fn fmi2_set_step_get_allocates_nothing() {
             &callbacks,
             off,
             off,
+            None,
         )
     };
     assert!(!c.is_null());
@@ -256,17 +257,15 @@ fn fmi3_set_step_get_allocates_nothing() {
     let (token, off) = (token(), fmi3False);
     let env = std::ptr::null_mut();
     let c = unsafe {
-        ffi3::instantiate_co_simulation::<Toy>(
+        let args = ffi3::Instantiation(
             name.as_ptr(),
             token.as_ptr(),
             std::ptr::null(),
             off,
-            off,
-            off,
-            0,
             env,
             None,
-        )
+        );
+        ffi3::instantiate_co_simulation::<Toy>(args, off, off, 0, None)
     };
     assert!(!c.is_null());
     unsafe {

@@ -1,92 +1,24 @@
-//! The export layer driven through its C entry points (in-process harness) with a toy model:
+//! The export layer's FMI 2.0 Co-Simulation front driven through its C entry points
+//! (in-process harness) with the shared toy model ([`common::toy`]):
 //! state masks, argument checks, panics caught as fmi2Fatal (their text on the logger only),
 //! direct feedthrough, refused steps, no non-finite value published, time overflow, and the
 //! checks of a serialized FMU state.
 
 mod common;
 
+use common::toy::{Toy, U, Y, Y0, Z};
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
-use spurio_export::{
-    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
-};
+use spurio_export::{Config, FmuModel};
 
-/// y = integral of u (Euler per step); z = 2 u (direct feedthrough); panics when u = 13;
-/// refuses steps longer than 1000 s (its bounded work per call); overflows to y = ±∞ when
-/// u · h does.
-#[derive(Clone, Debug, Default)]
-struct Integrator {
-    state: f64,
+/// A toy instance initialized at `start_time`.
+fn started(start_time: f64) -> Harness<Toy> {
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
+    h.initialize(start_time).unwrap();
+    h
 }
 
-spurio_export::declare_variables! {
-    /// u (input), y = ∫u, z = 2u (direct feedthrough), y0 the start of y.
-    fn variables() {
-        table: [
-            U = Variable::input("u", 0.0),
-            Y = Variable::output("y"),
-            Z = Variable::output("z").depends_on(&[vr::U]),
-            Y0 = Variable::parameter("y0", 0.0).min(-10.0).max(10.0),
-        ]
-    }
-}
-use vr::{U, Y, Y0, Z};
-
-impl FmuModel for Integrator {
-    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
-        Ok(ModelInfo::new(
-            "Integrator",
-            "test model",
-            variables(),
-            None,
-            Config::new(),
-        ))
-    }
-    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
-        Ok(Self::default())
-    }
-    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.state = ctx.values.real(Y0);
-        ctx.values.set_real(Y, self.state);
-        self.update_outputs(ctx)
-    }
-    fn check_step(&self, _ctx: &Context, _time: f64, step: f64) -> Result<(), Cause> {
-        if step > 1000.0 {
-            return Err(format!("a step of {step} s is longer than 1000 s").into());
-        }
-        Ok(())
-    }
-    fn do_step(&mut self, ctx: &mut Context, _time: f64, step: f64) -> Result<(), Failure> {
-        let u = ctx.values.real(U);
-        if u == 13.0 {
-            panic!("unlucky input");
-        }
-        if u < -100.0 {
-            return Err(Failure::error("u below -100 is not integrable"));
-        }
-        self.state += step * u;
-        ctx.values.set_real(Y, self.state);
-        self.update_outputs(ctx)
-    }
-    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        let u = ctx.values.real(U);
-        ctx.values.set_real(Z, 2.0 * u);
-        Ok(())
-    }
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_f64(self.state);
-    }
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        let state = input.f64()?;
-        if !state.is_finite() {
-            return Err(format!("the integrator's state {state} is not finite").into());
-        }
-        self.state = state;
-        Ok(())
-    }
-}
-
-fn errors(h: &Harness<Integrator>) -> Vec<String> {
+fn errors(h: &Harness<Toy>) -> Vec<String> {
     h.log()
         .into_iter()
         .filter(|(s, _, _)| *s >= Status::Error)
@@ -95,13 +27,13 @@ fn errors(h: &Harness<Integrator>) -> Vec<String> {
 }
 
 /// The last message logged with status Error or worse ("" when there is none).
-fn last_error(h: &Harness<Integrator>) -> String {
+fn last_error(h: &Harness<Toy>) -> String {
     errors(h).pop().unwrap_or_default()
 }
 
 #[test]
 fn stepping_before_initialisation_is_an_illegal_call_sequence() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
     let e = errors(&h);
     assert!(
@@ -117,7 +49,7 @@ fn stepping_before_initialisation_is_an_illegal_call_sequence() {
 
 #[test]
 fn rejected_sets_change_nothing_and_say_why() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
     assert_eq!(h.set_real(&[Y0 as u32], &[11.0]), Err(Status::Error));
     assert!(last_error(&h).contains("`y0` = 11 is above its maximum 10"));
     h.set_real(&[Y0 as u32], &[2.0]).unwrap();
@@ -126,7 +58,7 @@ fn rejected_sets_change_nothing_and_say_why() {
     assert_eq!(h.set_real(&[U as u32, 99], &[3.0, 1.0]), Err(Status::Error));
     assert!(last_error(&h).contains("unknown value reference 99"));
     assert_eq!(h.set_real(&[U as u32], &[f64::NAN]), Err(Status::Error));
-    assert!(last_error(&h).contains("`u`") && last_error(&h).contains("NaN"));
+    assert!(last_error(&h).contains("`u[1]`") && last_error(&h).contains("NaN"));
     assert_eq!(h.set_real(&[Y0 as u32], &[1.0]), Err(Status::Error));
     assert!(last_error(&h).contains("fixed parameter"));
     assert_eq!(h.set_real(&[Y as u32], &[1.0]), Err(Status::Error));
@@ -138,10 +70,9 @@ fn rejected_sets_change_nothing_and_say_why() {
 
 #[test]
 fn direct_feedthrough_outputs_follow_their_inputs_between_steps() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[4.0]).unwrap();
-    assert_eq!(h.real(Z as u32).unwrap(), 8.0);
+    assert_eq!(h.real(Z as u32).unwrap(), 4.0);
     assert_eq!(
         h.real(Y as u32).unwrap(),
         0.0,
@@ -151,8 +82,7 @@ fn direct_feedthrough_outputs_follow_their_inputs_between_steps() {
 
 #[test]
 fn a_panic_is_caught_and_reported_as_fatal() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[13.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Fatal));
     let log = h.log();
@@ -169,8 +99,7 @@ fn a_panic_is_caught_and_reported_as_fatal() {
 
 #[test]
 fn a_model_error_moves_the_instance_to_the_error_state() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[-200.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
     assert!(last_error(&h).contains("fmi2DoStep: u below -100 is not integrable"));
@@ -182,8 +111,7 @@ fn a_model_error_moves_the_instance_to_the_error_state() {
 
 #[test]
 fn communication_point_and_step_size_are_checked() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(1.0).unwrap();
+    let mut h = started(1.0);
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Error));
     assert!(last_error(&h).contains("expected currentCommunicationPoint = 1"));
     assert_eq!(h.do_step(1.0, 0.0), Err(Status::Error));
@@ -194,8 +122,7 @@ fn communication_point_and_step_size_are_checked() {
 
 #[test]
 fn a_step_the_model_refuses_changes_nothing() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[1.0]).unwrap();
     assert_eq!(h.do_step(0.0, 2000.0), Err(Status::Error));
     assert!(
@@ -211,8 +138,7 @@ fn a_step_the_model_refuses_changes_nothing() {
 
 #[test]
 fn a_non_finite_result_is_an_error_and_is_not_published() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[1.0]).unwrap();
     h.do_step(0.0, 1.0).unwrap();
     // 1e308 · 10 overflows: y would be +inf
@@ -220,12 +146,14 @@ fn a_non_finite_result_is_an_error_and_is_not_published() {
     assert_eq!(h.do_step(1.0, 10.0), Err(Status::Error));
     let e = last_error(&h);
     assert!(
-        e.contains("fmi2DoStep: variable `y` (value reference 1) came out as inf: not published"),
+        e.contains(
+            "fmi2DoStep: variable `y[1]` (value reference 2) came out as inf: not published"
+        ),
         "{e}"
     );
     // the last published values stay readable (Error state), the time did not advance
     assert_eq!(h.real(Y as u32).unwrap(), 1.0);
-    assert_eq!(h.real(Z as u32).unwrap(), 2.0);
+    assert_eq!(h.real(Z as u32).unwrap(), 1.0);
     assert_eq!(h.do_step(11.0, 1.0), Err(Status::Error));
     assert!(last_error(&h).contains("not allowed in state Error"));
     // fmi2Reset leads on
@@ -236,8 +164,7 @@ fn a_non_finite_result_is_an_error_and_is_not_published() {
 
 #[test]
 fn a_step_whose_end_is_not_a_finite_time_is_rejected() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(1e308).unwrap();
+    let mut h = started(1e308);
     assert_eq!(h.do_step(1e308, 1e308), Err(Status::Error));
     assert!(
         last_error(&h).contains("= inf, not a finite time"),
@@ -259,7 +186,7 @@ fn a_step_whose_end_is_not_a_finite_time_is_rejected() {
 
 #[test]
 fn an_infinite_stop_time_is_rejected() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
     assert_eq!(
         h.setup_experiment(0.0, Some(f64::INFINITY)),
         Err(Status::Error)
@@ -268,7 +195,7 @@ fn an_infinite_stop_time_is_rejected() {
     h.setup_experiment(0.0, Some(1e12)).unwrap();
 }
 
-/// Where the fields of a serialized state of [`Integrator`] start: the header strings
+/// Where the fields of a serialized state of [`Toy`] start: the header strings
 /// (format, model identifier, GUID), then the state-machine index, time, stop time, the
 /// inputs-changed flag, the value count and the values.
 struct Layout {
@@ -279,10 +206,10 @@ struct Layout {
 }
 
 fn layout() -> Layout {
-    let guid = Integrator::describe(&Config::new()).unwrap().guid;
+    let guid = Toy::describe(&Config::new()).unwrap().guid;
     let header = [
         8 + "spurio-fmu-state/2".len(),
-        8 + "Integrator".len(),
+        8 + "Toy".len(),
         8 + guid.len(),
     ];
     let state_index = header.iter().sum::<usize>();
@@ -297,13 +224,17 @@ fn layout() -> Layout {
     }
 }
 
+/// Where `y0` starts among the serialized values: nine Reals before it (u, y, z, P), the
+/// Integer `N` (4 bytes) and the Boolean `positive` (1 byte).
+const Y0_OFFSET: usize = 9 * 8 + 4 + 1;
+
 fn put_f64(bytes: &mut [u8], at: usize, x: f64) {
     bytes[at..at + 8].copy_from_slice(&x.to_le_bytes());
 }
 
 #[test]
 fn a_serialized_state_is_validated_before_it_is_accepted() {
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
+    let mut h = Harness::<Toy>::new(&Config::new()).unwrap();
     h.set_real(&[Y0 as u32], &[1.5]).unwrap();
     h.setup_experiment(0.0, Some(100.0)).unwrap();
     h.enter_initialization_mode().unwrap();
@@ -313,7 +244,7 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
     let good = h.serialized_state().unwrap();
     let at = layout();
     assert_eq!(&good[at.values..at.values + 8], &2.0f64.to_le_bytes()); // u
-    assert_eq!(&good[at.values + 8..at.values + 16], &3.5f64.to_le_bytes()); // y
+    assert_eq!(&good[at.values + 16..at.values + 24], &3.5f64.to_le_bytes()); // y[1]
 
     let corrupt = |edit: &dyn Fn(&mut Vec<u8>)| {
         let mut bytes = good.clone();
@@ -326,11 +257,7 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
     other_model[16 + "spurio-fmu-state/2".len()] = b'J';
     let mut cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("version", other_version, "of format spurio-fmu-state/1"),
-        (
-            "model",
-            other_model,
-            "by model Jntegrator, this FMU is Integrator",
-        ),
+        ("model", other_model, "by model Joy, this FMU is Toy"),
         (
             "not a state",
             b"hello".to_vec(),
@@ -355,12 +282,12 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
         ),
         (
             "NaN value",
-            corrupt(&|b| put_f64(b, at.values + 8, f64::NAN)),
-            "`y` = NaN",
+            corrupt(&|b| put_f64(b, at.values + 16, f64::NAN)),
+            "`y[1]` = NaN",
         ),
         (
             "out of bounds",
-            corrupt(&|b| put_f64(b, at.values + 24, 11.0)),
+            corrupt(&|b| put_f64(b, at.values + Y0_OFFSET, 11.0)),
             "`y0` = 11",
         ),
         (
@@ -369,7 +296,7 @@ fn a_serialized_state_is_validated_before_it_is_accepted() {
                 let n = b.len();
                 put_f64(b, n - 8, f64::NEG_INFINITY)
             }),
-            "the integrator's state -inf is not finite",
+            "the toy's state -inf is not finite",
         ),
     ];
     // the state machine's StartAndEnd, StepInProgress, Fatal and a code that is no state
@@ -408,8 +335,7 @@ fn panicking_step_child() {
     if std::env::var_os("SPURIO_PANIC_CHILD").is_none() {
         return;
     }
-    let mut h = Harness::<Integrator>::new(&Config::new()).unwrap();
-    h.initialize(0.0).unwrap();
+    let mut h = started(0.0);
     h.set_real(&[U as u32], &[13.0]).unwrap();
     assert_eq!(h.do_step(0.0, 0.1), Err(Status::Fatal));
     let (_, _, text) = h.log().pop().unwrap();
@@ -417,7 +343,7 @@ fn panicking_step_child() {
         text.contains("internal error: unlucky input (at "),
         "{text}"
     );
-    assert!(text.contains("export_layer.rs"), "{text}");
+    assert!(text.contains("toy.rs"), "{text}");
     eprintln!("child done");
 }
 

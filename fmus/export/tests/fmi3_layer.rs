@@ -6,92 +6,27 @@
 
 mod common;
 
+use common::toy::*;
 use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
 use spurio_export::fmi3::types::*;
-use spurio_export::{
-    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
-};
+use spurio_export::fmi3::{functions, me as me3};
+use spurio_export::front::Fmi3;
+use spurio_export::me::ffi::{self as me, Array};
+use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
 use std::ffi::{c_void, CStr, CString};
 
-/// y[i] = integral of u[i]; z = u[1] + u[2] (direct feedthrough); P a 2×2 parameter added
-/// to nothing but read back; `positive` = y[1] > 0; panics when u[1] = 13.
-#[derive(Clone, Debug, Default)]
-struct Toy {
-    y: [f64; 2],
-}
-
-const U: usize = 0; // u[1], u[2]
-const Y: usize = 2; // y[1], y[2]
-const Z: usize = 4; // then P[1,1] … P[2,2] (5–8) and N (9)
-const POSITIVE: usize = 10;
-
-/// `value_references! { A, B, … }`: `const A: u32 = 0`, `B = 1`, …
 macro_rules! value_references {
     (@ $n:expr;) => {};
     (@ $n:expr; $name:ident $(, $rest:ident)*) => {
+        #[allow(dead_code)]
         const $name: u32 = $n;
         value_references!(@ $name + 1; $($rest),*);
     };
     ($($name:ident),*) => { value_references!(@ 0; $($name),*); };
 }
-// FMI 3.0 value references: 0 time, then u, y, z, P, N, positive.
-value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE }
-
-impl FmuModel for Toy {
-    fn describe(_config: &Config) -> Result<ModelInfo, Cause> {
-        let mut vars = vec![Variable::input("u[1]", 0.0), Variable::input("u[2]", 0.0)];
-        vars.push(Variable::output("y[1]"));
-        vars.push(Variable::output("y[2]"));
-        vars.push(Variable::output("z").depends_on(&[U, U + 1]));
-        for (i, j) in [(1, 1), (1, 2), (2, 1), (2, 2)] {
-            vars.push(Variable::parameter(&format!("P[{i},{j}]"), (10 * i + j) as f64).max(100.0));
-        }
-        vars.push(Variable::integer_parameter("N", 3).min(1.0));
-        vars.push(Variable::boolean_output("positive"));
-        Ok(ModelInfo::new("Toy", "toy", vars, None, Config::new()))
-    }
-    fn create(_info: &ModelInfo) -> Result<Self, Cause> {
-        Ok(Self::default())
-    }
-    fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.y = [0.0; 2];
-        self.write(ctx);
-        Ok(())
-    }
-    fn do_step(&mut self, ctx: &mut Context, _time: f64, step: f64) -> Result<(), Failure> {
-        if ctx.values.real(U) == 13.0 {
-            panic!("unlucky input");
-        }
-        for i in 0..2 {
-            self.y[i] += step * ctx.values.real(U + i);
-        }
-        self.write(ctx);
-        Ok(())
-    }
-    fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
-        self.write(ctx);
-        Ok(())
-    }
-    fn save_state(&self, out: &mut ByteWriter) {
-        out.put_f64(self.y[0]);
-        out.put_f64(self.y[1]);
-    }
-    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        self.y = [input.f64()?, input.f64()?];
-        Ok(())
-    }
-}
-
-impl Toy {
-    fn write(&self, ctx: &mut Context) {
-        ctx.values.set_real(Y, self.y[0]);
-        ctx.values.set_real(Y + 1, self.y[1]);
-        let z = ctx.values.real(U) + ctx.values.real(U + 1);
-        ctx.values.set_real(Z, z);
-        ctx.values.set_boolean(POSITIVE, self.y[0] > 0.0);
-    }
-}
+// FMI 3.0 value references of the toy: 0 time, then its variables (arrays as one).
+value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE, VR_Y0, VR_DER_Y }
 
 thread_local! {
     static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
@@ -118,6 +53,22 @@ fn last_error() -> String {
     })
 }
 
+/// The arguments every instantiation function has: no logging, the test's log callback.
+fn args(
+    name: *const std::os::raw::c_char,
+    token: *const std::os::raw::c_char,
+    resources: *const std::os::raw::c_char,
+) -> ffi::Instantiation {
+    ffi::Instantiation(
+        name,
+        token,
+        resources,
+        fmi3False,
+        std::ptr::null_mut::<c_void>(),
+        Some(log_message),
+    )
+}
+
 fn token() -> CString {
     CString::new(Toy::describe(&Config::new()).unwrap().guid).unwrap()
 }
@@ -126,15 +77,11 @@ fn instantiate_with(name: &str, token: &CString) -> fmi3Instance {
     let name = CString::new(name).unwrap();
     unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token.as_ptr(),
-            std::ptr::null(),
-            fmi3False,
+            args(name.as_ptr(), token.as_ptr(), std::ptr::null()),
             0,
             0,
             0,
-            std::ptr::null_mut::<c_void>(),
-            Some(log_message),
+            Some(spurio_export::me::hooks::<Toy>()),
         )
     }
 }
@@ -197,31 +144,40 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
     let name = CString::new("events").unwrap();
     let c = unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            std::ptr::null(),
-            0,
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
             fmi3True,
             0,
             0,
-            std::ptr::null_mut(),
-            Some(log_message),
+            None,
         )
     };
     assert!(c.is_null());
     assert!(last_error().contains("eventModeUsed = true, but the FMU declares hasEventMode"));
     assert!(instantiate_with("", &token()).is_null());
     assert!(last_error().contains("instanceName must be a non-empty string"));
-    let me = unsafe {
+    let se = unsafe {
         ffi::refuse_instantiation::<Toy>(
-            "fmi3InstantiateModelExchange",
-            "Model Exchange",
-            std::ptr::null_mut(),
-            Some(log_message),
+            "fmi3InstantiateScheduledExecution",
+            "Scheduled Execution",
+            args(std::ptr::null(), std::ptr::null(), std::ptr::null()),
+        )
+    };
+    assert!(se.is_null());
+    assert!(last_error().contains("Toy does not implement Scheduled Execution"));
+    // Model Exchange needs the model's functions (`export_fmu!(Toy, model_exchange)`).
+    let name = CString::new("me").unwrap();
+    let me = unsafe {
+        ffi::instantiate_model_exchange::<Toy>(
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
+            None,
         )
     };
     assert!(me.is_null());
-    assert!(last_error().contains("Toy is a Co-Simulation FMU only"));
+    assert!(
+        last_error().contains("fmi3InstantiateModelExchange: Toy is a Co-Simulation FMU only"),
+        "{}",
+        last_error()
+    );
     // A variant configuration in the resource folder is read; a broken one is reported.
     let dir = std::env::temp_dir().join(format!("fmi3_layer_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -230,15 +186,11 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
     let name = CString::new("cfg").unwrap();
     let c = unsafe {
         ffi::instantiate_co_simulation::<Toy>(
-            name.as_ptr(),
-            token().as_ptr(),
-            resources.as_ptr(),
+            args(name.as_ptr(), token().as_ptr(), resources.as_ptr()),
             0,
             0,
             0,
-            0,
-            std::ptr::null_mut(),
-            Some(log_message),
+            None,
         )
     };
     assert!(c.is_null());
@@ -328,7 +280,7 @@ fn bad_references_types_and_values_are_rejected_and_change_nothing() {
     assert_eq!(i.get_f64(&[99], 1), Err(fmi3Error));
     assert_eq!(
         last_error(),
-        "fmi3GetFloat64: unknown value reference 99 (Toy has value references 0 to 6)"
+        "fmi3GetFloat64: unknown value reference 99 (Toy has value references 0 to 10)"
     );
     let mut n = [0i32; 2];
     let s = unsafe { ffi::get::<Toy, Int32>(i.0, [VR_U].as_ptr(), 1, n.as_mut_ptr(), 2) };
@@ -436,11 +388,205 @@ fn panicking_fmi3_step_child() {
     assert_eq!(a.step(0.0, 0.25).0, fmi3Fatal);
     let text = last_error();
     assert!(text.contains("unlucky input (at "), "{text}");
-    assert!(text.contains("fmi3_layer.rs"), "{text}");
+    assert!(text.contains("toy.rs"), "{text}");
     eprintln!("child done");
 }
 
 #[test]
 fn an_fmi3_panic_prints_nothing_on_stderr() {
     common::assert_child_prints_only_its_line("panicking_fmi3_step_child");
+}
+
+/// The toy instantiated for FMI 3.0 Model Exchange.
+fn instantiate_model_exchange() -> Instance {
+    let name = CString::new("me").unwrap();
+    let c = unsafe {
+        ffi::instantiate_model_exchange::<Toy>(
+            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
+            Some(spurio_export::me::hooks::<Toy>()),
+        )
+    };
+    assert!(!c.is_null(), "{}", last_error());
+    Instance(c)
+}
+
+/// The directional (`adjoint` false) or adjoint derivative through the C entry point.
+fn derivative(
+    i: &Instance,
+    adjoint: bool,
+    unknowns: &[u32],
+    knowns: &[u32],
+    seed: &[f64],
+    n_out: usize,
+) -> Result<Vec<f64>, fmi3Status> {
+    let mut out = vec![f64::NAN; n_out];
+    let call = me3::DerivativeCall {
+        unknowns: unknowns.as_ptr(),
+        n_unknowns: unknowns.len(),
+        knowns: knowns.as_ptr(),
+        n_knowns: knowns.len(),
+        seed: seed.as_ptr(),
+        n_seed: seed.len(),
+        sensitivity: out.as_mut_ptr(),
+        n_sensitivity: n_out,
+    };
+    let kind = if adjoint {
+        me3::Derivative::Adjoint
+    } else {
+        me3::Derivative::Directional
+    };
+    match unsafe { me3::derivative::<Toy>(i.0, call, kind) } {
+        0 => Ok(out),
+        s => Err(s),
+    }
+}
+
+#[test]
+fn model_exchange_runs_through_event_and_continuous_time_mode() {
+    let i = instantiate_model_exchange();
+    let get = |which| {
+        let mut out = [f64::NAN; 2];
+        let (f, which) = which;
+        let s = unsafe { me::get_array::<Toy, Fmi3>(i.0, f, which, out.as_mut_ptr(), 2) };
+        (s, out)
+    };
+    let mut n = 0usize;
+    assert_eq!(
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 2);
+    assert_eq!(
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::EventIndicators, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 1);
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, -2.0]), fmi3OK);
+    assert_eq!(i.initialize(), fmi3OK);
+    // Event Mode after initialization: the first event iteration
+    let mut flags = [9u8; 5];
+    let mut next = f64::NAN;
+    let [a, b, c, d, e] = &mut flags;
+    let events = me3::EventFlags {
+        need_update: a,
+        terminate: b,
+        nominals_changed: c,
+        values_changed: d,
+        next_defined: e,
+        next_time: &mut next,
+    };
+    assert_eq!(
+        unsafe { me3::update_discrete_states::<Toy>(i.0, events) },
+        fmi3OK
+    );
+    assert_eq!(flags, [fmi3False; 5]);
+    assert_eq!(i.step(0.0, 0.1).0, fmi3Error);
+    assert!(
+        last_error().contains("fmi3DoStep: illegal call sequence: not allowed in state EventMode")
+    );
+    assert_eq!(
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_CONTINUOUS_TIME_MODE, false) },
+        fmi3OK
+    );
+    assert_eq!(
+        unsafe { me::set_time::<Toy, Fmi3>(i.0, &functions::SET_TIME, 0.5) },
+        fmi3OK
+    );
+    let x = [0.5, -1.0];
+    assert_eq!(
+        unsafe {
+            me::set_continuous_states::<Toy, Fmi3>(
+                i.0,
+                &functions::SET_CONTINUOUS_STATES,
+                x.as_ptr(),
+                2,
+            )
+        },
+        fmi3OK
+    );
+    assert_eq!(
+        get((&functions::GET_DERIVATIVES, Array::Derivatives)),
+        (fmi3OK, [1.0, -2.0])
+    );
+    assert_eq!(
+        get((&functions::GET_CONTINUOUS_STATES, Array::ContinuousStates)),
+        (fmi3OK, x)
+    );
+    assert_eq!(
+        get((
+            &functions::GET_NOMINALS_OF_CONTINUOUS_STATES,
+            Array::Nominals
+        )),
+        (fmi3OK, [2.0, 2.0])
+    );
+    assert_eq!(
+        i.get_f64(&[VR_DER_Y, VR_TIME], 3).unwrap(),
+        [1.0, -2.0, 0.5]
+    );
+    // wrong counts
+    let mut z = [0.0; 2];
+    let (f, which) = (&functions::GET_EVENT_INDICATORS, Array::EventIndicators);
+    let s = unsafe { me::get_array::<Toy, Fmi3>(i.0, f, which, z.as_mut_ptr(), 2) };
+    assert_eq!(s, fmi3Error);
+    assert!(last_error().contains("fmi3GetEventIndicators: ni = 2, but Toy has 1"));
+    let (mut event, mut terminate) = (9u8, 9u8);
+    let f = &functions::COMPLETED_INTEGRATOR_STEP;
+    let s = unsafe {
+        me::completed_integrator_step::<Toy, Fmi3, _>(i.0, f, &mut event, &mut terminate)
+    };
+    assert_eq!((s, event, terminate), (fmi3OK, fmi3False, fmi3False));
+    // directional derivatives over arrays: d der(y) = du, dz = du[1] + du[2]
+    assert_eq!(
+        derivative(&i, false, &[VR_DER_Y, VR_Z], &[VR_U], &[3.0, 4.0], 3).unwrap(),
+        [3.0, 4.0, 7.0]
+    );
+    // the adjoint is the transpose: seed over der(y), z; result over u
+    assert_eq!(
+        derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], &[1.0, 2.0, 10.0], 2).unwrap(),
+        [11.0, 12.0]
+    );
+    assert_eq!(
+        derivative(&i, false, &[VR_Z], &[VR_TIME], &[1.0], 1),
+        Err(fmi3Error)
+    );
+    assert!(last_error().contains("`time` (value reference 0) is neither a known nor an unknown"));
+    assert_eq!(
+        derivative(&i, false, &[VR_Z], &[VR_U], &[1.0], 1),
+        Err(fmi3Error)
+    );
+    assert!(last_error()
+        .contains("nSeed = 1 and nSensitivity = 1, but the references name 2 and 1 values"));
+    assert_eq!(
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        fmi3OK
+    );
+    assert_eq!(unsafe { ffi::terminate::<Toy>(i.0) }, fmi3OK);
+}
+
+#[test]
+fn a_co_simulation_instance_refuses_the_model_exchange_functions() {
+    let i = Instance::new("cs");
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(
+        unsafe { me::set_time::<Toy, Fmi3>(i.0, &functions::SET_TIME, 1.0) },
+        fmi3Error
+    );
+    assert!(last_error().contains("fmi3SetTime: illegal call sequence"));
+    assert_eq!(
+        unsafe { me::enter_mode::<Toy, Fmi3>(i.0, &functions::ENTER_EVENT_MODE, true) },
+        fmi3Error
+    );
+    let mut n = 9usize;
+    assert_eq!(
+        unsafe { me3::number_of::<Toy>(i.0, me3::Count::ContinuousStates, &mut n) },
+        fmi3OK
+    );
+    assert_eq!(n, 2);
+    // its directional derivative is there (the model has it): dy[1]/dy[1] after a step
+    assert_eq!(i.set_f64(&[VR_U], &[1.0, 1.0]), fmi3OK);
+    assert_eq!(i.step(0.0, 0.5).0, fmi3OK);
+    assert_eq!(
+        derivative(&i, false, &[VR_Y], &[VR_Y], &[1.0, 1.0], 2).unwrap(),
+        [1.0, 1.0]
+    );
 }

@@ -9,7 +9,7 @@
 
 use super::arrays::Layout;
 use crate::description::{
-    esc, is_initial_unknown, start_text, write_causality, write_default_experiment,
+    dependencies, esc, is_initial_unknown, start_text, write_causality, write_default_experiment,
     write_log_categories, write_unit_and_bounds, write_units, write_variant, ModelInfo,
 };
 use crate::variables::{Causality, VariableType};
@@ -39,9 +39,17 @@ pub fn model_description(info: &ModelInfo) -> String {
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION"),
     );
+    let me = info.model_exchange.is_some();
+    if me {
+        let _ = writeln!(
+            x,
+            r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="true" providesAdjointDerivatives="true" providesPerElementDependencies="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
+            esc(&info.model_identifier)
+        );
+    }
     let _ = writeln!(
         x,
-        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" providesPerElementDependencies="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false" providesEvaluateDiscreteStates="false"/>"#,
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{me}" providesAdjointDerivatives="{me}" providesPerElementDependencies="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false" providesEvaluateDiscreteStates="false"/>"#,
         esc(&info.model_identifier)
     );
     // "s": the unit of `time`.
@@ -75,6 +83,11 @@ pub fn model_description(info: &ModelInfo) -> String {
             let _ = write!(x, r#" description="{}""#, esc(&description));
         }
         write_causality(&mut x, v);
+        if let Some(state) = v.derivative_of.filter(|_| me) {
+            if let Some(vr) = layout.value_reference_of(state) {
+                let _ = write!(x, r#" derivative="{vr}""#);
+            }
+        }
         write_unit_and_bounds(&mut x, v);
         let string = v.variable_type() == VariableType::String;
         if v.has_start() && !string {
@@ -105,11 +118,7 @@ pub fn model_description(info: &ModelInfo) -> String {
     }
     let _ = writeln!(x, "  </ModelVariables>");
     let _ = writeln!(x, "  <ModelStructure>");
-    for (k, group) in layout.variables().iter().enumerate() {
-        let v = &info.variables[group.first];
-        if v.causality != Causality::Output {
-            continue;
-        }
+    let dependencies_of = |group: &super::arrays::Fmi3Variable| {
         let mut deps: Vec<u32> = group
             .indices()
             .flat_map(|i| info.variables[i].dependencies.iter())
@@ -117,17 +126,49 @@ pub fn model_description(info: &ModelInfo) -> String {
             .collect();
         deps.sort_unstable();
         deps.dedup();
-        let deps: Vec<String> = deps.iter().map(u32::to_string).collect();
-        let _ = writeln!(
-            x,
-            r#"    <Output valueReference="{}" dependencies="{}"/>"#,
-            k + 1,
-            deps.join(" ")
-        );
+        dependencies(&deps, me)
+    };
+    let groups = || {
+        layout
+            .variables()
+            .iter()
+            .enumerate()
+            .map(|(k, g)| (k + 1, g))
+    };
+    for (vr, group) in groups() {
+        if info.variables[group.first].causality == Causality::Output {
+            let deps = dependencies_of(group);
+            let _ = writeln!(x, r#"    <Output valueReference="{vr}"{deps}/>"#);
+        }
     }
-    for (k, group) in layout.variables().iter().enumerate() {
-        if is_initial_unknown(&info.variables[group.first]) {
-            let _ = writeln!(x, r#"    <InitialUnknown valueReference="{}"/>"#, k + 1);
+    if let Some(m) = &info.model_exchange {
+        // In state order (the derivatives of an array state form an array).
+        let mut written = Vec::new();
+        for &d in &m.derivatives {
+            let Some(vr) = layout.value_reference_of(d) else {
+                continue;
+            };
+            if written.contains(&vr) {
+                continue;
+            }
+            written.push(vr);
+            if let Some((_, group)) = groups().find(|(k, _)| *k as u32 == vr) {
+                let deps = dependencies_of(group);
+                let _ = writeln!(
+                    x,
+                    r#"    <ContinuousStateDerivative valueReference="{vr}"{deps}/>"#
+                );
+            }
+        }
+    }
+    for (vr, group) in groups() {
+        if is_initial_unknown(&info.variables[group.first], me) {
+            let _ = writeln!(x, r#"    <InitialUnknown valueReference="{vr}"/>"#);
+        }
+    }
+    for (vr, group) in groups() {
+        if me && info.variables[group.first].event_indicator {
+            let _ = writeln!(x, r#"    <EventIndicator valueReference="{vr}"/>"#);
         }
     }
     let _ = writeln!(x, "  </ModelStructure>");

@@ -16,6 +16,7 @@ use crate::description::{Config, CONFIG_FILE};
 use crate::ffi::{guarded, slice, string_arg};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
 use crate::instance::{Function, Instance, LogSink, Logger};
+use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::{Value, VariableType};
@@ -59,7 +60,7 @@ pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
 }
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
-unsafe fn with_instance<M: FmuModel>(
+pub(crate) unsafe fn with_instance<M: FmuModel>(
     c: fmi3Instance,
     f: &Function,
     body: impl FnOnce(&mut Slot<M>) -> Status,
@@ -74,24 +75,91 @@ pub fn version() -> *const c_char {
     c"3.0".as_ptr()
 }
 
+/// The arguments every `fmi3Instantiate*` function has, in the order of the C functions:
+/// instanceName, instantiationToken, resourcePath, loggingOn, instanceEnvironment,
+/// logMessage.
+#[derive(Clone, Copy)]
+pub struct Instantiation(
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3String,
+    pub fmi3Boolean,
+    pub fmi3InstanceEnvironment,
+    pub fmi3LogMessageCallback,
+);
+
 /// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
-/// the resources (`variant.cfg` of a packaged variant), then creates the instance.
+/// the resources (`variant.cfg` of a packaged variant), then creates the instance (with the
+/// model's Model Exchange functions `me`, for its directional derivatives).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
-#[allow(clippy::too_many_arguments)]
 pub unsafe fn instantiate_co_simulation<M: FmuModel>(
-    instance_name: fmi3String,
-    token: fmi3String,
-    resource_path: fmi3String,
-    logging_on: fmi3Boolean,
+    args: Instantiation,
     event_mode_used: fmi3Boolean,
     early_return_allowed: fmi3Boolean,
     n_required_intermediate: usize,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
+    me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    const F: &str = "fmi3InstantiateCoSimulation";
+    // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
+    let refusal = if event_mode_used != 0 {
+        Some("eventModeUsed = true, but the FMU declares hasEventMode=\"false\": instantiate it with eventModeUsed = false (it never needs Event Mode)".to_string())
+    } else if n_required_intermediate > 0 {
+        Some(format!(
+            "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
+        ))
+    } else {
+        None
+    };
+    let note = (early_return_allowed != 0)
+        .then_some("earlyReturnAllowed noted; the FMU never returns early");
+    let requested = Requested::CoSimulation { refusal, note };
+    unsafe { instantiate("fmi3InstantiateCoSimulation", args, requested, me) }
+}
+
+/// `fmi3InstantiateModelExchange`: as [`instantiate_co_simulation`], for a model with Model
+/// Exchange functions `me` whose description declares the interface (otherwise refused, the
+/// reason logged).
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+pub unsafe fn instantiate_model_exchange<M: FmuModel>(
+    args: Instantiation,
+    me: Option<Hooks<M>>,
+) -> fmi3Instance {
+    let f = "fmi3InstantiateModelExchange";
+    unsafe { instantiate(f, args, Requested::ModelExchange, me) }
+}
+
+/// The interface an `fmi3Instantiate*` function asks for.
+enum Requested {
+    /// Co-Simulation: why its own arguments are refused, if they are, and what to log when
+    /// the instance is created.
+    CoSimulation {
+        refusal: Option<String>,
+        note: Option<&'static str>,
+    },
+    ModelExchange,
+}
+
+/// The shared part of the `fmi3Instantiate*` functions: name, refusal, token, resources,
+/// interface, then the instance (for Model Exchange if asked, with the model's functions
+/// `me`).
+///
+/// # Safety
+/// Pointer arguments must be NULL or valid as the FMI standard requires.
+unsafe fn instantiate<M: FmuModel>(
+    function: &str,
+    args: Instantiation,
+    requested: Requested,
+    me: Option<Hooks<M>>,
+) -> fmi3Instance {
+    let Instantiation(instance_name, token, resource_path, logging_on, environment, log_message) =
+        args;
+    let (refusal, note, model_exchange) = match requested {
+        Requested::CoSimulation { refusal, note } => (refusal, note, false),
+        Requested::ModelExchange => (None, None, true),
+    };
     let result = guarded(|| {
         let sink = || CallbackSink {
             log_message,
@@ -105,22 +173,14 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
             logging_on != 0,
         );
         let fail = |message: String| {
-            logger.error(&format!("{F}: {message}"));
+            logger.error(&format!("{function}: {message}"));
             std::ptr::null_mut()
         };
         if name.as_deref().is_none_or(str::is_empty) {
             return fail("instanceName must be a non-empty string".into());
         }
-        if event_mode_used != 0 {
-            // FMI 3.0.2 §4.3.1: eventModeUsed may be true only if hasEventMode is.
-            return fail(
-                "eventModeUsed = true, but the FMU declares hasEventMode=\"false\": instantiate it with eventModeUsed = false (it never needs Event Mode)".into(),
-            );
-        }
-        if n_required_intermediate > 0 {
-            return fail(format!(
-                "{n_required_intermediate} requiredIntermediateVariables given, but the FMU declares providesIntermediateUpdate=\"false\""
-            ));
+        if let Some(refusal) = refusal {
+            return fail(refusal);
         }
         // SAFETY: as above.
         let given = unsafe { string_arg(token) }.unwrap_or_default();
@@ -152,17 +212,23 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
                 info.model_identifier, info.guid
             ));
         }
-        if early_return_allowed != 0 {
-            logger.log(
-                Status::Ok,
-                "logEvents",
-                &format!("{F}: earlyReturnAllowed noted; the FMU never returns early"),
-            );
+        let offered = me.filter(|_| info.model_exchange.is_some());
+        if model_exchange && offered.is_none() {
+            return fail(format!(
+                "{} is a Co-Simulation FMU only: it does not implement Model Exchange",
+                info.model_identifier
+            ));
+        }
+        if let Some(note) = note {
+            logger.log(Status::Ok, "logEvents", &format!("{function}: {note}"));
         }
         match Instance::<M>::of(Arc::clone(&interface), logger) {
-            Ok(instance) => into_instance(instance),
+            Ok(instance) => into_instance(match offered.filter(|_| model_exchange) {
+                Some(hooks) => instance.into_model_exchange(hooks),
+                None => instance.with_hooks(me),
+            }),
             Err(e) => {
-                Logger::new("?", Box::new(sink()), true).error(&format!("{F}: {e}"));
+                Logger::new("?", Box::new(sink()), true).error(&format!("{function}: {e}"));
                 std::ptr::null_mut()
             }
         }
@@ -170,28 +236,25 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     result.unwrap_or(std::ptr::null_mut())
 }
 
-/// `fmi3InstantiateModelExchange`, `fmi3InstantiateScheduledExecution`: logs why not and
-/// returns NULL.
+/// `fmi3InstantiateScheduledExecution`: logs why not and returns NULL.
 ///
 /// # Safety
 /// `log_message` is NULL or a valid callback.
 pub unsafe fn refuse_instantiation<M: FmuModel>(
     function: &str,
     interface: &str,
-    environment: fmi3InstanceEnvironment,
-    log_message: fmi3LogMessageCallback,
+    args: Instantiation,
 ) -> fmi3Instance {
     let _ = guarded(|| {
         let id = M::describe(&Config::new())
             .map(|i| i.model_identifier)
             .unwrap_or_default();
         let sink = CallbackSink {
-            log_message,
-            environment,
+            log_message: args.5,
+            environment: args.4,
         };
-        Logger::new("?", Box::new(sink), true).error(&format!(
-            "{function}: {id} is a Co-Simulation FMU only: it does not implement {interface}"
-        ));
+        Logger::new("?", Box::new(sink), true)
+            .error(&format!("{function}: {id} does not implement {interface}"));
     });
     std::ptr::null_mut()
 }

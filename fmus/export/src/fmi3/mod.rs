@@ -21,45 +21,36 @@
 pub mod arrays;
 pub mod description;
 pub mod ffi;
+pub mod me;
 pub mod types;
 
-/// Allowed-state masks of the FMI 3.0 Co-Simulation functions (FMI 3.0.2 §4.3.4 state
-/// machine; Step Mode is the shared machine's `StepComplete`).
+/// Allowed-state masks of the FMI 3.0 functions (FMI 3.0.2 §4.3.4 Co-Simulation and §3.3
+/// Model Exchange state machines; Step Mode is the shared machine's `StepComplete`).
 pub mod functions {
-    use crate::instance::{function as f, ModelState};
-
-    const INSTANTIATED: u32 = ModelState::Instantiated.bit();
-    const INIT_MODE: u32 = ModelState::InitializationMode.bit();
-    const STEP_MODE: u32 = ModelState::StepComplete.bit();
-    const TERMINATED: u32 = ModelState::Terminated.bit();
-    const ERROR: u32 = ModelState::Error.bit();
-    const FATAL: u32 = ModelState::Fatal.bit();
+    use crate::instance::bits::*;
     /// Every state of an instance that is not fatally broken.
-    pub const ANY_LIVE: u32 = INSTANTIATED | INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const GETTABLE: u32 = INIT_MODE | STEP_MODE | TERMINATED | ERROR;
-    const SETTABLE: u32 = INSTANTIATED | INIT_MODE | STEP_MODE;
+    pub const ANY_LIVE: u32 =
+        ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
+    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
 
-    f! { SET_DEBUG_LOGGING, "fmi3SetDebugLogging", ANY_LIVE }
-    f! { FREE_INSTANCE, "fmi3FreeInstance", ANY_LIVE | FATAL }
-    f! { ENTER_INITIALIZATION_MODE, "fmi3EnterInitializationMode", INSTANTIATED }
-    f! { EXIT_INITIALIZATION_MODE, "fmi3ExitInitializationMode", INIT_MODE }
-    f! { TERMINATE, "fmi3Terminate", STEP_MODE }
-    f! { RESET, "fmi3Reset", ANY_LIVE }
-    f! { GET_FLOAT64, "fmi3GetFloat64", GETTABLE }
-    f! { GET_INT32, "fmi3GetInt32", GETTABLE }
-    f! { GET_BOOLEAN, "fmi3GetBoolean", GETTABLE }
-    f! { GET_STRING, "fmi3GetString", GETTABLE }
-    f! { SET_FLOAT64, "fmi3SetFloat64", SETTABLE }
-    f! { SET_INT32, "fmi3SetInt32", SETTABLE }
-    f! { SET_BOOLEAN, "fmi3SetBoolean", SETTABLE }
-    f! { SET_STRING, "fmi3SetString", SETTABLE }
-    f! { GET_FMU_STATE, "fmi3GetFMUState", ANY_LIVE }
-    f! { SET_FMU_STATE, "fmi3SetFMUState", ANY_LIVE }
-    f! { FREE_FMU_STATE, "fmi3FreeFMUState", ANY_LIVE | FATAL }
-    f! { SERIALIZED_FMU_STATE_SIZE, "fmi3SerializedFMUStateSize", ANY_LIVE }
-    f! { SERIALIZE_FMU_STATE, "fmi3SerializeFMUState", ANY_LIVE }
-    f! { DESERIALIZE_FMU_STATE, "fmi3DeserializeFMUState", ANY_LIVE }
-    f! { DO_STEP, "fmi3DoStep", STEP_MODE }
+    crate::instance::shared_functions!(
+        "fmi3",
+        "FMUState",
+        "DeserializeFMUState",
+        "Float64",
+        "Int32",
+        ANY_LIVE,
+        ANY_LIVE,
+        GETTABLE,
+        SETTABLE,
+        STEP_COMPLETE | ME_MODES
+    );
+    f! { GET_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
+    f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
+    f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
+    f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
+    f! { GET_ADJOINT_DERIVATIVE, "fmi3GetAdjointDerivative", GETTABLE }
 }
 
 /// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 C API of the model type
@@ -74,9 +65,11 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
+            use $crate::front::Fmi3;
             use $crate::fmi3::ffi;
-            use $crate::fmi3::types::*;
             use $crate::fmi3::functions;
+            use $crate::fmi3::me;
+            use $crate::fmi3::types::*;
             type M = $model;
 
             #[no_mangle]
@@ -108,63 +101,33 @@ macro_rules! export_fmi3 {
                 intermediate_update: fmi3IntermediateUpdateCallback,
             ) -> fmi3Instance {
                 let _ = (visible, required, intermediate_update);
+                let args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                let me = super::spurio_model_exchange();
                 unsafe {
                     ffi::instantiate_co_simulation::<M>(
-                        name,
-                        token,
-                        resources,
-                        logging_on,
+                        args,
                         event_mode_used,
                         early_return_allowed,
                         n_required,
-                        environment,
-                        log_message,
+                        me,
                     )
                 }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3InstantiateModelExchange(
-                name: fmi3String,
-                token: fmi3String,
-                resources: fmi3String,
-                visible: fmi3Boolean,
-                logging_on: fmi3Boolean,
-                environment: fmi3InstanceEnvironment,
-                log_message: fmi3LogMessageCallback,
-            ) -> fmi3Instance {
-                let _ = (name, token, resources, visible, logging_on);
-                unsafe {
-                    ffi::refuse_instantiation::<M>(
-                        "fmi3InstantiateModelExchange",
-                        "Model Exchange",
-                        environment,
-                        log_message,
-                    )
-                }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
-                name: fmi3String,
-                token: fmi3String,
-                resources: fmi3String,
-                visible: fmi3Boolean,
-                logging_on: fmi3Boolean,
-                environment: fmi3InstanceEnvironment,
-                log_message: fmi3LogMessageCallback,
-                clock_update: fmi3ClockUpdateCallback,
-                lock: fmi3PreemptionCallback,
-                unlock: fmi3PreemptionCallback,
-            ) -> fmi3Instance {
-                let _ = (name, token, resources, visible, logging_on);
-                let _ = (clock_update, lock, unlock);
-                unsafe {
-                    ffi::refuse_instantiation::<M>(
-                        "fmi3InstantiateScheduledExecution",
-                        "Scheduled Execution",
-                        environment,
-                        log_message,
-                    )
-                }
+            $crate::fmi3_instantiation! {
+                fmi3InstantiateModelExchange() => |args| {
+                    ffi::instantiate_model_exchange::<M>(args, super::spurio_model_exchange())
+                };
+                fmi3InstantiateScheduledExecution(
+                    clock_update: fmi3ClockUpdateCallback,
+                    lock: fmi3PreemptionCallback,
+                    unlock: fmi3PreemptionCallback,
+                ) => |args| {
+                    let _ = (clock_update, lock, unlock);
+                    let f = "fmi3InstantiateScheduledExecution";
+                    ffi::refuse_instantiation::<M>(f, "Scheduled Execution", args)
+                };
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3FreeInstance(c: fmi3Instance) {
@@ -182,18 +145,9 @@ macro_rules! export_fmi3 {
                 let _ = (tolerance_defined, tolerance);
                 unsafe { ffi::enter_initialization_mode::<M>(c, start, stop_defined, stop) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3ExitInitializationMode(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::exit_initialization_mode::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Terminate(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::terminate::<M>(c) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3Reset(c: fmi3Instance) -> fmi3Status {
-                unsafe { ffi::reset::<M>(c) }
-            }
+            $crate::instance_entries!(fmi3Instance;
+                fmi3ExitInitializationMode = exit_initialization_mode,
+                fmi3Terminate = terminate, fmi3Reset = reset);
             #[no_mangle]
             pub unsafe extern "C" fn fmi3DoStep(
                 c: fmi3Instance,
@@ -241,53 +195,11 @@ macro_rules! export_fmi3 {
             ) -> fmi3Status {
                 unsafe { ffi::set_string::<M>(c, vr, nvr, values, n_values) }
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3GetFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::get_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SetFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::set_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3FreeFMUState(
-                c: fmi3Instance,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::free_fmu_state::<M>(c, state) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                size: *mut usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialized_fmu_state_size::<M>(c, state, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3SerializeFMUState(
-                c: fmi3Instance,
-                state: fmi3FMUState,
-                bytes: *mut fmi3Byte,
-                size: usize,
-            ) -> fmi3Status {
-                unsafe { ffi::serialize_fmu_state::<M>(c, state, bytes, size) }
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi3DeserializeFMUState(
-                c: fmi3Instance,
-                bytes: *const fmi3Byte,
-                size: usize,
-                state: *mut fmi3FMUState,
-            ) -> fmi3Status {
-                unsafe { ffi::deserialize_fmu_state::<M>(c, bytes, size, state) }
-            }
+            $crate::fmu_state_entries!(
+                fmi3Instance, fmi3FMUState, fmi3Byte;
+                fmi3GetFMUState, fmi3SetFMUState, fmi3FreeFMUState,
+                fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3DeserializeFMUState
+            );
             $crate::fmi3_unsupported! {
                 "the FMU declares only Float64, Int32, Boolean and String variables";
                 fmi3GetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float32, _m: usize);
@@ -329,30 +241,11 @@ macro_rules! export_fmi3 {
                 fmi3ExitConfigurationMode();
             }
             $crate::fmi3_unsupported! {
-                "the FMU has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
-                fmi3EnterEventMode();
+                "the Co-Simulation interface has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
                 fmi3EnterStepMode();
                 fmi3EvaluateDiscreteStates();
-                fmi3UpdateDiscreteStates(_a: *mut fmi3Boolean, _b: *mut fmi3Boolean, _counters: *mut fmi3Boolean, _d: *mut fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Float64);
             }
-            $crate::fmi3_unsupported! {
-                "the FMU is Co-Simulation only";
-                fmi3EnterContinuousTimeMode();
-                fmi3CompletedIntegratorStep(_p: fmi3Boolean, _e: *mut fmi3Boolean, _t: *mut fmi3Boolean);
-                fmi3SetTime(_t: fmi3Float64);
-                fmi3SetContinuousStates(_x: *const fmi3Float64, _n: usize);
-                fmi3GetContinuousStateDerivatives(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetEventIndicators(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetContinuousStates(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetNominalsOfContinuousStates(_x: *mut fmi3Float64, _n: usize);
-                fmi3GetNumberOfEventIndicators(_n: *mut usize);
-                fmi3GetNumberOfContinuousStates(_n: *mut usize);
-            }
-            $crate::fmi3_unsupported! {
-                "providesDirectionalDerivatives=\"false\", providesAdjointDerivatives=\"false\"";
-                fmi3GetDirectionalDerivative(_u: *const fmi3ValueReference, _nu: usize, _k: *const fmi3ValueReference, _nk: usize, _s: *const fmi3Float64, _ns: usize, _x: *mut fmi3Float64, _nx: usize);
-                fmi3GetAdjointDerivative(_u: *const fmi3ValueReference, _nu: usize, _k: *const fmi3ValueReference, _nk: usize, _s: *const fmi3Float64, _ns: usize, _x: *mut fmi3Float64, _nx: usize);
-            }
+            $crate::export_fmi3_model_exchange!();
             $crate::fmi3_unsupported! {
                 "maxOutputDerivativeOrder=\"0\"";
                 fmi3GetOutputDerivatives(_v: *const fmi3ValueReference, _n: usize, _o: *const fmi3Int32, _x: *mut fmi3Float64, _m: usize);
@@ -404,6 +297,117 @@ macro_rules! fmi3_unsupported {
             #[no_mangle]
             pub unsafe extern "C" fn $name(c: fmi3Instance, $($arg: $type),*) -> fmi3Status {
                 unsafe { ffi::unsupported::<M>(c, stringify!($name), $reason) }
+            }
+        )+
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], the FMI 3.0 Model Exchange functions and the directional
+/// and adjoint derivatives (which serve Co-Simulation too) over [`me`].
+#[doc(hidden)]
+#[macro_export]
+macro_rules! export_fmi3_model_exchange {
+    () => {
+        $crate::model_exchange_entries!(fmi3Instance, Fmi3, fmi3Boolean, functions;
+            fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
+            fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
+            fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
+            c: fmi3Instance,
+            need_update: *mut fmi3Boolean,
+            terminate: *mut fmi3Boolean,
+            nominals_changed: *mut fmi3Boolean,
+            values_changed: *mut fmi3Boolean,
+            next_defined: *mut fmi3Boolean,
+            next_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let flags = me::EventFlags {
+                need_update,
+                terminate,
+                nominals_changed,
+                values_changed,
+                next_defined,
+                next_time,
+            };
+            unsafe { me::update_discrete_states::<M>(c, flags) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::EventIndicators, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::ContinuousStates, n) }
+        }
+        $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
+        $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], `fmi3GetDirectionalDerivative` or
+/// `fmi3GetAdjointDerivative`.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_derivative {
+    ($name:ident, $kind:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi3Instance,
+            unknowns: *const fmi3ValueReference,
+            n_unknowns: usize,
+            knowns: *const fmi3ValueReference,
+            n_knowns: usize,
+            seed: *const fmi3Float64,
+            n_seed: usize,
+            sensitivity: *mut fmi3Float64,
+            n_sensitivity: usize,
+        ) -> fmi3Status {
+            let call = me::DerivativeCall {
+                unknowns,
+                n_unknowns,
+                knowns,
+                n_knowns,
+                seed,
+                n_seed,
+                sensitivity,
+                n_sensitivity,
+            };
+            unsafe { me::derivative::<M>(c, call, $kind) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmi3!`], the `fmi3Instantiate*` functions whose arguments start with
+/// the common ones (name, token, resources, visible, loggingOn, environment, logMessage) and
+/// end with `$extra`; `$body` sees the common ones as `$args` (an [`ffi::Instantiation`]).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_instantiation {
+    ($($name:ident($($extra:ident: $type:ty),* $(,)?) => |$args:ident| $body:block;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                name: fmi3String,
+                token: fmi3String,
+                resources: fmi3String,
+                visible: fmi3Boolean,
+                logging_on: fmi3Boolean,
+                environment: fmi3InstanceEnvironment,
+                log_message: fmi3LogMessageCallback,
+                $($extra: $type),*
+            ) -> fmi3Instance {
+                let _ = visible;
+                let $args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                unsafe { $body }
             }
         )+
     };

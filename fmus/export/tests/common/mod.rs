@@ -1,5 +1,7 @@
 //! What the export-layer test suites (FMI 2.0 `export_layer.rs`, FMI 3.0 `fmi3_layer.rs`)
-//! share.
+//! share: the toy model and the stderr check.
+
+pub mod toy;
 
 /// Runs the test `child` of this test binary in a child process (with `SPURIO_PANIC_CHILD`
 /// set, so that it does its work) and asserts that it passed and that the only line it wrote

@@ -1,0 +1,209 @@
+//! The FMI 3.0 Model Exchange C entry points that FMI 2.0 has not (the others are those of
+//! [`crate::me::ffi`]): the counts, `fmi3UpdateDiscreteStates`' flags, and the directional
+//! and adjoint derivatives (which serve Co-Simulation too) with FMI 3.0 value references
+//! (arrays) expanded to the table's scalars.
+
+use super::arrays::Target;
+use super::ffi::{with_instance, Slot};
+use super::functions;
+use super::types::*;
+use crate::ffi::slice;
+use crate::front::Fmi3;
+use crate::me::ffi::slice_mut;
+use crate::model::FmuModel;
+use crate::types::Status;
+use crate::variables::VariableType;
+
+/// Writes `value` behind `p` unless it is NULL.
+///
+/// # Safety
+/// `p` is NULL or points to one writable `T`.
+unsafe fn put<T>(p: *mut T, value: T) {
+    if !p.is_null() {
+        // SAFETY: the caller's obligation.
+        unsafe { *p = value };
+    }
+}
+
+/// The output arguments of `fmi3UpdateDiscreteStates` (each may be NULL).
+pub struct EventFlags {
+    pub need_update: *mut fmi3Boolean,
+    pub terminate: *mut fmi3Boolean,
+    pub nominals_changed: *mut fmi3Boolean,
+    pub values_changed: *mut fmi3Boolean,
+    pub next_defined: *mut fmi3Boolean,
+    pub next_time: *mut fmi3Float64,
+}
+
+/// `fmi3UpdateDiscreteStates`.
+///
+/// # Safety
+/// FMI pointer contract; each flag is NULL or points to one writable value.
+pub unsafe fn update_discrete_states<M: FmuModel>(c: fmi3Instance, out: EventFlags) -> fmi3Status {
+    let f = &functions::UPDATE_DISCRETE_STATES;
+    unsafe {
+        crate::me::ffi::update_discrete_states::<M, Fmi3>(c, f, None, |update| {
+            put(out.need_update, update.discrete_states_need_update.into());
+            put(out.terminate, update.terminate_simulation.into());
+            put(out.nominals_changed, update.nominals_changed.into());
+            put(out.values_changed, update.states_changed.into());
+            put(out.next_defined, update.next_event_time.is_some().into());
+            put(out.next_time, update.next_event_time.unwrap_or(0.0));
+        })
+    }
+}
+
+/// What `fmi3GetNumberOf…` counts.
+#[derive(Debug, Clone, Copy)]
+pub enum Count {
+    /// `fmi3GetNumberOfEventIndicators`.
+    EventIndicators,
+    /// `fmi3GetNumberOfContinuousStates`.
+    ContinuousStates,
+}
+
+/// `fmi3GetNumberOfEventIndicators`, `fmi3GetNumberOfContinuousStates`.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn number_of<M: FmuModel>(c: fmi3Instance, what: Count, n: *mut usize) -> fmi3Status {
+    let f = match what {
+        Count::EventIndicators => &functions::GET_NUMBER_OF_EVENT_INDICATORS,
+        Count::ContinuousStates => &functions::GET_NUMBER_OF_CONTINUOUS_STATES,
+    };
+    unsafe {
+        crate::front::write_out::<M, Fmi3, usize>(c, f, (n, "the size argument"), |s| match what {
+            Count::EventIndicators => s.instance.event_indicator_count(),
+            Count::ContinuousStates => s.instance.state_count(),
+        })
+    }
+}
+
+/// Which derivative a call asks for.
+pub enum Derivative {
+    /// `fmi3GetDirectionalDerivative`: sensitivity = J · seed (seed over the knowns).
+    Directional,
+    /// `fmi3GetAdjointDerivative`: sensitivity = Jᵀ · seed (seed over the unknowns).
+    Adjoint,
+}
+
+/// The arguments of `fmi3GetDirectionalDerivative` / `fmi3GetAdjointDerivative`.
+pub struct DerivativeCall {
+    pub unknowns: *const fmi3ValueReference,
+    pub n_unknowns: usize,
+    pub knowns: *const fmi3ValueReference,
+    pub n_knowns: usize,
+    pub seed: *const fmi3Float64,
+    pub n_seed: usize,
+    pub sensitivity: *mut fmi3Float64,
+    pub n_sensitivity: usize,
+}
+
+/// The table indices of the Real scalars FMI 3.0 value references `vrs` name (arrays
+/// row-major); `Err` with the message for `time`, an unknown reference or another type.
+fn scalars_of<M: FmuModel>(s: &Slot<M>, vrs: &[u32]) -> Result<Vec<usize>, String> {
+    let interface = s.instance.interface();
+    let mut indices = Vec::new();
+    for &vr in vrs {
+        match interface.layout.target(vr) {
+            Some(Target::Variable(v)) => {
+                let first = &interface.info.variables[v.first];
+                if first.variable_type() != VariableType::Real {
+                    return Err(format!(
+                        "variable `{}` (value reference {vr}) is not a Float64",
+                        v.name
+                    ));
+                }
+                indices.extend(v.indices());
+            }
+            Some(Target::Time) => {
+                return Err(
+                    "`time` (value reference 0) is neither a known nor an unknown".to_string(),
+                )
+            }
+            None => {
+                return Err(format!(
+                    "unknown value reference {vr} ({} has value references 0 to {})",
+                    interface.info.model_identifier,
+                    interface.layout.max_value_reference()
+                ))
+            }
+        }
+    }
+    Ok(indices)
+}
+
+/// `fmi3GetDirectionalDerivative`, `fmi3GetAdjointDerivative`. The adjoint is the transpose:
+/// one directional derivative per known with a unit seed, each column dotted with the seed.
+///
+/// # Safety
+/// FMI pointer contract.
+pub unsafe fn derivative<M: FmuModel>(
+    c: fmi3Instance,
+    call: DerivativeCall,
+    kind: Derivative,
+) -> fmi3Status {
+    let f = match kind {
+        Derivative::Directional => &functions::GET_DIRECTIONAL_DERIVATIVE,
+        Derivative::Adjoint => &functions::GET_ADJOINT_DERIVATIVE,
+    };
+    unsafe {
+        with_instance::<M>(c, f, |s| {
+            let (Some(u), Some(k), Some(seed)) = (
+                slice(call.unknowns, call.n_unknowns),
+                slice(call.knowns, call.n_knowns),
+                slice(call.seed, call.n_seed),
+            ) else {
+                return s.instance.reject(f, "unknowns, knowns or seed is NULL");
+            };
+            let Some(sensitivity) = slice_mut(call.sensitivity, call.n_sensitivity) else {
+                return s.instance.reject(f, "sensitivity is NULL");
+            };
+            let (unknowns, knowns) = match (scalars_of(s, u), scalars_of(s, k)) {
+                (Ok(u), Ok(k)) => (u, k),
+                (Err(message), _) | (_, Err(message)) => return s.instance.reject(f, &message),
+            };
+            let (n_seed, n_out) = match kind {
+                Derivative::Directional => (knowns.len(), unknowns.len()),
+                Derivative::Adjoint => (unknowns.len(), knowns.len()),
+            };
+            if call.n_seed != n_seed || call.n_sensitivity != n_out {
+                return s.instance.reject(
+                    f,
+                    &format!(
+                        "nSeed = {} and nSensitivity = {}, but the references name {n_seed} and {n_out} values",
+                        call.n_seed, call.n_sensitivity
+                    ),
+                );
+            }
+            let mut out = vec![0.0; n_out];
+            let status = match kind {
+                Derivative::Directional => s
+                    .instance
+                    .directional_derivative(f, &unknowns, &knowns, seed, &mut out),
+                Derivative::Adjoint => {
+                    let mut column = vec![0.0; unknowns.len()];
+                    let mut status = Status::Ok;
+                    for (j, known) in knowns.iter().enumerate() {
+                        status = status.max(s.instance.directional_derivative(
+                            f,
+                            &unknowns,
+                            std::slice::from_ref(known),
+                            &[1.0],
+                            &mut column,
+                        ));
+                        if status > Status::Warning {
+                            break;
+                        }
+                        out[j] = column.iter().zip(seed).map(|(a, b)| a * b).sum();
+                    }
+                    status
+                }
+            };
+            if status <= Status::Warning {
+                sensitivity.copy_from_slice(&out);
+            }
+            status
+        })
+    }
+}
