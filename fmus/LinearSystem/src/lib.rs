@@ -372,7 +372,10 @@ impl FmuModel for LinearSystemFmu {
             derivatives: DVector::zeros(d.n),
             me_clock: SampleClock::new(Rule::Point, 0.0, 0.0)?,
             held: DVector::zeros(d.m),
-            default_step: info.default_experiment.as_ref().map_or(0.0, |e| e.step_size),
+            default_step: info
+                .default_experiment
+                .as_ref()
+                .map_or(0.0, |e| e.step_size),
         })
     }
 
@@ -680,7 +683,8 @@ mod tests {
         for k in 0..30 {
             values.set_real(l.u.first, input(k));
             let t = k as f64 * 0.1;
-            cs.do_step(&mut Context::at(&mut values, t), t, 0.1).unwrap();
+            cs.do_step(&mut Context::at(&mut values, t), t, 0.1)
+                .unwrap();
             expected.push(read(&values));
         }
         // Model Exchange: the event at t_k, the input set there (and once between events,
