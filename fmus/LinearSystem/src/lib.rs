@@ -275,6 +275,18 @@ fn error(e: spurio::ParameterError) -> Failure {
     Failure::error(e.to_string())
 }
 
+/// The failure of an advance `at` (the step from, the sample event) `time`: a state become
+/// non-finite is named as such.
+fn advance_error(e: spurio::ParameterError, at: &str, time: f64) -> Failure {
+    if e.parameter == "x" {
+        Failure::error(format!(
+            "the state became non-finite {at} t = {time} (A has eigenvalues far outside the unit circle?)"
+        ))
+    } else {
+        error(e)
+    }
+}
+
 impl LinearSystemFmu {
     /// Reads the inputs into the preallocated `u`.
     fn read_input(&mut self, ctx: &Context) {
@@ -412,15 +424,7 @@ impl FmuModel for LinearSystemFmu {
                 system.advance_samples(&self.input, clock.period(), count),
             )
         };
-        advanced.map_err(|e| {
-            if e.parameter == "x" {
-                Failure::error(format!(
-                    "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
-                ))
-            } else {
-                error(e)
-            }
-        })?;
+        advanced.map_err(|e| advance_error(e, "in the step from", time))?;
         self.clock = clock;
         self.write_outputs(ctx)
     }
@@ -491,15 +495,7 @@ impl ModelExchange for LinearSystemFmu {
         let system = initialised(self.system.as_mut())?;
         system
             .advance_samples(&self.held, clock.period(), count)
-            .map_err(|e| {
-                if e.parameter == "x" {
-                    Failure::error(format!(
-                        "the state became non-finite at the sample event t = {time} (A has eigenvalues far outside the unit circle?)"
-                    ))
-                } else {
-                    error(e)
-                }
-            })?;
+            .map_err(|e| advance_error(e, "at the sample event", time))?;
         self.me_clock = clock;
         // At a sample instant: the input the next sample takes.
         if clock.sample_at(time).is_some() {
