@@ -1,9 +1,14 @@
-"""Model Exchange scenarios of LinearSystem.fmu (n = 2, m = 1, p = 1) in continuous time without
-noise (Model Exchange integrates dx/dt = A x + B u; with `continuous` = false it is refused),
-the inputs held at their start values (set as start values, so the FMI 3.0 run can set them
-as array elements):
-fmpy's CVode (relative tolerance 1e-8) against the Co-Simulation FMU, whose step is the exact
-matrix-exponential solution; no events."""
+"""Model Exchange scenarios of LinearSystem.fmu (n = 2, m = 1, p = 1), LinearSystem2 and
+DistributedObserverPlant, the inputs held at their start values (set as start values, so the
+FMI 3.0 run can set them as array elements):
+- continuous time without noise (Model Exchange integrates dx/dt = A x + B u): fmpy's CVode
+  (relative tolerance 1e-8) against the Co-Simulation FMU, whose step is the exact
+  matrix-exponential solution; no events;
+- discrete time with the default parameters (noise on, `sample_period` = 0: the default
+  experiment's step in Model Exchange, the output interval in Co-Simulation): the states are
+  piecewise constant and change at a time event at each sample instant, so Model Exchange
+  gives exactly the Co-Simulation samples (rtol = atol = 0). Their start values are inputs
+  only, so fmuCheck runs them too (tests/interop/test_model_exchange_fmucheck.py)."""
 
 A = [[-0.5, 1.0], [-2.0, -0.3]]
 B = [[0.0], [1.0]]
@@ -62,4 +67,15 @@ SCENARIOS = [
     dict(fmu="DistributedObserverPlant", name="continuous_free_response", start_values=starts3(),
          stop_time=5.0, output_interval=0.05, outputs=["x[1]", "x[2]", "x[3]", "y[1]", "y[2]"],
          rtol=1e-5, atol=1e-6, event_times=[]),
+    # discrete time, the defaults (noise on): one time event per sample, the same samples
+    dict(fmu="LinearSystem", name="discrete_noisy_samples", start_values={"u[1]": 1.0},
+         stop_time=10.0, output_interval=0.1, outputs=["x[1]", "x[2]", "y[1]", "y_clean[1]"],
+         rtol=0.0, atol=0.0, event_times=[0.1 * k for k in range(1, 101)]),
+    dict(fmu="LinearSystem2", name="discrete_noisy_samples",
+         start_values={"u[1]": 1.0, "u[2]": -0.5}, stop_time=10.0, output_interval=0.1,
+         outputs=["x[1]", "x[2]", "y[1]", "y[2]"], rtol=0.0, atol=0.0,
+         event_times=[0.1 * k for k in range(1, 101)]),
+    dict(fmu="DistributedObserverPlant", name="discrete_noisy_samples", start_values={},
+         stop_time=50.0, output_interval=1.0, outputs=["x[1]", "x[2]", "x[3]", "y[1]", "y[2]"],
+         rtol=0.0, atol=0.0, event_times=[float(k) for k in range(1, 51)]),
 ]

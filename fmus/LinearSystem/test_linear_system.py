@@ -7,7 +7,6 @@ import subprocess
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
-from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
 from conftest import REPO, assert_initialization_fails_naming, fmu_path, init, open_slave, zoh
@@ -221,7 +220,8 @@ me_scenarios = me_scenarios_of(__file__)
 ME_SCENARIOS = me_scenarios.SCENARIOS
 
 
-@pytest.mark.parametrize("scenario", [s for s in ME_SCENARIOS if s["fmu"] == "LinearSystem"],
+@pytest.mark.parametrize("scenario", [s for s in ME_SCENARIOS if s["fmu"] == "LinearSystem"
+                                      and s["start_values"].get("continuous")],
                          ids=lambda s: s["name"])
 def test_model_exchange_matches_the_analytic_solution(scenario):
     # (tests/fmpy/test_model_exchange.py compares every scenario with Co-Simulation)
@@ -243,22 +243,50 @@ def test_model_exchange_matches_the_analytic_solution(scenario):
     assert x_error < 1e-6 * np.max(np.abs(exact)) and y_error < 1e-6 * np.max(np.abs(y_exact))
 
 
-def test_model_exchange_refuses_discrete_time_naming_the_parameter():
+def test_model_exchange_in_discrete_time_samples_at_time_events():
+    """Discrete time (the default) through Model Exchange: der(x) = 0, x0 after
+    initialisation, and a time event at each sample instant (sample_period = 0: the default
+    experiment's 0.1 s) applying x+ = A x + B u with the input of the instant before."""
+    from ctypes import POINTER, c_double
     from fmpy import read_model_description
     from fmpy.fmi2 import FMU2Model
     from fmpy import extract
-    from conftest import LogSink, make_callbacks
     path = fmu_path("LinearSystem")
     md = read_model_description(path)
     assert md.modelExchange is not None and md.numberOfEventIndicators == 0
-    sink = LogSink()
+    vr = {v.name: v.valueReference for v in md.modelVariables}
     model = FMU2Model(guid=md.guid, unzipDirectory=extract(path),
                       modelIdentifier=md.modelExchange.modelIdentifier, instanceName="me")
-    model.instantiate(callbacks=make_callbacks(sink), loggingOn=True)
+    model.instantiate()
+    model.setReal([vr["Q[1,1]"], vr["Q[2,2]"], vr["R[1,1]"], vr["x0[1]"], vr["u[1]"]],
+                  [0.0, 0.0, 0.0, 2.0, 1.0])
     model.setupExperiment(startTime=0.0)
     model.enterInitializationMode()
     model.exitInitializationMode()
-    with pytest.raises(FMICallException):
-        model.newDiscreteStates()
-    assert any("set the parameter `continuous` = true" in t for t in sink.texts()), sink.messages
+    info = model.newDiscreteStates()
+    # (needed, terminate, nominals changed, values changed, next defined, next time)
+    assert info[3] is False or info[3] == 0
+    assert info[4] and info[5] == pytest.approx(0.1, abs=1e-15)
+    model.enterContinuousTimeMode()
+    derivatives = np.ones(2)
+    model.getDerivatives(derivatives.ctypes.data_as(POINTER(c_double)), 2)
+    assert list(derivatives) == [0.0, 0.0]
+    assert model.getReal([vr["x[1]"], vr["x[2]"]]) == [2.0, 0.0]
+    # the input changed between the instants is not the sample's
+    model.setTime(0.05)
+    model.setReal([vr["u[1]"]], [5.0])
+    model.setTime(0.1)
+    model.setReal([vr["u[1]"]], [3.0])
+    model.enterEventMode()
+    info = model.newDiscreteStates()
+    assert info[3] and info[4] and info[5] == pytest.approx(0.2, abs=1e-15)
+    # x+ = [0.9 x1 + 0.1 x2, 0.9 x2 + u(0)] = [1.8, 1.0]; y = x1
+    assert model.getReal([vr["x[1]"], vr["x[2]"], vr["y[1]"]]) == [1.8, 1.0, 1.8]
+    model.enterContinuousTimeMode()
+    model.setTime(0.2)
+    model.enterEventMode()
+    model.newDiscreteStates()
+    # with u(0.1) = 3
+    assert model.getReal([vr["x[1]"], vr["x[2]"]]) == pytest.approx([1.72, 3.9], abs=1e-15)
+    model.terminate()
     model.freeInstance()

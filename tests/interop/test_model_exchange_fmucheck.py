@@ -81,6 +81,9 @@ def test_fmucheck_me_passes_and_matches_fmpy_cvode(stem, workdir):
     expected = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode",
                             relative_tolerance=1e-8, output_interval=s["output_interval"],
                             stop_time=stop, input=signals, output=s["outputs"])
+    # fmuCheck writes one row per time, after the event there; fmpy also the one before
+    # (the time events of a sampled system such as LinearSystem's discrete mode are jumps)
+    expected = expected[np.append(np.diff(expected["time"]) > 0, True)]
     assert got[-1, 0] == pytest.approx(stop, abs=1e-9)
     for name in s["outputs"]:
         # fmuCheck's fine Euler grid interpolated onto fmpy's output points

@@ -27,9 +27,14 @@
 //! is [`spurio::plants::linear_system`].
 //!
 //! Model Exchange (every variant declares it): the outputs `x[i]` are the continuous states,
-//! `der(x[i])` their derivatives, of the noise-free `dx/dt = A x + B u` with `y = y_clean =
-//! C x + D u`; no events; refused (`fmi2Error` naming `continuous`) in discrete time. The
-//! directional derivatives are `A`, `B`, `C`, `D` exactly, on both interfaces.
+//! `der(x[i])` their derivatives. In continuous time, of the noise-free `dx/dt = A x + B u`
+//! with `y = y_clean = C x + D u`, no events. In discrete time a sampled system: `der(x) = 0`
+//! and a time event at each instant `t_k = t_0 + k·T` (`sample_period`, or the default
+//! experiment's step when it is 0) applies the sample of `t_{k−1}` (its input, the process
+//! noise drawn as Co-Simulation draws it) and draws the measurement noise of `t_k`: each
+//! event shows what the Co-Simulation step ending at `t_k` shows, bit for bit. The
+//! directional derivatives are `A` (0 in discrete time), `B` (0), `C`, `D` exactly, on both
+//! interfaces.
 //!
 //! Configuration keys: `n` (states, default 2), `m` (inputs, default 1, may be 0: then the
 //! FMU has no input), `p` (outputs, default 1), and `preset = paper004` for paper 004's
@@ -169,7 +174,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
         .collect();
     let y = add_vector(&mut t, "y", p, |name, _| {
         Variable::output(name)
-            .describe("Measured output C x + D u + v (Model Exchange: C x + D u, noise-free)")
+            .describe("Measured output C x + D u + v (Model Exchange in continuous time: C x + D u, noise-free)")
             .depends_on(&states_and_inputs)
     });
     let y_clean = add_vector(&mut t, "y_clean", p, |name, _| {
@@ -218,7 +223,7 @@ pub fn table(d: &Dimensions) -> (Vec<Variable>, Layout) {
     let sample_period = t.add(clock::parameter());
     let der_x = add_vector(&mut t, "der(x)", n, |_, i| {
         Variable::derivative(&format!("der(x[{}])", i + 1), x.first + i)
-            .describe("dx/dt = A x + B u (Model Exchange, continuous = true)")
+            .describe("Model Exchange: dx/dt = A x + B u in continuous time, 0 in discrete time (x changes at the sample events)")
             .depends_on(&states_and_inputs)
     });
     let layout = Layout {
@@ -254,6 +259,14 @@ pub struct LinearSystemFmu {
     /// The states set by a Model Exchange solver and their derivatives.
     states: DVector<f64>,
     derivatives: DVector<f64>,
+    /// Model Exchange in discrete time: the clock of the sample events (rule `Point`: the
+    /// event at `t_j` shows the result of the `j` samples before it) and the input sampled at
+    /// the last sample instant, which the next sample event applies.
+    me_clock: SampleClock,
+    held: DVector<f64>,
+    /// The default experiment's step size: the sample period of Model Exchange when
+    /// `sample_period` = 0 (there is no first step to take it from).
+    default_step: f64,
 }
 
 /// The system once initialised, or the error of a call before initialisation.
@@ -263,6 +276,18 @@ fn initialised<T>(system: Option<T>) -> Result<T, Failure> {
 
 fn error(e: spurio::ParameterError) -> Failure {
     Failure::error(e.to_string())
+}
+
+/// The failure of an advance `at` (the step from, the sample event) `time`: a state become
+/// non-finite is named as such.
+fn advance_error(e: spurio::ParameterError, at: &str, time: f64) -> Failure {
+    if e.parameter == "x" {
+        Failure::error(format!(
+            "the state became non-finite {at} t = {time} (A has eigenvalues far outside the unit circle?)"
+        ))
+    } else {
+        error(e)
+    }
 }
 
 impl LinearSystemFmu {
@@ -287,6 +312,16 @@ impl LinearSystemFmu {
         }
         l.x.write_vector(ctx.values, system.state());
         Ok(())
+    }
+
+    /// Model Exchange: the states the solver set become the system's state.
+    fn take_solver_states(&mut self, ctx: &Context) -> Result<(), Failure> {
+        for (x, k) in self.states.iter_mut().zip(self.layout.x.indices()) {
+            *x = ctx.values.real(k);
+        }
+        initialised(self.system.as_mut())?
+            .set_state(self.states.as_slice())
+            .map_err(error)
     }
 
     fn read_parameters(&self, ctx: &Context) -> Result<LinearSystemParameters, Failure> {
@@ -352,6 +387,12 @@ impl FmuModel for LinearSystemFmu {
             clean: DVector::zeros(d.p),
             states: DVector::zeros(d.n),
             derivatives: DVector::zeros(d.n),
+            me_clock: SampleClock::new(Rule::Point, 0.0, 0.0)?,
+            held: DVector::zeros(d.m),
+            default_step: info
+                .default_experiment
+                .as_ref()
+                .map_or(0.0, |e| e.step_size),
         })
     }
 
@@ -360,8 +401,16 @@ impl FmuModel for LinearSystemFmu {
         let start = ctx.time();
         let clock =
             SampleClock::from_parameter(Rule::Step, ctx.values, self.layout.sample_period, start)?;
+        let period = match clock.period() {
+            0.0 => self.default_step,
+            period => period,
+        };
+        let me_clock = SampleClock::new(Rule::Point, start, period)?;
         self.system = Some(LinearSystem::new(parameters).map_err(error)?);
         self.clock = clock;
+        self.me_clock = me_clock;
+        self.read_input(ctx);
+        self.held.copy_from(&self.input);
         self.write_outputs(ctx)
     }
 
@@ -380,15 +429,7 @@ impl FmuModel for LinearSystemFmu {
                 system.advance_samples(&self.input, clock.period(), count),
             )
         };
-        advanced.map_err(|e| {
-            if e.parameter == "x" {
-                Failure::error(format!(
-                    "the state became non-finite in the step from t = {time} (A has eigenvalues far outside the unit circle?)"
-                ))
-            } else {
-                error(e)
-            }
-        })?;
+        advanced.map_err(|e| advance_error(e, "in the step from", time))?;
         self.clock = clock;
         self.write_outputs(ctx)
     }
@@ -397,33 +438,32 @@ impl FmuModel for LinearSystemFmu {
         self.write_outputs(ctx)
     }
 
-    spurio_fmu_common::fmu_state!(system, clock; check = |m: &Self| {
+    spurio_fmu_common::fmu_state!(system, clock, me_clock, held; check = |m: &Self| {
         if let Some(system) = &m.system {
             let p = system.parameters();
             p.validate()?;
             if system.state().len() != p.states() || system.state().iter().any(|v| !v.is_finite()) {
                 return Err("the saved state x is not a finite vector of n entries".into());
             }
+            if m.held.len() != p.inputs() || m.held.iter().any(|v| !v.is_finite()) {
+                return Err("the saved sampled input is not a finite vector of m entries".into());
+            }
         }
         Ok(())
     });
 }
 
-/// Model Exchange integrates `dx/dt = A x + B u`: refused (naming the parameter) in discrete time.
-fn require_continuous(ctx: &Context, layout: &Layout) -> Result<(), Failure> {
-    if ctx.values.boolean(layout.continuous) {
-        Ok(())
-    } else {
-        Err(Failure::error(
-            "Model Exchange integrates the continuous model dx/dt = A x + B u: set the parameter `continuous` = true (a discrete-time system is offered through Co-Simulation only)",
-        ))
-    }
-}
-
 impl ModelExchange for LinearSystemFmu {
     fn evaluate(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let l = self.layout;
-        require_continuous(ctx, &l)?;
+        if !ctx.values.boolean(l.continuous) {
+            // Piecewise constant states: der(x) = 0, the measured output with the noise of
+            // the last sample.
+            self.take_solver_states(ctx)?;
+            self.derivatives.fill(0.0);
+            l.der_x.write_vector(ctx.values, &self.derivatives);
+            return self.write_outputs(ctx);
+        }
         for (x, k) in self.states.iter_mut().zip(l.x.indices()) {
             *x = ctx.values.real(k);
         }
@@ -448,13 +488,36 @@ impl ModelExchange for LinearSystemFmu {
     }
 
     fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure> {
-        require_continuous(ctx, &self.layout)?;
-        Ok(EventUpdate::default())
+        if ctx.values.boolean(self.layout.continuous) {
+            return Ok(EventUpdate::default());
+        }
+        let time = ctx.time();
+        self.take_solver_states(ctx)?;
+        // The samples whose results are due by now (one at each sample instant), with the
+        // input sampled at the instant before.
+        let (clock, samples) = self.me_clock.after(time, 0.0)?;
+        let count = samples.end - samples.start;
+        let system = initialised(self.system.as_mut())?;
+        system
+            .advance_samples(&self.held, clock.period(), count)
+            .map_err(|e| advance_error(e, "at the sample event", time))?;
+        self.me_clock = clock;
+        // At a sample instant: the input the next sample takes.
+        if clock.sample_at(time).is_some() {
+            self.read_input(ctx);
+            self.held.copy_from(&self.input);
+        }
+        self.write_outputs(ctx)?;
+        Ok(EventUpdate {
+            states_changed: count > 0,
+            next_event_time: Some(clock.instant(clock.taken())),
+            ..EventUpdate::default()
+        })
     }
 
     fn directional_derivative(
         &mut self,
-        _ctx: &mut Context,
+        ctx: &mut Context,
         unknowns: &[usize],
         knowns: &[usize],
         seed: &[f64],
@@ -463,6 +526,8 @@ impl ModelExchange for LinearSystemFmu {
         let system = initialised(self.system.as_ref())?;
         let p = system.parameters();
         let l = &self.layout;
+        // der(x) = 0 in discrete time (the states change only at the sample events)
+        let continuous = ctx.values.boolean(l.continuous);
         let position = |block: &Block, k: usize| block.indices().position(|i| i == k);
         for (o, &unknown) in out.iter_mut().zip(unknowns) {
             let mut sum = 0.0;
@@ -475,10 +540,14 @@ impl ModelExchange for LinearSystemFmu {
                 }
                 // the rows of [A B], [C D] and [I 0] for der(x), y and y_clean, and x
                 let (over_state, over_input) = if let Some(i) = position(&l.der_x, unknown) {
-                    (
-                        state.map(|j| p.system.a[(i, j)]),
-                        input.map(|j| p.system.b[(i, j)]),
-                    )
+                    if continuous {
+                        (
+                            state.map(|j| p.system.a[(i, j)]),
+                            input.map(|j| p.system.b[(i, j)]),
+                        )
+                    } else {
+                        (state.map(|_| 0.0), input.map(|_| 0.0))
+                    }
                 } else if let Some(i) =
                     position(&l.y, unknown).or_else(|| position(&l.y_clean, unknown))
                 {
@@ -601,6 +670,70 @@ mod tests {
         let accumulated = states(0.1, &steps);
         assert_eq!(accumulated[..4], exact);
         assert_eq!(accumulated[4], exact[3]);
+    }
+
+    /// Model Exchange in discrete time (the defaults: noise on, `sample_period` = 0, so the
+    /// default experiment's step 0.1 s) against Co-Simulation steps of 0.1 s with the same
+    /// input, bit for bit: the time event at `t_k` shows what the step ending at `t_k` shows.
+    #[test]
+    fn model_exchange_in_discrete_time_gives_the_co_simulation_samples() {
+        use spurio_export::Values;
+        let info = LinearSystemFmu::describe(&Config::new()).unwrap();
+        let (_, l) = table(&dimensions(&Config::new()).unwrap());
+        let input = |k: usize| if k < 12 { 1.0 } else { -0.5 };
+        let read = |v: &Values| (v.real(l.x.first), v.real(l.x.first + 1), v.real(l.y.first));
+        // Co-Simulation: the input of the step from t_k set at t_k.
+        let mut values = Values::from_start(&info.variables);
+        let mut cs = LinearSystemFmu::create(&info).unwrap();
+        cs.initialize(&mut Context::at(&mut values, 0.0)).unwrap();
+        let mut expected = vec![read(&values)];
+        for k in 0..30 {
+            values.set_real(l.u.first, input(k));
+            let t = k as f64 * 0.1;
+            cs.do_step(&mut Context::at(&mut values, t), t, 0.1)
+                .unwrap();
+            expected.push(read(&values));
+        }
+        // Model Exchange: the event at t_k, the input set there (and once between events,
+        // which the samples must not see).
+        let mut values = Values::from_start(&info.variables);
+        let mut me = LinearSystemFmu::create(&info).unwrap();
+        me.initialize(&mut Context::at(&mut values, 0.0)).unwrap();
+        let mut got = Vec::new();
+        for k in 0..=30 {
+            let t = k as f64 * 0.1;
+            values.set_real(l.u.first, input(k));
+            let update = me
+                .update_discrete_states(&mut Context::at(&mut values, t))
+                .unwrap();
+            assert_eq!(update.states_changed, k > 0);
+            assert_eq!(update.next_event_time, Some((k + 1) as f64 * 0.1));
+            me.evaluate(&mut Context::at(&mut values, t)).unwrap();
+            got.push(read(&values));
+            assert_eq!(values.real(l.der_x.first), 0.0);
+            // Between the events: an input change and an importer's event change nothing.
+            values.set_real(l.u.first, 100.0);
+            let between = me
+                .update_discrete_states(&mut Context::at(&mut values, t + 0.05))
+                .unwrap();
+            assert!(!between.states_changed);
+            assert_eq!(between.next_event_time, Some((k + 1) as f64 * 0.1));
+            assert_eq!((read(&values).0, read(&values).1), (got[k].0, got[k].1));
+        }
+        assert_eq!(got, expected);
+        // The noise is on: the measured output is not the clean one.
+        assert_ne!(got[5].2, got[5].0);
+        // der(x) = 0 in the Jacobian, C as before
+        let mut out = [1.0; 2];
+        me.directional_derivative(
+            &mut Context::at(&mut values, 3.0),
+            &[l.der_x.first, l.y.first],
+            &[l.x.first],
+            &[1.0],
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(out, [0.0, 1.0]);
     }
 
     #[test]
