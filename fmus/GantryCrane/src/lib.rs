@@ -14,6 +14,7 @@
 //! would need more than [`spurio::ode::MAX_SUBSTEPS`] RK4 substeps is refused (`fmi2Error`,
 //! nothing changed).
 
+use nalgebra::{Matrix4, Vector4};
 use spurio::plants::gantry_crane::{
     CraneState, GantryCrane, GantryCraneParameters, Integrator, RailContact,
 };
@@ -274,56 +275,52 @@ impl ModelExchange for GantryCraneFmu {
         Ok(update)
     }
 
-    fn directional_derivative(
-        &mut self,
-        ctx: &mut Context,
-        unknowns: &[usize],
-        knowns: &[usize],
-        seed: &[f64],
-        out: &mut [f64],
-    ) -> Result<(), Failure> {
+    /// `∂f/∂s` and `∂f/∂u` at the current state, with the saturation's slope at the force.
+    type Jacobian = (Matrix4<f64>, Vector4<f64>, f64);
+
+    fn jacobian(&mut self, ctx: &Context) -> Result<Self::Jacobian, Failure> {
         let p = self.crane.parameters;
-        let s = Self::state_values(ctx);
         let u = ctx.values.real(vr::U);
-        let slope = p.saturation_slope(u);
-        let (dfds, dfdu) = p.jacobian(&s, p.saturate(u), self.contact);
+        let (dfds, dfdu) = p.jacobian(&Self::state_values(ctx), p.saturate(u), self.contact);
+        Ok((dfds, dfdu, p.saturation_slope(u)))
+    }
+
+    fn partial(
+        &self,
+        (dfds, dfdu, slope): &Self::Jacobian,
+        unknown: usize,
+        known: usize,
+    ) -> Result<f64, Failure> {
         // column of a known: the state's position, or 4 for the force
-        let column = |known: usize| match known {
-            vr::U => Ok(4),
+        let j = match known {
+            vr::U => 4,
             k => STATES.iter().position(|&x| x == k).ok_or_else(|| {
                 Failure::error(format!(
                     "directional derivative: value reference {k} is not a state or the input U"
                 ))
-            }),
+            })?,
         };
-        for (o, &unknown) in out.iter_mut().zip(unknowns) {
-            let mut sum = 0.0;
-            for (&known, &weight) in knowns.iter().zip(seed) {
-                let j = column(known)?;
-                let partial = if let Some(i) = DERIVATIVES.iter().position(|&d| d == unknown) {
-                    if j == 4 {
-                        dfdu[i] * slope
-                    } else {
-                        dfds[(i, j)]
-                    }
-                } else if let Some(i) = STATES.iter().position(|&x| x == unknown) {
-                    f64::from(u8::from(i == j))
-                } else if unknown == vr::U_APPLIED {
-                    if j == 4 {
-                        slope
-                    } else {
-                        0.0
-                    }
+        Ok(
+            if let Some(i) = DERIVATIVES.iter().position(|&d| d == unknown) {
+                if j == 4 {
+                    dfdu[i] * slope
                 } else {
-                    return Err(Failure::error(format!(
-                        "directional derivative: value reference {unknown} is not a derivative or an output"
-                    )));
-                };
-                sum += partial * weight;
-            }
-            *o = sum;
-        }
-        Ok(())
+                    dfds[(i, j)]
+                }
+            } else if let Some(i) = STATES.iter().position(|&x| x == unknown) {
+                f64::from(u8::from(i == j))
+            } else if unknown == vr::U_APPLIED {
+                if j == 4 {
+                    *slope
+                } else {
+                    0.0
+                }
+            } else {
+                return Err(Failure::error(format!(
+                "directional derivative: value reference {unknown} is not a derivative or an output"
+            )));
+            },
+        )
     }
 }
 

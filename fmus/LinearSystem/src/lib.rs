@@ -515,61 +515,51 @@ impl ModelExchange for LinearSystemFmu {
         })
     }
 
-    fn directional_derivative(
-        &mut self,
-        ctx: &mut Context,
-        unknowns: &[usize],
-        knowns: &[usize],
-        seed: &[f64],
-        out: &mut [f64],
-    ) -> Result<(), Failure> {
-        let system = initialised(self.system.as_ref())?;
-        let p = system.parameters();
+    /// Whether the system runs in continuous time (der(x) = 0 in discrete time: the states
+    /// change only at the sample events); the entries are those of the system's matrices.
+    type Jacobian = bool;
+
+    fn jacobian(&mut self, ctx: &Context) -> Result<bool, Failure> {
+        initialised(self.system.as_ref())?;
+        Ok(ctx.values.boolean(self.layout.continuous))
+    }
+
+    fn partial(&self, &continuous: &bool, unknown: usize, known: usize) -> Result<f64, Failure> {
+        let p = initialised(self.system.as_ref())?.parameters();
         let l = &self.layout;
-        // der(x) = 0 in discrete time (the states change only at the sample events)
-        let continuous = ctx.values.boolean(l.continuous);
         let position = |block: &Block, k: usize| block.indices().position(|i| i == k);
-        for (o, &unknown) in out.iter_mut().zip(unknowns) {
-            let mut sum = 0.0;
-            for (&known, &weight) in knowns.iter().zip(seed) {
-                let (state, input) = (position(&l.x, known), position(&l.u, known));
-                if state.is_none() && input.is_none() {
-                    return Err(Failure::error(format!(
-                        "directional derivative: value reference {known} is not a state x or an input u"
-                    )));
-                }
-                // the rows of [A B], [C D] and [I 0] for der(x), y and y_clean, and x
-                let (over_state, over_input) = if let Some(i) = position(&l.der_x, unknown) {
-                    if continuous {
-                        (
-                            state.map(|j| p.system.a[(i, j)]),
-                            input.map(|j| p.system.b[(i, j)]),
-                        )
-                    } else {
-                        (state.map(|_| 0.0), input.map(|_| 0.0))
-                    }
-                } else if let Some(i) =
-                    position(&l.y, unknown).or_else(|| position(&l.y_clean, unknown))
-                {
-                    (
-                        state.map(|j| p.system.c[(i, j)]),
-                        input.map(|j| p.system.d[(i, j)]),
-                    )
-                } else if let Some(i) = position(&l.x, unknown) {
-                    (
-                        state.map(|j| f64::from(u8::from(i == j))),
-                        input.map(|_| 0.0),
-                    )
-                } else {
-                    return Err(Failure::error(format!(
-                        "directional derivative: value reference {unknown} is not der(x), x, y or y_clean"
-                    )));
-                };
-                sum += over_state.or(over_input).unwrap_or(0.0) * weight;
-            }
-            *o = sum;
+        let (state, input) = (position(&l.x, known), position(&l.u, known));
+        if state.is_none() && input.is_none() {
+            return Err(Failure::error(format!(
+                "directional derivative: value reference {known} is not a state x or an input u"
+            )));
         }
-        Ok(())
+        // the rows of [A B], [C D] and [I 0] for der(x), y and y_clean, and x
+        let (over_state, over_input) = if let Some(i) = position(&l.der_x, unknown) {
+            if continuous {
+                (
+                    state.map(|j| p.system.a[(i, j)]),
+                    input.map(|j| p.system.b[(i, j)]),
+                )
+            } else {
+                (state.map(|_| 0.0), input.map(|_| 0.0))
+            }
+        } else if let Some(i) = position(&l.y, unknown).or_else(|| position(&l.y_clean, unknown)) {
+            (
+                state.map(|j| p.system.c[(i, j)]),
+                input.map(|j| p.system.d[(i, j)]),
+            )
+        } else if let Some(i) = position(&l.x, unknown) {
+            (
+                state.map(|j| f64::from(u8::from(i == j))),
+                input.map(|_| 0.0),
+            )
+        } else {
+            return Err(Failure::error(format!(
+                "directional derivative: value reference {unknown} is not der(x), x, y or y_clean"
+            )));
+        };
+        Ok(over_state.or(over_input).unwrap_or(0.0))
     }
 }
 

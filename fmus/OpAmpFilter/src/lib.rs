@@ -125,37 +125,6 @@ impl OpAmpFilterFmu {
     fn states(ctx: &Context) -> Vector2<f64> {
         Vector2::new(ctx.values.real(vr::V_C1), ctx.values.real(vr::V_C2))
     }
-
-    /// `∂unknown/∂known` on the rail held: `unknown` one of `der(v_C1)`, `der(v_C2)`, `y`,
-    /// `v_C1`, `v_C2`; `known` one of `v_C1`, `v_C2`, `u`.
-    fn partial(&self, unknown: usize, known: usize) -> Result<f64, Failure> {
-        let p = &self.filter.parameters;
-        let column = match known {
-            vr::V_C1 => 0,
-            vr::V_C2 => 1,
-            vr::U => 2,
-            _ => return Err(not_a(known, "state or input (v_C1, v_C2, u)")),
-        };
-        let row = |derivatives: Vector2<f64>, input: f64| match column {
-            2 => input,
-            c => derivatives[c],
-        };
-        let identity = |state: usize| f64::from(u8::from(column == state));
-        let jx = p.jacobian_state(self.rail);
-        Ok(match unknown {
-            vr::DER_V_C1 => row(jx.row(0).transpose(), p.jacobian_input()[0]),
-            vr::DER_V_C2 => row(jx.row(1).transpose(), p.jacobian_input()[1]),
-            vr::Y => identity(1) * p.output_slope(self.rail),
-            vr::V_C1 => identity(0),
-            vr::V_C2 => identity(1),
-            _ => {
-                return Err(not_a(
-                    unknown,
-                    "derivative or output (der(v_C1), der(v_C2), y, v_C1, v_C2)",
-                ))
-            }
-        })
-    }
 }
 
 /// The error for a value reference that is not one the call accepts.
@@ -289,22 +258,42 @@ impl ModelExchange for OpAmpFilterFmu {
         Ok(EventUpdate::default())
     }
 
-    fn directional_derivative(
-        &mut self,
-        _ctx: &mut Context,
-        unknowns: &[usize],
-        knowns: &[usize],
-        seed: &[f64],
-        out: &mut [f64],
-    ) -> Result<(), Failure> {
-        for (out, &unknown) in out.iter_mut().zip(unknowns) {
-            let mut sum = 0.0;
-            for (&known, &s) in knowns.iter().zip(seed) {
-                sum += self.partial(unknown, known)? * s;
-            }
-            *out = sum;
-        }
+    /// Nothing precomputed: the entries depend on the rail the model holds.
+    type Jacobian = ();
+
+    fn jacobian(&mut self, _ctx: &Context) -> Result<(), Failure> {
         Ok(())
+    }
+
+    /// `∂unknown/∂known` on the rail held: `unknown` one of `der(v_C1)`, `der(v_C2)`, `y`,
+    /// `v_C1`, `v_C2`; `known` one of `v_C1`, `v_C2`, `u`.
+    fn partial(&self, _: &(), unknown: usize, known: usize) -> Result<f64, Failure> {
+        let p = &self.filter.parameters;
+        let column = match known {
+            vr::V_C1 => 0,
+            vr::V_C2 => 1,
+            vr::U => 2,
+            _ => return Err(not_a(known, "state or input (v_C1, v_C2, u)")),
+        };
+        let row = |derivatives: Vector2<f64>, input: f64| match column {
+            2 => input,
+            c => derivatives[c],
+        };
+        let identity = |state: usize| f64::from(u8::from(column == state));
+        let jx = p.jacobian_state(self.rail);
+        Ok(match unknown {
+            vr::DER_V_C1 => row(jx.row(0).transpose(), p.jacobian_input()[0]),
+            vr::DER_V_C2 => row(jx.row(1).transpose(), p.jacobian_input()[1]),
+            vr::Y => identity(1) * p.output_slope(self.rail),
+            vr::V_C1 => identity(0),
+            vr::V_C2 => identity(1),
+            _ => {
+                return Err(not_a(
+                    unknown,
+                    "derivative or output (der(v_C1), der(v_C2), y, v_C1, v_C2)",
+                ))
+            }
+        })
     }
 }
 

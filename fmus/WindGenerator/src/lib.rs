@@ -40,8 +40,8 @@
 
 use spurio::ode::rosenbrock::Tolerance;
 use spurio::plants::wind_generator::{
-    wrap_angle, GeneratorState, TorqueLimit, WindGenerator, WindGeneratorParameters, OUTPUTS,
-    RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
+    wrap_angle, GeneratorState, InputMatrix, OutputMatrix, StateMatrix, TorqueLimit, WindGenerator,
+    WindGeneratorParameters, OUTPUTS, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
 };
 use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
@@ -550,36 +550,34 @@ impl ModelExchange for WindGeneratorFmu {
         Ok(update)
     }
 
-    fn directional_derivative(
-        &mut self,
-        ctx: &mut Context,
-        unknowns: &[usize],
-        knowns: &[usize],
-        seed: &[f64],
-        out: &mut [f64],
-    ) -> Result<(), Failure> {
+    /// `∂f/∂x`, `∂f/∂u` and `∂y/∂x` at the current states and inputs.
+    type Jacobian = (StateMatrix, InputMatrix, OutputMatrix);
+
+    fn jacobian(&mut self, ctx: &Context) -> Result<Self::Jacobian, Failure> {
         let x = Self::states(ctx);
         let (u_drive, u_field) = Self::inputs(ctx);
         let p = &self.generator.parameters;
-        let jx = p.jacobian_state(&x, self.limit);
-        let ju = p.jacobian_input(u_drive, u_field);
-        let jy = p.output_jacobian(&x, self.limit);
-        for (out, &unknown) in out.iter_mut().zip(unknowns) {
-            let row =
-                unknown_slot(unknown).ok_or_else(|| not_a(unknown, "derivative or output"))?;
-            let mut sum = 0.0;
-            for (&known, &s) in knowns.iter().zip(seed) {
-                let column = known_slot(known).ok_or_else(|| not_a(known, "state or input"))?;
-                sum += s * match (row, column) {
-                    (Slot::Derivative(i), Slot::State(j)) => jx[(i, j)],
-                    (Slot::Derivative(i), Slot::Input(j)) => ju[(i, j)],
-                    (Slot::Output(i), Slot::State(j)) => jy[(i, j)],
-                    _ => 0.0,
-                };
-            }
-            *out = sum;
-        }
-        Ok(())
+        Ok((
+            p.jacobian_state(&x, self.limit),
+            p.jacobian_input(u_drive, u_field),
+            p.output_jacobian(&x, self.limit),
+        ))
+    }
+
+    fn partial(
+        &self,
+        (jx, ju, jy): &Self::Jacobian,
+        unknown: usize,
+        known: usize,
+    ) -> Result<f64, Failure> {
+        let row = unknown_slot(unknown).ok_or_else(|| not_a(unknown, "derivative or output"))?;
+        let column = known_slot(known).ok_or_else(|| not_a(known, "state or input"))?;
+        Ok(match (row, column) {
+            (Slot::Derivative(i), Slot::State(j)) => jx[(i, j)],
+            (Slot::Derivative(i), Slot::Input(j)) => ju[(i, j)],
+            (Slot::Output(i), Slot::State(j)) => jy[(i, j)],
+            _ => 0.0,
+        })
     }
 }
 

@@ -188,11 +188,34 @@ pub trait ModelExchange: FmuModel {
     /// a rail stop, a mode switch — written into the state values in `ctx`.
     fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure>;
 
-    /// The analytic directional derivative `out = J · seed` of the `unknowns` (derivatives
-    /// and outputs) with respect to the `knowns` (states and inputs), at the current values
-    /// (after [`ModelExchange::evaluate`]); `seed.len() == knowns.len()`,
-    /// `out.len() == unknowns.len()`. Exact, not finite differences. Also serves the
-    /// Co-Simulation interface, where the states are the values the last step left.
+    /// What [`ModelExchange::partial`] reads its entries from, computed once per directional
+    /// derivative by [`ModelExchange::jacobian`]: the Jacobian matrices at the current values,
+    /// the saturation slopes, the mode (`()` where the entries need nothing precomputed).
+    type Jacobian;
+
+    /// The [`ModelExchange::Jacobian`] at the current values (after
+    /// [`ModelExchange::evaluate`]), for the calls of [`ModelExchange::partial`] that follow.
+    /// Allocation-free (fixed-size matrices), as every call of the directional derivative.
+    fn jacobian(&mut self, ctx: &Context) -> Result<Self::Jacobian, Failure>;
+
+    /// The exact (analytic) partial derivative `∂unknown/∂known` of an unknown (a derivative
+    /// or an output) with respect to a known (a state or an input), from `jacobian`; an
+    /// `Err` names a value reference that is not one.
+    fn partial(
+        &self,
+        jacobian: &Self::Jacobian,
+        unknown: usize,
+        known: usize,
+    ) -> Result<f64, Failure>;
+
+    /// The directional derivative `out = J · seed` of the `unknowns` (derivatives and outputs)
+    /// with respect to the `knowns` (states and inputs), at the current values (after
+    /// [`ModelExchange::evaluate`]): `out[i] = Σ_k ∂unknowns[i]/∂knowns[k] · seed[k]` from
+    /// [`ModelExchange::partial`]; `seed.len() == knowns.len()`, `out.len() == unknowns.len()`.
+    /// Exact, not finite differences. Serves `fmi2GetDirectionalDerivative`,
+    /// `fmi3GetDirectionalDerivative` and (with the unknowns and knowns swapped by the
+    /// caller) `fmi3GetAdjointDerivative`, also from the Co-Simulation interface, where the
+    /// states are the values the last step left. Models supply the entries, not this sum.
     fn directional_derivative(
         &mut self,
         ctx: &mut Context,
@@ -200,7 +223,17 @@ pub trait ModelExchange: FmuModel {
         knowns: &[usize],
         seed: &[f64],
         out: &mut [f64],
-    ) -> Result<(), Failure>;
+    ) -> Result<(), Failure> {
+        let jacobian = self.jacobian(ctx)?;
+        for (o, &unknown) in out.iter_mut().zip(unknowns) {
+            let mut sum = 0.0;
+            for (&known, &s) in knowns.iter().zip(seed) {
+                sum += self.partial(&jacobian, unknown, known)? * s;
+            }
+            *o = sum;
+        }
+        Ok(())
+    }
 }
 
 /// An FMI 2.0 Co-Simulation model.

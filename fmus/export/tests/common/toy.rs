@@ -145,28 +145,20 @@ impl ModelExchange for Toy {
         }
         Ok(update)
     }
-    fn directional_derivative(
-        &mut self,
-        _ctx: &mut Context,
-        unknowns: &[usize],
-        knowns: &[usize],
-        seed: &[f64],
-        out: &mut [f64],
-    ) -> Result<(), Failure> {
-        // ∂der(y[i])/∂u[i] = 1, ∂y[i]/∂y[i] = 1, ∂z/∂u[j] = 1; everything else 0.
-        let partial = |unknown: usize, known: usize| match unknown {
+
+    type Jacobian = ();
+
+    fn jacobian(&mut self, _ctx: &Context) -> Result<(), Failure> {
+        Ok(())
+    }
+
+    /// ∂der(y[i])/∂u[i] = 1, ∂y[i]/∂y[i] = 1, ∂z/∂u[j] = 1; everything else 0.
+    fn partial(&self, _: &(), unknown: usize, known: usize) -> Result<f64, Failure> {
+        Ok(match unknown {
             DER_Y | 13 if known == U + unknown - DER_Y => 1.0,
             Y | 3 if known == unknown => 1.0,
             Z if known == U || known == U + 1 => 1.0,
             _ => 0.0,
-        };
-        for (o, &u) in out.iter_mut().zip(unknowns) {
-            *o = knowns
-                .iter()
-                .zip(seed)
-                .map(|(&k, s)| partial(u, k) * s)
-                .sum();
-        }
-        Ok(())
+        })
     }
 }
