@@ -25,7 +25,7 @@
 //! ] } }
 //! // describe: ModelInfo::new(…, variables(), …).with_model_exchange()?
 //! // impl ModelExchange for Model { evaluate, event_indicators, update_discrete_states,
-//! //                                directional_derivative }
+//! //     type Jacobian, jacobian, partial } (the layer forms J·seed from the partials)
 //! spurio_export::export_fmu!(Model, model_exchange);
 //! ```
 //!
