@@ -285,12 +285,8 @@ impl ModelExchange for GantryCraneFmu {
         Ok((dfds, dfdu, p.saturation_slope(u)))
     }
 
-    fn partial(
-        &self,
-        (dfds, dfdu, slope): &Self::Jacobian,
-        unknown: usize,
-        known: usize,
-    ) -> Result<f64, Failure> {
+    fn partial(&self, at: &Self::Jacobian, unknown: usize, known: usize) -> Result<f64, Failure> {
+        let (dfds, dfdu, slope) = at;
         // column of a known: the state's position, or 4 for the force
         let j = match known {
             vr::U => 4,

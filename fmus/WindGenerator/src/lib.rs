@@ -564,12 +564,8 @@ impl ModelExchange for WindGeneratorFmu {
         ))
     }
 
-    fn partial(
-        &self,
-        (jx, ju, jy): &Self::Jacobian,
-        unknown: usize,
-        known: usize,
-    ) -> Result<f64, Failure> {
+    fn partial(&self, at: &Self::Jacobian, unknown: usize, known: usize) -> Result<f64, Failure> {
+        let (jx, ju, jy) = at;
         let row = unknown_slot(unknown).ok_or_else(|| not_a(unknown, "derivative or output"))?;
         let column = known_slot(known).ok_or_else(|| not_a(known, "state or input"))?;
         Ok(match (row, column) {
