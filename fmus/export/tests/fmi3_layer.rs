@@ -86,6 +86,34 @@ fn instantiate_with(name: &str, token: &CString) -> fmi3Instance {
     }
 }
 
+/// `fmi3InstantiateCoSimulation` of the Toy with the right token but without its Model
+/// Exchange functions: `eventModeUsed = event_mode`, the resource folder `resources` if any.
+fn co_simulation_only(
+    name: &str,
+    resources: Option<&CStr>,
+    event_mode: fmi3Boolean,
+) -> fmi3Instance {
+    let name = CString::new(name).unwrap();
+    let resources = resources.map_or(std::ptr::null(), CStr::as_ptr);
+    unsafe {
+        ffi::instantiate_co_simulation::<Toy>(
+            args(name.as_ptr(), token().as_ptr(), resources),
+            event_mode,
+            0,
+            0,
+            None,
+        )
+    }
+}
+
+/// Asserts that an instantiation was refused (NULL) and logged an error containing `reason`.
+#[track_caller]
+fn assert_refused(instance: fmi3Instance, reason: &str) {
+    assert!(instance.is_null());
+    let e = last_error();
+    assert!(e.contains(reason), "{e}");
+}
+
 struct Instance(fmi3Instance);
 
 impl Drop for Instance {
@@ -141,20 +169,14 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
             && e.contains(&token().into_string().unwrap()),
         "{e}"
     );
-    let name = CString::new("events").unwrap();
-    let c = unsafe {
-        ffi::instantiate_co_simulation::<Toy>(
-            args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
-            fmi3True,
-            0,
-            0,
-            None,
-        )
-    };
-    assert!(c.is_null());
-    assert!(last_error().contains("eventModeUsed = true, but the FMU declares hasEventMode"));
-    assert!(instantiate_with("", &token()).is_null());
-    assert!(last_error().contains("instanceName must be a non-empty string"));
+    assert_refused(
+        co_simulation_only("events", None, fmi3True),
+        "eventModeUsed = true, but the FMU declares hasEventMode",
+    );
+    assert_refused(
+        instantiate_with("", &token()),
+        "instanceName must be a non-empty string",
+    );
     let se = unsafe {
         ffi::refuse_instantiation::<Toy>(
             "fmi3InstantiateScheduledExecution",
@@ -162,8 +184,7 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
             args(std::ptr::null(), std::ptr::null(), std::ptr::null()),
         )
     };
-    assert!(se.is_null());
-    assert!(last_error().contains("Toy does not implement Scheduled Execution"));
+    assert_refused(se, "Toy does not implement Scheduled Execution");
     // Model Exchange needs the model's functions (`export_fmu!(Toy, model_exchange)`).
     let name = CString::new("me").unwrap();
     let me = unsafe {
@@ -172,32 +193,18 @@ fn instantiation_checks_the_token_and_refuses_other_interfaces() {
             None,
         )
     };
-    assert!(me.is_null());
-    assert!(
-        last_error().contains("fmi3InstantiateModelExchange: Toy is a Co-Simulation FMU only"),
-        "{}",
-        last_error()
+    assert_refused(
+        me,
+        "fmi3InstantiateModelExchange: Toy is a Co-Simulation FMU only",
     );
     // A variant configuration in the resource folder is read; a broken one is reported.
     let dir = std::env::temp_dir().join(format!("fmi3_layer_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("variant.cfg"), "not a setting\n").unwrap();
     let resources = CString::new(format!("{}/", dir.display())).unwrap();
-    let name = CString::new("cfg").unwrap();
-    let c = unsafe {
-        ffi::instantiate_co_simulation::<Toy>(
-            args(name.as_ptr(), token().as_ptr(), resources.as_ptr()),
-            0,
-            0,
-            0,
-            None,
-        )
-    };
-    assert!(c.is_null());
-    assert!(
-        last_error().contains("variant.cfg line 1"),
-        "{}",
-        last_error()
+    assert_refused(
+        co_simulation_only("cfg", Some(&resources), 0),
+        "variant.cfg line 1",
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
