@@ -5,7 +5,9 @@
 //! - [`estimator`]: the one generic estimator adapter ([`estimator::EstimatorFmu`]) and its
 //!   input checks;
 //! - [`kalman`], [`dual`]: the sKF/rsKF and DKF/DKF-rsKF estimators behind their FMUs;
-//! - [`controller`]: presets, pole and limit parameters of the two state-feedback FMUs.
+//! - [`controller`]: the sampled-controller skeleton of the two state-feedback FMUs
+//!   ([`controller::SampledController`] over a control law), their presets, pole and limit
+//!   parameters.
 //!
 //! An FMU binary links only what it uses of this crate.
 #![forbid(unsafe_code)]
