@@ -12,9 +12,21 @@
  *   - no call takes longer than the bound (default 1 s);
  *   - every Real read with fmi2OK is finite; after every fmi2OK step all Reals are read.
  *
+ * An FMU with Model Exchange is instantiated for it in a share of the instantiations, and its
+ * Model Exchange instances are driven through the Model Exchange functions too (fmi2SetTime,
+ * fmi2Set/GetContinuousStates, fmi2GetDerivatives, fmi2GetEventIndicators,
+ * fmi2GetNominalsOfContinuousStates, fmi2EnterEventMode, fmi2NewDiscreteStates,
+ * fmi2EnterContinuousTimeMode, fmi2CompletedIntegratorStep, fmi2GetDirectionalDerivative):
+ * in the wrong mode, with NULL arrays, array sizes other than the model's, non-finite and
+ * huge states and times, unknown value references -- and the same checks; every array read
+ * with fmi2OK is finite, and after every fmi2OK fmi2SetContinuousStates the derivatives and
+ * all Reals are read. A Co-Simulation instance of such an FMU gets a few of these calls too
+ * (each must be refused).
+ *
  * A crash, a hang or an AddressSanitizer report ends the process (the run script reports it).
  *
- *   driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE]]
+ *   driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE [DUMP_FILE]]]
+ *   MISUSE_TRACE=1 driver ...     # also prints every checked call, its status and message
  *
  * MANIFEST is written by manifest.py. The driver prints one summary line and each finding
  * with the call number, so `driver MANIFEST SEED N` replays it. Exit status: 0 no finding,
@@ -92,13 +104,36 @@ static struct {
     fmi2Status (*GetIntegerStatus)(fmi2Component, int, fmi2Integer *);
     fmi2Status (*GetBooleanStatus)(fmi2Component, int, fmi2Boolean *);
     fmi2Status (*GetStringStatus)(fmi2Component, int, fmi2String *);
+    /* Model Exchange (loaded when the FMU offers it) */
+    fmi2Status (*SetTime)(fmi2Component, fmi2Real);
+    fmi2Status (*SetContinuousStates)(fmi2Component, const fmi2Real *, size_t);
+    fmi2Status (*GetContinuousStates)(fmi2Component, fmi2Real *, size_t);
+    fmi2Status (*GetDerivatives)(fmi2Component, fmi2Real *, size_t);
+    fmi2Status (*GetEventIndicators)(fmi2Component, fmi2Real *, size_t);
+    fmi2Status (*GetNominalsOfContinuousStates)(fmi2Component, fmi2Real *, size_t);
+    fmi2Status (*EnterEventMode)(fmi2Component);
+    fmi2Status (*NewDiscreteStates)(fmi2Component, void *);
+    fmi2Status (*EnterContinuousTimeMode)(fmi2Component);
+    fmi2Status (*CompletedIntegratorStep)(fmi2Component, fmi2Boolean, fmi2Boolean *, fmi2Boolean *);
+    fmi2Status (*GetDirectionalDerivative)(fmi2Component, const fmi2ValueReference *, size_t,
+                                           const fmi2ValueReference *, size_t, const fmi2Real *,
+                                           fmi2Real *);
 } F;
 
-/* ---- the FMI 2.0 CS state machine (as the standard's tables give it) ------------------- */
-enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEP = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32 };
-#define ANY_LIVE (S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR)
-#define AFTER_INIT (S_INIT | S_STEP | S_TERMINATED | S_ERROR)
-#define SETTABLE (S_INSTANTIATED | S_INIT | S_STEP)
+/* fmi2EventInfo of fmi2FunctionTypes.h */
+typedef struct {
+    fmi2Boolean newDiscreteStatesNeeded, terminateSimulation, nominalsOfContinuousStatesChanged,
+        valuesOfContinuousStatesChanged, nextEventTimeDefined;
+    fmi2Real nextEventTime;
+} fmi2EventInfo;
+
+/* ---- the FMI 2.0 CS and ME state machines (as the standard's tables give them) --------- */
+enum { S_INSTANTIATED = 1, S_INIT = 2, S_STEP = 4, S_TERMINATED = 8, S_ERROR = 16, S_FATAL = 32,
+       S_EVENT = 64, S_CONT = 128 };
+#define ME_MODES (S_EVENT | S_CONT)
+#define ANY_LIVE (S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR | ME_MODES)
+#define AFTER_INIT (S_INIT | S_STEP | S_TERMINATED | S_ERROR | ME_MODES)
+#define SETTABLE (S_INSTANTIATED | S_INIT | S_STEP | ME_MODES)
 #define STATUS_QUERIES (S_STEP | S_TERMINATED)
 
 /* ---- the model ----------------------------------------------------------------------- */
@@ -114,6 +149,9 @@ typedef struct {
 
 static char label[128], model_id[128], guid[128], library[1024], resources[1200];
 static int model_exchange; /* the FMU offers Model Exchange too: fmi2ModelExchange is valid */
+static int nz;             /* its event indicators */
+static int nx;             /* its continuous states: state_vr[k], their derivatives der_vr[k] */
+static fmi2ValueReference state_vr[64], der_vr[64];
 static Var *vars;
 static int nvars;
 static unsigned max_vr;
@@ -121,6 +159,7 @@ static unsigned max_vr;
 /* ---- bookkeeping --------------------------------------------------------------------- */
 typedef struct {
     fmi2Component c;
+    int me;            /* instantiated for Model Exchange */
     int possible;      /* the states the instance may be in (bit set) */
     double time;       /* communication point when known */
     int time_known;
@@ -135,7 +174,7 @@ typedef struct {
 #define NINST 4
 static Inst inst[NINST];
 static unsigned long long rng;
-static long call_no, findings, calls_total;
+static long call_no, findings, calls_total, calls_me; /* calls_me: on Model Exchange instances */
 static double bound_ms = 1000.0, slowest_ms;
 static char slowest_what[64];
 static unsigned char *foreign;
@@ -143,6 +182,7 @@ static size_t foreign_len;
 static unsigned char *own_bytes;
 static size_t own_len;
 static const char *dump_path;
+static int trace; /* MISUSE_TRACE set: every checked call printed (to replay a finding) */
 
 static unsigned long long next_u64(void) {
     /* splitmix64 */
@@ -237,6 +277,7 @@ static void begin(Inst *in) {
     t0 = now_ms();
     call_no++;
     calls_total++;
+    calls_me += in->me;
 }
 
 static fmi2Status end(Inst *in, const char *what, int mask, fmi2Status s) {
@@ -257,6 +298,8 @@ static fmi2Status end(Inst *in, const char *what, int mask, fmi2Status s) {
         finding(what, "logged with a format other than \"%%s\"");
         in->bad_format = 0;
     }
+    if (trace)
+        printf("call %ld %s on i%d: %d (%s)\n", call_no, what, (int)(in - inst), s, in->last);
     if (mask >= 0 && (mask & in->possible) == 0 && s != fmi2Error && s != fmi2Fatal)
         finding(what, "allowed in none of the states 0x%x but returned %d", in->possible, s);
     if (mask >= 0 && s == fmi2Error && strstr(in->last, "illegal call sequence")) {
@@ -326,6 +369,12 @@ static unsigned some_vr(char t, const Var **var) {
 }
 
 /* ---- reading every Real (the finiteness check) ---------------------------------------- */
+/* A Model Exchange instance whose model failed (not an illegal call) may be in Error state. */
+static void me_failed(Inst *in, fmi2Status s) {
+    if (in->me && s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+        in->possible |= S_ERROR;
+}
+
 static void check_all_reals(Inst *in, const char *after) {
     fmi2ValueReference *vr = malloc(sizeof *vr * (nvars + 1));
     fmi2Real *x = malloc(sizeof *x * (nvars + 1));
@@ -336,6 +385,7 @@ static void check_all_reals(Inst *in, const char *after) {
     begin(in);
     s = F.GetReal(in->c, vr, n, x);
     end(in, "fmi2GetReal(all)", AFTER_INIT, s);
+    me_failed(in, s);
     if (s == fmi2OK)
         for (i = 0; i < n; i++)
             if (!isfinite(x[i])) {
@@ -358,6 +408,7 @@ static void instantiate(Inst *in) {
     const char *g = guid;
     const char *res = resources;
     int variant = pick(12);
+    int me = variant == 3 || (model_exchange && variant > 4 && pick(6) == 0);
     snprintf(name, sizeof name, "i%d", (int)(in - inst));
     in->log_count = 0;
     cb = callbacks_for(in);
@@ -366,7 +417,7 @@ static void instantiate(Inst *in) {
     t0 = now_ms();
     call_no++;
     calls_total++;
-    in->c = F.Instantiate(variant == 2 ? "" : name, variant == 3 ? fmi2ModelExchange : fmi2CoSimulation,
+    in->c = F.Instantiate(variant == 2 ? "" : name, me ? fmi2ModelExchange : fmi2CoSimulation,
                           g, res, variant == 4 ? NULL : &cb, 0, pick(2));
     if (!in->c) {
         if (variant > 4 && variant != 1)
@@ -375,15 +426,10 @@ static void instantiate(Inst *in) {
             finding("fmi2Instantiate", "returned NULL without logging why");
         return;
     }
-    if (variant == 3 && model_exchange) {
-        /* a valid Model Exchange instance: this driver drives Co-Simulation, so free it */
-        F.FreeInstance(in->c);
-        in->c = NULL;
-        return;
-    }
-    if (variant <= 4 && variant != 1)
+    if (variant <= 4 && variant != 1 && !(variant == 3 && model_exchange))
         finding("fmi2Instantiate", "accepted an invalid call (case %d)", variant);
     in->possible = S_INSTANTIATED;
+    in->me = me;
     in->time = 0;
     in->time_known = 1;
     in->nstates = 0;
@@ -395,6 +441,177 @@ static void free_instance(Inst *in) {
     F.FreeInstance(in->c);
     in->c = NULL;
     free_states(in);
+}
+
+/* ---- Model Exchange ------------------------------------------------------------------ */
+/* An array size for a model with `n` elements: mostly right, else off by one or zero. */
+static size_t me_size(int n) {
+    switch (pick(12)) {
+    case 0: return (size_t)n + 1;
+    case 1: return n > 0 ? (size_t)n - 1 : 1;
+    case 2: return 0;
+    default: return (size_t)n;
+    }
+}
+
+/* Checks that the `n` values of `what` read with fmi2OK are finite. */
+static void me_finite(const char *what, const fmi2Real *x, size_t n) {
+    size_t i;
+    for (i = 0; i < n; i++)
+        if (!isfinite(x[i])) {
+            finding(what, "element %zu = %g with fmi2OK", i, x[i]);
+            return;
+        }
+}
+
+/* One array read of the Model Exchange interface; `expected` is the model's size. */
+static fmi2Status me_get_array(Inst *in, int which, fmi2Real *x, size_t n, int expected) {
+    static const char *const names[] = {"fmi2GetContinuousStates", "fmi2GetDerivatives",
+                                        "fmi2GetEventIndicators",
+                                        "fmi2GetNominalsOfContinuousStates"};
+    static const int masks[] = {S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
+                                S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
+                                S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
+                                S_INSTANTIATED | S_INIT | ME_MODES | S_TERMINATED | S_ERROR};
+    fmi2Status (*const calls[])(fmi2Component, fmi2Real *, size_t) = {
+        F.GetContinuousStates, F.GetDerivatives, F.GetEventIndicators,
+        F.GetNominalsOfContinuousStates};
+    fmi2Status s;
+    fmi2Real *out = n && pick(25) == 0 ? NULL : x;
+    begin(in);
+    s = calls[which](in->c, out, n);
+    end(in, names[which], in->me ? masks[which] : 0, s);
+    if (s <= fmi2Warning && n != (size_t)expected)
+        finding(names[which], "accepted %zu elements where the model has %d", n, expected);
+    if (s <= fmi2Warning && !out && n)
+        finding(names[which], "accepted a NULL array of %zu elements", n);
+    if (s == fmi2OK && out) me_finite(names[which], out, n);
+    me_failed(in, s);
+    return s;
+}
+
+static void me_call(Inst *in) {
+    /* room for every array at its size + 1 (the wrong sizes of me_size) */
+    fmi2Real x[130], y[130];
+    int op = pick(100), i;
+    fmi2Status s;
+    size_t n;
+/* a Co-Simulation instance refuses every Model Exchange call: mask 0 */
+#define ME_MASK(m) (in->me ? (m) : 0)
+    if (op < 10) { /* fmi2SetTime: forward, backward, non-finite or huge */
+        double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
+                                             : nasty_real(NULL);
+        begin(in);
+        s = F.SetTime(in->c, t);
+        end(in, "fmi2SetTime", ME_MASK(ME_MODES), s);
+        if (s <= fmi2Warning) {
+            if (!isfinite(t)) finding("fmi2SetTime", "accepted t = %g", t);
+            in->time = t;
+            in->time_known = 1;
+        }
+        return;
+    }
+    if (op < 30) { /* fmi2SetContinuousStates: the current ones moved, or nasty values */
+        int kind = pick(4);
+        n = me_size(nx);
+        for (i = 0; i < (int)n; i++) x[i] = 0.0;
+        if (kind > 0 && nx) {
+            begin(in);
+            s = F.GetContinuousStates(in->c, x, (size_t)nx);
+            end(in, "fmi2GetContinuousStates", ME_MASK(S_INIT | ME_MODES | S_TERMINATED | S_ERROR), s);
+            if (s != fmi2OK)
+                for (i = 0; i < nx; i++) x[i] = 0.0;
+            me_failed(in, s);
+        }
+        for (i = 0; i < (int)n; i++) {
+            if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
+            else x[i] += 0.01 * (unit() - 0.5);
+        }
+        begin(in);
+        s = F.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
+        end(in, "fmi2SetContinuousStates", ME_MASK(S_CONT), s);
+        if (s <= fmi2Warning) {
+            if (n != (size_t)nx) finding("fmi2SetContinuousStates", "accepted %zu states of %d", n, nx);
+            for (i = 0; i < (int)n; i++)
+                if (!isfinite(x[i])) finding("fmi2SetContinuousStates", "accepted state %d = %g", i, x[i]);
+            if (nx) me_get_array(in, 1, y, (size_t)nx, nx);
+            check_all_reals(in, "fmi2SetContinuousStates");
+        }
+        me_failed(in, s);
+        return;
+    }
+    if (op < 55) { /* the four array reads */
+        int which = pick(4);
+        int expected = which == 2 ? nz : nx;
+        me_get_array(in, which, x, me_size(expected), expected);
+        return;
+    }
+    if (op < 63) { /* fmi2EnterEventMode */
+        begin(in);
+        s = F.EnterEventMode(in->c);
+        end(in, "fmi2EnterEventMode", ME_MASK(ME_MODES), s);
+        if (s <= fmi2Warning) in->possible = S_EVENT;
+        me_failed(in, s);
+        return;
+    }
+    if (op < 73) { /* fmi2NewDiscreteStates */
+        fmi2EventInfo info;
+        int null = pick(20) == 0;
+        memset(&info, 0, sizeof info);
+        begin(in);
+        s = F.NewDiscreteStates(in->c, null ? NULL : &info);
+        end(in, "fmi2NewDiscreteStates", ME_MASK(S_EVENT), s);
+        if (s <= fmi2Warning && null) finding("fmi2NewDiscreteStates", "accepted a NULL eventInfo");
+        if (s <= fmi2Warning && info.nextEventTimeDefined && !isfinite(info.nextEventTime))
+            finding("fmi2NewDiscreteStates", "next event time %g", info.nextEventTime);
+        if (s == fmi2OK) check_all_reals(in, "fmi2NewDiscreteStates");
+        me_failed(in, s);
+        return;
+    }
+    if (op < 80) { /* fmi2EnterContinuousTimeMode */
+        begin(in);
+        s = F.EnterContinuousTimeMode(in->c);
+        end(in, "fmi2EnterContinuousTimeMode", ME_MASK(S_EVENT), s);
+        if (s <= fmi2Warning) in->possible = S_CONT;
+        me_failed(in, s);
+        return;
+    }
+    if (op < 90) { /* fmi2CompletedIntegratorStep, with NULL flags now and then */
+        fmi2Boolean event = 7, terminate = 7;
+        int null = pick(20);
+        begin(in);
+        s = F.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
+                                      null == 1 ? NULL : &terminate);
+        end(in, "fmi2CompletedIntegratorStep", ME_MASK(S_CONT), s);
+        if (s <= fmi2Warning && null > 1 && ((event != 0 && event != 1) || (terminate != 0 && terminate != 1)))
+            finding("fmi2CompletedIntegratorStep", "flags %d, %d", event, terminate);
+        me_failed(in, s);
+        return;
+    }
+    { /* fmi2GetDirectionalDerivative: derivatives by states, or unknown references */
+        fmi2ValueReference u[8], k[8];
+        fmi2Real seed[8], out[8];
+        const Var *var;
+        size_t nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        size_t nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        int null = pick(20);
+        for (i = 0; i < (int)nu; i++)
+            u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
+        for (i = 0; i < (int)nk; i++) {
+            k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
+            seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
+        }
+        begin(in);
+        s = F.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
+                                       null == 1 ? NULL : seed, null == 2 ? NULL : out);
+        end(in, "fmi2GetDirectionalDerivative",
+            in->me ? S_INIT | ME_MODES | S_TERMINATED | S_ERROR : -1, s);
+        if (s <= fmi2Warning && null < 3) finding("fmi2GetDirectionalDerivative", "accepted a NULL array");
+        if (s == fmi2OK && null >= 3) me_finite("fmi2GetDirectionalDerivative", out, nu);
+        /* a model that cannot linearize (e.g. not initialized yet) fails: Error state */
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
+    }
+#undef ME_MASK
 }
 
 /* ---- one random call ----------------------------------------------------------------- */
@@ -438,6 +655,10 @@ static void random_call(Inst *in) {
         instantiate(in);
         return;
     }
+    if (model_exchange && (in->me ? pick(2) == 0 : pick(50) == 0)) {
+        me_call(in);
+        return;
+    }
     if (op < 3) { /* free and come back later */
         free_instance(in);
         return;
@@ -456,7 +677,7 @@ static void random_call(Inst *in) {
         static const char *const names[] = {"fmi2EnterInitializationMode",
                                             "fmi2ExitInitializationMode", "fmi2Terminate",
                                             "fmi2Reset"};
-        static const int masks[] = {S_INSTANTIATED, S_INIT, S_STEP, ANY_LIVE};
+        static const int masks[] = {S_INSTANTIATED, S_INIT, S_STEP | ME_MODES, ANY_LIVE};
         static const int next[] = {S_INIT, S_STEP, S_TERMINATED, S_INSTANTIATED};
         fmi2Status (*const calls[])(fmi2Component) = {F.EnterInitializationMode,
                                                       F.ExitInitializationMode, F.Terminate,
@@ -465,7 +686,7 @@ static void random_call(Inst *in) {
         s = plain_call(in, calls[k], names[k], masks[k]);
         if (k == 1) { /* fmi2ExitInitializationMode: a warning also enters Step Mode */
             if (s <= fmi2Warning) {
-                in->possible = S_STEP;
+                in->possible = in->me ? S_EVENT : S_STEP;
                 check_all_reals(in, names[k]);
             } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
                 in->possible |= S_ERROR;
@@ -513,7 +734,8 @@ static void random_call(Inst *in) {
         begin(in);
         s = values_call(in, 1, t, vrs, n, xr, xi, NULL);
         end(in, "fmi2Set*", SETTABLE, s);
-        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") && (in->possible & S_STEP))
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") &&
+            (in->possible & (S_STEP | ME_MODES)))
             in->possible |= S_ERROR; /* tunable parameters may fail in the model */
         return;
     }
@@ -533,7 +755,8 @@ static void random_call(Inst *in) {
         if (s == fmi2OK && t == 'S')
             for (i = 0; i < n; i++)
                 if (!xs[i] || strlen(xs[i]) > 1000000) finding("fmi2GetString", "bad string");
-        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") && (in->possible & S_INIT))
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence") &&
+            (in->possible & (S_INIT | ME_MODES)))
             in->possible |= S_ERROR; /* outputs computed in initialization mode may fail */
         return;
     }
@@ -570,7 +793,7 @@ static void random_call(Inst *in) {
         end(in, "fmi2SetFMUstate", ANY_LIVE, s);
         if (s == fmi2OK) {
             int k;
-            in->possible = S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR;
+            in->possible = ANY_LIVE;
             for (k = 0; k < in->nstates; k++)
                 if (in->states[k] == st) in->possible = in->state_possible[k];
             in->time_known = 0;
@@ -628,7 +851,7 @@ static void random_call(Inst *in) {
         if (s == fmi2OK) {
             if (in->nstates < 8) {
                 in->states[in->nstates] = st;
-                in->state_possible[in->nstates] = S_INSTANTIATED | S_INIT | S_STEP | S_TERMINATED | S_ERROR;
+                in->state_possible[in->nstates] = ANY_LIVE;
                 in->nstates++;
             } else {
                 begin(in);
@@ -704,6 +927,11 @@ static int read_manifest(const char *path) {
         else if (!strcmp(fields[0], "library") && nf > 1) snprintf(library, sizeof library, "%s", fields[1]);
         else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
         else if (!strcmp(fields[0], "me") && nf > 1) model_exchange = atoi(fields[1]);
+        else if (!strcmp(fields[0], "nz") && nf > 1) nz = atoi(fields[1]);
+        else if (!strcmp(fields[0], "state") && nf > 2 && nx < 64) {
+            state_vr[nx] = (fmi2ValueReference)strtoul(fields[1], NULL, 10);
+            der_vr[nx++] = (fmi2ValueReference)strtoul(fields[2], NULL, 10);
+        }
         else if (!strcmp(fields[0], "var") && nf == 8) {
             Var *v;
             if (nvars == cap) vars = realloc(vars, sizeof *vars * (cap *= 2));
@@ -750,6 +978,15 @@ static int load(void) {
     LOAD(GetStatus, "fmi2GetStatus"); LOAD(GetRealStatus, "fmi2GetRealStatus");
     LOAD(GetIntegerStatus, "fmi2GetIntegerStatus"); LOAD(GetBooleanStatus, "fmi2GetBooleanStatus");
     LOAD(GetStringStatus, "fmi2GetStringStatus");
+    if (!model_exchange) return 1;
+    LOAD(GetDirectionalDerivative, "fmi2GetDirectionalDerivative");
+    LOAD(SetTime, "fmi2SetTime"); LOAD(SetContinuousStates, "fmi2SetContinuousStates");
+    LOAD(GetContinuousStates, "fmi2GetContinuousStates"); LOAD(GetDerivatives, "fmi2GetDerivatives");
+    LOAD(GetEventIndicators, "fmi2GetEventIndicators");
+    LOAD(GetNominalsOfContinuousStates, "fmi2GetNominalsOfContinuousStates");
+    LOAD(EnterEventMode, "fmi2EnterEventMode"); LOAD(NewDiscreteStates, "fmi2NewDiscreteStates");
+    LOAD(EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode");
+    LOAD(CompletedIntegratorStep, "fmi2CompletedIntegratorStep");
     return 1;
 }
 
@@ -773,6 +1010,7 @@ int main(int argc, char **argv) {
         }
     }
     if (argc > 6) dump_path = argv[6];
+    trace = getenv("MISUSE_TRACE") != NULL;
     if (!read_manifest(argv[1])) { fprintf(stderr, "%s: cannot read the manifest\n", argv[1]); return 2; }
     if (!load()) return 2;
     hang_seconds = (unsigned)(bound_ms / 1000.0 * 10.0) + 1;
@@ -791,8 +1029,10 @@ int main(int argc, char **argv) {
         FILE *f = fopen(dump_path, "wb");
         if (f) { fwrite(own_bytes, 1, own_len, f); fclose(f); }
     }
-    printf("%-34s %8ld calls  %3ld findings  slowest %.1f ms (%s)\n", label, calls_total,
+    printf("%-34s %8ld calls  %3ld findings  slowest %.1f ms (%s)", label, calls_total,
            findings, slowest_ms, slowest_what);
+    if (model_exchange) printf("  %ld on Model Exchange instances", calls_me);
+    printf("\n");
     free(own_bytes);
     free(foreign);
     free(vars);

@@ -10,6 +10,8 @@ manifest.txt (one record a line, fields separated by a tab):
     library  <path of binaries/linux64/<id>.so>
     resources <file URI of the resources folder>
     me       <1 if the FMU offers Model Exchange too, else 0>
+    nz       <numberOfEventIndicators>
+    state    <vr of a continuous state> <vr of its derivative>   (ModelStructure order)
     var      <vr> <R|I|B|S> <causality> <variability> <min or -> <max or -> <name>
 Standard library only (the driver runs on a machine without the project's venv too).
 """
@@ -38,8 +40,14 @@ def main(fmu: str, out: str) -> None:
         f"library\t{unpacked / 'binaries' / 'linux64' / (model_id + '.so')}",
         f"resources\t{(unpacked / 'resources').as_uri()}",
         f"me\t{int(root.find('ModelExchange') is not None)}",
+        f"nz\t{root.get('numberOfEventIndicators', '0')}",
     ]
-    for sv in root.iter("ScalarVariable"):
+    scalars = list(root.iter("ScalarVariable"))
+    for unknown in root.iterfind("ModelStructure/Derivatives/Unknown"):
+        der = scalars[int(unknown.get("index")) - 1]
+        state = scalars[int(der.find("Real").get("derivative")) - 1]
+        lines.append(f"state\t{state.get('valueReference')}\t{der.get('valueReference')}")
+    for sv in scalars:
         typed = next(child for child in sv if child.tag in TYPES)
         lines.append(
             "\t".join(
