@@ -445,3 +445,54 @@ fn panicking_evaluation_child() {
 fn a_panic_in_an_evaluation_prints_nothing_on_stderr() {
     common::assert_child_prints_only_its_line("panicking_evaluation_child");
 }
+
+#[test]
+fn a_count_other_than_the_models_is_refused_before_the_array_becomes_a_slice() {
+    let mut m = Me::new();
+    m.start();
+    assert_eq!(m.set_states(&[0.5, 3.0]), fmi2OK);
+    // a huge count with a two-element array: refused from the count alone, the array untouched
+    // (a slice of that length would exceed isize::MAX bytes: undefined behaviour to form)
+    let huge = usize::MAX / 4;
+    let mut out = [f64::NAN; 2];
+    let arrays = [
+        (
+            &functions::GET_CONTINUOUS_STATES,
+            Array::ContinuousStates,
+            "fmi2GetContinuousStates: nx",
+            2,
+        ),
+        (
+            &functions::GET_DERIVATIVES,
+            Array::Derivatives,
+            "fmi2GetDerivatives: nx",
+            2,
+        ),
+        (
+            &functions::GET_EVENT_INDICATORS,
+            Array::EventIndicators,
+            "fmi2GetEventIndicators: ni",
+            1,
+        ),
+        (
+            &functions::GET_NOMINALS_OF_CONTINUOUS_STATES,
+            Array::Nominals,
+            "fmi2GetNominalsOfContinuousStates: nx",
+            2,
+        ),
+    ];
+    for (f, which, what, has) in arrays {
+        let s = unsafe { me::get_array::<Toy, ()>(m.c(), f, which, out.as_mut_ptr(), huge) };
+        assert_eq!(s, fmi2Error);
+        assert!(last_error(&m.0).contains(&format!("{what} = {huge}, but Toy has {has}")));
+    }
+    assert!(out.iter().all(|x| x.is_nan()));
+    let f = &functions::SET_CONTINUOUS_STATES;
+    let x = [1.0, 2.0];
+    let s = unsafe { me::set_continuous_states::<Toy, ()>(m.c(), f, x.as_ptr(), huge) };
+    assert_eq!(s, fmi2Error);
+    assert!(last_error(&m.0).contains(&format!(
+        "fmi2SetContinuousStates: nx = {huge}, but Toy has 2"
+    )));
+    assert_eq!(m.states(2).unwrap(), [0.5, 3.0]);
+}

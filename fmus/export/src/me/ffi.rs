@@ -8,7 +8,7 @@
 
 use crate::ffi::{slice, with_instance};
 use crate::front::{with_slot, Slot};
-use crate::instance::{functions, Function};
+use crate::instance::{functions, Function, Instance};
 use crate::model::{EventUpdate, FmuModel};
 use crate::types::*;
 use std::ffi::c_void;
@@ -55,6 +55,23 @@ pub(crate) unsafe fn slice_mut<'a, T>(p: *mut T, n: usize) -> Option<&'a mut [T]
     }
 }
 
+/// Refuses an array count other than the model's (`nx` states, `ni` event indicators) before
+/// the caller's pointer becomes a slice: a wrong count must never size one (it may exceed the
+/// caller's memory, or `isize::MAX` bytes).
+fn check_array_count<M: FmuModel>(
+    instance: &Instance<M>,
+    f: &Function,
+    which: Array,
+    n: usize,
+) -> Status {
+    match which {
+        Array::EventIndicators => {
+            instance.check_count(f, "ni", n, instance.event_indicator_count())
+        }
+        _ => instance.check_count(f, "nx", n, instance.state_count()),
+    }
+}
+
 /// `fmi*SetTime`.
 ///
 /// # Safety
@@ -74,9 +91,15 @@ pub unsafe fn set_continuous_states<M: FmuModel, X>(
     n: usize,
 ) -> c_int {
     unsafe {
-        with_slot::<M, X>(c, f, |s| match slice(x, n) {
-            Some(x) => s.instance.set_continuous_states(f, x),
-            None => s.instance.reject(f, "the states argument is NULL"),
+        with_slot::<M, X>(c, f, |s| {
+            let status = check_array_count(&s.instance, f, Array::ContinuousStates, n);
+            if status > Status::Warning {
+                return status;
+            }
+            match slice(x, n) {
+                Some(x) => s.instance.set_continuous_states(f, x),
+                None => s.instance.reject(f, "the states argument is NULL"),
+            }
         })
     }
 }
@@ -107,6 +130,10 @@ pub unsafe fn get_array<M: FmuModel, X>(
 ) -> c_int {
     unsafe {
         with_slot::<M, X>(c, f, |s| {
+            let status = check_array_count(&s.instance, f, which, n);
+            if status > Status::Warning {
+                return status;
+            }
             let Some(out) = slice_mut(out, n) else {
                 return s.instance.reject(f, "the array argument is NULL");
             };

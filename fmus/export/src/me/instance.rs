@@ -60,7 +60,13 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Checks that the caller's array holds `n` elements where the model has `expected`.
-    fn check_count(&self, f: &Function, what: &str, n: usize, expected: usize) -> Status {
+    pub(crate) fn check_count(
+        &self,
+        f: &Function,
+        what: &str,
+        n: usize,
+        expected: usize,
+    ) -> Status {
         if n == expected {
             Status::Ok
         } else {
