@@ -495,26 +495,33 @@ static fmi2Status me_get_array(Inst *in, int which, fmi2Real *x, size_t n, int e
 static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
                              int mask);
 
+/* fmi2EnterInitializationMode, fmi2EnterEventMode or fmi2EnterContinuousTimeMode (allowed in
+   `mask` on a Model Exchange instance; the last two nowhere on a Co-Simulation one, which
+   me_call never leads on): on success the instance is in `next`. */
+static void me_enter(Inst *in, fmi2Status (*call)(fmi2Component), const char *what, int mask,
+                     int next) {
+    fmi2Status s = plain_call(in, call, what, in->me ? mask : 0);
+    if (s <= fmi2Warning) in->possible = next;
+    me_failed(in, s);
+}
+
 /* The legal way on towards Continuous-Time Mode, for a Model Exchange instance known to be in
    one state (the random calls rarely get there): true when it made a call. */
 static int me_advance(Inst *in) {
     fmi2Status s;
-    if (in->possible == S_INSTANTIATED) {
-        s = plain_call(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED);
-        if (s == fmi2OK) in->possible = S_INIT;
-        me_failed(in, s);
-    } else if (in->possible == S_INIT) {
+    if (in->possible == S_INSTANTIATED)
+        me_enter(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED,
+                 S_INIT);
+    else if (in->possible == S_INIT) {
         s = plain_call(in, F.ExitInitializationMode, "fmi2ExitInitializationMode", S_INIT);
         if (s <= fmi2Warning) {
             in->possible = S_EVENT;
             check_all_reals(in, "fmi2ExitInitializationMode");
         }
         me_failed(in, s);
-    } else if (in->possible == S_EVENT) {
-        s = plain_call(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT);
-        if (s <= fmi2Warning) in->possible = S_CONT;
-        me_failed(in, s);
-    } else
+    } else if (in->possible == S_EVENT)
+        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
+    else
         return 0;
     return 1;
 }
@@ -577,12 +584,8 @@ static void me_call(Inst *in) {
         me_get_array(in, which, x, me_size(expected), expected);
         return;
     }
-    if (op < 63) { /* fmi2EnterEventMode */
-        begin(in);
-        s = F.EnterEventMode(in->c);
-        end(in, "fmi2EnterEventMode", ME_MASK(ME_MODES), s);
-        if (s <= fmi2Warning) in->possible = S_EVENT;
-        me_failed(in, s);
+    if (op < 63) {
+        me_enter(in, F.EnterEventMode, "fmi2EnterEventMode", ME_MODES, S_EVENT);
         return;
     }
     if (op < 73) { /* fmi2NewDiscreteStates */
@@ -599,12 +602,8 @@ static void me_call(Inst *in) {
         me_failed(in, s);
         return;
     }
-    if (op < 80) { /* fmi2EnterContinuousTimeMode */
-        begin(in);
-        s = F.EnterContinuousTimeMode(in->c);
-        end(in, "fmi2EnterContinuousTimeMode", ME_MASK(S_EVENT), s);
-        if (s <= fmi2Warning) in->possible = S_CONT;
-        me_failed(in, s);
+    if (op < 80) {
+        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
         return;
     }
     if (op < 90) { /* fmi2CompletedIntegratorStep, with NULL flags now and then */
