@@ -583,3 +583,17 @@ fn tunable_parameters_and_discrete_inputs_are_set_in_event_mode_only_and_read_ba
     assert_eq!(h.set_real(&[D as u32], &[1.0]), Ok(Status::Ok));
     assert_eq!(decay_derivative(&h), -5.0);
 }
+
+/// FMI 2.0.4 §3.2.3: `fmi2GetReal` returns every variable consistent with the states, time
+/// and inputs last set, the event indicators' local variables too (without a call of
+/// `fmi2GetEventIndicators` first).
+#[test]
+fn the_event_indicator_variables_follow_the_states() {
+    let mut m = Me::new();
+    m.start();
+    assert_eq!(m.set_states(&[0.5, 0.0]), fmi2OK);
+    assert_eq!(m.0.real(TO_WRAP as u32), Ok(1e6 - 0.5));
+    assert_eq!(m.set_states(&[2.5, 0.0]), fmi2OK);
+    assert_eq!(m.0.real(TO_WRAP as u32), Ok(1e6 - 2.5));
+    assert_eq!(m.indicators(1).unwrap(), [1e6 - 2.5]);
+}
