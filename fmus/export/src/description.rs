@@ -439,9 +439,13 @@ pub(crate) fn start_text(value: &Value) -> String {
     }
 }
 
-/// FMI 2.0 indices (1-based) of the table indices `deps`.
+/// FMI 2.0 indices (1-based) of the table indices `deps`, ascending and once each (FMI
+/// 2.0.4 §2.2.8 orders a `dependencies` list by magnitude).
 fn references(deps: &[usize]) -> Vec<u32> {
-    deps.iter().map(|d| *d as u32 + 1).collect()
+    let mut references: Vec<u32> = deps.iter().map(|d| *d as u32 + 1).collect();
+    references.sort_unstable();
+    references.dedup();
+    references
 }
 
 /// The ` dependencies="…"` attribute of an output or derivative with the declared

@@ -373,7 +373,9 @@ impl Access {
         if input || (v.causality == Causality::Parameter && v.variability == Variability::Tunable) {
             settable |= STEP_COMPLETE | EVENT_MODE;
         }
-        if input {
+        // Continuous-Time Mode: continuous-time inputs only; a discrete input changes at
+        // events alone (FMI 2.0.4 §3.2.3, FMI 3.0.2 §3.2.1).
+        if input && v.variability == Variability::Continuous {
             settable |= CONTINUOUS_TIME_MODE;
         }
         Self {
@@ -864,7 +866,9 @@ impl<M: FmuModel> Instance<M> {
     /// After values were set: inputs changed (the direct-feedthrough outputs are stale),
     /// parameters changed in Step Mode (the model is told).
     fn values_set(&mut self, f: &Function, inputs: bool, parameters: bool) -> Status {
-        self.core.inputs_changed |= inputs;
+        // Model Exchange: a tunable parameter set in Event Mode changes the derivatives and
+        // outputs read next, as an input does.
+        self.core.inputs_changed |= inputs || parameters && self.model_exchange;
         if parameters
             && matches!(
                 self.core.state,

@@ -17,7 +17,7 @@ fn hooks() -> spurio_export::me::Hooks<Toy> {
     spurio_export::me::hooks::<Toy>()
 }
 
-fn last_error(h: &Harness<Toy>) -> String {
+fn last_error<M: FmuModel>(h: &Harness<M>) -> String {
     h.log()
         .into_iter()
         .rev()
@@ -495,4 +495,156 @@ fn a_count_other_than_the_models_is_refused_before_the_array_becomes_a_slice() {
         "fmi2SetContinuousStates: nx = {huge}, but Toy has 2"
     )));
     assert_eq!(m.states(2).unwrap(), [0.5, 3.0]);
+}
+
+/// A decay `der(x) = −k·x + d` with a tunable rate `k` and a discrete input `d`: what a
+/// master may set in Event Mode and in Continuous-Time Mode, and what the derivatives then
+/// read.
+#[derive(Clone, Debug, Default)]
+struct Decay;
+
+const K: usize = 0;
+const X: usize = 1;
+const DER_X: usize = 2;
+const D: usize = 3;
+
+impl FmuModel for Decay {
+    fn describe(_config: &Config) -> Result<spurio_export::ModelInfo, spurio_export::Cause> {
+        let mut d = spurio_export::Variable::input("d", 0.0);
+        d.variability = spurio_export::Variability::Discrete;
+        let vars = vec![
+            spurio_export::Variable::parameter("k", 1.0).tunable(),
+            spurio_export::Variable::output("x")
+                .state()
+                .depends_on(&[X]),
+            spurio_export::Variable::derivative("der(x)", X).depends_on(&[X, D]),
+            d,
+        ];
+        Ok(
+            spurio_export::ModelInfo::new("Decay", "decay", vars, None, Config::new())
+                .with_model_exchange()?,
+        )
+    }
+    fn create(_info: &spurio_export::ModelInfo) -> Result<Self, spurio_export::Cause> {
+        Ok(Self)
+    }
+    fn initialize(
+        &mut self,
+        ctx: &mut spurio_export::Context,
+    ) -> Result<(), spurio_export::Failure> {
+        ctx.values.set_real(X, 2.0);
+        Ok(())
+    }
+    fn do_step(
+        &mut self,
+        _ctx: &mut spurio_export::Context,
+        _time: f64,
+        _step: f64,
+    ) -> Result<(), spurio_export::Failure> {
+        Ok(())
+    }
+    fn save_state(&self, _out: &mut spurio_export::ByteWriter) {}
+    fn load_state(
+        &mut self,
+        _input: &mut spurio_export::ByteReader,
+    ) -> Result<(), spurio_export::Cause> {
+        Ok(())
+    }
+}
+
+impl spurio_export::ModelExchange for Decay {
+    fn evaluate(&mut self, ctx: &mut spurio_export::Context) -> Result<(), spurio_export::Failure> {
+        let der = -ctx.values.real(K) * ctx.values.real(X) + ctx.values.real(D);
+        ctx.values.set_real(DER_X, der);
+        Ok(())
+    }
+    fn event_indicators(
+        &mut self,
+        _ctx: &mut spurio_export::Context,
+        _z: &mut [f64],
+    ) -> Result<(), spurio_export::Failure> {
+        Ok(())
+    }
+    fn update_discrete_states(
+        &mut self,
+        _ctx: &mut spurio_export::Context,
+    ) -> Result<spurio_export::EventUpdate, spurio_export::Failure> {
+        Ok(spurio_export::EventUpdate::default())
+    }
+    type Jacobian = ();
+    fn jacobian(&mut self, _ctx: &spurio_export::Context) -> Result<(), spurio_export::Failure> {
+        Ok(())
+    }
+    fn partial(
+        &self,
+        _: &(),
+        _unknown: usize,
+        _known: usize,
+    ) -> Result<f64, spurio_export::Failure> {
+        Ok(0.0)
+    }
+}
+
+/// The derivative of `Decay` through `fmi2GetDerivatives`.
+fn decay_derivative(h: &Harness<Decay>) -> f64 {
+    let mut out = [f64::NAN];
+    let (f, which) = (&functions::GET_DERIVATIVES, Array::Derivatives);
+    let s = unsafe { me::get_array::<Decay, ()>(h.component(), f, which, out.as_mut_ptr(), 1) };
+    assert_eq!(s, fmi2OK);
+    out[0]
+}
+
+fn decay_mode(h: &Harness<Decay>, event: bool) {
+    let f = if event {
+        &functions::ENTER_EVENT_MODE
+    } else {
+        &functions::ENTER_CONTINUOUS_TIME_MODE
+    };
+    assert_eq!(
+        unsafe { me::enter_mode::<Decay, ()>(h.component(), f, event) },
+        fmi2OK
+    );
+}
+
+/// FMI 2.0.4 §3.2.3 (FMI 3.0.2 §3.2.1 likewise): in Event Mode a master may set inputs and
+/// tunable parameters, and every value read afterwards is computed from them; in
+/// Continuous-Time Mode it may set continuous-time inputs only (a discrete input changes at
+/// events alone).
+#[test]
+fn tunable_parameters_and_discrete_inputs_are_set_in_event_mode_only_and_read_back() {
+    let hooks = spurio_export::me::hooks::<Decay>();
+    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
+    h.initialize(0.0).unwrap();
+    decay_mode(&h, false);
+    assert_eq!(decay_derivative(&h), -2.0);
+    // Continuous-Time Mode: neither the discrete input nor the tunable parameter
+    assert_eq!(h.set_real(&[D as u32], &[1.0]), Err(Status::Error));
+    assert!(
+        last_error(&h).contains("variable `d`"),
+        "{}",
+        last_error(&h)
+    );
+    assert_eq!(h.set_real(&[K as u32], &[3.0]), Err(Status::Error));
+    assert_eq!(decay_derivative(&h), -2.0);
+    // Event Mode: both, and the derivative follows the new rate at once
+    decay_mode(&h, true);
+    assert_eq!(h.set_real(&[K as u32], &[3.0]), Ok(Status::Ok));
+    assert_eq!(decay_derivative(&h), -6.0);
+    assert_eq!(h.real(DER_X as u32), Ok(-6.0));
+    assert_eq!(h.set_real(&[D as u32], &[1.0]), Ok(Status::Ok));
+    assert_eq!(decay_derivative(&h), -5.0);
+}
+
+/// FMI 2.0.4 §3.2.3: `fmi2GetReal` returns every variable consistent with the states, time
+/// and inputs last set, the event indicators' local variables too (without a call of
+/// `fmi2GetEventIndicators` first).
+#[test]
+fn the_event_indicator_variables_follow_the_states() {
+    let mut m = Me::new();
+    m.start();
+    assert_eq!(m.set_states(&[0.5, 0.0]), fmi2OK);
+    assert_eq!(m.0.real(TO_WRAP as u32), Ok(1e6 - 0.5));
+    assert_eq!(m.set_states(&[2.5, 0.0]), fmi2OK);
+    assert_eq!(m.0.real(TO_WRAP as u32), Ok(1e6 - 2.5));
+    assert_eq!(m.indicators(1).unwrap(), [1e6 - 2.5]);
 }

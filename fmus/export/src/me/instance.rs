@@ -98,11 +98,52 @@ impl<M: FmuModel> Instance<M> {
                 if self.core.inputs_changed => {}
             _ => return Status::Ok,
         }
-        let evaluated = self.run_model(f, hooks.evaluate);
+        let mut evaluated = self.run_model(f, hooks.evaluate);
+        if evaluated <= Status::Warning {
+            evaluated = evaluated.max(self.write_event_indicators(f, hooks));
+        }
         if evaluated <= Status::Warning {
             self.core.inputs_changed = false;
         }
         status.max(evaluated)
+    }
+
+    /// The model's event indicators into their variables (part of every evaluation, so
+    /// `fmi2GetReal` reads them consistent with the states); a non-finite one is `Error`
+    /// naming it, and the variables keep their values.
+    fn write_event_indicators(&mut self, f: &Function, hooks: Hooks<M>) -> Status {
+        let n = self.event_indicator_count();
+        if n == 0 {
+            return Status::Ok;
+        }
+        let (mut small, mut large) = ([0.0; 8], Vec::new());
+        let z: &mut [f64] = if n <= small.len() {
+            &mut small[..n]
+        } else {
+            large.resize(n, 0.0);
+            &mut large
+        };
+        let status = self.run_model(f, |m, ctx| (hooks.event_indicators)(m, ctx, z));
+        if status > Status::Warning {
+            return status;
+        }
+        if let Some((k, value)) = z.iter().enumerate().find(|(_, z)| !z.is_finite()) {
+            self.core.state = ModelState::Error;
+            return self.reject(
+                f,
+                &format!(
+                    "event indicator {} came out as {value}: not published",
+                    k + 1
+                ),
+            );
+        }
+        let Some(me) = self.interface.info.model_exchange.as_ref() else {
+            return status;
+        };
+        for (&i, value) in me.event_indicators.iter().zip(z.iter()) {
+            self.core.values.set_real(i, *value);
+        }
+        status
     }
 
     /// `fmi2SetTime`, `fmi3SetTime`.
@@ -157,13 +198,18 @@ impl<M: FmuModel> Instance<M> {
             .map_or_else(Vec::new, |m| pick(m).clone())
     }
 
-    /// Reads the Reals at `indices` into `out` after evaluating (`fmi2GetContinuousStates`,
-    /// `fmi2GetDerivatives`).
-    fn read_reals(&mut self, f: &Function, indices: &[usize], out: &mut [f64]) -> Status {
+    /// Reads the Reals at `indices` (`what` counts them: `nx`, `ni`) into `out` after
+    /// evaluating (`fmi2GetContinuousStates`, `fmi2GetDerivatives`, `fmi2GetEventIndicators`).
+    fn read_reals(
+        &mut self,
+        f: &Function,
+        (what, indices): (&str, &[usize]),
+        out: &mut [f64],
+    ) -> Status {
         if let Err(status) = self.model_exchange_hooks(f) {
             return status;
         }
-        let status = self.check_count(f, "nx", out.len(), indices.len());
+        let status = self.check_count(f, what, out.len(), indices.len());
         if status != Status::Ok {
             return status;
         }
@@ -180,14 +226,14 @@ impl<M: FmuModel> Instance<M> {
     /// `fmi2GetContinuousStates`, `fmi3GetContinuousStates`.
     pub fn get_continuous_states(&mut self, f: &Function, out: &mut [f64]) -> Status {
         let states = self.indices(|m| &m.states);
-        self.read_reals(f, &states, out)
+        self.read_reals(f, ("nx", &states), out)
     }
 
     /// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`; a non-finite derivative is
     /// `Error` naming it (the values keep those from before, see [`Instance`]).
     pub fn get_derivatives(&mut self, f: &Function, out: &mut [f64]) -> Status {
         let derivatives = self.indices(|m| &m.derivatives);
-        self.read_reals(f, &derivatives, out)
+        self.read_reals(f, ("nx", &derivatives), out)
     }
 
     /// `fmi2GetNominalsOfContinuousStates`, `fmi3GetNominalsOfContinuousStates`.
@@ -208,42 +254,11 @@ impl<M: FmuModel> Instance<M> {
         status
     }
 
-    /// `fmi2GetEventIndicators`, `fmi3GetEventIndicators`: a non-finite indicator is `Error`
-    /// naming it, and `out` is left as it was.
+    /// `fmi2GetEventIndicators`, `fmi3GetEventIndicators`: the indicators of the current
+    /// evaluation (a non-finite one is `Error` naming it, and `out` is left as it was).
     pub fn get_event_indicators(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let hooks = match self.model_exchange_hooks(f) {
-            Ok(hooks) => hooks,
-            Err(status) => return status,
-        };
-        let status = self.check_count(f, "ni", out.len(), self.event_indicator_count());
-        if status != Status::Ok {
-            return status;
-        }
-        let mut status = self.evaluate(f);
-        if status > Status::Warning {
-            return status;
-        }
-        let mut z = vec![0.0; out.len()];
-        status = status.max(self.run_model(f, |m, ctx| (hooks.event_indicators)(m, ctx, &mut z)));
-        if status > Status::Warning {
-            return status;
-        }
-        if let Some((k, value)) = z.iter().enumerate().find(|(_, z)| !z.is_finite()) {
-            self.core.state = ModelState::Error;
-            return self.reject(
-                f,
-                &format!(
-                    "event indicator {} came out as {value}: not published",
-                    k + 1
-                ),
-            );
-        }
         let indicators = self.indices(|m| &m.event_indicators);
-        for (&i, value) in indicators.iter().zip(&z) {
-            self.core.values.set_real(i, *value);
-        }
-        out.copy_from_slice(&z);
-        status
+        self.read_reals(f, ("ni", &indicators), out)
     }
 
     /// `fmi2EnterEventMode`, `fmi3EnterEventMode`.

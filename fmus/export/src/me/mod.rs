@@ -228,13 +228,14 @@ mod tests {
     use super::*;
     use crate::description::{Config, ModelInfo};
 
-    /// x (output, state), v (local state), u (input), der(x) = v, der(v) = u − x, z = x.
+    /// x (output, state), v (local state), u (input), der(x) = v, der(v) = u − x, z = x
+    /// (der(v)'s dependencies declared out of order and twice: the descriptions sort them).
     fn table() -> Vec<Variable> {
         vec![
             Variable::output("x").state().nominal(0.5).depends_on(&[0]),
             Variable::derivative("v", 0).state().describe("velocity"),
             Variable::input("u", 0.0),
-            Variable::derivative("der(v)", 1).depends_on(&[0, 2]),
+            Variable::derivative("der(v)", 1).depends_on(&[2, 0, 2]),
             Variable::event_indicator("z"),
         ]
     }
