@@ -290,3 +290,27 @@ def test_model_exchange_in_discrete_time_samples_at_time_events():
     assert model.getReal([vr["x[1]"], vr["x[2]"]]) == pytest.approx([1.72, 3.9], abs=1e-15)
     model.terminate()
     model.freeInstance()
+
+
+def test_directional_derivatives_are_answered_in_initialization_mode():
+    """FMI 2.0 allows fmi2GetDirectionalDerivative in Initialization Mode: the model is
+    initialised from the current parameters first (on a Co-Simulation instance too), so
+    dy[1]/dx[1] is C[1,1] there, not an error."""
+    from fmpy import extract
+    from fmpy.fmi2 import FMU2Model, FMU2Slave
+
+    path = fmu_path("LinearSystem")
+    md = read_model_description(path)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    c11 = float(next(v.start for v in md.modelVariables if v.name == "C[1,1]"))
+    unzipped = extract(path)
+    for cls, interface in [(FMU2Slave, md.coSimulation), (FMU2Model, md.modelExchange)]:
+        fmu = cls(guid=md.guid, unzipDirectory=unzipped,
+                  modelIdentifier=interface.modelIdentifier, instanceName="jacobian")
+        fmu.instantiate()
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        assert fmu.getDirectionalDerivative([vr["y[1]"]], [vr["x[1]"]], [1.0]) == [c11]
+        fmu.exitInitializationMode()
+        fmu.terminate()
+        fmu.freeInstance()

@@ -383,7 +383,9 @@ impl<M: FmuModel> Instance<M> {
                 &format!("seed value {x} rejected, values must be finite"),
             );
         }
-        let mut status = self.evaluate(f);
+        // the values the derivatives are taken at: in Initialization Mode those the current
+        // parameters give (also on a Co-Simulation instance), else the last evaluation's
+        let mut status = self.refresh_outputs(f);
         if status > Status::Warning {
             return status;
         }
