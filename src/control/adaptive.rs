@@ -436,8 +436,7 @@ crate::plain_state!(AdaptiveStateFeedbackConfig {
 });
 // A state read back is checked as `AdaptiveStateFeedback::new` checks its configuration (a
 // corrupted state cannot bring unplaceable poles, a zero recompute period or a mis-sized
-// gain), and the
-// characteristic polynomial is derived from the poles again.
+// gain), and the characteristic polynomial is derived from the poles again.
 impl crate::state::PlainState for AdaptiveStateFeedback {
     fn save(&self, out: &mut Vec<u8>) {
         self.config.save(out);
