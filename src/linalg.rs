@@ -523,7 +523,8 @@ impl Dare<'_> {
     }
 }
 
-fn spectral_radius(m: &DMatrix<f64>) -> f64 {
+/// Largest modulus of the eigenvalues of the square matrix `m`.
+pub(crate) fn spectral_radius(m: &DMatrix<f64>) -> f64 {
     m.complex_eigenvalues()
         .iter()
         .map(|z| z.norm())

@@ -577,6 +577,7 @@ mod tests {
     use super::super::robust::test_rng::{mean_std, TestRng};
     use super::super::{GaussianModel, KalmanFilter};
     use super::*;
+    use crate::linalg::spectral_radius;
     use crate::state_space::StateSpace;
 
     fn paper_a() -> DMatrix<f64> {
@@ -614,13 +615,6 @@ mod tests {
         let mut config = config_of(paper_a(), c_own, c_other);
         config.design = design;
         DistributedObserver::new(config).unwrap()
-    }
-
-    fn spectral_radius(m: &DMatrix<f64>) -> f64 {
-        m.complex_eigenvalues()
-            .iter()
-            .map(|z| z.norm())
-            .fold(0.0, f64::max)
     }
 
     #[test]
