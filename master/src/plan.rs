@@ -196,12 +196,7 @@ impl Plan {
                 dimensions: Some(array.dimensions.clone()),
             })
         };
-        let name_of = |r: VarRef| {
-            format!(
-                "{}.{}",
-                instances[r.0].name, instances[r.0].fmu.variables[r.1].head.name
-            )
-        };
+        let name_of = |r: VarRef| variable_name(instances, r);
         let mut connections = Vec::new();
         let mut drivers: HashMap<VarRef, String> = HashMap::new();
         for c in &d.connections {
