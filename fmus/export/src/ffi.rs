@@ -130,6 +130,21 @@ pub(crate) unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
     }
 }
 
+/// The `n` writable elements behind `p` (empty when `n` is 0); `None` for NULL with `n > 0`.
+///
+/// # Safety
+/// `p` is NULL or points to `n` writable elements (FMI contract).
+pub(crate) unsafe fn slice_mut<'a, T>(p: *mut T, n: usize) -> Option<&'a mut [T]> {
+    if n == 0 {
+        Some(&mut [])
+    } else if p.is_null() {
+        None
+    } else {
+        // SAFETY: the caller's obligation.
+        Some(unsafe { std::slice::from_raw_parts_mut(p, n) })
+    }
+}
+
 pub(crate) unsafe fn string_arg(s: fmi2String) -> Option<String> {
     if s.is_null() {
         None

@@ -768,15 +768,21 @@ impl<M: FmuModel> Instance<M> {
             .is_some_and(|a| a.variable_type == expected)
     }
 
+    /// Why FMI 2.0 value reference `vr` names no variable.
+    pub(crate) fn unknown_reference(&self, vr: usize) -> String {
+        let info = &self.interface.info;
+        format!(
+            "unknown value reference {vr} ({} has value references 0 to {})",
+            info.model_identifier,
+            info.variables.len().saturating_sub(1)
+        )
+    }
+
     /// Why `vr` is not a variable of type `expected` (unknown, or of another type).
     fn type_error(&self, vr: u32, expected: VariableType) -> String {
         let info = &self.interface.info;
         match info.variables.get(vr as usize) {
-            None => format!(
-                "unknown value reference {vr} ({} has value references 0 to {})",
-                info.model_identifier,
-                info.variables.len().saturating_sub(1)
-            ),
+            None => self.unknown_reference(vr as usize),
             Some(v) => format!(
                 "variable `{}` (value reference {vr}) is of type {}, not {expected}",
                 v.name,

@@ -377,6 +377,15 @@ pub unsafe fn do_step<M: FmuModel>(
     }
 }
 
+/// Why FMI 3.0 value reference `vr` names nothing.
+pub(super) fn unknown_reference(interface: &front::Interface, vr: u32) -> String {
+    format!(
+        "unknown value reference {vr} ({} has value references 0 to {})",
+        interface.info.model_identifier,
+        interface.layout.max_value_reference()
+    )
+}
+
 /// Checks the value references of a call: every one known and naming variables of type
 /// `expected`, and `n_values` the number of values they name (arrays row-major); `Err` with
 /// the message. Allocates nothing unless it fails.
@@ -390,13 +399,7 @@ fn check_references<M: FmuModel>(
     let mut count = 0;
     for &vr in vrs {
         let (name, actual, len) = match interface.layout.target(vr) {
-            None => {
-                return Err(format!(
-                    "unknown value reference {vr} ({} has value references 0 to {})",
-                    interface.info.model_identifier,
-                    interface.layout.max_value_reference()
-                ))
-            }
+            None => return Err(unknown_reference(interface, vr)),
             Some(Target::Time) => ("time", VariableType::Real, 1),
             Some(Target::Variable(v)) => (
                 v.name.as_str(),

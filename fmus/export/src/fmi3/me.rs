@@ -4,12 +4,11 @@
 //! (arrays) expanded to the table's scalars.
 
 use super::arrays::Target;
-use super::ffi::{with_instance, Slot};
+use super::ffi::{unknown_reference, with_instance, Slot};
 use super::functions;
 use super::types::*;
-use crate::ffi::slice;
+use crate::ffi::{slice, slice_mut};
 use crate::front::Fmi3;
-use crate::me::ffi::slice_mut;
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::VariableType;
@@ -121,13 +120,7 @@ fn scalars_of<M: FmuModel>(s: &Slot<M>, vrs: &[u32]) -> Result<Vec<usize>, Strin
                     "`time` (value reference 0) is neither a known nor an unknown".to_string(),
                 )
             }
-            None => {
-                return Err(format!(
-                    "unknown value reference {vr} ({} has value references 0 to {})",
-                    interface.info.model_identifier,
-                    interface.layout.max_value_reference()
-                ))
-            }
+            None => return Err(unknown_reference(interface, vr)),
         }
     }
     Ok(indices)

@@ -6,7 +6,7 @@
 //! [`export_fmu!`](crate::export_fmu) emits are one call each. Also
 //! `fmi2GetDirectionalDerivative` (FMI 3.0's, over arrays, is in [`crate::fmi3::me`]).
 
-use crate::ffi::{slice, with_instance};
+use crate::ffi::{slice, slice_mut, with_instance};
 use crate::front::{with_slot, Slot};
 use crate::instance::{functions, Function, Instance};
 use crate::model::{EventUpdate, FmuModel};
@@ -37,21 +37,6 @@ impl From<EventUpdate> for fmi2EventInfo {
             nextEventTimeDefined: update.next_event_time.is_some().into(),
             nextEventTime: update.next_event_time.unwrap_or(0.0),
         }
-    }
-}
-
-/// The `n` writable elements behind `p` (empty when `n` is 0); `None` for NULL with `n > 0`.
-///
-/// # Safety
-/// `p` is NULL or points to `n` writable elements (FMI contract).
-pub(crate) unsafe fn slice_mut<'a, T>(p: *mut T, n: usize) -> Option<&'a mut [T]> {
-    if n == 0 {
-        Some(&mut [])
-    } else if p.is_null() {
-        None
-    } else {
-        // SAFETY: the caller's obligation.
-        Some(unsafe { std::slice::from_raw_parts_mut(p, n) })
     }
 }
 

@@ -353,14 +353,7 @@ impl<M: FmuModel> Instance<M> {
             .chain(knowns.iter().map(|i| (i, false)))
         {
             let Some(v) = self.interface.info.variables.get(i) else {
-                return self.reject(
-                    f,
-                    &format!(
-                        "unknown value reference {i} ({} has value references 0 to {})",
-                        self.interface.info.model_identifier,
-                        self.interface.info.variables.len().saturating_sub(1)
-                    ),
-                );
+                return self.reject(f, &self.unknown_reference(i));
             };
             let ok = v.variable_type() == VariableType::Real
                 && if role {
