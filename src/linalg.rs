@@ -833,6 +833,148 @@ pub(crate) mod dense {
         res
     }
 
+    /// Column `j` of a view with contiguous columns, rows `from..rows` (`None` for a view
+    /// with other strides or outside the matrix).
+    #[inline(always)]
+    fn column_from<'v>(a: &View<'v>, j: usize, from: usize) -> Option<&'v [f64]> {
+        if a.rs != 1 {
+            return None;
+        }
+        let start = j * a.cs + from;
+        a.data.get(start..start + a.rows.checked_sub(from)?)
+    }
+
+    /// The lower triangle (diagonal included) of `C ← A B + Q` for square `n × n` operands,
+    /// `C` and `Q` stored contiguously, element by element in the order of [`gemm`] with
+    /// α = β = 1 (`(aᵢ₀ b₀ⱼ + qᵢⱼ) + aᵢ₁ b₁ⱼ + …`); the strict upper triangle is left as it
+    /// was.
+    #[inline(always)]
+    pub(crate) fn gemm_lower(c: &mut [f64], a: View<'_>, b: View<'_>, q: &[f64]) {
+        let n = a.rows;
+        if c.len() < n * n || q.len() < n * n || a.cols != n || b.rows != n || b.cols != n {
+            return;
+        }
+        for j in 0..n {
+            let (column, add) = (&mut c[j * n + j..j * n + n], &q[j * n + j..j * n + n]);
+            let b0 = b.at(0, j);
+            match column_from(&a, 0, j) {
+                Some(a0) => {
+                    for ((c, a), q) in column.iter_mut().zip(a0).zip(add) {
+                        *c = a * b0 + q;
+                    }
+                }
+                None => {
+                    for (r, (c, q)) in column.iter_mut().zip(add).enumerate() {
+                        *c = a.at(j + r, 0) * b0 + q;
+                    }
+                }
+            }
+            for k in 1..n {
+                let bk = b.at(k, j);
+                match column_from(&a, k, j) {
+                    Some(ak) => {
+                        for (c, a) in column.iter_mut().zip(ak) {
+                            *c += a * bk;
+                        }
+                    }
+                    None => {
+                        for (r, c) in column.iter_mut().enumerate() {
+                            *c += a.at(j + r, k) * bk;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Copies the strict lower triangle of the square `n × n` matrix in `m` onto its upper
+    /// triangle (the matrix becomes exactly symmetric).
+    #[inline(always)]
+    pub(crate) fn mirror_lower(m: &mut [f64], n: usize) {
+        if m.len() < n * n {
+            return;
+        }
+        for j in 0..n {
+            for i in j + 1..n {
+                m[j + i * n] = m[i + j * n];
+            }
+        }
+    }
+
+    /// The lower Cholesky factor L (S = L Lᵀ) of the symmetric `p × p` matrix in `s`, in
+    /// place (column-major; only the lower triangle is read, the strict upper triangle is
+    /// left as it was). `false` when S is not positive definite (or not finite); `s` then
+    /// holds a partial factor.
+    ///
+    /// Column by column: `lⱼⱼ = √(sⱼⱼ − Σₖ<ⱼ lⱼₖ²)`, `lᵢⱼ = (sᵢⱼ − Σₖ<ⱼ lᵢₖ lⱼₖ) / lⱼⱼ`.
+    #[inline(always)]
+    pub(crate) fn cholesky(s: &mut [f64], p: usize) -> bool {
+        if s.len() < p * p {
+            return false;
+        }
+        for j in 0..p {
+            let mut d = s[j + j * p];
+            for k in 0..j {
+                d -= s[j + k * p] * s[j + k * p];
+            }
+            if !(d > 0.0 && d.is_finite()) {
+                return false;
+            }
+            let l = d.sqrt();
+            s[j + j * p] = l;
+            for i in j + 1..p {
+                let mut v = s[i + j * p];
+                for k in 0..j {
+                    v -= s[i + k * p] * s[j + k * p];
+                }
+                s[i + j * p] = v / l;
+            }
+        }
+        true
+    }
+
+    /// Solves `L x = b` in place for the lower triangle of the `p × p` matrix in `l`
+    /// (column-oriented: `xᵢ = bᵢ / lᵢᵢ`, then `bₖ −= lₖᵢ xᵢ` below, nalgebra's order).
+    /// `false` on a zero diagonal.
+    #[inline(always)]
+    pub(crate) fn solve_lower(l: &[f64], p: usize, b: &mut [f64]) -> bool {
+        if l.len() < p * p || b.len() < p {
+            return false;
+        }
+        for i in 0..p {
+            let d = l[i + i * p];
+            if d == 0.0 {
+                return false;
+            }
+            let x = b[i] / d;
+            b[i] = x;
+            for k in i + 1..p {
+                b[k] -= x * l[k + i * p];
+            }
+        }
+        true
+    }
+
+    /// Solves `L Lᵀ X = B` in place (`B` is `p × cols`, column-major) with the factor of
+    /// [`cholesky`]: forward substitution with L, then back substitution with Lᵀ, column by
+    /// column of B. For p = 1: `x = b / l / l`.
+    #[inline(always)]
+    pub(crate) fn cholesky_solve(l: &[f64], p: usize, b: &mut [f64]) {
+        if l.len() < p * p || p == 0 {
+            return;
+        }
+        for column in b.chunks_exact_mut(p) {
+            solve_lower(l, p, column);
+            for i in (0..p).rev() {
+                let mut v = column[i];
+                for k in i + 1..p {
+                    v -= l[k + i * p] * column[k];
+                }
+                column[i] = v / l[i + i * p];
+            }
+        }
+    }
+
     /// Replaces the square `n × n` matrix stored in `m` by (m + mᵀ)/2.
     pub(crate) fn symmetrize(m: &mut [f64], n: usize) {
         if m.len() < n * n {
@@ -880,6 +1022,53 @@ mod tests {
         assert_eq!(y, [1.5, -0.75]);
         dense::gemv(&mut y, 1.0, View::of(&empty), &[], 0.0);
         assert_eq!(y, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn lower_product_and_cholesky_kernels_match_the_full_ones() {
+        use dense::View;
+        // A block of a larger matrix (column stride 7) and a contiguous one.
+        let big = DMatrix::from_fn(7, 9, |i, j| ((3 * i + 5 * j) % 11) as f64 / 7.0 - 0.6);
+        for n in [1, 2, 3, 5] {
+            let contiguous = big.view((1, 2), (n, n)).clone_owned();
+            let w = DMatrix::from_fn(n, n, |i, j| (i as f64 + 1.0) / (j as f64 + 2.0));
+            let q = DMatrix::from_fn(n, n, |i, j| 0.1 * (i + j) as f64);
+            for a in [View::block(&big, (1, 2), (n, n)), View::of(&contiguous)] {
+                let mut full = q.clone();
+                dense::gemm(full.as_mut_slice(), 1.0, a, View::of(&w), 1.0);
+                let mut lower = DMatrix::from_element(n, n, 9.0);
+                dense::gemm_lower(lower.as_mut_slice(), a, View::of(&w), q.as_slice());
+                for j in 0..n {
+                    for i in 0..n {
+                        let expected = if i >= j { full[(i, j)] } else { 9.0 };
+                        assert_eq!(
+                            lower[(i, j)].to_bits(),
+                            expected.to_bits(),
+                            "{n}: ({i}, {j})"
+                        );
+                    }
+                }
+                dense::mirror_lower(lower.as_mut_slice(), n);
+                assert_eq!(lower, lower.transpose());
+            }
+            // Cholesky and the triangular solve against nalgebra's.
+            let spd = &w * w.transpose() + DMatrix::identity(n, n);
+            let mut l = spd.clone();
+            assert!(dense::cholesky(l.as_mut_slice(), n));
+            let factor = Cholesky::new(spd.clone()).unwrap();
+            assert!((l.lower_triangle() - factor.l()).amax() < 1e-14);
+            let mut b = nalgebra::DVector::from_fn(n, |i, _| i as f64 - 0.5);
+            let mut expected = b.clone();
+            assert!(factor.l().solve_lower_triangular_mut(&mut expected));
+            assert!(dense::solve_lower(
+                factor.l().as_slice(),
+                n,
+                b.as_mut_slice()
+            ));
+            assert_eq!(b, expected, "forward substitution in nalgebra's order");
+            let mut not_spd = -spd;
+            assert!(!dense::cholesky(not_spd.as_mut_slice(), n));
+        }
     }
     use crate::plants::gantry_crane::GantryCraneParameters;
     use nalgebra::{dmatrix, Vector4};

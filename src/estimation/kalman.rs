@@ -18,8 +18,8 @@
 //! before the first measurement.
 
 use super::{
-    cholesky_solve_in_place, require_input_length, require_length, require_psd, require_spd,
-    EstimationError, Saved, StateReader,
+    require_input_length, require_length, require_psd, require_spd, EstimationError, Saved,
+    StateReader,
 };
 use crate::linalg::dense::{self, View};
 use crate::state_space::StateSpace;
@@ -76,6 +76,21 @@ pub(crate) use core_accessors;
 /// The prediction / correction machinery shared by the sKF, the rsKF and the DKF's state
 /// filter. It owns the estimate, the covariance and every work buffer; the model matrices are
 /// passed in (the DKF changes them every step, the rsKF changes the measurement covariance).
+///
+/// The covariances are computed on their lower triangle and mirrored (exactly symmetric):
+/// the prediction as W = P Aᵀ, then P⁻ = A W + Q on one triangle; the correction in
+/// O(n²p) instead of the O(n³) of the Joseph form's products, with G = C P⁻ (p×n) and
+/// S = G Cᵀ + R:
+///
+/// ```text
+/// P = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ = P⁻ − K G − Gᵀ Kᵀ + K S Kᵀ = P⁻ − K G + H Kᵀ,
+/// H = K S − Gᵀ   (n×p; zero in exact arithmetic for the optimal gain)
+/// ```
+///
+/// an identity for any K (expand (I − K C) P⁻ (I − K C)ᵀ with P⁻ = P⁻ᵀ), so the update keeps
+/// the Joseph form's tolerance of a gain that is not exactly optimal (the rsKF's, or one
+/// rounded). A one-state, one-output filter evaluates the Joseph form as written, which is
+/// as cheap there: (1 − k c)·(P⁻ (1 − k c)) + k (r k).
 #[derive(Debug, Clone)]
 pub(crate) struct FilterCore {
     pub(crate) x: DVector<f64>,
@@ -89,16 +104,18 @@ pub(crate) struct FilterCore {
     pub(crate) gain_t: DMatrix<f64>,
     /// K (n×p), the transpose of `gain_t`.
     pub(crate) gain: DMatrix<f64>,
-    /// n×n scratch.
+    /// P Aᵀ, n×n.
     work_nn: DMatrix<f64>,
-    /// I − K C, n×n.
-    work_m: DMatrix<f64>,
+    /// G = C P⁻, p×n.
+    work_g: DMatrix<f64>,
+    /// H = K S − Gᵀ, n×p.
+    work_h: DMatrix<f64>,
     /// n scratch.
     work_n: DVector<f64>,
-    /// S, then its Cholesky factor, p×p.
+    /// S = C P⁻ Cᵀ + R, p×p.
     work_s: DMatrix<f64>,
-    /// R Kᵀ, p×n.
-    work_rk: DMatrix<f64>,
+    /// The Cholesky factor of S, p×p.
+    work_l: DMatrix<f64>,
     pub(crate) steps: u64,
 }
 
@@ -116,10 +133,11 @@ impl FilterCore {
             gain_t: DMatrix::zeros(outputs, n),
             gain: DMatrix::zeros(n, outputs),
             work_nn: DMatrix::zeros(n, n),
-            work_m: DMatrix::zeros(n, n),
+            work_g: DMatrix::zeros(outputs, n),
+            work_h: DMatrix::zeros(n, outputs),
             work_n: DVector::zeros(n),
             work_s: DMatrix::zeros(outputs, outputs),
-            work_rk: DMatrix::zeros(outputs, n),
+            work_l: DMatrix::zeros(outputs, outputs),
             steps: 0,
         }
     }
@@ -127,17 +145,38 @@ impl FilterCore {
     /// x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q.
     pub(crate) fn predict(&mut self, a: View<'_>, b: View<'_>, q: &DMatrix<f64>) {
         self.steps += 1;
-        let n = self.x.len();
         let x_prior = self.x_prior.as_mut_slice();
         dense::gemv(x_prior, 1.0, a, self.x.as_slice(), 0.0);
         dense::gemv(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
-        // W = P Aᵀ, then P⁻ = Q + A W.
+        // The packaged sizes get a copy of the kernels of their own, unrolled.
+        match self.x.len() {
+            1 => self.predict_covariance(a, q, 1),
+            2 => self.predict_covariance(a, q, 2),
+            8 => self.predict_covariance(a, q, 8),
+            n => self.predict_covariance(a, q, n),
+        }
+    }
+
+    /// P⁻ = A P Aᵀ + Q: W = P Aᵀ, then P⁻ = A W + Q on the lower triangle, mirrored.
+    #[inline(always)]
+    fn predict_covariance(&mut self, a: View<'_>, q: &DMatrix<f64>, n: usize) {
+        if let ([p], [q], [w], [p_prior]) = (
+            self.p.as_slice(),
+            q.as_slice(),
+            self.work_nn.as_mut_slice(),
+            self.p_prior.as_mut_slice(),
+        ) {
+            // One state: a (P a) + q, the order of the kernels.
+            let a = a.at(0, 0);
+            *w = p * a;
+            *p_prior = a * *w + q;
+            return;
+        }
         let w = self.work_nn.as_mut_slice();
         dense::gemm(w, 1.0, View::of(&self.p), a.t(), 0.0);
-        self.p_prior.copy_from(q);
         let p_prior = self.p_prior.as_mut_slice();
-        dense::gemm(p_prior, 1.0, a, View::of(&self.work_nn), 1.0);
-        dense::symmetrize(p_prior, n);
+        dense::gemm_lower(p_prior, a, View::of(&self.work_nn), q.as_slice());
+        dense::mirror_lower(p_prior, n);
     }
 
     /// e = y − C x⁻ − D u.
@@ -161,53 +200,130 @@ impl FilterCore {
         Ok(())
     }
 
-    /// Gain from S = C P⁻ Cᵀ + R_eff, state update and Joseph covariance update with R_eff.
+    /// Gain from S = C P⁻ Cᵀ + R_eff, state update and covariance update with R_eff (see
+    /// the type's documentation).
     pub(crate) fn correct(
         &mut self,
         c: View<'_>,
         r_eff: &DMatrix<f64>,
     ) -> Result<(), EstimationError> {
-        let n = self.x.len();
-        // Kᵀ = S⁻¹ C P⁻ (S symmetric), S = R + (C P⁻) Cᵀ.
-        let p_prior = View::of(&self.p_prior);
-        dense::gemm(self.gain_t.as_mut_slice(), 1.0, c, p_prior, 0.0);
-        self.work_s.copy_from(r_eff);
-        let s = self.work_s.as_mut_slice();
-        dense::gemm(s, 1.0, View::of(&self.gain_t), c.t(), 1.0);
-        cholesky_solve_in_place(
-            &mut self.work_s,
-            &mut self.gain_t,
-            "innovation covariance C P⁻ Cᵀ + R",
-            self.steps,
-        )?;
-        self.gain.tr_copy_from(&self.gain_t);
-        let (gain, gain_t) = (View::of(&self.gain), View::of(&self.gain_t));
-        // x̂ = x⁻ + K e.
-        let ke = self.work_n.as_mut_slice();
-        dense::gemv(ke, 1.0, gain, self.innovation.as_slice(), 0.0);
-        for ((x, prior), ke) in self.x.iter_mut().zip(self.x_prior.iter()).zip(ke.iter()) {
-            *x = prior + ke;
-        }
-        // Joseph form: P = M P⁻ Mᵀ + K R Kᵀ with M = I − K C, as M (P⁻ Mᵀ) + K (R Kᵀ).
-        self.work_m.fill_with_identity();
-        dense::gemm(self.work_m.as_mut_slice(), -1.0, gain, c, 1.0);
-        let m = View::of(&self.work_m);
-        dense::gemm(self.work_nn.as_mut_slice(), 1.0, p_prior, m.t(), 0.0);
-        dense::gemm(self.p.as_mut_slice(), 1.0, m, View::of(&self.work_nn), 0.0);
-        let rk = self.work_rk.as_mut_slice();
-        dense::gemm(rk, 1.0, View::of(r_eff), gain_t, 0.0);
-        let krk = self.work_nn.as_mut_slice();
-        dense::gemm(krk, 1.0, gain, View::of(&self.work_rk), 0.0);
-        for (p, krk) in self.p.iter_mut().zip(krk.iter()) {
-            *p += krk;
-        }
-        dense::symmetrize(self.p.as_mut_slice(), n);
-        if self.x.iter().any(|v| !v.is_finite()) || self.p.iter().any(|v| !v.is_finite()) {
+        // The packaged sizes get a copy of the kernels of their own, unrolled.
+        let result = match (self.x.len(), self.innovation.len()) {
+            (1, 1) => self.correct_scalar(c, r_eff),
+            (2, 1) => self.correct_sized(c, r_eff, 2, 1),
+            (2, 2) => self.correct_sized(c, r_eff, 2, 2),
+            (8, 2) => self.correct_sized(c, r_eff, 8, 2),
+            (n, p) => self.correct_sized(c, r_eff, n, p),
+        };
+        result?;
+        let finite = |v: &[f64]| v.iter().all(|v| v.is_finite());
+        if !(finite(self.x.as_slice()) && finite(self.p.as_slice())) {
             return Err(EstimationError::NonFinite {
                 what: "state estimate or its covariance",
                 step: self.steps,
             });
         }
+        Ok(())
+    }
+
+    /// [`FilterCore::correct`] for n = p = 1, in the order of the former matrix kernels
+    /// (bit-identical): s = (c P⁻) c + r, k = (c P⁻)/√s/√s, x̂ = x⁻ + k e,
+    /// P = m (P⁻ m) + k (r k) with m = k (−c) + 1.
+    #[inline(always)]
+    fn correct_scalar(&mut self, c: View<'_>, r: &DMatrix<f64>) -> Result<(), EstimationError> {
+        let (c, p_prior, r) = (c.at(0, 0), self.p_prior[0], r[0]);
+        let g = c * p_prior;
+        let s = g * c + r;
+        self.work_g[0] = g;
+        self.work_s[0] = s;
+        let l = factor_scalar(&mut self.work_l[0], s, self.steps)?;
+        let k = g / l / l;
+        self.gain_t[0] = k;
+        self.gain[0] = k;
+        self.x[0] = self.x_prior[0] + k * self.innovation[0];
+        let m = k * -c + 1.0;
+        self.p[0] = m * (p_prior * m) + k * (r * k);
+        Ok(())
+    }
+
+    /// [`FilterCore::correct`] for n states and p outputs (any; inlined with the packaged
+    /// sizes as constants).
+    #[inline(always)]
+    fn correct_sized(
+        &mut self,
+        c: View<'_>,
+        r_eff: &DMatrix<f64>,
+        n: usize,
+        p: usize,
+    ) -> Result<(), EstimationError> {
+        // G = C P⁻, S = R + G Cᵀ, Kᵀ = S⁻¹ G (Cholesky, S symmetric).
+        let g = self.work_g.as_mut_slice();
+        dense::gemm(g, 1.0, c, View::of(&self.p_prior), 0.0);
+        self.work_s.copy_from(r_eff);
+        let s = self.work_s.as_mut_slice();
+        dense::gemm(s, 1.0, View::of(&self.work_g), c.t(), 1.0);
+        self.work_l.copy_from(&self.work_s);
+        let l = self.work_l.as_mut_slice();
+        if l.iter().any(|v| !v.is_finite()) {
+            return Err(EstimationError::NonFinite {
+                what: INNOVATION_COVARIANCE,
+                step: self.steps,
+            });
+        }
+        if !dense::cholesky(l, p) {
+            return Err(EstimationError::Factorisation {
+                what: INNOVATION_COVARIANCE,
+                step: self.steps,
+            });
+        }
+        self.gain_t.copy_from(&self.work_g);
+        dense::cholesky_solve(l, p, self.gain_t.as_mut_slice());
+        self.gain.tr_copy_from(&self.gain_t);
+        // x̂ = x⁻ + K e.
+        let ke = self.work_n.as_mut_slice();
+        dense::gemv(
+            ke,
+            1.0,
+            View::of(&self.gain),
+            self.innovation.as_slice(),
+            0.0,
+        );
+        for ((x, prior), ke) in self.x.iter_mut().zip(self.x_prior.iter()).zip(ke.iter()) {
+            *x = prior + ke;
+        }
+        // H = K S − Gᵀ, then P = P⁻ − K G + H Kᵀ on the lower triangle, mirrored.
+        let (k, g, s) = (
+            self.gain.as_slice(),
+            self.work_g.as_slice(),
+            self.work_s.as_slice(),
+        );
+        let h = self.work_h.as_mut_slice();
+        if k.len() < n * p || g.len() < n * p || s.len() < p * p || h.len() < n * p {
+            return Ok(());
+        }
+        for l in 0..p {
+            for i in 0..n {
+                let mut v = -g[l + i * p];
+                for j in 0..p {
+                    v += k[i + j * n] * s[j + l * p];
+                }
+                h[i + l * n] = v;
+            }
+        }
+        let (p_prior, p_new) = (self.p_prior.as_slice(), self.p.as_mut_slice());
+        if p_prior.len() < n * n || p_new.len() < n * n {
+            return Ok(());
+        }
+        for j in 0..n {
+            for i in j..n {
+                let mut v = p_prior[i + j * n];
+                for l in 0..p {
+                    v += h[i + l * n] * k[j + l * n] - k[i + l * n] * g[l + j * p];
+                }
+                p_new[i + j * n] = v;
+            }
+        }
+        dense::mirror_lower(p_new, n);
         Ok(())
     }
 
@@ -218,6 +334,31 @@ impl FilterCore {
         dense::gemv(y, 1.0, d, u.as_slice(), 1.0);
         self.u_prev.copy_from(u);
     }
+}
+
+/// The name of S in the errors of [`FilterCore::correct`].
+const INNOVATION_COVARIANCE: &str = "innovation covariance C P⁻ Cᵀ + R";
+
+/// The 1×1 Cholesky factor √s, also written into `l` (0 when s is not positive), or the
+/// error of [`FilterCore::correct`].
+#[inline(always)]
+fn factor_scalar(l: &mut f64, s: f64, step: u64) -> Result<f64, EstimationError> {
+    if !s.is_finite() {
+        *l = 0.0;
+        return Err(EstimationError::NonFinite {
+            what: INNOVATION_COVARIANCE,
+            step,
+        });
+    }
+    if s > 0.0 {
+        *l = s.sqrt();
+        return Ok(*l);
+    }
+    *l = 0.0;
+    Err(EstimationError::Factorisation {
+        what: INNOVATION_COVARIANCE,
+        step,
+    })
 }
 
 impl Saved for FilterCore {
@@ -342,6 +483,7 @@ impl KalmanFilter {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::estimation::robust::test_rng::TestRng;
     use crate::linalg::kalman_gain_steady;
 
     fn scalar(v: f64) -> DMatrix<f64> {
@@ -441,6 +583,152 @@ pub(crate) mod tests {
             assert_eq!(p[(0, 1)], p[(1, 0)]);
         }
         assert!(nalgebra::Cholesky::new(filter.covariance().clone()).is_some());
+    }
+
+    /// A random n×n symmetric positive definite matrix M Mᵀ + δ I (entries of M uniform in
+    /// ±1, times `scale`).
+    pub(crate) fn random_spd(rng: &mut TestRng, n: usize, scale: f64, delta: f64) -> DMatrix<f64> {
+        let m = DMatrix::from_fn(n, n, |_, _| 2.0 * rng.uniform() - 1.0);
+        (&m * m.transpose() + DMatrix::identity(n, n) * delta) * scale
+    }
+
+    /// The former step (the one the equivalence test holds the filter core to): P⁻ =
+    /// A P Aᵀ + Q and P = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ as full products, each symmetrised,
+    /// K from a Cholesky solve of S = C P⁻ Cᵀ + R. Gives (x̂, P, K).
+    fn former_step(
+        (a, c, q, r): (&DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>),
+        (x, p): (&DVector<f64>, &DMatrix<f64>),
+        y: &DVector<f64>,
+    ) -> (DVector<f64>, DMatrix<f64>, DMatrix<f64>) {
+        let n = x.len();
+        let mut p_prior = a * p * a.transpose() + q;
+        crate::linalg::symmetrize(&mut p_prior);
+        let x_prior = a * x;
+        let s = c * &p_prior * c.transpose() + r;
+        let k_t = nalgebra::Cholesky::new(s).unwrap().solve(&(c * &p_prior));
+        let k = k_t.transpose();
+        let x_new = &x_prior + &k * (y - c * &x_prior);
+        let m = DMatrix::identity(n, n) - &k * c;
+        let mut p_new = &m * &p_prior * m.transpose() + &k * r * k.transpose();
+        crate::linalg::symmetrize(&mut p_new);
+        (x_new, p_new, k)
+    }
+
+    fn relative(new: &DMatrix<f64>, former: &DMatrix<f64>) -> f64 {
+        (new - former).amax() / former.amax().max(f64::MIN_POSITIVE)
+    }
+
+    #[test]
+    fn covariance_update_equals_the_former_joseph_products_within_1e_12() {
+        let mut rng = TestRng::new(17);
+        let mut worst: f64 = 0.0;
+        let mut steps = 0;
+        for trial in 0..600 {
+            let (n, p) = [
+                (1, 1),
+                (2, 1),
+                (2, 2),
+                (3, 2),
+                (5, 3),
+                (8, 2),
+                (8, 1),
+                (4, 4),
+            ][trial % 8];
+            let a = DMatrix::from_fn(n, n, |_, _| (2.0 * rng.uniform() - 1.0) / (n as f64).sqrt());
+            let c = DMatrix::from_fn(p, n, |_, _| 2.0 * rng.uniform() - 1.0);
+            let scale = 10f64.powf(4.0 * rng.uniform() - 2.0);
+            let q = random_spd(&mut rng, n, 0.1 * scale, 0.0);
+            let r = random_spd(&mut rng, p, scale, 0.2);
+            let p0 = random_spd(&mut rng, n, scale, 0.1);
+            let mut filter = KalmanFilter::new(GaussianModel {
+                system: StateSpace {
+                    a: a.clone(),
+                    b: DMatrix::zeros(n, 0),
+                    c: c.clone(),
+                    d: DMatrix::zeros(p, 0),
+                    q: q.clone(),
+                    r: r.clone(),
+                },
+                x0: DVector::from_fn(n, |_, _| rng.normal()),
+                p0,
+            })
+            .unwrap();
+            for _ in 0..8 {
+                let y = DVector::from_fn(p, |_, _| scale.sqrt() * rng.normal());
+                let before = (filter.state().clone(), filter.covariance().clone());
+                let former = former_step((&a, &c, &q, &r), (&before.0, &before.1), &y);
+                filter.step(&DVector::zeros(0), &y).unwrap();
+                let x_scale = former.0.amax().max(filter.predicted_state().amax());
+                let dx = (filter.state() - &former.0).amax() / x_scale.max(f64::MIN_POSITIVE);
+                let errors = [
+                    dx,
+                    relative(filter.covariance(), &former.1),
+                    relative(&filter.gain(), &former.2),
+                ];
+                worst = errors.into_iter().fold(worst, f64::max);
+                assert!(
+                    errors.iter().all(|e| *e <= 1e-12),
+                    "n = {n}, p = {p}: {errors:?}"
+                );
+                let covariance = filter.covariance();
+                assert_eq!(covariance, &covariance.transpose());
+                assert!(nalgebra::Cholesky::new(covariance.clone()).is_some());
+                if n == 1 && p == 1 {
+                    // The scalar filter evaluates the Joseph form as written: bit-identical
+                    // to the former kernels' order m (P⁻ m) + k (r k).
+                    let (k, p_prior) = (filter.gain()[0], filter.predicted_covariance()[0]);
+                    let m = k * -c[0] + 1.0;
+                    assert_eq!(covariance[0], m * (p_prior * m) + k * (r[0] * k));
+                }
+                steps += 1;
+            }
+        }
+        assert_eq!(steps, 4800);
+        println!("worst relative difference over {steps} steps: {worst:e}");
+    }
+
+    #[test]
+    fn covariance_stays_symmetric_positive_definite_over_random_runs() {
+        let mut rng = TestRng::new(5);
+        for (n, p) in [(8, 2), (3, 1), (2, 2)] {
+            // A marginally stable A (spectral radius near 1) and very different scales of
+            // Q, R and P₀, as in the DKF's state filter.
+            let a = DMatrix::from_fn(n, n, |i, j| {
+                if i == j {
+                    0.99
+                } else {
+                    0.05 * (2.0 * rng.uniform() - 1.0)
+                }
+            });
+            let c = DMatrix::from_fn(p, n, |_, _| 2.0 * rng.uniform() - 1.0);
+            let mut filter = KalmanFilter::new(GaussianModel {
+                system: StateSpace {
+                    a,
+                    b: DMatrix::zeros(n, 0),
+                    c,
+                    d: DMatrix::zeros(p, 0),
+                    q: random_spd(&mut rng, n, 1e-8, 1e-3),
+                    r: random_spd(&mut rng, p, 1e-4, 0.1),
+                },
+                x0: DVector::zeros(n),
+                p0: random_spd(&mut rng, n, 1e4, 0.1),
+            })
+            .unwrap();
+            for _ in 0..5000 {
+                let y = DVector::from_fn(p, |_, _| rng.normal());
+                filter.step(&DVector::zeros(0), &y).unwrap();
+                let covariance = filter.covariance();
+                assert_eq!(covariance, &covariance.transpose());
+                let predicted = filter.predicted_covariance();
+                assert_eq!(predicted, &predicted.transpose());
+            }
+            let eigen = nalgebra::SymmetricEigen::new(filter.covariance().clone());
+            assert!(
+                eigen.eigenvalues.min() > 0.0,
+                "n = {n}: {}",
+                eigen.eigenvalues
+            );
+        }
     }
 
     #[test]

@@ -13,8 +13,10 @@
 //! FMU is packaged. Every constructor validates its inputs and returns an
 //! [`EstimationError`] naming the matrix and the reason; every step method returns an error
 //! (never NaN) when a factorisation fails or a result is not finite. Covariances are updated
-//! in Joseph form and symmetrised, gains come from Cholesky solves, no inverse is formed. The
-//! step methods work in buffers allocated by the constructors.
+//! in Joseph form (the Kalman filters' in O(n²p), on one triangle, see `kalman.rs`) and kept
+//! exactly symmetric, gains come from Cholesky solves, no inverse is formed. The step
+//! methods work in buffers allocated by the constructors; the sizes of the packaged FMUs
+//! (one state and one output, two, eight states and two outputs) run kernels of their own.
 //!
 //! Time convention shared by the Kalman-type filters: the model is
 //! x_{k+1} = A x_k + B u_k + w_k, y_k = C x_k + D u_k + v_k. A call `step(u_k, y_k)` predicts
@@ -40,6 +42,7 @@ pub use kalman::{GaussianModel, KalmanFilter};
 pub use rls::{ContinuousSecondOrder, ReadoutUnavailable, RecursiveLeastSquares};
 pub use robust::{InfluenceFunction, RobustKalmanFilter};
 
+use crate::linalg::dense;
 use crate::ParameterError;
 use nalgebra::{Cholesky, DMatrix, DVector, SymmetricEigen};
 use std::fmt;
@@ -253,8 +256,9 @@ pub(crate) fn require_input_length(
 }
 
 /// Solves `s · X = rhs` in place (`rhs` becomes X) with a Cholesky factorisation of the
-/// symmetric matrix in `s`, which is overwritten by its lower factor. No allocation unless
-/// the factorisation fails.
+/// symmetric matrix in `s`, whose lower triangle is overwritten by its lower factor (zeros
+/// when the factorisation fails). No allocation. A 1×1 `s` gives `x = b / √s / √s`, nalgebra's
+/// order (bit-identical).
 pub(crate) fn cholesky_solve_in_place(
     s: &mut DMatrix<f64>,
     rhs: &mut DMatrix<f64>,
@@ -265,31 +269,12 @@ pub(crate) fn cholesky_solve_in_place(
     if s.iter().any(|v| !v.is_finite()) {
         return Err(EstimationError::NonFinite { what, step });
     }
-    if let [s0] = s.as_mut_slice() {
-        // 1×1: L = √s, then L y = b and Lᵀ x = y, in nalgebra's order (bit-identical).
-        if *s0 > 0.0 {
-            let l = s0.sqrt();
-            *s0 = l;
-            for b in rhs.iter_mut() {
-                *b = *b / l / l;
-            }
-            return Ok(());
-        }
-        *s0 = 0.0;
+    if !s.is_square() || rhs.nrows() != dim || !dense::cholesky(s.as_mut_slice(), dim) {
+        s.fill(0.0);
         return Err(EstimationError::Factorisation { what, step });
     }
-    let matrix = std::mem::replace(s, DMatrix::zeros(0, 0));
-    match Cholesky::new(matrix) {
-        Some(factor) => {
-            factor.solve_mut(rhs);
-            *s = factor.unpack_dirty();
-            Ok(())
-        }
-        None => {
-            *s = DMatrix::zeros(dim, dim);
-            Err(EstimationError::Factorisation { what, step })
-        }
-    }
+    dense::cholesky_solve(s.as_slice(), dim, rhs.as_mut_slice());
+    Ok(())
 }
 
 /// Replaces `m` by (m + mᵀ)/2 in place.
@@ -475,6 +460,24 @@ mod factor_tests {
                 assert_eq!(x.to_bits(), e.to_bits(), "s = {s0}");
             }
             assert_eq!(s[(0, 0)], factor.l()[(0, 0)]);
+        }
+        // Larger S: the solution of nalgebra's Cholesky within rounding, L in the lower
+        // triangle.
+        let mut rng = robust::test_rng::TestRng::new(3);
+        for dim in [2, 3, 5, 8] {
+            let m = DMatrix::from_fn(dim, dim, |_, _| rng.normal());
+            let spd = &m * m.transpose() + DMatrix::identity(dim, dim);
+            let rhs = DMatrix::from_fn(dim, 4, |_, _| rng.normal());
+            let factor = Cholesky::new(spd.clone()).unwrap();
+            let expected = factor.solve(&rhs);
+            let (mut s, mut x) = (spd, rhs);
+            cholesky_solve_in_place(&mut s, &mut x, "S", 1).unwrap();
+            assert!((&x - &expected).amax() <= 1e-12 * expected.amax(), "{dim}");
+            let l = factor.l();
+            assert!(
+                (s.lower_triangle() - &l).amax() <= 1e-12 * l.amax(),
+                "{dim}"
+            );
         }
         for s0 in [0.0, -1.0] {
             let (mut s, mut x) = (DMatrix::from_element(1, 1, s0), DMatrix::zeros(1, 1));
