@@ -626,6 +626,12 @@ pub(crate) mod dense {
                 ..self
             }
         }
+        /// Column `j` as a slice, when the view's columns are contiguous (`None` for a
+        /// transposed view or outside the matrix).
+        #[inline(always)]
+        pub(crate) fn column(&self, j: usize) -> Option<&'a [f64]> {
+            column_from(self, j, 0)
+        }
         /// Element (i, j) (0 outside).
         #[inline(always)]
         pub(crate) fn at(&self, i: usize, j: usize) -> f64 {

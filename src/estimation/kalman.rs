@@ -117,6 +117,10 @@ pub(crate) struct FilterCore {
     /// The Cholesky factor of S, p×p.
     work_l: DMatrix<f64>,
     pub(crate) steps: u64,
+    /// Tests only: run the general kernels at every size (to hold the fixed ones and the
+    /// scalar step to them).
+    #[cfg(test)]
+    pub(crate) general_only: bool,
 }
 
 impl FilterCore {
@@ -139,6 +143,8 @@ impl FilterCore {
             work_s: DMatrix::zeros(outputs, outputs),
             work_l: DMatrix::zeros(outputs, outputs),
             steps: 0,
+            #[cfg(test)]
+            general_only: false,
         }
     }
 
@@ -148,17 +154,21 @@ impl FilterCore {
         let x_prior = self.x_prior.as_mut_slice();
         dense::gemv(x_prior, 1.0, a, self.x.as_slice(), 0.0);
         dense::gemv(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
-        // The packaged sizes get a copy of the kernels of their own, unrolled.
-        match self.x.len() {
-            1 => self.predict_covariance(a, q, 1),
-            2 => self.predict_covariance(a, q, 2),
-            8 => self.predict_covariance(a, q, 8),
-            n => self.predict_covariance(a, q, n),
+        // The packaged sizes run kernels of their own (same arithmetic, unrolled).
+        let fixed = match self.x.len() {
+            #[cfg(test)]
+            _ if self.general_only => false,
+            2 => fixed::predict::<2>(self, a, q),
+            3 => fixed::predict::<3>(self, a, q),
+            8 => fixed::predict::<8>(self, a, q),
+            _ => false,
+        };
+        if !fixed {
+            self.predict_covariance(a, q, self.x.len());
         }
     }
 
     /// P⁻ = A P Aᵀ + Q: W = P Aᵀ, then P⁻ = A W + Q on the lower triangle, mirrored.
-    #[inline(always)]
     fn predict_covariance(&mut self, a: View<'_>, q: &DMatrix<f64>, n: usize) {
         if let ([p], [q], [w], [p_prior]) = (
             self.p.as_slice(),
@@ -207,15 +217,21 @@ impl FilterCore {
         c: View<'_>,
         r_eff: &DMatrix<f64>,
     ) -> Result<(), EstimationError> {
-        // The packaged sizes get a copy of the kernels of their own, unrolled.
-        let result = match (self.x.len(), self.innovation.len()) {
-            (1, 1) => self.correct_scalar(c, r_eff),
-            (2, 1) => self.correct_sized(c, r_eff, 2, 1),
-            (2, 2) => self.correct_sized(c, r_eff, 2, 2),
-            (8, 2) => self.correct_sized(c, r_eff, 8, 2),
-            (n, p) => self.correct_sized(c, r_eff, n, p),
+        // The packaged sizes run kernels of their own (same arithmetic, unrolled).
+        let fixed = match (self.x.len(), self.innovation.len()) {
+            (1, 1) => Some(self.correct_scalar(c, r_eff)),
+            #[cfg(test)]
+            _ if self.general_only => None,
+            (2, 1) => fixed::correct::<2, 1>(self, c, r_eff),
+            (2, 2) => fixed::correct::<2, 2>(self, c, r_eff),
+            (3, 2) => fixed::correct::<3, 2>(self, c, r_eff),
+            (8, 2) => fixed::correct::<8, 2>(self, c, r_eff),
+            _ => None,
         };
-        result?;
+        match fixed {
+            Some(result) => result?,
+            None => self.correct_sized(c, r_eff, self.x.len(), self.innovation.len())?,
+        }
         let finite = |v: &[f64]| v.iter().all(|v| v.is_finite());
         if !(finite(self.x.as_slice()) && finite(self.p.as_slice())) {
             return Err(EstimationError::NonFinite {
@@ -231,24 +247,136 @@ impl FilterCore {
     /// P = m (P⁻ m) + k (r k) with m = k (−c) + 1.
     #[inline(always)]
     fn correct_scalar(&mut self, c: View<'_>, r: &DMatrix<f64>) -> Result<(), EstimationError> {
-        let (c, p_prior, r) = (c.at(0, 0), self.p_prior[0], r[0]);
+        match r.as_slice() {
+            [r] => self.correct_one(c.at(0, 0), *r),
+            _ => Ok(()),
+        }
+    }
+
+    /// [`FilterCore::correct_scalar`] on the numbers c and r.
+    #[inline(always)]
+    fn correct_one(&mut self, c: f64, r: f64) -> Result<(), EstimationError> {
+        let ([x], [p], [x_prior], [p_prior], [e], [gain_t], [gain], [work_g], [work_s], [work_l]) = (
+            self.x.as_mut_slice(),
+            self.p.as_mut_slice(),
+            self.x_prior.as_slice(),
+            self.p_prior.as_slice(),
+            self.innovation.as_slice(),
+            self.gain_t.as_mut_slice(),
+            self.gain.as_mut_slice(),
+            self.work_g.as_mut_slice(),
+            self.work_s.as_mut_slice(),
+            self.work_l.as_mut_slice(),
+        ) else {
+            return Ok(());
+        };
         let g = c * p_prior;
         let s = g * c + r;
-        self.work_g[0] = g;
-        self.work_s[0] = s;
-        let l = factor_scalar(&mut self.work_l[0], s, self.steps)?;
+        *work_g = g;
+        *work_s = s;
+        let l = factor_scalar(work_l, s, self.steps)?;
         let k = g / l / l;
-        self.gain_t[0] = k;
-        self.gain[0] = k;
-        self.x[0] = self.x_prior[0] + k * self.innovation[0];
+        *gain_t = k;
+        *gain = k;
+        *x = x_prior + k * e;
         let m = k * -c + 1.0;
-        self.p[0] = m * (p_prior * m) + k * (r * k);
+        *p = m * (p_prior * m) + k * (r * k);
         Ok(())
     }
 
-    /// [`FilterCore::correct`] for n states and p outputs (any; inlined with the packaged
-    /// sizes as constants).
+    /// A whole step of a filter with one state, one output and at most one input, in the
+    /// order of the general path (bit-identical to it) without its matrix machinery:
+    /// predict, innovation e, then `r_eff(e)` gives the measurement covariance of the
+    /// correction (the rsKF's R̃; the sKF's R), correct, finish. `None` (nothing done) when
+    /// the filter or the sample has other sizes: the caller takes the general path.
     #[inline(always)]
+    pub(crate) fn step_scalar(
+        &mut self,
+        model: &StateSpace,
+        u: &DVector<f64>,
+        y: &DVector<f64>,
+        r_eff: impl FnOnce(f64) -> f64,
+    ) -> Option<Result<(), EstimationError>> {
+        #[cfg(test)]
+        if self.general_only {
+            return None;
+        }
+        let ([a], [c], [q], [y]) = (
+            model.a.as_slice(),
+            model.c.as_slice(),
+            model.q.as_slice(),
+            y.as_slice(),
+        ) else {
+            return None;
+        };
+        let (a, c, q, y) = (*a, *c, *q, *y);
+        // (u_k, u_{k−1}, b, d) when there is an input.
+        let input = match (
+            u.as_slice(),
+            self.u_prev.as_slice(),
+            model.b.as_slice(),
+            model.d.as_slice(),
+        ) {
+            ([], [], [], []) => None,
+            ([u], [u_prev], [b], [d]) => Some((*u, *u_prev, *b, *d)),
+            _ => return None,
+        };
+        let ([x], [p], [x_prior], [p_prior], [w], [e]) = (
+            self.x.as_slice(),
+            self.p.as_slice(),
+            self.x_prior.as_mut_slice(),
+            self.p_prior.as_mut_slice(),
+            self.work_nn.as_mut_slice(),
+            self.innovation.as_mut_slice(),
+        ) else {
+            return None;
+        };
+        self.steps += 1;
+        // x⁻ = a x̂ + b u_{k−1}, P⁻ = a (P a) + q, e = (y − c x⁻) − d u.
+        *x_prior = a * x;
+        if let Some((_, u_prev, b, _)) = input {
+            *x_prior += b * u_prev;
+        }
+        *w = p * a;
+        *p_prior = a * *w + q;
+        *e = c * -*x_prior + y;
+        if let Some((u, _, _, d)) = input {
+            *e += d * -u;
+        }
+        if !e.is_finite() {
+            return Some(Err(EstimationError::NonFinite {
+                what: "innovation y − C x⁻ − D u (check y and u)",
+                step: self.steps,
+            }));
+        }
+        let r = r_eff(*e);
+        if let Err(error) = self.correct_one(c, r) {
+            return Some(Err(error));
+        }
+        let ([x], [p], [output]) = (
+            self.x.as_slice(),
+            self.p.as_slice(),
+            self.output.as_mut_slice(),
+        ) else {
+            return None;
+        };
+        let x = *x;
+        if !(x.is_finite() && p.is_finite()) {
+            return Some(Err(EstimationError::NonFinite {
+                what: "state estimate or its covariance",
+                step: self.steps,
+            }));
+        }
+        // ŷ = c x̂ + d u.
+        *output = c * x;
+        if let (Some((u, _, _, d)), [u_prev]) = (input, self.u_prev.as_mut_slice()) {
+            *output += d * u;
+            *u_prev = u;
+        }
+        Some(Ok(()))
+    }
+
+    /// [`FilterCore::correct`] for n states and p outputs, any sizes.
     fn correct_sized(
         &mut self,
         c: View<'_>,
@@ -333,6 +461,202 @@ impl FilterCore {
         dense::gemv(y, 1.0, c, self.x.as_slice(), 0.0);
         dense::gemv(y, 1.0, d, u.as_slice(), 1.0);
         self.u_prev.copy_from(u);
+    }
+}
+
+/// The filter core's kernels for N states and P outputs known at compile time: the operands
+/// copied into arrays of columns, loops the compiler unrolls, the same arithmetic in the same
+/// order as [`FilterCore::predict_covariance`] and [`FilterCore::correct_sized`]
+/// (bit-identical to them). Each gives up (`false`, `None`) when a buffer does not have the
+/// size it is built for, and the caller takes the general path.
+mod fixed {
+    use super::{EstimationError, FilterCore, INNOVATION_COVARIANCE};
+    use crate::linalg::dense::{self, View};
+    use nalgebra::DMatrix;
+
+    /// The C columns of R entries each of a view.
+    #[inline(always)]
+    fn load<const R: usize, const C: usize>(v: View<'_>) -> [[f64; R]; C] {
+        let mut out = [[0.0; R]; C];
+        for (j, column) in out.iter_mut().enumerate() {
+            match v.column(j).and_then(|c| <&[f64; R]>::try_from(c).ok()) {
+                Some(c) => *column = *c,
+                None => {
+                    for (i, value) in column.iter_mut().enumerate() {
+                        *value = v.at(i, j);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// A column-major R×C matrix stored in `s` as its columns.
+    #[inline(always)]
+    fn columns<const R: usize, const C: usize>(s: &[f64]) -> Option<&[[f64; R]; C]> {
+        <&[[f64; R]; C]>::try_from(s.as_chunks::<R>().0).ok()
+    }
+
+    #[inline(always)]
+    fn columns_mut<const R: usize, const C: usize>(s: &mut [f64]) -> Option<&mut [[f64; R]; C]> {
+        <&mut [[f64; R]; C]>::try_from(s.as_chunks_mut::<R>().0).ok()
+    }
+
+    /// P⁻ = A P Aᵀ + Q: W = P Aᵀ, then P⁻ = A W + Q on the lower triangle, mirrored.
+    #[inline(always)]
+    pub(super) fn predict<const N: usize>(
+        core: &mut FilterCore,
+        a: View<'_>,
+        q: &DMatrix<f64>,
+    ) -> bool {
+        let (Some(p), Some(q)) = (
+            columns::<N, N>(core.p.as_slice()),
+            columns::<N, N>(q.as_slice()),
+        ) else {
+            return false;
+        };
+        let Some(p_prior) = columns_mut::<N, N>(core.p_prior.as_mut_slice()) else {
+            return false;
+        };
+        // a[k][i] = A(i, k).
+        let a = load::<N, N>(a);
+        // Column j of W: Σₖ P(:, k) A(j, k).
+        let w: [[f64; N]; N] = std::array::from_fn(|j| {
+            let mut w = p[0].map(|p| p * a[0][j]);
+            for k in 1..N {
+                let s = a[k][j];
+                for (w, p) in w.iter_mut().zip(&p[k]) {
+                    *w += p * s;
+                }
+            }
+            w
+        });
+        // Column j of P⁻: A(i, 0) W(0, j) + Q(i, j) + Σₖ A(i, k) W(k, j), kept on rows j..
+        // (whole columns vectorise better than their lower parts; the upper part is the
+        // mirror of the lower one).
+        for j in 0..N {
+            let mut column = q[j];
+            for (c, a) in column.iter_mut().zip(&a[0]) {
+                *c += a * w[j][0];
+            }
+            for k in 1..N {
+                let s = w[j][k];
+                for (c, a) in column.iter_mut().zip(&a[k]) {
+                    *c += a * s;
+                }
+            }
+            for i in j..N {
+                p_prior[j][i] = column[i];
+                p_prior[i][j] = column[i];
+            }
+        }
+        true
+    }
+
+    /// The correction of [`FilterCore::correct`] (without its final finiteness check).
+    #[inline(always)]
+    pub(super) fn correct<const N: usize, const P: usize>(
+        core: &mut FilterCore,
+        c: View<'_>,
+        r: &DMatrix<f64>,
+    ) -> Option<Result<(), EstimationError>> {
+        let p_prior = columns::<N, N>(core.p_prior.as_slice())?;
+        let r = columns::<P, P>(r.as_slice())?;
+        let e = <&[f64; P]>::try_from(core.innovation.as_slice()).ok()?;
+        // c[k][l] = C(l, k).
+        let c = load::<P, N>(c);
+        // G = C P⁻: column j is Σₖ C(:, k) P⁻(k, j).
+        let mut g = [[0.0; P]; N];
+        for (j, g) in g.iter_mut().enumerate() {
+            for (g, c) in g.iter_mut().zip(&c[0]) {
+                *g = c * p_prior[j][0];
+            }
+            for k in 1..N {
+                let s = p_prior[j][k];
+                for (g, c) in g.iter_mut().zip(&c[k]) {
+                    *g += c * s;
+                }
+            }
+        }
+        // S = R + G Cᵀ: column l is G(:, 0) C(l, 0) + R(:, l) + Σₖ G(:, k) C(l, k).
+        let mut s = [[0.0; P]; P];
+        for (l, column) in s.iter_mut().enumerate() {
+            for ((s, g), r) in column.iter_mut().zip(&g[0]).zip(&r[l]) {
+                *s = g * c[0][l] + r;
+            }
+            for k in 1..N {
+                let x = c[k][l];
+                for (s, g) in column.iter_mut().zip(&g[k]) {
+                    *s += g * x;
+                }
+            }
+        }
+        let mut factor = s;
+        let steps = core.steps;
+        let failed = |error: fn(&'static str, u64) -> EstimationError| {
+            Some(Err(error(INNOVATION_COVARIANCE, steps)))
+        };
+        if factor.as_flattened().iter().any(|v| !v.is_finite()) {
+            return failed(|what, step| EstimationError::NonFinite { what, step });
+        }
+        if !dense::cholesky(factor.as_flattened_mut(), P) {
+            return failed(|what, step| EstimationError::Factorisation { what, step });
+        }
+        // Kᵀ = S⁻¹ G, K its transpose.
+        let mut gain_t = g;
+        dense::cholesky_solve(factor.as_flattened(), P, gain_t.as_flattened_mut());
+        let mut gain = [[0.0; N]; P];
+        for (i, row) in gain_t.iter().enumerate() {
+            for (l, k) in row.iter().enumerate() {
+                gain[l][i] = *k;
+            }
+        }
+        // x̂ = x⁻ + K e.
+        let mut ke = [0.0; N];
+        for (ke, k) in ke.iter_mut().zip(&gain[0]) {
+            *ke = k * e[0];
+        }
+        for l in 1..P {
+            for (ke, k) in ke.iter_mut().zip(&gain[l]) {
+                *ke += k * e[l];
+            }
+        }
+        for ((x, prior), ke) in core.x.iter_mut().zip(core.x_prior.iter()).zip(&ke) {
+            *x = prior + ke;
+        }
+        // H = K S − Gᵀ, then P = P⁻ − K G + H Kᵀ on the lower triangle, mirrored.
+        let mut h = [[0.0; N]; P];
+        for (l, h) in h.iter_mut().enumerate() {
+            for (i, h) in h.iter_mut().enumerate() {
+                let mut v = -g[i][l];
+                for j in 0..P {
+                    v += gain[j][i] * s[l][j];
+                }
+                *h = v;
+            }
+        }
+        let p_new = columns_mut::<N, N>(core.p.as_mut_slice())?;
+        for j in 0..N {
+            for i in j..N {
+                let mut v = p_prior[j][i];
+                for l in 0..P {
+                    v += h[l][i] * gain[l][j] - gain[l][i] * g[j][l];
+                }
+                p_new[j][i] = v;
+                p_new[i][j] = v;
+            }
+        }
+        for (target, source) in [
+            (core.work_g.as_mut_slice(), g.as_flattened()),
+            (core.work_s.as_mut_slice(), s.as_flattened()),
+            (core.work_l.as_mut_slice(), factor.as_flattened()),
+            (core.gain_t.as_mut_slice(), gain_t.as_flattened()),
+            (core.gain.as_mut_slice(), gain.as_flattened()),
+            (core.work_h.as_mut_slice(), h.as_flattened()),
+        ] {
+            target.copy_from_slice(source);
+        }
+        Some(Ok(()))
     }
 }
 
@@ -452,6 +776,11 @@ impl KalmanFilter {
     /// the caller should stop or rebuild the filter.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
+        if let [r] = *m.r.as_slice() {
+            if let Some(result) = self.core.step_scalar(m, u, y, |_| r) {
+                return result;
+            }
+        }
         let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
@@ -685,6 +1014,48 @@ pub(crate) mod tests {
         }
         assert_eq!(steps, 4800);
         println!("worst relative difference over {steps} steps: {worst:e}");
+    }
+
+    #[test]
+    fn the_kernels_of_the_packaged_sizes_equal_the_general_ones_bit_for_bit() {
+        let mut rng = TestRng::new(23);
+        for (n, m, p) in [
+            (1, 0, 1),
+            (1, 1, 1),
+            (2, 0, 1),
+            (2, 1, 2),
+            (3, 0, 2),
+            (8, 2, 2),
+            (8, 0, 2),
+        ] {
+            let system = StateSpace {
+                a: DMatrix::from_fn(n, n, |_, _| (2.0 * rng.uniform() - 1.0) / n as f64),
+                b: DMatrix::from_fn(n, m, |_, _| rng.normal()),
+                c: DMatrix::from_fn(p, n, |_, _| rng.normal()),
+                d: DMatrix::from_fn(p, m, |_, _| rng.normal()),
+                q: random_spd(&mut rng, n, 0.01, 0.0),
+                r: random_spd(&mut rng, p, 0.1, 0.1),
+            };
+            let mut fixed = KalmanFilter::new(GaussianModel {
+                system,
+                x0: DVector::zeros(n),
+                p0: random_spd(&mut rng, n, 1.0, 0.1),
+            })
+            .unwrap();
+            let mut general = fixed.clone();
+            general.core.general_only = true;
+            for _ in 0..500 {
+                let u = DVector::from_fn(m, |_, _| rng.normal());
+                let y = DVector::from_fn(p, |_, _| rng.normal());
+                fixed.step(&u, &y).unwrap();
+                general.step(&u, &y).unwrap();
+                assert_eq!(
+                    fixed.dynamic_state(),
+                    general.dynamic_state(),
+                    "n = {n}, p = {p}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -25,6 +25,7 @@
 
 use super::kalman::{core_accessors, sample_views, FilterCore, GaussianModel};
 use super::{parameter_error, EstimationError, Saved, StateReader};
+use crate::linalg::dense;
 use crate::state_space::StateSpace;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -213,15 +214,37 @@ impl RobustKalmanFilter {
     /// Processes one sample (see [`KalmanFilter::step`](super::KalmanFilter::step)).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
+        if let ([r], [l], [z], [w], [r_effective]) = (
+            m.r.as_slice(),
+            self.r_sqrt.as_slice(),
+            self.standardized.as_mut_slice(),
+            self.weights.as_mut_slice(),
+            self.r_effective.as_mut_slice(),
+        ) {
+            // One output: r = e / √R, R̃ = (√R / √w)² (R itself when w = 1).
+            let (r, l, psi) = (*r, *l, self.psi);
+            let effective = |e: f64| {
+                *z = e / l;
+                *w = psi.weight(*z).max(MIN_WEIGHT);
+                *r_effective = if *w == 1.0 {
+                    r
+                } else {
+                    let g = l * (1.0 / w.sqrt());
+                    g * g
+                };
+                *r_effective
+            };
+            if let Some(result) = self.core.step_scalar(m, u, y, effective) {
+                return result;
+            }
+        }
         let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
         // r = R^{-1/2} e.
         self.standardized.copy_from(&self.core.innovation);
-        if !self
-            .r_sqrt
-            .solve_lower_triangular_mut(&mut self.standardized)
-        {
+        let p = self.standardized.len();
+        if !dense::solve_lower(self.r_sqrt.as_slice(), p, self.standardized.as_mut_slice()) {
             return Err(EstimationError::Factorisation {
                 what: "measurement covariance R",
                 step: self.core.steps,
@@ -235,14 +258,24 @@ impl RobustKalmanFilter {
         if all_one {
             self.r_effective.copy_from(&m.r);
         } else {
-            // G = W^{-1/2} R^{1/2ᵀ}: row j of R^{1/2ᵀ} scaled by 1/√w_j; R̃ = Gᵀ G.
+            // G = W^{-1/2} R^{1/2ᵀ}: row j of R^{1/2ᵀ} scaled by 1/√w_j; R̃ = Gᵀ G, its lower
+            // triangle as dot products of the columns of G, mirrored.
             self.work_g.copy_from(&self.r_sqrt_t);
             for (j, w) in self.weights.iter().enumerate() {
                 let scale = 1.0 / w.sqrt();
-                self.work_g.row_mut(j).scale_mut(scale);
+                for g in self.work_g.row_mut(j).iter_mut() {
+                    *g *= scale;
+                }
             }
-            self.r_effective
-                .gemm_tr(1.0, &self.work_g, &self.work_g, 0.0);
+            let (g, r_effective) = (self.work_g.as_slice(), self.r_effective.as_mut_slice());
+            for (j, g_j) in g.chunks_exact(p).enumerate() {
+                for (i, g_i) in g.chunks_exact(p).enumerate().skip(j) {
+                    if let Some(r) = r_effective.get_mut(i + j * p) {
+                        *r = dense::dot(g_i, g_j);
+                    }
+                }
+            }
+            dense::mirror_lower(r_effective, p);
         }
         self.core.correct(c, &self.r_effective)?;
         self.core.finish(c, d, u);
@@ -409,6 +442,79 @@ mod tests {
             assert_eq!(robust.state(), standard.state(), "step {k}");
             assert_eq!(robust.covariance(), standard.covariance());
             assert!(robust.weights().iter().all(|&w| w == 1.0));
+        }
+    }
+
+    #[test]
+    fn the_scalar_step_and_the_effective_covariance_match_the_former_kernels_bit_for_bit() {
+        let mut rng = TestRng::new(11);
+        for psi in [InfluenceFunction::huber(), InfluenceFunction::tukey()] {
+            // One output, with and without an input: the scalar step against the general path.
+            for m in [0, 1] {
+                let mut fast = RobustKalmanFilter::new(
+                    GaussianModel {
+                        system: StateSpace {
+                            a: scalar(0.97),
+                            b: DMatrix::from_element(1, m, 0.3),
+                            c: scalar(1.5),
+                            d: DMatrix::from_element(1, m, -0.2),
+                            q: scalar(1e-3),
+                            r: scalar(1e-2),
+                        },
+                        x0: DVector::zeros(1),
+                        p0: scalar(1.0),
+                    },
+                    psi,
+                )
+                .unwrap();
+                let mut general = fast.clone();
+                general.core.general_only = true;
+                for k in 0..2000 {
+                    let u = DVector::from_element(m, (0.01 * k as f64).sin());
+                    let outlier = if rng.uniform() < 0.1 { 5.0 } else { 0.0 };
+                    let y = DVector::from_element(1, 0.1 * rng.normal() + outlier);
+                    fast.step(&u, &y).unwrap();
+                    general.step(&u, &y).unwrap();
+                    assert_eq!(fast.dynamic_state(), general.dynamic_state(), "step {k}");
+                }
+                assert!(fast.weights()[0] <= 1.0);
+            }
+            // Two correlated outputs: R̃ = Gᵀ G on one triangle against nalgebra's product.
+            let r = DMatrix::from_row_slice(2, 2, &[0.04, 0.01, 0.01, 0.09]);
+            let mut filter = RobustKalmanFilter::new(
+                GaussianModel {
+                    system: StateSpace {
+                        a: DMatrix::identity(2, 2),
+                        b: DMatrix::zeros(2, 0),
+                        c: DMatrix::identity(2, 2),
+                        d: DMatrix::zeros(2, 0),
+                        q: DMatrix::identity(2, 2) * 1e-3,
+                        r: r.clone(),
+                    },
+                    x0: DVector::zeros(2),
+                    p0: DMatrix::identity(2, 2),
+                },
+                psi,
+            )
+            .unwrap();
+            let l_t = Cholesky::new(r).unwrap().l().transpose();
+            let mut changed = 0;
+            for _ in 0..2000 {
+                let outlier = if rng.uniform() < 0.1 { 3.0 } else { 0.0 };
+                let y = DVector::from_fn(2, |_, _| 0.2 * rng.normal() + outlier);
+                filter.step(&DVector::zeros(0), &y).unwrap();
+                if filter.weights().iter().any(|&w| w != 1.0) {
+                    let mut g = l_t.clone();
+                    for (j, w) in filter.weights().iter().enumerate() {
+                        g.row_mut(j).scale_mut(1.0 / w.sqrt());
+                    }
+                    let mut expected = DMatrix::zeros(2, 2);
+                    expected.gemm_tr(1.0, &g, &g, 0.0);
+                    assert_eq!(filter.effective_measurement_covariance(), &expected);
+                    changed += 1;
+                }
+            }
+            assert!(changed > 100, "{changed}");
         }
     }
 
