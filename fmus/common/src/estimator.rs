@@ -136,8 +136,11 @@ impl<K: FilterFamily> Estimator for Filtered<K> {
 
     fn step(&mut self, l: &K::Layout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
         let (u, y) = K::inputs(l);
-        read_inputs(ctx.values, u, "u", &mut self.u)?;
-        read_inputs(ctx.values, y, "y", &mut self.y)?;
+        if !(copy_inputs(ctx.values, u, &mut self.u) && copy_inputs(ctx.values, y, &mut self.y)) {
+            // A non-finite input (or buffers of another size): the message names it.
+            read_inputs(ctx.values, u, "u", &mut self.u)?;
+            read_inputs(ctx.values, y, "y", &mut self.y)?;
+        }
         self.filter.step(&self.u, &self.y).map_err(error)?;
         K::write_outputs(&self.filter, l, ctx.values);
         Ok(())
@@ -275,6 +278,19 @@ pub trait DynamicState {
     fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
 }
 
+/// Copies the inputs of `block` (Real variables) into `buffer` when they are all finite and
+/// fit it (`false`, `buffer` unchanged, otherwise): a slice copy, no allocation.
+#[inline]
+pub fn copy_inputs(values: &Values, block: &Block, buffer: &mut DVector<f64>) -> bool {
+    let source = values.numbers().get(block.indices()).unwrap_or(&[]);
+    let target = buffer.as_mut_slice();
+    let fits = source.len() == target.len() && source.iter().all(|v| v.is_finite());
+    if fits {
+        target.copy_from_slice(source);
+    }
+    fits
+}
+
 /// Copies the inputs of `block` into `buffer` (no allocation), or fails naming the first
 /// non-finite one (`y[2] = NaN`).
 pub fn read_inputs(
@@ -283,6 +299,7 @@ pub fn read_inputs(
     name: &str,
     buffer: &mut DVector<f64>,
 ) -> Result<(), Failure> {
+    let target = buffer.as_mut_slice();
     for (k, index) in block.indices().enumerate() {
         let v = values.real(index);
         if !v.is_finite() {
@@ -291,7 +308,7 @@ pub fn read_inputs(
                 k + 1
             )));
         }
-        if let Some(slot) = buffer.get_mut(k) {
+        if let Some(slot) = target.get_mut(k) {
             *slot = v;
         }
     }

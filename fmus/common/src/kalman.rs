@@ -516,6 +516,13 @@ mod tests {
             rows: 1,
             cols: 1,
         };
+        let mut buffer = DVector::from_element(1, 7.0);
+        assert!(!crate::estimator::copy_inputs(&values, &block, &mut buffer));
+        assert_eq!(buffer[0], 7.0, "left as it was");
+        values.set_real(y as usize, 2.5);
+        assert!(crate::estimator::copy_inputs(&values, &block, &mut buffer));
+        assert_eq!(buffer[0], 2.5);
+        values.set_real(y as usize, f64::INFINITY);
         let error = crate::estimator::read_inputs(&values, &block, "y", &mut DVector::zeros(1));
         assert!(matches!(error, Err(Failure::Error(m)) if m.to_string().contains("`y[1]`")));
     }

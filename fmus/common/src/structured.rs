@@ -46,9 +46,10 @@ impl Block {
         }
     }
     /// Writes a vector into a `rows × 1` block.
+    #[inline]
     pub fn write_vector(&self, values: &mut Values, v: &DVector<f64>) {
-        for (k, idx) in self.indices().enumerate().take(v.len()) {
-            values.set_real(idx, v[k]);
+        for (index, &v) in self.indices().zip(v.as_slice()) {
+            values.set_real(index, v);
         }
     }
 }
