@@ -759,6 +759,23 @@ pub(crate) mod dense {
         gemv_kernels(y, alpha, a, x, beta);
     }
 
+    /// [`gemv`] inlined at the call site, the kernel of the packaged row counts (1, 2, 3, 8)
+    /// chosen there (the same arithmetic in the same order: bit-identical to [`gemv`]).
+    #[inline(always)]
+    pub(crate) fn gemv_inline(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
+        if a.rs == 1 && a.cols > 0 {
+            let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
+            match a.rows {
+                1 => return combine_block::<1>(y, 0, alpha, a, &x, beta),
+                2 => return combine_block::<2>(y, 0, alpha, a, &x, beta),
+                3 => return combine_block::<3>(y, 0, alpha, a, &x, beta),
+                8 => return combine_block::<8>(y, 0, alpha, a, &x, beta),
+                _ => {}
+            }
+        }
+        gemv(y, alpha, a, x, beta);
+    }
+
     pub(super) fn gemv_kernels(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
         let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
         if a.rs == 1 && a.cols > 0 {
@@ -981,6 +998,25 @@ pub(crate) mod dense {
         }
     }
 
+    /// Whether every entry of `v` is finite, without a branch per entry: `x · 0` is ±0 for a
+    /// finite x and NaN for an infinite or NaN one, and a sum of such terms is NaN as soon
+    /// as one is (four running sums, so the loop vectorises).
+    #[inline]
+    pub(crate) fn all_finite(v: &[f64]) -> bool {
+        let (chunks, rest) = v.as_chunks::<4>();
+        let mut acc = [0.0; 4];
+        for chunk in chunks {
+            for (acc, x) in acc.iter_mut().zip(chunk) {
+                *acc += x * 0.0;
+            }
+        }
+        let mut total = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+        for x in rest {
+            total += x * 0.0;
+        }
+        total == 0.0
+    }
+
     /// Replaces the square `n × n` matrix stored in `m` by (m + mᵀ)/2.
     pub(crate) fn symmetrize(m: &mut [f64], n: usize) {
         if m.len() < n * n {
@@ -1028,6 +1064,28 @@ mod tests {
         assert_eq!(y, [1.5, -0.75]);
         dense::gemv(&mut y, 1.0, View::of(&empty), &[], 0.0);
         assert_eq!(y, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn all_finite_finds_any_nan_or_infinity() {
+        for len in [0, 1, 3, 4, 7, 8, 64, 65] {
+            let mut v: Vec<f64> = (0..len).map(|k| (k as f64 - 3.5) * 1e300).collect();
+            assert!(dense::all_finite(&v), "{len}");
+            for k in 0..len {
+                for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                    let keep = v[k];
+                    v[k] = bad;
+                    assert!(!dense::all_finite(&v), "{len} {k} {bad}");
+                    v[k] = keep;
+                }
+            }
+        }
+        assert!(dense::all_finite(&[
+            f64::MAX,
+            -f64::MAX,
+            f64::MIN_POSITIVE,
+            -0.0
+        ]));
     }
 
     #[test]

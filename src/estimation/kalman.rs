@@ -152,8 +152,8 @@ impl FilterCore {
     pub(crate) fn predict(&mut self, a: View<'_>, b: View<'_>, q: &DMatrix<f64>) {
         self.steps += 1;
         let x_prior = self.x_prior.as_mut_slice();
-        dense::gemv(x_prior, 1.0, a, self.x.as_slice(), 0.0);
-        dense::gemv(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
+        dense::gemv_inline(x_prior, 1.0, a, self.x.as_slice(), 0.0);
+        dense::gemv_inline(x_prior, 1.0, b, self.u_prev.as_slice(), 1.0);
         // The packaged sizes run kernels of their own (same arithmetic, unrolled).
         let fixed = match self.x.len() {
             #[cfg(test)]
@@ -199,8 +199,8 @@ impl FilterCore {
     ) -> Result<(), EstimationError> {
         self.innovation.copy_from(y);
         let e = self.innovation.as_mut_slice();
-        dense::gemv(e, -1.0, c, self.x_prior.as_slice(), 1.0);
-        dense::gemv(e, -1.0, d, u.as_slice(), 1.0);
+        dense::gemv_inline(e, -1.0, c, self.x_prior.as_slice(), 1.0);
+        dense::gemv_inline(e, -1.0, d, u.as_slice(), 1.0);
         if e.iter().any(|v| !v.is_finite()) {
             return Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
@@ -232,8 +232,7 @@ impl FilterCore {
             Some(result) => result?,
             None => self.correct_sized(c, r_eff, self.x.len(), self.innovation.len())?,
         }
-        let finite = |v: &[f64]| v.iter().all(|v| v.is_finite());
-        if !(finite(self.x.as_slice()) && finite(self.p.as_slice())) {
+        if !(dense::all_finite(self.x.as_slice()) && dense::all_finite(self.p.as_slice())) {
             return Err(EstimationError::NonFinite {
                 what: "state estimate or its covariance",
                 step: self.steps,
@@ -458,8 +457,8 @@ impl FilterCore {
     /// ŷ = C x̂ + D u, and remembers u for the next prediction.
     pub(crate) fn finish(&mut self, c: View<'_>, d: View<'_>, u: &DVector<f64>) {
         let y = self.output.as_mut_slice();
-        dense::gemv(y, 1.0, c, self.x.as_slice(), 0.0);
-        dense::gemv(y, 1.0, d, u.as_slice(), 1.0);
+        dense::gemv_inline(y, 1.0, c, self.x.as_slice(), 0.0);
+        dense::gemv_inline(y, 1.0, d, u.as_slice(), 1.0);
         self.u_prev.copy_from(u);
     }
 }
@@ -521,16 +520,18 @@ mod fixed {
         // a[k][i] = A(i, k).
         let a = load::<N, N>(a);
         // Column j of W: Σₖ P(:, k) A(j, k).
-        let w: [[f64; N]; N] = std::array::from_fn(|j| {
-            let mut w = p[0].map(|p| p * a[0][j]);
+        let mut w = [[0.0; N]; N];
+        for (j, w) in w.iter_mut().enumerate() {
+            for (w, p) in w.iter_mut().zip(&p[0]) {
+                *w = p * a[0][j];
+            }
             for k in 1..N {
                 let s = a[k][j];
                 for (w, p) in w.iter_mut().zip(&p[k]) {
                     *w += p * s;
                 }
             }
-            w
-        });
+        }
         // Column j of P⁻: A(i, 0) W(0, j) + Q(i, j) + Σₖ A(i, k) W(k, j), kept on rows j..
         // (whole columns vectorise better than their lower parts; the upper part is the
         // mirror of the lower one).
@@ -646,16 +647,13 @@ mod fixed {
                 p_new[i][j] = v;
             }
         }
-        for (target, source) in [
-            (core.work_g.as_mut_slice(), g.as_flattened()),
-            (core.work_s.as_mut_slice(), s.as_flattened()),
-            (core.work_l.as_mut_slice(), factor.as_flattened()),
-            (core.gain_t.as_mut_slice(), gain_t.as_flattened()),
-            (core.gain.as_mut_slice(), gain.as_flattened()),
-            (core.work_h.as_mut_slice(), h.as_flattened()),
-        ] {
-            target.copy_from_slice(source);
-        }
+        // Whole arrays assigned: moves of a known size, no call to memcpy.
+        *columns_mut::<P, N>(core.work_g.as_mut_slice())? = g;
+        *columns_mut::<P, P>(core.work_s.as_mut_slice())? = s;
+        *columns_mut::<P, P>(core.work_l.as_mut_slice())? = factor;
+        *columns_mut::<P, N>(core.gain_t.as_mut_slice())? = gain_t;
+        *columns_mut::<N, P>(core.gain.as_mut_slice())? = gain;
+        *columns_mut::<N, P>(core.work_h.as_mut_slice())? = h;
         Some(Ok(()))
     }
 }

@@ -242,21 +242,27 @@ impl RobustKalmanFilter {
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
         // r = R^{-1/2} e.
-        self.standardized.copy_from(&self.core.innovation);
-        let p = self.standardized.len();
-        if !dense::solve_lower(self.r_sqrt.as_slice(), p, self.standardized.as_mut_slice()) {
+        let z = self.standardized.as_mut_slice();
+        for (z, e) in z.iter_mut().zip(self.core.innovation.as_slice()) {
+            *z = *e;
+        }
+        let p = z.len();
+        if !dense::solve_lower(self.r_sqrt.as_slice(), p, z) {
             return Err(EstimationError::Factorisation {
                 what: "measurement covariance R",
                 step: self.core.steps,
             });
         }
         let mut all_one = true;
-        for (w, &z) in self.weights.iter_mut().zip(self.standardized.iter()) {
+        for (w, &z) in self.weights.as_mut_slice().iter_mut().zip(z.iter()) {
             *w = self.psi.weight(z).max(MIN_WEIGHT);
             all_one &= *w == 1.0;
         }
         if all_one {
-            self.r_effective.copy_from(&m.r);
+            let r_effective = self.r_effective.as_mut_slice();
+            for (r_effective, r) in r_effective.iter_mut().zip(m.r.as_slice()) {
+                *r_effective = *r;
+            }
         } else {
             // G = W^{-1/2} R^{1/2ᵀ}: row j of R^{1/2ᵀ} scaled by 1/√w_j; R̃ = Gᵀ G, its lower
             // triangle as dot products of the columns of G, mirrored.
