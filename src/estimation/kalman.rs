@@ -8,14 +8,15 @@
 //! e  = y_k − C x⁻ − D u_k                      (innovation)
 //! S  = C P⁻ Cᵀ + R                             K = P⁻ Cᵀ S⁻¹   (Cholesky solve S Kᵀ = C P⁻)
 //! x̂_k = x⁻ + K e
-//! P_k = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ       (Joseph form, then symmetrised)
+//! P_k = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ       (Joseph form, on one triangle, mirrored)
 //! ŷ_k = C x̂_k + D u_k                          (filtered output)
 //! ```
 //!
 //! Paper 000 prints P⁻ = P + Q: the special case A = I. The Joseph form equals
 //! P = (I − K C) P⁻ for the optimal gain and keeps P symmetric positive (semi)definite in
-//! floating point. `u_{k−1}` is zero before the first call; x̂₀, P₀ are the estimate one sample
-//! before the first measurement.
+//! floating point; it is evaluated in O(n²p) as P⁻ − K G + (K S − Gᵀ) Kᵀ with G = C P⁻, the
+//! same matrix for any K (see `FilterCore`). `u_{k−1}` is zero before the first call; x̂₀, P₀
+//! are the estimate one sample before the first measurement.
 
 use super::{
     require_input_length, require_length, require_psd, require_spd, EstimationError, Saved,
