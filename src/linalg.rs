@@ -763,6 +763,10 @@ pub(crate) mod dense {
     /// chosen there (the same arithmetic in the same order: bit-identical to [`gemv`]).
     #[inline(always)]
     pub(crate) fn gemv_inline(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
+        if a.cols == 0 && beta == 1.0 {
+            // No input: y · 1 = y.
+            return;
+        }
         if a.rs == 1 && a.cols > 0 {
             let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
             match a.rows {

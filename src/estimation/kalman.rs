@@ -198,11 +198,13 @@ impl FilterCore {
         u: &DVector<f64>,
         y: &DVector<f64>,
     ) -> Result<(), EstimationError> {
-        self.innovation.copy_from(y);
         let e = self.innovation.as_mut_slice();
+        for (e, y) in e.iter_mut().zip(y.as_slice()) {
+            *e = *y;
+        }
         dense::gemv_inline(e, -1.0, c, self.x_prior.as_slice(), 1.0);
         dense::gemv_inline(e, -1.0, d, u.as_slice(), 1.0);
-        if e.iter().any(|v| !v.is_finite()) {
+        if !dense::all_finite(e) {
             return Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
                 step: self.steps,
@@ -460,7 +462,9 @@ impl FilterCore {
         let y = self.output.as_mut_slice();
         dense::gemv_inline(y, 1.0, c, self.x.as_slice(), 0.0);
         dense::gemv_inline(y, 1.0, d, u.as_slice(), 1.0);
-        self.u_prev.copy_from(u);
+        for (u_prev, u) in self.u_prev.as_mut_slice().iter_mut().zip(u.as_slice()) {
+            *u_prev = *u;
+        }
     }
 }
 
