@@ -767,31 +767,35 @@ pub(crate) mod dense {
             // No input: y · 1 = y.
             return;
         }
-        if a.rs == 1 && a.cols > 0 {
-            let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
-            match a.rows {
-                1 => return combine_block::<1>(y, 0, alpha, a, &x, beta),
-                2 => return combine_block::<2>(y, 0, alpha, a, &x, beta),
-                3 => return combine_block::<3>(y, 0, alpha, a, &x, beta),
-                8 => return combine_block::<8>(y, 0, alpha, a, &x, beta),
-                _ => {}
-            }
+        if !gemv_rows(y, alpha, a, x, beta) {
+            gemv(y, alpha, a, x, beta);
         }
-        gemv(y, alpha, a, x, beta);
+    }
+
+    /// `y ← α A x + β y` by the kernel of A's row count when it is one of 1, 2, 3, 4, 8 and
+    /// A's columns are contiguous (`false`, nothing done, otherwise).
+    #[inline(always)]
+    fn gemv_rows(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) -> bool {
+        if a.rs != 1 || a.cols == 0 {
+            return false;
+        }
+        let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
+        match a.rows {
+            1 => combine_block::<1>(y, 0, alpha, a, &x, beta),
+            2 => combine_block::<2>(y, 0, alpha, a, &x, beta),
+            3 => combine_block::<3>(y, 0, alpha, a, &x, beta),
+            4 => combine_block::<4>(y, 0, alpha, a, &x, beta),
+            8 => combine_block::<8>(y, 0, alpha, a, &x, beta),
+            _ => return false,
+        }
+        true
     }
 
     pub(super) fn gemv_kernels(y: &mut [f64], alpha: f64, a: View<'_>, x: &[f64], beta: f64) {
-        let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
-        if a.rs == 1 && a.cols > 0 {
-            match a.rows {
-                1 => return combine_block::<1>(y, 0, alpha, a, &x, beta),
-                2 => return combine_block::<2>(y, 0, alpha, a, &x, beta),
-                4 => return combine_block::<4>(y, 0, alpha, a, &x, beta),
-                8 => return combine_block::<8>(y, 0, alpha, a, &x, beta),
-                _ => {}
-            }
+        if !gemv_rows(y, alpha, a, x, beta) {
+            let x = |k: usize| x.get(k).copied().unwrap_or(0.0);
+            combine(y, alpha, a, x, beta);
         }
-        combine(y, alpha, a, x, beta);
     }
 
     /// `C ← α A B + β C` for a `C` stored contiguously (`A.rows` rows; any strides, e.g. a

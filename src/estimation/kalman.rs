@@ -258,31 +258,31 @@ impl FilterCore {
     /// [`FilterCore::correct_scalar`] on the numbers c and r.
     #[inline(always)]
     fn correct_one(&mut self, c: f64, r: f64) -> Result<(), EstimationError> {
-        let ([x], [p], [x_prior], [p_prior], [e], [gain_t], [gain], [work_g], [work_s], [work_l]) = (
-            self.x.as_mut_slice(),
-            self.p.as_mut_slice(),
-            self.x_prior.as_slice(),
-            self.p_prior.as_slice(),
-            self.innovation.as_slice(),
-            self.gain_t.as_mut_slice(),
-            self.gain.as_mut_slice(),
-            self.work_g.as_mut_slice(),
-            self.work_s.as_mut_slice(),
-            self.work_l.as_mut_slice(),
+        let (Some(x_prior), Some(p_prior), Some(e)) = (
+            one(self.x_prior.as_slice()),
+            one(self.p_prior.as_slice()),
+            one(self.innovation.as_slice()),
         ) else {
             return Ok(());
         };
         let g = c * p_prior;
         let s = g * c + r;
-        *work_g = g;
-        *work_s = s;
-        let l = factor_scalar(work_l, s, self.steps)?;
+        let mut l = 0.0;
+        let factor = factor_scalar(&mut l, s, self.steps);
+        put([
+            (self.work_g.as_mut_slice(), g),
+            (self.work_s.as_mut_slice(), s),
+            (self.work_l.as_mut_slice(), l),
+        ]);
+        let l = factor?;
         let k = g / l / l;
-        *gain_t = k;
-        *gain = k;
-        *x = x_prior + k * e;
         let m = k * -c + 1.0;
-        *p = m * (p_prior * m) + k * (r * k);
+        put([
+            (self.gain_t.as_mut_slice(), k),
+            (self.gain.as_mut_slice(), k),
+            (self.x.as_mut_slice(), x_prior + k * e),
+            (self.p.as_mut_slice(), m * (p_prior * m) + k * (r * k)),
+        ]);
         Ok(())
     }
 
@@ -303,66 +303,55 @@ impl FilterCore {
         if self.general_only {
             return None;
         }
-        let ([a], [c], [q], [y]) = (
-            model.a.as_slice(),
-            model.c.as_slice(),
-            model.q.as_slice(),
-            y.as_slice(),
-        ) else {
-            return None;
-        };
-        let (a, c, q, y) = (*a, *c, *q, *y);
+        let (a, c, q, y) = (
+            one(model.a.as_slice())?,
+            one(model.c.as_slice())?,
+            one(model.q.as_slice())?,
+            one(y.as_slice())?,
+        );
+        let (x, p) = (one(self.x.as_slice())?, one(self.p.as_slice())?);
         // (u_k, u_{k−1}, b, d) when there is an input.
-        let input = match (
-            u.as_slice(),
-            self.u_prev.as_slice(),
-            model.b.as_slice(),
-            model.d.as_slice(),
-        ) {
-            ([], [], [], []) => None,
-            ([u], [u_prev], [b], [d]) => Some((*u, *u_prev, *b, *d)),
+        let input = match (u.len(), self.u_prev.len(), model.b.len(), model.d.len()) {
+            (0, 0, 0, 0) => None,
+            (1, 1, 1, 1) => Some((
+                one(u.as_slice())?,
+                one(self.u_prev.as_slice())?,
+                one(model.b.as_slice())?,
+                one(model.d.as_slice())?,
+            )),
             _ => return None,
         };
-        let ([x], [p], [x_prior], [p_prior], [w], [e]) = (
-            self.x.as_slice(),
-            self.p.as_slice(),
-            self.x_prior.as_mut_slice(),
-            self.p_prior.as_mut_slice(),
-            self.work_nn.as_mut_slice(),
-            self.innovation.as_mut_slice(),
-        ) else {
+        if self.x_prior.len() != 1 || self.p_prior.len() != 1 || self.innovation.len() != 1 {
             return None;
-        };
+        }
         self.steps += 1;
         // x⁻ = a x̂ + b u_{k−1}, P⁻ = a (P a) + q, e = (y − c x⁻) − d u.
-        *x_prior = a * x;
+        let mut x_prior = a * x;
         if let Some((_, u_prev, b, _)) = input {
-            *x_prior += b * u_prev;
+            x_prior += b * u_prev;
         }
-        *w = p * a;
-        *p_prior = a * *w + q;
-        *e = c * -*x_prior + y;
+        let w = p * a;
+        let mut e = c * -x_prior + y;
         if let Some((u, _, _, d)) = input {
-            *e += d * -u;
+            e += d * -u;
         }
+        put([
+            (self.x_prior.as_mut_slice(), x_prior),
+            (self.work_nn.as_mut_slice(), w),
+            (self.p_prior.as_mut_slice(), a * w + q),
+            (self.innovation.as_mut_slice(), e),
+        ]);
         if !e.is_finite() {
             return Some(Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
                 step: self.steps,
             }));
         }
-        let r = r_eff(*e);
+        let r = r_eff(e);
         if let Err(error) = self.correct_one(c, r) {
             return Some(Err(error));
         }
-        let ([x], [p], [output]) = (
-            self.x.as_slice(),
-            self.p.as_slice(),
-            self.output.as_mut_slice(),
-        ) else {
-            return None;
-        };
-        let x = *x;
+        let (x, p) = (one(self.x.as_slice())?, one(self.p.as_slice())?);
         if !(x.is_finite() && p.is_finite()) {
             return Some(Err(EstimationError::NonFinite {
                 what: "state estimate or its covariance",
@@ -370,11 +359,12 @@ impl FilterCore {
             }));
         }
         // ŷ = c x̂ + d u.
-        *output = c * x;
-        if let (Some((u, _, _, d)), [u_prev]) = (input, self.u_prev.as_mut_slice()) {
-            *output += d * u;
-            *u_prev = u;
+        let mut output = c * x;
+        if let Some((u, _, _, d)) = input {
+            output += d * u;
+            put([(self.u_prev.as_mut_slice(), u)]);
         }
+        put([(self.output.as_mut_slice(), output)]);
         Some(Ok(()))
     }
 
@@ -506,6 +496,28 @@ mod fixed {
         <&mut [[f64; R]; C]>::try_from(s.as_chunks_mut::<R>().0).ok()
     }
 
+    /// `start + Σₖ columns[k] · weight(k)` (start 0 when `None`), summed term by term from
+    /// the first column: the order of the general kernels' products.
+    #[inline(always)]
+    fn combination<const R: usize, const K: usize>(
+        columns: &[[f64; R]; K],
+        weight: impl Fn(usize) -> f64,
+        start: Option<&[f64; R]>,
+    ) -> [f64; R] {
+        let mut sum = [0.0; R];
+        for (k, column) in columns.iter().enumerate() {
+            let s = weight(k);
+            for (r, (sum, x)) in sum.iter_mut().zip(column).enumerate() {
+                *sum = match (k, start) {
+                    (0, None) => x * s,
+                    (0, Some(start)) => start[r] + x * s,
+                    _ => *sum + x * s,
+                };
+            }
+        }
+        sum
+    }
+
     /// P⁻ = A P Aᵀ + Q: W = P Aᵀ, then P⁻ = A W + Q on the lower triangle, mirrored.
     #[inline(always)]
     pub(super) fn predict<const N: usize>(
@@ -527,30 +539,13 @@ mod fixed {
         // Column j of W: Σₖ P(:, k) A(j, k).
         let mut w = [[0.0; N]; N];
         for (j, w) in w.iter_mut().enumerate() {
-            for (w, p) in w.iter_mut().zip(&p[0]) {
-                *w = p * a[0][j];
-            }
-            for k in 1..N {
-                let s = a[k][j];
-                for (w, p) in w.iter_mut().zip(&p[k]) {
-                    *w += p * s;
-                }
-            }
+            *w = combination(p, |k| a[k][j], None);
         }
         // Column j of P⁻: A(i, 0) W(0, j) + Q(i, j) + Σₖ A(i, k) W(k, j), kept on rows j..
         // (whole columns vectorise better than their lower parts; the upper part is the
         // mirror of the lower one).
         for j in 0..N {
-            let mut column = q[j];
-            for (c, a) in column.iter_mut().zip(&a[0]) {
-                *c += a * w[j][0];
-            }
-            for k in 1..N {
-                let s = w[j][k];
-                for (c, a) in column.iter_mut().zip(&a[k]) {
-                    *c += a * s;
-                }
-            }
+            let column = combination(&a, |k| w[j][k], Some(&q[j]));
             for i in j..N {
                 p_prior[j][i] = column[i];
                 p_prior[i][j] = column[i];
@@ -574,28 +569,12 @@ mod fixed {
         // G = C P⁻: column j is Σₖ C(:, k) P⁻(k, j).
         let mut g = [[0.0; P]; N];
         for (j, g) in g.iter_mut().enumerate() {
-            for (g, c) in g.iter_mut().zip(&c[0]) {
-                *g = c * p_prior[j][0];
-            }
-            for k in 1..N {
-                let s = p_prior[j][k];
-                for (g, c) in g.iter_mut().zip(&c[k]) {
-                    *g += c * s;
-                }
-            }
+            *g = combination(&c, |k| p_prior[j][k], None);
         }
         // S = R + G Cᵀ: column l is G(:, 0) C(l, 0) + R(:, l) + Σₖ G(:, k) C(l, k).
         let mut s = [[0.0; P]; P];
         for (l, column) in s.iter_mut().enumerate() {
-            for ((s, g), r) in column.iter_mut().zip(&g[0]).zip(&r[l]) {
-                *s = g * c[0][l] + r;
-            }
-            for k in 1..N {
-                let x = c[k][l];
-                for (s, g) in column.iter_mut().zip(&g[k]) {
-                    *s += g * x;
-                }
-            }
+            *column = combination(&g, |k| c[k][l], Some(&r[l]));
         }
         let mut factor = s;
         let steps = core.steps;
@@ -660,6 +639,25 @@ mod fixed {
         *columns_mut::<N, P>(core.gain.as_mut_slice())? = gain;
         *columns_mut::<N, P>(core.work_h.as_mut_slice())? = h;
         Some(Ok(()))
+    }
+}
+
+/// The entry of a buffer of one entry (a 1×1 matrix, a vector of length 1).
+#[inline(always)]
+fn one(v: &[f64]) -> Option<f64> {
+    match v {
+        [v] => Some(*v),
+        _ => None,
+    }
+}
+
+/// Writes each value into its buffer of one entry; other buffers are left alone.
+#[inline(always)]
+fn put<const K: usize>(targets: [(&mut [f64], f64); K]) {
+    for (target, value) in targets {
+        if let [v] = target {
+            *v = value;
+        }
     }
 }
 
