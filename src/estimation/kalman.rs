@@ -244,53 +244,37 @@ impl FilterCore {
         Ok(())
     }
 
-    /// [`FilterCore::correct`] for n = p = 1, in the order of the former matrix kernels
-    /// (bit-identical): s = (c P⁻) c + r, k = (c P⁻)/√s/√s, x̂ = x⁻ + k e,
-    /// P = m (P⁻ m) + k (r k) with m = k (−c) + 1.
+    /// [`FilterCore::correct`] for n = p = 1: [`joseph_scalar`].
     #[inline(always)]
     fn correct_scalar(&mut self, c: View<'_>, r: &DMatrix<f64>) -> Result<(), EstimationError> {
-        match r.as_slice() {
-            [r] => self.correct_one(c.at(0, 0), *r),
-            _ => Ok(()),
-        }
-    }
-
-    /// [`FilterCore::correct_scalar`] on the numbers c and r.
-    #[inline(always)]
-    fn correct_one(&mut self, c: f64, r: f64) -> Result<(), EstimationError> {
-        let (Some(x_prior), Some(p_prior), Some(e)) = (
+        let (Some(r), Some(x_prior), Some(p_prior), Some(e)) = (
+            one(r.as_slice()),
             one(self.x_prior.as_slice()),
             one(self.p_prior.as_slice()),
             one(self.innovation.as_slice()),
         ) else {
             return Ok(());
         };
-        let g = c * p_prior;
-        let s = g * c + r;
-        let mut l = 0.0;
-        let factor = factor_scalar(&mut l, s, self.steps);
-        put([
-            (self.work_g.as_mut_slice(), g),
-            (self.work_s.as_mut_slice(), s),
-            (self.work_l.as_mut_slice(), l),
-        ]);
-        let l = factor?;
-        let k = g / l / l;
-        let m = k * -c + 1.0;
-        put([
+        let (k, x, p) = joseph_scalar(c.at(0, 0), r, x_prior, p_prior, e, self.steps)?;
+        for (target, value) in [
             (self.gain_t.as_mut_slice(), k),
             (self.gain.as_mut_slice(), k),
-            (self.x.as_mut_slice(), x_prior + k * e),
-            (self.p.as_mut_slice(), m * (p_prior * m) + k * (r * k)),
-        ]);
+            (self.x.as_mut_slice(), x),
+            (self.p.as_mut_slice(), p),
+        ] {
+            if let [v] = target {
+                *v = value;
+            }
+        }
         Ok(())
     }
 
     /// A whole step of a filter with one state, one output and at most one input, in the
     /// order of the general path (bit-identical to it) without its matrix machinery:
     /// predict, innovation e, then `r_eff(e)` gives the measurement covariance of the
-    /// correction (the rsKF's R̃; the sKF's R), correct, finish. `None` (nothing done) when
-    /// the filter or the sample has other sizes: the caller takes the general path.
+    /// correction (the rsKF's R̃; the sKF's R), correct ([`joseph_scalar`]), finish. `None`
+    /// (nothing done) when the filter or the sample has other sizes: the caller takes the
+    /// general path.
     #[inline(always)]
     pub(crate) fn step_scalar(
         &mut self,
@@ -303,68 +287,67 @@ impl FilterCore {
         if self.general_only {
             return None;
         }
-        let (a, c, q, y) = (
-            one(model.a.as_slice())?,
-            one(model.c.as_slice())?,
-            one(model.q.as_slice())?,
-            one(y.as_slice())?,
-        );
-        let (x, p) = (one(self.x.as_slice())?, one(self.p.as_slice())?);
+        let (a, c) = (one(model.a.as_slice())?, one(model.c.as_slice())?);
+        let (q, y) = (one(model.q.as_slice())?, one(y.as_slice())?);
         // (u_k, u_{k−1}, b, d) when there is an input.
-        let input = match (u.len(), self.u_prev.len(), model.b.len(), model.d.len()) {
-            (0, 0, 0, 0) => None,
-            (1, 1, 1, 1) => Some((
-                one(u.as_slice())?,
-                one(self.u_prev.as_slice())?,
-                one(model.b.as_slice())?,
-                one(model.d.as_slice())?,
-            )),
+        let input = match (
+            u.as_slice(),
+            self.u_prev.as_mut_slice(),
+            model.b.as_slice(),
+            model.d.as_slice(),
+        ) {
+            ([], [], [], []) => None,
+            ([u], [u_prev], [b], [d]) => Some((*u, u_prev, *b, *d)),
             _ => return None,
         };
-        if self.x_prior.len() != 1 || self.p_prior.len() != 1 || self.innovation.len() != 1 {
-            return None;
-        }
+        let (x, p) = (only(self.x.as_mut_slice())?, only(self.p.as_mut_slice())?);
+        let x_prior = only(self.x_prior.as_mut_slice())?;
+        let p_prior = only(self.p_prior.as_mut_slice())?;
+        let (w, e) = (
+            only(self.work_nn.as_mut_slice())?,
+            only(self.innovation.as_mut_slice())?,
+        );
+        let gain_t = only(self.gain_t.as_mut_slice())?;
+        let (gain, output) = (
+            only(self.gain.as_mut_slice())?,
+            only(self.output.as_mut_slice())?,
+        );
         self.steps += 1;
+        let step = self.steps;
         // x⁻ = a x̂ + b u_{k−1}, P⁻ = a (P a) + q, e = (y − c x⁻) − d u.
-        let mut x_prior = a * x;
-        if let Some((_, u_prev, b, _)) = input {
-            x_prior += b * u_prev;
+        *x_prior = a * *x;
+        if let Some((_, u_prev, b, _)) = &input {
+            *x_prior += b * **u_prev;
         }
-        let w = p * a;
-        let mut e = c * -x_prior + y;
-        if let Some((u, _, _, d)) = input {
-            e += d * -u;
+        *w = *p * a;
+        *p_prior = a * *w + q;
+        *e = c * -*x_prior + y;
+        if let Some((u, _, _, d)) = &input {
+            *e += d * -u;
         }
-        put([
-            (self.x_prior.as_mut_slice(), x_prior),
-            (self.work_nn.as_mut_slice(), w),
-            (self.p_prior.as_mut_slice(), a * w + q),
-            (self.innovation.as_mut_slice(), e),
-        ]);
         if !e.is_finite() {
             return Some(Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
-                step: self.steps,
+                step,
             }));
         }
-        let r = r_eff(e);
-        if let Err(error) = self.correct_one(c, r) {
-            return Some(Err(error));
-        }
-        let (x, p) = (one(self.x.as_slice())?, one(self.p.as_slice())?);
-        if !(x.is_finite() && p.is_finite()) {
+        let (k, x_new, p_new) = match joseph_scalar(c, r_eff(*e), *x_prior, *p_prior, *e, step) {
+            Ok(update) => update,
+            Err(error) => return Some(Err(error)),
+        };
+        (*gain_t, *gain, *x, *p) = (k, k, x_new, p_new);
+        if !(x_new.is_finite() && p_new.is_finite()) {
             return Some(Err(EstimationError::NonFinite {
                 what: "state estimate or its covariance",
-                step: self.steps,
+                step,
             }));
         }
         // ŷ = c x̂ + d u.
-        let mut output = c * x;
-        if let Some((u, _, _, d)) = input {
-            output += d * u;
-            put([(self.u_prev.as_mut_slice(), u)]);
+        *output = c * x_new;
+        if let Some((u, u_prev, _, d)) = input {
+            *output += d * u;
+            *u_prev = u;
         }
-        put([(self.output.as_mut_slice(), output)]);
         Some(Ok(()))
     }
 
@@ -642,6 +625,15 @@ mod fixed {
     }
 }
 
+/// The entry of a buffer of one entry, to write.
+#[inline(always)]
+fn only(v: &mut [f64]) -> Option<&mut f64> {
+    match v {
+        [v] => Some(v),
+        _ => None,
+    }
+}
+
 /// The entry of a buffer of one entry (a 1×1 matrix, a vector of length 1).
 #[inline(always)]
 fn one(v: &[f64]) -> Option<f64> {
@@ -651,40 +643,42 @@ fn one(v: &[f64]) -> Option<f64> {
     }
 }
 
-/// Writes each value into its buffer of one entry; other buffers are left alone.
+/// The correction of a filter with one state and one output, the Joseph form as written (as
+/// cheap as any other there), in the order of the former matrix kernels (bit-identical):
+/// g = c P⁻, s = g c + r, k = g/√s/√s, x̂ = x⁻ + k e, P = m (P⁻ m) + k (r k) with
+/// m = k (−c) + 1. Gives (k, x̂, P), or the error of [`FilterCore::correct`] when s is not
+/// finite and positive.
 #[inline(always)]
-fn put<const K: usize>(targets: [(&mut [f64], f64); K]) {
-    for (target, value) in targets {
-        if let [v] = target {
-            *v = value;
-        }
-    }
-}
-
-/// The name of S in the errors of [`FilterCore::correct`].
-const INNOVATION_COVARIANCE: &str = "innovation covariance C P⁻ Cᵀ + R";
-
-/// The 1×1 Cholesky factor √s, also written into `l` (0 when s is not positive), or the
-/// error of [`FilterCore::correct`].
-#[inline(always)]
-fn factor_scalar(l: &mut f64, s: f64, step: u64) -> Result<f64, EstimationError> {
+fn joseph_scalar(
+    c: f64,
+    r: f64,
+    x_prior: f64,
+    p_prior: f64,
+    e: f64,
+    step: u64,
+) -> Result<(f64, f64, f64), EstimationError> {
+    let g = c * p_prior;
+    let s = g * c + r;
     if !s.is_finite() {
-        *l = 0.0;
         return Err(EstimationError::NonFinite {
             what: INNOVATION_COVARIANCE,
             step,
         });
     }
-    if s > 0.0 {
-        *l = s.sqrt();
-        return Ok(*l);
+    if s <= 0.0 {
+        return Err(EstimationError::Factorisation {
+            what: INNOVATION_COVARIANCE,
+            step,
+        });
     }
-    *l = 0.0;
-    Err(EstimationError::Factorisation {
-        what: INNOVATION_COVARIANCE,
-        step,
-    })
+    let l = s.sqrt();
+    let k = g / l / l;
+    let m = k * -c + 1.0;
+    Ok((k, x_prior + k * e, m * (p_prior * m) + k * (r * k)))
 }
+
+/// The name of S in the errors of [`FilterCore::correct`].
+const INNOVATION_COVARIANCE: &str = "innovation covariance C P⁻ Cᵀ + R";
 
 impl Saved for FilterCore {
     /// Appends every evolving quantity (estimates, covariances, last input, last innovation and
