@@ -346,6 +346,7 @@ impl<F: LinearFilter> FilterFamily for Linear<F> {
         write_initial_linear(layout, ctx);
     }
 
+    #[inline(always)]
     fn write_outputs(filter: &F, l: &LinearLayout, values: &mut Values) {
         l.x_hat.write_vector(values, filter.state());
         l.y_hat.write_vector(values, filter.output());
