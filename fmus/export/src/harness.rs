@@ -250,6 +250,16 @@ impl<M: FmuModel> Harness<M> {
             ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
+    /// `fmi2GetInteger` into `out`.
+    pub fn get_integer(&mut self, vr: &[u32], out: &mut [i32]) -> Result<Status, Status> {
+        if vr.len() != out.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::get::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+        })
+    }
     /// `fmi2GetReal` of one variable.
     pub fn real(&mut self, vr: u32) -> Result<f64, Status> {
         let mut out = [f64::NAN];

@@ -514,20 +514,23 @@ fn read_fast<M: FmuModel, C>(
             return None;
         }
         let first = span.first as usize;
-        match span.len {
-            0 => *out.get_mut(k)? = to_c(instance.time()),
-            1 => *out.get_mut(k)? = to_c(*numbers.get(first)?),
-            _ => None?,
-        }
-        if span.len <= 1 {
-            k += 1;
-            continue;
-        }
-        let xs = numbers.get(first..first + span.len as usize)?;
-        for (o, &x) in out.get_mut(k..k + xs.len())?.iter_mut().zip(xs) {
-            *o = to_c(x);
-        }
-        k += xs.len();
+        k += match span.len as usize {
+            0 => {
+                *out.get_mut(k)? = to_c(instance.time());
+                1
+            }
+            1 => {
+                *out.get_mut(k)? = to_c(*numbers.get(first)?);
+                1
+            }
+            len => {
+                let xs = numbers.get(first..first + len)?;
+                for (o, &x) in out.get_mut(k..k + len)?.iter_mut().zip(xs) {
+                    *o = to_c(x);
+                }
+                len
+            }
+        };
     }
     (k == out.len()).then_some(Status::Ok)
 }
