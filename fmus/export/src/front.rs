@@ -14,7 +14,7 @@ use crate::fmi3::arrays::Layout;
 use crate::instance::{Access, Core, Function, Instance};
 use crate::model::{Cause, FmuModel};
 use crate::types::Status;
-use crate::variables::{computed_range, Value, VariableType};
+use crate::variables::{computed_runs, Value, VariableType};
 use std::any::TypeId;
 use std::ffi::CString;
 use std::os::raw::{c_char, c_int, c_void};
@@ -31,13 +31,13 @@ pub struct Interface {
     pub info: ModelInfo,
     /// How each variable may be accessed, by value reference.
     pub access: Vec<Access>,
-    /// The indices from the first to the last variable a model call may write
-    /// ([`crate::variables::computed_range`]): what is copied before the call and checked
-    /// for non-finite values after it (one `memcpy`, one branch-free scan). Parameters and
-    /// inputs inside it are copied and scanned too: the model does not change them (checked
-    /// in debug builds), and what the master sets is finite.
-    pub computed: std::ops::Range<usize>,
-    /// Whether a String is in that range (the texts are then copied too).
+    /// The variables a model call may write, as runs of indices
+    /// ([`crate::variables::computed_runs`]): what is copied before the call and checked for
+    /// non-finite values after it (a `memcpy` and a branch-free scan a run). Parameters and
+    /// inputs a run spans are copied and scanned too: the model does not change them
+    /// (checked in debug builds), and what the master sets is finite.
+    pub computed: Vec<std::ops::Range<usize>>,
+    /// Whether a String is in a run (the texts are then copied too).
     pub computed_texts: bool,
     /// The FMI 3.0 variables (arrays) over the table.
     pub layout: Layout,
@@ -63,9 +63,10 @@ impl Interface {
     pub fn new(info: ModelInfo) -> Self {
         let access: Vec<Access> = info.variables.iter().map(Access::of).collect();
         let layout = Layout::of(&info.variables);
-        let computed = computed_range(&info.variables);
-        let computed_texts = info.variables[computed.clone()]
+        let computed = computed_runs(&info.variables);
+        let computed_texts = computed
             .iter()
+            .flat_map(|run| &info.variables[run.clone()])
             .any(|v| v.variable_type() == VariableType::String);
         let time = Span {
             first: 0,
@@ -87,6 +88,11 @@ impl Interface {
             layout,
             spans,
         }
+    }
+
+    /// The number of values the runs of [`Interface::computed`] hold.
+    pub fn computed_len(&self) -> usize {
+        self.computed.iter().map(|run| run.len()).sum()
     }
 }
 

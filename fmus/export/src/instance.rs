@@ -15,7 +15,9 @@
 //! from which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
 //!
 //! **No non-finite value is ever published.** After every model call that computes values
-//! (initialisation, a step, direct feedthrough, tunable parameters), every Real is checked; a
+//! (initialisation, a step, direct feedthrough, tunable parameters), every value the call may
+//! write (outputs, locals, calculated parameters: [`Interface::computed`]; a model never writes
+//! its parameters or inputs, checked in debug builds) is checked by a branch-free scan; a
 //! NaN or ±∞ is `fmi2Error` naming the variable, the values go back to those before the call
 //! (so `fmi2GetReal` in the `Error` state reads the last finite values, never the NaN), the
 //! time does not advance, and the instance moves to the `Error` state (the model's internal
@@ -468,7 +470,7 @@ impl<M: FmuModel> Instance<M> {
         let model = M::create(&interface.info)?;
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
-            before: vec![0.0; interface.computed.len()],
+            before: vec![0.0; interface.computed_len()],
             interface,
             logger,
             me: None,
@@ -587,13 +589,16 @@ impl<M: FmuModel> Instance<M> {
     /// Copies the values a model call may change into the roll-back buffer.
     #[inline(always)]
     fn save_computed(&mut self) {
-        if let Some(from) = self
-            .core
-            .values
-            .numbers()
-            .get(self.interface.computed.clone())
-        {
-            self.before.copy_from_slice(from);
+        let numbers = self.core.values.numbers();
+        let mut to = self.before.as_mut_slice();
+        for run in &self.interface.computed {
+            let (Some(from), Some((head, tail))) =
+                (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
+            else {
+                break;
+            };
+            head.copy_from_slice(from);
+            to = tail;
         }
         if self.interface.computed_texts {
             self.before_texts.clone_from(self.core.values.texts());
@@ -604,9 +609,17 @@ impl<M: FmuModel> Instance<M> {
 
     /// Puts back the values [`Instance::save_computed`] copied.
     fn restore_computed(&mut self) {
-        let range = self.interface.computed.clone();
-        if let Some(to) = self.core.values.numbers_mut().get_mut(range) {
-            to.copy_from_slice(&self.before);
+        let numbers = self.core.values.numbers_mut();
+        let mut from = self.before.as_slice();
+        for run in &self.interface.computed {
+            let (Some(to), Some((head, tail))) = (
+                numbers.get_mut(run.clone()),
+                from.split_at_checked(run.len()),
+            ) else {
+                break;
+            };
+            to.copy_from_slice(head);
+            from = tail;
         }
         if self.interface.computed_texts {
             self.core.values.texts_mut().clone_from(&self.before_texts);
@@ -617,9 +630,10 @@ impl<M: FmuModel> Instance<M> {
     #[inline(always)]
     fn computed_finite(&self) -> bool {
         let numbers = self.core.values.numbers();
-        numbers
-            .get(self.interface.computed.clone())
-            .is_none_or(all_finite)
+        self.interface
+            .computed
+            .iter()
+            .all(|run| numbers.get(run.clone()).is_none_or(all_finite))
     }
 
     /// A model call wrote only the values it computes (a debug-build check of the contract
@@ -628,7 +642,8 @@ impl<M: FmuModel> Instance<M> {
     fn check_only_computed_changed(&self, f: &Function) {
         let (now, before) = (self.core.values.numbers(), self.before_all.numbers());
         let changed = (0..now.len()).find(|&i| {
-            now[i].to_bits() != before[i].to_bits() && !self.interface.computed.contains(&i)
+            now[i].to_bits() != before[i].to_bits()
+                && !self.interface.computed.iter().any(|run| run.contains(&i))
         });
         if let Some(i) = changed {
             panic!(
@@ -655,14 +670,11 @@ impl<M: FmuModel> Instance<M> {
     #[cold]
     #[inline(never)]
     fn unpublish(&mut self, f: &Function) -> Status {
-        let range = self.interface.computed.clone();
-        let found = self
-            .core
-            .values
-            .numbers()
-            .get(range.clone())
-            .and_then(first_non_finite)
-            .map(|(k, x)| (range.start + k, x));
+        let numbers = self.core.values.numbers();
+        let found = self.interface.computed.iter().find_map(|run| {
+            let (k, x) = first_non_finite(numbers.get(run.clone())?)?;
+            Some((run.start + k, x))
+        });
         self.restore_computed();
         self.core.state = ModelState::Error;
         let (index, value) = found.unwrap_or((usize::MAX, f64::NAN));

@@ -618,13 +618,15 @@ pub fn all_finite(xs: &[f64]) -> bool {
                 *a += x * 0.0;
             }
         }
-        let lanes = [
-            acc[0] + acc[1],
-            acc[2] + acc[3],
-            acc[4] + acc[5],
-            acc[6] + acc[7],
+        // lane k with lane k + 4, then k with k + 2: the adds of whole registers, so that
+        // the loop keeps the lanes in their registers (no shuffles)
+        let half = [
+            acc[0] + acc[4],
+            acc[1] + acc[5],
+            acc[2] + acc[6],
+            acc[3] + acc[7],
         ];
-        sum += (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+        sum += (half[0] + half[2]) + (half[1] + half[3]);
     }
     !sum.is_nan()
 }
@@ -636,20 +638,27 @@ pub fn first_non_finite(xs: &[f64]) -> Option<(usize, f64)> {
     xs.iter().position(|x| !x.is_finite()).map(|i| (i, xs[i]))
 }
 
-/// The indices from the first to the last variable a model call may write (outputs, locals,
-/// calculated parameters: everything but parameters and inputs, which only the master sets;
-/// empty when there is none): what the export layer copies before a model call and checks
-/// for non-finite values after it.
-pub fn computed_range(variables: &[Variable]) -> std::ops::Range<usize> {
-    let computed = |v: &Variable| !matches!(v.causality, Causality::Parameter | Causality::Input);
-    match variables.iter().position(computed) {
-        Some(first) => {
-            let last = variables.iter().rposition(computed).unwrap_or(first);
-            first..last + 1
+/// The variables a model call may write (outputs, locals, calculated parameters: everything
+/// but parameters and inputs, which only the master sets), as runs of consecutive indices:
+/// what the export layer copies before a model call and checks for non-finite values after
+/// it. Two runs apart by at most [`RUN_GAP`] other variables are one run (copying and
+/// scanning a few parameters costs less than another run; a model does not change them).
+pub fn computed_runs(variables: &[Variable]) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, v) in variables.iter().enumerate() {
+        if matches!(v.causality, Causality::Parameter | Causality::Input) {
+            continue;
         }
-        None => 0..0,
+        match runs.last_mut() {
+            Some(run) if i - run.end <= RUN_GAP => run.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
     }
+    runs
 }
+
+/// The most parameters or inputs between two computed runs that [`computed_runs`] joins.
+pub const RUN_GAP: usize = 4;
 
 /// Declares an FMU's variable table once and generates from it both the table function and
 /// the value-reference constants (`vr::NAME` = position in the table), so the two cannot

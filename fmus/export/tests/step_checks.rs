@@ -6,7 +6,7 @@
 
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
-use spurio_export::variables::{all_finite, computed_range, first_non_finite};
+use spurio_export::variables::{all_finite, computed_runs, first_non_finite, RUN_GAP};
 use spurio_export::{
     ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
 };
@@ -101,10 +101,18 @@ fn last_error(h: &Harness<Wide>) -> String {
 }
 
 #[test]
-fn the_checked_range_runs_from_the_first_to_the_last_computed_variable() {
+fn the_checked_runs_are_the_computed_variables_with_short_gaps_joined() {
     let info = Wide::describe(&Config::new()).unwrap();
-    assert_eq!(computed_range(&info.variables), Y..STEPS + 1);
-    assert_eq!(computed_range(&info.variables[..1]), 0..0);
+    // one parameter between the two vectors: one run
+    assert_eq!(computed_runs(&info.variables), vec![Y..STEPS + 1; 1]);
+    assert!(computed_runs(&info.variables[..1]).is_empty());
+    // a longer gap of parameters: two runs
+    let mut vars = vec![Variable::output("a")];
+    vars.extend((0..=RUN_GAP).map(|i| Variable::parameter(&format!("p{i}"), 0.0)));
+    vars.push(Variable::output("b"));
+    vars.push(Variable::input("u", 0.0));
+    let b = RUN_GAP + 2;
+    assert_eq!(computed_runs(&vars), [0..1, b..b + 1]);
 }
 
 #[test]
