@@ -846,42 +846,12 @@ impl<M: FmuModel> Instance<M> {
         status
     }
 
-    /// `fmi2Get{Real,Integer,Boolean}`: checks every reference, then hands each value's
-    /// position in the call and its number ([`Values::numbers`]) to `out`, in order. The
-    /// path of a master's every step: one pass over the references with the table and the
-    /// numbers in registers (the references checked first only when the model computes
-    /// before the read; on an error the values already handed over are undefined, as FMI
-    /// 2.0.4 §2.1.3 allows).
-    pub fn get_numbers(
-        &mut self,
-        f: &Function,
-        vrs: &[u32],
-        expected: VariableType,
-        mut out: impl FnMut(usize, f64),
-    ) -> Status {
-        let mut status = Status::Ok;
-        if self.needs_refresh() {
-            status = self.refresh_before_get(f, vrs, expected);
-            if status > Status::Warning {
-                return status;
-            }
-        }
-        let access: &[Access] = &self.interface.access;
-        let Some(numbers) = self.core.values.numbers().get(..access.len()) else {
-            return self.reject(f, "internal: the values do not match the variable table");
-        };
-        for (i, &vr) in vrs.iter().enumerate() {
-            match access.get(vr as usize) {
-                Some(a) if a.variable_type == expected => out(i, numbers[vr as usize]),
-                _ => return self.reject(f, &self.type_error(vr, expected)),
-            }
-        }
-        status
-    }
-
     /// `fmi2Get{Real,Integer,Boolean}` into the C array `out` (as long as `vrs`), each
-    /// number turned into the C type by `to_c`: as [`Instance::get_numbers`], one tight pass
-    /// (bounds and type of the reference, one load, one store a value).
+    /// number ([`Values::numbers`]) turned into the C type by `to_c`. The path of a master's
+    /// every step: one tight pass (bounds and type of the reference, one load, one store a
+    /// value); the references are checked first only when the model computes before the
+    /// read; on an error the values already written are undefined, as FMI 2.0.4 §2.1.3
+    /// allows.
     #[inline(always)]
     pub fn get_array<C>(
         &mut self,
