@@ -498,7 +498,8 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            s.instance.set_array(f, T::TYPE, vrs, values, T::to_number)
+            s.instance
+                .set_array(f, T::TYPE, (vrs, values), T::to_number)
         })
     }
 }

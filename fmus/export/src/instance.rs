@@ -1139,8 +1139,7 @@ impl<M: FmuModel> Instance<M> {
         &mut self,
         f: &Function,
         actual: VariableType,
-        vrs: &[u32],
-        values: &[C],
+        (vrs, values): (&[u32], &[C]),
         to_number: impl Fn(C) -> f64,
     ) -> Status {
         let need = self.core.state.bit() | Access::type_bit(actual);

@@ -77,8 +77,10 @@ impl FmuModel for Wide {
         out.put_i32(self.steps);
     }
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        self.steps = input.i32()?;
-        Ok(())
+        input
+            .i32()
+            .map(|steps| self.steps = steps)
+            .map_err(Into::into)
     }
 }
 
@@ -147,9 +149,8 @@ fn a_non_finite_last_element_of_a_long_vector_is_named_and_the_step_loses_nothin
         assert!(last_error(&h).contains("not allowed in state Error"));
         h.reset().unwrap();
         h.initialize(0.0).unwrap();
-        h.set_real(&[U as u32], &[1.0]).unwrap();
-        h.do_step(0.0, 1.0).unwrap();
-        assert_eq!(h.real(W as u32).unwrap(), 2.0);
+        let w_k = W as u32 + K as u32 - 1;
+        assert_eq!(h.real(w_k).unwrap(), K as f64);
     }
 }
 
