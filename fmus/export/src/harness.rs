@@ -72,7 +72,9 @@ impl<M: FmuModel> Harness<M> {
         let info = M::describe(config)?;
         let log = MemorySink::default();
         let logger = Logger::new("harness", Box::new(log.clone()), true);
-        let instance = setup(Instance::<M>::new(info, logger)?);
+        let mut instance = setup(Instance::<M>::new(info, logger)?);
+        // every model call of a test checks that the model writes only what it computes
+        instance.audit_model_writes();
         let component = ffi::into_component(instance);
         Ok(Self {
             component,

@@ -452,10 +452,10 @@ pub struct Instance<M: FmuModel> {
     /// The String texts before the current call, when a String is among the computed
     /// variables ([`Interface::computed_texts`]).
     before_texts: Vec<(usize, String)>,
-    /// Debug builds: every value before the current call, to check that the model changed
-    /// only computed ones.
-    #[cfg(debug_assertions)]
-    before_all: Values,
+    /// When the instance audits its model ([`Instance::audit_model_writes`]; always in debug
+    /// builds): every value before the current call, to check that the model changed only
+    /// computed ones.
+    audit: Option<Box<Values>>,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -476,8 +476,7 @@ impl<M: FmuModel> Instance<M> {
             me: None,
             model_exchange: false,
             before_texts: values.texts().clone(),
-            #[cfg(debug_assertions)]
-            before_all: values.clone(),
+            audit: cfg!(debug_assertions).then(|| Box::new(values.clone())),
             core: Core {
                 model,
                 values,
@@ -577,8 +576,11 @@ impl<M: FmuModel> Instance<M> {
             let messages = ctx.take_messages();
             self.deliver(&messages)
         };
-        #[cfg(debug_assertions)]
-        self.check_only_computed_changed(f);
+        if self.audit.is_some() {
+            if let Some(index) = self.changed_uncomputed() {
+                return self.meddled(f, index);
+            }
+        }
         match result {
             Ok(()) if self.computed_finite() => status,
             Ok(()) => self.unpublish(f),
@@ -603,8 +605,9 @@ impl<M: FmuModel> Instance<M> {
         if self.interface.computed_texts {
             self.before_texts.clone_from(self.core.values.texts());
         }
-        #[cfg(debug_assertions)]
-        self.before_all.clone_from(&self.core.values);
+        if let Some(all) = &mut self.audit {
+            (**all).clone_from(&self.core.values);
+        }
     }
 
     /// Puts back the values [`Instance::save_computed`] copied.
@@ -636,21 +639,47 @@ impl<M: FmuModel> Instance<M> {
             .all(|run| numbers.get(run.clone()).is_none_or(all_finite))
     }
 
-    /// A model call wrote only the values it computes (a debug-build check of the contract
-    /// [`Instance::run_model`] relies on: parameters and inputs are the master's).
-    #[cfg(debug_assertions)]
-    fn check_only_computed_changed(&self, f: &Function) {
-        let (now, before) = (self.core.values.numbers(), self.before_all.numbers());
-        let changed = (0..now.len()).find(|&i| {
-            now[i].to_bits() != before[i].to_bits()
+    /// Checks, from now on, after every model call that the model wrote only the values it
+    /// computes — the contract [`Instance::run_model`] relies on (parameters and inputs are
+    /// the master's) — at the cost of a copy of every value per call: for tests (the
+    /// [`crate::harness::Harness`] turns it on; debug builds always do).
+    pub fn audit_model_writes(&mut self) {
+        self.audit = Some(Box::new(self.core.values.clone()));
+    }
+
+    /// Under the audit: the first value outside [`Interface::computed`] the last model call
+    /// changed.
+    #[cold]
+    #[inline(never)]
+    fn changed_uncomputed(&self) -> Option<usize> {
+        let before = self.audit.as_deref()?;
+        let (now, was) = (self.core.values.numbers(), before.numbers());
+        (0..now.len()).find(|&i| {
+            now[i].to_bits() != was[i].to_bits()
                 && !self.interface.computed.iter().any(|run| run.contains(&i))
-        });
-        if let Some(i) = changed {
-            panic!(
-                "{}: the model changed variable `{}`, a parameter or input that only the master sets",
-                f.name, self.interface.info.variables[i].name
-            );
+        })
+    }
+
+    /// A model call that changed the parameter or input at `index`: every value back to
+    /// before the call, `Error` naming the variable (a bug of the model).
+    #[cold]
+    #[inline(never)]
+    fn meddled(&mut self, f: &Function, index: usize) -> Status {
+        if let Some(before) = &self.audit {
+            self.core.values.clone_from(&**before);
         }
+        self.core.state = ModelState::Error;
+        let name = self
+            .interface
+            .info
+            .variables
+            .get(index)
+            .map_or("?", |v| v.name.as_str());
+        self.logger.error(&format!(
+            "{}: internal error: the model changed variable `{name}` (value reference {index}), a parameter or input that only the master sets",
+            f.name
+        ));
+        Status::Error
     }
 
     /// Logs the model's messages; the worst status among them.
