@@ -593,14 +593,26 @@ impl<M: FmuModel> Instance<M> {
     fn save_computed(&mut self) {
         let numbers = self.core.values.numbers();
         let mut to = self.before.as_mut_slice();
-        for run in &self.interface.computed {
-            let (Some(from), Some((head, tail))) =
-                (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
-            else {
-                break;
-            };
-            head.copy_from_slice(from);
-            to = tail;
+        match &self.interface.computed[..] {
+            // the common table: outputs in one block (no loop, one copy)
+            [run] => {
+                if let Some(from) = numbers.get(run.clone()) {
+                    if from.len() == to.len() {
+                        to.copy_from_slice(from);
+                    }
+                }
+            }
+            runs => {
+                for run in runs {
+                    let (Some(from), Some((head, tail))) =
+                        (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
+                    else {
+                        break;
+                    };
+                    head.copy_from_slice(from);
+                    to = tail;
+                }
+            }
         }
         if self.interface.computed_texts {
             self.before_texts.clone_from(self.core.values.texts());
@@ -633,10 +645,12 @@ impl<M: FmuModel> Instance<M> {
     #[inline(always)]
     fn computed_finite(&self) -> bool {
         let numbers = self.core.values.numbers();
-        self.interface
-            .computed
-            .iter()
-            .all(|run| numbers.get(run.clone()).is_none_or(all_finite))
+        match &self.interface.computed[..] {
+            [run] => numbers.get(run.clone()).is_none_or(all_finite),
+            runs => runs
+                .iter()
+                .all(|run| numbers.get(run.clone()).is_none_or(all_finite)),
+        }
     }
 
     /// Checks, from now on, after every model call that the model wrote only the values it
