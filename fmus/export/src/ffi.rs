@@ -77,7 +77,9 @@ thread_local! {
 static HOOK: Once = Once::new();
 
 /// Installs (once) the hook that keeps panics inside FMU calls off stderr (module docs).
-fn install_panic_hook() {
+/// Called by [`guarded`] and, for the calls on an instance ([`guarded_call`]), once when the
+/// instance handle is made ([`crate::front::Slot::into_handle`]).
+pub(crate) fn install_panic_hook() {
     HOOK.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
@@ -98,14 +100,36 @@ fn install_panic_hook() {
 /// returned instead of printed.
 pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
     install_panic_hook();
-    let outer = IN_CALL.with(|c| c.replace(true));
+    guarded_call(body).map_err(|payload| panic_text(payload.as_ref()))
+}
+
+/// What a caught panic carries; [`panic_text`] turns it into the message to log.
+pub(crate) type Payload = Box<dyn std::any::Any + Send>;
+
+/// [`guarded`] once the hook is installed: the path of every call on an instance, whose
+/// handle installed it. One thread-local access (the address of the in-call flag, taken once:
+/// the body runs outside `LocalKey::with`, so it inlines into the entry point) and the
+/// unwinding landing pad; the panic's text is fetched on the cold path ([`panic_text`]).
+#[inline(always)]
+pub(crate) fn guarded_call<T>(body: impl FnOnce() -> T) -> Result<T, Payload> {
+    let flag: *const Cell<bool> = IN_CALL.with(|flag| flag as *const Cell<bool>);
+    // SAFETY: the flag is this thread's, alive as long as the thread, which runs this call;
+    // nothing else borrows it across the call (a `Cell`: no reference is handed out).
+    let outer = unsafe { (*flag).replace(true) };
     let result = catch_unwind(AssertUnwindSafe(body));
-    IN_CALL.with(|c| c.set(outer));
-    result.map_err(|payload| {
-        PANIC_TEXT
-            .with(|t| t.borrow_mut().take())
-            .unwrap_or_else(|| panic_message(payload.as_ref()))
-    })
+    // SAFETY: as above.
+    unsafe { (*flag).set(outer) };
+    result
+}
+
+/// The text of the panic just caught: the one the hook captured (message and location), or
+/// the payload's.
+#[cold]
+#[inline(never)]
+pub(crate) fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    PANIC_TEXT
+        .with(|t| t.borrow_mut().take())
+        .unwrap_or_else(|| panic_message(payload))
 }
 
 /// Runs `body` on the instance behind `c` after the null and state checks, catching panics.
@@ -415,12 +439,15 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
 ) -> fmi2Status {
     let f = T::GET;
     unsafe {
-        with_instance::<M>(c, f, |s| match get_references(s, f, vr, n, out.is_null()) {
-            Ok(vrs) => s.instance.get_numbers(f, vrs, T::TYPE, |i, number| {
-                // SAFETY: `out` points to `n` elements (FMI contract); `i < n`.
-                *out.add(i) = T::to_c(number)
-            }),
-            Err(status) => status,
+        with_instance::<M>(c, f, |s| {
+            // SAFETY: `vr` and `out` are NULL or hold `n` elements (FMI contract).
+            match (slice(vr, n), slice_mut(out, n)) {
+                (Some(vrs), Some(out)) => s.instance.get_array(f, T::TYPE, vrs, out, T::to_c),
+                _ => match get_references(s, f, vr, n, out.is_null()) {
+                    Err(status) => status,
+                    Ok(_) => Status::Error,
+                },
+            }
         })
     }
 }
@@ -471,11 +498,8 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
-            let targets = vrs
-                .iter()
-                .zip(values)
-                .map(|(vr, v)| (*vr, T::to_number(*v)));
-            s.instance.set_numbers(f, T::TYPE, targets)
+            s.instance
+                .set_array(f, T::TYPE, (vrs, values), T::to_number)
         })
     }
 }

@@ -9,12 +9,12 @@
 //! path serves them.
 
 use crate::description::{Config, ModelInfo, CONFIG_FILE};
-use crate::ffi::{guarded, slice, string_arg};
+use crate::ffi::{guarded, guarded_call, slice, string_arg};
 use crate::fmi3::arrays::Layout;
 use crate::instance::{Access, Core, Function, Instance};
 use crate::model::{Cause, FmuModel};
 use crate::types::Status;
-use crate::variables::{Value, VariableType};
+use crate::variables::{computed_runs, Value, VariableType};
 use std::any::TypeId;
 use std::ffi::CString;
 use std::os::raw::{c_char, c_int, c_void};
@@ -23,27 +23,76 @@ use std::sync::{Arc, Mutex};
 
 /// What every instance of one configuration of a model shares, built once per configuration
 /// ([`interface`]): the model description, the access table that get/set calls check values
-/// against (value reference = index), and the FMI 3.0 arrays over the table.
+/// against (value reference = index), the variables a model call may change, and the FMI
+/// 3.0 arrays over the table.
 #[derive(Debug)]
 pub struct Interface {
     /// The model description.
     pub info: ModelInfo,
     /// How each variable may be accessed, by value reference.
     pub access: Vec<Access>,
+    /// The variables a model call may write, as runs of indices
+    /// ([`crate::variables::computed_runs`]): what is copied before the call and checked for
+    /// non-finite values after it (a `memcpy` and a branch-free scan a run). Parameters and
+    /// inputs a run spans are copied and scanned too: the model does not change them
+    /// (checked in debug builds), and what the master sets is finite.
+    pub computed: Vec<std::ops::Range<usize>>,
+    /// Whether a String is in a run (the texts are then copied too).
+    pub computed_texts: bool,
     /// The FMI 3.0 variables (arrays) over the table.
     pub layout: Layout,
+    /// By FMI 3.0 value reference: the scalars it names, for the get/set fast path.
+    pub spans: Vec<Span>,
+}
+
+/// The scalars an FMI 3.0 value reference names: `len` consecutive table entries from
+/// `first`, of the type whose [`Access::type_bit`] is `type_bit`; value reference 0, `time`,
+/// has `len` 0 (read and set apart).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Span {
+    /// The table index of the first scalar.
+    pub first: u32,
+    /// The number of scalars (0 for `time`).
+    pub len: u32,
+    /// The scalars' type, as its bit.
+    pub type_bit: u32,
 }
 
 impl Interface {
     /// The interface of `info`.
     pub fn new(info: ModelInfo) -> Self {
-        let access = info.variables.iter().map(Access::of).collect();
+        let access: Vec<Access> = info.variables.iter().map(Access::of).collect();
         let layout = Layout::of(&info.variables);
+        let computed = computed_runs(&info.variables);
+        let computed_texts = computed
+            .iter()
+            .flat_map(|run| &info.variables[run.clone()])
+            .any(|v| v.variable_type() == VariableType::String);
+        let time = Span {
+            first: 0,
+            len: 0,
+            type_bit: Access::type_bit(VariableType::Real),
+        };
+        let spans = std::iter::once(time)
+            .chain(layout.variables().iter().map(|v| Span {
+                first: v.first as u32,
+                len: v.len() as u32,
+                type_bit: Access::type_bit(access[v.first].variable_type),
+            }))
+            .collect();
         Self {
             info,
             access,
+            computed,
+            computed_texts,
             layout,
+            spans,
         }
+    }
+
+    /// The number of values the runs of [`Interface::computed`] hold.
+    pub fn computed_len(&self) -> usize {
+        self.computed.iter().map(|run| run.len()).sum()
     }
 }
 
@@ -112,8 +161,10 @@ impl<M: FmuModel, X> Slot<M, X> {
         &self.instance
     }
 
-    /// Boxes the slot as an instance handle.
+    /// Boxes the slot as an instance handle (and installs the panic hook the calls on it
+    /// rely on: [`crate::ffi::guarded_call`]).
     pub fn into_handle(self) -> *mut c_void {
+        crate::ffi::install_panic_hook();
         Box::into_raw(Box::new(self)) as *mut c_void
     }
 
@@ -160,10 +211,12 @@ pub unsafe fn free_slot<M: FmuModel, X>(c: *mut c_void) {
 }
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics (the
-/// instance is then `Fatal`); the status as its C code.
+/// instance is then `Fatal`); the status as its C code. Inlined into every entry point: the
+/// fixed cost of a call is the null check, one thread-local flag, the state mask test.
 ///
 /// # Safety
 /// `c` must be NULL or a live handle of a `Slot<M, X>` (the master's obligation).
+#[inline(always)]
 pub unsafe fn with_slot<M: FmuModel, X>(
     c: *mut c_void,
     f: &Function,
@@ -173,7 +226,7 @@ pub unsafe fn with_slot<M: FmuModel, X>(
         return Status::Error.code();
     }
     let slot = c as *mut Slot<M, X>;
-    let result = guarded(|| {
+    let result = guarded_call(|| {
         // SAFETY: `c` is non-null and a live slot (the caller's obligation); no other reference
         // to the slot is alive during the call.
         let slot = unsafe { &mut *slot };
@@ -184,14 +237,28 @@ pub unsafe fn with_slot<M: FmuModel, X>(
     });
     match result {
         Ok(status) => status.code(),
-        Err(message) => {
-            let _ = guarded(|| {
-                // SAFETY: as above; the closure that panicked no longer borrows the slot.
-                unsafe { &mut *slot }.instance.set_fatal(f, &message)
-            });
-            Status::Fatal.code()
-        }
+        // SAFETY: as above; the closure that panicked no longer borrows the slot.
+        Err(payload) => unsafe { fatal(slot, f, payload) },
     }
+}
+
+/// After a panic in a call `f` on the slot: the instance is `Fatal`, the panic logged.
+///
+/// # Safety
+/// `slot` is a live slot no reference points into.
+#[cold]
+#[inline(never)]
+unsafe fn fatal<M: FmuModel, X>(
+    slot: *mut Slot<M, X>,
+    f: &Function,
+    payload: crate::ffi::Payload,
+) -> std::os::raw::c_int {
+    let message = crate::ffi::panic_text(payload.as_ref());
+    let _ = guarded(|| {
+        // SAFETY: the caller's obligation.
+        unsafe { &mut *slot }.instance.set_fatal(f, &message)
+    });
+    Status::Fatal.code()
 }
 
 /// The FMI versions, for the functions a [`Kind`] has in each.

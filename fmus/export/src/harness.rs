@@ -72,7 +72,9 @@ impl<M: FmuModel> Harness<M> {
         let info = M::describe(config)?;
         let log = MemorySink::default();
         let logger = Logger::new("harness", Box::new(log.clone()), true);
-        let instance = setup(Instance::<M>::new(info, logger)?);
+        let mut instance = setup(Instance::<M>::new(info, logger)?);
+        // every model call of a test checks that the model writes only what it computes
+        instance.audit_model_writes();
         let component = ffi::into_component(instance);
         Ok(Self {
             component,
@@ -248,6 +250,16 @@ impl<M: FmuModel> Harness<M> {
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
             ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+        })
+    }
+    /// `fmi2GetInteger` into `out`.
+    pub fn get_integer(&mut self, vr: &[u32], out: &mut [i32]) -> Result<Status, Status> {
+        if vr.len() != out.len() {
+            return Err(Status::Error);
+        }
+        // SAFETY: both slices hold `vr.len()` elements.
+        status(unsafe {
+            ffi::get::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
     /// `fmi2GetReal` of one variable.

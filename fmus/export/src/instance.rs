@@ -15,7 +15,9 @@
 //! from which `fmi2SetFMUstate`, `fmi2Reset` or `fmi2FreeInstance` lead on.
 //!
 //! **No non-finite value is ever published.** After every model call that computes values
-//! (initialisation, a step, direct feedthrough, tunable parameters), every Real is checked; a
+//! (initialisation, a step, direct feedthrough, tunable parameters), every value the call may
+//! write (outputs, locals, calculated parameters: [`Interface::computed`]; a model never writes
+//! its parameters or inputs, checked in debug builds) is checked by a branch-free scan; a
 //! NaN or ±∞ is `fmi2Error` naming the variable, the values go back to those before the call
 //! (so `fmi2GetReal` in the `Error` state reads the last finite values, never the NaN), the
 //! time does not advance, and the instance moves to the `Error` state (the model's internal
@@ -30,9 +32,12 @@ use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
 use crate::front::Interface;
 use crate::me::Hooks;
-use crate::model::{Cause, Context, Failure, FmuModel, EVENTS};
+use crate::model::{Cause, Context, Failure, FmuModel, LogMessage, EVENTS};
 use crate::types::Status;
-use crate::variables::{Causality, Initial, Value, Values, Variability, Variable, VariableType};
+use crate::variables::{
+    all_finite, first_non_finite, Causality, Initial, Value, Values, Variability, Variable,
+    VariableType,
+};
 use std::fmt;
 use std::sync::Arc;
 
@@ -284,6 +289,9 @@ pub struct Logger {
     logging_on: bool,
     /// Enabled categories; empty means all.
     categories: Vec<String>,
+    /// Whether model events (`logEvents`, [`Context::log_event`]) are delivered: kept with
+    /// `logging_on` and `categories`, so a model call asks no question of the logger.
+    events: bool,
 }
 
 impl Logger {
@@ -294,7 +302,14 @@ impl Logger {
             instance_name: instance_name.to_string(),
             logging_on,
             categories: Vec::new(),
+            events: logging_on,
         }
+    }
+    /// Debug logging on or off, for `categories` (empty: all).
+    pub fn configure(&mut self, logging_on: bool, categories: &[String]) {
+        self.logging_on = logging_on;
+        self.categories = categories.to_vec();
+        self.events = self.enabled(Status::Ok, EVENTS);
     }
     /// Whether a message with `status` under `category` is delivered: always for warnings
     /// and worse, for `Ok` when debug logging is on and the category enabled.
@@ -346,19 +361,44 @@ const STATE_MAGIC: &str = "spurio-fmu-state/2";
 pub struct Access {
     /// The variable's type.
     pub variable_type: VariableType,
-    /// The states ([`ModelState::bit`]) in which `fmi*Set*` may set it.
-    pub settable: u32,
-    /// Whether it is an input (setting it invalidates the direct-feedthrough outputs).
-    pub input: bool,
-    /// Whether it is a parameter (setting it in Step Mode calls `parameters_changed`).
-    pub parameter: bool,
-    /// Lower bound (−∞ when none).
+    /// In one word: the states ([`ModelState::bit`]) in which `fmi*Set*` may set it, its
+    /// type's bit ([`Access::type_bit`]) and [`Access::INPUT`], [`Access::PARAMETER`]; a set
+    /// is allowed when `bits & need == need` with `need` = state bit | type bit.
+    pub bits: u32,
+    /// Lower bound (−`f64::MAX` when none, so that `min <= x && x <= max` also says that
+    /// `x` is finite: NaN fails both comparisons, ±∞ one).
     pub min: f64,
-    /// Upper bound (+∞ when none).
+    /// Upper bound (`f64::MAX` when none).
     pub max: f64,
 }
 
 impl Access {
+    /// The bit of an input (setting it invalidates the direct-feedthrough outputs).
+    pub const INPUT: u32 = 1 << 24;
+    /// The bit of a parameter (setting it in Step Mode calls `parameters_changed`).
+    pub const PARAMETER: u32 = 1 << 25;
+
+    /// The bit of type `t` in [`Access::bits`] (above the state bits).
+    #[inline(always)]
+    pub const fn type_bit(t: VariableType) -> u32 {
+        1 << (16 + t as u32)
+    }
+
+    /// Whether the variable may be set in the state with bit `state`.
+    pub fn settable_in(&self, state: u32) -> bool {
+        self.bits & state != 0
+    }
+
+    /// Whether the variable is an input.
+    pub fn is_input(&self) -> bool {
+        self.bits & Self::INPUT != 0
+    }
+
+    /// Whether the variable is a parameter.
+    pub fn is_parameter(&self) -> bool {
+        self.bits & Self::PARAMETER != 0
+    }
+
     /// The access rules of `v` (FMI 2.0.4 §3.2.3 / FMI 3.0.2 §2.4.7: what may be set when).
     pub fn of(v: &Variable) -> Self {
         let not_constant = v.variability != Variability::Constant;
@@ -378,13 +418,18 @@ impl Access {
         if input && v.variability == Variability::Continuous {
             settable |= CONTINUOUS_TIME_MODE;
         }
+        let mut bits = settable | Self::type_bit(v.variable_type());
+        if input {
+            bits |= Self::INPUT;
+        }
+        if v.causality == Causality::Parameter {
+            bits |= Self::PARAMETER;
+        }
         Self {
             variable_type: v.variable_type(),
-            settable,
-            input,
-            parameter: v.causality == Causality::Parameter,
-            min: v.min.unwrap_or(f64::NEG_INFINITY),
-            max: v.max.unwrap_or(f64::INFINITY),
+            bits,
+            min: v.min.unwrap_or(-f64::MAX),
+            max: v.max.unwrap_or(f64::MAX),
         }
     }
 }
@@ -400,9 +445,17 @@ pub struct Instance<M: FmuModel> {
     pub(crate) me: Option<Hooks<M>>,
     /// Whether the instance was instantiated for Model Exchange.
     pub(crate) model_exchange: bool,
-    /// The values before the current model call (reused buffer), restored when the call
-    /// produces a non-finite value.
-    before: Values,
+    /// The values a model call may change ([`Interface::computed`]) as they were before the
+    /// current call (a reused buffer), restored when the call produces a
+    /// non-finite value.
+    before: Vec<f64>,
+    /// The String texts before the current call, when a String is among the computed
+    /// variables ([`Interface::computed_texts`]).
+    before_texts: Vec<(usize, String)>,
+    /// When the instance audits its model ([`Instance::audit_model_writes`]; always in debug
+    /// builds): every value before the current call, to check that the model changed only
+    /// computed ones.
+    audit: Option<Box<Values>>,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -417,11 +470,13 @@ impl<M: FmuModel> Instance<M> {
         let model = M::create(&interface.info)?;
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
+            before: vec![0.0; interface.computed_len()],
             interface,
             logger,
             me: None,
             model_exchange: false,
-            before: values.clone(),
+            before_texts: values.texts().clone(),
+            audit: cfg!(debug_assertions).then(|| Box::new(values.clone())),
             core: Core {
                 model,
                 values,
@@ -463,10 +518,15 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Checks that `f` may be called now; logs and returns `false` when not.
+    #[inline(always)]
     pub fn allows(&self, f: &Function) -> bool {
-        if f.mask & self.core.state.bit() != 0 {
-            return true;
-        }
+        f.mask & self.core.state.bit() != 0 || self.illegal_call(f)
+    }
+
+    /// Logs that `f` may not be called in the current state; `false`.
+    #[cold]
+    #[inline(never)]
+    fn illegal_call(&self, f: &Function) -> bool {
         self.logger.error(&format!(
             "{}: illegal call sequence: not allowed in state {} (allowed in: {})",
             f.name,
@@ -477,6 +537,8 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Logs an error for function `f` and returns `Status::Error`; the state is unchanged.
+    #[cold]
+    #[inline(never)]
     pub fn reject(&self, f: &Function, message: &str) -> Status {
         self.logger.error(&format!("{}: {}", f.name, message));
         Status::Error
@@ -492,36 +554,188 @@ impl<M: FmuModel> Instance<M> {
         );
     }
 
+    /// Runs one model call (initialisation, a step, direct feedthrough, parameters changed,
+    /// a Model Exchange evaluation) on the values, then checks what it computed: the values
+    /// a call may write ([`Interface::computed`]: outputs, locals, calculated parameters) are
+    /// copied before it and scanned after it ([`crate::variables::all_finite`]); a non-finite
+    /// one puts them back and is `Error` naming the variable. The model's messages are
+    /// logged, its failure is the call's status.
+    #[inline]
     pub(crate) fn run_model(
         &mut self,
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
     ) -> Status {
-        self.before.clone_from(&self.core.values);
+        self.save_computed();
         let mut ctx = Context::at(&mut self.core.values, self.core.time);
-        ctx.log_events = self.logger.enabled(Status::Ok, EVENTS);
+        ctx.log_events = self.logger.events;
         let result = call(&mut self.core.model, &mut ctx);
-        let messages = ctx.take_messages();
+        let status = if ctx.messages.is_empty() {
+            Status::Ok
+        } else {
+            let messages = ctx.take_messages();
+            self.deliver(&messages)
+        };
+        if self.audit.is_some() {
+            if let Some(index) = self.changed_uncomputed() {
+                return self.meddled(f, index);
+            }
+        }
+        match result {
+            Ok(()) if self.computed_finite() => status,
+            Ok(()) => self.unpublish(f),
+            Err(failure) => self.model_failed(f, failure),
+        }
+    }
+
+    /// Copies the values a model call may change into the roll-back buffer.
+    #[inline(always)]
+    fn save_computed(&mut self) {
+        let numbers = self.core.values.numbers();
+        let mut to = self.before.as_mut_slice();
+        match &self.interface.computed[..] {
+            // the common table: outputs in one block (no loop, one copy)
+            [run] => {
+                if let Some(from) = numbers.get(run.clone()) {
+                    if from.len() == to.len() {
+                        to.copy_from_slice(from);
+                    }
+                }
+            }
+            runs => {
+                for run in runs {
+                    let (Some(from), Some((head, tail))) =
+                        (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
+                    else {
+                        break;
+                    };
+                    head.copy_from_slice(from);
+                    to = tail;
+                }
+            }
+        }
+        if self.interface.computed_texts {
+            self.before_texts.clone_from(self.core.values.texts());
+        }
+        if let Some(all) = &mut self.audit {
+            (**all).clone_from(&self.core.values);
+        }
+    }
+
+    /// Puts back the values [`Instance::save_computed`] copied.
+    fn restore_computed(&mut self) {
+        let numbers = self.core.values.numbers_mut();
+        let mut from = self.before.as_slice();
+        for run in &self.interface.computed {
+            let (Some(to), Some((head, tail))) = (
+                numbers.get_mut(run.clone()),
+                from.split_at_checked(run.len()),
+            ) else {
+                break;
+            };
+            to.copy_from_slice(head);
+            from = tail;
+        }
+        if self.interface.computed_texts {
+            self.core.values.texts_mut().clone_from(&self.before_texts);
+        }
+    }
+
+    /// Whether every value a model call may change is finite (branch-free scan).
+    #[inline(always)]
+    fn computed_finite(&self) -> bool {
+        let numbers = self.core.values.numbers();
+        match &self.interface.computed[..] {
+            [run] => numbers.get(run.clone()).is_none_or(all_finite),
+            runs => runs
+                .iter()
+                .all(|run| numbers.get(run.clone()).is_none_or(all_finite)),
+        }
+    }
+
+    /// Checks, from now on, after every model call that the model wrote only the values it
+    /// computes — the contract [`Instance::run_model`] relies on (parameters and inputs are
+    /// the master's) — at the cost of a copy of every value per call: for tests (the
+    /// [`crate::harness::Harness`] turns it on; debug builds always do).
+    pub fn audit_model_writes(&mut self) {
+        self.audit = Some(Box::new(self.core.values.clone()));
+    }
+
+    /// Under the audit: the first value outside [`Interface::computed`] the last model call
+    /// changed.
+    #[cold]
+    #[inline(never)]
+    fn changed_uncomputed(&self) -> Option<usize> {
+        let before = self.audit.as_deref()?;
+        let (now, was) = (self.core.values.numbers(), before.numbers());
+        (0..now.len()).find(|&i| {
+            now[i].to_bits() != was[i].to_bits()
+                && !self.interface.computed.iter().any(|run| run.contains(&i))
+        })
+    }
+
+    /// A model call that changed the parameter or input at `index`: every value back to
+    /// before the call, `Error` naming the variable (a bug of the model).
+    #[cold]
+    #[inline(never)]
+    fn meddled(&mut self, f: &Function, index: usize) -> Status {
+        if let Some(before) = &self.audit {
+            self.core.values.clone_from(&**before);
+        }
+        self.core.state = ModelState::Error;
+        let name = self
+            .interface
+            .info
+            .variables
+            .get(index)
+            .map_or("?", |v| v.name.as_str());
+        self.logger.error(&format!(
+            "{}: internal error: the model changed variable `{name}` (value reference {index}), a parameter or input that only the master sets",
+            f.name
+        ));
+        Status::Error
+    }
+
+    /// Logs the model's messages; the worst status among them.
+    #[cold]
+    #[inline(never)]
+    fn deliver(&self, messages: &[LogMessage]) -> Status {
         let mut status = Status::Ok;
-        for m in &messages {
+        for m in messages {
             self.logger.log(m.status, m.category, &m.text);
             status = status.max(m.status);
         }
-        match result {
-            Ok(()) => match self.first_non_finite() {
-                None => status,
-                Some((index, value)) => {
-                    self.core.values.clone_from(&self.before);
-                    self.core.state = ModelState::Error;
-                    self.logger.error(&format!(
-                        "{}: variable `{}` (value reference {index}) came out as {value}: not published (the variables keep their values from before the call; fmi2Reset or fmi2SetFMUstate lead on)",
-                        f.name,
-                        self.interface.info.variables.get(index).map_or("?", |v| v.name.as_str())
-                    ));
-                    Status::Error
-                }
-            },
-            Err(Failure::Discard(message)) => {
+        status
+    }
+
+    /// After a model call produced a non-finite value: the values back, `Error` naming the
+    /// first such variable.
+    #[cold]
+    #[inline(never)]
+    fn unpublish(&mut self, f: &Function) -> Status {
+        let numbers = self.core.values.numbers();
+        let found = self.interface.computed.iter().find_map(|run| {
+            let (k, x) = first_non_finite(numbers.get(run.clone())?)?;
+            Some((run.start + k, x))
+        });
+        self.restore_computed();
+        self.core.state = ModelState::Error;
+        let (index, value) = found.unwrap_or((usize::MAX, f64::NAN));
+        self.logger.error(&format!(
+            "{}: variable `{}` (value reference {index}) came out as {value}: not published (the variables keep their values from before the call; fmi2Reset or fmi2SetFMUstate lead on)",
+            f.name,
+            self.interface.info.variables.get(index).map_or("?", |v| v.name.as_str())
+        ));
+        Status::Error
+    }
+
+    /// A model call that failed: `Discard` (the instance intact) or `Error` (the instance
+    /// in the `Error` state), the cause logged.
+    #[cold]
+    #[inline(never)]
+    fn model_failed(&mut self, f: &Function, failure: Failure) -> Status {
+        match failure {
+            Failure::Discard(message) => {
                 self.logger.log(
                     Status::Discard,
                     Status::Discard.category(),
@@ -529,17 +743,12 @@ impl<M: FmuModel> Instance<M> {
                 );
                 Status::Discard
             }
-            Err(Failure::Error(message)) => {
+            Failure::Error(message) => {
                 self.logger.error(&format!("{}: {message}", f.name));
                 self.core.state = ModelState::Error;
                 Status::Error
             }
         }
-    }
-
-    /// The first Real that is NaN or infinite: (value reference, value).
-    fn first_non_finite(&self) -> Option<(usize, f64)> {
-        self.core.values.first_non_finite()
     }
 
     /// `fmi2SetDebugLogging`.
@@ -569,8 +778,7 @@ impl<M: FmuModel> Instance<M> {
                 );
             }
         }
-        self.logger.logging_on = logging_on;
-        self.logger.categories = categories.to_vec();
+        self.logger.configure(logging_on, categories);
         Status::Ok
     }
 
@@ -681,25 +889,24 @@ impl<M: FmuModel> Instance<M> {
         status
     }
 
-    /// `fmi2Get{Real,Integer,Boolean}`: checks every reference, then hands each value's
-    /// position in the call and its number ([`Values::numbers`]) to `out`, in order. The
-    /// path of a master's every step: one pass over the references with the table and the
-    /// numbers in registers (the references checked first only when the model computes
-    /// before the read; on an error the values already handed over are undefined, as FMI
-    /// 2.0.4 §2.1.3 allows).
-    pub fn get_numbers(
+    /// `fmi2Get{Real,Integer,Boolean}` into the C array `out` (as long as `vrs`), each
+    /// number ([`Values::numbers`]) turned into the C type by `to_c`. The path of a master's
+    /// every step: one tight pass (bounds and type of the reference, one load, one store a
+    /// value); the references are checked first only when the model computes before the
+    /// read; on an error the values already written are undefined, as FMI 2.0.4 §2.1.3
+    /// allows.
+    #[inline(always)]
+    pub fn get_array<C>(
         &mut self,
         f: &Function,
-        vrs: &[u32],
         expected: VariableType,
-        mut out: impl FnMut(usize, f64),
+        vrs: &[u32],
+        out: &mut [C],
+        to_c: impl Fn(f64) -> C,
     ) -> Status {
         let mut status = Status::Ok;
         if self.needs_refresh() {
-            if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
-                return self.reject(f, &self.type_error(vr, expected));
-            }
-            status = self.refresh_outputs(f);
+            status = self.refresh_before_get(f, vrs, expected);
             if status > Status::Warning {
                 return status;
             }
@@ -708,13 +915,28 @@ impl<M: FmuModel> Instance<M> {
         let Some(numbers) = self.core.values.numbers().get(..access.len()) else {
             return self.reject(f, "internal: the values do not match the variable table");
         };
-        for (i, &vr) in vrs.iter().enumerate() {
+        for (o, &vr) in out.iter_mut().zip(vrs) {
             match access.get(vr as usize) {
-                Some(a) if a.variable_type == expected => out(i, numbers[vr as usize]),
+                Some(a) if a.variable_type == expected => *o = to_c(numbers[vr as usize]),
                 _ => return self.reject(f, &self.type_error(vr, expected)),
             }
         }
         status
+    }
+
+    /// Before a get of `vrs` that needs values computed first: the references checked (so
+    /// that a rejected read computes nothing), then [`Instance::refresh_outputs`].
+    #[inline(never)]
+    pub(crate) fn refresh_before_get(
+        &mut self,
+        f: &Function,
+        vrs: &[u32],
+        expected: VariableType,
+    ) -> Status {
+        if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
+            return self.reject(f, &self.type_error(vr, expected));
+        }
+        self.refresh_outputs(f)
     }
 
     /// Before values are read by `f`: in Initialization Mode the model computes the outputs
@@ -745,7 +967,7 @@ impl<M: FmuModel> Instance<M> {
 
     /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
     #[inline]
-    fn needs_refresh(&self) -> bool {
+    pub(crate) fn needs_refresh(&self) -> bool {
         let state = self.core.state;
         state == ModelState::InitializationMode
             || (self.core.inputs_changed
@@ -825,12 +1047,9 @@ impl<M: FmuModel> Instance<M> {
         actual: VariableType,
         number: Option<f64>,
     ) -> Result<&Access, Status> {
+        let need = bit | Access::type_bit(actual);
         match self.interface.access.get(vr as usize) {
-            Some(a)
-                if a.variable_type == actual
-                    && a.settable & bit != 0
-                    && number.is_none_or(|x| x.is_finite() && x >= a.min && x <= a.max) =>
-            {
+            Some(a) if a.bits & need == need && number.is_none_or(|x| x >= a.min && x <= a.max) => {
                 Ok(a)
             }
             _ => Err(self.reject_set(f, vr, actual, number)),
@@ -840,12 +1059,16 @@ impl<M: FmuModel> Instance<M> {
     /// The rejection of a value [`Instance::check_set`] refuses.
     #[cold]
     #[inline(never)]
-    fn reject_set(&self, f: &Function, vr: u32, actual: VariableType, x: Option<f64>) -> Status {
+    pub(crate) fn reject_set(
+        &self,
+        f: &Function,
+        vr: u32,
+        actual: VariableType,
+        x: Option<f64>,
+    ) -> Status {
         let bit = self.core.state.bit();
         let message = match self.interface.access.get(vr as usize) {
-            Some(a) if a.variable_type == actual && a.settable & bit == 0 => {
-                self.not_settable(f, vr)
-            }
+            Some(a) if a.variable_type == actual && !a.settable_in(bit) => self.not_settable(f, vr),
             Some(a) if a.variable_type == actual => {
                 self.out_of_range(f, vr, x.unwrap_or(f64::NAN), a)
             }
@@ -869,18 +1092,28 @@ impl<M: FmuModel> Instance<M> {
         }
     }
 
-    /// After values were set: inputs changed (the direct-feedthrough outputs are stale),
-    /// parameters changed in Step Mode (the model is told).
-    fn values_set(&mut self, f: &Function, inputs: bool, parameters: bool) -> Status {
+    /// After values were set (`flags`: the [`Access::bits`] of the variables set, or-ed):
+    /// inputs changed (the direct-feedthrough outputs are stale), parameters changed in Step
+    /// Mode (the model is told).
+    #[inline(always)]
+    pub(crate) fn values_set(&mut self, f: &Function, flags: u32) -> Status {
+        let parameters = flags & Access::PARAMETER != 0;
         // Model Exchange: a tunable parameter set in Event Mode changes the derivatives and
         // outputs read next, as an input does.
-        self.core.inputs_changed |= inputs || parameters && self.model_exchange;
-        if parameters
-            && matches!(
-                self.core.state,
-                ModelState::StepComplete | ModelState::EventMode
-            )
-        {
+        self.core.inputs_changed |= flags & Access::INPUT != 0 || parameters && self.model_exchange;
+        if parameters {
+            return self.parameters_set(f);
+        }
+        Status::Ok
+    }
+
+    /// After parameters were set: in Step Mode (Event Mode), the model is told.
+    #[inline(never)]
+    fn parameters_set(&mut self, f: &Function) -> Status {
+        if matches!(
+            self.core.state,
+            ModelState::StepComplete | ModelState::EventMode
+        ) {
             return self.run_model(f, |m, ctx| m.parameters_changed(ctx));
         }
         Status::Ok
@@ -896,7 +1129,7 @@ impl<M: FmuModel> Instance<M> {
         I: Iterator<Item = (u32, Value)> + Clone,
     {
         let bit = self.core.state.bit();
-        let (mut inputs, mut parameters) = (false, false);
+        let mut flags = 0;
         for (vr, value) in targets.clone() {
             let number = match value {
                 Value::Real(x) => Some(x),
@@ -904,14 +1137,14 @@ impl<M: FmuModel> Instance<M> {
                 _ => None,
             };
             match self.check_set(f, bit, vr, value.variable_type(), number) {
-                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Ok(a) => flags |= a.bits,
                 Err(status) => return status,
             }
         }
         for (vr, value) in targets {
             self.core.values.set(vr as usize, value);
         }
-        self.values_set(f, inputs, parameters)
+        self.values_set(f, flags)
     }
 
     /// `fmi2Set{Real,Integer,Boolean}`: as [`Instance::set_values`] for values of type
@@ -922,10 +1155,10 @@ impl<M: FmuModel> Instance<M> {
         I: Iterator<Item = (u32, f64)> + Clone,
     {
         let bit = self.core.state.bit();
-        let (mut inputs, mut parameters) = (false, false);
+        let mut flags = 0;
         for (vr, x) in targets.clone() {
             match self.check_set(f, bit, vr, actual, Some(x)) {
-                Ok(a) => (inputs, parameters) = (inputs | a.input, parameters | a.parameter),
+                Ok(a) => flags |= a.bits,
                 Err(status) => return status,
             }
         }
@@ -935,7 +1168,108 @@ impl<M: FmuModel> Instance<M> {
                 *slot = x;
             }
         }
-        self.values_set(f, inputs, parameters)
+        self.values_set(f, flags)
+    }
+
+    /// `fmi2Set{Real,Integer,Boolean}` from the C arrays: value references `vrs`, values
+    /// `values` (of the same length) of a C type that `to_number` turns into stored numbers.
+    /// As [`Instance::set_numbers`], in two tight passes over the arrays: the first checks
+    /// each value with one load of its [`Access`] (`bits & need == need` for type and state,
+    /// `min <= x <= max` for bounds and finiteness), the second stores; any failure goes to
+    /// the cold path that names the variable and the reason.
+    #[inline(always)]
+    pub fn set_array<C: Copy>(
+        &mut self,
+        f: &Function,
+        actual: VariableType,
+        (vrs, values): (&[u32], &[C]),
+        to_number: impl Fn(C) -> f64,
+    ) -> Status {
+        let need = self.core.state.bit() | Access::type_bit(actual);
+        let access: &[Access] = &self.interface.access;
+        let mut flags = 0;
+        for (&vr, &v) in vrs.iter().zip(values) {
+            let x = to_number(v);
+            match access.get(vr as usize) {
+                Some(a) if a.bits & need == need && x >= a.min && x <= a.max => flags |= a.bits,
+                _ => return self.reject_set(f, vr, actual, Some(x)),
+            }
+        }
+        let numbers = self.core.values.numbers_mut();
+        for (&vr, &v) in vrs.iter().zip(values) {
+            if let Some(slot) = numbers.get_mut(vr as usize) {
+                *slot = to_number(v);
+            }
+        }
+        self.values_set(f, flags)
+    }
+
+    /// `fmi3Set{Float64,Int32,Boolean}`'s fast path: the values `values` (arrays row-major)
+    /// for the FMI 3.0 value references `vrs` ([`crate::front::Span`]s), each checked with
+    /// its [`Access`] as in [`Instance::set_array`], then stored; `None` when a reference is
+    /// unknown or `time`, the count is not `values.len()` or a value is refused: nothing is
+    /// changed then, and the full path checks again and says why.
+    #[inline(always)]
+    pub(crate) fn set_spans<C: Copy>(
+        &mut self,
+        f: &Function,
+        actual: VariableType,
+        vrs: &[u32],
+        values: &[C],
+        to_number: impl Fn(C) -> f64,
+    ) -> Option<Status> {
+        let need = self.core.state.bit() | Access::type_bit(actual);
+        let (access, spans) = (&self.interface.access, &self.interface.spans);
+        let mut flags = 0;
+        let mut k = 0;
+        for &vr in vrs {
+            let span = spans.get(vr as usize).filter(|span| span.len > 0)?;
+            let (first, len) = (span.first as usize, span.len as usize);
+            if len == 1 {
+                let (a, x) = (access.get(first)?, to_number(*values.get(k)?));
+                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                    return None;
+                }
+                flags |= a.bits;
+                k += 1;
+                continue;
+            }
+            let xs = values.get(k..k + len)?;
+            for (a, &v) in access.get(first..first + len)?.iter().zip(xs) {
+                let x = to_number(v);
+                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                    return None;
+                }
+                flags |= a.bits;
+            }
+            k += len;
+        }
+        if k != values.len() {
+            return None;
+        }
+        let numbers = self.core.values.numbers_mut();
+        let mut k = 0;
+        for &vr in vrs {
+            if let Some(span) = spans.get(vr as usize) {
+                let (first, len) = (span.first as usize, span.len as usize);
+                if len == 1 {
+                    if let (Some(slot), Some(&v)) = (numbers.get_mut(first), values.get(k)) {
+                        *slot = to_number(v);
+                    }
+                    k += 1;
+                    continue;
+                }
+                if let (Some(to), Some(xs)) =
+                    (numbers.get_mut(first..first + len), values.get(k..k + len))
+                {
+                    for (slot, &v) in to.iter_mut().zip(xs) {
+                        *slot = to_number(v);
+                    }
+                }
+                k += len;
+            }
+        }
+        Some(self.values_set(f, flags))
     }
 
     /// `fmi2DoStep`.
@@ -943,47 +1277,23 @@ impl<M: FmuModel> Instance<M> {
         self.do_step_as(&functions::DO_STEP, current_time, step)
     }
 
-    /// `fmi2DoStep` or its FMI 3.0 twin `f`.
+    /// `fmi2DoStep` or its FMI 3.0 twin `f`: the arguments checked (a step that is finite,
+    /// positive and moves the time, from the current communication point, not past the stop
+    /// time), the model's [`FmuModel::check_step`], then the step.
+    #[inline]
     pub fn do_step_as(&mut self, f: &Function, current_time: f64, step: f64) -> Status {
-        if !step.is_finite() || step <= 0.0 {
-            return self.reject(
-                f,
-                &format!("communicationStepSize must be finite and > 0, got {step:.16}"),
-            );
-        }
         let time = self.core.time;
-        if !current_time.is_finite() || (current_time - time).abs() > 1e-9 * time.abs().max(1.0) {
-            return self.reject(
-                f,
-                &format!(
-                    "expected currentCommunicationPoint = {time:.16} but was {current_time:.16}"
-                ),
-            );
-        }
         let end = current_time + step;
-        if !end.is_finite() {
-            return self.reject(
-                f,
-                &format!(
-                    "the step ends at currentCommunicationPoint + communicationStepSize = {current_time:.16} + {step:.16} = {end}, not a finite time"
-                ),
-            );
-        }
-        if end <= current_time {
-            return self.reject(
-                f,
-                &format!(
-                    "communicationStepSize = {step:.16} is below the time resolution at currentCommunicationPoint = {current_time:.16}: the time would not advance"
-                ),
-            );
-        }
-        if let Some(stop) = self.core.stop_time {
-            if end > stop + 1e-9 * stop.abs().max(1.0) {
-                return self.reject(
-                    f,
-                    &format!("the step to {end:.16} would pass stopTime = {stop:.16}"),
-                );
-            }
+        let valid = step > 0.0
+            && (current_time - time).abs() <= 1e-9 * time.abs().max(1.0)
+            && end.is_finite()
+            && end > current_time
+            && self
+                .core
+                .stop_time
+                .is_none_or(|stop| end <= stop + 1e-9 * stop.abs().max(1.0));
+        if !valid {
+            return self.reject_step(f, current_time, step);
         }
         let refusal = {
             let ctx = Context::at(&mut self.core.values, current_time);
@@ -998,6 +1308,34 @@ impl<M: FmuModel> Instance<M> {
             self.core.inputs_changed = false;
         }
         status
+    }
+
+    /// The rejection of the arguments of a step [`Instance::do_step_as`] refuses, with the
+    /// first reason.
+    #[cold]
+    #[inline(never)]
+    fn reject_step(&self, f: &Function, current_time: f64, step: f64) -> Status {
+        let time = self.core.time;
+        let end = current_time + step;
+        let message = if !step.is_finite() || step <= 0.0 {
+            format!("communicationStepSize must be finite and > 0, got {step:.16}")
+        } else if !current_time.is_finite()
+            || (current_time - time).abs() > 1e-9 * time.abs().max(1.0)
+        {
+            format!("expected currentCommunicationPoint = {time:.16} but was {current_time:.16}")
+        } else if !end.is_finite() {
+            format!(
+                "the step ends at currentCommunicationPoint + communicationStepSize = {current_time:.16} + {step:.16} = {end}, not a finite time"
+            )
+        } else if end <= current_time {
+            format!(
+                "communicationStepSize = {step:.16} is below the time resolution at currentCommunicationPoint = {current_time:.16}: the time would not advance"
+            )
+        } else {
+            let stop = self.core.stop_time.unwrap_or(f64::NAN);
+            format!("the step to {end:.16} would pass stopTime = {stop:.16}")
+        };
+        self.reject(f, &message)
     }
 
     /// `fmi2GetRealStatus(fmi2LastSuccessfulTime)`.

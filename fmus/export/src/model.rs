@@ -240,7 +240,10 @@ pub trait ModelExchange: FmuModel {
 ///
 /// `Clone` is how FMU states are taken (`fmi2GetFMUstate`); `save_state`/`load_state` are how
 /// they are serialized. Implementations must not panic on any input (a panic is caught and
-/// reported as `fmi2Fatal`, but that is a bug).
+/// reported as `fmi2Fatal`, but that is a bug). A call writes only the variables the model
+/// computes — outputs, locals, calculated parameters — never its parameters or inputs, which
+/// the master sets: the layer keeps and checks only the former around a call (a debug build
+/// panics, as `fmi2Fatal`, on a model that writes the latter).
 pub trait FmuModel: Clone + 'static {
     /// The interface for `config` (empty for FMUs of fixed dimensions). Called when packaging
     /// and in `fmi2Instantiate`, with the configuration read from the FMU's resources.

@@ -552,10 +552,16 @@ impl Values {
     /// The first Real that is NaN or infinite: (index, value). (Integers and Booleans are
     /// always finite, Strings are stored as 0: one scan of the numbers.)
     pub fn first_non_finite(&self) -> Option<(usize, f64)> {
-        self.numbers
-            .iter()
-            .position(|x| !x.is_finite())
-            .map(|i| (i, self.numbers[i]))
+        first_non_finite(&self.numbers)
+    }
+    /// The String variables' texts, by index (ascending), for the roll-back copy of a model
+    /// call whose computed variables include a String.
+    pub(crate) fn texts(&self) -> &Vec<(usize, String)> {
+        &self.strings
+    }
+    /// The String variables' texts, to restore them.
+    pub(crate) fn texts_mut(&mut self) -> &mut Vec<(usize, String)> {
+        &mut self.strings
     }
     /// Writes every value in order (for an FMU state).
     pub fn save(&self, out: &mut ByteWriter) {
@@ -590,6 +596,69 @@ impl Values {
         indices.iter().map(|&i| self.real(i)).collect()
     }
 }
+
+/// Whether every number of `xs` is finite, branch-free: `x · 0` is ±0 for a finite `x` and
+/// NaN for NaN or ±∞, and a sum stays ±0 until a NaN enters it. Eight independent lanes
+/// (no reassociation of one sum: each lane is its own sum), so the compiler turns the loop
+/// into packed multiplies and adds, ≈ 2 instructions a value with SSE2; the fewer than eight
+/// values before them are summed apart (a short range costs no lane set-up). The cost of the
+/// check after every model call ([`crate::instance`]).
+#[inline]
+pub fn all_finite(xs: &[f64]) -> bool {
+    const LANES: usize = 8;
+    let (head, body) = xs.split_at(xs.len() % LANES);
+    let mut sum = 0.0f64;
+    for x in head {
+        sum += x * 0.0;
+    }
+    if !body.is_empty() {
+        let mut acc = [0.0f64; LANES];
+        for chunk in body.chunks_exact(LANES) {
+            for (a, x) in acc.iter_mut().zip(chunk) {
+                *a += x * 0.0;
+            }
+        }
+        // lane k with lane k + 4, then k with k + 2: the adds of whole registers, so that
+        // the loop keeps the lanes in their registers (no shuffles)
+        let half = [
+            acc[0] + acc[4],
+            acc[1] + acc[5],
+            acc[2] + acc[6],
+            acc[3] + acc[7],
+        ];
+        sum += (half[0] + half[2]) + (half[1] + half[3]);
+    }
+    !sum.is_nan()
+}
+
+/// The first number of `xs` that is NaN or infinite: (position, value). The cold path after
+/// [`all_finite`] said there is one, to name its variable.
+#[cold]
+pub fn first_non_finite(xs: &[f64]) -> Option<(usize, f64)> {
+    xs.iter().position(|x| !x.is_finite()).map(|i| (i, xs[i]))
+}
+
+/// The variables a model call may write (outputs, locals, calculated parameters: everything
+/// but parameters and inputs, which only the master sets), as runs of consecutive indices:
+/// what the export layer copies before a model call and checks for non-finite values after
+/// it. Two runs apart by at most [`RUN_GAP`] other variables are one run (copying and
+/// scanning a few parameters costs less than another run; a model does not change them).
+pub fn computed_runs(variables: &[Variable]) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, v) in variables.iter().enumerate() {
+        if matches!(v.causality, Causality::Parameter | Causality::Input) {
+            continue;
+        }
+        match runs.last_mut() {
+            Some(run) if i - run.end <= RUN_GAP => run.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+/// The most parameters or inputs between two computed runs that [`computed_runs`] joins.
+pub const RUN_GAP: usize = 4;
 
 /// Declares an FMU's variable table once and generates from it both the table function and
 /// the value-reference constants (`vr::NAME` = position in the table), so the two cannot

@@ -13,9 +13,9 @@ use super::description::type_name;
 use super::functions;
 use super::types::*;
 use crate::description::{Config, CONFIG_FILE};
-use crate::ffi::{guarded, slice, string_arg};
+use crate::ffi::{guarded, slice, slice_mut, string_arg};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
-use crate::instance::{Function, Instance, LogSink, Logger};
+use crate::instance::{Access, Function, Instance, LogSink, Logger};
 use crate::me::Hooks;
 use crate::model::FmuModel;
 use crate::types::Status;
@@ -488,6 +488,53 @@ unsafe fn read<M: FmuModel>(
     status
 }
 
+/// The get call's fast path: when nothing must be computed first and every reference names
+/// variables of type `expected` whose values fill `out` exactly, the values (arrays
+/// row-major, `time` for value reference 0) into `out`, each through `to_c`; `None`
+/// otherwise, and [`read`] checks again and says why (the values written are then undefined,
+/// as FMI 3.0 allows for a failed get). A span lookup and a slice copy per reference.
+#[inline(always)]
+fn read_fast<M: FmuModel, C>(
+    s: &Slot<M>,
+    expected: VariableType,
+    vrs: &[u32],
+    out: &mut [C],
+    to_c: impl Fn(f64) -> C,
+) -> Option<Status> {
+    let instance = &s.instance;
+    if instance.needs_refresh() {
+        return None;
+    }
+    let (spans, numbers) = (&instance.interface().spans, instance.values().numbers());
+    let type_bit = Access::type_bit(expected);
+    let mut k = 0;
+    for &vr in vrs {
+        let span = spans.get(vr as usize)?;
+        if span.type_bit != type_bit {
+            return None;
+        }
+        let first = span.first as usize;
+        k += match span.len as usize {
+            0 => {
+                *out.get_mut(k)? = to_c(instance.time());
+                1
+            }
+            1 => {
+                *out.get_mut(k)? = to_c(*numbers.get(first)?);
+                1
+            }
+            len => {
+                let xs = numbers.get(first..first + len)?;
+                for (o, &x) in out.get_mut(k..k + len)?.iter_mut().zip(xs) {
+                    *o = to_c(x);
+                }
+                len
+            }
+        };
+    }
+    (k == out.len()).then_some(Status::Ok)
+}
+
 /// A value a get call reads: a number ([`crate::Values::numbers`]) or a String's text.
 enum Element<'a> {
     Number(f64),
@@ -509,6 +556,13 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
     let (f, null) = (K::GET, out.is_null());
     unsafe {
         with_instance::<M>(c, f, |s| {
+            // SAFETY: `vr` and `out` are NULL or hold `nvr` and `n_values` elements (FMI
+            // contract).
+            if let (Some(vrs), Some(to)) = (slice(vr, nvr), slice_mut(out, n_values)) {
+                if let Some(status) = read_fast(s, K::TYPE, vrs, to, K::to_c) {
+                    return status;
+                }
+            }
             read(s, f, vr, nvr, null, n_values, K::TYPE, |i, value| {
                 if let Element::Number(x) = value {
                     // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
@@ -599,6 +653,9 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
+            if let Some(status) = s.instance.set_spans(f, K::TYPE, vrs, raw, K::to_number) {
+                return status;
+            }
             let number = |k: usize| K::to_number(raw[k]);
             write_values(s, f, vrs, K::TYPE, n_values, number, AsNumbers(K::TYPE))
         })
