@@ -296,8 +296,8 @@ fn write_outputs(l: &Layout, system: &LinearSystem, u: Input, values: &mut Value
         values.set_real(l.y.first + j, clean + v);
         values.set_real(l.y_clean.first + j, clean);
     });
-    for (x, k) in system.state().iter().zip(l.x.indices()) {
-        values.set_real(k, *x);
+    for (i, x) in system.state().as_slice().iter().enumerate() {
+        values.set_real(l.x.first + i, *x);
     }
 }
 
