@@ -30,9 +30,18 @@
 //! **Sampling.** The measurement noise `v_k` belongs to the time point: it is drawn when the
 //! state reaches `x_k` (at construction and at the end of every step), so
 //! [`LinearSystem::output`] is a pure function of `u` at a given point and may be called any
-//! number of times. Each step draws `n` process then (after the state update) `p`
-//! measurement deviates. The complete state for save/restore is
+//! number of times. Each sample draws `n` process deviates (stream 0) and `p` measurement
+//! deviates (stream 1); the streams are independent, so the points of both are drawn first
+//! and transformed together ([`crate::signals::rng::deviates_into`]), bit for bit the
+//! deviates drawn one after another. The complete state for save/restore is
 //! [`LinearSystem::saved_state`] (`x`, the pending `v_k`, the two generator states).
+//!
+//! **Speed.** The matrices of a sample are packed row by row (`Kernel`) and the step and
+//! the outputs are compiled with constant dimensions for the packaged variants (`sized`),
+//! so a step is straight-line arithmetic; a `u` is checked once ([`LinearSystem::input`])
+//! for the step and the outputs of one call, and the outputs are handed out as computed
+//! ([`LinearSystem::for_each_output`]). Sums keep nalgebra's order, so the results are
+//! bit-identical to the matrix expressions.
 
 use crate::linalg;
 use crate::signals::rng::{deviates_into, PolarPoint, RandomGenerator};
@@ -181,8 +190,9 @@ impl<'a> Input<'a> {
 
 /// The matrices of a sample packed row by row, in the order the step reads them: row `i`
 /// of `[Φ | Γ | L_Q]` (`A`, `B` in discrete time; `2n + m` entries), row `j` of `[C | D]`
-/// (`n + m`) and of `L_R` (`p`), and row `i` of `[A | B]` (`n + m`). Built from the matrices when the system is made (and
-/// when the discretisation changes), so a step walks contiguous memory and no shape.
+/// (`n + m`) and of `L_R` (`p`), and row `i` of `[A | B]` (`n + m`). Built from the
+/// matrices when the system is made (and when the discretisation changes), so a step walks
+/// contiguous memory and no shape.
 #[derive(Debug, Clone, PartialEq, Default)]
 struct Kernel {
     n: usize,
@@ -363,7 +373,7 @@ impl LinearSystem {
     /// The outputs of the current time point, in order, each passed to `each(j, clean, v)`:
     /// the noise-free `(C x + D u)ⱼ` (summed as `&C * &x + &D * u` sums it) and the
     /// measurement noise `vⱼ`; the measured output is `yⱼ = (C x + D u)ⱼ + vⱼ`. Computed as
-    /// passed, into nothing (sized: see [`sized`]).
+    /// passed, into nothing, with the packaged variants' dimensions as constants (`sized`).
     #[inline]
     pub fn for_each_output(&self, u: Input, mut each: impl FnMut(usize, f64, f64)) {
         let k = &self.kernel;
