@@ -243,23 +243,29 @@ fn packed_rows(blocks: &[&DMatrix<f64>]) -> Vec<f64> {
 }
 
 /// Preallocated buffers of one step, so [`LinearSystem::advance`] allocates nothing: the
-/// accepted points of the polar method and their deviates `z` (process then measurement),
-/// the next state, and the state and measurement noise of the last time point, restored
-/// when a step fails.
+/// accepted points of the polar method; the deviates `z` of the next sample (process then
+/// measurement), drawn ahead at the end of the sample before (or when the streams are set),
+/// with the two streams past them; the next state; and the state and measurement noise of
+/// the last time point, restored when a step fails. Derived from the streams, so not saved.
 #[derive(Debug, Clone, PartialEq)]
 struct Workspace {
     points: Vec<PolarPoint>,
     deviates: Vec<f64>,
+    process_ahead: RandomGenerator,
+    measurement_ahead: RandomGenerator,
     next: Vec<f64>,
     saved_state: Vec<f64>,
     saved_measurement_noise: Vec<f64>,
 }
 
 impl Workspace {
-    fn new(n: usize, p: usize) -> Self {
+    /// The buffers; [`LinearSystem::draw_ahead`] fills the deviates and the streams.
+    fn new(n: usize, p: usize, process: &RandomGenerator, measurement: &RandomGenerator) -> Self {
         Self {
             points: vec![PolarPoint::default(); n + p],
             deviates: vec![0.0; n + p],
+            process_ahead: process.clone(),
+            measurement_ahead: measurement.clone(),
             next: vec![0.0; n],
             saved_state: vec![0.0; n],
             saved_measurement_noise: vec![0.0; p],
@@ -292,21 +298,44 @@ impl LinearSystem {
         parameters.validate()?;
         let process_factor = covariance_factor("Q", &parameters.system.q)?;
         let measurement_factor = covariance_factor("R", &parameters.system.r)?;
+        let process_stream = RandomGenerator::for_stream(parameters.seed, 0);
+        let measurement_stream = RandomGenerator::for_stream(parameters.seed, 1);
         let mut system = Self {
-            work: Workspace::new(parameters.states(), parameters.outputs()),
+            work: Workspace::new(
+                parameters.states(),
+                parameters.outputs(),
+                &process_stream,
+                &measurement_stream,
+            ),
             state: parameters.initial_state.clone(),
             measurement_noise: DVector::zeros(parameters.outputs()),
             process_factor,
             measurement_factor,
-            process_stream: RandomGenerator::for_stream(parameters.seed, 0),
-            measurement_stream: RandomGenerator::for_stream(parameters.seed, 1),
+            process_stream,
+            measurement_stream,
             cache: None,
             kernel: Kernel::default(),
             parameters,
         };
         system.pack();
         system.draw_measurement_noise();
+        system.draw_ahead();
         Ok(system)
+    }
+
+    /// Draws the deviates of the next sample from the streams (the streams themselves stay
+    /// where they are until the sample: see [`Workspace`]).
+    fn draw_ahead(&mut self) {
+        let w = &mut self.work;
+        w.process_ahead.clone_from(&self.process_stream);
+        w.measurement_ahead.clone_from(&self.measurement_stream);
+        draw(
+            &mut w.points,
+            &mut w.deviates,
+            self.kernel.n,
+            &mut w.process_ahead,
+            &mut w.measurement_ahead,
+        );
     }
 
     /// Packs the kernel from the matrices (at construction, and when the discretisation
@@ -356,6 +385,7 @@ impl LinearSystem {
     }
 
     /// `u` checked in one pass: `m` entries (named `u` when not), all finite.
+    #[inline]
     pub fn input<'a>(&self, u: &'a [f64]) -> Result<Input<'a>, ParameterError> {
         let m = self.kernel.m;
         if u.len() != m {
@@ -516,31 +546,35 @@ impl LinearSystem {
         else {
             return Err(ParameterError::new("x", "does not match the dimensions"));
         };
-        let streams = (process_stream.clone(), measurement_stream.clone());
-        saved_x.copy_from_slice(x);
-        saved_v.copy_from_slice(v);
+        // What a failed sample after the first restores (the first fails before any change).
+        let streams = (count > 1).then(|| {
+            saved_x.copy_from_slice(x);
+            saved_v.copy_from_slice(v);
+            (process_stream.clone(), measurement_stream.clone())
+        });
         for _ in 0..count {
-            for point in &mut points[..n] {
-                *point = process_stream.polar_point();
-            }
-            for point in &mut points[n..] {
-                *point = measurement_stream.polar_point();
-            }
-            deviates_into(points, z);
+            // The deviates z of this sample were drawn ahead.
             for i in 0..n {
                 let row = &rows[i * width..(i + 1) * width];
                 next[i] = dot(&row[..n], x) + dot(&row[n..n + m], u) + dot(&row[n + m..], &z[..n]);
+            }
+            if next.iter().any(|x| !x.is_finite()) {
+                if let Some((process, measurement)) = streams {
+                    x.copy_from_slice(saved_x);
+                    v.copy_from_slice(saved_v);
+                    (*process_stream, *measurement_stream) = (process, measurement);
+                    self.draw_ahead();
+                }
+                return Err(ParameterError::new("x", NON_FINITE_STATE));
             }
             x.copy_from_slice(next);
             for j in 0..p {
                 v[j] = dot(&factor[j * p..(j + 1) * p], &z[n..]);
             }
-            if x.iter().any(|x| !x.is_finite()) {
-                x.copy_from_slice(saved_x);
-                v.copy_from_slice(saved_v);
-                (*process_stream, *measurement_stream) = streams;
-                return Err(ParameterError::new("x", NON_FINITE_STATE));
-            }
+            process_stream.clone_from(&w.process_ahead);
+            measurement_stream.clone_from(&w.measurement_ahead);
+            // The next sample's, drawn now: their transforms run beside what follows.
+            draw(points, z, n, &mut w.process_ahead, &mut w.measurement_ahead);
         }
         Ok(())
     }
@@ -600,6 +634,7 @@ impl LinearSystem {
         );
         self.process_stream = process;
         self.measurement_stream = measurement;
+        self.draw_ahead();
         Ok(())
     }
 
@@ -682,6 +717,25 @@ fn dot(row: &[f64], v: &[f64]) -> f64 {
         sum += row[j] * v[j];
     }
     sum
+}
+
+/// The deviates of one sample into `z`: `n` from the process stream, then the rest from the
+/// measurement stream, their points drawn first and transformed together.
+#[inline(always)]
+fn draw(
+    points: &mut [PolarPoint],
+    z: &mut [f64],
+    n: usize,
+    process: &mut RandomGenerator,
+    measurement: &mut RandomGenerator,
+) {
+    for point in points.iter_mut().take(n) {
+        *point = process.polar_point();
+    }
+    for point in points.iter_mut().skip(n) {
+        *point = measurement.polar_point();
+    }
+    deviates_into(points, z);
 }
 
 /// Copies `from` into `to` over their common length.
@@ -781,20 +835,32 @@ impl PlainState for LinearSystem {
 
     fn read(input: &mut &[u8]) -> Result<Self, crate::state::StateError> {
         let parameters = LinearSystemParameters::read(input)?;
-        let work = Workspace::new(parameters.states(), parameters.outputs());
+        let state = PlainState::read(input)?;
+        let measurement_noise = PlainState::read(input)?;
+        let process_factor = PlainState::read(input)?;
+        let measurement_factor = PlainState::read(input)?;
+        let process_stream = PlainState::read(input)?;
+        let measurement_stream = PlainState::read(input)?;
+        let work = Workspace::new(
+            parameters.states(),
+            parameters.outputs(),
+            &process_stream,
+            &measurement_stream,
+        );
         let mut system = Self {
             parameters,
-            state: PlainState::read(input)?,
-            measurement_noise: PlainState::read(input)?,
-            process_factor: PlainState::read(input)?,
-            measurement_factor: PlainState::read(input)?,
-            process_stream: PlainState::read(input)?,
-            measurement_stream: PlainState::read(input)?,
+            state,
+            measurement_noise,
+            process_factor,
+            measurement_factor,
+            process_stream,
+            measurement_stream,
             cache: PlainState::read(input)?,
             kernel: Kernel::default(),
             work,
         };
         system.pack();
+        system.draw_ahead();
         Ok(system)
     }
 }
@@ -991,6 +1057,30 @@ mod tests {
             "x"
         );
         assert_eq!(s.saved_state(), before);
+    }
+
+    #[test]
+    fn a_failed_step_leaves_the_noise_streams_where_they_were() {
+        // x⁺ = 2 x + w: from 1e308 the first sample overflows, from 0.6e308 the second.
+        let mut p = scalar(2.0, TimeDomain::Discrete);
+        p.system.q = matrix(1, 1, &[1.0]);
+        p.system.r = matrix(1, 1, &[1.0]);
+        let mut failing = LinearSystem::new(p.clone()).unwrap();
+        let mut reference = LinearSystem::new(p).unwrap();
+        let u = failing.input(&[]).unwrap();
+        for (start, count) in [(1e308, 1), (0.6e308, 3), (1e308, 2)] {
+            failing.set_state(&[start]).unwrap();
+            let error = failing.advance_samples(u, 1.0, count).unwrap_err();
+            assert_eq!((error.parameter.as_str(), failing.state()[0]), ("x", start));
+            failing.set_state(&[1.0]).unwrap();
+            reference.set_state(&[1.0]).unwrap();
+            assert_eq!(failing.saved_state(), reference.saved_state());
+            for count in [1, 2, 1] {
+                failing.advance_samples(u, 1.0, count).unwrap();
+                reference.advance_samples(u, 1.0, count).unwrap();
+                assert_eq!(failing.saved_state(), reference.saved_state());
+            }
+        }
     }
 
     #[test]

@@ -291,6 +291,7 @@ fn advance_error(e: spurio::ParameterError, at: &str, time: f64) -> Failure {
 
 /// The outputs of the current point straight into the values: the measured
 /// `y = (C x + D u) + v`, the noise-free `y_clean = C x + D u` and the state `x`.
+#[inline]
 fn write_outputs(l: &Layout, system: &LinearSystem, u: Input, values: &mut Values) {
     system.for_each_output(u, |j, clean, v| {
         values.set_real(l.y.first + j, clean + v);
