@@ -729,10 +729,11 @@ fn draw(
     process: &mut RandomGenerator,
     measurement: &mut RandomGenerator,
 ) {
-    for point in points.iter_mut().take(n) {
+    let n = n.min(points.len());
+    for point in &mut points[..n] {
         *point = process.polar_point();
     }
-    for point in points.iter_mut().skip(n) {
+    for point in &mut points[n..] {
         *point = measurement.polar_point();
     }
     deviates_into(points, z);
