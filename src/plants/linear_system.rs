@@ -729,11 +729,10 @@ fn draw(
     process: &mut RandomGenerator,
     measurement: &mut RandomGenerator,
 ) {
-    let n = n.min(points.len());
-    for point in &mut points[..n] {
+    for point in points.iter_mut().take(n) {
         *point = process.polar_point();
     }
-    for point in &mut points[n..] {
+    for point in points.iter_mut().skip(n) {
         *point = measurement.polar_point();
     }
     deviates_into(points, z);
