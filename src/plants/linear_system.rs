@@ -30,12 +30,21 @@
 //! **Sampling.** The measurement noise `v_k` belongs to the time point: it is drawn when the
 //! state reaches `x_k` (at construction and at the end of every step), so
 //! [`LinearSystem::output`] is a pure function of `u` at a given point and may be called any
-//! number of times. Each step draws `n` process then (after the state update) `p`
-//! measurement deviates. The complete state for save/restore is
+//! number of times. Each sample draws `n` process deviates (stream 0) and `p` measurement
+//! deviates (stream 1); the streams are independent, so the points of both are drawn first
+//! and transformed together ([`crate::signals::rng::deviates_into`]), bit for bit the
+//! deviates drawn one after another. The complete state for save/restore is
 //! [`LinearSystem::saved_state`] (`x`, the pending `v_k`, the two generator states).
+//!
+//! **Speed.** The matrices of a sample are packed row by row (`Kernel`) and the step and
+//! the outputs are compiled with constant dimensions for the packaged variants (`sized`),
+//! so a step is straight-line arithmetic; a `u` is checked once ([`LinearSystem::input`])
+//! for the step and the outputs of one call, and the outputs are handed out as computed
+//! ([`LinearSystem::for_each_output`]). Sums keep nalgebra's order, so the results are
+//! bit-identical to the matrix expressions.
 
 use crate::linalg;
-use crate::signals::rng::RandomGenerator;
+use crate::signals::rng::{deviates_into, PolarPoint, RandomGenerator};
 use crate::state::PlainState;
 use crate::state_space::StateSpace;
 use crate::ParameterError;
@@ -157,7 +166,6 @@ pub struct LinearSystemState {
     /// Process-noise generator state, then measurement-noise generator state.
     pub random_streams: [u64; 8],
 }
-
 /// `Φ`, `Γ` and the factor of `Q_h` for one step length `h` (continuous time).
 #[derive(Debug, Clone, PartialEq)]
 struct Discretisation {
@@ -167,30 +175,100 @@ struct Discretisation {
     noise_factor: DMatrix<f64>,
 }
 
-/// Preallocated vectors of one step, so [`LinearSystem::advance`] allocates nothing: the
-/// deviates `z` (process, measurement), the products `Φ x`, `Γ u`, `L z`, and the state and
-/// measurement noise of the last time point, restored when a step fails.
+/// An input `u` checked against a system (its `m` entries, all finite), from
+/// [`LinearSystem::input`]: what the step and the outputs take, so one call of the FMU
+/// checks its input once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Input<'a>(&'a [f64]);
+
+impl<'a> Input<'a> {
+    /// The entries of `u`.
+    pub fn values(&self) -> &'a [f64] {
+        self.0
+    }
+}
+
+/// The matrices of a sample packed row by row, in the order the step reads them: row `i`
+/// of `[Φ | Γ | L_Q]` (`A`, `B` in discrete time; `2n + m` entries), row `j` of `[C | D]`
+/// (`n + m`) and of `L_R` (`p`), and row `i` of `[A | B]` (`n + m`). Built from the
+/// matrices when the system is made (and when the discretisation changes), so a step walks
+/// contiguous memory and no shape.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Kernel {
+    n: usize,
+    m: usize,
+    p: usize,
+    process: Vec<f64>,
+    output: Vec<f64>,
+    measurement: Vec<f64>,
+    /// Row `i` of `[A | B]`: the continuous right-hand side.
+    dynamics: Vec<f64>,
+}
+
+/// The dimensions `(n, m, p)`.
+type Dims = (usize, usize, usize);
+
+impl Kernel {
+    fn dims(&self) -> Dims {
+        (self.n, self.m, self.p)
+    }
+}
+
+/// `body(dims)`, with the dimensions as constants when they are a packaged variant's
+/// (LinearSystem (2, 1, 1), LinearSystem2 (2, 2, 2), DistributedObserverPlant (3, 0, 2)) or
+/// the scalar plant's (1, 1, 1): `body` is inlined into each case, so its loops have known
+/// lengths and unroll into straight-line code; other dimensions run the same code with
+/// run-time lengths.
+#[inline(always)]
+fn sized<R>(dims: Dims, body: impl FnOnce(Dims) -> R) -> R {
+    match dims {
+        (1, 1, 1) => body((1, 1, 1)),
+        (2, 1, 1) => body((2, 1, 1)),
+        (2, 2, 2) => body((2, 2, 2)),
+        (3, 0, 2) => body((3, 0, 2)),
+        dims => body(dims),
+    }
+}
+
+/// The rows of the blocks side by side, row after row (the blocks have the same rows).
+fn packed_rows(blocks: &[&DMatrix<f64>]) -> Vec<f64> {
+    let rows = blocks.first().map_or(0, |b| b.nrows());
+    let mut packed = Vec::new();
+    for i in 0..rows {
+        for block in blocks {
+            packed.extend(block.row(i).iter());
+        }
+    }
+    packed
+}
+
+/// Preallocated buffers of one step, so [`LinearSystem::advance`] allocates nothing: the
+/// accepted points of the polar method; the deviates `z` of the next sample (process then
+/// measurement), drawn ahead at the end of the sample before (or when the streams are set),
+/// with the two streams past them; the next state; and the state and measurement noise of
+/// the last time point, restored when a step fails. Derived from the streams, so not saved.
 #[derive(Debug, Clone, PartialEq)]
 struct Workspace {
-    process_deviates: DVector<f64>,
-    measurement_deviates: DVector<f64>,
-    transition: DVector<f64>,
-    input: DVector<f64>,
-    noise: DVector<f64>,
-    saved_state: DVector<f64>,
-    saved_measurement_noise: DVector<f64>,
+    points: Vec<PolarPoint>,
+    deviates: Vec<f64>,
+    process_ahead: RandomGenerator,
+    measurement_ahead: RandomGenerator,
+    next: Vec<f64>,
+    saved_state: Vec<f64>,
+    saved_measurement_noise: Vec<f64>,
 }
 
 impl Workspace {
-    fn new(n: usize, p: usize) -> Self {
+    /// The buffers; [`LinearSystem::draw_ahead`] fills the deviates and the streams.
+    fn new(n: usize, p: usize, process: &RandomGenerator, measurement: &RandomGenerator) -> Self {
         Self {
-            process_deviates: DVector::zeros(n),
-            measurement_deviates: DVector::zeros(p),
-            transition: DVector::zeros(n),
-            input: DVector::zeros(n),
-            noise: DVector::zeros(n),
-            saved_state: DVector::zeros(n),
-            saved_measurement_noise: DVector::zeros(p),
+            points: vec![PolarPoint::default(); n + p],
+            deviates: vec![0.0; n + p],
+            process_ahead: process.clone(),
+            measurement_ahead: measurement.clone(),
+            next: vec![0.0; n],
+            saved_state: vec![0.0; n],
+            saved_measurement_noise: vec![0.0; p],
         }
     }
 }
@@ -206,8 +284,13 @@ pub struct LinearSystem {
     process_stream: RandomGenerator,
     measurement_stream: RandomGenerator,
     cache: Option<Discretisation>,
+    kernel: Kernel,
     work: Workspace,
 }
+
+/// The message of a state become non-finite.
+const NON_FINITE_STATE: &str =
+    "the state became non-finite (A has eigenvalues far outside the stable region?)";
 
 impl LinearSystem {
     /// The system at `x0` with its first measurement noise drawn, after validation.
@@ -215,19 +298,70 @@ impl LinearSystem {
         parameters.validate()?;
         let process_factor = covariance_factor("Q", &parameters.system.q)?;
         let measurement_factor = covariance_factor("R", &parameters.system.r)?;
+        let process_stream = RandomGenerator::for_stream(parameters.seed, 0);
+        let measurement_stream = RandomGenerator::for_stream(parameters.seed, 1);
         let mut system = Self {
-            work: Workspace::new(parameters.states(), parameters.outputs()),
+            work: Workspace::new(
+                parameters.states(),
+                parameters.outputs(),
+                &process_stream,
+                &measurement_stream,
+            ),
             state: parameters.initial_state.clone(),
             measurement_noise: DVector::zeros(parameters.outputs()),
             process_factor,
             measurement_factor,
-            process_stream: RandomGenerator::for_stream(parameters.seed, 0),
-            measurement_stream: RandomGenerator::for_stream(parameters.seed, 1),
+            process_stream,
+            measurement_stream,
             cache: None,
+            kernel: Kernel::default(),
             parameters,
         };
+        system.pack();
         system.draw_measurement_noise();
+        system.draw_ahead();
         Ok(system)
+    }
+
+    /// Draws the deviates of the next sample from the streams (the streams themselves stay
+    /// where they are until the sample: see [`Workspace`]).
+    fn draw_ahead(&mut self) {
+        let w = &mut self.work;
+        w.process_ahead.clone_from(&self.process_stream);
+        w.measurement_ahead.clone_from(&self.measurement_stream);
+        draw(
+            &mut w.points,
+            &mut w.deviates,
+            self.kernel.n,
+            &mut w.process_ahead,
+            &mut w.measurement_ahead,
+        );
+    }
+
+    /// Packs the kernel from the matrices (at construction, and when the discretisation
+    /// changes).
+    fn pack(&mut self) {
+        let s = &self.parameters.system;
+        let (transition, input, factor) = self.process_matrices();
+        self.kernel = Kernel {
+            n: s.states(),
+            m: s.inputs(),
+            p: s.outputs(),
+            process: packed_rows(&[transition, input, factor]),
+            output: packed_rows(&[&s.c, &s.d]),
+            measurement: packed_rows(&[&self.measurement_factor]),
+            dynamics: packed_rows(&[&s.a, &s.b]),
+        };
+    }
+
+    /// `(Φ, Γ, L)` of a sample: the cached discretisation in continuous time, else `A`, `B`
+    /// and the factor of `Q`.
+    fn process_matrices(&self) -> (&DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>) {
+        let p = &self.parameters;
+        match (&p.time_domain, &self.cache) {
+            (TimeDomain::Continuous, Some(d)) => (&d.transition, &d.input, &d.noise_factor),
+            _ => (&p.system.a, &p.system.b, &self.process_factor),
+        }
     }
 
     /// Paper 004's three-state example ([`LinearSystemParameters::distributed_observer_example`]).
@@ -250,30 +384,62 @@ impl LinearSystem {
         &self.measurement_noise
     }
 
-    /// The noise-free output `C x + D u`.
-    pub fn clean_output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
-        self.check_input(u)?;
-        Ok(&self.parameters.system.c * &self.state + &self.parameters.system.d * u)
-    }
-
-    /// The noise-free output `C x + D u` written into `out` (p entries), allocating nothing.
-    pub fn clean_output_into(
-        &self,
-        u: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), ParameterError> {
-        self.check_input(u)?;
-        let p = &self.parameters;
-        if out.len() != p.outputs() {
+    /// `u` checked in one pass: `m` entries (named `u` when not), all finite.
+    #[inline]
+    pub fn input<'a>(&self, u: &'a [f64]) -> Result<Input<'a>, ParameterError> {
+        let m = self.kernel.m;
+        if u.len() != m {
             return Err(ParameterError::new(
-                "y",
-                format!("must have {} entries, got {}", p.outputs(), out.len()),
+                "u",
+                format!("must have {m} entries, got {}", u.len()),
             ));
         }
-        for (i, y) in out.iter_mut().enumerate() {
-            *y = row_product(&p.system.c, i, &self.state) + row_product(&p.system.d, i, u);
+        if u.iter().any(|v| !v.is_finite()) {
+            return Err(ParameterError::new("u", "contains NaN or infinity"));
         }
-        Ok(())
+        Ok(Input(u))
+    }
+
+    /// The outputs of the current time point, in order, each passed to `each(j, clean, v)`:
+    /// the noise-free `(C x + D u)ⱼ` (summed as `&C * &x + &D * u` sums it) and the
+    /// measurement noise `vⱼ`; the measured output is `yⱼ = (C x + D u)ⱼ + vⱼ`. Computed as
+    /// passed, into nothing, with the packaged variants' dimensions as constants (`sized`).
+    #[inline]
+    pub fn for_each_output(&self, u: Input, mut each: impl FnMut(usize, f64, f64)) {
+        let k = &self.kernel;
+        sized(
+            k.dims(),
+            #[inline(always)]
+            |(n, m, p)| {
+                let (Some(x), Some(v), Some(u), Some(rows)) = (
+                    self.state.as_slice().get(..n),
+                    self.measurement_noise.as_slice().get(..p),
+                    u.0.get(..m),
+                    k.output.get(..p * (n + m)),
+                ) else {
+                    return;
+                };
+                let width = n + m;
+                for j in 0..p {
+                    let row = &rows[j * width..(j + 1) * width];
+                    each(j, dot(&row[..n], x) + dot(&row[n..], u), v[j]);
+                }
+            },
+        )
+    }
+
+    /// The noise-free output `C x + D u`.
+    pub fn clean_output(&self, u: Input) -> DVector<f64> {
+        let mut y = DVector::zeros(self.kernel.p);
+        self.for_each_output(u, |j, clean, _| y[j] = clean);
+        y
+    }
+
+    /// The measured output `y_k = C x_k + D u + v_k`.
+    pub fn output(&self, u: Input) -> DVector<f64> {
+        let mut y = DVector::zeros(self.kernel.p);
+        self.for_each_output(u, |j, clean, v| y[j] = clean + v);
+        y
     }
 
     /// The right-hand side `dx/dt = A x + B u` of the noise-free continuous model (the
@@ -281,20 +447,17 @@ impl LinearSystem {
     /// are `∂f/∂x = A`, `∂f/∂u = B`, and those of the output `C x + D u` are `C`, `D`.
     pub fn derivative_into(
         &self,
-        x: &DVector<f64>,
-        u: &DVector<f64>,
-        dx: &mut DVector<f64>,
+        x: &[f64],
+        u: Input,
+        dx: &mut [f64],
     ) -> Result<(), ParameterError> {
-        self.check_input(u)?;
-        let p = &self.parameters;
-        if x.len() != p.states() || dx.len() != p.states() {
-            return Err(ParameterError::new(
-                "x",
-                format!("must have {} entries", p.states()),
-            ));
+        let k = &self.kernel;
+        let (n, width) = (k.n, k.n + k.m);
+        if x.len() != n || dx.len() != n {
+            return Err(ParameterError::new("x", format!("must have {n} entries")));
         }
-        for (i, dx) in dx.iter_mut().enumerate() {
-            *dx = row_product(&p.system.a, i, x) + row_product(&p.system.b, i, u);
+        for (dx, row) in dx.iter_mut().zip(k.dynamics.chunks_exact(width)) {
+            *dx = dot(&row[..n], x) + dot(&row[n..], u.0);
         }
         Ok(())
     }
@@ -302,88 +465,118 @@ impl LinearSystem {
     /// Sets the state (the continuous states a Model Exchange importer integrates), checked
     /// against the dimension and for finiteness (named `x`).
     pub fn set_state(&mut self, x: &[f64]) -> Result<(), ParameterError> {
-        if x.len() != self.parameters.states() || x.iter().any(|v| !v.is_finite()) {
+        if x.len() != self.kernel.n || x.iter().any(|v| !v.is_finite()) {
             return Err(ParameterError::new(
                 "x",
-                format!("must hold {} finite values", self.parameters.states()),
+                format!("must hold {} finite values", self.kernel.n),
             ));
         }
         self.state.copy_from_slice(x);
         Ok(())
     }
 
-    /// The measured output `y_k = C x_k + D u + v_k`.
-    pub fn output(&self, u: &DVector<f64>) -> Result<DVector<f64>, ParameterError> {
-        Ok(self.clean_output(u)? + &self.measurement_noise)
-    }
-
     /// Advances one sample (discrete) or `h` seconds with `u` held (continuous), adds the
-    /// process noise and draws the measurement noise of the new time point. A wrong-length
-    /// or non-finite `u` (named `u`), a non-positive `h` in continuous time (named `h`), or a
-    /// state that would become non-finite (named `x`) is an error and leaves the system
-    /// unchanged. Allocates nothing once the discretisation for `h` is cached.
-    pub fn advance(&mut self, u: &DVector<f64>, h: f64) -> Result<(), ParameterError> {
+    /// process noise and draws the measurement noise of the new time point. A non-positive
+    /// `h` in continuous time (named `h`), or a state that would become non-finite (named
+    /// `x`) is an error and leaves the system unchanged. Allocates nothing once the
+    /// discretisation for `h` is cached.
+    pub fn advance(&mut self, u: Input, h: f64) -> Result<(), ParameterError> {
         self.advance_samples(u, h, 1)
     }
 
     /// [`Self::advance`] `count` times with the same `u` and `h`, all or nothing: on an error
     /// at any sample the system is as before the call.
-    pub fn advance_samples(
-        &mut self,
-        u: &DVector<f64>,
-        h: f64,
-        count: u64,
-    ) -> Result<(), ParameterError> {
-        self.check_input(u)?;
+    pub fn advance_samples(&mut self, u: Input, h: f64, count: u64) -> Result<(), ParameterError> {
         if count == 0 {
             return Ok(());
         }
-        if self.parameters.time_domain == TimeDomain::Continuous {
-            let cached = matches!(&self.cache, Some(d) if d.step == h);
-            if !cached {
-                self.cache = Some(self.discretisation(h)?);
-            }
+        if self.parameters.time_domain == TimeDomain::Continuous
+            && !matches!(&self.cache, Some(d) if d.step == h)
+        {
+            self.cache = Some(self.discretisation(h)?);
+            self.pack();
         }
-        let streams = (self.process_stream.clone(), self.measurement_stream.clone());
-        self.work.saved_state.copy_from(&self.state);
-        self.work
-            .saved_measurement_noise
-            .copy_from(&self.measurement_noise);
-        for _ in 0..count {
-            self.sample(u);
-            if self.state.iter().any(|v| !v.is_finite()) {
-                self.state.copy_from(&self.work.saved_state);
-                self.measurement_noise
-                    .copy_from(&self.work.saved_measurement_noise);
-                (self.process_stream, self.measurement_stream) = streams;
-                return Err(ParameterError::new(
-                    "x",
-                    "the state became non-finite (A has eigenvalues far outside the stable region?)",
-                ));
-            }
-        }
-        Ok(())
+        sized(
+            self.kernel.dims(),
+            #[inline(always)]
+            |dims| self.samples(dims, u.0, count),
+        )
     }
 
-    /// One sample in place: `x⁺ = (Φ x + Γ u) + L z` (the order `&Φ * &x + &Γ * u + w` adds
-    /// in), then the measurement noise of the new point.
-    fn sample(&mut self, u: &DVector<f64>) {
-        let p = &self.parameters;
-        let (transition, input, factor) = match (&p.time_domain, &self.cache) {
-            (TimeDomain::Continuous, Some(d)) => (&d.transition, &d.input, &d.noise_factor),
-            _ => (&p.system.a, &p.system.b, &self.process_factor),
+    /// `count` samples in place, each `x⁺ = (Φ x + Γ u) + L z` (the order `&Φ * &x + &Γ * u
+    /// + w` adds in) then the measurement noise of the new point `v = L_R z`, with the
+    /// deviates of the process (`n`) and the measurement (`p`) streams drawn first and
+    /// transformed together. On a state that is not finite, an error and the system as
+    /// before. Inlined for each of [`sized`]'s dimensions.
+    #[inline(always)]
+    fn samples(&mut self, (n, m, p): Dims, u: &[f64], count: u64) -> Result<(), ParameterError> {
+        let Self {
+            kernel: k,
+            work: w,
+            state,
+            measurement_noise,
+            process_stream,
+            measurement_stream,
+            ..
+        } = self;
+        let width = 2 * n + m;
+        let (
+            Some(x),
+            Some(v),
+            Some(u),
+            Some(rows),
+            Some(factor),
+            Some(points),
+            Some(z),
+            Some(next),
+            Some(saved_x),
+            Some(saved_v),
+        ) = (
+            state.as_mut_slice().get_mut(..n),
+            measurement_noise.as_mut_slice().get_mut(..p),
+            u.get(..m),
+            k.process.get(..n * width),
+            k.measurement.get(..p * p),
+            w.points.get_mut(..n + p),
+            w.deviates.get_mut(..n + p),
+            w.next.get_mut(..n),
+            w.saved_state.get_mut(..n),
+            w.saved_measurement_noise.get_mut(..p),
+        )
+        else {
+            return Err(ParameterError::new("x", "does not match the dimensions"));
         };
-        let w = &mut self.work;
-        for z in w.process_deviates.iter_mut() {
-            *z = self.process_stream.gaussian();
+        // What a failed sample after the first restores (the first fails before any change).
+        let streams = (count > 1).then(|| {
+            saved_x.copy_from_slice(x);
+            saved_v.copy_from_slice(v);
+            (process_stream.clone(), measurement_stream.clone())
+        });
+        for _ in 0..count {
+            // The deviates z of this sample were drawn ahead.
+            for i in 0..n {
+                let row = &rows[i * width..(i + 1) * width];
+                next[i] = dot(&row[..n], x) + dot(&row[n..n + m], u) + dot(&row[n + m..], &z[..n]);
+            }
+            if next.iter().any(|x| !x.is_finite()) {
+                if let Some((process, measurement)) = streams {
+                    x.copy_from_slice(saved_x);
+                    v.copy_from_slice(saved_v);
+                    (*process_stream, *measurement_stream) = (process, measurement);
+                    self.draw_ahead();
+                }
+                return Err(ParameterError::new("x", NON_FINITE_STATE));
+            }
+            x.copy_from_slice(next);
+            for j in 0..p {
+                v[j] = dot(&factor[j * p..(j + 1) * p], &z[n..]);
+            }
+            process_stream.clone_from(&w.process_ahead);
+            measurement_stream.clone_from(&w.measurement_ahead);
+            // The next sample's, drawn now: their transforms run beside what follows.
+            draw(points, z, n, &mut w.process_ahead, &mut w.measurement_ahead);
         }
-        for (i, next) in w.transition.iter_mut().enumerate() {
-            *next = row_product(transition, i, &self.state)
-                + row_product(input, i, u)
-                + row_product(factor, i, &w.process_deviates);
-        }
-        std::mem::swap(&mut self.state, &mut w.transition);
-        self.draw_measurement_noise();
+        Ok(())
     }
 
     /// `(Φ, Γ)` for a step `h` in continuous time, or `(A, B)` in discrete time.
@@ -416,8 +609,7 @@ impl LinearSystem {
 
     /// Restores a [`Self::saved_state`] (checked against the dimensions).
     pub fn restore(&mut self, saved: &LinearSystemState) -> Result<(), ParameterError> {
-        let n = self.parameters.states();
-        let p = self.parameters.outputs();
+        let (n, p) = (self.kernel.n, self.kernel.p);
         if saved.state.len() != n || saved.state.iter().any(|v| !v.is_finite()) {
             return Err(ParameterError::new(
                 "x",
@@ -435,34 +627,30 @@ impl LinearSystem {
         let s = &saved.random_streams;
         let process = RandomGenerator::from_state([s[0], s[1], s[2], s[3]])?;
         let measurement = RandomGenerator::from_state([s[4], s[5], s[6], s[7]])?;
-        self.state = DVector::from_column_slice(&saved.state);
-        self.measurement_noise = DVector::from_column_slice(&saved.measurement_noise);
+        copy(self.state.as_mut_slice(), &saved.state);
+        copy(
+            self.measurement_noise.as_mut_slice(),
+            &saved.measurement_noise,
+        );
         self.process_stream = process;
         self.measurement_stream = measurement;
-        Ok(())
-    }
-
-    fn check_input(&self, u: &DVector<f64>) -> Result<(), ParameterError> {
-        let m = self.parameters.inputs();
-        if u.len() != m {
-            return Err(ParameterError::new(
-                "u",
-                format!("must have {m} entries, got {}", u.len()),
-            ));
-        }
-        if u.iter().any(|v| !v.is_finite()) {
-            return Err(ParameterError::new("u", "contains NaN or infinity"));
-        }
+        self.draw_ahead();
         Ok(())
     }
 
     /// Draws the measurement noise of the current time point, `v = L_R z`, in place.
     fn draw_measurement_noise(&mut self) {
-        for z in self.work.measurement_deviates.iter_mut() {
+        let k = &self.kernel;
+        let w = &mut self.work;
+        for z in w.deviates.iter_mut().take(k.p) {
             *z = self.measurement_stream.gaussian();
         }
-        for (i, v) in self.measurement_noise.iter_mut().enumerate() {
-            *v = row_product(&self.measurement_factor, i, &self.work.measurement_deviates);
+        for (v, row) in self
+            .measurement_noise
+            .iter_mut()
+            .zip(k.measurement.chunks_exact(k.p.max(1)))
+        {
+            *v = dot(row, &w.deviates[..]);
         }
     }
 
@@ -514,20 +702,48 @@ impl LinearSystem {
     }
 }
 
-/// `(M v)ᵢ` without a temporary, summed over the columns in order as nalgebra's `&M * &v`
-/// sums it (column by column), so `(C x)ᵢ + (D u)ᵢ` is bit-identical to `&C * &x + &D * u`;
-/// 0 for a matrix without columns. `M` is column-major with `v.len()` columns.
-fn row_product(m: &DMatrix<f64>, i: usize, v: &DVector<f64>) -> f64 {
-    let (rows, cols) = m.shape();
-    let (entries, values) = (m.as_slice(), v.as_slice());
-    if cols == 0 || i >= rows || values.len() < cols {
+/// `Σⱼ rowⱼ vⱼ` over the common length, summed in order from the first product, as
+/// nalgebra's `&M * &v` sums a row (column by column), so `(C x)ᵢ + (D u)ᵢ` is bit-identical
+/// to `&C * &x + &D * u`; 0 for an empty row. Index loops, so that a length known where it
+/// is inlined unrolls into straight-line code.
+#[inline(always)]
+fn dot(row: &[f64], v: &[f64]) -> f64 {
+    let length = row.len().min(v.len());
+    if length == 0 {
         return 0.0;
     }
-    let mut sum = entries[i] * values[0];
-    for j in 1..cols {
-        sum += entries[i + j * rows] * values[j];
+    let mut sum = row[0] * v[0];
+    for j in 1..length {
+        sum += row[j] * v[j];
     }
     sum
+}
+
+/// The deviates of one sample into `z`: `n` from the process stream, then the rest from the
+/// measurement stream, their points drawn first and transformed together.
+#[inline(always)]
+fn draw(
+    points: &mut [PolarPoint],
+    z: &mut [f64],
+    n: usize,
+    process: &mut RandomGenerator,
+    measurement: &mut RandomGenerator,
+) {
+    for point in points.iter_mut().take(n) {
+        *point = process.polar_point();
+    }
+    for point in points.iter_mut().skip(n) {
+        *point = measurement.polar_point();
+    }
+    deviates_into(points, z);
+}
+
+/// Copies `from` into `to` over their common length.
+#[inline(always)]
+fn copy(to: &mut [f64], from: &[f64]) {
+    for (to, from) in to.iter_mut().zip(from) {
+        *to = *from;
+    }
 }
 
 /// The eigen-factor `L = V diag(√max(λ, 0))` of a symmetric PSD covariance (module docs),
@@ -603,7 +819,8 @@ crate::plain_state!(Discretisation {
     noise_factor
 });
 
-/// Every field but the workspace, which is rebuilt for the saved dimensions.
+/// Every field but the kernel and the workspace, which are rebuilt from the saved matrices and
+/// dimensions.
 impl PlainState for LinearSystem {
     fn save(&self, out: &mut Vec<u8>) {
         self.parameters.save(out);
@@ -618,18 +835,33 @@ impl PlainState for LinearSystem {
 
     fn read(input: &mut &[u8]) -> Result<Self, crate::state::StateError> {
         let parameters = LinearSystemParameters::read(input)?;
-        let work = Workspace::new(parameters.states(), parameters.outputs());
-        Ok(Self {
+        let state = PlainState::read(input)?;
+        let measurement_noise = PlainState::read(input)?;
+        let process_factor = PlainState::read(input)?;
+        let measurement_factor = PlainState::read(input)?;
+        let process_stream = PlainState::read(input)?;
+        let measurement_stream = PlainState::read(input)?;
+        let work = Workspace::new(
+            parameters.states(),
+            parameters.outputs(),
+            &process_stream,
+            &measurement_stream,
+        );
+        let mut system = Self {
             parameters,
-            state: PlainState::read(input)?,
-            measurement_noise: PlainState::read(input)?,
-            process_factor: PlainState::read(input)?,
-            measurement_factor: PlainState::read(input)?,
-            process_stream: PlainState::read(input)?,
-            measurement_stream: PlainState::read(input)?,
+            state,
+            measurement_noise,
+            process_factor,
+            measurement_factor,
+            process_stream,
+            measurement_stream,
             cache: PlainState::read(input)?,
+            kernel: Kernel::default(),
             work,
-        })
+        };
+        system.pack();
+        system.draw_ahead();
+        Ok(system)
     }
 }
 
@@ -670,7 +902,7 @@ mod tests {
         let mut s = LinearSystem::new(p).unwrap();
         let u = DVector::from_vec(vec![0.4]);
         for _ in 0..25 {
-            s.advance(&u, 0.1).unwrap();
+            s.advance(s.input(u.as_slice()).unwrap(), 0.1).unwrap();
         }
         // x_25 = A^25 x0 + Σ_{j<25} A^j B u.
         let mut expected = a.pow(25) * &x0;
@@ -678,7 +910,7 @@ mod tests {
             expected += a.pow(j) * &b * &u;
         }
         assert!((s.state() - &expected).amax() < 1e-12);
-        let y = s.output(&u).unwrap();
+        let y = s.output(s.input(u.as_slice()).unwrap());
         assert!((y - (&c * &expected + &d * &u)).amax() < 1e-12);
     }
 
@@ -704,7 +936,7 @@ mod tests {
         let u = DVector::from_vec(vec![1.5]);
         let h = 0.1;
         for _ in 0..50 {
-            s.advance(&u, h).unwrap();
+            s.advance(s.input(u.as_slice()).unwrap(), h).unwrap();
         }
         let t = 5.0;
         // x(t) = V e^{Λt} V⁻¹ x0 + V Λ⁻¹ (e^{Λt} − I) V⁻¹ B u.
@@ -721,36 +953,89 @@ mod tests {
         assert!(error < 1e-12, "error {error:e}");
     }
 
+    /// A random system of `n` states, `m` inputs and `p` outputs with full (non-diagonal)
+    /// covariances, stable enough for its time domain.
+    fn random_system(
+        g: &mut RandomGenerator,
+        (n, m, p): (usize, usize, usize),
+        time_domain: TimeDomain,
+    ) -> LinearSystemParameters {
+        let mut random = |rows, cols, scale: f64| {
+            DMatrix::from_fn(rows, cols, |_, _| g.uniform_range(-scale, scale))
+        };
+        let a = match time_domain {
+            TimeDomain::Discrete => random(n, n, 0.4 / n as f64) + DMatrix::identity(n, n) * 0.5,
+            TimeDomain::Continuous => random(n, n, 0.4 / n as f64) - DMatrix::identity(n, n),
+        };
+        let (b, c, d) = (random(n, m, 1.0), random(p, n, 1.0), random(p, m, 1.0));
+        let (lq, lr) = (random(n, n, 0.5), random(p, p, 0.5));
+        let mut parameters = LinearSystemParameters::noise_free(a, b, c, d, time_domain);
+        parameters.system.q = &lq * lq.transpose();
+        parameters.system.r = &lr * lr.transpose();
+        linalg::symmetrize(&mut parameters.system.q);
+        linalg::symmetrize(&mut parameters.system.r);
+        parameters.initial_state = random(n, 1, 1.0).column(0).into_owned();
+        parameters.seed = 7 + (n * 100 + m * 10 + p) as u64;
+        parameters
+    }
+
     #[test]
     fn in_place_steps_are_bit_identical_to_the_matrix_expressions() {
-        // x⁺ = A x + B u + L_Q z, y = C x + D u + L_R z with m = 2 (two columns summed)
-        let mut p = LinearSystemParameters::noise_free(
-            matrix(2, 2, &[0.9, 0.2, -0.1, 0.7]),
-            matrix(2, 2, &[1.0, 0.5, 0.3, -0.7]),
-            matrix(2, 2, &[1.0, -1.0, 0.25, 0.5]),
-            matrix(2, 2, &[0.3, 0.1, -0.2, 0.6]),
-            TimeDomain::Discrete,
-        );
-        p.system.q = matrix(2, 2, &[0.2, 0.05, 0.05, 0.1]);
-        p.system.r = matrix(2, 2, &[0.1, 0.0, 0.0, 0.3]);
-        let mut s = LinearSystem::new(p.clone()).unwrap();
-        let mut process = RandomGenerator::for_stream(p.seed, 0);
-        let mut measurement = RandomGenerator::for_stream(p.seed, 1);
-        let lq = covariance_factor("Q", &p.system.q).unwrap();
-        let lr = covariance_factor("R", &p.system.r).unwrap();
-        let gauss = |g: &mut RandomGenerator| DVector::from_fn(2, |_, _| g.gaussian());
-        let mut x = p.initial_state.clone();
-        assert_eq!(s.measurement_noise(), &(&lr * gauss(&mut measurement)));
-        let mut y = DVector::zeros(2);
-        for k in 0..50 {
-            let u = DVector::from_vec(vec![(k as f64 * 0.3).sin(), 0.5]);
-            s.advance(&u, 1.0).unwrap();
-            x = &p.system.a * &x + &p.system.b * &u + &lq * gauss(&mut process);
-            let v = &lr * gauss(&mut measurement);
-            assert_eq!(s.state(), &x);
-            assert_eq!(s.measurement_noise(), &v);
-            s.clean_output_into(&u, &mut y).unwrap();
-            assert_eq!(y, &p.system.c * &x + &p.system.d * &u);
+        // x⁺ = Φ x + Γ u + L_Q z, v = L_R z, y = C x + D u + v, the expressions as nalgebra
+        // evaluates them (the former code), one deviate after another, against the packed
+        // kernel with the deviates drawn first and transformed together: the specialised
+        // n = 1…4, the general n, no input, one to three samples a call, both time domains.
+        let mut g = RandomGenerator::new(2026);
+        for time_domain in [TimeDomain::Discrete, TimeDomain::Continuous] {
+            for dims in [
+                (1, 1, 1),
+                (2, 1, 1),
+                (2, 2, 2),
+                (3, 0, 2),
+                (4, 2, 3),
+                (6, 1, 2),
+            ] {
+                let p = random_system(&mut g, dims, time_domain);
+                let (n, m, outputs) = dims;
+                let mut s = LinearSystem::new(p.clone()).unwrap();
+                let mut process = RandomGenerator::for_stream(p.seed, 0);
+                let mut measurement = RandomGenerator::for_stream(p.seed, 1);
+                let h = 0.05;
+                let (phi, gamma, lq) = match time_domain {
+                    TimeDomain::Discrete => (
+                        p.system.a.clone(),
+                        p.system.b.clone(),
+                        covariance_factor("Q", &p.system.q).unwrap(),
+                    ),
+                    TimeDomain::Continuous => {
+                        let d = s.discretisation(h).unwrap();
+                        (d.transition, d.input, d.noise_factor)
+                    }
+                };
+                let lr = covariance_factor("R", &p.system.r).unwrap();
+                let gauss = |g: &mut RandomGenerator, k| DVector::from_fn(k, |_, _| g.gaussian());
+                let mut x = p.initial_state.clone();
+                assert_eq!(
+                    s.measurement_noise(),
+                    &(&lr * gauss(&mut measurement, outputs))
+                );
+                for k in 0..300 {
+                    let u = DVector::from_fn(m, |i, _| (k as f64 * 0.3 + i as f64).sin());
+                    let count = 1 + k % 3;
+                    s.advance_samples(s.input(u.as_slice()).unwrap(), h, count as u64)
+                        .unwrap();
+                    let mut v = DVector::zeros(outputs);
+                    for _ in 0..count {
+                        x = &phi * &x + &gamma * &u + &lq * gauss(&mut process, n);
+                        v = &lr * gauss(&mut measurement, outputs);
+                    }
+                    assert_eq!(s.state(), &x, "{dims:?} {time_domain:?} step {k}");
+                    assert_eq!(s.measurement_noise(), &v);
+                    let clean = &p.system.c * &x + &p.system.d * &u;
+                    assert_eq!(s.clean_output(s.input(u.as_slice()).unwrap()), clean);
+                    assert_eq!(s.output(s.input(u.as_slice()).unwrap()), clean + v);
+                }
+            }
         }
     }
 
@@ -761,12 +1046,41 @@ mod tests {
         p.system.r = matrix(1, 1, &[1.0]);
         let mut s = LinearSystem::new(p).unwrap();
         let u = DVector::zeros(0);
-        s.advance(&u, 1.0).unwrap();
+        s.advance(s.input(u.as_slice()).unwrap(), 1.0).unwrap();
         assert_eq!(s.state()[0], 1e200);
         let before = s.saved_state();
         // the second of three samples overflows: all three are undone
-        assert_eq!(s.advance_samples(&u, 1.0, 3).unwrap_err().parameter, "x");
+        assert_eq!(
+            s.advance_samples(s.input(u.as_slice()).unwrap(), 1.0, 3)
+                .unwrap_err()
+                .parameter,
+            "x"
+        );
         assert_eq!(s.saved_state(), before);
+    }
+
+    #[test]
+    fn a_failed_step_leaves_the_noise_streams_where_they_were() {
+        // x⁺ = 2 x + w: from 1e308 the first sample overflows, from 0.6e308 the second.
+        let mut p = scalar(2.0, TimeDomain::Discrete);
+        p.system.q = matrix(1, 1, &[1.0]);
+        p.system.r = matrix(1, 1, &[1.0]);
+        let mut failing = LinearSystem::new(p.clone()).unwrap();
+        let mut reference = LinearSystem::new(p).unwrap();
+        let u = failing.input(&[]).unwrap();
+        for (start, count) in [(1e308, 1), (0.6e308, 3), (1e308, 2)] {
+            failing.set_state(&[start]).unwrap();
+            let error = failing.advance_samples(u, 1.0, count).unwrap_err();
+            assert_eq!((error.parameter.as_str(), failing.state()[0]), ("x", start));
+            failing.set_state(&[1.0]).unwrap();
+            reference.set_state(&[1.0]).unwrap();
+            assert_eq!(failing.saved_state(), reference.saved_state());
+            for count in [1, 2, 1] {
+                failing.advance_samples(u, 1.0, count).unwrap();
+                reference.advance_samples(u, 1.0, count).unwrap();
+                assert_eq!(failing.saved_state(), reference.saved_state());
+            }
+        }
     }
 
     #[test]
@@ -784,7 +1098,12 @@ mod tests {
         let x = DVector::from_vec(vec![0.3, -0.7]);
         let u = DVector::from_vec(vec![2.0]);
         let mut dx = DVector::zeros(2);
-        s.derivative_into(&x, &u, &mut dx).unwrap();
+        s.derivative_into(
+            x.as_slice(),
+            s.input(u.as_slice()).unwrap(),
+            dx.as_mut_slice(),
+        )
+        .unwrap();
         assert_eq!(dx, &a * &x + &b * &u);
         // central differences of f reproduce A column by column
         let (mut plus, mut minus) = (DVector::zeros(2), DVector::zeros(2));
@@ -794,8 +1113,18 @@ mod tests {
             xp[j] += e;
             let mut xm = x.clone();
             xm[j] -= e;
-            s.derivative_into(&xp, &u, &mut plus).unwrap();
-            s.derivative_into(&xm, &u, &mut minus).unwrap();
+            s.derivative_into(
+                xp.as_slice(),
+                s.input(u.as_slice()).unwrap(),
+                plus.as_mut_slice(),
+            )
+            .unwrap();
+            s.derivative_into(
+                xm.as_slice(),
+                s.input(u.as_slice()).unwrap(),
+                minus.as_mut_slice(),
+            )
+            .unwrap();
             let column = (&plus - &minus) / (2.0 * e);
             assert!((column - a.column(j)).amax() < 1e-9);
         }
@@ -816,9 +1145,9 @@ mod tests {
         let n = 100_000;
         let (mut sx2, mut sv2) = (0.0, 0.0);
         for _ in 0..n {
-            s.advance(&u, 1.0).unwrap();
+            s.advance(s.input(u.as_slice()).unwrap(), 1.0).unwrap();
             sx2 += s.state()[0].powi(2);
-            let v = s.output(&u).unwrap()[0] - s.state()[0];
+            let v = s.output(s.input(u.as_slice()).unwrap())[0] - s.state()[0];
             sv2 += v * v;
         }
         let (var_x, var_v) = (sx2 / n as f64, sv2 / n as f64);
@@ -861,7 +1190,7 @@ mod tests {
         let u = DVector::zeros(0);
         let mut sum2 = 0.0;
         for _ in 0..20_000 {
-            s.advance(&u, 1.0).unwrap();
+            s.advance(s.input(u.as_slice()).unwrap(), 1.0).unwrap();
             let x = s.state();
             assert!((x[0] - x[1]).abs() < 1e-12);
             sum2 += x[0] * x[0];
@@ -875,16 +1204,22 @@ mod tests {
         let mut b = LinearSystem::distributed_observer_example(5).unwrap();
         let u = DVector::zeros(0);
         for _ in 0..50 {
-            a.advance(&u, 1.0).unwrap();
-            b.advance(&u, 1.0).unwrap();
-            assert_eq!(a.output(&u).unwrap(), b.output(&u).unwrap());
+            a.advance(a.input(u.as_slice()).unwrap(), 1.0).unwrap();
+            b.advance(b.input(u.as_slice()).unwrap(), 1.0).unwrap();
+            assert_eq!(
+                a.output(a.input(u.as_slice()).unwrap()),
+                b.output(b.input(u.as_slice()).unwrap())
+            );
         }
         let saved = a.saved_state();
         let run = |s: &mut LinearSystem| -> Vec<f64> {
             (0..20)
                 .flat_map(|_| {
-                    s.advance(&u, 1.0).unwrap();
-                    s.output(&u).unwrap().iter().copied().collect::<Vec<_>>()
+                    s.advance(s.input(u.as_slice()).unwrap(), 1.0).unwrap();
+                    s.output(s.input(u.as_slice()).unwrap())
+                        .iter()
+                        .copied()
+                        .collect::<Vec<_>>()
                 })
                 .collect()
         };
@@ -892,16 +1227,11 @@ mod tests {
         let mut c = LinearSystem::distributed_observer_example(99).unwrap();
         c.restore(&saved).unwrap();
         assert_eq!(run(&mut c), first);
-        assert_ne!(
-            LinearSystem::distributed_observer_example(6)
-                .unwrap()
-                .output(&u)
-                .unwrap(),
-            LinearSystem::distributed_observer_example(5)
-                .unwrap()
-                .output(&u)
-                .unwrap()
-        );
+        let first_output = |seed| {
+            let s = LinearSystem::distributed_observer_example(seed).unwrap();
+            s.output(s.input(&[]).unwrap())
+        };
+        assert_ne!(first_output(6), first_output(5));
     }
 
     #[test]
@@ -946,18 +1276,13 @@ mod tests {
         }
         let mut s = LinearSystem::new(base).unwrap();
         let before = s.saved_state();
+        assert_eq!(s.input(&[0.0, 0.0]).unwrap_err().parameter, "u");
+        assert_eq!(s.input(&[f64::NAN]).unwrap_err().parameter, "u");
+        assert_eq!(s.input(&[f64::INFINITY]).unwrap_err().parameter, "u");
         assert_eq!(
-            s.advance(&DVector::zeros(2), 0.1).unwrap_err().parameter,
-            "u"
-        );
-        assert_eq!(
-            s.advance(&DVector::from_element(1, f64::NAN), 0.1)
+            s.advance(s.input(&[0.0]).unwrap(), 0.0)
                 .unwrap_err()
                 .parameter,
-            "u"
-        );
-        assert_eq!(
-            s.advance(&DVector::zeros(1), 0.0).unwrap_err().parameter,
             "h"
         );
         assert_eq!(s.saved_state(), before);

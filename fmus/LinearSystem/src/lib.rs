@@ -41,11 +41,11 @@
 //! matrices as defaults (which needs `n = 3`, `m = 0`, `p = 2`).
 
 use nalgebra::{DMatrix, DVector};
-use spurio::plants::linear_system::{LinearSystem, LinearSystemParameters, TimeDomain};
+use spurio::plants::linear_system::{Input, LinearSystem, LinearSystemParameters, TimeDomain};
 use spurio::state_space::StateSpace;
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, EventUpdate, Failure, FmuModel, ModelExchange,
-    ModelInfo, Variable, VariableTable,
+    ModelInfo, Values, Variable, VariableTable,
 };
 use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
@@ -253,12 +253,11 @@ pub struct LinearSystemFmu {
     layout: Layout,
     system: Option<LinearSystem>,
     clock: SampleClock,
-    /// The input `u` and the noise-free output, preallocated so a step allocates nothing.
-    input: DVector<f64>,
-    clean: DVector<f64>,
+    /// The input `u`, preallocated so a step allocates nothing.
+    input: Vec<f64>,
     /// The states set by a Model Exchange solver and their derivatives.
-    states: DVector<f64>,
-    derivatives: DVector<f64>,
+    states: Vec<f64>,
+    derivatives: Vec<f64>,
     /// Model Exchange in discrete time: the clock of the sample events (rule `Point`: the
     /// event at `t_j` shows the result of the `j` samples before it) and the input sampled at
     /// the last sample instant, which the next sample event applies.
@@ -290,6 +289,19 @@ fn advance_error(e: spurio::ParameterError, at: &str, time: f64) -> Failure {
     }
 }
 
+/// The outputs of the current point straight into the values: the measured
+/// `y = (C x + D u) + v`, the noise-free `y_clean = C x + D u` and the state `x`.
+#[inline]
+fn write_outputs(l: &Layout, system: &LinearSystem, u: Input, values: &mut Values) {
+    system.for_each_output(u, |j, clean, v| {
+        values.set_real(l.y.first + j, clean + v);
+        values.set_real(l.y_clean.first + j, clean);
+    });
+    for (i, x) in system.state().as_slice().iter().enumerate() {
+        values.set_real(l.x.first + i, *x);
+    }
+}
+
 impl LinearSystemFmu {
     /// Reads the inputs into the preallocated `u`.
     fn read_input(&mut self, ctx: &Context) {
@@ -298,19 +310,19 @@ impl LinearSystemFmu {
         }
     }
 
+    /// Model Exchange: the input read last becomes the one the next sample event applies.
+    fn hold_input(&mut self) {
+        for (held, u) in self.held.iter_mut().zip(&self.input) {
+            *held = *u;
+        }
+    }
+
+    /// Reads and checks `u`, then writes the outputs of the current point.
     fn write_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         self.read_input(ctx);
         let system = initialised(self.system.as_ref())?;
-        system
-            .clean_output_into(&self.input, &mut self.clean)
-            .map_err(error)?;
-        let l = &self.layout;
-        let noise = system.measurement_noise();
-        for (j, (y, y_clean)) in l.y.indices().zip(l.y_clean.indices()).enumerate() {
-            ctx.values.set_real(y, self.clean[j] + noise[j]);
-            ctx.values.set_real(y_clean, self.clean[j]);
-        }
-        l.x.write_vector(ctx.values, system.state());
+        let u = system.input(&self.input).map_err(error)?;
+        write_outputs(&self.layout, system, u, ctx.values);
         Ok(())
     }
 
@@ -320,7 +332,7 @@ impl LinearSystemFmu {
             *x = ctx.values.real(k);
         }
         initialised(self.system.as_mut())?
-            .set_state(self.states.as_slice())
+            .set_state(&self.states)
             .map_err(error)
     }
 
@@ -383,10 +395,9 @@ impl FmuModel for LinearSystemFmu {
             layout,
             system: None,
             clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
-            input: DVector::zeros(d.m),
-            clean: DVector::zeros(d.p),
-            states: DVector::zeros(d.n),
-            derivatives: DVector::zeros(d.n),
+            input: vec![0.0; d.m],
+            states: vec![0.0; d.n],
+            derivatives: vec![0.0; d.n],
             me_clock: SampleClock::new(Rule::Point, 0.0, 0.0)?,
             held: DVector::zeros(d.m),
             default_step: info
@@ -410,28 +421,29 @@ impl FmuModel for LinearSystemFmu {
         self.clock = clock;
         self.me_clock = me_clock;
         self.read_input(ctx);
-        self.held.copy_from(&self.input);
+        self.hold_input();
         self.write_outputs(ctx)
     }
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         self.read_input(ctx);
         let system = initialised(self.system.as_mut())?;
+        // u checked once for the step and the outputs.
+        let u = system.input(&self.input).map_err(error)?;
         // In place and all or nothing: a failed step leaves the system as it was.
-        let (clock, advanced) = if ctx.values.boolean(self.layout.continuous) {
-            (self.clock, system.advance(&self.input, step))
-        } else {
-            // The samples whose instants lie in this step, with the input set before it.
-            let (clock, samples) = self.clock.after(time, step)?;
-            let count = samples.end - samples.start;
-            (
-                clock,
-                system.advance_samples(&self.input, clock.period(), count),
-            )
+        let (clock, advanced) = match system.parameters().time_domain {
+            TimeDomain::Continuous => (self.clock, system.advance(u, step)),
+            TimeDomain::Discrete => {
+                // The samples whose instants lie in this step, with the input set before it.
+                let (clock, samples) = self.clock.after(time, step)?;
+                let count = samples.end - samples.start;
+                (clock, system.advance_samples(u, clock.period(), count))
+            }
         };
         advanced.map_err(|e| advance_error(e, "in the step from", time))?;
         self.clock = clock;
-        self.write_outputs(ctx)
+        write_outputs(&self.layout, system, u, ctx.values);
+        Ok(())
     }
 
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {
@@ -460,8 +472,9 @@ impl ModelExchange for LinearSystemFmu {
             // Piecewise constant states: der(x) = 0, the measured output with the noise of
             // the last sample.
             self.take_solver_states(ctx)?;
-            self.derivatives.fill(0.0);
-            l.der_x.write_vector(ctx.values, &self.derivatives);
+            for k in l.der_x.indices() {
+                ctx.values.set_real(k, 0.0);
+            }
             return self.write_outputs(ctx);
         }
         for (x, k) in self.states.iter_mut().zip(l.x.indices()) {
@@ -469,17 +482,19 @@ impl ModelExchange for LinearSystemFmu {
         }
         self.read_input(ctx);
         let system = initialised(self.system.as_mut())?;
+        let u = system.input(&self.input).map_err(error)?;
         system
-            .derivative_into(&self.states, &self.input, &mut self.derivatives)
+            .derivative_into(&self.states, u, &mut self.derivatives)
             .map_err(error)?;
-        l.der_x.write_vector(ctx.values, &self.derivatives);
+        for (dx, k) in self.derivatives.iter().zip(l.der_x.indices()) {
+            ctx.values.set_real(k, *dx);
+        }
         // The outputs of the states the solver set, noise-free.
-        system.set_state(self.states.as_slice()).map_err(error)?;
-        system
-            .clean_output_into(&self.input, &mut self.clean)
-            .map_err(error)?;
-        l.y.write_vector(ctx.values, &self.clean);
-        l.y_clean.write_vector(ctx.values, &self.clean);
+        system.set_state(&self.states).map_err(error)?;
+        system.for_each_output(u, |j, clean, _| {
+            ctx.values.set_real(l.y.first + j, clean);
+            ctx.values.set_real(l.y_clean.first + j, clean);
+        });
         Ok(())
     }
 
@@ -498,14 +513,15 @@ impl ModelExchange for LinearSystemFmu {
         let (clock, samples) = self.me_clock.after(time, 0.0)?;
         let count = samples.end - samples.start;
         let system = initialised(self.system.as_mut())?;
+        let held = system.input(self.held.as_slice()).map_err(error)?;
         system
-            .advance_samples(&self.held, clock.period(), count)
+            .advance_samples(held, clock.period(), count)
             .map_err(|e| advance_error(e, "at the sample event", time))?;
         self.me_clock = clock;
         // At a sample instant: the input the next sample takes.
         if clock.sample_at(time).is_some() {
             self.read_input(ctx);
-            self.held.copy_from(&self.input);
+            self.hold_input();
         }
         self.write_outputs(ctx)?;
         Ok(EventUpdate {
