@@ -32,9 +32,7 @@
 //! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
 //! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
-use crate::estimator::{
-    add_tuning, error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered,
-};
+use crate::estimator::{add_tuning, error, EstimatorFmu, FilterFamily, Filtered};
 use crate::kalman::{
     add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
 };
@@ -336,13 +334,33 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     DualKalmanFilter::new(config).map_err(dual_error)
 }
 
+/// Writes the `block.rows × block.cols` block of Θ̂ (stored by columns, `ld` rows) starting at
+/// row `row0`, column `col0` into its row-major variables: one pass down each column of Θ̂,
+/// no index arithmetic through views.
+fn write_theta_block(
+    values: &mut Values,
+    block: &Block,
+    theta: &[f64],
+    ld: usize,
+    (row0, col0): (usize, usize),
+) {
+    let columns = theta.chunks_exact(ld).skip(col0).take(block.cols);
+    for (j, column) in columns.enumerate() {
+        let column = column.get(row0..row0 + block.rows).unwrap_or(&[]);
+        for (i, &v) in column.iter().enumerate() {
+            values.set_real(block.first + i * block.cols + j, v);
+        }
+    }
+}
+
 fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilter) {
-    let Dimensions { n, m, p } = l.dims;
+    let n = l.dims.n;
     let theta = dual.theta();
-    write_matrix_view(values, &l.a_hat, &theta.view((0, 0), (n, n)));
-    write_matrix_view(values, &l.b_hat, &theta.view((0, n), (n, m)));
-    write_matrix_view(values, &l.c_hat, &theta.view((n, 0), (p, n)));
-    write_matrix_view(values, &l.d_hat, &theta.view((n, n), (p, m)));
+    let (ld, data) = (theta.nrows(), theta.as_slice());
+    write_theta_block(values, &l.a_hat, data, ld, (0, 0));
+    write_theta_block(values, &l.b_hat, data, ld, (0, n));
+    write_theta_block(values, &l.c_hat, data, ld, (n, 0));
+    write_theta_block(values, &l.d_hat, data, ld, (n, n));
     l.x_hat.write_vector(values, dual.state());
     values.set_real(l.bounds.excitation, dual.excitation());
     values.set_boolean(l.bounds.adapting, dual.adapting());
