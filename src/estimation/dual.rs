@@ -20,8 +20,9 @@
 //!    Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}] (x_{k+1} ↦ x̂_k, y_k ↦ y_{k−1}). Skipped
 //!    on the first call. For every row θᵢ of Θ (a scalar measurement Yᵢ = θᵢᵀΦ + Vᵢ):
 //!    Σ⁻ = Σ + diag(Q_θ,i), s = Σ⁻Φ, d = Φᵀs + R_θ,i, g = s/d,
-//!    θᵢ ← θᵢ + g (Yᵢ − θᵢᵀΦ), Σ = Σ⁻ − g sᵀ − s gᵀ + d g gᵀ (the Joseph form for a scalar
-//!    measurement, = Σ⁻ − s sᵀ/d), symmetrised.
+//!    θᵢ ← θᵢ + g (Yᵢ − θᵢᵀΦ), Σ = Σ⁻ − (g sᵀ + s gᵀ) + d g gᵀ (the Joseph form for a scalar
+//!    measurement, = Σ⁻ − s sᵀ/d), each entry computed symmetric in i and j, so Σ stays
+//!    exactly symmetric.
 //!
 //! Every row shares the regressor Φ and, with R_θ diagonal, the rows are independent: the
 //! (rows·cols)² covariance is block diagonal, and rows with the same Q_θ row, Σ₀ row and R_θ
@@ -869,14 +870,16 @@ struct ParameterWork<'a> {
 /// ```text
 /// Σ⁻ = Σ + diag(q̃)                     s = Σ⁻Φ (by columns)      d = Φᵀs + R_θ    g = s/d
 /// eᵢ = Yᵢ − θᵢᵀΦ (for its rows i)        θᵢ ← θᵢ + g eᵢ
-/// Σᵢⱼ = Σ⁻ᵢⱼ − (gᵢsⱼ + sᵢgⱼ) + d (gᵢgⱼ)   (Joseph form, on the lower triangle, mirrored)
+/// Σᵢⱼ = Σ⁻ᵢⱼ − (gᵢsⱼ + sᵢgⱼ) + d (gᵢgⱼ)   (Joseph form, written symmetric in i and j)
 /// ```
 ///
-/// The Joseph update is written symmetric in i and j, so computing one triangle and mirroring
-/// it gives exactly what the full update would after symmetrisation; s, d, e and the update of
-/// Θ sum in the order of the former full-matrix code (bit for bit), the covariance update
-/// within rounding of the former `Σ⁻ − g sᵀ − s gᵀ + d g gᵀ` followed by (Σ + Σᵀ)/2 (the test
-/// `the_one_triangle_update_matches_the_full_joseph_form`).
+/// Entries (i, j) and (j, i) of the Joseph update are the same operations on the same numbers,
+/// so Σ comes out exactly symmetric with no symmetrisation pass: one triangle's worth of
+/// distinct values. (Every entry is computed: whole contiguous columns vectorise, and cost
+/// fewer instructions than one triangle of ragged columns and a mirroring pass.) s, d, e and
+/// the update of Θ sum in the order of the former code (bit for bit); the covariance update
+/// is within rounding of the former `Σ⁻ − g sᵀ − s gᵀ + d g gᵀ` followed by (Σ + Σᵀ)/2 (the
+/// test `the_symmetric_joseph_update_matches_the_former_full_matrix_one`).
 ///
 /// `COLS` > 0 is the length of Φ known at compile time (the loops then run at fixed size),
 /// 0 takes it from Φ at run time: the same code and arithmetic either way. Errors say what
@@ -911,75 +914,126 @@ fn parameter_step<const COLS: usize>(
         ) else {
             continue;
         };
-        // Σ⁻ = Σ + diag(q̃), q̃ᵢ = min(qᵢ, max(0, σ²_max − Σᵢᵢ)) (= qᵢ with σ²_max = +∞).
-        for (i, q) in q.iter().enumerate() {
-            if let Some(diagonal) = sigma.get_mut(i * cols + i) {
-                let room = (cap - *diagonal).max(0.0);
-                *diagonal += q.min(room);
-            }
-        }
-        // s = Σ⁻Φ: column by column, term by term from the first.
-        let mut columns = sigma.chunks_exact(cols).zip(phi);
-        if let Some((first, f)) = columns.next() {
-            for (s, sigma) in s.iter_mut().zip(first) {
-                *s = sigma * f;
-            }
-        }
-        for (column, f) in columns {
-            for (s, sigma) in s.iter_mut().zip(column) {
-                *s += sigma * f;
-            }
-        }
-        let d = dense::dot(phi, s) + group.r;
-        if !(d.is_finite() && d > 0.0) {
-            return Err("parameter-filter innovation variance Φᵀ Σ⁻ Φ + R_θ");
-        }
-        for (g, s) in g.iter_mut().zip(s.iter()) {
-            *g = s / d;
-        }
-        // eᵢ = Yᵢ − θᵢᵀΦ for the group's rows (Θ as it was), then θᵢ ← θᵢ + g eᵢ.
+        let d = gain::<COLS>(sigma, q, group.r, cap, phi, s, g)
+            .ok_or("parameter-filter innovation variance Φᵀ Σ⁻ Φ + R_θ")?;
         for &(start, end) in &group.runs {
             let (Some(e), Some(target)) = (e.get_mut(start..end), target.get(start..end)) else {
                 continue;
             };
-            let mut columns = theta.chunks_exact(ld).zip(phi);
-            if let Some((first, f)) = columns.next() {
-                for (e, t) in e.iter_mut().zip(first.get(start..end).unwrap_or(&[])) {
-                    *e = t * f;
-                }
-            }
-            for (column, f) in columns {
-                for (e, t) in e.iter_mut().zip(column.get(start..end).unwrap_or(&[])) {
-                    *e += t * f;
-                }
-            }
-            for (e, y) in e.iter_mut().zip(target) {
-                *e = y - *e;
-            }
-            for (column, g) in theta.chunks_exact_mut(ld).zip(g.iter()) {
-                for (t, e) in column
-                    .get_mut(start..end)
-                    .unwrap_or(&mut [])
-                    .iter_mut()
-                    .zip(e.iter())
-                {
-                    *t += g * e;
-                    non_finite |= !t.is_finite();
-                }
-            }
+            // The packaged variants' free rows (n of them) as a constant too.
+            non_finite |= match (COLS, e.len()) {
+                (10, 8) => update_rows::<10, 8>(ld, start, theta, phi, target, g, e),
+                (5, 4) => update_rows::<5, 4>(ld, start, theta, phi, target, g, e),
+                _ => update_rows::<COLS, 0>(ld, start, theta, phi, target, g, e),
+            };
         }
-        // Σ = Σ⁻ − (g sᵀ + s gᵀ) + d g gᵀ, column by column: entry (i, j) and entry (j, i) are
-        // the same operations on the same numbers, so Σ stays exactly symmetric.
-        for ((column, sj), gj) in sigma.chunks_exact_mut(cols).zip(s.iter()).zip(g.iter()) {
-            for ((sigma, si), gi) in column.iter_mut().zip(s.iter()).zip(g.iter()) {
-                *sigma = (*sigma - (gi * sj + si * gj)) + d * (gi * gj);
-            }
-        }
+        joseph_update::<COLS>(sigma, s, g, d);
     }
     if non_finite {
         return Err("parameter estimate Θ");
     }
     Ok(())
+}
+
+/// The first half of a group's step: Σ⁻ = Σ + diag(q̃), q̃ᵢ = min(qᵢ, max(0, σ²_max − Σᵢᵢ))
+/// (= qᵢ with σ²_max = +∞), s = Σ⁻Φ (column by column, term by term from the first),
+/// d = Φᵀs + R_θ and g = s/d. Gives d, or None when it is not finite and positive. (The
+/// kernels take their slices as arguments of a function of their own, not in a struct, so the
+/// compiler knows that they do not overlap: the loops are vectorised.)
+#[inline(never)]
+fn gain<const COLS: usize>(
+    sigma: &mut [f64],
+    q: &[f64],
+    r: f64,
+    cap: f64,
+    phi: &[f64],
+    s: &mut [f64],
+    g: &mut [f64],
+) -> Option<f64> {
+    let cols = if COLS == 0 { phi.len() } else { COLS };
+    for (i, q) in q.iter().enumerate().take(cols) {
+        if let Some(diagonal) = sigma.get_mut(i * cols + i) {
+            let room = (cap - *diagonal).max(0.0);
+            *diagonal += q.min(room);
+        }
+    }
+    let mut columns = sigma.chunks_exact(cols).zip(phi);
+    if let Some((first, f)) = columns.next() {
+        for (s, sigma) in s.iter_mut().zip(first) {
+            *s = sigma * f;
+        }
+    }
+    for (column, f) in columns {
+        for (s, sigma) in s.iter_mut().zip(column) {
+            *s += sigma * f;
+        }
+    }
+    let d = dense::dot(phi, s) + r;
+    if !(d.is_finite() && d > 0.0) {
+        return None;
+    }
+    for (g, s) in g.iter_mut().zip(s.iter()) {
+        *g = s / d;
+    }
+    Some(d)
+}
+
+/// The rows `start..start + e.len()` of Θ (stored by columns, `ld` rows): eᵢ = Yᵢ − θᵢᵀΦ
+/// (term by term from the first column), then θᵢ ← θᵢ + g eᵢ. Says whether an updated entry is
+/// not finite. `COLS` > 0 is the length of Φ, `ROWS` > 0 the number of rows, known at compile
+/// time (0: at run time).
+#[inline(never)]
+fn update_rows<const COLS: usize, const ROWS: usize>(
+    ld: usize,
+    start: usize,
+    theta: &mut [f64],
+    phi: &[f64],
+    target: &[f64],
+    g: &[f64],
+    e: &mut [f64],
+) -> bool {
+    let cols = if COLS == 0 { phi.len() } else { COLS };
+    let len = if ROWS == 0 { e.len() } else { ROWS };
+    let (Some(e), Some(target)) = (e.get_mut(..len), target.get(..len)) else {
+        return false;
+    };
+    let rows = start..start + len;
+    let mut columns = theta.chunks_exact(ld).take(cols).zip(phi);
+    if let Some((first, f)) = columns.next() {
+        for (e, t) in e.iter_mut().zip(first.get(rows.clone()).unwrap_or(&[])) {
+            *e = t * f;
+        }
+    }
+    for (column, f) in columns {
+        for (e, t) in e.iter_mut().zip(column.get(rows.clone()).unwrap_or(&[])) {
+            *e += t * f;
+        }
+    }
+    for (e, y) in e.iter_mut().zip(target) {
+        *e = y - *e;
+    }
+    let mut non_finite = false;
+    for (column, g) in theta.chunks_exact_mut(ld).take(cols).zip(g) {
+        let column = column.get_mut(rows.clone()).unwrap_or(&mut []);
+        for (t, e) in column.iter_mut().zip(e.iter()) {
+            *t += g * e;
+            non_finite |= !t.is_finite();
+        }
+    }
+    non_finite
+}
+
+/// The second half of a group's step: Σ = Σ⁻ − (g sᵀ + s gᵀ) + d g gᵀ, column by column.
+/// Entry (i, j) and entry (j, i) are the same operations on the same numbers, so Σ stays
+/// exactly symmetric without a symmetrisation pass.
+#[inline(never)]
+fn joseph_update<const COLS: usize>(sigma: &mut [f64], s: &[f64], g: &[f64], d: f64) {
+    let cols = if COLS == 0 { s.len() } else { COLS };
+    for ((column, &sj), &gj) in sigma.chunks_exact_mut(cols).zip(s).zip(g) {
+        for ((sigma, &si), &gi) in column.iter_mut().zip(s).zip(g) {
+            *sigma = (*sigma - (gi * sj + si * gj)) + d * (gi * gj);
+        }
+    }
 }
 
 /// DKF-rsKF (paper 001, Fig. 2): the rsKF cleans the measured outputs, the DKF identifies
@@ -1344,7 +1398,7 @@ mod tests {
         assert!(e.to_string().contains("C and D known"), "{e}");
     }
 
-    /// The former parameter-filter step (before the one-triangle update), kept as the
+    /// The former parameter-filter step (before the symmetric Joseph update), kept as the
     /// reference: per group Σ⁻ = Σ + diag(q̃), s = Σ⁻Φ, d, g, the rows of Θ one by one, then
     /// Σ = Σ⁻ − g sᵀ − s gᵀ + d g gᵀ on the full matrix and (Σ + Σᵀ)/2.
     fn former_parameter_step(
@@ -1396,13 +1450,13 @@ mod tests {
         }
     }
 
-    /// The one-triangle Joseph update against the former full-matrix one, from the same
+    /// The symmetric Joseph update against the former full-matrix one, from the same
     /// state at each of 6000 random steps (n = 8, m = 2 at fixed size 10 with fixed C/D
     /// rows; n = 3, m = 1 with two known rows, three groups and a variance bound at run-time
     /// size 4): Θ bit for bit, every Σ within 1e-12 of its largest entry, exactly symmetric
-    /// and positive definite.
+    /// and positive definite; the fixed-size step equals the run-time-size one bit for bit.
     #[test]
-    fn the_one_triangle_update_matches_the_full_joseph_form() {
+    fn the_symmetric_joseph_update_matches_the_former_full_matrix_one() {
         let model = |n: usize, m: usize, p: usize| GaussianModel {
             system: StateSpace {
                 a: DMatrix::identity(n, n) * 0.9,
@@ -1449,7 +1503,24 @@ mod tests {
                     dkf.target.as_slice(),
                     cap,
                 );
+                // The same step with the sizes taken at run time.
+                let (mut runtime_groups, mut runtime_theta) =
+                    (dkf.groups.clone(), dkf.theta.clone());
+                let (mut s, mut g, mut e) = (vec![0.0; cols], vec![0.0; cols], vec![0.0; rows]);
+                let work = ParameterWork {
+                    phi: dkf.regressor.as_slice(),
+                    target: dkf.target.as_slice(),
+                    s: &mut s,
+                    g: &mut g,
+                    e: &mut e,
+                    cap,
+                };
+                parameter_step::<0>(&mut runtime_groups, &mut runtime_theta, work).unwrap();
                 dkf.update_parameters().unwrap();
+                assert_eq!(dkf.theta, runtime_theta, "step {step}");
+                for (fixed, runtime) in dkf.groups.iter().zip(&runtime_groups) {
+                    assert_eq!(fixed.sigma, runtime.sigma, "step {step}");
+                }
                 assert_eq!(dkf.theta, theta, "step {step}");
                 assert_eq!(dkf.theta.shape(), (rows, cols));
                 for (new, former) in dkf.groups.iter().zip(&groups) {

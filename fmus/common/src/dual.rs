@@ -335,8 +335,9 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
 }
 
 /// Writes the `block.rows × block.cols` block of Θ̂ (stored by columns, `ld` rows) starting at
-/// row `row0`, column `col0` into its row-major variables: one pass down each column of Θ̂,
-/// no index arithmetic through views.
+/// row `row0`, column `col0` into its row-major variables, in place in the values. The blocks
+/// of the packaged variants (n = 8, m = p = 2 and n = 4, m = 1, p = 2) take a copy of fixed
+/// size.
 fn write_theta_block(
     values: &mut Values,
     block: &Block,
@@ -344,11 +345,46 @@ fn write_theta_block(
     ld: usize,
     (row0, col0): (usize, usize),
 ) {
-    let columns = theta.chunks_exact(ld).skip(col0).take(block.cols);
-    for (j, column) in columns.enumerate() {
-        let column = column.get(row0..row0 + block.rows).unwrap_or(&[]);
+    let Some(out) = values.reals_mut(block.indices()) else {
+        return;
+    };
+    let start = row0 + col0 * ld;
+    let shape = (block.rows, block.cols);
+    match shape {
+        (8, 8) => transpose::<8, 8>(out, shape, theta, ld, start),
+        (8, 2) => transpose::<8, 2>(out, shape, theta, ld, start),
+        (2, 8) => transpose::<2, 8>(out, shape, theta, ld, start),
+        (2, 2) => transpose::<2, 2>(out, shape, theta, ld, start),
+        (4, 4) => transpose::<4, 4>(out, shape, theta, ld, start),
+        (4, 1) => transpose::<4, 1>(out, shape, theta, ld, start),
+        (2, 4) => transpose::<2, 4>(out, shape, theta, ld, start),
+        (2, 1) => transpose::<2, 1>(out, shape, theta, ld, start),
+        _ => transpose::<0, 0>(out, shape, theta, ld, start),
+    }
+}
+
+/// Copies the `rows × cols` matrix stored by columns (`ld` apart) from `theta[start]` into
+/// `out` by rows; `R`, `C` > 0 are `rows`, `cols` known at compile time (0: at run time).
+fn transpose<const R: usize, const C: usize>(
+    out: &mut [f64],
+    (rows, cols): (usize, usize),
+    theta: &[f64],
+    ld: usize,
+    start: usize,
+) {
+    let (rows, cols) = if R == 0 { (rows, cols) } else { (R, C) };
+    let Some(out) = out.get_mut(..rows * cols) else {
+        return;
+    };
+    for j in 0..cols {
+        let first = start + j * ld;
+        let Some(column) = theta.get(first..first + rows) else {
+            return;
+        };
         for (i, &v) in column.iter().enumerate() {
-            values.set_real(block.first + i * block.cols + j, v);
+            if let Some(slot) = out.get_mut(i * cols + j) {
+                *slot = v;
+            }
         }
     }
 }
@@ -625,6 +661,38 @@ mod tests {
         .unwrap();
         assert!(h.initialize(0.0).is_err());
         assert!(h.logged(&["C and D known"]), "{:?}", h.log());
+    }
+
+    /// Every block shape with a fixed-size copy, and one without, lands row-major in its
+    /// variables: A_hat[i,j] = Θ̂[i, j] and so on.
+    #[test]
+    fn theta_blocks_are_written_row_major() {
+        for (n, m, p) in [(8, 2, 2), (4, 1, 2), (3, 1, 2), (2, 0, 1)] {
+            let (rows, cols) = (n + p, n + m);
+            let theta = nalgebra::DMatrix::from_fn(rows, cols, |i, j| (100 * i + j) as f64);
+            let mut t = VariableTable::new();
+            let mut block = |name: &str, r: usize, c: usize| {
+                add_matrix(&mut t, name, r, c, |e, _, _| Variable::discrete_output(e))
+            };
+            let blocks = [
+                (block("A_hat", n, n), (0, 0)),
+                (block("B_hat", n, m), (0, n)),
+                (block("C_hat", p, n), (n, 0)),
+                (block("D_hat", p, m), (n, n)),
+            ];
+            let mut values = Values::from_start(&t.into_variables());
+            for (b, at) in &blocks {
+                write_theta_block(&mut values, b, theta.as_slice(), rows, *at);
+            }
+            for (b, (row0, col0)) in &blocks {
+                for i in 0..b.rows {
+                    for j in 0..b.cols {
+                        let want = theta[(row0 + i, col0 + j)];
+                        assert_eq!(values.real(b.index(i, j)), want, "n = {n}: ({i}, {j})");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
