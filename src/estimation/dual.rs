@@ -86,7 +86,7 @@ use super::{
     require_shape, require_spd, symmetrize_in_place, EstimationError, Saved, StateReader,
 };
 use crate::linalg::dense::{self, View};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, SMatrix};
 
 /// Everything a [`DualKalmanFilter`] needs. Build it with [`DualKalmanConfig::new`] (which
 /// sets the paper's defaults for the parameter filter) and adjust the public fields.
@@ -556,12 +556,7 @@ impl DualKalmanFilter {
         self.moment
             .ger(1.0 - forget, &self.regressor, &self.regressor, forget);
         symmetrize_in_place(&mut self.moment);
-        let smallest = self
-            .moment
-            .symmetric_eigenvalues()
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
+        let smallest = smallest_eigenvalue(&self.moment);
         // A non-finite regressor is caught by the state filter; keep ε finite regardless.
         self.excitation = if smallest.is_finite() {
             smallest.max(0.0)
@@ -850,6 +845,29 @@ impl Saved for DualKalmanFilter {
         }
         Ok(())
     }
+}
+
+/// λ_min of the symmetric matrix `m` (the smallest of nalgebra's symmetric eigenvalues; +∞
+/// without any), computed on a matrix of fixed size for the packaged regressor lengths 3, 5
+/// and 10: the same algorithm and numbers, without the heap allocations of a dynamic matrix.
+fn smallest_eigenvalue(m: &DMatrix<f64>) -> f64 {
+    let smallest = |eigenvalues: &[f64]| eigenvalues.iter().copied().fold(f64::INFINITY, f64::min);
+    macro_rules! fixed {
+        ($d:literal) => {
+            <[f64; $d * $d]>::try_from(m.as_slice()).ok().map(|data| {
+                let eigenvalues =
+                    SMatrix::<f64, $d, $d>::from_column_slice(&data).symmetric_eigenvalues();
+                smallest(eigenvalues.as_slice())
+            })
+        };
+    }
+    let fixed = match m.nrows() {
+        3 => fixed!(3),
+        5 => fixed!(5),
+        10 => fixed!(10),
+        _ => None,
+    };
+    fixed.unwrap_or_else(|| smallest(m.symmetric_eigenvalues().as_slice()))
 }
 
 /// What one step of the parameter filter reads (Φ, Y, σ²_max) and its work space (s, g and
@@ -1537,6 +1555,36 @@ mod tests {
         }
         println!("largest |ΔΣ| / max|Σ| = {worst:e}");
         assert!(worst > 0.0, "the two forms differ in rounding somewhere");
+    }
+
+    /// The fixed-size λ_min of the excitation gate equals the dynamic one bit for bit, on
+    /// random moments (well and badly conditioned, rank deficient) of every packaged size.
+    #[test]
+    fn the_fixed_size_smallest_eigenvalue_is_the_dynamic_one() {
+        let mut rng = TestRng::new(5);
+        for size in [3, 5, 10, 4] {
+            for trial in 0..300 {
+                let rank = if trial % 3 == 0 { size - 1 } else { size };
+                let factor = DMatrix::from_fn(size, rank, |_, _| rng.normal());
+                let scale = 10f64.powi(trial % 7 - 3);
+                let mut moment = &factor * factor.transpose() * scale;
+                symmetrize_in_place(&mut moment);
+                let dynamic = moment
+                    .symmetric_eigenvalues()
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min);
+                let fixed = smallest_eigenvalue(&moment);
+                assert_eq!(
+                    fixed.to_bits(),
+                    dynamic.to_bits(),
+                    "size {size}, trial {trial}"
+                );
+                if rank < size {
+                    assert!(fixed.abs() < 1e-12 * scale * size as f64, "λ_min = {fixed}");
+                }
+            }
+        }
     }
 
     /// [`config`] with the excitation gate on (ε_min = 1e-2 over 10 samples).
