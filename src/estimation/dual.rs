@@ -495,16 +495,17 @@ impl DualKalmanFilter {
         require_input_length("y", y, self.p)?;
         let (n, m, p) = (self.n, self.m, self.p);
         // Φ = [x̂_{k−1}; u_{k−1}] before the state filter overwrites them.
-        self.regressor.rows_mut(0, n).copy_from(&self.core.x);
-        self.regressor.rows_mut(n, m).copy_from(&self.core.u_prev);
+        concatenate(&mut self.regressor, &self.core.x, &self.core.u_prev);
 
         // 1. State filter with Θ̂_{k−1}.
         {
             let [a, b, c, d] = theta_blocks(&self.theta, n, m, p);
             self.core.predict(a, b, &self.q);
             self.core.compute_innovation(c, d, u, y)?;
-            self.predicted_output.copy_from(y);
-            self.predicted_output -= &self.core.innovation;
+            let predicted = self.predicted_output.iter_mut();
+            for ((predicted, y), e) in predicted.zip(y.iter()).zip(self.core.innovation.iter()) {
+                *predicted = y - e;
+            }
             self.core.correct(c, &self.r)?;
             self.core.finish(c, d, u);
         }
@@ -522,8 +523,7 @@ impl DualKalmanFilter {
 
         // 2. Parameter filter on (Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}]).
         if self.core.steps > 1 {
-            self.target.rows_mut(0, n).copy_from(&self.core.x);
-            self.target.rows_mut(n, p).copy_from(&self.y_prev);
+            concatenate(&mut self.target, &self.core.x, &self.y_prev);
             if self.excited() {
                 self.update_parameters()?;
             } else {
@@ -844,6 +844,19 @@ impl Saved for DualKalmanFilter {
             require_finite_matrix("state: output-error sensitivity", &oe.sensitivity)?;
         }
         Ok(())
+    }
+}
+
+/// `to` = [`first`; `second`] (the regressor Φ, the parameter filter's measurement Y), copied
+/// as slices.
+fn concatenate(to: &mut DVector<f64>, first: &DVector<f64>, second: &DVector<f64>) {
+    let split = first.len().min(to.len());
+    let (head, tail) = to.as_mut_slice().split_at_mut(split);
+    for (to, from) in head.iter_mut().zip(first.iter()) {
+        *to = *from;
+    }
+    for (to, from) in tail.iter_mut().zip(second.iter()) {
+        *to = *from;
     }
 }
 
