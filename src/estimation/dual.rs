@@ -502,8 +502,9 @@ impl DualKalmanFilter {
             let [a, b, c, d] = theta_blocks(&self.theta, n, m, p);
             self.core.predict(a, b, &self.q);
             self.core.compute_innovation(c, d, u, y)?;
-            let predicted = self.predicted_output.iter_mut();
-            for ((predicted, y), e) in predicted.zip(y.iter()).zip(self.core.innovation.iter()) {
+            let predicted = self.predicted_output.as_mut_slice().iter_mut();
+            let innovation = self.core.innovation.as_slice();
+            for ((predicted, y), e) in predicted.zip(y.as_slice()).zip(innovation) {
                 *predicted = y - e;
             }
             self.core.correct(c, &self.r)?;
@@ -624,7 +625,8 @@ impl DualKalmanFilter {
                 View::of(&w.sigma_ht),
                 0.0,
             );
-            for ((s, r), hsh) in w.s.iter_mut().zip(self.r.iter()).zip(w.hsh.iter()) {
+            let (s, r, hsh) = (w.s.as_mut_slice(), self.r.as_slice(), w.hsh.as_slice());
+            for ((s, r), hsh) in s.iter_mut().zip(r).zip(hsh) {
                 *s = *s + r + hsh;
             }
             symmetrize_in_place(&mut w.s);
@@ -655,12 +657,17 @@ impl DualKalmanFilter {
                 View::of(&w.h_sigma),
                 0.0,
             );
-            for (sigma, gh_sigma) in oe.sigma.iter_mut().zip(w.gh_sigma.iter()) {
+            for (sigma, gh_sigma) in oe
+                .sigma
+                .as_mut_slice()
+                .iter_mut()
+                .zip(w.gh_sigma.as_slice())
+            {
                 *sigma -= gh_sigma;
             }
             symmetrize_in_place(&mut oe.sigma);
-            if self.theta.iter().any(|v| !v.is_finite()) || oe.sigma.iter().any(|v| !v.is_finite())
-            {
+            let finite = |m: &DMatrix<f64>| m.as_slice().iter().all(|v| v.is_finite());
+            if !finite(&self.theta) || !finite(&oe.sigma) {
                 return Err(EstimationError::NonFinite {
                     what: "parameter estimate Θ or its covariance",
                     step: self.core.steps,
@@ -852,10 +859,10 @@ impl Saved for DualKalmanFilter {
 fn concatenate(to: &mut DVector<f64>, first: &DVector<f64>, second: &DVector<f64>) {
     let split = first.len().min(to.len());
     let (head, tail) = to.as_mut_slice().split_at_mut(split);
-    for (to, from) in head.iter_mut().zip(first.iter()) {
+    for (to, from) in head.iter_mut().zip(first.as_slice()) {
         *to = *from;
     }
-    for (to, from) in tail.iter_mut().zip(second.iter()) {
+    for (to, from) in tail.iter_mut().zip(second.as_slice()) {
         *to = *from;
     }
 }
