@@ -335,19 +335,16 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
 }
 
 /// Writes the `block.rows × block.cols` block of Θ̂ (stored by columns, `ld` rows) starting at
-/// row `row0`, column `col0` into its row-major variables, in place in the values. The blocks
-/// of the packaged variants (n = 8, m = p = 2 and n = 4, m = 1, p = 2) take a copy of fixed
-/// size.
+/// row `row0`, column `col0` into `out`, the block's row-major variables in the values. The
+/// blocks of the packaged variants (n = 8, m = p = 2 and n = 4, m = 1, p = 2) take a copy of
+/// fixed size.
 fn write_theta_block(
-    values: &mut Values,
+    out: &mut [f64],
     block: &Block,
     theta: &[f64],
     ld: usize,
     (row0, col0): (usize, usize),
 ) {
-    let Some(out) = values.reals_mut(block.indices()) else {
-        return;
-    };
     let start = row0 + col0 * ld;
     let shape = (block.rows, block.cols);
     match shape {
@@ -393,10 +390,33 @@ fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilt
     let n = l.dims.n;
     let theta = dual.theta();
     let (ld, data) = (theta.nrows(), theta.as_slice());
-    write_theta_block(values, &l.a_hat, data, ld, (0, 0));
-    write_theta_block(values, &l.b_hat, data, ld, (0, n));
-    write_theta_block(values, &l.c_hat, data, ld, (n, 0));
-    write_theta_block(values, &l.d_hat, data, ld, (n, n));
+    let blocks = [
+        (&l.a_hat, (0, 0)),
+        (&l.b_hat, (0, n)),
+        (&l.c_hat, (n, 0)),
+        (&l.d_hat, (n, n)),
+    ];
+    // Â, B̂, Ĉ, D̂ follow one another in the variables: one slice of the values holds them.
+    let span = l.a_hat.first..l.d_hat.indices().end;
+    let first = span.start;
+    match values.reals_mut(span) {
+        Some(out) => {
+            for (block, at) in blocks {
+                let start = block.first.checked_sub(first).unwrap_or(usize::MAX);
+                let slots = out.get_mut(start..start.saturating_add(block.rows * block.cols));
+                if let Some(slots) = slots {
+                    write_theta_block(slots, block, data, ld, at);
+                }
+            }
+        }
+        None => {
+            for (block, at) in blocks {
+                if let Some(slots) = values.reals_mut(block.indices()) {
+                    write_theta_block(slots, block, data, ld, at);
+                }
+            }
+        }
+    }
     l.x_hat.write_vector(values, dual.state());
     values.set_real(l.bounds.excitation, dual.excitation());
     values.set_boolean(l.bounds.adapting, dual.adapting());
@@ -682,7 +702,8 @@ mod tests {
             ];
             let mut values = Values::from_start(&t.into_variables());
             for (b, at) in &blocks {
-                write_theta_block(&mut values, b, theta.as_slice(), rows, *at);
+                let slots = values.reals_mut(b.indices()).unwrap();
+                write_theta_block(slots, b, theta.as_slice(), rows, *at);
             }
             for (b, (row0, col0)) in &blocks {
                 for i in 0..b.rows {
@@ -693,6 +714,40 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The outputs of a stepped DKF (n = 8, m = p = 2: one slice of the values for the four
+    /// blocks) are its Θ̂ and x̂.
+    #[test]
+    fn the_outputs_are_the_filters_estimates() {
+        let config = dims_config(8, 2, 2);
+        let (layout, info) = interface(&config, false).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let mut dkf = build_dual(&layout, &values).unwrap();
+        for k in 0..50 {
+            let t = k as f64 * 0.1;
+            let u = nalgebra::DVector::from_vec(vec![t.sin(), (2.0 * t).cos()]);
+            let y = nalgebra::DVector::from_vec(vec![(0.5 * t).sin(), 0.1 * t]);
+            dkf.step(&u, &y).unwrap();
+        }
+        write_dual_outputs(&layout, &mut values, &dkf);
+        let n = layout.dims.n;
+        let theta = dkf.theta();
+        let moved = theta.iter().filter(|v| **v != 0.0 && **v != 1.0).count();
+        assert!(moved >= 8, "{moved} entries of Θ̂ moved");
+        for (block, (row0, col0)) in [
+            (layout.a_hat, (0, 0)),
+            (layout.b_hat, (0, n)),
+            (layout.c_hat, (n, 0)),
+            (layout.d_hat, (n, n)),
+        ] {
+            for i in 0..block.rows {
+                for j in 0..block.cols {
+                    assert_eq!(values.real(block.index(i, j)), theta[(row0 + i, col0 + j)]);
+                }
+            }
+        }
+        assert_eq!(layout.x_hat.vector(&values), *dkf.state());
     }
 
     #[test]
