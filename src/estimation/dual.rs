@@ -827,6 +827,8 @@ impl Saved for DualKalmanFilter {
     fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
         self.core.restore(input)?;
         input.fill(self.theta.as_mut_slice())?;
+        // A step checks only the rows of Θ̂ it updates: the known rows are checked here.
+        require_finite_matrix("state: parameter estimate Θ", &self.theta)?;
         for group in &mut self.groups {
             input.fill(group.sigma.as_mut_slice())?;
             group.fixed = ParameterGroup::is_fixed(&group.q_diag, &group.sigma);
@@ -1399,6 +1401,13 @@ mod tests {
         bad[at] = f64::NAN;
         let e = copy.set_dynamic_state(&bad).unwrap_err();
         assert!(e.to_string().contains("excitation"), "{e}");
+        // Θ̂ follows the state filter's part; a non-finite entry (here Ĉ[0, 0], a known row
+        // no step checks) is refused.
+        let mut bad = state.clone();
+        let core = state.len() - dkf.theta.len() - dkf.groups.len() * 9 - 2 - 2 - 9 - 2;
+        bad[core + 2] = f64::INFINITY;
+        let e = copy.set_dynamic_state(&bad).unwrap_err();
+        assert!(e.to_string().contains("Θ"), "{e}");
     }
 
     /// The output-error filter with C = I: every entry of [A B] free, learnt from the
