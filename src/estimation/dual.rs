@@ -1493,7 +1493,15 @@ mod tests {
                     *sigma = d_g * gi + (minus_g * si + (minus_s * gi + *sigma));
                 }
             }
-            dense::symmetrize(group.sigma.as_mut_slice(), cols);
+            // (Σ + Σᵀ)/2, as the former code's dense::symmetrize did it.
+            let sigma = group.sigma.as_mut_slice();
+            for j in 0..cols {
+                for i in j + 1..cols {
+                    let mean = 0.5 * (sigma[i + j * cols] + sigma[j + i * cols]);
+                    sigma[i + j * cols] = mean;
+                    sigma[j + i * cols] = mean;
+                }
+            }
         }
     }
 
