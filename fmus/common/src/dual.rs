@@ -32,9 +32,7 @@
 //! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
 //! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
-use crate::estimator::{
-    add_tuning, error, write_matrix_view, EstimatorFmu, FilterFamily, Filtered,
-};
+use crate::estimator::{add_tuning, error, EstimatorFmu, FilterFamily, Filtered};
 use crate::kalman::{
     add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
 };
@@ -336,13 +334,89 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     DualKalmanFilter::new(config).map_err(dual_error)
 }
 
+/// Writes the `block.rows × block.cols` block of Θ̂ (stored by columns, `ld` rows) starting at
+/// row `row0`, column `col0` into `out`, the block's row-major variables in the values. The
+/// blocks of the packaged variants (n = 8, m = p = 2 and n = 4, m = 1, p = 2) take a copy of
+/// fixed size.
+fn write_theta_block(
+    out: &mut [f64],
+    block: &Block,
+    theta: &[f64],
+    ld: usize,
+    (row0, col0): (usize, usize),
+) {
+    let start = row0 + col0 * ld;
+    let shape = (block.rows, block.cols);
+    match shape {
+        (8, 8) => transpose::<8, 8>(out, shape, theta, ld, start),
+        (8, 2) => transpose::<8, 2>(out, shape, theta, ld, start),
+        (2, 8) => transpose::<2, 8>(out, shape, theta, ld, start),
+        (2, 2) => transpose::<2, 2>(out, shape, theta, ld, start),
+        (4, 4) => transpose::<4, 4>(out, shape, theta, ld, start),
+        (4, 1) => transpose::<4, 1>(out, shape, theta, ld, start),
+        (2, 4) => transpose::<2, 4>(out, shape, theta, ld, start),
+        (2, 1) => transpose::<2, 1>(out, shape, theta, ld, start),
+        _ => transpose::<0, 0>(out, shape, theta, ld, start),
+    }
+}
+
+/// Copies the `rows × cols` matrix stored by columns (`ld` apart) from `theta[start]` into
+/// `out` by rows; `R`, `C` > 0 are `rows`, `cols` known at compile time (0: at run time).
+fn transpose<const R: usize, const C: usize>(
+    out: &mut [f64],
+    (rows, cols): (usize, usize),
+    theta: &[f64],
+    ld: usize,
+    start: usize,
+) {
+    let (rows, cols) = if R == 0 { (rows, cols) } else { (R, C) };
+    let Some(out) = out.get_mut(..rows * cols) else {
+        return;
+    };
+    for j in 0..cols {
+        let first = start + j * ld;
+        let Some(column) = theta.get(first..first + rows) else {
+            return;
+        };
+        for (i, &v) in column.iter().enumerate() {
+            if let Some(slot) = out.get_mut(i * cols + j) {
+                *slot = v;
+            }
+        }
+    }
+}
+
 fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilter) {
-    let Dimensions { n, m, p } = l.dims;
+    let n = l.dims.n;
     let theta = dual.theta();
-    write_matrix_view(values, &l.a_hat, &theta.view((0, 0), (n, n)));
-    write_matrix_view(values, &l.b_hat, &theta.view((0, n), (n, m)));
-    write_matrix_view(values, &l.c_hat, &theta.view((n, 0), (p, n)));
-    write_matrix_view(values, &l.d_hat, &theta.view((n, n), (p, m)));
+    let (ld, data) = (theta.nrows(), theta.as_slice());
+    let blocks = [
+        (&l.a_hat, (0, 0)),
+        (&l.b_hat, (0, n)),
+        (&l.c_hat, (n, 0)),
+        (&l.d_hat, (n, n)),
+    ];
+    // Â, B̂, Ĉ, D̂ follow one another in the variables: one slice of the values holds them.
+    let span = l.a_hat.first..l.d_hat.indices().end;
+    let first = span.start;
+    match values.reals_mut(span) {
+        Some(out) => {
+            for (block, at) in blocks {
+                let start = block.first.checked_sub(first).unwrap_or(usize::MAX);
+                let slots = out.get_mut(start..start.saturating_add(block.rows * block.cols));
+                if let Some(slots) = slots {
+                    write_theta_block(slots, block, data, ld, at);
+                }
+            }
+        }
+        None => {
+            for (block, at) in blocks {
+                if let Some(slots) = values.reals_mut(block.indices()) {
+                    write_theta_block(slots, block, data, ld, at);
+                }
+            }
+        }
+    }
     l.x_hat.write_vector(values, dual.state());
     values.set_real(l.bounds.excitation, dual.excitation());
     values.set_boolean(l.bounds.adapting, dual.adapting());
@@ -607,6 +681,73 @@ mod tests {
         .unwrap();
         assert!(h.initialize(0.0).is_err());
         assert!(h.logged(&["C and D known"]), "{:?}", h.log());
+    }
+
+    /// Every block shape with a fixed-size copy, and one without, lands row-major in its
+    /// variables: A_hat[i,j] = Θ̂[i, j] and so on.
+    #[test]
+    fn theta_blocks_are_written_row_major() {
+        for (n, m, p) in [(8, 2, 2), (4, 1, 2), (3, 1, 2), (2, 0, 1)] {
+            let (rows, cols) = (n + p, n + m);
+            let theta = nalgebra::DMatrix::from_fn(rows, cols, |i, j| (100 * i + j) as f64);
+            let mut t = VariableTable::new();
+            let mut block = |name: &str, r: usize, c: usize| {
+                add_matrix(&mut t, name, r, c, |e, _, _| Variable::discrete_output(e))
+            };
+            let blocks = [
+                (block("A_hat", n, n), (0, 0)),
+                (block("B_hat", n, m), (0, n)),
+                (block("C_hat", p, n), (n, 0)),
+                (block("D_hat", p, m), (n, n)),
+            ];
+            let mut values = Values::from_start(&t.into_variables());
+            for (b, at) in &blocks {
+                let slots = values.reals_mut(b.indices()).unwrap();
+                write_theta_block(slots, b, theta.as_slice(), rows, *at);
+            }
+            for (b, (row0, col0)) in &blocks {
+                for i in 0..b.rows {
+                    for j in 0..b.cols {
+                        let want = theta[(row0 + i, col0 + j)];
+                        assert_eq!(values.real(b.index(i, j)), want, "n = {n}: ({i}, {j})");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The outputs of a stepped DKF (n = 8, m = p = 2: one slice of the values for the four
+    /// blocks) are its Θ̂ and x̂.
+    #[test]
+    fn the_outputs_are_the_filters_estimates() {
+        let config = dims_config(8, 2, 2);
+        let (layout, info) = interface(&config, false).unwrap();
+        let mut values = Values::from_start(&info.variables);
+        let mut dkf = build_dual(&layout, &values).unwrap();
+        for k in 0..50 {
+            let t = k as f64 * 0.1;
+            let u = nalgebra::DVector::from_vec(vec![t.sin(), (2.0 * t).cos()]);
+            let y = nalgebra::DVector::from_vec(vec![(0.5 * t).sin(), 0.1 * t]);
+            dkf.step(&u, &y).unwrap();
+        }
+        write_dual_outputs(&layout, &mut values, &dkf);
+        let n = layout.dims.n;
+        let theta = dkf.theta();
+        let moved = theta.iter().filter(|v| **v != 0.0 && **v != 1.0).count();
+        assert!(moved >= 8, "{moved} entries of Θ̂ moved");
+        for (block, (row0, col0)) in [
+            (layout.a_hat, (0, 0)),
+            (layout.b_hat, (0, n)),
+            (layout.c_hat, (n, 0)),
+            (layout.d_hat, (n, n)),
+        ] {
+            for i in 0..block.rows {
+                for j in 0..block.cols {
+                    assert_eq!(values.real(block.index(i, j)), theta[(row0 + i, col0 + j)]);
+                }
+            }
+        }
+        assert_eq!(layout.x_hat.vector(&values), *dkf.state());
     }
 
     #[test]

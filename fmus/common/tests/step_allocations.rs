@@ -126,6 +126,10 @@ fn estimator_steps_do_not_allocate() {
             "DualKalmanFilter 4,1,2, output error, bounded variance",
             dkf(4, 1, 2, &[("pmax_theta", 2.0)], &[("output_error", true)]),
         ),
+        (
+            "DualKalmanFilter 4,1,2, excitation gate",
+            dkf(4, 1, 2, &[("excitation_min", 1e-6)], &[]),
+        ),
         ("DkfRsKf 4,1,2", dkf_rskf(4, 1, 2)),
         ("DkfRsKf 8,2,2 (DkfRsKfGenerator)", dkf_rskf(8, 2, 2)),
     ];

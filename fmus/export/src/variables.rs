@@ -591,6 +591,20 @@ impl Values {
         }
         Ok(())
     }
+    /// The values at `range` as one slice to write in place, when every one of them is a Real
+    /// (None otherwise): a model writes a block of outputs at memory speed.
+    pub fn reals_mut(&mut self, range: std::ops::Range<usize>) -> Option<&mut [f64]> {
+        let types = self.types.get(range.clone())?;
+        // Every type compared (no early exit), so the check runs a vector of types at a time.
+        if types
+            .iter()
+            .fold(true, |real, t| real & (*t == VariableType::Real))
+        {
+            self.numbers.get_mut(range)
+        } else {
+            None
+        }
+    }
     /// Reals at consecutive `indices`, collected.
     pub fn reals(&self, indices: &[usize]) -> Vec<f64> {
         indices.iter().map(|&i| self.real(i)).collect()
