@@ -1024,20 +1024,6 @@ pub(crate) mod dense {
         }
         total == 0.0
     }
-
-    /// Replaces the square `n × n` matrix stored in `m` by (m + mᵀ)/2.
-    pub(crate) fn symmetrize(m: &mut [f64], n: usize) {
-        if m.len() < n * n {
-            return;
-        }
-        for j in 0..n {
-            for i in j + 1..n {
-                let mean = 0.5 * (m[i + j * n] + m[j + i * n]);
-                m[i + j * n] = mean;
-                m[j + i * n] = mean;
-            }
-        }
-    }
 }
 
 #[cfg(test)]
