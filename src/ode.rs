@@ -19,6 +19,7 @@
 //! step with [`check_substeps`] first and refuses it when it would need more (a huge step, a
 //! tiny `h_max`); [`integrate`] itself never loops longer, whatever its arguments.
 
+pub mod dop853;
 pub mod rosenbrock;
 
 use crate::ParameterError;
