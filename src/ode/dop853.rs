@@ -117,20 +117,23 @@ const E10: f64 = 0.334_179_118_713_017_479_029_731_884_1;
 const E11: f64 = 0.819_232_064_851_157_124_657_074_261_3e-1;
 const E12: f64 = -0.223_553_078_638_862_952_588_442_784_5e-1;
 
-/// `x + h Σ aⱼ kⱼ` over the `M` terms `(kⱼ, aⱼ)`, component by component (the sum in the
-/// order given; unrolled for the fixed sizes).
+/// `x + Σ (h aⱼ) kⱼ` over the `M` terms `(kⱼ, aⱼ)`, component by component, summed in the
+/// order given onto `x`: the newest stage last, so that everything but its one product and
+/// sum is done while that stage is still being evaluated (the stages form a chain; this keeps
+/// the chain short). Unrolled for the fixed sizes.
 #[inline(always)]
 fn combine<const N: usize, const M: usize>(
     x: &SVector<f64, N>,
     h: f64,
     terms: [(&SVector<f64, N>, f64); M],
 ) -> SVector<f64, N> {
+    let scaled = terms.map(|(k, a)| (k, h * a));
     SVector::<f64, N>::from_fn(|i, _| {
-        let mut sum = 0.0;
-        for (k, a) in &terms {
-            sum += a * k[i];
+        let mut sum = x[i];
+        for (k, ha) in &scaled {
+            sum += ha * k[i];
         }
-        x[i] + h * sum
+        sum
     })
 }
 
@@ -224,7 +227,7 @@ fn step<const N: usize>(
         (&k12, B12),
     ];
     let increment = combine(&SVector::zeros(), 1.0, weights);
-    let next = x + increment * h;
+    let next = combine(x, h, [(&increment, 1.0)]);
     let (mut fifth, mut third, mut controlled) = (0.0, 0.0, 0usize);
     for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
         let scale = tolerance.absolute[i] + tolerance.relative * x[i].abs().max(next[i].abs());
