@@ -23,6 +23,7 @@
 //! [`rosenbrock`] (linearly implicit, L-stable: stiff problems at loose tolerances) and
 //! [`dop853`] (Dormand–Prince 8(5,3): tight tolerances, where a high order takes long steps).
 
+mod adaptive;
 pub mod dop853;
 pub mod rosenbrock;
 

@@ -90,10 +90,11 @@
 //! the slowest modes (2.15 s⁻¹): a stiffness ratio of about 600. They are kept as states, as
 //! the paper's order-8 model has them. Three integrators:
 //!
-//! - [`WindGenerator::advance_dop853`] (the FMU's default): the eighth-order Dormand–Prince
-//!   pair of [`crate::ode::dop853`] with error control ([`WindGenerator::tolerance`], relative
-//!   tolerance [`WindGenerator::DEFAULT_RELATIVE_TOLERANCE`] = 5·10⁻¹²), its step carried from
-//!   one communication step to the next, on [`HeldRightHandSide`]. At that tolerance the step
+//! - [`WindGenerator::advance_adaptive`] with [`Adaptive::Dop853`] (the FMU's default): the
+//!   eighth-order Dormand–Prince pair of [`crate::ode::dop853`] with error control
+//!   ([`WindGenerator::tolerance`], relative tolerance
+//!   [`WindGenerator::DEFAULT_RELATIVE_TOLERANCE`] = 5·10⁻¹²), its step carried from one
+//!   communication step to the next, on [`HeldRightHandSide`]. At that tolerance the step
 //!   is set by accuracy, where an eighth-order method takes long steps; where the solution is
 //!   quiet the error control holds the step at the stability limit (≈ 4–5 ms, `h |λ|max ≈ 6`).
 //!   Over a start-up from rest with reference steps (test
@@ -103,8 +104,8 @@
 //!   right-hand sides per 0.1 s where RK4 takes 4 000. (Its error is 1–3 times `rtol` and
 //!   moves with the last bits of the step sequence; 5·10⁻¹² keeps it within 1.3·10⁻¹¹ in the
 //!   scenarios measured, where 10⁻¹¹ reached 2.8·10⁻¹¹ in one.)
-//! - [`WindGenerator::advance_adaptive`]: the L-stable Rosenbrock method RODAS3 of
-//!   [`crate::ode::rosenbrock`] on the analytic Jacobian
+//! - [`WindGenerator::advance_adaptive`] with [`Adaptive::Rodas3`]: the L-stable Rosenbrock
+//!   method RODAS3 of [`crate::ode::rosenbrock`] on the analytic Jacobian
 //!   [`WindGeneratorParameters::jacobian_state`]. Stability never bounds its step, so it is
 //!   the cheapest at loose tolerances (1.4·10⁻⁷ at rtol 10⁻⁷, 1 599 steps for the 10 s), but
 //!   as a third-order method it needs ever more steps below (57 513 at rtol 10⁻¹¹).
@@ -596,10 +597,10 @@ impl WindGenerator {
     /// Substep that keeps the stiff stator modes accurate (module docs).
     pub const RECOMMENDED_MAX_SUBSTEP: f64 = 1e-4;
 
-    /// Relative tolerance of the default integrator ([`Self::advance_dop853`]): speed and
-    /// voltage within 5.6·10⁻¹² of their rated values from a tight reference over a start-up
-    /// with reference steps, the accuracy of the former default RK4 at 10⁻⁴ s (module docs,
-    /// *Integration*).
+    /// Relative tolerance of the default integrator ([`Self::advance_adaptive`] with
+    /// [`Adaptive::Dop853`]): speed and voltage within 5.6·10⁻¹² of their rated values from a
+    /// tight reference over a start-up with reference steps, the accuracy of the former default
+    /// RK4 at 10⁻⁴ s (module docs, *Integration*).
     pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 5e-12;
 
     /// The set at rest (all states zero), after checking the parameters.
@@ -681,67 +682,58 @@ impl WindGenerator {
         }
     }
 
-    /// Advances over `h` seconds with the references held (clipped to [0, 10] V), with the
-    /// adaptive eighth-order Dormand–Prince pair of [`crate::ode::dop853`] on the held
-    /// right-hand side [`HeldRightHandSide`] (module docs, *Integration*); the angle is wrapped
-    /// into [0, 2π) at the end (it feeds nothing back). `step` is the step to try first and, on
-    /// return, the next one proposed (keep it from one call to the next). On an error the
-    /// state is unchanged.
-    pub fn advance_dop853(
-        &mut self,
-        u_drive: f64,
-        u_field: f64,
-        h: f64,
-        tolerance: &Tolerance<8>,
-        step: &mut f64,
-    ) -> Result<Statistics, StepError> {
-        let rhs = HeldRightHandSide::new(&self.parameters, u_drive, u_field);
-        let mut statistics = Statistics::default();
-        let mut proposal = *step;
-        let mut state = dop853::integrate(
-            |x| rhs.derivative(x),
-            &self.state,
-            h,
-            tolerance,
-            &mut proposal,
-            &mut statistics,
-        )?;
-        wrap_angle(&mut state);
-        self.state = state;
-        *step = proposal;
-        Ok(statistics)
-    }
-
-    /// Advances over `h` seconds with the references held (clipped to [0, 10] V), with the
-    /// adaptive RODAS3 integrator of [`crate::ode::rosenbrock`] on the analytic Jacobian
-    /// (module docs, *Integration*). `step` is the step to try first and, on return, the next
-    /// one proposed (keep it from one call to the next). On an error the state is unchanged.
+    /// Advances over `h` seconds with the references held (clipped to [0, 10] V), with an
+    /// adaptive integrator (module docs, *Integration*): [`Adaptive::Dop853`], the
+    /// eighth-order Dormand–Prince pair of [`crate::ode::dop853`] on [`HeldRightHandSide`]
+    /// (the default), or [`Adaptive::Rodas3`], the Rosenbrock method of
+    /// [`crate::ode::rosenbrock`] on the analytic Jacobian. The angle is wrapped into [0, 2π)
+    /// at the end (it feeds nothing back). `step` is the step to try first and, on return, the
+    /// next one proposed (keep it from one call to the next, so that a call does not restart
+    /// from a short step). On an error the state is unchanged.
     pub fn advance_adaptive(
         &mut self,
-        u_drive: f64,
-        u_field: f64,
+        integrator: Adaptive,
+        (u_drive, u_field): (f64, f64),
         h: f64,
         tolerance: &Tolerance<8>,
         step: &mut f64,
     ) -> Result<Statistics, StepError> {
         let p = self.parameters;
-        let (u_drive, u_field) = (clip_reference(u_drive), clip_reference(u_field));
         let mut statistics = Statistics::default();
         let mut proposal = *step;
-        self.state = rosenbrock::integrate(
-            &rosenbrock::RODAS3,
-            |x| p.derivative(x, u_drive, u_field),
-            |x| p.jacobian_state(x, p.torque_limit_of(x[5], x[3])),
-            wrap_angle,
-            &self.state,
-            h,
-            tolerance,
-            &mut proposal,
-            &mut statistics,
-        )?;
+        let (x, counts) = (&self.state, &mut statistics);
+        let mut state = match integrator {
+            Adaptive::Dop853 => {
+                let rhs = HeldRightHandSide::new(&p, u_drive, u_field);
+                let derivative = |x: &GeneratorState| rhs.derivative(x);
+                dop853::integrate(derivative, (x, h), tolerance, (&mut proposal, counts))?
+            }
+            Adaptive::Rodas3 => rosenbrock::integrate(
+                &rosenbrock::RODAS3,
+                |x| p.derivative(x, u_drive, u_field),
+                |x| p.jacobian_state(x, p.torque_limit_of(x[5], x[3])),
+                |_| {},
+                x,
+                h,
+                tolerance,
+                &mut proposal,
+                counts,
+            )?,
+        };
+        wrap_angle(&mut state);
+        self.state = state;
         *step = proposal;
         Ok(statistics)
     }
+}
+
+/// The adaptive integrators of [`WindGenerator::advance_adaptive`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Adaptive {
+    /// DOP853 (the FMU's default): eighth order, explicit, stable for `h |λ|max ≲ 6`.
+    Dop853,
+    /// RODAS3: third order, L-stable, one Jacobian and LU per step.
+    Rodas3,
 }
 
 /// [`WindGeneratorParameters::derivative`] for references held over a communication step, with
@@ -758,7 +750,7 @@ impl WindGenerator {
 /// ```
 ///
 /// It agrees with [`WindGeneratorParameters::derivative`] to a few units in the last place
-/// (test `held_right_hand_side_matches_the_derivative`), not bit for bit: the Model Exchange
+/// (test `jacobians_and_the_held_right_hand_side_match_at_random_states`), not bit for bit: the Model Exchange
 /// interface and `fixed_step_rk4` keep `derivative`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeldRightHandSide {
@@ -1067,7 +1059,7 @@ mod tests {
     }
 
     #[test]
-    fn jacobians_match_central_differences_at_random_states() {
+    fn jacobians_and_the_held_right_hand_side_match_at_random_states() {
         let mut rng = crate::signals::rng::RandomGenerator::new(15);
         let base = WindGeneratorParameters::default();
         for k in 0..300 {
@@ -1116,6 +1108,24 @@ mod tests {
                 for i in 0..8 {
                     assert_close(&format!("∂f[{i}]/∂u[{j}]"), df[i], ju[(i, j)], ju.amax());
                 }
+            }
+            // The held right-hand side (the divisions distributed over the sums: only the
+            // rounding differs) within 1e-13 of the size of the terms, |f| + |J x| + |f(0)| per
+            // row, at 20 states and references per machine, in every torque mode.
+            for _ in 0..20 {
+                let mut x = random_state(&mut rng);
+                x[5] = x[3] + rng.uniform_range(-40.0, 40.0);
+                let u = (rng.uniform_range(-1.0, 11.0), rng.uniform_range(-1.0, 11.0));
+                let exact = p.derivative(&x, u.0, u.1);
+                let held = HeldRightHandSide::new(&p, u.0, u.1).derivative(&x);
+                let at_rest = p.derivative(&GeneratorState::zeros(), u.0, u.1);
+                let jx = p.jacobian_state(&x, p.torque_limit_of(x[5], x[3]));
+                let terms = exact.abs() + jx.abs() * x.abs() + at_rest.abs();
+                let worst = (held - exact)
+                    .abs()
+                    .zip_map(&terms, |d, t| d / t.max(f64::MIN_POSITIVE))
+                    .amax();
+                assert!(worst <= 1e-13, "{held} vs {exact}");
             }
         }
         // Clipped references have no effect, hence no derivative.
@@ -1234,33 +1244,27 @@ mod tests {
         // The reference: RK4 on a grid five times finer than the former default (2·10⁻⁵ s),
         // independent of the methods under test (its own error: ≈ 6·10⁻¹⁴ against 10⁻⁵ s).
         let reference = rk4_start_up(2e-5);
-        let dop853 = |rtol: f64| {
+        // DOP853: right-hand sides; RODAS3: steps (each 3 right-hand sides, a Jacobian, an LU).
+        let adaptive = |integrator: Adaptive, rtol: f64| {
             let tolerance = WindGenerator::tolerance(rtol);
-            let (mut step, mut evaluations) = (1e-3, 0);
+            let (mut step, mut work) = (1e-3, 0);
             let run = start_up(|g, u_drive, u_field| {
                 let s = g
-                    .advance_dop853(u_drive, u_field, 0.1, &tolerance, &mut step)
+                    .advance_adaptive(integrator, (u_drive, u_field), 0.1, &tolerance, &mut step)
                     .unwrap();
-                evaluations += 12 * s.accepted + 11 * s.rejected + 1;
+                work += match integrator {
+                    Adaptive::Dop853 => 12 * s.accepted + 11 * s.rejected + 1,
+                    Adaptive::Rodas3 => s.accepted + s.rejected,
+                };
             });
-            (largest_error(&run, &reference), evaluations)
-        };
-        let rodas3 = |rtol: f64| {
-            let tolerance = WindGenerator::tolerance(rtol);
-            let (mut step, mut steps) = (1e-3, 0);
-            let run = start_up(|g, u_drive, u_field| {
-                let s = g
-                    .advance_adaptive(u_drive, u_field, 0.1, &tolerance, &mut step)
-                    .unwrap();
-                steps += s.accepted + s.rejected;
-            });
-            (largest_error(&run, &reference), steps)
+            (largest_error(&run, &reference), work)
         };
         let former = largest_error(&rk4_start_up(H_MAX), &reference);
         let rk4_evaluations = 4 * 100 * 1000;
-        let (new, evaluations) = dop853(WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
-        let (tight, _) = dop853(1e-12);
-        let (rodas, rodas_steps) = rodas3(1e-7);
+        let (new, evaluations) =
+            adaptive(Adaptive::Dop853, WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
+        let (tight, _) = adaptive(Adaptive::Dop853, 1e-12);
+        let (rodas, rodas_steps) = adaptive(Adaptive::Rodas3, 1e-7);
         eprintln!(
             "largest error vs RK4 at 2e-5 s over the start-up (relative to 1800 rpm / 240 V): \
              RK4 at 1e-4 s {former:.2e} ({rk4_evaluations} evaluations); DOP853 rtol {:e} \
@@ -1277,49 +1281,6 @@ mod tests {
         assert!(tight < 3e-12, "{tight}");
         // RODAS3 keeps its documented accuracy and cost at 10⁻⁷.
         assert!(rodas < 3e-7 && rodas_steps < 2000, "{rodas} {rodas_steps}");
-    }
-
-    #[test]
-    fn held_right_hand_side_matches_the_derivative() {
-        // The divisions distributed over the sums change the rounding only: within 1e-13 of
-        // the size of the terms (|f| + |J x| + |f(0)| per row), at random states, references
-        // and machines, in every torque mode.
-        let mut rng = crate::signals::rng::RandomGenerator::new(21);
-        let base = WindGeneratorParameters::default();
-        let mut worst: f64 = 0.0;
-        for _ in 0..5000 {
-            let p = WindGeneratorParameters {
-                d_inductance: base.d_inductance * rng.uniform_range(0.8, 1.5),
-                q_inductance: base.q_inductance * rng.uniform_range(0.5, 1.5),
-                load_resistance: base.load_resistance * rng.uniform_range(0.2, 2.0),
-                friction: base.friction * rng.uniform_range(0.0, 4.0),
-                inertia: base.inertia * rng.uniform_range(0.5, 2.0),
-                max_motor_torque: base.max_motor_torque * rng.uniform_range(0.3, 1.5),
-                ..base
-            };
-            let mut x = random_state(&mut rng);
-            x[5] = x[3] + rng.uniform_range(-40.0, 40.0);
-            let (u_drive, u_field) = (rng.uniform_range(-1.0, 11.0), rng.uniform_range(-1.0, 11.0));
-            let exact = p.derivative(&x, u_drive, u_field);
-            let held = HeldRightHandSide::new(&p, u_drive, u_field).derivative(&x);
-            let limit = p.torque_limit_of(x[5], x[3]);
-            let terms = exact.abs()
-                + (p.jacobian_state(&x, limit).abs() * x.abs())
-                + p.derivative(&GeneratorState::zeros(), u_drive, u_field)
-                    .abs();
-            for i in 0..8 {
-                let relative = (held[i] - exact[i]).abs() / terms[i].max(f64::MIN_POSITIVE);
-                worst = worst.max(relative);
-                assert!(
-                    relative <= 1e-13,
-                    "{}: {} vs {}",
-                    STATE_NAMES[i],
-                    held[i],
-                    exact[i]
-                );
-            }
-        }
-        eprintln!("held right-hand side: largest difference {worst:.2e} of the terms");
     }
 
     /// The times at which the start-up from rest at the rated references with `T_max` = 2 N·m

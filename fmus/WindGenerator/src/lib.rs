@@ -23,7 +23,7 @@
 //!
 //! Integrated inside `fmi2DoStep` by the eighth-order Dormand–Prince pair with error control
 //! (relative tolerance `rtol`, default 5·10⁻¹²: the accuracy of the former default, RK4 on
-//! 10⁻⁴ s substeps, at a sixth of its right-hand sides; [`WindGenerator::advance_dop853`]), its
+//! 10⁻⁴ s substeps, at a sixth of its right-hand sides; [`WindGenerator::advance_adaptive`]), its
 //! step carried from one `fmi2DoStep` to the next; or, with `fixed_step_rk4 = true`, by RK4 on
 //! substeps no longer than `h_max` (default 10⁻⁴ s). The stator modes are fast
 //! (|λ| ≈ 1.3·10³ s⁻¹); an `h_max` for which RK4 would be unstable (`h_max · |λ|max > 2.5`,
@@ -43,8 +43,8 @@
 
 use spurio::ode::rosenbrock::Tolerance;
 use spurio::plants::wind_generator::{
-    wrap_angle, GeneratorState, InputMatrix, OutputMatrix, StateMatrix, TorqueLimit, WindGenerator,
-    WindGeneratorParameters, OUTPUTS, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
+    wrap_angle, Adaptive, GeneratorState, InputMatrix, OutputMatrix, StateMatrix, TorqueLimit,
+    WindGenerator, WindGeneratorParameters, OUTPUTS, RATED_DRIVE_REFERENCE, RATED_FIELD_REFERENCE,
 };
 use spurio_export::rows::{derivative, event_indicator, input, output, parameter};
 use spurio_export::{
@@ -476,9 +476,15 @@ impl FmuModel for WindGeneratorFmu {
                 || format!("the state became non-finite in the step from t = {time}"),
             )?;
         } else {
-            // On an error the generator keeps its state (advance_dop853's contract).
+            // On an error the generator keeps its state (advance_adaptive's contract).
             self.generator
-                .advance_dop853(u_drive, u_field, step, &self.tolerance, &mut self.step)
+                .advance_adaptive(
+                    Adaptive::Dop853,
+                    (u_drive, u_field),
+                    step,
+                    &self.tolerance,
+                    &mut self.step,
+                )
                 .map_err(|e| Failure::error(format!("the step from t = {time}: {e}")))?;
         }
         let state = self.generator.state;
