@@ -18,7 +18,13 @@
 //! **Bounded work.** One call integrates at most [`MAX_SUBSTEPS`] substeps: a caller checks a
 //! step with [`check_substeps`] first and refuses it when it would need more (a huge step, a
 //! tiny `h_max`); [`integrate`] itself never loops longer, whatever its arguments.
+//!
+//! Adaptive integrators with error control: [`integrate_adaptive`] (Dormand–Prince 5(4), here),
+//! [`rosenbrock`] (linearly implicit, L-stable: stiff problems at loose tolerances) and
+//! [`dop853`] (Dormand–Prince 8(5,3): tight tolerances, where a high order takes long steps).
 
+mod adaptive;
+pub mod dop853;
 pub mod rosenbrock;
 
 use crate::ParameterError;

@@ -26,6 +26,7 @@
 //! bounded time; a failure leaves the caller's state untouched (it gets an error, not a
 //! state). Allocation-free: fixed-size matrices only.
 
+use super::adaptive::{Attempt, Embedded};
 use nalgebra::{SMatrix, SVector};
 use std::fmt;
 
@@ -233,40 +234,46 @@ fn rosenbrock_step<const N: usize>(
 #[allow(clippy::too_many_arguments)]
 pub fn integrate<const N: usize>(
     method: &Method,
-    mut f: impl FnMut(&SVector<f64, N>) -> SVector<f64, N>,
-    mut jacobian: impl FnMut(&SVector<f64, N>) -> SMatrix<f64, N, N>,
-    mut after_step: impl FnMut(&mut SVector<f64, N>),
+    f: impl FnMut(&SVector<f64, N>) -> SVector<f64, N>,
+    jacobian: impl FnMut(&SVector<f64, N>) -> SMatrix<f64, N, N>,
+    after_step: impl FnMut(&mut SVector<f64, N>),
     x: &SVector<f64, N>,
     length: f64,
     tolerance: &Tolerance<N>,
     step: &mut f64,
     statistics: &mut Statistics,
 ) -> Result<SVector<f64, N>, StepError> {
-    let mut state = *x;
-    let mut done = 0.0;
-    let mut h = if step.is_finite() && *step > 0.0 {
-        *step
-    } else {
-        length
+    let mut stepper = Stepper {
+        method,
+        f,
+        jacobian,
+        after_step,
+        tolerance,
     };
-    let mut just_rejected = false;
-    for _ in 0..MAX_ATTEMPTS {
-        let left = length - done;
-        if left <= 1e-14 * length {
-            *step = h;
-            return Ok(state);
-        }
-        let last = h >= left;
-        let h_try = if last { left } else { h };
-        if h_try < MIN_STEP_FRACTION * length {
-            return Err(StepError::StepTooSmall {
-                at: done,
-                step: h_try,
-            });
-        }
-        let j = jacobian(&state);
-        let (next, error) = rosenbrock_step(method, &mut f, &j, &state, h_try)
+    super::adaptive::drive(&mut stepper, x, length, step, statistics)
+}
+
+/// A Rosenbrock method with its right-hand side, Jacobian and discrete change, for the shared
+/// step-size loop.
+struct Stepper<'a, F, J, A, const N: usize> {
+    method: &'a Method,
+    f: F,
+    jacobian: J,
+    after_step: A,
+    tolerance: &'a Tolerance<N>,
+}
+
+impl<F, J, A, const N: usize> Embedded<N> for Stepper<'_, F, J, A, N>
+where
+    F: FnMut(&SVector<f64, N>) -> SVector<f64, N>,
+    J: FnMut(&SVector<f64, N>) -> SMatrix<f64, N, N>,
+    A: FnMut(&mut SVector<f64, N>),
+{
+    fn attempt(&mut self, state: &SVector<f64, N>, (h, done): (f64, f64)) -> Attempt<N> {
+        let j = (self.jacobian)(state);
+        let (next, error) = rosenbrock_step(self.method, &mut self.f, &j, state, h)
             .ok_or(StepError::Singular { at: done })?;
+        let tolerance = self.tolerance;
         let (mut sum, mut controlled) = (0.0, 0);
         for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
             let scale =
@@ -274,41 +281,21 @@ pub fn integrate<const N: usize>(
             sum += (error[i] / scale).powi(2);
             controlled += 1;
         }
-        let norm = (sum / controlled.max(1) as f64).sqrt();
-        if !norm.is_finite() || next.iter().any(|v| !v.is_finite()) {
-            // A step so long that the stages overflowed: shrink hard and retry.
-            if h_try < MIN_STEP_FRACTION * length * 10.0 {
-                return Err(StepError::NonFinite { at: done });
-            }
-            h = 0.1 * h_try;
-            just_rejected = true;
-            statistics.rejected += 1;
-            continue;
-        }
-        let factor = (0.9 * norm.powf(-1.0 / method.error_order)).clamp(0.2, 6.0);
-        if norm <= 1.0 {
-            state = next;
-            after_step(&mut state);
-            done = if last { length } else { done + h_try };
-            statistics.accepted += 1;
-            // The proposal from a full step; a shortened last step keeps the previous one.
-            let proposal = h_try
-                * if just_rejected {
-                    factor.min(1.0)
-                } else {
-                    factor
-                };
-            if !last || h_try >= h {
-                h = proposal;
-            }
-            just_rejected = false;
-        } else {
-            h = h_try * factor.min(1.0);
-            just_rejected = true;
-            statistics.rejected += 1;
-        }
+        Ok((next, (sum / controlled.max(1) as f64).sqrt()))
     }
-    Err(StepError::TooManySteps { at: done })
+
+    fn accept(
+        &mut self,
+        mut next: SVector<f64, N>,
+        _at: f64,
+    ) -> Result<SVector<f64, N>, StepError> {
+        (self.after_step)(&mut next);
+        Ok(next)
+    }
+
+    fn factor(&self, error: f64) -> f64 {
+        (0.9 * error.powf(-1.0 / self.method.error_order)).clamp(0.2, 6.0)
+    }
 }
 
 #[cfg(test)]

@@ -65,11 +65,6 @@ EXPLAINED: dict[tuple[str, str], str] = {
         what="sin and cos of the load angle in the equations of motion", libm="MinGW-w64's",
         where="seen as 2 ulp in one value of the output omega (not in the cross-check scenario)"),
     ("RecursiveLeastSquares", "win64"): LIBM.format(libm="MinGW-w64's", **RLS),
-    ("WindGenerator", "win64"): LIBM.format(
-        what="powf in the adaptive Rosenbrock integrator's step-size control and sin/cos of the "
-        "electrical angle", libm="MinGW-w64's",
-        where="a last-bit difference in a step size moves the later steps slightly: every output, "
-        "measured max 1.0e-14 relative on the cross-check scenario"),
     ("RecursiveLeastSquares", "aarch64-linux"): LIBM.format(libm="glibc's AArch64 build", **RLS),
 }
 MAX_RELATIVE = 1e-12
