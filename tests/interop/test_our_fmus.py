@@ -87,16 +87,28 @@ def omsimulator_result(fmu, stop, step, workdir):
     return read_csv(out)
 
 
-def compare_with_fmpy(fmu, stop, step, workdir):
+def compare_with_fmpy(fmu, stop, step, workdir, rtol=OMS_RTOL):
     names, rows = by_time(*omsimulator_result(fmu, stop, step, workdir), keep="last")
     expected = fmpy_result(fmu, stop, step)
     assert rows.shape[0] == len(expected), (rows[-3:, 0], expected["time"][-3:])
     np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=OMS_RTOL, atol=0)
     for name_ in outputs(fmu):
         np.testing.assert_allclose(
-            column(names, rows, name_), expected[name_].astype(float), rtol=OMS_RTOL, atol=0,
+            column(names, rows, name_), expected[name_].astype(float), rtol=rtol, atol=0,
             err_msg=name_,
         )
+
+
+def integration_rtol(fmu):
+    """How closely two runs of `fmu` on communication grids that differ in the last bits can
+    agree: exactly (the printed digits, OMS_RTOL) for fixed-step and discrete-time FMUs; for
+    an FMU with error control (a parameter `rtol`, e.g. WindGenerator) each slightly different
+    communication step moves the adaptive substeps, so the results differ by the integration
+    error the tolerance allows — ten times `rtol`, the bound its page documents."""
+    for variable in read_model_description(str(fmu)).modelVariables:
+        if variable.name == "rtol" and variable.causality == "parameter":
+            return max(OMS_RTOL, 10 * float(variable.start))
+    return OMS_RTOL
 
 
 @pytest.mark.parametrize("name", FMUS)
@@ -110,7 +122,8 @@ def test_omsimulator_matches_fmpy(name, workdir):
 def test_omsimulator_matches_fmpy_at_the_default_step(name, workdir):
     """The FMU's own default step (not exact in binary): OMSimulator accumulates time and
     may end with a step of ~1e-15 s, fmpy does not; the discrete-time FMUs (LinearSystem,
-    Sensor, the estimators) take no sample in that step, as in fmpy."""
+    Sensor, the estimators) take no sample in that step, as in fmpy. The steps' lengths differ
+    in the last bits: an FMU with error control agrees to its tolerance (integration_rtol)."""
     fmu = our_fmu(name)
     stop, step = default_experiment(fmu)
-    compare_with_fmpy(fmu, stop, step, workdir)
+    compare_with_fmpy(fmu, stop, step, workdir, rtol=integration_rtol(fmu))
