@@ -271,44 +271,55 @@ fn ceil(v: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// Xorshift64: the tests' random bits.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
     /// The former `after` (the library `ceil`, no one-sample shortcut), as the reference.
     fn former_after(
         clock: &SampleClock,
         time: f64,
         step: f64,
     ) -> Option<(SampleClock, Range<u64>)> {
-        let mut next = *clock;
-        if next.period == 0.0 {
-            if !(step.is_finite() && step > 0.0) {
-                return Some((next, next.next..next.next));
-            }
-            next.period = step;
-        }
-        let x = (time + step - next.start) / next.period;
-        let end = match next.rule {
-            Rule::Step => (x - tolerance(x)).ceil(),
-            Rule::Point => (x + tolerance(x)).floor() + 1.0,
+        let first = clock.next;
+        let period = match clock.period {
+            0.0 if !(step.is_finite() && step > 0.0) => return Some((*clock, first..first)),
+            0.0 => step,
+            period => period,
         };
-        let first = next.next;
-        if end.is_nan() || end <= first as f64 {
-            return Some((next, first..first));
-        }
-        if end - first as f64 > MAX_SAMPLES_PER_STEP as f64 {
+        let x = (time + step - clock.start) / period;
+        let end = if clock.rule == Rule::Step {
+            (x - tolerance(x)).ceil()
+        } else {
+            (x + tolerance(x)).floor() + 1.0
+        };
+        let next = if end.is_nan() || end <= first as f64 {
+            first
+        } else if end - first as f64 > MAX_SAMPLES_PER_STEP as f64 {
             return None;
-        }
-        next.next = end as u64;
-        Some((next, first..next.next))
+        } else {
+            end as u64
+        };
+        Some((
+            SampleClock {
+                period,
+                next,
+                ..*clock
+            },
+            first..next,
+        ))
     }
 
     #[test]
     fn after_takes_the_samples_of_the_former_formula() {
-        let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut bits = xorshift(0x2545_F491_4F6C_DD1D);
+        let mut uniform = || (bits() >> 11) as f64 / (1u64 << 53) as f64;
         let mut one_sample = 0;
         for _ in 0..200_000 {
             let period = [0.0, 1e-3, 0.1, 0.25, 1.0 / 3.0][(uniform() * 5.0) as usize];
@@ -339,13 +350,7 @@ mod tests {
 
     #[test]
     fn the_inline_ceil_is_the_library_ceil() {
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         let special = [
             0.0,
             -0.0,
