@@ -303,10 +303,7 @@ impl FilterCore {
         let (x, p) = (only(self.x.as_mut_slice())?, only(self.p.as_mut_slice())?);
         let x_prior = only(self.x_prior.as_mut_slice())?;
         let p_prior = only(self.p_prior.as_mut_slice())?;
-        let (w, e) = (
-            only(self.work_nn.as_mut_slice())?,
-            only(self.innovation.as_mut_slice())?,
-        );
+        let e = only(self.innovation.as_mut_slice())?;
         let gain_t = only(self.gain_t.as_mut_slice())?;
         let (gain, output) = (
             only(self.gain.as_mut_slice())?,
@@ -319,8 +316,9 @@ impl FilterCore {
         if let Some((_, u_prev, b, _)) = &input {
             *x_prior += b * **u_prev;
         }
-        *w = *p * a;
-        *p_prior = a * *w + q;
+        // (P a in a register: the general path's work matrix, the same rounding.)
+        let w = *p * a;
+        *p_prior = a * w + q;
         *e = c * -*x_prior + y;
         if let Some((u, _, _, d)) = &input {
             *e += d * -u;

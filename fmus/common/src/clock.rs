@@ -204,6 +204,7 @@ impl SampleClock {
     /// The clock after the step from `time` of size `step`, and the samples (their indices
     /// `k`, in order, possibly none) that step takes; `self` is not changed, so a step that
     /// fails leaves the clock as it was.
+    #[inline]
     pub fn after(&self, time: f64, step: f64) -> Result<(SampleClock, Range<u64>), ClockError> {
         let mut next = *self;
         if next.period == 0.0 {
@@ -213,12 +214,22 @@ impl SampleClock {
             next.period = step;
         }
         let x = (time + step - next.start) / next.period;
+        let first = next.next;
         // The number of instants t_k, k >= 0, the step's end has passed (Step) or reached (Point).
         let end = match next.rule {
-            Rule::Step => (x - tolerance(x)).ceil(),
+            Rule::Step => {
+                let passed = x - tolerance(x);
+                // The common step, one sample: ⌈passed⌉ = first + 1 (the test below, exact
+                // for counts below 2⁵³), without the rounding and the checks.
+                let before = first as f64;
+                if passed > before && passed <= before + 1.0 {
+                    next.next = first + 1;
+                    return Ok((next, first..next.next));
+                }
+                ceil(passed)
+            }
             Rule::Point => (x + tolerance(x)).floor() + 1.0,
         };
-        let first = next.next;
         if end.is_nan() || end <= first as f64 {
             return Ok((next, first..first));
         }
@@ -236,9 +247,150 @@ impl SampleClock {
     }
 }
 
+/// `v.ceil()` without the library call on the hot path: for |v| < 2⁵² the truncation to an
+/// integer is exact, one more when it lies below `v`; larger values (integers already), ±∞
+/// and NaN go to [`f64::ceil`]. The one difference, 0 for `v` in (−1, 0) where `ceil` gives
+/// −0, is the same instant count for every use in [`SampleClock::after`] (compared with and
+/// subtracted from a count, converted to one).
+#[inline(always)]
+fn ceil(v: f64) -> f64 {
+    const EXACT: f64 = 4_503_599_627_370_496.0; // 2⁵²
+    if v.abs() < EXACT {
+        let t = v as i64 as f64;
+        if t < v {
+            t + 1.0
+        } else {
+            t
+        }
+    } else {
+        v.ceil()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Xorshift64: the tests' random bits.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
+    /// The former `after` (the library `ceil`, no one-sample shortcut), as the reference.
+    fn former_after(
+        clock: &SampleClock,
+        time: f64,
+        step: f64,
+    ) -> Option<(SampleClock, Range<u64>)> {
+        let first = clock.next;
+        let period = match clock.period {
+            0.0 if !(step.is_finite() && step > 0.0) => return Some((*clock, first..first)),
+            0.0 => step,
+            period => period,
+        };
+        let x = (time + step - clock.start) / period;
+        let end = if clock.rule == Rule::Step {
+            (x - tolerance(x)).ceil()
+        } else {
+            (x + tolerance(x)).floor() + 1.0
+        };
+        let next = if end.is_nan() || end <= first as f64 {
+            first
+        } else if end - first as f64 > MAX_SAMPLES_PER_STEP as f64 {
+            return None;
+        } else {
+            end as u64
+        };
+        Some((
+            SampleClock {
+                period,
+                next,
+                ..*clock
+            },
+            first..next,
+        ))
+    }
+
+    #[test]
+    fn after_takes_the_samples_of_the_former_formula() {
+        let mut bits = xorshift(0x2545_F491_4F6C_DD1D);
+        let mut uniform = || (bits() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut one_sample = 0;
+        for _ in 0..200_000 {
+            let period = [0.0, 1e-3, 0.1, 0.25, 1.0 / 3.0][(uniform() * 5.0) as usize];
+            let start = [0.0, -1.0, 2.5][(uniform() * 3.0) as usize];
+            let rule = if uniform() < 0.7 {
+                Rule::Step
+            } else {
+                Rule::Point
+            };
+            let mut clock = SampleClock::new(rule, start, period).unwrap();
+            let taken = (uniform() * 1e6) as u64;
+            clock.next = taken;
+            let t_period = if period == 0.0 { 0.1 } else { period };
+            // around the next instant, and steps of about one period (and others)
+            let time = start + taken as f64 * t_period + (uniform() - 0.5) * 1e-9 * t_period;
+            let step = t_period
+                * [1.0, 0.5, 2.5, 1.0 + 1e-10, 1.0 - 1e-10, 1e-13][(uniform() * 6.0) as usize];
+            let ours = clock.after(time, step).ok();
+            assert_eq!(
+                ours,
+                former_after(&clock, time, step),
+                "{clock:?} {time} {step}"
+            );
+            one_sample += usize::from(ours.is_some_and(|(_, r)| r.end - r.start == 1));
+        }
+        assert!(one_sample > 50_000, "{one_sample}");
+    }
+
+    #[test]
+    fn the_inline_ceil_is_the_library_ceil() {
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            1.0 - f64::EPSILON,
+            4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            -4_503_599_627_370_495.5,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+        ];
+        let random = (0..100_000).map(|k| {
+            let bits = next();
+            match k % 3 {
+                // any double
+                0 => f64::from_bits(bits),
+                // near the counts a clock sees
+                1 => (bits >> 11) as f64 / (1u64 << 40) as f64 - 1.0,
+                _ => ((bits >> 11) as f64 / (1u64 << 20) as f64).copysign(f64::from_bits(bits)),
+            }
+        });
+        for v in special.into_iter().chain(random) {
+            let (ours, library) = (ceil(v), v.ceil());
+            if library == 0.0 {
+                assert_eq!(ours, 0.0, "{v}");
+            } else if library.is_nan() {
+                assert!(ours.is_nan(), "{v}");
+            } else {
+                assert_eq!(ours.to_bits(), library.to_bits(), "{v}");
+            }
+        }
+        assert!(ceil(f64::NAN).is_nan());
+    }
 
     /// Runs `steps` (start, size) from a clock and returns the samples each took.
     fn run(clock: &mut SampleClock, steps: &[(f64, f64)]) -> Vec<Vec<u64>> {

@@ -348,6 +348,21 @@ impl<F: LinearFilter> FilterFamily for Linear<F> {
 
     #[inline(always)]
     fn write_outputs(filter: &F, l: &LinearLayout, values: &mut Values) {
+        // One state and one output (the packaged scalar variants): each entry into its slot.
+        if let ([x], [y], [e], (1, 1)) = (
+            filter.state().as_slice(),
+            filter.output().as_slice(),
+            filter.innovation().as_slice(),
+            (l.dims.n, l.dims.p),
+        ) {
+            values.set_real(l.x_hat.first, *x);
+            values.set_real(l.y_hat.first, *y);
+            values.set_real(l.innovation.first, *e);
+            if let (Some(w), Some([weight])) = (&l.w, filter.weights().map(|w| w.as_slice())) {
+                values.set_real(w.first, *weight);
+            }
+            return;
+        }
         l.x_hat.write_vector(values, filter.state());
         l.y_hat.write_vector(values, filter.output());
         l.innovation.write_vector(values, filter.innovation());

@@ -48,6 +48,12 @@ impl Block {
     /// Writes a vector into a `rows × 1` block.
     #[inline]
     pub fn write_vector(&self, values: &mut Values, v: &DVector<f64>) {
+        if let [v] = v.as_slice() {
+            if self.rows * self.cols != 0 {
+                values.set_real(self.first, *v);
+            }
+            return;
+        }
         for (index, &v) in self.indices().zip(v.as_slice()) {
             values.set_real(index, v);
         }

@@ -597,7 +597,7 @@ impl<M: FmuModel> Instance<M> {
             // the common table: outputs in one block (no loop, one copy)
             [run] => {
                 if let Some(from) = numbers.get(run.clone()) {
-                    if from.len() == to.len() {
+                    if from.len() == to.len() && !copy_short(to, from) {
                         to.copy_from_slice(from);
                     }
                 }
@@ -646,7 +646,11 @@ impl<M: FmuModel> Instance<M> {
     fn computed_finite(&self) -> bool {
         let numbers = self.core.values.numbers();
         match &self.interface.computed[..] {
-            [run] => numbers.get(run.clone()).is_none_or(all_finite),
+            [run] => numbers.get(run.clone()).is_none_or(|xs| match xs.len() {
+                // a short run (a scalar filter's outputs) value by value, no lanes to set up
+                0..=SHORT_RUN => xs.iter().all(|x| x.is_finite()),
+                _ => all_finite(xs),
+            }),
             runs => runs
                 .iter()
                 .all(|run| numbers.get(run.clone()).is_none_or(all_finite)),
@@ -1538,5 +1542,46 @@ impl std::error::Error for StateError {}
 impl From<StateFormatError> for StateError {
     fn from(e: StateFormatError) -> Self {
         StateError::Format(e)
+    }
+}
+
+/// The longest run of computed values [`Instance`] copies and scans value by value (no call of
+/// the library copy, no lanes of [`all_finite`] to set up): a scalar filter's outputs.
+const SHORT_RUN: usize = 4;
+
+/// Copies `from` into `to` when both hold the same number of values, at most [`SHORT_RUN`],
+/// entry by entry; `false` (nothing copied) otherwise.
+#[inline(always)]
+fn copy_short(to: &mut [f64], from: &[f64]) -> bool {
+    match (to, from) {
+        ([a], [x]) => *a = *x,
+        ([a, b], [x, y]) => (*a, *b) = (*x, *y),
+        ([a, b, c], [x, y, z]) => (*a, *b, *c) = (*x, *y, *z),
+        ([a, b, c, d], [x, y, z, w]) => (*a, *b, *c, *d) = (*x, *y, *z, *w),
+        _ => return false,
+    }
+    true
+}
+
+#[cfg(test)]
+mod short_run_tests {
+    use super::*;
+
+    #[test]
+    fn short_runs_are_copied_entry_by_entry_and_longer_ones_refused() {
+        let from = [1.5, -2.0, f64::NAN, 4.0, 5.0];
+        for n in 1..=SHORT_RUN {
+            let mut to = [0.0; 5];
+            assert!(copy_short(&mut to[..n], &from[..n]), "{n}");
+            for (k, (t, f)) in to.iter().zip(from).enumerate() {
+                let expected = if k < n { f.to_bits() } else { 0 };
+                assert_eq!(t.to_bits(), expected, "{n} {k}");
+            }
+        }
+        let mut to = [0.0; 5];
+        assert!(!copy_short(&mut to, &from));
+        assert!(!copy_short(&mut to[..2], &from[..3]));
+        assert!(!copy_short(&mut to[..0], &from[..0]));
+        assert_eq!(to, [0.0; 5]);
     }
 }
