@@ -327,15 +327,6 @@ pub fn read_inputs(
     Ok(())
 }
 
-/// Writes `m` (any storage) into a block, row-major, no allocation.
-pub fn write_matrix_view(values: &mut Values, block: &Block, m: &nalgebra::DMatrixView<'_, f64>) {
-    for i in 0..block.rows.min(m.nrows()) {
-        for j in 0..block.cols.min(m.ncols()) {
-            values.set_real(block.index(i, j), m[(i, j)]);
-        }
-    }
-}
-
 /// Writes a vector into a block.
 pub fn write_vector(values: &mut Values, block: &Block, v: &DVector<f64>) {
     block.write_vector(values, v);
