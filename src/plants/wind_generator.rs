@@ -104,6 +104,10 @@
 //!   right-hand sides per 0.1 s where RK4 takes 4 000. (Its error is 1–3 times `rtol` and
 //!   moves with the last bits of the step sequence; 5·10⁻¹² keeps it within 1.3·10⁻¹¹ in the
 //!   scenarios measured, where 10⁻¹¹ reached 2.8·10⁻¹¹ in one.)
+//!   What sets the step there is the stator currents' error in the second after a reference
+//!   change (three quarters of the steps; the slow states, the lags and the first
+//!   milliseconds of a communication step do not limit it: tests in [`crate::ode::dop853`],
+//!   figures on the FMU page).
 //! - [`WindGenerator::advance_adaptive`] with [`Adaptive::Rodas3`]: the L-stable Rosenbrock
 //!   method RODAS3 of [`crate::ode::rosenbrock`] on the analytic Jacobian
 //!   [`WindGeneratorParameters::jacobian_state`]. Stability never bounds its step, so it is
