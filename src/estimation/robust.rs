@@ -138,14 +138,23 @@ impl ScalarCovariance for ScalarWeight<'_> {
         let (l, z, w) = (self.l, self.z, self.w);
         *z = e / l;
         *w = self.psi.weight(*z).max(MIN_WEIGHT);
+        // A branch, not a select: on the common path (w = 1) R̃ = R does not wait for e, so
+        // the correction overlaps the division e / √R (the step's latency chain).
         *self.r_effective = if *w == 1.0 {
             self.r
         } else {
-            let g = l * (1.0 / w.sqrt());
-            g * g
+            down_weighted(l, *w)
         };
         *self.r_effective
     }
+}
+
+/// R̃ = (√R / √w)² for a weight w < 1 (out of line: the rare path of [`ScalarWeight`]).
+#[cold]
+#[inline(never)]
+fn down_weighted(l: f64, w: f64) -> f64 {
+    let g = l * (1.0 / w.sqrt());
+    g * g
 }
 
 /// Robust-statistics Kalman filter (rsKF). See the module documentation for the equations.
