@@ -281,7 +281,7 @@ impl FilterCore {
         model: &StateSpace,
         u: &DVector<f64>,
         y: &DVector<f64>,
-        r_eff: impl FnOnce(f64) -> f64,
+        r_eff: impl ScalarCovariance,
     ) -> Option<Result<(), EstimationError>> {
         #[cfg(test)]
         if self.general_only {
@@ -329,7 +329,7 @@ impl FilterCore {
                 step,
             }));
         }
-        let (k, x_new, p_new) = match joseph_scalar(c, r_eff(*e), *x_prior, *p_prior, *e, step) {
+        let (k, x_new, p_new) = match joseph_scalar(c, r_eff.at(*e), *x_prior, *p_prior, *e, step) {
             Ok(update) => update,
             Err(error) => return Some(Err(error)),
         };
@@ -632,6 +632,21 @@ fn only(v: &mut [f64]) -> Option<&mut f64> {
     }
 }
 
+/// The measurement covariance of a scalar correction as a function of the innovation e
+/// ([`FilterCore::step_scalar`]): the sKF's constant R, the rsKF's R̃(e). A trait rather than a
+/// closure so that it is always inlined into the step.
+pub(crate) trait ScalarCovariance {
+    /// The covariance for the innovation `e`.
+    fn at(self, e: f64) -> f64;
+}
+
+impl ScalarCovariance for f64 {
+    #[inline(always)]
+    fn at(self, _: f64) -> f64 {
+        self
+    }
+}
+
 /// The entry of a buffer of one entry (a 1×1 matrix, a vector of length 1).
 #[inline(always)]
 fn one(v: &[f64]) -> Option<f64> {
@@ -770,7 +785,7 @@ impl KalmanFilter {
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
         if let [r] = *m.r.as_slice() {
-            if let Some(result) = self.core.step_scalar(m, u, y, |_| r) {
+            if let Some(result) = self.core.step_scalar(m, u, y, r) {
                 return result;
             }
         }

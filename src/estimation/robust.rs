@@ -23,7 +23,7 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{core_accessors, sample_views, FilterCore, GaussianModel};
+use super::kalman::{core_accessors, sample_views, FilterCore, GaussianModel, ScalarCovariance};
 use super::{parameter_error, EstimationError, Saved, StateReader};
 use crate::linalg::dense;
 use crate::state_space::StateSpace;
@@ -81,6 +81,7 @@ impl InfluenceFunction {
     }
 
     /// w(z) = ψ(z)/z, with w(0) = 1; not clamped.
+    #[inline]
     pub fn weight(&self, z: f64) -> f64 {
         match *self {
             Self::Huber { c } => {
@@ -117,6 +118,43 @@ impl Default for InfluenceFunction {
     fn default() -> Self {
         Self::huber()
     }
+}
+
+/// The rsKF's R̃ for one output ([`FilterCore::step_scalar`]): r = e / √R, w = ψ(r)/r
+/// (clamped), R̃ = (√R / √w)² (R itself when w = 1), each stored into its slot.
+struct ScalarWeight<'a> {
+    psi: InfluenceFunction,
+    /// R and its square root √R.
+    r: f64,
+    l: f64,
+    z: &'a mut f64,
+    w: &'a mut f64,
+    r_effective: &'a mut f64,
+}
+
+impl ScalarCovariance for ScalarWeight<'_> {
+    #[inline(always)]
+    fn at(self, e: f64) -> f64 {
+        let (l, z, w) = (self.l, self.z, self.w);
+        *z = e / l;
+        *w = self.psi.weight(*z).max(MIN_WEIGHT);
+        // A branch, not a select: on the common path (w = 1) R̃ = R does not wait for e, so
+        // the correction overlaps the division e / √R (the step's latency chain).
+        *self.r_effective = if *w == 1.0 {
+            self.r
+        } else {
+            down_weighted(l, *w)
+        };
+        *self.r_effective
+    }
+}
+
+/// R̃ = (√R / √w)² for a weight w < 1 (out of line: the rare path of [`ScalarWeight`]).
+#[cold]
+#[inline(never)]
+fn down_weighted(l: f64, w: f64) -> f64 {
+    let g = l * (1.0 / w.sqrt());
+    g * g
 }
 
 /// Robust-statistics Kalman filter (rsKF). See the module documentation for the equations.
@@ -222,17 +260,13 @@ impl RobustKalmanFilter {
             self.r_effective.as_mut_slice(),
         ) {
             // One output: r = e / √R, R̃ = (√R / √w)² (R itself when w = 1).
-            let (r, l, psi) = (*r, *l, self.psi);
-            let effective = |e: f64| {
-                *z = e / l;
-                *w = psi.weight(*z).max(MIN_WEIGHT);
-                *r_effective = if *w == 1.0 {
-                    r
-                } else {
-                    let g = l * (1.0 / w.sqrt());
-                    g * g
-                };
-                *r_effective
+            let effective = ScalarWeight {
+                psi: self.psi,
+                r: *r,
+                l: *l,
+                z,
+                w,
+                r_effective,
             };
             if let Some(result) = self.core.step_scalar(m, u, y, effective) {
                 return result;
