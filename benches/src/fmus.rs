@@ -99,12 +99,11 @@ pub const ROWS: &[Row] = &[
 pub struct Stepper {
     instance: Instance,
     step: f64,
-    amplitude: f64,
-    outliers: bool,
-    /// Value references and start values of the Real inputs.
+    /// Value references of the Real inputs.
     inputs: Vec<u32>,
-    starts: Vec<f64>,
-    values: Vec<f64>,
+    /// The inputs of [`SIGNAL_PERIOD`] consecutive steps, one row of `inputs.len()` values a
+    /// step, formed before the measurement so the timed loop costs no sine.
+    signals: Vec<f64>,
     /// The outputs, one getter call per type.
     outputs: Vec<(VarType, Vec<u32>, Vec<f64>)>,
     time: f64,
@@ -153,14 +152,12 @@ impl Stepper {
         };
         init(&mut instance)
             .map_err(|e| anyhow::anyhow!("initialising {}: {}", fmu.display(), e.0))?;
+        let signals = input_signals(&starts, row.amplitude, row.outliers);
         Ok(Self {
             instance,
             step: row.step,
-            amplitude: row.amplitude,
-            outliers: row.outliers,
-            values: starts.clone(),
+            signals,
             inputs,
-            starts,
             outputs,
             time: 0.0,
             k: 0,
@@ -172,19 +169,16 @@ impl Stepper {
         self.outputs.iter().map(|(_, vrs, _)| vrs.len()).sum()
     }
 
-    /// One step: every input set (its start value plus a sine of the row's amplitude, with an outlier on 5 %
-    /// of the samples for the robust estimators), `fmi2DoStep`, every output read.
+    /// One step: every input set (the next row of the precomputed signals), `fmi2DoStep`, every
+    /// output read.
     pub fn step(&mut self) -> Result<()> {
-        let k = self.k;
-        for (i, (v, start)) in self.values.iter_mut().zip(&self.starts).enumerate() {
-            let phase = k as f64 * 0.05 * (i + 1) as f64;
-            let outlier = self.outliers && (k * 7 + i as u64).is_multiple_of(20);
-            *v = start + self.amplitude * phase.sin() + if outlier { 3.0 } else { 0.0 };
-        }
+        let n = self.inputs.len();
+        let row = (self.k % SIGNAL_PERIOD) as usize * n;
+        let values = &self.signals[row..row + n];
         let failed = |call: &str, e: String| anyhow::anyhow!("{call} at t = {}: {e}", self.time);
         if !self.inputs.is_empty() {
             self.instance
-                .set(VarType::Real, &self.inputs, &self.values)
+                .set(VarType::Real, &self.inputs, values)
                 .map_err(|e| failed("fmi2SetReal", e.0))?;
         }
         if let Err(e) = self.instance.do_step(self.time, self.step) {
@@ -209,6 +203,23 @@ impl Stepper {
         }
         Ok(start.elapsed().as_nanos() as f64 / steps as f64)
     }
+}
+
+/// Steps after which the precomputed input signals repeat.
+const SIGNAL_PERIOD: u64 = 1024;
+
+/// The inputs of [`SIGNAL_PERIOD`] steps, row by row: input i at step k is its start value plus
+/// `amplitude`·sin(0.05 (i + 1) k), with an outlier of +3 on 5 % of the samples when `outliers`.
+fn input_signals(starts: &[f64], amplitude: f64, outliers: bool) -> Vec<f64> {
+    (0..SIGNAL_PERIOD)
+        .flat_map(|k| {
+            starts.iter().enumerate().map(move |(i, start)| {
+                let phase = k as f64 * 0.05 * (i + 1) as f64;
+                let outlier = outliers && (k * 7 + i as u64).is_multiple_of(20);
+                start + amplitude * phase.sin() + if outlier { 3.0 } else { 0.0 }
+            })
+        })
+        .collect()
 }
 
 /// A row's median over the interleaved rounds.
