@@ -22,6 +22,24 @@
  *   <label> fmi<v>: <steps> steps, <n> allocations (<malloc>/<calloc>/<realloc>/<aligned>),
  *   <f> frees; instance <bytes> B, instantiate+initialise <median> ms
  * Exit status: 0 no allocation and no free in the step phase, 1 some, 2 usage or FMU error.
+ *
+ * Timing mode (what scripts/bench measures as the direct C ABI path):
+ *
+ *   driver MANIFEST STEPS REPEATS --time BATCHES [--amplitude A] [--outliers] [--step H]
+ *
+ * One instance, initialised; the Real inputs of 1024 steps are formed before any timing, as
+ * the benchmark forms them (input i at step k: its start + A sin(0.05 (i+1) k), + 3 on 5 % of
+ * the samples with --outliers; A defaults to 0.1), and cycled; the communication step is H
+ * with --step H, else the manifest's. Each step sets every Real input
+ * (one fmi2SetReal / fmi3SetFloat64), calls DoStep and reads every output (one call per type).
+ * After one warm-up batch, BATCHES batches of STEPS steps are timed and the median ns per step
+ * is printed as `<label> fmi<v>: <median> ns per step (median of <BATCHES> batches of <STEPS>
+ * steps)`. With BATCHES 0 the batches are driven from stdin instead: a line with a step count
+ * runs that many steps and answers with one line, the ns per step (what lets the benchmark
+ * interleave them with its own); end of input ends. REPEATS is ignored. The malloc counters
+ * above stay in the process (they interpose malloc globally) but are switched off, and no
+ * call of the timed loop allocates (the allocation test checks it), so they cost nothing in it.
+ * Exit status: 0, or 2 usage or FMU error.
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -367,9 +385,101 @@ static int by_value(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
+/* ---- timing mode ----------------------------------------------------------------------- */
+enum { SIGNAL_PERIOD = 1024 };
+static double *signals; /* SIGNAL_PERIOD rows of the Real inputs' values */
+static double timed_t;
+static long timed_k;
+
+static void form_signals(double amplitude, int outliers) {
+    Group *G = &groups[INPUTS][0];
+    int n = G->nvalues;
+    signals = calloc((size_t)SIGNAL_PERIOD * (size_t)n + 1, sizeof *signals);
+    for (long k = 0; k < SIGNAL_PERIOD; k++)
+        for (int i = 0; i < n; i++) {
+            double phase = (double)k * 0.05 * (double)(i + 1);
+            int outlier = outliers && (k * 7 + i) % 20 == 0;
+            signals[k * n + i] = G->var[i]->start[G->element[i]] + amplitude * sin(phase) +
+                                 (outlier ? 3.0 : 0.0);
+        }
+}
+
+/* `steps` steps: every Real input set from the precomputed signals, DoStep, every output read. */
+static void timed_steps(Instance c, long steps) {
+    Group *R = &groups[INPUTS][0];
+    void *set = calls[1][0];
+    size_t m = (size_t)R->nvr;
+    for (long s = 0; s < steps; s++) {
+        const double *values = signals + (timed_k % SIGNAL_PERIOD) * R->nvalues;
+        if (m) {
+            Status st = version == 2
+                            ? (*(Call2 *)&set)(c, R->vrs, m, (void *)values)
+                            : (*(Call3 *)&set)(c, R->vrs, m, (void *)values, (size_t)R->nvalues);
+            check(st, CALLS[version - 2][1][0]);
+        }
+        if (version == 2) {
+            check(F.step2(c, timed_t, step, 1), "fmi2DoStep");
+        } else {
+            bool event = false, terminate = false, early = false;
+            double last = 0.0;
+            check(F.step3(c, timed_t, step, true, &event, &terminate, &early, &last),
+                  "fmi3DoStep");
+        }
+        exchange(c, OUTPUTS, 0, 0);
+        timed_t += step;
+        timed_k++;
+    }
+}
+
+static double ns_per_step(Instance c, long steps) {
+    double t0 = now();
+    timed_steps(c, steps);
+    return 1e9 * (now() - t0) / (double)(steps > 0 ? steps : 1);
+}
+
+static int time_steps(long steps, int batches, double amplitude, int outliers) {
+    form_signals(amplitude, outliers);
+    Instance c = start();
+    ns_per_step(c, steps > 0 ? steps : 1); /* warm-up */
+    if (batches == 0) {
+        char line[64];
+        while (fgets(line, sizeof line, stdin)) {
+            long n = atol(line);
+            if (n < 1) { fprintf(stderr, "driver: bad step count '%s'\n", line); return 2; }
+            printf("%.3f\n", ns_per_step(c, n));
+            fflush(stdout);
+        }
+    } else {
+        double *samples = calloc((size_t)batches, sizeof *samples);
+        for (int b = 0; b < batches; b++) samples[b] = ns_per_step(c, steps);
+        qsort(samples, (size_t)batches, sizeof *samples, by_value);
+        printf("%s fmi%d: %.2f ns per step (median of %d batches of %ld steps)\n", label,
+               version, samples[batches / 2], batches, steps);
+    }
+    stop(c);
+    return 0;
+}
+
 int main(int argc, char **argv) {
+    if (argc >= 6 && !strcmp(argv[4], "--time")) {
+        int batches = atoi(argv[5]), outliers = 0;
+        double amplitude = 0.1, forced_step = 0.0;
+        for (int i = 6; i < argc; i++) {
+            if (!strcmp(argv[i], "--outliers")) outliers = 1;
+            else if (!strcmp(argv[i], "--amplitude") && i + 1 < argc) amplitude = atof(argv[++i]);
+            else if (!strcmp(argv[i], "--step") && i + 1 < argc) forced_step = atof(argv[++i]);
+            else { fprintf(stderr, "driver: unknown argument '%s'\n", argv[i]); return 2; }
+        }
+        if (batches < 0) { fprintf(stderr, "driver: BATCHES must be >= 0\n"); return 2; }
+        read_manifest(argv[1]);
+        if (forced_step > 0) step = forced_step;
+        load();
+        build_groups();
+        return time_steps(atol(argv[2]), batches, amplitude, outliers);
+    }
     if (argc != 4) {
-        fprintf(stderr, "usage: driver MANIFEST STEPS REPEATS\n");
+        fprintf(stderr, "usage: driver MANIFEST STEPS REPEATS [--time BATCHES [--amplitude A] "
+                        "[--outliers] [--step H]]\n");
         return 2;
     }
     read_manifest(argv[1]);
