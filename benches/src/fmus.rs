@@ -1,15 +1,20 @@
 //! Our FMUs' cost per step through their C ABI: the packaged binary (`build/fmus/<Model>.fmu`)
 //! loaded as any importer loads it, then per step `fmi2SetReal` of every input,
 //! `fmi2DoStep` and the getters of every output — against the arithmetic floor estimated in
-//! issue 17 and its target where it names one. With `--instructions`, callgrind counts the
-//! instructions of a step (two runs of different lengths under valgrind, so loading and
-//! initialisation cancel).
+//! issue 17 and its target where it names one. Each row is measured two ways, interleaved:
+//! straight through the C ABI by the allocation driver (`tests/allocations/driver.c` in its
+//! timing mode, a subprocess fed batch lengths on stdin: no Rust wrapper between the loop and
+//! the C functions), and through spurio's importer (`spurio_master::fmu::Instance` over
+//! rust-fmi's wrappers, what a co-simulation pays). With `--instructions`, callgrind counts
+//! the instructions of a step on the importer path (two runs of different lengths under
+//! valgrind, so loading and initialisation cancel).
 
 use crate::stats::{interleaved, median};
 use anyhow::{bail, Context, Result};
 use spurio_master::fmu::{Causality, Experiment, FmuFile, Instance, VarType};
+use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::Instant;
 
 /// One row of the table: an FMU (its file stem in `build/fmus`), its label and communication
@@ -222,35 +227,166 @@ fn input_signals(starts: &[f64], amplitude: f64, outliers: bool) -> Vec<f64> {
         .collect()
 }
 
-/// A row's median over the interleaved rounds.
+/// One row's FMU stepped straight through its C ABI by the allocation driver in timing mode:
+/// the driver's process holds one initialised instance and runs, for each step count written
+/// to its stdin, that many steps (the same precomputed inputs as [`Stepper`]), answering with
+/// the nanoseconds per step it timed around its own loop.
+pub struct Direct {
+    child: Child,
+    stdin: Option<ChildStdin>,
+    stdout: BufReader<ChildStdout>,
+    label: &'static str,
+}
+
+impl Direct {
+    /// Starts `driver` on the manifest of `fmu` (written into `dir` by `manifest.py`).
+    pub fn new(driver: &Driver, fmu: &Path, row: &Row, dir: &Path) -> Result<Self> {
+        let unpacked = dir.join(row.fmu);
+        let status = Command::new("python3")
+            .arg(&driver.manifest_script)
+            .arg(fmu)
+            .arg(&unpacked)
+            .status()
+            .context("running python3 tests/allocations/manifest.py")?;
+        if !status.success() {
+            bail!("manifest.py failed on {}", fmu.display());
+        }
+        let mut command = Command::new(&driver.binary);
+        command
+            .arg(unpacked.join("manifest.txt"))
+            .args(["100", "1", "--time", "0"])
+            .args(["--amplitude", &row.amplitude.to_string()])
+            .args(["--step", &row.step.to_string()]);
+        if row.outliers {
+            command.arg("--outliers");
+        }
+        let mut child = command
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .with_context(|| format!("starting {}", driver.binary.display()))?;
+        let (Some(stdin), Some(stdout)) = (child.stdin.take(), child.stdout.take()) else {
+            bail!("the driver's pipes are missing");
+        };
+        Ok(Self {
+            child,
+            stdin: Some(stdin),
+            stdout: BufReader::new(stdout),
+            label: row.label,
+        })
+    }
+
+    /// Nanoseconds per step over `steps` steps, as the driver timed them.
+    pub fn time_steps(&mut self, steps: u64) -> Result<f64> {
+        let stdin = self
+            .stdin
+            .as_mut()
+            .context("the driver's stdin is closed")?;
+        writeln!(stdin, "{steps}")?;
+        stdin.flush()?;
+        let mut line = String::new();
+        self.stdout.read_line(&mut line)?;
+        line.trim().parse().map_err(|_| {
+            anyhow::anyhow!(
+                "{}: the C driver answered {line:?} (its error is on stderr above)",
+                self.label
+            )
+        })
+    }
+}
+
+impl Drop for Direct {
+    fn drop(&mut self) {
+        // End of input ends the driver, which frees its instance.
+        drop(self.stdin.take());
+        let _ = self.child.wait();
+    }
+}
+
+/// The allocation driver compiled for timing (`gcc -O2`, as the callgrind script builds it
+/// but optimised), with the script that writes its manifests.
+pub struct Driver {
+    binary: PathBuf,
+    manifest_script: PathBuf,
+}
+
+impl Driver {
+    /// Compiles `tests/allocations/driver.c` of `repo` into `dir`.
+    pub fn compile(repo: &Path, dir: &Path) -> Result<Self> {
+        let here = repo.join("tests/allocations");
+        let binary = dir.join("driver");
+        let out = Command::new("gcc")
+            .args(["-std=c11", "-O2", "-rdynamic", "-o"])
+            .arg(&binary)
+            .arg(here.join("driver.c"))
+            .args(["-ldl", "-lm"])
+            .output()
+            .context("running gcc (scripts/setup installs it)")?;
+        if !out.status.success() {
+            bail!(
+                "compiling driver.c failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        Ok(Self {
+            binary,
+            manifest_script: here.join("manifest.py"),
+        })
+    }
+}
+
+/// A row's medians over the interleaved rounds: straight through the C ABI and through
+/// spurio's importer.
 pub struct Measured {
-    pub ns: f64,
+    pub direct_ns: f64,
+    pub importer_ns: f64,
     pub outputs_read: usize,
 }
 
-/// Measures every row: `rounds` rounds, each a batch of about `batch_ms` per row, in turn.
-pub fn measure(fmus: &Path, rounds: usize, batch_ms: f64) -> Result<Vec<Measured>> {
+/// Measures every row both ways: `rounds` rounds, each a batch of about `batch_ms` per row and
+/// path, in turn (row 1 importer, row 1 direct, row 2 importer …).
+pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result<Vec<Measured>> {
+    enum Route {
+        Importer(Box<Stepper>),
+        Direct(Direct),
+    }
+    impl Route {
+        fn time_steps(&mut self, steps: u64) -> Result<f64> {
+            match self {
+                Self::Importer(s) => s.time_steps(steps),
+                Self::Direct(d) => d.time_steps(steps),
+            }
+        }
+    }
     struct Subject {
-        stepper: Stepper,
+        route: Route,
         per_batch: u64,
     }
+    let dir = tempfile::tempdir()?;
+    let driver = Driver::compile(repo, dir.path())?;
     let mut subjects = Vec::new();
+    let mut outputs_read = Vec::new();
     for row in ROWS {
-        let mut stepper =
-            Stepper::new(&fmu_path(fmus, row.fmu)?, row).with_context(|| row.label)?;
-        // Warm-up, and the batch length that takes about `batch_ms`.
-        stepper.time_steps(20)?;
-        let estimate = stepper.time_steps(20)?;
-        let per_batch = ((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000);
-        subjects.push(Subject { stepper, per_batch });
+        let fmu = fmu_path(fmus, row.fmu)?;
+        let stepper = Stepper::new(&fmu, row).with_context(|| row.label)?;
+        outputs_read.push(stepper.outputs_read());
+        let direct = Direct::new(&driver, &fmu, row, dir.path()).with_context(|| row.label)?;
+        for mut route in [Route::Importer(Box::new(stepper)), Route::Direct(direct)] {
+            // Warm-up, and the batch length that takes about `batch_ms`.
+            route.time_steps(20)?;
+            let estimate = route.time_steps(20)?;
+            let per_batch = ((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000);
+            subjects.push(Subject { route, per_batch });
+        }
     }
-    let samples = interleaved(rounds, &mut subjects, |s| s.stepper.time_steps(s.per_batch))?;
-    Ok(subjects
-        .iter()
-        .zip(samples)
-        .map(|(s, samples)| Measured {
-            ns: median(&samples),
-            outputs_read: s.stepper.outputs_read(),
+    let samples = interleaved(rounds, &mut subjects, |s| s.route.time_steps(s.per_batch))?;
+    Ok(samples
+        .chunks(2)
+        .zip(outputs_read)
+        .map(|(pair, outputs_read)| Measured {
+            importer_ns: median(&pair[0]),
+            direct_ns: median(&pair[1]),
+            outputs_read,
         })
         .collect())
 }
