@@ -242,15 +242,13 @@ impl Direct {
     /// Starts `driver` on the manifest of `fmu` (written into `dir` by `manifest.py`).
     pub fn new(driver: &Driver, fmu: &Path, row: &Row, dir: &Path) -> Result<Self> {
         let unpacked = dir.join(row.fmu);
-        let status = Command::new("python3")
-            .arg(&driver.manifest_script)
-            .arg(fmu)
-            .arg(&unpacked)
-            .status()
-            .context("running python3 tests/allocations/manifest.py")?;
-        if !status.success() {
-            bail!("manifest.py failed on {}", fmu.display());
-        }
+        run(
+            Command::new("python3")
+                .arg(&driver.manifest_script)
+                .arg(fmu)
+                .arg(&unpacked),
+            &format!("tests/allocations/manifest.py on {}", fmu.display()),
+        )?;
         let mut command = Command::new(&driver.binary);
         command
             .arg(unpacked.join("manifest.txt"))
@@ -315,19 +313,14 @@ impl Driver {
     pub fn compile(repo: &Path, dir: &Path) -> Result<Self> {
         let here = repo.join("tests/allocations");
         let binary = dir.join("driver");
-        let out = Command::new("gcc")
-            .args(["-std=c11", "-O2", "-rdynamic", "-o"])
-            .arg(&binary)
-            .arg(here.join("driver.c"))
-            .args(["-ldl", "-lm"])
-            .output()
-            .context("running gcc (scripts/setup installs it)")?;
-        if !out.status.success() {
-            bail!(
-                "compiling driver.c failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        }
+        run(
+            Command::new("gcc")
+                .args(["-std=c11", "-O2", "-rdynamic", "-o"])
+                .arg(&binary)
+                .arg(here.join("driver.c"))
+                .args(["-ldl", "-lm"]),
+            "gcc (scripts/setup installs it) on driver.c",
+        )?;
         Ok(Self {
             binary,
             manifest_script: here.join("manifest.py"),
@@ -424,20 +417,15 @@ pub fn instructions(fmus: &Path, fmu: &str, short: u64, long: u64) -> Result<f64
     let me = std::env::current_exe()?;
     let total = |steps: u64| -> Result<f64> {
         let out = dir.path().join(format!("callgrind.{steps}"));
-        let run = Command::new("valgrind")
-            .arg("--tool=callgrind")
-            .arg(format!("--callgrind-out-file={}", out.display()))
-            .arg(&me)
-            .args(["--fmus".as_ref(), fmus.as_os_str()])
-            .args(["--count", fmu, "--steps", &steps.to_string()])
-            .output()
-            .context("running valgrind (scripts/setup installs it)")?;
-        if !run.status.success() {
-            bail!(
-                "callgrind on {fmu} failed: {}",
-                String::from_utf8_lossy(&run.stderr)
-            );
-        }
+        run(
+            Command::new("valgrind")
+                .arg("--tool=callgrind")
+                .arg(format!("--callgrind-out-file={}", out.display()))
+                .arg(&me)
+                .args(["--fmus".as_ref(), fmus.as_os_str()])
+                .args(["--count", fmu, "--steps", &steps.to_string()]),
+            &format!("callgrind (valgrind, scripts/setup installs it) on {fmu}"),
+        )?;
         let text = std::fs::read_to_string(&out)?;
         text.lines()
             .find_map(|l| {
@@ -450,4 +438,15 @@ pub fn instructions(fmus: &Path, fmu: &str, short: u64, long: u64) -> Result<f64
     let a = total(short)?;
     let b = total(long)?;
     Ok((b - a) / (long - short) as f64)
+}
+
+/// Runs `command` to its end; an error names `what` and carries its stderr if it fails.
+fn run(command: &mut Command, what: &str) -> Result<()> {
+    let out = command
+        .output()
+        .with_context(|| format!("running {what}"))?;
+    if !out.status.success() {
+        bail!("{what} failed: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    Ok(())
 }
