@@ -425,6 +425,11 @@ impl Dare<'_> {
     /// Residual of the equation at `P`, `AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q − P`.
     pub fn residual(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
         self.check()?;
+        self.checked_residual(p)
+    }
+
+    /// [`Dare::residual`] once [`Dare::check`] has passed (it is not repeated).
+    fn checked_residual(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
         let Dare { a, b, q, r } = *self;
         require_shape("P", p, a.nrows(), a.nrows())?;
         let btpa = b.transpose() * p * a;
@@ -507,7 +512,7 @@ impl Dare<'_> {
             });
         }
         let p = h;
-        let residual = self.residual(&p)?;
+        let residual = self.checked_residual(&p)?;
         let relative_residual = norm1(&residual) / norm1(&p).max(1.0);
         if relative_residual.is_nan() || relative_residual > DARE_RESIDUAL_LIMIT {
             return Err(LinalgError::InaccurateSolution { relative_residual });
