@@ -425,17 +425,21 @@ impl Dare<'_> {
     /// Residual of the equation at `P`, `AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q − P`.
     pub fn residual(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
         self.check()?;
-        self.checked_residual(p)
+        Ok(self.checked_residual(p)?.0)
     }
 
-    /// [`Dare::residual`] once [`Dare::check`] has passed (it is not repeated).
-    fn checked_residual(&self, p: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
+    /// [`Dare::residual`] once [`Dare::check`] has passed (it is not repeated), with the gain
+    /// `K = (R + BᵀPB)⁻¹ BᵀPA` it goes through (that of [`Dare::gain`]).
+    fn checked_residual(
+        &self,
+        p: &DMatrix<f64>,
+    ) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
         let Dare { a, b, q, r } = *self;
         require_shape("P", p, a.nrows(), a.nrows())?;
         let btpa = b.transpose() * p * a;
         let s = r + b.transpose() * p * b;
         let k = cholesky_solve(&s, &btpa, "R + BᵀPB")?;
-        Ok(a.transpose() * p * a - btpa.transpose() * k + q - p)
+        Ok((a.transpose() * p * a - btpa.transpose() * &k + q - p, k))
     }
 
     /// The regulator gain at `P`, `K = (R + BᵀPB)⁻¹ BᵀPA`.
@@ -448,8 +452,7 @@ impl Dare<'_> {
     /// The discrete LQ regulator: `(K, P)` with `P` from [`Dare::solve`] and
     /// `K = (R + BᵀPB)⁻¹ BᵀPA`, so that `u = −K x` minimises `Σ xᵀQx + uᵀRu`.
     pub fn regulator(&self) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
-        let p = self.solve()?;
-        let k = self.gain(&p)?;
+        let (p, k) = self.solve_with_gain()?;
         Ok((k, p))
     }
 
@@ -458,6 +461,12 @@ impl Dare<'_> {
     /// stabilisable), when the relative residual exceeds 1e-8, or when `A − B K` is not Schur
     /// stable. The result is symmetric.
     pub fn solve(&self) -> Result<DMatrix<f64>, LinalgError> {
+        Ok(self.solve_with_gain()?.0)
+    }
+
+    /// [`Dare::solve`] with the gain `K` at the solution, computed once for the residual, the
+    /// stability check and [`Dare::regulator`].
+    fn solve_with_gain(&self) -> Result<(DMatrix<f64>, DMatrix<f64>), LinalgError> {
         self.check()?;
         let Dare { a, b, q, r } = *self;
         let n = a.nrows();
@@ -512,19 +521,18 @@ impl Dare<'_> {
             });
         }
         let p = h;
-        let residual = self.checked_residual(&p)?;
+        let (residual, gain) = self.checked_residual(&p)?;
         let relative_residual = norm1(&residual) / norm1(&p).max(1.0);
         if relative_residual.is_nan() || relative_residual > DARE_RESIDUAL_LIMIT {
             return Err(LinalgError::InaccurateSolution { relative_residual });
         }
-        let gain = self.gain(&p)?;
-        let rho = spectral_radius(&(a - b * gain));
+        let rho = spectral_radius(&(a - b * &gain));
         if rho.is_nan() || rho >= 1.0 - STABILITY_MARGIN {
             return Err(LinalgError::NotStabilising {
                 spectral_radius: rho,
             });
         }
-        Ok(p)
+        Ok((p, gain))
     }
 }
 
