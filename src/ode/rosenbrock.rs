@@ -83,6 +83,24 @@ pub struct Tolerance<const N: usize> {
     pub absolute: SVector<f64, N>,
 }
 
+impl<const N: usize> Tolerance<N> {
+    /// The states in the error norm (finite absolute tolerance), each with its error scale
+    /// `atolᵢ + rtol · max(|xᵢ|, |nextᵢ|)` for a step from `x` to `next`.
+    #[inline]
+    pub(crate) fn scales<'a>(
+        &'a self,
+        x: &'a SVector<f64, N>,
+        next: &'a SVector<f64, N>,
+    ) -> impl Iterator<Item = (usize, f64)> + 'a {
+        (0..N).filter(|&i| self.absolute[i].is_finite()).map(|i| {
+            (
+                i,
+                self.absolute[i] + self.relative * x[i].abs().max(next[i].abs()),
+            )
+        })
+    }
+}
+
 /// What one call did (for benchmarks and tests).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Statistics {
@@ -273,11 +291,8 @@ where
         let j = (self.jacobian)(state);
         let (next, error) = rosenbrock_step(self.method, &mut self.f, &j, state, h)
             .ok_or(StepError::Singular { at: done })?;
-        let tolerance = self.tolerance;
         let (mut sum, mut controlled) = (0.0, 0);
-        for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
-            let scale =
-                tolerance.absolute[i] + tolerance.relative * state[i].abs().max(next[i].abs());
+        for (i, scale) in self.tolerance.scales(state, &next) {
             sum += (error[i] / scale).powi(2);
             controlled += 1;
         }
