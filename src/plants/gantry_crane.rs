@@ -554,18 +554,13 @@ mod tests {
         u: f64,
         contact: RailContact,
     ) -> (Matrix4<f64>, Vector4<f64>) {
-        let mut dfds = Matrix4::zeros();
-        for j in 0..4 {
-            let e = 1e-6 * s[j].abs().max(1.0);
-            let (mut plus, mut minus) = (*s, *s);
-            plus[j] += e;
-            minus[j] -= e;
-            let col = (p.rhs(&plus, u, contact) - p.rhs(&minus, u, contact)) / (2.0 * e);
-            dfds.set_column(j, &col);
-        }
-        let e = 1e-6 * u.abs().max(1.0);
-        let dfdu = (p.rhs(s, u + e, contact) - p.rhs(s, u - e, contact)) / (2.0 * e);
-        (dfds, dfdu)
+        let dfds = crate::plants::central_differences(|s| p.rhs(s, u, contact), s, 1e-6);
+        let dfdu = crate::plants::central_differences(
+            |u: &nalgebra::Vector1<f64>| p.rhs(s, u[0], contact),
+            &nalgebra::Vector1::new(u),
+            1e-6,
+        );
+        (dfds, dfdu.column(0).into_owned())
     }
 
     #[test]

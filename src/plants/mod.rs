@@ -4,3 +4,22 @@ pub mod gantry_crane;
 pub mod linear_system;
 pub mod opamp_filter;
 pub mod wind_generator;
+
+/// `∂f/∂x` at `x` by central differences, the step along `xⱼ` being
+/// `relative_step · max(|xⱼ|, 1)` (the plants' tests hold their Jacobians to it).
+#[cfg(test)]
+pub(crate) fn central_differences<const N: usize, const M: usize>(
+    f: impl Fn(&nalgebra::SVector<f64, N>) -> nalgebra::SVector<f64, M>,
+    x: &nalgebra::SVector<f64, N>,
+    relative_step: f64,
+) -> nalgebra::SMatrix<f64, M, N> {
+    let mut jacobian = nalgebra::SMatrix::<f64, M, N>::zeros();
+    for j in 0..N {
+        let step = relative_step * x[j].abs().max(1.0);
+        let (mut plus, mut minus) = (*x, *x);
+        plus[j] += step;
+        minus[j] -= step;
+        jacobian.set_column(j, &((f(&plus) - f(&minus)) / (2.0 * step)));
+    }
+    jacobian
+}

@@ -412,14 +412,13 @@ mod tests {
         u: f64,
         rail: Rail,
     ) -> (Matrix2<f64>, Vector2<f64>) {
-        let f = |v: &Vector2<f64>, u: f64| p.derivative_on(v, u, rail);
-        let along = |j: usize| {
-            let d = Vector2::ith(j, 1e-4 * v[j].abs().max(1.0));
-            (f(&(v + d), u) - f(&(v - d), u)) / (2.0 * d[j])
-        };
-        let d = 1e-4 * u.abs().max(1.0);
-        let ju = (f(v, u + d) - f(v, u - d)) / (2.0 * d);
-        (Matrix2::from_columns(&[along(0), along(1)]), ju)
+        let jx = crate::plants::central_differences(|v| p.derivative_on(v, u, rail), v, 1e-4);
+        let ju = crate::plants::central_differences(
+            |u: &nalgebra::Vector1<f64>| p.derivative_on(v, u[0], rail),
+            &nalgebra::Vector1::new(u),
+            1e-4,
+        );
+        (jx, ju.column(0).into_owned())
     }
 
     /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`.
