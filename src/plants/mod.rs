@@ -23,3 +23,10 @@ pub(crate) fn central_differences<const N: usize, const M: usize>(
     }
     jacobian
 }
+
+/// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`: a Jacobian entry against its
+/// central difference.
+#[cfg(test)]
+pub(crate) fn close_in_row(a: f64, b: f64, row_scale: f64) -> bool {
+    (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(row_scale)
+}

@@ -421,11 +421,6 @@ mod tests {
         (jx, ju.column(0).into_owned())
     }
 
-    /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`.
-    fn close_in_row(a: f64, b: f64, row_scale: f64) -> bool {
-        (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(row_scale)
-    }
-
     #[test]
     fn jacobians_match_central_differences_at_random_states() {
         let mut rng = crate::signals::rng::RandomGenerator::new(15);
@@ -449,13 +444,17 @@ mod tests {
                 let scale = analytic.row(i).amax();
                 for j in 0..2 {
                     assert!(
-                        close_in_row(jx[(i, j)], analytic[(i, j)], scale),
+                        crate::plants::close_in_row(jx[(i, j)], analytic[(i, j)], scale),
                         "∂f{i}/∂v{j} on {rail:?}: {} vs {}",
                         jx[(i, j)],
                         analytic[(i, j)]
                     );
                 }
-                assert!(close_in_row(ju[i], p.jacobian_input()[i], scale));
+                assert!(crate::plants::close_in_row(
+                    ju[i],
+                    p.jacobian_input()[i],
+                    scale
+                ));
             }
             // The output y = output_on(v₂, rail): slope by differences too.
             let d = 1e-4 * v[1].abs().max(1.0);

@@ -1057,7 +1057,7 @@ mod tests {
     /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest analytic entry of the row)`.
     fn assert_close(what: &str, fd: f64, analytic: f64, row_scale: f64) {
         assert!(
-            (fd - analytic).abs() <= 1e-6 * fd.abs().max(analytic.abs()).max(row_scale),
+            crate::plants::close_in_row(fd, analytic, row_scale),
             "{what}: differences {fd} vs analytic {analytic}"
         );
     }
