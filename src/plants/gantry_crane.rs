@@ -547,22 +547,6 @@ mod tests {
         assert!((energy(&c.state) - e0).abs() < 1e-9 * e0.abs());
     }
 
-    /// Central finite differences of `f` along each state and the force.
-    fn finite_difference_jacobian(
-        p: &GantryCraneParameters,
-        s: &CraneState,
-        u: f64,
-        contact: RailContact,
-    ) -> (Matrix4<f64>, Vector4<f64>) {
-        let dfds = crate::plants::central_differences(|s| p.rhs(s, u, contact), s, 1e-6);
-        let dfdu = crate::plants::central_differences(
-            |u: &nalgebra::Vector1<f64>| p.rhs(s, u[0], contact),
-            &nalgebra::Vector1::new(u),
-            1e-6,
-        );
-        (dfds, dfdu.column(0).into_owned())
-    }
-
     #[test]
     fn analytic_jacobians_match_central_finite_differences_at_random_states() {
         let mut rng = crate::signals::rng::RandomGenerator::new(17);
@@ -592,7 +576,12 @@ mod tests {
                 RailContact::HeldRight,
             ][k % 3];
             let (dfds, dfdu) = p.jacobian(&s, u, contact);
-            let (fd_s, fd_u) = finite_difference_jacobian(&p, &s, u, contact);
+            let (fd_s, fd_u) = crate::plants::state_and_input_differences(
+                |s, u| p.rhs(s, u, contact),
+                &s,
+                u,
+                1e-6,
+            );
             let scale = dfds.amax().max(dfdu.amax());
             let error = (dfds - fd_s).amax().max((dfdu - fd_u).amax()) / scale;
             worst = worst.max(error);

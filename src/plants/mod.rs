@@ -30,3 +30,20 @@ pub(crate) fn central_differences<const N: usize, const M: usize>(
 pub(crate) fn close_in_row(a: f64, b: f64, row_scale: f64) -> bool {
     (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(row_scale)
 }
+
+/// [`central_differences`] of `f(x, u)` along the state `x` and along a scalar input `u`.
+#[cfg(test)]
+pub(crate) fn state_and_input_differences<const N: usize>(
+    f: impl Fn(&nalgebra::SVector<f64, N>, f64) -> nalgebra::SVector<f64, N>,
+    x: &nalgebra::SVector<f64, N>,
+    u: f64,
+    relative_step: f64,
+) -> (nalgebra::SMatrix<f64, N, N>, nalgebra::SVector<f64, N>) {
+    let along_x = central_differences(|x| f(x, u), x, relative_step);
+    let along_u = central_differences(
+        |u: &nalgebra::Vector1<f64>| f(x, u[0]),
+        &nalgebra::Vector1::new(u),
+        relative_step,
+    );
+    (along_x, along_u.column(0).into_owned())
+}
