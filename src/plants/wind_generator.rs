@@ -716,7 +716,6 @@ impl WindGenerator {
                 &rosenbrock::RODAS3,
                 |x| p.derivative(x, u_drive, u_field),
                 |x| p.jacobian_state(x, p.torque_limit_of(x[5], x[3])),
-                |_| {},
                 x,
                 h,
                 tolerance,
