@@ -124,8 +124,7 @@ fn step<const N: usize>(
     let increment = combine(&SVector::zeros(), 1.0, stages, B);
     let next = combine(x, h, [&increment], [1.0]);
     let (mut fifth, mut third, mut controlled) = (0.0, 0.0, 0usize);
-    for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
-        let scale = tolerance.absolute[i] + tolerance.relative * x[i].abs().max(next[i].abs());
+    for (i, scale) in tolerance.scales(x, &next) {
         let e3 = increment[i] - BH[0] * k1[i] - BH[1] * k9[i] - BH[2] * k12[i];
         let mut e5 = 0.0;
         for (k, e) in stages.iter().zip(E) {

@@ -83,6 +83,24 @@ pub struct Tolerance<const N: usize> {
     pub absolute: SVector<f64, N>,
 }
 
+impl<const N: usize> Tolerance<N> {
+    /// The states in the error norm (finite absolute tolerance), each with its error scale
+    /// `atolᵢ + rtol · max(|xᵢ|, |nextᵢ|)` for a step from `x` to `next`.
+    #[inline]
+    pub(crate) fn scales<'a>(
+        &'a self,
+        x: &'a SVector<f64, N>,
+        next: &'a SVector<f64, N>,
+    ) -> impl Iterator<Item = (usize, f64)> + 'a {
+        (0..N).filter(|&i| self.absolute[i].is_finite()).map(|i| {
+            (
+                i,
+                self.absolute[i] + self.relative * x[i].abs().max(next[i].abs()),
+            )
+        })
+    }
+}
+
 /// What one call did (for benchmarks and tests).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Statistics {
@@ -228,15 +246,14 @@ fn rosenbrock_step<const N: usize>(
 
 /// Integrates `ẋ = f(x)` over an interval of `length` from `x`, with adaptive RODAS3 steps
 /// (module docs) and `jacobian(x) = ∂f/∂x`. `step` is the step to try first and, on return,
-/// the one the error control proposes next (carry it from one call to the next).
-/// `after_step` runs after every accepted step and may change the state (an angle wrapped
-/// into its range).
+/// the one the error control proposes next (carry it from one call to the next). The state
+/// is returned as it is at the interval's end (no discrete change in between: a caller that
+/// wraps an angle does so after the call).
 #[allow(clippy::too_many_arguments)]
 pub fn integrate<const N: usize>(
     method: &Method,
     f: impl FnMut(&SVector<f64, N>) -> SVector<f64, N>,
     jacobian: impl FnMut(&SVector<f64, N>) -> SMatrix<f64, N, N>,
-    after_step: impl FnMut(&mut SVector<f64, N>),
     x: &SVector<f64, N>,
     length: f64,
     tolerance: &Tolerance<N>,
@@ -247,49 +264,38 @@ pub fn integrate<const N: usize>(
         method,
         f,
         jacobian,
-        after_step,
         tolerance,
     };
     super::adaptive::drive(&mut stepper, x, length, step, statistics)
 }
 
-/// A Rosenbrock method with its right-hand side, Jacobian and discrete change, for the shared
+/// A Rosenbrock method with its right-hand side and Jacobian, for the shared
 /// step-size loop.
-struct Stepper<'a, F, J, A, const N: usize> {
+struct Stepper<'a, F, J, const N: usize> {
     method: &'a Method,
     f: F,
     jacobian: J,
-    after_step: A,
     tolerance: &'a Tolerance<N>,
 }
 
-impl<F, J, A, const N: usize> Embedded<N> for Stepper<'_, F, J, A, N>
+impl<F, J, const N: usize> Embedded<N> for Stepper<'_, F, J, N>
 where
     F: FnMut(&SVector<f64, N>) -> SVector<f64, N>,
     J: FnMut(&SVector<f64, N>) -> SMatrix<f64, N, N>,
-    A: FnMut(&mut SVector<f64, N>),
 {
     fn attempt(&mut self, state: &SVector<f64, N>, (h, done): (f64, f64)) -> Attempt<N> {
         let j = (self.jacobian)(state);
         let (next, error) = rosenbrock_step(self.method, &mut self.f, &j, state, h)
             .ok_or(StepError::Singular { at: done })?;
-        let tolerance = self.tolerance;
         let (mut sum, mut controlled) = (0.0, 0);
-        for i in (0..N).filter(|&i| tolerance.absolute[i].is_finite()) {
-            let scale =
-                tolerance.absolute[i] + tolerance.relative * state[i].abs().max(next[i].abs());
+        for (i, scale) in self.tolerance.scales(state, &next) {
             sum += (error[i] / scale).powi(2);
             controlled += 1;
         }
         Ok((next, (sum / controlled.max(1) as f64).sqrt()))
     }
 
-    fn accept(
-        &mut self,
-        mut next: SVector<f64, N>,
-        _at: f64,
-    ) -> Result<SVector<f64, N>, StepError> {
-        (self.after_step)(&mut next);
+    fn accept(&mut self, next: SVector<f64, N>, _at: f64) -> Result<SVector<f64, N>, StepError> {
         Ok(next)
     }
 
@@ -340,7 +346,6 @@ mod tests {
                 method,
                 &f,
                 &j,
-                |_| {},
                 &x,
                 h,
                 &loose,
@@ -393,7 +398,6 @@ mod tests {
             &RODAS3,
             f,
             j,
-            |_| {},
             &Vector2::new(a, 1.0),
             1.0,
             &tolerance,
@@ -427,7 +431,6 @@ mod tests {
                 &RODAS3,
                 &f,
                 &j,
-                |_| {},
                 &Vector2::new(2.0, 0.0),
                 50.0,
                 &tolerance,
@@ -461,7 +464,6 @@ mod tests {
             &RODAS3,
             f,
             j,
-            |_| {},
             &Vector2::new(1.0, 0.0),
             2.0,
             &tolerance,

@@ -547,27 +547,6 @@ mod tests {
         assert!((energy(&c.state) - e0).abs() < 1e-9 * e0.abs());
     }
 
-    /// Central finite differences of `f` along each state and the force.
-    fn finite_difference_jacobian(
-        p: &GantryCraneParameters,
-        s: &CraneState,
-        u: f64,
-        contact: RailContact,
-    ) -> (Matrix4<f64>, Vector4<f64>) {
-        let mut dfds = Matrix4::zeros();
-        for j in 0..4 {
-            let e = 1e-6 * s[j].abs().max(1.0);
-            let (mut plus, mut minus) = (*s, *s);
-            plus[j] += e;
-            minus[j] -= e;
-            let col = (p.rhs(&plus, u, contact) - p.rhs(&minus, u, contact)) / (2.0 * e);
-            dfds.set_column(j, &col);
-        }
-        let e = 1e-6 * u.abs().max(1.0);
-        let dfdu = (p.rhs(s, u + e, contact) - p.rhs(s, u - e, contact)) / (2.0 * e);
-        (dfds, dfdu)
-    }
-
     #[test]
     fn analytic_jacobians_match_central_finite_differences_at_random_states() {
         let mut rng = crate::signals::rng::RandomGenerator::new(17);
@@ -597,7 +576,12 @@ mod tests {
                 RailContact::HeldRight,
             ][k % 3];
             let (dfds, dfdu) = p.jacobian(&s, u, contact);
-            let (fd_s, fd_u) = finite_difference_jacobian(&p, &s, u, contact);
+            let (fd_s, fd_u) = crate::plants::state_and_input_differences(
+                |s, u| p.rhs(s, u, contact),
+                &s,
+                u,
+                1e-6,
+            );
             let scale = dfds.amax().max(dfdu.amax());
             let error = (dfds - fd_s).amax().max((dfdu - fd_u).amax()) / scale;
             worst = worst.max(error);

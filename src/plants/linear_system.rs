@@ -627,11 +627,11 @@ impl LinearSystem {
         let s = &saved.random_streams;
         let process = RandomGenerator::from_state([s[0], s[1], s[2], s[3]])?;
         let measurement = RandomGenerator::from_state([s[4], s[5], s[6], s[7]])?;
-        copy(self.state.as_mut_slice(), &saved.state);
-        copy(
-            self.measurement_noise.as_mut_slice(),
-            &saved.measurement_noise,
-        );
+        // The lengths were checked above.
+        self.state.as_mut_slice().copy_from_slice(&saved.state);
+        self.measurement_noise
+            .as_mut_slice()
+            .copy_from_slice(&saved.measurement_noise);
         self.process_stream = process;
         self.measurement_stream = measurement;
         self.draw_ahead();
@@ -736,14 +736,6 @@ fn draw(
         *point = measurement.polar_point();
     }
     deviates_into(points, z);
-}
-
-/// Copies `from` into `to` over their common length.
-#[inline(always)]
-fn copy(to: &mut [f64], from: &[f64]) {
-    for (to, from) in to.iter_mut().zip(from) {
-        *to = *from;
-    }
 }
 
 /// The eigen-factor `L = V diag(√max(λ, 0))` of a symmetric PSD covariance (module docs),

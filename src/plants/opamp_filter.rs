@@ -405,28 +405,6 @@ mod tests {
         assert!((run(0.1) - run(0.001)).abs() < 1e-9);
     }
 
-    /// Central differences `∂f/∂v` and `∂f/∂u` of `derivative_on` at `(v, u)` on `rail`.
-    fn central_differences(
-        p: &OpAmpFilterParameters,
-        v: &Vector2<f64>,
-        u: f64,
-        rail: Rail,
-    ) -> (Matrix2<f64>, Vector2<f64>) {
-        let f = |v: &Vector2<f64>, u: f64| p.derivative_on(v, u, rail);
-        let along = |j: usize| {
-            let d = Vector2::ith(j, 1e-4 * v[j].abs().max(1.0));
-            (f(&(v + d), u) - f(&(v - d), u)) / (2.0 * d[j])
-        };
-        let d = 1e-4 * u.abs().max(1.0);
-        let ju = (f(v, u + d) - f(v, u - d)) / (2.0 * d);
-        (Matrix2::from_columns(&[along(0), along(1)]), ju)
-    }
-
-    /// `|a − b| ≤ 1e-6 · max(|a|, |b|, largest entry of the row)`.
-    fn close_in_row(a: f64, b: f64, row_scale: f64) -> bool {
-        (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(row_scale)
-    }
-
     #[test]
     fn jacobians_match_central_differences_at_random_states() {
         let mut rng = crate::signals::rng::RandomGenerator::new(15);
@@ -444,19 +422,28 @@ mod tests {
             );
             let u = rng.uniform_range(-30.0, 30.0);
             let rail = [Rail::Inside, Rail::High, Rail::Low][k % 3];
-            let (jx, ju) = central_differences(&p, &v, u, rail);
+            let (jx, ju) = crate::plants::state_and_input_differences(
+                |v, u| p.derivative_on(v, u, rail),
+                &v,
+                u,
+                1e-4,
+            );
             let analytic = p.jacobian_state(rail);
             for i in 0..2 {
                 let scale = analytic.row(i).amax();
                 for j in 0..2 {
                     assert!(
-                        close_in_row(jx[(i, j)], analytic[(i, j)], scale),
+                        crate::plants::close_in_row(jx[(i, j)], analytic[(i, j)], scale),
                         "∂f{i}/∂v{j} on {rail:?}: {} vs {}",
                         jx[(i, j)],
                         analytic[(i, j)]
                     );
                 }
-                assert!(close_in_row(ju[i], p.jacobian_input()[i], scale));
+                assert!(crate::plants::close_in_row(
+                    ju[i],
+                    p.jacobian_input()[i],
+                    scale
+                ));
             }
             // The output y = output_on(v₂, rail): slope by differences too.
             let d = 1e-4 * v[1].abs().max(1.0);
