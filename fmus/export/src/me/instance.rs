@@ -8,7 +8,7 @@ use crate::instance::{Function, Instance, ModelState};
 use crate::me::{Hooks, ModelExchangeInfo};
 use crate::model::{EventUpdate, FmuModel};
 use crate::types::Status;
-use crate::variables::{Causality, VariableType};
+use crate::variables::{first_non_finite, Causality, VariableType};
 
 impl<M: FmuModel> Instance<M> {
     /// Makes this instance a Model Exchange one driven by `hooks` (at instantiation).
@@ -127,7 +127,7 @@ impl<M: FmuModel> Instance<M> {
         if status > Status::Warning {
             return status;
         }
-        if let Some((k, value)) = z.iter().enumerate().find(|(_, z)| !z.is_finite()) {
+        if let Some((k, value)) = first_non_finite(z) {
             self.core.state = ModelState::Error;
             return self.reject(
                 f,
@@ -389,7 +389,7 @@ impl<M: FmuModel> Instance<M> {
         if status > Status::Warning {
             return status;
         }
-        if let Some((k, value)) = result.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+        if let Some((k, value)) = first_non_finite(&result) {
             let name = &self.interface.info.variables[unknowns[k]].name;
             return self.reject(
                 f,
