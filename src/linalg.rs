@@ -580,8 +580,9 @@ pub fn kalman_gain_steady(
 ///
 /// One code path serves every size: the rows of a product go in blocks of 8, 4, 2 and 1,
 /// each block's sums held in registers (the kernel monomorphised per block size, its loops
-/// unrolled and vectorised by the compiler), so an 8-state filter runs at fixed-size speed
-/// and any other size runs the same code.
+/// unrolled and vectorised by the compiler). The Kalman filter core adds kernels whose
+/// dimensions are constants for the packaged sizes (`estimation::kalman`, module `fixed`),
+/// bit-identical to these and tested against them.
 pub(crate) mod dense {
     use nalgebra::DMatrix;
 

@@ -215,6 +215,8 @@ const SIGNAL_PERIOD: u64 = 1024;
 
 /// The inputs of [`SIGNAL_PERIOD`] steps, row by row: input i at step k is its start value plus
 /// `amplitude`·sin(0.05 (i + 1) k), with an outlier of +3 on 5 % of the samples when `outliers`.
+/// The C driver's direct path forms the same inputs (`form_signals` in
+/// tests/allocations/driver.c): keep the two alike.
 fn input_signals(starts: &[f64], amplitude: f64, outliers: bool) -> Vec<f64> {
     (0..SIGNAL_PERIOD)
         .flat_map(|k| {

@@ -391,6 +391,8 @@ static double *signals; /* SIGNAL_PERIOD rows of the Real inputs' values */
 static double timed_t;
 static long timed_k;
 
+/* The same inputs as the benchmark's importer path (input_signals in benches/src/fmus.rs): keep the
+ * two formulas alike, the bench compares the paths on them. */
 static void form_signals(double amplitude, int outliers) {
     Group *G = &groups[INPUTS][0];
     int n = G->nvalues;
