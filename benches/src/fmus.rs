@@ -241,14 +241,14 @@ pub struct Direct {
 }
 
 impl Direct {
-    /// Starts `driver` on the manifest of `fmu` (written into `dir` by `manifest.py`).
-    pub fn new(driver: &Driver, fmu: &Path, row: &Row, dir: &Path) -> Result<Self> {
-        let unpacked = dir.join(row.fmu);
+    /// Starts `driver` on the manifest of `fmu` (`manifest.py` unpacks it into `unpacked`
+    /// and writes `unpacked/manifest.txt`).
+    pub fn new(driver: &Driver, fmu: &Path, row: &Row, unpacked: &Path) -> Result<Self> {
         run(
             Command::new("python3")
                 .arg(&driver.manifest_script)
                 .arg(fmu)
-                .arg(&unpacked),
+                .arg(unpacked),
             &format!("tests/allocations/manifest.py on {}", fmu.display()),
         )?;
         let mut command = Command::new(&driver.binary);
@@ -365,12 +365,10 @@ pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result
         let fmu = fmu_path(fmus, row.fmu)?;
         let stepper = Stepper::new(&fmu, row).with_context(|| row.label)?;
         outputs_read.push(stepper.outputs_read());
-        let direct = Direct::new(&driver, &fmu, row, dir.path()).with_context(|| row.label)?;
+        let direct = Direct::new(&driver, &fmu, row, &dir.path().join(row.fmu))
+            .with_context(|| row.label)?;
         for mut route in [Route::Importer(Box::new(stepper)), Route::Direct(direct)] {
-            // Warm-up, and the batch length that takes about `batch_ms`.
-            route.time_steps(20)?;
-            let estimate = route.time_steps(20)?;
-            let per_batch = ((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000);
+            let per_batch = batch_length(|steps| route.time_steps(steps), batch_ms)?;
             subjects.push(Subject { route, per_batch });
         }
     }
@@ -384,6 +382,14 @@ pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result
             outputs_read,
         })
         .collect())
+}
+
+/// After a warm-up, the number of steps that `time_steps` (ns per step over that many steps)
+/// runs in about `batch_ms`.
+pub fn batch_length(mut time_steps: impl FnMut(u64) -> Result<f64>, batch_ms: f64) -> Result<u64> {
+    time_steps(20)?;
+    let estimate = time_steps(20)?;
+    Ok(((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000))
 }
 
 /// `build/fmus/<stem>.fmu`, which must exist.

@@ -7,6 +7,7 @@
 
 #![forbid(unsafe_code)]
 
+mod baseline;
 mod fmus;
 mod stats;
 mod tools;
@@ -32,6 +33,14 @@ struct Args {
     /// The packaged FMUs (default: build/fmus).
     #[arg(long)]
     fmus: Option<PathBuf>,
+    /// Before and after: time the FMUs of DIR (an earlier build, e.g. from `scripts/bench
+    /// --baseline-rev REV`) against today's, interleaved, through the C driver; prints only
+    /// that table.
+    #[arg(long, value_name = "DIR")]
+    baseline: Option<PathBuf>,
+    /// What the baseline is, for the table's heading (e.g. the revision it was built from).
+    #[arg(long, requires = "baseline")]
+    baseline_label: Option<String>,
     /// Internal (what callgrind runs): step this row's FMU `--steps` times and exit.
     #[arg(long, hide = true, requires = "steps")]
     count: Option<String>,
@@ -70,6 +79,9 @@ fn main() -> Result<()> {
         .unwrap_or_else(|| repo.join("target/release/spurio"));
     if args.quick {
         println!("(--quick: a smoke run with tiny counts; its figures measure nothing)\n");
+    }
+    if let Some(dir) = &args.baseline {
+        return before_and_after(&args, &repo, dir, &fmus);
     }
     our_fmus(&args, &repo, &fmus)?;
     match ThirdParty::find(&repo) {
@@ -142,6 +154,52 @@ fn our_fmus(args: &Args, repo: &Path, fmus: &Path) -> Result<()> {
          precomputed inputs (1024 steps cycled). The instructions (callgrind) count the importer \
          path, whole steps of this benchmark's own loop."
     );
+    Ok(())
+}
+
+/// The table of `--baseline DIR`: DIR's FMUs against today's, with (`--instructions`) the
+/// instructions per step of each build on the importer path.
+fn before_and_after(args: &Args, repo: &Path, dir: &Path, fmus: &Path) -> Result<()> {
+    anyhow::ensure!(
+        dir.is_dir(),
+        "--baseline {}: no such directory",
+        dir.display()
+    );
+    let (rounds, batch_ms) = if args.quick { (3, 0.2) } else { (101, 2.0) };
+    let label = args
+        .baseline_label
+        .clone()
+        .unwrap_or_else(|| dir.display().to_string());
+    let (compared, left_out) = baseline::compare(repo, dir, fmus, rounds, batch_ms)?;
+    println!(
+        "## Before and after, per step straight through the C ABI (tests/allocations/driver.c \
+         --time, the same driver for both: fmi2SetReal of every input + fmi2DoStep + the \
+         getters of every output), median of {rounds} interleaved batches; speed-up = the \
+         median of the rounds' baseline / now\n"
+    );
+    print!("{}", baseline::table(&label, &compared, &left_out));
+    if args.instructions {
+        let (short, long) = if args.quick { (5, 25) } else { (100, 600) };
+        println!("\n| FMU | instructions per step, baseline | now | ratio |\n|---|---|---|---|");
+        for row in fmus::ROWS {
+            if !compared.iter().any(|c| c.label == row.label) {
+                continue;
+            }
+            let before = fmus::instructions(dir, row.fmu, short, long)
+                .with_context(|| format!("{} (baseline)", row.label))?;
+            let after =
+                fmus::instructions(fmus, row.fmu, short, long).with_context(|| row.label)?;
+            println!(
+                "| {} | {before:.0} | {after:.0} | {:.2}× |",
+                row.label,
+                before / after
+            );
+        }
+        println!(
+            "\nInstructions (callgrind) on the importer path: whole steps of this benchmark's \
+             own loop through spurio's Instance, two run lengths so loading cancels."
+        );
+    }
     Ok(())
 }
 
