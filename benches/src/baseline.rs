@@ -8,8 +8,8 @@
 //! manifest (what it sets and reads), and the table says how the inputs and outputs differ.
 //! `scripts/bench --baseline-rev REV` builds DIR from a git revision first.
 
-use crate::fmus::{batch_length, fmu_path, Direct, Driver, ROWS};
-use crate::stats::{interleaved, median};
+use crate::fmus::{fmu_path, Direct, Driver, ROWS};
+use crate::stats::{interleaved_batches, median, Batched};
 use anyhow::{Context, Result};
 use std::path::Path;
 
@@ -147,10 +147,6 @@ pub fn compare(
     rounds: usize,
     batch_ms: f64,
 ) -> Result<(Vec<Compared>, Vec<LeftOut>)> {
-    struct Subject {
-        direct: Direct,
-        per_batch: u64,
-    }
     let dir = tempfile::tempdir()?;
     let driver = Driver::compile(repo, dir.path())?;
     let mut subjects = Vec::new();
@@ -172,19 +168,18 @@ pub fn compare(
         let mut interfaces = Vec::new();
         for (fmu, build) in [(&old, "baseline"), (&new, "now")] {
             let unpacked = dir.path().join(build).join(row.fmu);
-            let mut direct = Direct::new(&driver, fmu, row, &unpacked)
+            let direct = Direct::new(&driver, fmu, row, &unpacked)
                 .with_context(|| format!("{} ({build})", row.label))?;
             let manifest = std::fs::read_to_string(unpacked.join("manifest.txt"))?;
             interfaces.push(
                 Interface::parse(&manifest)
                     .with_context(|| format!("the manifest of {}", fmu.display()))?,
             );
-            let per_batch = batch_length(|steps| direct.time_steps(steps), batch_ms)?;
-            subjects.push(Subject { direct, per_batch });
+            subjects.push(Batched::new(direct, batch_ms)?);
         }
         rows.push((row.label, interfaces));
     }
-    let samples = interleaved(rounds, &mut subjects, |s| s.direct.time_steps(s.per_batch))?;
+    let samples = interleaved_batches(rounds, &mut subjects)?;
     let compared = samples
         .chunks(2)
         .zip(rows)

@@ -9,7 +9,7 @@
 //! the instructions of a step on the importer path (two runs of different lengths under
 //! valgrind, so loading and initialisation cancel).
 
-use crate::stats::{interleaved, median};
+use crate::stats::{interleaved_batches, median, Batched, Timed};
 use anyhow::{bail, Context, Result};
 use spurio_master::fmu::{Causality, Experiment, FmuFile, Instance, VarType};
 use std::io::{BufRead, BufReader, Write};
@@ -275,9 +275,11 @@ impl Direct {
             label: row.label,
         })
     }
+}
 
+impl Timed for Direct {
     /// Nanoseconds per step over `steps` steps, as the driver timed them.
-    pub fn time_steps(&mut self, steps: u64) -> Result<f64> {
+    fn time_steps(&mut self, steps: u64) -> Result<f64> {
         let stdin = self
             .stdin
             .as_mut()
@@ -345,17 +347,13 @@ pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result
         Importer(Box<Stepper>),
         Direct(Direct),
     }
-    impl Route {
+    impl Timed for Route {
         fn time_steps(&mut self, steps: u64) -> Result<f64> {
             match self {
                 Self::Importer(s) => s.time_steps(steps),
                 Self::Direct(d) => d.time_steps(steps),
             }
         }
-    }
-    struct Subject {
-        route: Route,
-        per_batch: u64,
     }
     let dir = tempfile::tempdir()?;
     let driver = Driver::compile(repo, dir.path())?;
@@ -367,12 +365,11 @@ pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result
         outputs_read.push(stepper.outputs_read());
         let direct = Direct::new(&driver, &fmu, row, &dir.path().join(row.fmu))
             .with_context(|| row.label)?;
-        for mut route in [Route::Importer(Box::new(stepper)), Route::Direct(direct)] {
-            let per_batch = batch_length(|steps| route.time_steps(steps), batch_ms)?;
-            subjects.push(Subject { route, per_batch });
+        for route in [Route::Importer(Box::new(stepper)), Route::Direct(direct)] {
+            subjects.push(Batched::new(route, batch_ms)?);
         }
     }
-    let samples = interleaved(rounds, &mut subjects, |s| s.route.time_steps(s.per_batch))?;
+    let samples = interleaved_batches(rounds, &mut subjects)?;
     Ok(samples
         .chunks(2)
         .zip(outputs_read)
@@ -382,14 +379,6 @@ pub fn measure(repo: &Path, fmus: &Path, rounds: usize, batch_ms: f64) -> Result
             outputs_read,
         })
         .collect())
-}
-
-/// After a warm-up, the number of steps that `time_steps` (ns per step over that many steps)
-/// runs in about `batch_ms`.
-pub fn batch_length(mut time_steps: impl FnMut(u64) -> Result<f64>, batch_ms: f64) -> Result<u64> {
-    time_steps(20)?;
-    let estimate = time_steps(20)?;
-    Ok(((batch_ms * 1e6 / estimate) as u64).clamp(1, 1_000_000))
 }
 
 /// `build/fmus/<stem>.fmu`, which must exist.
