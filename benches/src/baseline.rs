@@ -85,6 +85,8 @@ pub struct Compared {
     pub speed_up: f64,
     pub baseline: Interface,
     pub now: Interface,
+    /// Instructions per step (callgrind, the same loop), baseline and now, when counted.
+    pub instructions: Option<(f64, f64)>,
 }
 
 impl Compared {
@@ -103,6 +105,7 @@ impl Compared {
             speed_up: median(&ratios),
             baseline: interfaces.0,
             now: interfaces.1,
+            instructions: None,
         }
     }
 }
@@ -110,16 +113,32 @@ impl Compared {
 /// A row left out of the comparison, and why (its FMU is missing from one of the builds).
 pub type LeftOut = (&'static str, &'static str);
 
-/// The markdown table: one line per compared row, then a line per row left out (its FMU
-/// missing from one of the builds).
+/// The markdown table: one line per compared row (with the instructions per step if they
+/// were counted), then a line per row left out (its FMU missing from one of the builds).
 pub fn table(label: &str, compared: &[Compared], left_out: &[LeftOut]) -> String {
+    let counted = compared.iter().any(|c| c.instructions.is_some());
+    let (head, rule, none) = if counted {
+        (
+            " instructions per step, baseline | now | ratio |",
+            "---|---|---|",
+            " — | — | — |",
+        )
+    } else {
+        ("", "", "")
+    };
     let mut out = format!(
-        "| FMU | baseline ({label}) | now | speed-up | inputs/outputs (values set/read per step) |\n\
-         |---|---|---|---|---|\n"
+        "| FMU | baseline ({label}) | now | speed-up | inputs/outputs (values set/read per \
+         step) |{head}\n|---|---|---|---|---|{rule}\n"
     );
     for c in compared {
+        let instructions = match c.instructions {
+            Some((before, after)) if counted => {
+                format!(" {before:.0} | {after:.0} | {:.2}× |", before / after)
+            }
+            _ => none.into(),
+        };
         out.push_str(&format!(
-            "| {} | {} | {} | {:.2}× | {} |\n",
+            "| {} | {} | {} | {:.2}× | {} |{instructions}\n",
             c.label,
             crate::ns(c.baseline_ns),
             crate::ns(c.now_ns),
@@ -131,21 +150,22 @@ pub fn table(label: &str, compared: &[Compared], left_out: &[LeftOut]) -> String
         ));
     }
     for (row, why) in left_out {
-        out.push_str(&format!("| {row} | — | — | — | {why} |\n"));
+        out.push_str(&format!("| {row} | — | — | — | {why} |{none}\n"));
     }
     out
 }
 
 /// Times every row present in both `baseline` and `now` (directories of `.fmu` files):
 /// `rounds` rounds, each a batch of about `batch_ms` per row and build, in turn (row 1
-/// baseline, row 1 now, row 2 baseline …). Gives the compared rows and the rows left out, with
-/// why.
+/// baseline, row 1 now, row 2 baseline …); then, with `instructions` = (short, long) run
+/// lengths, counts each one's instructions per step of the same loop under callgrind. Gives
+/// the compared rows and the rows left out, with why.
 pub fn compare(
     repo: &Path,
     baseline: &Path,
     now: &Path,
-    rounds: usize,
-    batch_ms: f64,
+    (rounds, batch_ms): (usize, f64),
+    instructions: Option<(u64, u64)>,
 ) -> Result<(Vec<Compared>, Vec<LeftOut>)> {
     let dir = tempfile::tempdir()?;
     let driver = Driver::compile(repo, dir.path())?;
@@ -166,6 +186,7 @@ pub fn compare(
             }
         };
         let mut interfaces = Vec::new();
+        let mut manifests = Vec::new();
         for (fmu, build) in [(&old, "baseline"), (&new, "now")] {
             let unpacked = dir.path().join(build).join(row.fmu);
             let direct = Direct::new(&driver, fmu, row, &unpacked)
@@ -176,22 +197,28 @@ pub fn compare(
                     .with_context(|| format!("the manifest of {}", fmu.display()))?,
             );
             subjects.push(Batched::new(direct, batch_ms)?);
+            manifests.push(unpacked.join("manifest.txt"));
         }
-        rows.push((row.label, interfaces));
+        rows.push((row, interfaces, manifests));
     }
     let samples = interleaved_batches(rounds, &mut subjects)?;
-    let compared = samples
-        .chunks(2)
-        .zip(rows)
-        .map(|(pair, (label, mut interfaces))| {
-            let now = interfaces.pop();
-            let baseline = interfaces.pop();
-            match (baseline, now) {
-                (Some(b), Some(n)) => Ok(Compared::from_samples(label, &pair[0], &pair[1], (b, n))),
-                _ => anyhow::bail!("{label}: an interface is missing"),
-            }
-        })
-        .collect::<Result<_>>()?;
+    drop(subjects);
+    let mut compared = Vec::new();
+    for (pair, (row, mut interfaces, manifests)) in samples.chunks(2).zip(rows) {
+        let (Some(n), Some(b)) = (interfaces.pop(), interfaces.pop()) else {
+            anyhow::bail!("{}: an interface is missing", row.label);
+        };
+        let mut c = Compared::from_samples(row.label, &pair[0], &pair[1], (b, n));
+        if let Some((short, long)) = instructions {
+            let count = |manifest: &Path| {
+                driver
+                    .instructions(manifest, row, short, long)
+                    .with_context(|| row.label)
+            };
+            c.instructions = Some((count(&manifests[0])?, count(&manifests[1])?));
+        }
+        compared.push(c);
+    }
     Ok((compared, left_out))
 }
 
@@ -254,11 +281,8 @@ mod tests {
             (interface(&["u"], &["y"]), interface(&["u"], &["y", "P"])),
         );
         assert_eq!((c.baseline_ns, c.now_ns, c.speed_up), (100.0, 50.0, 2.0));
-        let text = table(
-            "e1b4845",
-            &[c],
-            &[("WindGenerator h=0.1 s", "not in the baseline")],
-        );
+        let left_out = [("WindGenerator h=0.1 s", "not in the baseline")];
+        let text = table("e1b4845", std::slice::from_ref(&c), &left_out);
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 4, "{text}");
         assert!(lines[0].starts_with("| FMU | baseline (e1b4845) | now | speed-up |"));
@@ -270,5 +294,16 @@ mod tests {
             lines[3],
             "| WindGenerator h=0.1 s | — | — | — | not in the baseline |"
         );
+        // With instructions counted: three more columns on every line.
+        let counted = Compared {
+            instructions: Some((1500.0, 600.0)),
+            ..c
+        };
+        let text = table("e1b4845", &[counted], &left_out);
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[0].ends_with("| instructions per step, baseline | now | ratio |"));
+        assert_eq!(lines[1].matches("---").count(), 8);
+        assert!(lines[2].ends_with("| differs: 1/1 → 1/2 | 1500 | 600 | 2.50× |"));
+        assert!(lines[3].ends_with("| not in the baseline | — | — | — |"));
     }
 }

@@ -12,6 +12,7 @@
 use crate::stats::{interleaved_batches, median, Batched, Timed};
 use anyhow::{bail, Context, Result};
 use spurio_master::fmu::{Causality, Experiment, FmuFile, Instance, VarType};
+use std::ffi::OsString;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -252,14 +253,12 @@ impl Direct {
             &format!("tests/allocations/manifest.py on {}", fmu.display()),
         )?;
         let mut command = Command::new(&driver.binary);
-        command
-            .arg(unpacked.join("manifest.txt"))
-            .args(["100", "1", "--time", "0"])
-            .args(["--amplitude", &row.amplitude.to_string()])
-            .args(["--step", &row.step.to_string()]);
-        if row.outliers {
-            command.arg("--outliers");
-        }
+        command.args(Driver::timing_args(
+            &unpacked.join("manifest.txt"),
+            row,
+            100,
+            0,
+        ));
         let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -330,6 +329,68 @@ impl Driver {
             manifest_script: here.join("manifest.py"),
         })
     }
+
+    /// The arguments of the driver's timing mode on `manifest` with the row's inputs and
+    /// step: a warm-up of `steps` steps then `batches` batches of `steps` (0: from stdin).
+    fn timing_args(manifest: &Path, row: &Row, steps: u64, batches: u32) -> Vec<OsString> {
+        let mut args: Vec<OsString> = vec![manifest.into()];
+        args.extend(
+            [
+                steps.to_string(),
+                "1".into(),
+                "--time".into(),
+                batches.to_string(),
+                "--amplitude".into(),
+                row.amplitude.to_string(),
+                "--step".into(),
+                row.step.to_string(),
+            ]
+            .map(OsString::from),
+        );
+        if row.outliers {
+            args.push("--outliers".into());
+        }
+        args
+    }
+
+    /// Instructions per step of the driver's timed loop on `manifest` (written by
+    /// [`Direct::new`]), counted by callgrind: runs of `short` and `long` steps (a warm-up and
+    /// one batch each), the difference over the difference of the steps, so that loading and
+    /// initialisation cancel. What the direct column times, the driver's loop included (a
+    /// few instructions a step).
+    pub fn instructions(&self, manifest: &Path, row: &Row, short: u64, long: u64) -> Result<f64> {
+        let dir = tempfile::tempdir()?;
+        let total = |steps: u64| -> Result<f64> {
+            let out = dir.path().join(format!("callgrind.{steps}"));
+            run(
+                Command::new("valgrind")
+                    .arg("--tool=callgrind")
+                    .arg(format!("--callgrind-out-file={}", out.display()))
+                    .arg(&self.binary)
+                    .args(Self::timing_args(manifest, row, steps, 1)),
+                &format!(
+                    "callgrind (valgrind, scripts/setup installs it) on {}",
+                    row.fmu
+                ),
+            )?;
+            callgrind_total(&out)
+        };
+        let a = total(short)?;
+        let b = total(long)?;
+        Ok((b - a) / (2 * (long - short)) as f64)
+    }
+}
+
+/// The instruction total of a callgrind output file.
+fn callgrind_total(out: &Path) -> Result<f64> {
+    let text = std::fs::read_to_string(out)?;
+    text.lines()
+        .find_map(|l| {
+            l.strip_prefix("summary:")
+                .or_else(|| l.strip_prefix("totals:"))
+        })
+        .and_then(|n| n.split_whitespace().next()?.parse::<f64>().ok())
+        .with_context(|| format!("no instruction total in {}", out.display()))
 }
 
 /// A row's medians over the interleaved rounds: straight through the C ABI and through
@@ -423,14 +484,7 @@ pub fn instructions(fmus: &Path, fmu: &str, short: u64, long: u64) -> Result<f64
                 .args(["--count", fmu, "--steps", &steps.to_string()]),
             &format!("callgrind (valgrind, scripts/setup installs it) on {fmu}"),
         )?;
-        let text = std::fs::read_to_string(&out)?;
-        text.lines()
-            .find_map(|l| {
-                l.strip_prefix("summary:")
-                    .or_else(|| l.strip_prefix("totals:"))
-            })
-            .and_then(|n| n.split_whitespace().next()?.parse::<f64>().ok())
-            .with_context(|| format!("no instruction total in {}", out.display()))
+        callgrind_total(&out)
     };
     let a = total(short)?;
     let b = total(long)?;

@@ -158,7 +158,7 @@ fn our_fmus(args: &Args, repo: &Path, fmus: &Path) -> Result<()> {
 }
 
 /// The table of `--baseline DIR`: DIR's FMUs against today's, with (`--instructions`) the
-/// instructions per step of each build on the importer path.
+/// instructions per step of each build on the same C driver loop.
 fn before_and_after(args: &Args, repo: &Path, dir: &Path, fmus: &Path) -> Result<()> {
     anyhow::ensure!(
         dir.is_dir(),
@@ -170,7 +170,11 @@ fn before_and_after(args: &Args, repo: &Path, dir: &Path, fmus: &Path) -> Result
         .baseline_label
         .clone()
         .unwrap_or_else(|| dir.display().to_string());
-    let (compared, left_out) = baseline::compare(repo, dir, fmus, rounds, batch_ms)?;
+    let instructions = args
+        .instructions
+        .then_some(if args.quick { (5, 25) } else { (100, 600) });
+    let (compared, left_out) =
+        baseline::compare(repo, dir, fmus, (rounds, batch_ms), instructions)?;
     println!(
         "## Before and after, per step straight through the C ABI (tests/allocations/driver.c \
          --time, the same driver for both: fmi2SetReal of every input + fmi2DoStep + the \
@@ -179,25 +183,10 @@ fn before_and_after(args: &Args, repo: &Path, dir: &Path, fmus: &Path) -> Result
     );
     print!("{}", baseline::table(&label, &compared, &left_out));
     if args.instructions {
-        let (short, long) = if args.quick { (5, 25) } else { (100, 600) };
-        println!("\n| FMU | instructions per step, baseline | now | ratio |\n|---|---|---|---|");
-        for row in fmus::ROWS {
-            if !compared.iter().any(|c| c.label == row.label) {
-                continue;
-            }
-            let before = fmus::instructions(dir, row.fmu, short, long)
-                .with_context(|| format!("{} (baseline)", row.label))?;
-            let after =
-                fmus::instructions(fmus, row.fmu, short, long).with_context(|| row.label)?;
-            println!(
-                "| {} | {before:.0} | {after:.0} | {:.2}× |",
-                row.label,
-                before / after
-            );
-        }
         println!(
-            "\nInstructions (callgrind) on the importer path: whole steps of this benchmark's \
-             own loop through spurio's Instance, two run lengths so loading cancels."
+            "\nInstructions per step: callgrind on the same driver loop as the timing (two run \
+             lengths, so loading and initialisation cancel; the loop's own few instructions a \
+             step included)."
         );
     }
     Ok(())
