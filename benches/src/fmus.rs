@@ -359,26 +359,41 @@ impl Driver {
     /// initialisation cancel. What the direct column times, the driver's loop included (a
     /// few instructions a step).
     pub fn instructions(&self, manifest: &Path, row: &Row, short: u64, long: u64) -> Result<f64> {
-        let dir = tempfile::tempdir()?;
-        let total = |steps: u64| -> Result<f64> {
-            let out = dir.path().join(format!("callgrind.{steps}"));
-            run(
-                Command::new("valgrind")
-                    .arg("--tool=callgrind")
-                    .arg(format!("--callgrind-out-file={}", out.display()))
-                    .arg(&self.binary)
-                    .args(Self::timing_args(manifest, row, steps, 1)),
-                &format!(
-                    "callgrind (valgrind, scripts/setup installs it) on {}",
-                    row.fmu
-                ),
-            )?;
-            callgrind_total(&out)
-        };
-        let a = total(short)?;
-        let b = total(long)?;
-        Ok((b - a) / (2 * (long - short)) as f64)
+        let per_run = callgrind_per_step(
+            row.fmu,
+            &self.binary,
+            |steps| Self::timing_args(manifest, row, steps, 1),
+            (short, long),
+        )?;
+        // A run of `steps` steps times a warm-up and one batch of `steps`.
+        Ok(per_run / 2.0)
     }
+}
+
+/// Instructions per step of `program` under callgrind, run with `args(steps)` for `short`
+/// and `long` steps: the difference of the totals over the difference of the step counts.
+fn callgrind_per_step(
+    what: &str,
+    program: &Path,
+    args: impl Fn(u64) -> Vec<OsString>,
+    (short, long): (u64, u64),
+) -> Result<f64> {
+    let dir = tempfile::tempdir()?;
+    let total = |steps: u64| -> Result<f64> {
+        let out = dir.path().join(format!("callgrind.{steps}"));
+        run(
+            Command::new("valgrind")
+                .arg("--tool=callgrind")
+                .arg(format!("--callgrind-out-file={}", out.display()))
+                .arg(program)
+                .args(args(steps)),
+            &format!("callgrind (valgrind, scripts/setup installs it) on {what}"),
+        )?;
+        callgrind_total(&out)
+    };
+    let a = total(short)?;
+    let b = total(long)?;
+    Ok((b - a) / (long - short) as f64)
 }
 
 /// The instruction total of a callgrind output file.
@@ -471,24 +486,17 @@ pub fn count_run(fmus: &Path, fmu: &str, steps: u64) -> Result<()> {
 /// Instructions per step of `fmu` under callgrind: two runs of `short` and `long` steps,
 /// the difference divided by the difference of the step counts.
 pub fn instructions(fmus: &Path, fmu: &str, short: u64, long: u64) -> Result<f64> {
-    let dir = tempfile::tempdir()?;
     let me = std::env::current_exe()?;
-    let total = |steps: u64| -> Result<f64> {
-        let out = dir.path().join(format!("callgrind.{steps}"));
-        run(
-            Command::new("valgrind")
-                .arg("--tool=callgrind")
-                .arg(format!("--callgrind-out-file={}", out.display()))
-                .arg(&me)
-                .args(["--fmus".as_ref(), fmus.as_os_str()])
-                .args(["--count", fmu, "--steps", &steps.to_string()]),
-            &format!("callgrind (valgrind, scripts/setup installs it) on {fmu}"),
-        )?;
-        callgrind_total(&out)
-    };
-    let a = total(short)?;
-    let b = total(long)?;
-    Ok((b - a) / (long - short) as f64)
+    callgrind_per_step(
+        fmu,
+        &me,
+        |steps| {
+            let mut a: Vec<OsString> = vec!["--fmus".into(), fmus.into()];
+            a.extend(["--count", fmu, "--steps", &steps.to_string()].map(OsString::from));
+            a
+        },
+        (short, long),
+    )
 }
 
 /// Runs `command` to its end; an error names `what` and carries its stderr if it fails.
