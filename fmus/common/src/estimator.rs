@@ -115,6 +115,13 @@ pub struct Filtered<K: FilterFamily> {
     y: DVector<f64>,
 }
 
+impl<K: FilterFamily> Filtered<K> {
+    /// The filter.
+    pub fn filter(&self) -> &K::Filter {
+        &self.filter
+    }
+}
+
 impl<K: FilterFamily> Estimator for Filtered<K> {
     type Layout = K::Layout;
     fn interface(config: &Config) -> Result<(K::Layout, ModelInfo), Cause> {
@@ -166,6 +173,14 @@ pub struct EstimatorFmu<E: Estimator> {
     parameters: Values,
     estimator: Option<E>,
     clock: SampleClock,
+}
+
+#[cfg(test)]
+impl<E: Estimator> EstimatorFmu<E> {
+    /// The layout, the parameters read at initialization and the estimator (tests).
+    pub(crate) fn parts_mut(&mut self) -> (&E::Layout, &Values, Option<&mut E>) {
+        (&self.layout, &self.parameters, self.estimator.as_mut())
+    }
 }
 
 /// The estimator's interface with the parameter `sample_period` appended (value reference:
@@ -315,16 +330,22 @@ pub fn read_inputs(
     for (k, index) in block.indices().enumerate() {
         let v = values.real(index);
         if !v.is_finite() {
-            return Err(Failure::error(format!(
-                "input `{name}[{}]` = {v} is not finite: the estimator cannot use it (the step was not taken)",
-                k + 1
-            )));
+            return Err(non_finite_input(name, k + 1, v));
         }
         if let Some(slot) = target.get_mut(k) {
             *slot = v;
         }
     }
     Ok(())
+}
+
+/// The failure of a step whose input `{name}[{k}]` (1-based) is the non-finite `v`.
+#[cold]
+#[inline(never)]
+pub fn non_finite_input(name: &str, k: usize, v: f64) -> Failure {
+    Failure::error(format!(
+        "input `{name}[{k}]` = {v} is not finite: the estimator cannot use it (the step was not taken)"
+    ))
 }
 
 /// Writes a vector into a block.
@@ -382,6 +403,8 @@ pub fn add_tuning(table: &mut VariableTable, name: &str, start: f64, description
 }
 
 /// Turns an estimation error into `fmi2Error` with its message.
+#[cold]
+#[inline(never)]
 pub fn error(e: spurio::estimation::EstimationError) -> Failure {
     Failure::error(e.to_string())
 }

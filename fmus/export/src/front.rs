@@ -39,10 +39,48 @@ pub struct Interface {
     pub computed: Vec<std::ops::Range<usize>>,
     /// Whether a String is in a run (the texts are then copied too).
     pub computed_texts: bool,
+    /// When the model computes one run of at most [`WINDOW`] values (a scalar filter's
+    /// outputs): the [`WINDOW`] consecutive values that hold it, copied and scanned as a fixed
+    /// block instead of the run.
+    pub window: Option<Window>,
     /// The FMI 3.0 variables (arrays) over the table.
     pub layout: Layout,
     /// By FMI 3.0 value reference: the scalars it names, for the get/set fast path.
     pub spans: Vec<Span>,
+}
+
+/// The number of values of a [`Window`].
+pub const WINDOW: usize = 4;
+
+/// [`WINDOW`] consecutive values from `start` that hold the one run of computed values:
+/// `lanes[k]` says whether value `start + k` is in the run (the others, parameters or inputs,
+/// are copied with it and otherwise ignored).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    /// The index of the first value.
+    pub start: usize,
+    /// Which of the values belong to the run.
+    pub lanes: [bool; WINDOW],
+    /// The lanes as bit masks (all ones in the run, zero outside), for the branch-free scan.
+    pub(crate) keep: [u64; WINDOW],
+}
+
+impl Window {
+    /// The window of `computed` in a table of `len` values: `Some` when `computed` is one
+    /// run of at most [`WINDOW`] values and the table holds at least [`WINDOW`].
+    pub fn of(computed: &[std::ops::Range<usize>], len: usize) -> Option<Self> {
+        let [run] = computed else { return None };
+        if run.is_empty() || run.len() > WINDOW || len < WINDOW || run.end > len {
+            return None;
+        }
+        let start = run.start.min(len - WINDOW);
+        let lanes = std::array::from_fn(|k| run.contains(&(start + k)));
+        Some(Self {
+            start,
+            lanes,
+            keep: lanes.map(|lane| if lane { u64::MAX } else { 0 }),
+        })
+    }
 }
 
 /// The scalars an FMI 3.0 value reference names: `len` consecutive table entries from
@@ -81,6 +119,7 @@ impl Interface {
             }))
             .collect();
         Self {
+            window: Window::of(&computed, info.variables.len()),
             info,
             access,
             computed,
