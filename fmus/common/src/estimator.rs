@@ -183,6 +183,13 @@ impl<E: Estimator> EstimatorFmu<E> {
     }
 }
 
+/// A step before the estimator was built.
+#[cold]
+#[inline(never)]
+fn not_initialized() -> Failure {
+    Failure::Error("the estimator was not initialized (fmi2ExitInitializationMode failed?)".into())
+}
+
 /// The estimator's interface with the parameter `sample_period` appended (value reference:
 /// the number of the estimator's own variables).
 fn with_sample_period(info: ModelInfo) -> ModelInfo {
@@ -225,18 +232,17 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     }
 
     /// The samples whose instants lie in the step ([`crate::clock`]), each with the inputs set
-    /// before it.
+    /// before it. (Inlined into the export layer's step: the common step is one sample.)
+    #[inline(always)]
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let Some(estimator) = &mut self.estimator else {
-            return Err(Failure::Error(
-                "the estimator was not initialized (fmi2ExitInitializationMode failed?)".into(),
-            ));
+            return Err(not_initialized());
         };
         let (clock, samples) = self.clock.after(time, step)?;
         for k in samples {
             estimator.step(&self.layout, ctx, clock.instant(k), clock.period())?;
         }
-        self.clock = clock;
+        self.clock.commit(&clock);
         Ok(())
     }
 

@@ -9,7 +9,7 @@
 //! path serves them.
 
 use crate::description::{Config, ModelInfo, CONFIG_FILE};
-use crate::ffi::{guarded, guarded_call, slice, string_arg};
+use crate::ffi::{guarded, guarded_call, slice, string_arg, CallMarker};
 use crate::fmi3::arrays::Layout;
 use crate::instance::{Access, Core, Function, Instance};
 use crate::model::{Cause, FmuModel};
@@ -177,6 +177,8 @@ pub struct Slot<M: FmuModel, X = ()> {
     states: Vec<*mut Core<M>>,
     /// Keeps the strings returned by `fmi*GetString` alive until the next call.
     strings: Vec<CString>,
+    /// Which thread runs a call on the slot, for the panic hook ([`crate::ffi`]).
+    marker: Arc<CallMarker>,
 }
 
 impl<M: FmuModel, X> Slot<M, X> {
@@ -187,6 +189,7 @@ impl<M: FmuModel, X> Slot<M, X> {
             extra,
             states: Vec::new(),
             strings: Vec::new(),
+            marker: CallMarker::registered(),
         }
     }
 
@@ -227,6 +230,7 @@ impl<M: FmuModel, X> Slot<M, X> {
 
 impl<M: FmuModel, X> Drop for Slot<M, X> {
     fn drop(&mut self) {
+        CallMarker::unregister(&self.marker);
         for p in self.states.drain(..) {
             // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from the
             // list when freed, so each is freed exactly once.
@@ -251,7 +255,7 @@ pub unsafe fn free_slot<M: FmuModel, X>(c: *mut c_void) {
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics (the
 /// instance is then `Fatal`); the status as its C code. Inlined into every entry point: the
-/// fixed cost of a call is the null check, one thread-local flag, the state mask test.
+/// fixed cost of a call is the null check, the call marker (two stores), the state mask test.
 ///
 /// # Safety
 /// `c` must be NULL or a live handle of a `Slot<M, X>` (the master's obligation).
@@ -265,7 +269,11 @@ pub unsafe fn with_slot<M: FmuModel, X>(
         return Status::Error.code();
     }
     let slot = c as *mut Slot<M, X>;
-    let result = guarded_call(|| {
+    // SAFETY: `c` is non-null and a live slot (the caller's obligation); the marker lives in
+    // its own allocation (the slot's `Arc`), outside the memory the call borrows mutably, as
+    // long as the slot, which outlives the call.
+    let marker: &CallMarker = unsafe { &*Arc::as_ptr(&(*slot).marker) };
+    let result = guarded_call(marker, || {
         // SAFETY: `c` is non-null and a live slot (the caller's obligation); no other reference
         // to the slot is alive during the call.
         let slot = unsafe { &mut *slot };
