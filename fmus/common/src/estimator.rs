@@ -8,8 +8,8 @@
 //!
 //! | FMU | estimator | where |
 //! |---|---|---|
-//! | `KalmanFilter` | sKF | [`Filtered`] over [`crate::kalman::Linear`] (any [`spurio::estimation::StateEstimator`]) |
-//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`Filtered`] over [`crate::kalman::Linear`] |
+//! | `KalmanFilter` | sKF | [`crate::kalman::LinearEstimator`]: [`Filtered`] over [`crate::kalman::Linear`] (any [`spurio::estimation::StateEstimator`]), the filter on plain numbers for n = p = 1 |
+//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`crate::kalman::LinearEstimator`] |
 //! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`Filtered`] over [`crate::dual::Dual`] |
 //! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same, [`Filtered`] over [`crate::dual::Dual`] |
 //! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
