@@ -1257,23 +1257,27 @@ pub(crate) mod tests {
         }
     }
 
+    /// A random stable model with one state, one output and `m` (0 or 1) inputs.
+    pub(crate) fn random_scalar_model(rng: &mut TestRng, m: usize) -> GaussianModel {
+        GaussianModel {
+            system: StateSpace {
+                a: scalar(2.0 * rng.uniform() - 1.0),
+                b: DMatrix::from_fn(1, m, |_, _| rng.normal()),
+                c: scalar(rng.normal()),
+                d: DMatrix::from_fn(1, m, |_, _| rng.normal()),
+                q: scalar(0.01 * rng.uniform()),
+                r: scalar(0.1 + rng.uniform()),
+            },
+            x0: DVector::from_element(1, rng.normal()),
+            p0: scalar(rng.uniform()),
+        }
+    }
+
     #[test]
     fn the_scalar_filter_on_numbers_equals_the_general_path_bit_for_bit() {
         let mut rng = TestRng::new(41);
         for (m, run) in [(0, 0), (1, 0), (0, 1), (1, 1), (0, 2), (1, 2)] {
-            let mut general = KalmanFilter::new(GaussianModel {
-                system: StateSpace {
-                    a: scalar(2.0 * rng.uniform() - 1.0),
-                    b: DMatrix::from_fn(1, m, |_, _| rng.normal()),
-                    c: scalar(rng.normal()),
-                    d: DMatrix::from_fn(1, m, |_, _| rng.normal()),
-                    q: scalar(0.01 * rng.uniform()),
-                    r: scalar(0.1 + rng.uniform()),
-                },
-                x0: DVector::from_element(1, rng.normal()),
-                p0: scalar(rng.uniform()),
-            })
-            .unwrap();
+            let mut general = KalmanFilter::new(random_scalar_model(&mut rng, m)).unwrap();
             general.core.general_only = true;
             let mut fast = general.to_scalar().unwrap();
             assert_eq!(fast.has_input(), m == 1);

@@ -515,7 +515,7 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::{mean_std, TestRng};
     use super::*;
-    use crate::estimation::kalman::tests::scalar_filter;
+    use crate::estimation::kalman::tests::{random_scalar_model, scalar_filter};
     use crate::state_space::StateSpace;
 
     fn scalar(v: f64) -> DMatrix<f64> {
@@ -531,22 +531,8 @@ mod tests {
             (0, InfluenceFunction::tukey()),
             (1, InfluenceFunction::Tukey { c: 2.0 }),
         ] {
-            let mut general = RobustKalmanFilter::new(
-                GaussianModel {
-                    system: StateSpace {
-                        a: scalar(2.0 * rng.uniform() - 1.0),
-                        b: DMatrix::from_fn(1, m, |_, _| rng.normal()),
-                        c: scalar(rng.normal()),
-                        d: DMatrix::from_fn(1, m, |_, _| rng.normal()),
-                        q: scalar(0.01 * rng.uniform()),
-                        r: scalar(0.1 + rng.uniform()),
-                    },
-                    x0: DVector::from_element(1, rng.normal()),
-                    p0: scalar(rng.uniform()),
-                },
-                psi,
-            )
-            .unwrap();
+            let model = random_scalar_model(&mut rng, m);
+            let mut general = RobustKalmanFilter::new(model, psi).unwrap();
             general.core.general_only = true;
             let mut fast = general.to_scalar().unwrap();
             let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();

@@ -346,43 +346,40 @@ pub trait ScalarFilter: Clone + std::fmt::Debug + 'static {
     fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
 }
 
-impl ScalarFilter for ScalarKalmanFilter {
-    #[inline(always)]
-    fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
-        ScalarKalmanFilter::step(self, u, y)
-    }
-    #[inline(always)]
-    fn write_outputs(&self, values: &mut Values, first: usize) {
-        values.set_reals(first, [self.state(), self.output(), self.innovation()]);
-    }
-    fn dynamic_state(&self) -> Vec<f64> {
-        ScalarKalmanFilter::dynamic_state(self)
-    }
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        ScalarKalmanFilter::set_dynamic_state(self, state)
-    }
+/// Implements [`ScalarFilter`] for a scalar filter of the math crate (its own `step`,
+/// `dynamic_state`, `set_dynamic_state`), whose outputs, in declaration order, are
+/// `$outputs` of the filter `$f`.
+macro_rules! scalar_filter {
+    ($filter:ty, |$f:ident| $outputs:expr) => {
+        impl ScalarFilter for $filter {
+            #[inline(always)]
+            fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
+                <$filter>::step(self, u, y)
+            }
+            #[inline(always)]
+            fn write_outputs(&self, values: &mut Values, first: usize) {
+                let $f = self;
+                values.set_reals(first, $outputs);
+            }
+            fn dynamic_state(&self) -> Vec<f64> {
+                <$filter>::dynamic_state(self)
+            }
+            fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+                <$filter>::set_dynamic_state(self, state)
+            }
+        }
+    };
 }
 
-impl ScalarFilter for ScalarRobustKalmanFilter {
-    #[inline(always)]
-    fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
-        ScalarRobustKalmanFilter::step(self, u, y)
-    }
-    #[inline(always)]
-    fn write_outputs(&self, values: &mut Values, first: usize) {
-        let f = self.filter();
-        values.set_reals(
-            first,
-            [f.state(), f.output(), f.innovation(), self.weight()],
-        );
-    }
-    fn dynamic_state(&self) -> Vec<f64> {
-        ScalarRobustKalmanFilter::dynamic_state(self)
-    }
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        ScalarRobustKalmanFilter::set_dynamic_state(self, state)
-    }
-}
+scalar_filter!(ScalarKalmanFilter, |f| [
+    f.state(),
+    f.output(),
+    f.innovation()
+]);
+scalar_filter!(ScalarRobustKalmanFilter, |r| {
+    let f = r.filter();
+    [f.state(), f.output(), f.innovation(), r.weight()]
+});
 
 /// The scalar variant's filter and where its values are: the inputs `u[1]` (if any) and
 /// `y[1]`, the first of its outputs.

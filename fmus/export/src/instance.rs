@@ -1690,9 +1690,14 @@ mod window_tests {
             }
             Ok(())
         }
-        fn save_state(&self, _: &mut ByteWriter) {}
-        fn load_state(&mut self, _: &mut ByteReader) -> Result<(), Cause> {
-            Ok(())
+        fn save_state(&self, out: &mut ByteWriter) {
+            out.put_u64(self.y.len() as u64);
+        }
+        fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
+            match input.u64()? {
+                n if n == self.y.len() as u64 => Ok(()),
+                n => Err(format!("{n} outputs saved, {} here", self.y.len()).into()),
+            }
         }
     }
 
