@@ -271,10 +271,9 @@ impl FilterCore {
 
     /// A whole step of a filter with one state, one output and at most one input, in the
     /// order of the general path (bit-identical to it) without its matrix machinery:
-    /// predict, innovation e, then `r_eff(e)` gives the measurement covariance of the
-    /// correction (the rsKF's R̃; the sKF's R), correct ([`joseph_scalar`]), finish. `None`
-    /// (nothing done) when the filter or the sample has other sizes: the caller takes the
-    /// general path.
+    /// [`ScalarEstimate::step`] on the one entry of each buffer, `r_eff(e)` giving the
+    /// measurement covariance of the correction (the rsKF's R̃; the sKF's R). `None` (nothing
+    /// done) when the filter or the sample has other sizes: the caller takes the general path.
     #[inline(always)]
     pub(crate) fn step_scalar(
         &mut self,
@@ -287,66 +286,61 @@ impl FilterCore {
         if self.general_only {
             return None;
         }
-        let (a, c) = (one(model.a.as_slice())?, one(model.c.as_slice())?);
-        let (q, y) = (one(model.q.as_slice())?, one(y.as_slice())?);
-        // (u_k, u_{k−1}, b, d) when there is an input.
-        let input = match (
-            u.as_slice(),
-            self.u_prev.as_mut_slice(),
-            model.b.as_slice(),
-            model.d.as_slice(),
-        ) {
-            ([], [], [], []) => None,
-            ([u], [u_prev], [b], [d]) => Some((*u, u_prev, *b, *d)),
+        let y = one(y.as_slice())?;
+        let (scalar, u) = match (ScalarModel::of(model)?, u.as_slice()) {
+            (m @ ScalarModel { input: None, .. }, []) => (m, 0.0),
+            (m @ ScalarModel { input: Some(_), .. }, [u]) => (m, *u),
             _ => return None,
         };
-        let (x, p) = (only(self.x.as_mut_slice())?, only(self.p.as_mut_slice())?);
-        let x_prior = only(self.x_prior.as_mut_slice())?;
-        let p_prior = only(self.p_prior.as_mut_slice())?;
-        let e = only(self.innovation.as_mut_slice())?;
-        let gain_t = only(self.gain_t.as_mut_slice())?;
-        let (gain, output) = (
-            only(self.gain.as_mut_slice())?,
-            only(self.output.as_mut_slice())?,
-        );
-        self.steps += 1;
-        let step = self.steps;
-        // x⁻ = a x̂ + b u_{k−1}, P⁻ = a (P a) + q, e = (y − c x⁻) − d u.
-        *x_prior = a * *x;
-        if let Some((_, u_prev, b, _)) = &input {
-            *x_prior += b * **u_prev;
-        }
-        // (P a in a register: the general path's work matrix, the same rounding.)
-        let w = *p * a;
-        *p_prior = a * w + q;
-        *e = c * -*x_prior + y;
-        if let Some((u, _, _, d)) = &input {
-            *e += d * -u;
-        }
-        if !e.is_finite() {
-            return Some(Err(EstimationError::NonFinite {
-                what: "innovation y − C x⁻ − D u (check y and u)",
-                step,
-            }));
-        }
-        let (k, x_new, p_new) = match joseph_scalar(c, r_eff.at(*e), *x_prior, *p_prior, *e, step) {
-            Ok(update) => update,
-            Err(error) => return Some(Err(error)),
+        let mut estimate = self.scalar_estimate(scalar.input.is_some())?;
+        let result = estimate.step(&scalar, u, y, r_eff);
+        // Stored whatever the result: a failed step leaves what it produced, as the general
+        // path does.
+        self.store_scalar(&estimate);
+        Some(result)
+    }
+
+    /// The estimate of a filter with one state and one output (and one input when
+    /// `input`), or `None` for other sizes.
+    #[inline(always)]
+    pub(crate) fn scalar_estimate(&self, input: bool) -> Option<ScalarEstimate> {
+        let u_prev = match (self.u_prev.as_slice(), input) {
+            ([], false) => 0.0,
+            ([u], true) => *u,
+            _ => return None,
         };
-        (*gain_t, *gain, *x, *p) = (k, k, x_new, p_new);
-        if !(x_new.is_finite() && p_new.is_finite()) {
-            return Some(Err(EstimationError::NonFinite {
-                what: "state estimate or its covariance",
-                step,
-            }));
+        Some(ScalarEstimate {
+            x: one(self.x.as_slice())?,
+            p: one(self.p.as_slice())?,
+            x_prior: one(self.x_prior.as_slice())?,
+            p_prior: one(self.p_prior.as_slice())?,
+            u_prev,
+            innovation: one(self.innovation.as_slice())?,
+            output: one(self.output.as_slice())?,
+            gain: one(self.gain_t.as_slice())?,
+            steps: self.steps,
+        })
+    }
+
+    /// Writes back what [`FilterCore::scalar_estimate`] gave (the sizes it checked).
+    #[inline(always)]
+    fn store_scalar(&mut self, s: &ScalarEstimate) {
+        for (target, value) in [
+            (self.x.as_mut_slice(), s.x),
+            (self.p.as_mut_slice(), s.p),
+            (self.x_prior.as_mut_slice(), s.x_prior),
+            (self.p_prior.as_mut_slice(), s.p_prior),
+            (self.u_prev.as_mut_slice(), s.u_prev),
+            (self.innovation.as_mut_slice(), s.innovation),
+            (self.output.as_mut_slice(), s.output),
+            (self.gain_t.as_mut_slice(), s.gain),
+            (self.gain.as_mut_slice(), s.gain),
+        ] {
+            if let [v] = target {
+                *v = value;
+            }
         }
-        // ŷ = c x̂ + d u.
-        *output = c * x_new;
-        if let Some((u, u_prev, _, d)) = input {
-            *output += d * u;
-            *u_prev = u;
-        }
-        Some(Ok(()))
+        self.steps = s.steps;
     }
 
     /// [`FilterCore::correct`] for n states and p outputs, any sizes.
@@ -623,12 +617,190 @@ mod fixed {
     }
 }
 
-/// The entry of a buffer of one entry, to write.
-#[inline(always)]
-fn only(v: &mut [f64]) -> Option<&mut f64> {
-    match v {
-        [v] => Some(v),
-        _ => None,
+/// The model of a filter with one state, one output and at most one input, as numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ScalarModel {
+    pub(crate) a: f64,
+    pub(crate) c: f64,
+    pub(crate) q: f64,
+    /// (b, d) when the model has its one input.
+    pub(crate) input: Option<(f64, f64)>,
+}
+
+impl ScalarModel {
+    /// The model of `system` when it has one state, one output and at most one input.
+    #[inline(always)]
+    fn of(system: &StateSpace) -> Option<Self> {
+        let input = match (system.b.as_slice(), system.d.as_slice()) {
+            ([], []) => None,
+            ([b], [d]) => Some((*b, *d)),
+            _ => return None,
+        };
+        Some(Self {
+            a: one(system.a.as_slice())?,
+            c: one(system.c.as_slice())?,
+            q: one(system.q.as_slice())?,
+            input,
+        })
+    }
+}
+
+/// What evolves in a filter with one state and one output: the entries of the
+/// [`FilterCore`]'s buffers (`u_prev` 0 and unused without input).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ScalarEstimate {
+    pub(crate) x: f64,
+    pub(crate) p: f64,
+    pub(crate) x_prior: f64,
+    pub(crate) p_prior: f64,
+    pub(crate) u_prev: f64,
+    pub(crate) innovation: f64,
+    pub(crate) output: f64,
+    pub(crate) gain: f64,
+    pub(crate) steps: u64,
+}
+
+impl ScalarEstimate {
+    /// One sample (u_k, y_k) of model `m` (u_k unused without input), in the order of the
+    /// general path (bit-identical to it): x⁻ = a x̂ + b u_{k−1}, P⁻ = a (P a) + q,
+    /// e = (y − c x⁻) − d u, then `r_eff(e)` gives the measurement covariance of the
+    /// correction ([`joseph_scalar`]), ŷ = c x̂ + d u. On error the estimate is left as the
+    /// failed step produced it.
+    #[inline(always)]
+    pub(crate) fn step(
+        &mut self,
+        m: &ScalarModel,
+        u: f64,
+        y: f64,
+        r_eff: impl ScalarCovariance,
+    ) -> Result<(), EstimationError> {
+        self.steps += 1;
+        let step = self.steps;
+        self.x_prior = m.a * self.x;
+        if let Some((b, _)) = m.input {
+            self.x_prior += b * self.u_prev;
+        }
+        // (P a in a register: the general path's work matrix, the same rounding.)
+        let w = self.p * m.a;
+        self.p_prior = m.a * w + m.q;
+        self.innovation = m.c * -self.x_prior + y;
+        if let Some((_, d)) = m.input {
+            self.innovation += d * -u;
+        }
+        let e = self.innovation;
+        if !e.is_finite() {
+            return Err(EstimationError::NonFinite {
+                what: "innovation y − C x⁻ − D u (check y and u)",
+                step,
+            });
+        }
+        let (k, x, p) = joseph_scalar(m.c, r_eff.at(e), self.x_prior, self.p_prior, e, step)?;
+        (self.gain, self.x, self.p) = (k, x, p);
+        if !(x.is_finite() && p.is_finite()) {
+            return Err(EstimationError::NonFinite {
+                what: "state estimate or its covariance",
+                step,
+            });
+        }
+        self.output = m.c * x;
+        if let Some((_, d)) = m.input {
+            self.output += d * u;
+            self.u_prev = u;
+        }
+        Ok(())
+    }
+
+    /// Appends the numbers of [`FilterCore`]'s [`Saved::save`] for these sizes.
+    fn save(&self, input: bool, out: &mut Vec<f64>) {
+        out.extend_from_slice(&[self.x, self.p, self.x_prior, self.p_prior]);
+        if input {
+            out.push(self.u_prev);
+        }
+        out.extend_from_slice(&[self.innovation, self.output, self.gain]);
+        out.push(self.steps as f64);
+    }
+
+    /// Reads back what [`ScalarEstimate::save`] wrote.
+    fn restore(&mut self, input: bool, r: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        let mut s = *self;
+        for v in [&mut s.x, &mut s.p, &mut s.x_prior, &mut s.p_prior] {
+            r.fill(std::slice::from_mut(v))?;
+        }
+        if input {
+            r.fill(std::slice::from_mut(&mut s.u_prev))?;
+        }
+        for v in [&mut s.innovation, &mut s.output, &mut s.gain] {
+            r.fill(std::slice::from_mut(v))?;
+        }
+        s.steps = r.counter()?;
+        *self = s;
+        Ok(())
+    }
+}
+
+/// The [`KalmanFilter`] of a model with one state, one output and at most one input, on
+/// plain numbers ([`KalmanFilter::to_scalar`]): the same equations in the same order, so the
+/// same results bit for bit, without a buffer or a length to check. Its
+/// [`ScalarKalmanFilter::dynamic_state`] is the [`KalmanFilter`]'s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScalarKalmanFilter {
+    pub(crate) model: ScalarModel,
+    /// R.
+    pub(crate) r: f64,
+    pub(crate) estimate: ScalarEstimate,
+}
+
+impl ScalarKalmanFilter {
+    /// Processes one sample (see [`KalmanFilter::step`]); `u` is the input u_k (unused
+    /// when the model has none).
+    #[inline]
+    pub fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
+        self.estimate.step(&self.model, u, y, self.r)
+    }
+    /// Whether the model has its one input.
+    pub fn has_input(&self) -> bool {
+        self.model.input.is_some()
+    }
+    /// Filtered state x̂_{k|k}.
+    pub fn state(&self) -> f64 {
+        self.estimate.x
+    }
+    /// Its variance P_{k|k}.
+    pub fn covariance(&self) -> f64 {
+        self.estimate.p
+    }
+    /// Filtered output ŷ = c x̂_{k|k} + d u_k.
+    pub fn output(&self) -> f64 {
+        self.estimate.output
+    }
+    /// Innovation e = y_k − c x⁻ − d u_k of the last step.
+    pub fn innovation(&self) -> f64 {
+        self.estimate.innovation
+    }
+    /// Gain k of the last step.
+    pub fn gain(&self) -> f64 {
+        self.estimate.gain
+    }
+    /// Number of steps processed.
+    pub fn steps(&self) -> u64 {
+        self.estimate.steps
+    }
+    /// What [`KalmanFilter::dynamic_state`] gives for the same filter.
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        self.saved()
+    }
+    /// Restores what [`ScalarKalmanFilter::dynamic_state`] returned.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        self.restore_saved(state)
+    }
+}
+
+impl Saved for ScalarKalmanFilter {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.estimate.save(self.has_input(), out);
+    }
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        self.estimate.restore(self.model.input.is_some(), input)
     }
 }
 
@@ -808,6 +980,25 @@ impl KalmanFilter {
     /// the length does not fit this filter's dimensions.
     pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
         self.core.restore_saved(state)
+    }
+
+    /// The same filter on plain numbers when the model has one state, one output and at
+    /// most one input ([`ScalarKalmanFilter`]); `None` otherwise.
+    pub fn to_scalar(&self) -> Option<ScalarKalmanFilter> {
+        Self::scalar_parts(&self.model, &self.core)
+    }
+
+    /// The [`ScalarKalmanFilter`] of a model and a filter core of those sizes.
+    pub(crate) fn scalar_parts(
+        model: &StateSpace,
+        core: &FilterCore,
+    ) -> Option<ScalarKalmanFilter> {
+        let scalar = ScalarModel::of(model)?;
+        Some(ScalarKalmanFilter {
+            model: scalar,
+            r: one(model.r.as_slice())?,
+            estimate: core.scalar_estimate(scalar.input.is_some())?,
+        })
     }
 
     core_accessors!();
@@ -1064,6 +1255,82 @@ pub(crate) mod tests {
                 );
             }
         }
+    }
+
+    /// A random stable model with one state, one output and `m` (0 or 1) inputs.
+    pub(crate) fn random_scalar_model(rng: &mut TestRng, m: usize) -> GaussianModel {
+        GaussianModel {
+            system: StateSpace {
+                a: scalar(2.0 * rng.uniform() - 1.0),
+                b: DMatrix::from_fn(1, m, |_, _| rng.normal()),
+                c: scalar(rng.normal()),
+                d: DMatrix::from_fn(1, m, |_, _| rng.normal()),
+                q: scalar(0.01 * rng.uniform()),
+                r: scalar(0.1 + rng.uniform()),
+            },
+            x0: DVector::from_element(1, rng.normal()),
+            p0: scalar(rng.uniform()),
+        }
+    }
+
+    #[test]
+    fn the_scalar_filter_on_numbers_equals_the_general_path_bit_for_bit() {
+        let mut rng = TestRng::new(41);
+        for (m, run) in [(0, 0), (1, 0), (0, 1), (1, 1), (0, 2), (1, 2)] {
+            let mut general = KalmanFilter::new(random_scalar_model(&mut rng, m)).unwrap();
+            general.core.general_only = true;
+            let mut fast = general.to_scalar().unwrap();
+            assert_eq!(fast.has_input(), m == 1);
+            assert_eq!(fast.dynamic_state(), general.dynamic_state());
+            for k in 0..5000 {
+                let u = rng.normal();
+                let y = 10.0 * rng.normal();
+                general
+                    .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
+                    .unwrap();
+                fast.step(u, y).unwrap();
+                let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(fast.dynamic_state()),
+                    bits(general.dynamic_state()),
+                    "m = {m}, run {run}, step {k}"
+                );
+                assert_eq!(fast.state().to_bits(), general.state()[0].to_bits());
+                assert_eq!(fast.output().to_bits(), general.output()[0].to_bits());
+                assert_eq!(fast.innovation(), general.innovation()[0]);
+                assert_eq!(fast.gain(), general.gain()[(0, 0)]);
+                assert!(fast.covariance() > 0.0);
+            }
+            // A state restored into another filter continues bit for bit; a wrong length is
+            // refused and changes nothing.
+            let mut restored = fast.clone();
+            restored.step(1.0, 2.0).unwrap();
+            assert!(restored.set_dynamic_state(&[1.0; 3]).is_err());
+            restored.set_dynamic_state(&fast.dynamic_state()).unwrap();
+            assert_eq!(restored, fast);
+            // A non-finite measurement is the same error on both.
+            let error = fast.step(0.0, f64::NAN).unwrap_err();
+            let former = general
+                .step(&DVector::zeros(m), &DVector::from_element(1, f64::NAN))
+                .unwrap_err();
+            assert_eq!(error.to_string(), former.to_string());
+        }
+        // Other sizes have no scalar form.
+        assert!(scalar_filter(1.0, 1.0, 1.0, 1.0).to_scalar().is_some());
+        let two = KalmanFilter::new(GaussianModel {
+            system: StateSpace {
+                a: DMatrix::identity(2, 2),
+                b: DMatrix::zeros(2, 0),
+                c: DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+                d: DMatrix::zeros(1, 0),
+                q: DMatrix::identity(2, 2),
+                r: scalar(1.0),
+            },
+            x0: DVector::zeros(2),
+            p0: DMatrix::identity(2, 2),
+        })
+        .unwrap();
+        assert!(two.to_scalar().is_none());
     }
 
     #[test]

@@ -38,9 +38,9 @@ pub use dual::{
     AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
 };
 pub use estimator::StateEstimator;
-pub use kalman::{GaussianModel, KalmanFilter};
+pub use kalman::{GaussianModel, KalmanFilter, ScalarKalmanFilter};
 pub use rls::{ContinuousSecondOrder, ReadoutUnavailable, RecursiveLeastSquares};
-pub use robust::{InfluenceFunction, RobustKalmanFilter};
+pub use robust::{InfluenceFunction, RobustKalmanFilter, ScalarRobustKalmanFilter};
 
 use crate::linalg::dense;
 use crate::ParameterError;

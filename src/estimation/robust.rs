@@ -23,7 +23,10 @@
 //! When every weight is exactly 1 the filter uses R itself, so it reproduces the sKF bit for
 //! bit whenever no standardised residual exceeds c (Huber).
 
-use super::kalman::{core_accessors, sample_views, FilterCore, GaussianModel, ScalarCovariance};
+use super::kalman::{
+    core_accessors, sample_views, FilterCore, GaussianModel, KalmanFilter, ScalarCovariance,
+    ScalarKalmanFilter,
+};
 use super::{parameter_error, EstimationError, Saved, StateReader};
 use crate::linalg::dense;
 use crate::state_space::StateSpace;
@@ -322,6 +325,28 @@ impl RobustKalmanFilter {
         Ok(())
     }
 
+    /// The same filter on plain numbers when the model has one state, one output and at
+    /// most one input ([`ScalarRobustKalmanFilter`]); `None` otherwise.
+    pub fn to_scalar(&self) -> Option<ScalarRobustKalmanFilter> {
+        let filter = KalmanFilter::scalar_parts(&self.model, &self.core)?;
+        match (
+            self.r_sqrt.as_slice(),
+            self.standardized.as_slice(),
+            self.weights.as_slice(),
+            self.r_effective.as_slice(),
+        ) {
+            ([l], [z], [w], [r_effective]) => Some(ScalarRobustKalmanFilter {
+                filter,
+                psi: self.psi,
+                l: *l,
+                z: *z,
+                w: *w,
+                r_effective: *r_effective,
+            }),
+            _ => None,
+        }
+    }
+
     core_accessors!();
     /// Standardised residual r = R^{-1/2} e of the last step.
     pub fn standardized_residual(&self) -> &DVector<f64> {
@@ -338,6 +363,82 @@ impl RobustKalmanFilter {
     /// The ψ function in use.
     pub fn influence_function(&self) -> InfluenceFunction {
         self.psi
+    }
+}
+
+/// The [`RobustKalmanFilter`] of a model with one state, one output and at most one input,
+/// on plain numbers ([`RobustKalmanFilter::to_scalar`]): the same equations in the same
+/// order (r = e / √R, w = ψ(r)/r clamped, R̃ = (√R / √w)², R itself when w = 1), so the same
+/// results bit for bit. Its [`ScalarRobustKalmanFilter::dynamic_state`] is the
+/// [`RobustKalmanFilter`]'s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScalarRobustKalmanFilter {
+    filter: ScalarKalmanFilter,
+    psi: InfluenceFunction,
+    /// √R.
+    l: f64,
+    /// The standardised residual, the weight and R̃ of the last step.
+    z: f64,
+    w: f64,
+    r_effective: f64,
+}
+
+impl ScalarRobustKalmanFilter {
+    /// Processes one sample (see [`RobustKalmanFilter::step`]); `u` is the input u_k
+    /// (unused when the model has none).
+    #[inline]
+    pub fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
+        let effective = ScalarWeight {
+            psi: self.psi,
+            r: self.filter.r,
+            l: self.l,
+            z: &mut self.z,
+            w: &mut self.w,
+            r_effective: &mut self.r_effective,
+        };
+        let f = &mut self.filter;
+        f.estimate.step(&f.model, u, y, effective)
+    }
+    /// The filter's estimates (state, output, innovation, gain: [`ScalarKalmanFilter`]).
+    pub fn filter(&self) -> &ScalarKalmanFilter {
+        &self.filter
+    }
+    /// Standardised residual r = e / √R of the last step.
+    pub fn standardized_residual(&self) -> f64 {
+        self.z
+    }
+    /// Weight w = ψ(r)/r of the last step (clamped to [`MIN_WEIGHT`]); 1 = trusted.
+    pub fn weight(&self) -> f64 {
+        self.w
+    }
+    /// The effective measurement covariance R̃ of the last step.
+    pub fn effective_measurement_covariance(&self) -> f64 {
+        self.r_effective
+    }
+    /// What [`RobustKalmanFilter::dynamic_state`] gives for the same filter.
+    pub fn dynamic_state(&self) -> Vec<f64> {
+        self.saved()
+    }
+    /// Restores what [`ScalarRobustKalmanFilter::dynamic_state`] returned.
+    pub fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        self.restore_saved(state)
+    }
+}
+
+impl Saved for ScalarRobustKalmanFilter {
+    fn save(&self, out: &mut Vec<f64>) {
+        self.filter.save(out);
+        out.extend_from_slice(&[self.z, self.w, self.r_effective]);
+    }
+
+    fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
+        let mut restored = self.clone();
+        restored.filter.restore(input)?;
+        for v in [&mut restored.z, &mut restored.w, &mut restored.r_effective] {
+            input.fill(std::slice::from_mut(v))?;
+        }
+        *self = restored;
+        Ok(())
     }
 }
 
@@ -414,12 +515,56 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::{mean_std, TestRng};
     use super::*;
-    use crate::estimation::kalman::tests::scalar_filter;
-    use crate::estimation::KalmanFilter;
+    use crate::estimation::kalman::tests::{random_scalar_model, scalar_filter};
     use crate::state_space::StateSpace;
 
     fn scalar(v: f64) -> DMatrix<f64> {
         DMatrix::from_element(1, 1, v)
+    }
+
+    #[test]
+    fn the_scalar_robust_filter_on_numbers_equals_the_general_path_bit_for_bit() {
+        let mut rng = TestRng::new(43);
+        for (m, psi) in [
+            (0, InfluenceFunction::huber()),
+            (1, InfluenceFunction::huber()),
+            (0, InfluenceFunction::tukey()),
+            (1, InfluenceFunction::Tukey { c: 2.0 }),
+        ] {
+            let model = random_scalar_model(&mut rng, m);
+            let mut general = RobustKalmanFilter::new(model, psi).unwrap();
+            general.core.general_only = true;
+            let mut fast = general.to_scalar().unwrap();
+            let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+            assert_eq!(bits(fast.dynamic_state()), bits(general.dynamic_state()));
+            let mut down_weighted = 0;
+            for k in 0..5000 {
+                let u = rng.normal();
+                // a measurement with an outlier one time in five
+                let outlier = if rng.uniform() < 0.2 { 50.0 } else { 0.0 };
+                let y = rng.normal() + outlier * rng.normal();
+                general
+                    .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
+                    .unwrap();
+                fast.step(u, y).unwrap();
+                assert_eq!(
+                    bits(fast.dynamic_state()),
+                    bits(general.dynamic_state()),
+                    "m = {m}, {psi:?}, step {k}"
+                );
+                assert_eq!(fast.weight(), general.weights()[0]);
+                assert_eq!(fast.filter().state(), general.state()[0]);
+                assert_eq!(fast.filter().output(), general.output()[0]);
+                assert!(fast.filter().covariance() > 0.0);
+                down_weighted += usize::from(fast.weight() < 1.0);
+            }
+            assert!(down_weighted > 500, "{down_weighted}");
+            let mut restored = fast.clone();
+            restored.step(0.5, 1.0).unwrap();
+            restored.set_dynamic_state(&fast.dynamic_state()).unwrap();
+            assert_eq!(restored, fast);
+            assert!(restored.set_dynamic_state(&[0.0; 2]).is_err());
+        }
     }
 
     #[test]

@@ -221,7 +221,8 @@ impl SampleClock {
                 let passed = x - tolerance(x);
                 // The common step, one sample: ⌈passed⌉ = first + 1 (the test below, exact
                 // for counts below 2⁵³), without the rounding and the checks.
-                let before = first as f64;
+                // (through i64: one conversion instruction; a count is below 2⁶³)
+                let before = first as i64 as f64;
                 if passed > before && passed <= before + 1.0 {
                     next.next = first + 1;
                     return Ok((next, first..next.next));
@@ -244,6 +245,16 @@ impl SampleClock {
         // `end` is finite, > first and at most first + MAX_SAMPLES_PER_STEP here.
         next.next = end as u64;
         Ok((next, first..next.next))
+    }
+}
+
+impl SampleClock {
+    /// Takes over what [`SampleClock::after`] changed in `after` (the period, the next
+    /// sample): a step's samples were taken.
+    #[inline(always)]
+    pub fn commit(&mut self, after: &SampleClock) {
+        self.period = after.period;
+        self.next = after.next;
     }
 }
 

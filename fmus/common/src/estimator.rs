@@ -8,8 +8,8 @@
 //!
 //! | FMU | estimator | where |
 //! |---|---|---|
-//! | `KalmanFilter` | sKF | [`Filtered`] over [`crate::kalman::Linear`] (any [`spurio::estimation::StateEstimator`]) |
-//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`Filtered`] over [`crate::kalman::Linear`] |
+//! | `KalmanFilter` | sKF | [`crate::kalman::LinearEstimator`]: [`Filtered`] over [`crate::kalman::Linear`] (any [`spurio::estimation::StateEstimator`]), the filter on plain numbers for n = p = 1 |
+//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`crate::kalman::LinearEstimator`] |
 //! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`Filtered`] over [`crate::dual::Dual`] |
 //! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same, [`Filtered`] over [`crate::dual::Dual`] |
 //! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
@@ -115,6 +115,13 @@ pub struct Filtered<K: FilterFamily> {
     y: DVector<f64>,
 }
 
+impl<K: FilterFamily> Filtered<K> {
+    /// The filter.
+    pub fn filter(&self) -> &K::Filter {
+        &self.filter
+    }
+}
+
 impl<K: FilterFamily> Estimator for Filtered<K> {
     type Layout = K::Layout;
     fn interface(config: &Config) -> Result<(K::Layout, ModelInfo), Cause> {
@@ -168,6 +175,21 @@ pub struct EstimatorFmu<E: Estimator> {
     clock: SampleClock,
 }
 
+#[cfg(test)]
+impl<E: Estimator> EstimatorFmu<E> {
+    /// The layout, the parameters read at initialization and the estimator (tests).
+    pub(crate) fn parts_mut(&mut self) -> (&E::Layout, &Values, Option<&mut E>) {
+        (&self.layout, &self.parameters, self.estimator.as_mut())
+    }
+}
+
+/// A step before the estimator was built.
+#[cold]
+#[inline(never)]
+fn not_initialized() -> Failure {
+    Failure::Error("the estimator was not initialized (fmi2ExitInitializationMode failed?)".into())
+}
+
 /// The estimator's interface with the parameter `sample_period` appended (value reference:
 /// the number of the estimator's own variables).
 fn with_sample_period(info: ModelInfo) -> ModelInfo {
@@ -210,18 +232,17 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
     }
 
     /// The samples whose instants lie in the step ([`crate::clock`]), each with the inputs set
-    /// before it.
+    /// before it. (Inlined into the export layer's step: the common step is one sample.)
+    #[inline(always)]
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let Some(estimator) = &mut self.estimator else {
-            return Err(Failure::Error(
-                "the estimator was not initialized (fmi2ExitInitializationMode failed?)".into(),
-            ));
+            return Err(not_initialized());
         };
         let (clock, samples) = self.clock.after(time, step)?;
         for k in samples {
             estimator.step(&self.layout, ctx, clock.instant(k), clock.period())?;
         }
-        self.clock = clock;
+        self.clock.commit(&clock);
         Ok(())
     }
 
@@ -315,16 +336,22 @@ pub fn read_inputs(
     for (k, index) in block.indices().enumerate() {
         let v = values.real(index);
         if !v.is_finite() {
-            return Err(Failure::error(format!(
-                "input `{name}[{}]` = {v} is not finite: the estimator cannot use it (the step was not taken)",
-                k + 1
-            )));
+            return Err(non_finite_input(name, k + 1, v));
         }
         if let Some(slot) = target.get_mut(k) {
             *slot = v;
         }
     }
     Ok(())
+}
+
+/// The failure of a step whose input `{name}[{k}]` (1-based) is the non-finite `v`.
+#[cold]
+#[inline(never)]
+pub fn non_finite_input(name: &str, k: usize, v: f64) -> Failure {
+    Failure::error(format!(
+        "input `{name}[{k}]` = {v} is not finite: the estimator cannot use it (the step was not taken)"
+    ))
 }
 
 /// Writes a vector into a block.
@@ -382,6 +409,8 @@ pub fn add_tuning(table: &mut VariableTable, name: &str, start: f64, description
 }
 
 /// Turns an estimation error into `fmi2Error` with its message.
+#[cold]
+#[inline(never)]
 pub fn error(e: spurio::estimation::EstimationError) -> Failure {
     Failure::error(e.to_string())
 }

@@ -18,13 +18,14 @@
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
 use crate::estimator::{
-    add_choice, add_tuning, count, error, leading_identity, EstimatorFmu, FilterFamily, Filtered,
+    add_choice, add_tuning, count, error, leading_identity, non_finite_input, DynamicState,
+    Estimator, EstimatorFmu, FilterFamily, Filtered,
 };
 use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::DVector;
 use spurio::estimation::{
     EstimationError, GaussianModel, InfluenceFunction, KalmanFilter, RobustKalmanFilter,
-    StateEstimator,
+    ScalarKalmanFilter, ScalarRobustKalmanFilter, StateEstimator,
 };
 use spurio::state_space::StateSpace;
 use spurio_export::{
@@ -294,28 +295,188 @@ fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
 pub trait LinearFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     /// Whether the FMU is the robust one: parameters `psi`, `c_psi`, outputs `w[j]`.
     const ROBUST: bool;
+    /// The same filter on plain numbers, for one state, one output and at most one input.
+    type Scalar: ScalarFilter;
     /// The filter for the model `m`.
     fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError>;
     /// The last step's weights `w_j` (robust filter only).
     fn weights(&self) -> Option<&DVector<f64>> {
         None
     }
+    /// [`LinearFilter::Scalar`] when the filter has those sizes.
+    fn to_scalar(&self) -> Option<Self::Scalar>;
 }
 
 impl LinearFilter for KalmanFilter {
     const ROBUST: bool = false;
+    type Scalar = ScalarKalmanFilter;
     fn from_model(m: GaussianModel, _: InfluenceFunction) -> Result<Self, EstimationError> {
         KalmanFilter::new(m)
+    }
+    fn to_scalar(&self) -> Option<ScalarKalmanFilter> {
+        KalmanFilter::to_scalar(self)
     }
 }
 
 impl LinearFilter for RobustKalmanFilter {
     const ROBUST: bool = true;
+    type Scalar = ScalarRobustKalmanFilter;
     fn from_model(m: GaussianModel, psi: InfluenceFunction) -> Result<Self, EstimationError> {
         RobustKalmanFilter::new(m, psi)
     }
     fn weights(&self) -> Option<&DVector<f64>> {
         Some(RobustKalmanFilter::weights(self))
+    }
+    fn to_scalar(&self) -> Option<ScalarRobustKalmanFilter> {
+        RobustKalmanFilter::to_scalar(self)
+    }
+}
+
+/// A filter with one state, one output and at most one input on plain numbers
+/// ([`LinearFilter::Scalar`]): one step, its outputs written.
+pub trait ScalarFilter: Clone + std::fmt::Debug + 'static {
+    /// One sample (u_k, y_k) (u_k unused without input).
+    fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError>;
+    /// Writes `x_hat[1]`, `y_hat[1]`, `innovation[1]` (and the robust filter's `w[1]`), the
+    /// variables declared one after the other from `first`.
+    fn write_outputs(&self, values: &mut Values, first: usize);
+    /// [`StateEstimator::dynamic_state`] of the filter.
+    fn dynamic_state(&self) -> Vec<f64>;
+    /// Restores [`ScalarFilter::dynamic_state`].
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError>;
+}
+
+/// Implements [`ScalarFilter`] for a scalar filter of the math crate (its own `step`,
+/// `dynamic_state`, `set_dynamic_state`), whose outputs, in declaration order, are
+/// `$outputs` of the filter `$f`.
+macro_rules! scalar_filter {
+    ($filter:ty, |$f:ident| $outputs:expr) => {
+        impl ScalarFilter for $filter {
+            #[inline(always)]
+            fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
+                <$filter>::step(self, u, y)
+            }
+            #[inline(always)]
+            fn write_outputs(&self, values: &mut Values, first: usize) {
+                let $f = self;
+                values.set_reals(first, $outputs);
+            }
+            fn dynamic_state(&self) -> Vec<f64> {
+                <$filter>::dynamic_state(self)
+            }
+            fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+                <$filter>::set_dynamic_state(self, state)
+            }
+        }
+    };
+}
+
+scalar_filter!(ScalarKalmanFilter, |f| [
+    f.state(),
+    f.output(),
+    f.innovation()
+]);
+scalar_filter!(ScalarRobustKalmanFilter, |r| {
+    let f = r.filter();
+    [f.state(), f.output(), f.innovation(), r.weight()]
+});
+
+/// The scalar variant's filter and where its values are: the inputs `u[1]` (if any) and
+/// `y[1]`, the first of its outputs.
+#[derive(Debug, Clone)]
+pub struct Scalar<S: ScalarFilter> {
+    filter: S,
+    u: Option<usize>,
+    y: usize,
+    outputs: usize,
+}
+
+impl<S: ScalarFilter> Scalar<S> {
+    /// The step: the inputs read (a non-finite one is an error naming it, the filter
+    /// untouched), the filter stepped, the outputs written.
+    #[inline(always)]
+    fn step(&mut self, values: &mut Values) -> Result<(), Failure> {
+        let y = values.real(self.y);
+        let u = self.u.map_or(0.0, |u| values.real(u));
+        if !(y.is_finite() && u.is_finite()) {
+            let (name, v) = if u.is_finite() { ("y", y) } else { ("u", u) };
+            return Err(non_finite_input(name, 1, v));
+        }
+        if let Err(e) = self.filter.step(u, y) {
+            return Err(error(e));
+        }
+        self.filter.write_outputs(values, self.outputs);
+        Ok(())
+    }
+}
+
+/// The estimator of the `KalmanFilter`-style FMUs: the filter on plain numbers for the
+/// scalar variants (one state, one output, at most one input: the packaged `KalmanFilter`
+/// and `RobustKalmanFilter`), the general one otherwise. Both give the same numbers bit for
+/// bit and the same FMU state.
+#[derive(Debug, Clone)]
+pub enum LinearEstimator<F: LinearFilter> {
+    /// One state, one output, at most one input.
+    Scalar(Scalar<F::Scalar>),
+    /// Any sizes.
+    General(Filtered<Linear<F>>),
+}
+
+impl<F: LinearFilter> Estimator for LinearEstimator<F> {
+    type Layout = LinearLayout;
+    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
+        interface(config, F::ROBUST)
+    }
+
+    fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
+        let general = Filtered::<Linear<F>>::build(layout, values)?;
+        let l = layout;
+        // The outputs one after the other: x_hat[1], y_hat[1], innovation[1] (, w[1]).
+        let first = l.x_hat.first;
+        let consecutive = l.y_hat.first == first + 1
+            && l.innovation.first == first + 2
+            && l.w.as_ref().is_none_or(|w| w.first == first + 3);
+        let scalar = match (
+            general.filter().to_scalar(),
+            l.u.indices().len(),
+            consecutive,
+        ) {
+            (Some(filter), m @ (0 | 1), true) if l.y.indices().len() == 1 => Scalar {
+                filter,
+                u: (m == 1).then_some(l.u.first),
+                y: l.y.first,
+                outputs: first,
+            },
+            _ => return Ok(Self::General(general)),
+        };
+        Ok(Self::Scalar(scalar))
+    }
+
+    fn write_initial(&self, layout: &LinearLayout, ctx: &mut Context) {
+        write_initial_linear(layout, ctx);
+    }
+
+    #[inline(always)]
+    fn step(&mut self, l: &LinearLayout, ctx: &mut Context, t: f64, h: f64) -> Result<(), Failure> {
+        match self {
+            Self::Scalar(scalar) => scalar.step(ctx.values),
+            Self::General(general) => general.step(l, ctx, t, h),
+        }
+    }
+}
+
+impl<F: LinearFilter> DynamicState for LinearEstimator<F> {
+    fn dynamic_state(&self) -> Vec<f64> {
+        match self {
+            Self::Scalar(s) => s.filter.dynamic_state(),
+            Self::General(g) => g.dynamic_state(),
+        }
+    }
+    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
+        match self {
+            Self::Scalar(s) => s.filter.set_dynamic_state(state),
+            Self::General(g) => g.set_dynamic_state(state),
+        }
     }
 }
 
@@ -346,23 +507,7 @@ impl<F: LinearFilter> FilterFamily for Linear<F> {
         write_initial_linear(layout, ctx);
     }
 
-    #[inline(always)]
     fn write_outputs(filter: &F, l: &LinearLayout, values: &mut Values) {
-        // One state and one output (the packaged scalar variants): each entry into its slot.
-        if let ([x], [y], [e], (1, 1)) = (
-            filter.state().as_slice(),
-            filter.output().as_slice(),
-            filter.innovation().as_slice(),
-            (l.dims.n, l.dims.p),
-        ) {
-            values.set_real(l.x_hat.first, *x);
-            values.set_real(l.y_hat.first, *y);
-            values.set_real(l.innovation.first, *e);
-            if let (Some(w), Some([weight])) = (&l.w, filter.weights().map(|w| w.as_slice())) {
-                values.set_real(w.first, *weight);
-            }
-            return;
-        }
         l.x_hat.write_vector(values, filter.state());
         l.y_hat.write_vector(values, filter.output());
         l.innovation.write_vector(values, filter.innovation());
@@ -373,9 +518,9 @@ impl<F: LinearFilter> FilterFamily for Linear<F> {
 }
 
 /// `KalmanFilter.fmu`.
-pub type KalmanFilterFmu = EstimatorFmu<Filtered<Linear<KalmanFilter>>>;
+pub type KalmanFilterFmu = EstimatorFmu<LinearEstimator<KalmanFilter>>;
 /// `RobustKalmanFilter.fmu`.
-pub type RobustKalmanFilterFmu = EstimatorFmu<Filtered<Linear<RobustKalmanFilter>>>;
+pub type RobustKalmanFilterFmu = EstimatorFmu<LinearEstimator<RobustKalmanFilter>>;
 
 /// The configuration of a variant of dimensions n, m, p.
 pub fn dims_config(n: usize, m: usize, p: usize) -> Config {
@@ -513,6 +658,100 @@ mod tests {
                 &bytes[..bytes.len() - 1]
             ))
             .is_err());
+    }
+
+    /// The outputs and FMU state of `M`'s variant `(n, m, p)` with its filter on plain numbers
+    /// and with the general one, over `steps` random samples (outliers among them).
+    fn scalar_and_general<F: LinearFilter>(m: usize, steps: usize) {
+        type M<F> = EstimatorFmu<LinearEstimator<F>>;
+        let config = dims_config(1, m, 1);
+        let info = M::<F>::describe(&config).unwrap();
+        let index = |n: &str| info.index_of(n).unwrap();
+        let outputs: Vec<usize> = info
+            .variables
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.causality == spurio_export::Causality::Output)
+            .map(|(k, _)| k)
+            .collect();
+        assert_eq!(outputs.len(), if F::ROBUST { 4 } else { 3 });
+        let mut runs = Vec::new();
+        for general in [false, true] {
+            let mut values = spurio_export::Values::from_start(&info.variables);
+            values.set_real(index("P0[1,1]"), 1.0);
+            values.set_real(index("A[1,1]"), 0.9);
+            if m == 1 {
+                values.set_real(index("B[1,1]"), 0.5);
+                values.set_real(index("D[1,1]"), -0.25);
+            }
+            let mut model = M::<F>::create(&info).unwrap();
+            let mut ctx = spurio_export::Context::new(&mut values);
+            model.initialize(&mut ctx).unwrap();
+            let mut state = spurio_export::ByteWriter::new();
+            model.save_state(&mut state);
+            let (layout, parameters, estimator) = model.parts_mut();
+            let estimator = estimator.unwrap();
+            assert!(matches!(estimator, LinearEstimator::Scalar(_)));
+            if general {
+                let filtered = Filtered::<Linear<F>>::build(layout, parameters).unwrap();
+                *estimator = LinearEstimator::General(filtered);
+            }
+            let mut rng = 0x9E37_79B9_7F4A_7C15_u64;
+            let mut uniform = || {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                (rng >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let mut seen = Vec::new();
+            for k in 0..steps {
+                let outlier = if uniform() < 0.1 { 1.0 } else { 0.0 };
+                let y = (k as f64 * 0.01).sin() + 0.01 * (uniform() - 0.5) + outlier;
+                ctx.values.set_real(index("y[1]"), y);
+                if m == 1 {
+                    ctx.values.set_real(index("u[1]"), uniform() - 0.5);
+                }
+                model.do_step(&mut ctx, k as f64 * 1e-3, 1e-3).unwrap();
+                seen.extend(outputs.iter().map(|&o| ctx.values.real(o).to_bits()));
+            }
+            let mut saved = spurio_export::ByteWriter::new();
+            model.save_state(&mut saved);
+            runs.push((seen, state.into_bytes(), saved.into_bytes()));
+        }
+        assert_eq!(runs[0], runs[1], "m = {m}");
+    }
+
+    #[test]
+    fn the_scalar_variants_on_numbers_give_the_general_filters_results_bit_for_bit() {
+        for m in [0, 1] {
+            scalar_and_general::<KalmanFilter>(m, 3000);
+            scalar_and_general::<RobustKalmanFilter>(m, 3000);
+        }
+    }
+
+    #[test]
+    fn a_non_finite_input_of_a_scalar_variant_names_it_and_leaves_the_filter() {
+        for (m, name) in [(0, "y[1]"), (1, "u[1]"), (1, "y[1]")] {
+            let config = dims_config(1, m, 1);
+            let info = RobustKalmanFilterFmu::describe(&config).unwrap();
+            let index = |n: &str| info.index_of(n).unwrap();
+            let mut values = spurio_export::Values::from_start(&info.variables);
+            let mut model = RobustKalmanFilterFmu::create(&info).unwrap();
+            let mut ctx = spurio_export::Context::new(&mut values);
+            model.initialize(&mut ctx).unwrap();
+            ctx.values.set_real(index("y[1]"), 1.0);
+            model.do_step(&mut ctx, 0.0, 0.1).unwrap();
+            let (_, _, estimator) = model.parts_mut();
+            let before = estimator.unwrap().dynamic_state();
+            ctx.values.set_real(index(name), f64::NEG_INFINITY);
+            let failure = model.do_step(&mut ctx, 0.1, 0.1).unwrap_err();
+            assert!(
+                matches!(&failure, Failure::Error(t) if t.to_string().contains(&format!("`{name}` = -inf"))),
+                "{failure:?}"
+            );
+            let (_, _, estimator) = model.parts_mut();
+            assert_eq!(estimator.unwrap().dynamic_state(), before, "{name}");
+        }
     }
 
     #[test]

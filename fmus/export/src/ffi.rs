@@ -12,6 +12,13 @@
 //! this thread and prints nothing; the catching site logs it as `fmi2Fatal`. Panics outside
 //! an FMU call go to the hook that was there before. An FMU `cdylib` links its own `std`, so
 //! the hook is the FMU's and never the importing tool's.
+//!
+//! How the hook knows that its thread is inside a call: a call on an instance marks the
+//! instance's [`CallMarker`] with the identity of its thread (the thread pointer register,
+//! read without a thread-local access: a `cdylib`'s thread-locals cost a `__tls_get_addr`
+//! call each) and clears it on return; the hook, which runs only when a panic happens, looks
+//! for its own thread among the markers of the live instances. The calls that have no
+//! instance yet (`fmi2Instantiate`, the queries: [`guarded`]) set a thread-local flag instead.
 
 use crate::description::{Config, CONFIG_FILE};
 use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi2, Kind};
@@ -25,7 +32,8 @@ use std::cell::{Cell, RefCell};
 use std::ffi::{CStr, CString};
 use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::{Arc, Once};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, Once};
 
 /// Delivers log messages to the master's `fmi2CallbackLogger`, always with the format `"%s"`.
 pub struct CallbackSink {
@@ -76,6 +84,99 @@ thread_local! {
 
 static HOOK: Once = Once::new();
 
+/// Which thread runs a call on one instance (0: none): the [`thread_identity`] of the caller
+/// while [`guarded_call`] runs the call. Shared with [`MARKERS`], which the panic hook reads.
+#[derive(Debug, Default)]
+pub struct CallMarker(AtomicUsize);
+
+/// The markers of the live instances (added when a handle is made, removed when it is freed).
+static MARKERS: Mutex<Vec<Arc<CallMarker>>> = Mutex::new(Vec::new());
+
+impl CallMarker {
+    /// A marker, registered for the panic hook until [`CallMarker::unregister`].
+    pub(crate) fn registered() -> Arc<Self> {
+        let marker = Arc::new(Self::default());
+        MARKERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(Arc::clone(&marker));
+        marker
+    }
+
+    /// Removes the marker from the registry.
+    pub(crate) fn unregister(marker: &Arc<Self>) {
+        MARKERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .retain(|m| !Arc::ptr_eq(m, marker));
+    }
+
+    /// Whether a call on some live instance runs on thread `me` (the hook's question).
+    fn any_runs_on(me: usize) -> bool {
+        MARKERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .any(|m| m.0.load(Ordering::Relaxed) == me)
+    }
+}
+
+/// Whether this thread is inside an FMU call (the panic hook's question).
+fn inside_call() -> bool {
+    IN_CALL.with(Cell::get) || CallMarker::any_runs_on(thread_identity())
+}
+
+/// A number that identifies the running thread among the live ones, never 0: the thread
+/// pointer (x86-64 Linux `fs:0`, x86-64 Windows `gs:[0x30]`, the self pointers of the TCB and
+/// the TEB; AArch64 `tpidr_el0`), read with one instruction; elsewhere the address of a
+/// thread-local.
+#[inline(always)]
+fn thread_identity() -> usize {
+    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+    {
+        let tp: usize;
+        // SAFETY: the x86-64 System V TLS ABI keeps the thread pointer at fs:0 on every
+        // thread; the read has no other effect.
+        unsafe {
+            std::arch::asm!("mov {}, fs:0", out(reg) tp, options(nostack, readonly, preserves_flags))
+        };
+        tp
+    }
+    #[cfg(all(target_arch = "x86_64", target_os = "windows"))]
+    {
+        let tp: usize;
+        // SAFETY: on x86-64 Windows gs:[0x30] is the running thread's TEB self pointer; the
+        // read has no other effect.
+        unsafe {
+            std::arch::asm!("mov {}, gs:[0x30]", out(reg) tp, options(nostack, readonly, preserves_flags))
+        };
+        tp
+    }
+    #[cfg(all(target_arch = "aarch64", target_os = "linux"))]
+    {
+        let tp: usize;
+        // SAFETY: tpidr_el0 holds the running thread's thread pointer; reading it has no
+        // other effect.
+        unsafe {
+            std::arch::asm!("mrs {}, tpidr_el0", out(reg) tp, options(nostack, nomem, preserves_flags))
+        };
+        tp
+    }
+    #[cfg(not(any(
+        all(
+            target_arch = "x86_64",
+            any(target_os = "linux", target_os = "windows")
+        ),
+        all(target_arch = "aarch64", target_os = "linux")
+    )))]
+    {
+        thread_local! {
+            static ANCHOR: u8 = const { 0 };
+        }
+        ANCHOR.with(|a| a as *const u8 as usize)
+    }
+}
+
 /// Installs (once) the hook that keeps panics inside FMU calls off stderr (module docs).
 /// Called by [`guarded`] and, for the calls on an instance ([`guarded_call`]), once when the
 /// instance handle is made ([`crate::front::Slot::into_handle`]).
@@ -83,7 +184,7 @@ pub(crate) fn install_panic_hook() {
     HOOK.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            if IN_CALL.with(Cell::get) {
+            if inside_call() {
                 let mut text = panic_message(info.payload());
                 if let Some(location) = info.location() {
                     text.push_str(&format!(" (at {location})"));
@@ -100,18 +201,15 @@ pub(crate) fn install_panic_hook() {
 /// returned instead of printed.
 pub fn guarded<T>(body: impl FnOnce() -> T) -> Result<T, String> {
     install_panic_hook();
-    guarded_call(body).map_err(|payload| panic_text(payload.as_ref()))
+    guarded_flagged(body).map_err(|payload| panic_text(payload.as_ref()))
 }
 
 /// What a caught panic carries; [`panic_text`] turns it into the message to log.
 pub(crate) type Payload = Box<dyn std::any::Any + Send>;
 
-/// [`guarded`] once the hook is installed: the path of every call on an instance, whose
-/// handle installed it. One thread-local access (the address of the in-call flag, taken once:
-/// the body runs outside `LocalKey::with`, so it inlines into the entry point) and the
-/// unwinding landing pad; the panic's text is fetched on the cold path ([`panic_text`]).
+/// [`guarded`] once the hook is installed (without the thread-local flag).
 #[inline(always)]
-pub(crate) fn guarded_call<T>(body: impl FnOnce() -> T) -> Result<T, Payload> {
+fn guarded_flagged<T>(body: impl FnOnce() -> T) -> Result<T, Payload> {
     let flag: *const Cell<bool> = IN_CALL.with(|flag| flag as *const Cell<bool>);
     // SAFETY: the flag is this thread's, alive as long as the thread, which runs this call;
     // nothing else borrows it across the call (a `Cell`: no reference is handed out).
@@ -119,6 +217,19 @@ pub(crate) fn guarded_call<T>(body: impl FnOnce() -> T) -> Result<T, Payload> {
     let result = catch_unwind(AssertUnwindSafe(body));
     // SAFETY: as above.
     unsafe { (*flag).set(outer) };
+    result
+}
+
+/// The path of every call on an instance, whose handle installed the hook: `marker` (the
+/// instance's) holds this thread's identity while `body` runs, then what it held before (a
+/// load and two stores, no thread-local access), and the unwinding landing pad; the panic's
+/// text is fetched on the cold path ([`panic_text`]).
+#[inline(always)]
+pub(crate) fn guarded_call<T>(marker: &CallMarker, body: impl FnOnce() -> T) -> Result<T, Payload> {
+    let outer = marker.0.load(Ordering::Relaxed);
+    marker.0.store(thread_identity(), Ordering::Relaxed);
+    let result = catch_unwind(AssertUnwindSafe(body));
+    marker.0.store(outer, Ordering::Relaxed);
     result
 }
 
@@ -727,4 +838,54 @@ pub unsafe fn query_describe_with(
     // SAFETY: forwarded from the caller.
     let length = unsafe { write_answer(&text, out, capacity) };
     sign * isize::try_from(length).unwrap_or(isize::MAX)
+}
+
+#[cfg(test)]
+mod marker_tests {
+    use super::*;
+    use std::sync::mpsc;
+
+    #[test]
+    fn a_thread_is_inside_a_call_exactly_while_it_runs_one() {
+        install_panic_hook();
+        let marker = CallMarker::registered();
+        assert!(!inside_call());
+        assert_eq!(guarded_call(&marker, inside_call).ok(), Some(true));
+        assert!(!inside_call());
+        // a nested call on the same marker leaves it marked until the outer one returns
+        let nested = guarded_call(&marker, || {
+            let inner = guarded_call(&marker, inside_call).ok();
+            (inner, inside_call())
+        });
+        assert_eq!(nested.ok(), Some((Some(true), true)));
+        // a panic caught by the call clears the mark too
+        assert!(guarded_call(&marker, || panic!("caught")).is_err());
+        assert!(!inside_call());
+        assert!(panic_text(&()).contains("caught"));
+        // another thread inside a call on another instance: it is, this one is not
+        let other = CallMarker::registered();
+        let (entered, wait) = (mpsc::channel(), mpsc::channel::<()>());
+        let worker = {
+            let other = Arc::clone(&other);
+            let (entered, wait) = (entered.0, wait.1);
+            std::thread::spawn(move || {
+                guarded_call(&other, || {
+                    entered.send((thread_identity(), inside_call())).unwrap();
+                    wait.recv().unwrap();
+                })
+                .is_ok()
+            })
+        };
+        let (identity, inside) = entered.1.recv().unwrap();
+        assert!(inside);
+        assert_ne!(identity, thread_identity());
+        assert_ne!(identity, 0);
+        assert!(!inside_call(), "the other thread's call is not this one's");
+        wait.0.send(()).unwrap();
+        assert!(worker.join().unwrap());
+        // an unregistered marker is not looked at
+        CallMarker::unregister(&marker);
+        assert!(guarded_call(&marker, inside_call).is_ok_and(|inside| !inside));
+        CallMarker::unregister(&other);
+    }
 }

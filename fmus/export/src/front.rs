@@ -9,7 +9,7 @@
 //! path serves them.
 
 use crate::description::{Config, ModelInfo, CONFIG_FILE};
-use crate::ffi::{guarded, guarded_call, slice, string_arg};
+use crate::ffi::{guarded, guarded_call, slice, string_arg, CallMarker};
 use crate::fmi3::arrays::Layout;
 use crate::instance::{Access, Core, Function, Instance};
 use crate::model::{Cause, FmuModel};
@@ -39,10 +39,48 @@ pub struct Interface {
     pub computed: Vec<std::ops::Range<usize>>,
     /// Whether a String is in a run (the texts are then copied too).
     pub computed_texts: bool,
+    /// When the model computes one run of at most [`WINDOW`] values (a scalar filter's
+    /// outputs): the [`WINDOW`] consecutive values that hold it, copied and scanned as a fixed
+    /// block instead of the run.
+    pub window: Option<Window>,
     /// The FMI 3.0 variables (arrays) over the table.
     pub layout: Layout,
     /// By FMI 3.0 value reference: the scalars it names, for the get/set fast path.
     pub spans: Vec<Span>,
+}
+
+/// The number of values of a [`Window`].
+pub const WINDOW: usize = 4;
+
+/// [`WINDOW`] consecutive values from `start` that hold the one run of computed values:
+/// `lanes[k]` says whether value `start + k` is in the run (the others, parameters or inputs,
+/// are copied with it and otherwise ignored).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    /// The index of the first value.
+    pub start: usize,
+    /// Which of the values belong to the run.
+    pub lanes: [bool; WINDOW],
+    /// The lanes as bit masks (all ones in the run, zero outside), for the branch-free scan.
+    pub(crate) keep: [u64; WINDOW],
+}
+
+impl Window {
+    /// The window of `computed` in a table of `len` values: `Some` when `computed` is one
+    /// run of at most [`WINDOW`] values and the table holds at least [`WINDOW`].
+    pub fn of(computed: &[std::ops::Range<usize>], len: usize) -> Option<Self> {
+        let [run] = computed else { return None };
+        if run.is_empty() || run.len() > WINDOW || len < WINDOW || run.end > len {
+            return None;
+        }
+        let start = run.start.min(len - WINDOW);
+        let lanes = std::array::from_fn(|k| run.contains(&(start + k)));
+        Some(Self {
+            start,
+            lanes,
+            keep: lanes.map(|lane| if lane { u64::MAX } else { 0 }),
+        })
+    }
 }
 
 /// The scalars an FMI 3.0 value reference names: `len` consecutive table entries from
@@ -81,6 +119,7 @@ impl Interface {
             }))
             .collect();
         Self {
+            window: Window::of(&computed, info.variables.len()),
             info,
             access,
             computed,
@@ -138,6 +177,8 @@ pub struct Slot<M: FmuModel, X = ()> {
     states: Vec<*mut Core<M>>,
     /// Keeps the strings returned by `fmi*GetString` alive until the next call.
     strings: Vec<CString>,
+    /// Which thread runs a call on the slot, for the panic hook ([`crate::ffi`]).
+    marker: Arc<CallMarker>,
 }
 
 impl<M: FmuModel, X> Slot<M, X> {
@@ -148,6 +189,7 @@ impl<M: FmuModel, X> Slot<M, X> {
             extra,
             states: Vec::new(),
             strings: Vec::new(),
+            marker: CallMarker::registered(),
         }
     }
 
@@ -188,6 +230,7 @@ impl<M: FmuModel, X> Slot<M, X> {
 
 impl<M: FmuModel, X> Drop for Slot<M, X> {
     fn drop(&mut self) {
+        CallMarker::unregister(&self.marker);
         for p in self.states.drain(..) {
             // SAFETY: every pointer in `states` came from `Box::into_raw` and is removed from the
             // list when freed, so each is freed exactly once.
@@ -212,7 +255,7 @@ pub unsafe fn free_slot<M: FmuModel, X>(c: *mut c_void) {
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics (the
 /// instance is then `Fatal`); the status as its C code. Inlined into every entry point: the
-/// fixed cost of a call is the null check, one thread-local flag, the state mask test.
+/// fixed cost of a call is the null check, the call marker (two stores), the state mask test.
 ///
 /// # Safety
 /// `c` must be NULL or a live handle of a `Slot<M, X>` (the master's obligation).
@@ -226,7 +269,11 @@ pub unsafe fn with_slot<M: FmuModel, X>(
         return Status::Error.code();
     }
     let slot = c as *mut Slot<M, X>;
-    let result = guarded_call(|| {
+    // SAFETY: `c` is non-null and a live slot (the caller's obligation); the marker lives in
+    // its own allocation (the slot's `Arc`), outside the memory the call borrows mutably, as
+    // long as the slot, which outlives the call.
+    let marker: &CallMarker = unsafe { &*Arc::as_ptr(&(*slot).marker) };
+    let result = guarded_call(marker, || {
         // SAFETY: `c` is non-null and a live slot (the caller's obligation); no other reference
         // to the slot is alive during the call.
         let slot = unsafe { &mut *slot };

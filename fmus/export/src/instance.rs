@@ -30,7 +30,7 @@
 
 use crate::bytes::{ByteReader, ByteWriter, StateFormatError};
 use crate::description::ModelInfo;
-use crate::front::Interface;
+use crate::front::{Interface, WINDOW};
 use crate::me::Hooks;
 use crate::model::{Cause, Context, Failure, FmuModel, LogMessage, EVENTS};
 use crate::types::Status;
@@ -449,6 +449,8 @@ pub struct Instance<M: FmuModel> {
     /// current call (a reused buffer), restored when the call produces a
     /// non-finite value.
     before: Vec<f64>,
+    /// The values of the [`Interface::window`] before the current call, when it has one.
+    before_window: [f64; WINDOW],
     /// The String texts before the current call, when a String is among the computed
     /// variables ([`Interface::computed_texts`]).
     before_texts: Vec<(usize, String)>,
@@ -471,6 +473,7 @@ impl<M: FmuModel> Instance<M> {
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
             before: vec![0.0; interface.computed_len()],
+            before_window: [0.0; WINDOW],
             interface,
             logger,
             me: None,
@@ -593,24 +596,31 @@ impl<M: FmuModel> Instance<M> {
     fn save_computed(&mut self) {
         let numbers = self.core.values.numbers();
         let mut to = self.before.as_mut_slice();
-        match &self.interface.computed[..] {
-            // the common table: outputs in one block (no loop, one copy)
-            [run] => {
-                if let Some(from) = numbers.get(run.clone()) {
-                    if from.len() == to.len() && !copy_short(to, from) {
-                        to.copy_from_slice(from);
+        if let Some(window) = &self.interface.window {
+            // a fixed block (two vector moves), whatever the run's length
+            if let Some(from) = numbers.get(window.start..window.start + WINDOW) {
+                self.before_window.copy_from_slice(from);
+            }
+        } else {
+            match &self.interface.computed[..] {
+                // the common table: outputs in one block (no loop, one copy)
+                [run] => {
+                    if let Some(from) = numbers.get(run.clone()) {
+                        if from.len() == to.len() && !copy_short(to, from) {
+                            to.copy_from_slice(from);
+                        }
                     }
                 }
-            }
-            runs => {
-                for run in runs {
-                    let (Some(from), Some((head, tail))) =
-                        (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
-                    else {
-                        break;
-                    };
-                    head.copy_from_slice(from);
-                    to = tail;
+                runs => {
+                    for run in runs {
+                        let (Some(from), Some((head, tail))) =
+                            (numbers.get(run.clone()), to.split_at_mut_checked(run.len()))
+                        else {
+                            break;
+                        };
+                        head.copy_from_slice(from);
+                        to = tail;
+                    }
                 }
             }
         }
@@ -626,15 +636,25 @@ impl<M: FmuModel> Instance<M> {
     fn restore_computed(&mut self) {
         let numbers = self.core.values.numbers_mut();
         let mut from = self.before.as_slice();
-        for run in &self.interface.computed {
-            let (Some(to), Some((head, tail))) = (
-                numbers.get_mut(run.clone()),
-                from.split_at_checked(run.len()),
-            ) else {
-                break;
-            };
-            to.copy_from_slice(head);
-            from = tail;
+        if let Some(window) = &self.interface.window {
+            if let Some(to) = numbers.get_mut(window.start..window.start + WINDOW) {
+                for ((to, from), lane) in to.iter_mut().zip(self.before_window).zip(window.lanes) {
+                    if lane {
+                        *to = from;
+                    }
+                }
+            }
+        } else {
+            for run in &self.interface.computed {
+                let (Some(to), Some((head, tail))) = (
+                    numbers.get_mut(run.clone()),
+                    from.split_at_checked(run.len()),
+                ) else {
+                    break;
+                };
+                to.copy_from_slice(head);
+                from = tail;
+            }
         }
         if self.interface.computed_texts {
             self.core.values.texts_mut().clone_from(&self.before_texts);
@@ -645,6 +665,19 @@ impl<M: FmuModel> Instance<M> {
     #[inline(always)]
     fn computed_finite(&self) -> bool {
         let numbers = self.core.values.numbers();
+        if let Some(window) = &self.interface.window {
+            // Branch-free, a few vector instructions: a lane of the run times 0 is ±0 when it
+            // is finite and NaN when not; the other lanes are masked to +0 first.
+            let Some(xs) = numbers
+                .get(window.start..)
+                .and_then(|n| n.first_chunk::<WINDOW>())
+            else {
+                return true;
+            };
+            let z: [f64; WINDOW] =
+                std::array::from_fn(|k| f64::from_bits(xs[k].to_bits() & window.keep[k]) * 0.0);
+            return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
+        }
         match &self.interface.computed[..] {
             [run] => numbers.get(run.clone()).is_none_or(|xs| match xs.len() {
                 // a short run (a scalar filter's outputs) value by value, no lanes to set up
@@ -1583,5 +1616,152 @@ mod short_run_tests {
         assert!(!copy_short(&mut to[..2], &from[..3]));
         assert!(!copy_short(&mut to[..0], &from[..0]));
         assert_eq!(to, [0.0; 5]);
+    }
+}
+
+#[cfg(test)]
+mod window_tests {
+    use crate::front::{Window, WINDOW};
+    use crate::harness::Harness;
+    use crate::types::Status;
+    use crate::variables::computed_runs;
+    use crate::{ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo};
+    use crate::{Variable, VariableType};
+
+    /// Outputs `y[k] = gain · u + k` at the variables the configuration `names` puts them
+    /// (`u`, `gain`, `y1`…); `y[last]` comes out NaN when `u = 7`.
+    #[derive(Debug, Clone)]
+    struct Short {
+        u: usize,
+        gain: usize,
+        y: Vec<usize>,
+    }
+
+    fn layout(config: &Config) -> Vec<String> {
+        config
+            .get("names")
+            .unwrap_or("u gain y y y")
+            .split(' ')
+            .map(str::to_string)
+            .collect()
+    }
+
+    impl FmuModel for Short {
+        fn describe(config: &Config) -> Result<ModelInfo, Cause> {
+            let variables = layout(config)
+                .iter()
+                .enumerate()
+                .map(|(k, name)| match name.as_str() {
+                    "u" => Variable::input("u", 0.0),
+                    "y" => Variable::output(&format!("y{k}")),
+                    other => Variable::parameter(&format!("{other}{k}"), 2.0),
+                })
+                .collect();
+            Ok(ModelInfo::new(
+                "Short",
+                "short",
+                variables,
+                None,
+                config.clone(),
+            ))
+        }
+        fn create(info: &ModelInfo) -> Result<Self, Cause> {
+            let names = layout(&info.config);
+            let at = |n: &str| names.iter().position(|m| m == n).unwrap_or(0);
+            Ok(Self {
+                u: at("u"),
+                gain: at("gain"),
+                y: (0..names.len()).filter(|&k| names[k] == "y").collect(),
+            })
+        }
+        fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
+            self.do_step(ctx, 0.0, 0.0)
+        }
+        fn do_step(&mut self, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
+            let (u, gain) = (ctx.values.real(self.u), ctx.values.real(self.gain));
+            for (k, &y) in self.y.iter().enumerate() {
+                let last = k + 1 == self.y.len();
+                let v = if last && u == 7.0 {
+                    f64::NAN
+                } else {
+                    gain * u + k as f64
+                };
+                ctx.values.set_real(y, v);
+            }
+            Ok(())
+        }
+        fn save_state(&self, out: &mut ByteWriter) {
+            out.put_u64(self.y.len() as u64);
+        }
+        fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
+            match input.u64()? {
+                n if n == self.y.len() as u64 => Ok(()),
+                n => Err(format!("{n} outputs saved, {} here", self.y.len()).into()),
+            }
+        }
+    }
+
+    #[test]
+    fn a_short_run_is_checked_in_its_window_and_a_failed_step_loses_nothing() {
+        for (names, window) in [
+            ("u gain y y y", Some((1, [false, true, true, true]))),
+            ("y u gain", None),
+            ("u y gain gain", Some((0, [false, true, false, false]))),
+            (
+                "gain gain u gain y y",
+                Some((2, [false, false, true, true])),
+            ),
+            ("gain y y y y u", Some((1, [true, true, true, true]))),
+            ("u y y y y y", None),
+        ] {
+            let mut config = Config::new();
+            config.set("names", names);
+            let info = Short::describe(&config).unwrap();
+            let runs = computed_runs(&info.variables);
+            let found = Window::of(&runs, info.variables.len());
+            assert_eq!(found.map(|w| (w.start, w.lanes)), window, "{names}");
+            if let Some(w) = found {
+                // the lanes are exactly the run
+                let lanes: Vec<usize> = (0..WINDOW)
+                    .filter(|&k| w.lanes[k])
+                    .map(|k| w.start + k)
+                    .collect();
+                assert_eq!(lanes, runs[0].clone().collect::<Vec<_>>(), "{names}");
+            }
+            let mut h = Harness::<Short>::new(&config).unwrap();
+            let u = info.index_of("u").unwrap() as u32;
+            h.initialize(0.0).unwrap();
+            h.set_real(&[u], &[1.5]).unwrap();
+            h.do_step(0.0, 1.0).unwrap();
+            let reals: Vec<u32> = (0..info.variables.len() as u32).collect();
+            let read = |h: &mut Harness<Short>| {
+                let mut out = vec![0.0; reals.len()];
+                h.get_real(&reals, &mut out).unwrap();
+                out
+            };
+            let before = read(&mut h);
+            assert!(before.iter().all(|v| v.is_finite()));
+            h.set_real(&[u], &[7.0]).unwrap();
+            assert_eq!(h.do_step(1.0, 1.0), Err(Status::Error), "{names}");
+            let mut after = read(&mut h);
+            after[u as usize] = 1.5;
+            assert_eq!(after, before, "{names}: the outputs as they were");
+            let last_y = info
+                .variables
+                .iter()
+                .rposition(|v| v.name.starts_with('y'))
+                .unwrap();
+            let (_, _, text) = h.log().pop().unwrap();
+            assert!(
+                text.contains(&format!(
+                    "variable `y{last_y}` (value reference {last_y}) came out as NaN"
+                )),
+                "{names}: {text}"
+            );
+            assert!(info
+                .variables
+                .iter()
+                .all(|v| v.variable_type() == VariableType::Real));
+        }
     }
 }

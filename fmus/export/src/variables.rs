@@ -523,6 +523,25 @@ impl Values {
             self.numbers[index] = value;
         }
     }
+    /// Sets the Reals at `first`, `first + 1`, … to `values` (nothing when one of them is
+    /// not a Real): a model's outputs declared one after the other, written at once.
+    #[inline]
+    pub fn set_reals<const N: usize>(&mut self, first: usize, values: [f64; N]) {
+        let types = self.types.get(first..).and_then(|t| t.first_chunk::<N>());
+        let slots = self
+            .numbers
+            .get_mut(first..)
+            .and_then(|n| n.first_chunk_mut::<N>());
+        if let (Some(types), Some(slots)) = (types, slots) {
+            // every type compared (no early exit): unrolled for the N of the call
+            if types
+                .iter()
+                .fold(true, |all, t| all & (*t == VariableType::Real))
+            {
+                *slots = values;
+            }
+        }
+    }
     /// The Integer at `index` (0 if it is not an Integer).
     pub fn integer(&self, index: usize) -> i32 {
         match self.types.get(index) {
