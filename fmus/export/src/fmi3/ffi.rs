@@ -456,7 +456,17 @@ unsafe fn read<M: FmuModel>(
     if let Err(message) = check_references(s, vrs, expected, n_values) {
         return s.instance.reject(f, &message);
     }
-    let status = s.instance.refresh_outputs(f);
+    let mut status = s.instance.refresh_outputs(f);
+    if status <= Status::Warning {
+        let interface = Arc::clone(s.instance.interface());
+        let read = vrs
+            .iter()
+            .flat_map(|&vr| match interface.layout.target(vr) {
+                Some(Target::Variable(v)) => v.indices(),
+                _ => 0..0,
+            });
+        status = status.max(s.instance.indicators_for(f, read));
+    }
     if status > Status::Warning {
         return status;
     }

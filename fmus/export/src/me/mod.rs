@@ -189,6 +189,47 @@ impl ModelExchangeInfo {
     }
 }
 
+/// The event indicators of a Model Exchange instance, computed when they are read: by
+/// `fmi2GetEventIndicators`/`fmi3GetEventIndicators`, or by a getter of an indicator's
+/// variable. An evaluation (after states, inputs or time changed) only marks them pending, so
+/// an integration loop that reads derivatives alone makes one model call per evaluation.
+#[derive(Debug, Clone, Default)]
+pub struct Indicators {
+    /// Where the model writes them (one element per indicator, allocated at instantiation:
+    /// no allocation when they are computed).
+    buffer: Vec<f64>,
+    /// The indicators' variables are older than the last evaluation (never set for a model
+    /// without indicators).
+    pub(crate) pending: bool,
+}
+
+impl Indicators {
+    /// The buffer for `n` indicators, none pending.
+    pub fn new(n: usize) -> Self {
+        Self {
+            buffer: vec![0.0; n],
+            pending: false,
+        }
+    }
+
+    /// After an evaluation or a restored FMU state: the indicators' variables are stale (if
+    /// the model has any).
+    pub(crate) fn invalidate(&mut self) {
+        self.pending = !self.buffer.is_empty();
+    }
+
+    /// The buffer the model writes into, moved out for the model call (the instance is
+    /// borrowed by it); [`Indicators::put_back`] returns it.
+    pub(crate) fn take(&mut self) -> Vec<f64> {
+        std::mem::take(&mut self.buffer)
+    }
+
+    /// Returns the buffer [`Indicators::take`] lent.
+    pub(crate) fn put_back(&mut self, buffer: Vec<f64>) {
+        self.buffer = buffer;
+    }
+}
+
 /// The [`ModelExchange`] functions of a model, as plain function pointers: what
 /// `export_fmu!(Model, model_exchange)` hands the version-neutral instance, so the shared code
 /// needs no `ModelExchange` bound and models without it export the same symbols (which then
