@@ -498,6 +498,99 @@ unsafe fn read<M: FmuModel>(
     status
 }
 
+/// The value references a set call's fast path ([`set_fast`]) keeps on the stack: the
+/// master's calls (the inputs of one instance) name at most this many.
+const SCALARS: usize = 16;
+
+/// The get call's path for scalars: when nothing must be computed first and every reference
+/// names one scalar of type `expected` (the common call: no arrays, `nValues = nvr`), the
+/// values into `out`, each through `to_c`, with one span look-up and one load a value;
+/// `None` otherwise ([`read_fast`], then [`read`], handle it).
+#[inline(always)]
+fn read_scalars<M: FmuModel, C>(
+    instance: &Instance<M>,
+    expected: VariableType,
+    vrs: &[u32],
+    out: &mut [C],
+    to_c: impl Fn(f64) -> C,
+) -> Option<Status> {
+    if vrs.len() != out.len() || instance.needs_refresh() {
+        return None;
+    }
+    let (spans, numbers) = (&instance.interface.spans, instance.core.values.numbers());
+    let type_bit = Access::type_bit(expected);
+    for (o, &vr) in out.iter_mut().zip(vrs) {
+        let span = spans.get(vr as usize)?;
+        if span.len != 1 || span.type_bit != type_bit {
+            return None;
+        }
+        *o = to_c(*numbers.get(span.first as usize)?);
+    }
+    Some(Status::Ok)
+}
+
+/// The set call's fast path: when every reference (at most [`SCALARS`] of them) names
+/// variables that may be set now to their values (type, state, bounds and finiteness from
+/// each scalar's [`Access`]) and the values fill `values` exactly (arrays row-major), the
+/// values stored. Each reference is looked up once: its span is kept on the stack between the
+/// check and the store, so that a rejected call changes nothing. `None` otherwise, and the
+/// general path checks again and says why.
+#[inline(always)]
+fn set_fast<M: FmuModel, C: Copy>(
+    instance: &mut Instance<M>,
+    f: &Function,
+    actual: VariableType,
+    (vrs, values): (&[u32], &[C]),
+    to_number: impl Fn(C) -> f64,
+) -> Option<Status> {
+    if vrs.len() > SCALARS {
+        return None;
+    }
+    let need = instance.core.state.bit() | Access::type_bit(actual);
+    let (spans, access) = (&instance.interface.spans, &instance.interface.access);
+    let mut at = [(0u32, 0u32); SCALARS];
+    let (mut flags, mut k) = (0, 0);
+    let allowed = |a: &Access, x: f64| a.bits & need == need && x >= a.min && x <= a.max;
+    for (span_at, &vr) in at.iter_mut().zip(vrs) {
+        let span = spans.get(vr as usize)?;
+        let (first, len) = (span.first as usize, span.len as usize);
+        if len == 1 {
+            let (a, x) = (access.get(first)?, to_number(*values.get(k)?));
+            if !allowed(a, x) {
+                return None;
+            }
+            flags |= a.bits;
+        } else {
+            // time (len 0) is not set through here
+            let xs = values.get(k..k + len).filter(|_| len > 0)?;
+            for (a, &v) in access.get(first..first + len)?.iter().zip(xs) {
+                if !allowed(a, to_number(v)) {
+                    return None;
+                }
+                flags |= a.bits;
+            }
+        }
+        *span_at = (span.first, span.len);
+        k += len;
+    }
+    if k != values.len() {
+        return None;
+    }
+    let numbers = instance.core.values.numbers_mut();
+    let mut k = 0;
+    for &(first, len) in &at[..vrs.len()] {
+        let (first, len) = (first as usize, len as usize);
+        if let (Some(to), Some(xs)) = (numbers.get_mut(first..first + len), values.get(k..k + len))
+        {
+            for (slot, &v) in to.iter_mut().zip(xs) {
+                *slot = to_number(v);
+            }
+        }
+        k += len;
+    }
+    Some(instance.values_set(f, flags))
+}
+
 /// The get call's fast path: when nothing must be computed first and every reference names
 /// variables of type `expected` whose values fill `out` exactly, the values (arrays
 /// row-major, `time` for value reference 0) into `out`, each through `to_c`; `None`
@@ -569,6 +662,9 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
             // SAFETY: `vr` and `out` are NULL or hold `nvr` and `n_values` elements (FMI
             // contract).
             if let (Some(vrs), Some(to)) = (slice(vr, nvr), slice_mut(out, n_values)) {
+                if let Some(status) = read_scalars(&s.instance, K::TYPE, vrs, to, K::to_c) {
+                    return status;
+                }
                 if let Some(status) = read_fast(s, K::TYPE, vrs, to, K::to_c) {
                     return status;
                 }
@@ -663,6 +759,10 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
+            let call = (vrs, raw);
+            if let Some(status) = set_fast(&mut s.instance, f, K::TYPE, call, K::to_number) {
+                return status;
+            }
             if let Some(status) = s.instance.set_spans(f, K::TYPE, vrs, raw, K::to_number) {
                 return status;
             }
