@@ -23,6 +23,10 @@
  * all Reals are read. A Co-Simulation instance of such an FMU gets a few of these calls too
  * (each must be refused).
  *
+ * An FMI 3.0 FMU with Model Exchange (manifest version 3, from build/fmus/fmi3) is driven
+ * through the FMI 3.0 Model Exchange state machine likewise (see "FMI 3.0 Model Exchange"
+ * below), with the same checks.
+ *
  * A crash, a hang or an AddressSanitizer report ends the process (the run script reports it).
  *
  *   driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE [DUMP_FILE]]]
@@ -148,6 +152,7 @@ typedef struct {
 } Var;
 
 static char label[128], model_id[128], guid[128], library[1024], resources[1200];
+static int version = 2;    /* the FMI version of the manifest's FMU */
 static int model_exchange; /* the FMU offers Model Exchange too: fmi2ModelExchange is valid */
 static int nz;             /* its event indicators */
 static int nx;             /* its continuous states: state_vr[k], their derivatives der_vr[k] */
@@ -289,10 +294,10 @@ static fmi2Status end(Inst *in, const char *what, int mask, fmi2Status s) {
     }
     if (ms > bound_ms) finding(what, "took %.0f ms (bound %.0f ms)", ms, bound_ms);
     if (s == fmi2Fatal) {
-        finding(what, "fmi2Fatal: %s", in->last);
+        finding(what, "%s: %s", version == 3 ? "fmi3Fatal" : "fmi2Fatal", in->last);
         in->possible = S_FATAL;
     }
-    if (s < fmi2OK || s > fmi2Fatal) finding(what, "status %d is not an fmi2Status here", s);
+    if (s < fmi2OK || s > fmi2Fatal) finding(what, "status %d is not a status here", s);
     if (s >= fmi2Discard && in->log_count == 0) finding(what, "returned %d without logging why", s);
     if (in->bad_format) {
         finding(what, "logged with a format other than \"%%s\"");
@@ -932,6 +937,506 @@ static void random_call(Inst *in) {
     }
 }
 
+/* ---- FMI 3.0 Model Exchange ---------------------------------------------------------- */
+/* An FMI 3.0 FMU (manifest version 3) with Model Exchange: instantiated mostly for Model
+ * Exchange (fmi3InstantiateModelExchange), now and then for Co-Simulation (whose instances must
+ * refuse every Model Exchange call), and driven through the FMI 3.0 Model Exchange state
+ * machine -- Instantiated -> Initialization Mode -> Event Mode <-> Continuous-Time Mode ->
+ * Terminated -- with the same checks, in and out of the modes: fmi3SetTime,
+ * fmi3Set/GetContinuousStates, fmi3GetContinuousStateDerivatives, fmi3GetEventIndicators,
+ * fmi3GetNominalsOfContinuousStates, fmi3GetNumberOf{EventIndicators,ContinuousStates},
+ * fmi3EnterEventMode, fmi3UpdateDiscreteStates, fmi3EnterContinuousTimeMode,
+ * fmi3CompletedIntegratorStep, fmi3GetDirectionalDerivative, fmi3Get/SetFloat64, Int32,
+ * Boolean (wrong nValues too), FMU states (own, freed, serialized, corrupted), fmi3Terminate,
+ * fmi3Reset. */
+typedef void *fmi3Instance;
+typedef void *fmi3FMUState;
+typedef unsigned int fmi3ValueReference;
+typedef double fmi3Float64;
+typedef int fmi3Int32;
+typedef _Bool fmi3Boolean;
+typedef int fmi3Status; /* fmi3OK .. fmi3Fatal: the same numbers as fmi2OK .. fmi2Fatal */
+typedef void (*fmi3LogMessageCallback)(void *, fmi3Status, const char *, const char *);
+
+static int counts[4096]; /* FMI 3.0: elements of the variable with each value reference (0: 1) */
+static int count_of(unsigned vr) { return vr < 4096 && counts[vr] ? counts[vr] : 1; }
+
+static struct {
+    fmi3Instance (*InstantiateModelExchange)(const char *, const char *, const char *, fmi3Boolean,
+                                             fmi3Boolean, void *, fmi3LogMessageCallback);
+    fmi3Instance (*InstantiateCoSimulation)(const char *, const char *, const char *, fmi3Boolean,
+                                            fmi3Boolean, fmi3Boolean, fmi3Boolean,
+                                            const fmi3ValueReference *, size_t, void *,
+                                            fmi3LogMessageCallback, void *);
+    void (*FreeInstance)(fmi3Instance);
+    fmi3Status (*EnterInitializationMode)(fmi3Instance, fmi3Boolean, fmi3Float64, fmi3Float64,
+                                          fmi3Boolean, fmi3Float64);
+    fmi3Status (*ExitInitializationMode)(fmi3Instance);
+    fmi3Status (*Terminate)(fmi3Instance);
+    fmi3Status (*Reset)(fmi3Instance);
+    fmi3Status (*GetFloat64)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Float64 *, size_t);
+    fmi3Status (*GetInt32)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Int32 *, size_t);
+    fmi3Status (*GetBoolean)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Boolean *, size_t);
+    fmi3Status (*SetFloat64)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                             size_t);
+    fmi3Status (*SetInt32)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Int32 *, size_t);
+    fmi3Status (*SetBoolean)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Boolean *,
+                             size_t);
+    fmi3Status (*GetFMUState)(fmi3Instance, fmi3FMUState *);
+    fmi3Status (*SetFMUState)(fmi3Instance, fmi3FMUState);
+    fmi3Status (*FreeFMUState)(fmi3Instance, fmi3FMUState *);
+    fmi3Status (*SerializedFMUStateSize)(fmi3Instance, fmi3FMUState, size_t *);
+    fmi3Status (*SerializeFMUState)(fmi3Instance, fmi3FMUState, unsigned char *, size_t);
+    fmi3Status (*DeserializeFMUState)(fmi3Instance, const unsigned char *, size_t, fmi3FMUState *);
+    fmi3Status (*SetTime)(fmi3Instance, fmi3Float64);
+    fmi3Status (*SetContinuousStates)(fmi3Instance, const fmi3Float64 *, size_t);
+    fmi3Status (*GetArray[4])(fmi3Instance, fmi3Float64 *, size_t); /* states, derivatives,
+                                                                        indicators, nominals */
+    fmi3Status (*GetNumber[2])(fmi3Instance, size_t *); /* event indicators, states */
+    fmi3Status (*EnterEventMode)(fmi3Instance);
+    fmi3Status (*EnterContinuousTimeMode)(fmi3Instance);
+    fmi3Status (*UpdateDiscreteStates)(fmi3Instance, fmi3Boolean *, fmi3Boolean *, fmi3Boolean *,
+                                       fmi3Boolean *, fmi3Boolean *, fmi3Float64 *);
+    fmi3Status (*CompletedIntegratorStep)(fmi3Instance, fmi3Boolean, fmi3Boolean *, fmi3Boolean *);
+    fmi3Status (*GetDirectionalDerivative)(fmi3Instance, const fmi3ValueReference *, size_t,
+                                           const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                                           size_t, fmi3Float64 *, size_t);
+} G;
+
+/* The FMI 3.0 state machine's masks for a Model Exchange instance (FMI 3.0.2 section 3.3);
+   S_STEP is never reached. */
+#define ME3_GETTABLE (S_INIT | ME_MODES | S_TERMINATED | S_ERROR)
+#define ME3_SETTABLE (S_INSTANTIATED | S_INIT | ME_MODES)
+
+/* fmi3LogMessageCallback: the message is plain text (no format). */
+static void logger3(void *env, fmi3Status status, const char *category, const char *message) {
+    Inst *in = (Inst *)env;
+    (void)category;
+    if (!in) return;
+    if (!message) {
+        in->bad_format = 1;
+        return;
+    }
+    if (status >= fmi2Discard) {
+        in->log_count++;
+        snprintf(in->last, sizeof in->last, "%s", message);
+    }
+}
+
+static void instantiate3(Inst *in) {
+    char name[32];
+    const char *token = guid;
+    int variant = pick(12);
+    int cs = variant == 3 || (variant > 4 && pick(6) == 0);
+    snprintf(name, sizeof name, "i%d", (int)(in - inst));
+    in->log_count = 0;
+    if (variant == 0) token = "{00000000-0000-0000-0000-000000000000}";
+    t0 = now_ms();
+    call_no++;
+    calls_total++;
+    const char *n = variant == 2 ? "" : variant == 4 ? NULL : name;
+    const char *res = variant == 1 ? NULL : resources;
+    in->c = cs ? G.InstantiateCoSimulation(n, token, res, 0, pick(2), 0, 0, NULL, 0, in, logger3, NULL)
+               : G.InstantiateModelExchange(n, token, res, 0, pick(2), in, logger3);
+    const char *what = cs ? "fmi3InstantiateCoSimulation" : "fmi3InstantiateModelExchange";
+    if (!in->c) {
+        if (variant > 4 || variant == 3) finding(what, "returned NULL for a valid call: %s", in->last);
+        if (variant != 1 && in->log_count == 0) finding(what, "returned NULL without logging why");
+        return;
+    }
+    if (variant == 0 || variant == 2 || variant == 4)
+        finding(what, "accepted an invalid call (case %d)", variant);
+    in->possible = S_INSTANTIATED;
+    in->me = !cs;
+    in->time = 0;
+    in->time_known = 1;
+    in->nstates = 0;
+}
+
+static void free_instance3(Inst *in) {
+    call_no++;
+    calls_total++;
+    G.FreeInstance(in->c);
+    in->c = NULL;
+    in->nstates = 0;
+}
+
+/* Every Float64 read at once (arrays whole); each must be finite when fmi3OK. */
+static void check_all_reals3(Inst *in, const char *after) {
+    fmi3ValueReference *vr = malloc(sizeof *vr * (nvars + 1));
+    int n = 0, nvalues = 0, i;
+    fmi3Float64 *x;
+    fmi3Status s;
+    for (i = 0; i < nvars; i++)
+        if (vars[i].type == 'R') {
+            vr[n++] = vars[i].vr;
+            nvalues += count_of(vars[i].vr);
+        }
+    x = malloc(sizeof *x * (nvalues + 1));
+    begin(in);
+    s = G.GetFloat64(in->c, vr, n, x, nvalues);
+    end(in, "fmi3GetFloat64(all)", ME3_GETTABLE | S_STEP, s);
+    me_failed(in, s);
+    if (s == fmi2OK)
+        for (i = 0; i < nvalues; i++)
+            if (!isfinite(x[i])) {
+                finding("fmi3GetFloat64", "after %s: element %d = %g with fmi3OK", after, i, x[i]);
+                break;
+            }
+    free(vr);
+    free(x);
+}
+
+/* One checked array read of the Model Exchange interface (`which`: states, derivatives,
+   indicators, nominals); `expected` is the model's size. */
+static fmi3Status me3_get_array(Inst *in, int which, fmi3Float64 *x, size_t n, int expected) {
+    static const char *const names[] = {"fmi3GetContinuousStates",
+                                        "fmi3GetContinuousStateDerivatives",
+                                        "fmi3GetEventIndicators",
+                                        "fmi3GetNominalsOfContinuousStates"};
+    int mask = which == 3 ? ME3_GETTABLE | S_INSTANTIATED : ME3_GETTABLE;
+    fmi3Float64 *out = n && pick(25) == 0 ? NULL : x;
+    fmi3Status s;
+    begin(in);
+    s = G.GetArray[which](in->c, out, n);
+    end(in, names[which], in->me ? mask : 0, s);
+    if (s <= fmi2Warning && n != (size_t)expected)
+        finding(names[which], "accepted %zu elements where the model has %d", n, expected);
+    if (s <= fmi2Warning && !out && n) finding(names[which], "accepted a NULL array of %zu elements", n);
+    if (s == fmi2OK && out && n == (size_t)expected) me_finite(names[which], out, n);
+    me_failed(in, s);
+    return s;
+}
+
+/* One checked call of a function that takes the instance alone; a model failure (not an
+   illegal call) may leave a Model Exchange or a Co-Simulation instance in Error state. */
+static fmi3Status plain3(Inst *in, fmi3Status (*call)(fmi3Instance), const char *what, int mask) {
+    fmi3Status s;
+    begin(in);
+    s = call(in->c);
+    end(in, what, mask, s);
+    if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
+    return s;
+}
+
+/* fmi3EnterInitializationMode with a start time (sometimes nasty) and a stop time. */
+static void enter_init3(Inst *in) {
+    double start = pick(6) == 0 ? nasty_real(NULL) : 0.0;
+    double stop = pick(4) == 0 ? nasty_real(NULL) : start + 10.0;
+    fmi3Status s;
+    begin(in);
+    s = G.EnterInitializationMode(in->c, pick(2), pick(8) ? 1e-6 : nasty_real(NULL), start, pick(2), stop);
+    end(in, "fmi3EnterInitializationMode", S_INSTANTIATED, s);
+    if (s <= fmi2Warning) {
+        if (!isfinite(start)) finding("fmi3EnterInitializationMode", "accepted startTime = %g", start);
+        in->possible = S_INIT;
+        in->time = start;
+        in->time_known = 1;
+    }
+}
+
+/* The legal way on towards Continuous-Time Mode (the random calls rarely get there). */
+static int me3_advance(Inst *in) {
+    fmi3Status s;
+    if (in->possible == S_INSTANTIATED) enter_init3(in);
+    else if (in->possible == S_INIT) {
+        s = plain3(in, G.ExitInitializationMode, "fmi3ExitInitializationMode", S_INIT);
+        if (s <= fmi2Warning) {
+            in->possible = in->me ? S_EVENT : S_STEP;
+            check_all_reals3(in, "fmi3ExitInitializationMode");
+        }
+    } else if (in->possible == S_EVENT && in->me) {
+        if (plain3(in, G.EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode", S_EVENT) <= fmi2Warning)
+            in->possible = S_CONT;
+    } else
+        return 0;
+    return 1;
+}
+
+/* fmi3Set/Get Float64, Int32 or Boolean on 1-4 value references, nValues mostly right. */
+static void values3(Inst *in, int set) {
+    fmi3ValueReference vrs[4];
+    fmi3Float64 xr[64];
+    fmi3Int32 xi[64];
+    fmi3Boolean xb[64];
+    const Var *var[4];
+    int kind = pick(3), n = 1 + pick(4), nvalues = 0, i, k;
+    char t = "RIB"[kind];
+    size_t nv;
+    fmi3Float64 *real = pick(25) ? xr : NULL; /* a NULL Float64 array now and then */
+    fmi3Status s;
+    for (i = 0; i < 64; i++) {
+        xr[i] = nasty_real(NULL);
+        xi[i] = nasty_int(NULL);
+        xb[i] = pick(2);
+    }
+    for (i = 0; i < n; i++) { /* each value nasty for its variable (its bounds) */
+        vrs[i] = some_vr(t, &var[i]);
+        for (k = 0; k < count_of(vrs[i]) && nvalues + k < 60; k++) {
+            xr[nvalues + k] = nasty_real(var[i]);
+            xi[nvalues + k] = nasty_int(var[i]);
+        }
+        nvalues += count_of(vrs[i]);
+    }
+    if (nvalues > 60) nvalues = 60;
+    nv = pick(12) == 0 ? (size_t)nvalues + 1 - (size_t)pick(3) : (size_t)nvalues;
+    begin(in);
+    if (set)
+        s = t == 'R' ? G.SetFloat64(in->c, vrs, n, real, nv)
+          : t == 'I' ? G.SetInt32(in->c, vrs, n, xi, nv)
+                     : G.SetBoolean(in->c, vrs, n, xb, nv);
+    else
+        s = t == 'R' ? G.GetFloat64(in->c, vrs, n, real, nv)
+          : t == 'I' ? G.GetInt32(in->c, vrs, n, xi, nv)
+                     : G.GetBoolean(in->c, vrs, n, xb, nv);
+    end(in, set ? "fmi3Set*" : "fmi3Get*", set ? ME3_SETTABLE | S_STEP : ME3_GETTABLE | S_STEP, s);
+    if (s <= fmi2Warning && nv != (size_t)nvalues)
+        finding(set ? "fmi3Set*" : "fmi3Get*", "accepted nValues = %zu for %d values", nv, nvalues);
+    if (s <= fmi2Warning && t == 'R' && !real && nv)
+        finding(set ? "fmi3SetFloat64" : "fmi3GetFloat64", "accepted a NULL array of %zu values", nv);
+    if (!set && s == fmi2OK && t == 'R' && real)
+        for (i = 0; i < (int)nv; i++)
+            if (!isfinite(xr[i])) finding("fmi3GetFloat64", "element %d = %g with fmi3OK", i, xr[i]);
+    if (s == fmi2Error && !strstr(in->last, "illegal call sequence") &&
+        (in->possible & (S_INIT | ME_MODES | S_STEP)))
+        in->possible |= S_ERROR; /* values computed or parameters applied may fail in the model */
+}
+
+/* fmi3GetFMUState, fmi3SetFMUState (own, garbage), fmi3FreeFMUState, serialize/deserialize. */
+static void states3(Inst *in) {
+    fmi3Status s;
+    int op = pick(5);
+    if (op == 0 || in->nstates == 0) {
+        fmi3FMUState st = NULL;
+        int slot = in->nstates < 8 ? in->nstates : pick(8);
+        if (slot < in->nstates) st = in->states[slot];
+        begin(in);
+        s = G.GetFMUState(in->c, pick(30) ? &st : NULL);
+        end(in, "fmi3GetFMUState", ANY_LIVE, s);
+        if (s == fmi2OK && st) {
+            in->states[slot] = st;
+            in->state_possible[slot] = in->possible;
+            if (slot == in->nstates) in->nstates++;
+        }
+        return;
+    }
+    int slot = pick(in->nstates);
+    fmi3FMUState st = in->states[slot];
+    if (op == 1) { /* set: own or garbage */
+        int garbage = pick(8) == 0;
+        begin(in);
+        s = G.SetFMUState(in->c, garbage ? (fmi3FMUState)(uintptr_t)0x1000 : st);
+        end(in, "fmi3SetFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            if (garbage) finding("fmi3SetFMUState", "accepted a state it did not create");
+            in->possible = in->state_possible[slot];
+            in->time_known = 0;
+        }
+    } else if (op == 2) { /* free */
+        begin(in);
+        s = G.FreeFMUState(in->c, &st);
+        end(in, "fmi3FreeFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            if (st) finding("fmi3FreeFMUState", "did not set the state to NULL");
+            in->nstates--;
+            in->states[slot] = in->states[in->nstates];
+            in->state_possible[slot] = in->state_possible[in->nstates];
+        }
+    } else { /* serialize, then deserialize the bytes (corrupted now and then) */
+        size_t size = 0;
+        unsigned char *bytes;
+        fmi3FMUState back = NULL;
+        begin(in);
+        s = G.SerializedFMUStateSize(in->c, st, &size);
+        end(in, "fmi3SerializedFMUStateSize", ANY_LIVE, s);
+        if (s != fmi2OK || size > (1u << 26)) return;
+        bytes = malloc(size ? size : 1);
+        begin(in);
+        s = G.SerializeFMUState(in->c, st, bytes, size);
+        end(in, "fmi3SerializeFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            int corrupt = pick(3) == 0 && size;
+            if (corrupt) bytes[pick((int)size)] ^= (unsigned char)(1 + pick(255));
+            begin(in);
+            s = G.DeserializeFMUState(in->c, bytes, pick(6) == 0 && size ? size - 1 : size, &back);
+            end(in, "fmi3DeserializeFMUState", ANY_LIVE, s);
+            if (s == fmi2OK && back) {
+                if (in->nstates < 8) {
+                    in->states[in->nstates] = back;
+                    in->state_possible[in->nstates] = corrupt ? ANY_LIVE : in->state_possible[slot];
+                    in->nstates++;
+                } else {
+                    begin(in);
+                    end(in, "fmi3FreeFMUState", ANY_LIVE, G.FreeFMUState(in->c, &back));
+                }
+            }
+        }
+        free(bytes);
+    }
+}
+
+static void random_call3(Inst *in) {
+    fmi3Float64 x[130], y[130];
+    fmi3Status s;
+    int op, i;
+    size_t n;
+    if (!in->c) {
+        instantiate3(in);
+        return;
+    }
+    if (pick(3) == 0 && me3_advance(in)) return;
+    op = pick(120);
+#define ME3_MASK(m) (in->me ? (m) : 0)
+    if (op < 2) {
+        free_instance3(in);
+        return;
+    }
+    if (op < 4) {
+        enter_init3(in);
+        return;
+    }
+    if (op < 6) {
+        if (plain3(in, G.Terminate, "fmi3Terminate", in->me ? ME_MODES : S_STEP) <= fmi2Warning)
+            in->possible = S_TERMINATED;
+        return;
+    }
+    if (op < 8) {
+        if (plain3(in, G.Reset, "fmi3Reset", ANY_LIVE) <= fmi2Warning) {
+            in->possible = S_INSTANTIATED;
+            in->time = 0;
+            in->time_known = 1;
+        }
+        return;
+    }
+    if (op < 16) { /* fmi3SetTime: forward, backward, non-finite or huge */
+        double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
+                                             : nasty_real(NULL);
+        begin(in);
+        s = G.SetTime(in->c, t);
+        end(in, "fmi3SetTime", ME3_MASK(ME_MODES), s);
+        if (s <= fmi2Warning) {
+            if (!isfinite(t)) finding("fmi3SetTime", "accepted t = %g", t);
+            in->time = t;
+            in->time_known = 1;
+        }
+        return;
+    }
+    if (op < 32) { /* fmi3SetContinuousStates: the current ones moved, or nasty values */
+        int kind = pick(4);
+        n = me_size(nx);
+        for (i = 0; i <= nx; i++) x[i] = 0.0;
+        if (kind > 0 && nx) {
+            begin(in);
+            s = G.GetArray[0](in->c, x, (size_t)nx);
+            end(in, "fmi3GetContinuousStates", ME3_MASK(ME3_GETTABLE), s);
+            if (s != fmi2OK)
+                for (i = 0; i < nx; i++) x[i] = 0.0;
+            me_failed(in, s);
+        }
+        for (i = 0; i <= nx; i++) {
+            if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
+            else x[i] += 0.01 * (unit() - 0.5);
+        }
+        begin(in);
+        s = G.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
+        end(in, "fmi3SetContinuousStates", ME3_MASK(S_CONT), s);
+        if (s <= fmi2Warning) {
+            if (n != (size_t)nx) finding("fmi3SetContinuousStates", "accepted %zu states of %d", n, nx);
+            for (i = 0; i < (int)n && n != ME_HUGE; i++)
+                if (!isfinite(x[i])) finding("fmi3SetContinuousStates", "accepted state %d = %g", i, x[i]);
+            if (nx) me3_get_array(in, 1, y, (size_t)nx, nx);
+            if (nz && pick(2)) me3_get_array(in, 2, y, (size_t)nz, nz);
+            check_all_reals3(in, "fmi3SetContinuousStates");
+        }
+        me_failed(in, s);
+        return;
+    }
+    if (op < 56) { /* the four array reads */
+        int which = pick(4);
+        int expected = which == 2 ? nz : nx;
+        me3_get_array(in, which, x, me_size(expected), expected);
+        return;
+    }
+    if (op < 60) { /* fmi3GetNumberOfEventIndicators / ContinuousStates */
+        int which = pick(2);
+        size_t count = 12345;
+        int null = pick(20) == 0;
+        begin(in);
+        s = G.GetNumber[which](in->c, null ? NULL : &count);
+        end(in, which ? "fmi3GetNumberOfContinuousStates" : "fmi3GetNumberOfEventIndicators",
+            ANY_LIVE, s);
+        if (s <= fmi2Warning && null) finding("fmi3GetNumberOf*", "accepted a NULL size");
+        if (s == fmi2OK && !null && count != (size_t)(which ? nx : nz))
+            finding("fmi3GetNumberOf*", "%zu, the model description says %d", count, which ? nx : nz);
+        return;
+    }
+    if (op < 66) {
+        if (plain3(in, G.EnterEventMode, "fmi3EnterEventMode", ME3_MASK(ME_MODES)) <= fmi2Warning)
+            in->possible = S_EVENT;
+        return;
+    }
+    if (op < 74) { /* fmi3UpdateDiscreteStates, each output sometimes NULL */
+        fmi3Boolean flag[5] = {0, 0, 0, 0, 0};
+        fmi3Float64 next = 0;
+        int null = pick(14);
+        begin(in);
+        s = G.UpdateDiscreteStates(in->c, null == 0 ? NULL : &flag[0], null == 1 ? NULL : &flag[1],
+                                   null == 2 ? NULL : &flag[2], null == 3 ? NULL : &flag[3],
+                                   null == 4 ? NULL : &flag[4], null == 5 ? NULL : &next);
+        end(in, "fmi3UpdateDiscreteStates", ME3_MASK(S_EVENT), s);
+        if (s <= fmi2Warning && flag[4] && null != 5 && !isfinite(next))
+            finding("fmi3UpdateDiscreteStates", "next event time %g", next);
+        if (s == fmi2OK) check_all_reals3(in, "fmi3UpdateDiscreteStates");
+        me_failed(in, s);
+        return;
+    }
+    if (op < 80) {
+        if (plain3(in, G.EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode", ME3_MASK(S_EVENT)) <=
+            fmi2Warning)
+            in->possible = S_CONT;
+        return;
+    }
+    if (op < 88) { /* fmi3CompletedIntegratorStep, with NULL flags now and then */
+        fmi3Boolean event = 0, terminate = 0;
+        int null = pick(20);
+        begin(in);
+        s = G.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
+                                      null == 1 ? NULL : &terminate);
+        end(in, "fmi3CompletedIntegratorStep", ME3_MASK(S_CONT), s);
+        me_failed(in, s);
+        return;
+    }
+    if (op < 96) { /* fmi3GetDirectionalDerivative: derivatives by states, or unknown references */
+        fmi3ValueReference u[8], k[8];
+        fmi3Float64 seed[8], out[8];
+        const Var *var;
+        size_t nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        size_t nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        size_t nseed = pick(10) ? nk : nk - 1, nsens = pick(10) ? nu : nu + 1;
+        int null = pick(20);
+        for (i = 0; i < (int)nu; i++) u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
+        for (i = 0; i < (int)nk; i++) {
+            k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
+            seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
+        }
+        begin(in);
+        s = G.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
+                                       null == 1 ? NULL : seed, nseed, null == 2 ? NULL : out,
+                                       nsens);
+        end(in, "fmi3GetDirectionalDerivative", ME3_GETTABLE | S_STEP, s);
+        if (s <= fmi2Warning && null < 3) finding("fmi3GetDirectionalDerivative", "accepted a NULL array");
+        if (s == fmi2OK && null >= 3) me_finite("fmi3GetDirectionalDerivative", out, nu);
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
+        return;
+    }
+    if (op < 110) {
+        values3(in, pick(2));
+        return;
+    }
+    states3(in);
+#undef ME3_MASK
+}
+
 /* ---- loading ------------------------------------------------------------------------- */
 static int read_manifest(const char *path) {
     FILE *f = fopen(path, "r");
@@ -957,6 +1462,11 @@ static int read_manifest(const char *path) {
         else if (!strcmp(fields[0], "library") && nf > 1) snprintf(library, sizeof library, "%s", fields[1]);
         else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
         else if (!strcmp(fields[0], "me") && nf > 1) model_exchange = atoi(fields[1]);
+        else if (!strcmp(fields[0], "version") && nf > 1) version = atoi(fields[1]);
+        else if (!strcmp(fields[0], "count") && nf > 2) {
+            unsigned vr = (unsigned)strtoul(fields[1], NULL, 10);
+            if (vr < 4096) counts[vr] = atoi(fields[2]);
+        }
         else if (!strcmp(fields[0], "nz") && nf > 1) nz = atoi(fields[1]);
         else if (!strcmp(fields[0], "state") && nf > 2 && nx < 64) {
             state_vr[nx] = (fmi2ValueReference)strtoul(fields[1], NULL, 10);
@@ -981,15 +1491,52 @@ static int read_manifest(const char *path) {
     return nvars > 0 && model_id[0] && library[0];
 }
 
+#define LOAD3(field, symbol)                                                                  \
+    do {                                                                                      \
+        *(void **)(&G.field) = dlsym(lib, symbol);                                            \
+        if (!G.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
+    } while (0)
+
 #define LOAD(field, symbol)                                                                   \
     do {                                                                                      \
         *(void **)(&F.field) = dlsym(lib, symbol);                                            \
         if (!F.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
     } while (0)
 
+static int load3(void *lib) {
+    LOAD3(InstantiateModelExchange, "fmi3InstantiateModelExchange");
+    LOAD3(InstantiateCoSimulation, "fmi3InstantiateCoSimulation");
+    LOAD3(FreeInstance, "fmi3FreeInstance");
+    LOAD3(EnterInitializationMode, "fmi3EnterInitializationMode");
+    LOAD3(ExitInitializationMode, "fmi3ExitInitializationMode");
+    LOAD3(Terminate, "fmi3Terminate"); LOAD3(Reset, "fmi3Reset");
+    LOAD3(GetFloat64, "fmi3GetFloat64"); LOAD3(GetInt32, "fmi3GetInt32");
+    LOAD3(GetBoolean, "fmi3GetBoolean"); LOAD3(SetFloat64, "fmi3SetFloat64");
+    LOAD3(SetInt32, "fmi3SetInt32"); LOAD3(SetBoolean, "fmi3SetBoolean");
+    LOAD3(GetFMUState, "fmi3GetFMUState"); LOAD3(SetFMUState, "fmi3SetFMUState");
+    LOAD3(FreeFMUState, "fmi3FreeFMUState");
+    LOAD3(SerializedFMUStateSize, "fmi3SerializedFMUStateSize");
+    LOAD3(SerializeFMUState, "fmi3SerializeFMUState");
+    LOAD3(DeserializeFMUState, "fmi3DeserializeFMUState");
+    LOAD3(SetTime, "fmi3SetTime"); LOAD3(SetContinuousStates, "fmi3SetContinuousStates");
+    LOAD3(GetArray[0], "fmi3GetContinuousStates");
+    LOAD3(GetArray[1], "fmi3GetContinuousStateDerivatives");
+    LOAD3(GetArray[2], "fmi3GetEventIndicators");
+    LOAD3(GetArray[3], "fmi3GetNominalsOfContinuousStates");
+    LOAD3(GetNumber[0], "fmi3GetNumberOfEventIndicators");
+    LOAD3(GetNumber[1], "fmi3GetNumberOfContinuousStates");
+    LOAD3(EnterEventMode, "fmi3EnterEventMode");
+    LOAD3(EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode");
+    LOAD3(UpdateDiscreteStates, "fmi3UpdateDiscreteStates");
+    LOAD3(CompletedIntegratorStep, "fmi3CompletedIntegratorStep");
+    LOAD3(GetDirectionalDerivative, "fmi3GetDirectionalDerivative");
+    return 1;
+}
+
 static int load(void) {
     void *lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
     if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 0; }
+    if (version == 3) return load3(lib);
     LOAD(Instantiate, "fmi2Instantiate"); LOAD(FreeInstance, "fmi2FreeInstance");
     LOAD(SetDebugLogging, "fmi2SetDebugLogging"); LOAD(SetupExperiment, "fmi2SetupExperiment");
     LOAD(EnterInitializationMode, "fmi2EnterInitializationMode");
@@ -1050,11 +1597,16 @@ int main(int argc, char **argv) {
     for (i = 0; i < (int)strlen(label); i++) rng = rng * 31 + (unsigned char)label[i];
     for (k = 0; k < calls; k++) {
         Inst *in = &inst[pick(5) == 0 ? pick(NINST) : 0];
+        if (version == 3) {
+            if (in->c && in->possible == S_FATAL) free_instance3(in);
+            random_call3(in);
+            continue;
+        }
         if (in->c && in->possible == S_FATAL) free_instance(in);
         random_call(in);
     }
     for (i = 0; i < NINST; i++)
-        if (inst[i].c) free_instance(&inst[i]);
+        if (inst[i].c) version == 3 ? free_instance3(&inst[i]) : free_instance(&inst[i]);
     if (dump_path && own_len) {
         FILE *f = fopen(dump_path, "wb");
         if (f) { fwrite(own_bytes, 1, own_len, f); fclose(f); }
