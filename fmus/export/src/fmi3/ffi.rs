@@ -498,7 +498,7 @@ unsafe fn read<M: FmuModel>(
     status
 }
 
-/// The value references a set call's fast path ([`set_fast`]) keeps on the stack: the
+/// The value references a set call's scalar path ([`set_scalars`]) keeps on the stack: the
 /// master's calls (the inputs of one instance) name at most this many.
 const SCALARS: usize = 16;
 
@@ -529,64 +529,42 @@ fn read_scalars<M: FmuModel, C>(
     Some(Status::Ok)
 }
 
-/// The set call's fast path: when every reference (at most [`SCALARS`] of them) names
-/// variables that may be set now to their values (type, state, bounds and finiteness from
-/// each scalar's [`Access`]) and the values fill `values` exactly (arrays row-major), the
-/// values stored. Each reference is looked up once: its span is kept on the stack between the
-/// check and the store, so that a rejected call changes nothing. `None` otherwise, and the
-/// general path checks again and says why.
+/// The set call's path for scalars: when every reference (at most [`SCALARS`]) names one
+/// scalar (`nValues = nvr`) that may be set now to its value (type, state, bounds and
+/// finiteness from its [`Access`]), the values stored. Each reference is looked up once: its
+/// table index is kept on the stack between the check and the store, so that a rejected call
+/// changes nothing. `None` otherwise (arrays, `time`, a refused value), and
+/// [`Instance::set_spans`] or the general path checks again and says why.
 #[inline(always)]
-fn set_fast<M: FmuModel, C: Copy>(
+fn set_scalars<M: FmuModel, C: Copy>(
     instance: &mut Instance<M>,
     f: &Function,
     actual: VariableType,
     (vrs, values): (&[u32], &[C]),
     to_number: impl Fn(C) -> f64,
 ) -> Option<Status> {
-    if vrs.len() > SCALARS {
+    if vrs.len() != values.len() || vrs.len() > SCALARS {
         return None;
     }
     let need = instance.core.state.bit() | Access::type_bit(actual);
     let (spans, access) = (&instance.interface.spans, &instance.interface.access);
-    let mut at = [(0u32, 0u32); SCALARS];
-    let (mut flags, mut k) = (0, 0);
-    let allowed = |a: &Access, x: f64| a.bits & need == need && x >= a.min && x <= a.max;
-    for (span_at, &vr) in at.iter_mut().zip(vrs) {
+    let mut at = [0u32; SCALARS];
+    let mut flags = 0;
+    for ((index, &vr), &v) in at.iter_mut().zip(vrs).zip(values) {
         let span = spans.get(vr as usize)?;
-        let (first, len) = (span.first as usize, span.len as usize);
-        if len == 1 {
-            let (a, x) = (access.get(first)?, to_number(*values.get(k)?));
-            if !allowed(a, x) {
-                return None;
-            }
-            flags |= a.bits;
-        } else {
-            // time (len 0) is not set through here
-            let xs = values.get(k..k + len).filter(|_| len > 0)?;
-            for (a, &v) in access.get(first..first + len)?.iter().zip(xs) {
-                if !allowed(a, to_number(v)) {
-                    return None;
-                }
-                flags |= a.bits;
-            }
+        let a = access.get(span.first as usize)?;
+        let x = to_number(v);
+        if span.len != 1 || a.bits & need != need || !(x >= a.min && x <= a.max) {
+            return None;
         }
-        *span_at = (span.first, span.len);
-        k += len;
-    }
-    if k != values.len() {
-        return None;
+        flags |= a.bits;
+        *index = span.first;
     }
     let numbers = instance.core.values.numbers_mut();
-    let mut k = 0;
-    for &(first, len) in &at[..vrs.len()] {
-        let (first, len) = (first as usize, len as usize);
-        if let (Some(to), Some(xs)) = (numbers.get_mut(first..first + len), values.get(k..k + len))
-        {
-            for (slot, &v) in to.iter_mut().zip(xs) {
-                *slot = to_number(v);
-            }
+    for (&index, &v) in at.iter().zip(values) {
+        if let Some(slot) = numbers.get_mut(index as usize) {
+            *slot = to_number(v);
         }
-        k += len;
     }
     Some(instance.values_set(f, flags))
 }
@@ -760,7 +738,7 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
             let call = (vrs, raw);
-            if let Some(status) = set_fast(&mut s.instance, f, K::TYPE, call, K::to_number) {
+            if let Some(status) = set_scalars(&mut s.instance, f, K::TYPE, call, K::to_number) {
                 return status;
             }
             if let Some(status) = s.instance.set_spans(f, K::TYPE, vrs, raw, K::to_number) {
