@@ -459,12 +459,7 @@ unsafe fn read<M: FmuModel>(
     let mut status = s.instance.refresh_outputs(f);
     if status <= Status::Warning {
         let interface = Arc::clone(s.instance.interface());
-        let read = vrs
-            .iter()
-            .flat_map(|&vr| match interface.layout.target(vr) {
-                Some(Target::Variable(v)) => v.indices(),
-                _ => 0..0,
-            });
+        let read = interface.layout.indices_of(vrs);
         status = status.max(s.instance.indicators_for(f, read));
     }
     if status > Status::Warning {
@@ -501,33 +496,6 @@ unsafe fn read<M: FmuModel>(
 /// The value references a set call's scalar path ([`set_scalars`]) keeps on the stack: the
 /// master's calls (the inputs of one instance) name at most this many.
 const SCALARS: usize = 16;
-
-/// The get call's path for scalars: when nothing must be computed first and every reference
-/// names one scalar of type `expected` (the common call: no arrays, `nValues = nvr`), the
-/// values into `out`, each through `to_c`, with one span look-up and one load a value;
-/// `None` otherwise ([`read_fast`], then [`read`], handle it).
-#[inline(always)]
-fn read_scalars<M: FmuModel, C>(
-    instance: &Instance<M>,
-    expected: VariableType,
-    vrs: &[u32],
-    out: &mut [C],
-    to_c: impl Fn(f64) -> C,
-) -> Option<Status> {
-    if vrs.len() != out.len() || instance.needs_refresh() {
-        return None;
-    }
-    let (spans, numbers) = (&instance.interface.spans, instance.core.values.numbers());
-    let type_bit = Access::type_bit(expected);
-    for (o, &vr) in out.iter_mut().zip(vrs) {
-        let span = spans.get(vr as usize)?;
-        if span.len != 1 || span.type_bit != type_bit {
-            return None;
-        }
-        *o = to_c(*numbers.get(span.first as usize)?);
-    }
-    Some(Status::Ok)
-}
 
 /// The set call's path for scalars: when every reference (at most [`SCALARS`]) names one
 /// scalar (`nValues = nvr`) that may be set now to its value (type, state, bounds and
@@ -573,7 +541,8 @@ fn set_scalars<M: FmuModel, C: Copy>(
 /// variables of type `expected` whose values fill `out` exactly, the values (arrays
 /// row-major, `time` for value reference 0) into `out`, each through `to_c`; `None`
 /// otherwise, and [`read`] checks again and says why (the values written are then undefined,
-/// as FMI 3.0 allows for a failed get). A span lookup and a slice copy per reference.
+/// as FMI 3.0 allows for a failed get). A span lookup and a slice copy per reference; for the
+/// common call, scalars only (`nValues = nvr`), a span lookup and a load.
 #[inline(always)]
 fn read_fast<M: FmuModel, C>(
     s: &Slot<M>,
@@ -588,6 +557,23 @@ fn read_fast<M: FmuModel, C>(
     }
     let (spans, numbers) = (&instance.interface().spans, instance.values().numbers());
     let type_bit = Access::type_bit(expected);
+    if vrs.len() == out.len() {
+        let mut scalars = true;
+        for (o, &vr) in out.iter_mut().zip(vrs) {
+            match spans.get(vr as usize) {
+                Some(span) if span.len == 1 && span.type_bit == type_bit => {
+                    *o = to_c(*numbers.get(span.first as usize)?);
+                }
+                _ => {
+                    scalars = false;
+                    break;
+                }
+            }
+        }
+        if scalars {
+            return Some(Status::Ok);
+        }
+    }
     let mut k = 0;
     for &vr in vrs {
         let span = spans.get(vr as usize)?;
@@ -640,9 +626,6 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
             // SAFETY: `vr` and `out` are NULL or hold `nvr` and `n_values` elements (FMI
             // contract).
             if let (Some(vrs), Some(to)) = (slice(vr, nvr), slice_mut(out, n_values)) {
-                if let Some(status) = read_scalars(&s.instance, K::TYPE, vrs, to, K::to_c) {
-                    return status;
-                }
                 if let Some(status) = read_fast(s, K::TYPE, vrs, to, K::to_c) {
                     return status;
                 }
@@ -679,12 +662,9 @@ fn write_values<M: FmuModel, T>(
         );
     }
     let interface = Arc::clone(slot.instance.interface());
-    let targets = vrs
-        .iter()
-        .flat_map(|&vr| match interface.layout.target(vr) {
-            Some(Target::Variable(v)) => v.indices(),
-            _ => 0..0,
-        })
+    let targets = interface
+        .layout
+        .indices_of(vrs)
         .enumerate()
         .map(|(k, index)| (index as u32, value_at(k)));
     store.store(&mut slot.instance, f, targets)
