@@ -108,17 +108,8 @@ static struct {
     fmi2Status (*GetIntegerStatus)(fmi2Component, int, fmi2Integer *);
     fmi2Status (*GetBooleanStatus)(fmi2Component, int, fmi2Boolean *);
     fmi2Status (*GetStringStatus)(fmi2Component, int, fmi2String *);
-    /* Model Exchange (loaded when the FMU offers it) */
-    fmi2Status (*SetTime)(fmi2Component, fmi2Real);
-    fmi2Status (*SetContinuousStates)(fmi2Component, const fmi2Real *, size_t);
-    fmi2Status (*GetContinuousStates)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetDerivatives)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetEventIndicators)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetNominalsOfContinuousStates)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*EnterEventMode)(fmi2Component);
+    /* Model Exchange (loaded when the FMU offers it; the functions FMI 3.0 shares: ME) */
     fmi2Status (*NewDiscreteStates)(fmi2Component, void *);
-    fmi2Status (*EnterContinuousTimeMode)(fmi2Component);
-    fmi2Status (*CompletedIntegratorStep)(fmi2Component, fmi2Boolean, fmi2Boolean *, fmi2Boolean *);
     fmi2Status (*GetDirectionalDerivative)(fmi2Component, const fmi2ValueReference *, size_t,
                                            const fmi2ValueReference *, size_t, const fmi2Real *,
                                            fmi2Real *);
@@ -407,6 +398,15 @@ static void check_all_reals(Inst *in, const char *after) {
 /* ---- instances ----------------------------------------------------------------------- */
 static void free_states(Inst *in) { in->nstates = 0; /* freed with the instance */ }
 
+/* A new instance (for Model Exchange when `me`): Instantiated at time 0, no FMU state. */
+static void instantiated(Inst *in, int me) {
+    in->possible = S_INSTANTIATED;
+    in->me = me;
+    in->time = 0;
+    in->time_known = 1;
+    in->nstates = 0;
+}
+
 static void instantiate(Inst *in) {
     char name[32];
     fmi2CallbackFunctions cb;
@@ -433,11 +433,7 @@ static void instantiate(Inst *in) {
     }
     if (variant <= 4 && variant != 1 && !(variant == 3 && model_exchange))
         finding("fmi2Instantiate", "accepted an invalid call (case %d)", variant);
-    in->possible = S_INSTANTIATED;
-    in->me = me;
-    in->time = 0;
-    in->time_known = 1;
-    in->nstates = 0;
+    instantiated(in, me);
 }
 
 static void free_instance(Inst *in) {
@@ -448,7 +444,7 @@ static void free_instance(Inst *in) {
     free_states(in);
 }
 
-/* ---- Model Exchange ------------------------------------------------------------------ */
+/* ---- Model Exchange (both versions) ---------------------------------------------------- */
 /* An array size for a model with `n` elements: mostly right, else off by one, zero or huge
    (the arrays passed have room for n + 1; a huge size must be refused before any access). */
 #define ME_HUGE ((size_t)1 << 40)
@@ -471,171 +467,220 @@ static void me_finite(const char *what, const fmi2Real *x, size_t n) {
         }
 }
 
+static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
+                             int mask);
+
+/* The Model Exchange functions FMI 2.0 and FMI 3.0 share in shape -- (instance), (instance,
+   time), (instance, array, size) -- and their names, loaded for the manifest's version: the
+   calls below drive both alike. `enter_init` brings an instance into Initialization Mode,
+   `check_all_reals` reads every Real. */
+static struct {
+    fmi2Status (*SetTime)(fmi2Component, fmi2Real);
+    fmi2Status (*SetContinuousStates)(fmi2Component, const fmi2Real *, size_t);
+    fmi2Status (*GetArray[4])(fmi2Component, fmi2Real *, size_t); /* states, derivatives,
+                                                                    indicators, nominals */
+    fmi2Status (*EnterEventMode)(fmi2Component), (*EnterContinuousTimeMode)(fmi2Component),
+        (*ExitInitializationMode)(fmi2Component);
+    fmi2Status (*CompletedIntegratorStep)(fmi2Component, fmi2Boolean, fmi2Boolean *, fmi2Boolean *);
+    const char *array_names[4], *set_time, *set_states, *enter_event, *enter_continuous, *exit_init,
+        *completed;
+    void (*enter_init)(Inst *);
+    void (*check_all_reals)(Inst *, const char *);
+} ME;
+
+/* a Co-Simulation instance refuses every Model Exchange call: mask 0 */
+#define ME_MASK(m) (in->me ? (m) : 0)
+
 /* One array read of the Model Exchange interface; `expected` is the model's size. */
 static fmi2Status me_get_array(Inst *in, int which, fmi2Real *x, size_t n, int expected) {
-    static const char *const names[] = {"fmi2GetContinuousStates", "fmi2GetDerivatives",
-                                        "fmi2GetEventIndicators",
-                                        "fmi2GetNominalsOfContinuousStates"};
     static const int masks[] = {S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INSTANTIATED | S_INIT | ME_MODES | S_TERMINATED | S_ERROR};
-    fmi2Status (*const calls[])(fmi2Component, fmi2Real *, size_t) = {
-        F.GetContinuousStates, F.GetDerivatives, F.GetEventIndicators,
-        F.GetNominalsOfContinuousStates};
+    const char *what = ME.array_names[which];
     fmi2Status s;
     fmi2Real *out = n && pick(25) == 0 ? NULL : x;
     begin(in);
-    s = calls[which](in->c, out, n);
-    end(in, names[which], in->me ? masks[which] : 0, s);
+    s = ME.GetArray[which](in->c, out, n);
+    end(in, what, ME_MASK(masks[which]), s);
     if (s <= fmi2Warning && n != (size_t)expected)
-        finding(names[which], "accepted %zu elements where the model has %d", n, expected);
-    if (s <= fmi2Warning && !out && n)
-        finding(names[which], "accepted a NULL array of %zu elements", n);
-    if (s == fmi2OK && out && n == (size_t)expected) me_finite(names[which], out, n);
+        finding(what, "accepted %zu elements where the model has %d", n, expected);
+    if (s <= fmi2Warning && !out && n) finding(what, "accepted a NULL array of %zu elements", n);
+    if (s == fmi2OK && out && n == (size_t)expected) me_finite(what, out, n);
     me_failed(in, s);
     return s;
 }
 
-static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
-                             int mask);
-
-/* fmi2EnterInitializationMode, fmi2EnterEventMode or fmi2EnterContinuousTimeMode (allowed in
-   `mask` on a Model Exchange instance; the last two nowhere on a Co-Simulation one, which
-   me_call never leads on): on success the instance is in `next`. */
+/* Enter Initialization Mode, Event Mode or Continuous-Time Mode (`call`, allowed in `mask` on
+   a Model Exchange instance; the last two nowhere on a Co-Simulation one): on success the
+   instance is in `next`. */
 static void me_enter(Inst *in, fmi2Status (*call)(fmi2Component), const char *what, int mask,
                      int next) {
-    fmi2Status s = plain_call(in, call, what, in->me ? mask : 0);
+    fmi2Status s = plain_call(in, call, what, ME_MASK(mask));
     if (s <= fmi2Warning) in->possible = next;
     me_failed(in, s);
 }
 
-/* The legal way on towards Continuous-Time Mode, for a Model Exchange instance known to be in
-   one state (the random calls rarely get there): true when it made a call. */
+/* The legal way on towards Continuous-Time Mode, for an instance known to be in one state (the
+   random calls rarely get there): true when it made a call. A Co-Simulation instance goes to
+   Step Mode instead (and no further). */
 static int me_advance(Inst *in) {
     fmi2Status s;
-    if (in->possible == S_INSTANTIATED)
-        me_enter(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED,
-                 S_INIT);
+    if (in->possible == S_INSTANTIATED) ME.enter_init(in);
     else if (in->possible == S_INIT) {
-        s = plain_call(in, F.ExitInitializationMode, "fmi2ExitInitializationMode", S_INIT);
+        s = plain_call(in, ME.ExitInitializationMode, ME.exit_init, S_INIT);
         if (s <= fmi2Warning) {
-            in->possible = S_EVENT;
-            check_all_reals(in, "fmi2ExitInitializationMode");
-        }
-        me_failed(in, s);
-    } else if (in->possible == S_EVENT)
-        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
+            in->possible = in->me ? S_EVENT : S_STEP;
+            ME.check_all_reals(in, ME.exit_init);
+        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+            in->possible |= S_ERROR; /* the model refused its parameters */
+    } else if (in->possible == S_EVENT && in->me)
+        me_enter(in, ME.EnterContinuousTimeMode, ME.enter_continuous, S_EVENT, S_CONT);
     else
         return 0;
     return 1;
 }
 
-static void me_call(Inst *in) {
+/* SetTime: forward, backward, non-finite or huge. */
+static void me_set_time(Inst *in) {
+    double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
+                                         : nasty_real(NULL);
+    fmi2Status s;
+    begin(in);
+    s = ME.SetTime(in->c, t);
+    end(in, ME.set_time, ME_MASK(ME_MODES), s);
+    if (s <= fmi2Warning) {
+        if (!isfinite(t)) finding(ME.set_time, "accepted t = %g", t);
+        in->time = t;
+        in->time_known = 1;
+    }
+}
+
+/* SetContinuousStates: the current ones moved, or nasty values; after a success the
+   derivatives (and now and then the event indicators) and every Real are read. */
+static void me_set_states(Inst *in) {
     /* room for every array at its size + 1 (the wrong sizes of me_size) */
     fmi2Real x[130], y[130];
-    int op, i;
+    int kind = pick(4), i;
+    size_t n = me_size(nx);
     fmi2Status s;
-    size_t n;
+    for (i = 0; i <= nx; i++) x[i] = 0.0;
+    if (kind > 0 && nx) {
+        begin(in);
+        s = ME.GetArray[0](in->c, x, (size_t)nx);
+        end(in, ME.array_names[0], ME_MASK(S_INIT | ME_MODES | S_TERMINATED | S_ERROR), s);
+        if (s != fmi2OK)
+            for (i = 0; i < nx; i++) x[i] = 0.0;
+        me_failed(in, s);
+    }
+    for (i = 0; i <= nx; i++) {
+        if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
+        else x[i] += 0.01 * (unit() - 0.5);
+    }
+    begin(in);
+    s = ME.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
+    end(in, ME.set_states, ME_MASK(S_CONT), s);
+    if (s <= fmi2Warning) {
+        if (n != (size_t)nx) finding(ME.set_states, "accepted %zu states of %d", n, nx);
+        for (i = 0; i < (int)n && n != ME_HUGE; i++)
+            if (!isfinite(x[i])) finding(ME.set_states, "accepted state %d = %g", i, x[i]);
+        if (nx) me_get_array(in, 1, y, (size_t)nx, nx);
+        if (nz && pick(2)) me_get_array(in, 2, y, (size_t)nz, nz);
+        ME.check_all_reals(in, ME.set_states);
+    }
+    me_failed(in, s);
+}
+
+/* One of the four array reads, at a size me_size draws. */
+static void me_read_array(Inst *in) {
+    fmi2Real x[130];
+    int which = pick(4);
+    int expected = which == 2 ? nz : nx;
+    me_get_array(in, which, x, me_size(expected), expected);
+}
+
+/* The arguments of a directional derivative: 1-8 unknowns (mostly state derivatives), 1-8
+   knowns (mostly states) and their seeds (now and then non-finite). */
+static void directional_args(fmi2ValueReference *u, size_t *nu, fmi2ValueReference *k,
+                             size_t *nk, fmi2Real *seed) {
+    const Var *var;
+    size_t i;
+    *nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+    *nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+    for (i = 0; i < *nu; i++) u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
+    for (i = 0; i < *nk; i++) {
+        k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
+        seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
+    }
+}
+
+/* CompletedIntegratorStep, with NULL flags now and then: the flags it writes are booleans. */
+static void me_completed(Inst *in) {
+    fmi2Boolean event = 7, terminate = 7;
+    int null = pick(20);
+    fmi2Status s;
+    begin(in);
+    s = ME.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
+                                   null == 1 ? NULL : &terminate);
+    end(in, ME.completed, ME_MASK(S_CONT), s);
+    if (s <= fmi2Warning && null > 1 && ((event != 0 && event != 1) || (terminate != 0 && terminate != 1)))
+        finding(ME.completed, "flags %d, %d", event, terminate);
+    me_failed(in, s);
+}
+
+/* After fmi2NewDiscreteStates / fmi3UpdateDiscreteStates (`what`, status `s`): the next event
+   time, when defined, is finite; every Real is read. */
+static void me_updated(Inst *in, const char *what, fmi2Status s, int next_defined, double next) {
+    end(in, what, ME_MASK(S_EVENT), s);
+    if (s <= fmi2Warning && next_defined && !isfinite(next))
+        finding(what, "next event time %g", next);
+    if (s == fmi2OK) ME.check_all_reals(in, what);
+    me_failed(in, s);
+}
+
+/* FMI 2.0: fmi2EnterInitializationMode. */
+static void enter_init2(Inst *in) {
+    me_enter(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED, S_INIT);
+}
+
+/* One of the Model Exchange calls both versions share, by `op` (0 to 79): SetTime (0-9),
+   SetContinuousStates (10-29), an array read (30-54), EnterEventMode (55-62),
+   EnterContinuousTimeMode (63-69), CompletedIntegratorStep (70-79). */
+static void me_shared_call(Inst *in, int op) {
+    if (op < 10) me_set_time(in);
+    else if (op < 30) me_set_states(in);
+    else if (op < 55) me_read_array(in);
+    else if (op < 63) me_enter(in, ME.EnterEventMode, ME.enter_event, ME_MODES, S_EVENT);
+    else if (op < 70)
+        me_enter(in, ME.EnterContinuousTimeMode, ME.enter_continuous, S_EVENT, S_CONT);
+    else me_completed(in);
+}
+
+static void me_call(Inst *in) {
+    int op;
+    fmi2Status s;
     if (in->me && pick(3) == 0 && me_advance(in)) return;
     op = pick(100);
-/* a Co-Simulation instance refuses every Model Exchange call: mask 0 */
-#define ME_MASK(m) (in->me ? (m) : 0)
-    if (op < 10) { /* fmi2SetTime: forward, backward, non-finite or huge */
-        double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
-                                             : nasty_real(NULL);
-        begin(in);
-        s = F.SetTime(in->c, t);
-        end(in, "fmi2SetTime", ME_MASK(ME_MODES), s);
-        if (s <= fmi2Warning) {
-            if (!isfinite(t)) finding("fmi2SetTime", "accepted t = %g", t);
-            in->time = t;
-            in->time_known = 1;
-        }
+    if (op < 80) {
+        me_shared_call(in, op);
         return;
     }
-    if (op < 30) { /* fmi2SetContinuousStates: the current ones moved, or nasty values */
-        int kind = pick(4);
-        n = me_size(nx);
-        for (i = 0; i <= nx; i++) x[i] = 0.0;
-        if (kind > 0 && nx) {
-            begin(in);
-            s = F.GetContinuousStates(in->c, x, (size_t)nx);
-            end(in, "fmi2GetContinuousStates", ME_MASK(S_INIT | ME_MODES | S_TERMINATED | S_ERROR), s);
-            if (s != fmi2OK)
-                for (i = 0; i < nx; i++) x[i] = 0.0;
-            me_failed(in, s);
-        }
-        for (i = 0; i <= nx; i++) {
-            if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
-            else x[i] += 0.01 * (unit() - 0.5);
-        }
-        begin(in);
-        s = F.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
-        end(in, "fmi2SetContinuousStates", ME_MASK(S_CONT), s);
-        if (s <= fmi2Warning) {
-            if (n != (size_t)nx) finding("fmi2SetContinuousStates", "accepted %zu states of %d", n, nx);
-            for (i = 0; i < (int)n && n != ME_HUGE; i++)
-                if (!isfinite(x[i])) finding("fmi2SetContinuousStates", "accepted state %d = %g", i, x[i]);
-            if (nx) me_get_array(in, 1, y, (size_t)nx, nx);
-            check_all_reals(in, "fmi2SetContinuousStates");
-        }
-        me_failed(in, s);
-        return;
-    }
-    if (op < 55) { /* the four array reads */
-        int which = pick(4);
-        int expected = which == 2 ? nz : nx;
-        me_get_array(in, which, x, me_size(expected), expected);
-        return;
-    }
-    if (op < 63) {
-        me_enter(in, F.EnterEventMode, "fmi2EnterEventMode", ME_MODES, S_EVENT);
-        return;
-    }
-    if (op < 73) { /* fmi2NewDiscreteStates */
+    if (op < 90) { /* fmi2NewDiscreteStates */
         fmi2EventInfo info;
         int null = pick(20) == 0;
         memset(&info, 0, sizeof info);
         begin(in);
         s = F.NewDiscreteStates(in->c, null ? NULL : &info);
-        end(in, "fmi2NewDiscreteStates", ME_MASK(S_EVENT), s);
+        me_updated(in, "fmi2NewDiscreteStates", s, info.nextEventTimeDefined, info.nextEventTime);
         if (s <= fmi2Warning && null) finding("fmi2NewDiscreteStates", "accepted a NULL eventInfo");
-        if (s <= fmi2Warning && info.nextEventTimeDefined && !isfinite(info.nextEventTime))
-            finding("fmi2NewDiscreteStates", "next event time %g", info.nextEventTime);
-        if (s == fmi2OK) check_all_reals(in, "fmi2NewDiscreteStates");
-        me_failed(in, s);
-        return;
-    }
-    if (op < 80) {
-        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
-        return;
-    }
-    if (op < 90) { /* fmi2CompletedIntegratorStep, with NULL flags now and then */
-        fmi2Boolean event = 7, terminate = 7;
-        int null = pick(20);
-        begin(in);
-        s = F.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
-                                      null == 1 ? NULL : &terminate);
-        end(in, "fmi2CompletedIntegratorStep", ME_MASK(S_CONT), s);
-        if (s <= fmi2Warning && null > 1 && ((event != 0 && event != 1) || (terminate != 0 && terminate != 1)))
-            finding("fmi2CompletedIntegratorStep", "flags %d, %d", event, terminate);
-        me_failed(in, s);
         return;
     }
     { /* fmi2GetDirectionalDerivative: derivatives by states, or unknown references */
         fmi2ValueReference u[8], k[8];
         fmi2Real seed[8], out[8];
-        const Var *var;
-        size_t nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
-        size_t nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        size_t nu, nk;
         int null = pick(20);
-        for (i = 0; i < (int)nu; i++)
-            u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
-        for (i = 0; i < (int)nk; i++) {
-            k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
-            seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
-        }
+        directional_args(u, &nu, k, &nk, seed);
         begin(in);
         s = F.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
                                        null == 1 ? NULL : seed, null == 2 ? NULL : out);
@@ -646,10 +691,27 @@ static void me_call(Inst *in) {
         /* a model that cannot linearize (e.g. not initialized yet) fails: Error state */
         if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
     }
-#undef ME_MASK
 }
 
 /* ---- one random call ----------------------------------------------------------------- */
+/* GetFMUstate / GetFMUState (`call`, `what`: the same type in both versions) into a free slot
+   or over a held state (NULL out-pointer now and then): the slot, or -1. */
+static int take_state(Inst *in, fmi2Status (*call)(fmi2Component, fmi2FMUstate *),
+                      const char *what) {
+    fmi2FMUstate st = NULL;
+    int slot = in->nstates < 8 ? in->nstates : pick(8);
+    fmi2Status s;
+    if (slot < in->nstates) st = in->states[slot];
+    begin(in);
+    s = call(in->c, pick(30) ? &st : NULL);
+    end(in, what, ANY_LIVE, s);
+    if (s != fmi2OK || !st) return -1;
+    in->states[slot] = st;
+    in->state_possible[slot] = in->possible;
+    if (slot == in->nstates) in->nstates++;
+    return slot;
+}
+
 static void save_bytes(Inst *in, fmi2FMUstate st) {
     size_t size = 0;
     fmi2Status s;
@@ -796,18 +858,8 @@ static void random_call(Inst *in) {
         return;
     }
     if (op < 80) { /* fmi2GetFMUstate */
-        fmi2FMUstate st = NULL;
-        int slot = in->nstates < 8 ? in->nstates : pick(8);
-        if (slot < in->nstates) st = in->states[slot];
-        begin(in);
-        s = F.GetFMUstate(in->c, pick(30) ? &st : NULL);
-        end(in, "fmi2GetFMUstate", ANY_LIVE, s);
-        if (s == fmi2OK && st) {
-            in->states[slot] = st;
-            in->state_possible[slot] = in->possible;
-            if (slot == in->nstates) in->nstates++;
-            if (pick(3) == 0) save_bytes(in, st);
-        }
+        int slot = take_state(in, F.GetFMUstate, "fmi2GetFMUstate");
+        if (slot >= 0 && pick(3) == 0) save_bytes(in, in->states[slot]);
         return;
     }
     if (op < 85) { /* fmi2SetFMUstate: own, another instance's, or garbage */
@@ -968,7 +1020,7 @@ static struct {
                                             fmi3Boolean, fmi3Boolean, fmi3Boolean,
                                             const fmi3ValueReference *, size_t, void *,
                                             fmi3LogMessageCallback, void *);
-    void (*FreeInstance)(fmi3Instance);
+    /* (fmi3FreeInstance: F.FreeInstance, of the same type as fmi2FreeInstance) */
     fmi3Status (*EnterInitializationMode)(fmi3Instance, fmi3Boolean, fmi3Float64, fmi3Float64,
                                           fmi3Boolean, fmi3Float64);
     fmi3Status (*ExitInitializationMode)(fmi3Instance);
@@ -988,13 +1040,8 @@ static struct {
     fmi3Status (*SerializedFMUStateSize)(fmi3Instance, fmi3FMUState, size_t *);
     fmi3Status (*SerializeFMUState)(fmi3Instance, fmi3FMUState, unsigned char *, size_t);
     fmi3Status (*DeserializeFMUState)(fmi3Instance, const unsigned char *, size_t, fmi3FMUState *);
-    fmi3Status (*SetTime)(fmi3Instance, fmi3Float64);
-    fmi3Status (*SetContinuousStates)(fmi3Instance, const fmi3Float64 *, size_t);
-    fmi3Status (*GetArray[4])(fmi3Instance, fmi3Float64 *, size_t); /* states, derivatives,
-                                                                        indicators, nominals */
+    /* (the Model Exchange functions FMI 2.0 shares: ME) */
     fmi3Status (*GetNumber[2])(fmi3Instance, size_t *); /* event indicators, states */
-    fmi3Status (*EnterEventMode)(fmi3Instance);
-    fmi3Status (*EnterContinuousTimeMode)(fmi3Instance);
     fmi3Status (*UpdateDiscreteStates)(fmi3Instance, fmi3Boolean *, fmi3Boolean *, fmi3Boolean *,
                                        fmi3Boolean *, fmi3Boolean *, fmi3Float64 *);
     fmi3Status (*CompletedIntegratorStep)(fmi3Instance, fmi3Boolean, fmi3Boolean *, fmi3Boolean *);
@@ -1046,19 +1093,7 @@ static void instantiate3(Inst *in) {
     }
     if (variant == 0 || variant == 2 || variant == 4)
         finding(what, "accepted an invalid call (case %d)", variant);
-    in->possible = S_INSTANTIATED;
-    in->me = !cs;
-    in->time = 0;
-    in->time_known = 1;
-    in->nstates = 0;
-}
-
-static void free_instance3(Inst *in) {
-    call_no++;
-    calls_total++;
-    G.FreeInstance(in->c);
-    in->c = NULL;
-    in->nstates = 0;
+    instantiated(in, !cs);
 }
 
 /* Every Float64 read at once (arrays whole); each must be finite when fmi3OK. */
@@ -1087,38 +1122,6 @@ static void check_all_reals3(Inst *in, const char *after) {
     free(x);
 }
 
-/* One checked array read of the Model Exchange interface (`which`: states, derivatives,
-   indicators, nominals); `expected` is the model's size. */
-static fmi3Status me3_get_array(Inst *in, int which, fmi3Float64 *x, size_t n, int expected) {
-    static const char *const names[] = {"fmi3GetContinuousStates",
-                                        "fmi3GetContinuousStateDerivatives",
-                                        "fmi3GetEventIndicators",
-                                        "fmi3GetNominalsOfContinuousStates"};
-    int mask = which == 3 ? ME3_GETTABLE | S_INSTANTIATED : ME3_GETTABLE;
-    fmi3Float64 *out = n && pick(25) == 0 ? NULL : x;
-    fmi3Status s;
-    begin(in);
-    s = G.GetArray[which](in->c, out, n);
-    end(in, names[which], in->me ? mask : 0, s);
-    if (s <= fmi2Warning && n != (size_t)expected)
-        finding(names[which], "accepted %zu elements where the model has %d", n, expected);
-    if (s <= fmi2Warning && !out && n) finding(names[which], "accepted a NULL array of %zu elements", n);
-    if (s == fmi2OK && out && n == (size_t)expected) me_finite(names[which], out, n);
-    me_failed(in, s);
-    return s;
-}
-
-/* One checked call of a function that takes the instance alone; a model failure (not an
-   illegal call) may leave a Model Exchange or a Co-Simulation instance in Error state. */
-static fmi3Status plain3(Inst *in, fmi3Status (*call)(fmi3Instance), const char *what, int mask) {
-    fmi3Status s;
-    begin(in);
-    s = call(in->c);
-    end(in, what, mask, s);
-    if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
-    return s;
-}
-
 /* fmi3EnterInitializationMode with a start time (sometimes nasty) and a stop time. */
 static void enter_init3(Inst *in) {
     double start = pick(6) == 0 ? nasty_real(NULL) : 0.0;
@@ -1133,24 +1136,6 @@ static void enter_init3(Inst *in) {
         in->time = start;
         in->time_known = 1;
     }
-}
-
-/* The legal way on towards Continuous-Time Mode (the random calls rarely get there). */
-static int me3_advance(Inst *in) {
-    fmi3Status s;
-    if (in->possible == S_INSTANTIATED) enter_init3(in);
-    else if (in->possible == S_INIT) {
-        s = plain3(in, G.ExitInitializationMode, "fmi3ExitInitializationMode", S_INIT);
-        if (s <= fmi2Warning) {
-            in->possible = in->me ? S_EVENT : S_STEP;
-            check_all_reals3(in, "fmi3ExitInitializationMode");
-        }
-    } else if (in->possible == S_EVENT && in->me) {
-        if (plain3(in, G.EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode", S_EVENT) <= fmi2Warning)
-            in->possible = S_CONT;
-    } else
-        return 0;
-    return 1;
 }
 
 /* fmi3Set/Get Float64, Int32 or Boolean on 1-4 value references, nValues mostly right. */
@@ -1207,17 +1192,7 @@ static void states3(Inst *in) {
     fmi3Status s;
     int op = pick(5);
     if (op == 0 || in->nstates == 0) {
-        fmi3FMUState st = NULL;
-        int slot = in->nstates < 8 ? in->nstates : pick(8);
-        if (slot < in->nstates) st = in->states[slot];
-        begin(in);
-        s = G.GetFMUState(in->c, pick(30) ? &st : NULL);
-        end(in, "fmi3GetFMUState", ANY_LIVE, s);
-        if (s == fmi2OK && st) {
-            in->states[slot] = st;
-            in->state_possible[slot] = in->possible;
-            if (slot == in->nstates) in->nstates++;
-        }
+        take_state(in, G.GetFMUState, "fmi3GetFMUState");
         return;
     }
     int slot = pick(in->nstates);
@@ -1275,89 +1250,45 @@ static void states3(Inst *in) {
     }
 }
 
+/* fmi3Terminate or fmi3Reset (`reset`): on success the instance is Terminated or
+   Instantiated; a model failure may leave it in Error state. */
+static void end_or_reset3(Inst *in, int reset) {
+    fmi3Status s = reset ? plain_call(in, G.Reset, "fmi3Reset", ANY_LIVE)
+                         : plain_call(in, G.Terminate, "fmi3Terminate", in->me ? ME_MODES : S_STEP);
+    if (s <= fmi2Warning) {
+        in->possible = reset ? S_INSTANTIATED : S_TERMINATED;
+        in->time = 0;
+        in->time_known = reset;
+    } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+        in->possible |= S_ERROR;
+}
+
 static void random_call3(Inst *in) {
-    fmi3Float64 x[130], y[130];
     fmi3Status s;
-    int op, i;
-    size_t n;
+    int op;
     if (!in->c) {
         instantiate3(in);
         return;
     }
-    if (pick(3) == 0 && me3_advance(in)) return;
+    if (pick(3) == 0 && me_advance(in)) return;
     op = pick(120);
-#define ME3_MASK(m) (in->me ? (m) : 0)
     if (op < 2) {
-        free_instance3(in);
+        free_instance(in);
         return;
     }
     if (op < 4) {
         enter_init3(in);
         return;
     }
-    if (op < 6) {
-        if (plain3(in, G.Terminate, "fmi3Terminate", in->me ? ME_MODES : S_STEP) <= fmi2Warning)
-            in->possible = S_TERMINATED;
-        return;
-    }
     if (op < 8) {
-        if (plain3(in, G.Reset, "fmi3Reset", ANY_LIVE) <= fmi2Warning) {
-            in->possible = S_INSTANTIATED;
-            in->time = 0;
-            in->time_known = 1;
-        }
+        end_or_reset3(in, op >= 6);
         return;
     }
-    if (op < 16) { /* fmi3SetTime: forward, backward, non-finite or huge */
-        double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
-                                             : nasty_real(NULL);
-        begin(in);
-        s = G.SetTime(in->c, t);
-        end(in, "fmi3SetTime", ME3_MASK(ME_MODES), s);
-        if (s <= fmi2Warning) {
-            if (!isfinite(t)) finding("fmi3SetTime", "accepted t = %g", t);
-            in->time = t;
-            in->time_known = 1;
-        }
+    if (op < 88) {
+        me_shared_call(in, op - 8);
         return;
     }
-    if (op < 32) { /* fmi3SetContinuousStates: the current ones moved, or nasty values */
-        int kind = pick(4);
-        n = me_size(nx);
-        for (i = 0; i <= nx; i++) x[i] = 0.0;
-        if (kind > 0 && nx) {
-            begin(in);
-            s = G.GetArray[0](in->c, x, (size_t)nx);
-            end(in, "fmi3GetContinuousStates", ME3_MASK(ME3_GETTABLE), s);
-            if (s != fmi2OK)
-                for (i = 0; i < nx; i++) x[i] = 0.0;
-            me_failed(in, s);
-        }
-        for (i = 0; i <= nx; i++) {
-            if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
-            else x[i] += 0.01 * (unit() - 0.5);
-        }
-        begin(in);
-        s = G.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
-        end(in, "fmi3SetContinuousStates", ME3_MASK(S_CONT), s);
-        if (s <= fmi2Warning) {
-            if (n != (size_t)nx) finding("fmi3SetContinuousStates", "accepted %zu states of %d", n, nx);
-            for (i = 0; i < (int)n && n != ME_HUGE; i++)
-                if (!isfinite(x[i])) finding("fmi3SetContinuousStates", "accepted state %d = %g", i, x[i]);
-            if (nx) me3_get_array(in, 1, y, (size_t)nx, nx);
-            if (nz && pick(2)) me3_get_array(in, 2, y, (size_t)nz, nz);
-            check_all_reals3(in, "fmi3SetContinuousStates");
-        }
-        me_failed(in, s);
-        return;
-    }
-    if (op < 56) { /* the four array reads */
-        int which = pick(4);
-        int expected = which == 2 ? nz : nx;
-        me3_get_array(in, which, x, me_size(expected), expected);
-        return;
-    }
-    if (op < 60) { /* fmi3GetNumberOfEventIndicators / ContinuousStates */
+    if (op < 92) { /* fmi3GetNumberOfEventIndicators / ContinuousStates */
         int which = pick(2);
         size_t count = 12345;
         int null = pick(20) == 0;
@@ -1370,12 +1301,7 @@ static void random_call3(Inst *in) {
             finding("fmi3GetNumberOf*", "%zu, the model description says %d", count, which ? nx : nz);
         return;
     }
-    if (op < 66) {
-        if (plain3(in, G.EnterEventMode, "fmi3EnterEventMode", ME3_MASK(ME_MODES)) <= fmi2Warning)
-            in->possible = S_EVENT;
-        return;
-    }
-    if (op < 74) { /* fmi3UpdateDiscreteStates, each output sometimes NULL */
+    if (op < 100) { /* fmi3UpdateDiscreteStates, each output sometimes NULL */
         fmi3Boolean flag[5] = {0, 0, 0, 0, 0};
         fmi3Float64 next = 0;
         int null = pick(14);
@@ -1383,58 +1309,34 @@ static void random_call3(Inst *in) {
         s = G.UpdateDiscreteStates(in->c, null == 0 ? NULL : &flag[0], null == 1 ? NULL : &flag[1],
                                    null == 2 ? NULL : &flag[2], null == 3 ? NULL : &flag[3],
                                    null == 4 ? NULL : &flag[4], null == 5 ? NULL : &next);
-        end(in, "fmi3UpdateDiscreteStates", ME3_MASK(S_EVENT), s);
-        if (s <= fmi2Warning && flag[4] && null != 5 && !isfinite(next))
-            finding("fmi3UpdateDiscreteStates", "next event time %g", next);
-        if (s == fmi2OK) check_all_reals3(in, "fmi3UpdateDiscreteStates");
-        me_failed(in, s);
+        me_updated(in, "fmi3UpdateDiscreteStates", s, flag[4] && null != 5, next);
         return;
     }
-    if (op < 80) {
-        if (plain3(in, G.EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode", ME3_MASK(S_EVENT)) <=
-            fmi2Warning)
-            in->possible = S_CONT;
-        return;
-    }
-    if (op < 88) { /* fmi3CompletedIntegratorStep, with NULL flags now and then */
-        fmi3Boolean event = 0, terminate = 0;
-        int null = pick(20);
-        begin(in);
-        s = G.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
-                                      null == 1 ? NULL : &terminate);
-        end(in, "fmi3CompletedIntegratorStep", ME3_MASK(S_CONT), s);
-        me_failed(in, s);
-        return;
-    }
-    if (op < 96) { /* fmi3GetDirectionalDerivative: derivatives by states, or unknown references */
+    if (op < 106) { /* fmi3GetDirectionalDerivative: wrong nSeed / nSensitivity now and then */
         fmi3ValueReference u[8], k[8];
-        fmi3Float64 seed[8], out[8];
-        const Var *var;
-        size_t nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
-        size_t nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
-        size_t nseed = pick(10) ? nk : nk - 1, nsens = pick(10) ? nu : nu + 1;
+        fmi3Float64 seed[8], out[9];
+        size_t nu, nk, nseed, nsens;
         int null = pick(20);
-        for (i = 0; i < (int)nu; i++) u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
-        for (i = 0; i < (int)nk; i++) {
-            k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
-            seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
-        }
+        directional_args(u, &nu, k, &nk, seed);
+        nseed = pick(10) ? nk : nk - 1;
+        nsens = pick(10) ? nu : nu + 1;
         begin(in);
         s = G.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
                                        null == 1 ? NULL : seed, nseed, null == 2 ? NULL : out,
                                        nsens);
         end(in, "fmi3GetDirectionalDerivative", ME3_GETTABLE | S_STEP, s);
         if (s <= fmi2Warning && null < 3) finding("fmi3GetDirectionalDerivative", "accepted a NULL array");
+        if (s <= fmi2Warning && (nseed != nk || nsens != nu))
+            finding("fmi3GetDirectionalDerivative", "accepted nSeed %zu for %zu knowns, nSensitivity %zu for %zu unknowns", nseed, nk, nsens, nu);
         if (s == fmi2OK && null >= 3) me_finite("fmi3GetDirectionalDerivative", out, nu);
         if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
         return;
     }
-    if (op < 110) {
+    if (op < 114) {
         values3(in, pick(2));
         return;
     }
     states3(in);
-#undef ME3_MASK
 }
 
 /* ---- loading ------------------------------------------------------------------------- */
@@ -1491,45 +1393,93 @@ static int read_manifest(const char *path) {
     return nvars > 0 && model_id[0] && library[0];
 }
 
-#define LOAD3(field, symbol)                                                                  \
-    do {                                                                                      \
-        *(void **)(&G.field) = dlsym(lib, symbol);                                            \
-        if (!G.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
-    } while (0)
-
 #define LOAD(field, symbol)                                                                   \
     do {                                                                                      \
         *(void **)(&F.field) = dlsym(lib, symbol);                                            \
         if (!F.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
     } while (0)
 
+/* Loads the Model Exchange functions FMI version `fmi` ("fmi2", "fmi3") shares with the other
+   into ME, with their names (the derivatives' function: fmi2GetDerivatives,
+   fmi3GetContinuousStateDerivatives); false, said on stderr, when one is missing. */
+static int load_prefixed(void *lib, const char *fmi, const char *const *what, void ***slots, int n,
+                         char (*names)[64]);
+static int me_load(void *lib, const char *fmi, const char *derivatives, void (*enter_init)(Inst *),
+                   void (*check_all)(Inst *, const char *)) {
+    static char names[10][64];
+    const char *const what[10] = {"GetContinuousStates", derivatives, "GetEventIndicators",
+                                  "GetNominalsOfContinuousStates", "SetTime",
+                                  "SetContinuousStates", "EnterEventMode",
+                                  "EnterContinuousTimeMode", "ExitInitializationMode",
+                                  "CompletedIntegratorStep"};
+    const char **named[10] = {&ME.array_names[0], &ME.array_names[1], &ME.array_names[2],
+                              &ME.array_names[3], &ME.set_time, &ME.set_states,
+                              &ME.enter_event, &ME.enter_continuous, &ME.exit_init,
+                              &ME.completed};
+    void **functions[10] = {(void **)&ME.GetArray[0], (void **)&ME.GetArray[1],
+                            (void **)&ME.GetArray[2], (void **)&ME.GetArray[3],
+                            (void **)&ME.SetTime, (void **)&ME.SetContinuousStates,
+                            (void **)&ME.EnterEventMode, (void **)&ME.EnterContinuousTimeMode,
+                            (void **)&ME.ExitInitializationMode,
+                            (void **)&ME.CompletedIntegratorStep};
+    if (!load_prefixed(lib, fmi, what, functions, 10, names)) return 0;
+    for (int k = 0; k < 10; k++) *named[k] = names[k];
+    ME.enter_init = enter_init;
+    ME.check_all_reals = check_all;
+    return 1;
+}
+
+/* fmi3CompletedIntegratorStep with FMI 2.0's argument types (for ME.CompletedIntegratorStep). */
+static fmi2Status completed3(fmi2Component c, fmi2Boolean no_set_state, fmi2Boolean *event,
+                             fmi2Boolean *terminate) {
+    fmi3Boolean e = 0, t = 0;
+    fmi3Status s = G.CompletedIntegratorStep(c, no_set_state != 0, event ? &e : NULL,
+                                             terminate ? &t : NULL);
+    if (event) *event = e;
+    if (terminate) *terminate = t;
+    return s;
+}
+
+/* dlsym of the `n` functions `fmi` + what[k] ("fmi3" + "Reset") into *slots[k], their names
+   kept in names[k] when `names` is not NULL; false, said on stderr, when one is missing. */
+static int load_prefixed(void *lib, const char *fmi, const char *const *what, void ***slots, int n,
+                         char (*names)[64]) {
+    char name[64];
+    for (int k = 0; k < n; k++) {
+        snprintf(name, sizeof name, "%s%s", fmi, what[k]);
+        if (names) snprintf(names[k], sizeof names[k], "%s", name);
+        *slots[k] = dlsym(lib, name);
+        if (!*slots[k]) {
+            fprintf(stderr, "%s: missing %s\n", library, name);
+            return 0;
+        }
+    }
+    return 1;
+}
+
 static int load3(void *lib) {
-    LOAD3(InstantiateModelExchange, "fmi3InstantiateModelExchange");
-    LOAD3(InstantiateCoSimulation, "fmi3InstantiateCoSimulation");
-    LOAD3(FreeInstance, "fmi3FreeInstance");
-    LOAD3(EnterInitializationMode, "fmi3EnterInitializationMode");
-    LOAD3(ExitInitializationMode, "fmi3ExitInitializationMode");
-    LOAD3(Terminate, "fmi3Terminate"); LOAD3(Reset, "fmi3Reset");
-    LOAD3(GetFloat64, "fmi3GetFloat64"); LOAD3(GetInt32, "fmi3GetInt32");
-    LOAD3(GetBoolean, "fmi3GetBoolean"); LOAD3(SetFloat64, "fmi3SetFloat64");
-    LOAD3(SetInt32, "fmi3SetInt32"); LOAD3(SetBoolean, "fmi3SetBoolean");
-    LOAD3(GetFMUState, "fmi3GetFMUState"); LOAD3(SetFMUState, "fmi3SetFMUState");
-    LOAD3(FreeFMUState, "fmi3FreeFMUState");
-    LOAD3(SerializedFMUStateSize, "fmi3SerializedFMUStateSize");
-    LOAD3(SerializeFMUState, "fmi3SerializeFMUState");
-    LOAD3(DeserializeFMUState, "fmi3DeserializeFMUState");
-    LOAD3(SetTime, "fmi3SetTime"); LOAD3(SetContinuousStates, "fmi3SetContinuousStates");
-    LOAD3(GetArray[0], "fmi3GetContinuousStates");
-    LOAD3(GetArray[1], "fmi3GetContinuousStateDerivatives");
-    LOAD3(GetArray[2], "fmi3GetEventIndicators");
-    LOAD3(GetArray[3], "fmi3GetNominalsOfContinuousStates");
-    LOAD3(GetNumber[0], "fmi3GetNumberOfEventIndicators");
-    LOAD3(GetNumber[1], "fmi3GetNumberOfContinuousStates");
-    LOAD3(EnterEventMode, "fmi3EnterEventMode");
-    LOAD3(EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode");
-    LOAD3(UpdateDiscreteStates, "fmi3UpdateDiscreteStates");
-    LOAD3(CompletedIntegratorStep, "fmi3CompletedIntegratorStep");
-    LOAD3(GetDirectionalDerivative, "fmi3GetDirectionalDerivative");
+    const char *const what[] = {
+        "InstantiateModelExchange", "InstantiateCoSimulation", "FreeInstance",
+        "EnterInitializationMode", "ExitInitializationMode", "Terminate", "Reset", "GetFloat64",
+        "GetInt32", "GetBoolean", "SetFloat64", "SetInt32", "SetBoolean", "GetFMUState",
+        "SetFMUState", "FreeFMUState", "SerializedFMUStateSize", "SerializeFMUState",
+        "DeserializeFMUState", "GetNumberOfEventIndicators", "GetNumberOfContinuousStates",
+        "UpdateDiscreteStates", "CompletedIntegratorStep", "GetDirectionalDerivative"};
+    void **slots[] = {
+        (void **)&G.InstantiateModelExchange, (void **)&G.InstantiateCoSimulation,
+        (void **)&F.FreeInstance, (void **)&G.EnterInitializationMode,
+        (void **)&G.ExitInitializationMode, (void **)&G.Terminate, (void **)&G.Reset,
+        (void **)&G.GetFloat64, (void **)&G.GetInt32, (void **)&G.GetBoolean,
+        (void **)&G.SetFloat64, (void **)&G.SetInt32, (void **)&G.SetBoolean,
+        (void **)&G.GetFMUState, (void **)&G.SetFMUState, (void **)&G.FreeFMUState,
+        (void **)&G.SerializedFMUStateSize, (void **)&G.SerializeFMUState,
+        (void **)&G.DeserializeFMUState, (void **)&G.GetNumber[0], (void **)&G.GetNumber[1],
+        (void **)&G.UpdateDiscreteStates, (void **)&G.CompletedIntegratorStep,
+        (void **)&G.GetDirectionalDerivative};
+    if (!load_prefixed(lib, "fmi3", what, slots, (int)(sizeof slots / sizeof *slots), NULL) ||
+        !me_load(lib, "fmi3", "GetContinuousStateDerivatives", enter_init3, check_all_reals3))
+        return 0;
+    ME.CompletedIntegratorStep = completed3;
     return 1;
 }
 
@@ -1556,14 +1506,9 @@ static int load(void) {
     LOAD(GetIntegerStatus, "fmi2GetIntegerStatus"); LOAD(GetBooleanStatus, "fmi2GetBooleanStatus");
     LOAD(GetStringStatus, "fmi2GetStringStatus");
     if (!model_exchange) return 1;
+    if (!me_load(lib, "fmi2", "GetDerivatives", enter_init2, check_all_reals)) return 0;
     LOAD(GetDirectionalDerivative, "fmi2GetDirectionalDerivative");
-    LOAD(SetTime, "fmi2SetTime"); LOAD(SetContinuousStates, "fmi2SetContinuousStates");
-    LOAD(GetContinuousStates, "fmi2GetContinuousStates"); LOAD(GetDerivatives, "fmi2GetDerivatives");
-    LOAD(GetEventIndicators, "fmi2GetEventIndicators");
-    LOAD(GetNominalsOfContinuousStates, "fmi2GetNominalsOfContinuousStates");
-    LOAD(EnterEventMode, "fmi2EnterEventMode"); LOAD(NewDiscreteStates, "fmi2NewDiscreteStates");
-    LOAD(EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode");
-    LOAD(CompletedIntegratorStep, "fmi2CompletedIntegratorStep");
+    LOAD(NewDiscreteStates, "fmi2NewDiscreteStates");
     return 1;
 }
 
@@ -1597,16 +1542,12 @@ int main(int argc, char **argv) {
     for (i = 0; i < (int)strlen(label); i++) rng = rng * 31 + (unsigned char)label[i];
     for (k = 0; k < calls; k++) {
         Inst *in = &inst[pick(5) == 0 ? pick(NINST) : 0];
-        if (version == 3) {
-            if (in->c && in->possible == S_FATAL) free_instance3(in);
-            random_call3(in);
-            continue;
-        }
         if (in->c && in->possible == S_FATAL) free_instance(in);
-        random_call(in);
+        if (version == 3) random_call3(in);
+        else random_call(in);
     }
     for (i = 0; i < NINST; i++)
-        if (inst[i].c) version == 3 ? free_instance3(&inst[i]) : free_instance(&inst[i]);
+        if (inst[i].c) free_instance(&inst[i]);
     if (dump_path && own_len) {
         FILE *f = fopen(dump_path, "wb");
         if (f) { fwrite(own_bytes, 1, own_len, f); fclose(f); }
