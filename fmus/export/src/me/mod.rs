@@ -30,7 +30,8 @@
 //! ```
 //!
 //! The instance keeps the states in the variable values (so FMU states carry them), evaluates
-//! the model when states, inputs or time changed and something is read, checks every result
+//! the model when states, inputs or time changed and something is read (the event indicators
+//! only when they are read: [`Indicators`]), checks every result
 //! for finiteness (a non-finite derivative, output or event indicator is an error naming it,
 //! never published), and refuses the Model Exchange functions on a Co-Simulation instance.
 //! Directional derivatives serve Co-Simulation instances too, at the values of the last step.
