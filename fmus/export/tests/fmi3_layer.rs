@@ -606,6 +606,18 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], &[1.0, 2.0, 10.0], 2).unwrap(),
         [11.0, 12.0]
     );
+    // the adjoint's seed and result are checked as the directional one's (found by the
+    // misuse suite: a NaN seed or an overflowing sum came back with fmi3OK)
+    let adjoint = |seed: &[f64]| derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], seed, 2);
+    assert_eq!(adjoint(&[1.0, f64::NAN, 10.0]), Err(fmi3Error));
+    assert!(last_error().contains("fmi3GetAdjointDerivative: seed value NaN rejected"));
+    assert_eq!(adjoint(&[1e308, 1.0, 1e308]), Err(fmi3Error));
+    assert!(
+        last_error().contains("the adjoint derivative with respect to `u[1]` came out as inf"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(adjoint(&[1.0, 2.0, 10.0]).unwrap(), [11.0, 12.0]);
     assert_eq!(
         derivative(&i, false, &[VR_Z], &[VR_TIME], &[1.0], 1),
         Err(fmi3Error)
