@@ -1048,6 +1048,10 @@ static struct {
     fmi3Status (*GetDirectionalDerivative)(fmi3Instance, const fmi3ValueReference *, size_t,
                                            const fmi3ValueReference *, size_t, const fmi3Float64 *,
                                            size_t, fmi3Float64 *, size_t);
+    fmi3Status (*GetAdjointDerivative)(fmi3Instance, const fmi3ValueReference *, size_t,
+                                       const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                                       size_t, fmi3Float64 *, size_t);
+    fmi3Status (*EvaluateDiscreteStates)(fmi3Instance); /* providesEvaluateDiscreteStates="false" */
 } G;
 
 /* The FMI 3.0 state machine's masks for a Model Exchange instance (FMI 3.0.2 section 3.3);
@@ -1288,6 +1292,10 @@ static void random_call3(Inst *in) {
         me_shared_call(in, op - 8);
         return;
     }
+    if (op < 89) { /* fmi3EvaluateDiscreteStates: the FMUs do not provide it, refused anywhere */
+        plain_call(in, G.EvaluateDiscreteStates, "fmi3EvaluateDiscreteStates", 0);
+        return;
+    }
     if (op < 92) { /* fmi3GetNumberOfEventIndicators / ContinuousStates */
         int which = pick(2);
         size_t count = 12345;
@@ -1312,23 +1320,33 @@ static void random_call3(Inst *in) {
         me_updated(in, "fmi3UpdateDiscreteStates", s, flag[4] && null != 5, next);
         return;
     }
-    if (op < 106) { /* fmi3GetDirectionalDerivative: wrong nSeed / nSensitivity now and then */
+    if (op < 106) { /* fmi3GetDirectionalDerivative or fmi3GetAdjointDerivative (the seed over
+                       the unknowns, the result over the knowns): wrong nSeed / nSensitivity
+                       now and then */
         fmi3ValueReference u[8], k[8];
-        fmi3Float64 seed[8], out[9];
-        size_t nu, nk, nseed, nsens;
-        int null = pick(20);
+        fmi3Float64 seed[8], seeds_at[65], out[65];
+        size_t nu, nk, nseed, nsens, seeds, results, elements[2] = {0, 0}, i;
+        int null = pick(20), adjoint = pick(3) == 0;
+        const char *what = adjoint ? "fmi3GetAdjointDerivative" : "fmi3GetDirectionalDerivative";
         directional_args(u, &nu, k, &nk, seed);
-        nseed = pick(10) ? nk : nk - 1;
-        nsens = pick(10) ? nu : nu + 1;
+        for (i = 0; i < nu; i++) elements[0] += (size_t)count_of(u[i]); /* arrays: elements */
+        for (i = 0; i < nk; i++) elements[1] += (size_t)count_of(k[i]);
+        seeds = elements[adjoint ? 0 : 1];
+        results = elements[adjoint ? 1 : 0];
+        if (seeds > 64 || results > 64) return;
+        for (i = 0; i < seeds; i++) seeds_at[i] = seed[i % nk];
+        nseed = pick(10) ? seeds : seeds - 1;
+        nsens = pick(10) ? results : results + 1;
         begin(in);
-        s = G.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
-                                       null == 1 ? NULL : seed, nseed, null == 2 ? NULL : out,
-                                       nsens);
-        end(in, "fmi3GetDirectionalDerivative", ME3_GETTABLE | S_STEP, s);
-        if (s <= fmi2Warning && null < 3) finding("fmi3GetDirectionalDerivative", "accepted a NULL array");
-        if (s <= fmi2Warning && (nseed != nk || nsens != nu))
-            finding("fmi3GetDirectionalDerivative", "accepted nSeed %zu for %zu knowns, nSensitivity %zu for %zu unknowns", nseed, nk, nsens, nu);
-        if (s == fmi2OK && null >= 3) me_finite("fmi3GetDirectionalDerivative", out, nu);
+        s = (adjoint ? G.GetAdjointDerivative : G.GetDirectionalDerivative)(
+            in->c, null == 0 ? NULL : u, nu, k, nk, null == 1 ? NULL : seeds_at, nseed,
+            null == 2 ? NULL : out, nsens);
+        end(in, what, ME3_GETTABLE | S_STEP, s);
+        if (s <= fmi2Warning && null < 3) finding(what, "accepted a NULL array");
+        if (s <= fmi2Warning && (nseed != seeds || nsens != results))
+            finding(what, "accepted nSeed %zu for %zu seeds, nSensitivity %zu for %zu results",
+                    nseed, seeds, nsens, results);
+        if (s == fmi2OK && null >= 3) me_finite(what, out, results);
         if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
         return;
     }
@@ -1464,7 +1482,8 @@ static int load3(void *lib) {
         "GetInt32", "GetBoolean", "SetFloat64", "SetInt32", "SetBoolean", "GetFMUState",
         "SetFMUState", "FreeFMUState", "SerializedFMUStateSize", "SerializeFMUState",
         "DeserializeFMUState", "GetNumberOfEventIndicators", "GetNumberOfContinuousStates",
-        "UpdateDiscreteStates", "CompletedIntegratorStep", "GetDirectionalDerivative"};
+        "UpdateDiscreteStates", "CompletedIntegratorStep", "GetDirectionalDerivative",
+        "GetAdjointDerivative", "EvaluateDiscreteStates"};
     void **slots[] = {
         (void **)&G.InstantiateModelExchange, (void **)&G.InstantiateCoSimulation,
         (void **)&F.FreeInstance, (void **)&G.EnterInitializationMode,
@@ -1475,7 +1494,8 @@ static int load3(void *lib) {
         (void **)&G.SerializedFMUStateSize, (void **)&G.SerializeFMUState,
         (void **)&G.DeserializeFMUState, (void **)&G.GetNumber[0], (void **)&G.GetNumber[1],
         (void **)&G.UpdateDiscreteStates, (void **)&G.CompletedIntegratorStep,
-        (void **)&G.GetDirectionalDerivative};
+        (void **)&G.GetDirectionalDerivative, (void **)&G.GetAdjointDerivative,
+        (void **)&G.EvaluateDiscreteStates};
     if (!load_prefixed(lib, "fmi3", what, slots, (int)(sizeof slots / sizeof *slots), NULL) ||
         !me_load(lib, "fmi3", "GetContinuousStateDerivatives", enter_init3, check_all_reals3))
         return 0;
