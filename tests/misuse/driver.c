@@ -23,6 +23,10 @@
  * all Reals are read. A Co-Simulation instance of such an FMU gets a few of these calls too
  * (each must be refused).
  *
+ * An FMI 3.0 FMU with Model Exchange (manifest version 3, from build/fmus/fmi3) is driven
+ * through the FMI 3.0 Model Exchange state machine likewise (see "FMI 3.0 Model Exchange"
+ * below), with the same checks.
+ *
  * A crash, a hang or an AddressSanitizer report ends the process (the run script reports it).
  *
  *   driver MANIFEST SEED CALLS [BOUND_MS [FOREIGN_STATE_FILE [DUMP_FILE]]]
@@ -104,17 +108,8 @@ static struct {
     fmi2Status (*GetIntegerStatus)(fmi2Component, int, fmi2Integer *);
     fmi2Status (*GetBooleanStatus)(fmi2Component, int, fmi2Boolean *);
     fmi2Status (*GetStringStatus)(fmi2Component, int, fmi2String *);
-    /* Model Exchange (loaded when the FMU offers it) */
-    fmi2Status (*SetTime)(fmi2Component, fmi2Real);
-    fmi2Status (*SetContinuousStates)(fmi2Component, const fmi2Real *, size_t);
-    fmi2Status (*GetContinuousStates)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetDerivatives)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetEventIndicators)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*GetNominalsOfContinuousStates)(fmi2Component, fmi2Real *, size_t);
-    fmi2Status (*EnterEventMode)(fmi2Component);
+    /* Model Exchange (loaded when the FMU offers it; the functions FMI 3.0 shares: ME) */
     fmi2Status (*NewDiscreteStates)(fmi2Component, void *);
-    fmi2Status (*EnterContinuousTimeMode)(fmi2Component);
-    fmi2Status (*CompletedIntegratorStep)(fmi2Component, fmi2Boolean, fmi2Boolean *, fmi2Boolean *);
     fmi2Status (*GetDirectionalDerivative)(fmi2Component, const fmi2ValueReference *, size_t,
                                            const fmi2ValueReference *, size_t, const fmi2Real *,
                                            fmi2Real *);
@@ -148,6 +143,7 @@ typedef struct {
 } Var;
 
 static char label[128], model_id[128], guid[128], library[1024], resources[1200];
+static int version = 2;    /* the FMI version of the manifest's FMU */
 static int model_exchange; /* the FMU offers Model Exchange too: fmi2ModelExchange is valid */
 static int nz;             /* its event indicators */
 static int nx;             /* its continuous states: state_vr[k], their derivatives der_vr[k] */
@@ -289,10 +285,10 @@ static fmi2Status end(Inst *in, const char *what, int mask, fmi2Status s) {
     }
     if (ms > bound_ms) finding(what, "took %.0f ms (bound %.0f ms)", ms, bound_ms);
     if (s == fmi2Fatal) {
-        finding(what, "fmi2Fatal: %s", in->last);
+        finding(what, "%s: %s", version == 3 ? "fmi3Fatal" : "fmi2Fatal", in->last);
         in->possible = S_FATAL;
     }
-    if (s < fmi2OK || s > fmi2Fatal) finding(what, "status %d is not an fmi2Status here", s);
+    if (s < fmi2OK || s > fmi2Fatal) finding(what, "status %d is not a status here", s);
     if (s >= fmi2Discard && in->log_count == 0) finding(what, "returned %d without logging why", s);
     if (in->bad_format) {
         finding(what, "logged with a format other than \"%%s\"");
@@ -402,6 +398,15 @@ static void check_all_reals(Inst *in, const char *after) {
 /* ---- instances ----------------------------------------------------------------------- */
 static void free_states(Inst *in) { in->nstates = 0; /* freed with the instance */ }
 
+/* A new instance (for Model Exchange when `me`): Instantiated at time 0, no FMU state. */
+static void instantiated(Inst *in, int me) {
+    in->possible = S_INSTANTIATED;
+    in->me = me;
+    in->time = 0;
+    in->time_known = 1;
+    in->nstates = 0;
+}
+
 static void instantiate(Inst *in) {
     char name[32];
     fmi2CallbackFunctions cb;
@@ -428,11 +433,7 @@ static void instantiate(Inst *in) {
     }
     if (variant <= 4 && variant != 1 && !(variant == 3 && model_exchange))
         finding("fmi2Instantiate", "accepted an invalid call (case %d)", variant);
-    in->possible = S_INSTANTIATED;
-    in->me = me;
-    in->time = 0;
-    in->time_known = 1;
-    in->nstates = 0;
+    instantiated(in, me);
 }
 
 static void free_instance(Inst *in) {
@@ -443,7 +444,7 @@ static void free_instance(Inst *in) {
     free_states(in);
 }
 
-/* ---- Model Exchange ------------------------------------------------------------------ */
+/* ---- Model Exchange (both versions) ---------------------------------------------------- */
 /* An array size for a model with `n` elements: mostly right, else off by one, zero or huge
    (the arrays passed have room for n + 1; a huge size must be refused before any access). */
 #define ME_HUGE ((size_t)1 << 40)
@@ -466,171 +467,220 @@ static void me_finite(const char *what, const fmi2Real *x, size_t n) {
         }
 }
 
+static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
+                             int mask);
+
+/* The Model Exchange functions FMI 2.0 and FMI 3.0 share in shape -- (instance), (instance,
+   time), (instance, array, size) -- and their names, loaded for the manifest's version: the
+   calls below drive both alike. `enter_init` brings an instance into Initialization Mode,
+   `check_all_reals` reads every Real. */
+static struct {
+    fmi2Status (*SetTime)(fmi2Component, fmi2Real);
+    fmi2Status (*SetContinuousStates)(fmi2Component, const fmi2Real *, size_t);
+    fmi2Status (*GetArray[4])(fmi2Component, fmi2Real *, size_t); /* states, derivatives,
+                                                                    indicators, nominals */
+    fmi2Status (*EnterEventMode)(fmi2Component), (*EnterContinuousTimeMode)(fmi2Component),
+        (*ExitInitializationMode)(fmi2Component);
+    fmi2Status (*CompletedIntegratorStep)(fmi2Component, fmi2Boolean, fmi2Boolean *, fmi2Boolean *);
+    const char *array_names[4], *set_time, *set_states, *enter_event, *enter_continuous, *exit_init,
+        *completed;
+    void (*enter_init)(Inst *);
+    void (*check_all_reals)(Inst *, const char *);
+} ME;
+
+/* a Co-Simulation instance refuses every Model Exchange call: mask 0 */
+#define ME_MASK(m) (in->me ? (m) : 0)
+
 /* One array read of the Model Exchange interface; `expected` is the model's size. */
 static fmi2Status me_get_array(Inst *in, int which, fmi2Real *x, size_t n, int expected) {
-    static const char *const names[] = {"fmi2GetContinuousStates", "fmi2GetDerivatives",
-                                        "fmi2GetEventIndicators",
-                                        "fmi2GetNominalsOfContinuousStates"};
     static const int masks[] = {S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INIT | ME_MODES | S_TERMINATED | S_ERROR,
                                 S_INSTANTIATED | S_INIT | ME_MODES | S_TERMINATED | S_ERROR};
-    fmi2Status (*const calls[])(fmi2Component, fmi2Real *, size_t) = {
-        F.GetContinuousStates, F.GetDerivatives, F.GetEventIndicators,
-        F.GetNominalsOfContinuousStates};
+    const char *what = ME.array_names[which];
     fmi2Status s;
     fmi2Real *out = n && pick(25) == 0 ? NULL : x;
     begin(in);
-    s = calls[which](in->c, out, n);
-    end(in, names[which], in->me ? masks[which] : 0, s);
+    s = ME.GetArray[which](in->c, out, n);
+    end(in, what, ME_MASK(masks[which]), s);
     if (s <= fmi2Warning && n != (size_t)expected)
-        finding(names[which], "accepted %zu elements where the model has %d", n, expected);
-    if (s <= fmi2Warning && !out && n)
-        finding(names[which], "accepted a NULL array of %zu elements", n);
-    if (s == fmi2OK && out && n == (size_t)expected) me_finite(names[which], out, n);
+        finding(what, "accepted %zu elements where the model has %d", n, expected);
+    if (s <= fmi2Warning && !out && n) finding(what, "accepted a NULL array of %zu elements", n);
+    if (s == fmi2OK && out && n == (size_t)expected) me_finite(what, out, n);
     me_failed(in, s);
     return s;
 }
 
-static fmi2Status plain_call(Inst *in, fmi2Status (*call)(fmi2Component), const char *what,
-                             int mask);
-
-/* fmi2EnterInitializationMode, fmi2EnterEventMode or fmi2EnterContinuousTimeMode (allowed in
-   `mask` on a Model Exchange instance; the last two nowhere on a Co-Simulation one, which
-   me_call never leads on): on success the instance is in `next`. */
+/* Enter Initialization Mode, Event Mode or Continuous-Time Mode (`call`, allowed in `mask` on
+   a Model Exchange instance; the last two nowhere on a Co-Simulation one): on success the
+   instance is in `next`. */
 static void me_enter(Inst *in, fmi2Status (*call)(fmi2Component), const char *what, int mask,
                      int next) {
-    fmi2Status s = plain_call(in, call, what, in->me ? mask : 0);
+    fmi2Status s = plain_call(in, call, what, ME_MASK(mask));
     if (s <= fmi2Warning) in->possible = next;
     me_failed(in, s);
 }
 
-/* The legal way on towards Continuous-Time Mode, for a Model Exchange instance known to be in
-   one state (the random calls rarely get there): true when it made a call. */
+/* The legal way on towards Continuous-Time Mode, for an instance known to be in one state (the
+   random calls rarely get there): true when it made a call. A Co-Simulation instance goes to
+   Step Mode instead (and no further). */
 static int me_advance(Inst *in) {
     fmi2Status s;
-    if (in->possible == S_INSTANTIATED)
-        me_enter(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED,
-                 S_INIT);
+    if (in->possible == S_INSTANTIATED) ME.enter_init(in);
     else if (in->possible == S_INIT) {
-        s = plain_call(in, F.ExitInitializationMode, "fmi2ExitInitializationMode", S_INIT);
+        s = plain_call(in, ME.ExitInitializationMode, ME.exit_init, S_INIT);
         if (s <= fmi2Warning) {
-            in->possible = S_EVENT;
-            check_all_reals(in, "fmi2ExitInitializationMode");
-        }
-        me_failed(in, s);
-    } else if (in->possible == S_EVENT)
-        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
+            in->possible = in->me ? S_EVENT : S_STEP;
+            ME.check_all_reals(in, ME.exit_init);
+        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+            in->possible |= S_ERROR; /* the model refused its parameters */
+    } else if (in->possible == S_EVENT && in->me)
+        me_enter(in, ME.EnterContinuousTimeMode, ME.enter_continuous, S_EVENT, S_CONT);
     else
         return 0;
     return 1;
 }
 
-static void me_call(Inst *in) {
+/* SetTime: forward, backward, non-finite or huge. */
+static void me_set_time(Inst *in) {
+    double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
+                                         : nasty_real(NULL);
+    fmi2Status s;
+    begin(in);
+    s = ME.SetTime(in->c, t);
+    end(in, ME.set_time, ME_MASK(ME_MODES), s);
+    if (s <= fmi2Warning) {
+        if (!isfinite(t)) finding(ME.set_time, "accepted t = %g", t);
+        in->time = t;
+        in->time_known = 1;
+    }
+}
+
+/* SetContinuousStates: the current ones moved, or nasty values; after a success the
+   derivatives (and now and then the event indicators) and every Real are read. */
+static void me_set_states(Inst *in) {
     /* room for every array at its size + 1 (the wrong sizes of me_size) */
     fmi2Real x[130], y[130];
-    int op, i;
+    int kind = pick(4), i;
+    size_t n = me_size(nx);
     fmi2Status s;
-    size_t n;
+    for (i = 0; i <= nx; i++) x[i] = 0.0;
+    if (kind > 0 && nx) {
+        begin(in);
+        s = ME.GetArray[0](in->c, x, (size_t)nx);
+        end(in, ME.array_names[0], ME_MASK(S_INIT | ME_MODES | S_TERMINATED | S_ERROR), s);
+        if (s != fmi2OK)
+            for (i = 0; i < nx; i++) x[i] = 0.0;
+        me_failed(in, s);
+    }
+    for (i = 0; i <= nx; i++) {
+        if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
+        else x[i] += 0.01 * (unit() - 0.5);
+    }
+    begin(in);
+    s = ME.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
+    end(in, ME.set_states, ME_MASK(S_CONT), s);
+    if (s <= fmi2Warning) {
+        if (n != (size_t)nx) finding(ME.set_states, "accepted %zu states of %d", n, nx);
+        for (i = 0; i < (int)n && n != ME_HUGE; i++)
+            if (!isfinite(x[i])) finding(ME.set_states, "accepted state %d = %g", i, x[i]);
+        if (nx) me_get_array(in, 1, y, (size_t)nx, nx);
+        if (nz && pick(2)) me_get_array(in, 2, y, (size_t)nz, nz);
+        ME.check_all_reals(in, ME.set_states);
+    }
+    me_failed(in, s);
+}
+
+/* One of the four array reads, at a size me_size draws. */
+static void me_read_array(Inst *in) {
+    fmi2Real x[130];
+    int which = pick(4);
+    int expected = which == 2 ? nz : nx;
+    me_get_array(in, which, x, me_size(expected), expected);
+}
+
+/* The arguments of a directional derivative: 1-8 unknowns (mostly state derivatives), 1-8
+   knowns (mostly states) and their seeds (now and then non-finite). */
+static void directional_args(fmi2ValueReference *u, size_t *nu, fmi2ValueReference *k,
+                             size_t *nk, fmi2Real *seed) {
+    const Var *var;
+    size_t i;
+    *nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+    *nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+    for (i = 0; i < *nu; i++) u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
+    for (i = 0; i < *nk; i++) {
+        k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
+        seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
+    }
+}
+
+/* CompletedIntegratorStep, with NULL flags now and then: the flags it writes are booleans. */
+static void me_completed(Inst *in) {
+    fmi2Boolean event = 7, terminate = 7;
+    int null = pick(20);
+    fmi2Status s;
+    begin(in);
+    s = ME.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
+                                   null == 1 ? NULL : &terminate);
+    end(in, ME.completed, ME_MASK(S_CONT), s);
+    if (s <= fmi2Warning && null > 1 && ((event != 0 && event != 1) || (terminate != 0 && terminate != 1)))
+        finding(ME.completed, "flags %d, %d", event, terminate);
+    me_failed(in, s);
+}
+
+/* After fmi2NewDiscreteStates / fmi3UpdateDiscreteStates (`what`, status `s`): the next event
+   time, when defined, is finite; every Real is read. */
+static void me_updated(Inst *in, const char *what, fmi2Status s, int next_defined, double next) {
+    end(in, what, ME_MASK(S_EVENT), s);
+    if (s <= fmi2Warning && next_defined && !isfinite(next))
+        finding(what, "next event time %g", next);
+    if (s == fmi2OK) ME.check_all_reals(in, what);
+    me_failed(in, s);
+}
+
+/* FMI 2.0: fmi2EnterInitializationMode. */
+static void enter_init2(Inst *in) {
+    me_enter(in, F.EnterInitializationMode, "fmi2EnterInitializationMode", S_INSTANTIATED, S_INIT);
+}
+
+/* One of the Model Exchange calls both versions share, by `op` (0 to 79): SetTime (0-9),
+   SetContinuousStates (10-29), an array read (30-54), EnterEventMode (55-62),
+   EnterContinuousTimeMode (63-69), CompletedIntegratorStep (70-79). */
+static void me_shared_call(Inst *in, int op) {
+    if (op < 10) me_set_time(in);
+    else if (op < 30) me_set_states(in);
+    else if (op < 55) me_read_array(in);
+    else if (op < 63) me_enter(in, ME.EnterEventMode, ME.enter_event, ME_MODES, S_EVENT);
+    else if (op < 70)
+        me_enter(in, ME.EnterContinuousTimeMode, ME.enter_continuous, S_EVENT, S_CONT);
+    else me_completed(in);
+}
+
+static void me_call(Inst *in) {
+    int op;
+    fmi2Status s;
     if (in->me && pick(3) == 0 && me_advance(in)) return;
     op = pick(100);
-/* a Co-Simulation instance refuses every Model Exchange call: mask 0 */
-#define ME_MASK(m) (in->me ? (m) : 0)
-    if (op < 10) { /* fmi2SetTime: forward, backward, non-finite or huge */
-        double t = in->time_known && pick(5) ? in->time + (pick(4) ? 0.01 * pick(20) : -0.5)
-                                             : nasty_real(NULL);
-        begin(in);
-        s = F.SetTime(in->c, t);
-        end(in, "fmi2SetTime", ME_MASK(ME_MODES), s);
-        if (s <= fmi2Warning) {
-            if (!isfinite(t)) finding("fmi2SetTime", "accepted t = %g", t);
-            in->time = t;
-            in->time_known = 1;
-        }
+    if (op < 80) {
+        me_shared_call(in, op);
         return;
     }
-    if (op < 30) { /* fmi2SetContinuousStates: the current ones moved, or nasty values */
-        int kind = pick(4);
-        n = me_size(nx);
-        for (i = 0; i <= nx; i++) x[i] = 0.0;
-        if (kind > 0 && nx) {
-            begin(in);
-            s = F.GetContinuousStates(in->c, x, (size_t)nx);
-            end(in, "fmi2GetContinuousStates", ME_MASK(S_INIT | ME_MODES | S_TERMINATED | S_ERROR), s);
-            if (s != fmi2OK)
-                for (i = 0; i < nx; i++) x[i] = 0.0;
-            me_failed(in, s);
-        }
-        for (i = 0; i <= nx; i++) {
-            if (kind == 0 || pick(8) == 0) x[i] = nasty_real(NULL);
-            else x[i] += 0.01 * (unit() - 0.5);
-        }
-        begin(in);
-        s = F.SetContinuousStates(in->c, n && pick(25) == 0 ? NULL : x, n);
-        end(in, "fmi2SetContinuousStates", ME_MASK(S_CONT), s);
-        if (s <= fmi2Warning) {
-            if (n != (size_t)nx) finding("fmi2SetContinuousStates", "accepted %zu states of %d", n, nx);
-            for (i = 0; i < (int)n && n != ME_HUGE; i++)
-                if (!isfinite(x[i])) finding("fmi2SetContinuousStates", "accepted state %d = %g", i, x[i]);
-            if (nx) me_get_array(in, 1, y, (size_t)nx, nx);
-            check_all_reals(in, "fmi2SetContinuousStates");
-        }
-        me_failed(in, s);
-        return;
-    }
-    if (op < 55) { /* the four array reads */
-        int which = pick(4);
-        int expected = which == 2 ? nz : nx;
-        me_get_array(in, which, x, me_size(expected), expected);
-        return;
-    }
-    if (op < 63) {
-        me_enter(in, F.EnterEventMode, "fmi2EnterEventMode", ME_MODES, S_EVENT);
-        return;
-    }
-    if (op < 73) { /* fmi2NewDiscreteStates */
+    if (op < 90) { /* fmi2NewDiscreteStates */
         fmi2EventInfo info;
         int null = pick(20) == 0;
         memset(&info, 0, sizeof info);
         begin(in);
         s = F.NewDiscreteStates(in->c, null ? NULL : &info);
-        end(in, "fmi2NewDiscreteStates", ME_MASK(S_EVENT), s);
+        me_updated(in, "fmi2NewDiscreteStates", s, info.nextEventTimeDefined, info.nextEventTime);
         if (s <= fmi2Warning && null) finding("fmi2NewDiscreteStates", "accepted a NULL eventInfo");
-        if (s <= fmi2Warning && info.nextEventTimeDefined && !isfinite(info.nextEventTime))
-            finding("fmi2NewDiscreteStates", "next event time %g", info.nextEventTime);
-        if (s == fmi2OK) check_all_reals(in, "fmi2NewDiscreteStates");
-        me_failed(in, s);
-        return;
-    }
-    if (op < 80) {
-        me_enter(in, F.EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode", S_EVENT, S_CONT);
-        return;
-    }
-    if (op < 90) { /* fmi2CompletedIntegratorStep, with NULL flags now and then */
-        fmi2Boolean event = 7, terminate = 7;
-        int null = pick(20);
-        begin(in);
-        s = F.CompletedIntegratorStep(in->c, pick(2), null == 0 ? NULL : &event,
-                                      null == 1 ? NULL : &terminate);
-        end(in, "fmi2CompletedIntegratorStep", ME_MASK(S_CONT), s);
-        if (s <= fmi2Warning && null > 1 && ((event != 0 && event != 1) || (terminate != 0 && terminate != 1)))
-            finding("fmi2CompletedIntegratorStep", "flags %d, %d", event, terminate);
-        me_failed(in, s);
         return;
     }
     { /* fmi2GetDirectionalDerivative: derivatives by states, or unknown references */
         fmi2ValueReference u[8], k[8];
         fmi2Real seed[8], out[8];
-        const Var *var;
-        size_t nu = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
-        size_t nk = 1 + (size_t)pick(nx ? (nx < 8 ? nx : 8) : 2);
+        size_t nu, nk;
         int null = pick(20);
-        for (i = 0; i < (int)nu; i++)
-            u[i] = nx && pick(8) ? der_vr[pick(nx)] : some_vr('R', &var);
-        for (i = 0; i < (int)nk; i++) {
-            k[i] = nx && pick(8) ? state_vr[pick(nx)] : some_vr('R', &var);
-            seed[i] = pick(10) ? 1.0 : nasty_real(NULL);
-        }
+        directional_args(u, &nu, k, &nk, seed);
         begin(in);
         s = F.GetDirectionalDerivative(in->c, null == 0 ? NULL : u, nu, k, nk,
                                        null == 1 ? NULL : seed, null == 2 ? NULL : out);
@@ -641,10 +691,27 @@ static void me_call(Inst *in) {
         /* a model that cannot linearize (e.g. not initialized yet) fails: Error state */
         if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
     }
-#undef ME_MASK
 }
 
 /* ---- one random call ----------------------------------------------------------------- */
+/* GetFMUstate / GetFMUState (`call`, `what`: the same type in both versions) into a free slot
+   or over a held state (NULL out-pointer now and then): the slot, or -1. */
+static int take_state(Inst *in, fmi2Status (*call)(fmi2Component, fmi2FMUstate *),
+                      const char *what) {
+    fmi2FMUstate st = NULL;
+    int slot = in->nstates < 8 ? in->nstates : pick(8);
+    fmi2Status s;
+    if (slot < in->nstates) st = in->states[slot];
+    begin(in);
+    s = call(in->c, pick(30) ? &st : NULL);
+    end(in, what, ANY_LIVE, s);
+    if (s != fmi2OK || !st) return -1;
+    in->states[slot] = st;
+    in->state_possible[slot] = in->possible;
+    if (slot == in->nstates) in->nstates++;
+    return slot;
+}
+
 static void save_bytes(Inst *in, fmi2FMUstate st) {
     size_t size = 0;
     fmi2Status s;
@@ -791,18 +858,8 @@ static void random_call(Inst *in) {
         return;
     }
     if (op < 80) { /* fmi2GetFMUstate */
-        fmi2FMUstate st = NULL;
-        int slot = in->nstates < 8 ? in->nstates : pick(8);
-        if (slot < in->nstates) st = in->states[slot];
-        begin(in);
-        s = F.GetFMUstate(in->c, pick(30) ? &st : NULL);
-        end(in, "fmi2GetFMUstate", ANY_LIVE, s);
-        if (s == fmi2OK && st) {
-            in->states[slot] = st;
-            in->state_possible[slot] = in->possible;
-            if (slot == in->nstates) in->nstates++;
-            if (pick(3) == 0) save_bytes(in, st);
-        }
+        int slot = take_state(in, F.GetFMUstate, "fmi2GetFMUstate");
+        if (slot >= 0 && pick(3) == 0) save_bytes(in, in->states[slot]);
         return;
     }
     if (op < 85) { /* fmi2SetFMUstate: own, another instance's, or garbage */
@@ -932,6 +989,374 @@ static void random_call(Inst *in) {
     }
 }
 
+/* ---- FMI 3.0 Model Exchange ---------------------------------------------------------- */
+/* An FMI 3.0 FMU (manifest version 3) with Model Exchange: instantiated mostly for Model
+ * Exchange (fmi3InstantiateModelExchange), now and then for Co-Simulation (whose instances must
+ * refuse every Model Exchange call), and driven through the FMI 3.0 Model Exchange state
+ * machine -- Instantiated -> Initialization Mode -> Event Mode <-> Continuous-Time Mode ->
+ * Terminated -- with the same checks, in and out of the modes: fmi3SetTime,
+ * fmi3Set/GetContinuousStates, fmi3GetContinuousStateDerivatives, fmi3GetEventIndicators,
+ * fmi3GetNominalsOfContinuousStates, fmi3GetNumberOf{EventIndicators,ContinuousStates},
+ * fmi3EnterEventMode, fmi3UpdateDiscreteStates, fmi3EnterContinuousTimeMode,
+ * fmi3CompletedIntegratorStep, fmi3GetDirectionalDerivative, fmi3Get/SetFloat64, Int32,
+ * Boolean (wrong nValues too), FMU states (own, freed, serialized, corrupted), fmi3Terminate,
+ * fmi3Reset. */
+typedef void *fmi3Instance;
+typedef void *fmi3FMUState;
+typedef unsigned int fmi3ValueReference;
+typedef double fmi3Float64;
+typedef int fmi3Int32;
+typedef _Bool fmi3Boolean;
+typedef int fmi3Status; /* fmi3OK .. fmi3Fatal: the same numbers as fmi2OK .. fmi2Fatal */
+typedef void (*fmi3LogMessageCallback)(void *, fmi3Status, const char *, const char *);
+
+static int counts[4096]; /* FMI 3.0: elements of the variable with each value reference (0: 1) */
+static int count_of(unsigned vr) { return vr < 4096 && counts[vr] ? counts[vr] : 1; }
+
+static struct {
+    fmi3Instance (*InstantiateModelExchange)(const char *, const char *, const char *, fmi3Boolean,
+                                             fmi3Boolean, void *, fmi3LogMessageCallback);
+    fmi3Instance (*InstantiateCoSimulation)(const char *, const char *, const char *, fmi3Boolean,
+                                            fmi3Boolean, fmi3Boolean, fmi3Boolean,
+                                            const fmi3ValueReference *, size_t, void *,
+                                            fmi3LogMessageCallback, void *);
+    /* (fmi3FreeInstance: F.FreeInstance, of the same type as fmi2FreeInstance) */
+    fmi3Status (*EnterInitializationMode)(fmi3Instance, fmi3Boolean, fmi3Float64, fmi3Float64,
+                                          fmi3Boolean, fmi3Float64);
+    fmi3Status (*ExitInitializationMode)(fmi3Instance);
+    fmi3Status (*Terminate)(fmi3Instance);
+    fmi3Status (*Reset)(fmi3Instance);
+    fmi3Status (*GetFloat64)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Float64 *, size_t);
+    fmi3Status (*GetInt32)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Int32 *, size_t);
+    fmi3Status (*GetBoolean)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Boolean *, size_t);
+    fmi3Status (*SetFloat64)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                             size_t);
+    fmi3Status (*SetInt32)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Int32 *, size_t);
+    fmi3Status (*SetBoolean)(fmi3Instance, const fmi3ValueReference *, size_t, const fmi3Boolean *,
+                             size_t);
+    fmi3Status (*GetFMUState)(fmi3Instance, fmi3FMUState *);
+    fmi3Status (*SetFMUState)(fmi3Instance, fmi3FMUState);
+    fmi3Status (*FreeFMUState)(fmi3Instance, fmi3FMUState *);
+    fmi3Status (*SerializedFMUStateSize)(fmi3Instance, fmi3FMUState, size_t *);
+    fmi3Status (*SerializeFMUState)(fmi3Instance, fmi3FMUState, unsigned char *, size_t);
+    fmi3Status (*DeserializeFMUState)(fmi3Instance, const unsigned char *, size_t, fmi3FMUState *);
+    /* (the Model Exchange functions FMI 2.0 shares: ME) */
+    fmi3Status (*GetNumber[2])(fmi3Instance, size_t *); /* event indicators, states */
+    fmi3Status (*UpdateDiscreteStates)(fmi3Instance, fmi3Boolean *, fmi3Boolean *, fmi3Boolean *,
+                                       fmi3Boolean *, fmi3Boolean *, fmi3Float64 *);
+    fmi3Status (*CompletedIntegratorStep)(fmi3Instance, fmi3Boolean, fmi3Boolean *, fmi3Boolean *);
+    fmi3Status (*GetDirectionalDerivative)(fmi3Instance, const fmi3ValueReference *, size_t,
+                                           const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                                           size_t, fmi3Float64 *, size_t);
+    fmi3Status (*GetAdjointDerivative)(fmi3Instance, const fmi3ValueReference *, size_t,
+                                       const fmi3ValueReference *, size_t, const fmi3Float64 *,
+                                       size_t, fmi3Float64 *, size_t);
+    fmi3Status (*EvaluateDiscreteStates)(fmi3Instance); /* providesEvaluateDiscreteStates="false" */
+} G;
+
+/* The FMI 3.0 state machine's masks for a Model Exchange instance (FMI 3.0.2 section 3.3);
+   S_STEP is never reached. */
+#define ME3_GETTABLE (S_INIT | ME_MODES | S_TERMINATED | S_ERROR)
+#define ME3_SETTABLE (S_INSTANTIATED | S_INIT | ME_MODES)
+
+/* fmi3LogMessageCallback: the message is plain text (no format). */
+static void logger3(void *env, fmi3Status status, const char *category, const char *message) {
+    Inst *in = (Inst *)env;
+    (void)category;
+    if (!in) return;
+    if (!message) {
+        in->bad_format = 1;
+        return;
+    }
+    if (status >= fmi2Discard) {
+        in->log_count++;
+        snprintf(in->last, sizeof in->last, "%s", message);
+    }
+}
+
+static void instantiate3(Inst *in) {
+    char name[32];
+    const char *token = guid;
+    int variant = pick(12);
+    int cs = variant == 3 || (variant > 4 && pick(6) == 0);
+    snprintf(name, sizeof name, "i%d", (int)(in - inst));
+    in->log_count = 0;
+    if (variant == 0) token = "{00000000-0000-0000-0000-000000000000}";
+    t0 = now_ms();
+    call_no++;
+    calls_total++;
+    const char *n = variant == 2 ? "" : variant == 4 ? NULL : name;
+    const char *res = variant == 1 ? NULL : resources;
+    in->c = cs ? G.InstantiateCoSimulation(n, token, res, 0, pick(2), 0, 0, NULL, 0, in, logger3, NULL)
+               : G.InstantiateModelExchange(n, token, res, 0, pick(2), in, logger3);
+    const char *what = cs ? "fmi3InstantiateCoSimulation" : "fmi3InstantiateModelExchange";
+    if (!in->c) {
+        if (variant > 4 || variant == 3) finding(what, "returned NULL for a valid call: %s", in->last);
+        if (variant != 1 && in->log_count == 0) finding(what, "returned NULL without logging why");
+        return;
+    }
+    if (variant == 0 || variant == 2 || variant == 4)
+        finding(what, "accepted an invalid call (case %d)", variant);
+    instantiated(in, !cs);
+}
+
+/* Every Float64 read at once (arrays whole); each must be finite when fmi3OK. */
+static void check_all_reals3(Inst *in, const char *after) {
+    fmi3ValueReference *vr = malloc(sizeof *vr * (nvars + 1));
+    int n = 0, nvalues = 0, i;
+    fmi3Float64 *x;
+    fmi3Status s;
+    for (i = 0; i < nvars; i++)
+        if (vars[i].type == 'R') {
+            vr[n++] = vars[i].vr;
+            nvalues += count_of(vars[i].vr);
+        }
+    x = malloc(sizeof *x * (nvalues + 1));
+    begin(in);
+    s = G.GetFloat64(in->c, vr, n, x, nvalues);
+    end(in, "fmi3GetFloat64(all)", ME3_GETTABLE | S_STEP, s);
+    me_failed(in, s);
+    if (s == fmi2OK)
+        for (i = 0; i < nvalues; i++)
+            if (!isfinite(x[i])) {
+                finding("fmi3GetFloat64", "after %s: element %d = %g with fmi3OK", after, i, x[i]);
+                break;
+            }
+    free(vr);
+    free(x);
+}
+
+/* fmi3EnterInitializationMode with a start time (sometimes nasty) and a stop time. */
+static void enter_init3(Inst *in) {
+    double start = pick(6) == 0 ? nasty_real(NULL) : 0.0;
+    double stop = pick(4) == 0 ? nasty_real(NULL) : start + 10.0;
+    fmi3Status s;
+    begin(in);
+    s = G.EnterInitializationMode(in->c, pick(2), pick(8) ? 1e-6 : nasty_real(NULL), start, pick(2), stop);
+    end(in, "fmi3EnterInitializationMode", S_INSTANTIATED, s);
+    if (s <= fmi2Warning) {
+        if (!isfinite(start)) finding("fmi3EnterInitializationMode", "accepted startTime = %g", start);
+        in->possible = S_INIT;
+        in->time = start;
+        in->time_known = 1;
+    }
+}
+
+/* fmi3Set/Get Float64, Int32 or Boolean on 1-4 value references, nValues mostly right. */
+static void values3(Inst *in, int set) {
+    fmi3ValueReference vrs[4];
+    fmi3Float64 xr[64];
+    fmi3Int32 xi[64];
+    fmi3Boolean xb[64];
+    const Var *var[4];
+    int kind = pick(3), n = 1 + pick(4), nvalues = 0, i, k;
+    char t = "RIB"[kind];
+    size_t nv;
+    fmi3Float64 *real = pick(25) ? xr : NULL; /* a NULL Float64 array now and then */
+    fmi3Status s;
+    for (i = 0; i < 64; i++) {
+        xr[i] = nasty_real(NULL);
+        xi[i] = nasty_int(NULL);
+        xb[i] = pick(2);
+    }
+    for (i = 0; i < n; i++) { /* each value nasty for its variable (its bounds) */
+        vrs[i] = some_vr(t, &var[i]);
+        for (k = 0; k < count_of(vrs[i]) && nvalues + k < 60; k++) {
+            xr[nvalues + k] = nasty_real(var[i]);
+            xi[nvalues + k] = nasty_int(var[i]);
+        }
+        nvalues += count_of(vrs[i]);
+    }
+    if (nvalues > 60) nvalues = 60;
+    nv = pick(12) == 0 ? (size_t)nvalues + 1 - (size_t)pick(3) : (size_t)nvalues;
+    begin(in);
+    if (set)
+        s = t == 'R' ? G.SetFloat64(in->c, vrs, n, real, nv)
+          : t == 'I' ? G.SetInt32(in->c, vrs, n, xi, nv)
+                     : G.SetBoolean(in->c, vrs, n, xb, nv);
+    else
+        s = t == 'R' ? G.GetFloat64(in->c, vrs, n, real, nv)
+          : t == 'I' ? G.GetInt32(in->c, vrs, n, xi, nv)
+                     : G.GetBoolean(in->c, vrs, n, xb, nv);
+    end(in, set ? "fmi3Set*" : "fmi3Get*", set ? ME3_SETTABLE | S_STEP : ME3_GETTABLE | S_STEP, s);
+    if (s <= fmi2Warning && nv != (size_t)nvalues)
+        finding(set ? "fmi3Set*" : "fmi3Get*", "accepted nValues = %zu for %d values", nv, nvalues);
+    if (s <= fmi2Warning && t == 'R' && !real && nv)
+        finding(set ? "fmi3SetFloat64" : "fmi3GetFloat64", "accepted a NULL array of %zu values", nv);
+    if (!set && s == fmi2OK && t == 'R' && real)
+        for (i = 0; i < (int)nv; i++)
+            if (!isfinite(xr[i])) finding("fmi3GetFloat64", "element %d = %g with fmi3OK", i, xr[i]);
+    if (s == fmi2Error && !strstr(in->last, "illegal call sequence") &&
+        (in->possible & (S_INIT | ME_MODES | S_STEP)))
+        in->possible |= S_ERROR; /* values computed or parameters applied may fail in the model */
+}
+
+/* fmi3GetFMUState, fmi3SetFMUState (own, garbage), fmi3FreeFMUState, serialize/deserialize. */
+static void states3(Inst *in) {
+    fmi3Status s;
+    int op = pick(5);
+    if (op == 0 || in->nstates == 0) {
+        take_state(in, G.GetFMUState, "fmi3GetFMUState");
+        return;
+    }
+    int slot = pick(in->nstates);
+    fmi3FMUState st = in->states[slot];
+    if (op == 1) { /* set: own or garbage */
+        int garbage = pick(8) == 0;
+        begin(in);
+        s = G.SetFMUState(in->c, garbage ? (fmi3FMUState)(uintptr_t)0x1000 : st);
+        end(in, "fmi3SetFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            if (garbage) finding("fmi3SetFMUState", "accepted a state it did not create");
+            in->possible = in->state_possible[slot];
+            in->time_known = 0;
+        }
+    } else if (op == 2) { /* free */
+        begin(in);
+        s = G.FreeFMUState(in->c, &st);
+        end(in, "fmi3FreeFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            if (st) finding("fmi3FreeFMUState", "did not set the state to NULL");
+            in->nstates--;
+            in->states[slot] = in->states[in->nstates];
+            in->state_possible[slot] = in->state_possible[in->nstates];
+        }
+    } else { /* serialize, then deserialize the bytes (corrupted now and then) */
+        size_t size = 0;
+        unsigned char *bytes;
+        fmi3FMUState back = NULL;
+        begin(in);
+        s = G.SerializedFMUStateSize(in->c, st, &size);
+        end(in, "fmi3SerializedFMUStateSize", ANY_LIVE, s);
+        if (s != fmi2OK || size > (1u << 26)) return;
+        bytes = malloc(size ? size : 1);
+        begin(in);
+        s = G.SerializeFMUState(in->c, st, bytes, size);
+        end(in, "fmi3SerializeFMUState", ANY_LIVE, s);
+        if (s == fmi2OK) {
+            int corrupt = pick(3) == 0 && size;
+            if (corrupt) bytes[pick((int)size)] ^= (unsigned char)(1 + pick(255));
+            begin(in);
+            s = G.DeserializeFMUState(in->c, bytes, pick(6) == 0 && size ? size - 1 : size, &back);
+            end(in, "fmi3DeserializeFMUState", ANY_LIVE, s);
+            if (s == fmi2OK && back) {
+                if (in->nstates < 8) {
+                    in->states[in->nstates] = back;
+                    in->state_possible[in->nstates] = corrupt ? ANY_LIVE : in->state_possible[slot];
+                    in->nstates++;
+                } else {
+                    begin(in);
+                    end(in, "fmi3FreeFMUState", ANY_LIVE, G.FreeFMUState(in->c, &back));
+                }
+            }
+        }
+        free(bytes);
+    }
+}
+
+/* fmi3Terminate or fmi3Reset (`reset`): on success the instance is Terminated or
+   Instantiated; a model failure may leave it in Error state. */
+static void end_or_reset3(Inst *in, int reset) {
+    fmi3Status s = reset ? plain_call(in, G.Reset, "fmi3Reset", ANY_LIVE)
+                         : plain_call(in, G.Terminate, "fmi3Terminate", in->me ? ME_MODES : S_STEP);
+    if (s <= fmi2Warning) {
+        in->possible = reset ? S_INSTANTIATED : S_TERMINATED;
+        in->time = 0;
+        in->time_known = reset;
+    } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+        in->possible |= S_ERROR;
+}
+
+static void random_call3(Inst *in) {
+    fmi3Status s;
+    int op;
+    if (!in->c) {
+        instantiate3(in);
+        return;
+    }
+    if (pick(3) == 0 && me_advance(in)) return;
+    op = pick(120);
+    if (op < 2) {
+        free_instance(in);
+        return;
+    }
+    if (op < 4) {
+        enter_init3(in);
+        return;
+    }
+    if (op < 8) {
+        end_or_reset3(in, op >= 6);
+        return;
+    }
+    if (op < 88) {
+        me_shared_call(in, op - 8);
+        return;
+    }
+    if (op < 89) { /* fmi3EvaluateDiscreteStates: the FMUs do not provide it, refused anywhere */
+        plain_call(in, G.EvaluateDiscreteStates, "fmi3EvaluateDiscreteStates", 0);
+        return;
+    }
+    if (op < 92) { /* fmi3GetNumberOfEventIndicators / ContinuousStates */
+        int which = pick(2);
+        size_t count = 12345;
+        int null = pick(20) == 0;
+        begin(in);
+        s = G.GetNumber[which](in->c, null ? NULL : &count);
+        end(in, which ? "fmi3GetNumberOfContinuousStates" : "fmi3GetNumberOfEventIndicators",
+            ANY_LIVE, s);
+        if (s <= fmi2Warning && null) finding("fmi3GetNumberOf*", "accepted a NULL size");
+        if (s == fmi2OK && !null && count != (size_t)(which ? nx : nz))
+            finding("fmi3GetNumberOf*", "%zu, the model description says %d", count, which ? nx : nz);
+        return;
+    }
+    if (op < 100) { /* fmi3UpdateDiscreteStates, each output sometimes NULL */
+        fmi3Boolean flag[5] = {0, 0, 0, 0, 0};
+        fmi3Float64 next = 0;
+        int null = pick(14);
+        begin(in);
+        s = G.UpdateDiscreteStates(in->c, null == 0 ? NULL : &flag[0], null == 1 ? NULL : &flag[1],
+                                   null == 2 ? NULL : &flag[2], null == 3 ? NULL : &flag[3],
+                                   null == 4 ? NULL : &flag[4], null == 5 ? NULL : &next);
+        me_updated(in, "fmi3UpdateDiscreteStates", s, flag[4] && null != 5, next);
+        return;
+    }
+    if (op < 106) { /* fmi3GetDirectionalDerivative or fmi3GetAdjointDerivative (the seed over
+                       the unknowns, the result over the knowns): wrong nSeed / nSensitivity
+                       now and then */
+        fmi3ValueReference u[8], k[8];
+        fmi3Float64 seed[8], seeds_at[65], out[65];
+        size_t nu, nk, nseed, nsens, seeds, results, elements[2] = {0, 0}, i;
+        int null = pick(20), adjoint = pick(3) == 0;
+        const char *what = adjoint ? "fmi3GetAdjointDerivative" : "fmi3GetDirectionalDerivative";
+        directional_args(u, &nu, k, &nk, seed);
+        for (i = 0; i < nu; i++) elements[0] += (size_t)count_of(u[i]); /* arrays: elements */
+        for (i = 0; i < nk; i++) elements[1] += (size_t)count_of(k[i]);
+        seeds = elements[adjoint ? 0 : 1];
+        results = elements[adjoint ? 1 : 0];
+        if (seeds > 64 || results > 64) return;
+        for (i = 0; i < seeds; i++) seeds_at[i] = seed[i % nk];
+        nseed = pick(10) ? seeds : seeds - 1;
+        nsens = pick(10) ? results : results + 1;
+        begin(in);
+        s = (adjoint ? G.GetAdjointDerivative : G.GetDirectionalDerivative)(
+            in->c, null == 0 ? NULL : u, nu, k, nk, null == 1 ? NULL : seeds_at, nseed,
+            null == 2 ? NULL : out, nsens);
+        end(in, what, ME3_GETTABLE | S_STEP, s);
+        if (s <= fmi2Warning && null < 3) finding(what, "accepted a NULL array");
+        if (s <= fmi2Warning && (nseed != seeds || nsens != results))
+            finding(what, "accepted nSeed %zu for %zu seeds, nSensitivity %zu for %zu results",
+                    nseed, seeds, nsens, results);
+        if (s == fmi2OK && null >= 3) me_finite(what, out, results);
+        if (s == fmi2Error && !strstr(in->last, "illegal call sequence")) in->possible |= S_ERROR;
+        return;
+    }
+    if (op < 114) {
+        values3(in, pick(2));
+        return;
+    }
+    states3(in);
+}
+
 /* ---- loading ------------------------------------------------------------------------- */
 static int read_manifest(const char *path) {
     FILE *f = fopen(path, "r");
@@ -957,6 +1382,11 @@ static int read_manifest(const char *path) {
         else if (!strcmp(fields[0], "library") && nf > 1) snprintf(library, sizeof library, "%s", fields[1]);
         else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
         else if (!strcmp(fields[0], "me") && nf > 1) model_exchange = atoi(fields[1]);
+        else if (!strcmp(fields[0], "version") && nf > 1) version = atoi(fields[1]);
+        else if (!strcmp(fields[0], "count") && nf > 2) {
+            unsigned vr = (unsigned)strtoul(fields[1], NULL, 10);
+            if (vr < 4096) counts[vr] = atoi(fields[2]);
+        }
         else if (!strcmp(fields[0], "nz") && nf > 1) nz = atoi(fields[1]);
         else if (!strcmp(fields[0], "state") && nf > 2 && nx < 64) {
             state_vr[nx] = (fmi2ValueReference)strtoul(fields[1], NULL, 10);
@@ -987,9 +1417,96 @@ static int read_manifest(const char *path) {
         if (!F.field) { fprintf(stderr, "%s: missing %s\n", library, symbol); return 0; }     \
     } while (0)
 
+/* Loads the Model Exchange functions FMI version `fmi` ("fmi2", "fmi3") shares with the other
+   into ME, with their names (the derivatives' function: fmi2GetDerivatives,
+   fmi3GetContinuousStateDerivatives); false, said on stderr, when one is missing. */
+static int load_prefixed(void *lib, const char *fmi, const char *const *what, void ***slots, int n,
+                         char (*names)[64]);
+static int me_load(void *lib, const char *fmi, const char *derivatives, void (*enter_init)(Inst *),
+                   void (*check_all)(Inst *, const char *)) {
+    static char names[10][64];
+    const char *const what[10] = {"GetContinuousStates", derivatives, "GetEventIndicators",
+                                  "GetNominalsOfContinuousStates", "SetTime",
+                                  "SetContinuousStates", "EnterEventMode",
+                                  "EnterContinuousTimeMode", "ExitInitializationMode",
+                                  "CompletedIntegratorStep"};
+    const char **named[10] = {&ME.array_names[0], &ME.array_names[1], &ME.array_names[2],
+                              &ME.array_names[3], &ME.set_time, &ME.set_states,
+                              &ME.enter_event, &ME.enter_continuous, &ME.exit_init,
+                              &ME.completed};
+    void **functions[10] = {(void **)&ME.GetArray[0], (void **)&ME.GetArray[1],
+                            (void **)&ME.GetArray[2], (void **)&ME.GetArray[3],
+                            (void **)&ME.SetTime, (void **)&ME.SetContinuousStates,
+                            (void **)&ME.EnterEventMode, (void **)&ME.EnterContinuousTimeMode,
+                            (void **)&ME.ExitInitializationMode,
+                            (void **)&ME.CompletedIntegratorStep};
+    if (!load_prefixed(lib, fmi, what, functions, 10, names)) return 0;
+    for (int k = 0; k < 10; k++) *named[k] = names[k];
+    ME.enter_init = enter_init;
+    ME.check_all_reals = check_all;
+    return 1;
+}
+
+/* fmi3CompletedIntegratorStep with FMI 2.0's argument types (for ME.CompletedIntegratorStep). */
+static fmi2Status completed3(fmi2Component c, fmi2Boolean no_set_state, fmi2Boolean *event,
+                             fmi2Boolean *terminate) {
+    fmi3Boolean e = 0, t = 0;
+    fmi3Status s = G.CompletedIntegratorStep(c, no_set_state != 0, event ? &e : NULL,
+                                             terminate ? &t : NULL);
+    if (event) *event = e;
+    if (terminate) *terminate = t;
+    return s;
+}
+
+/* dlsym of the `n` functions `fmi` + what[k] ("fmi3" + "Reset") into *slots[k], their names
+   kept in names[k] when `names` is not NULL; false, said on stderr, when one is missing. */
+static int load_prefixed(void *lib, const char *fmi, const char *const *what, void ***slots, int n,
+                         char (*names)[64]) {
+    char name[64];
+    for (int k = 0; k < n; k++) {
+        snprintf(name, sizeof name, "%s%s", fmi, what[k]);
+        if (names) snprintf(names[k], sizeof names[k], "%s", name);
+        *slots[k] = dlsym(lib, name);
+        if (!*slots[k]) {
+            fprintf(stderr, "%s: missing %s\n", library, name);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static int load3(void *lib) {
+    const char *const what[] = {
+        "InstantiateModelExchange", "InstantiateCoSimulation", "FreeInstance",
+        "EnterInitializationMode", "ExitInitializationMode", "Terminate", "Reset", "GetFloat64",
+        "GetInt32", "GetBoolean", "SetFloat64", "SetInt32", "SetBoolean", "GetFMUState",
+        "SetFMUState", "FreeFMUState", "SerializedFMUStateSize", "SerializeFMUState",
+        "DeserializeFMUState", "GetNumberOfEventIndicators", "GetNumberOfContinuousStates",
+        "UpdateDiscreteStates", "CompletedIntegratorStep", "GetDirectionalDerivative",
+        "GetAdjointDerivative", "EvaluateDiscreteStates"};
+    void **slots[] = {
+        (void **)&G.InstantiateModelExchange, (void **)&G.InstantiateCoSimulation,
+        (void **)&F.FreeInstance, (void **)&G.EnterInitializationMode,
+        (void **)&G.ExitInitializationMode, (void **)&G.Terminate, (void **)&G.Reset,
+        (void **)&G.GetFloat64, (void **)&G.GetInt32, (void **)&G.GetBoolean,
+        (void **)&G.SetFloat64, (void **)&G.SetInt32, (void **)&G.SetBoolean,
+        (void **)&G.GetFMUState, (void **)&G.SetFMUState, (void **)&G.FreeFMUState,
+        (void **)&G.SerializedFMUStateSize, (void **)&G.SerializeFMUState,
+        (void **)&G.DeserializeFMUState, (void **)&G.GetNumber[0], (void **)&G.GetNumber[1],
+        (void **)&G.UpdateDiscreteStates, (void **)&G.CompletedIntegratorStep,
+        (void **)&G.GetDirectionalDerivative, (void **)&G.GetAdjointDerivative,
+        (void **)&G.EvaluateDiscreteStates};
+    if (!load_prefixed(lib, "fmi3", what, slots, (int)(sizeof slots / sizeof *slots), NULL) ||
+        !me_load(lib, "fmi3", "GetContinuousStateDerivatives", enter_init3, check_all_reals3))
+        return 0;
+    ME.CompletedIntegratorStep = completed3;
+    return 1;
+}
+
 static int load(void) {
     void *lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
     if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 0; }
+    if (version == 3) return load3(lib);
     LOAD(Instantiate, "fmi2Instantiate"); LOAD(FreeInstance, "fmi2FreeInstance");
     LOAD(SetDebugLogging, "fmi2SetDebugLogging"); LOAD(SetupExperiment, "fmi2SetupExperiment");
     LOAD(EnterInitializationMode, "fmi2EnterInitializationMode");
@@ -1009,14 +1526,9 @@ static int load(void) {
     LOAD(GetIntegerStatus, "fmi2GetIntegerStatus"); LOAD(GetBooleanStatus, "fmi2GetBooleanStatus");
     LOAD(GetStringStatus, "fmi2GetStringStatus");
     if (!model_exchange) return 1;
+    if (!me_load(lib, "fmi2", "GetDerivatives", enter_init2, check_all_reals)) return 0;
     LOAD(GetDirectionalDerivative, "fmi2GetDirectionalDerivative");
-    LOAD(SetTime, "fmi2SetTime"); LOAD(SetContinuousStates, "fmi2SetContinuousStates");
-    LOAD(GetContinuousStates, "fmi2GetContinuousStates"); LOAD(GetDerivatives, "fmi2GetDerivatives");
-    LOAD(GetEventIndicators, "fmi2GetEventIndicators");
-    LOAD(GetNominalsOfContinuousStates, "fmi2GetNominalsOfContinuousStates");
-    LOAD(EnterEventMode, "fmi2EnterEventMode"); LOAD(NewDiscreteStates, "fmi2NewDiscreteStates");
-    LOAD(EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode");
-    LOAD(CompletedIntegratorStep, "fmi2CompletedIntegratorStep");
+    LOAD(NewDiscreteStates, "fmi2NewDiscreteStates");
     return 1;
 }
 
@@ -1051,7 +1563,8 @@ int main(int argc, char **argv) {
     for (k = 0; k < calls; k++) {
         Inst *in = &inst[pick(5) == 0 ? pick(NINST) : 0];
         if (in->c && in->possible == S_FATAL) free_instance(in);
-        random_call(in);
+        if (version == 3) random_call3(in);
+        else random_call(in);
     }
     for (i = 0; i < NINST; i++)
         if (inst[i].c) free_instance(&inst[i]);

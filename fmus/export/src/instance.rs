@@ -445,6 +445,8 @@ pub struct Instance<M: FmuModel> {
     pub(crate) me: Option<Hooks<M>>,
     /// Whether the instance was instantiated for Model Exchange.
     pub(crate) model_exchange: bool,
+    /// Model Exchange: the event indicators, computed when read.
+    pub(crate) indicators: crate::me::Indicators,
     /// The values a model call may change ([`Interface::computed`]) as they were before the
     /// current call (a reused buffer), restored when the call produces a
     /// non-finite value.
@@ -478,6 +480,7 @@ impl<M: FmuModel> Instance<M> {
             logger,
             me: None,
             model_exchange: false,
+            indicators: Default::default(),
             before_texts: values.texts().clone(),
             audit: cfg!(debug_assertions).then(|| Box::new(values.clone())),
             core: Core {
@@ -915,7 +918,10 @@ impl<M: FmuModel> Instance<M> {
         if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
             return self.reject(f, &self.type_error(vr, expected));
         }
-        let status = self.refresh_outputs(f);
+        let mut status = self.refresh_outputs(f);
+        if status <= Status::Warning {
+            status = status.max(self.indicators_for(f, vrs.iter().map(|&vr| vr as usize)));
+        }
         if status > Status::Warning {
             return status;
         }
@@ -973,7 +979,11 @@ impl<M: FmuModel> Instance<M> {
         if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
             return self.reject(f, &self.type_error(vr, expected));
         }
-        self.refresh_outputs(f)
+        let status = self.refresh_outputs(f);
+        if status > Status::Warning {
+            return status;
+        }
+        status.max(self.indicators_for(f, vrs.iter().map(|&vr| vr as usize)))
     }
 
     /// Before values are read by `f`: in Initialization Mode the model computes the outputs
@@ -1016,6 +1026,7 @@ impl<M: FmuModel> Instance<M> {
                                 | ModelState::ContinuousTimeMode
                                 | ModelState::Terminated
                         ))))
+            || self.indicators.pending
     }
 
     /// Whether value reference `vr` names a variable of type `expected`.
@@ -1388,6 +1399,7 @@ impl<M: FmuModel> Instance<M> {
     /// `fmi2SetFMUstate`.
     pub fn set_state(&mut self, core: &Core<M>) {
         self.core = core.clone();
+        self.indicators.invalidate();
     }
 
     /// `fmi2SerializeFMUstate`: the bytes of a state.

@@ -2,8 +2,9 @@
 //! itself allocates nothing (Real, Integer and Boolean inputs and outputs, an FMI 3.0 array,
 //! direct feedthrough, a tunable parameter set every step, an event logged every step with
 //! logging off) driven through the FMI 2.0 and FMI 3.0 C entry points under a counting global
-//! allocator: set every input, DoStep, get every output, with zero allocations and frees. The
-//! FMUs' own count is `tests/allocations/run`.
+//! allocator: set every input, DoStep, get every output, with zero allocations and frees; and
+//! a Model Exchange loop with twelve event indicators. The FMUs' own count is
+//! `tests/allocations/run`.
 #![allow(unsafe_code)]
 
 use spurio_export::fmi3::ffi as ffi3;
@@ -16,6 +17,11 @@ use spurio_export::{
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::ffi::CString;
+
+#[path = "common/ramp.rs"]
+mod ramp;
+
+use ramp::{expected, Me, N, Z0};
 
 /// Counts the allocations and frees of the thread while `COUNTING` is set.
 struct Counter;
@@ -299,4 +305,27 @@ fn fmi3_set_step_get_allocates_nothing() {
         )
     });
     unsafe { ffi3::free_instance::<Toy>(c) };
+}
+
+/// Model Exchange: evaluations (time and states set, derivatives read) and the event
+/// indicators computed when read (twelve of them, through `fmi2GetEventIndicators` and a
+/// getter of an indicator's variable) allocate nothing (`common/ramp.rs`).
+#[test]
+fn evaluations_and_indicators_allocate_nothing_at_twelve_indicators() {
+    let mut m = Me::new();
+    let mut z = [0.0; N];
+    m.set(0.0, 1.0);
+    assert_eq!(m.indicators(&mut z), fmi2OK);
+    let n = count(|| {
+        for k in 0..100 {
+            m.set(k as f64, k as f64 + 0.25);
+            assert_eq!(m.derivative(), 1.0);
+            assert_eq!(m.indicators(&mut z), fmi2OK);
+            let mut one = [0.0];
+            m.0.get_real(&[(Z0 + 2) as u32], &mut one).unwrap();
+            assert_eq!(one[0], k as f64 - 1.75);
+        }
+    });
+    assert_eq!(z, expected(99.25));
+    assert_eq!(n, 0, "allocations and frees in 100 evaluations");
 }

@@ -26,7 +26,7 @@ macro_rules! value_references {
     ($($name:ident),*) => { value_references!(@ 0; $($name),*); };
 }
 // FMI 3.0 value references of the toy: 0 time, then its variables (arrays as one).
-value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE, VR_Y0, VR_DER_Y }
+value_references! { VR_TIME, VR_U, VR_Y, VR_Z, VR_P, VR_N, VR_POSITIVE, VR_Y0, VR_DER_Y, VR_TO_WRAP }
 
 thread_local! {
     static LOG: RefCell<Vec<(fmi3Status, String, String)>> = const { RefCell::new(Vec::new()) };
@@ -308,6 +308,49 @@ fn bad_references_types_and_values_are_rejected_and_change_nothing() {
     assert_eq!(i.get_f64(&[VR_U], 2).unwrap(), [0.0, 0.0]);
 }
 
+/// The set call's fast path (each reference looked up once, up to 16 references) and the
+/// general one (more references) check every value before storing any: a call that mixes a
+/// scalar and an array and refuses one element changes nothing, whichever path takes it.
+#[test]
+fn a_set_of_scalars_and_arrays_stores_all_or_nothing() {
+    let i = Instance::new("all-or-nothing");
+    assert_eq!(
+        i.set_f64(&[VR_Y0, VR_P], &[1.5, 1.0, 2.0, 3.0, 4.0]),
+        fmi3OK
+    );
+    assert_eq!(
+        i.get_f64(&[VR_P, VR_Y0], 5),
+        Err(fmi3Error),
+        "no get in state Instantiated"
+    );
+    assert_eq!(
+        i.set_f64(&[VR_P, VR_Y0], &[5.0, 6.0, 7.0, 101.0, 2.5]),
+        fmi3Error
+    );
+    assert!(last_error().contains("`P[2,2]` = 101 is above its maximum 100"));
+    assert_eq!(i.set_f64(&[VR_Y0, VR_P], &[2.5, 5.0, 6.0, 7.0]), fmi3Error);
+    assert!(last_error().contains("nValues = 4, but the 2 value references name 5 values"));
+    // 17 references: past the fast path's stack, the same rules
+    let many = [VR_Y0; 17];
+    let mut values = [3.0; 17];
+    values[16] = 11.0;
+    assert_eq!(i.set_f64(&many, &values), fmi3Error);
+    assert!(last_error().contains("`y0` = 11 is above its maximum 10"));
+    values[16] = -3.0;
+    assert_eq!(i.set_f64(&many, &values), fmi3OK);
+    assert_eq!(i.initialize(), fmi3OK);
+    assert_eq!(
+        i.get_f64(&[VR_P, VR_Y0, VR_Y], 7).unwrap(),
+        [1.0, 2.0, 3.0, 4.0, -3.0, -3.0, 0.0]
+    );
+    // scalars and arrays read together, a scalar twice
+    assert_eq!(i.set_f64(&[VR_U], &[0.5, 0.25]), fmi3OK);
+    assert_eq!(
+        i.get_f64(&[VR_Z, VR_TIME, VR_Z, VR_U], 5).unwrap(),
+        [0.75, 0.0, 0.75, 0.5, 0.25]
+    );
+}
+
 #[test]
 fn fmu_states_replay_and_serialize() {
     let i = Instance::new("states");
@@ -530,6 +573,17 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         i.get_f64(&[VR_DER_Y, VR_TIME], 3).unwrap(),
         [1.0, -2.0, 0.5]
     );
+    // the event indicator's variable, read through fmi3GetFloat64 alone, follows the states
+    // (computed when read: y_max − y[1])
+    assert_eq!(i.get_f64(&[VR_TO_WRAP], 1).unwrap(), [1e6 - 0.5]);
+    let x = [2.5, -1.0];
+    let f = &functions::SET_CONTINUOUS_STATES;
+    let s = unsafe { me::set_continuous_states::<Toy, Fmi3>(i.0, f, x.as_ptr(), 2) };
+    assert_eq!(s, fmi3OK);
+    assert_eq!(
+        i.get_f64(&[VR_Z, VR_TO_WRAP], 2).unwrap(),
+        [-1.0, 1e6 - 2.5]
+    );
     // wrong counts
     let mut z = [0.0; 2];
     let (f, which) = (&functions::GET_EVENT_INDICATORS, Array::EventIndicators);
@@ -552,6 +606,18 @@ fn model_exchange_runs_through_event_and_continuous_time_mode() {
         derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], &[1.0, 2.0, 10.0], 2).unwrap(),
         [11.0, 12.0]
     );
+    // the adjoint's seed and result are checked as the directional one's (found by the
+    // misuse suite: a NaN seed or an overflowing sum came back with fmi3OK)
+    let adjoint = |seed: &[f64]| derivative(&i, true, &[VR_DER_Y, VR_Z], &[VR_U], seed, 2);
+    assert_eq!(adjoint(&[1.0, f64::NAN, 10.0]), Err(fmi3Error));
+    assert!(last_error().contains("fmi3GetAdjointDerivative: seed value NaN rejected"));
+    assert_eq!(adjoint(&[1e308, 1.0, 1e308]), Err(fmi3Error));
+    assert!(
+        last_error().contains("the adjoint derivative with respect to `u[1]` came out as inf"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(adjoint(&[1.0, 2.0, 10.0]).unwrap(), [11.0, 12.0]);
     assert_eq!(
         derivative(&i, false, &[VR_Z], &[VR_TIME], &[1.0], 1),
         Err(fmi3Error)

@@ -184,6 +184,15 @@ impl Layout {
         self.variables.get(vr as usize - 1).map(Target::Variable)
     }
 
+    /// The table indices the value references `vrs` name, in order (arrays row-major; `time`
+    /// and unknown references name none).
+    pub fn indices_of<'a>(&'a self, vrs: &'a [u32]) -> impl Iterator<Item = usize> + Clone + 'a {
+        vrs.iter().flat_map(|&vr| match self.target(vr) {
+            Some(Target::Variable(v)) => v.indices(),
+            _ => 0..0,
+        })
+    }
+
     /// The FMI 3.0 value reference of the variable holding table index `index`.
     pub fn value_reference_of(&self, index: usize) -> Option<u32> {
         self.value_reference_of.get(index).copied()

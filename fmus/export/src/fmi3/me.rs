@@ -127,7 +127,9 @@ fn scalars_of<M: FmuModel>(s: &Slot<M>, vrs: &[u32]) -> Result<Vec<usize>, Strin
 }
 
 /// `fmi3GetDirectionalDerivative`, `fmi3GetAdjointDerivative`. The adjoint is the transpose:
-/// one directional derivative per known with a unit seed, each column dotted with the seed.
+/// one directional derivative per known with a unit seed, each column dotted with the seed
+/// (checked like the directional one's: every seed value finite, every result finite or the
+/// call is `Error` naming the known, nothing published).
 ///
 /// # Safety
 /// FMI pointer contract.
@@ -175,6 +177,12 @@ pub unsafe fn derivative<M: FmuModel>(
                     .instance
                     .directional_derivative(f, &unknowns, &knowns, seed, &mut out),
                 Derivative::Adjoint => {
+                    if let Some(x) = seed.iter().find(|x| !x.is_finite()) {
+                        return s.instance.reject(
+                            f,
+                            &format!("seed value {x} rejected, values must be finite"),
+                        );
+                    }
                     let mut column = vec![0.0; unknowns.len()];
                     let mut status = Status::Ok;
                     for (j, known) in knowns.iter().enumerate() {
@@ -189,6 +197,14 @@ pub unsafe fn derivative<M: FmuModel>(
                             break;
                         }
                         out[j] = column.iter().zip(seed).map(|(a, b)| a * b).sum();
+                        if !out[j].is_finite() {
+                            let name = &s.instance.info().variables[*known].name;
+                            let message = format!(
+                                "the adjoint derivative with respect to `{name}` came out as {}: not published",
+                                out[j]
+                            );
+                            return s.instance.reject(f, &message);
+                        }
                     }
                     status
                 }

@@ -5,16 +5,21 @@
 //! serialize) carry them with everything else.
 
 use crate::instance::{Function, Instance, ModelState};
-use crate::me::{Hooks, ModelExchangeInfo};
+use crate::me::{Hooks, Indicators, ModelExchangeInfo};
 use crate::model::{EventUpdate, FmuModel};
 use crate::types::Status;
 use crate::variables::{first_non_finite, Causality, VariableType};
+
+/// Which indices of the Model Exchange interface a read takes (the states', the
+/// derivatives', the event indicators').
+type Pick = fn(&ModelExchangeInfo) -> &[usize];
 
 impl<M: FmuModel> Instance<M> {
     /// Makes this instance a Model Exchange one driven by `hooks` (at instantiation).
     pub fn into_model_exchange(mut self, hooks: Hooks<M>) -> Self {
         self.me = Some(hooks);
         self.model_exchange = true;
+        self.indicators = Indicators::new(self.event_indicator_count());
         self
     }
 
@@ -81,7 +86,8 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Brings the outputs and derivatives up to date with the states, inputs and time (the
-    /// model's `evaluate`; in Initialization Mode after `initialize`), when they changed.
+    /// model's `evaluate`; in Initialization Mode after `initialize`), when they changed. The
+    /// event indicators are then pending: computed when read ([`Instance::indicators_for`]).
     pub(crate) fn evaluate(&mut self, f: &Function) -> Status {
         let Some(hooks) = self.me.filter(|_| self.model_exchange) else {
             return Status::Ok;
@@ -98,51 +104,77 @@ impl<M: FmuModel> Instance<M> {
                 if self.core.inputs_changed => {}
             _ => return Status::Ok,
         }
-        let mut evaluated = self.run_model(f, hooks.evaluate);
-        if evaluated <= Status::Warning {
-            evaluated = evaluated.max(self.write_event_indicators(f, hooks));
-        }
+        let evaluated = self.run_model(f, hooks.evaluate);
         if evaluated <= Status::Warning {
             self.core.inputs_changed = false;
+            self.indicators.invalidate();
         }
         status.max(evaluated)
     }
 
-    /// The model's event indicators into their variables (part of every evaluation, so
-    /// `fmi2GetReal` reads them consistent with the states); a non-finite one is `Error`
-    /// naming it, and the variables keep their values.
-    fn write_event_indicators(&mut self, f: &Function, hooks: Hooks<M>) -> Status {
-        let n = self.event_indicator_count();
-        if n == 0 {
+    /// Before the variables at table indices `read` are read (a getter's references, after
+    /// [`Instance::refresh_outputs`]): when the event indicators are pending and one of
+    /// them is read, they are computed ([`Instance::write_event_indicators`]).
+    pub(crate) fn indicators_for(
+        &mut self,
+        f: &Function,
+        mut read: impl Iterator<Item = usize>,
+    ) -> Status {
+        if !self.indicators.pending {
             return Status::Ok;
         }
-        let (mut small, mut large) = ([0.0; 8], Vec::new());
-        let z: &mut [f64] = if n <= small.len() {
-            &mut small[..n]
-        } else {
-            large.resize(n, 0.0);
-            &mut large
+        let Some(me) = self.interface.info.model_exchange.as_ref() else {
+            return Status::Ok;
         };
-        let status = self.run_model(f, |m, ctx| (hooks.event_indicators)(m, ctx, z));
-        if status > Status::Warning {
-            return status;
+        if read.any(|i| me.event_indicators.contains(&i)) {
+            self.write_event_indicators(f)
+        } else {
+            Status::Ok
         }
-        if let Some((k, value)) = first_non_finite(z) {
+    }
+
+    /// The model's event indicators into their variables, when they are pending and the
+    /// instance is in a state where the model computes (Initialization, Event,
+    /// Continuous-Time Mode, Terminated): so a read sees them consistent with the states,
+    /// inputs and time. A non-finite one is `Error` naming it (the instance goes to state
+    /// Error), and the variables keep their values.
+    fn write_event_indicators(&mut self, f: &Function) -> Status {
+        let Some(hooks) = self.me.filter(|_| self.model_exchange) else {
+            return Status::Ok;
+        };
+        let computes = matches!(
+            self.core.state,
+            ModelState::InitializationMode
+                | ModelState::EventMode
+                | ModelState::ContinuousTimeMode
+                | ModelState::Terminated
+        );
+        if !self.indicators.pending || !computes {
+            return Status::Ok;
+        }
+        let mut z = self.indicators.take();
+        let status = self.run_model(f, |m, ctx| (hooks.event_indicators)(m, ctx, &mut z));
+        let status = if status > Status::Warning {
+            status
+        } else if let Some((k, value)) = first_non_finite(&z) {
             self.core.state = ModelState::Error;
-            return self.reject(
+            self.reject(
                 f,
                 &format!(
                     "event indicator {} came out as {value}: not published",
                     k + 1
                 ),
-            );
-        }
-        let Some(me) = self.interface.info.model_exchange.as_ref() else {
-            return status;
+            )
+        } else {
+            if let Some(me) = self.interface.info.model_exchange.as_ref() {
+                for (&i, value) in me.event_indicators.iter().zip(z.iter()) {
+                    self.core.values.set_real(i, *value);
+                }
+            }
+            self.indicators.pending = false;
+            status
         };
-        for (&i, value) in me.event_indicators.iter().zip(z.iter()) {
-            self.core.values.set_real(i, *value);
-        }
+        self.indicators.put_back(z);
         status
     }
 
@@ -169,7 +201,10 @@ impl<M: FmuModel> Instance<M> {
         if status != Status::Ok {
             return status;
         }
-        let states = self.indices(|m| &m.states);
+        let Some(me) = self.interface.info.model_exchange.as_ref() else {
+            return Status::Ok;
+        };
+        let states = &me.states;
         for (&i, value) in states.iter().zip(x) {
             if !value.is_finite() {
                 return self.reject(
@@ -188,52 +223,60 @@ impl<M: FmuModel> Instance<M> {
         Status::Ok
     }
 
-    /// What `pick` takes of the Model Exchange interface (the states', the derivatives' or
-    /// the event indicators' indices); empty for a model without it.
-    fn indices(&self, pick: impl FnOnce(&ModelExchangeInfo) -> &Vec<usize>) -> Vec<usize> {
+    /// The number of indices `pick` takes of the Model Exchange interface (0 for a model
+    /// without it).
+    fn count_of(&self, pick: Pick) -> usize {
         self.interface
             .info
             .model_exchange
             .as_ref()
-            .map_or_else(Vec::new, |m| pick(m).clone())
+            .map_or(0, |m| pick(m).len())
     }
 
-    /// Reads the Reals at `indices` (`what` counts them: `nx`, `ni`) into `out` after
-    /// evaluating (`fmi2GetContinuousStates`, `fmi2GetDerivatives`, `fmi2GetEventIndicators`).
+    /// Reads the Reals at the indices `pick` takes of the Model Exchange interface (`what`
+    /// counts them: `nx`, `ni`) into `out` after evaluating (`fmi2GetContinuousStates`,
+    /// `fmi2GetDerivatives`, `fmi2GetEventIndicators`; the indicators computed when
+    /// `indicators`). No allocation.
     fn read_reals(
         &mut self,
         f: &Function,
-        (what, indices): (&str, &[usize]),
+        (what, pick, indicators): (&str, Pick, bool),
         out: &mut [f64],
     ) -> Status {
         if let Err(status) = self.model_exchange_hooks(f) {
             return status;
         }
-        let status = self.check_count(f, what, out.len(), indices.len());
+        let status = self.check_count(f, what, out.len(), self.count_of(pick));
         if status != Status::Ok {
             return status;
         }
-        let status = self.evaluate(f);
+        let mut status = self.evaluate(f);
         if status > Status::Warning {
             return status;
         }
-        for (o, &i) in out.iter_mut().zip(indices) {
-            *o = self.core.values.real(i);
+        if indicators {
+            status = status.max(self.write_event_indicators(f));
+            if status > Status::Warning {
+                return status;
+            }
+        }
+        if let Some(me) = self.interface.info.model_exchange.as_ref() {
+            for (o, &i) in out.iter_mut().zip(pick(me)) {
+                *o = self.core.values.real(i);
+            }
         }
         status
     }
 
     /// `fmi2GetContinuousStates`, `fmi3GetContinuousStates`.
     pub fn get_continuous_states(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let states = self.indices(|m| &m.states);
-        self.read_reals(f, ("nx", &states), out)
+        self.read_reals(f, ("nx", |m| &m.states, false), out)
     }
 
     /// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`; a non-finite derivative is
     /// `Error` naming it (the values keep those from before, see [`Instance`]).
     pub fn get_derivatives(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let derivatives = self.indices(|m| &m.derivatives);
-        self.read_reals(f, ("nx", &derivatives), out)
+        self.read_reals(f, ("nx", |m| &m.derivatives, false), out)
     }
 
     /// `fmi2GetNominalsOfContinuousStates`, `fmi3GetNominalsOfContinuousStates`.
@@ -254,11 +297,11 @@ impl<M: FmuModel> Instance<M> {
         status
     }
 
-    /// `fmi2GetEventIndicators`, `fmi3GetEventIndicators`: the indicators of the current
-    /// evaluation (a non-finite one is `Error` naming it, and `out` is left as it was).
+    /// `fmi2GetEventIndicators`, `fmi3GetEventIndicators`: the indicators at the current
+    /// states, inputs and time (a non-finite one is `Error` naming it, and `out` is left as
+    /// it was).
     pub fn get_event_indicators(&mut self, f: &Function, out: &mut [f64]) -> Status {
-        let indicators = self.indices(|m| &m.event_indicators);
-        self.read_reals(f, ("ni", &indicators), out)
+        self.read_reals(f, ("ni", |m| &m.event_indicators, true), out)
     }
 
     /// `fmi2EnterEventMode`, `fmi3EnterEventMode`.

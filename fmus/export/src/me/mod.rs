@@ -30,7 +30,8 @@
 //! ```
 //!
 //! The instance keeps the states in the variable values (so FMU states carry them), evaluates
-//! the model when states, inputs or time changed and something is read, checks every result
+//! the model when states, inputs or time changed and something is read (the event indicators
+//! only when they are read: [`Indicators`]), checks every result
 //! for finiteness (a non-finite derivative, output or event indicator is an error naming it,
 //! never published), and refuses the Model Exchange functions on a Co-Simulation instance.
 //! Directional derivatives serve Co-Simulation instances too, at the values of the last step.
@@ -186,6 +187,47 @@ impl ModelExchangeInfo {
             .iter()
             .map(|&i| variables[i].nominal.unwrap_or(1.0))
             .collect()
+    }
+}
+
+/// The event indicators of a Model Exchange instance, computed when they are read: by
+/// `fmi2GetEventIndicators`/`fmi3GetEventIndicators`, or by a getter of an indicator's
+/// variable. An evaluation (after states, inputs or time changed) only marks them pending, so
+/// an integration loop that reads derivatives alone makes one model call per evaluation.
+#[derive(Debug, Clone, Default)]
+pub struct Indicators {
+    /// Where the model writes them (one element per indicator, allocated at instantiation:
+    /// no allocation when they are computed).
+    buffer: Vec<f64>,
+    /// The indicators' variables are older than the last evaluation (never set for a model
+    /// without indicators).
+    pub(crate) pending: bool,
+}
+
+impl Indicators {
+    /// The buffer for `n` indicators, none pending.
+    pub fn new(n: usize) -> Self {
+        Self {
+            buffer: vec![0.0; n],
+            pending: false,
+        }
+    }
+
+    /// After an evaluation or a restored FMU state: the indicators' variables are stale (if
+    /// the model has any).
+    pub(crate) fn invalidate(&mut self) {
+        self.pending = !self.buffer.is_empty();
+    }
+
+    /// The buffer the model writes into, moved out for the model call (the instance is
+    /// borrowed by it); [`Indicators::put_back`] returns it.
+    pub(crate) fn take(&mut self) -> Vec<f64> {
+        std::mem::take(&mut self.buffer)
+    }
+
+    /// Returns the buffer [`Indicators::take`] lent.
+    pub(crate) fn put_back(&mut self, buffer: Vec<f64>) {
+        self.buffer = buffer;
     }
 }
 
