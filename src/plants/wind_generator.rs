@@ -709,8 +709,15 @@ impl WindGenerator {
         let mut state = match integrator {
             Adaptive::Dop853 => {
                 let rhs = HeldRightHandSide::new(&p, u_drive, u_field);
-                let derivative = |x: &GeneratorState| rhs.derivative(x);
-                dop853::integrate(derivative, (x, h), tolerance, (&mut proposal, counts))?
+                // Inlined into every stage: the right-hand side is a few dozen flops, and a call
+                // would put the state and its derivative through memory twelve times a step.
+                dop853::integrate(
+                    #[inline(always)]
+                    |x: &GeneratorState| rhs.derivative(x),
+                    (x, h),
+                    tolerance,
+                    (&mut proposal, counts),
+                )?
             }
             Adaptive::Rodas3 => rosenbrock::integrate(
                 &rosenbrock::RODAS3,
@@ -811,7 +818,7 @@ impl HeldRightHandSide {
     }
 
     /// `ẋ = f(x)` at the held references (the motor torque's limit taken from `x`).
-    #[inline]
+    #[inline(always)]
     pub fn derivative(&self, x: &GeneratorState) -> GeneratorState {
         let (i_d, i_q, i_f, omega_m) = (x[0], x[1], x[2], x[3]);
         let (omega_s, v_f, omega_t) = (x[5], x[6], x[7]);
