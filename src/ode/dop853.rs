@@ -536,7 +536,7 @@ mod former {
     }
 }
 
-/// What limits DOP853's step on the wind generator at the default tolerance (the finding is on
+/// What limits DOP853's step on the wind generator at rtol 5·10⁻¹² (the finding is on
 /// the WindGenerator FMU page, "What limits the step"; `--nocapture` prints the figures): the
 /// bench's scenario (10 s from rest, references held 2–4 s, 0.1 s communication steps),
 /// every step attempt logged, and the work when the error norm leaves components out.
@@ -619,10 +619,15 @@ mod step_limit {
         (all.count() - rejected, rejected)
     }
 
-    /// The default tolerance with the absolute tolerances of `components` multiplied by
-    /// `factor` (infinite: left out of the error norm).
+    /// The relative tolerance the page's figures were measured at (the default then; at
+    /// today's default, 7·10⁻¹², the picture is the same: 73 % of the attempts in the second
+    /// after a change, 2.1 % rejected).
+    const MEASURED_AT: f64 = 5e-12;
+
+    /// That tolerance with the absolute tolerances of `components` multiplied by `factor`
+    /// (infinite: left out of the error norm).
     fn loosened(components: &[usize], factor: f64) -> Tolerance<8> {
-        let mut tolerance = WindGenerator::tolerance(WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
+        let mut tolerance = WindGenerator::tolerance(MEASURED_AT);
         for &i in components {
             tolerance.absolute[i] *= factor;
         }
