@@ -142,15 +142,33 @@ fn step<const N: usize>(
         fifth += q5[i];
         third += q3[i];
     }
+    (next, combined_error(h, (fifth, third), count))
+}
+
+/// The combined error `err` of the module docs from the sums of squares of the scaled fifth-
+/// and third-order estimates over the `count` states in the norm (NaN when a sum is NaN).
+#[inline(always)]
+fn combined_error(h: f64, (fifth, third): (f64, f64), count: usize) -> f64 {
     let denominator = fifth + 0.01 * third;
-    let error = if denominator > 0.0 {
+    if denominator > 0.0 {
         h.abs() * fifth / (denominator * count.max(1) as f64).sqrt()
     } else if denominator == 0.0 {
         0.0
     } else {
         f64::NAN
-    };
-    (next, error)
+    }
+}
+
+/// The factor on the step for a finite error norm `error`: `0.9 err^(−1/8)` within [1/3, 6].
+fn step_factor(error: f64) -> f64 {
+    if error == 0.0 {
+        6.0
+    } else {
+        // err^(−1/8) as three square roots: correctly rounded on every platform (powf
+        // comes from the C library, whose last bits differ between platforms), so the
+        // step sequence, and the result, is the same on all of them.
+        (0.9 / error.sqrt().sqrt().sqrt()).clamp(1.0 / 3.0, 6.0)
+    }
 }
 
 /// Integrates `ẋ = f(x)` from `x` over an interval of `length` with adaptive DOP853 steps
@@ -222,14 +240,7 @@ where
     }
 
     fn factor(&self, error: f64) -> f64 {
-        if error == 0.0 {
-            6.0
-        } else {
-            // err^(−1/8) as three square roots: correctly rounded on every platform (powf
-            // comes from the C library, whose last bits differ between platforms), so the
-            // step sequence, and the result, is the same on all of them.
-            (0.9 / error.sqrt().sqrt().sqrt()).clamp(1.0 / 3.0, 6.0)
-        }
+        step_factor(error)
     }
 }
 
@@ -397,15 +408,7 @@ mod former {
             third += (e3 / scale).powi(2);
             controlled += 1;
         }
-        let denominator = fifth + 0.01 * third;
-        let error = if denominator > 0.0 {
-            h.abs() * fifth / (denominator * controlled.max(1) as f64).sqrt()
-        } else if denominator == 0.0 {
-            0.0
-        } else {
-            f64::NAN
-        };
-        (next, error)
+        (next, combined_error(h, (fifth, third), controlled))
     }
 
     /// The former stepper, for the shared step-size loop.
@@ -427,11 +430,7 @@ mod former {
         }
 
         fn factor(&self, error: f64) -> f64 {
-            if error == 0.0 {
-                6.0
-            } else {
-                (0.9 / error.sqrt().sqrt().sqrt()).clamp(1.0 / 3.0, 6.0)
-            }
+            step_factor(error)
         }
     }
 

@@ -220,6 +220,19 @@ fn work_precision() {
             cell(chosen[2], medians[2], minima[2]),
         );
     }
+    // The default tolerance (chosen on several scenarios, not only this one), timed alike.
+    let default = Generator::DEFAULT_RELATIVE_TOLERANCE;
+    if let Some(p) = dop
+        .iter()
+        .find(|p| p.label == format!("rtol {default:.0e}"))
+    {
+        let mut times: Vec<f64> = (0..11).map(|_| time_per_step(&p.make)).collect();
+        times.sort_by(|a, b| a.total_cmp(b));
+        println!(
+            "  default | {} {:.1e}, {:>4.0} f, {:>5.1} ({:.1}) µs",
+            p.label, p.error, p.evaluations, times[5], times[0]
+        );
+    }
 }
 
 /// An initialised instance (from the 8 V / 7 V steady state) with the given integrator.
