@@ -68,81 +68,107 @@ mod tableau {
 
 use tableau::{A10, A11, A12, A2, A3, A4, A5, A6, A7, A8, A9, B, BH, E};
 
+/// A state as the stages work on it: a plain array, so that each stage's sum is one loop over
+/// the components per term, which the compiler vectorises (no matrix temporaries).
+type Array<const N: usize> = [f64; N];
+
 /// `x + Σ (h aⱼ) kⱼ` over the `M` stages `kⱼ` and weights `aⱼ`, component by component,
 /// summed in the order given onto `x`: the newest stage last, so that everything but its one
 /// product and sum is done while that stage is still being evaluated (the stages form a
-/// chain; this keeps the chain short). Unrolled for the fixed sizes.
+/// chain; this keeps the chain short). Each term is one loop over the components (vectorised).
 #[inline(always)]
 fn combine<const N: usize, const M: usize>(
-    x: &SVector<f64, N>,
+    x: &Array<N>,
     h: f64,
-    stages: [&SVector<f64, N>; M],
+    stages: [&Array<N>; M],
     weights: [f64; M],
-) -> SVector<f64, N> {
-    let scaled = weights.map(|a| h * a);
-    SVector::<f64, N>::from_fn(|i, _| {
-        let mut sum = x[i];
-        for (k, ha) in stages.iter().zip(&scaled) {
-            sum += ha * k[i];
+) -> Array<N> {
+    let mut sum = *x;
+    for (k, a) in stages.iter().zip(weights) {
+        let ha = h * a;
+        for (s, k) in sum.iter_mut().zip(k.iter()) {
+            *s += ha * k;
         }
-        sum
-    })
+    }
+    sum
 }
 
 /// One step of size `h` from `x` with `k1 = f(x)`: the eighth-order solution and the
 /// weighted error norm `err` of the module docs (NaN when a stage is not finite).
-#[inline]
+/// `controlled[i]` tells whether state `i` is in the error norm, `count` how many are.
+#[inline(always)]
 fn step<const N: usize>(
     f: &mut impl FnMut(&SVector<f64, N>) -> SVector<f64, N>,
-    x: &SVector<f64, N>,
-    k1: &SVector<f64, N>,
+    x: &Array<N>,
+    k1: &Array<N>,
     h: f64,
     tolerance: &Tolerance<N>,
-) -> (SVector<f64, N>, f64) {
-    let k2 = f(&combine(x, h, [k1], A2));
-    let k3 = f(&combine(x, h, [k1, &k2], A3));
-    let k4 = f(&combine(x, h, [k1, &k3], A4));
-    let k5 = f(&combine(x, h, [k1, &k3, &k4], A5));
-    let k6 = f(&combine(x, h, [k1, &k4, &k5], A6));
-    let k7 = f(&combine(x, h, [k1, &k4, &k5, &k6], A7));
-    let k8 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7], A8));
-    let k9 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8], A9));
-    let k10 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8, &k9], A10));
-    let k11 = f(&combine(
-        x,
-        h,
-        [k1, &k4, &k5, &k6, &k7, &k8, &k9, &k10],
-        A11,
-    ));
-    let k12 = f(&combine(
+    (controlled, count): (&[bool; N], usize),
+) -> (Array<N>, f64) {
+    let mut f = |x: Array<N>| -> Array<N> { f(&SVector::from(x)).into() };
+    let k2 = f(combine(x, h, [k1], A2));
+    let k3 = f(combine(x, h, [k1, &k2], A3));
+    let k4 = f(combine(x, h, [k1, &k3], A4));
+    let k5 = f(combine(x, h, [k1, &k3, &k4], A5));
+    let k6 = f(combine(x, h, [k1, &k4, &k5], A6));
+    let k7 = f(combine(x, h, [k1, &k4, &k5, &k6], A7));
+    let k8 = f(combine(x, h, [k1, &k4, &k5, &k6, &k7], A8));
+    let k9 = f(combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8], A9));
+    let k10 = f(combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8, &k9], A10));
+    let k11 = f(combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8, &k9, &k10], A11));
+    let k12 = f(combine(
         x,
         h,
         [k1, &k4, &k5, &k6, &k7, &k8, &k9, &k10, &k11],
         A12,
     ));
     let stages = [k1, &k6, &k7, &k8, &k9, &k10, &k11, &k12];
-    let increment = combine(&SVector::zeros(), 1.0, stages, B);
+    let increment = combine(&[0.0; N], 1.0, stages, B);
     let next = combine(x, h, [&increment], [1.0]);
-    let (mut fifth, mut third, mut controlled) = (0.0, 0.0, 0usize);
-    for (i, scale) in tolerance.scales(x, &next) {
-        let e3 = increment[i] - BH[0] * k1[i] - BH[1] * k9[i] - BH[2] * k12[i];
-        let mut e5 = 0.0;
-        for (k, e) in stages.iter().zip(E) {
-            e5 += e * k[i];
-        }
-        fifth += (e5 / scale).powi(2);
-        third += (e3 / scale).powi(2);
-        controlled += 1;
+    // The two error estimates (without the factor h) component by component, each summed in
+    // the order of its weights, then divided by the scale.
+    let e5 = combine(&[0.0; N], 1.0, stages, E);
+    let e3 = combine(&increment, 1.0, [k1, &k9, &k12], BH.map(|b| -b));
+    let (mut q5, mut q3) = ([0.0; N], [0.0; N]);
+    for i in 0..N {
+        let scale = tolerance.absolute[i] + tolerance.relative * x[i].abs().max(next[i].abs());
+        let (a, b) = (e5[i] / scale, e3[i] / scale);
+        // A state outside the norm adds an exact zero (the sums are never −0).
+        q5[i] = if controlled[i] { a * a } else { 0.0 };
+        q3[i] = if controlled[i] { b * b } else { 0.0 };
     }
+    let (mut fifth, mut third) = (0.0, 0.0);
+    for i in 0..N {
+        fifth += q5[i];
+        third += q3[i];
+    }
+    (next, combined_error(h, (fifth, third), count))
+}
+
+/// The combined error `err` of the module docs from the sums of squares of the scaled fifth-
+/// and third-order estimates over the `count` states in the norm (NaN when a sum is NaN).
+#[inline(always)]
+fn combined_error(h: f64, (fifth, third): (f64, f64), count: usize) -> f64 {
     let denominator = fifth + 0.01 * third;
-    let error = if denominator > 0.0 {
-        h.abs() * fifth / (denominator * controlled.max(1) as f64).sqrt()
+    if denominator > 0.0 {
+        h.abs() * fifth / (denominator * count.max(1) as f64).sqrt()
     } else if denominator == 0.0 {
         0.0
     } else {
         f64::NAN
-    };
-    (next, error)
+    }
+}
+
+/// The factor on the step for a finite error norm `error`: `0.9 err^(−1/8)` within [1/3, 6].
+fn step_factor(error: f64) -> f64 {
+    if error == 0.0 {
+        6.0
+    } else {
+        // err^(−1/8) as three square roots: correctly rounded on every platform (powf
+        // comes from the C library, whose last bits differ between platforms), so the
+        // step sequence, and the result, is the same on all of them.
+        (0.9 / error.sqrt().sqrt().sqrt()).clamp(1.0 / 3.0, 6.0)
+    }
 }
 
 /// Integrates `ẋ = f(x)` from `x` over an interval of `length` with adaptive DOP853 steps
@@ -157,7 +183,7 @@ pub fn integrate<const N: usize>(
     (step_size, statistics): (&mut f64, &mut Statistics),
 ) -> Result<SVector<f64, N>, StepError> {
     let k1 = f(x);
-    let mut stepper = Stepper { f, k1, tolerance };
+    let mut stepper = Stepper::new(f, k1, tolerance);
     super::adaptive::drive(&mut stepper, x, length, step_size, statistics)
 }
 
@@ -165,16 +191,43 @@ pub fn integrate<const N: usize>(
 /// first stage), for the shared step-size loop.
 struct Stepper<'a, F, const N: usize> {
     f: F,
-    k1: SVector<f64, N>,
+    k1: Array<N>,
     tolerance: &'a Tolerance<N>,
+    /// Which states are in the error norm (finite absolute tolerance), and how many.
+    controlled: ([bool; N], usize),
+}
+
+impl<'a, F, const N: usize> Stepper<'a, F, N> {
+    /// The stepper at a state where the derivative is `k1`.
+    fn new(f: F, k1: SVector<f64, N>, tolerance: &'a Tolerance<N>) -> Self {
+        let controlled = tolerance.absolute.data.0[0].map(f64::is_finite);
+        let count = controlled.iter().filter(|&&c| c).count();
+        Self {
+            f,
+            k1: k1.into(),
+            tolerance,
+            controlled: (controlled, count),
+        }
+    }
 }
 
 impl<F, const N: usize> Embedded<N> for Stepper<'_, F, N>
 where
     F: FnMut(&SVector<f64, N>) -> SVector<f64, N>,
 {
+    #[inline]
     fn attempt(&mut self, state: &SVector<f64, N>, (h, _): (f64, f64)) -> Attempt<N> {
-        Ok(step(&mut self.f, state, &self.k1, h, self.tolerance))
+        let (controlled, count) = (&self.controlled.0, self.controlled.1);
+        let x = &state.data.0[0];
+        let (next, error) = step(
+            &mut self.f,
+            x,
+            &self.k1,
+            h,
+            self.tolerance,
+            (controlled, count),
+        );
+        Ok((SVector::from(next), error))
     }
 
     fn accept(&mut self, next: SVector<f64, N>, at: f64) -> Result<SVector<f64, N>, StepError> {
@@ -182,19 +235,12 @@ where
         if derivative.iter().any(|v| !v.is_finite()) {
             return Err(StepError::NonFinite { at });
         }
-        self.k1 = derivative;
+        self.k1 = derivative.into();
         Ok(next)
     }
 
     fn factor(&self, error: f64) -> f64 {
-        if error == 0.0 {
-            6.0
-        } else {
-            // err^(−1/8) as three square roots: correctly rounded on every platform (powf
-            // comes from the C library, whose last bits differ between platforms), so the
-            // step sequence, and the result, is the same on all of them.
-            (0.9 / error.sqrt().sqrt().sqrt()).clamp(1.0 / 3.0, 6.0)
-        }
+        step_factor(error)
     }
 }
 
@@ -295,7 +341,201 @@ mod tests {
     }
 }
 
-/// What limits DOP853's step on the wind generator at the default tolerance (the finding is on
+/// The stages and error estimates on plain arrays (one vectorised loop per term) against the
+/// former formulation on nalgebra vectors, kept here as the reference: the arithmetic order is
+/// the same, so every candidate, every error norm, and every integrated state is the same to
+/// the last bit.
+#[cfg(test)]
+mod former {
+    use super::*;
+    use crate::plants::wind_generator::WindGeneratorParameters;
+    use crate::plants::wind_generator::{GeneratorState, HeldRightHandSide, WindGenerator};
+    use crate::signals::rng::RandomGenerator;
+
+    /// The former `combine`: component by component, each sum over the stages in order.
+    fn combine<const N: usize, const M: usize>(
+        x: &SVector<f64, N>,
+        h: f64,
+        stages: [&SVector<f64, N>; M],
+        weights: [f64; M],
+    ) -> SVector<f64, N> {
+        let scaled = weights.map(|a| h * a);
+        SVector::<f64, N>::from_fn(|i, _| {
+            let mut sum = x[i];
+            for (k, ha) in stages.iter().zip(&scaled) {
+                sum += ha * k[i];
+            }
+            sum
+        })
+    }
+
+    /// The former step: the error norm over the states `Tolerance::scales` lists.
+    fn step<const N: usize>(
+        f: &mut impl FnMut(&SVector<f64, N>) -> SVector<f64, N>,
+        x: &SVector<f64, N>,
+        k1: &SVector<f64, N>,
+        h: f64,
+        tolerance: &Tolerance<N>,
+    ) -> (SVector<f64, N>, f64) {
+        let k2 = f(&combine(x, h, [k1], A2));
+        let k3 = f(&combine(x, h, [k1, &k2], A3));
+        let k4 = f(&combine(x, h, [k1, &k3], A4));
+        let k5 = f(&combine(x, h, [k1, &k3, &k4], A5));
+        let k6 = f(&combine(x, h, [k1, &k4, &k5], A6));
+        let k7 = f(&combine(x, h, [k1, &k4, &k5, &k6], A7));
+        let k8 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7], A8));
+        let k9 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8], A9));
+        let k10 = f(&combine(x, h, [k1, &k4, &k5, &k6, &k7, &k8, &k9], A10));
+        let k11 = f(&combine(
+            x,
+            h,
+            [k1, &k4, &k5, &k6, &k7, &k8, &k9, &k10],
+            A11,
+        ));
+        let stages11 = [k1, &k4, &k5, &k6, &k7, &k8, &k9, &k10, &k11];
+        let k12 = f(&combine(x, h, stages11, A12));
+        let stages = [k1, &k6, &k7, &k8, &k9, &k10, &k11, &k12];
+        let increment = combine(&SVector::zeros(), 1.0, stages, B);
+        let next = combine(x, h, [&increment], [1.0]);
+        let (mut fifth, mut third, mut controlled) = (0.0, 0.0, 0usize);
+        for (i, scale) in tolerance.scales(x, &next) {
+            let e3 = increment[i] - BH[0] * k1[i] - BH[1] * k9[i] - BH[2] * k12[i];
+            let mut e5 = 0.0;
+            for (k, e) in stages.iter().zip(E) {
+                e5 += e * k[i];
+            }
+            fifth += (e5 / scale).powi(2);
+            third += (e3 / scale).powi(2);
+            controlled += 1;
+        }
+        (next, combined_error(h, (fifth, third), controlled))
+    }
+
+    /// The former stepper, for the shared step-size loop.
+    struct Former<'a, F> {
+        f: F,
+        k1: GeneratorState,
+        tolerance: &'a Tolerance<8>,
+    }
+
+    impl<F: FnMut(&GeneratorState) -> GeneratorState> Embedded<8> for Former<'_, F> {
+        fn attempt(&mut self, state: &GeneratorState, (h, _): (f64, f64)) -> Attempt<8> {
+            Ok(step(&mut self.f, state, &self.k1, h, self.tolerance))
+        }
+
+        fn accept(&mut self, next: GeneratorState, at: f64) -> Result<GeneratorState, StepError> {
+            self.k1 = (self.f)(&next);
+            let _ = at;
+            Ok(next)
+        }
+
+        fn factor(&self, error: f64) -> f64 {
+            step_factor(error)
+        }
+    }
+
+    fn bits(x: &[f64]) -> Vec<u64> {
+        x.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// A random state of the generator's working range.
+    fn random_state(rng: &mut RandomGenerator) -> GeneratorState {
+        let ranges = [
+            (-2.0, 2.0),
+            (-2.0, 2.0),
+            (-0.2, 1.0),
+            (-20.0, 250.0),
+            (0.0, 6.3),
+            (-20.0, 260.0),
+            (0.0, 125.0),
+            (0.0, 250.0),
+        ];
+        GeneratorState::from_fn(|i, _| rng.uniform_range(ranges[i].0, ranges[i].1))
+    }
+
+    #[test]
+    fn single_steps_are_bit_identical_to_the_former_formulation() {
+        let mut rng = RandomGenerator::new(17);
+        let p = WindGeneratorParameters::default();
+        for k in 0..5000 {
+            let rhs = HeldRightHandSide::new(
+                &p,
+                rng.uniform_range(0.0, 10.0),
+                rng.uniform_range(0.0, 10.0),
+            );
+            let mut f = |x: &GeneratorState| rhs.derivative(x);
+            let x = random_state(&mut rng);
+            let h = 10f64.powf(rng.uniform_range(-6.0, -1.5));
+            let rtol = 10f64.powf(rng.uniform_range(-12.0, -4.0));
+            // Every other case with every state in the norm (no infinite scale).
+            let mut tolerance = WindGenerator::tolerance(rtol);
+            if k % 2 == 1 {
+                tolerance.absolute[4] = rtol;
+            }
+            let k1 = f(&x);
+            let (expected, expected_error) = step(&mut f, &x, &k1, h, &tolerance);
+            let controlled = tolerance.absolute.data.0[0].map(f64::is_finite);
+            let count = controlled.iter().filter(|&&c| c).count();
+            let (next, error) = super::step(
+                &mut f,
+                &x.data.0[0],
+                &k1.data.0[0],
+                h,
+                &tolerance,
+                (&controlled, count),
+            );
+            assert_eq!(bits(&next), bits(expected.as_slice()), "step {k}: {x}");
+            assert_eq!(
+                error.to_bits(),
+                expected_error.to_bits(),
+                "step {k}: {error} {expected_error}"
+            );
+        }
+    }
+
+    #[test]
+    fn integration_over_a_start_up_is_bit_identical_to_the_former_formulation() {
+        // 10 s from rest in 0.1 s calls, the references changed every 0.5-3 s, at three
+        // tolerances: the same step sequence and the same state after every call.
+        let p = WindGeneratorParameters::default();
+        let mut rng = RandomGenerator::new(3);
+        for rtol in [1e-6, 1e-9, WindGenerator::DEFAULT_RELATIVE_TOLERANCE] {
+            let tolerance = WindGenerator::tolerance(rtol);
+            let (mut x, mut y) = (GeneratorState::zeros(), GeneratorState::zeros());
+            let (mut step_x, mut step_y) = (1e-3, 1e-3);
+            let mut references = [10.0, 8.0];
+            for call in 0..100 {
+                if rng.uniform_range(0.0, 1.0) < 0.1 {
+                    references = [rng.uniform_range(4.0, 10.0), rng.uniform_range(3.0, 10.0)];
+                }
+                let rhs = HeldRightHandSide::new(&p, references[0], references[1]);
+                let f = |x: &GeneratorState| rhs.derivative(x);
+                let (mut counts_x, mut counts_y) = (Statistics::default(), Statistics::default());
+                x = integrate(f, (&x, 0.1), &tolerance, (&mut step_x, &mut counts_x)).unwrap();
+                let mut former = Former {
+                    f,
+                    k1: f(&y),
+                    tolerance: &tolerance,
+                };
+                y = crate::ode::adaptive::drive(&mut former, &y, 0.1, &mut step_y, &mut counts_y)
+                    .unwrap();
+                assert_eq!(counts_x, counts_y, "rtol {rtol:e}, call {call}");
+                assert_eq!(
+                    step_x.to_bits(),
+                    step_y.to_bits(),
+                    "rtol {rtol:e}, call {call}"
+                );
+                assert_eq!(
+                    bits(x.as_slice()),
+                    bits(y.as_slice()),
+                    "rtol {rtol:e}, call {call}"
+                );
+            }
+        }
+    }
+}
+
+/// What limits DOP853's step on the wind generator at rtol 5·10⁻¹² (the finding is on
 /// the WindGenerator FMU page, "What limits the step"; `--nocapture` prints the figures): the
 /// bench's scenario (10 s from rest, references held 2–4 s, 0.1 s communication steps),
 /// every step attempt logged, and the work when the error norm leaves components out.
@@ -358,7 +598,7 @@ mod step_limit {
                 let rhs = HeldRightHandSide::new(&p, u_drive, u_field);
                 let f = |x: &GeneratorState| rhs.derivative(x);
                 let k1 = f(&x);
-                let inner = Stepper { f, k1, tolerance };
+                let inner = Stepper::new(f, k1, tolerance);
                 let mut traced = Traced {
                     inner,
                     log: Vec::new(),
@@ -378,10 +618,15 @@ mod step_limit {
         (all.count() - rejected, rejected)
     }
 
-    /// The default tolerance with the absolute tolerances of `components` multiplied by
-    /// `factor` (infinite: left out of the error norm).
+    /// The relative tolerance the page's figures were measured at (the default then; at
+    /// today's default, 7·10⁻¹², the picture is the same: 73 % of the attempts in the second
+    /// after a change, 2.1 % rejected).
+    const MEASURED_AT: f64 = 5e-12;
+
+    /// That tolerance with the absolute tolerances of `components` multiplied by `factor`
+    /// (infinite: left out of the error norm).
     fn loosened(components: &[usize], factor: f64) -> Tolerance<8> {
-        let mut tolerance = WindGenerator::tolerance(WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
+        let mut tolerance = WindGenerator::tolerance(MEASURED_AT);
         for &i in components {
             tolerance.absolute[i] *= factor;
         }

@@ -22,7 +22,7 @@
 //! ```
 //!
 //! Integrated inside `fmi2DoStep` by the eighth-order Dormand–Prince pair with error control
-//! (relative tolerance `rtol`, default 5·10⁻¹²: the accuracy of the former default, RK4 on
+//! (relative tolerance `rtol`, default 7·10⁻¹²: the accuracy of the former default, RK4 on
 //! 10⁻⁴ s substeps, at a sixth of its right-hand sides; [`WindGenerator::advance_adaptive`]), its
 //! step carried from one `fmi2DoStep` to the next; or, with `fixed_step_rk4 = true`, by RK4 on
 //! substeps no longer than `h_max` (default 10⁻⁴ s). The stator modes are fast
