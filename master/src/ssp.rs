@@ -8,7 +8,12 @@
 //! `String`, which both schemas define: SSP 2.0 adds the sized types (`Float64`, `Int32`,
 //! …), which are read, but OMSimulator 3.x's command line refuses a `Float64` connector
 //! ("Failed to import connector … with type \"\"") and its own Python API writes `Real` in
-//! SSP 2.0 files too.
+//! SSP 2.0 files too. A connector of an FMI 3.0-only type is written with its own type in
+//! SSP 2.0 (`Float32`, `Int8`, …); SSP 1.0 does not have them, so there it is written as the
+//! SSP 1.0 type that holds every value (`Float32` → `Real`; `Int8`, `UInt8`, `Int16`,
+//! `UInt16` → `Integer`), and an SSP 1.0 export with a connector no SSP 1.0 type holds
+//! (`UInt32`, `Int64`, `UInt64`) is refused, naming it and `--ssp-version 2.0`
+//! ([`connector_type`]).
 //!
 //! Start values go into inline `ssv:ParameterSet`s of each component's `ParameterBindings`.
 //! The standard has no place for a fixed step size, so the export writes it twice:
@@ -154,9 +159,59 @@ fn connector(fmu: &FmuFile, name: &str) -> Option<(&'static str, VarType)> {
     Some((kind, var_type))
 }
 
+/// The SSP type element (`ssc:<name>`) of a connector of FMI type `ty` in SSP `version`.
+/// SSP 2.0 has every FMI type (an Enumeration written as Integer). SSP 1.0 has `Real`,
+/// `Integer` (32 bits), `Boolean`, `String`, `Enumeration` and `Binary`: an FMI 3.0 type
+/// goes to the one that holds all its values (`Float32` → `Real`; `Int8`, `UInt8`, `Int16`,
+/// `UInt16` → `Integer`), and one that none holds (`UInt32`, `Int64`, `UInt64`, `Clock`)
+/// has no SSP 1.0 type: None.
+pub fn connector_type(ty: VarType, version: SspVersion) -> Option<&'static str> {
+    match version {
+        SspVersion::V2_0 => Some(ty.base().name()),
+        SspVersion::V1_0 => match ty.base() {
+            VarType::Real | VarType::Float32 => Some("Real"),
+            VarType::Integer
+            | VarType::Int8
+            | VarType::UInt8
+            | VarType::Int16
+            | VarType::UInt16 => Some("Integer"),
+            VarType::Boolean => Some("Boolean"),
+            VarType::String => Some("String"),
+            VarType::Binary => Some("Binary"),
+            _ => None,
+        },
+    }
+}
+
+/// The `ssc:` element of connector `name` (type `ty`) of component `component` in SSP
+/// `version`, or the reason it has none, with the fix.
+fn connector_element(
+    component: &str,
+    name: &str,
+    ty: VarType,
+    version: SspVersion,
+) -> std::io::Result<String> {
+    connector_type(ty, version)
+        .map(|t| format!("ssc:{t}"))
+        .ok_or_else(|| {
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "component `{component}`, connector `{name}`: its type {} has no lossless \
+                     SSP {version} type (SSP {version} has Real, Integer of 32 bits, Boolean, \
+                     String, Enumeration, Binary); export SSP 2.0 instead (`spurio ssp-export \
+                     … --ssp-version 2.0`)",
+                    ty.name_3()
+                ),
+            )
+        })
+}
+
 /// The `SystemStructure.ssd` text (SSP `version`) for `d`, written with quick-xml (which
 /// escapes every attribute); `connectors[i]` are instance i's (name, kind, type),
-/// `sources[i]` the archive path of its FMU.
+/// `sources[i]` the archive path of its FMU. A connector whose type SSP `version` does not
+/// have (see [`connector_type`]) is an error (`InvalidInput`) naming the component, the
+/// connector, its type and the fix.
 pub fn ssd_text(
     d: &SystemDescription,
     connectors: &[Vec<(String, &'static str, VarType)>],
@@ -296,10 +351,9 @@ fn component(
         if !connectors.is_empty() {
             element(w, "ssd:Connectors", &[], |w| {
                 for (name, kind, ty) in connectors {
+                    let ty = connector_element(&inst.name, name, *ty, version)?;
                     let attributes = [("name", name.as_str()), ("kind", *kind)];
-                    element(w, "ssd:Connector", &attributes, |w| {
-                        empty(w, &format!("ssc:{}", ty.base().name()), &[])
-                    })?;
+                    element(w, "ssd:Connector", &attributes, |w| empty(w, &ty, &[]))?;
                 }
                 Ok(())
             })?;
@@ -807,6 +861,94 @@ mod tests {
                 imported.notes,
                 ["step size 0.01 from the org.spurio.simulation annotation (stepSize)"]
             );
+        }
+    }
+
+    /// A system of one component `c` whose connectors are `connectors` (name, kind, type).
+    fn one_component(
+        connectors: Vec<(String, &'static str, VarType)>,
+    ) -> (SystemDescription, Vec<Vec<(String, &'static str, VarType)>>) {
+        let d = SystemDescription {
+            name: "s".into(),
+            start_time: 0.0,
+            stop_time: 1.0,
+            step_size: 0.1,
+            algorithm: Algorithm::GaussSeidel,
+            instances: vec![InstanceDescription {
+                name: "c".into(),
+                fmu: PathBuf::from("resources/Feedthrough.fmu"),
+                parameters: BTreeMap::new(),
+                step_multiple: 1,
+                logging: false,
+            }],
+            connections: vec![],
+            record: vec![],
+        };
+        (d, vec![connectors])
+    }
+
+    #[test]
+    fn ssp_1_0_writes_the_fmi_3_types_it_holds_as_real_and_integer() {
+        let types = [
+            (VarType::Real, "Real", "Real"),
+            (VarType::Float32, "Real", "Float32"),
+            (VarType::Int8, "Integer", "Int8"),
+            (VarType::UInt8, "Integer", "UInt8"),
+            (VarType::Int16, "Integer", "Int16"),
+            (VarType::UInt16, "Integer", "UInt16"),
+            (VarType::Integer, "Integer", "Integer"),
+            (VarType::Enumeration, "Integer", "Integer"),
+            (VarType::Boolean, "Boolean", "Boolean"),
+            (VarType::String, "String", "String"),
+        ];
+        let connectors = types
+            .iter()
+            .map(|(t, _, _)| (format!("{}_out", t.name_3()), "output", *t))
+            .collect();
+        let (d, connectors) = one_component(connectors);
+        let sources = vec!["resources/Feedthrough.fmu".to_string()];
+        for (version, column) in [(SspVersion::V1_0, 1), (SspVersion::V2_0, 2)] {
+            let text = ssd_text(&d, &connectors, &sources, version).unwrap();
+            for t in &types {
+                let written = if column == 1 { t.1 } else { t.2 };
+                let expected = format!(
+                    "<ssd:Connector name=\"{}_out\" kind=\"output\">\n            <ssc:{written}/>",
+                    t.0.name_3()
+                );
+                assert!(text.contains(&expected), "{version}: {expected}\n{text}");
+            }
+            // and it reads back, each connector as a connector
+            assert_eq!(parse_ssd(&text).unwrap().description, d);
+        }
+    }
+
+    #[test]
+    fn ssp_1_0_refuses_a_connector_no_ssp_1_0_type_holds_naming_it_and_the_fix() {
+        let sources = vec!["resources/Feedthrough.fmu".to_string()];
+        for ty in [
+            VarType::UInt32,
+            VarType::Int64,
+            VarType::UInt64,
+            VarType::Clock,
+        ] {
+            let (d, connectors) = one_component(vec![
+                ("Float64_out".into(), "output", VarType::Real),
+                (format!("{}_in", ty.name_3()), "input", ty),
+            ]);
+            let e = ssd_text(&d, &connectors, &sources, SspVersion::V1_0).unwrap_err();
+            assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+            assert_eq!(
+                e.to_string(),
+                format!(
+                    "component `c`, connector `{0}_in`: its type {0} has no lossless SSP 1.0 \
+                     type (SSP 1.0 has Real, Integer of 32 bits, Boolean, String, Enumeration, \
+                     Binary); export SSP 2.0 instead (`spurio ssp-export … --ssp-version 2.0`)",
+                    ty.name_3()
+                )
+            );
+            // SSP 2.0 writes it with its own type
+            let text = ssd_text(&d, &connectors, &sources, SspVersion::V2_0).unwrap();
+            assert!(text.contains(&format!("<ssc:{}/>", ty.name_3())), "{text}");
         }
     }
 

@@ -363,3 +363,60 @@ fn an_fmi3_fmu_without_its_platform_tuple_binary_is_refused() {
         ],
     );
 }
+
+#[test]
+fn an_ssp_1_0_export_writes_fmi3_types_it_holds_and_refuses_the_others() {
+    // Int8 and Float32 connectors (SSP 1.0: Integer and Real) run the same after the round
+    // trip; a UInt64 one has no SSP 1.0 type: SSP 1.0 refuses it, SSP 2.0 writes UInt64.
+    let (_, fmu3) = feedthroughs();
+    let head = |extra: &str| {
+        format!(
+            r#"
+            stop_time = 1.0
+            step_size = 0.25
+            connections = [
+              "a.Int8_output -> b.Int8_input",
+              "a.Float32_continuous_output -> b.Float32_continuous_input",
+              {extra}
+            ]
+            record = ["b.Int8_output", "b.Float32_continuous_output"]
+            "#
+        )
+    };
+    let parameters =
+        "Int8_input = -100, Float32_continuous_input = 0.25, UInt64_input = 4000000000";
+    let instances = [("a", fmu3.as_path(), parameters), ("b", fmu3.as_path(), "")];
+    let dir = tempfile::tempdir().unwrap();
+    let ssp = dir.path().join("s.ssp");
+    let held = system(&head(""), &instances).unwrap();
+    held.export_ssp(&ssp, SspVersion::V1_0).unwrap();
+    let mut ssd = String::new();
+    std::io::Read::read_to_string(
+        &mut zip::ZipArchive::new(std::fs::File::open(&ssp).unwrap())
+            .unwrap()
+            .by_name("SystemStructure.ssd")
+            .unwrap(),
+        &mut ssd,
+    )
+    .unwrap();
+    for written in ["<ssc:Integer/>", "<ssc:Real/>"] {
+        assert_eq!(ssd.matches(written).count(), 3, "{written} in\n{ssd}");
+    }
+    let (direct, _) = run(&held, &RunOptions::default());
+    let (imported, _) = run(&System::from_file(&ssp).unwrap(), &RunOptions::default());
+    assert_eq!(imported.rows, direct.rows);
+    assert_eq!(direct.rows[4], [-100.0, 0.25]);
+
+    let unheld = system(&head(r#""a.UInt64_output -> b.UInt64_input","#), &instances).unwrap();
+    let e = unheld.export_ssp(&ssp, SspVersion::V1_0).unwrap_err();
+    assert_names(
+        &e.to_string(),
+        &[
+            "s.ssp: component `a`, connector `UInt64_output`: its type UInt64 has no lossless SSP 1.0 type",
+            "--ssp-version 2.0",
+        ],
+    );
+    unheld.export_ssp(&ssp, SspVersion::V2_0).unwrap();
+    let (imported, _) = run(&System::from_file(&ssp).unwrap(), &RunOptions::default());
+    assert_eq!(imported.rows, run(&unheld, &RunOptions::default()).0.rows);
+}

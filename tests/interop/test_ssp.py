@@ -14,6 +14,7 @@ at a step that is exact in binary, except in the timing case (step 0.1 to t = 1:
 last step of ~1e-15 s, in which Sensor2, sampling on its own clock, takes no sample).
 """
 
+import pathlib
 import re
 import zipfile
 
@@ -31,6 +32,7 @@ from conftest import (
     omsimulator,
     our_fmu,
     read_csv,
+    require,
     spurio,
 )
 
@@ -101,6 +103,53 @@ def test_our_ssd_follows_the_schema(version, workdir):
     )
     schema.assertValid(ssd)
     assert ssd.get("version") == version
+
+
+def test_an_ssp_1_0_export_of_fmi3_types_follows_both_schemas(workdir):
+    """The FMI 3.0 Reference FMU Feedthrough's Int8, UInt16 and Float32 connectors, which SSP
+    1.0 does not have, are written as Integer and Real: the SSD follows the SSP 1.0 schema
+    fmpy ships and OMSimulator's; a UInt64 connector refuses the export, naming the fix."""
+    from lxml import etree
+
+    feedthrough = require(REFERENCE_FMUS.parent / "fmi3" / "Feedthrough.fmu", "the Reference FMUs")
+    connections = [
+        "a.Int8_output -> b.Int8_input",
+        "a.UInt16_output -> b.UInt16_input",
+        "a.Float32_continuous_output -> b.Float32_continuous_input",
+    ]
+
+    def system(extra):
+        path = workdir / "fmi3.toml"
+        path.write_text(
+            "stop_time = 1.0\nstep_size = 0.5\n"
+            f"connections = {connections + extra!r}\n".replace("'", '"')
+            + f'[[instance]]\nname = "a"\nfmu = "{feedthrough}"\n'
+            + f'[[instance]]\nname = "b"\nfmu = "{feedthrough}"\n'
+        )
+        return path
+
+    ssp = workdir / "fmi3.ssp"
+    spurio("ssp-export", system([]), ssp, "--ssp-version", "1.0")
+    with zipfile.ZipFile(ssp) as z:
+        ssd = etree.fromstring(z.read("SystemStructure.ssd"))
+    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+    types = sorted(etree.QName(c[0]).localname for c in ssd.iterfind(".//ssd:Connector", ns))
+    assert types == ["Integer"] * 4 + ["Real"] * 2
+    import fmpy
+
+    for xsd in (
+        pathlib.Path(fmpy.__file__).parent / "ssp" / "schema" / "SystemStructureDescription.xsd",
+        OMS_PYTHONPATH / "OMSimulator" / "schema" / "ssp" / "SystemStructureDescription.xsd",
+    ):
+        etree.XMLSchema(file=str(require(xsd, "the SSP schema"))).assertValid(ssd)
+
+    refused = spurio(
+        "ssp-export", system(["a.UInt64_output -> b.UInt64_input"]), ssp, "--ssp-version", "1.0",
+        check=False,
+    )
+    assert refused.returncode != 0
+    assert "component `a`, connector `UInt64_output`: its type UInt64" in refused.stderr
+    assert "--ssp-version 2.0" in refused.stderr
 
 
 @pytest.mark.parametrize("version", VERSIONS)
