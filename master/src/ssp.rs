@@ -864,10 +864,11 @@ mod tests {
         }
     }
 
-    /// A system of one component `c` whose connectors are `connectors` (name, kind, type).
-    fn one_component(
-        connectors: Vec<(String, &'static str, VarType)>,
-    ) -> (SystemDescription, Vec<Vec<(String, &'static str, VarType)>>) {
+    /// A component's connectors as [`ssd_text`] takes them: (name, kind, type).
+    type Connectors = Vec<(String, &'static str, VarType)>;
+
+    /// A system of one component `c` whose connectors are `connectors`.
+    fn one_component(connectors: Connectors) -> (SystemDescription, Vec<Connectors>) {
         let d = SystemDescription {
             name: "s".into(),
             start_time: 0.0,
