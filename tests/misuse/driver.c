@@ -25,7 +25,8 @@
  *
  * An FMI 3.0 FMU with Model Exchange (manifest version 3, from build/fmus/fmi3) is driven
  * through the FMI 3.0 Model Exchange state machine likewise (see "FMI 3.0 Model Exchange"
- * below), with the same checks.
+ * below), with the same checks; every FMI 3.0 FMU (manifest `interface cs`) through the FMI
+ * 3.0 Co-Simulation state machine too (see "FMI 3.0 Co-Simulation").
  *
  * A crash, a hang or an AddressSanitizer report ends the process (the run script reports it).
  *
@@ -1052,7 +1053,28 @@ static struct {
                                        const fmi3ValueReference *, size_t, const fmi3Float64 *,
                                        size_t, fmi3Float64 *, size_t);
     fmi3Status (*EvaluateDiscreteStates)(fmi3Instance); /* providesEvaluateDiscreteStates="false" */
+    /* Co-Simulation (an `interface cs` manifest) */
+    fmi3Status (*DoStep)(fmi3Instance, fmi3Float64, fmi3Float64, fmi3Boolean, fmi3Boolean *,
+                         fmi3Boolean *, fmi3Boolean *, fmi3Float64 *);
+    fmi3Status (*EnterStepMode)(fmi3Instance);
+    fmi3Status (*GetString)(fmi3Instance, const fmi3ValueReference *, size_t, const char **, size_t);
+    fmi3Status (*SetString)(fmi3Instance, const fmi3ValueReference *, size_t, const char *const *,
+                            size_t);
+    fmi3Status (*SetDebugLogging)(fmi3Instance, fmi3Boolean, size_t, const char *const *);
+    /* types the FMUs declare no variable of (each call refused) */
+    fmi3Status (*GetFloat32)(fmi3Instance, const fmi3ValueReference *, size_t, float *, size_t);
+    fmi3Status (*SetInt8)(fmi3Instance, const fmi3ValueReference *, size_t, const int8_t *, size_t);
+    fmi3Status (*GetUInt64)(fmi3Instance, const fmi3ValueReference *, size_t, uint64_t *, size_t);
+    fmi3Status (*SetInt64)(fmi3Instance, const fmi3ValueReference *, size_t, const int64_t *, size_t);
+    fmi3Status (*GetBinary)(fmi3Instance, const fmi3ValueReference *, size_t, size_t *,
+                            const unsigned char **, size_t);
+    fmi3Status (*GetClock)(fmi3Instance, const fmi3ValueReference *, size_t, fmi3Boolean *);
+    fmi3Status (*GetOutputDerivatives)(fmi3Instance, const fmi3ValueReference *, size_t,
+                                       const fmi3Int32 *, fmi3Float64 *, size_t);
 } G;
+
+/* FMI 3.0 Co-Simulation (manifest `interface cs`): the FMU's Co-Simulation capabilities. */
+static int cs_interface, cs_event_mode, cs_intermediate;
 
 /* The FMI 3.0 state machine's masks for a Model Exchange instance (FMI 3.0.2 section 3.3);
    S_STEP is never reached. */
@@ -1267,14 +1289,255 @@ static void end_or_reset3(Inst *in, int reset) {
         in->possible |= S_ERROR;
 }
 
+/* ---- FMI 3.0 Co-Simulation ---------------------------------------------------------- */
+/* An FMI 3.0 FMU driven as Co-Simulation (manifest `interface cs`, listed as fmi3-cs/<Model>):
+ * every instance from fmi3InstantiateCoSimulation -- with eventModeUsed, earlyReturnAllowed and
+ * requiredIntermediateVariables asked now and then (accepted only when the FMU declares
+ * hasEventMode / providesIntermediateUpdate; earlyReturnAllowed always: it only permits) -- and
+ * driven through the FMI 3.0 Co-Simulation state machine (Instantiated -> Initialization Mode
+ * -> Step Mode -> Terminated; no Event Mode: hasEventMode="false") with the checks above:
+ * fmi3DoStep at good and bad times and steps (NaN, +-inf, negative, 0, tiny, huge), its output
+ * flags (no event handling, no early return from an FMU that declares neither) and
+ * lastSuccessfulTime; fmi3EnterStepMode, fmi3EnterEventMode, fmi3UpdateDiscreteStates,
+ * fmi3EvaluateDiscreteStates (refused: no Event Mode); fmi3Get/SetString and the getters and
+ * setters of the types the FMUs do not declare (refused); FMU states (another instance's,
+ * garbage, a non-state's bytes); NULL instances; and, through random_call3, the calls the two
+ * interfaces share and every Model Exchange call (each refused on a Co-Simulation
+ * instance). */
+
+/* fmi3InstantiateCoSimulation, valid or not (`variant`); on a CS-only FMU, now and then
+   fmi3InstantiateModelExchange, which must be refused. */
+static void instantiate3cs(Inst *in) {
+    static const fmi3ValueReference required[2] = {0, 1};
+    char name[32];
+    const char *token = guid, *what = "fmi3InstantiateCoSimulation";
+    int variant = pick(16), valid;
+    fmi3Boolean event_mode = variant == 5 || variant == 8, early = variant == 7 || variant == 8;
+    snprintf(name, sizeof name, "i%d", (int)(in - inst));
+    in->log_count = 0;
+    in->last[0] = 0;
+    if (variant == 0) token = "{00000000-0000-0000-0000-000000000000}";
+    valid = variant >= 7 || (variant == 3 && model_exchange);
+    if (variant == 5 || variant == 8) valid = cs_event_mode;
+    if (variant == 6) valid = cs_intermediate;
+    if (variant == 1) valid = -1; /* no resources: valid, but a variant FMU needs its own */
+    t0 = now_ms();
+    call_no++;
+    calls_total++;
+    if (variant == 3 && !model_exchange) {
+        what = "fmi3InstantiateModelExchange";
+        in->c = G.InstantiateModelExchange(name, token, resources, 0, pick(2), in, logger3);
+    } else
+        in->c = G.InstantiateCoSimulation(variant == 2 ? "" : variant == 4 ? NULL : name, token,
+                                          variant == 1 ? NULL : resources, 0, pick(2), event_mode,
+                                          early, variant == 6 ? required : NULL,
+                                          variant == 6 ? 2 : 0, in, logger3, NULL);
+    if (trace) printf("call %ld %s (case %d) on i%d: %s (%s)\n", call_no, what, variant,
+                      (int)(in - inst), in->c ? "instance" : "NULL", in->last);
+    if (!in->c) {
+        if (valid == 1) finding(what, "returned NULL for a valid call (case %d): %s", variant, in->last);
+        else if (in->log_count == 0) finding(what, "returned NULL without logging why (case %d)", variant);
+        return;
+    }
+    if (valid == 0) {
+        finding(what, "accepted an invalid call (case %d)", variant);
+        F.FreeInstance(in->c); /* not driven on: what it would allow is not modelled */
+        in->c = NULL;
+        return;
+    }
+    instantiated(in, 0);
+}
+
+/* fmi3DoStep from the instance's time (now and then another) by a step good or bad, each
+   output now and then NULL. */
+static void do_step3(Inst *in) {
+    static const double steps[] = {0.01, 0.05, 0.1, 0.001, 1.0, 10.0, 1e3, 1e308, 1e-300,
+                                   0.0, -0.1, NAN, INFINITY, -INFINITY, 1e-12, 0.5, -1e-300,
+                                   1e300};
+    double h = steps[pick(4) == 0 ? pick((int)(sizeof steps / sizeof *steps)) : pick(4)];
+    double t = in->time_known && pick(10) ? in->time
+             : pick(2) || !in->time_known ? nasty_real(NULL) : in->time + 0.01;
+    fmi3Boolean event = 1, terminate = 1, early = 1;
+    fmi3Float64 last = NAN;
+    int null = pick(24);
+    fmi3Status s;
+    begin(in);
+    s = G.DoStep(in->c, t, h, pick(2), null == 0 ? NULL : &event, null == 1 ? NULL : &terminate,
+                 null == 2 ? NULL : &early, null == 3 ? NULL : &last);
+    end(in, "fmi3DoStep", S_STEP, s);
+    if (s <= fmi2Warning) {
+        if (!isfinite(t + h)) finding("fmi3DoStep", "accepted a step from %g by %g", t, h);
+        if (!(h > 0)) finding("fmi3DoStep", "accepted the step %g", h);
+        if (null != 0 && event) finding("fmi3DoStep", "eventHandlingNeeded without Event Mode");
+        if (null != 2 && early) finding("fmi3DoStep", "earlyReturn from an FMU that never returns early");
+        if (null != 3 && last != t + h)
+            finding("fmi3DoStep", "lastSuccessfulTime %.17g after a full step to %.17g", last, t + h);
+        in->time = t + h;
+        in->time_known = 1;
+        check_all_reals3(in, "fmi3DoStep");
+    } else if (s == fmi2Discard) {
+        in->time_known = null != 3 && isfinite(last);
+        in->time = last;
+    } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+        in->possible |= S_ERROR;
+}
+
+/* fmi3GetString / fmi3SetString on 1-3 references (mostly not Strings), nValues mostly right. */
+static void strings3(Inst *in) {
+    fmi3ValueReference vrs[3];
+    const char *text[4] = {"text", "", "x", NULL};
+    const Var *var;
+    int n = 1 + pick(3), set = pick(2), i;
+    size_t nv = pick(10) ? (size_t)n : (size_t)n + 1 - (size_t)pick(3);
+    fmi3Status s;
+    for (i = 0; i < n; i++) vrs[i] = some_vr('S', &var);
+    if (pick(10) == 0) text[0] = NULL;
+    begin(in);
+    s = set ? G.SetString(in->c, vrs, (size_t)n, text, nv) : G.GetString(in->c, vrs, (size_t)n, text, nv);
+    end(in, set ? "fmi3SetString" : "fmi3GetString", set ? ME3_SETTABLE | S_STEP : ME3_GETTABLE | S_STEP, s);
+    if (s <= fmi2Warning && nv != (size_t)n)
+        finding(set ? "fmi3SetString" : "fmi3GetString", "accepted nValues = %zu for %d", nv, n);
+    if (!set && s == fmi2OK)
+        for (i = 0; i < n; i++)
+            if (!text[i] || strlen(text[i]) > 1000000) finding("fmi3GetString", "bad string");
+    if (s == fmi2Error && !strstr(in->last, "illegal call sequence") &&
+        (in->possible & (S_INIT | S_STEP)))
+        in->possible |= S_ERROR;
+}
+
+/* A call the FMUs' Co-Simulation refuses in every state (`which`): Event Mode's, and the
+   getters and setters of the types they declare no variable of. */
+static void refused3(Inst *in, int which) {
+    static const char *const names[] = {"fmi3EnterStepMode", "fmi3EnterEventMode",
+                                        "fmi3EvaluateDiscreteStates", "fmi3GetFloat32",
+                                        "fmi3SetInt8", "fmi3GetUInt64", "fmi3SetInt64",
+                                        "fmi3GetBinary", "fmi3GetClock",
+                                        "fmi3GetOutputDerivatives"};
+    fmi3ValueReference vr = (fmi3ValueReference)pick((int)max_vr + 2);
+    float f = 0;
+    int8_t i8 = -3;
+    uint64_t u64 = 0;
+    int64_t i64 = -3;
+    size_t size = 0;
+    const unsigned char *bytes = NULL;
+    fmi3Boolean clock = 0;
+    fmi3Int32 order = 1;
+    fmi3Float64 x = 0;
+    fmi3Status s;
+    begin(in);
+    switch (which) {
+    case 0: s = G.EnterStepMode(in->c); break;
+    case 1: s = ME.EnterEventMode(in->c); break;
+    case 2: s = G.EvaluateDiscreteStates(in->c); break;
+    case 3: s = G.GetFloat32(in->c, &vr, 1, &f, 1); break;
+    case 4: s = G.SetInt8(in->c, &vr, 1, &i8, 1); break;
+    case 5: s = G.GetUInt64(in->c, &vr, 1, &u64, 1); break;
+    case 6: s = G.SetInt64(in->c, &vr, 1, &i64, 1); break;
+    case 7: s = G.GetBinary(in->c, &vr, 1, &size, &bytes, 1); break;
+    case 8: s = G.GetClock(in->c, &vr, 1, &clock); break;
+    default: s = G.GetOutputDerivatives(in->c, &vr, 1, &order, &x, 1); break;
+    }
+    end(in, names[which], which < 3 && cs_event_mode ? -1 : 0, s);
+}
+
+/* FMU states the instance did not create: another instance's, an address that is none, a
+   non-state's or random bytes deserialized. */
+static void foreign_states3(Inst *in) {
+    fmi3Status s;
+    Inst *other = &inst[pick(NINST)];
+    if (pick(2)) {
+        int theirs = other != in && other->c && other->nstates;
+        fmi3FMUState st = theirs ? other->states[0] : (fmi3FMUState)(uintptr_t)0x1000;
+        begin(in);
+        s = G.SetFMUState(in->c, st);
+        end(in, "fmi3SetFMUState", ANY_LIVE, s);
+        if (s <= fmi2Warning) finding("fmi3SetFMUState", "accepted a state it did not create");
+        return;
+    }
+    {
+        static const char not_a_state[] = "not a serialized FMU state";
+        unsigned char random[64];
+        int is_text = pick(2);
+        size_t len = is_text ? sizeof not_a_state : 1 + (size_t)pick(64), k;
+        fmi3FMUState st = NULL;
+        for (k = 0; k < len && !is_text; k++) random[k] = (unsigned char)pick(256);
+        begin(in);
+        s = G.DeserializeFMUState(in->c, is_text ? (const unsigned char *)not_a_state : random,
+                                  len, pick(20) ? &st : NULL);
+        end(in, "fmi3DeserializeFMUState", ANY_LIVE, s);
+        if (s <= fmi2Warning) {
+            finding("fmi3DeserializeFMUState", "accepted %s bytes", is_text ? "a text's" : "random");
+            if (st) {
+                begin(in);
+                end(in, "fmi3FreeFMUState", ANY_LIVE, G.FreeFMUState(in->c, &st));
+            }
+        }
+    }
+}
+
+/* Calls with a NULL instance (each fmi3Error, nothing touched) and fmi3SetDebugLogging. */
+static void null_and_logging3(Inst *in) {
+    if (pick(2)) {
+        const char *cats[2] = {"logStatusError", pick(2) ? "noSuchCategory" : "logAll"};
+        fmi3Status s;
+        begin(in);
+        s = G.SetDebugLogging(in->c, pick(2), 1 + (size_t)pick(2), pick(20) ? cats : NULL);
+        end(in, "fmi3SetDebugLogging", ANY_LIVE, s);
+        return;
+    }
+    {
+        fmi3Float64 x = 0;
+        fmi3ValueReference vr = 0;
+        fmi3FMUState st = NULL;
+        double ms = now_ms();
+        calls_total++;
+        call_no++;
+        if (G.DoStep(NULL, 0, 0.1, 0, NULL, NULL, NULL, NULL) != fmi2Error ||
+            G.GetFloat64(NULL, &vr, 1, &x, 1) != fmi2Error ||
+            G.EnterInitializationMode(NULL, 0, 0, 0, 0, 0) != fmi2Error ||
+            G.GetFMUState(NULL, &st) != fmi2Error || G.EnterStepMode(NULL) != fmi2Error)
+            finding("NULL instance", "not fmi3Error");
+        F.FreeInstance(NULL);
+        if (now_ms() - ms > bound_ms) finding("NULL instance", "slow");
+    }
+}
+
+/* One Co-Simulation call: fmi3DoStep (0-49), strings (50-57), a refused call (58-69),
+   foreign states (70-79), NULL instances and logging (80-84), fmi3ExitInitializationMode
+   (85-92), fmi3Terminate or fmi3Reset (93-96), fmi3FreeInstance (97-99); an instance known to
+   be Terminated is reset one time in three (else most calls would find it there). */
+static void cs3_call(Inst *in) {
+    int op = pick(100);
+    if (in->possible == S_TERMINATED && pick(3) == 0) end_or_reset3(in, 1);
+    else if (op < 50) do_step3(in);
+    else if (op < 58) strings3(in);
+    else if (op < 70) refused3(in, pick(10));
+    else if (op < 80) foreign_states3(in);
+    else if (op < 85) null_and_logging3(in);
+    else if (op < 93) {
+        fmi3Status s = plain_call(in, G.ExitInitializationMode, "fmi3ExitInitializationMode", S_INIT);
+        if (s <= fmi2Warning) {
+            in->possible = S_STEP;
+            check_all_reals3(in, "fmi3ExitInitializationMode");
+        } else if (s == fmi2Error && !strstr(in->last, "illegal call sequence"))
+            in->possible |= S_ERROR;
+    } else if (op < 97) end_or_reset3(in, pick(2));
+    else free_instance(in);
+}
+
 static void random_call3(Inst *in) {
     fmi3Status s;
     int op;
     if (!in->c) {
-        instantiate3(in);
+        if (cs_interface) instantiate3cs(in);
+        else instantiate3(in);
         return;
     }
     if (pick(3) == 0 && me_advance(in)) return;
+    if (cs_interface && pick(2)) {
+        cs3_call(in);
+        return;
+    }
     op = pick(120);
     if (op < 2) {
         free_instance(in);
@@ -1289,6 +1552,10 @@ static void random_call3(Inst *in) {
         return;
     }
     if (op < 88) {
+        if (cs_interface && pick(4)) { /* on a Co-Simulation instance, a quarter of them */
+            cs3_call(in);
+            return;
+        }
         me_shared_call(in, op - 8);
         return;
     }
@@ -1383,6 +1650,9 @@ static int read_manifest(const char *path) {
         else if (!strcmp(fields[0], "resources") && nf > 1) snprintf(resources, sizeof resources, "%s", fields[1]);
         else if (!strcmp(fields[0], "me") && nf > 1) model_exchange = atoi(fields[1]);
         else if (!strcmp(fields[0], "version") && nf > 1) version = atoi(fields[1]);
+        else if (!strcmp(fields[0], "interface") && nf > 1) cs_interface = !strcmp(fields[1], "cs");
+        else if (!strcmp(fields[0], "cs_event_mode") && nf > 1) cs_event_mode = atoi(fields[1]);
+        else if (!strcmp(fields[0], "cs_intermediate") && nf > 1) cs_intermediate = atoi(fields[1]);
         else if (!strcmp(fields[0], "count") && nf > 2) {
             unsigned vr = (unsigned)strtoul(fields[1], NULL, 10);
             if (vr < 4096) counts[vr] = atoi(fields[2]);
@@ -1483,7 +1753,9 @@ static int load3(void *lib) {
         "SetFMUState", "FreeFMUState", "SerializedFMUStateSize", "SerializeFMUState",
         "DeserializeFMUState", "GetNumberOfEventIndicators", "GetNumberOfContinuousStates",
         "UpdateDiscreteStates", "CompletedIntegratorStep", "GetDirectionalDerivative",
-        "GetAdjointDerivative", "EvaluateDiscreteStates"};
+        "GetAdjointDerivative", "EvaluateDiscreteStates", "DoStep", "EnterStepMode", "GetString",
+        "SetString", "SetDebugLogging", "GetFloat32", "SetInt8", "GetUInt64", "SetInt64",
+        "GetBinary", "GetClock", "GetOutputDerivatives"};
     void **slots[] = {
         (void **)&G.InstantiateModelExchange, (void **)&G.InstantiateCoSimulation,
         (void **)&F.FreeInstance, (void **)&G.EnterInitializationMode,
@@ -1495,7 +1767,10 @@ static int load3(void *lib) {
         (void **)&G.DeserializeFMUState, (void **)&G.GetNumber[0], (void **)&G.GetNumber[1],
         (void **)&G.UpdateDiscreteStates, (void **)&G.CompletedIntegratorStep,
         (void **)&G.GetDirectionalDerivative, (void **)&G.GetAdjointDerivative,
-        (void **)&G.EvaluateDiscreteStates};
+        (void **)&G.EvaluateDiscreteStates, (void **)&G.DoStep, (void **)&G.EnterStepMode,
+        (void **)&G.GetString, (void **)&G.SetString, (void **)&G.SetDebugLogging,
+        (void **)&G.GetFloat32, (void **)&G.SetInt8, (void **)&G.GetUInt64, (void **)&G.SetInt64,
+        (void **)&G.GetBinary, (void **)&G.GetClock, (void **)&G.GetOutputDerivatives};
     if (!load_prefixed(lib, "fmi3", what, slots, (int)(sizeof slots / sizeof *slots), NULL) ||
         !me_load(lib, "fmi3", "GetContinuousStateDerivatives", enter_init3, check_all_reals3))
         return 0;
@@ -1574,7 +1849,7 @@ int main(int argc, char **argv) {
     }
     printf("%-34s %8ld calls  %3ld findings  slowest %.1f ms (%s)", label, calls_total,
            findings, slowest_ms, slowest_what);
-    if (model_exchange) printf("  %ld on Model Exchange instances", calls_me);
+    if (model_exchange && !cs_interface) printf("  %ld on Model Exchange instances", calls_me);
     printf("\n");
     free(own_bytes);
     free(foreign);

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Unpacks an FMU for the misuse driver and writes what it needs to know as plain text.
 
-    manifest.py FMU OUTDIR   ->  OUTDIR/<unpacked FMU>, OUTDIR/manifest.txt
+    manifest.py FMU OUTDIR [cs]   ->  OUTDIR/<unpacked FMU>, OUTDIR/manifest.txt
+
+(`cs`: an FMI 3.0 FMU to drive as Co-Simulation; without it, as Model Exchange.)
 
 manifest.txt (one record a line, fields separated by a tab):
     label    <file stem of the FMU>
@@ -15,6 +17,9 @@ manifest.txt (one record a line, fields separated by a tab):
     state    <vr of a continuous state> <vr of its derivative>   (ModelStructure order)
     var      <vr> <R|I|B|S> <causality> <variability> <min or -> <max or -> <name>
     count    <vr> <number of elements>   (FMI 3.0 arrays only; a scalar has 1)
+    interface  cs   (FMI 3.0 driven as Co-Simulation: label fmi3-cs/<stem>), then
+    cs_event_mode    <1 if its CoSimulation declares hasEventMode="true", else 0>
+    cs_intermediate  <1 if it declares providesIntermediateUpdate="true", else 0>
 An FMI 3.0 FMU (build/fmus/fmi3) gives the same records: its Float64/Int32/Boolean/String
 variables as R/I/B/S (value reference 0, `time`, among them), the library under
 binaries/x86_64-linux, the instantiationToken as guid.
@@ -31,15 +36,16 @@ TYPES = {"Real": "R", "Integer": "I", "Boolean": "B", "String": "S", "Enumeratio
 TYPES3 = {"Float64": "R", "Int32": "I", "Boolean": "B", "String": "S", "Enumeration": "I"}
 
 
-def fmi3_lines(fmu: str, root: ET.Element, unpacked: pathlib.Path) -> list:
-    """The manifest of an FMI 3.0 model description."""
+def fmi3_lines(fmu: str, root: ET.Element, unpacked: pathlib.Path, co_simulation: bool) -> list:
+    """The manifest of an FMI 3.0 model description (to drive as Co-Simulation or not)."""
     cs = root.find("CoSimulation")
     if cs is None:
         raise SystemExit(f"{fmu}: not a Co-Simulation FMU")
     model_id = cs.get("modelIdentifier")
     structure = root.find("ModelStructure")
+    prefix = "fmi3-cs" if co_simulation else "fmi3"
     lines = [
-        f"label\tfmi3/{pathlib.Path(fmu).stem}",
+        f"label\t{prefix}/{pathlib.Path(fmu).stem}",
         "version\t3",
         f"id\t{model_id}",
         f"guid\t{root.get('instantiationToken')}",
@@ -48,6 +54,12 @@ def fmi3_lines(fmu: str, root: ET.Element, unpacked: pathlib.Path) -> list:
         f"me\t{int(root.find('ModelExchange') is not None)}",
         f"nz\t{len(structure.findall('EventIndicator'))}",
     ]
+    if co_simulation:
+        lines += [
+            "interface\tcs",
+            f"cs_event_mode\t{int(cs.get('hasEventMode') == 'true')}",
+            f"cs_intermediate\t{int(cs.get('providesIntermediateUpdate') == 'true')}",
+        ]
     variables = [v for v in root.find("ModelVariables") if v.tag in TYPES3]
     by_vr = {v.get("valueReference"): v for v in variables}
     for der in structure.iterfind("ContinuousStateDerivative"):
@@ -77,14 +89,14 @@ def fmi3_lines(fmu: str, root: ET.Element, unpacked: pathlib.Path) -> list:
     return lines
 
 
-def main(fmu: str, out: str) -> None:
+def main(fmu: str, out: str, co_simulation: bool = False) -> None:
     out_dir = pathlib.Path(out).resolve()
     unpacked = out_dir / "fmu"
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(unpacked)
     root = ET.parse(unpacked / "modelDescription.xml").getroot()
     if root.get("fmiVersion", "").startswith("3."):
-        (out_dir / "manifest.txt").write_text("\n".join(fmi3_lines(fmu, root, unpacked)) + "\n")
+        (out_dir / "manifest.txt").write_text("\n".join(fmi3_lines(fmu, root, unpacked, co_simulation)) + "\n")
         return
     cs = root.find("CoSimulation")
     if cs is None:
@@ -125,6 +137,6 @@ def main(fmu: str, out: str) -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        raise SystemExit("usage: manifest.py FMU OUTDIR")
-    main(sys.argv[1], sys.argv[2])
+    if len(sys.argv) not in (3, 4) or sys.argv[3:] not in ([], ["cs"]):
+        raise SystemExit("usage: manifest.py FMU OUTDIR [cs]")
+    main(sys.argv[1], sys.argv[2], sys.argv[3:] == ["cs"])
