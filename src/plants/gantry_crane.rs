@@ -445,7 +445,7 @@ impl GantryCraneParameters {
     /// applied force, the cart kept on the rail after each ([`ode::integrate`]).
     ///
     /// Out of line on purpose: compiled as a function of its own, with the right-hand side
-    /// inlined into its loop, it runs a GantryCrane step about 10 % faster than the same loop
+    /// inlined into its loop, it runs a GantryCrane step 8–10 % faster than the same loop
     /// inlined into [`GantryCrane::advance_with`] beside the adaptive integrator (the same
     /// instructions, measured with `scripts/bench --baseline`).
     #[inline(never)]
