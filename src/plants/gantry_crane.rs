@@ -772,6 +772,35 @@ mod tests {
     }
 
     #[test]
+    fn the_rk4_step_is_rk4_on_the_right_hand_side_bit_for_bit() {
+        // rk4_substeps is ode::integrate of derivative with the stop kept, nothing else: the
+        // published figures depend on it (a swing with a 4 N push into the right stop)
+        let (start, force) = swing_under(4.0);
+        let mut c = crane(0.0);
+        c.state = start;
+        let p = c.parameters;
+        let mut x = start;
+        let mut at_stop = 0;
+        for k in 0..200 {
+            let t = k as f64 * 0.05;
+            c.advance(t, force(k), 0.05, 1e-3);
+            let u = p.saturate(force(k));
+            let mut report = StepReport::default();
+            x = ode::integrate(
+                |_t, s| p.derivative(s, u),
+                |time, s| p.keep_on_rail(time, s, &mut report),
+                t,
+                &x,
+                0.05,
+                1e-3,
+            );
+            assert_eq!(c.state, x, "step {k}");
+            at_stop += usize::from(x[0] == 0.5);
+        }
+        assert!(at_stop > 10, "{at_stop} steps at the stop");
+    }
+
+    #[test]
     fn force_is_saturated() {
         let p = GantryCraneParameters::default();
         assert_eq!(p.saturate(100.0), 17.0);
