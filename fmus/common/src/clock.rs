@@ -248,16 +248,6 @@ impl SampleClock {
     }
 }
 
-impl SampleClock {
-    /// Takes over what [`SampleClock::after`] changed in `after` (the period, the next
-    /// sample): a step's samples were taken.
-    #[inline(always)]
-    pub fn commit(&mut self, after: &SampleClock) {
-        self.period = after.period;
-        self.next = after.next;
-    }
-}
-
 /// `v.ceil()` without the library call on the hot path: for |v| < 2⁵² the truncation to an
 /// integer is exact, one more when it lies below `v`; larger values (integers already), ±∞
 /// and NaN go to [`f64::ceil`]. The one difference, 0 for `v` in (−1, 0) where `ceil` gives

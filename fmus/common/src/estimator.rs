@@ -242,7 +242,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         for k in samples {
             estimator.step(&self.layout, ctx, clock.instant(k), clock.period())?;
         }
-        self.clock.commit(&clock);
+        self.clock = clock;
         Ok(())
     }
 
