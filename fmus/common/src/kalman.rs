@@ -402,9 +402,7 @@ impl<S: ScalarFilter> Scalar<S> {
             let (name, v) = if u.is_finite() { ("y", y) } else { ("u", u) };
             return Err(non_finite_input(name, 1, v));
         }
-        if let Err(e) = self.filter.step(u, y) {
-            return Err(error(e));
-        }
+        self.filter.step(u, y).map_err(error)?;
         self.filter.write_outputs(values, self.outputs);
         Ok(())
     }
