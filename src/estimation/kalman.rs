@@ -800,7 +800,7 @@ impl Saved for ScalarKalmanFilter {
         self.estimate.save(self.has_input(), out);
     }
     fn restore(&mut self, input: &mut StateReader<'_>) -> Result<(), EstimationError> {
-        self.estimate.restore(self.model.input.is_some(), input)
+        self.estimate.restore(self.has_input(), input)
     }
 }
 
