@@ -694,13 +694,8 @@ mod tests {
                 let filtered = Filtered::<Linear<F>>::build(layout, parameters).unwrap();
                 *estimator = LinearEstimator::General(filtered);
             }
-            let mut rng = 0x9E37_79B9_7F4A_7C15_u64;
-            let mut uniform = || {
-                rng ^= rng << 13;
-                rng ^= rng >> 7;
-                rng ^= rng << 17;
-                (rng >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut bits = crate::clock::tests::xorshift(0x9E37_79B9_7F4A_7C15);
+            let mut uniform = || (bits() >> 11) as f64 / (1u64 << 53) as f64;
             let mut seen = Vec::new();
             for k in 0..steps {
                 let outlier = if uniform() < 0.1 { 1.0 } else { 0.0 };
