@@ -713,6 +713,27 @@ static int take_state(Inst *in, fmi2Status (*call)(fmi2Component, fmi2FMUstate *
     return slot;
 }
 
+/* Drops held state `slot` (freed by the FMU): the last one takes its place. */
+static void forget_state(Inst *in, int slot) {
+    in->nstates--;
+    in->states[slot] = in->states[in->nstates];
+    in->state_possible[slot] = in->state_possible[in->nstates];
+}
+
+/* Holds state `st` (from a deserialization; the instance's states are `possible` after
+   setting it) in a free slot, or frees it through `free_call` (`what`) when none is free. */
+static void keep_state(Inst *in, fmi2FMUstate st, int possible,
+                       fmi2Status (*free_call)(fmi2Component, fmi2FMUstate *), const char *what) {
+    if (in->nstates < 8) {
+        in->states[in->nstates] = st;
+        in->state_possible[in->nstates] = possible;
+        in->nstates++;
+    } else {
+        begin(in);
+        end(in, what, ANY_LIVE, free_call(in->c, &st));
+    }
+}
+
 static void save_bytes(Inst *in, fmi2FMUstate st) {
     size_t size = 0;
     fmi2Status s;
@@ -897,9 +918,7 @@ static void random_call(Inst *in) {
             s = F.FreeFMUstate(in->c, &st);
             end(in, "fmi2FreeFMUstate", ANY_LIVE | S_FATAL, s);
             if (s == fmi2OK) {
-                in->nstates--;
-                in->states[slot] = in->states[in->nstates];
-                in->state_possible[slot] = in->state_possible[in->nstates];
+                forget_state(in, slot);
                 if (st) finding("fmi2FreeFMUstate", "did not set the state to NULL");
             }
         }
@@ -936,16 +955,7 @@ static void random_call(Inst *in) {
         s = F.DeSerializeFMUstate(in->c, (const fmi2Byte *)bytes, len, &st);
         end(in, "fmi2DeSerializeFMUstate", ANY_LIVE, s);
         if (s == fmi2OK && other_fmu) finding("fmi2DeSerializeFMUstate", "accepted the state of another FMU");
-        if (s == fmi2OK) {
-            if (in->nstates < 8) {
-                in->states[in->nstates] = st;
-                in->state_possible[in->nstates] = ANY_LIVE;
-                in->nstates++;
-            } else {
-                begin(in);
-                end(in, "fmi2FreeFMUstate", ANY_LIVE, F.FreeFMUstate(in->c, &st));
-            }
-        }
+        if (s == fmi2OK) keep_state(in, st, ANY_LIVE, F.FreeFMUstate, "fmi2FreeFMUstate");
         free(bytes);
         return;
     }
@@ -1239,9 +1249,7 @@ static void states3(Inst *in) {
         end(in, "fmi3FreeFMUState", ANY_LIVE, s);
         if (s == fmi2OK) {
             if (st) finding("fmi3FreeFMUState", "did not set the state to NULL");
-            in->nstates--;
-            in->states[slot] = in->states[in->nstates];
-            in->state_possible[slot] = in->state_possible[in->nstates];
+            forget_state(in, slot);
         }
     } else { /* serialize, then deserialize the bytes (corrupted now and then) */
         size_t size = 0;
@@ -1261,16 +1269,9 @@ static void states3(Inst *in) {
             begin(in);
             s = G.DeserializeFMUState(in->c, bytes, pick(6) == 0 && size ? size - 1 : size, &back);
             end(in, "fmi3DeserializeFMUState", ANY_LIVE, s);
-            if (s == fmi2OK && back) {
-                if (in->nstates < 8) {
-                    in->states[in->nstates] = back;
-                    in->state_possible[in->nstates] = corrupt ? ANY_LIVE : in->state_possible[slot];
-                    in->nstates++;
-                } else {
-                    begin(in);
-                    end(in, "fmi3FreeFMUState", ANY_LIVE, G.FreeFMUState(in->c, &back));
-                }
-            }
+            if (s == fmi2OK && back)
+                keep_state(in, back, corrupt ? ANY_LIVE : in->state_possible[slot], G.FreeFMUState,
+                           "fmi3FreeFMUState");
         }
         free(bytes);
     }

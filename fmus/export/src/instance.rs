@@ -918,10 +918,7 @@ impl<M: FmuModel> Instance<M> {
         if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
             return self.reject(f, &self.type_error(vr, expected));
         }
-        let mut status = self.refresh_outputs(f);
-        if status <= Status::Warning {
-            status = status.max(self.indicators_for(f, vrs.iter().map(|&vr| vr as usize)));
-        }
+        let status = self.refresh_for(f, vrs.iter().map(|&vr| vr as usize));
         if status > Status::Warning {
             return status;
         }
@@ -979,11 +976,7 @@ impl<M: FmuModel> Instance<M> {
         if let Some(&vr) = vrs.iter().find(|vr| !self.is_of_type(**vr, expected)) {
             return self.reject(f, &self.type_error(vr, expected));
         }
-        let status = self.refresh_outputs(f);
-        if status > Status::Warning {
-            return status;
-        }
-        status.max(self.indicators_for(f, vrs.iter().map(|&vr| vr as usize)))
+        self.refresh_for(f, vrs.iter().map(|&vr| vr as usize))
     }
 
     /// Before values are read by `f`: in Initialization Mode the model computes the outputs
@@ -1010,6 +1003,20 @@ impl<M: FmuModel> Instance<M> {
         } else {
             Status::Ok
         }
+    }
+
+    /// Before `f` reads the variables at table indices `read`: [`Instance::refresh_outputs`],
+    /// then the event indicators when one of them is read ([`Instance::indicators_for`]).
+    pub(crate) fn refresh_for(
+        &mut self,
+        f: &Function,
+        read: impl Iterator<Item = usize>,
+    ) -> Status {
+        let status = self.refresh_outputs(f);
+        if status > Status::Warning {
+            return status;
+        }
+        status.max(self.indicators_for(f, read))
     }
 
     /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).

@@ -456,12 +456,8 @@ unsafe fn read<M: FmuModel>(
     if let Err(message) = check_references(s, vrs, expected, n_values) {
         return s.instance.reject(f, &message);
     }
-    let mut status = s.instance.refresh_outputs(f);
-    if status <= Status::Warning {
-        let interface = Arc::clone(s.instance.interface());
-        let read = interface.layout.indices_of(vrs);
-        status = status.max(s.instance.indicators_for(f, read));
-    }
+    let interface = Arc::clone(s.instance.interface());
+    let status = s.instance.refresh_for(f, interface.layout.indices_of(vrs));
     if status > Status::Warning {
         return status;
     }
