@@ -131,7 +131,7 @@ fn step<const N: usize>(
     let e3 = combine(&increment, 1.0, [k1, &k9, &k12], BH.map(|b| -b));
     let (mut q5, mut q3) = ([0.0; N], [0.0; N]);
     for i in 0..N {
-        let scale = tolerance.absolute[i] + tolerance.relative * x[i].abs().max(next[i].abs());
+        let scale = tolerance.scale(i, x[i], next[i]);
         let (a, b) = (e5[i] / scale, e3[i] / scale);
         // A state outside the norm adds an exact zero (the sums are never −0).
         q5[i] = if controlled[i] { a * a } else { 0.0 };
@@ -200,13 +200,11 @@ struct Stepper<'a, F, const N: usize> {
 impl<'a, F, const N: usize> Stepper<'a, F, N> {
     /// The stepper at a state where the derivative is `k1`.
     fn new(f: F, k1: SVector<f64, N>, tolerance: &'a Tolerance<N>) -> Self {
-        let controlled = tolerance.absolute.data.0[0].map(f64::is_finite);
-        let count = controlled.iter().filter(|&&c| c).count();
         Self {
             f,
             k1: k1.into(),
             tolerance,
-            controlled: (controlled, count),
+            controlled: tolerance.controlled(),
         }
     }
 }
@@ -217,15 +215,14 @@ where
 {
     #[inline]
     fn attempt(&mut self, state: &SVector<f64, N>, (h, _): (f64, f64)) -> Attempt<N> {
-        let (controlled, count) = (&self.controlled.0, self.controlled.1);
-        let x = &state.data.0[0];
+        let (controlled, count) = &self.controlled;
         let (next, error) = step(
             &mut self.f,
-            x,
+            &state.data.0[0],
             &self.k1,
             h,
             self.tolerance,
-            (controlled, count),
+            (controlled, *count),
         );
         Ok((SVector::from(next), error))
     }
@@ -423,9 +420,8 @@ mod former {
             Ok(step(&mut self.f, state, &self.k1, h, self.tolerance))
         }
 
-        fn accept(&mut self, next: GeneratorState, at: f64) -> Result<GeneratorState, StepError> {
+        fn accept(&mut self, next: GeneratorState, _: f64) -> Result<GeneratorState, StepError> {
             self.k1 = (self.f)(&next);
-            let _ = at;
             Ok(next)
         }
 
@@ -474,8 +470,7 @@ mod former {
             }
             let k1 = f(&x);
             let (expected, expected_error) = step(&mut f, &x, &k1, h, &tolerance);
-            let controlled = tolerance.absolute.data.0[0].map(f64::is_finite);
-            let count = controlled.iter().filter(|&&c| c).count();
+            let (controlled, count) = tolerance.controlled();
             let (next, error) = super::step(
                 &mut f,
                 &x.data.0[0],

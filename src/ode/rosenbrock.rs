@@ -92,12 +92,23 @@ impl<const N: usize> Tolerance<N> {
         x: &'a SVector<f64, N>,
         next: &'a SVector<f64, N>,
     ) -> impl Iterator<Item = (usize, f64)> + 'a {
-        (0..N).filter(|&i| self.absolute[i].is_finite()).map(|i| {
-            (
-                i,
-                self.absolute[i] + self.relative * x[i].abs().max(next[i].abs()),
-            )
-        })
+        (0..N)
+            .filter(|&i| self.absolute[i].is_finite())
+            .map(|i| (i, self.scale(i, x[i], next[i])))
+    }
+
+    /// The error scale `atolᵢ + rtol · max(|xᵢ|, |nextᵢ|)` of state `i` for a step from `x`
+    /// to `next` (its components `i`).
+    #[inline(always)]
+    pub(crate) fn scale(&self, i: usize, x: f64, next: f64) -> f64 {
+        self.absolute[i] + self.relative * x.abs().max(next.abs())
+    }
+
+    /// Which states are in the error norm (finite absolute tolerance), and how many.
+    pub(crate) fn controlled(&self) -> ([bool; N], usize) {
+        let controlled = self.absolute.data.0[0].map(f64::is_finite);
+        let count = controlled.iter().filter(|&&c| c).count();
+        (controlled, count)
     }
 }
 

@@ -1213,8 +1213,13 @@ mod tests {
 
     /// The start-up scenario of the integrator comparison: from rest, rated references for
     /// 4 s, then drive 6 V, then field 5 V, then both back to rated (torque at its limit in
-    /// the start-up), sampled every 0.1 s: (speed rpm, voltage V) at each sample.
-    fn start_up(mut advance: impl FnMut(&mut WindGenerator, f64, f64)) -> Vec<(f64, f64)> {
+    /// the start-up), sampled every 0.1 s: (speed rpm, voltage V) at each sample. Both
+    /// references are scaled, the drive by `scale` and the field by its square root (1: as
+    /// given).
+    fn start_up(
+        scale: f64,
+        mut advance: impl FnMut(&mut WindGenerator, f64, f64),
+    ) -> Vec<(f64, f64)> {
         let mut g = WindGenerator::new(WindGeneratorParameters::default()).unwrap();
         (0..100)
             .map(|k| {
@@ -1224,7 +1229,7 @@ mod tests {
                     60..80 => (6.0, 5.0),
                     _ => (10.0, 8.0),
                 };
-                advance(&mut g, u_drive, u_field);
+                advance(&mut g, u_drive * scale, u_field * scale.sqrt());
                 (g.speed_rpm(), g.terminal_voltage())
             })
             .collect()
@@ -1243,35 +1248,41 @@ mod tests {
     }
 
     /// The start-up with RK4 substeps of `h_max` (the former default: 10⁻⁴ s).
-    fn rk4_start_up(h_max: f64) -> Vec<(f64, f64)> {
+    fn rk4_start_up(h_max: f64, scale: f64) -> Vec<(f64, f64)> {
         let mut t = 0.0;
-        start_up(|g, u_drive, u_field| {
+        start_up(scale, |g, u_drive, u_field| {
             g.advance(t, u_drive, u_field, 0.1, h_max);
             t += 0.1;
         })
+    }
+
+    /// The start-up with an adaptive integrator at relative tolerance `rtol`, and its work:
+    /// DOP853's right-hand sides, RODAS3's steps (each 3 right-hand sides, a Jacobian, an LU).
+    fn adaptive_start_up(integrator: Adaptive, rtol: f64, scale: f64) -> (Vec<(f64, f64)>, usize) {
+        let tolerance = WindGenerator::tolerance(rtol);
+        let (mut step, mut work) = (1e-3, 0);
+        let run = start_up(scale, |g, u_drive, u_field| {
+            let s = g
+                .advance_adaptive(integrator, (u_drive, u_field), 0.1, &tolerance, &mut step)
+                .unwrap();
+            work += match integrator {
+                Adaptive::Dop853 => 12 * s.accepted + 11 * s.rejected + 1,
+                Adaptive::Rodas3 => s.accepted + s.rejected,
+            };
+        });
+        (run, work)
     }
 
     #[test]
     fn default_integrator_reaches_the_former_defaults_accuracy_in_a_sixth_of_its_work() {
         // The reference: RK4 on a grid five times finer than the former default (2·10⁻⁵ s),
         // independent of the methods under test (its own error: ≈ 6·10⁻¹⁴ against 10⁻⁵ s).
-        let reference = rk4_start_up(2e-5);
-        // DOP853: right-hand sides; RODAS3: steps (each 3 right-hand sides, a Jacobian, an LU).
+        let reference = rk4_start_up(2e-5, 1.0);
         let adaptive = |integrator: Adaptive, rtol: f64| {
-            let tolerance = WindGenerator::tolerance(rtol);
-            let (mut step, mut work) = (1e-3, 0);
-            let run = start_up(|g, u_drive, u_field| {
-                let s = g
-                    .advance_adaptive(integrator, (u_drive, u_field), 0.1, &tolerance, &mut step)
-                    .unwrap();
-                work += match integrator {
-                    Adaptive::Dop853 => 12 * s.accepted + 11 * s.rejected + 1,
-                    Adaptive::Rodas3 => s.accepted + s.rejected,
-                };
-            });
+            let (run, work) = adaptive_start_up(integrator, rtol, 1.0);
             (largest_error(&run, &reference), work)
         };
-        let former = largest_error(&rk4_start_up(H_MAX), &reference);
+        let former = largest_error(&rk4_start_up(H_MAX, 1.0), &reference);
         let rk4_evaluations = 4 * 100 * 1000;
         let (new, evaluations) =
             adaptive(Adaptive::Dop853, WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
@@ -1302,28 +1313,12 @@ mod tests {
         // the former default's 1.9·10⁻¹¹ of rated (measured 7.5, 6.5, 6.0, 11.3, 11.3·10⁻¹²)
         // and in less than a sixth of its work.
         for scale in [1.0, 0.97, 0.9, 0.8, 0.75] {
-            let run = |advance: &mut dyn FnMut(&mut WindGenerator, f64, f64)| {
-                start_up(|g, u_drive, u_field| advance(g, u_drive * scale, u_field * scale.sqrt()))
-            };
-            let mut t = 0.0;
-            let reference = run(&mut |g, u_drive, u_field| {
-                g.advance(t, u_drive, u_field, 0.1, 2e-5);
-                t += 0.1;
-            });
-            let tolerance = WindGenerator::tolerance(WindGenerator::DEFAULT_RELATIVE_TOLERANCE);
-            let (mut step, mut work) = (1e-3, 0);
-            let adaptive = run(&mut |g, u_drive, u_field| {
-                let s = g
-                    .advance_adaptive(
-                        Adaptive::Dop853,
-                        (u_drive, u_field),
-                        0.1,
-                        &tolerance,
-                        &mut step,
-                    )
-                    .unwrap();
-                work += 12 * s.accepted + 11 * s.rejected + 1;
-            });
+            let reference = rk4_start_up(2e-5, scale);
+            let (adaptive, work) = adaptive_start_up(
+                Adaptive::Dop853,
+                WindGenerator::DEFAULT_RELATIVE_TOLERANCE,
+                scale,
+            );
             let error = largest_error(&adaptive, &reference);
             eprintln!("scale {scale}: DOP853 {error:.2e}, {work} right-hand sides");
             assert!(error < 1.2e-11, "scale {scale}: {error:e}");
