@@ -689,18 +689,16 @@ impl ScalarEstimate {
         }
         let e = self.innovation;
         if !e.is_finite() {
-            return Err(EstimationError::NonFinite {
-                what: "innovation y − C x⁻ − D u (check y and u)",
+            return Err(non_finite(
+                "innovation y − C x⁻ − D u (check y and u)",
                 step,
-            });
+            ));
         }
         let (k, x, p) = joseph_scalar(m.c, r_eff.at(e), self.x_prior, self.p_prior, e, step)?;
         (self.gain, self.x, self.p) = (k, x, p);
-        if !(x.is_finite() && p.is_finite()) {
-            return Err(EstimationError::NonFinite {
-                what: "state estimate or its covariance",
-                step,
-            });
+        // one compare for both: v·0 is ±0 for a finite v and NaN otherwise
+        if x * 0.0 + p * 0.0 != 0.0 {
+            return Err(non_finite("state estimate or its covariance", step));
         }
         self.output = m.c * x;
         if let Some((_, d)) = m.input {
@@ -845,21 +843,30 @@ fn joseph_scalar(
     let g = c * p_prior;
     let s = g * c + r;
     if !s.is_finite() {
-        return Err(EstimationError::NonFinite {
-            what: INNOVATION_COVARIANCE,
-            step,
-        });
+        return Err(non_finite(INNOVATION_COVARIANCE, step));
     }
     if s <= 0.0 {
-        return Err(EstimationError::Factorisation {
-            what: INNOVATION_COVARIANCE,
-            step,
-        });
+        return Err(not_positive(INNOVATION_COVARIANCE, step));
     }
     let l = s.sqrt();
     let k = g / l / l;
     let m = k * -c + 1.0;
     Ok((k, x_prior + k * e, m * (p_prior * m) + k * (r * k)))
+}
+
+/// [`EstimationError::Factorisation`] of `what` at `step` (out of line, as [`non_finite`]).
+#[cold]
+#[inline(never)]
+fn not_positive(what: &'static str, step: u64) -> EstimationError {
+    EstimationError::Factorisation { what, step }
+}
+
+/// [`EstimationError::NonFinite`] of `what` at `step` (out of line: the hot paths only
+/// branch to it).
+#[cold]
+#[inline(never)]
+fn non_finite(what: &'static str, step: u64) -> EstimationError {
+    EstimationError::NonFinite { what, step }
 }
 
 /// The name of S in the errors of [`FilterCore::correct`].

@@ -110,8 +110,11 @@ pub fn parameter() -> Variable {
         .describe("Sample period T: one sample at each instant start + k·T (k an integer; relative tolerance 1e-9, growing to 1e-3 with the drift of accumulated time), outputs held between samples, every instant a longer step covers taken with the inputs held; 0 = the size of the first step")
 }
 
-/// Which step takes the sample of an instant (see the module documentation).
+/// Which step takes the sample of an instant (see the module documentation). A word wide,
+/// so that a [`SampleClock`] has no padding: copied whole (taken over after a step), it
+/// moves as four words rather than the rule's byte and the bytes around it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u64)]
 pub enum Rule {
     /// The step from `t` to `t + h` takes the instants in `[t, t + h)`.
     Step,

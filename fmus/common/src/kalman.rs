@@ -337,8 +337,11 @@ impl LinearFilter for RobustKalmanFilter {
 pub trait ScalarFilter: Clone + std::fmt::Debug + 'static {
     /// One sample (u_k, y_k) (u_k unused without input).
     fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError>;
+    /// How many outputs [`ScalarFilter::write_outputs`] writes.
+    const OUTPUTS: usize;
     /// Writes `x_hat[1]`, `y_hat[1]`, `innovation[1]` (and the robust filter's `w[1]`), the
-    /// variables declared one after the other from `first`.
+    /// Reals declared one after the other from `first` (checked when the estimator was
+    /// built: [`Values::are_reals`]).
     fn write_outputs(&self, values: &mut Values, first: usize);
     /// [`StateEstimator::dynamic_state`] of the filter.
     fn dynamic_state(&self) -> Vec<f64>;
@@ -350,8 +353,9 @@ pub trait ScalarFilter: Clone + std::fmt::Debug + 'static {
 /// `dynamic_state`, `set_dynamic_state`), whose outputs, in declaration order, are
 /// `$outputs` of the filter `$f`.
 macro_rules! scalar_filter {
-    ($filter:ty, |$f:ident| $outputs:expr) => {
+    ($filter:ty, $n:literal, |$f:ident| $outputs:expr) => {
         impl ScalarFilter for $filter {
+            const OUTPUTS: usize = $n;
             #[inline(always)]
             fn step(&mut self, u: f64, y: f64) -> Result<(), EstimationError> {
                 <$filter>::step(self, u, y)
@@ -359,7 +363,7 @@ macro_rules! scalar_filter {
             #[inline(always)]
             fn write_outputs(&self, values: &mut Values, first: usize) {
                 let $f = self;
-                values.set_reals(first, $outputs);
+                values.put_reals::<$n>(first, $outputs);
             }
             fn dynamic_state(&self) -> Vec<f64> {
                 <$filter>::dynamic_state(self)
@@ -371,12 +375,12 @@ macro_rules! scalar_filter {
     };
 }
 
-scalar_filter!(ScalarKalmanFilter, |f| [
+scalar_filter!(ScalarKalmanFilter, 3, |f| [
     f.state(),
     f.output(),
     f.innovation()
 ]);
-scalar_filter!(ScalarRobustKalmanFilter, |r| {
+scalar_filter!(ScalarRobustKalmanFilter, 4, |r| {
     let f = r.filter();
     [f.state(), f.output(), f.innovation(), r.weight()]
 });
@@ -392,13 +396,18 @@ pub struct Scalar<S: ScalarFilter> {
 }
 
 impl<S: ScalarFilter> Scalar<S> {
-    /// The step: the inputs read (a non-finite one is an error naming it, the filter
-    /// untouched), the filter stepped, the outputs written.
+    /// The step: the inputs read (Reals, checked when the estimator was built; a non-finite
+    /// one is an error naming it, the filter untouched), the filter stepped, the outputs
+    /// written.
     #[inline(always)]
     fn step(&mut self, values: &mut Values) -> Result<(), Failure> {
-        let y = values.real(self.y);
-        let u = self.u.map_or(0.0, |u| values.real(u));
-        if !(y.is_finite() && u.is_finite()) {
+        let numbers = values.numbers();
+        let y = numbers.get(self.y).copied().unwrap_or(f64::NAN);
+        let u = self
+            .u
+            .map_or(0.0, |u| numbers.get(u).copied().unwrap_or(f64::NAN));
+        // one compare for both: x·0 is ±0 for a finite x and NaN otherwise
+        if y * 0.0 + u * 0.0 != 0.0 {
             let (name, v) = if u.is_finite() { ("y", y) } else { ("u", u) };
             return Err(non_finite_input(name, 1, v));
         }
@@ -439,12 +448,19 @@ impl<F: LinearFilter> Estimator for LinearEstimator<F> {
             l.u.indices().len(),
             consecutive,
         ) {
-            (Some(filter), m @ (0 | 1), true) if l.y.indices().len() == 1 => Scalar {
-                filter,
-                u: (m == 1).then_some(l.u.first),
-                y: l.y.first,
-                outputs: first,
-            },
+            (Some(filter), m @ (0 | 1), true)
+                if l.y.indices().len() == 1
+                    && values.are_reals(l.y.first, 1)
+                    && (m == 0 || values.are_reals(l.u.first, 1))
+                    && values.are_reals(first, F::Scalar::OUTPUTS) =>
+            {
+                Scalar {
+                    filter,
+                    u: (m == 1).then_some(l.u.first),
+                    y: l.y.first,
+                    outputs: first,
+                }
+            }
             _ => return Ok(Self::General(general)),
         };
         Ok(Self::Scalar(scalar))

@@ -542,6 +542,26 @@ impl Values {
             }
         }
     }
+    /// Whether the `n` values from `first` on are all Reals (a model that checks a run once,
+    /// when it is built, then writes it with [`Values::put_reals`]).
+    pub fn are_reals(&self, first: usize, n: usize) -> bool {
+        self.types
+            .get(first..first.saturating_add(n))
+            .is_some_and(|t| t.iter().all(|t| *t == VariableType::Real))
+    }
+    /// Sets the values at `first`, `first + 1`, … to `values` without looking at their types
+    /// (nothing when the run passes the end): for a run [`Values::are_reals`] accepted when the
+    /// model was built; [`Values::set_reals`] otherwise.
+    #[inline(always)]
+    pub fn put_reals<const N: usize>(&mut self, first: usize, values: [f64; N]) {
+        if let Some(slots) = self
+            .numbers
+            .get_mut(first..)
+            .and_then(|n| n.first_chunk_mut::<N>())
+        {
+            *slots = values;
+        }
+    }
     /// The Integer at `index` (0 if it is not an Integer).
     pub fn integer(&self, index: usize) -> i32 {
         match self.types.get(index) {
