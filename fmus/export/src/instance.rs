@@ -1230,8 +1230,9 @@ impl<M: FmuModel> Instance<M> {
     /// `values` (of the same length) of a C type that `to_number` turns into stored numbers.
     /// As [`Instance::set_numbers`], in two tight passes over the arrays: the first checks
     /// each value with one load of its [`Access`] (`bits & need == need` for type and state,
-    /// `min <= x <= max` for bounds and finiteness), the second stores; any failure goes to
-    /// the cold path that names the variable and the reason.
+    /// `min <= x <= max` for bounds and finiteness), the second stores (one value: checked,
+    /// then stored, no loop); any failure goes to the cold path that names the variable and
+    /// the reason.
     #[inline(always)]
     pub fn set_array<C: Copy>(
         &mut self,
@@ -1242,6 +1243,20 @@ impl<M: FmuModel> Instance<M> {
     ) -> Status {
         let need = self.core.state.bit() | Access::type_bit(actual);
         let access: &[Access] = &self.interface.access;
+        if let ([vr], [v]) = (vrs, values) {
+            // one value (a master's common call): checked and stored in one go, no loops
+            let (vr, x) = (*vr, to_number(*v));
+            return match (access.get(vr as usize), self.core.values.numbers_mut()) {
+                (Some(a), numbers) if a.bits & need == need && x >= a.min && x <= a.max => {
+                    let flags = a.bits;
+                    if let Some(slot) = numbers.get_mut(vr as usize) {
+                        *slot = x;
+                    }
+                    self.values_set(f, flags)
+                }
+                _ => self.reject_set(f, vr, actual, Some(x)),
+            };
+        }
         let mut flags = 0;
         for (&vr, &v) in vrs.iter().zip(values) {
             let x = to_number(v);
@@ -1339,10 +1354,12 @@ impl<M: FmuModel> Instance<M> {
     pub fn do_step_as(&mut self, f: &Function, current_time: f64, step: f64) -> Status {
         let time = self.core.time;
         let end = current_time + step;
+        // `end > current_time` also refuses a NaN, `end < ∞` the rest of a non-finite end
+        // (−∞ cannot pass the first)
         let valid = step > 0.0
             && (current_time - time).abs() <= 1e-9 * time.abs().max(1.0)
-            && end.is_finite()
             && end > current_time
+            && end < f64::INFINITY
             && self
                 .core
                 .stop_time
