@@ -140,9 +140,18 @@ impl ScalarCovariance for ScalarWeight<'_> {
     fn at(self, e: f64) -> f64 {
         let (l, z, w) = (self.l, self.z, self.w);
         *z = e / l;
+        // Branches, not selects: on the common path (w = 1) R̃ = R does not wait for e, so
+        // the correction overlaps the division e / √R (the step's latency chain). Huber's
+        // |r| ≤ c (w = 1 exactly) is the one branch of that path; a down-weighted sample
+        // mispredicts it once and goes on inline (no call, no spills) to R̃.
+        if let InfluenceFunction::Huber { c } = self.psi {
+            if z.abs() <= c {
+                *w = 1.0;
+                *self.r_effective = self.r;
+                return self.r;
+            }
+        }
         *w = self.psi.weight(*z).max(MIN_WEIGHT);
-        // A branch, not a select: on the common path (w = 1) R̃ = R does not wait for e, so
-        // the correction overlaps the division e / √R (the step's latency chain).
         *self.r_effective = if *w == 1.0 {
             self.r
         } else {
@@ -152,9 +161,8 @@ impl ScalarCovariance for ScalarWeight<'_> {
     }
 }
 
-/// R̃ = (√R / √w)² for a weight w < 1 (out of line: the rare path of [`ScalarWeight`]).
-#[cold]
-#[inline(never)]
+/// R̃ = (√R / √w)² for a weight w < 1 (the down-weighted path of [`ScalarWeight`]).
+#[inline(always)]
 fn down_weighted(l: f64, w: f64) -> f64 {
     let g = l * (1.0 / w.sqrt());
     g * g
