@@ -679,7 +679,8 @@ impl<M: FmuModel> Instance<M> {
             };
             let z: [f64; WINDOW] =
                 std::array::from_fn(|k| f64::from_bits(xs[k].to_bits() & window.keep[k]) * 0.0);
-            return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
+            // (lanes 0 + 2 and 1 + 3: two vector halves added as they are, no shuffle)
+            return (z[0] + z[2]) + (z[1] + z[3]) == 0.0;
         }
         match &self.interface.computed[..] {
             [run] => numbers.get(run.clone()).is_none_or(|xs| match xs.len() {
