@@ -528,18 +528,13 @@ impl Values {
     #[inline]
     pub fn set_reals<const N: usize>(&mut self, first: usize, values: [f64; N]) {
         let types = self.types.get(first..).and_then(|t| t.first_chunk::<N>());
-        let slots = self
-            .numbers
-            .get_mut(first..)
-            .and_then(|n| n.first_chunk_mut::<N>());
-        if let (Some(types), Some(slots)) = (types, slots) {
-            // every type compared (no early exit): unrolled for the N of the call
-            if types
+        // every type compared (no early exit): unrolled for the N of the call
+        if types.is_some_and(|types| {
+            types
                 .iter()
                 .fold(true, |all, t| all & (*t == VariableType::Real))
-            {
-                *slots = values;
-            }
+        }) {
+            self.put_reals(first, values);
         }
     }
     /// Whether the `n` values from `first` on are all Reals (a model that checks a run once,
