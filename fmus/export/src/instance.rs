@@ -449,7 +449,8 @@ pub struct Instance<M: FmuModel> {
     pub(crate) indicators: crate::me::Indicators,
     /// The values a model call may change ([`Interface::computed`]) as they were before the
     /// current call (a reused buffer), restored when the call produces a
-    /// non-finite value.
+    /// non-finite value; empty when the interface has a [`Interface::window`] (then
+    /// `before_window` holds them).
     before: Vec<f64>,
     /// The values of the [`Interface::window`] before the current call, when it has one.
     before_window: [f64; WINDOW],
@@ -474,7 +475,10 @@ impl<M: FmuModel> Instance<M> {
         let model = M::create(&interface.info)?;
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
-            before: vec![0.0; interface.computed_len()],
+            before: match interface.window {
+                Some(_) => Vec::new(),
+                None => vec![0.0; interface.computed_len()],
+            },
             before_window: [0.0; WINDOW],
             interface,
             logger,
