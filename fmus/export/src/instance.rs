@@ -949,7 +949,8 @@ impl<M: FmuModel> Instance<M> {
         to_c: impl Fn(f64) -> C,
     ) -> Status {
         let mut status = Status::Ok;
-        if self.needs_refresh() {
+        if self.needs_refresh() || self.reads_pending_indicator(vrs.iter().map(|&vr| vr as usize))
+        {
             status = self.refresh_before_get(f, vrs, expected);
             if status > Status::Warning {
                 return status;
@@ -1024,20 +1025,15 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
+    /// The event indicators are not among them: a read computes them only when it names one
+    /// ([`Instance::reads_pending_indicator`]).
     #[inline]
     pub(crate) fn needs_refresh(&self) -> bool {
         let state = self.core.state;
         state == ModelState::InitializationMode
             || (self.core.inputs_changed
                 && (state == ModelState::StepComplete
-                    || (self.model_exchange
-                        && matches!(
-                            state,
-                            ModelState::EventMode
-                                | ModelState::ContinuousTimeMode
-                                | ModelState::Terminated
-                        ))))
-            || self.indicators.pending
+                    || (self.model_exchange && state.computes())))
     }
 
     /// Whether value reference `vr` names a variable of type `expected`.

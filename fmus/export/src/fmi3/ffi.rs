@@ -548,7 +548,9 @@ fn read_fast<M: FmuModel, C>(
     to_c: impl Fn(f64) -> C,
 ) -> Option<Status> {
     let instance = &s.instance;
-    if instance.needs_refresh() {
+    if instance.needs_refresh()
+        || instance.reads_pending_indicator(instance.interface().layout.indices_of(vrs))
+    {
         return None;
     }
     let (spans, numbers) = (&instance.interface().spans, instance.values().numbers());
