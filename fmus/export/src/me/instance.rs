@@ -135,23 +135,35 @@ impl<M: FmuModel> Instance<M> {
         f: &Function,
         read: impl Iterator<Item = usize>,
     ) -> Status {
-        if self.reads_pending_indicator(read) {
+        if self.indicators.pending && self.names_indicator(read) {
             self.write_event_indicators(f)
         } else {
             Status::Ok
         }
     }
 
-    /// Whether a read of the variables at table indices `read` must compute the event
-    /// indicators first: they are pending and one of them is read. One flag test when none
-    /// is pending (a Co-Simulation instance, or indicators already read).
+    /// Whether a read of value references `vrs` (FMI 3.0 ones when `fmi3`, else FMI 2.0
+    /// ones: table indices) must compute the event indicators first: they are pending and
+    /// one of them is read. One flag test when none is pending (a Co-Simulation instance, or
+    /// indicators already read).
     #[inline(always)]
-    pub(crate) fn reads_pending_indicator(&self, read: impl Iterator<Item = usize>) -> bool {
-        self.indicators.pending && self.names_indicator(read)
+    pub(crate) fn reads_pending_indicator(&self, vrs: &[u32], fmi3: bool) -> bool {
+        self.indicators.pending && self.references_indicator(vrs, fmi3)
+    }
+
+    /// Whether one of value references `vrs` names an event indicator's variable (cold: the
+    /// getters' fast paths prepare nothing for it).
+    #[cold]
+    #[inline(never)]
+    fn references_indicator(&self, vrs: &[u32], fmi3: bool) -> bool {
+        if fmi3 {
+            self.names_indicator(self.interface.layout.indices_of(vrs))
+        } else {
+            self.names_indicator(vrs.iter().map(|&vr| vr as usize))
+        }
     }
 
     /// Whether one of the table indices `read` is an event indicator's variable.
-    #[inline(never)]
     fn names_indicator(&self, mut read: impl Iterator<Item = usize>) -> bool {
         self.interface
             .info
