@@ -434,6 +434,10 @@ impl Access {
     }
 }
 
+/// The value references [`Instance::set_spans`] keeps on the stack for a call of scalars:
+/// the master's calls (the inputs of one instance) name at most this many.
+const SCALARS: usize = 16;
+
 /// An instance of model `M`.
 pub struct Instance<M: FmuModel> {
     /// The model description and access table, shared by every instance of the configuration.
@@ -449,7 +453,8 @@ pub struct Instance<M: FmuModel> {
     pub(crate) indicators: crate::me::Indicators,
     /// The values a model call may change ([`Interface::computed`]) as they were before the
     /// current call (a reused buffer), restored when the call produces a
-    /// non-finite value.
+    /// non-finite value; empty when the interface has a [`Interface::window`] (then
+    /// `before_window` holds them).
     before: Vec<f64>,
     /// The values of the [`Interface::window`] before the current call, when it has one.
     before_window: [f64; WINDOW],
@@ -474,7 +479,10 @@ impl<M: FmuModel> Instance<M> {
         let model = M::create(&interface.info)?;
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
-            before: vec![0.0; interface.computed_len()],
+            before: match interface.window {
+                Some(_) => Vec::new(),
+                None => vec![0.0; interface.computed_len()],
+            },
             before_window: [0.0; WINDOW],
             interface,
             logger,
@@ -946,7 +954,7 @@ impl<M: FmuModel> Instance<M> {
         to_c: impl Fn(f64) -> C,
     ) -> Status {
         let mut status = Status::Ok;
-        if self.needs_refresh() {
+        if self.needs_refresh() || self.reads_pending_indicator(vrs, false) {
             status = self.refresh_before_get(f, vrs, expected);
             if status > Status::Warning {
                 return status;
@@ -1021,20 +1029,14 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// Whether values must be computed before they are read ([`Instance::refresh_outputs`]).
+    /// The event indicators are not among them: a read computes them only when it names one
+    /// ([`Instance::reads_pending_indicator`]).
     #[inline]
     pub(crate) fn needs_refresh(&self) -> bool {
         let state = self.core.state;
         state == ModelState::InitializationMode
             || (self.core.inputs_changed
-                && (state == ModelState::StepComplete
-                    || (self.model_exchange
-                        && matches!(
-                            state,
-                            ModelState::EventMode
-                                | ModelState::ContinuousTimeMode
-                                | ModelState::Terminated
-                        ))))
-            || self.indicators.pending
+                && (state == ModelState::StepComplete || (self.model_exchange && state.computes())))
     }
 
     /// Whether value reference `vr` names a variable of type `expected`.
@@ -1280,6 +1282,11 @@ impl<M: FmuModel> Instance<M> {
     /// its [`Access`] as in [`Instance::set_array`], then stored; `None` when a reference is
     /// unknown or `time`, the count is not `values.len()` or a value is refused: nothing is
     /// changed then, and the full path checks again and says why.
+    ///
+    /// The master's call, every reference a scalar (`values.len() = vrs.len()`, at most
+    /// [`SCALARS`] references), looks each reference up once: its table index is kept on the
+    /// stack between the check and the store. A call naming an array is checked, then
+    /// stored, span by span.
     #[inline(always)]
     pub(crate) fn set_spans<C: Copy>(
         &mut self,
@@ -1292,6 +1299,33 @@ impl<M: FmuModel> Instance<M> {
         let need = self.core.state.bit() | Access::type_bit(actual);
         let (access, spans) = (&self.interface.access, &self.interface.spans);
         let mut flags = 0;
+        if vrs.len() == values.len() && vrs.len() <= SCALARS {
+            let mut at = [0u32; SCALARS];
+            let mut scalars = true;
+            for ((index, &vr), &v) in at.iter_mut().zip(vrs).zip(values) {
+                let span = spans.get(vr as usize)?;
+                if span.len != 1 {
+                    scalars = false;
+                    break;
+                }
+                let (a, x) = (access.get(span.first as usize)?, to_number(v));
+                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                    return None;
+                }
+                flags |= a.bits;
+                *index = span.first;
+            }
+            if scalars {
+                let numbers = self.core.values.numbers_mut();
+                for (&index, &v) in at.iter().zip(values) {
+                    if let Some(slot) = numbers.get_mut(index as usize) {
+                        *slot = to_number(v);
+                    }
+                }
+                return Some(self.values_set(f, flags));
+            }
+            flags = 0;
+        }
         let mut k = 0;
         for &vr in vrs {
             let span = spans.get(vr as usize).filter(|span| span.len > 0)?;

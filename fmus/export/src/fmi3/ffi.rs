@@ -489,56 +489,13 @@ unsafe fn read<M: FmuModel>(
     status
 }
 
-/// The value references a set call's scalar path ([`set_scalars`]) keeps on the stack: the
-/// master's calls (the inputs of one instance) name at most this many.
-const SCALARS: usize = 16;
-
-/// The set call's path for scalars: when every reference (at most [`SCALARS`]) names one
-/// scalar (`nValues = nvr`) that may be set now to its value (type, state, bounds and
-/// finiteness from its [`Access`]), the values stored. Each reference is looked up once: its
-/// table index is kept on the stack between the check and the store, so that a rejected call
-/// changes nothing. `None` otherwise (arrays, `time`, a refused value), and
-/// [`Instance::set_spans`] or the general path checks again and says why.
-#[inline(always)]
-fn set_scalars<M: FmuModel, C: Copy>(
-    instance: &mut Instance<M>,
-    f: &Function,
-    actual: VariableType,
-    (vrs, values): (&[u32], &[C]),
-    to_number: impl Fn(C) -> f64,
-) -> Option<Status> {
-    if vrs.len() != values.len() || vrs.len() > SCALARS {
-        return None;
-    }
-    let need = instance.core.state.bit() | Access::type_bit(actual);
-    let (spans, access) = (&instance.interface.spans, &instance.interface.access);
-    let mut at = [0u32; SCALARS];
-    let mut flags = 0;
-    for ((index, &vr), &v) in at.iter_mut().zip(vrs).zip(values) {
-        let span = spans.get(vr as usize)?;
-        let a = access.get(span.first as usize)?;
-        let x = to_number(v);
-        if span.len != 1 || a.bits & need != need || !(x >= a.min && x <= a.max) {
-            return None;
-        }
-        flags |= a.bits;
-        *index = span.first;
-    }
-    let numbers = instance.core.values.numbers_mut();
-    for (&index, &v) in at.iter().zip(values) {
-        if let Some(slot) = numbers.get_mut(index as usize) {
-            *slot = to_number(v);
-        }
-    }
-    Some(instance.values_set(f, flags))
-}
-
 /// The get call's fast path: when nothing must be computed first and every reference names
 /// variables of type `expected` whose values fill `out` exactly, the values (arrays
 /// row-major, `time` for value reference 0) into `out`, each through `to_c`; `None`
 /// otherwise, and [`read`] checks again and says why (the values written are then undefined,
 /// as FMI 3.0 allows for a failed get). A span lookup and a slice copy per reference; for the
-/// common call, scalars only (`nValues = nvr`), a span lookup and a load.
+/// common call, scalars only (`nValues = nvr`), a span lookup and a load, and a call that
+/// names an array goes on from it, not from the start.
 #[inline(always)]
 fn read_fast<M: FmuModel, C>(
     s: &Slot<M>,
@@ -548,30 +505,30 @@ fn read_fast<M: FmuModel, C>(
     to_c: impl Fn(f64) -> C,
 ) -> Option<Status> {
     let instance = &s.instance;
-    if instance.needs_refresh() {
+    if instance.needs_refresh() || instance.reads_pending_indicator(vrs, true) {
         return None;
     }
     let (spans, numbers) = (&instance.interface().spans, instance.values().numbers());
     let type_bit = Access::type_bit(expected);
-    if vrs.len() == out.len() {
-        let mut scalars = true;
-        for (o, &vr) in out.iter_mut().zip(vrs) {
+    // the scalars ahead of the first other reference (all of the master's call): the value
+    // at the same position as its reference
+    let done = 'scalars: {
+        if vrs.len() != out.len() {
+            break 'scalars 0;
+        }
+        for (i, (o, &vr)) in out.iter_mut().zip(vrs).enumerate() {
             match spans.get(vr as usize) {
                 Some(span) if span.len == 1 && span.type_bit == type_bit => {
                     *o = to_c(*numbers.get(span.first as usize)?);
                 }
-                _ => {
-                    scalars = false;
-                    break;
-                }
+                _ => break 'scalars i,
             }
         }
-        if scalars {
-            return Some(Status::Ok);
-        }
-    }
-    let mut k = 0;
-    for &vr in vrs {
+        return Some(Status::Ok);
+    };
+    // the rest, from the first array, `time` or reference of another type
+    let mut k = done;
+    for &vr in vrs.get(done..)? {
         let span = spans.get(vr as usize)?;
         if span.type_bit != type_bit {
             return None;
@@ -713,10 +670,6 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
-            let call = (vrs, raw);
-            if let Some(status) = set_scalars(&mut s.instance, f, K::TYPE, call, K::to_number) {
-                return status;
-            }
             if let Some(status) = s.instance.set_spans(f, K::TYPE, vrs, raw, K::to_number) {
                 return status;
             }

@@ -14,6 +14,22 @@ use crate::variables::{first_non_finite, Causality, VariableType};
 /// derivatives', the event indicators').
 type Pick = fn(&ModelExchangeInfo) -> &[usize];
 
+impl ModelState {
+    /// Whether a Model Exchange model computes in this state (Initialization, Event,
+    /// Continuous-Time Mode, Terminated): an evaluation after states, inputs or time changed,
+    /// the event indicators when read.
+    #[inline(always)]
+    pub(crate) fn computes(self) -> bool {
+        matches!(
+            self,
+            ModelState::InitializationMode
+                | ModelState::EventMode
+                | ModelState::ContinuousTimeMode
+                | ModelState::Terminated
+        )
+    }
+}
+
 impl<M: FmuModel> Instance<M> {
     /// Makes this instance a Model Exchange one driven by `hooks` (at instantiation).
     pub fn into_model_exchange(mut self, hooks: Hooks<M>) -> Self {
@@ -100,8 +116,7 @@ impl<M: FmuModel> Instance<M> {
                     return status;
                 }
             }
-            ModelState::EventMode | ModelState::ContinuousTimeMode | ModelState::Terminated
-                if self.core.inputs_changed => {}
+            state if state.computes() && self.core.inputs_changed => {}
             _ => return Status::Ok,
         }
         let evaluated = self.run_model(f, hooks.evaluate);
@@ -118,19 +133,43 @@ impl<M: FmuModel> Instance<M> {
     pub(crate) fn indicators_for(
         &mut self,
         f: &Function,
-        mut read: impl Iterator<Item = usize>,
+        read: impl Iterator<Item = usize>,
     ) -> Status {
-        if !self.indicators.pending {
-            return Status::Ok;
-        }
-        let Some(me) = self.interface.info.model_exchange.as_ref() else {
-            return Status::Ok;
-        };
-        if read.any(|i| me.event_indicators.contains(&i)) {
+        if self.indicators.pending && self.names_indicator(read) {
             self.write_event_indicators(f)
         } else {
             Status::Ok
         }
+    }
+
+    /// Whether a read of value references `vrs` (FMI 3.0 ones when `fmi3`, else FMI 2.0
+    /// ones: table indices) must compute the event indicators first: they are pending and
+    /// one of them is read. One flag test when none is pending (a Co-Simulation instance, or
+    /// indicators already read).
+    #[inline(always)]
+    pub(crate) fn reads_pending_indicator(&self, vrs: &[u32], fmi3: bool) -> bool {
+        self.indicators.pending && self.references_indicator(vrs, fmi3)
+    }
+
+    /// Whether one of value references `vrs` names an event indicator's variable (cold: the
+    /// getters' fast paths prepare nothing for it).
+    #[cold]
+    #[inline(never)]
+    fn references_indicator(&self, vrs: &[u32], fmi3: bool) -> bool {
+        if fmi3 {
+            self.names_indicator(self.interface.layout.indices_of(vrs))
+        } else {
+            self.names_indicator(vrs.iter().map(|&vr| vr as usize))
+        }
+    }
+
+    /// Whether one of the table indices `read` is an event indicator's variable.
+    fn names_indicator(&self, mut read: impl Iterator<Item = usize>) -> bool {
+        self.interface
+            .info
+            .model_exchange
+            .as_ref()
+            .is_some_and(|me| read.any(|i| me.event_indicators.contains(&i)))
     }
 
     /// The model's event indicators into their variables, when they are pending and the
@@ -142,14 +181,7 @@ impl<M: FmuModel> Instance<M> {
         let Some(hooks) = self.me.filter(|_| self.model_exchange) else {
             return Status::Ok;
         };
-        let computes = matches!(
-            self.core.state,
-            ModelState::InitializationMode
-                | ModelState::EventMode
-                | ModelState::ContinuousTimeMode
-                | ModelState::Terminated
-        );
-        if !self.indicators.pending || !computes {
+        if !self.indicators.pending || !self.core.state.computes() {
             return Status::Ok;
         }
         let mut z = self.indicators.take();
