@@ -249,16 +249,28 @@ fn on_every(
     due: impl Fn(&Member) -> bool,
     mut call: impl FnMut(&mut Member) -> Result<(), FmiFailure>,
 ) -> Result<(), RunError> {
-    let failures: Vec<FmiFailure> = members
-        .iter_mut()
-        .filter(|m| due(m))
-        .filter_map(|m| call(m).err())
-        .collect();
+    // A plain loop: the list of failures exists only once there is one (this runs at every
+    // communication point).
+    let mut failures = Vec::new();
+    for m in members.iter_mut() {
+        if due(m) {
+            if let Err(f) = call(m) {
+                failures.push(f);
+            }
+        }
+    }
     if failures.is_empty() {
         Ok(())
     } else {
         Err(RunError::Fmi { failures })
     }
+}
+
+/// Whether something done every `multiple` base steps is due at base step `k`: the common
+/// single-rate case (`multiple` = 1) without a division.
+#[inline]
+fn due_at(k: u64, multiple: u64) -> bool {
+    multiple == 1 || k.is_multiple_of(multiple)
 }
 
 /// Calls the FMI function `call` (`name`) at `time` on every member's instance, then reports
@@ -587,7 +599,7 @@ impl Simulation {
                 Step::Get(b) => (b, false),
             };
             let m = &mut self.members[batch.member];
-            if !all && !k.is_multiple_of(m.multiple) {
+            if !all && !due_at(k, m.multiple) {
                 continue;
             }
             let call = if set { "fmi2Set*" } else { "fmi2Get*" };
@@ -604,12 +616,13 @@ impl Simulation {
         Ok(())
     }
 
-    /// Reads the outputs of the instances whose step ends at base step `k` (all for k = 0).
+    /// Reads the outputs of the instances whose step ends at base step `k` (all for k = 0);
+    /// an instance none of whose outputs is connected or recorded is not called.
     fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
         let buffer = &mut self.buffer;
         on_every(
             &mut self.members,
-            |m| k.is_multiple_of(m.multiple),
+            |m| !m.after_step.is_empty() && due_at(k, m.multiple),
             |m| {
                 m.read(buffer, time)
                     .map_err(|e| m.failure("fmi2Get*", e, time))
@@ -663,7 +676,7 @@ impl Simulation {
                 self.read_outputs(k, time)?;
             }
             self.propagate(k, false)?;
-            if k.is_multiple_of(every) {
+            if due_at(k, every) {
                 self.record(observer, time)?;
             }
             if let StepOutcome::Terminated(asked) = self.step_all(k, time)? {
@@ -726,11 +739,7 @@ impl Simulation {
         let (step_size, stop_time) = (self.step_size, self.stop_time);
         let mut failures = Vec::new();
         let mut terminated = Vec::new();
-        for m in self
-            .members
-            .iter_mut()
-            .filter(|m| k.is_multiple_of(m.multiple))
-        {
+        for m in self.members.iter_mut().filter(|m| due_at(k, m.multiple)) {
             let h = (step_size * m.multiple as f64).min(stop_time - time);
             match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h)) {
                 Ok(StepEnd::Completed) => {}
