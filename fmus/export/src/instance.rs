@@ -384,6 +384,13 @@ impl Access {
         1 << (16 + t as u32)
     }
 
+    /// Whether value `x` may be set where `need` (state bit | type bit, see [`Access::bits`])
+    /// is asked: the state and type allowed, `x` finite and within the bounds.
+    #[inline(always)]
+    pub fn admits(&self, need: u32, x: f64) -> bool {
+        self.bits & need == need && x >= self.min && x <= self.max
+    }
+
     /// Whether the variable may be set in the state with bit `state`.
     pub fn settable_in(&self, state: u32) -> bool {
         self.bits & state != 0
@@ -1107,9 +1114,7 @@ impl<M: FmuModel> Instance<M> {
     ) -> Result<&Access, Status> {
         let need = bit | Access::type_bit(actual);
         match self.interface.access.get(vr as usize) {
-            Some(a) if a.bits & need == need && number.is_none_or(|x| x >= a.min && x <= a.max) => {
-                Ok(a)
-            }
+            Some(a) if number.map_or(a.bits & need == need, |x| a.admits(need, x)) => Ok(a),
             _ => Err(self.reject_set(f, vr, actual, number)),
         }
     }
@@ -1250,7 +1255,7 @@ impl<M: FmuModel> Instance<M> {
             // one value (a master's common call): checked and stored in one go, no loops
             let (vr, x) = (*vr, to_number(*v));
             return match (access.get(vr as usize), self.core.values.numbers_mut()) {
-                (Some(a), numbers) if a.bits & need == need && x >= a.min && x <= a.max => {
+                (Some(a), numbers) if a.admits(need, x) => {
                     let flags = a.bits;
                     if let Some(slot) = numbers.get_mut(vr as usize) {
                         *slot = x;
@@ -1264,7 +1269,7 @@ impl<M: FmuModel> Instance<M> {
         for (&vr, &v) in vrs.iter().zip(values) {
             let x = to_number(v);
             match access.get(vr as usize) {
-                Some(a) if a.bits & need == need && x >= a.min && x <= a.max => flags |= a.bits,
+                Some(a) if a.admits(need, x) => flags |= a.bits,
                 _ => return self.reject_set(f, vr, actual, Some(x)),
             }
         }
@@ -1309,7 +1314,7 @@ impl<M: FmuModel> Instance<M> {
                     break;
                 }
                 let (a, x) = (access.get(span.first as usize)?, to_number(v));
-                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                if !a.admits(need, x) {
                     return None;
                 }
                 flags |= a.bits;
@@ -1332,7 +1337,7 @@ impl<M: FmuModel> Instance<M> {
             let (first, len) = (span.first as usize, span.len as usize);
             if len == 1 {
                 let (a, x) = (access.get(first)?, to_number(*values.get(k)?));
-                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                if !a.admits(need, x) {
                     return None;
                 }
                 flags |= a.bits;
@@ -1342,7 +1347,7 @@ impl<M: FmuModel> Instance<M> {
             let xs = values.get(k..k + len)?;
             for (a, &v) in access.get(first..first + len)?.iter().zip(xs) {
                 let x = to_number(v);
-                if a.bits & need != need || !(x >= a.min && x <= a.max) {
+                if !a.admits(need, x) {
                     return None;
                 }
                 flags |= a.bits;
