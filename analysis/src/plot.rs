@@ -10,10 +10,12 @@
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::{System, SystemError};
+use spurio_master::{System, SystemError, TimeSeries};
 use std::path::Path;
 use std::sync::Once;
+
+/// A colour of a plotted series (plotters' RGB colour).
+pub use plotters::style::RGBColor;
 
 static FONT: Once = Once::new();
 
