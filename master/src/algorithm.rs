@@ -3,8 +3,8 @@
 //! An [`Algorithm`] is consulted once when a system is compiled (which order the connected
 //! inputs are set and the direct-feedthrough outputs re-read in at a communication point) and
 //! then drives a running [`Exchange`] through initialisation, every base step and the end of
-//! the run. The plan compiler ([`crate::plan`]) and the run loop ([`crate::Simulation`]) only
-//! call the trait: a new algorithm (Model Exchange integration, an identification loop that
+//! the run. The plan compiler ([`crate::plan`]) sees only the first half ([`Propagation`],
+//! which [`Algorithm`] extends) and the run loop ([`crate::Simulation`]) only the trait: a new algorithm (Model Exchange integration, an identification loop that
 //! repeats steps) is a new implementation given to [`crate::System::set_algorithm`], with no
 //! edit to either.
 //!
@@ -13,7 +13,7 @@
 //! point) and [`Jacobi`] (every input gets the value its source had after the previous step).
 
 use crate::coupling::{feeds_through, has_feedthrough, variable_name};
-use crate::coupling::{Connection, PropagationStep, ResolvedInstance};
+use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance};
 use crate::description::AlgorithmName;
 use crate::error::{RunError, SystemError};
 use crate::exchange::{Exchange, StepOutcome};
@@ -26,9 +26,10 @@ use std::sync::Arc;
 /// The engine calls these methods in a fixed order, as libcosim's `algorithm` interface
 /// guarantees its own:
 ///
-/// 1. [`Algorithm::propagation`] and [`Algorithm::refreshes_records`]: once per compilation
-///    of the system (when it is loaded, edited by name or told to record nothing), before any
-///    instance exists. Their answers are laid out in the plan's set/get batches.
+/// 1. [`Propagation::propagation`] and [`Propagation::refreshes_records`] (the half of an
+///    algorithm the plan compiler sees): once per compilation of the system (when it is
+///    loaded, edited by name or told to record nothing), before any instance exists. Their
+///    answers are laid out in the plan's set/get batches.
 /// 2. [`Algorithm::initialize`]: once per [`crate::Simulation`], after every instance has been
 ///    instantiated, set up, given its start values and has entered initialisation mode; it
 ///    must leave every instance out of initialisation mode.
@@ -45,24 +46,9 @@ use std::sync::Arc;
 /// A method that returns an error ends the run with that error (the engine then records
 /// nothing more). The methods take `&self`: an algorithm that keeps state between steps
 /// keeps it in a cell of its own, per [`crate::Simulation`].
-pub trait Algorithm: std::fmt::Debug + Send + Sync {
+pub trait Algorithm: Propagation {
     /// Its name, as a system file writes it (`algorithm = "gauss-seidel"`).
     fn name(&self) -> &str;
-
-    /// The sets of connected inputs and re-reads of direct-feedthrough outputs at a
-    /// communication point, in order, for `connections` between `instances` (an input that no
-    /// connection drives is skipped). An order that cannot exist (an algebraic loop) is an
-    /// error naming its variables.
-    fn propagation(
-        &self,
-        instances: &[ResolvedInstance],
-        connections: &[Connection],
-    ) -> Result<Vec<PropagationStep>, SystemError>;
-
-    /// Whether the recorded inputs and direct-feedthrough outputs of instances whose inputs are
-    /// set at a communication point are read again after the propagation, so that a record
-    /// holds the values of that point (true), or keep those read after the last step (false).
-    fn refreshes_records(&self) -> bool;
 
     /// Leaves initialisation mode: by default the initial outputs are read, propagated along
     /// the connections, every instance leaves initialisation mode, and the outputs are read
@@ -110,7 +96,9 @@ impl Algorithm for GaussSeidel {
     fn name(&self) -> &str {
         "gauss-seidel"
     }
+}
 
+impl Propagation for GaussSeidel {
     fn propagation(
         &self,
         instances: &[ResolvedInstance],
@@ -137,7 +125,9 @@ impl Algorithm for Jacobi {
     fn name(&self) -> &str {
         "jacobi"
     }
+}
 
+impl Propagation for Jacobi {
     fn propagation(
         &self,
         _: &[ResolvedInstance],

@@ -96,3 +96,22 @@ pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemEr
         },
     }
 }
+
+/// The half of a stepping algorithm ([`crate::Algorithm`]) that the plan compiler consults,
+/// once per compilation and before any instance exists: the order of a communication point.
+pub trait Propagation: std::fmt::Debug + Send + Sync {
+    /// The sets of connected inputs and re-reads of direct-feedthrough outputs at a
+    /// communication point, in order, for `connections` between `instances` (an input that no
+    /// connection drives is skipped). An order that cannot exist (an algebraic loop) is an
+    /// error naming its variables.
+    fn propagation(
+        &self,
+        instances: &[ResolvedInstance],
+        connections: &[Connection],
+    ) -> Result<Vec<PropagationStep>, SystemError>;
+
+    /// Whether the recorded inputs and direct-feedthrough outputs of instances whose inputs are
+    /// set at a communication point are read again after the propagation, so that a record
+    /// holds the values of that point (true), or keep those read after the last step (false).
+    fn refreshes_records(&self) -> bool;
+}

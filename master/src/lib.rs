@@ -30,7 +30,7 @@ mod system;
 mod xml;
 
 pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
-pub use coupling::{Connection, PropagationStep, ResolvedInstance, VarRef};
+pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};
 pub use error::{FmiFailure, RunError, SystemError};

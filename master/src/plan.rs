@@ -3,14 +3,13 @@
 //! [`Plan::compile`] turns the names of a system (connections `"crane.x -> sensor.u[1]"`,
 //! recorded variables) into indices, checking every causality and type, orders the
 //! propagation at a communication point in the order the stepping algorithm gives
-//! ([`Algorithm::propagation`]: Gauss–Seidel the direct-feedthrough graph, Jacobi the
+//! ([`Propagation::propagation`]: Gauss–Seidel the direct-feedthrough graph, Jacobi the
 //! connections as given), gives every value a slot
 //! in one buffer and groups the value references of one instance and type into batches,
 //! so the engine's loop ([`crate::engine`]) only moves numbers.
 
-use crate::algorithm::Algorithm;
 use crate::coupling::{has_feedthrough, split_variable, unknown, variable_name};
-use crate::coupling::{Connection, PropagationStep, ResolvedInstance, VarRef};
+use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
 use crate::description::SystemDescription;
 use crate::error::SystemError;
 use crate::fmu::{Causality, VarType};
@@ -116,7 +115,7 @@ impl Plan {
     pub fn compile(
         d: &SystemDescription,
         instances: &[ResolvedInstance],
-        algorithm: &dyn Algorithm,
+        algorithm: &dyn Propagation,
     ) -> Result<Self, SystemError> {
         let index_of: HashMap<&str, usize> = instances
             .iter()
@@ -278,7 +277,7 @@ impl Plan {
         &self,
         d: &SystemDescription,
         instances: &[ResolvedInstance],
-        algorithm: &dyn Algorithm,
+        algorithm: &dyn Propagation,
     ) -> Result<Self, SystemError> {
         let order = algorithm.propagation(instances, &self.connections)?;
         Ok(Self::lay_out(
@@ -357,7 +356,7 @@ impl Plan {
 
         // Recorded inputs and direct-feedthrough outputs of instances whose inputs are set at
         // a communication point are re-read after the propagation when the algorithm asks so
-        // ([`Algorithm::refreshes_records`]). An output the order already re-reads (a
+        // ([`Propagation::refreshes_records`]). An output the order already re-reads (a
         // connection source) is not read again.
         let connected: Vec<usize> = if refresh_records {
             connections.iter().map(|c| c.to.0).collect()
