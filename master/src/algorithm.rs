@@ -17,6 +17,7 @@ use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance
 use crate::description::AlgorithmName;
 use crate::error::{RunError, SystemError};
 use crate::exchange::{Exchange, StepOutcome};
+use std::any::Any;
 use std::sync::Arc;
 
 /// A stepping algorithm.
@@ -46,7 +47,7 @@ use std::sync::Arc;
 /// A method that returns an error ends the run with that error (the engine then records
 /// nothing more). The methods take `&self`: an algorithm that keeps state between steps
 /// keeps it in a cell of its own, per [`crate::Simulation`].
-pub trait Algorithm: Propagation {
+pub trait Algorithm: Propagation + Any {
     /// Its name, as a system file writes it (`algorithm = "gauss-seidel"`).
     fn name(&self) -> &str;
 
@@ -64,6 +65,7 @@ pub trait Algorithm: Propagation {
     /// outputs of the instances whose step ends at k are read (a multirate instance holds its
     /// outputs in between; at k = 0 they were read by [`Algorithm::initialize`]), then the
     /// plan's propagation runs for the instances due at k.
+    #[inline(always)]
     fn communicate(&self, exchange: &mut Exchange, k: u64, time: f64) -> Result<(), RunError> {
         if k > 0 {
             exchange.read_outputs(k, time)?;
@@ -73,6 +75,7 @@ pub trait Algorithm: Propagation {
 
     /// Base step `k` from `time`: by default every due instance does one co-simulation step
     /// over its multiple of the step size.
+    #[inline(always)]
     fn step(&self, exchange: &mut Exchange, k: u64, time: f64) -> Result<StepOutcome, RunError> {
         exchange.step_due(k, time)
     }

@@ -31,13 +31,14 @@
 //! does not return (the instance, its FMU, the call, the time); what to do then is the
 //! caller's (the CLI ends the process, keeping the results so far).
 
-use crate::algorithm::Algorithm;
+use crate::algorithm::{Algorithm, GaussSeidel, Jacobi};
 use crate::error::{RunError, SystemError};
 use crate::exchange::{due_at, Exchange, StepOutcome};
 use crate::fmu::FmiVersion;
 use crate::monitor::CallMonitor;
 use crate::record::Observer;
 use crate::system::System;
+use std::any::Any;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -161,9 +162,28 @@ impl Simulation {
     /// recorded variables to `observer` at every communication point (every
     /// [`RunOptions::output_interval`]-th one; start time and last point included), and says
     /// how the run ended. The algorithm's methods are called in the order its trait documents
-    /// ([`Algorithm`]).
+    /// ([`Algorithm`]); the loop is compiled for each built-in algorithm, so that they cost no
+    /// virtual call per step.
     pub fn run(
         &mut self,
+        observer: &mut dyn Observer,
+        options: &RunOptions,
+    ) -> Result<RunEnd, RunError> {
+        let algorithm = self.algorithm.clone();
+        let any: &dyn Any = algorithm.as_ref();
+        if let Some(a) = any.downcast_ref::<GaussSeidel>() {
+            self.run_with(a, observer, options)
+        } else if let Some(a) = any.downcast_ref::<Jacobi>() {
+            self.run_with(a, observer, options)
+        } else {
+            self.run_with(algorithm.as_ref(), observer, options)
+        }
+    }
+
+    /// [`Simulation::run`] with `algorithm`.
+    fn run_with<A: Algorithm + ?Sized>(
+        &mut self,
+        algorithm: &A,
         observer: &mut dyn Observer,
         options: &RunOptions,
     ) -> Result<RunEnd, RunError> {
@@ -181,20 +201,18 @@ impl Simulation {
         let steps = self.exchange.steps();
         for k in 0..steps {
             let time = self.start_time + k as f64 * self.step_size;
-            self.algorithm.communicate(&mut self.exchange, k, time)?;
+            algorithm.communicate(&mut self.exchange, k, time)?;
             if due_at(k, every) {
                 self.record(observer, time)?;
             }
-            if let StepOutcome::Terminated(asked) =
-                self.algorithm.step(&mut self.exchange, k, time)?
-            {
+            if let StepOutcome::Terminated(asked) = algorithm.step(&mut self.exchange, k, time)? {
                 // The run ends where the earliest of them stopped: every output is read
                 // there and recorded as the last point.
                 let (instance, end, version) = asked
                     .into_iter()
                     .reduce(|first, other| if first.1 <= other.1 { first } else { other })
                     .unwrap_or((String::new(), time, FmiVersion::Fmi2));
-                self.finish(observer, end, end)?;
+                self.finish(algorithm, observer, end, end)?;
                 return Ok(RunEnd::Terminated {
                     instance,
                     time: end,
@@ -214,19 +232,20 @@ impl Simulation {
         let last = self.start_time + steps as f64 * self.step_size;
         // Every instance's last step ends at the stop time.
         let end = last.min(self.stop_time);
-        self.finish(observer, last, end)?;
+        self.finish(algorithm, observer, last, end)?;
         Ok(RunEnd::StopTime { time: end })
     }
 
     /// Ends a run: the algorithm's finish at `read_time`, the buffer recorded as the last
     /// point at `end`, the observer finished.
-    fn finish(
+    fn finish<A: Algorithm + ?Sized>(
         &mut self,
+        algorithm: &A,
         observer: &mut dyn Observer,
         read_time: f64,
         end: f64,
     ) -> Result<(), RunError> {
-        self.algorithm.finish(&mut self.exchange, read_time)?;
+        algorithm.finish(&mut self.exchange, read_time)?;
         self.record(observer, end)?;
         observer.finish()?;
         self.end_time = end;

@@ -80,6 +80,7 @@ impl Batch {
         }
     }
 
+    #[inline]
     fn get(&mut self, inst: &mut Instance, buffer: &mut [f64]) -> Result<(), CallError> {
         inst.get(self.var_type, &self.vrs, &mut self.values)?;
         for e in &self.entries {
@@ -90,6 +91,7 @@ impl Batch {
 
     /// Sets the values from the buffer; the elements of an array this batch does not set
     /// keep the values last given to them (`held`, per array of the instance's FMU).
+    #[inline]
     fn set(
         &mut self,
         inst: &mut Instance,
@@ -136,6 +138,7 @@ struct Member {
 
 impl Member {
     /// Reads this member's outputs into the buffer.
+    #[inline]
     fn read(&mut self, buffer: &mut [f64], time: f64) -> Result<(), CallError> {
         let (monitor, index) = (self.monitor.as_deref(), self.index);
         for b in &mut self.after_step {
@@ -148,6 +151,7 @@ impl Member {
 
     /// Runs `f` on this member's instance as FMI call `call` at `time`, noted in the
     /// monitor.
+    #[inline]
     fn call<T>(&mut self, call: &'static str, time: f64, f: impl FnOnce(&mut Instance) -> T) -> T {
         let instance = &mut self.instance;
         watched(self.monitor.as_deref(), self.index, call, time, || {
@@ -350,16 +354,19 @@ impl Exchange {
     }
 
     /// Number of base steps from the start to the stop time.
+    #[inline]
     pub fn steps(&self) -> u64 {
         self.steps
     }
 
     /// The communication point t_k at which base step `k` begins.
+    #[inline]
     pub fn time_of(&self, k: u64) -> f64 {
         self.start_time + k as f64 * self.step_size
     }
 
     /// The value buffer (every connection source and recorded variable has a slot).
+    #[inline]
     pub(crate) fn buffer(&self) -> &[f64] {
         &self.buffer
     }
@@ -376,6 +383,7 @@ impl Exchange {
 
     /// Reads the outputs of the members whose step ends at base step `k` (every member for
     /// k = 0) at `time`; a member none of whose outputs is connected or recorded is not called.
+    #[inline(always)]
     pub fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
         let buffer = &mut self.buffer;
         on_every(
@@ -391,6 +399,7 @@ impl Exchange {
     /// The propagation of the plan at base step `k`: the connected inputs set from their
     /// sources' slots and the direct-feedthrough outputs re-read, in the algorithm's order;
     /// for the members due at `k` (every member when `all`).
+    #[inline(always)]
     pub fn propagate(&mut self, k: u64, all: bool) -> Result<(), RunError> {
         let time = self.time_of(k);
         for op in &mut self.propagation {
@@ -440,6 +449,7 @@ impl Exchange {
     /// over its multiple of the step size and not past the stop time: every failure is
     /// reported at once; members that ask to end the run (`fmi2Discard` with
     /// `fmi2Terminated`, `terminateSimulation`) are listed.
+    #[inline(always)]
     pub fn step_due(&mut self, k: u64, time: f64) -> Result<StepOutcome, RunError> {
         let (step_size, stop_time) = (self.step_size, self.stop_time);
         let mut failures = Vec::new();
