@@ -12,15 +12,16 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Asserts that `scripts/build-fmus` has packaged each of `fmus` (e.g. `"GantryCrane"`).
+#[path = "../../../tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
+
+/// Asserts that each of `fmus` (e.g. `"GantryCrane"`) is packaged in `build/fmus`, built
+/// first if the FMUs are missing ([`packaged_fmus::packaged_fmus`]).
 pub fn require_fmus(fmus: &[&str]) {
+    let dir = packaged_fmus::packaged_fmus(&repo());
     for fmu in fmus {
-        let path = repo().join(format!("build/fmus/{fmu}.fmu"));
-        assert!(
-            path.is_file(),
-            "no {}: run scripts/build-fmus first",
-            path.display()
-        );
+        let path = dir.join(format!("{fmu}.fmu"));
+        assert!(path.is_file(), "no {}", path.display());
     }
 }
 
