@@ -29,9 +29,7 @@ impl ThirdParty {
         let dir = std::env::var_os("SPURIO_THIRD_PARTY")
             .map(PathBuf::from)
             .unwrap_or_else(|| repo.join("tests/third_party"));
-        dir.join("reference-fmus")
-            .is_dir()
-            .then_some(Self { dir })
+        dir.join("reference-fmus").is_dir().then_some(Self { dir })
     }
 
     pub fn reference(&self, model: &str) -> PathBuf {

@@ -21,11 +21,11 @@ mod guard;
 mod library_query;
 mod limits;
 mod package;
-mod sweep;
-mod workers;
 #[cfg(test)]
 #[path = "../../tests/common/packaged_fmus.rs"]
 mod packaged_fmus;
+mod sweep;
+mod workers;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};

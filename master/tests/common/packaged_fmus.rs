@@ -55,19 +55,22 @@ pub fn packaged_fmus(repo: &Path) -> PathBuf {
 /// description (`modelDescription/<stem>.xml`) and one FMI 3.0 archive for each
 /// `modelDescription/fmi3/<stem>.xml` (a build stopped half-way is not taken for a whole one).
 fn is_built(repo: &Path, dir: &Path) -> bool {
-    [("modelDescription", dir.to_path_buf()), ("modelDescription/fmi3", dir.join("fmi3"))]
-        .iter()
-        .all(|(committed, out)| {
-            std::fs::read_dir(repo.join(committed)).is_ok_and(|entries| {
-                entries.filter_map(Result::ok).all(|entry| {
-                    let path = entry.path();
-                    match (path.extension(), path.file_stem()) {
-                        (Some(ext), Some(stem)) if ext == "xml" => {
-                            out.join(stem).with_extension("fmu").is_file()
-                        }
-                        _ => true,
+    [
+        ("modelDescription", dir.to_path_buf()),
+        ("modelDescription/fmi3", dir.join("fmi3")),
+    ]
+    .iter()
+    .all(|(committed, out)| {
+        std::fs::read_dir(repo.join(committed)).is_ok_and(|entries| {
+            entries.filter_map(Result::ok).all(|entry| {
+                let path = entry.path();
+                match (path.extension(), path.file_stem()) {
+                    (Some(ext), Some(stem)) if ext == "xml" => {
+                        out.join(stem).with_extension("fmu").is_file()
                     }
-                })
+                    _ => true,
+                }
             })
         })
+    })
 }

@@ -12,13 +12,12 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-#[path = "../../../tests/common/packaged_fmus.rs"]
-mod packaged_fmus;
-
 /// Asserts that each of `fmus` (e.g. `"GantryCrane"`) is packaged in `build/fmus`, built
-/// first if the FMUs are missing ([`packaged_fmus::packaged_fmus`]).
+/// first if the FMUs are missing (`master/tests/common/packaged_fmus.rs`, which every test
+/// crate that includes this file names `crate::packaged_fmus`: included by path, or, where
+/// the engine's test helpers are included too, theirs).
 pub fn require_fmus(fmus: &[&str]) {
-    let dir = packaged_fmus::packaged_fmus(&repo());
+    let dir = crate::packaged_fmus::packaged_fmus(&repo());
     for fmu in fmus {
         let path = dir.join(format!("{fmu}.fmu"));
         assert!(path.is_file(), "no {}", path.display());
