@@ -20,6 +20,9 @@ mod guard;
 mod library_query;
 mod limits;
 mod package;
+#[cfg(test)]
+#[path = "../../tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
 mod progress;
 mod sweep;
 mod workers;
@@ -505,10 +508,7 @@ mod tests {
     #[test]
     fn plot_axes_carry_the_units_of_the_model_description() {
         let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-        assert!(
-            repo.join("build/fmus/GantryCrane.fmu").is_file(),
-            "run scripts/build-fmus first"
-        );
+        crate::packaged_fmus::packaged_fmus(&repo);
         let system = System::from_file(&repo.join("examples/systems/crane_sensor.toml")).unwrap();
         let label = |name: &str| plot::axis_label(&system, name).map_err(|e| e.to_string());
         assert_eq!(label("crane.x").unwrap(), "crane.x [m]");

@@ -5,8 +5,9 @@
 
 use spurio_export::harness::Harness;
 use spurio_export::{Causality, Config, FmuModel, VariableType};
-use spurio_fmu_common::dual::{DkfRsKfFmu, DualKalmanFilterFmu};
-use spurio_fmu_common::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
+use spurio_fmu_kalman::{
+    dims_config, DkfRsKfFmu, DualKalmanFilterFmu, KalmanFilterFmu, RobustKalmanFilterFmu,
+};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -17,122 +17,21 @@
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
-use crate::estimator::{
-    add_choice, add_tuning, count, error, leading_identity, non_finite_input, DynamicState,
-    Estimator, EstimatorFmu, FilterFamily, Filtered,
+use crate::filtered::{FilterFamily, Filtered, Inputs};
+use crate::model::{
+    add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
+    ModelBlocks,
 };
-use crate::structured::{add_matrix, add_vector, Block};
 use nalgebra::DVector;
 use spurio::estimation::{
     EstimationError, GaussianModel, InfluenceFunction, KalmanFilter, RobustKalmanFilter,
     ScalarKalmanFilter, ScalarRobustKalmanFilter, StateEstimator,
 };
-use spurio::state_space::StateSpace;
-use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
+use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
+use spurio_fmu_common::estimator::{
+    error, non_finite_input, DynamicState, Estimator, EstimatorFmu,
 };
-use std::marker::PhantomData;
-
-/// Dimensions of a linear-Gaussian estimator variant.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Dimensions {
-    /// States.
-    pub n: usize,
-    /// Inputs (may be 0).
-    pub m: usize,
-    /// Outputs.
-    pub p: usize,
-}
-
-impl Dimensions {
-    /// Reads `n`, `m`, `p` from the configuration (defaults as given).
-    pub fn from_config(config: &Config, n: usize, m: usize, p: usize) -> Result<Self, Cause> {
-        Ok(Self {
-            n: count(config, "n", n, 1)?,
-            m: count(config, "m", m, 0)?,
-            p: count(config, "p", p, 1)?,
-        })
-    }
-}
-
-/// Default diagonal values of the model parameters.
-#[derive(Debug, Clone, Copy)]
-pub struct Defaults {
-    pub q: f64,
-    pub r: f64,
-    pub p0: f64,
-}
-
-/// The parameter blocks A, B, C, D, Q, R, P0, x0.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ModelBlocks {
-    pub system: StateSpace<Block>,
-    pub p0: Block,
-    pub x0: Block,
-}
-
-impl ModelBlocks {
-    /// Adds the parameters, named as in the model `x⁺ = A x + B u, y = C x + D u` (prefix
-    /// `what` in the descriptions, e.g. "initial " for the DKF).
-    pub fn add(
-        table: &mut VariableTable,
-        dims: Dimensions,
-        defaults: Defaults,
-        what: &str,
-    ) -> Self {
-        let Dimensions { n, m, p } = dims;
-        let diag = |value: f64| move |i: usize, j: usize| if i == j { value } else { 0.0 };
-        let a_default = diag(1.0);
-        let c_default = leading_identity(p, n);
-        let q_default = diag(defaults.q);
-        let r_default = diag(defaults.r);
-        let p0_default = diag(defaults.p0);
-        let system = StateSpace {
-            a: add_matrix(table, "A", n, n, |name, i, j| {
-                Variable::parameter(name, a_default(i, j))
-                    .describe(&format!("{what}state matrix A (x⁺ = A x + B u + w)"))
-            }),
-            b: add_matrix(table, "B", n, m, |name, _, _| {
-                Variable::parameter(name, 0.0).describe(&format!("{what}input matrix B"))
-            }),
-            c: add_matrix(table, "C", p, n, |name, i, j| {
-                Variable::parameter(name, c_default[(i, j)])
-                    .describe(&format!("{what}output matrix C (y = C x + D u + v)"))
-            }),
-            d: add_matrix(table, "D", p, m, |name, _, _| {
-                Variable::parameter(name, 0.0).describe(&format!("{what}feedthrough matrix D"))
-            }),
-            q: add_matrix(table, "Q", n, n, |name, i, j| {
-                Variable::parameter(name, q_default(i, j))
-                    .describe("Process noise covariance Q (symmetric positive semidefinite)")
-            }),
-            r: add_matrix(table, "R", p, p, |name, i, j| {
-                Variable::parameter(name, r_default(i, j))
-                    .describe("Measurement noise covariance R (symmetric positive definite)")
-            }),
-        };
-        Self {
-            system,
-            p0: add_matrix(table, "P0", n, n, |name, i, j| {
-                Variable::parameter(name, p0_default(i, j))
-                    .describe("Covariance of x0 (symmetric positive semidefinite; 0 = x0 is exact)")
-            }),
-            x0: add_vector(table, "x0", n, |name, _| {
-                Variable::parameter(name, 0.0)
-                    .describe("Initial state estimate (one sample before the first step)")
-            }),
-        }
-    }
-
-    /// Reads the matrices.
-    pub fn read(&self, values: &Values) -> GaussianModel {
-        GaussianModel {
-            system: self.system.map(|block| block.matrix(values)),
-            p0: self.p0.matrix(values),
-            x0: self.x0.vector(values),
-        }
-    }
-}
+use spurio_fmu_common::structured::{add_vector, Block};
 
 /// Value references of a `KalmanFilter` / `RobustKalmanFilter` variant.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -150,59 +49,10 @@ pub struct LinearLayout {
     pub psi: Option<(usize, usize)>,
 }
 
-/// Adds the inputs `u[i]`, `y[j]`.
-pub fn add_inputs(table: &mut VariableTable, dims: Dimensions, y_what: &str) -> (Block, Block) {
-    let u = add_vector(table, "u", dims.m, |name, _| {
-        Variable::input(name, 0.0).describe("Control input u_k (sampled at the start of the step)")
-    });
-    let y = add_vector(table, "y", dims.p, |name, _| {
-        Variable::input(name, 0.0).describe(y_what)
-    });
-    (u, y)
-}
-
-/// Adds `x_hat[i]` and `y_hat[j]`.
-pub fn add_estimates(table: &mut VariableTable, dims: Dimensions) -> (Block, Block) {
-    let x_hat = add_vector(table, "x_hat", dims.n, |name, _| {
-        Variable::discrete_output(name).describe("Filtered state x̂_{k|k}")
-    });
-    let y_hat = add_vector(table, "y_hat", dims.p, |name, _| {
-        Variable::discrete_output(name).describe("Filtered output ŷ_k = C x̂_{k|k} + D u_k")
-    });
-    (x_hat, y_hat)
-}
-
-/// Adds `psi` and `c` (rsKF): returns their value references.
-pub fn add_influence(table: &mut VariableTable) -> (usize, usize) {
-    let psi = add_choice(
-        table,
-        "psi",
-        1,
-        2,
-        "Influence function ψ: 1 = Huber, 2 = Tukey bisquare",
-    );
-    let c = add_tuning(table, "c", 1.645, "Tuning constant of ψ in standard deviations (Huber 1.645 = 5 % contamination; Tukey usually 4.685)");
-    (psi, c)
-}
-
-/// Reads ψ from the `psi` and `c` parameters.
-pub fn read_influence(
-    values: &Values,
-    (psi, c): (usize, usize),
-) -> Result<InfluenceFunction, Failure> {
-    let kind =
-        crate::estimator::choice(values, psi, "psi", &[(1, "Huber"), (2, "Tukey bisquare")])?;
-    let c = values.real(c);
-    if !(c.is_finite() && c > 0.0) {
-        return Err(Failure::error(format!(
-            "parameter `c`: the tuning constant of ψ must be finite and > 0, got {c}"
-        )));
+impl Inputs for LinearLayout {
+    fn inputs(&self) -> (&Block, &Block) {
+        (&self.u, &self.y)
     }
-    Ok(if kind == 1 {
-        InfluenceFunction::Huber { c }
-    } else {
-        InfluenceFunction::Tukey { c }
-    })
 }
 
 fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo), Cause> {
@@ -246,17 +96,7 @@ fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo),
             "Standard Kalman filter (sKF), papers 000/001",
         )
     };
-    let info = ModelInfo::new(
-        id,
-        description,
-        t.into_variables(),
-        Some(DefaultExperiment {
-            start_time: 0.0,
-            stop_time: 1.0,
-            step_size: 1e-3,
-        }),
-        config.clone(),
-    );
+    let info = model_info(config, (id, description), t, 1.0, 1e-3);
     Ok((
         LinearLayout {
             dims,
@@ -426,7 +266,7 @@ pub enum LinearEstimator<F: LinearFilter> {
     /// One state, one output, at most one input.
     Scalar(Scalar<F::Scalar>),
     /// Any sizes.
-    General(Filtered<Linear<F>>),
+    General(Filtered<LinearLayout, F>),
 }
 
 impl<F: LinearFilter> Estimator for LinearEstimator<F> {
@@ -436,7 +276,7 @@ impl<F: LinearFilter> Estimator for LinearEstimator<F> {
     }
 
     fn build(layout: &LinearLayout, values: &Values) -> Result<Self, Failure> {
-        let general = Filtered::<Linear<F>>::build(layout, values)?;
+        let general = Filtered::<LinearLayout, F>::build(layout, values)?;
         let l = layout;
         // The outputs one after the other: x_hat[1], y_hat[1], innovation[1] (, w[1]).
         let first = l.x_hat.first;
@@ -495,37 +335,28 @@ impl<F: LinearFilter> DynamicState for LinearEstimator<F> {
 }
 
 /// The family of the linear-model filters (sKF, rsKF) behind the one [`Filtered`] adapter.
-#[derive(Debug, Clone)]
-pub struct Linear<F: LinearFilter>(PhantomData<F>);
-
-impl<F: LinearFilter> FilterFamily for Linear<F> {
-    type Filter = F;
-    type Layout = LinearLayout;
-    fn interface(config: &Config) -> Result<(LinearLayout, ModelInfo), Cause> {
+impl<F: LinearFilter> FilterFamily<F> for LinearLayout {
+    fn interface(config: &Config) -> Result<(Self, ModelInfo), Cause> {
         interface(config, F::ROBUST)
     }
 
-    fn build(layout: &LinearLayout, values: &Values) -> Result<F, Failure> {
-        let psi = match layout.psi {
+    fn build(&self, values: &Values) -> Result<F, Failure> {
+        let psi = match self.psi {
             Some(indices) => read_influence(values, indices)?,
             None => InfluenceFunction::default(),
         };
-        F::from_model(layout.model.read(values), psi).map_err(error)
+        F::from_model(self.model.read(values), psi).map_err(error)
     }
 
-    fn inputs(layout: &LinearLayout) -> (&Block, &Block) {
-        (&layout.u, &layout.y)
+    fn write_initial(&self, _: &F, ctx: &mut Context) {
+        write_initial_linear(self, ctx);
     }
 
-    fn write_initial(_: &F, layout: &LinearLayout, ctx: &mut Context) {
-        write_initial_linear(layout, ctx);
-    }
-
-    fn write_outputs(filter: &F, l: &LinearLayout, values: &mut Values) {
-        l.x_hat.write_vector(values, filter.state());
-        l.y_hat.write_vector(values, filter.output());
-        l.innovation.write_vector(values, filter.innovation());
-        if let (Some(w), Some(weights)) = (&l.w, filter.weights()) {
+    fn write_outputs(&self, filter: &F, values: &mut Values) {
+        self.x_hat.write_vector(values, filter.state());
+        self.y_hat.write_vector(values, filter.output());
+        self.innovation.write_vector(values, filter.innovation());
+        if let (Some(w), Some(weights)) = (&self.w, filter.weights()) {
             w.write_vector(values, weights);
         }
     }
@@ -536,18 +367,10 @@ pub type KalmanFilterFmu = EstimatorFmu<LinearEstimator<KalmanFilter>>;
 /// `RobustKalmanFilter.fmu`.
 pub type RobustKalmanFilterFmu = EstimatorFmu<LinearEstimator<RobustKalmanFilter>>;
 
-/// The configuration of a variant of dimensions n, m, p.
-pub fn dims_config(n: usize, m: usize, p: usize) -> Config {
-    let mut c = Config::new();
-    c.set("n", n);
-    c.set("m", m);
-    c.set("p", p);
-    c
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::dims_config;
     use spurio_export::harness::Harness;
     use spurio_export::FmuModel;
 
@@ -707,11 +530,11 @@ mod tests {
             let estimator = estimator.unwrap();
             assert!(matches!(estimator, LinearEstimator::Scalar(_)));
             if general {
-                let filtered = Filtered::<Linear<F>>::build(layout, parameters).unwrap();
+                let filtered = Filtered::<LinearLayout, F>::build(layout, parameters).unwrap();
                 *estimator = LinearEstimator::General(filtered);
             }
-            let mut bits = crate::clock::tests::xorshift(0x9E37_79B9_7F4A_7C15);
-            let mut uniform = || (bits() >> 11) as f64 / (1u64 << 53) as f64;
+            let mut rng = spurio::signals::rng::RandomGenerator::new(0x9E37_79B9_7F4A_7C15);
+            let mut uniform = || rng.uniform();
             let mut seen = Vec::new();
             for k in 0..steps {
                 let outlier = if uniform() < 0.1 { 1.0 } else { 0.0 };
@@ -781,13 +604,22 @@ mod tests {
             cols: 1,
         };
         let mut buffer = DVector::from_element(1, 7.0);
-        assert!(!crate::estimator::copy_inputs(&values, &block, &mut buffer));
+        assert!(!spurio_fmu_common::estimator::copy_inputs(
+            &values,
+            &block,
+            &mut buffer
+        ));
         assert_eq!(buffer[0], 7.0, "left as it was");
         values.set_real(y as usize, 2.5);
-        assert!(crate::estimator::copy_inputs(&values, &block, &mut buffer));
+        assert!(spurio_fmu_common::estimator::copy_inputs(
+            &values,
+            &block,
+            &mut buffer
+        ));
         assert_eq!(buffer[0], 2.5);
         values.set_real(y as usize, f64::INFINITY);
-        let error = crate::estimator::read_inputs(&values, &block, "y", &mut DVector::zeros(1));
+        let error =
+            spurio_fmu_common::estimator::read_inputs(&values, &block, "y", &mut DVector::zeros(1));
         assert!(matches!(error, Err(Failure::Error(m)) if m.to_string().contains("`y[1]`")));
     }
 }

@@ -32,19 +32,18 @@
 //! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
 //! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
-use crate::estimator::{add_tuning, error, EstimatorFmu, FilterFamily, Filtered};
-use crate::kalman::{
-    add_estimates, add_influence, add_inputs, read_influence, Defaults, Dimensions, ModelBlocks,
+use crate::filtered::{FilterFamily, Filtered, Inputs};
+use crate::model::{
+    add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
+    ModelBlocks,
 };
-use crate::structured::{add_matrix, add_vector, Block};
 use spurio::estimation::{
     AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
     RobustKalmanFilter, StateEstimator,
 };
-use spurio_export::{
-    Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
-};
-use std::marker::PhantomData;
+use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
+use spurio_fmu_common::estimator::{add_tuning, error, EstimatorFmu};
+use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Value references of the cleaner's parameters (DkfRsKf).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -76,6 +75,12 @@ pub struct DualLayout {
     pub fix_output_matrices: usize,
     pub cleaner: Option<CleanerBlocks>,
     pub bounds: BoundBlocks,
+}
+
+impl Inputs for DualLayout {
+    fn inputs(&self) -> (&Block, &Block) {
+        (&self.u, &self.y)
+    }
 }
 
 /// Value references of the bounded adaptation's parameters and outputs (docs/estimators.md
@@ -236,17 +241,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             "Dual Kalman filter (DKF, Haykin ch. 5): states and the model matrices [A B; C D], papers 000/001",
         )
     };
-    let info = ModelInfo::new(
-        id,
-        description,
-        t.into_variables(),
-        Some(DefaultExperiment {
-            start_time: 0.0,
-            stop_time: 10.0,
-            step_size: 0.05,
-        }),
-        config.clone(),
-    );
+    let info = model_info(config, (id, description), t, 10.0, 0.05);
     Ok((
         DualLayout {
             dims,
@@ -489,49 +484,40 @@ impl DualFilter for DkfRsKf {
 }
 
 /// The family of the dual filters (DKF, DKF-rsKF) behind the one [`Filtered`] adapter.
-#[derive(Debug, Clone)]
-pub struct Dual<F: DualFilter>(PhantomData<F>);
-
-impl<F: DualFilter> FilterFamily for Dual<F> {
-    type Filter = F;
-    type Layout = DualLayout;
-    fn interface(config: &Config) -> Result<(DualLayout, ModelInfo), Cause> {
+impl<F: DualFilter> FilterFamily<F> for DualLayout {
+    fn interface(config: &Config) -> Result<(Self, ModelInfo), Cause> {
         interface(config, F::CLEANED)
     }
 
-    fn build(layout: &DualLayout, values: &Values) -> Result<F, Failure> {
-        F::build(layout, values)
+    fn build(&self, values: &Values) -> Result<F, Failure> {
+        F::build(self, values)
     }
 
-    fn inputs(layout: &DualLayout) -> (&Block, &Block) {
-        (&layout.u, &layout.y)
-    }
-
-    fn write_initial(filter: &F, layout: &DualLayout, ctx: &mut Context) {
-        write_initial_dual(layout, ctx, filter.dual());
-        if let Some(c) = &layout.cleaner {
+    fn write_initial(&self, filter: &F, ctx: &mut Context) {
+        write_initial_dual(self, ctx, filter.dual());
+        if let Some(c) = &self.cleaner {
             filter.write_cleaner(c, ctx.values, true);
         }
     }
 
-    fn write_outputs(filter: &F, l: &DualLayout, values: &mut Values) {
-        write_dual_outputs(l, values, filter.dual());
-        l.y_hat.write_vector(values, filter.output());
-        if let Some(c) = &l.cleaner {
+    fn write_outputs(&self, filter: &F, values: &mut Values) {
+        write_dual_outputs(self, values, filter.dual());
+        self.y_hat.write_vector(values, filter.output());
+        if let Some(c) = &self.cleaner {
             filter.write_cleaner(c, values, false);
         }
     }
 }
 
 /// `DualKalmanFilter.fmu`.
-pub type DualKalmanFilterFmu = EstimatorFmu<Filtered<Dual<DualKalmanFilter>>>;
+pub type DualKalmanFilterFmu = EstimatorFmu<Filtered<DualLayout, DualKalmanFilter>>;
 /// `DkfRsKf.fmu`.
-pub type DkfRsKfFmu = EstimatorFmu<Filtered<Dual<DkfRsKf>>>;
+pub type DkfRsKfFmu = EstimatorFmu<Filtered<DualLayout, DkfRsKf>>;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kalman::dims_config;
+    use crate::model::dims_config;
     use spurio_export::harness::Harness;
     use spurio_export::FmuModel;
 

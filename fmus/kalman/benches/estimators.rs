@@ -3,13 +3,12 @@
 //! DKF-rsKF took 12 ms per iteration; a numpy one of order 8 ≈ 0.14 ms; goal here ≤ 1 µs for
 //! n = 8, m = p = 2 with all 92 outputs read, ≤ 40 ns for the scalar sKF and rsKF).
 //!
-//! Run: `cargo bench -p spurio-fmu-common --bench estimators`. Prints the median (and IQR) over
+//! Run: `cargo bench -p spurio-fmu-kalman --bench estimators`. Prints the median (and IQR) over
 //! many batches, so a noisy machine shifts it little.
 
 use spurio_export::harness::Harness;
 use spurio_export::{Config, FmuModel};
-use spurio_fmu_common::dual::DkfRsKfFmu;
-use spurio_fmu_common::kalman::{dims_config, KalmanFilterFmu, RobustKalmanFilterFmu};
+use spurio_fmu_kalman::{dims_config, DkfRsKfFmu, KalmanFilterFmu, RobustKalmanFilterFmu};
 
 /// Steps `M` on a deterministic test signal (sines plus a 5 % sprinkling of outliers) and
 /// reports the median cost.
