@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The built-in stepping algorithm a system file names (see [`crate::algorithm`]): how the
+/// The built-in stepping algorithm a system file names (see [`crate::Algorithm`]): how the
 /// instances exchange values at a communication point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
