@@ -178,6 +178,7 @@ impl Member {
 }
 
 /// Calls `call` on every member (that `due` selects), then reports every failure at once.
+#[inline(always)]
 fn on_every(
     members: &mut [Member],
     due: impl Fn(&Member) -> bool,

@@ -73,6 +73,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// Runs `f` as FMI call `call` of member `member` at `time`, noted in `monitor` (if any).
+#[inline(always)]
 pub(crate) fn watched<T>(
     monitor: Option<&CallMonitor>,
     member: usize,
