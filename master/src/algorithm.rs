@@ -29,7 +29,8 @@ use std::sync::Arc;
 ///
 /// 1. [`Propagation::propagation`] and [`Propagation::refreshes_records`] (the half of an
 ///    algorithm the plan compiler sees): once per compilation of the system (when it is
-///    loaded, edited by name or told to record nothing), before any instance exists. Their
+///    loaded, edited by name, given an algorithm or told to record nothing), before any
+///    instance exists. Their
 ///    answers are laid out in the plan's set/get batches.
 /// 2. [`Algorithm::initialize`]: once per [`crate::Simulation`], after every instance has been
 ///    instantiated, set up, given its start values and has entered initialisation mode; it
@@ -45,8 +46,10 @@ use std::sync::Arc;
 ///    holding every recorded value at that time (the engine records it as the last point).
 ///
 /// A method that returns an error ends the run with that error (the engine then records
-/// nothing more). The methods take `&self`: an algorithm that keeps state between steps
-/// keeps it in a cell of its own, per [`crate::Simulation`].
+/// nothing more). The methods take `&self`, and one algorithm value serves every simulation
+/// of a system and of its clones (a sweep runs them on several threads at once): an
+/// algorithm that keeps state between calls keeps it behind a lock and tells simulations
+/// apart itself. The built-in ones keep none.
 pub trait Algorithm: Propagation + Any {
     /// Its name, as a system file writes it (`algorithm = "gauss-seidel"`).
     fn name(&self) -> &str;
