@@ -6,7 +6,7 @@
 
 use spurio_experiments::Report;
 use spurio_master::fmu::FmiVersion;
-use spurio_master::system::System;
+use spurio_master::System;
 use std::path::{Path, PathBuf};
 
 #[path = "../../master/tests/common/packaged_fmus.rs"]
@@ -48,7 +48,7 @@ fn same_figures(experiment: &str, seeds: usize) {
     // Every instance of every system of the copy is an FMI 3.0 FMU.
     for entry in std::fs::read_dir(repo3.join("examples").join(experiment)).unwrap() {
         let system = System::from_file(&entry.unwrap().path()).unwrap();
-        for instance in &system.instances {
+        for instance in system.instances() {
             assert_eq!(instance.fmu.version, FmiVersion::Fmi3, "{}", instance.name);
         }
     }

@@ -4,9 +4,9 @@
 
 #![allow(dead_code)]
 
-use spurio_master::engine::{RunEnd, RunOptions, Simulation};
-use spurio_master::record::TimeSeries;
-use spurio_master::system::{System, SystemDescription, SystemError};
+use spurio_master::TimeSeries;
+use spurio_master::{RunEnd, RunOptions, Simulation};
+use spurio_master::{System, SystemDescription, SystemError};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 

@@ -2,11 +2,10 @@
 //! parallel, each run's instances created on its worker thread (rust-fmi instances are
 //! `!Send`), and chosen metrics aggregated into a mean ± std table.
 
-use crate::engine::{CallMonitor, RunError, RunOptions, Simulation};
-use crate::fmu::VarType;
-use crate::record::Observer;
-use crate::system::{StartValue, System, SystemError};
 use rayon::prelude::*;
+use spurio_master::fmu::VarType;
+use spurio_master::{CallMonitor, Observer, RunError, RunOptions, Simulation};
+use spurio_master::{StartValue, System, SystemError};
 use std::fmt::Write as _;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -340,18 +339,21 @@ impl Variation {
             ))
         })?;
         let i = system
-            .instances
+            .instances()
             .iter()
             .position(|inst| inst.name == instance)
             .ok_or_else(|| {
                 SystemError::Invalid(format!("--vary: no instance called `{instance}`"))
             })?;
-        let v = system.instances[i].fmu.index_of(variable).ok_or_else(|| {
-            SystemError::Invalid(format!(
-                "--vary: instance `{instance}` has no variable `{variable}`"
-            ))
-        })?;
-        let var_type = system.instances[i].fmu.variables[v].head.var_type;
+        let v = system.instances()[i]
+            .fmu
+            .index_of(variable)
+            .ok_or_else(|| {
+                SystemError::Invalid(format!(
+                    "--vary: instance `{instance}` has no variable `{variable}`"
+                ))
+            })?;
+        let var_type = system.instances()[i].fmu.variables[v].head.var_type;
         for value in &self.values {
             system.check_start_value(&self.variable, start_value(var_type, *value))?;
         }

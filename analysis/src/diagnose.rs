@@ -4,7 +4,7 @@
 
 use crate::diagnostics;
 use anyhow::{Context, Result};
-use spurio_master::results::ResultTable;
+use spurio_master::ResultTable;
 use std::fmt::Write;
 use std::path::Path;
 

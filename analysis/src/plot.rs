@@ -1,7 +1,7 @@
 //! Every picture of the experiments and of `spurio run --plot`, with plotters and the embedded
 //! DejaVu Sans (nothing needed from the system). One look for all: legends in a column right
 //! of the axes (they hide no data), ticks without needless decimals (sample axes read "200",
-//! not "200.0"), axis labels with units given by the caller ("crane.x [m]").
+//! not "200.0"), axis labels with units given by the caller (`crane.x [m]`).
 //!
 //! Text note: plotters' glyph layout over-applies kerning ("Ts" overlaps) and misplaces
 //! combining accents ("x̂"); write subscripts as Unicode letters ("Tₛ", "x₀"), which DejaVu
@@ -10,10 +10,12 @@
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::{System, SystemError};
+use spurio_master::{System, SystemError, TimeSeries};
 use std::path::Path;
 use std::sync::Once;
+
+/// A colour of a plotted series (plotters' RGB colour).
+pub use plotters::style::RGBColor;
 
 static FONT: Once = Once::new();
 
@@ -121,7 +123,7 @@ impl Line {
 /// One panel of [`panels_png`]: a y-axis label (with its unit) and the lines drawn in it.
 #[derive(Debug, Clone)]
 pub struct Panel {
-    /// The y-axis label, "cart position x [m]".
+    /// The y-axis label, `cart position x [m]`.
     pub label: String,
     /// The lines, drawn in order (the first underneath).
     pub lines: Vec<Line>,
@@ -252,7 +254,7 @@ pub fn axis_label(system: &System, qualified: &str) -> Result<String, SystemErro
 }
 
 /// The recorded variables `(name, label)` of `series` against time, one panel each, the
-/// label (with the unit, "crane.x [m]") on its y axis.
+/// label (with the unit, `crane.x [m]`) on its y axis.
 pub fn labelled_time_series_png(
     path: &Path,
     title: &str,

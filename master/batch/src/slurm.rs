@@ -24,10 +24,9 @@
 //! the array and for the merge job with `--dependency=afterok:<array>`.
 #![forbid(unsafe_code)]
 
-use crate::description::SystemDescription;
 use crate::shard::{Shard, SweepIdentity};
-use crate::system::System;
 use serde::{Deserialize, Serialize};
+use spurio_master::{System, SystemDescription};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

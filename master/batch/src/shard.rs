@@ -222,7 +222,7 @@ pub fn identity_of_system_file(
         reason: format!("not a TOML system file: {reason}"),
     };
     let text = std::str::from_utf8(&bytes).map_err(|e| format(e.to_string()))?;
-    let description: crate::description::SystemDescription =
+    let description: spurio_master::SystemDescription =
         toml::from_str(text).map_err(|e| format(e.to_string()))?;
     let base = system.parent().unwrap_or(Path::new("."));
     let mut names: Vec<String> = description
