@@ -1,15 +1,14 @@
 //! An in-process driver of an FMU's C entry points, for Rust tests and benchmarks.
 //!
-//! It calls the same generic functions of [`crate::ffi`] that the exported `fmi2*` symbols
+//! It calls the same generic functions of [`crate::fmi2::ffi`] that the exported `fmi2*` symbols
 //! call, with real pointers, so a test or benchmark measures the C ABI path (pointer checks,
 //! `catch_unwind`, state masks, dispatch) without loading a shared library. Log messages are
 //! collected in memory (a C variadic logger cannot be written in stable Rust).
 
 use crate::description::Config;
-use crate::ffi;
+use crate::fmi2::ffi;
 use crate::instance::{Instance, LogSink, Logger};
-use crate::me::Hooks;
-use crate::model::FmuModel;
+use crate::model::{FmuModel, Hooks};
 use crate::types::*;
 use std::cell::RefCell;
 use std::marker::PhantomData;
@@ -59,7 +58,7 @@ impl<M: FmuModel> Harness<M> {
     }
 
     /// The component, for the calls the harness does not wrap (Model Exchange, directional
-    /// derivatives: `crate::me::ffi`).
+    /// derivatives: `crate::abi::model_exchange`, `crate::fmi2::model_exchange`).
     pub fn component(&self) -> fmi2Component {
         self.component
     }

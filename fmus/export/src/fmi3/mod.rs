@@ -1,57 +1,32 @@
-//! The FMI 3.0 Co-Simulation front of the export layer.
-//!
-//! The same [`FmuModel`](crate::FmuModel), variable table, [`Instance`](crate::instance::Instance)
-//! (state machine, argument checks, logging, FMU states) serve both versions; what is FMI 3.0
-//! lives here:
+//! The FMI 3.0 front of the export layer: the `fmi3*` C entry points over the same model,
+//! variable table and [`Instance`](crate::instance::Instance) (state machine, argument checks,
+//! logging, FMU states) as FMI 2.0, with the masks of [`crate::instance::state::fmi3`]
+//! ([`functions`]). The shape of [`crate::fmi2`]:
+//! - [`ffi`]: the entry points of the life cycle (instantiation, initialization, step,
+//!   FMU states), generic over the model;
+//! - [`values`]: the typed get/set functions over arrays;
+//! - [`model_exchange`]: the Model Exchange functions FMI 2.0 has not in the same form (the
+//!   counts, `fmi3UpdateDiscreteStates`, directional and adjoint derivatives over arrays);
 //! - [`types`]: the C types of `fmi3PlatformTypes.h` / `fmi3FunctionTypes.h`;
-//! - [`arrays`]: the FMI 3.0 variables of a table (structured scalars grouped into arrays,
-//!   `time` as value reference 0);
-//! - [`description`]: the FMI 3.0 `modelDescription.xml`;
-//! - [`functions`]: the `fmi3*` functions and the states they are allowed in;
-//! - [`ffi`]: the C entry points, generic over the model, that
-//!   [`export_fmu!`](crate::export_fmu) instantiates as the `fmi3*` symbols (through
-//!   [`export_fmi3!`](crate::export_fmi3)) beside the `fmi2*` ones, in one binary.
+//! - [`export_fmi3!`](crate::export_fmi3): the `fmi3*` symbols of one FMU binary, emitted by
+//!   [`export_fmu!`](crate::export_fmu) beside the `fmi2*` ones.
 //!
 //! FMI 3.0 Co-Simulation states map onto the shared machine: Instantiated, Initialization
-//! Mode, Step Mode (the FMI 2.0 `StepComplete`), Terminated, and the error states. The FMUs
-//! declare no event mode, no clocks, no structural parameters (dimensions stay packaging
-//! variants: see the README), so Configuration Mode, Event Mode and the Model Exchange and
-//! Scheduled Execution functions are exported but reject every call with a logged reason.
+//! Mode, Step Mode (the FMI 2.0 `StepComplete`), Terminated, and the error states; Model
+//! Exchange onto its Event and Continuous-Time Modes. `fmi3InstantiateModelExchange` creates
+//! a Model Exchange instance for a model that offers the interface
+//! (`export_fmu!(Model, model_exchange)`) and refuses, with a logged reason, for one that does
+//! not. The FMUs declare no Co-Simulation event mode, no clocks, no structural parameters
+//! (dimensions stay packaging variants: see the README), so Configuration Mode, the
+//! Co-Simulation Event Mode and Scheduled Execution are exported but refuse every call with a
+//! logged reason.
 
-pub mod arrays;
-pub mod description;
 pub mod ffi;
-pub mod me;
+pub mod model_exchange;
 pub mod types;
+pub mod values;
 
-/// Allowed-state masks of the FMI 3.0 functions (FMI 3.0.2 §4.3.4 Co-Simulation and §3.3
-/// Model Exchange state machines; Step Mode is the shared machine's `StepComplete`).
-pub mod functions {
-    use crate::instance::bits::*;
-    /// Every state of an instance that is not fatally broken.
-    pub const ANY_LIVE: u32 =
-        ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
-    const GETTABLE: u32 = ME_MODES | INIT_MODE | STEP_COMPLETE | TERMINATED | ERROR;
-    const SETTABLE: u32 = ME_MODES | INSTANTIATED | INIT_MODE | STEP_COMPLETE;
-
-    crate::instance::shared_functions!(
-        "fmi3",
-        "FMUState",
-        "DeserializeFMUState",
-        "Float64",
-        "Int32",
-        ANY_LIVE,
-        ANY_LIVE,
-        GETTABLE,
-        SETTABLE,
-        STEP_COMPLETE | ME_MODES
-    );
-    f! { GET_DERIVATIVES, "fmi3GetContinuousStateDerivatives", ME_AFTER_INIT }
-    f! { GET_NUMBER_OF_EVENT_INDICATORS, "fmi3GetNumberOfEventIndicators", ANY_LIVE }
-    f! { GET_NUMBER_OF_CONTINUOUS_STATES, "fmi3GetNumberOfContinuousStates", ANY_LIVE }
-    f! { UPDATE_DISCRETE_STATES, "fmi3UpdateDiscreteStates", EVENT_MODE }
-    f! { GET_ADJOINT_DERIVATIVE, "fmi3GetAdjointDerivative", GETTABLE }
-}
+pub use crate::instance::state::fmi3 as functions;
 
 /// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 C API of the model type
 /// `$model`: the Co-Simulation functions, and every other `fmi3*` function of the standard
@@ -65,10 +40,10 @@ macro_rules! export_fmi3 {
             #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
             #[allow(unused_imports)]
             use super::*;
-            use $crate::front::Fmi3;
+            use $crate::abi::kinds::Fmi3;
             use $crate::fmi3::ffi;
             use $crate::fmi3::functions;
-            use $crate::fmi3::me;
+            use $crate::fmi3::model_exchange as me;
             use $crate::fmi3::types::*;
             type M = $model;
 
@@ -183,7 +158,7 @@ macro_rules! export_fmi3 {
                 values: *mut fmi3String,
                 n_values: usize,
             ) -> fmi3Status {
-                unsafe { ffi::get_string::<M>(c, vr, nvr, values, n_values) }
+                unsafe { $crate::fmi3::values::get_string::<M>(c, vr, nvr, values, n_values) }
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3SetString(
@@ -193,7 +168,7 @@ macro_rules! export_fmi3 {
                 values: *const fmi3String,
                 n_values: usize,
             ) -> fmi3Status {
-                unsafe { ffi::set_string::<M>(c, vr, nvr, values, n_values) }
+                unsafe { $crate::fmi3::values::set_string::<M>(c, vr, nvr, values, n_values) }
             }
             $crate::fmu_state_entries!(
                 fmi3Instance, fmi3FMUState, fmi3Byte;
@@ -272,7 +247,11 @@ macro_rules! fmi3_get_set {
             values: *mut $c,
             n_values: usize,
         ) -> fmi3Status {
-            unsafe { ffi::get::<M, ffi::$kind>(c, vr, nvr, values, n_values) }
+            unsafe {
+                $crate::fmi3::values::get::<M, $crate::fmi3::values::$kind>(
+                    c, vr, nvr, values, n_values,
+                )
+            }
         }
         #[no_mangle]
         pub unsafe extern "C" fn $set(
@@ -282,7 +261,11 @@ macro_rules! fmi3_get_set {
             values: *const $c,
             n_values: usize,
         ) -> fmi3Status {
-            unsafe { ffi::set::<M, ffi::$kind>(c, vr, nvr, values, n_values) }
+            unsafe {
+                $crate::fmi3::values::set::<M, $crate::fmi3::values::$kind>(
+                    c, vr, nvr, values, n_values,
+                )
+            }
         }
     };
 }

@@ -4,7 +4,14 @@
 //! The GUID is a hash of everything in the interface, so a binary and a modelDescription
 //! built from different tables (or a variant packaged for other dimensions) never match.
 
+pub mod arrays;
+pub mod fmi3;
+pub mod model_exchange;
+#[cfg(test)]
+mod model_exchange_tests;
+
 use crate::variables::{Causality, Value, Variable};
+use model_exchange::{DeclarationError, ModelExchangeInfo};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -125,7 +132,7 @@ pub struct ModelInfo {
     pub config: Config,
     /// The Model Exchange interface, if the model offers it
     /// ([`ModelInfo::with_model_exchange`]).
-    pub model_exchange: Option<crate::me::ModelExchangeInfo>,
+    pub model_exchange: Option<ModelExchangeInfo>,
     /// `guid`, derived from all of the above.
     pub guid: String,
 }
@@ -173,8 +180,8 @@ impl ModelInfo {
     /// indicators come from the table ([`crate::Variable::state`],
     /// [`crate::Variable::derivative_of`], [`crate::Variable::event_indicator`]), checked here
     /// (every state has exactly one derivative, …). The GUID covers it.
-    pub fn with_model_exchange(mut self) -> Result<Self, crate::me::DeclarationError> {
-        self.model_exchange = Some(crate::me::ModelExchangeInfo::from_table(&self.variables)?);
+    pub fn with_model_exchange(mut self) -> Result<Self, DeclarationError> {
+        self.model_exchange = Some(ModelExchangeInfo::from_table(&self.variables)?);
         self.guid = guid_of(&self.to_xml_with_guid(""));
         Ok(self)
     }
