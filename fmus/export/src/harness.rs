@@ -7,6 +7,7 @@
 
 use crate::description::Config;
 use crate::fmi2::ffi;
+use crate::fmi2::values::{get, set, Boolean, Integer, Real};
 use crate::instance::{Instance, LogSink, Logger};
 use crate::model::{FmuModel, Hooks};
 use crate::types::*;
@@ -213,9 +214,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2SetInteger`.
@@ -224,9 +223,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2SetBoolean` (`true` → fmi2True).
@@ -236,9 +233,7 @@ impl<M: FmuModel> Harness<M> {
         }
         let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2GetReal` into `out`.
@@ -247,9 +242,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
-        })
+        status(unsafe { get::<M, Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr()) })
     }
     /// `fmi2GetInteger` into `out`.
     pub fn get_integer(&mut self, vr: &[u32], out: &mut [i32]) -> Result<Status, Status> {
@@ -258,7 +251,7 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::get::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+            get::<M, Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
     /// `fmi2GetReal` of one variable.

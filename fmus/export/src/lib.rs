@@ -151,9 +151,14 @@ macro_rules! export_fmu {
             }
         }
 
-        $crate::export_fmi3!($model);
-
-        $crate::export_fmi2!($model);
+        $crate::front_exports!(fmi2_exports, $model, {
+            use $crate::fmi2::{ffi, functions, model_exchange as me};
+            use $crate::types::*;
+        }, fmi2_life_cycle_entries, fmi2_value_entries, fmi2_model_exchange_entries);
+        $crate::front_exports!(fmi3_exports, $model, {
+            use $crate::abi::kinds::Fmi3;
+            use $crate::fmi3::{ffi, functions, model_exchange as me, types::*};
+        }, fmi3_life_cycle_entries, fmi3_value_entries, fmi3_model_exchange_entries);
     };
     ($model:ty) => {
         $crate::export_fmu!(@with $model, None, variants = []);
@@ -170,5 +175,23 @@ macro_rules! export_fmu {
             Some($crate::model::hooks::<$model>()),
             variants = [$($variants)*]
         );
+    };
+}
+
+/// Emits, inside [`export_fmu!`], the module that holds one front's symbols for the model type
+/// `$model`: the front's imports, `M`, then the entries macro of each of the front's files
+/// (`fmi2_life_cycle_entries` in [`fmi2::ffi`], …).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! front_exports {
+    ($module:ident, $model:ty, { $($import:item)* }, $($entries:ident),+) => {
+        mod $module {
+            #![allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
+            #[allow(unused_imports)]
+            use super::*;
+            $($import)*
+            type M = $model;
+            $($crate::$entries!();)+
+        }
     };
 }

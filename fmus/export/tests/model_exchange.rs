@@ -351,7 +351,7 @@ fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_on
         let u = [2.0, 0.0];
         let vr = [U as u32, U as u32 + 1];
         assert_eq!(
-            spurio_export::fmi2::ffi::set::<Toy, spurio_export::fmi2::ffi::Real>(
+            spurio_export::fmi2::values::set::<Toy, spurio_export::fmi2::values::Real>(
                 c,
                 vr.as_ptr(),
                 2,

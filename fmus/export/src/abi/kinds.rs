@@ -70,3 +70,43 @@ kind! { Fmi2, Boolean, c_int, f2::GET_BOOLEAN, f2::SET_BOOLEAN, |x| c_int::from(
 kind! { Fmi3, Real, f64, f3::GET_REAL, f3::SET_REAL, |x| x, |v| v }
 kind! { Fmi3, Integer, i32, f3::GET_INTEGER, f3::SET_INTEGER, |x| x as i32, f64::from }
 kind! { Fmi3, Boolean, u8, f3::GET_BOOLEAN, f3::SET_BOOLEAN, |x| u8::from(x != 0.0), |v| f64::from(u8::from(v != 0)) }
+
+/// Emits, inside a front's value entries, its typed getter and setter symbols: for each pair
+/// the two names, the C value type and the two functions they call, over the front's
+/// instance, value-reference and status types; `$counted` is `()`, or the name of the count
+/// after the values that FMI 3.0 has (`(n_values)`).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! get_set_entries {
+    (
+        $handle:ty, $vr:ty, $status:ty, $counted:tt;
+        $($get:ident, $set:ident, $c:ty => $get_fn:expr, $set_fn:expr;)+
+    ) => {
+        $($crate::get_set_entries!(@pair $handle, $vr, $status, $counted; $get, $set, $c, $get_fn, $set_fn);)+
+    };
+    (
+        @pair $handle:ty, $vr:ty, $status:ty, ($($count:ident)?);
+        $get:ident, $set:ident, $c:ty, $get_fn:expr, $set_fn:expr
+    ) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $get(
+            c: $handle,
+            vr: *const $vr,
+            nvr: usize,
+            values: *mut $c,
+            $($count: usize)?
+        ) -> $status {
+            unsafe { ($get_fn)(c, vr, nvr, values, $($count)?) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $set(
+            c: $handle,
+            vr: *const $vr,
+            nvr: usize,
+            values: *const $c,
+            $($count: usize)?
+        ) -> $status {
+            unsafe { ($set_fn)(c, vr, nvr, values, $($count)?) }
+        }
+    };
+}

@@ -6,7 +6,7 @@
 //! 4: [`Status::code`]), and their instance and FMU-state handles are both `void*`, so one
 //! path serves them.
 
-use super::pointers::string_arg;
+use super::pointers::{slice, string_arg};
 use crate::guard::{guarded, guarded_call, install_panic_hook, panic_text, CallMarker, Payload};
 use crate::instance::{Core, Function, Instance};
 use crate::model::FmuModel;
@@ -157,23 +157,61 @@ unsafe fn fatal<M: FmuModel, X>(
     Status::Fatal.code()
 }
 
-/// Reads the C strings of a set-string call as values; `Err` with the rejection's status
-/// if one is NULL.
+/// The value references and the values of a set-string call (`nvr` references behind `vr`,
+/// `n_values` C strings behind `values`); `Err` with the rejection's status when a pointer
+/// is NULL (`null` names the arguments) or one of the strings is.
 ///
 /// # Safety
-/// Every pointer in `raw` is NULL or a NUL-terminated string.
-pub(crate) unsafe fn string_values<M: FmuModel, X>(
+/// FMI pointer contract: each pointer is NULL or holds its count of elements, every string
+/// NULL or NUL-terminated.
+pub(crate) unsafe fn string_values<'a, M: FmuModel, X>(
     slot: &Slot<M, X>,
     f: &Function,
-    raw: &[*const c_char],
-) -> Result<Vec<Value>, Status> {
-    raw.iter()
+    (vr, nvr): (*const u32, usize),
+    (values, n_values): (*const *const c_char, usize),
+    null: &str,
+) -> Result<(&'a [u32], Vec<Value>), Status> {
+    // SAFETY: the caller's obligation.
+    let (Some(vrs), Some(raw)) = (unsafe { slice(vr, nvr) }, unsafe {
+        slice(values, n_values)
+    }) else {
+        return Err(slot.instance.reject(f, null));
+    };
+    let values = raw
+        .iter()
         // SAFETY: the caller's obligation.
         .map(|p| match unsafe { string_arg(*p) } {
             Some(t) => Ok(Value::String(t)),
             None => Err(slot.instance.reject(f, "a string value is NULL")),
         })
-        .collect()
+        .collect::<Result<_, _>>()?;
+    Ok((vrs, values))
+}
+
+/// `fmi*SetDebugLogging` (`f`): debug logging on or off for the `n` categories behind
+/// `categories` (all when none).
+///
+/// # Safety
+/// `c` as for [`with_slot`]; `categories` is NULL or holds `n` strings, each NULL or
+/// NUL-terminated.
+pub unsafe fn set_debug_logging<M: FmuModel, X>(
+    c: *mut c_void,
+    f: &Function,
+    logging_on: bool,
+    (categories, n): (*const *const c_char, usize),
+) -> std::os::raw::c_int {
+    unsafe {
+        with_slot::<M, X>(c, f, |s| {
+            let Some(raw) = slice(categories, n) else {
+                return s.instance.reject(f, "categories is NULL");
+            };
+            let names: Vec<String> = raw
+                .iter()
+                .map(|p| string_arg(*p).unwrap_or_default())
+                .collect();
+            s.instance.set_debug_logging_as(f, logging_on, &names)
+        })
+    }
 }
 
 /// Writes what `answer` says of the instance behind `c` into the one value behind `out`

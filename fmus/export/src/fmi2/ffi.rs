@@ -1,19 +1,18 @@
-//! The FMI 2.0 C entry points: the C signatures of `fmi2Functions.h` mapped onto the shared
-//! ABI ([`crate::abi`]) and the instance, with the masks of
-//! [`crate::instance::state::fmi2`]. Each function is generic over the model; the
-//! [`export_fmi2!`](crate::export_fmi2) macro instantiates them as the `fmi2*` symbols of one
-//! FMU binary.
+//! The FMI 2.0 C entry points of the life cycle: the C signatures of `fmi2Functions.h` mapped
+//! onto the shared ABI ([`crate::abi`]) and the instance, with the masks of
+//! [`crate::instance::state::fmi2`]. Each function is generic over the model;
+//! [`fmi2_life_cycle_entries!`](crate::fmi2_life_cycle_entries), below them, emits their
+//! `fmi2*` symbols in one FMU binary. The typed get/set functions are in [`super::values`],
+//! the Model Exchange ones in [`super::model_exchange`] and [`crate::abi::model_exchange`].
 
 use crate::abi::fmu_state::state_functions;
 use crate::abi::instantiate::{self, Request, Resources, FMI2};
-use crate::abi::kinds::{Fmi2, Kind};
-use crate::abi::pointers::{slice, slice_mut, string_arg};
-use crate::abi::slot::{free_slot, string_values, with_slot, write_out};
+use crate::abi::pointers::string_arg;
+use crate::abi::slot::{free_slot, with_slot, write_out};
 use crate::instance::state::{fmi2 as functions, Function};
 use crate::instance::{Instance, LogSink};
 use crate::model::{FmuModel, Hooks};
 use crate::types::*;
-use crate::variables::VariableType;
 use std::ffi::CString;
 use std::os::raw::c_char;
 
@@ -128,32 +127,6 @@ pub unsafe fn free_instance<M: FmuModel>(c: fmi2Component) {
     unsafe { free_slot::<M, ()>(c) }
 }
 
-/// `fmi2SetDebugLogging`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_debug_logging<M: FmuModel>(
-    c: fmi2Component,
-    logging_on: fmi2Boolean,
-    n: usize,
-    categories: *const fmi2String,
-) -> fmi2Status {
-    unsafe {
-        with_instance::<M>(c, &functions::SET_DEBUG_LOGGING, |s| {
-            let Some(raw) = slice(categories, n) else {
-                return s
-                    .instance
-                    .reject(&functions::SET_DEBUG_LOGGING, "categories is NULL");
-            };
-            let names: Vec<String> = raw
-                .iter()
-                .map(|p| string_arg(*p).unwrap_or_default())
-                .collect();
-            s.instance.set_debug_logging(logging_on != 0, &names)
-        })
-    }
-}
-
 /// `fmi2SetupExperiment`.
 ///
 /// # Safety
@@ -198,133 +171,6 @@ simple_call!(
 simple_call!(
     /// `fmi2Reset`.
     reset, functions::RESET, reset);
-
-/// The numeric FMI 2.0 types exchanged through `fmi2Get*`/`fmi2Set*` (the shared value
-/// kinds of [`crate::abi::kinds`]).
-pub use crate::abi::kinds::{Boolean, Integer, Real};
-
-/// The value references of a get call, after its pointer checks (`Err`: the rejection's
-/// status).
-///
-/// # Safety
-/// FMI pointer contract.
-unsafe fn get_references<'a, M: FmuModel>(
-    s: &Slot<M>,
-    f: &Function,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    out_is_null: bool,
-) -> Result<&'a [fmi2ValueReference], Status> {
-    // SAFETY: forwarded from the caller.
-    let Some(vrs) = (unsafe { slice(vr, n) }) else {
-        return Err(s.instance.reject(f, "vr is NULL"));
-    };
-    if n > 0 && out_is_null {
-        return Err(s.instance.reject(f, "value is NULL"));
-    }
-    Ok(vrs)
-}
-
-/// `fmi2GetReal`, `fmi2GetInteger`, `fmi2GetBoolean`: the values into a C array.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    out: *mut T::C,
-) -> fmi2Status {
-    let f = T::GET;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            // SAFETY: `vr` and `out` are NULL or hold `n` elements (FMI contract).
-            match (slice(vr, n), slice_mut(out, n)) {
-                (Some(vrs), Some(out)) => s.instance.get_array(f, T::TYPE, vrs, out, T::to_c),
-                _ => match get_references(s, f, vr, n, out.is_null()) {
-                    Err(status) => status,
-                    Ok(_) => Status::Error,
-                },
-            }
-        })
-    }
-}
-
-/// `fmi2GetString`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_string<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *mut fmi2String,
-) -> fmi2Status {
-    let f = &functions::GET_STRING;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let vrs = match get_references(s, f, vr, n, value.is_null()) {
-                Ok(vrs) => vrs,
-                Err(status) => return status,
-            };
-            let mut values = Vec::with_capacity(n);
-            let status = s
-                .instance
-                .get_values(f, vrs, VariableType::String, |_, all, index| {
-                    values.push(all.string(index).to_string())
-                });
-            // SAFETY: `value` points to `n` slots and `values` has at most `n` elements.
-            s.return_strings(&values, value);
-            status
-        })
-    }
-}
-
-/// `fmi2SetReal`, `fmi2SetInteger`, `fmi2SetBoolean`: the values from a C array.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *const T::C,
-) -> fmi2Status {
-    let f = T::SET;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
-                return s.instance.reject(f, "vr or value is NULL");
-            };
-            s.instance
-                .set_array(f, T::TYPE, (vrs, values), T::to_number)
-        })
-    }
-}
-
-/// `fmi2SetString`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_string<M: FmuModel>(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    n: usize,
-    value: *const fmi2String,
-) -> fmi2Status {
-    let f = &functions::SET_STRING;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (Some(vrs), Some(raw)) = (slice(vr, n), slice(value, n)) else {
-                return s.instance.reject(f, "vr or value is NULL");
-            };
-            match string_values(s, f, raw) {
-                Ok(values) => s.instance.set_values(f, vrs.iter().copied().zip(values)),
-                Err(status) => status,
-            }
-        })
-    }
-}
 
 /// `fmi2DoStep`.
 ///
@@ -460,4 +306,162 @@ pub unsafe fn get_string_status<M: FmuModel>(
         }
         get_status::<M>(c, &functions::GET_STRING_STATUS, kind)
     }
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi2*` symbols of the life cycle,
+/// the step, the FMU states, the status queries and the capabilities the FMUs do not declare,
+/// each calling its function of this module.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_life_cycle_entries {
+    () => {
+        #[no_mangle]
+        pub extern "C" fn fmi2GetTypesPlatform() -> *const fmi2Char {
+            ffi::types_platform()
+        }
+        #[no_mangle]
+        pub extern "C" fn fmi2GetVersion() -> *const fmi2Char {
+            ffi::version()
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2SetDebugLogging(
+            c: fmi2Component,
+            on: fmi2Boolean,
+            n: usize,
+            categories: *const fmi2String,
+        ) -> fmi2Status {
+            let f = &functions::SET_DEBUG_LOGGING;
+            unsafe { $crate::abi::slot::set_debug_logging::<M, ()>(c, f, on != 0, (categories, n)) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2Instantiate(
+            name: fmi2String,
+            kind: fmi2Type,
+            guid: fmi2String,
+            resources: fmi2String,
+            callbacks: *const fmi2CallbackFunctions,
+            visible: fmi2Boolean,
+            logging_on: fmi2Boolean,
+        ) -> fmi2Component {
+            unsafe {
+                ffi::instantiate::<M>(
+                    name,
+                    kind,
+                    guid,
+                    resources,
+                    callbacks,
+                    visible,
+                    logging_on,
+                    super::spurio_model_exchange(),
+                )
+            }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+            unsafe { ffi::free_instance::<M>(c) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2SetupExperiment(
+            c: fmi2Component,
+            tolerance_defined: fmi2Boolean,
+            tolerance: fmi2Real,
+            start: fmi2Real,
+            stop_defined: fmi2Boolean,
+            stop: fmi2Real,
+        ) -> fmi2Status {
+            unsafe {
+                ffi::setup_experiment::<M>(
+                    c,
+                    tolerance_defined,
+                    tolerance,
+                    start,
+                    stop_defined,
+                    stop,
+                )
+            }
+        }
+        $crate::instance_entries!(fmi2Component;
+            fmi2EnterInitializationMode = enter_initialization_mode,
+            fmi2ExitInitializationMode = exit_initialization_mode,
+            fmi2Terminate = terminate, fmi2Reset = reset);
+        $crate::fmu_state_entries!(
+            fmi2Component, fmi2FMUstate, fmi2Byte;
+            fmi2GetFMUstate, fmi2SetFMUstate, fmi2FreeFMUstate,
+            fmi2SerializedFMUstateSize, fmi2SerializeFMUstate, fmi2DeSerializeFMUstate
+        );
+        $crate::unsupported_fmi2_function!(
+            fmi2SetRealInputDerivatives(
+                _vr: *const fmi2ValueReference,
+                _n: usize,
+                _order: *const fmi2Integer,
+                _value: *const fmi2Real,
+            ) => SET_REAL_INPUT_DERIVATIVES, "canInterpolateInputs=\"false\""
+        );
+        $crate::unsupported_fmi2_function!(
+            fmi2GetRealOutputDerivatives(
+                _vr: *const fmi2ValueReference,
+                _n: usize,
+                _order: *const fmi2Integer,
+                _value: *mut fmi2Real,
+            ) => GET_REAL_OUTPUT_DERIVATIVES, "maxOutputDerivativeOrder=\"0\""
+        );
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2DoStep(
+            c: fmi2Component,
+            t: fmi2Real,
+            h: fmi2Real,
+            no_set_prior: fmi2Boolean,
+        ) -> fmi2Status {
+            unsafe { ffi::do_step::<M>(c, t, h, no_set_prior) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+            unsafe { ffi::cancel_step::<M>(c) }
+        }
+        $crate::fmi2_status_queries! {
+            fmi2GetStatus(c, kind, value: fmi2Status) => {
+                let _ = value;
+                ffi::get_status::<M>(c, &functions::GET_STATUS, kind)
+            };
+            fmi2GetRealStatus(c, kind, value: fmi2Real) => ffi::get_real_status::<M>(c, kind, value);
+            fmi2GetIntegerStatus(c, kind, value: fmi2Integer) => {
+                let _ = value;
+                ffi::get_status::<M>(c, &functions::GET_INTEGER_STATUS, kind)
+            };
+            fmi2GetBooleanStatus(c, kind, value: fmi2Boolean) => ffi::get_boolean_status::<M>(c, kind, value);
+            fmi2GetStringStatus(c, kind, value: fmi2String) => ffi::get_string_status::<M>(c, kind, value);
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), an `fmi2*` entry point of a capability the FMUs do not
+/// declare: it rejects every call, naming the capability's attribute.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! unsupported_fmi2_function {
+    ($name:ident($($arg:ident: $type:ty),* $(,)?) => $function:ident, $capability:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(c: fmi2Component, $($arg: $type),*) -> fmi2Status {
+            unsafe { $crate::fmi2::ffi::unsupported::<M>(c, &functions::$function, $capability) }
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi2Get*Status` functions: each name with its
+/// parameters' names and value type, and the call that answers it.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_status_queries {
+    ($($name:ident($c:ident, $kind:ident, $value:ident: $t:ty) => $body:expr;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                $c: fmi2Component,
+                $kind: fmi2StatusKind,
+                $value: *mut $t,
+            ) -> fmi2Status {
+                unsafe { $body }
+            }
+        )+
+    };
 }

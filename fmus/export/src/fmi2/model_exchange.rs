@@ -83,3 +83,36 @@ pub unsafe fn get_directional_derivative<M: FmuModel>(
         })
     }
 }
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 2.0 Model Exchange symbols and
+/// `fmi2GetDirectionalDerivative` (which serves Co-Simulation too).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi2_model_exchange_entries {
+    () => {
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+            c: fmi2Component,
+            unknowns: *const fmi2ValueReference,
+            n_unknowns: usize,
+            knowns: *const fmi2ValueReference,
+            n_knowns: usize,
+            seed: *const fmi2Real,
+            out: *mut fmi2Real,
+        ) -> fmi2Status {
+            let (u, k) = ((unknowns, n_unknowns), (knowns, n_knowns));
+            unsafe { me::get_directional_derivative::<M>(c, u, k, seed, out) }
+        }
+        $crate::model_exchange_entries!(fmi2Component, (), fmi2Boolean, functions;
+            fmi2SetTime, fmi2SetContinuousStates, fmi2EnterEventMode, fmi2EnterContinuousTimeMode,
+            fmi2CompletedIntegratorStep, fmi2GetContinuousStates, fmi2GetDerivatives,
+            fmi2GetEventIndicators, fmi2GetNominalsOfContinuousStates);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi2NewDiscreteStates(
+            c: fmi2Component,
+            event_info: *mut me::fmi2EventInfo,
+        ) -> fmi2Status {
+            unsafe { me::new_discrete_states::<M>(c, event_info) }
+        }
+    };
+}

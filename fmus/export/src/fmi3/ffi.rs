@@ -9,7 +9,7 @@ use super::types::*;
 use crate::abi::fmu_state::state_functions;
 use crate::abi::instantiate::{self, Request, Resources, FMI3};
 use crate::abi::kinds::Fmi3;
-use crate::abi::pointers::{slice, string_arg};
+use crate::abi::pointers::string_arg;
 use crate::abi::slot::{free_slot, with_slot};
 use crate::description::Config;
 use crate::guard::guarded;
@@ -198,31 +198,6 @@ pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
     unsafe { free_slot::<M, Fmi3>(c) }
 }
 
-/// `fmi3SetDebugLogging`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_debug_logging<M: FmuModel>(
-    c: fmi3Instance,
-    logging_on: fmi3Boolean,
-    n: usize,
-    categories: *const fmi3String,
-) -> fmi3Status {
-    let f = &functions::SET_DEBUG_LOGGING;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(raw) = slice(categories, n) else {
-                return s.instance.reject(f, "categories is NULL");
-            };
-            let names: Vec<String> = raw
-                .iter()
-                .map(|p| string_arg(*p).unwrap_or_default())
-                .collect();
-            s.instance.set_debug_logging_as(f, logging_on != 0, &names)
-        })
-    }
-}
-
 /// `fmi3EnterInitializationMode`: the experiment (start and stop time; the tolerance is not
 /// used by fixed-step models) and Initialization Mode.
 ///
@@ -327,4 +302,218 @@ pub unsafe fn unsupported<M: FmuModel>(
             s.instance.reject(&f, &format!("not supported: {reason}"))
         })
     }
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi3*` symbols of the life cycle,
+/// the step, the FMU states and the capabilities the FMUs do not have (refusing every call
+/// with a logged reason), each calling its function of this module.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_life_cycle_entries {
+    () => {
+        #[no_mangle]
+        pub extern "C" fn fmi3GetVersion() -> *const fmi3Char {
+            ffi::version()
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3SetDebugLogging(
+            c: fmi3Instance,
+            on: fmi3Boolean,
+            n: usize,
+            categories: *const fmi3String,
+        ) -> fmi3Status {
+            let f = &functions::SET_DEBUG_LOGGING;
+            unsafe { $crate::abi::slot::set_debug_logging::<M, Fmi3>(c, f, on != 0, (categories, n)) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
+            name: fmi3String,
+            token: fmi3String,
+            resources: fmi3String,
+            visible: fmi3Boolean,
+            logging_on: fmi3Boolean,
+            event_mode_used: fmi3Boolean,
+            early_return_allowed: fmi3Boolean,
+            required: *const fmi3ValueReference,
+            n_required: usize,
+            environment: fmi3InstanceEnvironment,
+            log_message: fmi3LogMessageCallback,
+            intermediate_update: fmi3IntermediateUpdateCallback,
+        ) -> fmi3Instance {
+            let _ = (visible, required, intermediate_update);
+            let args = ffi::Instantiation(
+                name, token, resources, logging_on, environment, log_message,
+            );
+            let me = super::spurio_model_exchange();
+            unsafe {
+                ffi::instantiate_co_simulation::<M>(
+                    args,
+                    event_mode_used,
+                    early_return_allowed,
+                    n_required,
+                    me,
+                )
+            }
+        }
+        $crate::fmi3_instantiation! {
+            fmi3InstantiateModelExchange() => |args| {
+                ffi::instantiate_model_exchange::<M>(args, super::spurio_model_exchange())
+            };
+            fmi3InstantiateScheduledExecution(
+                clock_update: fmi3ClockUpdateCallback,
+                lock: fmi3PreemptionCallback,
+                unlock: fmi3PreemptionCallback,
+            ) => |args| {
+                let _ = (clock_update, lock, unlock);
+                let f = "fmi3InstantiateScheduledExecution";
+                ffi::refuse_instantiation::<M>(f, "Scheduled Execution", args)
+            };
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3FreeInstance(c: fmi3Instance) {
+            unsafe { ffi::free_instance::<M>(c) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3EnterInitializationMode(
+            c: fmi3Instance,
+            tolerance_defined: fmi3Boolean,
+            tolerance: fmi3Float64,
+            start: fmi3Float64,
+            stop_defined: fmi3Boolean,
+            stop: fmi3Float64,
+        ) -> fmi3Status {
+            let _ = (tolerance_defined, tolerance);
+            unsafe { ffi::enter_initialization_mode::<M>(c, start, stop_defined, stop) }
+        }
+        $crate::instance_entries!(fmi3Instance;
+            fmi3ExitInitializationMode = exit_initialization_mode,
+            fmi3Terminate = terminate, fmi3Reset = reset);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3DoStep(
+            c: fmi3Instance,
+            t: fmi3Float64,
+            h: fmi3Float64,
+            no_set_prior: fmi3Boolean,
+            event_handling_needed: *mut fmi3Boolean,
+            terminate_simulation: *mut fmi3Boolean,
+            early_return: *mut fmi3Boolean,
+            last_successful_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let _ = no_set_prior;
+            unsafe {
+                ffi::do_step::<M>(
+                    c,
+                    t,
+                    h,
+                    event_handling_needed,
+                    terminate_simulation,
+                    early_return,
+                    last_successful_time,
+                )
+            }
+        }
+        $crate::fmu_state_entries!(
+            fmi3Instance, fmi3FMUState, fmi3Byte;
+            fmi3GetFMUState, fmi3SetFMUState, fmi3FreeFMUState,
+            fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3DeserializeFMUState
+        );
+        $crate::fmi3_unsupported! {
+            "the FMU declares only Float64, Int32, Boolean and String variables";
+            fmi3GetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float32, _m: usize);
+            fmi3SetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float32, _m: usize);
+            fmi3GetInt8(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int8, _m: usize);
+            fmi3SetInt8(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int8, _m: usize);
+            fmi3GetUInt8(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt8, _m: usize);
+            fmi3SetUInt8(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt8, _m: usize);
+            fmi3GetInt16(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int16, _m: usize);
+            fmi3SetInt16(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int16, _m: usize);
+            fmi3GetUInt16(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt16, _m: usize);
+            fmi3SetUInt16(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt16, _m: usize);
+            fmi3GetUInt32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt32, _m: usize);
+            fmi3SetUInt32(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt32, _m: usize);
+            fmi3GetInt64(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int64, _m: usize);
+            fmi3SetInt64(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int64, _m: usize);
+            fmi3GetUInt64(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt64, _m: usize);
+            fmi3SetUInt64(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt64, _m: usize);
+            fmi3GetBinary(_v: *const fmi3ValueReference, _n: usize, _s: *mut usize, _x: *mut fmi3Binary, _m: usize);
+            fmi3SetBinary(_v: *const fmi3ValueReference, _n: usize, _s: *const usize, _x: *const fmi3Binary, _m: usize);
+        }
+        $crate::fmi3_unsupported! {
+            "the FMU declares no clocks";
+            fmi3GetClock(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Clock);
+            fmi3SetClock(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Clock);
+            fmi3GetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64, _q: *mut fmi3IntervalQualifier);
+            fmi3GetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64, _q: *mut fmi3IntervalQualifier);
+            fmi3GetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64);
+            fmi3GetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64);
+            fmi3SetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
+            fmi3SetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
+            fmi3SetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
+            fmi3SetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
+            fmi3ActivateModelPartition(_clock: fmi3ValueReference, _t: fmi3Float64);
+        }
+        $crate::fmi3_unsupported! {
+            "the FMU declares no structural parameters (its dimensions are packaging variants)";
+            fmi3EnterConfigurationMode();
+            fmi3ExitConfigurationMode();
+        }
+        $crate::fmi3_unsupported! {
+            "the Co-Simulation interface has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
+            fmi3EnterStepMode();
+            fmi3EvaluateDiscreteStates();
+        }
+        $crate::fmi3_unsupported! {
+            "maxOutputDerivativeOrder=\"0\"";
+            fmi3GetOutputDerivatives(_v: *const fmi3ValueReference, _n: usize, _o: *const fmi3Int32, _x: *mut fmi3Float64, _m: usize);
+        }
+        $crate::fmi3_unsupported! {
+            "providesPerElementDependencies=\"false\": the dependencies are those of the model description's ModelStructure";
+            fmi3GetNumberOfVariableDependencies(_v: fmi3ValueReference, _n: *mut usize);
+            fmi3GetVariableDependencies(_v: fmi3ValueReference, _e: *mut usize, _i: *mut fmi3ValueReference, _ei: *mut usize, _k: *mut fmi3DependencyKind, _n: usize);
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), `fmi3*` functions of capabilities the FMUs do not have:
+/// each rejects every call with `fmi3Error`, logging its name and the reason.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_unsupported {
+    ($reason:expr; $($name:ident($($arg:ident: $type:ty),* $(,)?);)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(c: fmi3Instance, $($arg: $type),*) -> fmi3Status {
+                unsafe { ffi::unsupported::<M>(c, stringify!($name), $reason) }
+            }
+        )+
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi3Instantiate*` functions whose arguments start with
+/// the common ones (name, token, resources, visible, loggingOn, environment, logMessage) and
+/// end with `$extra`; `$body` sees the common ones as `$args` (an [`ffi::Instantiation`]).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_instantiation {
+    ($($name:ident($($extra:ident: $type:ty),* $(,)?) => |$args:ident| $body:block;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                name: fmi3String,
+                token: fmi3String,
+                resources: fmi3String,
+                visible: fmi3Boolean,
+                logging_on: fmi3Boolean,
+                environment: fmi3InstanceEnvironment,
+                log_message: fmi3LogMessageCallback,
+                $($extra: $type),*
+            ) -> fmi3Instance {
+                let _ = visible;
+                let $args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                unsafe { $body }
+            }
+        )+
+    };
 }

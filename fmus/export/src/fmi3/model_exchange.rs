@@ -219,3 +219,85 @@ pub unsafe fn derivative<M: FmuModel>(
         })
     }
 }
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 Model Exchange functions and the directional
+/// and adjoint derivatives (which serve Co-Simulation too) over [`me`].
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_model_exchange_entries {
+    () => {
+        $crate::model_exchange_entries!(fmi3Instance, Fmi3, fmi3Boolean, functions;
+            fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
+            fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
+            fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
+            c: fmi3Instance,
+            need_update: *mut fmi3Boolean,
+            terminate: *mut fmi3Boolean,
+            nominals_changed: *mut fmi3Boolean,
+            values_changed: *mut fmi3Boolean,
+            next_defined: *mut fmi3Boolean,
+            next_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let flags = me::EventFlags {
+                need_update,
+                terminate,
+                nominals_changed,
+                values_changed,
+                next_defined,
+                next_time,
+            };
+            unsafe { me::update_discrete_states::<M>(c, flags) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::EventIndicators, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::ContinuousStates, n) }
+        }
+        $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
+        $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), `fmi3GetDirectionalDerivative` or
+/// `fmi3GetAdjointDerivative`.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_derivative {
+    ($name:ident, $kind:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi3Instance,
+            unknowns: *const fmi3ValueReference,
+            n_unknowns: usize,
+            knowns: *const fmi3ValueReference,
+            n_knowns: usize,
+            seed: *const fmi3Float64,
+            n_seed: usize,
+            sensitivity: *mut fmi3Float64,
+            n_sensitivity: usize,
+        ) -> fmi3Status {
+            let call = me::DerivativeCall {
+                unknowns,
+                n_unknowns,
+                knowns,
+                n_knowns,
+                seed,
+                n_seed,
+                sensitivity,
+                n_sensitivity,
+            };
+            unsafe { me::derivative::<M>(c, call, $kind) }
+        }
+    };
+}

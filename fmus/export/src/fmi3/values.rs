@@ -369,13 +369,11 @@ pub unsafe fn set_string<M: FmuModel>(
     n_values: usize,
 ) -> fmi3Status {
     let f = &functions::SET_STRING;
+    let null = "valueReferences or values is NULL";
     unsafe {
         with_instance::<M>(c, f, |s| {
-            let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
-                return s.instance.reject(f, "valueReferences or values is NULL");
-            };
-            match string_values(s, f, raw) {
-                Ok(texts) => {
+            match string_values(s, f, (vr, nvr), (values, n_values), null) {
+                Ok((vrs, texts)) => {
                     let text = |k: usize| texts[k].clone();
                     write_values(s, f, vrs, VariableType::String, n_values, text, AsValues)
                 }
@@ -383,4 +381,21 @@ pub unsafe fn set_string<M: FmuModel>(
             }
         })
     }
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi3Get*`/`fmi3Set*` symbols of the
+/// types the FMUs declare, each pair with its C value type and the two functions of this
+/// module it calls (`nValues` after the values).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_value_entries {
+    () => {
+        use $crate::fmi3::values as v;
+        $crate::get_set_entries!(fmi3Instance, fmi3ValueReference, fmi3Status, (n_values);
+            fmi3GetFloat64, fmi3SetFloat64, fmi3Float64 => v::get::<M, v::Float64>, v::set::<M, v::Float64>;
+            fmi3GetInt32, fmi3SetInt32, fmi3Int32 => v::get::<M, v::Int32>, v::set::<M, v::Int32>;
+            fmi3GetBoolean, fmi3SetBoolean, fmi3Boolean => v::get::<M, v::Boolean>, v::set::<M, v::Boolean>;
+            fmi3GetString, fmi3SetString, fmi3String => v::get_string::<M>, v::set_string::<M>;
+        );
+    };
 }
