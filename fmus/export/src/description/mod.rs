@@ -3,6 +3,11 @@
 //! The XML is written by hand (no dependency) in the element order of the FMI 2.0 schema.
 //! The GUID is a hash of everything in the interface, so a binary and a modelDescription
 //! built from different tables (or a variant packaged for other dimensions) never match.
+//!
+//! The FMI 3.0 view of the same identity is in [`fmi3`] (its description) over [`arrays`]
+//! (the table's structured scalars as arrays); the Model Exchange interface a table declares
+//! is [`model_exchange`]. This layer stands on the variable table alone: the model trait, the
+//! instance and the fronts are above it.
 
 pub mod arrays;
 pub mod fmi3;

@@ -2,10 +2,9 @@
 //! symbols ([`fmi2_value_entries!`](crate::fmi2_value_entries)): the pointer checks, then the
 //! instance's checked get/set ([`crate::instance::get_set`]).
 
-use super::ffi::with_instance;
 use crate::abi::kinds::{Fmi2, Kind};
 use crate::abi::pointers::{slice, slice_mut};
-use crate::abi::slot::{string_values, Slot};
+use crate::abi::slot::{string_values, with_slot, Slot};
 use crate::instance::state::{fmi2 as functions, Function};
 use crate::model::FmuModel;
 use crate::types::*;
@@ -49,7 +48,7 @@ pub unsafe fn get<M: FmuModel, T: Kind<Fmi2>>(
 ) -> fmi2Status {
     let f = T::GET;
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, ()>(c, f, |s| {
             // SAFETY: `vr` and `out` are NULL or hold `n` elements (FMI contract).
             match (slice(vr, n), slice_mut(out, n)) {
                 (Some(vrs), Some(out)) => s.instance.get_array(f, T::TYPE, vrs, out, T::to_c),
@@ -74,7 +73,7 @@ pub unsafe fn get_string<M: FmuModel>(
 ) -> fmi2Status {
     let f = &functions::GET_STRING;
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, ()>(c, f, |s| {
             let vrs = match get_references(s, f, vr, n, value.is_null()) {
                 Ok(vrs) => vrs,
                 Err(status) => return status,
@@ -104,7 +103,7 @@ pub unsafe fn set<M: FmuModel, T: Kind<Fmi2>>(
 ) -> fmi2Status {
     let f = T::SET;
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, ()>(c, f, |s| {
             let (Some(vrs), Some(values)) = (slice(vr, n), slice(value, n)) else {
                 return s.instance.reject(f, "vr or value is NULL");
             };
@@ -126,7 +125,7 @@ pub unsafe fn set_string<M: FmuModel>(
 ) -> fmi2Status {
     let f = &functions::SET_STRING;
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, ()>(c, f, |s| {
             match string_values(s, f, (vr, n), (value, n), "vr or value is NULL") {
                 Ok((vrs, values)) => s.instance.set_values(f, vrs.iter().copied().zip(values)),
                 Err(status) => status,

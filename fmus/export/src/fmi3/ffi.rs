@@ -14,7 +14,7 @@ use crate::abi::slot::{free_slot, with_slot};
 use crate::description::Config;
 use crate::guard::guarded;
 use crate::instance::state::{fmi3 as functions, Function};
-use crate::instance::{Instance, LogSink, Logger};
+use crate::instance::{LogSink, Logger};
 use crate::model::{FmuModel, Hooks};
 use crate::types::Status;
 use std::ffi::CString;
@@ -49,11 +49,6 @@ impl LogSink for CallbackSink {
 /// What an `fmi3Instance` points to: the shared slot, marked as FMI 3.0's (the FMI 3.0
 /// variables over the instance's scalars are in its shared interface).
 pub type Slot<M> = crate::abi::slot::Slot<M, Fmi3>;
-
-/// Boxes a slot as an `fmi3Instance`.
-pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
-    Slot::new(instance, Fmi3).into_handle()
-}
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
 pub(crate) unsafe fn with_instance<M: FmuModel>(

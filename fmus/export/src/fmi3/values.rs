@@ -3,11 +3,10 @@
 //! instance's interface: arrays are expanded to the instance's scalars here, without a
 //! buffer, and `nValues` must equal the number of elements they name.
 
-use super::ffi::{with_instance, Slot};
 use super::types::*;
 use crate::abi::kinds::{Fmi3, Kind};
 use crate::abi::pointers::{slice, slice_mut};
-use crate::abi::slot::string_values;
+use crate::abi::slot::{string_values, with_slot, Slot};
 use crate::description::arrays::{Target, TIME};
 use crate::description::fmi3::type_name;
 use crate::instance::state::fmi3 as functions;
@@ -30,7 +29,7 @@ pub(super) fn unknown_reference(interface: &Interface, vr: u32) -> String {
 /// `expected`, and `n_values` the number of values they name (arrays row-major); `Err` with
 /// the message. Allocates nothing unless it fails.
 fn check_references<M: FmuModel>(
-    slot: &Slot<M>,
+    slot: &Slot<M, Fmi3>,
     vrs: &[u32],
     expected: VariableType,
     n_values: usize,
@@ -77,7 +76,7 @@ pub use crate::abi::kinds::{Boolean, Integer as Int32, Real as Float64};
 /// FMI pointer contract.
 #[allow(clippy::too_many_arguments)]
 unsafe fn read<M: FmuModel>(
-    s: &mut Slot<M>,
+    s: &mut Slot<M, Fmi3>,
     f: &Function,
     vr: *const fmi3ValueReference,
     nvr: usize,
@@ -138,7 +137,7 @@ unsafe fn read<M: FmuModel>(
 /// names an array goes on from it, not from the start.
 #[inline(always)]
 fn read_fast<M: FmuModel, C>(
-    s: &Slot<M>,
+    s: &Slot<M, Fmi3>,
     expected: VariableType,
     vrs: &[u32],
     out: &mut [C],
@@ -215,7 +214,7 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
 ) -> fmi3Status {
     let (f, null) = (K::GET, out.is_null());
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, Fmi3>(c, f, |s| {
             // SAFETY: `vr` and `out` are NULL or hold `nvr` and `n_values` elements (FMI
             // contract).
             if let (Some(vrs), Some(to)) = (slice(vr, nvr), slice_mut(out, n_values)) {
@@ -237,7 +236,7 @@ pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
 /// Checks a set call's references, then hands the `(scalar index, value)` pairs they name
 /// (arrays row-major; the `k`-th value is `value_at(k)`) to the instance. No buffer.
 fn write_values<M: FmuModel, T>(
-    slot: &mut Slot<M>,
+    slot: &mut Slot<M, Fmi3>,
     f: &Function,
     vrs: &[u32],
     expected: VariableType,
@@ -306,7 +305,7 @@ pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
 ) -> fmi3Status {
     let f = K::SET;
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, Fmi3>(c, f, |s| {
             let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
                 return s.instance.reject(f, "valueReferences or values is NULL");
             };
@@ -332,7 +331,7 @@ pub unsafe fn get_string<M: FmuModel>(
 ) -> fmi3Status {
     let (f, null) = (&functions::GET_STRING, out.is_null());
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, Fmi3>(c, f, |s| {
             let mut values = Vec::with_capacity(n_values);
             let status = read(
                 s,
@@ -371,7 +370,7 @@ pub unsafe fn set_string<M: FmuModel>(
     let f = &functions::SET_STRING;
     let null = "valueReferences or values is NULL";
     unsafe {
-        with_instance::<M>(c, f, |s| {
+        with_slot::<M, Fmi3>(c, f, |s| {
             match string_values(s, f, (vr, nvr), (values, n_values), null) {
                 Ok((vrs, texts)) => {
                     let text = |k: usize| texts[k].clone();
