@@ -1,4 +1,5 @@
-//! The variable table of an FMU and the values an instance holds for it.
+//! The variable table of an FMU: its variables, their types and attributes, and the macro that
+//! declares a table with its value-reference constants.
 //!
 //! A model declares its interface as a list of [`Variable`]s; the value reference of a
 //! variable is its position in the list, so dispatch is an index, not a search. The same table
