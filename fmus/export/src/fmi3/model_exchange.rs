@@ -1,14 +1,17 @@
 //! The FMI 3.0 Model Exchange C entry points that FMI 2.0 has not (the others are those of
-//! [`crate::me::ffi`]): the counts, `fmi3UpdateDiscreteStates`' flags, and the directional
+//! [`crate::abi::model_exchange`]): the counts, `fmi3UpdateDiscreteStates`' flags, and the directional
 //! and adjoint derivatives (which serve Co-Simulation too) with FMI 3.0 value references
 //! (arrays) expanded to the table's scalars.
 
-use super::arrays::Target;
-use super::ffi::{unknown_reference, with_instance, Slot};
-use super::functions;
+use super::ffi::{with_instance, Slot};
 use super::types::*;
-use crate::ffi::{slice, slice_mut};
-use crate::front::Fmi3;
+use super::values::unknown_reference;
+use crate::abi::kinds::Fmi3;
+use crate::abi::model_exchange::update_discrete_states as update;
+use crate::abi::pointers::{slice, slice_mut};
+use crate::abi::slot::write_out;
+use crate::description::arrays::Target;
+use crate::instance::state::fmi3 as functions;
 use crate::model::FmuModel;
 use crate::types::Status;
 use crate::variables::VariableType;
@@ -41,7 +44,7 @@ pub struct EventFlags {
 pub unsafe fn update_discrete_states<M: FmuModel>(c: fmi3Instance, out: EventFlags) -> fmi3Status {
     let f = &functions::UPDATE_DISCRETE_STATES;
     unsafe {
-        crate::me::ffi::update_discrete_states::<M, Fmi3>(c, f, None, |update| {
+        update::<M, Fmi3>(c, f, None, |update| {
             put(out.need_update, update.discrete_states_need_update.into());
             put(out.terminate, update.terminate_simulation.into());
             put(out.nominals_changed, update.nominals_changed.into());
@@ -71,7 +74,7 @@ pub unsafe fn number_of<M: FmuModel>(c: fmi3Instance, what: Count, n: *mut usize
         Count::ContinuousStates => &functions::GET_NUMBER_OF_CONTINUOUS_STATES,
     };
     unsafe {
-        crate::front::write_out::<M, Fmi3, usize>(c, f, (n, "the size argument"), |s| match what {
+        write_out::<M, Fmi3, usize>(c, f, (n, "the size argument"), |s| match what {
             Count::EventIndicators => s.instance.event_indicator_count(),
             Count::ContinuousStates => s.instance.state_count(),
         })
@@ -215,4 +218,86 @@ pub unsafe fn derivative<M: FmuModel>(
             status
         })
     }
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the FMI 3.0 Model Exchange functions and the directional
+/// and adjoint derivatives (which serve Co-Simulation too) over [`me`].
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_model_exchange_entries {
+    () => {
+        $crate::model_exchange_entries!(fmi3Instance, Fmi3, fmi3Boolean, functions;
+            fmi3SetTime, fmi3SetContinuousStates, fmi3EnterEventMode, fmi3EnterContinuousTimeMode,
+            fmi3CompletedIntegratorStep, fmi3GetContinuousStates, fmi3GetContinuousStateDerivatives,
+            fmi3GetEventIndicators, fmi3GetNominalsOfContinuousStates);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
+            c: fmi3Instance,
+            need_update: *mut fmi3Boolean,
+            terminate: *mut fmi3Boolean,
+            nominals_changed: *mut fmi3Boolean,
+            values_changed: *mut fmi3Boolean,
+            next_defined: *mut fmi3Boolean,
+            next_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let flags = me::EventFlags {
+                need_update,
+                terminate,
+                nominals_changed,
+                values_changed,
+                next_defined,
+                next_time,
+            };
+            unsafe { me::update_discrete_states::<M>(c, flags) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::EventIndicators, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
+            c: fmi3Instance,
+            n: *mut usize,
+        ) -> fmi3Status {
+            unsafe { me::number_of::<M>(c, me::Count::ContinuousStates, n) }
+        }
+        $crate::fmi3_derivative!(fmi3GetDirectionalDerivative, me::Derivative::Directional);
+        $crate::fmi3_derivative!(fmi3GetAdjointDerivative, me::Derivative::Adjoint);
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), `fmi3GetDirectionalDerivative` or
+/// `fmi3GetAdjointDerivative`.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_derivative {
+    ($name:ident, $kind:expr) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi3Instance,
+            unknowns: *const fmi3ValueReference,
+            n_unknowns: usize,
+            knowns: *const fmi3ValueReference,
+            n_knowns: usize,
+            seed: *const fmi3Float64,
+            n_seed: usize,
+            sensitivity: *mut fmi3Float64,
+            n_sensitivity: usize,
+        ) -> fmi3Status {
+            let call = me::DerivativeCall {
+                unknowns,
+                n_unknowns,
+                knowns,
+                n_knowns,
+                seed,
+                n_seed,
+                sensitivity,
+                n_sensitivity,
+            };
+            unsafe { me::derivative::<M>(c, call, $kind) }
+        }
+    };
 }

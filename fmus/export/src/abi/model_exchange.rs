@@ -1,44 +1,17 @@
-//! The Model Exchange C entry points of both versions: pointer and count checks, then the
-//! version-neutral calls of [`crate::me::instance`], each inside the same `catch_unwind` and
-//! state-mask check as every other entry point ([`crate::front::with_slot`]). Each function is
-//! generic over the model `M` and the front's slot data `X` and takes the calling
-//! [`Function`] (`fmi2SetTime` or `fmi3SetTime`, …), so the `fmi2*` and `fmi3*` symbols that
-//! [`export_fmu!`](crate::export_fmu) emits are one call each. Also
-//! `fmi2GetDirectionalDerivative` (FMI 3.0's, over arrays, is in [`crate::fmi3::me`]).
+//! The Model Exchange C entry points both versions have alike: pointer and count checks,
+//! then the version-neutral calls of [`crate::instance::model_exchange`], each inside the
+//! same guarded call as every other entry point ([`with_slot`]). Each function is generic
+//! over the model `M` and the front's slot data `X` and takes the calling [`Function`]
+//! (`fmi2SetTime` or `fmi3SetTime`, …), so the `fmi2*` and `fmi3*` symbols
+//! ([`crate::model_exchange_entries!`]) are one call each.
 
-use crate::ffi::{slice, slice_mut, with_instance};
-use crate::front::{with_slot, Slot};
-use crate::instance::{functions, Function, Instance};
+use super::pointers::{slice, slice_mut};
+use super::slot::with_slot;
+use crate::instance::{Function, Instance};
 use crate::model::{EventUpdate, FmuModel};
-use crate::types::*;
+use crate::types::Status;
 use std::ffi::c_void;
 use std::os::raw::c_int;
-
-/// `fmi2EventInfo` of `fmi2FunctionTypes.h`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default)]
-#[allow(non_snake_case)]
-pub struct fmi2EventInfo {
-    pub newDiscreteStatesNeeded: fmi2Boolean,
-    pub terminateSimulation: fmi2Boolean,
-    pub nominalsOfContinuousStatesChanged: fmi2Boolean,
-    pub valuesOfContinuousStatesChanged: fmi2Boolean,
-    pub nextEventTimeDefined: fmi2Boolean,
-    pub nextEventTime: fmi2Real,
-}
-
-impl From<EventUpdate> for fmi2EventInfo {
-    fn from(update: EventUpdate) -> Self {
-        Self {
-            newDiscreteStatesNeeded: update.discrete_states_need_update.into(),
-            terminateSimulation: update.terminate_simulation.into(),
-            nominalsOfContinuousStatesChanged: update.nominals_changed.into(),
-            valuesOfContinuousStatesChanged: update.states_changed.into(),
-            nextEventTimeDefined: update.next_event_time.is_some().into(),
-            nextEventTime: update.next_event_time.unwrap_or(0.0),
-        }
-    }
-}
 
 /// Refuses an array count other than the model's (`nx` states, `ni` event indicators) before
 /// the caller's pointer becomes a slice: a wrong count must never size one (it may exceed the
@@ -198,51 +171,68 @@ pub unsafe fn completed_integrator_step<M: FmuModel, X, B: From<bool>>(
     }
 }
 
-/// `fmi2NewDiscreteStates`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn new_discrete_states<M: FmuModel>(
-    c: fmi2Component,
-    event_info: *mut fmi2EventInfo,
-) -> fmi2Status {
-    let f = &functions::NEW_DISCRETE_STATES;
-    let missing = event_info.is_null().then_some("eventInfo");
-    // SAFETY: written only when non-NULL; the master passes one fmi2EventInfo.
-    unsafe { update_discrete_states::<M, ()>(c, f, missing, |update| *event_info = update.into()) }
-}
-
-/// The value references and seed of `fmi2GetDirectionalDerivative`: (pointer, count) pairs.
-pub type References = (*const fmi2ValueReference, usize);
-
-/// `fmi2GetDirectionalDerivative` (Model Exchange and Co-Simulation): `out` (one per
-/// unknown) = J · `seed` (one per known).
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_directional_derivative<M: FmuModel>(
-    c: fmi2Component,
-    (unknowns, n_unknowns): References,
-    (knowns, n_knowns): References,
-    seed: *const fmi2Real,
-    out: *mut fmi2Real,
-) -> fmi2Status {
-    let f = &functions::GET_DIRECTIONAL_DERIVATIVE;
-    unsafe {
-        with_instance::<M>(c, f, |s: &mut Slot<M, ()>| {
-            let (Some(u), Some(k), Some(seed), Some(out)) = (
-                slice(unknowns, n_unknowns),
-                slice(knowns, n_knowns),
-                slice(seed, n_knowns),
-                slice_mut(out, n_unknowns),
-            ) else {
-                return s
-                    .instance
-                    .reject(f, "vUnknown_ref, vKnown_ref, dvKnown or dvUnknown is NULL");
-            };
-            let u: Vec<usize> = u.iter().map(|&r| r as usize).collect();
-            let k: Vec<usize> = k.iter().map(|&r| r as usize).collect();
-            s.instance.directional_derivative(f, &u, &k, seed, out)
-        })
-    }
+/// Emits, inside a front's export macro, the Model Exchange functions both versions have
+/// alike (`fmi2SetTime`/`fmi3SetTime`, …, and those that fill the caller's Real array:
+/// `fmi2GetDerivatives`, `fmi3GetContinuousStateDerivatives`, …) for the front's handle type,
+/// slot data, Boolean type and `functions` module; the names in the standard's order.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! model_exchange_entries {
+    (
+        $handle:ty, $extra:ty, $boolean:ty, $functions:ident;
+        $set_time:ident, $set_states:ident, $event_mode:ident, $continuous_mode:ident,
+        $completed:ident, $states:ident, $derivatives:ident, $indicators:ident, $nominals:ident
+    ) => {
+        #[no_mangle]
+        pub unsafe extern "C" fn $set_time(c: $handle, time: f64) -> ::std::os::raw::c_int {
+            let f = &$functions::SET_TIME;
+            unsafe { $crate::abi::model_exchange::set_time::<M, $extra>(c, f, time) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $set_states(
+            c: $handle,
+            x: *const f64,
+            n: usize,
+        ) -> ::std::os::raw::c_int {
+            let f = &$functions::SET_CONTINUOUS_STATES;
+            unsafe { $crate::abi::model_exchange::set_continuous_states::<M, $extra>(c, f, x, n) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $event_mode(c: $handle) -> ::std::os::raw::c_int {
+            let f = &$functions::ENTER_EVENT_MODE;
+            unsafe { $crate::abi::model_exchange::enter_mode::<M, $extra>(c, f, true) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $continuous_mode(c: $handle) -> ::std::os::raw::c_int {
+            let f = &$functions::ENTER_CONTINUOUS_TIME_MODE;
+            unsafe { $crate::abi::model_exchange::enter_mode::<M, $extra>(c, f, false) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn $completed(
+            c: $handle,
+            no_set_prior: $boolean,
+            enter_event_mode: *mut $boolean,
+            terminate_simulation: *mut $boolean,
+        ) -> ::std::os::raw::c_int {
+            let _ = no_set_prior;
+            let f = &$functions::COMPLETED_INTEGRATOR_STEP;
+            let (event, stop) = (enter_event_mode, terminate_simulation);
+            unsafe { $crate::abi::model_exchange::completed_integrator_step::<M, $extra, _>(c, f, event, stop) }
+        }
+        $crate::model_exchange_entries!(@array $handle, $extra, $functions;
+            $states = GET_CONTINUOUS_STATES, ContinuousStates;
+            $derivatives = GET_DERIVATIVES, Derivatives;
+            $indicators = GET_EVENT_INDICATORS, EventIndicators;
+            $nominals = GET_NOMINALS_OF_CONTINUOUS_STATES, Nominals;
+        );
+    };
+    (@array $handle:ty, $extra:ty, $functions:ident; $($name:ident = $function:ident, $array:ident;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(c: $handle, out: *mut f64, n: usize) -> ::std::os::raw::c_int {
+                let (f, which) = (&$functions::$function, $crate::abi::model_exchange::Array::$array);
+                unsafe { $crate::abi::model_exchange::get_array::<M, $extra>(c, f, which, out, n) }
+            }
+        )+
+    };
 }

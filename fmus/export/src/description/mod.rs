@@ -3,8 +3,20 @@
 //! The XML is written by hand (no dependency) in the element order of the FMI 2.0 schema.
 //! The GUID is a hash of everything in the interface, so a binary and a modelDescription
 //! built from different tables (or a variant packaged for other dimensions) never match.
+//!
+//! The FMI 3.0 view of the same identity is in [`fmi3`] (its description) over [`arrays`]
+//! (the table's structured scalars as arrays); the Model Exchange interface a table declares
+//! is [`model_exchange`]. This layer stands on the variable table alone: the model trait, the
+//! instance and the fronts are above it.
+
+pub mod arrays;
+pub mod fmi3;
+pub mod model_exchange;
+#[cfg(test)]
+mod model_exchange_tests;
 
 use crate::variables::{Causality, Value, Variable};
+use model_exchange::{DeclarationError, ModelExchangeInfo};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -125,7 +137,7 @@ pub struct ModelInfo {
     pub config: Config,
     /// The Model Exchange interface, if the model offers it
     /// ([`ModelInfo::with_model_exchange`]).
-    pub model_exchange: Option<crate::me::ModelExchangeInfo>,
+    pub model_exchange: Option<ModelExchangeInfo>,
     /// `guid`, derived from all of the above.
     pub guid: String,
 }
@@ -173,8 +185,8 @@ impl ModelInfo {
     /// indicators come from the table ([`crate::Variable::state`],
     /// [`crate::Variable::derivative_of`], [`crate::Variable::event_indicator`]), checked here
     /// (every state has exactly one derivative, …). The GUID covers it.
-    pub fn with_model_exchange(mut self) -> Result<Self, crate::me::DeclarationError> {
-        self.model_exchange = Some(crate::me::ModelExchangeInfo::from_table(&self.variables)?);
+    pub fn with_model_exchange(mut self) -> Result<Self, DeclarationError> {
+        self.model_exchange = Some(ModelExchangeInfo::from_table(&self.variables)?);
         self.guid = guid_of(&self.to_xml_with_guid(""));
         Ok(self)
     }

@@ -1,5 +1,6 @@
 //! The FMI 3.0 `modelDescription.xml`, generated from the same [`ModelInfo`] as the FMI 2.0
-//! one (element order of `fmi3ModelDescription.xsd`): Co-Simulation only, no event mode,
+//! one (element order of `fmi3ModelDescription.xsd`): Co-Simulation (no event mode) and, where
+//! the model declares it, Model Exchange;
 //! `time` as the independent variable, arrays from [`Layout`], `Float64`/`Int32`/`Boolean`/
 //! `String` elements with units, descriptions, bounds and start values (arrays: start lists),
 //! `ModelStructure` with `Output` dependencies and `InitialUnknown`s.

@@ -1,34 +1,21 @@
-//! The Model Exchange calls of an [`Instance`], version-neutral: each takes the calling
+//! Model Exchange on an instance, version-neutral: each call takes the calling
 //! [`Function`] (an `fmi2*` or `fmi3*` one) so its messages name it, and is reached through
 //! the same allowed-state masks, argument checks and non-finite guard as the Co-Simulation
 //! calls. The continuous states live in the state variables' values, so FMU states (get, set,
-//! serialize) carry them with everything else.
+//! serialize) carry them with everything else; the event indicators are computed when they
+//! are read ([`Indicators`]).
 
-use crate::instance::{Function, Instance, ModelState};
-use crate::me::{Hooks, Indicators, ModelExchangeInfo};
-use crate::model::{EventUpdate, FmuModel};
+use super::common::{Indicators, Instance};
+use super::state::{Function, ModelState};
+use crate::description::model_exchange::ModelExchangeInfo;
+use crate::model::{EventUpdate, FmuModel, Hooks};
 use crate::types::Status;
-use crate::variables::{first_non_finite, Causality, VariableType};
+use crate::values::first_non_finite;
+use crate::variables::{Causality, VariableType};
 
 /// Which indices of the Model Exchange interface a read takes (the states', the
 /// derivatives', the event indicators').
 type Pick = fn(&ModelExchangeInfo) -> &[usize];
-
-impl ModelState {
-    /// Whether a Model Exchange model computes in this state (Initialization, Event,
-    /// Continuous-Time Mode, Terminated): an evaluation after states, inputs or time changed,
-    /// the event indicators when read.
-    #[inline(always)]
-    pub(crate) fn computes(self) -> bool {
-        matches!(
-            self,
-            ModelState::InitializationMode
-                | ModelState::EventMode
-                | ModelState::ContinuousTimeMode
-                | ModelState::Terminated
-        )
-    }
-}
 
 impl<M: FmuModel> Instance<M> {
     /// Makes this instance a Model Exchange one driven by `hooks` (at instantiation).
