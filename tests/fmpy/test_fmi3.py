@@ -111,7 +111,9 @@ def drive(stem, version):
     def set_inputs(t):
         for v in inputs:
             values = [float(np.interp(t, table["time"], table[n])) for n in element_names(v)]
-            if version == 2:
+            if v.type == "Boolean":
+                s.setBoolean([v.valueReference], [x != 0 for x in values])
+            elif version == 2:
                 s.setReal([v.valueReference], values)
             else:
                 s.setFloat64([v.valueReference], values)

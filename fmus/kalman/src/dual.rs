@@ -42,7 +42,7 @@ use spurio::estimation::{
     RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
-use spurio_fmu_common::estimator::{add_tuning, error, EstimatorFmu};
+use spurio_fmu_common::estimator::{add_tuning, add_validity, error, EstimatorFmu};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Value references of the cleaner's parameters (DkfRsKf).
@@ -62,6 +62,8 @@ pub struct DualLayout {
     pub dims: Dimensions,
     pub u: Block,
     pub y: Block,
+    /// The Boolean inputs `y_valid[j]` (last in the table).
+    pub y_valid: Block,
     pub x_hat: Block,
     pub y_hat: Block,
     pub a_hat: Block,
@@ -80,6 +82,9 @@ pub struct DualLayout {
 impl Inputs for DualLayout {
     fn inputs(&self) -> (&Block, &Block) {
         (&self.u, &self.y)
+    }
+    fn validity(&self) -> &Block {
+        &self.y_valid
     }
 }
 
@@ -241,12 +246,14 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             "Dual Kalman filter (DKF, Haykin ch. 5): states and the model matrices [A B; C D], papers 000/001",
         )
     };
+    let y_valid = add_validity(&mut t, "y", p);
     let info = model_info(config, (id, description), t, 10.0, 0.05);
     Ok((
         DualLayout {
             dims,
             u,
             y,
+            y_valid,
             x_hat,
             y_hat,
             a_hat,
