@@ -91,7 +91,7 @@ mod tests {
     use super::super::{
         DistributedObserver, DistributedObserverConfig, DkfRsKf, DualKalmanConfig,
         DualKalmanFilter, GaussianModel, InfluenceFunction, KalmanFilter, RecursiveLeastSquares,
-        RobustKalmanFilter,
+        RobustKalmanFilter, StateEstimator,
     };
     use crate::state_space::StateSpace;
     use nalgebra::{dmatrix, dvector, DMatrix, DVector};
@@ -202,6 +202,34 @@ mod tests {
         model(states, c, r)
     }
 
+    /// Steps `full` with channel `missing` of each sample NaN and `selected` (the filter of
+    /// the other channel alone, [`reduced`]) with that channel, over 40 samples (with an
+    /// outlier of 3 on the present channel every 7th when `outliers`); `check(full,
+    /// selected)` after each step. Gives `full` at the end.
+    fn with_one_channel_missing<F: StateEstimator>(
+        (mut full, mut selected): (F, F),
+        missing: usize,
+        outliers: bool,
+        mut check: impl FnMut(&F, &F),
+    ) -> F {
+        let keep = 1 - missing;
+        for k in 0..40 {
+            let (u, mut y) = sample(k);
+            if outliers && k % 7 == 3 {
+                y[keep] += 3.0;
+            }
+            let mut y_full = y.clone();
+            y_full[missing] = NAN;
+            full.step(&u, &y_full).unwrap();
+            selected.step(&u, &dvector![y[keep]]).unwrap();
+            assert_eq!(full.state(), selected.state(), "step {k}");
+            assert_eq!(full.innovation()[missing], 0.0);
+            assert_eq!(full.innovation()[keep], selected.innovation()[0]);
+            check(&full, &selected);
+        }
+        full
+    }
+
     /// With one of two channels missing, the update is the one of the filter whose C and R
     /// hold the present channel only, bit for bit (the kernels of the packaged size 2×2 and
     /// the general ones), and the missing channel's gain is 0.
@@ -210,23 +238,17 @@ mod tests {
         for states in [2, 3] {
             for missing in [0, 1] {
                 let keep = 1 - missing;
-                let mut full = KalmanFilter::new(two_sensors(states)).unwrap();
-                let mut selected = KalmanFilter::new(reduced(states, keep)).unwrap();
-                for k in 0..40 {
-                    let (u, y) = sample(k);
-                    let mut y_full = y.clone();
-                    y_full[missing] = NAN;
-                    full.step(&u, &y_full).unwrap();
-                    selected.step(&u, &dvector![y[keep]]).unwrap();
-                    assert_eq!(full.state(), selected.state(), "{states} states, step {k}");
+                let filters = (
+                    KalmanFilter::new(two_sensors(states)).unwrap(),
+                    KalmanFilter::new(reduced(states, keep)).unwrap(),
+                );
+                with_one_channel_missing(filters, missing, false, |full, selected| {
                     assert_eq!(full.covariance(), selected.covariance());
-                    assert_eq!(full.innovation()[missing], 0.0);
-                    assert_eq!(full.innovation()[keep], selected.innovation()[0]);
                     let gain = full.gain();
                     assert!(gain.column(missing).iter().all(|&k| k == 0.0));
                     assert_eq!(gain.column(keep), selected.gain().column(0));
                     assert_symmetric_positive_definite(full.covariance());
-                }
+                });
             }
         }
     }
@@ -286,25 +308,19 @@ mod tests {
             for missing in [0, 1] {
                 let keep = 1 - missing;
                 let psi = InfluenceFunction::huber();
-                let mut full = RobustKalmanFilter::new(two_sensors(states), psi).unwrap();
-                let mut selected = RobustKalmanFilter::new(reduced(states, keep), psi).unwrap();
+                let filters = (
+                    RobustKalmanFilter::new(two_sensors(states), psi).unwrap(),
+                    RobustKalmanFilter::new(reduced(states, keep), psi).unwrap(),
+                );
                 let mut down_weighted = 0;
-                for k in 0..40 {
-                    let (u, mut y) = sample(k);
-                    if k % 7 == 3 {
-                        y[keep] += 3.0;
-                    }
-                    let mut y_full = y.clone();
-                    y_full[missing] = NAN;
-                    full.step(&u, &y_full).unwrap();
-                    selected.step(&u, &dvector![y[keep]]).unwrap();
-                    assert_eq!(full.state(), selected.state(), "{states} states, step {k}");
-                    assert_eq!(full.covariance(), selected.covariance());
-                    assert_eq!(full.weights()[missing], 0.0);
-                    assert_eq!(full.weights()[keep], selected.weights()[0]);
-                    down_weighted += usize::from(full.weights()[keep] < 1.0);
-                    assert_symmetric_positive_definite(full.covariance());
-                }
+                let check = |f: &RobustKalmanFilter, selected: &RobustKalmanFilter| {
+                    assert_eq!(f.covariance(), selected.covariance());
+                    assert_eq!(f.weights()[missing], 0.0);
+                    assert_eq!(f.weights()[keep], selected.weights()[0]);
+                    down_weighted += usize::from(f.weights()[keep] < 1.0);
+                    assert_symmetric_positive_definite(f.covariance());
+                };
+                let mut full = with_one_channel_missing(filters, missing, true, check);
                 assert!(
                     down_weighted >= 5,
                     "outliers down-weighted: {down_weighted}"

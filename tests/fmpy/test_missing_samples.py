@@ -15,7 +15,6 @@ measurement inputs hold garbage:
   bit: set SPURIO_FMUS_BEFORE to such a build/fmus (with fmi3/) to compare (skipped without).
 """
 
-import itertools
 import os
 import pathlib
 import sys
@@ -26,7 +25,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-from conftest import FMU_DIR, REPO
+from conftest import FMU_DIR, REPO, element_names
 
 sys.path.insert(0, str(REPO / "scripts"))
 import crosscheck  # noqa: E402
@@ -50,17 +49,10 @@ BEFORE = os.environ.get("SPURIO_FMUS_BEFORE")
 
 
 def path_of(stem, version, folder=FMU_DIR):
+    """The FMU `stem` of FMI `version` in `folder` (FMI 3.0: its fmi3/)."""
     path = pathlib.Path(folder) / ("" if version == 2 else "fmi3") / f"{stem}.fmu"
     assert path.is_file(), f"{path} is missing: build the FMUs with scripts/build-fmus"
     return str(path)
-
-
-def element_names(variable):
-    """The FMI 2.0 scalar names of a variable's elements (an FMI 3.0 array's, row-major)."""
-    if not variable.shape:
-        return [variable.name]
-    return [f"{variable.name}[{','.join(str(i + 1) for i in index)}]"
-            for index in itertools.product(*(range(d) for d in variable.shape))]
 
 
 class Instance:

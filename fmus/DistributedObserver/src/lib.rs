@@ -344,12 +344,8 @@ mod tests {
         let config = agent_config(1);
         let info = DistributedObserverFmu::describe(&config).unwrap();
         let vr = |n: &str| info.index_of(n).unwrap() as u32;
-        let x_hat = [vr("x_hat[1]"), vr("x_hat[2]"), vr("x_hat[3]")];
-        let neighbour = [
-            vr("x_neighbour[1]"),
-            vr("x_neighbour[2]"),
-            vr("x_neighbour[3]"),
-        ];
+        let x_hat = ["x_hat[1]", "x_hat[2]", "x_hat[3]"].map(vr);
+        let neighbour = ["x_neighbour[1]", "x_neighbour[2]", "x_neighbour[3]"].map(vr);
         let mut estimates = Vec::new();
         for missing in [false, true] {
             let mut h = Harness::<DistributedObserverFmu>::new(&config).unwrap();

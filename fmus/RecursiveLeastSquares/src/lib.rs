@@ -363,12 +363,7 @@ mod tests {
         let config = arx_config(2, 2);
         let info = RecursiveLeastSquaresFmu::describe(&config).unwrap();
         let vr = |n: &str| info.index_of(n).unwrap() as u32;
-        let theta = [
-            vr("theta[1]"),
-            vr("theta[2]"),
-            vr("theta[3]"),
-            vr("theta[4]"),
-        ];
+        let theta: Vec<u32> = (1..=4).map(|i| vr(&format!("theta[{i}]"))).collect();
         let mut runs = Vec::new();
         for gap in [false, true] {
             let mut h = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();

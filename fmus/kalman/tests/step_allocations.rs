@@ -48,34 +48,19 @@ static GLOBAL: Counting = Counting;
 /// initialisation.
 fn allocations<M: FmuModel>(config: &Config, set: &[(&str, f64)], flags: &[(&str, bool)]) -> u64 {
     let info = M::describe(config).expect("describe");
-    let inputs: Vec<u32> = info
-        .variables
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.causality == Causality::Input && v.variable_type() == VariableType::Real)
-        .map(|(k, _)| k as u32)
-        .collect();
+    let references = |causality: Causality, kind: VariableType| -> Vec<u32> {
+        let variables = info.variables.iter().enumerate();
+        variables
+            .filter(|(_, v)| v.causality == causality && v.variable_type() == kind)
+            .map(|(k, _)| k as u32)
+            .collect()
+    };
+    let inputs = references(Causality::Input, VariableType::Real);
     // The Boolean inputs `y_valid[j]`: a pattern of missing samples (one channel, every
     // channel, none) runs through the counted steps too.
-    let valid: Vec<u32> = info
-        .variables
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| {
-            v.causality == Causality::Input && v.variable_type() == VariableType::Boolean
-        })
-        .map(|(k, _)| k as u32)
-        .collect();
+    let valid = references(Causality::Input, VariableType::Boolean);
     assert!(!valid.is_empty(), "y_valid inputs");
-    let outputs: Vec<u32> = info
-        .variables
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| {
-            v.causality == Causality::Output && v.variable_type() == VariableType::Real
-        })
-        .map(|(k, _)| k as u32)
-        .collect();
+    let outputs = references(Causality::Output, VariableType::Real);
     let mut h = Harness::<M>::new(config).expect("instantiate");
     h.setup_experiment(0.0, None).expect("setup");
     h.enter_initialization_mode().expect("enter");
