@@ -10,6 +10,9 @@
 //! x̂_i⁺ = A x̂_i + V_i L_i (y_i − C_i x̂_i) + V̄_i N_ij V̄_iᵀ (x̂_j − x̂_i)
 //! ```
 //!
+//! A missing sample (`y_own_valid[j]` = false, docs/estimators.md, "Missing samples") has
+//! innovation 0: no injection from that channel, `y_own[j]` ignored.
+//!
 //! with T_i = [V̄_i V_i]ᵀ splitting the state into the part agent i cannot observe (V̄_i,
 //! n_ō columns) and the part it can (V_i, n_o columns), and the gains of two discrete
 //! Riccati (LQ) problems with U = ρ Q, S = λ V_iᵀC_iᵀR_iC_iV_i, T = λ(V̄_iᵀC_iᵀR_iC_iV̄_i + D_i)

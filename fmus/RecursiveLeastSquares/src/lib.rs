@@ -19,6 +19,10 @@
 //! (docs/experiments.md §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
 //! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
+//!
+//! Missing samples (docs/estimators.md, "Missing samples"): the Boolean input `y_valid` = false
+//! makes the step a prediction ([`RecursiveLeastSquares::step_missing`]): θ and P kept, `y_hat`
+//! the prediction, which also stands for y(t) in the following regressors; `y` is ignored.
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{

@@ -14,6 +14,11 @@
 //! (see [`spurio::estimation::DualKalmanFilter`] for the exact sequence). Every row of Θ
 //! shares Φ, so rows with equal settings share one (n+m)×(n+m) covariance.
 //!
+//! Missing samples (docs/estimators.md, "Missing samples"): `y_valid[j]` = false hands the
+//! filter y_j = NaN: the state filter corrects with the present channels, Θ̂ is held while
+//! its variances walk; the DkfRsKf's cleaner predicts that channel (w_j = 0) and the DKF gets
+//! it as missing.
+//!
 //! Configuration `n`, `m` (may be 0), `p`. Parameters: the initial model `A`, `B`, `C`, `D`,
 //! the state filter's `Q`, `R`, `P0`, `x0`, the parameter filter's scalars `q_theta`
 //! (random-walk variance of every entry of Θ), `p0_theta` (initial variance of every entry)

@@ -13,6 +13,10 @@
 //! ŷ_k = C x̂_k + D u_k                              (output `y_hat`)
 //! ```
 //!
+//! Missing samples (docs/estimators.md, "Missing samples"): `y_valid[j]` = false hands the
+//! filter y_j = NaN: the correction with the present channels only, e_j = 0 (rsKF: w_j = 0),
+//! `y[j]` ignored.
+//!
 //! Configuration: `n` (states, ≥ 1, default 1), `m` (inputs, may be 0, default 0), `p`
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
