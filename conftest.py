@@ -1,5 +1,6 @@
 """Shared helpers for the fmpy tests: where the FMUs are, logging callbacks, slaves."""
 
+import itertools
 import os
 import pathlib
 from ctypes import byref
@@ -21,6 +22,14 @@ REPO = pathlib.Path(__file__).resolve().parent
 FMU_DIR = pathlib.Path(os.environ.get("SPURIO_FMU_DIR", REPO / "build" / "fmus"))
 
 _extracted = {}
+
+
+def element_names(variable):
+    """The FMI 2.0 scalar names of a variable's elements (an FMI 3.0 array's, row-major)."""
+    if not variable.shape:
+        return [variable.name]
+    return [f"{variable.name}[{','.join(str(i + 1) for i in index)}]"
+            for index in itertools.product(*(range(d) for d in variable.shape))]
 
 
 def fmu_path(name: str) -> str:

@@ -5,7 +5,7 @@ Each bundled FMU `<Model>` (a variant too) has, in its FMU's folder `fmus/<Id>/c
 * `<Model>_ref.opt`  the experiment: `StartTime`, `StopTime`, `StepSize` (equal to the model
   description's `DefaultExperiment`) and `RelTol`;
 * `<Model>_in.csv`   the inputs: a `time` column, then one column per input, named as the
-  input. Piecewise constant, with a row at every communication point `t₀ + k h` (computed
+  input (the Real inputs, then the Boolean ones as 1/0, held at their start value). Piecewise constant, with a row at every communication point `t₀ + k h` (computed
   as fmpy and the driver compute them); a change is written as two rows with the same `t`
   (the value before, then after). So fmpy's `Input` (which takes the value after an event,
   and interpolates with weights exactly 0 and 1 at a row's time) and a sample-and-hold master
@@ -85,16 +85,26 @@ def experiment(md: ET.Element) -> tuple[float, float, float]:
 
 
 def inputs_of(md: ET.Element) -> list[tuple[str, float]]:
-    """(name, start) of each Real input."""
-    out = []
+    """(name, start) of each Real input, then of each Boolean input (start 1 for true, 0 for
+    false: the estimators' `y_valid[j]`, held at their start in the scenarios)."""
+    out, flags = [], []
     for sv in md.iter("ScalarVariable"):
         if sv.get("causality") != "input":
             continue
-        real = sv.find("Real")
-        if real is None:
-            raise ValueError(f"input {sv.get('name')} is not Real")
-        out.append((sv.get("name", ""), float(real.get("start", "0"))))
-    return out
+        real, boolean = sv.find("Real"), sv.find("Boolean")
+        if real is not None:
+            out.append((sv.get("name", ""), float(real.get("start", "0"))))
+        elif boolean is not None:
+            flags.append((sv.get("name", ""), 1.0 if boolean.get("start") == "true" else 0.0))
+        else:
+            raise ValueError(f"input {sv.get('name')} is neither Real nor Boolean")
+    return out + flags
+
+
+def is_flag(md: ET.Element, name: str) -> bool:
+    """Whether the input `name` is a Boolean."""
+    return any(sv.get("name") == name and sv.find("Boolean") is not None
+               for sv in md.iter("ScalarVariable"))
 
 
 def folder_of(model: str, ident: str) -> Path:
@@ -123,6 +133,9 @@ def write_inputs(fmu: Path) -> Path:
     rules = EXCITATION.get(model, [])
     columns: dict[str, list[float]] = {}
     for i, (name, start) in enumerate(ins):
+        if is_flag(md, name):
+            columns[name] = [start] * (n + 1)
+            continue
         rule = next((r for r in rules if re.fullmatch(r[0], name)), None)
         centre, amplitude = (start, 0.5 * max(1.0, abs(start))) if rule is None else (
             start if rule[1] is None else rule[1], rule[2])

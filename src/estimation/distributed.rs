@@ -471,7 +471,10 @@ impl DistributedObserver {
     }
 
     /// One step: x̂_i ← A x̂_i + V L (y_i − C_i x̂_i) + V̄ N V̄ᵀ (x̂_j − x̂_i), with the
-    /// neighbour's estimate x̂_j of the same instant.
+    /// neighbour's estimate x̂_j of the same instant. A NaN y_i,j is a missing sample: its
+    /// innovation is 0, so the step is the prediction A x̂_i plus the injection of the present
+    /// channels and the consensus term (the gains are fixed: there is no covariance to grow).
+    /// A y_i,j = ±∞ or a non-finite x̂_j is an error.
     pub fn step(
         &mut self,
         y_own: &DVector<f64>,
@@ -482,6 +485,12 @@ impl DistributedObserver {
         self.steps += 1;
         self.innovation.copy_from(y_own);
         self.innovation.gemv(-1.0, &self.c, &self.x, 1.0);
+        // A missing sample (NaN) of channel j: no output injection from it, e_j = 0.
+        for (e, y) in self.innovation.iter_mut().zip(y_own.iter()) {
+            if y.is_nan() {
+                *e = 0.0;
+            }
+        }
         self.difference.copy_from(x_neighbour);
         self.difference -= &self.x;
         self.next.gemv(1.0, &self.a, &self.x, 0.0);

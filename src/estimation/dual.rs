@@ -76,10 +76,20 @@
 //! [`DualKalmanConfig::fix_output_matrices`]) or measure the states (C = I) so the truth is
 //! unique; paper 000's crane measures x and θ.
 //!
+//! **Missing samples** (docs/estimators.md, "Missing samples"). A NaN y_j is a
+//! missing sample. The state filter corrects with the present channels only (as the
+//! [`KalmanFilter`](super::KalmanFilter): x̂ = x⁻, P = Â P Âᵀ + Q when every channel is
+//! missing), and the predicted output Ĉ x⁻ + D̂ u_k is reported for every channel. The
+//! parameter filter has no measurement when a channel of y_k (x̂_k is then, in part, the
+//! model's own prediction Θ̂Φ) or of y_{k−1} (a row of Y) is missing: Θ̂ stays and Σ grows
+//! by its random walk diag(q̃) only (bounded by σ²_max; the excitation gate still freezes
+//! it). The output-error filter likewise skips its update when a channel of y_k is missing.
+//!
 //! [`DkfRsKf`] is the papers' combination (001 Fig. 2): an rsKF cleans the measured outputs
 //! and the DKF identifies from the cleaned outputs and the inputs.
 
 use super::kalman::{FilterCore, GaussianModel};
+use super::missing::MissingMask;
 use super::robust::RobustKalmanFilter;
 use super::{
     parameter_error, require_finite_matrix, require_input_length, require_length, require_psd,
@@ -280,6 +290,8 @@ pub struct DualKalmanFilter {
     groups: Vec<ParameterGroup>,
     predicted_output: DVector<f64>,
     y_prev: DVector<f64>,
+    /// C_M, R_M of a sample with missing channels.
+    missing: MissingMask,
     regressor: DVector<f64>,
     target: DVector<f64>,
     work_s: DVector<f64>,
@@ -476,6 +488,7 @@ impl DualKalmanFilter {
             groups,
             predicted_output: DVector::zeros(p),
             y_prev: DVector::zeros(p),
+            missing: MissingMask::new(p, n),
             regressor: DVector::zeros(cols),
             target: DVector::zeros(rows),
             work_s: DVector::zeros(cols),
@@ -498,17 +511,33 @@ impl DualKalmanFilter {
         concatenate(&mut self.regressor, &self.core.x, &self.core.u_prev);
 
         // 1. State filter with Θ̂_{k−1}.
+        let missing = MissingMask::any(y);
         {
             let [a, b, c, d] = theta_blocks(&self.theta, n, m, p);
             self.core.predict(a, b, &self.q);
             self.core.compute_innovation(c, d, u, y)?;
-            let predicted = self.predicted_output.as_mut_slice().iter_mut();
-            let innovation = self.core.innovation.as_slice();
-            for ((predicted, y), e) in predicted.zip(y.as_slice()).zip(innovation) {
-                *predicted = y - e;
+            let predicted = self.predicted_output.as_mut_slice();
+            if missing {
+                // Ĉ x⁻ + D̂ u for every channel (y − e is not a number for a missing one).
+                dense::gemv_inline(predicted, 1.0, c, self.core.x_prior.as_slice(), 0.0);
+                dense::gemv_inline(predicted, 1.0, d, u.as_slice(), 1.0);
             }
-            self.core.correct(c, &self.r)?;
+            let innovation = self.core.innovation.as_slice();
+            for ((predicted, y), e) in predicted.iter_mut().zip(y.as_slice()).zip(innovation) {
+                if !y.is_nan() {
+                    *predicted = y - e;
+                }
+            }
+            if missing {
+                self.core
+                    .correct_present(&mut self.missing, c, &self.r, y)?;
+            } else {
+                self.core.correct(c, &self.r)?;
+            }
             self.core.finish(c, d, u);
+            if missing {
+                self.core.check_output()?;
+            }
         }
 
         if self.output_error.is_some() {
@@ -517,22 +546,50 @@ impl DualKalmanFilter {
             if self.core.steps > 1 && !excited {
                 self.frozen_steps += 1;
             }
-            self.update_output_error(excited)?;
+            if excited && missing {
+                self.random_walk();
+            }
+            self.update_output_error(excited && !missing)?;
             self.y_prev.copy_from(y);
             return Ok(());
         }
 
-        // 2. Parameter filter on (Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}]).
+        // 2. Parameter filter on (Φ = [x̂_{k−1}; u_{k−1}], Y = [x̂_k; y_{k−1}]): with a
+        // channel of y_k or y_{k−1} missing, the random walk of Θ only.
         if self.core.steps > 1 {
             concatenate(&mut self.target, &self.core.x, &self.y_prev);
-            if self.excited() {
-                self.update_parameters()?;
-            } else {
+            if !self.excited() {
                 self.frozen_steps += 1;
+            } else if missing || MissingMask::any(&self.y_prev) {
+                self.random_walk();
+            } else {
+                self.update_parameters()?;
             }
         }
         self.y_prev.copy_from(y);
         Ok(())
+    }
+
+    /// The parameter filter's step without a measurement (module documentation, "Missing
+    /// samples"): Θ̂ unchanged, Σ = Σ + diag(q̃) with the bounded random walk q̃ of every group
+    /// that is not fixed (and of the output-error filter).
+    fn random_walk(&mut self) {
+        let cap = self.bounds.max_variance;
+        let walk = |sigma: &mut DMatrix<f64>, q: &DVector<f64>| {
+            for (i, q) in q.iter().enumerate() {
+                let diagonal = &mut sigma[(i, i)];
+                let room = (cap - *diagonal).max(0.0);
+                *diagonal += q.min(room);
+            }
+        };
+        match self.output_error.as_mut() {
+            Some(oe) => walk(&mut oe.sigma, &oe.q_diag),
+            None => {
+                for group in self.groups.iter_mut().filter(|g| !g.fixed) {
+                    walk(&mut group.sigma, &group.q_diag);
+                }
+            }
+        }
     }
 
     /// Everything that evolves from step to step (see
@@ -1083,6 +1140,8 @@ pub struct DkfRsKf {
     cleaner: RobustKalmanFilter,
     dual: DualKalmanFilter,
     no_input: DVector<f64>,
+    /// The DKF's measurement of the step: the cleaned outputs, NaN where y is missing.
+    dual_output: DVector<f64>,
 }
 
 impl DkfRsKf {
@@ -1113,13 +1172,16 @@ impl DkfRsKf {
             ));
         }
         Ok(Self {
+            dual_output: DVector::zeros(dual.outputs()),
             cleaner,
             dual,
             no_input: DVector::zeros(0),
         })
     }
 
-    /// One sample: rsKF on (u, y), then the DKF on (u, cleaned y).
+    /// One sample: rsKF on (u, y), then the DKF on (u, cleaned y). A missing y_j (NaN)
+    /// stays missing for the DKF: the cleaner's output there is its own prediction, not a
+    /// measurement, so the DKF predicts its state and lets Θ walk (module documentation).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         require_input_length("u", u, self.dual.inputs())?;
         let cleaner_input = if self.cleaner.inputs() == 0 {
@@ -1128,7 +1190,16 @@ impl DkfRsKf {
             u
         };
         self.cleaner.step(cleaner_input, y)?;
-        self.dual.step(u, self.cleaner.output())
+        if !MissingMask::any(y) {
+            return self.dual.step(u, self.cleaner.output());
+        }
+        self.dual_output.copy_from(self.cleaner.output());
+        for (target, y) in self.dual_output.iter_mut().zip(y.iter()) {
+            if y.is_nan() {
+                *target = f64::NAN;
+            }
+        }
+        self.dual.step(u, &self.dual_output)
     }
 
     /// Everything that evolves from step to step: the rsKF's and then the DKF's dynamic state

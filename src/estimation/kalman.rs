@@ -18,6 +18,7 @@
 //! same matrix for any K (see `FilterCore`). `u_{k−1}` is zero before the first call; x̂₀, P₀
 //! are the estimate one sample before the first measurement.
 
+use super::missing::MissingMask;
 use super::{
     require_input_length, require_length, require_psd, require_spd, EstimationError, Saved,
     StateReader,
@@ -190,7 +191,8 @@ impl FilterCore {
         dense::mirror_lower(p_prior, n);
     }
 
-    /// e = y − C x⁻ − D u.
+    /// e = y − C x⁻ − D u; e_j = 0 for a missing sample y_j = NaN (see [`MissingMask`]).
+    /// Errors when a present channel's e_j is not finite (y_j = ±∞, or u not finite).
     pub(crate) fn compute_innovation(
         &mut self,
         c: View<'_>,
@@ -204,6 +206,12 @@ impl FilterCore {
         }
         dense::gemv_inline(e, -1.0, c, self.x_prior.as_slice(), 1.0);
         dense::gemv_inline(e, -1.0, d, u.as_slice(), 1.0);
+        // A missing sample (NaN) of channel j: no prediction error to correct with, e_j = 0.
+        for (e, y) in e.iter_mut().zip(y.as_slice()) {
+            if y.is_nan() {
+                *e = 0.0;
+            }
+        }
         if !dense::all_finite(e) {
             return Err(EstimationError::NonFinite {
                 what: "innovation y − C x⁻ − D u (check y and u)",
@@ -419,6 +427,48 @@ impl FilterCore {
             }
         }
         dense::mirror_lower(p_new, n);
+        Ok(())
+    }
+
+    /// The correction of a sample with missing channels (Cipra & Romera 1997: the update
+    /// with the present channels only; docs/estimators.md, "Missing samples"). With
+    /// every channel missing there is nothing to correct with: x̂ = x⁻, P = P⁻ = A P Aᵀ + Q,
+    /// K = 0. Otherwise the correction of [`FilterCore::correct`] with the [`MissingMask`]'s
+    /// C and R (the rows of C and R of the present channels selected), which is exactly the
+    /// update of the present channels: their gain, x̂ and P as with C and R reduced to
+    /// them, and K = 0 for the missing ones. `c` and `r` are the model's C and measurement
+    /// covariance of the step (the rsKF passes its R̃, already masked).
+    pub(crate) fn correct_present(
+        &mut self,
+        mask: &mut MissingMask,
+        c: View<'_>,
+        r: &DMatrix<f64>,
+        y: &DVector<f64>,
+    ) -> Result<(), EstimationError> {
+        if mask.select(c, r, y) == y.len() {
+            return self.predict_only();
+        }
+        self.correct(View::of(&mask.c), &mask.r)
+    }
+
+    /// x̂ = x⁻, P = P⁻, K = 0: the step of a sample with every channel missing.
+    pub(crate) fn predict_only(&mut self) -> Result<(), EstimationError> {
+        self.x.copy_from(&self.x_prior);
+        self.p.copy_from(&self.p_prior);
+        self.gain.fill(0.0);
+        self.gain_t.fill(0.0);
+        if !(dense::all_finite(self.x.as_slice()) && dense::all_finite(self.p.as_slice())) {
+            return Err(non_finite("state estimate or its covariance", self.steps));
+        }
+        Ok(())
+    }
+
+    /// Errors when the fitted output ŷ is not finite: with missing channels the innovation
+    /// no longer sees every entry of u, so a non-finite u is caught here.
+    pub(crate) fn check_output(&self) -> Result<(), EstimationError> {
+        if !dense::all_finite(self.output.as_slice()) {
+            return Err(non_finite("fitted output C x̂ + D u (check u)", self.steps));
+        }
         Ok(())
     }
 
@@ -687,6 +737,9 @@ impl ScalarEstimate {
         if let Some((_, d)) = m.input {
             self.innovation += d * -u;
         }
+        if y.is_nan() {
+            return self.predict_only(m, u, r_eff);
+        }
         let e = self.innovation;
         if !e.is_finite() {
             return Err(non_finite(
@@ -704,6 +757,36 @@ impl ScalarEstimate {
         if let Some((_, d)) = m.input {
             self.output += d * u;
             self.u_prev = u;
+        }
+        Ok(())
+    }
+
+    /// The rest of [`ScalarEstimate::step`] for a missing sample y = NaN (the prediction
+    /// x⁻, P⁻ already made): e = 0, k = 0, x̂ = x⁻, P = P⁻, ŷ = c x̂ + d u, as the general
+    /// path's [`FilterCore::predict_only`]. Errors when x̂, P or ŷ is not finite (a
+    /// non-finite u).
+    #[cold]
+    #[inline(never)]
+    fn predict_only(
+        &mut self,
+        m: &ScalarModel,
+        u: f64,
+        r_eff: impl ScalarCovariance,
+    ) -> Result<(), EstimationError> {
+        r_eff.missing();
+        (self.innovation, self.gain, self.x, self.p) = (0.0, 0.0, self.x_prior, self.p_prior);
+        self.output = m.c * self.x;
+        if let Some((_, d)) = m.input {
+            self.output += d * u;
+        }
+        if m.input.is_some() {
+            self.u_prev = u;
+        }
+        if self.x * 0.0 + self.p * 0.0 + self.output * 0.0 != 0.0 {
+            return Err(non_finite(
+                "state estimate, its covariance or the fitted output (check u)",
+                self.steps,
+            ));
         }
         Ok(())
     }
@@ -808,6 +891,8 @@ impl Saved for ScalarKalmanFilter {
 pub(crate) trait ScalarCovariance {
     /// The covariance for the innovation `e`.
     fn at(self, e: f64) -> f64;
+    /// Called instead of [`ScalarCovariance::at`] for a missing sample (no correction).
+    fn missing(self);
 }
 
 impl ScalarCovariance for f64 {
@@ -815,6 +900,8 @@ impl ScalarCovariance for f64 {
     fn at(self, _: f64) -> f64 {
         self
     }
+    #[inline(always)]
+    fn missing(self) {}
 }
 
 /// The entry of a buffer of one entry (a 1×1 matrix, a vector of length 1).
@@ -948,6 +1035,7 @@ pub(crate) fn sample_views<'a>(
 pub struct KalmanFilter {
     model: StateSpace,
     core: FilterCore,
+    missing: MissingMask,
 }
 
 impl KalmanFilter {
@@ -955,12 +1043,20 @@ impl KalmanFilter {
     /// "P0", "x0", and say why).
     pub fn new(model: GaussianModel) -> Result<Self, EstimationError> {
         let (model, core) = model.into_filter()?;
-        Ok(Self { model, core })
+        let missing = MissingMask::new(model.outputs(), model.states());
+        Ok(Self {
+            model,
+            core,
+            missing,
+        })
     }
 
     /// Processes one sample: predicts with the previous input, corrects with `y` (input `u`
-    /// enters through D). On error the estimate is left as the failed step produced it;
-    /// the caller should stop or rebuild the filter.
+    /// enters through D). A NaN y_j is a missing sample: the update uses the present
+    /// channels only ([`MissingMask`]), e_j = 0, and with every channel missing the step is
+    /// the prediction x̂ = x⁻, P = A P Aᵀ + Q. A y_j = ±∞ or a non-finite u is an error. On
+    /// error the estimate is left as the failed step produced it; the caller should stop or
+    /// rebuild the filter.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         let m = &self.model;
         if let [r] = *m.r.as_slice() {
@@ -971,6 +1067,11 @@ impl KalmanFilter {
         let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
+        if MissingMask::any(y) {
+            self.core.correct_present(&mut self.missing, c, &m.r, y)?;
+            self.core.finish(c, d, u);
+            return self.core.check_output();
+        }
         self.core.correct(c, &m.r)?;
         self.core.finish(c, d, u);
         Ok(())
@@ -1282,6 +1383,7 @@ pub(crate) mod tests {
 
     #[test]
     fn the_scalar_filter_on_numbers_equals_the_general_path_bit_for_bit() {
+        let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
         let mut rng = TestRng::new(41);
         for (m, run) in [(0, 0), (1, 0), (0, 1), (1, 1), (0, 2), (1, 2)] {
             let mut general = KalmanFilter::new(random_scalar_model(&mut rng, m)).unwrap();
@@ -1296,7 +1398,6 @@ pub(crate) mod tests {
                     .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
                     .unwrap();
                 fast.step(u, y).unwrap();
-                let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
                 assert_eq!(
                     bits(fast.dynamic_state()),
                     bits(general.dynamic_state()),
@@ -1315,10 +1416,25 @@ pub(crate) mod tests {
             assert!(restored.set_dynamic_state(&[1.0; 3]).is_err());
             restored.set_dynamic_state(&fast.dynamic_state()).unwrap();
             assert_eq!(restored, fast);
+            // A missing sample (NaN) is the same prediction on both, bit for bit.
+            for _ in 0..3 {
+                fast.step(0.5, f64::NAN).unwrap();
+                general
+                    .step(
+                        &DVector::from_element(m, 0.5),
+                        &DVector::from_element(1, f64::NAN),
+                    )
+                    .unwrap();
+                assert_eq!(
+                    bits(fast.dynamic_state()),
+                    bits(general.dynamic_state()),
+                    "m = {m}, run {run}, missing"
+                );
+            }
             // A non-finite measurement is the same error on both.
-            let error = fast.step(0.0, f64::NAN).unwrap_err();
+            let error = fast.step(0.0, f64::INFINITY).unwrap_err();
             let former = general
-                .step(&DVector::zeros(m), &DVector::from_element(1, f64::NAN))
+                .step(&DVector::zeros(m), &DVector::from_element(1, f64::INFINITY))
                 .unwrap_err();
             assert_eq!(error.to_string(), former.to_string());
         }
@@ -1514,7 +1630,18 @@ pub(crate) mod tests {
             .unwrap_err();
         assert!(matches!(e, EstimationError::Dimension { what: "u", .. }));
         let e = filter
+            .step(&DVector::zeros(1), &DVector::from_element(1, f64::INFINITY))
+            .unwrap_err();
+        assert!(matches!(e, EstimationError::NonFinite { .. }), "{e}");
+        // A missing measurement is not an error; a non-finite input still is.
+        filter
             .step(&DVector::zeros(1), &DVector::from_element(1, f64::NAN))
+            .unwrap();
+        let e = filter
+            .step(
+                &DVector::from_element(1, f64::NAN),
+                &DVector::from_element(1, f64::NAN),
+            )
             .unwrap_err();
         assert!(matches!(e, EstimationError::NonFinite { .. }), "{e}");
     }

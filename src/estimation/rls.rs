@@ -170,8 +170,14 @@ impl RecursiveLeastSquares {
         self.prefilter.as_ref().map(|f| f.denominator.as_slice())
     }
 
-    /// Processes one sample u(t), y(t); returns the prior prediction error ε(t).
+    /// Processes one sample u(t), y(t); returns the prior prediction error ε(t). A NaN y(t)
+    /// is a missing sample ([`RecursiveLeastSquares::step_missing`]); a non-finite u or a
+    /// y = ±∞ is an error.
     pub fn step(&mut self, u: f64, y: f64) -> Result<f64, EstimationError> {
+        if y.is_nan() && u.is_finite() {
+            self.step_missing(u)?;
+            return Ok(0.0);
+        }
         if !(u.is_finite() && y.is_finite()) {
             return Err(EstimationError::NonFinite {
                 what: "RLS sample (u, y)",
@@ -242,6 +248,46 @@ impl RecursiveLeastSquares {
             }
         }
         Ok(error)
+    }
+
+    /// The step of a sample whose y(t) is missing: the prediction only. θ and P stay (no
+    /// data, so no update and no forgetting: P is not divided by λ); the regressor φ(t) is
+    /// formed as usual and y(t) is replaced in the history of the regressors by its one-step
+    /// prediction φ(t)ᵀθ (in the prefiltered signals when prefiltering; u still passes
+    /// through the prefilter), which is what the ARX model expects there. The prediction
+    /// error ε(t) is not defined and is 0 ([`RecursiveLeastSquares::last_error`]); the
+    /// prefilter's refresh counter counts updates and does not advance. Gives the
+    /// prediction ŷ(t) of the unfiltered y (φᵀθ + Σ âᵢ y_f(t−i) when prefiltering: the
+    /// prefilter's inverse). Errors when u is not finite. Allocation-free.
+    pub fn step_missing(&mut self, u: f64) -> Result<f64, EstimationError> {
+        if !u.is_finite() {
+            return Err(EstimationError::NonFinite {
+                what: "RLS input u",
+                step: self.steps + 1,
+            });
+        }
+        self.steps += 1;
+        for i in 0..self.na {
+            self.phi[i] = -self.past_y[i];
+        }
+        for j in 0..self.nb {
+            self.phi[self.na + j] = self.past_u[j];
+        }
+        let prediction: f64 = self.phi.iter().zip(&self.theta).map(|(f, t)| f * t).sum();
+        let (u_used, y_hat) = match &mut self.prefilter {
+            None => (u, prediction),
+            Some(filter) => filter.apply_missing(u, prediction),
+        };
+        shift_in(&mut self.past_y, prediction);
+        shift_in(&mut self.past_u, u_used);
+        self.last_error = 0.0;
+        if !y_hat.is_finite() {
+            return Err(EstimationError::NonFinite {
+                what: "RLS prediction φᵀθ",
+                step: self.steps,
+            });
+        }
+        Ok(y_hat)
     }
 
     /// Everything that evolves from step to step, as a flat list of numbers (for FMU state
@@ -403,6 +449,21 @@ impl Prefilter {
         shift_in(&mut self.filtered_past_u, u_f);
         shift_in(&mut self.filtered_past_y, y_f);
         (u_f, y_f)
+    }
+
+    /// [`Prefilter::apply`] for a sample whose y is missing: u is filtered, and the filtered
+    /// y is the given one-step prediction `y_filtered`. Gives the filtered u and the
+    /// unfiltered y that would have given `y_filtered`: y_f + Σ âᵢ y_f(t−i).
+    fn apply_missing(&mut self, u: f64, y_filtered: f64) -> (f64, f64) {
+        let past = |past: &[f64]| {
+            let terms = self.denominator.iter().zip(past);
+            terms.map(|(a, p)| a * p).sum::<f64>()
+        };
+        let u_f = u - past(&self.filtered_past_u);
+        let y = y_filtered + past(&self.filtered_past_y);
+        shift_in(&mut self.filtered_past_u, u_f);
+        shift_in(&mut self.filtered_past_y, y_filtered);
+        (u_f, y)
     }
 
     fn refresh_denominator(&mut self, a: &[f64]) {

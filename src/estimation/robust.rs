@@ -27,8 +27,9 @@ use super::kalman::{
     core_accessors, sample_views, FilterCore, GaussianModel, KalmanFilter, ScalarCovariance,
     ScalarKalmanFilter,
 };
+use super::missing::MissingMask;
 use super::{parameter_error, EstimationError, Saved, StateReader};
-use crate::linalg::dense;
+use crate::linalg::dense::{self, View};
 use crate::state_space::StateSpace;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -159,6 +160,10 @@ impl ScalarCovariance for ScalarWeight<'_> {
         };
         *self.r_effective
     }
+    #[inline(always)]
+    fn missing(self) {
+        (*self.z, *self.w, *self.r_effective) = (0.0, 0.0, self.r);
+    }
 }
 
 /// R̃ = (√R / √w)² for a weight w < 1 (the down-weighted path of [`ScalarWeight`]).
@@ -183,6 +188,11 @@ pub struct RobustKalmanFilter {
     /// W^{-1/2} R^{1/2ᵀ}, then R̃ = (W^{-1/2} R^{1/2ᵀ})ᵀ (W^{-1/2} R^{1/2ᵀ}).
     work_g: DMatrix<f64>,
     r_effective: DMatrix<f64>,
+    /// C_M, R_M of a sample with missing channels.
+    missing: MissingMask,
+    /// R_M^{1/2} and R_M^{1/2ᵀ} of that sample.
+    missing_sqrt: DMatrix<f64>,
+    missing_sqrt_t: DMatrix<f64>,
 }
 
 impl RobustKalmanFilter {
@@ -202,6 +212,9 @@ impl RobustKalmanFilter {
             weights: DVector::from_element(p, 1.0),
             work_g: DMatrix::zeros(p, p),
             r_effective: model.r.clone(),
+            missing: MissingMask::new(p, model.states()),
+            missing_sqrt: DMatrix::zeros(p, p),
+            missing_sqrt_t: DMatrix::zeros(p, p),
             model,
             core,
             psi,
@@ -286,13 +299,78 @@ impl RobustKalmanFilter {
         let [a, b, c, d] = sample_views(m, u, y)?;
         self.core.predict(a, b, &m.q);
         self.core.compute_innovation(c, d, u, y)?;
+        if MissingMask::any(y) {
+            return self.step_missing(u, y);
+        }
+        self.weigh(false)?;
+        let m = &self.model;
+        let (c, d) = (View::of(&m.c), View::of(&m.d));
+        self.core.correct(c, &self.r_effective)?;
+        self.core.finish(c, d, u);
+        Ok(())
+    }
+
+    /// The rest of a step whose sample has missing channels (the prediction and the
+    /// innovation made, e_j = 0 for a missing y_j): the rsKF of the present channels, with
+    /// R_M and its Cholesky factor in place of R ([`MissingMask`]), so that the present
+    /// channels are standardised and weighted with R_W^{1/2} and a missing channel has r_j = 0
+    /// and R̃ = 1 on its diagonal, uncoupled. Its reported weight w_j is then 0 (it did not
+    /// enter the correction); with every channel missing x̂ = x⁻, P = P⁻.
+    fn step_missing(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
+        let p = y.len();
+        if self
+            .missing
+            .select(View::of(&self.model.c), &self.model.r, y)
+            == p
+        {
+            self.core.predict_only()?;
+        } else {
+            // R_M^{1/2}: the Cholesky factor (lower triangle), the strict upper one zero.
+            self.missing_sqrt.copy_from(&self.missing.r);
+            let l = self.missing_sqrt.as_mut_slice();
+            if !dense::cholesky(l, p) {
+                return Err(EstimationError::Factorisation {
+                    what: "measurement covariance R of the present channels",
+                    step: self.core.steps,
+                });
+            }
+            for j in 1..p {
+                for i in 0..j {
+                    l[i + j * p] = 0.0;
+                }
+            }
+            self.missing_sqrt_t.tr_copy_from(&self.missing_sqrt);
+            self.weigh(true)?;
+            self.core
+                .correct(View::of(&self.missing.c), &self.r_effective)?;
+        }
+        let weights = self.weights.iter_mut().zip(self.standardized.iter_mut());
+        for ((w, z), y) in weights.zip(y) {
+            if y.is_nan() {
+                (*w, *z) = (0.0, 0.0);
+            }
+        }
+        let m = &self.model;
+        self.core.finish(View::of(&m.c), View::of(&m.d), u);
+        self.core.check_output()
+    }
+
+    /// r = R^{-1/2} e, w_j = ψ(r_j)/r_j (clamped) and R̃ = R^{1/2} W⁻¹ R^{1/2ᵀ} (R itself
+    /// when every weight is 1) from the innovation of the step; with `masked` R is the
+    /// [`MissingMask`]'s R_M and R^{1/2} its factor.
+    fn weigh(&mut self, masked: bool) -> Result<(), EstimationError> {
+        let (r, r_sqrt, r_sqrt_t) = if masked {
+            (&self.missing.r, &self.missing_sqrt, &self.missing_sqrt_t)
+        } else {
+            (&self.model.r, &self.r_sqrt, &self.r_sqrt_t)
+        };
         // r = R^{-1/2} e.
         let z = self.standardized.as_mut_slice();
         for (z, e) in z.iter_mut().zip(self.core.innovation.as_slice()) {
             *z = *e;
         }
         let p = z.len();
-        if !dense::solve_lower(self.r_sqrt.as_slice(), p, z) {
+        if !dense::solve_lower(r_sqrt.as_slice(), p, z) {
             return Err(EstimationError::Factorisation {
                 what: "measurement covariance R",
                 step: self.core.steps,
@@ -305,13 +383,13 @@ impl RobustKalmanFilter {
         }
         if all_one {
             let r_effective = self.r_effective.as_mut_slice();
-            for (r_effective, r) in r_effective.iter_mut().zip(m.r.as_slice()) {
+            for (r_effective, r) in r_effective.iter_mut().zip(r.as_slice()) {
                 *r_effective = *r;
             }
         } else {
             // G = W^{-1/2} R^{1/2ᵀ}: row j of R^{1/2ᵀ} scaled by 1/√w_j; R̃ = Gᵀ G, its lower
             // triangle as dot products of the columns of G, mirrored.
-            self.work_g.copy_from(&self.r_sqrt_t);
+            self.work_g.copy_from(r_sqrt_t);
             for (j, w) in self.weights.iter().enumerate() {
                 let scale = 1.0 / w.sqrt();
                 for g in self.work_g.row_mut(j).iter_mut() {
@@ -328,8 +406,6 @@ impl RobustKalmanFilter {
             }
             dense::mirror_lower(r_effective, p);
         }
-        self.core.correct(c, &self.r_effective)?;
-        self.core.finish(c, d, u);
         Ok(())
     }
 

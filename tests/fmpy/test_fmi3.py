@@ -4,7 +4,6 @@ twin on the model's cross-check scenario, and the runtime conformance checks thr
 FMU3Slave (call order, unknown value reference, NaN, FMU state replay, interleaved instances,
 arrays with nValues) hold."""
 
-import itertools
 import sys
 
 import numpy as np
@@ -15,7 +14,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from conftest import FMU_DIR, REPO
+from conftest import FMU_DIR, REPO, element_names
 
 sys.path.insert(0, str(REPO / "scripts"))
 import crosscheck  # noqa: E402
@@ -29,14 +28,6 @@ def fmi3_path(stem):
     path = FMI3_DIR / f"{stem}.fmu"
     assert path.is_file(), f"{path} is missing: build the FMUs with scripts/build-fmus"
     return str(path)
-
-
-def element_names(variable):
-    """The FMI 2.0 scalar names of an FMI 3.0 variable's elements, row-major."""
-    if not variable.shape:
-        return [variable.name]
-    return [f"{variable.name}[{','.join(str(i + 1) for i in index)}]"
-            for index in itertools.product(*(range(d) for d in variable.shape))]
 
 
 class Messages:
@@ -111,7 +102,9 @@ def drive(stem, version):
     def set_inputs(t):
         for v in inputs:
             values = [float(np.interp(t, table["time"], table[n])) for n in element_names(v)]
-            if version == 2:
+            if v.type == "Boolean":
+                s.setBoolean([v.valueReference], [x != 0 for x in values])
+            elif version == 2:
                 s.setReal([v.valueReference], values)
             else:
                 s.setFloat64([v.valueReference], values)

@@ -10,6 +10,9 @@
 //! x̂_i⁺ = A x̂_i + V_i L_i (y_i − C_i x̂_i) + V̄_i N_ij V̄_iᵀ (x̂_j − x̂_i)
 //! ```
 //!
+//! A missing sample (`y_own_valid[j]` = false, docs/estimators.md, "Missing samples") has
+//! innovation 0: no injection from that channel, `y_own[j]` ignored.
+//!
 //! with T_i = [V̄_i V_i]ᵀ splitting the state into the part agent i cannot observe (V̄_i,
 //! n_ō columns) and the part it can (V_i, n_o columns), and the gains of two discrete
 //! Riccati (LQ) problems with U = ρ Q, S = λ V_iᵀC_iᵀR_iC_iV_i, T = λ(V̄_iᵀC_iᵀR_iC_iV̄_i + D_i)
@@ -35,8 +38,8 @@ use spurio_export::{
     Variability, Variable, VariableTable,
 };
 use spurio_fmu_common::estimator::{
-    add_choice, add_tuning, choice, count, error, leading_identity, read_inputs, DynamicState,
-    Estimator,
+    add_choice, add_tuning, add_validity, choice, count, error, leading_identity, mark_missing,
+    read_inputs, DynamicState, Estimator,
 };
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
@@ -54,6 +57,8 @@ pub struct ObserverLayout {
     pub p_own: usize,
     pub p_neighbour: usize,
     pub y_own: Block,
+    /// The Boolean inputs `y_own_valid[j]` (last in the table).
+    pub y_own_valid: Block,
     pub x_neighbour: Block,
     pub x_hat: Block,
     pub l: Block,
@@ -159,6 +164,7 @@ fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), Cause> {
     let x0 = add_vector(&mut t, "x0", n, |name, _| {
         Variable::parameter(name, 0.0).describe("Initial estimate x̂_i(0)")
     });
+    let y_own_valid = add_validity(&mut t, "y_own", p_own);
     let info = ModelInfo::new(
         "DistributedObserver",
         "One agent of the two-agent LQ-designed distributed state observer of paper 004",
@@ -176,6 +182,7 @@ fn interface(config: &Config) -> Result<(ObserverLayout, ModelInfo), Cause> {
             p_own,
             p_neighbour,
             y_own,
+            y_own_valid,
             x_neighbour,
             x_hat,
             l,
@@ -280,6 +287,7 @@ impl Estimator for Agent {
         _: f64,
     ) -> Result<(), Failure> {
         read_inputs(ctx.values, &l.y_own, "y_own", &mut self.y_own)?;
+        mark_missing(ctx.values, &l.y_own_valid, &mut self.y_own);
         read_inputs(
             ctx.values,
             &l.x_neighbour,
@@ -330,6 +338,37 @@ mod tests {
     use super::*;
     use spurio_export::harness::Harness;
     use spurio_export::FmuModel;
+
+    /// `y_own_valid[1]` = false: no output injection. The step with the own measurement
+    /// missing equals the step given the agent's own prediction C x̂ as its measurement (an
+    /// innovation of 0), whatever `y_own` holds meanwhile.
+    #[test]
+    fn a_missing_own_sample_drops_the_injection() {
+        let config = agent_config(1);
+        let info = DistributedObserverFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let x_hat = ["x_hat[1]", "x_hat[2]", "x_hat[3]"].map(vr);
+        let neighbour = ["x_neighbour[1]", "x_neighbour[2]", "x_neighbour[3]"].map(vr);
+        let mut estimates = Vec::new();
+        for missing in [false, true] {
+            let mut h = Harness::<DistributedObserverFmu>::new(&config).unwrap();
+            h.initialize(0.0).unwrap();
+            h.set_real(&neighbour, &[0.2, -0.1, 0.05]).unwrap();
+            h.set_real(&[vr("y_own[1]")], &[1.0]).unwrap();
+            h.do_step(0.0, 1.0).unwrap();
+            let mut x = [0.0; 3];
+            h.get_real(&x_hat, &mut x).unwrap();
+            // agent 1 measures the first state (C_own = [1 0 0])
+            let y = if missing { 1e6 } else { x[0] };
+            h.set_real(&[vr("y_own[1]")], &[y]).unwrap();
+            h.set_boolean(&[vr("y_own_valid[1]")], &[!missing]).unwrap();
+            h.do_step(1.0, 1.0).unwrap();
+            h.get_real(&x_hat, &mut x).unwrap();
+            assert!(x.iter().all(|v| v.is_finite()));
+            estimates.push(x);
+        }
+        assert_eq!(estimates[0], estimates[1]);
+    }
 
     #[test]
     fn paper_gains_and_unobservable_design_error() {

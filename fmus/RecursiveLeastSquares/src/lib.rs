@@ -19,12 +19,18 @@
 //! (docs/experiments.md §4, paper 002's error in ζ). Â starts at `prefilter_a` (default 0: no filtering);
 //! `refresh` = 0 keeps it fixed, so that a master can run Steiglitz–McBride iterations: the
 //! same record again with `prefilter_a` set to the previous run's final a₁ … a_na.
+//!
+//! Missing samples (docs/estimators.md, "Missing samples"): the Boolean input `y_valid` = false
+//! makes the step a prediction ([`RecursiveLeastSquares::step_missing`]): θ and P kept, `y_hat`
+//! the prediction, which also stands for y(t) in the following regressors; `y` is ignored.
 
 use spurio::estimation::{EstimationError, RecursiveLeastSquares};
 use spurio_export::{
     Cause, Config, Context, DefaultExperiment, Failure, ModelInfo, Values, Variable, VariableTable,
 };
-use spurio_fmu_common::estimator::{add_tuning, count, error, DynamicState, Estimator};
+use spurio_fmu_common::estimator::{
+    add_tuning, add_validity, count, error, DynamicState, Estimator,
+};
 use spurio_fmu_common::structured::{add_vector, Block};
 
 /// The continuous second-order readout of the estimate (written together by
@@ -60,6 +66,8 @@ pub struct RlsLayout {
     pub nb: usize,
     pub u: usize,
     pub y: usize,
+    /// The Boolean input `y_valid` (last in the table).
+    pub y_valid: usize,
     pub theta: Block,
     pub y_hat: usize,
     /// The readout outputs, in the order of [`READOUT`].
@@ -143,6 +151,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
             i + 1
         ))
     });
+    let y_valid = add_validity(&mut t, "y", 0).first;
     let info = ModelInfo::new(
         "RecursiveLeastSquares",
         "Recursive least squares on an ARX(na, nb) model with forgetting, continuous second-order readout (paper 002)",
@@ -160,6 +169,7 @@ fn interface(config: &Config) -> Result<(RlsLayout, ModelInfo), Cause> {
             nb,
             u,
             y,
+            y_valid,
             theta,
             y_hat,
             readout,
@@ -249,12 +259,17 @@ impl Estimator for Rls {
                 )));
             }
         }
-        let prediction_error = self.rls.step(u, y).map_err(error)?;
+        // `y_valid` false: a missing sample, the prediction only.
+        let y_hat = if !ctx.values.boolean(l.y_valid) {
+            self.rls.step_missing(u).map_err(error)?
+        } else {
+            y - self.rls.step(u, y).map_err(error)?
+        };
         for (k, index) in l.theta.indices().enumerate() {
             ctx.values
                 .set_real(index, self.rls.parameters().get(k).copied().unwrap_or(0.0));
         }
-        ctx.values.set_real(l.y_hat, y - prediction_error);
+        ctx.values.set_real(l.y_hat, y_hat);
         let ts = if self.ts > 0.0 { self.ts } else { step };
         match self.rls.readout(ts) {
             Ok(c)
@@ -342,6 +357,50 @@ mod tests {
     use super::*;
     use spurio_export::harness::Harness;
     use spurio_export::FmuModel;
+
+    /// `y_valid` = false: the prediction only. θ held through a gap of 50 samples (the `y`
+    /// given meanwhile, 1e6, ignored), `y_hat` the model's free-run prediction (the true
+    /// output, once θ is identified), and the same θ at the end as without the gap (the
+    /// system is noise-free: any 4 independent samples determine it).
+    #[test]
+    fn a_missing_sample_is_predicted_and_leaves_theta() {
+        let config = arx_config(2, 2);
+        let info = RecursiveLeastSquaresFmu::describe(&config).unwrap();
+        let vr = |n: &str| info.index_of(n).unwrap() as u32;
+        let theta: Vec<u32> = (1..=4).map(|i| vr(&format!("theta[{i}]"))).collect();
+        let mut runs = Vec::new();
+        for gap in [false, true] {
+            let mut h = Harness::<RecursiveLeastSquaresFmu>::new(&config).unwrap();
+            h.initialize(0.0).unwrap();
+            let (mut y1, mut y2, mut u1, mut u2) = (0.0, 0.0, 0.0, 0.0);
+            let (mut held, mut now) = ([0.0; 4], [0.0; 4]);
+            for k in 0..400 {
+                let u = if (k / 17) % 2 == 0 { 1.0 } else { -1.0 };
+                let y = 1.5 * y1 - 0.7 * y2 + u1 + 0.5 * u2;
+                let missing = gap && (200..250).contains(&k);
+                let given = if missing { 1e6 } else { y };
+                h.set_real(&[vr("u"), vr("y")], &[u, given]).unwrap();
+                h.set_boolean(&[vr("y_valid")], &[!missing]).unwrap();
+                h.do_step(k as f64 * 0.01, 0.01).unwrap();
+                h.get_real(&theta, &mut now).unwrap();
+                if missing {
+                    assert_eq!(now, held, "θ held at step {k}");
+                    let y_hat = h.real(vr("y_hat")).unwrap();
+                    assert!((y_hat - y).abs() < 1e-5, "prediction {y_hat} against {y}");
+                }
+                held = now;
+                (y2, y1, u2, u1) = (y1, y, u1, u);
+            }
+            runs.push(now);
+        }
+        for (with_gap, without) in runs[1].iter().zip(&runs[0]) {
+            assert!((with_gap - without).abs() < 1e-5, "{runs:?}");
+        }
+        let expected = [-1.5, 0.7, 1.0, 0.5];
+        for (t, e) in runs[1].iter().zip(expected) {
+            assert!((t - e).abs() < 1e-5, "{runs:?}");
+        }
+    }
 
     #[test]
     fn identifies_the_op_amp_filter_and_rejects_lambda_above_one() {

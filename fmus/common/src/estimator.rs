@@ -36,12 +36,13 @@
 //! bit for bit.
 
 use crate::clock::{self, Rule, SampleClock};
+use crate::structured::add_vector;
 use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::EstimationError;
 use spurio_export::{
-    ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Values, Variable,
-    VariableTable,
+    ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo,
+    Values, Variability, Variable, VariableTable,
 };
 
 /// The largest dimension a variant may ask for (keeps the variable table and the matrices
@@ -268,6 +269,48 @@ pub fn read_inputs(
         }
     }
     Ok(())
+}
+
+/// Adds the Boolean inputs `{measured}_valid[j]`, j = 1…`len` (start true), at the end of
+/// the table so that the value references of the variables before them do not change;
+/// `{measured}_valid` without index when `len` is 0 (one scalar measurement). Whether the
+/// sample of the measurement `{measured}[j]` taken at this step is present: false is a
+/// missing sample (docs/estimators.md, "Missing samples"): the estimator predicts for that
+/// channel only, whatever the value of `{measured}[j]`.
+pub fn add_validity(table: &mut VariableTable, measured: &str, len: usize) -> Block {
+    let input = |name: &str| {
+        Variable {
+        causality: Causality::Input,
+        variability: Variability::Discrete,
+        initial: None,
+        ..Variable::boolean_parameter(name, true).describe(&format!(
+            "Whether the sample of {measured} at this step is present (false: a missing sample, the estimator predicts only)"
+        ))
+    }
+    };
+    let name = format!("{measured}_valid");
+    if len == 0 {
+        let first = table.add(input(&name));
+        return Block {
+            first,
+            rows: 1,
+            cols: 1,
+        };
+    }
+    add_vector(table, &name, len, |name, _| input(name))
+}
+
+/// Marks the missing samples of a step in the measurement buffer: `buffer[j]` = NaN where
+/// the Boolean `valid[j]` ([`add_validity`]) is false — the estimators' missing sample. No
+/// allocation.
+#[inline]
+pub fn mark_missing(values: &Values, valid: &Block, buffer: &mut DVector<f64>) {
+    let flags = values.numbers().get(valid.indices()).unwrap_or(&[]);
+    for (y, flag) in buffer.iter_mut().zip(flags) {
+        if *flag == 0.0 {
+            *y = f64::NAN;
+        }
+    }
 }
 
 /// The failure of a step whose input `{name}[{k}]` (1-based) is the non-finite `v`.

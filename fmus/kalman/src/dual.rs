@@ -14,6 +14,11 @@
 //! (see [`spurio::estimation::DualKalmanFilter`] for the exact sequence). Every row of Θ
 //! shares Φ, so rows with equal settings share one (n+m)×(n+m) covariance.
 //!
+//! Missing samples (docs/estimators.md, "Missing samples"): `y_valid[j]` = false hands the
+//! filter y_j = NaN: the state filter corrects with the present channels, Θ̂ is held while
+//! its variances walk; the DkfRsKf's cleaner predicts that channel (w_j = 0) and the DKF gets
+//! it as missing.
+//!
 //! Configuration `n`, `m` (may be 0), `p`. Parameters: the initial model `A`, `B`, `C`, `D`,
 //! the state filter's `Q`, `R`, `P0`, `x0`, the parameter filter's scalars `q_theta`
 //! (random-walk variance of every entry of Θ), `p0_theta` (initial variance of every entry)
@@ -42,7 +47,7 @@ use spurio::estimation::{
     RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
-use spurio_fmu_common::estimator::{add_tuning, error, EstimatorFmu};
+use spurio_fmu_common::estimator::{add_tuning, add_validity, error, EstimatorFmu};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Value references of the cleaner's parameters (DkfRsKf).
@@ -62,6 +67,8 @@ pub struct DualLayout {
     pub dims: Dimensions,
     pub u: Block,
     pub y: Block,
+    /// The Boolean inputs `y_valid[j]` (last in the table).
+    pub y_valid: Block,
     pub x_hat: Block,
     pub y_hat: Block,
     pub a_hat: Block,
@@ -80,6 +87,9 @@ pub struct DualLayout {
 impl Inputs for DualLayout {
     fn inputs(&self) -> (&Block, &Block) {
         (&self.u, &self.y)
+    }
+    fn validity(&self) -> &Block {
+        &self.y_valid
     }
 }
 
@@ -241,12 +251,14 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             "Dual Kalman filter (DKF, Haykin ch. 5): states and the model matrices [A B; C D], papers 000/001",
         )
     };
+    let y_valid = add_validity(&mut t, "y", p);
     let info = model_info(config, (id, description), t, 10.0, 0.05);
     Ok((
         DualLayout {
             dims,
             u,
             y,
+            y_valid,
             x_hat,
             y_hat,
             a_hat,

@@ -2,14 +2,17 @@
 //! (docs/estimators.md §2.7–§2.10): a [`FilterFamily`] says how its filter is built from the
 //! parameters and what it writes; [`Filtered`] reads the inputs `u[i]`, `y[j]` of a sample
 //! into buffers of fixed size (a non-finite one is an error naming it, before the filter is
-//! touched), steps the filter and writes its outputs.
+//! touched), marks `y[j]` missing (NaN) where `y_valid[j]` is false, steps the filter and
+//! writes its outputs.
 //!
 //! [`EstimatorFmu`]: spurio_fmu_common::estimator::EstimatorFmu
 
 use nalgebra::DVector;
 use spurio::estimation::{EstimationError, StateEstimator};
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values};
-use spurio_fmu_common::estimator::{copy_inputs, error, read_inputs, DynamicState, Estimator};
+use spurio_fmu_common::estimator::{
+    copy_inputs, error, mark_missing, read_inputs, DynamicState, Estimator,
+};
 use spurio_fmu_common::structured::Block;
 use std::marker::PhantomData;
 
@@ -18,6 +21,10 @@ use std::marker::PhantomData;
 pub trait Inputs {
     /// The input blocks `u` and `y`.
     fn inputs(&self) -> (&Block, &Block);
+    /// The Boolean inputs `y_valid[j]` ([`add_validity`]).
+    ///
+    /// [`add_validity`]: spurio_fmu_common::estimator::add_validity
+    fn validity(&self) -> &Block;
 }
 
 /// A family of filters behind the one [`Filtered`] adapter, implemented by the family's
@@ -87,6 +94,7 @@ where
             read_inputs(ctx.values, u, "u", &mut self.u)?;
             read_inputs(ctx.values, y, "y", &mut self.y)?;
         }
+        mark_missing(ctx.values, l.validity(), &mut self.y);
         self.filter.step(&self.u, &self.y).map_err(error)?;
         l.write_outputs(&self.filter, ctx.values);
         Ok(())

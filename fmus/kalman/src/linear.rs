@@ -13,6 +13,10 @@
 //! ŷ_k = C x̂_k + D u_k                              (output `y_hat`)
 //! ```
 //!
+//! Missing samples (docs/estimators.md, "Missing samples"): `y_valid[j]` = false hands the
+//! filter y_j = NaN: the correction with the present channels only, e_j = 0 (rsKF: w_j = 0),
+//! `y[j]` ignored.
+//!
 //! Configuration: `n` (states, ≥ 1, default 1), `m` (inputs, may be 0, default 0), `p`
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
@@ -29,7 +33,7 @@ use spurio::estimation::{
 };
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
 use spurio_fmu_common::estimator::{
-    error, non_finite_input, DynamicState, Estimator, EstimatorFmu,
+    add_validity, error, non_finite_input, DynamicState, Estimator, EstimatorFmu,
 };
 use spurio_fmu_common::structured::{add_vector, Block};
 
@@ -39,6 +43,8 @@ pub struct LinearLayout {
     pub dims: Dimensions,
     pub u: Block,
     pub y: Block,
+    /// The Boolean inputs `y_valid[j]` (last in the table).
+    pub y_valid: Block,
     pub x_hat: Block,
     pub y_hat: Block,
     pub innovation: Block,
@@ -52,6 +58,9 @@ pub struct LinearLayout {
 impl Inputs for LinearLayout {
     fn inputs(&self) -> (&Block, &Block) {
         (&self.u, &self.y)
+    }
+    fn validity(&self) -> &Block {
+        &self.y_valid
     }
 }
 
@@ -96,12 +105,14 @@ fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo),
             "Standard Kalman filter (sKF), papers 000/001",
         )
     };
+    let y_valid = add_validity(&mut t, "y", dims.p);
     let info = model_info(config, (id, description), t, 1.0, 1e-3);
     Ok((
         LinearLayout {
             dims,
             u,
             y,
+            y_valid,
             x_hat,
             y_hat,
             innovation,
@@ -232,6 +243,8 @@ pub struct Scalar<S: ScalarFilter> {
     filter: S,
     u: Option<usize>,
     y: usize,
+    /// `y_valid[1]`.
+    valid: usize,
     outputs: usize,
 }
 
@@ -251,6 +264,11 @@ impl<S: ScalarFilter> Scalar<S> {
             let (name, v) = if u.is_finite() { ("y", y) } else { ("u", u) };
             return Err(non_finite_input(name, 1, v));
         }
+        // `y_valid[1]` false: a missing sample (NaN), the filter predicts only.
+        let y = match numbers.get(self.valid) {
+            Some(0.0) => f64::NAN,
+            _ => y,
+        };
         self.filter.step(u, y).map_err(error)?;
         self.filter.write_outputs(values, self.outputs);
         Ok(())
@@ -298,6 +316,7 @@ impl<F: LinearFilter> Estimator for LinearEstimator<F> {
                     filter,
                     u: (m == 1).then_some(l.u.first),
                     y: l.y.first,
+                    valid: l.y_valid.first,
                     outputs: first,
                 }
             }
@@ -498,7 +517,8 @@ mod tests {
     }
 
     /// The outputs and FMU state of `M`'s variant `(n, m, p)` with its filter on plain numbers
-    /// and with the general one, over `steps` random samples (outliers among them).
+    /// and with the general one, over `steps` random samples (outliers and missing samples
+    /// among them).
     fn scalar_and_general<F: LinearFilter>(m: usize, steps: usize) {
         type M<F> = EstimatorFmu<LinearEstimator<F>>;
         let config = dims_config(1, m, 1);
@@ -540,6 +560,9 @@ mod tests {
                 let outlier = if uniform() < 0.1 { 1.0 } else { 0.0 };
                 let y = (k as f64 * 0.01).sin() + 0.01 * (uniform() - 0.5) + outlier;
                 ctx.values.set_real(index("y[1]"), y);
+                // missing samples among them, runs of them too
+                let missing = uniform() < 0.1 || (1000..1050).contains(&k);
+                ctx.values.set_boolean(index("y_valid[1]"), !missing);
                 if m == 1 {
                     ctx.values.set_real(index("u[1]"), uniform() - 0.5);
                 }

@@ -44,26 +44,23 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 /// Allocations in `fmi2DoStep` + `fmi2GetReal` over 50 steps after 5 warm-up steps, every
-/// input set and every real output read; `set` and `flags` are parameters set before
+/// input set (missing samples among them) and every real output read; `set` and `flags` are parameters set before
 /// initialisation.
 fn allocations<M: FmuModel>(config: &Config, set: &[(&str, f64)], flags: &[(&str, bool)]) -> u64 {
     let info = M::describe(config).expect("describe");
-    let inputs: Vec<u32> = info
-        .variables
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.causality == Causality::Input && v.variable_type() == VariableType::Real)
-        .map(|(k, _)| k as u32)
-        .collect();
-    let outputs: Vec<u32> = info
-        .variables
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| {
-            v.causality == Causality::Output && v.variable_type() == VariableType::Real
-        })
-        .map(|(k, _)| k as u32)
-        .collect();
+    let references = |causality: Causality, kind: VariableType| -> Vec<u32> {
+        let variables = info.variables.iter().enumerate();
+        variables
+            .filter(|(_, v)| v.causality == causality && v.variable_type() == kind)
+            .map(|(k, _)| k as u32)
+            .collect()
+    };
+    let inputs = references(Causality::Input, VariableType::Real);
+    // The Boolean inputs `y_valid[j]`: a pattern of missing samples (one channel, every
+    // channel, none) runs through the counted steps too.
+    let valid = references(Causality::Input, VariableType::Boolean);
+    assert!(!valid.is_empty(), "y_valid inputs");
+    let outputs = references(Causality::Output, VariableType::Real);
     let mut h = Harness::<M>::new(config).expect("instantiate");
     h.setup_experiment(0.0, None).expect("setup");
     h.enter_initialization_mode().expect("enter");
@@ -90,6 +87,14 @@ fn allocations<M: FmuModel>(config: &Config, set: &[(&str, f64)], flags: &[(&str
             *v = (k as f64 * 0.05 * (i + 1) as f64).sin() + outlier;
         }
         h.set_real(&inputs, &values).expect("set");
+        let present: Vec<bool> = (0..valid.len())
+            .map(|j| match k % 4 {
+                1 => j != 0,
+                2 => false,
+                _ => true,
+            })
+            .collect();
+        h.set_boolean(&valid, &present).expect("set");
         let before = ALLOCATIONS.load(Ordering::Relaxed);
         COUNTING.set(true);
         let stepped = h.do_step(k as f64 * step, step);
