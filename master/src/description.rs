@@ -1,7 +1,8 @@
 //! A co-simulation system as written: names only, serialised as TOML (the system file) or
 //! read from an SSP archive ([`crate::ssp`]).
 
-use serde::{Deserialize, Serialize};
+use crate::data::Interpolation;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -24,8 +25,16 @@ pub enum AlgorithmName {
 #[serde(deny_unknown_fields)]
 pub struct InstanceDescription {
     pub name: String,
-    /// Path of the `.fmu`, relative to the system file.
+    /// Path of the `.fmu`, relative to the system file (empty for a data instance).
+    #[serde(default, skip_serializing_if = "is_empty")]
     pub fmu: PathBuf,
+    /// A data instance instead of an FMU: the CSV file of recorded signals, relative to the
+    /// system file ([`crate::data`]); its columns are outputs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<PathBuf>,
+    /// How a data instance reads between samples (default: hold).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolation: Option<Interpolation>,
     /// Start values by variable name (parameters, and constant values of unconnected inputs).
     #[serde(default)]
     pub parameters: BTreeMap<String, toml::Value>,
@@ -41,14 +50,66 @@ fn one() -> u32 {
     1
 }
 
+fn is_empty(path: &Path) -> bool {
+    path.as_os_str().is_empty()
+}
+
+/// The `start_time`/`stop_time` that stands for "from the data": NaN in the description,
+/// written `"data"` in the file.
+pub const FROM_DATA: &str = "data";
+
+fn from_data() -> f64 {
+    f64::NAN
+}
+
+/// A time of the system file: a number, or `"data"` (NaN here), which the system takes from
+/// its data instances ([`crate::System::resolve`]).
+fn time_or_data<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Time {
+        Number(f64),
+        Integer(i64),
+        Word(String),
+    }
+    match Time::deserialize(d)? {
+        Time::Number(x) => Ok(x),
+        Time::Integer(i) => Ok(i as f64),
+        Time::Word(w) if w == FROM_DATA => Ok(f64::NAN),
+        Time::Word(w) => Err(serde::de::Error::custom(format!(
+            "expected a time in seconds or \"{FROM_DATA}\", found \"{w}\""
+        ))),
+    }
+}
+
+fn write_time<S: Serializer>(t: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if t.is_nan() {
+        s.serialize_str(FROM_DATA)
+    } else {
+        s.serialize_f64(*t)
+    }
+}
+
 /// A system file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SystemDescription {
     #[serde(default)]
     pub name: String,
-    #[serde(default)]
+    /// Seconds, or `"data"` (NaN here): the latest first sample of the data instances.
+    #[serde(
+        default,
+        deserialize_with = "time_or_data",
+        serialize_with = "write_time"
+    )]
     pub start_time: f64,
+    /// Seconds, or `"data"` or omitted (NaN here): the earliest last sample of the data
+    /// instances.
+    #[serde(
+        default = "from_data",
+        deserialize_with = "time_or_data",
+        serialize_with = "write_time"
+    )]
     pub stop_time: f64,
     pub step_size: f64,
     #[serde(default)]

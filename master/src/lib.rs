@@ -8,13 +8,14 @@
 //! Sweeps, shards and cluster runs are built on it by the `spurio-batch` crate.
 //!
 //! Its modules, each importing only those listed before it:
-//! `xml`, `logging`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
+//! `xml`, `logging`, `data`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
 //! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`.
 
 #![forbid(unsafe_code)]
 
 mod algorithm;
 mod coupling;
+mod data;
 mod description;
 mod engine;
 mod error;
@@ -31,6 +32,7 @@ mod xml;
 
 pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
 pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+pub use data::{Cursor, DataError, DataTable, Interpolation, Reading};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};
 pub use error::{FmiFailure, RunError, SystemError};
