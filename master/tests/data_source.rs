@@ -78,10 +78,8 @@ fn linear_is_exact_at_the_samples_and_on_the_line_between_them() {
     let system = load(
         "linear",
         SAMPLES,
-        &format!(
-            "step_size = 0.15\nstop_time = 0.9\nrecord = [\"rig.u\"]\n[[instance]]\n\
-             name = \"rig\"\ndata = \"rig.csv\"\ninterpolation = \"linear\"\n"
-        ),
+        "step_size = 0.15\nstop_time = 0.9\nrecord = [\"rig.u\"]\n[[instance]]\n\
+         name = \"rig\"\ndata = \"rig.csv\"\ninterpolation = \"linear\"\n",
     );
     let (time, u) = column(&system, "rig.u");
     let samples = [(0.0, 0.1), (0.3, 0.7), (0.6, -2.5), (0.9, 4.0)];
