@@ -12,6 +12,7 @@ pub mod description;
 pub mod engine;
 pub mod fmu;
 pub mod logging;
+pub mod model_exchange;
 pub mod plan;
 pub mod record;
 pub mod results;

@@ -41,6 +41,10 @@ impl Stepper for Dopri5 {
         5.0
     }
 
+    fn pi_beta(&self) -> f64 {
+        0.04
+    }
+
     fn attempt<S: OdeSystem>(
         &mut self,
         tr: &mut Trajectory,

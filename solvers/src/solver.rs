@@ -20,6 +20,8 @@ pub(crate) struct Trajectory {
     pub dx_old: Vec<f64>,
     /// The step to try next (≤ 0: to be estimated).
     pub h: f64,
+    /// The error norm of the last accepted step (at least 10⁻⁴), for the PI step control.
+    pub error_old: f64,
     /// The states' nominals.
     pub nominal: Vec<f64>,
     /// `atol · nominalᵢ`.
@@ -42,6 +44,7 @@ impl Trajectory {
             x_old: vec![0.0; n],
             dx_old: vec![0.0; n],
             h: settings.initial_step.unwrap_or(0.0),
+            error_old: 1e-4,
             nominal: vec![1.0; n],
             atol: vec![settings.absolute; n],
             settings,
@@ -132,6 +135,12 @@ pub(crate) trait Stepper {
     /// The order of the error estimate plus one (the step control's exponent is −1/this).
     fn error_order(&self) -> f64;
 
+    /// The exponent `β` of the last error in the PI step control (Hairer, Nørsett & Wanner,
+    /// *Solving ODEs I*, §IV.2; 0: the plain controller).
+    fn pi_beta(&self) -> f64 {
+        0.0
+    }
+
     /// A step of `h` from the trajectory's state: the candidate into the method's buffer and
     /// its error norm (NaN when a stage was not finite).
     fn attempt<S: OdeSystem>(
@@ -195,7 +204,16 @@ pub(crate) fn step<M: Stepper, S: OdeSystem>(
             let t_new = if last { t_limit } else { t + h };
             method.accept(trajectory, system, t_new)?;
             trajectory.statistics.accepted += 1;
-            let factor = step_factor(error, method.error_order());
+            // PI control: 0.9 err^(−1/q + 0.75β) err_old^β, within [0.2, 5].
+            let beta = method.pi_beta();
+            let factor = if error == 0.0 {
+                5.0
+            } else {
+                (0.9 * error.powf(-1.0 / method.error_order() + 0.75 * beta)
+                    * trajectory.error_old.powf(beta))
+                .clamp(0.2, 5.0)
+            };
+            trajectory.error_old = error.max(1e-4);
             let next = h * if just_rejected {
                 factor.min(1.0)
             } else {

@@ -306,3 +306,27 @@ fn max_step_is_kept() {
         solver.statistics()
     );
 }
+
+/// Van der Pol, μ = 1 (the Reference FMU's): a rejection now and then where the step must
+/// shrink, not more.
+struct VanDerPol;
+
+impl OdeSystem for VanDerPol {
+    type Error = ModelError;
+    fn rhs(&mut self, _t: f64, x: &[f64], dx: &mut [f64]) -> Result<(), ModelError> {
+        dx[0] = x[1];
+        dx[1] = (1.0 - x[0] * x[0]) * x[1] - x[0];
+        Ok(())
+    }
+}
+
+#[test]
+fn van_der_pol_takes_few_rejections() {
+    let loose = solve(Method::Dopri5, &mut VanDerPol, &[2.0, 0.0], 20.0, 1e-6);
+    let tight = solve(Method::Dopri5, &mut VanDerPol, &[2.0, 0.0], 20.0, 1e-11);
+    let s = loose.statistics();
+    let error = (loose.state()[0] - tight.state()[0]).abs();
+    eprintln!("van der Pol: {s:?}, error {error:.1e}");
+    assert!(s.rejected * 3 < s.accepted, "{s:?}");
+    assert!(error < 1e-4, "{error}");
+}

@@ -114,6 +114,69 @@ pub const REQUIRED_FUNCTIONS_3: [&str; 62] = [
     "fmi3DoStep",
 ];
 
+/// The functions only a Co-Simulation FMU must export (the last of [`REQUIRED_FUNCTIONS`] and
+/// [`REQUIRED_FUNCTIONS_3`]); the others are common to both interfaces.
+const CO_SIMULATION_ONLY: [&str; 13] = [
+    "fmi2SetRealInputDerivatives",
+    "fmi2GetRealOutputDerivatives",
+    "fmi2DoStep",
+    "fmi2CancelStep",
+    "fmi2GetStatus",
+    "fmi2GetRealStatus",
+    "fmi2GetIntegerStatus",
+    "fmi2GetBooleanStatus",
+    "fmi2GetStringStatus",
+    "fmi3InstantiateCoSimulation",
+    "fmi3EnterStepMode",
+    "fmi3GetOutputDerivatives",
+    "fmi3DoStep",
+];
+
+/// The functions of the Model Exchange interface, FMI 2.0 (§3.2) and FMI 3.0 (§3.2).
+const MODEL_EXCHANGE_ONLY: [&str; 21] = [
+    "fmi2EnterEventMode",
+    "fmi2NewDiscreteStates",
+    "fmi2EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep",
+    "fmi2SetTime",
+    "fmi2SetContinuousStates",
+    "fmi2GetDerivatives",
+    "fmi2GetEventIndicators",
+    "fmi2GetContinuousStates",
+    "fmi2GetNominalsOfContinuousStates",
+    "fmi3InstantiateModelExchange",
+    "fmi3EnterContinuousTimeMode",
+    "fmi3CompletedIntegratorStep",
+    "fmi3SetTime",
+    "fmi3SetContinuousStates",
+    "fmi3GetContinuousStateDerivatives",
+    "fmi3GetEventIndicators",
+    "fmi3GetContinuousStates",
+    "fmi3GetNominalsOfContinuousStates",
+    "fmi3GetNumberOfEventIndicators",
+    "fmi3GetNumberOfContinuousStates",
+];
+
+/// Every function FMI 2.0 (`fmi3`: false) or FMI 3.0 requires of a Model Exchange FMU: the
+/// common ones and those of the Model Exchange interface.
+pub fn required_model_exchange(fmi3: bool) -> Vec<&'static str> {
+    let (all, prefix): (&[&'static str], &str) = if fmi3 {
+        (&REQUIRED_FUNCTIONS_3, "fmi3")
+    } else {
+        (&REQUIRED_FUNCTIONS, "fmi2")
+    };
+    all.iter()
+        .copied()
+        .filter(|f| !CO_SIMULATION_ONLY.contains(f))
+        .chain(
+            MODEL_EXCHANGE_ONLY
+                .iter()
+                .copied()
+                .filter(|f| f.starts_with(prefix)),
+        )
+        .collect()
+}
+
 /// Why a library cannot be used on this machine.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum LibraryProblem {
