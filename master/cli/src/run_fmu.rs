@@ -194,10 +194,22 @@ pub fn run(
                 bail!("{flag} applies to a Model Exchange run (--interface me); {} runs as Co-Simulation with its own solver", path.display());
             }
         }
+        // As a system file writes them: true/false, integers, numbers.
         let parameters: BTreeMap<String, toml::Value> = args
-            .start_values()?
-            .into_iter()
-            .map(|(name, value)| (name, toml::Value::Float(value)))
+            .set
+            .iter()
+            .zip(args.start_values()?)
+            .map(|(entry, (name, value))| {
+                let text = entry.split_once('=').map_or("", |(_, v)| v.trim());
+                let value = match text {
+                    "true" => toml::Value::Boolean(true),
+                    "false" => toml::Value::Boolean(false),
+                    t => t
+                        .parse::<i64>()
+                        .map_or(toml::Value::Float(value), toml::Value::Integer),
+                };
+                (name, value)
+            })
             .collect();
         let absolute: PathBuf = std::path::absolute(path)?;
         let description = SystemDescription {

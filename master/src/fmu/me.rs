@@ -266,6 +266,13 @@ impl MeInstance {
                 let v = fmu
                     .variable(name)
                     .ok_or_else(|| format!("{} has no variable `{name}`", fmu.path.display()))?;
+                if let Some((array, _)) = v.element {
+                    return Err(format!(
+                        "`{name}` is an element of the FMI 3.0 array `{}` of {}: set the array's elements in a system file (a single-FMU run sets scalars)",
+                        fmu.arrays[array].head.name,
+                        fmu.path.display()
+                    ));
+                }
                 if !v.head.var_type.is_numeric() {
                     return Err(format!(
                         "`{name}` of {} is a {}, not a number",

@@ -164,7 +164,7 @@ struct Run<'a, M> {
     z_new: Vec<f64>,
     za: Vec<f64>,
     zm: Vec<f64>,
-    /// The recorded variables by type: (type, value references, columns).
+    /// The recorded variables by type: (type, value references, the column of each value).
     groups: Vec<(VarType, Vec<u32>, Vec<usize>)>,
     values: Vec<f64>,
     /// One group's values as read.
@@ -275,7 +275,7 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
             ..
         } = self;
         for (var_type, vrs, columns) in groups.iter() {
-            let out = &mut read[..vrs.len()];
+            let out = &mut read[..columns.len()];
             fmu.get(*var_type, vrs, out).map_err(|e| MeError::Call {
                 fmu: name.clone(),
                 call: Call::Get.name(*fmi3),
@@ -438,11 +438,15 @@ pub fn simulate<M: ModelExchangeCalls>(
         max_step: options.max_step.unwrap_or(f64::INFINITY),
         ..Settings::default()
     };
+    // One read per type; the elements of an FMI 3.0 array (consecutive, one value reference)
+    // are read as the array.
     let mut groups: Vec<(VarType, Vec<u32>, Vec<usize>)> = Vec::new();
     for (column, (_, t, vr)) in layout.recorded.iter().enumerate() {
         match groups.iter_mut().find(|g| g.0 == *t) {
             Some(g) => {
-                g.1.push(*vr);
+                if !(fmi3 && g.1.last() == Some(vr)) {
+                    g.1.push(*vr);
+                }
                 g.2.push(column);
             }
             None => groups.push((*t, vec![*vr], vec![column])),
