@@ -6,9 +6,9 @@
 //! (`r₁ … r₅` of [`crate::tableau::DP5_DENSE`]). Six evaluations of `f` per step: `k₇` is the
 //! next step's `k₁`.
 
-use crate::solver::{Stepper, Trajectory};
+use crate::solver::{Norm, Outcome, Stepper, Trajectory};
 use crate::tableau::{DP5_A, DP5_C, DP5_DENSE, DP5_E};
-use crate::{error_norm, OdeSystem, SolverError};
+use crate::OdeSystem;
 
 /// The stages and the dense-output coefficient of Dormand–Prince 5(4) for `n` states.
 #[derive(Debug, Clone)]
@@ -45,12 +45,7 @@ impl Stepper for Dopri5 {
         0.04
     }
 
-    fn attempt<S: OdeSystem>(
-        &mut self,
-        tr: &mut Trajectory,
-        system: &mut S,
-        h: f64,
-    ) -> Result<f64, SolverError<S::Error>> {
+    fn attempt<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, h: f64) -> Norm<S> {
         let n = tr.n;
         for stage in 0..6 {
             let row = &DP5_A[stage];
@@ -67,7 +62,7 @@ impl Stepper for Dopri5 {
             let t_stage = tr.t + DP5_C[stage] * h;
             Trajectory::evaluate(
                 &mut tr.statistics,
-                system,
+                sys,
                 t_stage,
                 &self.y,
                 &mut self.k[stage],
@@ -80,21 +75,10 @@ impl Stepper for Dopri5 {
             }
             self.error[i] = h * e;
         }
-        Ok(error_norm(
-            &self.error,
-            &tr.x,
-            &self.x_new,
-            &tr.atol,
-            tr.settings.relative,
-        ))
+        Ok(tr.norm(&self.error, &self.x_new))
     }
 
-    fn accept<S: OdeSystem>(
-        &mut self,
-        tr: &mut Trajectory,
-        _system: &mut S,
-        t_new: f64,
-    ) -> Result<(), SolverError<S::Error>> {
+    fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S> {
         let h = t_new - tr.t;
         // r₅ = h (d₁k₁ + d₃k₃ + d₄k₄ + d₅k₅ + d₆k₆ + d₇k₇)
         for i in 0..tr.n {
@@ -107,23 +91,17 @@ impl Stepper for Dopri5 {
                     + DP5_DENSE[4] * k(6)
                     + DP5_DENSE[5] * k(7));
         }
-        std::mem::swap(&mut tr.x_old, &mut tr.x);
-        std::mem::swap(&mut tr.dx_old, &mut tr.dx);
-        tr.x.copy_from_slice(&self.x_new);
+        tr.advance(&self.x_new, t_new);
+        // k₇ = f(t₁, x₁): the next step's first stage
         tr.dx.copy_from_slice(&self.k[5]);
         tr.dx_valid = true;
-        tr.t_old = tr.t;
-        tr.t = t_new;
-        tr.ensure_derivative(_system)
+        tr.ensure_derivative(sys)
     }
 
     fn interpolate(&self, tr: &Trajectory, t: f64, out: &mut [f64]) {
-        let h = tr.t - tr.t_old;
-        if h == 0.0 {
-            out.copy_from_slice(&tr.x);
+        let Some((h, theta)) = tr.fraction(t, out) else {
             return;
-        }
-        let theta = (t - tr.t_old) / h;
+        };
         let theta1 = 1.0 - theta;
         for i in 0..tr.n {
             let r1 = tr.x_old[i];

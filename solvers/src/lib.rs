@@ -28,6 +28,9 @@
 //!
 //! **No allocation per step:** every buffer is sized once, when the solver is made.
 
+// The stages combine several vectors component by component: an index loop says so plainly.
+#![allow(clippy::needless_range_loop)]
+
 pub mod dopri5;
 pub mod lu;
 pub mod rosenbrock;
@@ -46,19 +49,22 @@ pub trait OdeSystem {
     /// Writes `f(t, x)` into `dx`.
     fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) -> Result<(), Self::Error>;
 
-    /// Writes the Jacobian–vector product `∂f/∂x(t, x) · v` into `out` and returns `true`, or
-    /// returns `false` (leaving `out` as it is) when the model gives none, in which case
-    /// the solver differentiates by forward differences.
-    fn jacobian_times(
-        &mut self,
-        t: f64,
-        x: &[f64],
-        v: &[f64],
-        out: &mut [f64],
-    ) -> Result<bool, Self::Error> {
-        let _ = (t, x, v, out);
+    /// Writes the Jacobian–vector product `∂f/∂x(t, x) · v` of `at` into `out` and returns
+    /// `true`, or returns `false` (leaving `out` as it is) when the model gives none, in which
+    /// case the solver differentiates by forward differences.
+    fn jacobian_times(&mut self, at: Direction<'_>, out: &mut [f64]) -> Result<bool, Self::Error> {
+        let _ = (at, out);
         Ok(false)
     }
+}
+
+/// Where and along what a Jacobian–vector product is asked: at time `t` and state `x`,
+/// along `v`.
+#[derive(Debug, Clone, Copy)]
+pub struct Direction<'a> {
+    pub t: f64,
+    pub x: &'a [f64],
+    pub v: &'a [f64],
 }
 
 /// Tolerances and limits of a solver.

@@ -20,9 +20,9 @@
 //! costs nothing extra.
 
 use crate::lu;
-use crate::solver::{Stepper, Trajectory};
+use crate::solver::{Norm, Outcome, Stepper, Trajectory};
 use crate::tableau::RosenbrockMethod;
-use crate::{error_norm, OdeSystem, SolverError};
+use crate::{OdeSystem, SolverError};
 
 /// A Rosenbrock method with its buffers for `n` states.
 #[derive(Debug, Clone)]
@@ -54,6 +54,7 @@ pub struct Rosenbrock {
 impl Rosenbrock {
     /// `method` for `n` states, taking `f` as time-dependent.
     pub fn new(method: RosenbrockMethod, n: usize) -> Self {
+        let zeros = || vec![0.0; n];
         Self {
             method,
             n,
@@ -61,16 +62,16 @@ impl Rosenbrock {
             jacobian_valid: false,
             products: None,
             autonomous: false,
-            f_t: vec![0.0; n],
+            f_t: zeros(),
             g: vec![0.0; n * n],
             rows: vec![0; n],
-            k: std::array::from_fn(|_| vec![0.0; n]),
-            y: vec![0.0; n],
-            f: vec![0.0; n],
-            rhs: vec![0.0; n],
-            x_new: vec![0.0; n],
-            error: vec![0.0; n],
-            seed: vec![0.0; n],
+            k: std::array::from_fn(|_| zeros()),
+            y: zeros(),
+            f: zeros(),
+            rhs: zeros(),
+            x_new: zeros(),
+            error: zeros(),
+            seed: zeros(),
         }
     }
 
@@ -94,8 +95,13 @@ impl Rosenbrock {
                 self.seed[j] = 1.0;
                 tr.statistics.jacobian_products += 1;
                 let column = &mut self.jacobian[j * n..(j + 1) * n];
+                let at = crate::Direction {
+                    t: tr.t,
+                    x: &tr.x,
+                    v: &self.seed,
+                };
                 given = system
-                    .jacobian_times(tr.t, &tr.x, &self.seed, column)
+                    .jacobian_times(at, column)
                     .map_err(|source| SolverError::Model { time: tr.t, source })?;
                 if !given {
                     tr.statistics.jacobian_products -= 1;
@@ -166,15 +172,10 @@ impl Stepper for Rosenbrock {
         self.method.error_order
     }
 
-    fn attempt<S: OdeSystem>(
-        &mut self,
-        tr: &mut Trajectory,
-        system: &mut S,
-        h: f64,
-    ) -> Result<f64, SolverError<S::Error>> {
+    fn attempt<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, h: f64) -> Norm<S> {
         let n = self.n;
         if !self.jacobian_valid {
-            self.form_jacobian(tr, system)?;
+            self.form_jacobian(tr, sys)?;
         }
         let diagonal = 1.0 / (self.method.gamma * h);
         for (g, j) in self.g.iter_mut().zip(&self.jacobian) {
@@ -206,7 +207,7 @@ impl Stepper for Rosenbrock {
                 } else if !same_point {
                     self.stage_point(&tr.x, i);
                     let t = tr.t + alpha[i] * h;
-                    Trajectory::evaluate(&mut tr.statistics, system, t, &self.y, &mut self.f)?;
+                    Trajectory::evaluate(&mut tr.statistics, sys, t, &self.y, &mut self.f)?;
                 }
             }
             self.stage(i, h);
@@ -222,39 +223,21 @@ impl Stepper for Rosenbrock {
             self.x_new[r] = next;
             self.error[r] = error;
         }
-        Ok(error_norm(
-            &self.error,
-            &tr.x,
-            &self.x_new,
-            &tr.atol,
-            tr.settings.relative,
-        ))
+        Ok(tr.norm(&self.error, &self.x_new))
     }
 
-    fn accept<S: OdeSystem>(
-        &mut self,
-        tr: &mut Trajectory,
-        system: &mut S,
-        t_new: f64,
-    ) -> Result<(), SolverError<S::Error>> {
-        std::mem::swap(&mut tr.x_old, &mut tr.x);
-        std::mem::swap(&mut tr.dx_old, &mut tr.dx);
-        tr.x.copy_from_slice(&self.x_new);
-        tr.t_old = tr.t;
-        tr.t = t_new;
+    fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S> {
+        tr.advance(&self.x_new, t_new);
         tr.dx_valid = false;
         self.jacobian_valid = false;
-        tr.ensure_derivative(system)
+        tr.ensure_derivative(sys)
     }
 
     fn interpolate(&self, tr: &Trajectory, t: f64, out: &mut [f64]) {
-        let h = tr.t - tr.t_old;
-        if h == 0.0 {
-            out.copy_from_slice(&tr.x);
+        let Some((h, s)) = tr.fraction(t, out) else {
             return;
-        }
-        // Cubic Hermite basis in θ = (t − t₀)/h.
-        let s = (t - tr.t_old) / h;
+        };
+        // Cubic Hermite basis in s = (t − t₀)/h.
         let h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s);
         let h10 = s * (1.0 - s) * (1.0 - s);
         let h01 = s * s * (3.0 - 2.0 * s);

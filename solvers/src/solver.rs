@@ -68,6 +68,32 @@ impl Trajectory {
             .map_err(|source| SolverError::Model { time: t, source })
     }
 
+    /// Takes `x_new` at `t_new` as the state, the current one becoming the previous (for the
+    /// dense output); the caller sets `dx`.
+    pub fn advance(&mut self, x_new: &[f64], t_new: f64) {
+        std::mem::swap(&mut self.x_old, &mut self.x);
+        std::mem::swap(&mut self.dx_old, &mut self.dx);
+        self.x.copy_from_slice(x_new);
+        self.t_old = self.t;
+        self.t = t_new;
+    }
+
+    /// The last step's length `h` and the fraction `θ = (t − t₀)/h` of it at `t`; `None` (the
+    /// state copied into `out`) when no step was taken since the last reset.
+    pub fn fraction(&self, t: f64, out: &mut [f64]) -> Option<(f64, f64)> {
+        let h = self.t - self.t_old;
+        if h == 0.0 {
+            out.copy_from_slice(&self.x);
+            return None;
+        }
+        Some((h, (t - self.t_old) / h))
+    }
+
+    /// The error norm of a step from the state to `next` with local error estimate `error`.
+    pub fn norm(&self, error: &[f64], next: &[f64]) -> f64 {
+        error_norm(error, &self.x, next, &self.atol, self.settings.relative)
+    }
+
     /// Makes sure `dx = f(t, x)`; a derivative that is not finite at an accepted state is
     /// the model's fault: an error naming the state.
     pub fn ensure_derivative<S: OdeSystem>(
@@ -130,6 +156,12 @@ impl Trajectory {
     }
 }
 
+/// What a step of a method on the system `S` gives: `T`, or why it failed.
+pub(crate) type Outcome<S, T = ()> = Result<T, SolverError<<S as OdeSystem>::Error>>;
+
+/// An attempted step's weighted error norm, or why it failed.
+pub(crate) type Norm<S> = Outcome<S, f64>;
+
 /// One method as the step-size loop drives it.
 pub(crate) trait Stepper {
     /// The order of the error estimate plus one (the step control's exponent is −1/this).
@@ -143,21 +175,11 @@ pub(crate) trait Stepper {
 
     /// A step of `h` from the trajectory's state: the candidate into the method's buffer and
     /// its error norm (NaN when a stage was not finite).
-    fn attempt<S: OdeSystem>(
-        &mut self,
-        trajectory: &mut Trajectory,
-        system: &mut S,
-        h: f64,
-    ) -> Result<f64, SolverError<S::Error>>;
+    fn attempt<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, h: f64) -> Norm<S>;
 
     /// Takes the candidate as the new state at `t_new` (shifting the old one back) with
     /// `f(t_new, x_new)` in `trajectory.dx`.
-    fn accept<S: OdeSystem>(
-        &mut self,
-        trajectory: &mut Trajectory,
-        system: &mut S,
-        t_new: f64,
-    ) -> Result<(), SolverError<S::Error>>;
+    fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S>;
 
     /// The dense output at `t` within the last accepted step, into `out`.
     fn interpolate(&self, trajectory: &Trajectory, t: f64, out: &mut [f64]);
@@ -300,8 +322,8 @@ impl std::fmt::Display for Method {
 /// The method's own part of a solver.
 #[derive(Debug, Clone)]
 enum Inner {
-    Dopri5(Dopri5),
-    Rosenbrock(Rosenbrock),
+    Dopri5(Box<Dopri5>),
+    Rosenbrock(Box<Rosenbrock>),
 }
 
 /// A solver of the method chosen at run time, for `n` states.
@@ -316,9 +338,13 @@ impl Solver {
     /// A solver of `method` for `n` states, at `t = 0`, `x = 0` until [`Solver::reset`].
     pub fn new(method: Method, n: usize, settings: Settings) -> Self {
         let inner = match method {
-            Method::Dopri5 => Inner::Dopri5(Dopri5::new(n)),
-            Method::Rodas3 => Inner::Rosenbrock(Rosenbrock::new(crate::tableau::RODAS3, n)),
-            Method::Shampine4 => Inner::Rosenbrock(Rosenbrock::new(crate::tableau::SHAMPINE4, n)),
+            Method::Dopri5 => Inner::Dopri5(Box::new(Dopri5::new(n))),
+            Method::Rodas3 => {
+                Inner::Rosenbrock(Box::new(Rosenbrock::new(crate::tableau::RODAS3, n)))
+            }
+            Method::Shampine4 => {
+                Inner::Rosenbrock(Box::new(Rosenbrock::new(crate::tableau::SHAMPINE4, n)))
+            }
         };
         Self {
             method,
@@ -389,8 +415,8 @@ impl Solver {
         t_limit: f64,
     ) -> Result<f64, SolverError<S::Error>> {
         match &mut self.inner {
-            Inner::Dopri5(m) => step(m, &mut self.trajectory, system, t_limit),
-            Inner::Rosenbrock(m) => step(m, &mut self.trajectory, system, t_limit),
+            Inner::Dopri5(m) => step(m.as_mut(), &mut self.trajectory, system, t_limit),
+            Inner::Rosenbrock(m) => step(m.as_mut(), &mut self.trajectory, system, t_limit),
         }
     }
 

@@ -3,7 +3,7 @@
 //! stiff chemistry (the Rosenbrock method in far fewer evaluations than the explicit one),
 //! Jacobian–vector products used when given, and bounded work on a model that fails.
 
-use spurio_solvers::{Method, OdeSystem, Settings, Solver, SolverError};
+use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverError};
 
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
@@ -33,13 +33,8 @@ impl OdeSystem for Oscillator {
         dx[1] = -self.omega * self.omega * x[0];
         Ok(())
     }
-    fn jacobian_times(
-        &mut self,
-        _t: f64,
-        _x: &[f64],
-        v: &[f64],
-        out: &mut [f64],
-    ) -> Result<bool, ModelError> {
+    fn jacobian_times(&mut self, at: Direction<'_>, out: &mut [f64]) -> Result<bool, ModelError> {
+        let v = at.v;
         if !self.products {
             return Ok(false);
         }

@@ -114,23 +114,22 @@ pub const REQUIRED_FUNCTIONS_3: [&str; 62] = [
     "fmi3DoStep",
 ];
 
-/// The functions only a Co-Simulation FMU must export (the last of [`REQUIRED_FUNCTIONS`] and
-/// [`REQUIRED_FUNCTIONS_3`]); the others are common to both interfaces.
-const CO_SIMULATION_ONLY: [&str; 13] = [
-    "fmi2SetRealInputDerivatives",
-    "fmi2GetRealOutputDerivatives",
-    "fmi2DoStep",
-    "fmi2CancelStep",
-    "fmi2GetStatus",
-    "fmi2GetRealStatus",
-    "fmi2GetIntegerStatus",
-    "fmi2GetBooleanStatus",
-    "fmi2GetStringStatus",
-    "fmi3InstantiateCoSimulation",
-    "fmi3EnterStepMode",
-    "fmi3GetOutputDerivatives",
-    "fmi3DoStep",
-];
+/// Whether `function` belongs to the Co-Simulation interface only (of [`REQUIRED_FUNCTIONS`]
+/// and [`REQUIRED_FUNCTIONS_3`]: stepping, its status and input/output derivatives, FMI 3.0's
+/// Co-Simulation instantiation and step mode); the others are common to both interfaces.
+fn co_simulation_only(function: &str) -> bool {
+    [
+        "DoStep",
+        "CancelStep",
+        "Status",
+        "InputDerivatives",
+        "OutputDerivatives",
+        "InstantiateCoSimulation",
+        "StepMode",
+    ]
+    .iter()
+    .any(|part| function.contains(part))
+}
 
 /// The functions of the Model Exchange interface, FMI 2.0 (§3.2) and FMI 3.0 (§3.2).
 const MODEL_EXCHANGE_ONLY: [&str; 21] = [
@@ -167,7 +166,7 @@ pub fn required_model_exchange(fmi3: bool) -> Vec<&'static str> {
     };
     all.iter()
         .copied()
-        .filter(|f| !CO_SIMULATION_ONLY.contains(f))
+        .filter(|f| !co_simulation_only(f))
         .chain(
             MODEL_EXCHANGE_ONLY
                 .iter()

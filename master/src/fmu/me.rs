@@ -9,7 +9,7 @@
 //! differentiated by finite differences in the solver.
 
 use super::instance::{get2, get3, set2, set3, Scratch};
-use super::{CallError, FmiVersion, FmuFile, Import, Interface, LoadError, VarType};
+use super::{CallError, Experiment, FmiVersion, FmuFile, Import, Interface, LoadError, VarType};
 use crate::logging::LogKey;
 use crate::model_exchange::{EventUpdate, ModelExchangeCalls};
 use crate::xml::{attribute, tags, Tag};
@@ -327,16 +327,15 @@ impl ModelExchangeCalls for MeInstance {
         matches!(self.inner, Inner::Fmi3(_))
     }
 
-    fn setup_experiment(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError> {
-        me_call!(self, |i| i.setup_experiment(tolerance, start, stop), |i| {
-            let _ = i;
-            Ok::<(), fmi::fmi3::Fmi3Error>(())
-        })
+    fn setup_experiment(&mut self, e: Experiment) -> Result<(), CallError> {
+        me_call!(
+            self,
+            |i| i.setup_experiment(e.tolerance, e.start, e.stop),
+            |i| {
+                let _ = i;
+                Ok::<(), fmi::fmi3::Fmi3Error>(())
+            }
+        )
     }
 
     fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
@@ -361,14 +360,9 @@ impl ModelExchangeCalls for MeInstance {
         }
     }
 
-    fn enter_initialization_mode(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError> {
+    fn enter_initialization_mode(&mut self, e: Experiment) -> Result<(), CallError> {
         me_call!(self, |i| i.enter_initialization_mode(), |i| i
-            .enter_initialization_mode(tolerance, start, stop))
+            .enter_initialization_mode(e.tolerance, e.start, e.stop))
     }
 
     fn exit_initialization_mode(&mut self) -> Result<(), CallError> {

@@ -1,9 +1,9 @@
 //! The Model Exchange simulation loop (module docs of [`super`]).
 
 use super::{Call, EventUpdate, MeError, ModelExchangeCalls};
-use crate::fmu::{CallError, VarType};
+use crate::fmu::{CallError, Experiment, VarType};
 use crate::record::Observer;
-use spurio_solvers::{Method, OdeSystem, Settings, Solver, SolverError, Statistics};
+use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverError, Statistics};
 
 /// The bracket to which a state event's time is located: `10⁻¹² · max(1, |t|)` s.
 pub fn event_time_tolerance(t: f64) -> f64 {
@@ -129,16 +129,10 @@ impl<M: ModelExchangeCalls> OdeSystem for Plant<'_, M> {
         })
     }
 
-    fn jacobian_times(
-        &mut self,
-        t: f64,
-        x: &[f64],
-        v: &[f64],
-        out: &mut [f64],
-    ) -> Result<bool, Failure> {
-        self.set(t, x)?;
+    fn jacobian_times(&mut self, at: Direction<'_>, out: &mut [f64]) -> Result<bool, Failure> {
+        self.set(at.t, at.x)?;
         self.fmu
-            .directional_derivative(v, out)
+            .directional_derivative(at.v, out)
             .map_err(|error| Failure {
                 call: Call::GetDirectionalDerivative,
                 error,
@@ -379,6 +373,22 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
         })
     }
 
+    /// Continuous-time mode at `t` after an event iteration: the solver started afresh from
+    /// the states and nominals read, the indicators read as the ones before the next step.
+    fn resume(&mut self, t: f64) -> Result<(), MeError> {
+        let entered = self.fmu.enter_continuous_time_mode();
+        entered.map_err(self.failed(Call::EnterContinuousTimeMode, t))?;
+        self.restart(t)?;
+        self.fmu
+            .set_time(t)
+            .map_err(self.failed(Call::SetTime, t))?;
+        if !self.z_old.is_empty() {
+            let read = self.fmu.get_event_indicators(&mut self.z_old);
+            read.map_err(self.failed(Call::GetEventIndicators, t))?;
+        }
+        Ok(())
+    }
+
     /// Reads the states and nominals at `t` and starts the solver from them.
     fn restart(&mut self, t: f64) -> Result<(), MeError> {
         if self.x.is_empty() {
@@ -453,27 +463,32 @@ pub fn simulate<M: ModelExchangeCalls>(
         }
     }
     let m = layout.event_indicators;
+    let zeros = |k: usize| vec![0.0; k];
     let mut run = Run {
         fmu,
         fmi3,
         name: name.clone(),
         solver: Solver::new(options.method, n, settings),
-        x: vec![0.0; n],
+        x: zeros(n),
         nominal: vec![1.0; n],
-        z_old: vec![0.0; m],
-        z_new: vec![0.0; m],
-        za: vec![0.0; m],
-        zm: vec![0.0; m],
+        z_old: zeros(m),
+        z_new: zeros(m),
+        za: zeros(m),
+        zm: zeros(m),
         groups,
-        values: vec![0.0; layout.recorded.len()],
-        read: vec![0.0; layout.recorded.len()],
-        scratch: vec![0.0; n],
+        values: zeros(layout.recorded.len()),
+        read: zeros(layout.recorded.len()),
+        scratch: zeros(n),
     };
     let (start, stop) = (options.start, options.stop);
-    let tolerance = Some(options.tolerance);
+    let experiment = Experiment {
+        tolerance: Some(options.tolerance),
+        start,
+        stop: Some(stop),
+    };
     // Initialisation (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1).
     run.fmu
-        .setup_experiment(tolerance, start, Some(stop))
+        .setup_experiment(experiment)
         .map_err(run.failed(Call::SetupExperiment, start))?;
     for (t, vr, value) in &layout.start_values {
         run.fmu
@@ -481,7 +496,7 @@ pub fn simulate<M: ModelExchangeCalls>(
             .map_err(run.failed(Call::Set, start))?;
     }
     run.fmu
-        .enter_initialization_mode(tolerance, start, Some(stop))
+        .enter_initialization_mode(experiment)
         .map_err(run.failed(Call::EnterInitializationMode, start))?;
     run.fmu
         .exit_initialization_mode()
@@ -504,16 +519,7 @@ pub fn simulate<M: ModelExchangeCalls>(
         run.record(t, observer)?;
         return finish(run, summary, observer, true);
     }
-    run.fmu
-        .enter_continuous_time_mode()
-        .map_err(run.failed(Call::EnterContinuousTimeMode, t))?;
-    run.restart(t)?;
-    run.fmu.set_time(t).map_err(run.failed(Call::SetTime, t))?;
-    if m > 0 {
-        let z = &mut run.z_old;
-        let read = run.fmu.get_event_indicators(z);
-        read.map_err(run.failed(Call::GetEventIndicators, t))?;
-    }
+    run.resume(t)?;
     run.record(t, observer)?;
     let (mut last_event_time, mut events_here) = (f64::NEG_INFINITY, 0usize);
     let mut steps_in_interval = 0usize;
@@ -618,16 +624,7 @@ pub fn simulate<M: ModelExchangeCalls>(
                 summary.end_time = t;
                 return finish(run, summary, observer, true);
             }
-            run.fmu
-                .enter_continuous_time_mode()
-                .map_err(run.failed(Call::EnterContinuousTimeMode, t))?;
-            run.restart(t)?;
-            run.fmu.set_time(t).map_err(run.failed(Call::SetTime, t))?;
-            if m > 0 {
-                let z = &mut run.z_old;
-                let read = run.fmu.get_event_indicators(z);
-                read.map_err(run.failed(Call::GetEventIndicators, t))?;
-            }
+            run.resume(t)?;
             steps_in_interval = 0;
         } else if m > 0 {
             // The indicators at the accepted point (t_valid = t_new here).

@@ -32,7 +32,7 @@ mod tests;
 pub use driver::{event_time_tolerance, simulate, Event, EventKind, Layout, Options, Summary};
 pub use spurio_solvers::{Method, Statistics};
 
-use crate::fmu::{CallError, VarType};
+use crate::fmu::{CallError, Experiment, VarType};
 
 /// What `fmi2NewDiscreteStates` / `fmi3UpdateDiscreteStates` said.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -59,22 +59,13 @@ pub trait ModelExchangeCalls {
     fn is_fmi3(&self) -> bool;
     /// FMI 2.0 `fmi2SetupExperiment` (FMI 3.0: nothing, the experiment goes with
     /// `fmi3EnterInitializationMode`).
-    fn setup_experiment(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError>;
+    fn setup_experiment(&mut self, experiment: Experiment) -> Result<(), CallError>;
     /// Sets values (start values, inputs) of type `t`.
     fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError>;
     /// Reads values of type `t`.
     fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError>;
-    fn enter_initialization_mode(
-        &mut self,
-        tolerance: Option<f64>,
-        start: f64,
-        stop: Option<f64>,
-    ) -> Result<(), CallError>;
+    /// Enters initialisation mode (FMI 3.0 with the experiment).
+    fn enter_initialization_mode(&mut self, experiment: Experiment) -> Result<(), CallError>;
     fn exit_initialization_mode(&mut self) -> Result<(), CallError>;
     fn enter_event_mode(&mut self) -> Result<(), CallError>;
     fn update_discrete_states(&mut self) -> Result<EventUpdate, CallError>;

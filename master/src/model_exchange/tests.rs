@@ -42,12 +42,7 @@ impl ModelExchangeCalls for Model {
     fn is_fmi3(&self) -> bool {
         false
     }
-    fn setup_experiment(
-        &mut self,
-        _: Option<f64>,
-        _: f64,
-        _: Option<f64>,
-    ) -> Result<(), CallError> {
+    fn setup_experiment(&mut self, _: Experiment) -> Result<(), CallError> {
         Ok(())
     }
     fn set(&mut self, _: VarType, _: &[u32], _: &[f64]) -> Result<(), CallError> {
@@ -57,12 +52,7 @@ impl ModelExchangeCalls for Model {
         out.fill(self.x);
         Ok(())
     }
-    fn enter_initialization_mode(
-        &mut self,
-        _: Option<f64>,
-        _: f64,
-        _: Option<f64>,
-    ) -> Result<(), CallError> {
+    fn enter_initialization_mode(&mut self, _: Experiment) -> Result<(), CallError> {
         Ok(())
     }
     fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
