@@ -133,10 +133,13 @@ pub enum SolverError<E: std::error::Error + 'static> {
         #[source]
         source: E,
     },
+    /// The model gave a derivative that is not finite at an accepted state.
     #[error("the derivative of state {index} is {value} at t = {time}")]
     NonFiniteDerivative { time: f64, index: usize, value: f64 },
+    /// Every step tried had a stage that was not finite, down to the smallest step.
     #[error("the derivatives were not finite in every step tried from t = {time}, down to a step of {step:e} s")]
     NonFiniteStages { time: f64, step: f64 },
+    /// The error control shrank the step below the round-off of the time.
     #[error("the error control asked for a step of {step:e} s at t = {time}, below the round-off of the time")]
     StepTooSmall { time: f64, step: f64 },
     #[error("{rejections} rejected steps in a row at t = {time} (last step {step:e} s): the solution is not smooth there, or the tolerance is too tight")]

@@ -9,12 +9,15 @@ use crate::{
 /// for dense output), the derivative there, the step to try next, the absolute tolerances.
 #[derive(Debug, Clone)]
 pub(crate) struct Trajectory {
+    /// The number of states.
     pub n: usize,
+    /// The time and state of the last accepted step.
     pub t: f64,
     pub x: Vec<f64>,
     /// `f(t, x)`, valid when `dx_valid`.
     pub dx: Vec<f64>,
     pub dx_valid: bool,
+    /// Time, state and derivative before the last accepted step (for the dense output).
     pub t_old: f64,
     pub x_old: Vec<f64>,
     pub dx_old: Vec<f64>,

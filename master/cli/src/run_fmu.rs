@@ -23,28 +23,28 @@ pub struct FmuArgs {
     #[arg(long, value_parser = ["me", "cs"])]
     pub interface: Option<String>,
     /// For an FMU: the start time (default: the DefaultExperiment's, else 0).
-    #[arg(long)]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub start_time: Option<f64>,
     /// For an FMU: the stop time (default: the DefaultExperiment's, else 1).
-    #[arg(long)]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub stop_time: Option<f64>,
     /// For an FMU: the output interval (Co-Simulation: the communication step). Default: the
     /// DefaultExperiment's stepSize, else (stop − start)/500.
-    #[arg(long)]
+    #[arg(long, value_name = "SECONDS", value_parser = crate::limits::parse_positive)]
     pub step_size: Option<f64>,
     /// For an FMU: a start value `name=value` (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// For a Model Exchange run: the solver, `dopri5` (explicit Dormand–Prince 5(4), the
     /// default), `rodas3` (stiff, Rosenbrock) or `shampine4`.
-    #[arg(long)]
+    #[arg(long, value_name = "METHOD")]
     pub solver: Option<Method>,
     /// For a Model Exchange run: the relative tolerance (the absolute one: the same times each
     /// state's nominal). Default: the DefaultExperiment's, else 1e-6.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::limits::parse_positive)]
     pub tolerance: Option<f64>,
     /// For a Model Exchange run: the longest solver step.
-    #[arg(long)]
+    #[arg(long, value_name = "SECONDS", value_parser = crate::limits::parse_positive)]
     pub max_step: Option<f64>,
 }
 

@@ -5,7 +5,7 @@
 #[path = "../../tests/common/mod.rs"]
 mod engine;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// Runs `spurio` with `args` (RUST_BACKTRACE set, to show that none is printed).
@@ -15,6 +15,21 @@ fn spurio(args: &[&str]) -> Output {
         .env("RUST_BACKTRACE", "1")
         .output()
         .unwrap()
+}
+
+/// Runs `fmu` as Model Exchange into `csv`, with the flags `extra`.
+fn run_me(fmu: &Path, csv: &Path, extra: &[&str]) -> Output {
+    let (fmu, csv) = (fmu.to_str().unwrap(), csv.to_str().unwrap());
+    let mut args = vec!["run", fmu, "--interface", "me", "--out", csv];
+    args.extend_from_slice(extra);
+    spurio(&args)
+}
+
+/// A case's fresh folder, its results file and the Reference FMU `model` of `version`.
+fn case(name: &str, version: &str, model: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = folder(name);
+    let csv = dir.join("results.csv");
+    (dir, csv, engine::reference(version, model))
 }
 
 /// A fresh folder for one case.
@@ -55,18 +70,8 @@ fn an_argument_that_is_neither_a_system_nor_an_fmu_is_named_without_a_backtrace(
 
 #[test]
 fn a_reference_fmu_runs_as_model_exchange_and_reports_its_events() {
-    let dir = folder("me");
-    let csv = dir.join("bb.csv");
-    let fmu = engine::reference("fmi3", "BouncingBall");
-    let out = spurio(&[
-        "run",
-        fmu.to_str().unwrap(),
-        "--interface",
-        "me",
-        "--verbose",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let (dir, csv, fmu) = case("me", "fmi3", "BouncingBall");
+    let out = run_me(&fmu, &csv, &["--verbose"]);
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stderr}");
     // the DefaultExperiment: 0 to 3 s every 0.01 s, the outputs by name
@@ -88,14 +93,7 @@ fn a_reference_fmu_runs_as_model_exchange_and_reports_its_events() {
     );
     // Stair: the FMU ends the run at t = 9 (terminateSimulation), said and recorded.
     let stair = engine::reference("fmi2", "Stair");
-    let out = spurio(&[
-        "run",
-        stair.to_str().unwrap(),
-        "--interface",
-        "me",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let out = run_me(&stair, &csv, &[]);
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(stdout.contains("ended the simulation at t = 9"), "{stdout}");
@@ -104,20 +102,10 @@ fn a_reference_fmu_runs_as_model_exchange_and_reports_its_events() {
 
 #[test]
 fn model_exchange_errors_name_the_fmu_and_stop_without_a_backtrace() {
-    let dir = folder("me-errors");
-    let csv = dir.join("r.csv");
     // Robertson's stiff problem to 1e8 s with the explicit method: bounded work, an error.
     // (Model Exchange asked for: the FMU's own Co-Simulation takes fixed Euler steps.)
-    let roberts = engine::reference("fmi3", "Roberts");
-    let roberts = roberts.to_str().unwrap();
-    let out = spurio(&[
-        "run",
-        roberts,
-        "--interface",
-        "me",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let (dir, csv, roberts) = case("me-errors", "fmi3", "Roberts");
+    let out = run_me(&roberts, &csv, &[]);
     let stderr = text(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("Roberts.fmu"), "{stderr}");
@@ -127,29 +115,11 @@ fn model_exchange_errors_name_the_fmu_and_stop_without_a_backtrace() {
     );
     assert!(!stderr.contains("backtrace"), "{stderr}");
     // with the stiff method it runs
-    let out = spurio(&[
-        "run",
-        roberts,
-        "--interface",
-        "me",
-        "--solver",
-        "rodas3",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let out = run_me(&roberts, &csv, &["--solver", "rodas3"]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     // an unknown start value
     let vdp = engine::reference("fmi2", "VanDerPol");
-    let out = spurio(&[
-        "run",
-        vdp.to_str().unwrap(),
-        "--interface",
-        "me",
-        "--set",
-        "nobody=1",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let out = run_me(&vdp, &csv, &["--set", "nobody=1"]);
     let stderr = text(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("has no variable `nobody`"), "{stderr}");

@@ -85,47 +85,50 @@ fn parse(text: &str, version: FmiVersion) -> Result<MeDescription, String> {
     let mut derivative_indices: Vec<usize> = Vec::new();
     let (mut in_derivatives, mut in_variables) = (false, false);
     for tag in tags(text) {
-        match tag? {
-            Tag::End(e) => match e.name().as_ref() {
-                "Derivatives" => in_derivatives = false,
-                "ModelVariables" => in_variables = false,
-                _ => {}
-            },
-            Tag::Start { element: e, empty } => match e.name().as_ref() {
-                "fmiModelDescription" if version == FmiVersion::Fmi2 => {
-                    d.event_indicators = number(&e, "numberOfEventIndicators")?.unwrap_or(0);
+        let (e, empty) = match tag? {
+            Tag::Start { element, empty } => (element, empty),
+            // Leaving a list ends it (the lists here do not nest).
+            Tag::End(end) => {
+                let name = end.name();
+                in_derivatives &= name.as_ref() != "Derivatives";
+                in_variables &= name.as_ref() != "ModelVariables";
+                continue;
+            }
+        };
+        match e.name().as_ref() {
+            "fmiModelDescription" if version == FmiVersion::Fmi2 => {
+                d.event_indicators = number(&e, "numberOfEventIndicators")?.unwrap_or(0);
+            }
+            "ModelExchange" => {
+                let key = match version {
+                    FmiVersion::Fmi2 => "providesDirectionalDerivative",
+                    FmiVersion::Fmi3 => "providesDirectionalDerivatives",
+                };
+                d.directional_derivatives = attribute(&e, key).as_deref() == Some("true");
+            }
+            "DefaultExperiment" => {
+                d.default_experiment = DefaultExperiment {
+                    start_time: number(&e, "startTime")?,
+                    stop_time: number(&e, "stopTime")?,
+                    tolerance: number(&e, "tolerance")?,
+                    step_size: number(&e, "stepSize")?,
+                };
+            }
+            "ModelVariables" => in_variables = !empty,
+            "ScalarVariable" if in_variables => {
+                let vr = number(&e, "valueReference")?.unwrap_or(0);
+                scalars.push((vr, None));
+            }
+            "Real" if in_variables && version == FmiVersion::Fmi2 => {
+                if let (Some(last), Some(k)) = (scalars.last_mut(), number(&e, "derivative")?) {
+                    last.1 = Some(k);
                 }
-                "ModelExchange" => {
-                    let key = match version {
-                        FmiVersion::Fmi2 => "providesDirectionalDerivative",
-                        FmiVersion::Fmi3 => "providesDirectionalDerivatives",
-                    };
-                    d.directional_derivatives = attribute(&e, key).as_deref() == Some("true");
-                }
-                "DefaultExperiment" => {
-                    d.default_experiment = DefaultExperiment {
-                        start_time: number(&e, "startTime")?,
-                        stop_time: number(&e, "stopTime")?,
-                        tolerance: number(&e, "tolerance")?,
-                        step_size: number(&e, "stepSize")?,
-                    };
-                }
-                "ModelVariables" => in_variables = !empty,
-                "ScalarVariable" if in_variables => {
-                    let vr = number(&e, "valueReference")?.unwrap_or(0);
-                    scalars.push((vr, None));
-                }
-                "Real" if in_variables && version == FmiVersion::Fmi2 => {
-                    if let (Some(last), Some(k)) = (scalars.last_mut(), number(&e, "derivative")?) {
-                        last.1 = Some(k);
-                    }
-                }
-                "Derivatives" => in_derivatives = !empty,
-                "Unknown" if in_derivatives => {
-                    derivative_indices.push(number(&e, "index")?.unwrap_or(0));
-                }
-                _ => {}
-            },
+            }
+            "Derivatives" => in_derivatives = !empty,
+            "Unknown" if in_derivatives => {
+                derivative_indices.push(number(&e, "index")?.unwrap_or(0));
+            }
+            _ => {}
         }
     }
     if version == FmiVersion::Fmi2 {
@@ -159,12 +162,17 @@ enum Inner {
 
 /// One Model Exchange instance with what its calls need.
 pub struct MeInstance {
+    /// The layout from the model description (and, FMI 3.0, the instance).
+    description: MeDescription,
+    /// The rust-fmi instance.
     inner: Inner,
+    /// Where its log messages are kept.
     log: LogKey,
+    /// The FMU's file and the instance, for messages.
     name: String,
+    /// The conversion buffers of the FMI 3.0 typed calls, and of FMI 2.0 Integers/Booleans.
     scratch: Scratch,
     ints: Vec<i32>,
-    description: MeDescription,
 }
 
 impl std::fmt::Debug for MeInstance {
@@ -311,6 +319,13 @@ macro_rules! me_call {
     };
 }
 
+/// A call of the same name and arguments in both versions.
+macro_rules! me_same {
+    ($self:expr, |$i:ident| $call:expr) => {
+        me_call!($self, |$i| $call, |$i| $call)
+    };
+}
+
 /// An error for a call that reported success with `false` (event indicators not computed).
 fn discarded(call: &str) -> CallError {
     CallError(format!(
@@ -339,25 +354,23 @@ impl ModelExchangeCalls for MeInstance {
     }
 
     fn set(&mut self, t: VarType, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
-        match &mut self.inner {
-            Inner::Fmi2(i) => set2(i, t, vrs, values, &mut self.ints).map_err(Into::into),
-            Inner::Fmi3(i) => {
-                let scratch = &mut self.scratch;
-                crate::logging::speaking(&self.log, || set3(i, t, vrs, values, scratch))
-                    .map_err(Into::into)
-            }
-        }
+        me_call!(self, |i| set2(i, t, vrs, values, &mut self.ints), |i| set3(
+            i,
+            t,
+            vrs,
+            values,
+            &mut self.scratch
+        ))
     }
 
     fn get(&mut self, t: VarType, vrs: &[u32], out: &mut [f64]) -> Result<(), CallError> {
-        match &mut self.inner {
-            Inner::Fmi2(i) => get2(i, t, vrs, out, &mut self.ints).map_err(Into::into),
-            Inner::Fmi3(i) => {
-                let scratch = &mut self.scratch;
-                crate::logging::speaking(&self.log, || get3(i, t, vrs, out, scratch))
-                    .map_err(Into::into)
-            }
-        }
+        me_call!(self, |i| get2(i, t, vrs, out, &mut self.ints), |i| get3(
+            i,
+            t,
+            vrs,
+            out,
+            &mut self.scratch
+        ))
     }
 
     fn enter_initialization_mode(&mut self, e: Experiment) -> Result<(), CallError> {
@@ -371,11 +384,7 @@ impl ModelExchangeCalls for MeInstance {
     }
 
     fn enter_event_mode(&mut self) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::enter_event_mode(i),
-            |i| fmi::fmi3::Common::enter_event_mode(i)
-        )
+        me_same!(self, |i| i.enter_event_mode())
     }
 
     fn update_discrete_states(&mut self) -> Result<EventUpdate, CallError> {
@@ -393,60 +402,33 @@ impl ModelExchangeCalls for MeInstance {
     }
 
     fn enter_continuous_time_mode(&mut self) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::enter_continuous_time_mode(i),
-            |i| fmi::fmi3::ModelExchange::enter_continuous_time_mode(i)
-        )
+        me_same!(self, |i| i.enter_continuous_time_mode())
     }
 
     fn completed_integrator_step(&mut self) -> Result<(bool, bool), CallError> {
         let (mut enter, mut terminate) = (false, false);
-        me_call!(
-            self,
-            |i| i.completed_integrator_step(true, &mut enter, &mut terminate),
-            |i| {
-                fmi::fmi3::ModelExchange::completed_integrator_step(
-                    i,
-                    true,
-                    &mut enter,
-                    &mut terminate,
-                )
-            }
-        )?;
+        me_same!(self, |i| i.completed_integrator_step(
+            true,
+            &mut enter,
+            &mut terminate
+        ))?;
         Ok((enter, terminate))
     }
 
     fn set_time(&mut self, time: f64) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::set_time(i, time),
-            |i| fmi::fmi3::ModelExchange::set_time(i, time)
-        )
+        me_same!(self, |i| i.set_time(time))
     }
 
     fn set_continuous_states(&mut self, x: &[f64]) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::set_continuous_states(i, x),
-            |i| fmi::fmi3::ModelExchange::set_continuous_states(i, x)
-        )
+        me_same!(self, |i| i.set_continuous_states(x))
     }
 
     fn get_continuous_states(&mut self, x: &mut [f64]) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::get_continuous_states(i, x),
-            |i| fmi::fmi3::ModelExchange::get_continuous_states(i, x)
-        )
+        me_same!(self, |i| i.get_continuous_states(x))
     }
 
     fn get_nominals(&mut self, nominals: &mut [f64]) -> Result<(), CallError> {
-        me_call!(
-            self,
-            |i| fmi::fmi2::instance::ModelExchange::get_nominals_of_continuous_states(i, nominals),
-            |i| fmi::fmi3::ModelExchange::get_nominals_of_continuous_states(i, nominals)
-        )
+        me_same!(self, |i| i.get_nominals_of_continuous_states(nominals))
     }
 
     fn get_derivatives(&mut self, dx: &mut [f64]) -> Result<(), CallError> {

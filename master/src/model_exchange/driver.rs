@@ -321,23 +321,21 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
             };
             self.indicators_at(t, Buffer::Middle)?;
             let crossing = (0..self.za.len()).any(|i| crossed(self.za[i], self.zm[i]));
-            if crossing {
+            let (moved, kept) = if crossing {
                 b = t;
                 self.z_new.copy_from_slice(&self.zm);
-                weight_b = 1.0;
-                if kept_a_last == Some(true) {
-                    weight_a *= 0.5;
-                }
-                kept_a_last = Some(true);
+                (&mut weight_b, &mut weight_a)
             } else {
                 a = t;
                 self.za.copy_from_slice(&self.zm);
-                weight_a = 1.0;
-                if kept_a_last == Some(false) {
-                    weight_b *= 0.5;
-                }
-                kept_a_last = Some(false);
+                (&mut weight_a, &mut weight_b)
+            };
+            // Illinois: the end kept twice in a row has its weight halved.
+            *moved = 1.0;
+            if kept_a_last == Some(crossing) {
+                *kept *= 0.5;
             }
+            kept_a_last = Some(crossing);
         }
         let indicator = (0..self.za.len())
             .find(|&i| crossed(self.za[i], self.z_new[i]))
@@ -397,7 +395,7 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
         let read = self.fmu.get_continuous_states(&mut self.x);
         read.map_err(self.failed(Call::GetContinuousStates, t))?;
         let read = self.fmu.get_nominals(&mut self.nominal);
-        read.map_err(self.failed(Call::GetNominals, t))?;
+        read.map_err(self.failed(Call::GetNominalsOfContinuousStates, t))?;
         if let Some(i) = self.x.iter().position(|v| !v.is_finite()) {
             return Err(MeError::NotFinite {
                 fmu: self.name.clone(),

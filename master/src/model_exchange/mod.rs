@@ -99,7 +99,7 @@ pub enum Call {
     SetTime,
     SetContinuousStates,
     GetContinuousStates,
-    GetNominals,
+    GetNominalsOfContinuousStates,
     GetDerivatives,
     GetEventIndicators,
     GetDirectionalDerivative,
@@ -107,46 +107,18 @@ pub enum Call {
 }
 
 impl Call {
-    /// The function's name in FMI 2.0 or (`fmi3`) FMI 3.0.
-    pub fn name(self, fmi3: bool) -> &'static str {
-        let (two, three) = match self {
-            Call::SetupExperiment => ("fmi2SetupExperiment", "fmi3EnterInitializationMode"),
-            Call::Set => ("fmi2Set*", "fmi3Set*"),
-            Call::Get => ("fmi2Get*", "fmi3Get*"),
-            Call::EnterInitializationMode => {
-                ("fmi2EnterInitializationMode", "fmi3EnterInitializationMode")
-            }
-            Call::ExitInitializationMode => {
-                ("fmi2ExitInitializationMode", "fmi3ExitInitializationMode")
-            }
-            Call::EnterEventMode => ("fmi2EnterEventMode", "fmi3EnterEventMode"),
-            Call::UpdateDiscreteStates => ("fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
-            Call::EnterContinuousTimeMode => {
-                ("fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode")
-            }
-            Call::CompletedIntegratorStep => {
-                ("fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep")
-            }
-            Call::SetTime => ("fmi2SetTime", "fmi3SetTime"),
-            Call::SetContinuousStates => ("fmi2SetContinuousStates", "fmi3SetContinuousStates"),
-            Call::GetContinuousStates => ("fmi2GetContinuousStates", "fmi3GetContinuousStates"),
-            Call::GetNominals => (
-                "fmi2GetNominalsOfContinuousStates",
-                "fmi3GetNominalsOfContinuousStates",
-            ),
-            Call::GetDerivatives => ("fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
-            Call::GetEventIndicators => ("fmi2GetEventIndicators", "fmi3GetEventIndicators"),
-            Call::GetDirectionalDerivative => (
-                "fmi2GetDirectionalDerivative",
-                "fmi3GetDirectionalDerivative",
-            ),
-            Call::Terminate => ("fmi2Terminate", "fmi3Terminate"),
+    /// The function's name in FMI 2.0 or (`fmi3`) FMI 3.0: `fmi2` or `fmi3` and the variant's
+    /// name, but for the functions that FMI 3.0 renamed or folded into another.
+    pub fn name(self, fmi3: bool) -> String {
+        let function = match (self, fmi3) {
+            (Call::Set, _) => "Set*".to_string(),
+            (Call::Get, _) => "Get*".to_string(),
+            (Call::UpdateDiscreteStates, false) => "NewDiscreteStates".to_string(),
+            (Call::GetDerivatives, true) => "GetContinuousStateDerivatives".to_string(),
+            (Call::SetupExperiment, true) => "EnterInitializationMode".to_string(),
+            (call, _) => format!("{call:?}"),
         };
-        if fmi3 {
-            three
-        } else {
-            two
-        }
+        format!("fmi{}{function}", if fmi3 { 3 } else { 2 })
     }
 }
 
@@ -156,14 +128,14 @@ pub enum MeError {
     #[error("{fmu}: {call} failed at t = {time}: {reason}")]
     Call {
         fmu: String,
-        call: &'static str,
+        call: String,
         time: f64,
         reason: String,
     },
     #[error("{fmu}: {call} gave a value that is not finite ({what}) at t = {time}")]
     NotFinite {
         fmu: String,
-        call: &'static str,
+        call: String,
         time: f64,
         what: String,
     },
@@ -179,12 +151,12 @@ pub enum MeError {
         time: f64,
         events: usize,
         bound: usize,
-        call: &'static str,
+        call: String,
     },
     #[error("{fmu}: the event iteration at t = {time} did not settle: {call} still asked for another iteration after {iterations}")]
     EventIteration {
         fmu: String,
-        call: &'static str,
+        call: String,
         time: f64,
         iterations: usize,
     },
