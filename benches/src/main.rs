@@ -87,8 +87,8 @@ fn main() -> Result<()> {
     match ThirdParty::find(&repo) {
         Some(third) => side_by_side(&args, &spurio, &third)?,
         None => println!(
-            "\n(no third-party folder: set SPURIO_THIRD_PARTY; OMSimulator, fmuCheck and the \
-             Reference FMUs are needed for the side-by-side tables)"
+            "\n(no tests/third_party/reference-fmus, nor a SPURIO_THIRD_PARTY folder with them: \
+             OMSimulator, fmuCheck and the Reference FMUs are needed for the side-by-side tables)"
         ),
     }
     Ok(())

@@ -1,6 +1,6 @@
-//! The interleaving of measurements (medians: the experiments' [`median`]).
+//! The interleaving of measurements (medians: spurio-analysis' [`median`], of the finite samples).
 
-pub use spurio_experiments::runner::median;
+pub use spurio_analysis::median;
 
 /// Runs every measurement of `subjects` once per round, in turn (A, B, A, B …, so that a
 /// drift of the machine hits all of them alike), and gives each one's samples.

@@ -18,23 +18,18 @@ use std::time::Instant;
 /// with an extra tiny step from accumulated rounding.
 pub const STEP: f64 = 1.0 / 1024.0;
 
-/// The third-party tools and FMUs (`SPURIO_THIRD_PARTY`, or `shared/third-party` next to the
-/// repository or its worktree).
+/// The third-party tools and FMUs: the repository's `tests/third_party/` (its README says
+/// what each is and where it came from), or the folder `SPURIO_THIRD_PARTY` names.
 pub struct ThirdParty {
     dir: PathBuf,
 }
 
 impl ThirdParty {
     pub fn find(repo: &Path) -> Option<Self> {
-        std::env::var_os("SPURIO_THIRD_PARTY")
+        let dir = std::env::var_os("SPURIO_THIRD_PARTY")
             .map(PathBuf::from)
-            .into_iter()
-            .chain([
-                repo.join("../shared/third-party"),
-                repo.join("../../shared/third-party"),
-            ])
-            .find(|p| p.join("reference-fmus").is_dir())
-            .map(|dir| Self { dir })
+            .unwrap_or_else(|| repo.join("tests/third_party"));
+        dir.join("reference-fmus").is_dir().then_some(Self { dir })
     }
 
     pub fn reference(&self, model: &str) -> PathBuf {

@@ -22,12 +22,12 @@ use crate::diagnostics::{
     excess_kurtosis, grubbs_critical_value, grubbs_iterative, histogram, mean, residual_error,
     skewness, std_dev, two_sigma_band,
 };
+use crate::plot::RGBColor;
 use crate::plot::{panels_png, Line, Panel, Style};
 use crate::runner::{column, edited, mean_std, mean_std_of, median, pm, simulate, write_csv, Edit};
 use anyhow::{ensure, Result};
-use plotters::style::RGBColor;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
 
 /// Samples per run (paper 000/001: 1000).
 const SAMPLES: usize = 1000;

@@ -21,16 +21,16 @@
 //! and the sensitivity to the state filter's Q.
 
 use super::{ExperimentContext, Report, Row};
+use crate::plot::RGBColor;
 use crate::plot::{panels_png, Line, Panel, Style};
 use crate::runner::{
     column, edited, mean_std, monte_carlo, pm, simulate, start_value, write_csv, Edit,
 };
 use anyhow::{Context as _, Result};
 use nalgebra::DMatrix;
-use plotters::style::RGBColor;
 use spurio::plants::gantry_crane::GantryCraneParameters;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -280,7 +280,7 @@ impl Reference {
                 "{}: sensor channel {channel} has signal power {power} and outliers {outlier}, \
                  but the reference run's RMS over {RMS_WINDOW} s is {signal_rms} \
                  (power {:.6e}, 5·RMS {:.6e}): update the TOML",
-                system.name,
+                system.name(),
                 signal_rms.powi(2),
                 5.0 * signal_rms
             );
@@ -320,7 +320,7 @@ fn check_initial_model(system: &System) -> Result<()> {
         anyhow::ensure!(
             (value - expected).abs() < 1e-12,
             "{}: {name} = {value}, but the perturbed crane's ZOH model has {expected}",
-            system.name
+            system.name()
         );
     }
     Ok(())
@@ -361,7 +361,7 @@ impl Studies {
         [dkf, rskf]: [&System; 2],
         truth: &DMatrix<f64>,
     ) -> Result<Self> {
-        let stop = dkf.stop_time;
+        let stop = dkf.stop_time();
         let seeds = ctx.seeds.max(1);
         let summary = |system: &System, n: usize| -> Result<Summary> {
             Ok(Summary::new(&study(ctx, system, n, truth)?, stop))
@@ -552,7 +552,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         studies,
         representative,
         initial_model_error: initial_model_error(&truth),
-        stop: dkf.stop_time,
+        stop: dkf.stop_time(),
         seeds: ctx.seeds.max(1),
         elapsed: started.elapsed().as_secs_f64(),
     }))

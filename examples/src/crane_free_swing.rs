@@ -6,7 +6,7 @@ use super::{ExperimentContext, Report, Row};
 use crate::plot::axis_label;
 use crate::runner::{column, simulate, write_csv};
 use anyhow::Result;
-use spurio_master::record::TimeSeries;
+use spurio_master::TimeSeries;
 
 /// The mean spacing of the upward zero crossings of `crane.theta` (interpolated).
 fn measured_period(series: &TimeSeries) -> Result<f64> {

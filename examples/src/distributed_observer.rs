@@ -22,8 +22,8 @@ use super::{ExperimentContext, Report, Row};
 use crate::plot::{heatmap_png, panels_png, Line, Panel};
 use crate::runner::{column, edited, mean_std_of, monte_carlo, simulate, write_csv};
 use anyhow::Result;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
 use std::fmt::Write as _;
 
 const EXPERIMENT: &str = "distributed_observer";

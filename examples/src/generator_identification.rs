@@ -25,8 +25,8 @@ use spurio::estimation::{
     DualKalmanConfig, DualKalmanFilter, GaussianModel, InfluenceFunction, RobustKalmanFilter,
 };
 use spurio::state_space::StateSpace;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
 use std::time::Instant;
 
 const EXPERIMENT: &str = "generator_identification";

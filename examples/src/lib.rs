@@ -1,20 +1,18 @@
 //! The papers' experiments as bundled systems (`examples/<name>/`), run on the co-simulation
 //! engine ([`spurio_master`]), each writing a report: a Markdown table with the paper's figure
-//! beside ours, and the plots the papers show. `spurio experiments` runs them all and writes
-//! `REPORT.md` in the output folder.
+//! beside ours, and the plots the papers show. `spurio-experiments` (this crate's command, behind
+//! `scripts/experiments`) runs them all and writes `REPORT.md` in the output folder.
 //!
 //! Each experiment is a module with one `run(&ExperimentContext) -> Result<Report>` that reads
 //! as scenario → runs → scores → report: it loads its systems from `examples/<name>/*.toml`
 //! (so a user can run them with `spurio run` too), edits them by name and runs them per seed
 //! ([`runner`], one thread pool for all), scores the runs and fills a [`Report`]. The analysis
-//! they share lives here too: the outlier [`diagnostics`] (and [`diagnose`], behind
-//! `spurio diagnose`) and the [`plot`]s.
+//! they share with the command line comes from `spurio-analysis`: the outlier
+//! [`diagnostics`] (and [`diagnose`], behind `spurio diagnose`) and the [`plot`]s.
 
 #![forbid(unsafe_code)]
 
-pub mod diagnose;
-pub mod diagnostics;
-pub mod plot;
+pub use spurio_analysis::{diagnose, diagnostics, plot};
 
 pub mod cosine_outliers;
 pub mod crane_adaptive;
@@ -49,9 +47,9 @@ impl ExperimentContext {
     }
 
     /// Loads and resolves `examples/<experiment>/<file>` (FMU paths relative to that file).
-    pub fn system(&self, experiment: &str, file: &str) -> Result<spurio_master::system::System> {
+    pub fn system(&self, experiment: &str, file: &str) -> Result<spurio_master::System> {
         let path = self.example(experiment, file);
-        spurio_master::system::System::from_file(&path)
+        spurio_master::System::from_file(&path)
             .with_context(|| format!("loading {}", path.display()))
     }
 }

@@ -19,14 +19,14 @@
 //! the estimate is (asymptotically) unbiased.
 
 use super::{ExperimentContext, Report, Row};
+use crate::plot::RGBColor;
 use crate::plot::{panels_png, Line, Panel, Style};
 use crate::runner::{column, edited, mean_std_of, median, simulate, write_csv, Edit};
 use anyhow::{anyhow, Result};
-use plotters::style::RGBColor;
 use spurio::estimation::ContinuousSecondOrder;
 use spurio::plants::opamp_filter::OpAmpFilterParameters;
-use spurio_master::record::TimeSeries;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
 
 /// Sampling period of the acquisition and of the ARX model [s].
 const TS: f64 = 0.01;

@@ -9,10 +9,12 @@
 use crate::ExperimentContext;
 use anyhow::{Context as _, Result};
 use rayon::prelude::*;
-use spurio_master::engine::{RunOptions, Simulation};
-use spurio_master::record::{CsvWriter, TimeSeries};
-use spurio_master::system::{StartValue, System};
+use spurio_master::{CsvWriter, TimeSeries};
+use spurio_master::{RunOptions, Simulation};
+use spurio_master::{StartValue, System};
 use std::path::Path;
+
+pub use spurio_analysis::stats::{mean_std, mean_std_of, median};
 
 /// A start value set by name: `("sensor.seed", 3.into())`.
 pub type Edit<'a> = (&'a str, StartValue);
@@ -23,7 +25,7 @@ pub fn edited(system: &System, edits: &[Edit<'_>]) -> Result<System> {
     let mut copy = system.clone();
     for (name, value) in edits {
         copy.set_start_value(name, *value)
-            .with_context(|| format!("setting {name} in {}", system.name))?;
+            .with_context(|| format!("setting {name} in {}", system.name()))?;
     }
     Ok(copy)
 }
@@ -32,7 +34,7 @@ pub fn edited(system: &System, edits: &[Edit<'_>]) -> Result<System> {
 pub fn start_value(system: &System, qualified: &str) -> Result<f64> {
     system
         .start_value(qualified)?
-        .with_context(|| format!("{qualified} has no start value in {}", system.name))
+        .with_context(|| format!("{qualified} has no start value in {}", system.name()))
 }
 
 /// Runs `system` once, keeping every recorded sample.
@@ -53,7 +55,7 @@ pub fn column(series: &TimeSeries, name: &str) -> Result<Vec<f64>> {
 
 /// Writes `series` as CSV to `path`.
 pub fn write_csv(series: &TimeSeries, path: &Path) -> Result<()> {
-    spurio_master::record::replay(series, &mut CsvWriter::create(path)?)
+    spurio_master::replay(series, &mut CsvWriter::create(path)?)
         .with_context(|| format!("writing {}", path.display()))
 }
 
@@ -92,42 +94,6 @@ pub fn monte_carlo<S: Send>(
     })
 }
 
-/// Mean and sample standard deviation (N − 1) of the finite values (NaN if none).
-pub fn mean_std(values: &[f64]) -> (f64, f64) {
-    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    let n = finite.len();
-    if n == 0 {
-        return (f64::NAN, f64::NAN);
-    }
-    let mean = finite.iter().sum::<f64>() / n as f64;
-    let var = if n > 1 {
-        finite.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
-    } else {
-        0.0
-    };
-    (mean, var.sqrt())
-}
-
-/// [`mean_std`] of `pick` over `items`.
-pub fn mean_std_of<T>(items: &[T], pick: impl Fn(&T) -> f64) -> (f64, f64) {
-    mean_std(&items.iter().map(pick).collect::<Vec<_>>())
-}
-
-/// Median of the finite values (NaN if none).
-pub fn median(values: &[f64]) -> f64 {
-    let mut finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    if finite.is_empty() {
-        return f64::NAN;
-    }
-    finite.sort_by(f64::total_cmp);
-    let n = finite.len();
-    if n % 2 == 1 {
-        finite[n / 2]
-    } else {
-        0.5 * (finite[n / 2 - 1] + finite[n / 2])
-    }
-}
-
 /// "mean ± std" with `digits` decimals.
 pub fn pm((mean, std): (f64, f64), digits: usize) -> String {
     format!("{mean:.digits$} ± {std:.digits$}")
@@ -138,15 +104,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn statistics_skip_non_finite_values() {
-        let (m, s) = mean_std(&[1.0, f64::NAN, 3.0]);
-        assert_eq!(m, 2.0);
-        assert!((s - 2f64.sqrt()).abs() < 1e-15);
-        assert!(mean_std(&[f64::NAN]).0.is_nan());
-        assert_eq!(mean_std(&[4.0]), (4.0, 0.0));
-        assert_eq!(median(&[3.0, 1.0, f64::INFINITY, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0]), 2.5);
-        assert!(median(&[]).is_nan());
+    fn plus_minus_has_the_digits_asked_for() {
         assert_eq!(pm((1.23456, 0.1), 2), "1.23 ± 0.10");
+        assert_eq!(pm((-2.0, 0.5), 1), "-2.0 ± 0.5");
     }
 }

@@ -1,13 +1,16 @@
 //! An experiment run with the FMI 3.0 builds of our FMUs (`build/fmus/fmi3/`) gives the same
 //! figures as with the FMI 2.0 builds (`build/fmus/`), bit for bit: the same model code
 //! behind either front, and the master moving the same values (FMI 3.0 arrays addressed by
-//! the element names the FMI 2.0 FMUs use, so the systems are not edited). Needs
-//! `scripts/build-fmus`.
+//! the element names the FMI 2.0 FMUs use, so the systems are not edited). The FMUs are
+//! built first if they are missing (`packaged_fmus`).
 
 use spurio_experiments::Report;
 use spurio_master::fmu::FmiVersion;
-use spurio_master::system::System;
+use spurio_master::System;
 use std::path::{Path, PathBuf};
+
+#[path = "../../master/tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
 
 /// `experiment` run from `repo` (its systems under `examples/`, FMUs under `build/fmus/`).
 fn run(repo: &Path, experiment: &str, out: &Path, seeds: usize) -> Report {
@@ -21,11 +24,6 @@ fn run(repo: &Path, experiment: &str, out: &Path, seeds: usize) -> Report {
 /// the FMI 3.0 builds.
 fn fmi3_repo(repo: &Path, experiment: &str, root: &Path) -> PathBuf {
     let fmi3 = repo.join("build/fmus/fmi3");
-    assert!(
-        fmi3.join("GantryCrane.fmu").is_file(),
-        "{} has no FMI 3.0 FMUs: run scripts/build-fmus first",
-        fmi3.display()
-    );
     let examples = root.join("examples").join(experiment);
     std::fs::create_dir_all(&examples).unwrap();
     for entry in std::fs::read_dir(repo.join("examples").join(experiment)).unwrap() {
@@ -39,6 +37,7 @@ fn fmi3_repo(repo: &Path, experiment: &str, root: &Path) -> PathBuf {
 
 fn same_figures(experiment: &str, seeds: usize) {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    packaged_fmus::packaged_fmus(&repo);
     let tmp = std::env::temp_dir().join(format!(
         "spurio-exp-fmi3-{experiment}-{}",
         std::process::id()
@@ -49,7 +48,7 @@ fn same_figures(experiment: &str, seeds: usize) {
     // Every instance of every system of the copy is an FMI 3.0 FMU.
     for entry in std::fs::read_dir(repo3.join("examples").join(experiment)).unwrap() {
         let system = System::from_file(&entry.unwrap().path()).unwrap();
-        for instance in &system.instances {
+        for instance in system.instances() {
             assert_eq!(instance.fmu.version, FmiVersion::Fmi3, "{}", instance.name);
         }
     }

@@ -1,15 +1,13 @@
-//! The master's cost per instance per step, beside the bare FMU calls and fmpy's loop, and the
-//! speed-up of a 100-run sweep on two threads.
+//! The master's cost per instance per step, beside the bare FMU calls and fmpy's loop (the
+//! speed-up of a sweep on two threads is `spurio-batch`'s bench `sweep_speedup`).
 //!
 //! Run: `cargo bench -p spurio-master --bench master_overhead` (after `scripts/build-fmus`).
 //! Everything is measured in this one run; figures are medians of repeated batches.
 
 use fmi::fmi2::instance::{CoSimulation, Common};
-use spurio_master::engine::{RunOptions, Simulation};
 use spurio_master::fmu::FmuFile;
-use spurio_master::record::{CsvWriter, NoRecording, Observer};
-use spurio_master::sweep::{sweep, Metric, Variation};
-use spurio_master::system::{System, SystemDescription};
+use spurio_master::{CsvWriter, NoRecording, Observer, RunOptions, Simulation};
+use spurio_master::{System, SystemDescription};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -126,31 +124,4 @@ fn main() {
             ),
         }
     }
-
-    // Sweep: 100 runs of crane + sensor, 10 s each, one thread vs two.
-    let d: SystemDescription = toml::from_str(&format!(
-        "stop_time = 10.0\nstep_size = 0.01\nalgorithm = \"jacobi\"\nconnections = [\"crane.x -> sensor.u[1]\", \"crane.theta -> sensor.u[2]\"]\nrecord = [\"crane.x\", \"sensor.y[1]\"]\n[[instance]]\nname = \"crane\"\nfmu = {:?}\nparameters = {{ U = 0.5 }}\n[[instance]]\nname = \"sensor\"\nfmu = {:?}\n",
-        fmus.join("GantryCrane.fmu").display().to_string(),
-        fmus.join("Sensor2.fmu").display().to_string()
-    ))
-    .expect("toml");
-    let system = System::resolve(&d, Path::new(".")).expect("resolve");
-    let variation = Variation::parse("sensor.seed=1..100").expect("vary");
-    let metrics = [Metric::parse("e_res(sensor.y[1], crane.x)").expect("metric")];
-    let time = |threads| {
-        median(
-            (0..5)
-                .map(|_| {
-                    let start = Instant::now();
-                    sweep(&system, &variation, &metrics, threads).expect("sweep");
-                    start.elapsed().as_secs_f64()
-                })
-                .collect(),
-        )
-    };
-    let one = time(1);
-    let two = time(2);
-    println!("Sweep of 100 runs (crane + sensor, 1000 steps each), median of 5:");
-    println!("  1 thread  {:.3} s", one);
-    println!("  2 threads {:.3} s  (speed-up {:.2}x)", two, one / two);
 }

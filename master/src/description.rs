@@ -5,10 +5,11 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// How the instances exchange values at a communication point.
+/// The built-in stepping algorithm a system file names (see [`crate::Algorithm`]): how the
+/// instances exchange values at a communication point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Algorithm {
+pub enum AlgorithmName {
     /// Outputs flow to inputs within the same communication point, in the order of the
     /// direct-feedthrough graph (a loop of direct-feedthrough variables is an error).
     #[default]
@@ -51,7 +52,7 @@ pub struct SystemDescription {
     pub stop_time: f64,
     pub step_size: f64,
     #[serde(default)]
-    pub algorithm: Algorithm,
+    pub algorithm: AlgorithmName,
     #[serde(default, rename = "instance")]
     pub instances: Vec<InstanceDescription>,
     #[serde(default)]

@@ -1,24 +1,44 @@
-//! spurio-master: a co-simulation master for FMI 2.0 and FMI 3.0 Co-Simulation FMUs (ours or a third
-//! party's). It loads FMUs on rust-fmi ([`fmu`]), describes systems by name in TOML or SSP
-//! ([`description`], [`ssp`]), loads and edits them by name ([`system`]), compiles them to
-//! indices once ([`plan`]), steps them ([`engine`]), sends results to observers
-//! ([`record`]), runs parameter sweeps in parallel ([`sweep`]), in shards ([`shard`]) and
-//! on a Slurm cluster ([`slurm`]), and reads results back ([`results`]). It knows no FMU of
-//! its own: any FMI 2.0 or 3.0 CS FMU runs, both versions mixed in one system.
+//! spurio-master: a co-simulation engine for FMI 2.0 and FMI 3.0 Co-Simulation FMUs (ours or
+//! a third party's). It loads FMUs on rust-fmi ([`fmu`]), reads systems described by name in
+//! TOML or SSP ([`SystemDescription`], [`ssp`]), resolves and edits them by name ([`System`]),
+//! compiles them to indices once ([`Plan`]) for a stepping [`Algorithm`] ([`GaussSeidel`],
+//! [`Jacobi`], or one of the caller's), steps them ([`Simulation`]), sends results to
+//! observers ([`Observer`]: CSV, memory) and reads results back ([`ResultTable`]). It knows no
+//! FMU of its own: any FMI 2.0 or 3.0 CS FMU runs, both versions mixed in one system.
+//! Sweeps, shards and cluster runs are built on it by the `spurio-batch` crate.
+//!
+//! Its modules, each importing only those listed before it:
+//! `xml`, `logging`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
+//! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`, and
+//! [`model_exchange`] (Model Exchange import: on `fmu` and `record` and the solvers crate).
 
 #![forbid(unsafe_code)]
 
-pub mod description;
-pub mod engine;
+mod algorithm;
+mod coupling;
+mod description;
+mod engine;
+mod error;
+mod exchange;
 pub mod fmu;
 pub mod logging;
 pub mod model_exchange;
-pub mod plan;
-pub mod record;
-pub mod results;
-pub mod shard;
-pub mod slurm;
+mod monitor;
+mod plan;
+mod record;
+mod results;
 pub mod ssp;
-pub mod sweep;
-pub mod system;
+mod system;
 mod xml;
+
+pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
+pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
+pub use engine::{RunEnd, RunOptions, Simulation};
+pub use error::{FmiFailure, RunError, SystemError};
+pub use exchange::{Exchange, StepOutcome};
+pub use monitor::{CallInProgress, CallMonitor};
+pub use plan::{Op, Plan, Recorded, Transfer};
+pub use record::{replay, CsvWriter, NoRecording, Observer, TimeSeries};
+pub use results::{ResultTable, ResultsError};
+pub use system::{StartValue, System};

@@ -2,35 +2,18 @@
 //!
 //! [`Plan::compile`] turns the names of a system (connections `"crane.x -> sensor.u[1]"`,
 //! recorded variables) into indices, checking every causality and type, orders the
-//! propagation at a communication point (Gauss–Seidel: the direct-feedthrough graph, an
-//! algebraic loop is an error; Jacobi: the connections as given), gives every value a slot
+//! propagation at a communication point in the order the stepping algorithm gives
+//! ([`Propagation::propagation`]: Gauss–Seidel the direct-feedthrough graph, Jacobi the
+//! connections as given), gives every value a slot
 //! in one buffer and groups the value references of one instance and type into batches,
 //! so the engine's loop ([`crate::engine`]) only moves numbers.
 
-use crate::description::{Algorithm, SystemDescription};
+use crate::coupling::{has_feedthrough, split_variable, unknown, variable_name};
+use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+use crate::description::SystemDescription;
+use crate::error::SystemError;
 use crate::fmu::{Causality, VarType};
-use crate::system::{split_variable, unknown, ResolvedInstance, SystemError};
 use std::collections::HashMap;
-
-/// A variable of an instance: (instance index, variable index in its FMU).
-pub type VarRef = (usize, usize);
-
-/// A connection from an output to an input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Connection {
-    pub from: VarRef,
-    pub to: VarRef,
-    pub var_type: VarType,
-}
-
-/// One action of the propagation at a communication point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PropagationStep {
-    /// Set a connected input from its source.
-    SetInput(VarRef),
-    /// Re-read a direct-feedthrough output after its inputs changed.
-    GetOutput(VarRef),
-}
 
 /// Value references of one instance and one type, moved in one FMI call, and the buffer
 /// slots their values go to (get) or come from (set).
@@ -126,41 +109,13 @@ pub struct Plan {
     pub steps: u64,
 }
 
-/// Whether output `output` depends directly on input `input` of the same instance.
-fn feeds_through(instances: &[ResolvedInstance], output: VarRef, input: VarRef) -> bool {
-    output.0 == input.0
-        && match &instances[output.0].fmu.variables[output.1].dependencies {
-            None => true,
-            Some(deps) => deps.contains(&input.1),
-        }
-}
-
-/// Whether output `output` depends directly on any input.
-pub fn has_feedthrough(instances: &[ResolvedInstance], output: VarRef) -> bool {
-    match &instances[output.0].fmu.variables[output.1].dependencies {
-        None => instances[output.0]
-            .fmu
-            .variables
-            .iter()
-            .any(|v| v.head.causality == Causality::Input),
-        Some(deps) => !deps.is_empty(),
-    }
-}
-
-/// `instance.variable`.
-pub fn variable_name(instances: &[ResolvedInstance], r: VarRef) -> String {
-    format!(
-        "{}.{}",
-        instances[r.0].name, instances[r.0].fmu.variables[r.1].head.name
-    )
-}
-
 impl Plan {
     /// Compiles the connections and records of `d` over `instances` (loaded, in the order of
-    /// `d.instances`).
+    /// `d.instances`) for `algorithm`.
     pub fn compile(
         d: &SystemDescription,
         instances: &[ResolvedInstance],
+        algorithm: &dyn Propagation,
     ) -> Result<Self, SystemError> {
         let index_of: HashMap<&str, usize> = instances
             .iter()
@@ -305,8 +260,15 @@ impl Plan {
             }
             recorded
         };
-        let order = order_for(d.algorithm, instances, &connections)?;
-        Ok(Self::lay_out(d, instances, connections, recorded, &order))
+        let order = algorithm.propagation(instances, &connections)?;
+        Ok(Self::lay_out(
+            d,
+            instances,
+            connections,
+            recorded,
+            &order,
+            algorithm.refreshes_records(),
+        ))
     }
 
     /// This plan recording nothing: after a step only the outputs that feed connections are
@@ -315,14 +277,16 @@ impl Plan {
         &self,
         d: &SystemDescription,
         instances: &[ResolvedInstance],
+        algorithm: &dyn Propagation,
     ) -> Result<Self, SystemError> {
-        let order = order_for(d.algorithm, instances, &self.connections)?;
+        let order = algorithm.propagation(instances, &self.connections)?;
         Ok(Self::lay_out(
             d,
             instances,
             self.connections.clone(),
             Vec::new(),
             &order,
+            algorithm.refreshes_records(),
         ))
     }
 
@@ -333,6 +297,7 @@ impl Plan {
         connections: Vec<Connection>,
         recorded: Vec<VarRef>,
         order: &[PropagationStep],
+        refresh_records: bool,
     ) -> Self {
         // Buffer slots: every connection source and every recorded variable.
         let mut slot_of: HashMap<VarRef, usize> = HashMap::new();
@@ -389,15 +354,14 @@ impl Plan {
             }
         }
 
-        // Gauss–Seidel: recorded inputs and direct-feedthrough outputs of instances whose
-        // inputs are set at a communication point are re-read after the propagation, so that
-        // a record holds the values that belong to that point (e.g. a Sensor's `y_clean`,
-        // which feeds no connection, for the input just set) rather than those read after the
-        // last step. Jacobi keeps the values read after the step, as fmpy's SSP runner does.
-        // An output the order already re-reads (a connection source) is not read again.
-        let connected: Vec<usize> = match d.algorithm {
-            Algorithm::GaussSeidel => connections.iter().map(|c| c.to.0).collect(),
-            Algorithm::Jacobi => Vec::new(),
+        // Recorded inputs and direct-feedthrough outputs of instances whose inputs are set at
+        // a communication point are re-read after the propagation when the algorithm asks so
+        // ([`Propagation::refreshes_records`]). An output the order already re-reads (a
+        // connection source) is not read again.
+        let connected: Vec<usize> = if refresh_records {
+            connections.iter().map(|c| c.to.0).collect()
+        } else {
+            Vec::new()
         };
         for r in &recorded.vars {
             let v = variable(*r);
@@ -423,84 +387,4 @@ impl Plan {
             recorded,
         }
     }
-}
-
-/// The sets and re-reads of a communication point for `algorithm`: Gauss–Seidel in
-/// [`propagation_order`], Jacobi the connections as given.
-fn order_for(
-    algorithm: Algorithm,
-    instances: &[ResolvedInstance],
-    connections: &[Connection],
-) -> Result<Vec<PropagationStep>, SystemError> {
-    Ok(match algorithm {
-        Algorithm::GaussSeidel => propagation_order(instances, connections)?,
-        Algorithm::Jacobi => connections
-            .iter()
-            .map(|c| PropagationStep::SetInput(c.to))
-            .collect(),
-    })
-}
-
-/// The order in which, at a communication point, connected inputs are set and
-/// direct-feedthrough outputs re-read: a topological order of the graph whose edges are
-/// the connections (output → input) and the feedthrough inside each FMU (input → output
-/// that depends on it). A cycle is an algebraic loop and is reported with its variables.
-pub fn propagation_order(
-    instances: &[ResolvedInstance],
-    connections: &[Connection],
-) -> Result<Vec<PropagationStep>, SystemError> {
-    // Nodes: the connected inputs and the feedthrough outputs that are connection sources.
-    let mut nodes: Vec<PropagationStep> = Vec::new();
-    for c in connections {
-        nodes.push(PropagationStep::SetInput(c.to));
-        if has_feedthrough(instances, c.from) {
-            let n = PropagationStep::GetOutput(c.from);
-            if !nodes.contains(&n) {
-                nodes.push(n);
-            }
-        }
-    }
-    let n = nodes.len();
-    let mut edges = vec![Vec::new(); n];
-    let mut indegree = vec![0usize; n];
-    for (a, na) in nodes.iter().enumerate() {
-        for (b, nb) in nodes.iter().enumerate() {
-            let edge = match (na, nb) {
-                (PropagationStep::GetOutput(o), PropagationStep::SetInput(i)) => {
-                    connections.iter().any(|c| c.from == *o && c.to == *i)
-                }
-                (PropagationStep::SetInput(i), PropagationStep::GetOutput(o)) => {
-                    feeds_through(instances, *o, *i)
-                }
-                _ => false,
-            };
-            if edge {
-                edges[a].push(b);
-                indegree[b] += 1;
-            }
-        }
-    }
-    let mut ready: Vec<usize> = (0..n).filter(|&i| indegree[i] == 0).rev().collect();
-    let mut order = Vec::with_capacity(n);
-    while let Some(a) = ready.pop() {
-        order.push(nodes[a]);
-        for &b in edges[a].iter().rev() {
-            indegree[b] -= 1;
-            if indegree[b] == 0 {
-                ready.push(b);
-            }
-        }
-    }
-    if order.len() < n {
-        let stuck: Vec<String> = (0..n)
-            .filter(|&i| indegree[i] > 0)
-            .map(|i| match nodes[i] {
-                PropagationStep::SetInput(r) | PropagationStep::GetOutput(r) => {
-                    variable_name(instances, r)
-                }
-            })
-            .collect();
-        return Err(SystemError::AlgebraicLoop(stuck.join(", ")));
-    }
-    Ok(order)
 }

@@ -31,7 +31,7 @@
 //! `DefaultExperiment` annotation); with none of them it uses (stopTime − startTime)/100 and
 //! says so in [`Imported::notes`].
 
-use crate::description::{Algorithm, InstanceDescription, SystemDescription};
+use crate::description::{AlgorithmName, InstanceDescription, SystemDescription};
 use crate::fmu::{Causality, FmuFile, VarType};
 use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
@@ -400,8 +400,8 @@ fn parameter_set(
 /// What SSP has no place for: step size, algorithm, record, step multiples, logging.
 fn simulation_annotation(w: &mut Xml, d: &SystemDescription) -> std::io::Result<()> {
     let algorithm = match d.algorithm {
-        Algorithm::GaussSeidel => "gauss-seidel",
-        Algorithm::Jacobi => "jacobi",
+        AlgorithmName::GaussSeidel => "gauss-seidel",
+        AlgorithmName::Jacobi => "jacobi",
     };
     let step = format!("{:?}", d.step_size);
     let record = d.record.join(" ");
@@ -599,7 +599,7 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
         start_time: 0.0,
         stop_time: 1.0,
         step_size: 0.0,
-        algorithm: Algorithm::GaussSeidel,
+        algorithm: AlgorithmName::GaussSeidel,
         instances: Vec::new(),
         connections: Vec::new(),
         record: Vec::new(),
@@ -725,7 +725,7 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                     steps.push((StepSource::Spurio, v));
                 }
                 if attr(&e, "algorithm").as_deref() == Some("jacobi") {
-                    d.algorithm = Algorithm::Jacobi;
+                    d.algorithm = AlgorithmName::Jacobi;
                 }
                 if let Some(r) = attr(&e, "record") {
                     d.record = r.split_whitespace().map(str::to_string).collect();
@@ -803,7 +803,7 @@ mod tests {
             start_time: 0.5,
             stop_time: 2.0,
             step_size: 0.01,
-            algorithm: Algorithm::Jacobi,
+            algorithm: AlgorithmName::Jacobi,
             instances: vec![
                 InstanceDescription {
                     name: "crane".into(),
@@ -874,7 +874,7 @@ mod tests {
             start_time: 0.0,
             stop_time: 1.0,
             step_size: 0.1,
-            algorithm: Algorithm::GaussSeidel,
+            algorithm: AlgorithmName::GaussSeidel,
             instances: vec![InstanceDescription {
                 name: "c".into(),
                 fmu: PathBuf::from("resources/Feedthrough.fmu"),

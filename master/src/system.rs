@@ -26,97 +26,33 @@
 //! reporting errors that name the instance, the variable and the file. [`System::from_file`]
 //! is the one loader: it reads a TOML system file or an SSP archive, by the file's type.
 
-pub use crate::description::{Algorithm, InstanceDescription, ReadError, SystemDescription};
-pub use crate::plan::{Connection, Plan, PropagationStep, VarRef};
-
-use crate::fmu::{Causality, FmuFile, LoadError, LoadOptions, VarType, VariableInfo};
+use crate::algorithm::{self, Algorithm};
+use crate::coupling::{split_variable, unknown, variable_name, ResolvedInstance, VarRef};
+use crate::description::{InstanceDescription, SystemDescription};
+use crate::error::SystemError;
+use crate::fmu::{Causality, FmuFile, LoadOptions, VarType, VariableInfo};
+use crate::plan::Plan;
 use crate::ssp::SspError;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// What is wrong with a system.
-#[derive(Debug, thiserror::Error)]
-pub enum SystemError {
-    #[error(transparent)]
-    Read(#[from] ReadError),
-    #[error(transparent)]
-    Ssp(#[from] SspError),
-    #[error("{0}")]
-    Load(#[from] LoadError),
-    #[error("system: {0}")]
-    Invalid(String),
-    #[error("connection `{connection}`: {reason}")]
-    Connection { connection: String, reason: String },
-    #[error("instance `{instance}` ({file}): no variable `{variable}`{hint}")]
-    UnknownVariable {
-        instance: String,
-        variable: String,
-        file: PathBuf,
-        hint: String,
-    },
-    #[error("instance `{instance}` ({file}): parameter `{variable}`: {reason}")]
-    Parameter {
-        instance: String,
-        variable: String,
-        file: PathBuf,
-        reason: String,
-    },
-    #[error("no instance called `{instance}` (instances: {known})")]
-    UnknownInstance { instance: String, known: String },
-    #[error("input `{input}` is driven twice: by `{first}` and by `{second}`")]
-    DrivenTwice {
-        input: String,
-        first: String,
-        second: String,
-    },
-    #[error("algebraic loop: these direct-feedthrough variables depend on each other within a communication point: {0}")]
-    AlgebraicLoop(String),
-    /// What is wrong with the system an SSP archive describes, naming the archive (and its
-    /// FMUs by their paths inside it, not by the folder they were unpacked into).
-    #[error("{}: {}", ssp.display(), in_archive(source, unpacked))]
-    InArchive {
-        ssp: PathBuf,
-        /// Where the archive was unpacked.
-        unpacked: PathBuf,
-        source: Box<SystemError>,
-    },
-}
-
-fn in_archive(error: &SystemError, unpacked: &Path) -> String {
-    error
-        .to_string()
-        .replace(&format!("{}/", unpacked.display()), "")
-}
-
-/// An instance with its FMU and resolved start values.
-#[derive(Debug, Clone)]
-pub struct ResolvedInstance {
-    pub name: String,
-    pub fmu: Arc<FmuFile>,
-    /// (variable index, value as f64) to set before initialisation; change them by name with
-    /// [`System::set_start_value`], which checks them and keeps the description in step.
-    pub start_values: Vec<(usize, f64)>,
-    pub step_multiple: u32,
-    pub logging: bool,
-}
-
-/// A system with every name resolved.
+/// A system with every name resolved. Its instances, its plan and the description they were
+/// resolved from change together, only through its methods ([`System::set_start_value`],
+/// [`System::set_fmu`], [`System::set_algorithm`], [`System::record_nothing`]); they are
+/// read through [`System::instances`], [`System::plan`] and [`System::source_description`].
 #[derive(Debug, Clone)]
 pub struct System {
-    pub name: String,
-    pub start_time: f64,
-    pub stop_time: f64,
-    pub step_size: f64,
-    pub algorithm: Algorithm,
-    pub instances: Vec<ResolvedInstance>,
+    instances: Vec<ResolvedInstance>,
     /// Connections, records and propagation, compiled to indices.
-    pub plan: Plan,
+    plan: Plan,
+    /// The stepping algorithm the plan was compiled for and the simulation follows.
+    algorithm: Arc<dyn Algorithm>,
     /// The description this system was resolved from, FMU paths as loaded; edits by name
     /// ([`System::set_start_value`], [`System::set_fmu`]) keep it in step.
     source: SystemDescription,
     /// What loading had to assume (an SSP's step size source or default), for the user.
-    pub notes: Vec<String>,
+    notes: Vec<String>,
     /// The temporary folder an SSP archive was unpacked into, removed with the last clone
     /// of this system.
     unpacked: Option<Arc<tempfile::TempDir>>,
@@ -175,12 +111,6 @@ impl From<StartValue> for toml::Value {
     }
 }
 
-pub(crate) fn split_variable(text: &str) -> Option<(&str, &str)> {
-    let text = text.trim();
-    let (instance, variable) = text.split_once('.')?;
-    (!instance.is_empty() && !variable.is_empty()).then_some((instance, variable))
-}
-
 impl System {
     /// Resolves `description`, loading FMUs relative to `base_dir`.
     pub fn resolve(description: &SystemDescription, base_dir: &Path) -> Result<Self, SystemError> {
@@ -194,7 +124,14 @@ impl System {
         base_dir: &Path,
         options: &LoadOptions,
     ) -> Result<Self, SystemError> {
-        Self::resolve_with(description, base_dir, &mut HashMap::new(), options)
+        let algorithm = algorithm::named(description.algorithm);
+        Self::resolve_with(
+            description,
+            base_dir,
+            &mut HashMap::new(),
+            options,
+            algorithm,
+        )
     }
 
     /// [`System::resolve`], taking FMUs from `loaded` (by path) before loading them.
@@ -203,6 +140,7 @@ impl System {
         base_dir: &Path,
         loaded: &mut HashMap<PathBuf, Arc<FmuFile>>,
         options: &LoadOptions,
+        algorithm: Arc<dyn Algorithm>,
     ) -> Result<Self, SystemError> {
         let d = description;
         if !(d.step_size.is_finite() && d.step_size > 0.0) {
@@ -295,20 +233,16 @@ impl System {
                 logging: spec.logging,
             });
         }
-        let plan = Plan::compile(d, &instances)?;
+        let plan = Plan::compile(d, &instances, algorithm.as_ref())?;
         for inst in &instances {
             for (index, _) in &inst.start_values {
                 check_not_connected(&plan, &instances, inst, *index)?;
             }
         }
         let system = Self {
-            name: d.name.clone(),
-            start_time: d.start_time,
-            stop_time: d.stop_time,
-            step_size: d.step_size,
-            algorithm: d.algorithm,
             instances,
             plan,
+            algorithm,
             source: SystemDescription {
                 instances: d
                     .instances
@@ -513,9 +447,8 @@ impl System {
     /// Runs `instance` from another FMU file (`fmu`, a path as given, not relative to the
     /// system file): its start values, connections and recorded variables are resolved again
     /// by name against the new FMU, with the same checks as when the system was loaded. The
-    /// start values are those of the description and of [`System::set_start_value`] (not
-    /// edits made to [`ResolvedInstance::start_values`] directly). On error the system is
-    /// left as it was.
+    /// start values are those of the description and of [`System::set_start_value`]. On error
+    /// the system is left as it was.
     pub fn set_fmu(&mut self, instance: &str, fmu: &Path) -> Result<(), SystemError> {
         let i = self.instance_index(instance)?;
         let mut description = self.source.clone();
@@ -525,7 +458,13 @@ impl System {
             .iter()
             .map(|inst| (inst.fmu.path.clone(), inst.fmu.clone()))
             .collect();
-        let mut edited = Self::resolve_with(&description, Path::new(""), &mut loaded, &self.load)?;
+        let mut edited = Self::resolve_with(
+            &description,
+            Path::new(""),
+            &mut loaded,
+            &self.load,
+            self.algorithm.clone(),
+        )?;
         edited.notes = std::mem::take(&mut self.notes);
         edited.unpacked = self.unpacked.take();
         *self = edited;
@@ -537,13 +476,64 @@ impl System {
     /// --no-record`). Editing the system by name ([`System::set_fmu`]) records its
     /// variables again.
     pub fn record_nothing(&mut self) -> Result<(), SystemError> {
-        self.plan = self.plan.without_records(&self.source, &self.instances)?;
+        self.plan =
+            self.plan
+                .without_records(&self.source, &self.instances, self.algorithm.as_ref())?;
+        Ok(())
+    }
+
+    /// Steps with `algorithm` from now on: the plan is compiled again for it (its propagation
+    /// order, its records), with the connections and records of the description. On error
+    /// the system is left as it was.
+    pub fn set_algorithm(&mut self, algorithm: Arc<dyn Algorithm>) -> Result<(), SystemError> {
+        self.plan = Plan::compile(&self.source, &self.instances, algorithm.as_ref())?;
+        self.algorithm = algorithm;
         Ok(())
     }
 
     /// `instance.variable`.
     pub fn variable_name(&self, r: VarRef) -> String {
-        crate::plan::variable_name(&self.instances, r)
+        variable_name(&self.instances, r)
+    }
+
+    /// Its name.
+    pub fn name(&self) -> &str {
+        &self.source.name
+    }
+
+    /// The time the simulation starts at.
+    pub fn start_time(&self) -> f64 {
+        self.source.start_time
+    }
+
+    /// The time the simulation stops at.
+    pub fn stop_time(&self) -> f64 {
+        self.source.stop_time
+    }
+
+    /// The base communication step size h.
+    pub fn step_size(&self) -> f64 {
+        self.source.step_size
+    }
+
+    /// The stepping algorithm.
+    pub fn algorithm(&self) -> &Arc<dyn Algorithm> {
+        &self.algorithm
+    }
+
+    /// The instances, in the order of the description, each with its FMU and start values.
+    pub fn instances(&self) -> &[ResolvedInstance] {
+        &self.instances
+    }
+
+    /// Connections, records and propagation, compiled to indices.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// What loading had to assume (an SSP's step size source or default), for the user.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 }
 
@@ -566,8 +556,8 @@ fn check_not_connected(
             reason: format!(
                 "is an input driven by the connection `{} -> {}`, so a value given to it \
                  would be ignored; remove the value or the connection",
-                crate::plan::variable_name(instances, c.from),
-                crate::plan::variable_name(instances, c.to)
+                variable_name(instances, c.from),
+                variable_name(instances, c.to)
             ),
         }),
         None => Ok(()),
@@ -627,28 +617,5 @@ fn start_number(v: &VariableInfo, value: &toml::Value) -> Result<f64, String> {
                 _ => "an integer (`3`)",
             }
         )),
-    }
-}
-
-pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {
-    let close: Vec<&str> = fmu
-        .variables
-        .iter()
-        .map(|v| v.head.name.as_str())
-        .filter(|n| {
-            let base = variable.split('[').next().unwrap_or(variable);
-            n.starts_with(base) || base.starts_with(n.split('[').next().unwrap_or(n))
-        })
-        .take(8)
-        .collect();
-    SystemError::UnknownVariable {
-        instance: instance.to_string(),
-        variable: variable.to_string(),
-        file: fmu.path.clone(),
-        hint: if close.is_empty() {
-            String::new()
-        } else {
-            format!(" (did you mean one of: {}?)", close.join(", "))
-        },
     }
 }

@@ -8,9 +8,9 @@
 mod common;
 
 use common::{instance_tables, reference};
-use spurio_master::engine::{RunOptions, Simulation};
-use spurio_master::record::{CsvWriter, NoRecording, Observer};
-use spurio_master::system::{System, SystemDescription};
+use spurio_master::{CsvWriter, NoRecording, Observer};
+use spurio_master::{RunOptions, Simulation};
+use spurio_master::{System, SystemDescription};
 use std::alloc::{GlobalAlloc, Layout, System as Heap};
 use std::cell::Cell;
 use std::path::Path;

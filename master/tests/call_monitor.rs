@@ -5,10 +5,10 @@
 
 mod common;
 
-use spurio_master::engine::{CallMonitor, RunOptions, Simulation};
 use spurio_master::fmu::LoadOptions;
-use spurio_master::record::NoRecording;
-use spurio_master::system::{System, SystemDescription};
+use spurio_master::NoRecording;
+use spurio_master::{CallMonitor, RunOptions, Simulation};
+use spurio_master::{System, SystemDescription};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 

@@ -7,10 +7,10 @@
 mod common;
 
 use common::{assert_names, instance_tables, reference, run};
-use spurio_master::engine::{RunEnd, RunOptions};
 use spurio_master::fmu::{Causality, FmiVersion, FmuFile, LoadError, VarType};
 use spurio_master::ssp::SspVersion;
-use spurio_master::system::{System, SystemDescription, SystemError};
+use spurio_master::{RunEnd, RunOptions};
+use spurio_master::{System, SystemDescription, SystemError};
 use std::path::{Path, PathBuf};
 
 /// The system of the TOML `head` (times, connections, record) and `instances` (see
@@ -45,7 +45,7 @@ fn feedthroughs() -> (PathBuf, PathBuf) {
     )
 }
 
-fn column(series: &spurio_master::record::TimeSeries, name: &str) -> Vec<f64> {
+fn column(series: &spurio_master::TimeSeries, name: &str) -> Vec<f64> {
     let j = series
         .names
         .iter()
@@ -228,7 +228,7 @@ fn values_cross_fmi_versions_and_fmi3_types() {
     )
     .unwrap();
     assert_eq!(
-        s.instances[1]
+        s.instances()[1]
             .fmu
             .variable("Int8_output")
             .unwrap()

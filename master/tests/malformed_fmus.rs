@@ -97,16 +97,19 @@ impl Drop for Case {
     }
 }
 
-/// The `spurio` binary of the same build profile as this test.
+/// The `spurio` binary of the same build profile as this test, or else the release one that
+/// building the packaged FMUs leaves ([`common::fmus`]).
 fn spurio() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
-    let bin = exe.parent().unwrap().parent().unwrap().join("spurio");
-    assert!(
-        bin.is_file(),
-        "{} is missing: build the workspace (scripts/build-fmus) first",
-        bin.display()
-    );
-    bin
+    let profile = exe.parent().unwrap().parent().unwrap();
+    let bin = profile.join("spurio");
+    if bin.is_file() {
+        return bin;
+    }
+    common::fmus();
+    let release = profile.parent().unwrap().join("release/spurio");
+    assert!(release.is_file(), "{} is missing", release.display());
+    release
 }
 
 const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
@@ -177,11 +180,7 @@ fn symlink_to_a_library_outside_the_archive_is_refused() {
     let case = Case::new("symlink");
     // The library the link points at, outside the archive.
     let outside = case.dir.join("outside.so");
-    std::fs::copy(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus/GantryCrane.fmu"),
-        &outside,
-    )
-    .unwrap();
+    std::fs::copy(crane(), &outside).unwrap();
     let bytes = rewrite(
         &crane(),
         |name, data| (name != LIBRARY).then_some(data),

@@ -4,9 +4,9 @@
 mod common;
 
 use common::{assert_names, crane, resolve, rewrite};
-use spurio_master::engine::{RunError, Simulation};
 use spurio_master::fmu::{FmuFile, LoadError};
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::{RunError, Simulation};
 use std::path::PathBuf;
 
 /// GantryCrane.fmu copied to `<tmp>/spurio-master-<pid>-<file>/<file>`, each entry passed
@@ -202,7 +202,7 @@ fn an_error_in_a_step_names_the_instance_the_call_and_the_time() {
     .unwrap();
     let mut sim = Simulation::new(&s).unwrap();
     let e = sim
-        .run(&mut spurio_master::record::NoRecording, &Default::default())
+        .run(&mut spurio_master::NoRecording, &Default::default())
         .unwrap_err();
     let text = e.to_string();
     assert_names(

@@ -8,7 +8,7 @@ use spurio_master::fmu::{FmuFile, Interface, LoadError, LoadOptions};
 use spurio_master::model_exchange::{
     event_time_tolerance, simulate, Event, EventKind, MeError, Options, Summary,
 };
-use spurio_master::record::TimeSeries;
+use spurio_master::TimeSeries;
 use spurio_solvers::Method;
 
 /// Opens a Reference FMU for Model Exchange and instantiates it.

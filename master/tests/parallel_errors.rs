@@ -5,9 +5,9 @@
 mod common;
 
 use common::resolve;
-use spurio_master::engine::{RunError, Simulation};
-use spurio_master::record::NoRecording;
-use spurio_master::system::System;
+use spurio_master::NoRecording;
+use spurio_master::System;
+use spurio_master::{RunError, Simulation};
 use std::sync::{Arc, Barrier};
 
 fn system(text: &str) -> System {

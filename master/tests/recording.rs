@@ -6,10 +6,10 @@
 mod common;
 
 use common::{crane_sensor, run};
-use spurio_master::engine::{RunEnd, RunOptions};
-use spurio_master::record::TimeSeries;
 use spurio_master::ssp::SspVersion;
-use spurio_master::system::System;
+use spurio_master::System;
+use spurio_master::TimeSeries;
+use spurio_master::{RunEnd, RunOptions};
 
 fn run_every(system: &System, output_interval: u64) -> (TimeSeries, RunEnd) {
     let options = RunOptions {
@@ -46,11 +46,11 @@ fn an_ssp_archive_is_unpacked_into_a_temporary_folder_removed_with_the_system() 
         .export_ssp(&ssp, SspVersion::V1_0)
         .unwrap();
     let system = System::from_file(&ssp).unwrap();
-    let unpacked = system.instances[0].fmu.path.clone();
+    let unpacked = system.instances()[0].fmu.path.clone();
     assert!(unpacked.is_file());
     assert!(!unpacked.starts_with(out.path()), "{}", unpacked.display());
     assert_eq!(
-        system.notes,
+        system.notes(),
         ["step size 0.01 from the org.spurio.simulation annotation (stepSize)"]
     );
     let copy = system.clone();
@@ -73,13 +73,14 @@ fn an_ssp_archive_is_unpacked_into_a_temporary_folder_removed_with_the_system() 
 #[test]
 fn recording_nothing_reads_only_the_outputs_that_feed_connections() {
     let mut system = crane_sensor(1.0, "U = 0.5");
-    let reads =
-        |s: &System, i: usize| -> usize { s.plan.after_step[i].iter().map(|t| t.vrs.len()).sum() };
+    let reads = |s: &System, i: usize| -> usize {
+        s.plan().after_step[i].iter().map(|t| t.vrs.len()).sum()
+    };
     // Recorded: crane.x (also a connection source), sensor.y[1], sensor.y_clean[1].
     assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 2));
     let (recorded, _) = run_every(&system, 1);
     system.record_nothing().unwrap();
-    assert!(system.plan.recorded.names.is_empty());
+    assert!(system.plan().recorded.names.is_empty());
     // crane.x and crane.theta feed the sensor; nothing of the sensor is read.
     assert_eq!((reads(&system, 0), reads(&system, 1)), (2, 0));
     let (series, end) = run_every(&system, 1);

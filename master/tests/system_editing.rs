@@ -5,8 +5,8 @@
 mod common;
 
 use common::{assert_names, crane_sensor, fmus, resolve};
-use spurio_master::record::TimeSeries;
-use spurio_master::system::{System, SystemError};
+use spurio_master::TimeSeries;
+use spurio_master::{System, SystemError};
 
 /// A run of `system` with the default options.
 fn run(system: &System) -> TimeSeries {

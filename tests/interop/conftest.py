@@ -1,9 +1,8 @@
 """Shared helpers for the tests that run the master and our FMUs against the FMI tools users
 already run: fmpy, OMSimulator (command line and Python API) and the FMU Compliance Checker.
 
-Where the tools are: `SPURIO_THIRD_PARTY` (default: `../shared/third-party` next to the
-repository, or one level further up for a worktree). Their README lists versions and
-licences; the tools are used from there, never copied.
+Where the tools are: the repository's `tests/third_party/` (its README lists what each is,
+its version, where it came from and its licence), or the folder `SPURIO_THIRD_PARTY` names.
 
 How the tools count time (what the comparisons below rely on):
 - fmpy (`simulate_fmu`, CS) and `spurio run` compute the n-th communication point as
@@ -28,17 +27,7 @@ FMU_DIR = pathlib.Path(os.environ.get("SPURIO_FMU_DIR", REPO / "build" / "fmus")
 SPURIO = REPO / "target" / "release" / "spurio"
 
 
-def _third_party() -> pathlib.Path:
-    if "SPURIO_THIRD_PARTY" in os.environ:
-        return pathlib.Path(os.environ["SPURIO_THIRD_PARTY"])
-    for up in (REPO.parent, REPO.parent.parent):
-        candidate = up / "shared" / "third-party"
-        if candidate.is_dir():
-            return candidate
-    return REPO.parent / "shared" / "third-party"
-
-
-THIRD_PARTY = _third_party()
+THIRD_PARTY = pathlib.Path(os.environ.get("SPURIO_THIRD_PARTY", REPO / "tests" / "third_party"))
 REFERENCE_FMUS = THIRD_PARTY / "reference-fmus" / "fmi2"
 OMSIMULATOR = THIRD_PARTY / "omsimulator" / "bin" / "OMSimulator"
 OMS_PYTHONPATH = THIRD_PARTY / "omsimulator" / "lib" / "x86_64-linux-gnu"

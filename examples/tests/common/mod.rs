@@ -1,14 +1,19 @@
-//! What the pinned experiment tests share: running one experiment into a fresh folder and
-//! checking its figures of merit and files against `examples/tests/pinned.toml`.
+//! What the pinned experiment tests share: running one experiment into a fresh folder (the
+//! packaged FMUs built first if they are missing) and checking its figures of merit and files
+//! against `examples/tests/pinned.toml`.
 
 use spurio_experiments::Report;
 use std::path::PathBuf;
+
+#[path = "../../../master/tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
 
 /// Runs the experiment `name` with `seeds` Monte-Carlo runs into
 /// `<tmp>/spurio-exp-<tag>-<pid>/`, asserts that its report meets every goal and that its
 /// figures and files are the ones `pinned.toml` pins, and returns the report and that folder.
 pub fn run_pinned(name: &str, tag: &str, seeds: usize) -> (Report, PathBuf) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    packaged_fmus::packaged_fmus(&root.join(".."));
     let out = std::env::temp_dir().join(format!("spurio-exp-{tag}-{}", std::process::id()));
     let mut reports =
         spurio_experiments::run_all(&root.join(".."), &out, &[name.into()], seeds, 0).unwrap();

@@ -1,5 +1,5 @@
 //! `WindGenerator.fmu`: the wind-generator laboratory set of paper 001 (§4, Fig. 1,
-//! appendices A–D; docs/models.md §2.2) as an FMI 2.0 FMU with both interfaces, Co-Simulation
+//! appendices A–D; docs/models.md §2.2) as an FMU (FMI 2.0 and 3.0) with both interfaces, Co-Simulation
 //! and Model Exchange: a drive-fed induction motor turning a
 //! wound-field synchronous generator on a resistive load, field fed by an SCR module, speed
 //! read by a tachogenerator.
@@ -56,75 +56,64 @@ use std::f64::consts::PI;
 pub use spurio_fmu_common::RK4_STABILITY_MARGIN;
 use spurio_fmu_common::{advance_finite, rk4_substep};
 
-/// The declared range (min, max) of each physical parameter, in [`PARAMETER_NAMES`] order:
-/// a laboratory machine set with room to spare, and no value that makes the model divide by
+/// One physical parameter of the FMU: its variable's name, unit and description, its declared
+/// range (min, max), and the field of [`WindGeneratorParameters`] it sets (its start value is
+/// that field's default).
+#[derive(Debug, Clone, Copy)]
+pub struct PhysicalParameter {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub description: &'static str,
+    pub range: (f64, f64),
+    pub field: fn(&mut WindGeneratorParameters) -> &mut f64,
+}
+
+impl PhysicalParameter {
+    /// Its value in `parameters`.
+    pub fn value(&self, mut parameters: WindGeneratorParameters) -> f64 {
+        *(self.field)(&mut parameters)
+    }
+}
+
+/// A [`PhysicalParameter`], declared on one line.
+const fn physical(
+    name: &'static str,
+    field: fn(&mut WindGeneratorParameters) -> &mut f64,
+    unit: &'static str,
+    range: (f64, f64),
+    description: &'static str,
+) -> PhysicalParameter {
+    PhysicalParameter {
+        name,
+        unit,
+        description,
+        range,
+        field,
+    }
+}
+
+/// The 16 physical parameters, in value-reference order, each declared once. The ranges: a
+/// laboratory machine set with room to spare, and no value that makes the model divide by
 /// zero or overflow in a step.
-pub const PARAMETER_RANGES: [(f64, f64); 16] = [
-    (1.0, 32.0), // pole_pairs
-    (0.0, 1e4),  // R_s
-    (1e-6, 1e3), // L_d
-    (1e-6, 1e3), // L_q
-    (0.0, 1e5),  // R_f
-    (1e-6, 1e4), // L_f
-    (0.0, 1e3),  // M_f
-    (0.0, 1e6),  // R_load
-    (1e-6, 1e4), // J
-    (0.0, 1e3),  // B
-    (0.0, 1e4),  // k_s
-    (0.0, 1e5),  // T_max
-    (1e-6, 1e3), // tau_drive
-    (1e-6, 1e3), // tau_scr
-    (1e-6, 1e3), // tau_tach
-    (0.0, 1e3),  // f_rated
+#[rustfmt::skip]
+pub const PHYSICAL_PARAMETERS: [PhysicalParameter; 16] = [
+    physical("pole_pairs", |p| &mut p.pole_pairs, "1", (1.0, 32.0), "Pole pairs p (4 poles)"),
+    physical("R_s", |p| &mut p.stator_resistance, "Ohm", (0.0, 1e4), "Stator resistance per phase"),
+    physical("L_d", |p| &mut p.d_inductance, "H", (1e-6, 1e3), "d-axis synchronous inductance"),
+    physical("L_q", |p| &mut p.q_inductance, "H", (1e-6, 1e3), "q-axis synchronous inductance"),
+    physical("R_f", |p| &mut p.field_resistance, "Ohm", (0.0, 1e5), "Field winding resistance"),
+    physical("L_f", |p| &mut p.field_inductance, "H", (1e-6, 1e4), "Field winding self-inductance"),
+    physical("M_f", |p| &mut p.mutual_inductance, "H", (0.0, 1e3), "Stator-field mutual inductance"),
+    physical("R_load", |p| &mut p.load_resistance, "Ohm", (0.0, 1e6), "Load resistance per phase, star-connected"),
+    physical("J", |p| &mut p.inertia, "kg.m2", (1e-6, 1e4), "Inertia of both rotors"),
+    physical("B", |p| &mut p.friction, "N.m.s/rad", (0.0, 1e3), "Viscous friction of the shaft"),
+    physical("k_s", |p| &mut p.slip_stiffness, "N.m.s/rad", (0.0, 1e4), "Motor torque per rad/s of slip"),
+    physical("T_max", |p| &mut p.max_motor_torque, "N.m", (0.0, 1e5), "Motor breakdown torque"),
+    physical("tau_drive", |p| &mut p.drive_time_constant, "s", (1e-6, 1e3), "Drive slip-compensation lag"),
+    physical("tau_scr", |p| &mut p.scr_time_constant, "s", (1e-6, 1e3), "SCR field supply lag"),
+    physical("tau_tach", |p| &mut p.tachometer_time_constant, "s", (1e-6, 1e3), "Tachogenerator lag"),
+    physical("f_rated", |p| &mut p.rated_frequency, "Hz", (0.0, 1e3), "Supply frequency at u_drive = 10 V"),
 ];
-
-/// The physical parameters: (name, unit, description), in value-reference order.
-pub const PARAMETER_NAMES: [(&str, &str, &str); 16] = [
-    ("pole_pairs", "1", "Pole pairs p (4 poles)"),
-    ("R_s", "Ohm", "Stator resistance per phase"),
-    ("L_d", "H", "d-axis synchronous inductance"),
-    ("L_q", "H", "q-axis synchronous inductance"),
-    ("R_f", "Ohm", "Field winding resistance"),
-    ("L_f", "H", "Field winding self-inductance"),
-    ("M_f", "H", "Stator-field mutual inductance"),
-    ("R_load", "Ohm", "Load resistance per phase, star-connected"),
-    ("J", "kg.m2", "Inertia of both rotors"),
-    ("B", "N.m.s/rad", "Viscous friction of the shaft"),
-    ("k_s", "N.m.s/rad", "Motor torque per rad/s of slip"),
-    ("T_max", "N.m", "Motor breakdown torque"),
-    ("tau_drive", "s", "Drive slip-compensation lag"),
-    ("tau_scr", "s", "SCR field supply lag"),
-    ("tau_tach", "s", "Tachogenerator lag"),
-    ("f_rated", "Hz", "Supply frequency at u_drive = 10 V"),
-];
-
-/// The 16 physical parameters' fields, in [`PARAMETER_NAMES`] order (read and written
-/// through this one list).
-fn parameter_fields(p: &mut WindGeneratorParameters) -> [&mut f64; 16] {
-    [
-        &mut p.pole_pairs,
-        &mut p.stator_resistance,
-        &mut p.d_inductance,
-        &mut p.q_inductance,
-        &mut p.field_resistance,
-        &mut p.field_inductance,
-        &mut p.mutual_inductance,
-        &mut p.load_resistance,
-        &mut p.inertia,
-        &mut p.friction,
-        &mut p.slip_stiffness,
-        &mut p.max_motor_torque,
-        &mut p.drive_time_constant,
-        &mut p.scr_time_constant,
-        &mut p.tachometer_time_constant,
-        &mut p.rated_frequency,
-    ]
-}
-
-/// The physical parameters' values, in [`PARAMETER_NAMES`] order.
-fn parameter_values(mut p: WindGeneratorParameters) -> [f64; 16] {
-    parameter_fields(&mut p).map(|field| *field)
-}
 
 spurio_export::declare_variables! {
     /// The variable table, in value-reference order.
@@ -151,14 +140,11 @@ spurio_export::declare_variables! {
                 .depends_on(&[vr::OMEGA_M, vr::OMEGA_S]),
             I_D = state(output("i_d", "A", "Stator d-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_D),
             I_Q = state(output("i_q", "A", "Stator q-axis current (peak-phase scale, amplitude-invariant Park)"), 0.5, vr::I_Q),
-            // The 16 physical parameters, in `PARAMETER_NAMES` order.
-            FIRST_PARAMETER[16] = PARAMETER_NAMES
-                .iter()
-                .zip(parameter_values(p))
-                .zip(PARAMETER_RANGES)
-                .map(|(((name, unit, description), value), (min, max))| {
-                    parameter(name, value, unit, description).min(min).max(max)
-                }),
+            // The 16 physical parameters, in `PHYSICAL_PARAMETERS` order.
+            FIRST_PARAMETER[16] = PHYSICAL_PARAMETERS.iter().map(|q| {
+                let (min, max) = q.range;
+                parameter(q.name, q.value(p), q.unit, q.description).min(min).max(max)
+            }),
             H_MAX = parameter("h_max", WindGenerator::RECOMMENDED_MAX_SUBSTEP, "s",
                 "Longest RK4 substep inside fmi2DoStep when fixed_step_rk4 (RK4 is unstable beyond about 2 ms; at most 100000 per step)")
                 .min(1e-9)
@@ -419,8 +405,8 @@ impl FmuModel for WindGeneratorFmu {
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let mut parameters = WindGeneratorParameters::default();
-        for (k, field) in parameter_fields(&mut parameters).into_iter().enumerate() {
-            *field = ctx.values.real(vr::FIRST_PARAMETER + k);
+        for (k, q) in PHYSICAL_PARAMETERS.iter().enumerate() {
+            *(q.field)(&mut parameters) = ctx.values.real(vr::FIRST_PARAMETER + k);
         }
         let generator = if ctx.values.boolean(vr::START_AT_OPERATING_POINT) {
             let (u_drive, u_field) = (
@@ -824,7 +810,7 @@ mod tests {
         assert_eq!(h.last_successful_time().unwrap(), 1e-5);
         // every physical parameter has a declared range, checked when set
         let table = variables();
-        for k in 0..PARAMETER_NAMES.len() {
+        for k in 0..PHYSICAL_PARAMETERS.len() {
             let v = &table[vr::FIRST_PARAMETER + k];
             assert!(v.min.is_some() && v.max.is_some(), "{}", v.name);
         }

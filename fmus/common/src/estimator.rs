@@ -1,5 +1,5 @@
 //! The one generic adapter of the estimator FMUs (docs/estimators.md §2.7–§2.12): dimension-generic
-//! FMI 2.0 CS wrappers of [`spurio::estimation`].
+//! Co-Simulation wrappers (FMI 2.0 and 3.0) of [`spurio::estimation`].
 //!
 //! One compiled binary per algorithm; the dimensions come from the packaging configuration
 //! (`resources/variant.cfg`, keys such as `n`, `m`, `p`), so `spurio package-variant
@@ -8,10 +8,10 @@
 //!
 //! | FMU | estimator | where |
 //! |---|---|---|
-//! | `KalmanFilter` | sKF | [`crate::kalman::LinearEstimator`]: [`Filtered`] over [`crate::kalman::Linear`] (any [`spurio::estimation::StateEstimator`]), the filter on plain numbers for n = p = 1 |
-//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same, [`crate::kalman::LinearEstimator`] |
-//! | `DualKalmanFilter` | DKF (Haykin ch. 5) | [`Filtered`] over [`crate::dual::Dual`] |
-//! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same, [`Filtered`] over [`crate::dual::Dual`] |
+//! | `KalmanFilter` | sKF | `spurio-fmu-kalman` (`fmus/kalman/`): `LinearEstimator`, the filter on plain numbers for n = p = 1, else `Filtered` over its `LinearLayout` |
+//! | `RobustKalmanFilter` | rsKF (Cipra & Romera 1997) | the same |
+//! | `DualKalmanFilter` | DKF (Haykin ch. 5) | `spurio-fmu-kalman`: `Filtered` over its `DualLayout` |
+//! | `DkfRsKf` | rsKF cleaning → DKF (paper 001 Fig. 2) | the same |
 //! | `RecursiveLeastSquares` | ARX RLS with forgetting (paper 002) | its own crate |
 //! | `DistributedObserver` | one agent of paper 004's observer | its own crate |
 //!
@@ -38,7 +38,7 @@
 use crate::clock::{self, Rule, SampleClock};
 use crate::structured::Block;
 use nalgebra::{DMatrix, DVector};
-use spurio::estimation::{EstimationError, StateEstimator};
+use spurio::estimation::EstimationError;
 use spurio_export::{
     ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Values, Variable,
     VariableTable,
@@ -87,82 +87,6 @@ pub trait Estimator: DynamicState + Clone + std::fmt::Debug + 'static {
     ) -> Result<(), Failure>;
 }
 
-/// A family of filters behind the one [`Filtered`] adapter (the linear-model filters of
-/// [`crate::kalman::Linear`], the dual filters of [`crate::dual::Dual`]): its variables, how
-/// its filter is built from the parameters, and what the filter writes.
-pub trait FilterFamily: Clone + std::fmt::Debug + 'static {
-    /// The filter.
-    type Filter: StateEstimator + Clone + std::fmt::Debug + 'static;
-    /// Value references of the variables of one variant.
-    type Layout: Clone + std::fmt::Debug + 'static;
-    /// The variable layout and model description for a configuration.
-    fn interface(config: &Config) -> Result<(Self::Layout, ModelInfo), Cause>;
-    /// Reads and checks the parameters, builds the filter.
-    fn build(layout: &Self::Layout, values: &Values) -> Result<Self::Filter, Failure>;
-    /// The input blocks `u` and `y`.
-    fn inputs(layout: &Self::Layout) -> (&Block, &Block);
-    /// Writes the outputs before the first step.
-    fn write_initial(filter: &Self::Filter, layout: &Self::Layout, ctx: &mut Context);
-    /// Writes the outputs after a step.
-    fn write_outputs(filter: &Self::Filter, layout: &Self::Layout, values: &mut Values);
-}
-
-/// The one adapter of the filter families: the filter and its input buffers.
-#[derive(Debug, Clone)]
-pub struct Filtered<K: FilterFamily> {
-    filter: K::Filter,
-    u: DVector<f64>,
-    y: DVector<f64>,
-}
-
-impl<K: FilterFamily> Filtered<K> {
-    /// The filter.
-    pub fn filter(&self) -> &K::Filter {
-        &self.filter
-    }
-}
-
-impl<K: FilterFamily> Estimator for Filtered<K> {
-    type Layout = K::Layout;
-    fn interface(config: &Config) -> Result<(K::Layout, ModelInfo), Cause> {
-        K::interface(config)
-    }
-
-    fn build(layout: &K::Layout, values: &Values) -> Result<Self, Failure> {
-        let (u, y) = K::inputs(layout);
-        Ok(Self {
-            filter: K::build(layout, values)?,
-            u: DVector::zeros(u.indices().len()),
-            y: DVector::zeros(y.indices().len()),
-        })
-    }
-
-    fn write_initial(&self, layout: &K::Layout, ctx: &mut Context) {
-        K::write_initial(&self.filter, layout, ctx);
-    }
-
-    fn step(&mut self, l: &K::Layout, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        let (u, y) = K::inputs(l);
-        if !(copy_inputs(ctx.values, u, &mut self.u) && copy_inputs(ctx.values, y, &mut self.y)) {
-            // A non-finite input (or buffers of another size): the message names it.
-            read_inputs(ctx.values, u, "u", &mut self.u)?;
-            read_inputs(ctx.values, y, "y", &mut self.y)?;
-        }
-        self.filter.step(&self.u, &self.y).map_err(error)?;
-        K::write_outputs(&self.filter, l, ctx.values);
-        Ok(())
-    }
-}
-
-impl<K: FilterFamily> DynamicState for Filtered<K> {
-    fn dynamic_state(&self) -> Vec<f64> {
-        StateEstimator::dynamic_state(&self.filter)
-    }
-    fn set_dynamic_state(&mut self, state: &[f64]) -> Result<(), EstimationError> {
-        StateEstimator::set_dynamic_state(&mut self.filter, state)
-    }
-}
-
 /// An FMU over an [`Estimator`]: the layout, the parameters the estimator was built from
 /// (kept for FMU state serialization), the estimator once initialized and its sample clock.
 #[derive(Debug, Clone)]
@@ -175,10 +99,11 @@ pub struct EstimatorFmu<E: Estimator> {
     clock: SampleClock,
 }
 
-#[cfg(test)]
 impl<E: Estimator> EstimatorFmu<E> {
-    /// The layout, the parameters read at initialization and the estimator (tests).
-    pub(crate) fn parts_mut(&mut self) -> (&E::Layout, &Values, Option<&mut E>) {
+    /// The layout, the parameters read at initialization and the estimator, for tests that
+    /// swap in another estimator built from the same parameters.
+    #[doc(hidden)]
+    pub fn parts_mut(&mut self) -> (&E::Layout, &Values, Option<&mut E>) {
         (&self.layout, &self.parameters, self.estimator.as_mut())
     }
 }

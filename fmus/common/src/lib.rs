@@ -4,19 +4,18 @@
 //! - [`clock`]: the one sample clock of the discrete-time FMUs (`sample_period`);
 //! - [`estimator`]: the one generic estimator adapter ([`estimator::EstimatorFmu`]) and its
 //!   input checks;
-//! - [`kalman`], [`dual`]: the sKF/rsKF and DKF/DKF-rsKF estimators behind their FMUs;
 //! - [`controller`]: the sampled-controller skeleton of the two state-feedback FMUs
 //!   ([`controller::SampledController`] over a control law), their presets, pole and limit
 //!   parameters.
 //!
-//! An FMU binary links only what it uses of this crate.
+//! The Kalman family's own code (KalmanFilter, RobustKalmanFilter, DualKalmanFilter, DkfRsKf)
+//! is in `spurio-fmu-kalman` (`fmus/kalman/`). An FMU binary links only what it uses of this
+//! crate.
 #![forbid(unsafe_code)]
 
 pub mod clock;
 pub mod controller;
-pub mod dual;
 pub mod estimator;
-pub mod kalman;
 pub mod structured;
 
 use spurio_export::{Config, Failure};

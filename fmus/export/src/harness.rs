@@ -1,15 +1,15 @@
 //! An in-process driver of an FMU's C entry points, for Rust tests and benchmarks.
 //!
-//! It calls the same generic functions of [`crate::ffi`] that the exported `fmi2*` symbols
+//! It calls the same generic functions of [`crate::fmi2::ffi`] that the exported `fmi2*` symbols
 //! call, with real pointers, so a test or benchmark measures the C ABI path (pointer checks,
 //! `catch_unwind`, state masks, dispatch) without loading a shared library. Log messages are
 //! collected in memory (a C variadic logger cannot be written in stable Rust).
 
 use crate::description::Config;
-use crate::ffi;
+use crate::fmi2::ffi;
+use crate::fmi2::values::{get, set, Boolean, Integer, Real};
 use crate::instance::{Instance, LogSink, Logger};
-use crate::me::Hooks;
-use crate::model::FmuModel;
+use crate::model::{FmuModel, Hooks};
 use crate::types::*;
 use std::cell::RefCell;
 use std::marker::PhantomData;
@@ -59,7 +59,7 @@ impl<M: FmuModel> Harness<M> {
     }
 
     /// The component, for the calls the harness does not wrap (Model Exchange, directional
-    /// derivatives: `crate::me::ffi`).
+    /// derivatives: `crate::abi::model_exchange`, `crate::fmi2::model_exchange`).
     pub fn component(&self) -> fmi2Component {
         self.component
     }
@@ -214,9 +214,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Real>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2SetInteger`.
@@ -225,9 +223,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Integer>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2SetBoolean` (`true` → fmi2True).
@@ -237,9 +233,7 @@ impl<M: FmuModel> Harness<M> {
         }
         let values: Vec<i32> = values.iter().map(|v| i32::from(*v)).collect();
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::set::<M, ffi::Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
+        status(unsafe { set::<M, Boolean>(self.component, vr.as_ptr(), vr.len(), values.as_ptr()) })
     }
 
     /// `fmi2GetReal` into `out`.
@@ -248,9 +242,7 @@ impl<M: FmuModel> Harness<M> {
             return Err(Status::Error);
         }
         // SAFETY: both slices hold `vr.len()` elements.
-        status(unsafe {
-            ffi::get::<M, ffi::Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
-        })
+        status(unsafe { get::<M, Real>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr()) })
     }
     /// `fmi2GetInteger` into `out`.
     pub fn get_integer(&mut self, vr: &[u32], out: &mut [i32]) -> Result<Status, Status> {
@@ -259,7 +251,7 @@ impl<M: FmuModel> Harness<M> {
         }
         // SAFETY: both slices hold `vr.len()` elements.
         status(unsafe {
-            ffi::get::<M, ffi::Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
+            get::<M, Integer>(self.component, vr.as_ptr(), vr.len(), out.as_mut_ptr())
         })
     }
     /// `fmi2GetReal` of one variable.

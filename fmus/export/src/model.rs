@@ -7,7 +7,7 @@
 use crate::bytes::{ByteReader, ByteWriter};
 use crate::description::{Config, ModelInfo};
 use crate::types::Status;
-use crate::variables::Values;
+use crate::values::Values;
 
 /// What went wrong, as the typed error of whoever found it (a parameter error of the
 /// models, an estimation error, [`crate::bytes::StateFormatError`], a configuration error…);
@@ -101,7 +101,7 @@ impl<'a> Context<'a> {
             log_events: true,
         }
     }
-    /// The instance's current communication point [s]: the start time (from
+    /// The instance's current communication point \[s\]: the start time (from
     /// `fmi2SetupExperiment`) during initialization, the start of the step in `do_step`, the
     /// last communication point in `update_outputs` and `parameters_changed`.
     pub fn time(&self) -> f64 {
@@ -290,4 +290,38 @@ pub trait FmuModel: Clone + 'static {
 
     /// Restores what [`FmuModel::save_state`] wrote.
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause>;
+}
+
+/// The [`ModelExchange`] functions of a model, as plain function pointers: what
+/// `export_fmu!(Model, model_exchange)` hands the version-neutral instance, so the shared code
+/// needs no `ModelExchange` bound and models without it export the same symbols (which then
+/// refuse Model Exchange with a logged reason).
+pub struct Hooks<M> {
+    /// [`ModelExchange::evaluate`].
+    pub evaluate: fn(&mut M, &mut Context) -> Result<(), Failure>,
+    /// [`ModelExchange::event_indicators`].
+    pub event_indicators: fn(&mut M, &mut Context, &mut [f64]) -> Result<(), Failure>,
+    /// [`ModelExchange::update_discrete_states`].
+    pub update_discrete_states: fn(&mut M, &mut Context) -> Result<EventUpdate, Failure>,
+    /// [`ModelExchange::directional_derivative`].
+    #[allow(clippy::type_complexity)]
+    pub directional_derivative:
+        fn(&mut M, &mut Context, &[usize], &[usize], &[f64], &mut [f64]) -> Result<(), Failure>,
+}
+
+impl<M> Clone for Hooks<M> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<M> Copy for Hooks<M> {}
+
+/// The hooks of a [`ModelExchange`] model.
+pub fn hooks<M: ModelExchange>() -> Hooks<M> {
+    Hooks {
+        evaluate: M::evaluate,
+        event_indicators: M::event_indicators,
+        update_discrete_states: M::update_discrete_states,
+        directional_derivative: M::directional_derivative,
+    }
 }

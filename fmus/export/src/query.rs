@@ -13,8 +13,11 @@
 //! Both copy at most `capacity` bytes of the UTF-8 answer into `out` (no NUL) and return the
 //! answer's full length, so a caller asks again with a larger buffer when it was too small.
 
+use crate::abi::pointers::string_arg;
 use crate::description::{Config, ConfigError};
+use crate::guard::guarded;
 use crate::model::FmuModel;
+use std::os::raw::c_char;
 
 /// `extern "C" fn(out: *mut u8, capacity: usize) -> usize`.
 pub const VARIANTS_SYMBOL: &str = "spurio_variants";
@@ -96,9 +99,74 @@ pub fn describe<M: FmuModel>(config_text: &str) -> Result<String, crate::model::
 /// The FMI 3.0 model description of `M` for a configuration text.
 pub fn describe3<M: FmuModel>(config_text: &str) -> Result<String, crate::model::Cause> {
     let config = Config::parse(config_text)?;
-    Ok(crate::fmi3::description::model_description(&M::describe(
+    Ok(crate::description::fmi3::model_description(&M::describe(
         &config,
     )?))
+}
+
+/// Copies `answer` into `out` (at most `capacity` bytes) and returns its length.
+unsafe fn write_answer(answer: &str, out: *mut u8, capacity: usize) -> usize {
+    let bytes = answer.as_bytes();
+    if !out.is_null() && capacity > 0 {
+        let n = bytes.len().min(capacity);
+        // SAFETY: the caller gives a writable buffer of `capacity` bytes (query contract).
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), out, n) };
+    }
+    bytes.len()
+}
+
+/// `spurio_variants`: the bundled variants as [`crate::query::variants_text`].
+///
+/// # Safety
+/// `out` is NULL or points to `capacity` writable bytes.
+pub unsafe fn query_variants(
+    variants: fn() -> Vec<crate::query::Variant>,
+    out: *mut u8,
+    capacity: usize,
+) -> usize {
+    let text = guarded(variants)
+        .map(|v| crate::query::variants_text(&v))
+        .unwrap_or_default();
+    // SAFETY: forwarded from the caller.
+    unsafe { write_answer(&text, out, capacity) }
+}
+
+/// `spurio_describe`: the model description for a configuration text, or minus the length of
+/// the error message.
+///
+/// # Safety
+/// `config` is NULL or a NUL-terminated string; `out` is NULL or points to `capacity`
+/// writable bytes.
+pub unsafe fn query_describe<M: FmuModel>(
+    config: *const c_char,
+    out: *mut u8,
+    capacity: usize,
+) -> isize {
+    // SAFETY: forwarded from the caller.
+    unsafe { query_describe_with(crate::query::describe::<M>, config, out, capacity) }
+}
+
+/// `spurio_describe` (FMI 2.0) or `spurio_describe3` (FMI 3.0): the answer of `describe` for
+/// a configuration text, or minus the length of the error message.
+///
+/// # Safety
+/// As [`query_describe`].
+pub unsafe fn query_describe_with(
+    describe: fn(&str) -> Result<String, crate::model::Cause>,
+    config: *const c_char,
+    out: *mut u8,
+    capacity: usize,
+) -> isize {
+    // SAFETY: `config` is NULL or a NUL-terminated string (query contract).
+    let text = unsafe { string_arg(config) }.unwrap_or_default();
+    let answer = guarded(|| describe(&text)).unwrap_or_else(|m| Err(m.into()));
+    let (text, sign) = match answer {
+        Ok(xml) => (xml, 1),
+        Err(cause) => (cause.to_string(), -1),
+    };
+    // SAFETY: forwarded from the caller.
+    let length = unsafe { write_answer(&text, out, capacity) };
+    sign * isize::try_from(length).unwrap_or(isize::MAX)
 }
 
 #[cfg(test)]

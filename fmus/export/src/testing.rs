@@ -34,7 +34,7 @@ pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Pat
         let committed =
             std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert!(
-            committed == crate::fmi3::description::model_description(&info),
+            committed == crate::description::fmi3::model_description(&info),
             "{} differs from the variable table of {}: run `spurio model-descriptions --write`",
             path.display(),
             info.model_identifier

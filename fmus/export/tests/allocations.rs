@@ -7,12 +7,14 @@
 //! `tests/allocations/run`.
 #![allow(unsafe_code)]
 
+use spurio_export::fmi2::{ffi, values};
 use spurio_export::fmi3::ffi as ffi3;
 use spurio_export::fmi3::types::*;
+use spurio_export::fmi3::values as values3;
 use spurio_export::types::*;
 use spurio_export::{
-    ffi, ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo,
-    Value, Variability, Variable,
+    ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo, Value,
+    Variability, Variable,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -240,14 +242,14 @@ fn fmi2_set_step_get_allocates_nothing() {
     check("FMI 2.0", |t| unsafe {
         let (mut y, mut ints, mut bools) = ([0.0; 3], [0; 2], [0; 2]);
         let status = [
-            ffi::set::<Toy, ffi::Real>(c, u.as_ptr(), 2, INPUTS.0.as_ptr()),
-            ffi::set::<Toy, ffi::Integer>(c, &k, 1, &k_value),
-            ffi::set::<Toy, ffi::Boolean>(c, &b, 1, &fmi2True),
-            ffi::set::<Toy, ffi::Real>(c, &gain, 1, &gain_value),
+            values::set::<Toy, values::Real>(c, u.as_ptr(), 2, INPUTS.0.as_ptr()),
+            values::set::<Toy, values::Integer>(c, &k, 1, &k_value),
+            values::set::<Toy, values::Boolean>(c, &b, 1, &fmi2True),
+            values::set::<Toy, values::Real>(c, &gain, 1, &gain_value),
             ffi::do_step::<Toy>(c, t, H, fmi2True),
-            ffi::get::<Toy, ffi::Real>(c, reals.as_ptr(), 3, y.as_mut_ptr()),
-            ffi::get::<Toy, ffi::Integer>(c, integers.as_ptr(), 2, ints.as_mut_ptr()),
-            ffi::get::<Toy, ffi::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr()),
+            values::get::<Toy, values::Real>(c, reals.as_ptr(), 3, y.as_mut_ptr()),
+            values::get::<Toy, values::Integer>(c, integers.as_ptr(), 2, ints.as_mut_ptr()),
+            values::get::<Toy, values::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr()),
         ];
         (
             status,
@@ -290,14 +292,14 @@ fn fmi3_set_step_get_allocates_nothing() {
         let (mut y, mut ints, mut bools) = ([0.0; 3], [0; 2], [0u8; 2]);
         let (mut event, mut terminate, mut early, mut last) = (0, 0, 0, 0.0);
         let status = [
-            ffi3::set::<Toy, ffi3::Float64>(c, &u, 1, INPUTS.0.as_ptr(), 2),
-            ffi3::set::<Toy, ffi3::Int32>(c, &k, 1, &k_value, 1),
-            ffi3::set::<Toy, ffi3::Boolean>(c, &b, 1, &fmi3True, 1),
-            ffi3::set::<Toy, ffi3::Float64>(c, &gain, 1, &gain_value, 1),
+            values3::set::<Toy, values3::Float64>(c, &u, 1, INPUTS.0.as_ptr(), 2),
+            values3::set::<Toy, values3::Int32>(c, &k, 1, &k_value, 1),
+            values3::set::<Toy, values3::Boolean>(c, &b, 1, &fmi3True, 1),
+            values3::set::<Toy, values3::Float64>(c, &gain, 1, &gain_value, 1),
             ffi3::do_step::<Toy>(c, t, H, &mut event, &mut terminate, &mut early, &mut last),
-            ffi3::get::<Toy, ffi3::Float64>(c, reals.as_ptr(), 2, y.as_mut_ptr(), 3),
-            ffi3::get::<Toy, ffi3::Int32>(c, integers.as_ptr(), 2, ints.as_mut_ptr(), 2),
-            ffi3::get::<Toy, ffi3::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr(), 2),
+            values3::get::<Toy, values3::Float64>(c, reals.as_ptr(), 2, y.as_mut_ptr(), 3),
+            values3::get::<Toy, values3::Int32>(c, integers.as_ptr(), 2, ints.as_mut_ptr(), 2),
+            values3::get::<Toy, values3::Boolean>(c, booleans.as_ptr(), 2, bools.as_mut_ptr(), 2),
         ];
         (
             status,

@@ -7,11 +7,12 @@
 mod common;
 
 use common::toy::*;
-use spurio_export::fmi3::ffi::{self, Boolean, Float64, Int32};
+use spurio_export::abi::kinds::Fmi3;
+use spurio_export::abi::model_exchange::{self as me, Array};
+use spurio_export::fmi3::ffi;
 use spurio_export::fmi3::types::*;
-use spurio_export::fmi3::{functions, me as me3};
-use spurio_export::front::Fmi3;
-use spurio_export::me::ffi::{self as me, Array};
+use spurio_export::fmi3::values::{self, Boolean, Float64, Int32};
+use spurio_export::fmi3::{functions, model_exchange as me3};
 use spurio_export::{Config, FmuModel};
 use std::cell::RefCell;
 use std::ffi::{c_void, CStr, CString};
@@ -81,7 +82,7 @@ fn instantiate_with(name: &str, token: &CString) -> fmi3Instance {
             0,
             0,
             0,
-            Some(spurio_export::me::hooks::<Toy>()),
+            Some(spurio_export::model::hooks::<Toy>()),
         )
     }
 }
@@ -137,13 +138,20 @@ impl Instance {
     }
     fn set_f64(&self, vr: &[u32], values: &[f64]) -> fmi3Status {
         unsafe {
-            ffi::set::<Toy, Float64>(self.0, vr.as_ptr(), vr.len(), values.as_ptr(), values.len())
+            values::set::<Toy, Float64>(
+                self.0,
+                vr.as_ptr(),
+                vr.len(),
+                values.as_ptr(),
+                values.len(),
+            )
         }
     }
     fn get_f64(&self, vr: &[u32], n: usize) -> Result<Vec<f64>, fmi3Status> {
         let mut out = vec![f64::NAN; n];
-        let s =
-            unsafe { ffi::get::<Toy, Float64>(self.0, vr.as_ptr(), vr.len(), out.as_mut_ptr(), n) };
+        let s = unsafe {
+            values::get::<Toy, Float64>(self.0, vr.as_ptr(), vr.len(), out.as_mut_ptr(), n)
+        };
         if s == fmi3OK {
             Ok(out)
         } else {
@@ -268,11 +276,12 @@ fn arrays_are_one_value_reference_counted_in_elements() {
     assert_eq!(i.set_f64(&[VR_U], &[2.0]), fmi3Error);
     // Int32 and Boolean.
     let mut n = [0i32; 1];
-    let s = unsafe { ffi::get::<Toy, Int32>(i.0, [VR_N].as_ptr(), 1, n.as_mut_ptr(), 1) };
+    let s = unsafe { values::get::<Toy, Int32>(i.0, [VR_N].as_ptr(), 1, n.as_mut_ptr(), 1) };
     assert_eq!((s, n), (fmi3OK, [3]));
     assert_eq!(i.step(0.0, 1.0).0, fmi3OK);
     let mut b = [7u8; 1];
-    let s = unsafe { ffi::get::<Toy, Boolean>(i.0, [VR_POSITIVE].as_ptr(), 1, b.as_mut_ptr(), 1) };
+    let s =
+        unsafe { values::get::<Toy, Boolean>(i.0, [VR_POSITIVE].as_ptr(), 1, b.as_mut_ptr(), 1) };
     assert_eq!((s, b), (fmi3OK, [fmi3True]));
 }
 
@@ -290,7 +299,7 @@ fn bad_references_types_and_values_are_rejected_and_change_nothing() {
         "fmi3GetFloat64: unknown value reference 99 (Toy has value references 0 to 10)"
     );
     let mut n = [0i32; 2];
-    let s = unsafe { ffi::get::<Toy, Int32>(i.0, [VR_U].as_ptr(), 1, n.as_mut_ptr(), 2) };
+    let s = unsafe { values::get::<Toy, Int32>(i.0, [VR_U].as_ptr(), 1, n.as_mut_ptr(), 2) };
     assert_eq!(s, fmi3Error);
     assert!(last_error().contains("variable `u` (value reference 1) is of type Float64, not Int32"));
     assert_eq!(i.set_f64(&[VR_U], &[1.0, f64::NAN]), fmi3Error);
@@ -453,7 +462,7 @@ fn instantiate_model_exchange() -> Instance {
     let c = unsafe {
         ffi::instantiate_model_exchange::<Toy>(
             args(name.as_ptr(), token().as_ptr(), std::ptr::null()),
-            Some(spurio_export::me::hooks::<Toy>()),
+            Some(spurio_export::model::hooks::<Toy>()),
         )
     };
     assert!(!c.is_null(), "{}", last_error());

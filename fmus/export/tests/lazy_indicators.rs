@@ -11,8 +11,8 @@
 mod ramp;
 
 use ramp::{calls, expected, Me, Ramp, DER_X, N, U, X, Z0};
-use spurio_export::instance::functions;
-use spurio_export::me::ffi as me;
+use spurio_export::abi::model_exchange as me;
+use spurio_export::fmi2::functions;
 use spurio_export::types::*;
 
 #[test]

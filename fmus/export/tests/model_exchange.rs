@@ -7,14 +7,16 @@
 mod common;
 
 use common::toy::{Toy, DER_Y, TO_WRAP, U, Y, Y0, Y_MAX, Z};
+use spurio_export::abi::model_exchange::{self as me, Array};
+use spurio_export::fmi2::functions;
+use spurio_export::fmi2::model_exchange::{self as me2, fmi2EventInfo};
 use spurio_export::harness::Harness;
-use spurio_export::instance::{functions, Function};
-use spurio_export::me::ffi::{self as me, fmi2EventInfo, Array};
+use spurio_export::instance::Function;
 use spurio_export::types::*;
 use spurio_export::{Config, FmuModel};
 
-fn hooks() -> spurio_export::me::Hooks<Toy> {
-    spurio_export::me::hooks::<Toy>()
+fn hooks() -> spurio_export::model::Hooks<Toy> {
+    spurio_export::model::hooks::<Toy>()
 }
 
 fn last_error<M: FmuModel>(h: &Harness<M>) -> String {
@@ -88,7 +90,7 @@ impl Me {
             newDiscreteStatesNeeded: 7,
             ..Default::default()
         };
-        let s = unsafe { me::new_discrete_states::<Toy>(self.c(), &mut info) };
+        let s = unsafe { me2::new_discrete_states::<Toy>(self.c(), &mut info) };
         if s == fmi2OK {
             Ok(info)
         } else {
@@ -125,7 +127,7 @@ fn directional(
     let mut out = vec![f64::NAN; u.len()];
     let s = unsafe {
         let (u, k) = ((u.as_ptr(), u.len()), (k.as_ptr(), k.len()));
-        me::get_directional_derivative::<Toy>(c, u, k, seed.as_ptr(), out.as_mut_ptr())
+        me2::get_directional_derivative::<Toy>(c, u, k, seed.as_ptr(), out.as_mut_ptr())
     };
     if s == fmi2OK {
         Ok(out)
@@ -180,7 +182,7 @@ fn the_state_machine_follows_the_model_exchange_masks() {
     assert_eq!(m.indicators(1).unwrap(), [4.5]);
     // terminate from Event Mode; the results stay readable
     assert_eq!(
-        unsafe { spurio_export::ffi::terminate::<Toy>(m.c()) },
+        unsafe { spurio_export::fmi2::ffi::terminate::<Toy>(m.c()) },
         fmi2OK
     );
     assert_eq!(m.states(2).unwrap(), [0.5, -0.5]);
@@ -251,7 +253,7 @@ fn a_state_event_is_handled_in_event_mode() {
     let info = m.new_discrete_states().unwrap();
     assert_eq!(info.valuesOfContinuousStatesChanged, fmi2False);
     assert!(m.0.logged(&["y[1] wrapped to 0 at t = 1"]));
-    let s = unsafe { me::new_discrete_states::<Toy>(m.c(), std::ptr::null_mut()) };
+    let s = unsafe { me2::new_discrete_states::<Toy>(m.c(), std::ptr::null_mut()) };
     assert_eq!(s, fmi2Error);
 }
 
@@ -314,7 +316,7 @@ fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_on
     let name = c"cs";
     let guid = std::ffi::CString::new(info.guid).unwrap();
     let instantiate = |kind, hooks| unsafe {
-        spurio_export::ffi::instantiate::<Toy>(
+        spurio_export::fmi2::ffi::instantiate::<Toy>(
             name.as_ptr(),
             kind,
             guid.as_ptr(),
@@ -330,30 +332,35 @@ fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_on
     assert!(instantiate(7, Some(hooks())).is_null());
     let me = instantiate(fmi2ModelExchange, Some(hooks()));
     assert!(!me.is_null());
-    unsafe { spurio_export::ffi::free_instance::<Toy>(me) };
+    unsafe { spurio_export::fmi2::ffi::free_instance::<Toy>(me) };
     let c = instantiate(fmi2CoSimulation, Some(hooks()));
     assert!(!c.is_null());
     unsafe {
         assert_eq!(
-            spurio_export::ffi::setup_experiment::<Toy>(c, 0, 0.0, 0.0, 0, 0.0),
+            spurio_export::fmi2::ffi::setup_experiment::<Toy>(c, 0, 0.0, 0.0, 0, 0.0),
             fmi2OK
         );
         assert_eq!(
-            spurio_export::ffi::enter_initialization_mode::<Toy>(c),
+            spurio_export::fmi2::ffi::enter_initialization_mode::<Toy>(c),
             fmi2OK
         );
         assert_eq!(
-            spurio_export::ffi::exit_initialization_mode::<Toy>(c),
+            spurio_export::fmi2::ffi::exit_initialization_mode::<Toy>(c),
             fmi2OK
         );
         let u = [2.0, 0.0];
         let vr = [U as u32, U as u32 + 1];
         assert_eq!(
-            spurio_export::ffi::set::<Toy, spurio_export::ffi::Real>(c, vr.as_ptr(), 2, u.as_ptr()),
+            spurio_export::fmi2::values::set::<Toy, spurio_export::fmi2::values::Real>(
+                c,
+                vr.as_ptr(),
+                2,
+                u.as_ptr()
+            ),
             fmi2OK
         );
         assert_eq!(
-            spurio_export::ffi::do_step::<Toy>(c, 0.0, 0.5, fmi2True),
+            spurio_export::fmi2::ffi::do_step::<Toy>(c, 0.0, 0.5, fmi2True),
             fmi2OK
         );
         assert_eq!(
@@ -371,7 +378,7 @@ fn a_co_simulation_instance_with_the_functions_offers_directional_derivatives_on
             me::get_array::<Toy, ()>(c, f, which, x.as_mut_ptr(), 2),
             fmi2Error
         );
-        spurio_export::ffi::free_instance::<Toy>(c);
+        spurio_export::fmi2::ffi::free_instance::<Toy>(c);
     }
 }
 
@@ -612,7 +619,7 @@ fn decay_mode(h: &Harness<Decay>, event: bool) {
 /// events alone).
 #[test]
 fn tunable_parameters_and_discrete_inputs_are_set_in_event_mode_only_and_read_back() {
-    let hooks = spurio_export::me::hooks::<Decay>();
+    let hooks = spurio_export::model::hooks::<Decay>();
     let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
     h.initialize(0.0).unwrap();
     decay_mode(&h, false);

@@ -7,7 +7,7 @@
 
 use spurio_export::harness::Harness;
 use spurio_export::types::Status;
-use spurio_export::variables::{all_finite, computed_runs, first_non_finite, RUN_GAP};
+use spurio_export::values::{all_finite, computed_runs, first_non_finite, RUN_GAP};
 use spurio_export::{
     ByteReader, ByteWriter, Cause, Config, Context, Failure, FmuModel, ModelInfo, Variable,
 };

@@ -8,7 +8,7 @@
 //! process (which inherit it) unpack into it, and removing it removes everything a crashed
 //! worker left behind.
 
-use spurio_master::engine::CallMonitor;
+use spurio_master::CallMonitor;
 use std::path::PathBuf;
 use std::process::Child;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -223,7 +223,7 @@ pub fn supervise(csv: Option<&std::path::Path>) -> anyhow::Result<i32> {
     let mut message = format!(
         "the run crashed: its process was killed by signal {signal} ({}), most likely by an \
          FMU; the run ended early",
-        crate::workers::signal_name(signal)
+        signal_name(signal)
     );
     if let Some(path) = csv {
         message.push_str(&match whole_rows(path) {
@@ -246,4 +246,20 @@ fn whole_rows(path: &std::path::Path) -> std::io::Result<()> {
             .set_len(keep as u64)?;
     }
     Ok(())
+}
+/// The name of a signal a process may die of.
+pub fn signal_name(signal: i32) -> &'static str {
+    match signal {
+        1 => "SIGHUP",
+        2 => "SIGINT",
+        4 => "SIGILL",
+        6 => "SIGABRT",
+        7 => "SIGBUS",
+        8 => "SIGFPE",
+        9 => "SIGKILL",
+        11 => "SIGSEGV",
+        13 => "SIGPIPE",
+        15 => "SIGTERM",
+        _ => "a signal",
+    }
 }

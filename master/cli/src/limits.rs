@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Result};
 use spurio_master::fmu::{LoadLimits, LoadOptions};
-use spurio_master::system::System;
+use spurio_master::System;
 use std::time::Duration;
 
 /// The flags every command that runs a system takes.
@@ -57,9 +57,9 @@ impl Limits {
 
     /// Refuses a system whose run takes more than `--max-steps` steps.
     pub fn check_steps(&self, system: &System) -> Result<()> {
-        let steps = system.plan.steps;
+        let steps = system.plan().steps;
         if steps > self.max_steps {
-            let ratio = (system.stop_time - system.start_time) / system.step_size;
+            let ratio = (system.stop_time() - system.start_time()) / system.step_size();
             let count = if ratio < 1e15 {
                 steps.to_string()
             } else if ratio.is_finite() {
@@ -70,9 +70,9 @@ impl Limits {
             bail!(
                 "the run would take {count} steps ((stop_time {:?} − start_time {:?}) / step_size {:?}), \
                  more than --max-steps {}; give a larger --max-steps to run it anyway",
-                system.stop_time,
-                system.start_time,
-                system.step_size,
+                system.stop_time(),
+                system.start_time(),
+                system.step_size(),
                 self.max_steps
             );
         }

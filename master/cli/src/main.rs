@@ -11,16 +11,19 @@
 // in with `#[allow(unsafe_code)]` on that module alone.
 #![deny(unsafe_code)]
 
-use spurio_experiments::{diagnose, plot};
-use spurio_master::engine::{RunEnd, RunError, RunOptions, Simulation};
+use spurio_analysis::{diagnose, plot};
 use spurio_master::logging;
-use spurio_master::record::{CsvWriter, NoRecording, Observer, TimeSeries};
-use spurio_master::system::System;
+use spurio_master::{CsvWriter, NoRecording, Observer, TimeSeries};
+use spurio_master::{RunEnd, RunError, RunOptions, Simulation, System};
 
 mod guard;
 mod library_query;
 mod limits;
 mod package;
+#[cfg(test)]
+#[path = "../../tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
+mod progress;
 mod run_fmu;
 mod sweep;
 mod workers;
@@ -36,7 +39,7 @@ use std::time::{Duration, Instant};
 #[command(
     name = "spurio",
     version,
-    about = "FMI 2.0 components for robust identification and control"
+    about = "Runs co-simulations of FMI 2.0 and 3.0 Co-Simulation FMUs (TOML systems, SSP), sweeps them, diagnoses their results and packages spurio's FMUs for robust identification and control"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -113,24 +116,6 @@ enum Command {
         name: Option<String>,
         #[command(flatten)]
         packaging: Packaging,
-    },
-    /// Run the papers' experiments (examples/<name>/) and write REPORT.md, CSVs and plots.
-    Experiments {
-        /// Output folder.
-        #[arg(long, default_value = "results")]
-        out: PathBuf,
-        /// Only these experiments (comma-separated; default: all).
-        #[arg(long, value_delimiter = ',')]
-        only: Vec<String>,
-        /// Monte-Carlo runs where the papers report mean ± std.
-        #[arg(long, default_value_t = 100)]
-        seeds: usize,
-        /// Worker threads for sweeps (0: one per core).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// The repository root (holding examples/ and build/fmus/).
-        #[arg(long, default_value = ".")]
-        repo: PathBuf,
     },
     /// Run a system many times with one parameter varied (e.g. a seed), in parallel, and
     /// print metrics as mean ± std; or one shard of it (`--shard i/N`), or stage it as a
@@ -282,7 +267,7 @@ fn run_resolved(
         // Only the outputs that feed connections are read after a step.
         resolved.record_nothing()?;
     }
-    for note in &resolved.notes {
+    for note in resolved.notes() {
         eprintln!("spurio: {}: {note}", system.display());
     }
     limits.check_steps(&resolved)?;
@@ -291,10 +276,10 @@ fn run_resolved(
         .iter()
         .map(|name| {
             let label = plot::axis_label(&resolved, name)?;
-            if !resolved.plan.recorded.names.contains(name) {
+            if !resolved.plan().recorded.names.contains(name) {
                 bail!(
                     "cannot plot `{name}`: it is not recorded (recorded: {})",
-                    resolved.plan.recorded.names.join(", ")
+                    resolved.plan().recorded.names.join(", ")
                 );
             }
             Ok((name.clone(), label))
@@ -304,11 +289,21 @@ fn run_resolved(
     let mut sim = Simulation::with_monitor(&resolved, monitor)?;
     let options = RunOptions {
         real_time_factor: real_time,
-        progress,
         output_interval,
     };
+    // The progress bar, if asked for, is an observer around the run's own.
+    let steps = sim.step_count();
+    let (start, step) = (resolved.start_time(), resolved.step_size());
+    let run = |sim: &mut Simulation, observer: &mut dyn Observer| {
+        if progress {
+            let mut bar = progress::Progress::new(observer, steps, start, step);
+            sim.run(&mut bar, &options)
+        } else {
+            sim.run(observer, &options)
+        }
+    };
     if no_record {
-        let end = sim.run(&mut NoRecording, &options)?;
+        let end = run(&mut sim, &mut NoRecording)?;
         sim.terminate()?;
         if let RunEnd::Terminated { .. } = end {
             println!("{end}");
@@ -333,7 +328,7 @@ fn run_resolved(
         series: (!plotted.is_empty()).then(TimeSeries::default),
         flushed: Instant::now(),
     };
-    let end = match sim.run(&mut observer, &options) {
+    let end = match run(&mut sim, &mut observer) {
         Ok(end) => end,
         Err(RunError::Output(e)) => bail!("cannot write {}: {e}", out.display()),
         Err(e) => {
@@ -348,7 +343,7 @@ fn run_resolved(
     sim.terminate()?;
     if let Some(series) = &observer.series {
         let png = out.with_extension("png");
-        plot::labelled_time_series_png(&png, &resolved.name, series, &plotted)?;
+        plot::labelled_time_series_png(&png, resolved.name(), series, &plotted)?;
         println!("wrote {}", png.display());
     }
     if let RunEnd::Terminated { .. } = end {
@@ -500,25 +495,6 @@ fn command(command: Command) -> Result<ExitCode> {
                 println!("wrote {}", path.display());
             }
         }
-        Command::Experiments {
-            out,
-            only,
-            seeds,
-            threads,
-            repo,
-        } => {
-            let threads = limits::workers(threads);
-            let reports = spurio_experiments::run_all(&repo, &out, &only, seeds, threads)?;
-            let failed: Vec<&str> = reports
-                .iter()
-                .filter(|(_, r)| !r.all_goals_met())
-                .map(|(n, _)| n.as_str())
-                .collect();
-            println!("wrote {}", out.join("REPORT.md").display());
-            if !failed.is_empty() {
-                println!("goals not met in: {}", failed.join(", "));
-            }
-        }
         Command::Sweep(args) => return sweep::run(args),
         Command::SweepWorker(args) => sweep::worker(args)?,
         Command::SweepMerge(args) => sweep::merge(args)?,
@@ -533,7 +509,7 @@ fn command(command: Command) -> Result<ExitCode> {
             println!(
                 "run it with: OMSimulator {} --stopTime {:?}   or: spurio run {}",
                 out.display(),
-                resolved.stop_time,
+                resolved.stop_time(),
                 out.display()
             );
         }
@@ -612,10 +588,7 @@ mod tests {
     #[test]
     fn plot_axes_carry_the_units_of_the_model_description() {
         let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-        assert!(
-            repo.join("build/fmus/GantryCrane.fmu").is_file(),
-            "run scripts/build-fmus first"
-        );
+        crate::packaged_fmus::packaged_fmus(&repo);
         let system = System::from_file(&repo.join("examples/systems/crane_sensor.toml")).unwrap();
         let label = |name: &str| plot::axis_label(&system, name).map_err(|e| e.to_string());
         assert_eq!(label("crane.x").unwrap(), "crane.x [m]");

@@ -458,9 +458,10 @@ mod tests {
         assert!(err.contains("/nonexistent/Sensor.dll"), "{err}");
     }
 
-    /// Needs the built libraries (`scripts/build-fmus`), like the experiments' tests.
+    /// Needs the built libraries, which building the packaged FMUs leaves in `target/release`.
     #[test]
     fn a_built_library_answers_its_variants_and_descriptions() {
+        crate::packaged_fmus::packaged_fmus(&repo());
         let lib_dir = repo().join("target/release");
         let sensor = select(&repo(), &["Sensor".into()]).unwrap().remove(0);
         let fmu = BuiltFmu::load(sensor, &lib_dir).expect("build with scripts/build-fmus");

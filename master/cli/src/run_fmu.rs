@@ -4,12 +4,10 @@
 //! `DefaultExperiment` gives what the flags do not.
 
 use anyhow::{bail, Context, Result};
-use spurio_master::description::{InstanceDescription, SystemDescription};
 use spurio_master::fmu::me::read_description;
 use spurio_master::fmu::{FmuFile, Interface, LoadError, LoadOptions};
 use spurio_master::model_exchange::{simulate, EventKind, Method, Options};
-use spurio_master::record::CsvWriter;
-use spurio_master::system::System;
+use spurio_master::{CsvWriter, InstanceDescription, System, SystemDescription};
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};

@@ -7,11 +7,10 @@ use crate::limits::{self, Limits};
 use crate::workers;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use spurio_master::engine::RunOptions;
-use spurio_master::shard::{self, MergeOptions, RunRecord, Shard, ShardFile, SweepDefinition};
-use spurio_master::slurm::{self, Manifest, Queue, SlurmOptions, SweepArguments};
-use spurio_master::sweep::{self as sweeps, Metric, SweepResult, Variation};
-use spurio_master::system::System;
+use spurio_batch::shard::{self, MergeOptions, RunRecord, Shard, ShardFile, SweepDefinition};
+use spurio_batch::slurm::{self, Manifest, Queue, SlurmOptions, SweepArguments};
+use spurio_batch::sweep::{self as sweeps, Metric, SweepResult, Variation};
+use spurio_master::{RunOptions, System};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -119,7 +118,7 @@ pub fn run(args: SweepArgs) -> Result<ExitCode> {
     let (variation, metrics, definition) = parse_sweep(&args.vary, &args.metrics, args.max_runs)?;
     variation.check(&resolved)?;
     args.limits.check_steps(&resolved)?;
-    let recorded = &resolved.plan.recorded.names;
+    let recorded = &resolved.plan().recorded.names;
     for m in &metrics {
         for v in m.variables() {
             if !recorded.iter().any(|r| r == v) {

@@ -230,7 +230,7 @@ fn why(status: ExitStatus, stderr: &str) -> String {
     let how = match (status.signal(), status.code()) {
         (Some(s), _) => format!(
             "the worker process was killed by signal {s} ({})",
-            signal_name(s)
+            guard::signal_name(s)
         ),
         (None, Some(c)) => format!("the worker process exited with code {c}"),
         _ => "the worker process ended abnormally".to_string(),
@@ -245,23 +245,6 @@ fn why(status: ExitStatus, stderr: &str) -> String {
         }
     } else {
         format!("{} ({how})", said.join("; "))
-    }
-}
-
-/// The name of a signal a process may die of.
-pub fn signal_name(signal: i32) -> &'static str {
-    match signal {
-        1 => "SIGHUP",
-        2 => "SIGINT",
-        4 => "SIGILL",
-        6 => "SIGABRT",
-        7 => "SIGBUS",
-        8 => "SIGFPE",
-        9 => "SIGKILL",
-        11 => "SIGSEGV",
-        13 => "SIGPIPE",
-        15 => "SIGTERM",
-        _ => "a signal",
     }
 }
 

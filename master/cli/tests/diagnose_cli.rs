@@ -1,6 +1,8 @@
 //! `spurio diagnose` on a results CSV: the Grubbs figures of docs/diagnostics.md §3 and the histogram PNG.
 
 mod common;
+#[path = "../../tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
 
 use common::{failed, ok, repo, require_fmus, s, spurio, temp};
 

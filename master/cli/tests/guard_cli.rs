@@ -10,6 +10,7 @@
 mod common;
 #[path = "../../tests/common/mod.rs"]
 mod engine;
+use engine::packaged_fmus;
 
 use common::{repo, require_fmus, s};
 use engine::assert_names;

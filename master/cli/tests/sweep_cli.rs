@@ -3,6 +3,8 @@
 //! give the same table. Uses the FMUs of `scripts/build-fmus`.
 
 mod common;
+#[path = "../../tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
 
 use common::{failed, ok, repo, require_fmus, s, spurio, temp};
 use std::path::PathBuf;

@@ -4,11 +4,13 @@
 
 #![allow(dead_code)]
 
-use spurio_master::engine::{RunEnd, RunOptions, Simulation};
-use spurio_master::record::TimeSeries;
-use spurio_master::system::{System, SystemDescription, SystemError};
+use spurio_master::TimeSeries;
+use spurio_master::{RunEnd, RunOptions, Simulation};
+use spurio_master::{System, SystemDescription, SystemError};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+
+pub mod packaged_fmus;
 
 /// The `master/` folder (this file serves the engine's tests and, included by path, the
 /// CLI's).
@@ -20,32 +22,18 @@ fn master_dir() -> PathBuf {
     }
 }
 
-/// The folder of the packaged FMUs.
+/// The folder of the packaged FMUs, built first if they are missing ([`packaged_fmus`]).
 pub fn fmus() -> PathBuf {
-    let dir = master_dir().join("../build/fmus");
-    assert!(
-        dir.join("GantryCrane.fmu").is_file(),
-        "{} has no FMUs: run scripts/build-fmus first",
-        dir.display()
-    );
-    dir
+    packaged_fmus::packaged_fmus(&master_dir().join(".."))
 }
 
-/// The Reference FMUs of FMI `version` (`fmi2`, `fmi3`) in the third-party folder
-/// (`SPURIO_THIRD_PARTY`, or `shared/third-party` next to the repository or its worktree).
+/// The Reference FMUs of FMI `version` (`fmi2`, `fmi3`) in the third-party folder: the
+/// repository's `tests/third_party/` (its README says what each is and where it came from),
+/// or the folder `SPURIO_THIRD_PARTY` names.
 pub fn reference(version: &str, model: &str) -> PathBuf {
-    let repo = master_dir().join("..");
     let third_party = std::env::var_os("SPURIO_THIRD_PARTY")
         .map(PathBuf::from)
-        .or_else(|| {
-            [
-                repo.join("../shared/third-party"),
-                repo.join("../../shared/third-party"),
-            ]
-            .into_iter()
-            .find(|p| p.is_dir())
-        })
-        .expect("no third-party folder: see its README");
+        .unwrap_or_else(|| master_dir().join("../tests/third_party"));
     let fmu = third_party
         .join("reference-fmus")
         .join(version)

@@ -1,28 +1,24 @@
-//! The FMI 3.0 C ABI: raw pointers in, [`Instance`] calls out.
-//!
-//! The twin of [`crate::ffi`] for FMI 3.0, with the same guarantees: every function checks
-//! its pointers, catches panics (the instance is then `Fatal`), checks the allowed-state mask
-//! of [`super::functions`] before doing anything, and logs every error through the master's
-//! `fmi3LogMessageCallback` (which takes the message as it is: no format string). Value
-//! references are those of the shared [`Layout`](super::arrays::Layout) of the instance's
-//! interface: arrays are expanded to the instance's scalars here, without a buffer, and
-//! `nValues` must equal the number of elements they name.
+//! The FMI 3.0 C entry points of the life cycle: the C signatures of `fmi3Functions.h` mapped
+//! onto the shared ABI ([`crate::abi`]) and the instance, with the masks of
+//! [`crate::instance::state::fmi3`]; the twin of [`crate::fmi2::ffi`]. Every error goes
+//! through the master's `fmi3LogMessageCallback` (which takes the message as it is: no
+//! format string). The typed get/set functions are in [`super::values`], the Model Exchange
+//! ones in [`super::model_exchange`] and [`crate::abi::model_exchange`].
 
-use super::arrays::{Target, TIME};
-use super::description::type_name;
-use super::functions;
 use super::types::*;
-use crate::description::{Config, CONFIG_FILE};
-use crate::ffi::{guarded, slice, slice_mut, string_arg};
-use crate::front::{self, free_slot, with_slot, ConfigFile, Fmi3, Kind};
-use crate::instance::{Access, Function, Instance, LogSink, Logger};
-use crate::me::Hooks;
-use crate::model::FmuModel;
+use crate::abi::fmu_state::state_functions;
+use crate::abi::instantiate::{self, Request, Resources, FMI3};
+use crate::abi::kinds::Fmi3;
+use crate::abi::pointers::string_arg;
+use crate::abi::slot::{free_slot, with_slot};
+use crate::description::Config;
+use crate::guard::guarded;
+use crate::instance::state::{fmi3 as functions, Function};
+use crate::instance::{LogSink, Logger};
+use crate::model::{FmuModel, Hooks};
 use crate::types::Status;
-use crate::variables::{Value, VariableType};
 use std::ffi::CString;
 use std::os::raw::c_char;
-use std::sync::Arc;
 
 /// Delivers log messages to the master's `fmi3LogMessageCallback`.
 pub struct CallbackSink {
@@ -52,12 +48,7 @@ impl LogSink for CallbackSink {
 
 /// What an `fmi3Instance` points to: the shared slot, marked as FMI 3.0's (the FMI 3.0
 /// variables over the instance's scalars are in its shared interface).
-pub type Slot<M> = crate::front::Slot<M, Fmi3>;
-
-/// Boxes a slot as an `fmi3Instance`.
-pub fn into_instance<M: FmuModel>(instance: Instance<M>) -> fmi3Instance {
-    Slot::new(instance, Fmi3).into_handle()
-}
+pub type Slot<M> = crate::abi::slot::Slot<M, Fmi3>;
 
 /// Runs `body` on the slot behind `c` after the null and state checks, catching panics.
 pub(crate) unsafe fn with_instance<M: FmuModel>(
@@ -88,9 +79,10 @@ pub struct Instantiation(
     pub fmi3LogMessageCallback,
 );
 
-/// `fmi3InstantiateCoSimulation`: checks the name, the instantiation token (the GUID) and
-/// the resources (`variant.cfg` of a packaged variant), then creates the instance (with the
-/// model's Model Exchange functions `me`, for its directional derivatives).
+/// `fmi3InstantiateCoSimulation`: its own arguments checked (`eventModeUsed` and the
+/// intermediate variables refused: the FMU has no event mode and no intermediate update),
+/// then the shared instantiation ([`instantiate::instantiate`]), with the model's Model
+/// Exchange functions `me` for its directional derivatives.
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
@@ -113,13 +105,19 @@ pub unsafe fn instantiate_co_simulation<M: FmuModel>(
     };
     let note = (early_return_allowed != 0)
         .then_some("earlyReturnAllowed noted; the FMU never returns early");
-    let requested = Requested::CoSimulation { refusal, note };
-    unsafe { instantiate("fmi3InstantiateCoSimulation", args, requested, me) }
+    unsafe {
+        instantiate(
+            "fmi3InstantiateCoSimulation",
+            args,
+            (false, refusal, note),
+            me,
+        )
+    }
 }
 
-/// `fmi3InstantiateModelExchange`: as [`instantiate_co_simulation`], for a model with Model
-/// Exchange functions `me` whose description declares the interface (otherwise refused, the
-/// reason logged).
+/// `fmi3InstantiateModelExchange`: the shared instantiation, for a model with Model Exchange
+/// functions `me` whose description declares the interface (otherwise refused, the reason
+/// logged).
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
@@ -127,113 +125,40 @@ pub unsafe fn instantiate_model_exchange<M: FmuModel>(
     args: Instantiation,
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    let f = "fmi3InstantiateModelExchange";
-    unsafe { instantiate(f, args, Requested::ModelExchange, me) }
+    unsafe { instantiate("fmi3InstantiateModelExchange", args, (true, None, None), me) }
 }
 
-/// The interface an `fmi3Instantiate*` function asks for.
-enum Requested {
-    /// Co-Simulation: why its own arguments are refused, if they are, and what to log when
-    /// the instance is created.
-    CoSimulation {
-        refusal: Option<String>,
-        note: Option<&'static str>,
-    },
-    ModelExchange,
-}
-
-/// The shared part of the `fmi3Instantiate*` functions: name, refusal, token, resources,
-/// interface, then the instance (for Model Exchange if asked, with the model's functions
-/// `me`).
+/// The arguments of an `fmi3Instantiate*` function as a [`Request`] (`asked`: whether Model
+/// Exchange is, the function's refusal, its note), through the shared instantiation.
 ///
 /// # Safety
 /// Pointer arguments must be NULL or valid as the FMI standard requires.
 unsafe fn instantiate<M: FmuModel>(
-    function: &str,
+    function: &'static str,
     args: Instantiation,
-    requested: Requested,
+    (model_exchange, refusal, note): (bool, Option<String>, Option<&'static str>),
     me: Option<Hooks<M>>,
 ) -> fmi3Instance {
-    let Instantiation(instance_name, token, resource_path, logging_on, environment, log_message) =
-        args;
-    let (refusal, note, model_exchange) = match requested {
-        Requested::CoSimulation { refusal, note } => (refusal, note, false),
-        Requested::ModelExchange => (None, None, true),
-    };
-    let result = guarded(|| {
-        let sink = || CallbackSink {
+    let Instantiation(name, token, resource_path, logging_on, environment, log_message) = args;
+    let sink = || -> Box<dyn LogSink> {
+        Box::new(CallbackSink {
             log_message,
             environment,
-        };
+        })
+    };
+    let request = || Request {
+        function,
+        spelling: &FMI3,
         // SAFETY: FMI strings are NULL or NUL-terminated.
-        let name = unsafe { string_arg(instance_name) };
-        let logger = Logger::new(
-            name.as_deref().unwrap_or("?"),
-            Box::new(sink()),
-            logging_on != 0,
-        );
-        let fail = |message: String| {
-            logger.error(&format!("{function}: {message}"));
-            std::ptr::null_mut()
-        };
-        if name.as_deref().is_none_or(str::is_empty) {
-            return fail("instanceName must be a non-empty string".into());
-        }
-        if let Some(refusal) = refusal {
-            return fail(refusal);
-        }
-        // SAFETY: as above.
-        let given = unsafe { string_arg(token) }.unwrap_or_default();
-        let resources = unsafe { string_arg(resource_path) }.filter(|s| !s.is_empty());
-        let config = match resources.as_deref() {
-            Some(dir) => match front::read_config(std::path::Path::new(dir)) {
-                Ok(ConfigFile::Found(config)) => config,
-                Ok(ConfigFile::Missing(_)) => Config::new(),
-                Err(message) => return fail(message),
-            },
-            None => Config::new(),
-        };
-        let interface = match front::interface::<M>(&config) {
-            Ok(interface) => interface,
-            Err(e) => return fail(format!("invalid variant configuration: {e}")),
-        };
-        let info = &interface.info;
-        if given != info.guid {
-            let hint = if config.is_empty() {
-                format!(
-                    " (a variant FMU needs its resources/{CONFIG_FILE}: resourcePath is {})",
-                    resources.as_deref().unwrap_or("NULL")
-                )
-            } else {
-                String::new()
-            };
-            return fail(format!(
-                "instantiationToken mismatch: the modelDescription.xml gives {given} but this binary of {} implements {}{hint}",
-                info.model_identifier, info.guid
-            ));
-        }
-        let offered = me.filter(|_| info.model_exchange.is_some());
-        if model_exchange && offered.is_none() {
-            return fail(format!(
-                "{} is a Co-Simulation FMU only: it does not implement Model Exchange",
-                info.model_identifier
-            ));
-        }
-        if let Some(note) = note {
-            logger.log(Status::Ok, "logEvents", &format!("{function}: {note}"));
-        }
-        match Instance::<M>::of(Arc::clone(&interface), logger) {
-            Ok(instance) => into_instance(match offered.filter(|_| model_exchange) {
-                Some(hooks) => instance.into_model_exchange(hooks),
-                None => instance.with_hooks(me),
-            }),
-            Err(e) => {
-                Logger::new("?", Box::new(sink()), true).error(&format!("{function}: {e}"));
-                std::ptr::null_mut()
-            }
-        }
-    });
-    result.unwrap_or(std::ptr::null_mut())
+        name: unsafe { string_arg(name) },
+        token: unsafe { string_arg(token) },
+        resources: Resources::Path(unsafe { string_arg(resource_path) }),
+        logging_on: logging_on != 0,
+        model_exchange,
+        refusal,
+        note,
+    };
+    instantiate::instantiate::<M, Fmi3>(request, sink, me, Fmi3)
 }
 
 /// `fmi3InstantiateScheduledExecution`: logs why not and returns NULL.
@@ -262,35 +187,10 @@ pub unsafe fn refuse_instantiation<M: FmuModel>(
 /// `fmi3FreeInstance`.
 ///
 /// # Safety
-/// `c` must be NULL or an instance from [`instantiate_co_simulation`] not freed yet.
+/// `c` must be NULL or an instance from [`instantiate_co_simulation`] or [`instantiate_model_exchange`] not freed yet.
 pub unsafe fn free_instance<M: FmuModel>(c: fmi3Instance) {
     // SAFETY: forwarded from the caller.
     unsafe { free_slot::<M, Fmi3>(c) }
-}
-
-/// `fmi3SetDebugLogging`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_debug_logging<M: FmuModel>(
-    c: fmi3Instance,
-    logging_on: fmi3Boolean,
-    n: usize,
-    categories: *const fmi3String,
-) -> fmi3Status {
-    let f = &functions::SET_DEBUG_LOGGING;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let Some(raw) = slice(categories, n) else {
-                return s.instance.reject(f, "categories is NULL");
-            };
-            let names: Vec<String> = raw
-                .iter()
-                .map(|p| string_arg(*p).unwrap_or_default())
-                .collect();
-            s.instance.set_debug_logging_as(f, logging_on != 0, &names)
-        })
-    }
 }
 
 /// `fmi3EnterInitializationMode`: the experiment (start and stop time; the tolerance is not
@@ -377,375 +277,7 @@ pub unsafe fn do_step<M: FmuModel>(
     }
 }
 
-/// Why FMI 3.0 value reference `vr` names nothing.
-pub(super) fn unknown_reference(interface: &front::Interface, vr: u32) -> String {
-    format!(
-        "unknown value reference {vr} ({} has value references 0 to {})",
-        interface.info.model_identifier,
-        interface.layout.max_value_reference()
-    )
-}
-
-/// Checks the value references of a call: every one known and naming variables of type
-/// `expected`, and `n_values` the number of values they name (arrays row-major); `Err` with
-/// the message. Allocates nothing unless it fails.
-fn check_references<M: FmuModel>(
-    slot: &Slot<M>,
-    vrs: &[u32],
-    expected: VariableType,
-    n_values: usize,
-) -> Result<(), String> {
-    let interface = slot.instance.interface();
-    let mut count = 0;
-    for &vr in vrs {
-        let (name, actual, len) = match interface.layout.target(vr) {
-            None => return Err(unknown_reference(interface, vr)),
-            Some(Target::Time) => ("time", VariableType::Real, 1),
-            Some(Target::Variable(v)) => (
-                v.name.as_str(),
-                interface.access[v.first].variable_type,
-                v.len(),
-            ),
-        };
-        if actual != expected {
-            return Err(format!(
-                "variable `{name}` (value reference {vr}) is of type {}, not {}",
-                type_name(actual),
-                type_name(expected)
-            ));
-        }
-        count += len;
-    }
-    if count != n_values {
-        return Err(format!(
-            "nValues = {n_values}, but the {} value references name {count} values",
-            vrs.len()
-        ));
-    }
-    Ok(())
-}
-
-/// The FMI 3.0 types exchanged through `fmi3Get*`/`fmi3Set*` (the shared value kinds of
-/// [`crate::front`]): `fmi3Float64`, `fmi3Int32`, `fmi3Boolean`.
-pub use crate::front::{Boolean, Integer as Int32, Real as Float64};
-
-/// A get call on the slot: checks the pointers and the references, lets the instance compute
-/// what it must, then hands the `n_values` values `vr` names (arrays row-major) to `write`:
-/// their positions and values (`time` for value reference 0). No buffer.
-///
-/// # Safety
-/// FMI pointer contract.
-#[allow(clippy::too_many_arguments)]
-unsafe fn read<M: FmuModel>(
-    s: &mut Slot<M>,
-    f: &Function,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    out_is_null: bool,
-    n_values: usize,
-    expected: VariableType,
-    mut write: impl FnMut(usize, Element<'_>),
-) -> Status {
-    // SAFETY: forwarded from the caller.
-    let Some(vrs) = (unsafe { slice(vr, nvr) }) else {
-        return s.instance.reject(f, "valueReferences is NULL");
-    };
-    if n_values > 0 && out_is_null {
-        return s.instance.reject(f, "values is NULL");
-    }
-    if let Err(message) = check_references(s, vrs, expected, n_values) {
-        return s.instance.reject(f, &message);
-    }
-    let interface = Arc::clone(s.instance.interface());
-    let status = s.instance.refresh_for(f, interface.layout.indices_of(vrs));
-    if status > Status::Warning {
-        return status;
-    }
-    let (interface, values) = (s.instance.interface(), s.instance.values());
-    let (numbers, time) = (values.numbers(), s.instance.time());
-    let texts = expected == VariableType::String;
-    let mut k = 0;
-    for &vr in vrs {
-        match interface.layout.target(vr) {
-            Some(Target::Time) => {
-                write(k, Element::Number(time));
-                k += 1;
-            }
-            Some(Target::Variable(v)) if texts => {
-                for index in v.indices() {
-                    write(k, Element::Text(values.string(index)));
-                    k += 1;
-                }
-            }
-            Some(Target::Variable(v)) => {
-                for &x in numbers.get(v.indices()).unwrap_or_default() {
-                    write(k, Element::Number(x));
-                    k += 1;
-                }
-            }
-            None => {}
-        }
-    }
-    status
-}
-
-/// The get call's fast path: when nothing must be computed first and every reference names
-/// variables of type `expected` whose values fill `out` exactly, the values (arrays
-/// row-major, `time` for value reference 0) into `out`, each through `to_c`; `None`
-/// otherwise, and [`read`] checks again and says why (the values written are then undefined,
-/// as FMI 3.0 allows for a failed get). A span lookup and a slice copy per reference; for the
-/// common call, scalars only (`nValues = nvr`), a span lookup and a load, and a call that
-/// names an array goes on from it, not from the start.
-#[inline(always)]
-fn read_fast<M: FmuModel, C>(
-    s: &Slot<M>,
-    expected: VariableType,
-    vrs: &[u32],
-    out: &mut [C],
-    to_c: impl Fn(f64) -> C,
-) -> Option<Status> {
-    let instance = &s.instance;
-    if instance.needs_refresh() || instance.reads_pending_indicator(vrs, true) {
-        return None;
-    }
-    let (spans, numbers) = (&instance.interface().spans, instance.values().numbers());
-    let type_bit = Access::type_bit(expected);
-    // the scalars ahead of the first other reference (all of the master's call): the value
-    // at the same position as its reference
-    let done = 'scalars: {
-        if vrs.len() != out.len() {
-            break 'scalars 0;
-        }
-        for (i, (o, &vr)) in out.iter_mut().zip(vrs).enumerate() {
-            match spans.get(vr as usize) {
-                Some(span) if span.len == 1 && span.type_bit == type_bit => {
-                    *o = to_c(*numbers.get(span.first as usize)?);
-                }
-                _ => break 'scalars i,
-            }
-        }
-        return Some(Status::Ok);
-    };
-    // the rest, from the first array, `time` or reference of another type
-    let mut k = done;
-    for &vr in vrs.get(done..)? {
-        let span = spans.get(vr as usize)?;
-        if span.type_bit != type_bit {
-            return None;
-        }
-        let first = span.first as usize;
-        k += match span.len as usize {
-            0 => {
-                *out.get_mut(k)? = to_c(instance.time());
-                1
-            }
-            1 => {
-                *out.get_mut(k)? = to_c(*numbers.get(first)?);
-                1
-            }
-            len => {
-                let xs = numbers.get(first..first + len)?;
-                for (o, &x) in out.get_mut(k..k + len)?.iter_mut().zip(xs) {
-                    *o = to_c(x);
-                }
-                len
-            }
-        };
-    }
-    (k == out.len()).then_some(Status::Ok)
-}
-
-/// A value a get call reads: a number ([`crate::Values::numbers`]) or a String's text.
-enum Element<'a> {
-    Number(f64),
-    Text(&'a str),
-}
-
-/// `fmi3GetFloat64`, `fmi3GetInt32`, `fmi3GetBoolean`: the values (arrays row-major) into a C
-/// array of `n_values` elements.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get<M: FmuModel, K: Kind<Fmi3>>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    out: *mut K::C,
-    n_values: usize,
-) -> fmi3Status {
-    let (f, null) = (K::GET, out.is_null());
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            // SAFETY: `vr` and `out` are NULL or hold `nvr` and `n_values` elements (FMI
-            // contract).
-            if let (Some(vrs), Some(to)) = (slice(vr, nvr), slice_mut(out, n_values)) {
-                if let Some(status) = read_fast(s, K::TYPE, vrs, to, K::to_c) {
-                    return status;
-                }
-            }
-            read(s, f, vr, nvr, null, n_values, K::TYPE, |i, value| {
-                if let Element::Number(x) = value {
-                    // SAFETY: `out` holds `n_values` elements (FMI contract) and `i < n_values`
-                    // (checked by `check_references`).
-                    *out.add(i) = K::to_c(x)
-                }
-            })
-        })
-    }
-}
-
-/// Checks a set call's references, then hands the `(scalar index, value)` pairs they name
-/// (arrays row-major; the `k`-th value is `value_at(k)`) to the instance. No buffer.
-fn write_values<M: FmuModel, T>(
-    slot: &mut Slot<M>,
-    f: &Function,
-    vrs: &[u32],
-    expected: VariableType,
-    n_values: usize,
-    value_at: impl Fn(usize) -> T + Clone,
-    store: impl Store<T>,
-) -> Status {
-    if let Err(message) = check_references(slot, vrs, expected, n_values) {
-        return slot.instance.reject(f, &message);
-    }
-    if vrs.contains(&TIME) {
-        return slot.instance.reject(
-            f,
-            "variable `time` (value reference 0) is the independent variable: the master sets it through fmi3EnterInitializationMode and fmi3DoStep",
-        );
-    }
-    let interface = Arc::clone(slot.instance.interface());
-    let targets = interface
-        .layout
-        .indices_of(vrs)
-        .enumerate()
-        .map(|(k, index)| (index as u32, value_at(k)));
-    store.store(&mut slot.instance, f, targets)
-}
-
-/// How the values of a set call reach the instance: numbers of one type, or values.
-trait Store<T> {
-    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
-    where
-        I: Iterator<Item = (u32, T)> + Clone;
-}
-
-/// Numbers of one type ([`Instance::set_numbers`]).
-struct AsNumbers(VariableType);
-impl Store<f64> for AsNumbers {
-    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
-    where
-        I: Iterator<Item = (u32, f64)> + Clone,
-    {
-        instance.set_numbers(f, self.0, targets)
-    }
-}
-
-/// Values ([`Instance::set_values`]).
-struct AsValues;
-impl Store<Value> for AsValues {
-    fn store<M: FmuModel, I>(self, instance: &mut Instance<M>, f: &Function, targets: I) -> Status
-    where
-        I: Iterator<Item = (u32, Value)> + Clone,
-    {
-        instance.set_values(f, targets)
-    }
-}
-
-/// `fmi3SetFloat64`, `fmi3SetInt32`, `fmi3SetBoolean`: the values (arrays row-major) from a
-/// C array of `n_values` elements.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set<M: FmuModel, K: Kind<Fmi3>>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    values: *const K::C,
-    n_values: usize,
-) -> fmi3Status {
-    let f = K::SET;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
-                return s.instance.reject(f, "valueReferences or values is NULL");
-            };
-            if let Some(status) = s.instance.set_spans(f, K::TYPE, vrs, raw, K::to_number) {
-                return status;
-            }
-            let number = |k: usize| K::to_number(raw[k]);
-            write_values(s, f, vrs, K::TYPE, n_values, number, AsNumbers(K::TYPE))
-        })
-    }
-}
-
-/// `fmi3GetString`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn get_string<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    out: *mut fmi3String,
-    n_values: usize,
-) -> fmi3Status {
-    let (f, null) = (&functions::GET_STRING, out.is_null());
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let mut values = Vec::with_capacity(n_values);
-            let status = read(
-                s,
-                f,
-                vr,
-                nvr,
-                null,
-                n_values,
-                VariableType::String,
-                |_, value| {
-                    if let Element::Text(text) = value {
-                        values.push(text.to_string())
-                    }
-                },
-            );
-            if status <= Status::Warning {
-                // SAFETY: `out` holds `n_values` slots, the number of `values`.
-                s.return_strings(&values, out);
-            }
-            status
-        })
-    }
-}
-
-/// `fmi3SetString`.
-///
-/// # Safety
-/// FMI pointer contract.
-pub unsafe fn set_string<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    values: *const fmi3String,
-    n_values: usize,
-) -> fmi3Status {
-    let f = &functions::SET_STRING;
-    unsafe {
-        with_instance::<M>(c, f, |s| {
-            let (Some(vrs), Some(raw)) = (slice(vr, nvr), slice(values, n_values)) else {
-                return s.instance.reject(f, "valueReferences or values is NULL");
-            };
-            match front::string_values(s, f, raw) {
-                Ok(texts) => {
-                    let text = |k: usize| texts[k].clone();
-                    write_values(s, f, vrs, VariableType::String, n_values, text, AsValues)
-                }
-                Err(status) => status,
-            }
-        })
-    }
-}
-
-front::state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Fmi3, "FMUState");
+state_functions!(fmi3Instance, fmi3FMUState, fmi3Byte, Fmi3, "FMUState");
 
 /// A function of a capability the FMUs do not have: rejected with `reason`, logged.
 ///
@@ -765,4 +297,218 @@ pub unsafe fn unsupported<M: FmuModel>(
             s.instance.reject(&f, &format!("not supported: {reason}"))
         })
     }
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi3*` symbols of the life cycle,
+/// the step, the FMU states and the capabilities the FMUs do not have (refusing every call
+/// with a logged reason), each calling its function of this module.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_life_cycle_entries {
+    () => {
+        #[no_mangle]
+        pub extern "C" fn fmi3GetVersion() -> *const fmi3Char {
+            ffi::version()
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3SetDebugLogging(
+            c: fmi3Instance,
+            on: fmi3Boolean,
+            n: usize,
+            categories: *const fmi3String,
+        ) -> fmi3Status {
+            let f = &functions::SET_DEBUG_LOGGING;
+            unsafe { $crate::abi::slot::set_debug_logging::<M, Fmi3>(c, f, on != 0, (categories, n)) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
+            name: fmi3String,
+            token: fmi3String,
+            resources: fmi3String,
+            visible: fmi3Boolean,
+            logging_on: fmi3Boolean,
+            event_mode_used: fmi3Boolean,
+            early_return_allowed: fmi3Boolean,
+            required: *const fmi3ValueReference,
+            n_required: usize,
+            environment: fmi3InstanceEnvironment,
+            log_message: fmi3LogMessageCallback,
+            intermediate_update: fmi3IntermediateUpdateCallback,
+        ) -> fmi3Instance {
+            let _ = (visible, required, intermediate_update);
+            let args = ffi::Instantiation(
+                name, token, resources, logging_on, environment, log_message,
+            );
+            let me = super::spurio_model_exchange();
+            unsafe {
+                ffi::instantiate_co_simulation::<M>(
+                    args,
+                    event_mode_used,
+                    early_return_allowed,
+                    n_required,
+                    me,
+                )
+            }
+        }
+        $crate::fmi3_instantiation! {
+            fmi3InstantiateModelExchange() => |args| {
+                ffi::instantiate_model_exchange::<M>(args, super::spurio_model_exchange())
+            };
+            fmi3InstantiateScheduledExecution(
+                clock_update: fmi3ClockUpdateCallback,
+                lock: fmi3PreemptionCallback,
+                unlock: fmi3PreemptionCallback,
+            ) => |args| {
+                let _ = (clock_update, lock, unlock);
+                let f = "fmi3InstantiateScheduledExecution";
+                ffi::refuse_instantiation::<M>(f, "Scheduled Execution", args)
+            };
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3FreeInstance(c: fmi3Instance) {
+            unsafe { ffi::free_instance::<M>(c) }
+        }
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3EnterInitializationMode(
+            c: fmi3Instance,
+            tolerance_defined: fmi3Boolean,
+            tolerance: fmi3Float64,
+            start: fmi3Float64,
+            stop_defined: fmi3Boolean,
+            stop: fmi3Float64,
+        ) -> fmi3Status {
+            let _ = (tolerance_defined, tolerance);
+            unsafe { ffi::enter_initialization_mode::<M>(c, start, stop_defined, stop) }
+        }
+        $crate::instance_entries!(fmi3Instance;
+            fmi3ExitInitializationMode = exit_initialization_mode,
+            fmi3Terminate = terminate, fmi3Reset = reset);
+        #[no_mangle]
+        pub unsafe extern "C" fn fmi3DoStep(
+            c: fmi3Instance,
+            t: fmi3Float64,
+            h: fmi3Float64,
+            no_set_prior: fmi3Boolean,
+            event_handling_needed: *mut fmi3Boolean,
+            terminate_simulation: *mut fmi3Boolean,
+            early_return: *mut fmi3Boolean,
+            last_successful_time: *mut fmi3Float64,
+        ) -> fmi3Status {
+            let _ = no_set_prior;
+            unsafe {
+                ffi::do_step::<M>(
+                    c,
+                    t,
+                    h,
+                    event_handling_needed,
+                    terminate_simulation,
+                    early_return,
+                    last_successful_time,
+                )
+            }
+        }
+        $crate::fmu_state_entries!(
+            fmi3Instance, fmi3FMUState, fmi3Byte;
+            fmi3GetFMUState, fmi3SetFMUState, fmi3FreeFMUState,
+            fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3DeserializeFMUState
+        );
+        $crate::fmi3_unsupported! {
+            "the FMU declares only Float64, Int32, Boolean and String variables";
+            fmi3GetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float32, _m: usize);
+            fmi3SetFloat32(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float32, _m: usize);
+            fmi3GetInt8(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int8, _m: usize);
+            fmi3SetInt8(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int8, _m: usize);
+            fmi3GetUInt8(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt8, _m: usize);
+            fmi3SetUInt8(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt8, _m: usize);
+            fmi3GetInt16(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int16, _m: usize);
+            fmi3SetInt16(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int16, _m: usize);
+            fmi3GetUInt16(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt16, _m: usize);
+            fmi3SetUInt16(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt16, _m: usize);
+            fmi3GetUInt32(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt32, _m: usize);
+            fmi3SetUInt32(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt32, _m: usize);
+            fmi3GetInt64(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Int64, _m: usize);
+            fmi3SetInt64(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Int64, _m: usize);
+            fmi3GetUInt64(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3UInt64, _m: usize);
+            fmi3SetUInt64(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3UInt64, _m: usize);
+            fmi3GetBinary(_v: *const fmi3ValueReference, _n: usize, _s: *mut usize, _x: *mut fmi3Binary, _m: usize);
+            fmi3SetBinary(_v: *const fmi3ValueReference, _n: usize, _s: *const usize, _x: *const fmi3Binary, _m: usize);
+        }
+        $crate::fmi3_unsupported! {
+            "the FMU declares no clocks";
+            fmi3GetClock(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Clock);
+            fmi3SetClock(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Clock);
+            fmi3GetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64, _q: *mut fmi3IntervalQualifier);
+            fmi3GetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64, _q: *mut fmi3IntervalQualifier);
+            fmi3GetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *mut fmi3Float64);
+            fmi3GetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *mut fmi3UInt64, _r: *mut fmi3UInt64);
+            fmi3SetIntervalDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
+            fmi3SetIntervalFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
+            fmi3SetShiftDecimal(_v: *const fmi3ValueReference, _n: usize, _x: *const fmi3Float64);
+            fmi3SetShiftFraction(_v: *const fmi3ValueReference, _n: usize, _counters: *const fmi3UInt64, _r: *const fmi3UInt64);
+            fmi3ActivateModelPartition(_clock: fmi3ValueReference, _t: fmi3Float64);
+        }
+        $crate::fmi3_unsupported! {
+            "the FMU declares no structural parameters (its dimensions are packaging variants)";
+            fmi3EnterConfigurationMode();
+            fmi3ExitConfigurationMode();
+        }
+        $crate::fmi3_unsupported! {
+            "the Co-Simulation interface has no event mode (hasEventMode=\"false\"): it is always in Step Mode after initialization";
+            fmi3EnterStepMode();
+            fmi3EvaluateDiscreteStates();
+        }
+        $crate::fmi3_unsupported! {
+            "maxOutputDerivativeOrder=\"0\"";
+            fmi3GetOutputDerivatives(_v: *const fmi3ValueReference, _n: usize, _o: *const fmi3Int32, _x: *mut fmi3Float64, _m: usize);
+        }
+        $crate::fmi3_unsupported! {
+            "providesPerElementDependencies=\"false\": the dependencies are those of the model description's ModelStructure";
+            fmi3GetNumberOfVariableDependencies(_v: fmi3ValueReference, _n: *mut usize);
+            fmi3GetVariableDependencies(_v: fmi3ValueReference, _e: *mut usize, _i: *mut fmi3ValueReference, _ei: *mut usize, _k: *mut fmi3DependencyKind, _n: usize);
+        }
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), `fmi3*` functions of capabilities the FMUs do not have:
+/// each rejects every call with `fmi3Error`, logging its name and the reason.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_unsupported {
+    ($reason:expr; $($name:ident($($arg:ident: $type:ty),* $(,)?);)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(c: fmi3Instance, $($arg: $type),*) -> fmi3Status {
+                unsafe { ffi::unsupported::<M>(c, stringify!($name), $reason) }
+            }
+        )+
+    };
+}
+
+/// Emits, inside [`export_fmu!`](crate::export_fmu), the `fmi3Instantiate*` functions whose arguments start with
+/// the common ones (name, token, resources, visible, loggingOn, environment, logMessage) and
+/// end with `$extra`; `$body` sees the common ones as `$args` (an [`ffi::Instantiation`]).
+#[doc(hidden)]
+#[macro_export]
+macro_rules! fmi3_instantiation {
+    ($($name:ident($($extra:ident: $type:ty),* $(,)?) => |$args:ident| $body:block;)+) => {
+        $(
+            #[no_mangle]
+            pub unsafe extern "C" fn $name(
+                name: fmi3String,
+                token: fmi3String,
+                resources: fmi3String,
+                visible: fmi3Boolean,
+                logging_on: fmi3Boolean,
+                environment: fmi3InstanceEnvironment,
+                log_message: fmi3LogMessageCallback,
+                $($extra: $type),*
+            ) -> fmi3Instance {
+                let _ = visible;
+                let $args = ffi::Instantiation(
+                    name, token, resources, logging_on, environment, log_message,
+                );
+                unsafe { $body }
+            }
+        )+
+    };
 }

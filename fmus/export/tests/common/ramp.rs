@@ -4,9 +4,9 @@
 //! allocation). Included by `#[path]` where needed.
 #![allow(dead_code)]
 
+use spurio_export::abi::model_exchange::{self as me, Array};
+use spurio_export::fmi2::functions;
 use spurio_export::harness::Harness;
-use spurio_export::instance::functions;
-use spurio_export::me::ffi::{self as me, Array};
 use spurio_export::types::*;
 use spurio_export::{
     ByteReader, ByteWriter, Cause, Config, Context, EventUpdate, Failure, FmuModel, ModelExchange,
@@ -94,7 +94,7 @@ pub struct Me(pub Harness<Ramp>);
 impl Me {
     /// An instance in Continuous-Time Mode, the call counts reset.
     pub fn new() -> Self {
-        let hooks = spurio_export::me::hooks::<Ramp>();
+        let hooks = spurio_export::model::hooks::<Ramp>();
         let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
         h.initialize(0.0).unwrap();
         let f = &functions::ENTER_CONTINUOUS_TIME_MODE;

@@ -12,15 +12,15 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Asserts that `scripts/build-fmus` has packaged each of `fmus` (e.g. `"GantryCrane"`).
+/// Asserts that each of `fmus` (e.g. `"GantryCrane"`) is packaged in `build/fmus`, built
+/// first if the FMUs are missing (`master/tests/common/packaged_fmus.rs`, which every test
+/// crate that includes this file names `crate::packaged_fmus`: included by path, or, where
+/// the engine's test helpers are included too, theirs).
 pub fn require_fmus(fmus: &[&str]) {
+    let dir = crate::packaged_fmus::packaged_fmus(&repo());
     for fmu in fmus {
-        let path = repo().join(format!("build/fmus/{fmu}.fmu"));
-        assert!(
-            path.is_file(),
-            "no {}: run scripts/build-fmus first",
-            path.display()
-        );
+        let path = dir.join(format!("{fmu}.fmu"));
+        assert!(path.is_file(), "no {}", path.display());
     }
 }
 

@@ -1,0 +1,117 @@
+//! A system's instances once resolved (each with its FMU and start values) and the
+//! connections between their variables, by index: what the plan compiler ([`crate::plan`])
+//! lays out and a stepping algorithm ([`crate::algorithm`]) orders.
+
+use crate::error::SystemError;
+use crate::fmu::{Causality, FmuFile, VarType};
+use std::sync::Arc;
+
+/// A variable of an instance: (instance index, variable index in its FMU).
+pub type VarRef = (usize, usize);
+
+/// A connection from an output to an input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Connection {
+    pub from: VarRef,
+    pub to: VarRef,
+    pub var_type: VarType,
+}
+
+/// One action of the propagation at a communication point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PropagationStep {
+    /// Set a connected input from its source.
+    SetInput(VarRef),
+    /// Re-read a direct-feedthrough output after its inputs changed.
+    GetOutput(VarRef),
+}
+
+/// An instance with its FMU and resolved start values.
+#[derive(Debug, Clone)]
+pub struct ResolvedInstance {
+    pub name: String,
+    pub fmu: Arc<FmuFile>,
+    /// (variable index, value as f64) to set before initialisation; changed by name through
+    /// the system (`System::set_start_value`), which checks them and keeps its description
+    /// in step.
+    pub start_values: Vec<(usize, f64)>,
+    pub step_multiple: u32,
+    pub logging: bool,
+}
+
+/// Whether output `output` depends directly on input `input` of the same instance.
+pub fn feeds_through(instances: &[ResolvedInstance], output: VarRef, input: VarRef) -> bool {
+    output.0 == input.0
+        && match &instances[output.0].fmu.variables[output.1].dependencies {
+            None => true,
+            Some(deps) => deps.contains(&input.1),
+        }
+}
+
+/// Whether output `output` depends directly on any input.
+pub fn has_feedthrough(instances: &[ResolvedInstance], output: VarRef) -> bool {
+    match &instances[output.0].fmu.variables[output.1].dependencies {
+        None => instances[output.0]
+            .fmu
+            .variables
+            .iter()
+            .any(|v| v.head.causality == Causality::Input),
+        Some(deps) => !deps.is_empty(),
+    }
+}
+
+/// `instance.variable`.
+pub fn variable_name(instances: &[ResolvedInstance], r: VarRef) -> String {
+    format!(
+        "{}.{}",
+        instances[r.0].name, instances[r.0].fmu.variables[r.1].head.name
+    )
+}
+
+pub(crate) fn split_variable(text: &str) -> Option<(&str, &str)> {
+    let text = text.trim();
+    let (instance, variable) = text.split_once('.')?;
+    (!instance.is_empty() && !variable.is_empty()).then_some((instance, variable))
+}
+
+pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {
+    let close: Vec<&str> = fmu
+        .variables
+        .iter()
+        .map(|v| v.head.name.as_str())
+        .filter(|n| {
+            let base = variable.split('[').next().unwrap_or(variable);
+            n.starts_with(base) || base.starts_with(n.split('[').next().unwrap_or(n))
+        })
+        .take(8)
+        .collect();
+    SystemError::UnknownVariable {
+        instance: instance.to_string(),
+        variable: variable.to_string(),
+        file: fmu.path.clone(),
+        hint: if close.is_empty() {
+            String::new()
+        } else {
+            format!(" (did you mean one of: {}?)", close.join(", "))
+        },
+    }
+}
+
+/// The half of a stepping algorithm ([`crate::Algorithm`]) that the plan compiler consults,
+/// once per compilation and before any instance exists: the order of a communication point.
+pub trait Propagation: std::fmt::Debug + Send + Sync {
+    /// The sets of connected inputs and re-reads of direct-feedthrough outputs at a
+    /// communication point, in order, for `connections` between `instances` (an input that no
+    /// connection drives is skipped). An order that cannot exist (an algebraic loop) is an
+    /// error naming its variables.
+    fn propagation(
+        &self,
+        instances: &[ResolvedInstance],
+        connections: &[Connection],
+    ) -> Result<Vec<PropagationStep>, SystemError>;
+
+    /// Whether the recorded inputs and direct-feedthrough outputs of instances whose inputs are
+    /// set at a communication point are read again after the propagation, so that a record
+    /// holds the values of that point (true), or keep those read after the last step (false).
+    fn refreshes_records(&self) -> bool;
+}

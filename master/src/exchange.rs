@@ -1,0 +1,505 @@
+//! The instances of a running system and the values they exchange: every FMI call of a run
+//! goes through here. [`Exchange`] holds the instances (members), the value buffer and the
+//! compiled set/get batches of the [`Plan`]; a stepping algorithm ([`crate::algorithm`]) drives
+//! it through the operations of a communication point: read the outputs of the instances whose
+//! step ended, propagate values along the connections, step the instances that are due.
+//!
+//! Every operation calls every member it concerns and then reports every failure at once
+//! ([`RunError::Fmi`] names each failing instance, its FMU, the call and the time, quoting
+//! what that instance logged).
+
+use crate::coupling::ResolvedInstance;
+use crate::error::{FmiFailure, RunError, SystemError};
+use crate::fmu::{
+    CallError, Experiment, FmiVersion, FmuFile, Instance, StepEnd, StepProblem, VarType,
+};
+use crate::monitor::{watched, CallMonitor};
+use crate::plan::{push_op, Op, Plan, Transfer};
+use std::sync::Arc;
+
+/// One value of a [`Batch`]: its buffer slot, its position among the call's values and,
+/// for an FMI 3.0 array element, (array, position in the array).
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    slot: usize,
+    position: usize,
+    element: Option<(usize, usize)>,
+}
+
+/// A [`Transfer`] of the plan as one FMI call: the value references of the call (an FMI 3.0
+/// array once, with all its values), where each value goes, and the scratch space.
+#[derive(Debug, Clone)]
+struct Batch {
+    var_type: VarType,
+    member: usize,
+    vrs: Vec<u32>,
+    entries: Vec<Entry>,
+    /// (array, first position) of every array moved whole by the call.
+    arrays: Vec<(usize, usize)>,
+    values: Vec<f64>,
+}
+
+impl Batch {
+    fn new(t: &Transfer, fmu: &FmuFile) -> Self {
+        let mut vrs = Vec::with_capacity(t.vrs.len());
+        let mut entries = Vec::with_capacity(t.vrs.len());
+        let mut arrays: Vec<(usize, usize)> = Vec::new();
+        let mut count = 0;
+        for ((&vr, &slot), &var) in t.vrs.iter().zip(&t.slots).zip(&t.vars) {
+            let element = fmu.variables.get(var).and_then(|v| v.element);
+            let position = match element {
+                None => {
+                    vrs.push(vr);
+                    count += 1;
+                    count - 1
+                }
+                Some((array, k)) => match arrays.iter().find(|(a, _)| *a == array) {
+                    Some(&(_, first)) => first + k,
+                    None => {
+                        let first = count;
+                        vrs.push(vr);
+                        count += fmu.arrays.get(array).map_or(0, |a| a.elements.len());
+                        arrays.push((array, first));
+                        first + k
+                    }
+                },
+            };
+            entries.push(Entry {
+                slot,
+                position,
+                element,
+            });
+        }
+        Self {
+            var_type: t.var_type,
+            member: t.member,
+            vrs,
+            entries,
+            arrays,
+            values: vec![0.0; count],
+        }
+    }
+
+    #[inline]
+    fn get(&mut self, inst: &mut Instance, buffer: &mut [f64]) -> Result<(), CallError> {
+        inst.get(self.var_type, &self.vrs, &mut self.values)?;
+        for e in &self.entries {
+            buffer[e.slot] = self.values[e.position];
+        }
+        Ok(())
+    }
+
+    /// Sets the values from the buffer; the elements of an array this batch does not set
+    /// keep the values last given to them (`held`, per array of the instance's FMU).
+    #[inline]
+    fn set(
+        &mut self,
+        inst: &mut Instance,
+        buffer: &[f64],
+        held: &mut [Vec<f64>],
+    ) -> Result<(), CallError> {
+        for e in &self.entries {
+            let v = buffer[e.slot];
+            self.values[e.position] = v;
+            if let Some((array, k)) = e.element {
+                if let Some(x) = held.get_mut(array).and_then(|a| a.get_mut(k)) {
+                    *x = v;
+                }
+            }
+        }
+        for &(array, first) in &self.arrays {
+            if let Some(a) = held.get(array) {
+                self.values[first..first + a.len()].copy_from_slice(a);
+            }
+        }
+        inst.set(self.var_type, &self.vrs, &self.values)
+    }
+}
+
+enum Step {
+    Set(Batch),
+    Get(Batch),
+}
+
+struct Member {
+    /// Its index in the system (for the call monitor).
+    index: usize,
+    monitor: Option<Arc<CallMonitor>>,
+    name: String,
+    file: String,
+    instance: Instance,
+    multiple: u64,
+    /// Gets after this member's step (its slots).
+    after_step: Vec<Batch>,
+    /// The values last given to each array of the FMU (start values at first): an element
+    /// is set with its whole array.
+    held: Vec<Vec<f64>>,
+}
+
+impl Member {
+    /// Reads this member's outputs into the buffer.
+    #[inline]
+    fn read(&mut self, buffer: &mut [f64], time: f64) -> Result<(), CallError> {
+        let (monitor, index) = (self.monitor.as_deref(), self.index);
+        for b in &mut self.after_step {
+            watched(monitor, index, "fmi2Get*", time, || {
+                b.get(&mut self.instance, buffer)
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Runs `f` on this member's instance as FMI call `call` at `time`, noted in the
+    /// monitor.
+    #[inline]
+    fn call<T>(&mut self, call: &'static str, time: f64, f: impl FnOnce(&mut Instance) -> T) -> T {
+        let instance = &mut self.instance;
+        watched(self.monitor.as_deref(), self.index, call, time, || {
+            f(instance)
+        })
+    }
+
+    /// A failed call `call` (named by its FMI 2.0 name; an FMI 3.0 instance says its own).
+    fn failure(&self, call: &'static str, e: CallError, time: f64) -> FmiFailure {
+        let said = self.instance.log().recent_messages();
+        FmiFailure {
+            instance: self.name.clone(),
+            file: self.file.clone(),
+            call: self.instance.call_name(call),
+            status: e.0,
+            time,
+            log: if said.is_empty() {
+                String::new()
+            } else {
+                format!(" (the FMU logged: {})", said.join("; "))
+            },
+        }
+    }
+}
+
+/// Calls `call` on every member (that `due` selects), then reports every failure at once.
+#[inline(always)]
+fn on_every(
+    members: &mut [Member],
+    due: impl Fn(&Member) -> bool,
+    mut call: impl FnMut(&mut Member) -> Result<(), FmiFailure>,
+) -> Result<(), RunError> {
+    // A plain loop: the list of failures exists only once there is one (this runs at every
+    // communication point).
+    let mut failures = Vec::new();
+    for m in members.iter_mut() {
+        if due(m) {
+            if let Err(f) = call(m) {
+                failures.push(f);
+            }
+        }
+    }
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(RunError::Fmi { failures })
+    }
+}
+
+/// Whether something done every `multiple` base steps is due at base step `k`: the common
+/// single-rate case (`multiple` = 1) without a division.
+#[inline]
+pub(crate) fn due_at(k: u64, multiple: u64) -> bool {
+    multiple == 1 || k.is_multiple_of(multiple)
+}
+
+/// Calls the FMI function `call` (`name`) at `time` on every member's instance, then reports
+/// every failure at once.
+fn call_every<T>(
+    members: &mut [Member],
+    name: &'static str,
+    time: f64,
+    call: impl Fn(&mut Instance) -> Result<T, CallError>,
+) -> Result<(), RunError> {
+    on_every(
+        members,
+        |_| true,
+        |m| {
+            m.call(name, time, &call)
+                .map(|_| ())
+                .map_err(|e| m.failure(name, e, time))
+        },
+    )
+}
+
+/// The outcome of one step of every due member ([`Exchange::step_due`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum StepOutcome {
+    /// Every due member completed its step.
+    Completed,
+    /// (instance, last successful time, its version) of every member that asked to end
+    /// the run.
+    Terminated(Vec<(String, f64, FmiVersion)>),
+}
+
+/// The instances of a running system, the value buffer and the compiled transfers between
+/// them, with the operations a stepping algorithm composes. Base step `k` begins at the
+/// communication point t_k = start + k·h; a member of step multiple m steps over m·h at every
+/// k that m divides.
+pub struct Exchange {
+    members: Vec<Member>,
+    /// Set/get operations at each communication point.
+    propagation: Vec<Step>,
+    buffer: Vec<f64>,
+    start_time: f64,
+    stop_time: f64,
+    step_size: f64,
+    steps: u64,
+}
+
+impl Exchange {
+    /// Instantiates every instance of `instances` on this thread, sets up the experiment
+    /// [`start_time`, `stop_time`], sets the start values (grouped by type into calls, an
+    /// array's elements in one) and enters initialisation mode, noting every FMI call in
+    /// `monitor` (if any).
+    pub(crate) fn instantiate(
+        instances: &[ResolvedInstance],
+        plan: &Plan,
+        (start_time, stop_time, step_size): (f64, f64, f64),
+        monitor: Option<Arc<CallMonitor>>,
+    ) -> Result<Self, RunError> {
+        let t0 = start_time;
+        if let Some(m) = &monitor {
+            m.name_instances(
+                instances
+                    .iter()
+                    .map(|i| (i.name.clone(), i.fmu.path.display().to_string()))
+                    .collect(),
+            );
+        }
+        let mut members = Vec::with_capacity(instances.len());
+        for (i, spec) in instances.iter().enumerate() {
+            let fmu = &spec.fmu;
+            let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
+                fmu.instantiate(&spec.name, spec.logging)
+            })
+            .map_err(SystemError::from)?;
+            let mut m = Member {
+                index: i,
+                monitor: monitor.clone(),
+                name: spec.name.clone(),
+                file: fmu.path.display().to_string(),
+                instance,
+                multiple: u64::from(spec.step_multiple),
+                after_step: plan.after_step[i]
+                    .iter()
+                    .map(|t| Batch::new(t, fmu))
+                    .collect(),
+                held: fmu
+                    .arrays
+                    .iter()
+                    .map(|a| {
+                        a.elements
+                            .iter()
+                            .map(|&e| fmu.variables[e].start.unwrap_or(0.0))
+                            .collect()
+                    })
+                    .collect(),
+            };
+            let experiment = Experiment {
+                tolerance: None,
+                start: t0,
+                stop: Some(stop_time),
+            };
+            m.call("fmi2SetupExperiment", t0, |inst| {
+                inst.setup_experiment(experiment)
+            })
+            .map_err(|e| m.failure("fmi2SetupExperiment", e, t0))?;
+            // Start values, grouped by type into calls (an array's elements in one).
+            let mut sets = Vec::new();
+            let mut values = Vec::with_capacity(spec.start_values.len());
+            for (index, value) in &spec.start_values {
+                push_op(&mut sets, true, instances, (i, *index), values.len());
+                values.push(*value);
+            }
+            for op in &sets {
+                if let Op::Set(t) = op {
+                    let mut batch = Batch::new(t, fmu);
+                    watched(
+                        m.monitor.as_deref(),
+                        m.index,
+                        "fmi2Set* (start value)",
+                        t0,
+                        || batch.set(&mut m.instance, &values, &mut m.held),
+                    )
+                    .map_err(|e| m.failure("fmi2Set* (start value)", e, t0))?;
+                }
+            }
+            m.call("fmi2EnterInitializationMode", t0, |inst| {
+                inst.enter_initialization_mode(experiment)
+            })
+            .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
+            members.push(m);
+        }
+        Ok(Self {
+            members,
+            propagation: plan
+                .propagation
+                .iter()
+                .map(|op| match op {
+                    Op::Set(t) => Step::Set(Batch::new(t, &instances[t.member].fmu)),
+                    Op::Get(t) => Step::Get(Batch::new(t, &instances[t.member].fmu)),
+                })
+                .collect(),
+            buffer: vec![0.0; plan.slot_count],
+            start_time,
+            stop_time,
+            step_size,
+            steps: plan.steps,
+        })
+    }
+
+    /// Number of base steps from the start to the stop time.
+    #[inline]
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// The communication point t_k at which base step `k` begins.
+    #[inline]
+    pub fn time_of(&self, k: u64) -> f64 {
+        self.start_time + k as f64 * self.step_size
+    }
+
+    /// The value buffer (every connection source and recorded variable has a slot).
+    #[inline]
+    pub(crate) fn buffer(&self) -> &[f64] {
+        &self.buffer
+    }
+
+    /// Reads every member's outputs at `time`, noting the reads as FMI call `call`.
+    pub fn read_all(&mut self, call: &'static str, time: f64) -> Result<(), RunError> {
+        let buffer = &mut self.buffer;
+        on_every(
+            &mut self.members,
+            |_| true,
+            |m| m.read(buffer, time).map_err(|e| m.failure(call, e, time)),
+        )
+    }
+
+    /// Reads the outputs of the members whose step ends at base step `k` (every member for
+    /// k = 0) at `time`; a member none of whose outputs is connected or recorded is not called.
+    #[inline(always)]
+    pub fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
+        let buffer = &mut self.buffer;
+        on_every(
+            &mut self.members,
+            |m| !m.after_step.is_empty() && due_at(k, m.multiple),
+            |m| {
+                m.read(buffer, time)
+                    .map_err(|e| m.failure("fmi2Get*", e, time))
+            },
+        )
+    }
+
+    /// The propagation of the plan at base step `k`: the connected inputs set from their
+    /// sources' slots and the direct-feedthrough outputs re-read, in the algorithm's order;
+    /// for the members due at `k` (every member when `all`).
+    #[inline(always)]
+    pub fn propagate(&mut self, k: u64, all: bool) -> Result<(), RunError> {
+        let time = self.time_of(k);
+        for op in &mut self.propagation {
+            let (batch, set) = match op {
+                Step::Set(b) => (b, true),
+                Step::Get(b) => (b, false),
+            };
+            let m = &mut self.members[batch.member];
+            if !all && !due_at(k, m.multiple) {
+                continue;
+            }
+            let call = if set { "fmi2Set*" } else { "fmi2Get*" };
+            let buffer = &mut self.buffer;
+            let result = watched(m.monitor.as_deref(), m.index, call, time, || {
+                if set {
+                    batch.set(&mut m.instance, buffer, &mut m.held)
+                } else {
+                    batch.get(&mut m.instance, buffer)
+                }
+            });
+            result.map_err(|e| m.failure(call, e, time))?;
+        }
+        Ok(())
+    }
+
+    /// Every member leaves initialisation mode at `time`.
+    pub fn exit_initialization_mode(&mut self, time: f64) -> Result<(), RunError> {
+        call_every(
+            &mut self.members,
+            "fmi2ExitInitializationMode",
+            time,
+            Instance::exit_initialization_mode,
+        )
+    }
+
+    /// Terminates every member at `time` (they are freed when dropped).
+    pub(crate) fn terminate(&mut self, time: f64) -> Result<(), RunError> {
+        call_every(
+            &mut self.members,
+            "fmi2Terminate",
+            time,
+            Instance::terminate,
+        )
+    }
+
+    /// `fmi2DoStep`/`fmi3DoStep` on every member due at base step `k` (beginning at `time`),
+    /// over its multiple of the step size and not past the stop time: every failure is
+    /// reported at once; members that ask to end the run (`fmi2Discard` with
+    /// `fmi2Terminated`, `terminateSimulation`) are listed.
+    #[inline(always)]
+    pub fn step_due(&mut self, k: u64, time: f64) -> Result<StepOutcome, RunError> {
+        let (step_size, stop_time) = (self.step_size, self.stop_time);
+        let mut failures = Vec::new();
+        let mut terminated = Vec::new();
+        for m in self.members.iter_mut().filter(|m| due_at(k, m.multiple)) {
+            let h = (step_size * m.multiple as f64).min(stop_time - time);
+            match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h)) {
+                Ok(StepEnd::Completed) => {}
+                Ok(StepEnd::Terminate(last)) => {
+                    // FMI 2.0 stopped within the step (fmi2Discard); FMI 3.0 completed it
+                    // unless it says otherwise.
+                    let version = m.instance.version();
+                    let fallback = match version {
+                        FmiVersion::Fmi2 => time,
+                        FmiVersion::Fmi3 => time + h,
+                    };
+                    terminated.push((m.name.clone(), last.unwrap_or(fallback), version));
+                }
+                Err(StepProblem::Failed(e)) => failures.push(m.failure("fmi2DoStep", e, time)),
+                Err(StepProblem::EarlyReturn {
+                    last_successful_time,
+                }) => failures.push(m.failure(
+                    "fmi2DoStep",
+                    CallError(format!(
+                        "earlyReturn = true (lastSuccessfulTime = {last_successful_time}), \
+                         although this master instantiates without early return"
+                    )),
+                    time,
+                )),
+                Err(StepProblem::EventHandlingNeeded) => failures.push(
+                    m.failure(
+                        "fmi2DoStep",
+                        CallError(
+                            "eventHandlingNeeded = true: the FMU needs event mode, which this \
+                         master does not run (it instantiates with eventModeUsed = false)"
+                                .into(),
+                        ),
+                        time,
+                    ),
+                ),
+            }
+        }
+        if !failures.is_empty() {
+            return Err(RunError::Fmi { failures });
+        }
+        Ok(if terminated.is_empty() {
+            StepOutcome::Completed
+        } else {
+            StepOutcome::Terminated(terminated)
+        })
+    }
+}
