@@ -154,10 +154,6 @@ pub enum SolverError<E: std::error::Error + 'static> {
         target: f64,
         max_steps: usize,
     },
-    #[error(
-        "the Rosenbrock iteration matrix I/(γh) − J is singular at t = {time} (step {step:e} s)"
-    )]
-    Singular { time: f64, step: f64 },
     #[error("the solver was asked to step to t = {target}, not after its time t = {time}")]
     BadTarget { time: f64, target: f64 },
     #[error("the dimension {given} given does not match the solver's {expected}")]
