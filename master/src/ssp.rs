@@ -543,20 +543,20 @@ pub fn import_with(ssp: &Path, out_dir: &Path, limits: &LoadLimits) -> Result<Im
         parse_ssd(&ssd).map_err(|e| err(ssp, format!("SystemStructure.ssd: {e}")))?;
     // The FMUs' declared sizes, before any is inflated.
     let mut declared: u64 = 0;
+    let mut indices = Vec::with_capacity(imported.description.instances.len());
     for inst in &imported.description.instances {
         let source = inst.fmu.to_string_lossy().to_string();
-        let entry = archive
-            .index_for_name(&source)
-            .and_then(|i| archive.by_index_raw(i).ok())
-            .ok_or_else(|| {
-                err(
-                    ssp,
-                    format!(
-                        "component `{}`: `{source}` is not in the archive",
-                        inst.name
-                    ),
-                )
-            })?;
+        let index = archive.index_for_name(&source).ok_or_else(|| {
+            err(
+                ssp,
+                format!(
+                    "component `{}`: `{source}` is not in the archive",
+                    inst.name
+                ),
+            )
+        })?;
+        indices.push(index);
+        let entry = archive.by_index_raw(index).map_err(|e| err(ssp, e))?;
         declared = declared.saturating_add(entry.size());
         if declared > limits.max_unpacked {
             return Err(err(
@@ -572,17 +572,9 @@ pub fn import_with(ssp: &Path, out_dir: &Path, limits: &LoadLimits) -> Result<Im
     }
     std::fs::create_dir_all(out_dir).map_err(|e| err(out_dir, e))?;
     let mut written: u64 = 0;
-    for inst in &mut imported.description.instances {
+    for (inst, index) in imported.description.instances.iter_mut().zip(indices) {
         let source = inst.fmu.to_string_lossy().to_string();
-        let entry = archive.by_name(&source).map_err(|_| {
-            err(
-                ssp,
-                format!(
-                    "component `{}`: `{source}` is not in the archive",
-                    inst.name
-                ),
-            )
-        })?;
+        let entry = archive.by_index(index).map_err(|e| err(ssp, e))?;
         let Some(relative) = entry.enclosed_name() else {
             return Err(err(
                 ssp,
