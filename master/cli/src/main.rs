@@ -203,24 +203,38 @@ fn main() -> ExitCode {
     match outcome {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("{}", report(&e));
+            eprintln!("{}", error_report(&e));
             ExitCode::FAILURE
         }
     }
 }
 
-/// An error as the user reads it: the message and its causes, never a backtrace (an
-/// expected error is not a bug).
-fn report(e: &anyhow::Error) -> String {
-    let mut text = format!("Error: {e}");
-    let causes: Vec<String> = e.chain().skip(1).map(|c| c.to_string()).collect();
-    if !causes.is_empty() {
-        text.push_str("\n\nCaused by:");
-        for (i, cause) in causes.iter().enumerate() {
-            text.push_str(&format!("\n    {i}: {cause}"));
+/// `Error: ` and the error, then its causes under `Caused by:` as anyhow lays them out,
+/// leaving out each cause whose text is already printed (an error that quotes its source
+/// in its own message), so no message appears twice.
+fn error_report(error: &anyhow::Error) -> String {
+    let mut shown = error.to_string();
+    let mut causes: Vec<String> = Vec::new();
+    for cause in error.chain().skip(1) {
+        let text = cause.to_string();
+        if !shown.contains(&text) {
+            shown.push('\n');
+            shown.push_str(&text);
+            causes.push(text);
         }
     }
-    text
+    let mut report = format!("Error: {error}");
+    match causes.as_slice() {
+        [] => {}
+        [one] => report.push_str(&format!("\n\nCaused by:\n    {one}")),
+        many => {
+            report.push_str("\n\nCaused by:");
+            for (i, cause) in many.iter().enumerate() {
+                report.push_str(&format!("\n    {i}: {cause}"));
+            }
+        }
+    }
+    report
 }
 
 /// `spurio run`.

@@ -413,7 +413,7 @@ impl FmuFile {
         let xml = &unpacked.model_description;
         let md: fmi::schema::fmi2::Fmi2ModelDescription = xml
             .parse()
-            .map_err(|e: fmi::schema::Error| md_error(path, e))?;
+            .map_err(|e: fmi::schema::Error| md_error(path, xml::schema_error(&e)))?;
         if !md.fmi_version.starts_with("2.") {
             return Err(LoadError::NotFmi2 {
                 file: path.to_path_buf(),

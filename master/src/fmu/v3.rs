@@ -131,6 +131,15 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
                     }
                     "ScheduledExecution" => d.other_interfaces.push("Scheduled Execution"),
                     "ModelVariables" => in_variables = !empty,
+                    // FMI 2.0's variable element: the description is FMI 2.0 whatever it says.
+                    "ScalarVariable" => {
+                        return Err(format!(
+                            "fmiVersion is `{}`, but the description is FMI 2.0: it declares \
+                             its variables as <ScalarVariable> (FMI 3.0 declares <Float64>, \
+                             <Int32>, … directly); correct fmiVersion to 2.0",
+                            d.version
+                        ))
+                    }
                     "ModelStructure" => in_structure = !empty,
                     "Dimension" if in_variables && open => {
                         let dim = match (attribute(&e, "start"), attribute(&e, "valueReference")) {
