@@ -60,6 +60,12 @@ pub enum LinalgError {
         /// Which matrix.
         what: String,
     },
+    /// A matrix too large for its exponential: its 1-norm overflows `f64`, so no number of
+    /// squarings `s` brings `‖A‖₁ / 2^s` into the range of the Padé approximant.
+    NormOverflow {
+        /// Which matrix.
+        what: String,
+    },
     /// A matrix that must be symmetric positive definite is not.
     NotPositiveDefinite {
         /// Which matrix (e.g. `"R"`, `"R + BᵀPB"`).
@@ -105,6 +111,12 @@ impl fmt::Display for LinalgError {
                 expected.0, expected.1, got.0, got.1
             ),
             Self::NonFinite { what } => write!(f, "matrix {what} contains NaN or infinity"),
+            Self::NormOverflow { what } => write!(
+                f,
+                "matrix {what} is too large for its exponential: its 1-norm exceeds the \
+                 largest double, {:e}",
+                f64::MAX
+            ),
             Self::NotPositiveDefinite { what } => {
                 write!(f, "matrix {what} is not symmetric positive definite")
             }
@@ -298,8 +310,14 @@ pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
         return Ok(identity);
     }
     let norm = norm1(a);
+    if !norm.is_finite() {
+        // ‖A‖₁ = ∞ would ask for 2^s ≥ ∞ (s saturating to i32::MAX: 2³¹ squarings).
+        return Err(LinalgError::NormOverflow {
+            what: "A".to_string(),
+        });
+    }
     let squarings = if norm > THETA13 {
-        // 2^s ≥ ‖A‖₁ / θ₁₃; at most ~1100 for finite f64 input.
+        // 2^s ≥ ‖A‖₁ / θ₁₃; at most 1022 for a finite ‖A‖₁ ≤ f64::MAX.
         (norm / THETA13).log2().ceil().max(0.0) as i32
     } else {
         0
@@ -360,7 +378,12 @@ pub fn try_zoh(
     let mut augmented = DMatrix::<f64>::zeros(n + m, n + m);
     augmented.view_mut((0, 0), (n, n)).copy_from(&(a * ts));
     augmented.view_mut((0, n), (n, m)).copy_from(&(b * ts));
-    let exponential = try_expm(&augmented)?;
+    let exponential = try_expm(&augmented).map_err(|e| match e {
+        LinalgError::NormOverflow { .. } => LinalgError::NormOverflow {
+            what: format!("[[A, B], [0, 0]]·Ts (Ts = {ts:e} s; a shorter Ts is needed)"),
+        },
+        other => other,
+    })?;
     let a_d = exponential.view((0, 0), (n, n)).into_owned();
     let b_d = exponential.view((0, n), (n, m)).into_owned();
     Ok((a_d, b_d))
@@ -1192,6 +1215,34 @@ mod tests {
             try_expm(&dmatrix![f64::NAN]),
             Err(LinalgError::NonFinite { .. })
         ));
+    }
+
+    /// ‖A‖₁ = ∞ (every entry finite) once asked for 2³¹ squarings: 66 s, then a wrong `I`.
+    #[test]
+    fn expm_of_a_matrix_whose_norm_overflows_is_refused_at_once() {
+        let a = dmatrix![0.9e308, 0.854e308; 0.0, 1e308];
+        let start = std::time::Instant::now();
+        let result = try_expm(&a);
+        let elapsed = start.elapsed();
+        assert!(
+            matches!(&result, Err(LinalgError::NormOverflow { what }) if what == "A"),
+            "{result:?}"
+        );
+        assert!(elapsed.as_secs_f64() < 0.1, "took {elapsed:?}");
+        // The largest finite norm still goes through (1022 squarings), to an overflow.
+        let largest = dmatrix![f64::MAX / 2.0, f64::MAX / 2.0; 0.0, 0.0];
+        assert!(matches!(
+            try_expm(&largest),
+            Err(LinalgError::NonFinite { what }) if what == "e^A (overflow)"
+        ));
+        let err = try_zoh(&dmatrix![0.9, 0.1; 0.0, 0.9], &dmatrix![0.854; 1.0], 1e308)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            err,
+            "matrix [[A, B], [0, 0]]·Ts (Ts = 1e308 s; a shorter Ts is needed) is too large \
+             for its exponential: its 1-norm exceeds the largest double, 1.7976931348623157e308"
+        );
     }
 
     #[test]

@@ -14,7 +14,7 @@ pub enum SystemError {
     Read(#[from] ReadError),
     #[error(transparent)]
     Ssp(#[from] SspError),
-    #[error("{0}")]
+    #[error(transparent)]
     Load(#[from] LoadError),
     #[error("system: {0}")]
     Invalid(String),
@@ -47,13 +47,15 @@ pub enum SystemError {
     #[error("algebraic loop: these direct-feedthrough variables depend on each other within a communication point: {0}")]
     AlgebraicLoop(String),
     /// What is wrong with the system an SSP archive describes, naming the archive (and its
-    /// FMUs by their paths inside it, not by the folder they were unpacked into).
-    #[error("{}: {}", ssp.display(), in_archive(source, unpacked))]
+    /// FMUs by their paths inside it, not by the folder they were unpacked into). The
+    /// message holds the error's whole text, so the error is no `source()` of it (an error
+    /// chain would print it twice, the second time with the unpacked folder's paths).
+    #[error("{}: {}", ssp.display(), in_archive(error, unpacked))]
     InArchive {
         ssp: PathBuf,
         /// Where the archive was unpacked.
         unpacked: PathBuf,
-        source: Box<SystemError>,
+        error: Box<SystemError>,
     },
 }
 
@@ -101,8 +103,15 @@ pub enum RunError {
     /// One or more FMUs failed in the same step (all of them are listed).
     #[error("{}", joined(failures))]
     Fmi { failures: Vec<FmiFailure> },
+    /// Writing the results failed (the I/O error's text is the message's, not a source).
     #[error("writing results: {0}")]
-    Output(#[from] std::io::Error),
+    Output(std::io::Error),
+}
+
+impl From<std::io::Error> for RunError {
+    fn from(e: std::io::Error) -> Self {
+        Self::Output(e)
+    }
 }
 
 impl From<FmiFailure> for RunError {

@@ -9,7 +9,8 @@
 //!
 //! Its modules, each importing only those listed before it:
 //! `xml`, `logging`, `data`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
-//! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`.
+//! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`, and
+//! [`model_exchange`] (Model Exchange import: on `fmu` and `record` and the solvers crate).
 
 #![forbid(unsafe_code)]
 
@@ -22,6 +23,7 @@ mod error;
 mod exchange;
 pub mod fmu;
 pub mod logging;
+pub mod model_exchange;
 mod monitor;
 mod plan;
 mod record;

@@ -7,15 +7,16 @@ use std::path::{Path, PathBuf};
 /// What is wrong with a results file.
 #[derive(Debug, thiserror::Error)]
 pub enum ResultsError {
-    #[error("cannot read results file {}: {source}", file.display())]
+    // The causes are in the messages, so they are no `source()` (a chain would repeat them).
+    #[error("cannot read results file {}: {error}", file.display())]
     Read {
         file: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("in results file {}: {source}", file.display())]
+    #[error("in results file {}: {error}", file.display())]
     InFile {
         file: PathBuf,
-        source: Box<ResultsError>,
+        error: Box<ResultsError>,
     },
     #[error("the file is empty")]
     Empty,
@@ -45,13 +46,13 @@ pub struct ResultTable {
 impl ResultTable {
     /// Reads `path`; every error names the file and the line.
     pub fn read(path: &Path) -> Result<Self, ResultsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ResultsError::Read {
+        let text = std::fs::read_to_string(path).map_err(|error| ResultsError::Read {
             file: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::parse(&text).map_err(|e| ResultsError::InFile {
             file: path.to_path_buf(),
-            source: Box::new(e),
+            error: Box::new(e),
         })
     }
 

@@ -32,7 +32,7 @@
 //! says so in [`Imported::notes`].
 
 use crate::description::{AlgorithmName, InstanceDescription, SystemDescription};
-use crate::fmu::{Causality, FmuFile, VarType};
+use crate::fmu::{Causality, FmuFile, LoadLimits, VarType};
 use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
@@ -503,22 +503,50 @@ pub fn export(
 }
 
 /// Reads `ssp`, extracting its FMUs into `out_dir`, and returns the system description
-/// (FMU paths relative to `out_dir`) with the import's notes.
+/// (FMU paths relative to `out_dir`) with the import's notes; within the default
+/// [`LoadLimits`] (see [`import_with`]).
 pub fn import(ssp: &Path, out_dir: &Path) -> Result<Imported, SspError> {
+    import_with(ssp, out_dir, &LoadLimits::default())
+}
+
+/// [`import`] within `limits`, the FMU loader's: at most `max_entries` entries,
+/// `SystemStructure.ssd` at most `max_model_description` bytes, the FMUs it names at most
+/// `max_unpacked` bytes together. Sizes are checked as the archive declares them before
+/// anything is inflated, then counted while inflating (a declared size can lie).
+pub fn import_with(ssp: &Path, out_dir: &Path, limits: &LoadLimits) -> Result<Imported, SspError> {
     let file = std::fs::File::open(ssp).map_err(|e| err(ssp, e))?;
     let mut archive = zip::ZipArchive::new(file).map_err(|e| err(ssp, e))?;
-    let mut ssd = String::new();
-    archive
+    if archive.len() > limits.max_entries {
+        return Err(err(
+            ssp,
+            format!(
+                "the archive has {} entries, more than the limit of {} (max_entries)",
+                archive.len(),
+                limits.max_entries
+            ),
+        ));
+    }
+    let ssd_limit = limits.max_model_description;
+    let ssd_entry = archive
         .by_name("SystemStructure.ssd")
-        .map_err(|_| err(ssp, "no SystemStructure.ssd in the archive"))?
-        .read_to_string(&mut ssd)
-        .map_err(|e| err(ssp, e))?;
+        .map_err(|_| err(ssp, "no SystemStructure.ssd in the archive"))?;
+    let ssd_declared = ssd_entry.size();
+    let ssd_bytes = read_bounded(ssd_entry, ssd_declared, ssd_limit).map_err(|e| {
+        err(
+            ssp,
+            format!("SystemStructure.ssd: {e} (max_model_description)"),
+        )
+    })?;
+    let ssd = String::from_utf8(ssd_bytes)
+        .map_err(|e| err(ssp, format!("SystemStructure.ssd is not UTF-8 text: {e}")))?;
     let mut imported =
         parse_ssd(&ssd).map_err(|e| err(ssp, format!("SystemStructure.ssd: {e}")))?;
-    std::fs::create_dir_all(out_dir).map_err(|e| err(out_dir, e))?;
-    for inst in &mut imported.description.instances {
+    // The FMUs' declared sizes, before any is inflated.
+    let mut declared: u64 = 0;
+    let mut indices = Vec::with_capacity(imported.description.instances.len());
+    for inst in &imported.description.instances {
         let source = inst.fmu.to_string_lossy().to_string();
-        let mut entry = archive.by_name(&source).map_err(|_| {
+        let index = archive.index_for_name(&source).ok_or_else(|| {
             err(
                 ssp,
                 format!(
@@ -527,6 +555,26 @@ pub fn import(ssp: &Path, out_dir: &Path) -> Result<Imported, SspError> {
                 ),
             )
         })?;
+        indices.push(index);
+        let entry = archive.by_index_raw(index).map_err(|e| err(ssp, e))?;
+        declared = declared.saturating_add(entry.size());
+        if declared > limits.max_unpacked {
+            return Err(err(
+                ssp,
+                format!(
+                    "its FMUs declare more than {} bytes unpacked (reached at `{source}`, \
+                     {} bytes), beyond the limit (max_unpacked); nothing was unpacked",
+                    limits.max_unpacked,
+                    entry.size()
+                ),
+            ));
+        }
+    }
+    std::fs::create_dir_all(out_dir).map_err(|e| err(out_dir, e))?;
+    let mut written: u64 = 0;
+    for (inst, index) in imported.description.instances.iter_mut().zip(indices) {
+        let source = inst.fmu.to_string_lossy().to_string();
+        let entry = archive.by_index(index).map_err(|e| err(ssp, e))?;
         let Some(relative) = entry.enclosed_name() else {
             return Err(err(
                 ssp,
@@ -537,12 +585,50 @@ pub fn import(ssp: &Path, out_dir: &Path) -> Result<Imported, SspError> {
         if let Some(parent) = target.parent() {
             std::fs::create_dir_all(parent).map_err(|e| err(parent, e))?;
         }
-        let mut bytes = Vec::new();
-        entry.read_to_end(&mut bytes).map_err(|e| err(ssp, e))?;
-        std::fs::write(&target, bytes).map_err(|e| err(&target, e))?;
+        let mut out = std::fs::File::create(&target).map_err(|e| err(&target, e))?;
+        let room = limits.max_unpacked - written.min(limits.max_unpacked);
+        let copied = std::io::copy(&mut entry.take(room.saturating_add(1)), &mut out)
+            .map_err(|e| err(ssp, format!("`{source}`: {e}")))?;
+        written = written.saturating_add(copied);
+        if written > limits.max_unpacked {
+            drop(out);
+            // The partial file is of no use; a failure to remove it changes nothing here.
+            let _ = std::fs::remove_file(&target);
+            return Err(err(
+                ssp,
+                format!(
+                    "its FMUs inflate to more than {} bytes (at `{source}`, more than its \
+                     entry declares), beyond the limit (max_unpacked)",
+                    limits.max_unpacked
+                ),
+            ));
+        }
         inst.fmu = PathBuf::from(source);
     }
     Ok(imported)
+}
+
+/// The bytes of `entry`, an archive entry that declares `declared` bytes: refused, before
+/// anything is inflated, when `declared` is over `limit`, and refused when it inflates to
+/// more than `limit` bytes.
+pub(crate) fn read_bounded(entry: impl Read, declared: u64, limit: u64) -> Result<Vec<u8>, String> {
+    if declared > limit {
+        return Err(format!(
+            "declares {declared} bytes unpacked, more than the limit of {limit}; not inflated"
+        ));
+    }
+    let mut bytes = Vec::new();
+    entry
+        .take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > limit {
+        return Err(format!(
+            "inflates to more than {limit} bytes (more than it declares, {declared}), \
+             beyond the limit"
+        ));
+    }
+    Ok(bytes)
 }
 
 fn attr(e: &quick_xml::events::BytesStart, key: &str) -> Option<String> {
@@ -759,6 +845,19 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
             }
             _ => {}
         }
+    }
+    if version.is_empty() {
+        return Err(
+            "no <ssd:SystemStructureDescription> element: this is not a System Structure \
+             Description"
+                .to_string(),
+        );
+    }
+    if d.instances.is_empty() {
+        return Err(format!(
+            "system `{}` has no <ssd:Component> (an FMU): nothing to simulate",
+            d.name
+        ));
     }
     let mut notes = Vec::new();
     if !stop_given {
@@ -1035,6 +1134,49 @@ mod tests {
             "{:?}",
             imported.notes
         );
+    }
+
+    /// Well-formedness is checked to the end of the text, the line named; a text with no
+    /// SSD root or no component is refused in the SSD's terms.
+    #[test]
+    fn ill_formed_or_empty_ssds_are_refused_naming_the_line() {
+        let good = "<ssd:SystemStructureDescription version=\"1.0\" name=\"s\">\n\
+                    <ssd:System name=\"s\"><ssd:Elements>\n\
+                    <ssd:Component name=\"c\" source=\"resources/c.fmu\"/>\n\
+                    </ssd:Elements></ssd:System>\n\
+                    </ssd:SystemStructureDescription>\n";
+        assert_eq!(parse_ssd(good).unwrap().description.instances.len(), 1);
+        let cases = [
+            (
+                good.replace("</ssd:SystemStructureDescription>\n", &"<a>".repeat(100_000)),
+                "ill-formed XML at line 5: the text ends with <a> still open (100001 element(s) unclosed)",
+            ),
+            (
+                format!("{good}<a>"),
+                "ill-formed XML at line 6: <a> after the root element has ended",
+            ),
+            (
+                good.replace("</ssd:Elements>", "</ssd:Element>"),
+                "ill-formed XML at line 4: ",
+            ),
+            (
+                format!("{good}<ssd:SystemStructureDescription/>"),
+                "ill-formed XML at line 6: <ssd:SystemStructureDescription> after the root element has ended",
+            ),
+            (String::new(), "ill-formed XML at line 1: no root element"),
+            (
+                "<ssd:SystemStructureDescription version=\"1.0\" name=\"s\"/>".to_string(),
+                "system `s` has no <ssd:Component> (an FMU): nothing to simulate",
+            ),
+            (
+                "<other/>".to_string(),
+                "no <ssd:SystemStructureDescription> element: this is not a System Structure Description",
+            ),
+        ];
+        for (text, expected) in cases {
+            let e = parse_ssd(&text).unwrap_err();
+            assert!(e.starts_with(expected), "{e}");
+        }
     }
 
     #[test]

@@ -305,7 +305,10 @@ impl System {
     }
 
     /// [`System::from_file_unpacking`], loading the FMUs with `options` (the loader's limits,
-    /// its temporary folder).
+    /// its temporary folder). The limits bound the system file and an SSP archive too: the
+    /// system file and `SystemStructure.ssd` as `max_model_description` bounds a model
+    /// description, the FMUs an SSP holds as `max_unpacked` and `max_entries` bound an FMU
+    /// (see [`crate::ssp::import_with`]).
     pub fn from_file_loading(
         path: &Path,
         unpack_to: Option<&Path>,
@@ -327,20 +330,21 @@ impl System {
                     (t.path().to_path_buf(), Some(Arc::new(t)))
                 }
             };
-            let imported = crate::ssp::import(path, &dir)?;
+            let imported = crate::ssp::import_with(path, &dir, &options.limits)?;
             let mut system =
                 Self::resolve_loading(&imported.description, &dir, options).map_err(|e| {
                     SystemError::InArchive {
                         ssp: path.to_path_buf(),
                         unpacked: dir.clone(),
-                        source: Box::new(e),
+                        error: Box::new(e),
                     }
                 })?;
             system.notes = imported.notes;
             system.unpacked = temporary;
             return Ok(system);
         }
-        let description = SystemDescription::read(path)?;
+        let description =
+            SystemDescription::read_at_most(path, options.limits.max_model_description)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::resolve_loading(&description, base, options)
     }

@@ -360,6 +360,34 @@ fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
 }
 
 #[test]
+fn a_wrong_fmi_version_and_an_unknown_unit_child_are_said_in_the_standard_s_terms() {
+    // fmiVersion 3.0 on an FMI 2.0 description: the version is read first, then the mismatch.
+    let text = refuse_xml("fmi3version", "fmiVersion=\"2.0\"", "fmiVersion=\"3.0\"");
+    assert!(
+        text.contains(
+            "fmiVersion is `3.0`, but the description is FMI 2.0: it declares its variables \
+             as <ScalarVariable>"
+        ),
+        "{text}"
+    );
+    assert!(!text.contains("has no name"), "{text}");
+    // An unknown child of <Unit>: the element, not rust-fmi's type for it, and what it allows.
+    let text = refuse_xml(
+        "unitchild",
+        "<Unit name=\"N\">",
+        "<Unit name=\"N\">\n      <Scale factor=\"2\"/>",
+    );
+    assert!(
+        text.contains(
+            "<Unit> has `Scale`, which FMI 2.0 does not allow there (allowed: the attribute \
+             name and the elements <BaseUnit> (at most one) and <DisplayUnit>)"
+        ),
+        "{text}"
+    );
+    assert!(!text.contains("Fmi2Unit"), "{text}");
+}
+
+#[test]
 fn an_output_aliasing_another_output_is_accepted() {
     // `theta` (vr 2) as an alias of `x` (vr 1): same base type, no start values: allowed.
     let case = Case::new("alias-ok");

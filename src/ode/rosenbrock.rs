@@ -28,6 +28,7 @@
 
 use super::adaptive::{Attempt, Embedded};
 use nalgebra::{SMatrix, SVector};
+use spurio_solvers::lu;
 use std::fmt;
 
 /// The most step attempts (accepted or rejected) one call may take.
@@ -121,8 +122,8 @@ pub struct Statistics {
     pub rejected: usize,
 }
 
-/// An LU factorisation with partial pivoting of a fixed-size matrix (`P A = L U`, `L` with a
-/// unit diagonal below, `U` on and above the diagonal of `lu`).
+/// An LU factorisation with partial pivoting of a fixed-size matrix (`P A = L U`), by the
+/// one routine of [`spurio_solvers::lu`] on the matrix's column-major storage.
 struct Lu<const N: usize> {
     lu: SMatrix<f64, N, N>,
     rows: [usize; N],
@@ -132,96 +133,30 @@ impl<const N: usize> Lu<N> {
     /// Factorises `a`; `None` when a pivot is zero or not finite (singular).
     fn new(mut a: SMatrix<f64, N, N>) -> Option<Self> {
         let mut rows = [0; N];
-        for (k, row) in rows.iter_mut().enumerate() {
-            *row = k;
-        }
-        for k in 0..N {
-            let pivot = (k..N)
-                .max_by(|&i, &j| a[(i, k)].abs().total_cmp(&a[(j, k)].abs()))
-                .unwrap_or(k);
-            if a[(pivot, k)] == 0.0 || !a[(pivot, k)].is_finite() {
-                return None;
-            }
-            if pivot != k {
-                a.swap_rows(k, pivot);
-                rows.swap(k, pivot);
-            }
-            for i in k + 1..N {
-                let m = a[(i, k)] / a[(k, k)];
-                a[(i, k)] = m;
-                for j in k + 1..N {
-                    a[(i, j)] -= m * a[(k, j)];
-                }
-            }
-        }
-        Some(Self { lu: a, rows })
+        lu::factorise(a.as_mut_slice(), N, &mut rows).then_some(Self { lu: a, rows })
     }
 
     /// `A⁻¹ b`.
     fn solve(&self, b: &SVector<f64, N>) -> SVector<f64, N> {
-        let mut x = SVector::<f64, N>::from_fn(|i, _| b[self.rows[i]]);
-        for i in 0..N {
-            for j in 0..i {
-                x[i] -= self.lu[(i, j)] * x[j];
-            }
-        }
-        for i in (0..N).rev() {
-            for j in i + 1..N {
-                x[i] -= self.lu[(i, j)] * x[j];
-            }
-            x[i] /= self.lu[(i, i)];
-        }
+        let mut x = SVector::<f64, N>::zeros();
+        lu::solve(
+            self.lu.as_slice(),
+            N,
+            &self.rows,
+            b.as_slice(),
+            x.as_mut_slice(),
+        );
         x
     }
 }
 
-/// A four-stage Rosenbrock method in the form `G kᵢ = f(x₀ + Σⱼ aᵢⱼ kⱼ) + Σⱼ cᵢⱼ kⱼ/h`,
-/// `G = I/(γh) − J`, `x₁ = x₀ + Σ bᵢ kᵢ`, error estimate `Σ eᵢ kᵢ`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Method {
-    /// `γ`.
-    pub gamma: f64,
-    /// `a₂₁, a₃₁, a₃₂, a₄₁, a₄₂, a₄₃`.
-    pub a: [f64; 6],
-    /// `c₂₁, c₃₁, c₃₂, c₄₁, c₄₂, c₄₃`.
-    pub c: [f64; 6],
-    /// `b₁ … b₄`.
-    pub b: [f64; 4],
-    /// `e₁ … e₄`.
-    pub e: [f64; 4],
-    /// Order of the embedded solution plus one (the exponent of the step control is −1/this).
-    pub error_order: f64,
-}
-
+/// A four-stage Rosenbrock method (the one table of [`spurio_solvers::tableau`]; the
+/// fixed-size integrator here takes `f` as autonomous, so it does not use `α` and `γᵢ`).
+pub use spurio_solvers::tableau::RosenbrockMethod as Method;
 /// RODAS3 (module docs): order 3, L-stable, stiffly accurate.
-pub const RODAS3: Method = Method {
-    gamma: 0.5,
-    a: [0.0, 2.0, 0.0, 2.0, 0.0, 1.0],
-    c: [4.0, 1.0, -1.0, 1.0, -1.0, -8.0 / 3.0],
-    b: [2.0, 0.0, 1.0, 1.0],
-    e: [0.0, 0.0, 0.0, 1.0],
-    error_order: 3.0,
-};
-
-/// Shampine's fourth-order Kaps–Rentrop parameters (Shampine 1982, "Implementation of
-/// Rosenbrock methods", ACM TOMS 8; Hairer & Wanner §IV.7): order 4 with an embedded
-/// order-3 solution, A-stable; three evaluations of `f` per step (stage 4 reuses stage 3's
-/// point).
-pub const SHAMPINE4: Method = Method {
-    gamma: 0.5,
-    a: [2.0, 48.0 / 25.0, 6.0 / 25.0, 48.0 / 25.0, 6.0 / 25.0, 0.0],
-    c: [
-        -8.0,
-        372.0 / 25.0,
-        12.0 / 5.0,
-        -112.0 / 125.0,
-        -54.0 / 125.0,
-        -2.0 / 5.0,
-    ],
-    b: [19.0 / 9.0, 0.5, 25.0 / 108.0, 125.0 / 108.0],
-    e: [17.0 / 54.0, 7.0 / 36.0, 0.0, 125.0 / 108.0],
-    error_order: 4.0,
-};
+pub use spurio_solvers::tableau::RODAS3;
+/// Shampine's fourth-order Kaps–Rentrop parameters (order 4, embedded order 3, A-stable).
+pub use spurio_solvers::tableau::SHAMPINE4;
 
 /// One step of `method` of size `h` from `x`: the new state and the error estimate.
 fn rosenbrock_step<const N: usize>(

@@ -650,6 +650,38 @@ mod tests {
             .collect()
     }
 
+    /// Continuous time, `B[1,1]` = 0.854: the step of 1e308 s makes ‖[[A, B], [0, 0]]·h‖₁
+    /// overflow (0.854e308 + 1e308), which once asked for 2³¹ squarings (66 s, then an error
+    /// from the noise's exponential, or with `Q` = 0 a wrong `Φ = I`). Refused at once now.
+    #[test]
+    fn a_step_too_long_to_discretise_is_refused_at_once() {
+        use spurio_export::harness::Harness;
+        for noise in [0.001, 0.0] {
+            let config = Config::new();
+            let info = LinearSystemFmu::describe(&config).unwrap();
+            let vr = |n: &str| info.index_of(n).unwrap() as u32;
+            let mut h = Harness::<LinearSystemFmu>::new(&config).unwrap();
+            h.set_boolean(&[vr("continuous")], &[true]).unwrap();
+            h.set_real(
+                &[vr("B[1,1]"), vr("Q[1,1]"), vr("Q[2,2]")],
+                &[0.854, noise, noise],
+            )
+            .unwrap();
+            h.initialize(0.0).unwrap();
+            h.do_step(0.0, 0.1).unwrap();
+            let start = std::time::Instant::now();
+            let refused = h.do_step(0.1, 1e308);
+            let elapsed = start.elapsed();
+            assert!(refused.is_err(), "Q = {noise}: {refused:?}");
+            assert!(elapsed.as_secs_f64() < 0.5, "Q = {noise}: took {elapsed:?}");
+            assert!(
+                h.logged(&["cannot discretise", "too large", "1e308"]),
+                "{:?}",
+                h.log()
+            );
+        }
+    }
+
     #[test]
     fn discrete_time_samples_on_the_clock_and_holds_between_samples() {
         // x₂⁺ = 0.9 x₂ + u from 0: 1, 1.9, 2.71, …

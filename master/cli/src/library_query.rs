@@ -18,10 +18,10 @@ use std::path::{Path, PathBuf};
 /// Why a library could not be asked.
 #[derive(Debug, thiserror::Error)]
 pub enum QueryError {
-    #[error("{path}: cannot load the library: {source}")]
+    #[error("{path}: cannot load the library: {error}")]
     Load {
         path: PathBuf,
-        source: libloading::Error,
+        error: libloading::Error,
     },
     #[error("{path}: no `{symbol}` symbol (not a spurio FMU library, or built before it had one)")]
     Symbol { path: PathBuf, symbol: &'static str },
@@ -57,9 +57,9 @@ impl FmuLibrary {
         // SAFETY: loading runs the library's initialisers; our FMU libraries have none beyond
         // the Rust runtime's. The packager only loads libraries built from this repository.
         let library =
-            unsafe { libloading::Library::new(path) }.map_err(|source| QueryError::Load {
+            unsafe { libloading::Library::new(path) }.map_err(|error| QueryError::Load {
                 path: path.to_path_buf(),
-                source,
+                error,
             })?;
         Ok(Self {
             path: path.to_path_buf(),

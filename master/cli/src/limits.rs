@@ -9,11 +9,12 @@ use std::time::Duration;
 /// The flags every command that runs a system takes.
 #[derive(clap::Args, Clone, Debug)]
 pub struct Limits {
-    /// Refuse an FMU whose archive unpacks to more than SIZE (bytes, or with a K, M or G
-    /// suffix: powers of 1024).
+    /// Refuse an FMU whose archive unpacks to more than SIZE, or an SSP whose FMUs do
+    /// together (bytes, or with a K, M or G suffix: powers of 1024).
     #[arg(long, value_name = "SIZE", default_value = "2G", value_parser = parse_size)]
     pub max_unpacked: u64,
-    /// Refuse an FMU whose modelDescription.xml is larger than SIZE.
+    /// Refuse an FMU whose modelDescription.xml, an SSP whose SystemStructure.ssd, or a
+    /// system file larger than SIZE (read no further than that).
     #[arg(long, value_name = "SIZE", default_value = "64M", value_parser = parse_size)]
     pub max_model_description: u64,
     /// Refuse an FMU archive of more than N entries.

@@ -24,6 +24,7 @@ mod package;
 #[path = "../../tests/common/packaged_fmus.rs"]
 mod packaged_fmus;
 mod progress;
+mod run_fmu;
 mod sweep;
 mod workers;
 
@@ -52,9 +53,13 @@ enum Command {
     /// the simulation (FMI 2.0: fmi2Discard with fmi2Terminated, as the Reference FMU Stair
     /// does; FMI 3.0: terminateSimulation from fmi3DoStep): the
     /// last point is recorded and the reason printed.
+    ///
+    /// Or run one FMU (`spurio run model.fmu`, as `fmpy simulate` and `fmusim`): Co-Simulation,
+    /// or Model Exchange integrated by spurio's solvers (`--interface me`), over the model
+    /// description's DefaultExperiment unless the flags say otherwise.
     Run {
-        /// The system file (`.toml`) or SSP archive (`.ssp`; its FMUs are unpacked into a
-        /// temporary folder, removed afterwards unless --unpack-to is given).
+        /// The system file (`.toml`), SSP archive (`.ssp`; its FMUs are unpacked into a
+        /// temporary folder, removed afterwards unless --unpack-to is given) or FMU (`.fmu`).
         system: PathBuf,
         /// Where to write the results.
         #[arg(long, default_value = "results.csv")]
@@ -86,6 +91,8 @@ enum Command {
         verbose: bool,
         #[command(flatten)]
         limits: limits::Limits,
+        #[command(flatten)]
+        fmu: run_fmu::FmuArgs,
     },
     /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
     Package {
@@ -196,10 +203,38 @@ fn main() -> ExitCode {
     match outcome {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("Error: {e:?}");
+            eprintln!("{}", error_report(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// `Error: ` and the error, then its causes under `Caused by:` as anyhow lays them out,
+/// leaving out each cause whose text is already printed (an error that quotes its source
+/// in its own message), so no message appears twice.
+fn error_report(error: &anyhow::Error) -> String {
+    let mut shown = error.to_string();
+    let mut causes: Vec<String> = Vec::new();
+    for cause in error.chain().skip(1) {
+        let text = cause.to_string();
+        if !shown.contains(&text) {
+            shown.push('\n');
+            shown.push_str(&text);
+            causes.push(text);
+        }
+    }
+    let mut report = format!("Error: {error}");
+    match causes.as_slice() {
+        [] => {}
+        [one] => report.push_str(&format!("\n\nCaused by:\n    {one}")),
+        many => {
+            report.push_str("\n\nCaused by:");
+            for (i, cause) in many.iter().enumerate() {
+                report.push_str(&format!("\n    {i}: {cause}"));
+            }
+        }
+    }
+    report
 }
 
 /// `spurio run`.
@@ -215,7 +250,33 @@ fn run(
     progress: bool,
     limits: &limits::Limits,
 ) -> Result<()> {
-    let mut resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    let resolved = System::from_file_loading(system, unpack_to, &limits.load_options())?;
+    run_resolved(
+        resolved,
+        system,
+        out,
+        no_record,
+        output_interval,
+        plotted,
+        real_time,
+        progress,
+        limits,
+    )
+}
+
+/// `spurio run` of a resolved system (`system`: where it came from, for messages).
+#[allow(clippy::too_many_arguments)]
+fn run_resolved(
+    mut resolved: System,
+    system: &Path,
+    out: &Path,
+    no_record: bool,
+    output_interval: u64,
+    plotted: &[String],
+    real_time: Option<f64>,
+    progress: bool,
+    limits: &limits::Limits,
+) -> Result<()> {
     if no_record {
         // Only the outputs that feed connections are read after a step.
         resolved.record_nothing()?;
@@ -364,19 +425,52 @@ fn command(command: Command) -> Result<ExitCode> {
             plot: plotted,
             real_time,
             progress,
-            verbose: _,
+            verbose,
             limits,
-        } => run(
-            &system,
-            &out,
-            no_record,
-            output_interval,
-            unpack_to.as_deref(),
-            &plotted,
-            real_time,
-            progress,
-            &limits,
-        )?,
+            fmu,
+        } => match run_fmu::classify(&system)? {
+            run_fmu::RunTarget::Fmu => run_fmu::run(
+                &system,
+                &out,
+                &fmu,
+                verbose,
+                &limits.load_options(),
+                |resolved| {
+                    run_resolved(
+                        resolved,
+                        &system,
+                        &out,
+                        no_record,
+                        output_interval,
+                        &plotted,
+                        real_time,
+                        progress,
+                        &limits,
+                    )
+                },
+            )?,
+            _ => {
+                let given = fmu.given();
+                if !given.is_empty() {
+                    bail!(
+                        "{} apply to running one FMU, not a system file: set the values in {}",
+                        given.join(", "),
+                        system.display()
+                    );
+                }
+                run(
+                    &system,
+                    &out,
+                    no_record,
+                    output_interval,
+                    unpack_to.as_deref(),
+                    &plotted,
+                    real_time,
+                    progress,
+                    &limits,
+                )?
+            }
+        },
         Command::Package { names, packaging } => {
             let Packaging {
                 lib_dir,

@@ -114,6 +114,68 @@ pub const REQUIRED_FUNCTIONS_3: [&str; 62] = [
     "fmi3DoStep",
 ];
 
+/// Whether `function` belongs to the Co-Simulation interface only (of [`REQUIRED_FUNCTIONS`]
+/// and [`REQUIRED_FUNCTIONS_3`]: stepping, its status and input/output derivatives, FMI 3.0's
+/// Co-Simulation instantiation and step mode); the others are common to both interfaces.
+fn co_simulation_only(function: &str) -> bool {
+    [
+        "DoStep",
+        "CancelStep",
+        "Status",
+        "InputDerivatives",
+        "OutputDerivatives",
+        "InstantiateCoSimulation",
+        "StepMode",
+    ]
+    .iter()
+    .any(|part| function.contains(part))
+}
+
+/// The functions of the Model Exchange interface, FMI 2.0 (§3.2) and FMI 3.0 (§3.2).
+const MODEL_EXCHANGE_ONLY: [&str; 21] = [
+    "fmi2EnterEventMode",
+    "fmi2NewDiscreteStates",
+    "fmi2EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep",
+    "fmi2SetTime",
+    "fmi2SetContinuousStates",
+    "fmi2GetDerivatives",
+    "fmi2GetEventIndicators",
+    "fmi2GetContinuousStates",
+    "fmi2GetNominalsOfContinuousStates",
+    "fmi3InstantiateModelExchange",
+    "fmi3EnterContinuousTimeMode",
+    "fmi3CompletedIntegratorStep",
+    "fmi3SetTime",
+    "fmi3SetContinuousStates",
+    "fmi3GetContinuousStateDerivatives",
+    "fmi3GetEventIndicators",
+    "fmi3GetContinuousStates",
+    "fmi3GetNominalsOfContinuousStates",
+    "fmi3GetNumberOfEventIndicators",
+    "fmi3GetNumberOfContinuousStates",
+];
+
+/// Every function FMI 2.0 (`fmi3`: false) or FMI 3.0 requires of a Model Exchange FMU: the
+/// common ones and those of the Model Exchange interface.
+pub fn required_model_exchange(fmi3: bool) -> Vec<&'static str> {
+    let (all, prefix): (&[&'static str], &str) = if fmi3 {
+        (&REQUIRED_FUNCTIONS_3, "fmi3")
+    } else {
+        (&REQUIRED_FUNCTIONS, "fmi2")
+    };
+    all.iter()
+        .copied()
+        .filter(|f| !co_simulation_only(f))
+        .chain(
+            MODEL_EXCHANGE_ONLY
+                .iter()
+                .copied()
+                .filter(|f| f.starts_with(prefix)),
+        )
+        .collect()
+}
+
 /// Why a library cannot be used on this machine.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum LibraryProblem {

@@ -131,7 +131,7 @@ macro_rules! set3 {
 /// type, grown to the largest call and then reused: a get or set allocates nothing once the
 /// first call of each size has been made.
 #[derive(Debug, Default)]
-struct Scratch {
+pub(crate) struct Scratch {
     f32: Vec<f32>,
     bool: Vec<bool>,
     i8: Vec<i8>,
@@ -372,9 +372,9 @@ impl Instance {
 }
 
 /// Reads FMI 2.0 values of type `t` into `out`: Integers and Booleans (`fmi2Boolean` is an
-/// int) through `ints`.
-fn get2(
-    i: &mut fmi::fmi2::instance::InstanceCS,
+/// int) through `ints`. For instances of either interface.
+pub(crate) fn get2<Tag: fmi::traits::InstanceTag>(
+    i: &mut fmi::fmi2::instance::Instance<Tag>,
     t: VarType,
     vrs: &[u32],
     out: &mut [f64],
@@ -405,8 +405,8 @@ fn get2(
 }
 
 /// Writes FMI 2.0 values of type `t` from `values`: Integers and Booleans through `ints`.
-fn set2(
-    i: &mut fmi::fmi2::instance::InstanceCS,
+pub(crate) fn set2<Tag: fmi::traits::InstanceTag>(
+    i: &mut fmi::fmi2::instance::Instance<Tag>,
     t: VarType,
     vrs: &[u32],
     values: &[f64],
@@ -434,8 +434,9 @@ fn set2(
     Ok(())
 }
 
-fn get3(
-    i: &mut fmi::fmi3::instance::InstanceCS,
+/// Reads FMI 3.0 values of type `t` into `out` through the scratch buffers.
+pub(crate) fn get3<Tag>(
+    i: &mut fmi::fmi3::instance::Instance<Tag>,
     t: VarType,
     vrs: &[u32],
     out: &mut [f64],
@@ -460,8 +461,9 @@ fn get3(
     Ok(())
 }
 
-fn set3(
-    i: &mut fmi::fmi3::instance::InstanceCS,
+/// Writes FMI 3.0 values of type `t` from `values` through the scratch buffers.
+pub(crate) fn set3<Tag>(
+    i: &mut fmi::fmi3::instance::Instance<Tag>,
     t: VarType,
     vrs: &[u32],
     values: &[f64],

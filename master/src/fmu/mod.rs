@@ -20,6 +20,7 @@ mod archive;
 pub mod binary;
 mod checks;
 mod instance;
+pub mod me;
 mod table;
 mod v3;
 mod xml;
@@ -37,6 +38,15 @@ use fmi::schema::fmi2::{
 use fmi::traits::FmiImport;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+/// The FMI interface an FMU is loaded for: Co-Simulation (the engine steps it with
+/// `DoStep`) or Model Exchange (the importer integrates its states, [`crate::model_exchange`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Interface {
+    #[default]
+    CoSimulation,
+    ModelExchange,
+}
 
 /// The FMI version of an FMU.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -107,6 +117,8 @@ pub enum LoadError {
         /// What it declares instead, e.g. ": it declares Scheduled Execution (clocks), which this master does not run".
         others: String,
     },
+    #[error("{file}: `{model}` is not a Model Exchange FMU (its modelDescription.xml has no <ModelExchange> element)")]
+    NotModelExchange { file: PathBuf, model: String },
     #[error("{file}: the FMU has no binary for this platform: `{expected}` is missing (it has: {found})")]
     MissingBinary {
         file: PathBuf,
@@ -121,12 +133,13 @@ pub enum LoadError {
         expected: String,
         platform: &'static str,
     },
-    #[error("{file}: `{library}` does not export {}, which every FMI {version} Co-Simulation FMU must provide", .missing.join(", "))]
+    #[error("{file}: `{library}` does not export {}, which every FMI {version} {} FMU must provide", .missing.join(", "), if *.interface == Interface::ModelExchange { "Model Exchange" } else { "Co-Simulation" })]
     MissingFunctions {
         file: PathBuf,
         library: String,
         missing: Vec<String>,
         version: &'static str,
+        interface: Interface,
     },
     #[error("{file}: rust-fmi could not import the FMU: {reason}")]
     Import { file: PathBuf, reason: String },
@@ -307,6 +320,8 @@ pub enum Import {
 pub struct FmuFile {
     pub path: PathBuf,
     pub version: FmiVersion,
+    /// The interface it is loaded for (its `model_identifier` is that interface's).
+    pub interface: Interface,
     pub import: Import,
     pub model_name: String,
     pub model_identifier: String,
@@ -377,8 +392,18 @@ impl FmuFile {
         Self::open_with(path, &LoadOptions::default())
     }
 
-    /// Opens, checks and imports `path`.
+    /// Opens, checks and imports `path` for Co-Simulation.
     pub fn open_with(path: &Path, options: &LoadOptions) -> Result<Self, LoadError> {
+        Self::open_for(path, options, Interface::CoSimulation)
+    }
+
+    /// Opens, checks and imports `path` for `interface` (an FMU that does not offer it is
+    /// refused, naming the interface).
+    pub fn open_for(
+        path: &Path,
+        options: &LoadOptions,
+        interface: Interface,
+    ) -> Result<Self, LoadError> {
         let temp_root = options.temp_dir.clone().unwrap_or_else(std::env::temp_dir);
         // From here on, returning drops `unpacked.dir`, which removes the folder.
         let unpacked = archive::unpack(path, &options.limits, &temp_root)?;
@@ -386,24 +411,24 @@ impl FmuFile {
             .map_err(|e| md_error(path, e))?
             .starts_with("3.")
         {
-            return Self::open_3(path, unpacked);
+            return Self::open_3(path, unpacked, interface);
         }
         let xml = &unpacked.model_description;
         let md: fmi::schema::fmi2::Fmi2ModelDescription = xml
             .parse()
-            .map_err(|e: fmi::schema::Error| md_error(path, e))?;
+            .map_err(|e: fmi::schema::Error| md_error(path, xml::schema_error(&e)))?;
         if !md.fmi_version.starts_with("2.") {
             return Err(LoadError::NotFmi2 {
                 file: path.to_path_buf(),
                 version: md.fmi_version.clone(),
             });
         }
-        let Some(cs) = md.co_simulation.as_ref() else {
-            return Err(LoadError::NotCoSimulation {
-                file: path.to_path_buf(),
-                model: md.model_name.clone(),
-                others: String::new(),
-            });
+        let model_identifier = match interface {
+            Interface::CoSimulation => md.co_simulation.as_ref().map(|i| &i.model_identifier),
+            Interface::ModelExchange => md.model_exchange.as_ref().map(|i| &i.model_identifier),
+        };
+        let Some(model_identifier) = model_identifier.cloned() else {
+            return Err(not_offered(path, interface, &md.model_name, String::new()));
         };
         let xml::VariableExtras { units, has_start } =
             xml::variable_extras(xml).map_err(|e| md_error(path, e))?;
@@ -454,7 +479,13 @@ impl FmuFile {
         for (i, deps) in dependencies {
             variables[i].dependencies = deps;
         }
-        check_library(path, &unpacked, FmiVersion::Fmi2, &cs.model_identifier)?;
+        check_library(
+            path,
+            &unpacked,
+            FmiVersion::Fmi2,
+            interface,
+            &model_identifier,
+        )?;
         let by_name = variables
             .iter()
             .enumerate()
@@ -467,8 +498,9 @@ impl FmuFile {
         Ok(Self {
             path: path.to_path_buf(),
             version: FmiVersion::Fmi2,
+            interface,
             model_name: md.model_name.clone(),
-            model_identifier: cs.model_identifier.clone(),
+            model_identifier,
             guid: md.guid.clone(),
             import: Import::Fmi2(import),
             variables,
@@ -479,10 +511,21 @@ impl FmuFile {
     }
 
     /// The FMI 3.0 half of [`FmuFile::open_with`].
-    fn open_3(path: &Path, unpacked: archive::Unpacked) -> Result<Self, LoadError> {
+    fn open_3(
+        path: &Path,
+        unpacked: archive::Unpacked,
+        interface: Interface,
+    ) -> Result<Self, LoadError> {
         let xml = &unpacked.model_description;
         let d = v3::read(xml).map_err(|e| md_error(path, e))?;
-        let Some(model_identifier) = d.co_simulation.clone() else {
+        if interface == Interface::ModelExchange && d.model_exchange.is_none() {
+            return Err(not_offered(path, interface, &d.model_name, String::new()));
+        }
+        let offered = match interface {
+            Interface::CoSimulation => d.co_simulation.clone(),
+            Interface::ModelExchange => d.model_exchange.clone(),
+        };
+        let Some(model_identifier) = offered else {
             let others = if d.other_interfaces.is_empty() {
                 String::new()
             } else {
@@ -502,7 +545,13 @@ impl FmuFile {
                 others,
             });
         };
-        check_library(path, &unpacked, FmiVersion::Fmi3, &model_identifier)?;
+        check_library(
+            path,
+            &unpacked,
+            FmiVersion::Fmi3,
+            interface,
+            &model_identifier,
+        )?;
         let mut by_name: HashMap<String, usize> = d
             .variables
             .iter()
@@ -521,10 +570,14 @@ impl FmuFile {
         // `quantity`, `nominal` … on variables): it gets only what instantiation needs, the
         // full description having been read and checked here (v3).
         let minimal = format!(
-            r#"<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="{}" modelName="{}" instantiationToken="{}"><CoSimulation modelIdentifier="{}"/><ModelVariables/><ModelStructure/></fmiModelDescription>"#,
+            r#"<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="{}" modelName="{}" instantiationToken="{}"><{} modelIdentifier="{}"/><ModelVariables/><ModelStructure/></fmiModelDescription>"#,
             quick_xml::escape::escape(d.version.as_str()),
             quick_xml::escape::escape(d.model_name.as_str()),
             quick_xml::escape::escape(d.instantiation_token.as_str()),
+            match interface {
+                Interface::CoSimulation => "CoSimulation",
+                Interface::ModelExchange => "ModelExchange",
+            },
             quick_xml::escape::escape(model_identifier.as_str()),
         );
         let import = Fmi3Import::new(unpacked.dir, &minimal).map_err(|e| LoadError::Import {
@@ -534,6 +587,7 @@ impl FmuFile {
         Ok(Self {
             path: path.to_path_buf(),
             version: FmiVersion::Fmi3,
+            interface,
             model_name: d.model_name,
             model_identifier,
             guid: d.instantiation_token,
@@ -610,6 +664,21 @@ impl FmuFile {
     }
 }
 
+/// The error for an FMU that does not offer `interface`.
+fn not_offered(path: &Path, interface: Interface, model: &str, others: String) -> LoadError {
+    match interface {
+        Interface::CoSimulation => LoadError::NotCoSimulation {
+            file: path.to_path_buf(),
+            model: model.to_string(),
+            others,
+        },
+        Interface::ModelExchange => LoadError::NotModelExchange {
+            file: path.to_path_buf(),
+            model: model.to_string(),
+        },
+    }
+}
+
 /// A new instance of either version, before it gets its key.
 enum Inner {
     Fmi2(Box<InstanceCS>),
@@ -673,6 +742,7 @@ fn check_library(
     path: &Path,
     unpacked: &archive::Unpacked,
     version: FmiVersion,
+    interface: Interface,
     model_identifier: &str,
 ) -> Result<(), LoadError> {
     let platform = version.platform();
@@ -700,9 +770,14 @@ fn check_library(
             entry: expected.clone(),
             reason: e.to_string(),
         })?;
-    let required: &[&'static str] = match version {
-        FmiVersion::Fmi2 => &binary::REQUIRED_FUNCTIONS,
-        FmiVersion::Fmi3 => &binary::REQUIRED_FUNCTIONS_3,
+    let model_exchange;
+    let required: &[&'static str] = match (version, interface) {
+        (FmiVersion::Fmi2, Interface::CoSimulation) => &binary::REQUIRED_FUNCTIONS,
+        (FmiVersion::Fmi3, Interface::CoSimulation) => &binary::REQUIRED_FUNCTIONS_3,
+        (_, Interface::ModelExchange) => {
+            model_exchange = binary::required_model_exchange(version == FmiVersion::Fmi3);
+            &model_exchange
+        }
     };
     match binary::check(&library, required) {
         Ok(()) => Ok(()),
@@ -721,6 +796,7 @@ fn check_library(
                 library: expected,
                 missing: missing.into_iter().map(String::from).collect(),
                 version: version.number(),
+                interface,
             })
         }
     }

@@ -5,7 +5,9 @@
 //! sample over missing ones). No output depends on an input (a table has none), so a data instance never
 //! takes part in a direct-feedthrough chain. Nothing is imported: the engine reads the table.
 
-use super::{Causality, FmiVersion, FmuFile, Import, VarType, VariableHead, VariableInfo};
+use super::{
+    Causality, FmiVersion, FmuFile, Import, Interface, VarType, VariableHead, VariableInfo,
+};
 use crate::data::{DataTable, Reading};
 use std::collections::HashMap;
 
@@ -68,6 +70,7 @@ impl FmuFile {
         Self {
             path: table.file.clone(),
             version: FmiVersion::Fmi2,
+            interface: Interface::CoSimulation,
             import: Import::Table,
             model_name,
             model_identifier: String::new(),

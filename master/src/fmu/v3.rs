@@ -24,6 +24,8 @@ pub(super) struct Description {
     pub instantiation_token: String,
     /// `modelIdentifier` of `<CoSimulation>` (None: no Co-Simulation interface).
     pub co_simulation: Option<String>,
+    /// `modelIdentifier` of `<ModelExchange>` (None: no Model Exchange interface).
+    pub model_exchange: Option<String>,
     /// The other interfaces declared, to say what the FMU is when it is not Co-Simulation.
     pub other_interfaces: Vec<&'static str>,
     pub variables: Vec<VariableInfo>,
@@ -92,6 +94,7 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
         model_name: String::new(),
         instantiation_token: String::new(),
         co_simulation: None,
+        model_exchange: None,
         other_interfaces: Vec::new(),
         variables: Vec::new(),
         arrays: Vec::new(),
@@ -122,9 +125,21 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
                             attribute(&e, "instantiationToken").unwrap_or_default();
                     }
                     "CoSimulation" => d.co_simulation = attribute(&e, "modelIdentifier"),
-                    "ModelExchange" => d.other_interfaces.push("Model Exchange"),
+                    "ModelExchange" => {
+                        d.model_exchange = attribute(&e, "modelIdentifier");
+                        d.other_interfaces.push("Model Exchange");
+                    }
                     "ScheduledExecution" => d.other_interfaces.push("Scheduled Execution"),
                     "ModelVariables" => in_variables = !empty,
+                    // FMI 2.0's variable element: the description is FMI 2.0 whatever it says.
+                    "ScalarVariable" => {
+                        return Err(format!(
+                            "fmiVersion is `{}`, but the description is FMI 2.0: it declares \
+                             its variables as <ScalarVariable> (FMI 3.0 declares <Float64>, \
+                             <Int32>, … directly); correct fmiVersion to 2.0",
+                            d.version
+                        ))
+                    }
                     "ModelStructure" => in_structure = !empty,
                     "Dimension" if in_variables && open => {
                         let dim = match (attribute(&e, "start"), attribute(&e, "valueReference")) {

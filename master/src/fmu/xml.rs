@@ -124,6 +124,73 @@ pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
     Ok(VariableExtras { units, has_start })
 }
 
+/// What each FMI 2.0 element that rust-fmi's schema reads strictly allows, by the schema's
+/// name for it: `(schema type, element, what it allows)`. The schema names an element by
+/// its Rust type, which differs from the element for `<Unit>` and `<fmiModelDescription>`.
+const FMI2_ELEMENTS: &[(&str, &str, &str)] = &[
+    (
+        "Fmi2Unit",
+        "Unit",
+        "the attribute name and the elements <BaseUnit> (at most one) and <DisplayUnit>",
+    ),
+    (
+        "BaseUnit",
+        "BaseUnit",
+        "the attributes kg, m, s, A, K, mol, cd, rad, factor and offset",
+    ),
+    (
+        "DisplayUnit",
+        "DisplayUnit",
+        "the attributes name, factor, offset and inverse",
+    ),
+    ("UnitDefinitions", "UnitDefinitions", "the elements <Unit>"),
+    (
+        "TypeDefinitions",
+        "TypeDefinitions",
+        "the elements <SimpleType>",
+    ),
+    ("LogCategories", "LogCategories", "the elements <Category>"),
+    (
+        "ModelVariables",
+        "ModelVariables",
+        "the elements <ScalarVariable>",
+    ),
+    (
+        "ModelStructure",
+        "ModelStructure",
+        "the elements <Outputs>, <Derivatives> and <InitialUnknowns>",
+    ),
+    (
+        "Fmi2ModelDescription",
+        "fmiModelDescription",
+        "the attributes of FMI 2.0",
+    ),
+];
+
+/// The message of rust-fmi's FMI 2.0 schema refusing a model description, in the standard's
+/// terms: hard_xml's `unknown field "X" in element "T"` (`T` the schema's Rust type) becomes
+/// `<Element> has `X`, which FMI 2.0 does not allow there (allowed: …)`. Other messages are
+/// kept as they are.
+pub(super) fn schema_error(error: &dyn std::fmt::Display) -> String {
+    let text = error.to_string();
+    let unknown = text
+        .strip_prefix("unknown field \"")
+        .and_then(|rest| rest.split_once("\" in element \""))
+        .and_then(|(field, rest)| Some((field, rest.strip_suffix('"')?)));
+    let Some((field, schema_type)) = unknown else {
+        return text;
+    };
+    match FMI2_ELEMENTS.iter().find(|(t, _, _)| *t == schema_type) {
+        Some((_, element, allowed)) => format!(
+            "<{element}> has `{field}`, which FMI 2.0 does not allow there (allowed: {allowed})"
+        ),
+        None => format!(
+            "<{}> has `{field}`, which FMI 2.0 does not allow there",
+            schema_type.strip_prefix("Fmi2").unwrap_or(schema_type)
+        ),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,254 @@
+//! Linearly implicit four-stage Rosenbrock methods ([`crate::tableau::RosenbrockMethod`]:
+//! RODAS3, Shampine's order-4 method) for stiff problems. For `ẋ = f(t, x)` and a step `h`,
+//! with `J = ∂f/∂x(t₀, x₀)`, `fₜ = ∂f/∂t(t₀, x₀)` and `G = I/(γh) − J`:
+//!
+//! ```text
+//! G kᵢ = f(t₀ + αᵢh, x₀ + Σⱼ<ᵢ aᵢⱼ kⱼ) + Σⱼ<ᵢ cᵢⱼ kⱼ / h + γᵢ h fₜ     (i = 1 … 4)
+//! x₁ = x₀ + Σ bᵢ kᵢ,   error estimate Σ eᵢ kᵢ
+//! ```
+//!
+//! `G` is factorised once per attempt by LU with partial pivoting ([`crate::lu`]) and every
+//! stage is a forward and backward substitution; no inverse is formed. `J` is formed once per
+//! accepted state (a rejected step reuses it), column by column: `J eⱼ` from the model's
+//! Jacobian–vector products when [`OdeSystem::jacobian_times`] gives them, otherwise the
+//! forward difference `(f(t, x + δⱼeⱼ) − f(t, x))/δⱼ` with
+//! `δⱼ = √ε · max(|xⱼ|, nominalⱼ)`. `fₜ` is the forward difference in `t` with
+//! `δₜ = √ε · max(|t|, 1)` (one evaluation, skipped when the model says it is autonomous).
+//!
+//! Dense output: the cubic Hermite polynomial through `(t₀, x₀, f₀)` and `(t₁, x₁, f₁)`
+//! (order 3 locally, as the method); `f₁ = f(t₁, x₁)` is the next step's first stage, so it
+//! costs nothing extra.
+
+use crate::lu;
+use crate::solver::{Norm, Outcome, Stepper, Trajectory};
+use crate::tableau::RosenbrockMethod;
+use crate::{OdeSystem, SolverError};
+
+/// A Rosenbrock method with its buffers for `n` states.
+#[derive(Debug, Clone)]
+pub struct Rosenbrock {
+    method: RosenbrockMethod,
+    n: usize,
+    /// `J` at the trajectory's state, column-major, valid when `jacobian_valid`.
+    jacobian: Vec<f64>,
+    jacobian_valid: bool,
+    /// Whether the model answered a Jacobian–vector product (`None`: not asked yet).
+    products: Option<bool>,
+    /// Whether `f` does not depend on `t` (no `fₜ`).
+    autonomous: bool,
+    /// `∂f/∂t`.
+    f_t: Vec<f64>,
+    /// `G`, then its LU factors.
+    g: Vec<f64>,
+    rows: Vec<usize>,
+    k: [Vec<f64>; 4],
+    y: Vec<f64>,
+    f: Vec<f64>,
+    rhs: Vec<f64>,
+    x_new: Vec<f64>,
+    error: Vec<f64>,
+    /// A unit vector for the Jacobian–vector products.
+    seed: Vec<f64>,
+}
+
+impl Rosenbrock {
+    /// `method` for `n` states, taking `f` as time-dependent.
+    pub fn new(method: RosenbrockMethod, n: usize) -> Self {
+        let zeros = || vec![0.0; n];
+        Self {
+            method,
+            n,
+            jacobian: vec![0.0; n * n],
+            jacobian_valid: false,
+            products: None,
+            autonomous: false,
+            f_t: zeros(),
+            g: vec![0.0; n * n],
+            rows: vec![0; n],
+            k: std::array::from_fn(|_| zeros()),
+            y: zeros(),
+            f: zeros(),
+            rhs: zeros(),
+            x_new: zeros(),
+            error: zeros(),
+            seed: zeros(),
+        }
+    }
+
+    /// Declares `f` independent of `t` (no `∂f/∂t` is formed).
+    pub fn set_autonomous(&mut self, autonomous: bool) {
+        self.autonomous = autonomous;
+    }
+
+    /// Forms `J` (and `fₜ`) at the trajectory's state.
+    fn form_jacobian<S: OdeSystem>(
+        &mut self,
+        tr: &mut Trajectory,
+        system: &mut S,
+    ) -> Result<(), SolverError<S::Error>> {
+        let n = self.n;
+        tr.statistics.jacobians += 1;
+        if self.products != Some(false) {
+            let mut given = true;
+            for j in 0..n {
+                self.seed.fill(0.0);
+                self.seed[j] = 1.0;
+                tr.statistics.jacobian_products += 1;
+                let column = &mut self.jacobian[j * n..(j + 1) * n];
+                let at = crate::Direction {
+                    t: tr.t,
+                    x: &tr.x,
+                    v: &self.seed,
+                };
+                given = system
+                    .jacobian_times(at, column)
+                    .map_err(|source| SolverError::Model { time: tr.t, source })?;
+                if !given {
+                    tr.statistics.jacobian_products -= 1;
+                    break;
+                }
+            }
+            self.products = Some(given);
+        }
+        if self.products == Some(false) {
+            for j in 0..n {
+                let delta = f64::EPSILON.sqrt() * tr.x[j].abs().max(tr.nominal[j]);
+                self.y.copy_from_slice(&tr.x);
+                self.y[j] += delta;
+                let delta = self.y[j] - tr.x[j];
+                Trajectory::evaluate(&mut tr.statistics, system, tr.t, &self.y, &mut self.f)?;
+                for i in 0..n {
+                    self.jacobian[i + j * n] = (self.f[i] - tr.dx[i]) / delta;
+                }
+            }
+        }
+        if self.autonomous {
+            self.f_t.fill(0.0);
+        } else {
+            let delta = f64::EPSILON.sqrt() * tr.t.abs().max(1.0);
+            let t = tr.t + delta;
+            let delta = t - tr.t;
+            Trajectory::evaluate(&mut tr.statistics, system, t, &tr.x, &mut self.f)?;
+            for i in 0..n {
+                self.f_t[i] = (self.f[i] - tr.dx[i]) / delta;
+            }
+        }
+        self.jacobian_valid = true;
+        Ok(())
+    }
+
+    /// Solves stage `i`: `G kᵢ = f + Σⱼ<ᵢ (cᵢⱼ/h) kⱼ + γᵢ h fₜ` with `f` in `self.f`.
+    fn stage(&mut self, i: usize, h: f64) {
+        let c = &self.method.c;
+        // cᵢⱼ for j < i: row i of the strictly lower triangle, packed (c₂₁, c₃₁, c₃₂, …).
+        let first = i * (i.saturating_sub(1)) / 2;
+        let gamma_t = self.method.gamma_t[i] * h;
+        for r in 0..self.n {
+            let mut v = self.f[r] + gamma_t * self.f_t[r];
+            for j in 0..i {
+                v += c[first + j] / h * self.k[j][r];
+            }
+            self.rhs[r] = v;
+        }
+        lu::solve(&self.g, self.n, &self.rows, &self.rhs, &mut self.k[i]);
+    }
+
+    /// `y = x₀ + Σⱼ<ᵢ aᵢⱼ kⱼ` for stage `i` (packed as `c`).
+    fn stage_point(&mut self, x: &[f64], i: usize) {
+        let a = &self.method.a;
+        let first = i * (i.saturating_sub(1)) / 2;
+        for r in 0..self.n {
+            let mut v = x[r];
+            for j in 0..i {
+                v += a[first + j] * self.k[j][r];
+            }
+            self.y[r] = v;
+        }
+    }
+}
+
+impl Stepper for Rosenbrock {
+    fn error_order(&self) -> f64 {
+        self.method.error_order
+    }
+
+    fn attempt<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, h: f64) -> Norm<S> {
+        let n = self.n;
+        if !self.jacobian_valid {
+            self.form_jacobian(tr, sys)?;
+        }
+        let diagonal = 1.0 / (self.method.gamma * h);
+        for (g, j) in self.g.iter_mut().zip(&self.jacobian) {
+            *g = -j;
+        }
+        for i in 0..n {
+            self.g[i + i * n] += diagonal;
+        }
+        tr.statistics.factorisations += 1;
+        if !lu::factorise(&mut self.g, n, &mut self.rows) {
+            // Singular (or not finite): a shorter step moves 1/(γh) off J's spectrum.
+            return Ok(f64::NAN);
+        }
+        let (a, alpha) = (self.method.a, self.method.alpha);
+        for i in 0..4usize {
+            if i == 0 {
+                self.f.copy_from_slice(&tr.dx);
+            } else {
+                // A stage at the previous stage's point reuses its f.
+                let packed = i * (i - 1) / 2;
+                let previous = (i - 1) * (i.saturating_sub(2)) / 2;
+                let same_point = i >= 2
+                    && alpha[i] == alpha[i - 1]
+                    && a[packed + i - 1] == 0.0
+                    && (0..i - 1).all(|j| a[packed + j] == a[previous + j]);
+                let at_start = alpha[i] == 0.0 && (0..i).all(|j| a[packed + j] == 0.0);
+                if at_start {
+                    self.f.copy_from_slice(&tr.dx);
+                } else if !same_point {
+                    self.stage_point(&tr.x, i);
+                    let t = tr.t + alpha[i] * h;
+                    Trajectory::evaluate(&mut tr.statistics, sys, t, &self.y, &mut self.f)?;
+                }
+            }
+            self.stage(i, h);
+        }
+        let (b, e) = (self.method.b, self.method.e);
+        for r in 0..n {
+            let mut next = tr.x[r];
+            let mut error = 0.0;
+            for j in 0..4 {
+                next += b[j] * self.k[j][r];
+                error += e[j] * self.k[j][r];
+            }
+            self.x_new[r] = next;
+            self.error[r] = error;
+        }
+        Ok(tr.norm(&self.error, &self.x_new))
+    }
+
+    fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S> {
+        tr.advance(&self.x_new, t_new);
+        tr.dx_valid = false;
+        self.jacobian_valid = false;
+        tr.ensure_derivative(sys)
+    }
+
+    fn interpolate(&self, tr: &Trajectory, t: f64, out: &mut [f64]) {
+        let Some((h, s)) = tr.fraction(t, out) else {
+            return;
+        };
+        // Cubic Hermite basis in s = (t − t₀)/h.
+        let h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s);
+        let h10 = s * (1.0 - s) * (1.0 - s);
+        let h01 = s * s * (3.0 - 2.0 * s);
+        let h11 = s * s * (s - 1.0);
+        for i in 0..tr.n {
+            out[i] =
+                h00 * tr.x_old[i] + h10 * h * tr.dx_old[i] + h01 * tr.x[i] + h11 * h * tr.dx[i];
+        }
+    }
+
+    fn forget(&mut self) {
+        self.jacobian_valid = false;
+    }
+}
