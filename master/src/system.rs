@@ -585,7 +585,7 @@ impl System {
 
 /// The table of every data instance of `d` (`None` for an FMU instance), read relative to
 /// `base_dir` and checked whole. An instance names exactly one of `fmu` and `data`; a data
-/// instance takes no parameters, and only it takes `interpolation`.
+/// instance takes no parameters and no step multiple, and only it takes `interpolation`.
 fn read_tables(
     d: &SystemDescription,
     base_dir: &Path,
@@ -610,6 +610,9 @@ fn read_tables(
                 Some(_) if !spec.parameters.is_empty() => {
                     invalid("a data instance takes no parameters (its columns are its outputs)")
                 }
+                Some(_) if spec.step_multiple != 1 => invalid(
+                    "a data instance is read at every communication point; step_multiple does not apply",
+                ),
                 Some(data) => Ok(Some(DataTable::read(
                     &base_dir.join(data),
                     spec.interpolation.unwrap_or_default(),

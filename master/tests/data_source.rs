@@ -196,6 +196,12 @@ fn an_instance_is_an_fmu_or_a_table_and_ssp_has_no_table() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("a data instance takes no parameters"), "{e}");
+    let multirate =
+        rig("hold", "stop_time = 0.9").replace("interpolation", "step_multiple = 2\ninterpolation");
+    let e = System::from_file(&case("multirate", SAMPLES, &multirate))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("step_multiple does not apply"), "{e}");
     let system = load("ssp", SAMPLES, &rig("hold", "stop_time = 0.9"));
     let e = system
         .export_ssp(
