@@ -137,6 +137,34 @@ pub fn at_or_before(ti: f64, t: f64) -> bool {
     ti <= t + 16.0 * f64::EPSILON * t.abs().max(ti.abs())
 }
 
+/// The text of file `path` (`what`, e.g. "the data file"), refused when it is larger than
+/// `max_bytes` (named as the loader's limit `limit`); no more than `max_bytes + 1` bytes are
+/// read, so an endless file such as `/dev/zero` is refused too.
+pub(crate) fn read_text_at_most(
+    path: &Path,
+    max_bytes: u64,
+    what: &str,
+    limit: &str,
+) -> Result<String, String> {
+    use std::io::Read;
+    let too_large = || format!("{what} is larger than {max_bytes} bytes ({limit}); not read");
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    if file
+        .metadata()
+        .is_ok_and(|m| m.is_file() && m.len() > max_bytes)
+    {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes).map_err(|e| format!("{what} is not UTF-8 text: {e}"))
+}
+
 /// One cell as a number: empty or `nan` is a missing sample (NaN), `true`/`false` are 1/0.
 fn cell_value(text: &str) -> Option<f64> {
     match text {
@@ -172,12 +200,20 @@ fn unit_cell(cell: &str) -> Option<String> {
 }
 
 impl DataTable {
-    /// Reads and checks `path` (see [`DataTable::parse`]).
-    pub fn read(path: &Path, interpolation: Interpolation) -> Result<Self, DataError> {
-        let text = std::fs::read_to_string(path).map_err(|e| DataError::File {
-            file: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+    /// Reads and checks `path` (see [`DataTable::parse`]), refusing a file of more than
+    /// `max_bytes` bytes (the loader's `max_unpacked`: a table is held in memory whole, as an
+    /// FMU's unpacked files are on disk).
+    pub fn read(
+        path: &Path,
+        interpolation: Interpolation,
+        max_bytes: u64,
+    ) -> Result<Self, DataError> {
+        let text = read_text_at_most(path, max_bytes, "the data file", "max_unpacked").map_err(
+            |reason| DataError::File {
+                file: path.to_path_buf(),
+                reason,
+            },
+        )?;
         Self::parse(&text, path, interpolation)
     }
 

@@ -4,7 +4,6 @@
 use crate::data::Interpolation;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The built-in stepping algorithm a system file names (see [`crate::Algorithm`]): how the
@@ -144,32 +143,16 @@ impl SystemDescription {
     /// Reads a TOML system file, refusing one of more than `max_bytes` bytes (and reading no
     /// more than `max_bytes + 1` of it, so an endless file such as `/dev/zero` is refused too).
     pub fn read_at_most(path: &Path, max_bytes: u64) -> Result<Self, ReadError> {
-        let fail = |reason: String| ReadError {
+        let text = crate::data::read_text_at_most(
+            path,
+            max_bytes,
+            "the system file",
+            "max_model_description",
+        )
+        .map_err(|reason| ReadError {
             file: path.to_path_buf(),
             reason,
-        };
-        let too_large = || {
-            fail(format!(
-                "the system file is larger than {max_bytes} bytes (max_model_description); \
-                 not read"
-            ))
-        };
-        let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
-        if file
-            .metadata()
-            .is_ok_and(|m| m.is_file() && m.len() > max_bytes)
-        {
-            return Err(too_large());
-        }
-        let mut bytes = Vec::new();
-        file.take(max_bytes.saturating_add(1))
-            .read_to_end(&mut bytes)
-            .map_err(|e| fail(e.to_string()))?;
-        if bytes.len() as u64 > max_bytes {
-            return Err(too_large());
-        }
-        let text = String::from_utf8(bytes)
-            .map_err(|e| fail(format!("the system file is not UTF-8 text: {e}")))?;
+        })?;
         toml::from_str(&text).map_err(|e| ReadError {
             file: path.to_path_buf(),
             reason: e.to_string(),

@@ -151,7 +151,7 @@ impl System {
         options: &LoadOptions,
         algorithm: Arc<dyn Algorithm>,
     ) -> Result<Self, SystemError> {
-        let tables = read_tables(description, base_dir)?;
+        let tables = read_tables(description, base_dir, options.limits.max_unpacked)?;
         let d = &with_times_from_data(description, &tables)?;
         if !(d.step_size.is_finite() && d.step_size > 0.0) {
             return Err(SystemError::Invalid(format!(
@@ -584,11 +584,12 @@ impl System {
 }
 
 /// The table of every data instance of `d` (`None` for an FMU instance), read relative to
-/// `base_dir` and checked whole. An instance names exactly one of `fmu` and `data`; a data
+/// `base_dir` (at most `max_bytes` each) and checked whole. An instance names exactly one of `fmu` and `data`; a data
 /// instance takes no parameters and no step multiple, and only it takes `interpolation`.
 fn read_tables(
     d: &SystemDescription,
     base_dir: &Path,
+    max_bytes: u64,
 ) -> Result<Vec<Option<DataTable>>, SystemError> {
     d.instances
         .iter()
@@ -616,6 +617,7 @@ fn read_tables(
                 Some(data) => Ok(Some(DataTable::read(
                     &base_dir.join(data),
                     spec.interpolation.unwrap_or_default(),
+                    max_bytes,
                 )?)),
             }
         })

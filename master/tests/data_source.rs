@@ -7,6 +7,7 @@
 mod common;
 
 use common::{fmus, run};
+use spurio_master::fmu::{LoadLimits, LoadOptions};
 use spurio_master::ssp::SspVersion;
 use spurio_master::{RunOptions, System};
 use std::path::{Path, PathBuf};
@@ -175,6 +176,26 @@ fn bad_data_is_refused_at_load_naming_the_line_and_the_column() {
         ),
     );
     assert!(e.contains("no column `y` (the columns are: u, w)"), "{e}");
+}
+
+#[test]
+fn a_data_file_is_bounded_by_the_loaders_max_unpacked() {
+    let path = case("too-large", SAMPLES, &rig("hold", "stop_time = 0.9"));
+    let options = LoadOptions {
+        limits: LoadLimits {
+            max_unpacked: 40,
+            ..LoadLimits::default()
+        },
+        ..LoadOptions::default()
+    };
+    let e = System::from_file_loading(&path, None, &options)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("rig.csv: the data file is larger than 40 bytes (max_unpacked); not read"),
+        "{e}"
+    );
+    assert!(System::from_file_loading(&path, None, &LoadOptions::default()).is_ok());
 }
 
 #[test]
