@@ -2,6 +2,7 @@
 //! connections between their variables, by index: what the plan compiler ([`crate::plan`])
 //! lays out and a stepping algorithm ([`crate::algorithm`]) orders.
 
+use crate::data::DataTable;
 use crate::error::SystemError;
 use crate::fmu::{Causality, FmuFile, VarType};
 use std::sync::Arc;
@@ -37,6 +38,9 @@ pub struct ResolvedInstance {
     pub start_values: Vec<(usize, f64)>,
     pub step_multiple: u32,
     pub logging: bool,
+    /// For a data instance, its table (then `fmu` is only the table's interface,
+    /// [`FmuFile::is_table`]).
+    pub data: Option<Arc<DataTable>>,
 }
 
 /// Whether output `output` depends directly on input `input` of the same instance.
@@ -75,6 +79,20 @@ pub(crate) fn split_variable(text: &str) -> Option<(&str, &str)> {
 }
 
 pub(crate) fn unknown(instance: &str, variable: &str, fmu: &FmuFile) -> SystemError {
+    if fmu.is_table() {
+        let columns: Vec<&str> = fmu
+            .variables
+            .iter()
+            .step_by(crate::data::Reading::ALL.len())
+            .map(|v| v.head.name.as_str())
+            .collect();
+        return SystemError::Data(crate::data::DataError::NoColumn {
+            file: fmu.path.clone(),
+            line: 1,
+            name: variable.to_string(),
+            columns: columns.join(", "),
+        });
+    }
     let close: Vec<&str> = fmu
         .variables
         .iter()

@@ -1,9 +1,9 @@
 //! A co-simulation system as written: names only, serialised as TOML (the system file) or
 //! read from an SSP archive ([`crate::ssp`]).
 
-use serde::{Deserialize, Serialize};
+use crate::data::Interpolation;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The built-in stepping algorithm a system file names (see [`crate::Algorithm`]): how the
@@ -25,8 +25,16 @@ pub enum AlgorithmName {
 #[serde(deny_unknown_fields)]
 pub struct InstanceDescription {
     pub name: String,
-    /// Path of the `.fmu`, relative to the system file.
+    /// Path of the `.fmu`, relative to the system file (empty for a data instance).
+    #[serde(default, skip_serializing_if = "is_empty")]
     pub fmu: PathBuf,
+    /// A data instance instead of an FMU: the CSV file of recorded signals, relative to the
+    /// system file ([`crate::data`]); its columns are outputs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<PathBuf>,
+    /// How a data instance reads between samples (default: hold).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolation: Option<Interpolation>,
     /// Start values by variable name (parameters, and constant values of unconnected inputs).
     #[serde(default)]
     pub parameters: BTreeMap<String, toml::Value>,
@@ -42,14 +50,66 @@ fn one() -> u32 {
     1
 }
 
+fn is_empty(path: &Path) -> bool {
+    path.as_os_str().is_empty()
+}
+
+/// The `start_time`/`stop_time` that stands for "from the data": NaN in the description,
+/// written `"data"` in the file.
+pub const FROM_DATA: &str = "data";
+
+fn from_data() -> f64 {
+    f64::NAN
+}
+
+/// A time of the system file: a number, or `"data"` (NaN here), which the system takes from
+/// its data instances ([`crate::System::resolve`]).
+fn time_or_data<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Time {
+        Number(f64),
+        Integer(i64),
+        Word(String),
+    }
+    match Time::deserialize(d)? {
+        Time::Number(x) => Ok(x),
+        Time::Integer(i) => Ok(i as f64),
+        Time::Word(w) if w == FROM_DATA => Ok(f64::NAN),
+        Time::Word(w) => Err(serde::de::Error::custom(format!(
+            "expected a time in seconds or \"{FROM_DATA}\", found \"{w}\""
+        ))),
+    }
+}
+
+fn write_time<S: Serializer>(t: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if t.is_nan() {
+        s.serialize_str(FROM_DATA)
+    } else {
+        s.serialize_f64(*t)
+    }
+}
+
 /// A system file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SystemDescription {
     #[serde(default)]
     pub name: String,
-    #[serde(default)]
+    /// Seconds, or `"data"` (NaN here): the latest first sample of the data instances.
+    #[serde(
+        default,
+        deserialize_with = "time_or_data",
+        serialize_with = "write_time"
+    )]
     pub start_time: f64,
+    /// Seconds, or `"data"` or omitted (NaN here): the earliest last sample of the data
+    /// instances.
+    #[serde(
+        default = "from_data",
+        deserialize_with = "time_or_data",
+        serialize_with = "write_time"
+    )]
     pub stop_time: f64,
     pub step_size: f64,
     #[serde(default)]
@@ -83,32 +143,16 @@ impl SystemDescription {
     /// Reads a TOML system file, refusing one of more than `max_bytes` bytes (and reading no
     /// more than `max_bytes + 1` of it, so an endless file such as `/dev/zero` is refused too).
     pub fn read_at_most(path: &Path, max_bytes: u64) -> Result<Self, ReadError> {
-        let fail = |reason: String| ReadError {
+        let text = crate::data::read_text_at_most(
+            path,
+            max_bytes,
+            "the system file",
+            "max_model_description",
+        )
+        .map_err(|reason| ReadError {
             file: path.to_path_buf(),
             reason,
-        };
-        let too_large = || {
-            fail(format!(
-                "the system file is larger than {max_bytes} bytes (max_model_description); \
-                 not read"
-            ))
-        };
-        let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
-        if file
-            .metadata()
-            .is_ok_and(|m| m.is_file() && m.len() > max_bytes)
-        {
-            return Err(too_large());
-        }
-        let mut bytes = Vec::new();
-        file.take(max_bytes.saturating_add(1))
-            .read_to_end(&mut bytes)
-            .map_err(|e| fail(e.to_string()))?;
-        if bytes.len() as u64 > max_bytes {
-            return Err(too_large());
-        }
-        let text = String::from_utf8(bytes)
-            .map_err(|e| fail(format!("the system file is not UTF-8 text: {e}")))?;
+        })?;
         toml::from_str(&text).map_err(|e| ReadError {
             file: path.to_path_buf(),
             reason: e.to_string(),

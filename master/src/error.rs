@@ -18,6 +18,8 @@ pub enum SystemError {
     Load(#[from] LoadError),
     #[error("system: {0}")]
     Invalid(String),
+    #[error(transparent)]
+    Data(#[from] crate::data::DataError),
     #[error("connection `{connection}`: {reason}")]
     Connection { connection: String, reason: String },
     #[error("instance `{instance}` ({file}): no variable `{variable}`{hint}")]

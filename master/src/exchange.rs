@@ -9,6 +9,7 @@
 //! what that instance logged).
 
 use crate::coupling::ResolvedInstance;
+use crate::data::{Cursor, DataTable, Reading};
 use crate::error::{FmiFailure, RunError, SystemError};
 use crate::fmu::{
     CallError, Experiment, FmiVersion, FmuFile, Instance, StepEnd, StepProblem, VarType,
@@ -177,6 +178,51 @@ impl Member {
     }
 }
 
+/// A data instance of a running system: its table, where its reader is, and the buffer slot
+/// of each of its read outputs (the column and the reading). It is read at every
+/// communication point (the value at t_k); it is not stepped.
+struct Source {
+    table: Arc<DataTable>,
+    cursor: Cursor,
+    /// (slot, column, reading).
+    slots: Vec<(usize, usize, Reading)>,
+}
+
+impl Source {
+    /// The source reading `table` into the slots of the plan's reads `after_step` (variable
+    /// 3j + r is column j read as `Reading::ALL[r]`: [`FmuFile::table`]).
+    fn new(table: Arc<DataTable>, after_step: &[Transfer]) -> Self {
+        let n = Reading::ALL.len();
+        let slots = after_step
+            .iter()
+            .flat_map(|t| t.slots.iter().zip(&t.vars))
+            .map(|(&slot, &var)| (slot, var / n, Reading::ALL[var % n]))
+            .collect();
+        Self {
+            table,
+            cursor: Cursor::default(),
+            slots,
+        }
+    }
+
+    /// Writes the table's values at `time` into the buffer.
+    #[inline]
+    fn read(&mut self, buffer: &mut [f64], time: f64) {
+        self.table.seek(&mut self.cursor, time);
+        for &(slot, column, reading) in &self.slots {
+            buffer[slot] = self.table.reading(self.cursor, column, reading, time);
+        }
+    }
+}
+
+/// Reads every source at `time`.
+#[inline(always)]
+fn read_sources(sources: &mut [Source], buffer: &mut [f64], time: f64) {
+    for s in sources {
+        s.read(buffer, time);
+    }
+}
+
 /// Calls `call` on every member (that `due` selects), then reports every failure at once.
 #[inline(always)]
 fn on_every(
@@ -242,7 +288,10 @@ pub enum StepOutcome {
 /// communication point t_k = start + k·h; a member of step multiple m steps over m·h at every
 /// k that m divides.
 pub struct Exchange {
+    /// The FMU instances (a batch's `member` is a position here).
     members: Vec<Member>,
+    /// The data instances.
+    sources: Vec<Source>,
     /// Set/get operations at each communication point.
     propagation: Vec<Step>,
     buffer: Vec<f64>,
@@ -273,7 +322,15 @@ impl Exchange {
             );
         }
         let mut members = Vec::with_capacity(instances.len());
+        let mut sources = Vec::new();
+        // The position among the members of each instance (a data instance has none).
+        let mut position = vec![usize::MAX; instances.len()];
         for (i, spec) in instances.iter().enumerate() {
+            if let Some(table) = &spec.data {
+                sources.push(Source::new(table.clone(), &plan.after_step[i]));
+                continue;
+            }
+            position[i] = members.len();
             let fmu = &spec.fmu;
             let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
                 fmu.instantiate(&spec.name, spec.logging)
@@ -341,11 +398,17 @@ impl Exchange {
             propagation: plan
                 .propagation
                 .iter()
-                .map(|op| match op {
-                    Op::Set(t) => Step::Set(Batch::new(t, &instances[t.member].fmu)),
-                    Op::Get(t) => Step::Get(Batch::new(t, &instances[t.member].fmu)),
+                .map(|op| {
+                    let (Op::Set(t) | Op::Get(t)) = op;
+                    let mut batch = Batch::new(t, &instances[t.member].fmu);
+                    batch.member = position[t.member];
+                    match op {
+                        Op::Set(_) => Step::Set(batch),
+                        Op::Get(_) => Step::Get(batch),
+                    }
                 })
                 .collect(),
+            sources,
             buffer: vec![0.0; plan.slot_count],
             start_time,
             stop_time,
@@ -375,6 +438,7 @@ impl Exchange {
     /// Reads every member's outputs at `time`, noting the reads as FMI call `call`.
     pub fn read_all(&mut self, call: &'static str, time: f64) -> Result<(), RunError> {
         let buffer = &mut self.buffer;
+        read_sources(&mut self.sources, buffer, time);
         on_every(
             &mut self.members,
             |_| true,
@@ -387,6 +451,7 @@ impl Exchange {
     #[inline(always)]
     pub fn read_outputs(&mut self, k: u64, time: f64) -> Result<(), RunError> {
         let buffer = &mut self.buffer;
+        read_sources(&mut self.sources, buffer, time);
         on_every(
             &mut self.members,
             |m| !m.after_step.is_empty() && due_at(k, m.multiple),

@@ -8,7 +8,7 @@
 //! Sweeps, shards and cluster runs are built on it by the `spurio-batch` crate.
 //!
 //! Its modules, each importing only those listed before it:
-//! `xml`, `logging`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
+//! `xml`, `logging`, `data`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
 //! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`, and
 //! [`model_exchange`] (Model Exchange import: on `fmu` and `record` and the solvers crate).
 
@@ -16,6 +16,7 @@
 
 mod algorithm;
 mod coupling;
+mod data;
 mod description;
 mod engine;
 mod error;
@@ -33,6 +34,7 @@ mod xml;
 
 pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
 pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+pub use data::{Cursor, DataError, DataTable, Interpolation, Reading};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};
 pub use error::{FmiFailure, RunError, SystemError};

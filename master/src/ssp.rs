@@ -751,6 +751,8 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                     parameters: BTreeMap::new(),
                     step_multiple: 1,
                     logging: false,
+                    data: None,
+                    interpolation: None,
                 });
             }
             "ParameterBinding" if depth_component => {
@@ -910,6 +912,8 @@ mod tests {
                     parameters,
                     step_multiple: 1,
                     logging: false,
+                    data: None,
+                    interpolation: None,
                 },
                 InstanceDescription {
                     name: "sensor".into(),
@@ -917,6 +921,8 @@ mod tests {
                     parameters: BTreeMap::new(),
                     step_multiple: 2,
                     logging: true,
+                    data: None,
+                    interpolation: None,
                 },
             ],
             connections: vec!["crane.x -> sensor.u[1]".into()],
@@ -980,6 +986,8 @@ mod tests {
                 parameters: BTreeMap::new(),
                 step_multiple: 1,
                 logging: false,
+                data: None,
+                interpolation: None,
             }],
             connections: vec![],
             record: vec![],

@@ -20,7 +20,15 @@
 //! name = "sensor"
 //! fmu = "../build/fmus/Sensor2.fmu"
 //! step_multiple = 1                       # multirate: steps every N base steps
+//!
+//! [[instance]]                            # a table of recorded signals ([`crate::data`]):
+//! name = "rig"                            # its columns are outputs (`rig.force`, with
+//! data = "rig.csv"                        # `rig.force.valid` and `rig.force.held`)
+//! interpolation = "hold"                  # or "linear"
 //! ```
+//!
+//! `start_time = "data"` and `stop_time = "data"` (or omitted) take the times from the data
+//! instances: the span every table covers.
 //!
 //! [`System::resolve`] loads every FMU once and checks every name, type and causality,
 //! reporting errors that name the instance, the variable and the file. [`System::from_file`]
@@ -28,6 +36,7 @@
 
 use crate::algorithm::{self, Algorithm};
 use crate::coupling::{split_variable, unknown, variable_name, ResolvedInstance, VarRef};
+use crate::data::DataTable;
 use crate::description::{InstanceDescription, SystemDescription};
 use crate::error::SystemError;
 use crate::fmu::{Causality, FmuFile, LoadOptions, VarType, VariableInfo};
@@ -142,7 +151,8 @@ impl System {
         options: &LoadOptions,
         algorithm: Arc<dyn Algorithm>,
     ) -> Result<Self, SystemError> {
-        let d = description;
+        let tables = read_tables(description, base_dir, options.limits.max_unpacked)?;
+        let d = &with_times_from_data(description, &tables)?;
         if !(d.step_size.is_finite() && d.step_size > 0.0) {
             return Err(SystemError::Invalid(format!(
                 "step_size must be > 0, got {}",
@@ -160,7 +170,7 @@ impl System {
         }
         let mut instances = Vec::new();
         let mut index_of: HashMap<&str, usize> = HashMap::new();
-        for spec in &d.instances {
+        for (spec, table) in d.instances.iter().zip(tables) {
             if spec.name.is_empty() || spec.name.contains('.') {
                 return Err(SystemError::Invalid(format!(
                     "instance name `{}` must be non-empty and contain no '.'",
@@ -181,6 +191,18 @@ impl System {
                     "instance `{}`: step_multiple must be >= 1",
                     spec.name
                 )));
+            }
+            if let Some(table) = table {
+                table.check_range(d.start_time, d.stop_time)?;
+                instances.push(ResolvedInstance {
+                    name: spec.name.clone(),
+                    fmu: Arc::new(FmuFile::table(&table)),
+                    start_values: Vec::new(),
+                    step_multiple: spec.step_multiple,
+                    logging: spec.logging,
+                    data: Some(Arc::new(table)),
+                });
+                continue;
             }
             let path = base_dir.join(&spec.fmu);
             let fmu = match loaded.get(&path) {
@@ -231,6 +253,7 @@ impl System {
                 start_values,
                 step_multiple: spec.step_multiple,
                 logging: spec.logging,
+                data: None,
             });
         }
         let plan = Plan::compile(d, &instances, algorithm.as_ref())?;
@@ -247,9 +270,15 @@ impl System {
                 instances: d
                     .instances
                     .iter()
-                    .map(|i| InstanceDescription {
-                        fmu: base_dir.join(&i.fmu),
-                        ..i.clone()
+                    .map(|i| match &i.data {
+                        Some(data) => InstanceDescription {
+                            data: Some(base_dir.join(data)),
+                            ..i.clone()
+                        },
+                        None => InstanceDescription {
+                            fmu: base_dir.join(&i.fmu),
+                            ..i.clone()
+                        },
                     })
                     .collect(),
                 ..d.clone()
@@ -333,6 +362,17 @@ impl System {
         target: &Path,
         version: crate::ssp::SspVersion,
     ) -> Result<(), SspError> {
+        if let Some(data) = self.instances.iter().find(|i| i.data.is_some()) {
+            return Err(SspError::File {
+                file: target.to_path_buf(),
+                reason: format!(
+                    "instance `{}` is a data instance ({}): SSP has no element for a table of \
+                     recorded signals, so this system cannot be exported; replace it by an FMU",
+                    data.name,
+                    data.fmu.path.display()
+                ),
+            });
+        }
         let fmus: Vec<&FmuFile> = self.instances.iter().map(|i| i.fmu.as_ref()).collect();
         crate::ssp::export(&self.source, &fmus, target, version)
     }
@@ -457,6 +497,8 @@ impl System {
         let i = self.instance_index(instance)?;
         let mut description = self.source.clone();
         description.instances[i].fmu = fmu.to_path_buf();
+        description.instances[i].data = None;
+        description.instances[i].interpolation = None;
         let mut loaded: HashMap<PathBuf, Arc<FmuFile>> = self
             .instances
             .iter()
@@ -539,6 +581,78 @@ impl System {
     pub fn notes(&self) -> &[String] {
         &self.notes
     }
+}
+
+/// The table of every data instance of `d` (`None` for an FMU instance), read relative to
+/// `base_dir` (at most `max_bytes` each) and checked whole. An instance names exactly one of `fmu` and `data`; a data
+/// instance takes no parameters and no step multiple, and only it takes `interpolation`.
+fn read_tables(
+    d: &SystemDescription,
+    base_dir: &Path,
+    max_bytes: u64,
+) -> Result<Vec<Option<DataTable>>, SystemError> {
+    d.instances
+        .iter()
+        .map(|spec| {
+            let invalid = |reason: &str| {
+                Err(SystemError::Invalid(format!(
+                    "instance `{}`: {reason}",
+                    spec.name
+                )))
+            };
+            let has_fmu = !spec.fmu.as_os_str().is_empty();
+            match &spec.data {
+                None if !has_fmu => invalid("give `fmu = \"…\"` or `data = \"…\"`"),
+                None if spec.interpolation.is_some() => {
+                    invalid("`interpolation` is for a data instance (`data = \"….csv\"`)")
+                }
+                None => Ok(None),
+                Some(_) if has_fmu => invalid("give `fmu` or `data`, not both"),
+                Some(_) if !spec.parameters.is_empty() => {
+                    invalid("a data instance takes no parameters (its columns are its outputs)")
+                }
+                Some(_) if spec.step_multiple != 1 => invalid(
+                    "a data instance is read at every communication point; step_multiple does not apply",
+                ),
+                Some(data) => Ok(Some(DataTable::read(
+                    &base_dir.join(data),
+                    spec.interpolation.unwrap_or_default(),
+                    max_bytes,
+                )?)),
+            }
+        })
+        .collect()
+}
+
+/// `d` with a `start_time` or `stop_time` of `"data"` (NaN) taken from its data tables: the
+/// latest first sample, the earliest last sample (the span every table covers).
+fn with_times_from_data(
+    d: &SystemDescription,
+    tables: &[Option<DataTable>],
+) -> Result<SystemDescription, SystemError> {
+    let mut d = d.clone();
+    let given = tables.iter().flatten();
+    for (time, what, from) in [
+        (
+            &mut d.start_time,
+            "start_time",
+            given.clone().map(DataTable::start).reduce(f64::max),
+        ),
+        (
+            &mut d.stop_time,
+            "stop_time",
+            given.clone().map(DataTable::end).reduce(f64::min),
+        ),
+    ] {
+        if time.is_nan() {
+            *time = from.ok_or_else(|| {
+                SystemError::Invalid(format!(
+                    "{what} is not given (or is \"data\") and no instance is a data instance to take it from"
+                ))
+            })?;
+        }
+    }
+    Ok(d)
 }
 
 /// A value given to an input that a connection drives would be overwritten at the first

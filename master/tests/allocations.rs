@@ -103,3 +103,50 @@ fn a_step_allocates_nothing() {
         }
     }
 }
+
+/// A data instance (`linear`, a missing sample every 7th row, sampled every 0.003 s so that
+/// its cursor passes several samples per step) driving a Feedthrough's Real input with a
+/// column and its Boolean input with the column's validity flag, to `stop_time` in steps of
+/// 0.01.
+fn data_into_feedthrough(csv: &Path, stop_time: f64) -> System {
+    let fmu = reference("fmi2", "Feedthrough");
+    let text = format!(
+        "stop_time = {stop_time:?}\nstep_size = 0.01\n\
+         connections = [\"rig.u.held -> b.Float64_continuous_input\", \"rig.u.valid -> b.Boolean_input\"]\n\
+         record = [\"rig.u\", \"b.Float64_continuous_output\"]\n\
+         [[instance]]\nname = \"rig\"\ndata = {:?}\ninterpolation = \"linear\"\n{}",
+        csv.display().to_string(),
+        instance_tables(&[("b", &fmu, "")])
+    );
+    let description: SystemDescription = toml::from_str(&text).unwrap();
+    System::resolve(&description, Path::new(".")).unwrap()
+}
+
+#[test]
+fn a_data_instance_reads_without_allocating() {
+    let dir = std::env::temp_dir().join(format!("spurio-data-alloc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("rig.csv");
+    let rows: String = (0..1001)
+        .map(|i| {
+            let t = 0.003 * f64::from(i);
+            if i % 7 == 3 {
+                format!("{t},\n")
+            } else {
+                format!("{t},{}\n", (3.0 * t).sin())
+            }
+        })
+        .collect();
+    std::fs::write(&csv, format!("time,u\n{rows}")).unwrap();
+    for recording in [false, true] {
+        let short = run_allocations(&data_into_feedthrough(&csv, 1.0), recording);
+        let long = run_allocations(&data_into_feedthrough(&csv, 3.0), recording);
+        assert_eq!(
+            long,
+            short,
+            "csv = {recording}: 200 more steps made {} more allocations",
+            long as i64 - short as i64
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

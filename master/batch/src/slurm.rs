@@ -231,7 +231,11 @@ pub fn stage(
     let mut description: SystemDescription = system.source_description().clone();
     let mut staged: BTreeMap<PathBuf, String> = BTreeMap::new();
     for instance in &mut description.instances {
-        let source = instance.fmu.clone();
+        // A data instance's table is staged beside the FMUs.
+        let source = instance
+            .data
+            .clone()
+            .unwrap_or_else(|| instance.fmu.clone());
         let name = match staged.get(&source) {
             Some(name) => name.clone(),
             None => {
@@ -250,7 +254,11 @@ pub fn stage(
                 name
             }
         };
-        instance.fmu = PathBuf::from("fmus").join(name);
+        let staged_path = PathBuf::from("fmus").join(name);
+        match &mut instance.data {
+            Some(data) => *data = staged_path,
+            None => instance.fmu = staged_path,
+        }
     }
     let system_path = dir.join("system.toml");
     let text = toml::to_string_pretty(&description).map_err(|e| SlurmError::Serialize {

@@ -219,6 +219,8 @@ pub fn run(
             instances: vec![InstanceDescription {
                 name: fmu.model_identifier.clone(),
                 fmu: absolute,
+                data: None,
+                interpolation: None,
                 parameters,
                 step_multiple: 1,
                 logging: false,

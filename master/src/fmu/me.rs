@@ -49,6 +49,12 @@ pub fn read_description(fmu: &FmuFile) -> Result<MeDescription, LoadError> {
     let dir = match &fmu.import {
         Import::Fmi2(i) => i.archive_path().to_path_buf(),
         Import::Fmi3(i) => i.archive_path().to_path_buf(),
+        Import::Table => {
+            return Err(LoadError::ModelDescription {
+                file: fmu.path.clone(),
+                reason: "a data instance's table has no model description".into(),
+            })
+        }
     };
     let text = std::fs::read_to_string(dir.join("modelDescription.xml")).map_err(|e| {
         LoadError::ModelDescription {
@@ -222,6 +228,12 @@ impl FmuFile {
                     .get_number_of_event_indicators()
                     .map_err(|e| failed("fmi3GetNumberOfEventIndicators", format!(" ({e})")))?;
                 Inner::Fmi3(Box::new(i))
+            }
+            Import::Table => {
+                return Err(failed(
+                    "fmi2Instantiate",
+                    " (a data table is read by the engine, not instantiated)".into(),
+                ))
             }
         };
         Ok(MeInstance {

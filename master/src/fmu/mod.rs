@@ -21,6 +21,7 @@ pub mod binary;
 mod checks;
 mod instance;
 pub mod me;
+mod table;
 mod v3;
 mod xml;
 
@@ -311,6 +312,8 @@ pub struct ArrayInfo {
 pub enum Import {
     Fmi2(Fmi2Import),
     Fmi3(Fmi3Import),
+    /// None: a data instance's table, read by the engine ([`FmuFile::is_table`]).
+    Table,
 }
 
 /// A loaded FMU: its archive, its rust-fmi import and its variables indexed by name.
@@ -631,6 +634,14 @@ impl FmuFile {
                 .map(|i| Inner::Fmi3(Box::new(i))),
                 "fmi3InstantiateCoSimulation",
             ),
+            Import::Table => {
+                return Err(LoadError::Instantiate {
+                    instance: instance.to_string(),
+                    file: self.path.clone(),
+                    call: "fmi2Instantiate",
+                    log: " (a data table is read by the engine, not instantiated)".into(),
+                })
+            }
         };
         match created {
             Ok(Inner::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),

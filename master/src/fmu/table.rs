@@ -1,0 +1,89 @@
+//! The variables of a data instance ([`crate::data::DataTable`]) in the form the plan compiler
+//! reads for every instance: column j gives three outputs, value references 3j, 3j + 1 and
+//! 3j + 2 ([`Reading`]): the column itself (Real, NaN at a missing sample), `<column>.valid`
+//! (Boolean, true where the column has a sample) and `<column>.held` (Real, the last present
+//! sample over missing ones). No output depends on an input (a table has none), so a data instance never
+//! takes part in a direct-feedthrough chain. Nothing is imported: the engine reads the table.
+
+use super::{
+    Causality, FmiVersion, FmuFile, Import, Interface, VarType, VariableHead, VariableInfo,
+};
+use crate::data::{DataTable, Reading};
+use std::collections::HashMap;
+
+impl FmuFile {
+    /// The interface of the data instance reading `table`.
+    pub(crate) fn table(table: &DataTable) -> Self {
+        let output =
+            |name: String, value_reference: usize, var_type, unit, description| VariableInfo {
+                head: VariableHead {
+                    name,
+                    value_reference: u32::try_from(value_reference).unwrap_or(u32::MAX),
+                    var_type,
+                    causality: Causality::Output,
+                },
+                fixed: false,
+                start: None,
+                unit,
+                description: Some(description),
+                dependencies: Some(Vec::new()),
+                element: None,
+            };
+        let mut variables = Vec::with_capacity(Reading::ALL.len() * table.names.len());
+        for (j, (name, unit)) in table.names.iter().zip(&table.units).enumerate() {
+            for (r, reading) in Reading::ALL.into_iter().enumerate() {
+                let (var_type, unit, description) = match reading {
+                    Reading::Value => (
+                        VarType::Real,
+                        unit.clone(),
+                        format!("column `{name}` of {}", table.file.display()),
+                    ),
+                    Reading::Valid => (
+                        VarType::Boolean,
+                        None,
+                        format!("whether column `{name}` has a sample (false where it is missing)"),
+                    ),
+                    Reading::Held => (
+                        VarType::Real,
+                        unit.clone(),
+                        format!("column `{name}` with each missing sample replaced by the last present one"),
+                    ),
+                };
+                variables.push(output(
+                    format!("{name}{}", reading.suffix()),
+                    Reading::ALL.len() * j + r,
+                    var_type,
+                    unit,
+                    description,
+                ));
+            }
+        }
+        let by_name = variables
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (v.head.name.clone(), i))
+            .collect();
+        let model_name = table
+            .file
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        Self {
+            path: table.file.clone(),
+            version: FmiVersion::Fmi2,
+            interface: Interface::CoSimulation,
+            import: Import::Table,
+            model_name,
+            model_identifier: String::new(),
+            guid: String::new(),
+            variables,
+            arrays: Vec::new(),
+            by_name,
+            arrays_by_name: HashMap::new(),
+        }
+    }
+
+    /// Whether this is the interface of a data instance ([`FmuFile::table`]), not an FMU.
+    pub fn is_table(&self) -> bool {
+        matches!(self.import, Import::Table)
+    }
+}
