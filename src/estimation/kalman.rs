@@ -221,6 +221,23 @@ impl FilterCore {
         Ok(())
     }
 
+    /// The opening of a step on the model's own matrices, the same for the sKF and the rsKF:
+    /// checks the lengths of (u_k, y_k), predicts x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q
+    /// ([`FilterCore::predict`]) and computes e = y − C x⁻ − D u
+    /// ([`FilterCore::compute_innovation`]). Gives whether the sample has a missing channel
+    /// (a y_j = NaN, [`MissingMask::any`]): the correction then uses the present ones only.
+    pub(crate) fn predict_and_innovate(
+        &mut self,
+        model: &StateSpace,
+        u: &DVector<f64>,
+        y: &DVector<f64>,
+    ) -> Result<bool, EstimationError> {
+        let [a, b, c, d] = sample_views(model, u, y)?;
+        self.predict(a, b, &model.q);
+        self.compute_innovation(c, d, u, y)?;
+        Ok(MissingMask::any(y))
+    }
+
     /// Gain from S = C P⁻ Cᵀ + R_eff, state update and covariance update with R_eff (see
     /// the type's documentation).
     pub(crate) fn correct(
@@ -1064,10 +1081,9 @@ impl KalmanFilter {
                 return result;
             }
         }
-        let [a, b, c, d] = sample_views(m, u, y)?;
-        self.core.predict(a, b, &m.q);
-        self.core.compute_innovation(c, d, u, y)?;
-        if MissingMask::any(y) {
+        let missing = self.core.predict_and_innovate(m, u, y)?;
+        let (c, d) = (View::of(&m.c), View::of(&m.d));
+        if missing {
             self.core.correct_present(&mut self.missing, c, &m.r, y)?;
             self.core.finish(c, d, u);
             return self.core.check_output();
@@ -1381,6 +1397,24 @@ pub(crate) mod tests {
         }
     }
 
+    /// Steps a general filter (u a vector of `m` entries, 0 or 1) and its form on plain
+    /// numbers, `fast` (`fast_step` its step), with the sample (u, y), and asserts that they
+    /// leave the same dynamic state bit for bit (`case` names the case in the message).
+    pub(crate) fn step_both_bit_for_bit<F: Saved>(
+        general: &mut impl crate::estimation::StateEstimator,
+        fast: &mut F,
+        fast_step: fn(&mut F, f64, f64) -> Result<(), EstimationError>,
+        (m, u, y): (usize, f64, f64),
+        case: std::fmt::Arguments<'_>,
+    ) {
+        let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+        general
+            .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
+            .unwrap();
+        fast_step(fast, u, y).unwrap();
+        assert_eq!(bits(fast.saved()), bits(general.dynamic_state()), "{case}");
+    }
+
     #[test]
     fn the_scalar_filter_on_numbers_equals_the_general_path_bit_for_bit() {
         let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
@@ -1394,14 +1428,12 @@ pub(crate) mod tests {
             for k in 0..5000 {
                 let u = rng.normal();
                 let y = 10.0 * rng.normal();
-                general
-                    .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
-                    .unwrap();
-                fast.step(u, y).unwrap();
-                assert_eq!(
-                    bits(fast.dynamic_state()),
-                    bits(general.dynamic_state()),
-                    "m = {m}, run {run}, step {k}"
+                step_both_bit_for_bit(
+                    &mut general,
+                    &mut fast,
+                    ScalarKalmanFilter::step,
+                    (m, u, y),
+                    format_args!("m = {m}, run {run}, step {k}"),
                 );
                 assert_eq!(fast.state().to_bits(), general.state()[0].to_bits());
                 assert_eq!(fast.output().to_bits(), general.output()[0].to_bits());

@@ -24,8 +24,7 @@
 //! bit whenever no standardised residual exceeds c (Huber).
 
 use super::kalman::{
-    core_accessors, sample_views, FilterCore, GaussianModel, KalmanFilter, ScalarCovariance,
-    ScalarKalmanFilter,
+    core_accessors, FilterCore, GaussianModel, KalmanFilter, ScalarCovariance, ScalarKalmanFilter,
 };
 use super::missing::MissingMask;
 use super::{parameter_error, EstimationError, Saved, StateReader};
@@ -296,10 +295,7 @@ impl RobustKalmanFilter {
                 return result;
             }
         }
-        let [a, b, c, d] = sample_views(m, u, y)?;
-        self.core.predict(a, b, &m.q);
-        self.core.compute_innovation(c, d, u, y)?;
-        if MissingMask::any(y) {
+        if self.core.predict_and_innovate(m, u, y)? {
             return self.step_missing(u, y);
         }
         self.weigh(false)?;
@@ -599,7 +595,9 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::{mean_std, TestRng};
     use super::*;
-    use crate::estimation::kalman::tests::{random_scalar_model, scalar_filter};
+    use crate::estimation::kalman::tests::{
+        random_scalar_model, scalar_filter, step_both_bit_for_bit,
+    };
     use crate::state_space::StateSpace;
 
     fn scalar(v: f64) -> DMatrix<f64> {
@@ -627,14 +625,12 @@ mod tests {
                 // a measurement with an outlier one time in five
                 let outlier = if rng.uniform() < 0.2 { 50.0 } else { 0.0 };
                 let y = rng.normal() + outlier * rng.normal();
-                general
-                    .step(&DVector::from_element(m, u), &DVector::from_element(1, y))
-                    .unwrap();
-                fast.step(u, y).unwrap();
-                assert_eq!(
-                    bits(fast.dynamic_state()),
-                    bits(general.dynamic_state()),
-                    "m = {m}, {psi:?}, step {k}"
+                step_both_bit_for_bit(
+                    &mut general,
+                    &mut fast,
+                    ScalarRobustKalmanFilter::step,
+                    (m, u, y),
+                    format_args!("m = {m}, {psi:?}, step {k}"),
                 );
                 assert_eq!(fast.weight(), general.weights()[0]);
                 assert_eq!(fast.filter().state(), general.state()[0]);

@@ -37,7 +37,7 @@
 //! the parameter filter a dual EKF on the free entries ϑ of [A B]: S⁻ = Â S + ∂(Â x̂ + B̂ u)/∂ϑ,
 //! H = Ĉ S⁻, ϑ ← ϑ + G e_k with the state filter's innovation e_k, S = (I − K Ĉ) S⁻.
 
-use crate::filtered::{FilterFamily, Filtered, Inputs};
+use crate::filtered::{FilterFamily, Filtered, SignalBlocks, Signals};
 use crate::model::{
     add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
     ModelBlocks,
@@ -64,13 +64,7 @@ pub struct CleanerBlocks {
 /// Value references of a `DualKalmanFilter` / `DkfRsKf` variant.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DualLayout {
-    pub dims: Dimensions,
-    pub u: Block,
-    pub y: Block,
-    /// The Boolean inputs `y_valid[j]` (last in the table).
-    pub y_valid: Block,
-    pub x_hat: Block,
-    pub y_hat: Block,
+    pub signals: SignalBlocks,
     pub a_hat: Block,
     pub b_hat: Block,
     pub c_hat: Block,
@@ -84,12 +78,9 @@ pub struct DualLayout {
     pub bounds: BoundBlocks,
 }
 
-impl Inputs for DualLayout {
-    fn inputs(&self) -> (&Block, &Block) {
-        (&self.u, &self.y)
-    }
-    fn validity(&self) -> &Block {
-        &self.y_valid
+impl Signals for DualLayout {
+    fn signals(&self) -> &SignalBlocks {
+        &self.signals
     }
 }
 
@@ -255,12 +246,14 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
     let info = model_info(config, (id, description), t, 10.0, 0.05);
     Ok((
         DualLayout {
-            dims,
-            u,
-            y,
-            y_valid,
-            x_hat,
-            y_hat,
+            signals: SignalBlocks {
+                dims,
+                u,
+                y,
+                y_valid,
+                x_hat,
+                y_hat,
+            },
             a_hat,
             b_hat,
             c_hat,
@@ -315,7 +308,7 @@ fn build_dual(layout: &DualLayout, values: &Values) -> Result<DualKalmanFilter, 
     }
     let b = &layout.bounds;
     let known_rows = values.integer(b.known_rows);
-    let n = layout.dims.n;
+    let n = layout.signals.dims.n;
     let known = usize::try_from(known_rows)
         .ok()
         .filter(|k| *k <= n)
@@ -394,7 +387,7 @@ fn transpose<const R: usize, const C: usize>(
 }
 
 fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilter) {
-    let n = l.dims.n;
+    let n = l.signals.dims.n;
     let theta = dual.theta();
     let (ld, data) = (theta.nrows(), theta.as_slice());
     let blocks = [
@@ -424,16 +417,16 @@ fn write_dual_outputs(l: &DualLayout, values: &mut Values, dual: &DualKalmanFilt
             }
         }
     }
-    l.x_hat.write_vector(values, dual.state());
+    l.signals.x_hat.write_vector(values, dual.state());
     values.set_real(l.bounds.excitation, dual.excitation());
     values.set_boolean(l.bounds.adapting, dual.adapting());
 }
 
 fn write_initial_dual(l: &DualLayout, ctx: &mut Context, dual: &DualKalmanFilter) {
     write_dual_outputs(l, ctx.values, dual);
-    let u = l.u.vector(ctx.values);
+    let u = l.signals.u.vector(ctx.values);
     let y_hat = dual.c() * dual.state() + dual.d() * u;
-    l.y_hat.write_vector(ctx.values, &y_hat);
+    l.signals.y_hat.write_vector(ctx.values, &y_hat);
 }
 
 /// A dual filter behind a `DualKalmanFilter`-style FMU.
@@ -514,7 +507,7 @@ impl<F: DualFilter> FilterFamily<F> for DualLayout {
 
     fn write_outputs(&self, filter: &F, values: &mut Values) {
         write_dual_outputs(self, values, filter.dual());
-        self.y_hat.write_vector(values, filter.output());
+        self.signals.y_hat.write_vector(values, filter.output());
         if let Some(c) = &self.cleaner {
             filter.write_cleaner(c, values, false);
         }
@@ -729,7 +722,7 @@ mod tests {
             dkf.step(&u, &y).unwrap();
         }
         write_dual_outputs(&layout, &mut values, &dkf);
-        let n = layout.dims.n;
+        let n = layout.signals.dims.n;
         let theta = dkf.theta();
         let moved = theta.iter().filter(|v| **v != 0.0 && **v != 1.0).count();
         assert!(moved >= 8, "{moved} entries of Θ̂ moved");
@@ -745,7 +738,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(layout.x_hat.vector(&values), *dkf.state());
+        assert_eq!(layout.signals.x_hat.vector(&values), *dkf.state());
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //!
 //! [`EstimatorFmu`]: spurio_fmu_common::estimator::EstimatorFmu
 
+use crate::model::Dimensions;
 use nalgebra::DVector;
 use spurio::estimation::{EstimationError, StateEstimator};
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values};
@@ -16,15 +17,26 @@ use spurio_fmu_common::estimator::{
 use spurio_fmu_common::structured::Block;
 use std::marker::PhantomData;
 
-/// Where the inputs of a family's variant are (whatever its filter): the blocks `u[i]` and
-/// `y[j]`.
-pub trait Inputs {
-    /// The input blocks `u` and `y`.
-    fn inputs(&self) -> (&Block, &Block);
-    /// The Boolean inputs `y_valid[j]` ([`add_validity`]).
+/// The value references every variant of the family has, whatever its filter: its
+/// dimensions, the inputs `u[i]`, `y[j]` and `y_valid[j]`, and the estimates `x_hat[i]`,
+/// `y_hat[j]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SignalBlocks {
+    pub dims: Dimensions,
+    pub u: Block,
+    pub y: Block,
+    /// The Boolean inputs `y_valid[j]` ([`add_validity`], last in the table).
     ///
     /// [`add_validity`]: spurio_fmu_common::estimator::add_validity
-    fn validity(&self) -> &Block;
+    pub y_valid: Block,
+    pub x_hat: Block,
+    pub y_hat: Block,
+}
+
+/// A variant's layout holds its [`SignalBlocks`]: where the adapter reads the inputs.
+pub trait Signals {
+    /// The blocks of the inputs and estimates.
+    fn signals(&self) -> &SignalBlocks;
 }
 
 /// A family of filters behind the one [`Filtered`] adapter, implemented by the family's
@@ -34,7 +46,7 @@ pub trait Inputs {
 ///
 /// [`LinearLayout`]: crate::linear::LinearLayout
 /// [`DualLayout`]: crate::dual::DualLayout
-pub trait FilterFamily<F>: Inputs + Sized + Clone + std::fmt::Debug + 'static {
+pub trait FilterFamily<F>: Signals + Sized + Clone + std::fmt::Debug + 'static {
     /// The layout (value references of one variant's variables) and model description for a
     /// configuration.
     fn interface(config: &Config) -> Result<(Self, ModelInfo), Cause>;
@@ -74,7 +86,7 @@ where
     }
 
     fn build(layout: &L, values: &Values) -> Result<Self, Failure> {
-        let (u, y) = layout.inputs();
+        let SignalBlocks { u, y, .. } = layout.signals();
         Ok(Self {
             filter: layout.build(values)?,
             u: DVector::zeros(u.indices().len()),
@@ -88,13 +100,13 @@ where
     }
 
     fn step(&mut self, l: &L, ctx: &mut Context, _: f64, _: f64) -> Result<(), Failure> {
-        let (u, y) = l.inputs();
+        let SignalBlocks { u, y, y_valid, .. } = l.signals();
         if !(copy_inputs(ctx.values, u, &mut self.u) && copy_inputs(ctx.values, y, &mut self.y)) {
             // A non-finite input (or buffers of another size): the message names it.
             read_inputs(ctx.values, u, "u", &mut self.u)?;
             read_inputs(ctx.values, y, "y", &mut self.y)?;
         }
-        mark_missing(ctx.values, l.validity(), &mut self.y);
+        mark_missing(ctx.values, y_valid, &mut self.y);
         self.filter.step(&self.u, &self.y).map_err(error)?;
         l.write_outputs(&self.filter, ctx.values);
         Ok(())

@@ -21,7 +21,7 @@
 //! (outputs, ≥ 1, default 1). The defaults of the parameters (A = I, C = [I 0], Q = R = 1e-4 I,
 //! x̂₀ = 0, P₀ = 0) are the cosine experiment of docs/experiments.md §4 for n = p = 1.
 
-use crate::filtered::{FilterFamily, Filtered, Inputs};
+use crate::filtered::{FilterFamily, Filtered, SignalBlocks, Signals};
 use crate::model::{
     add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
     ModelBlocks,
@@ -40,13 +40,7 @@ use spurio_fmu_common::structured::{add_vector, Block};
 /// Value references of a `KalmanFilter` / `RobustKalmanFilter` variant.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LinearLayout {
-    pub dims: Dimensions,
-    pub u: Block,
-    pub y: Block,
-    /// The Boolean inputs `y_valid[j]` (last in the table).
-    pub y_valid: Block,
-    pub x_hat: Block,
-    pub y_hat: Block,
+    pub signals: SignalBlocks,
     pub innovation: Block,
     /// rsKF only: the weights w_j.
     pub w: Option<Block>,
@@ -55,12 +49,9 @@ pub struct LinearLayout {
     pub psi: Option<(usize, usize)>,
 }
 
-impl Inputs for LinearLayout {
-    fn inputs(&self) -> (&Block, &Block) {
-        (&self.u, &self.y)
-    }
-    fn validity(&self) -> &Block {
-        &self.y_valid
+impl Signals for LinearLayout {
+    fn signals(&self) -> &SignalBlocks {
+        &self.signals
     }
 }
 
@@ -109,12 +100,14 @@ fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo),
     let info = model_info(config, (id, description), t, 1.0, 1e-3);
     Ok((
         LinearLayout {
-            dims,
-            u,
-            y,
-            y_valid,
-            x_hat,
-            y_hat,
+            signals: SignalBlocks {
+                dims,
+                u,
+                y,
+                y_valid,
+                x_hat,
+                y_hat,
+            },
             innovation,
             w,
             model,
@@ -127,10 +120,10 @@ fn interface(config: &Config, robust: bool) -> Result<(LinearLayout, ModelInfo),
 /// Writes x̂ = x0, ŷ = C x0 + D u, e = 0, w = 1 before the first step.
 fn write_initial_linear(layout: &LinearLayout, ctx: &mut Context) {
     let m = layout.model.read(ctx.values);
-    let u = layout.u.vector(ctx.values);
+    let u = layout.signals.u.vector(ctx.values);
     let y_hat = &m.system.c * &m.x0 + &m.system.d * &u;
-    layout.x_hat.write_vector(ctx.values, &m.x0);
-    layout.y_hat.write_vector(ctx.values, &y_hat);
+    layout.signals.x_hat.write_vector(ctx.values, &m.x0);
+    layout.signals.y_hat.write_vector(ctx.values, &y_hat);
     for k in layout.innovation.indices() {
         ctx.values.set_real(k, 0.0);
     }
@@ -297,26 +290,26 @@ impl<F: LinearFilter> Estimator for LinearEstimator<F> {
         let general = Filtered::<LinearLayout, F>::build(layout, values)?;
         let l = layout;
         // The outputs one after the other: x_hat[1], y_hat[1], innovation[1] (, w[1]).
-        let first = l.x_hat.first;
-        let consecutive = l.y_hat.first == first + 1
+        let first = l.signals.x_hat.first;
+        let consecutive = l.signals.y_hat.first == first + 1
             && l.innovation.first == first + 2
             && l.w.as_ref().is_none_or(|w| w.first == first + 3);
         let scalar = match (
             general.filter().to_scalar(),
-            l.u.indices().len(),
+            l.signals.u.indices().len(),
             consecutive,
         ) {
             (Some(filter), m @ (0 | 1), true)
-                if l.y.indices().len() == 1
-                    && values.are_reals(l.y.first, 1)
-                    && (m == 0 || values.are_reals(l.u.first, 1))
+                if l.signals.y.indices().len() == 1
+                    && values.are_reals(l.signals.y.first, 1)
+                    && (m == 0 || values.are_reals(l.signals.u.first, 1))
                     && values.are_reals(first, F::Scalar::OUTPUTS) =>
             {
                 Scalar {
                     filter,
-                    u: (m == 1).then_some(l.u.first),
-                    y: l.y.first,
-                    valid: l.y_valid.first,
+                    u: (m == 1).then_some(l.signals.u.first),
+                    y: l.signals.y.first,
+                    valid: l.signals.y_valid.first,
                     outputs: first,
                 }
             }
@@ -372,8 +365,8 @@ impl<F: LinearFilter> FilterFamily<F> for LinearLayout {
     }
 
     fn write_outputs(&self, filter: &F, values: &mut Values) {
-        self.x_hat.write_vector(values, filter.state());
-        self.y_hat.write_vector(values, filter.output());
+        self.signals.x_hat.write_vector(values, filter.state());
+        self.signals.y_hat.write_vector(values, filter.output());
         self.innovation.write_vector(values, filter.innovation());
         if let (Some(w), Some(weights)) = (&self.w, filter.weights()) {
             w.write_vector(values, weights);

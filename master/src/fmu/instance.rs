@@ -3,7 +3,7 @@
 //! and setters (`Float32`, `Int8` … `UInt64`, `Boolean`, Enumerations as `Int64`) convert at
 //! this boundary; an FMI 3.0 array is moved whole (`nValues` = its element count).
 
-use super::{FmiVersion, VarType};
+use super::{CsInstance, FmiVersion, VarType};
 use crate::logging::LogKey;
 use fmi::fmi2::instance::{CoSimulation as _, Common as _};
 use fmi::fmi2::Fmi2Error;
@@ -67,14 +67,9 @@ impl From<CallError> for StepProblem {
     }
 }
 
-enum Inner {
-    Fmi2(Box<fmi::fmi2::instance::InstanceCS>),
-    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
-}
-
 /// A Co-Simulation instance of either version, with the key its messages are kept under.
 pub struct Instance {
-    inner: Inner,
+    inner: CsInstance,
     log: LogKey,
     /// Scratch space of the calls whose values are not f64 (no allocation per call).
     scratch: Scratch,
@@ -174,7 +169,7 @@ macro_rules! fmi3_integer {
 impl Instance {
     pub(super) fn fmi2(instance: fmi::fmi2::instance::InstanceCS, log: LogKey) -> Self {
         Self {
-            inner: Inner::Fmi2(Box::new(instance)),
+            inner: CsInstance::Fmi2(Box::new(instance)),
             log,
             scratch: Scratch::default(),
         }
@@ -182,7 +177,7 @@ impl Instance {
 
     pub(super) fn fmi3(instance: fmi::fmi3::instance::InstanceCS, log: LogKey) -> Self {
         Self {
-            inner: Inner::Fmi3(Box::new(instance)),
+            inner: CsInstance::Fmi3(Box::new(instance)),
             log,
             scratch: Scratch::default(),
         }
@@ -191,16 +186,16 @@ impl Instance {
     /// The FMI version of the instance.
     pub fn version(&self) -> FmiVersion {
         match self.inner {
-            Inner::Fmi2(_) => FmiVersion::Fmi2,
-            Inner::Fmi3(_) => FmiVersion::Fmi3,
+            CsInstance::Fmi2(_) => FmiVersion::Fmi2,
+            CsInstance::Fmi3(_) => FmiVersion::Fmi3,
         }
     }
 
     /// The rust-fmi FMI 2.0 instance, for calls of its own (None for FMI 3.0).
     pub fn fmi2_mut(&mut self) -> Option<&mut fmi::fmi2::instance::InstanceCS> {
         match &mut self.inner {
-            Inner::Fmi2(i) => Some(i.as_mut()),
-            Inner::Fmi3(_) => None,
+            CsInstance::Fmi2(i) => Some(i.as_mut()),
+            CsInstance::Fmi3(_) => None,
         }
     }
 
@@ -231,11 +226,11 @@ impl Instance {
 
     /// Runs `call` on the instance; an FMI 3.0 instance's messages meanwhile are kept under
     /// its key (FMI 2.0 messages carry the instance name themselves).
-    fn with_log<T>(&mut self, call: impl FnOnce(&mut Inner) -> T) -> T {
+    fn with_log<T>(&mut self, call: impl FnOnce(&mut CsInstance) -> T) -> T {
         let Self { inner, log, .. } = self;
         match inner {
-            Inner::Fmi2(_) => call(inner),
-            Inner::Fmi3(_) => crate::logging::speaking(log, || call(inner)),
+            CsInstance::Fmi2(_) => call(inner),
+            CsInstance::Fmi3(_) => crate::logging::speaking(log, || call(inner)),
         }
     }
 
@@ -247,8 +242,8 @@ impl Instance {
         fmi3: impl FnOnce(&mut fmi::fmi3::instance::InstanceCS) -> Result<B, E3>,
     ) -> Result<(), CallError> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => fmi2(i.as_mut()).map(|_| ()).map_err(Into::into),
-            Inner::Fmi3(i) => fmi3(i.as_mut()).map(|_| ()).map_err(Into::into),
+            CsInstance::Fmi2(i) => fmi2(i.as_mut()).map(|_| ()).map_err(Into::into),
+            CsInstance::Fmi3(i) => fmi3(i.as_mut()).map(|_| ()).map_err(Into::into),
         })
     }
 
@@ -322,8 +317,8 @@ impl Instance {
         ) -> Result<(), Fmi3Error>,
     ) -> Result<(), CallError> {
         match &mut self.inner {
-            Inner::Fmi2(i) => fmi2(i, &mut self.scratch.i32, buffer).map_err(Into::into),
-            Inner::Fmi3(i) => {
+            CsInstance::Fmi2(i) => fmi2(i, &mut self.scratch.i32, buffer).map_err(Into::into),
+            CsInstance::Fmi3(i) => {
                 let scratch = &mut self.scratch;
                 crate::logging::speaking(&self.log, || fmi3(i, scratch, buffer)).map_err(Into::into)
             }
@@ -333,7 +328,7 @@ impl Instance {
     /// One communication step from `time` over `h`.
     pub fn do_step(&mut self, time: f64, h: f64) -> Result<StepEnd, StepProblem> {
         self.with_log(|inner| match inner {
-            Inner::Fmi2(i) => match i.do_step(time, h, true) {
+            CsInstance::Fmi2(i) => match i.do_step(time, h, true) {
                 Ok(_) => Ok(StepEnd::Completed),
                 Err(Fmi2Error::Discard) => match super::termination_requested(i) {
                     Some(last) => Ok(StepEnd::Terminate(last)),
@@ -341,7 +336,7 @@ impl Instance {
                 },
                 Err(e) => Err(CallError::from(e).into()),
             },
-            Inner::Fmi3(i) => {
+            CsInstance::Fmi3(i) => {
                 let (mut event, mut terminate, mut early) = (false, false, false);
                 let mut last = f64::NAN;
                 i.do_step(

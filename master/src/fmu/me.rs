@@ -9,7 +9,9 @@
 //! differentiated by finite differences in the solver.
 
 use super::instance::{get2, get3, set2, set3, Scratch};
-use super::{CallError, Experiment, FmiVersion, FmuFile, Import, Interface, LoadError, VarType};
+use super::{
+    CallError, Experiment, FmiVersion, FmuFile, Import, Interface, LoadError, VarType, Versioned,
+};
 use crate::logging::LogKey;
 use crate::model_exchange::{EventUpdate, ModelExchangeCalls};
 use crate::xml::{attribute, tags, Tag};
@@ -160,11 +162,8 @@ fn parse(text: &str, version: FmiVersion) -> Result<MeDescription, String> {
     Ok(d)
 }
 
-/// A Model Exchange instance of either version.
-enum Inner {
-    Fmi2(Box<fmi::fmi2::instance::InstanceME>),
-    Fmi3(Box<fmi::fmi3::instance::InstanceME>),
-}
+/// A rust-fmi Model Exchange instance of either version.
+type Inner = Versioned<fmi::fmi2::instance::InstanceME, fmi::fmi3::instance::InstanceME>;
 
 /// One Model Exchange instance with what its calls need.
 pub struct MeInstance {

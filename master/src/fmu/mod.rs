@@ -624,14 +624,14 @@ impl FmuFile {
             Import::Fmi2(import) => (
                 import
                     .instantiate_cs(key.instance_name(), false, logging_on)
-                    .map(|i| Inner::Fmi2(Box::new(i))),
+                    .map(|i| CsInstance::Fmi2(Box::new(i))),
                 "fmi2Instantiate",
             ),
             Import::Fmi3(import) => (
                 crate::logging::speaking(&key, || {
                     import.instantiate_cs(key.instance_name(), false, logging_on, false, false, &[])
                 })
-                .map(|i| Inner::Fmi3(Box::new(i))),
+                .map(|i| CsInstance::Fmi3(Box::new(i))),
                 "fmi3InstantiateCoSimulation",
             ),
             Import::Table => {
@@ -644,8 +644,8 @@ impl FmuFile {
             }
         };
         match created {
-            Ok(Inner::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
-            Ok(Inner::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key)),
+            Ok(CsInstance::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
+            Ok(CsInstance::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key)),
             Err(e) => {
                 let said = key.recent_messages();
                 let log = if said.is_empty() {
@@ -679,11 +679,15 @@ fn not_offered(path: &Path, interface: Interface, model: &str, others: String) -
     }
 }
 
-/// A new instance of either version, before it gets its key.
-enum Inner {
-    Fmi2(Box<InstanceCS>),
-    Fmi3(Box<fmi::fmi3::instance::InstanceCS>),
+/// A rust-fmi instance of either FMI version: `F2` the FMI 2.0 type, `F3` the FMI 3.0 one
+/// (Co-Simulation: [`CsInstance`]; Model Exchange: the [`me`] module's), boxed.
+pub(crate) enum Versioned<F2, F3> {
+    Fmi2(Box<F2>),
+    Fmi3(Box<F3>),
 }
+
+/// A rust-fmi Co-Simulation instance of either version.
+type CsInstance = Versioned<InstanceCS, fmi::fmi3::instance::InstanceCS>;
 
 /// rust-fmi 0.8 passes FMI 3.0's `resourcePath` without the trailing separator the standard
 /// requires (`…/resources`, not `…/resources/`), so an FMU that appends a file name to it
