@@ -15,6 +15,8 @@
 #![forbid(unsafe_code)]
 
 mod algorithm;
+mod batch;
+mod coupled;
 mod coupling;
 mod data;
 mod description;
@@ -32,8 +34,11 @@ pub mod ssp;
 mod system;
 mod xml;
 
-pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
-pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
+pub use coupling::{
+    propagation_order, Connection, Integration, Propagation, PropagationStep, ResolvedInstance,
+    VarRef,
+};
 pub use data::{Cursor, DataError, DataTable, Interpolation, Reading};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};

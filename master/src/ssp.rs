@@ -15,6 +15,12 @@
 //! (`UInt32`, `Int64`, `UInt64`) is refused, naming it and `--ssp-version 2.0`
 //! ([`connector_type`]).
 //!
+//! A component run with Model Exchange (integrated by this master) carries the SSP 1.0
+//! attribute `implementation="ModelExchange"` (and one chosen for Co-Simulation
+//! `implementation="CoSimulation"`); the import reads it as the instance's `interface`
+//! (`any` or none: Co-Simulation when the FMU offers it). The solver settings of a Model
+//! Exchange instance have no place in SSP: an imported one runs with the defaults.
+//!
 //! Start values go into inline `ssv:ParameterSet`s of each component's `ParameterBindings`.
 //! The standard has no place for a fixed step size, so the export writes it twice:
 //! - on the system, OpenModelica's `org.openmodelica` annotation with an
@@ -31,7 +37,7 @@
 //! `DefaultExperiment` annotation); with none of them it uses (stopTime − startTime)/100 and
 //! says so in [`Imported::notes`].
 
-use crate::description::{AlgorithmName, InstanceDescription, SystemDescription};
+use crate::description::{AlgorithmName, InstanceDescription, InterfaceName, SystemDescription};
 use crate::fmu::{Causality, FmuFile, LoadLimits, VarType};
 use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
@@ -342,11 +348,17 @@ fn component(
     source: &str,
     version: SspVersion,
 ) -> std::io::Result<()> {
-    let attributes = [
+    let mut attributes = vec![
         ("name", inst.name.as_str()),
         ("type", "application/x-fmu-sharedlibrary"),
         ("source", source),
     ];
+    // SSP 1.0 §5.3.2: which FMU interface the component is run with.
+    match inst.interface {
+        Some(InterfaceName::ModelExchange) => attributes.push(("implementation", "ModelExchange")),
+        Some(InterfaceName::CoSimulation) => attributes.push(("implementation", "CoSimulation")),
+        None => {}
+    }
     element(w, "ssd:Component", &attributes, |w| {
         if !connectors.is_empty() {
             element(w, "ssd:Connectors", &[], |w| {
@@ -742,17 +754,22 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                         ));
                     }
                 }
+                let interface = match attr(&e, "implementation").as_deref() {
+                    None | Some("any") => None,
+                    Some("ModelExchange") => Some(InterfaceName::ModelExchange),
+                    Some("CoSimulation") => Some(InterfaceName::CoSimulation),
+                    Some(other) => {
+                        return Err(format!(
+                            "component `{name}` has implementation=\"{other}\"; SSP 1.0 \
+                             allows ModelExchange, CoSimulation or any"
+                        ))
+                    }
+                };
+                let source = attr(&e, "source")
+                    .ok_or_else(|| format!("component `{name}` has no source"))?;
                 d.instances.push(InstanceDescription {
-                    fmu: PathBuf::from(
-                        attr(&e, "source")
-                            .ok_or_else(|| format!("component `{name}` has no source"))?,
-                    ),
-                    name,
-                    parameters: BTreeMap::new(),
-                    step_multiple: 1,
-                    logging: false,
-                    data: None,
-                    interpolation: None,
+                    interface,
+                    ..InstanceDescription::new(name, source)
                 });
             }
             "ParameterBinding" if depth_component => {
@@ -907,22 +924,14 @@ mod tests {
             algorithm: AlgorithmName::Jacobi,
             instances: vec![
                 InstanceDescription {
-                    name: "crane".into(),
-                    fmu: PathBuf::from("resources/GantryCrane.fmu"),
                     parameters,
-                    step_multiple: 1,
-                    logging: false,
-                    data: None,
-                    interpolation: None,
+                    ..InstanceDescription::new("crane", "resources/GantryCrane.fmu")
                 },
                 InstanceDescription {
-                    name: "sensor".into(),
-                    fmu: PathBuf::from("resources/Sensor2.fmu"),
-                    parameters: BTreeMap::new(),
                     step_multiple: 2,
                     logging: true,
-                    data: None,
-                    interpolation: None,
+                    interface: Some(InterfaceName::ModelExchange),
+                    ..InstanceDescription::new("sensor", "resources/Sensor2.fmu")
                 },
             ],
             connections: vec!["crane.x -> sensor.u[1]".into()],
@@ -980,15 +989,7 @@ mod tests {
             stop_time: 1.0,
             step_size: 0.1,
             algorithm: AlgorithmName::GaussSeidel,
-            instances: vec![InstanceDescription {
-                name: "c".into(),
-                fmu: PathBuf::from("resources/Feedthrough.fmu"),
-                parameters: BTreeMap::new(),
-                step_multiple: 1,
-                logging: false,
-                data: None,
-                interpolation: None,
-            }],
+            instances: vec![InstanceDescription::new("c", "resources/Feedthrough.fmu")],
             connections: vec![],
             record: vec![],
         };
