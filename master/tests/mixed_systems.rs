@@ -6,7 +6,9 @@
 
 mod common;
 
-use spurio_master::{RunOptions, SystemDescription, SystemError};
+use spurio_master::fmu::Interface;
+use spurio_master::ssp::SspVersion;
+use spurio_master::{RunOptions, System, SystemDescription, SystemError};
 
 /// `exp(M t)` of a square matrix (row-major, `n × n`) by scaling and squaring a Taylor
 /// series: `exp(M t) = (Σₖ (M t / 2ˢ)ᵏ / k!)^(2ˢ)` with `‖M t‖ / 2ˢ < 1/2`, 30 terms (far below
@@ -75,6 +77,11 @@ fn chain_solution(t: f64) -> [f64; 4] {
 /// each instance) with communication step `step` until 5 s: the largest deviation of
 /// `b.x[1]`, `b.x[2]` and `a.x[1]` from the closed-form solution over the recorded points.
 fn chain_error(interface: &str, extra: &str, step: f64) -> f64 {
+    deviation(&chain(interface, extra, step))
+}
+
+/// The chain system of [`chain_error`].
+fn chain(interface: &str, extra: &str, step: f64) -> System {
     let text = format!(
         r#"
         stop_time = 5.0
@@ -97,8 +104,12 @@ fn chain_error(interface: &str, extra: &str, step: f64) -> f64 {
         parameters = {{ {PLANT_B} }}
         "#
     );
-    let system = common::resolve(&text).unwrap();
-    let (series, _) = common::run(&system, &RunOptions::default());
+    common::resolve(&text).unwrap()
+}
+
+/// The largest deviation of the chain's records from the closed-form solution.
+fn deviation(system: &System) -> f64 {
+    let (series, _) = common::run(system, &RunOptions::default());
     assert!((series.time.last().unwrap() - 5.0).abs() < 1e-12);
     let mut worst: f64 = 0.0;
     for (t, row) in series.time.iter().zip(&series.rows) {
@@ -209,4 +220,86 @@ fn bad_model_exchange_keys_are_errors_naming_the_line_and_the_instance() {
             "interface = \"me\"",
         ],
     );
+}
+
+#[test]
+fn an_ssp_marks_the_model_exchange_components_and_runs_them_so() {
+    let system = chain("me", "", 0.1);
+    let dir = tempfile::tempdir().unwrap();
+    let ssp = dir.path().join("chain.ssp");
+    system.export_ssp(&ssp, SspVersion::V1_0).unwrap();
+    let ssd = {
+        use std::io::Read;
+        let mut archive = zip::ZipArchive::new(std::fs::File::open(&ssp).unwrap()).unwrap();
+        let mut text = String::new();
+        let mut entry = archive.by_name("SystemStructure.ssd").unwrap();
+        entry.read_to_string(&mut text).unwrap();
+        text
+    };
+    assert_eq!(
+        ssd.matches(r#"implementation="ModelExchange""#).count(),
+        2,
+        "{ssd}"
+    );
+    let imported = System::from_file(&ssp).unwrap();
+    for instance in imported.instances() {
+        assert_eq!(
+            instance.fmu.interface,
+            Interface::ModelExchange,
+            "{}",
+            instance.name
+        );
+    }
+    // The imported chain is the same ODE (at the default tolerance 1e-6).
+    let error = deviation(&imported);
+    assert!(error < 1e-5, "{error}");
+    assert_eq!(error, deviation(&system));
+}
+
+#[test]
+fn state_events_inside_a_communication_step_are_handled_as_in_a_single_fmu_run() {
+    // BouncingBall (FMI 2.0 and 3.0) as a system instance: its bounces fall inside the
+    // 0.01 s steps; the heights at the communication points are those of `simulate` on the
+    // same grid, to the solvers' accuracy (the system restarts the solver at every point).
+    for version in ["fmi2", "fmi3"] {
+        let fmu = common::reference(version, "BouncingBall");
+        let text = format!(
+            "stop_time = 3.0\nstep_size = 0.01\nrecord = [\"ball.h\"]\n[[instance]]\nname = \"ball\"\nfmu = {:?}\ninterface = \"me\"\ntolerance = 1e-9\n",
+            fmu.display().to_string()
+        );
+        let system = common::resolve(&text).unwrap();
+        let (series, _) = common::run(&system, &RunOptions::default());
+        let file = spurio_master::fmu::FmuFile::open_for(
+            &fmu,
+            &Default::default(),
+            Interface::ModelExchange,
+        )
+        .unwrap();
+        let mut instance = file.instantiate_model_exchange("ball", false).unwrap();
+        let mut layout = instance.layout(&file, &[]).unwrap();
+        layout.recorded.retain(|r| r.0 == "h");
+        let options = spurio_master::model_exchange::Options {
+            tolerance: 1e-9,
+            ..spurio_master::model_exchange::Options::new(0.0, 3.0, 0.01)
+        };
+        let mut alone = spurio_master::TimeSeries::default();
+        let summary = spurio_master::model_exchange::simulate(
+            &mut instance,
+            &layout,
+            &options,
+            &mut alone,
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(summary.state_events >= 8, "{summary:?}");
+        assert_eq!(series.time.len(), alone.time.len());
+        let (h, h_alone) = (series.column("ball.h").unwrap(), alone.column("h").unwrap());
+        let worst = h
+            .iter()
+            .zip(&h_alone)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        println!("{version} BouncingBall in a system against alone: max |Δh| = {worst:.2e} m");
+        assert!(worst < 1e-9, "{version}: {worst}");
+    }
 }
