@@ -4,8 +4,7 @@
 //! inputs are set and the direct-feedthrough outputs re-read in at a communication point) and
 //! then drives a running [`Exchange`] through initialisation, every base step and the end of
 //! the run. The plan compiler ([`crate::plan`]) sees only the first half ([`Propagation`],
-//! which [`Algorithm`] extends) and the run loop ([`crate::Simulation`]) only the trait: a new algorithm (Model Exchange integration, an identification loop that
-//! repeats steps) is a new implementation given to [`crate::System::set_algorithm`], with no
+//! which [`Algorithm`] extends) and the run loop ([`crate::Simulation`]) only the trait: a new algorithm (an identification loop that repeats steps) is a new implementation given to [`crate::System::set_algorithm`], with no
 //! edit to either.
 //!
 //! The built-in algorithms are the two fixed-step co-simulation schemes (docs/engine.md):

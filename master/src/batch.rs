@@ -13,7 +13,7 @@ use crate::plan::Transfer;
 /// integrates it, [`crate::model_exchange::Stepper`]).
 pub(crate) enum Unit {
     Cs(Instance),
-    Me(Box<MeInstance>),
+    Me(MeInstance),
 }
 
 impl Unit {
@@ -79,7 +79,7 @@ impl Unit {
     pub(crate) fn terminate(&mut self) -> Result<(), CallError> {
         match self {
             Self::Cs(i) => i.terminate(),
-            Self::Me(i) => ModelExchangeCalls::terminate(i.as_mut()),
+            Self::Me(i) => ModelExchangeCalls::terminate(i),
         }
     }
 }

@@ -220,7 +220,7 @@ impl Coupled {
 /// The Model Exchange instance of a unit (a group holds no other).
 fn me_of<'a>(unit: &'a mut Unit, name: &str) -> Result<&'a mut MeInstance, CallError> {
     match unit {
-        Unit::Me(me) => Ok(me.as_mut()),
+        Unit::Me(me) => Ok(me),
         Unit::Cs(_) => Err(CallError(format!(
             "instance `{name}` runs as Co-Simulation, not in a Model Exchange group"
         ))),
@@ -246,7 +246,7 @@ impl<M: Members + ?Sized> View<'_, M> {
             let p = self.wiring.positions[k];
             let (unit, _) = self.members.unit(p);
             let result = match unit {
-                Unit::Me(me) => f(k, me.as_mut()),
+                Unit::Me(me) => f(k, me),
                 Unit::Cs(_) => Err(CallError("runs as Co-Simulation".into())),
             };
             if let Err(e) = result {

@@ -250,7 +250,7 @@ impl Exchange {
             let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
                 if me {
                     let instance = fmu.instantiate_model_exchange(&spec.name, spec.logging);
-                    instance.map(|i| Unit::Me(Box::new(i)))
+                    instance.map(Unit::Me)
                 } else {
                     fmu.instantiate(&spec.name, spec.logging).map(Unit::Cs)
                 }
