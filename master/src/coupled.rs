@@ -236,24 +236,52 @@ struct View<'a, M: Members + ?Sized> {
     buffer: &'a mut [f64],
 }
 
+/// Calls `f` on every member at `positions` of `members` (with its index in the group),
+/// naming a failing one.
+fn each<M: Members + ?Sized>(
+    members: &mut M,
+    positions: &[usize],
+    mut f: impl FnMut(usize, &mut MeInstance) -> Result<(), CallError>,
+) -> Result<(), CallError> {
+    for (k, &p) in positions.iter().enumerate() {
+        let result = match members.unit(p).0 {
+            Unit::Me(me) => f(k, me),
+            Unit::Cs(_) => Err(CallError("runs as Co-Simulation".into())),
+        };
+        if let Err(e) = result {
+            return Err(of_member(members.name(p), e));
+        }
+    }
+    Ok(())
+}
+
 impl<M: Members + ?Sized> View<'_, M> {
     /// Calls `f` on every member (with its index in the group), naming a failing one.
     fn each(
         &mut self,
-        mut f: impl FnMut(usize, &mut MeInstance) -> Result<(), CallError>,
+        f: impl FnMut(usize, &mut MeInstance) -> Result<(), CallError>,
     ) -> Result<(), CallError> {
-        for k in 0..self.wiring.positions.len() {
-            let p = self.wiring.positions[k];
-            let (unit, _) = self.members.unit(p);
-            let result = match unit {
-                Unit::Me(me) => f(k, me),
-                Unit::Cs(_) => Err(CallError("runs as Co-Simulation".into())),
-            };
-            if let Err(e) = result {
-                return Err(of_member(self.members.name(p), e));
-            }
-        }
-        Ok(())
+        each(self.members, &self.wiring.positions, f)
+    }
+
+    /// Calls `f` on every member with its part of `values`: laid out as the states
+    /// (`states`) or as the event indicators.
+    fn each_part(
+        &mut self,
+        states: bool,
+        values: &mut [f64],
+        mut f: impl FnMut(&mut MeInstance, &mut [f64]) -> Result<(), CallError>,
+    ) -> Result<(), CallError> {
+        let Wiring {
+            positions,
+            states: state_parts,
+            indicators,
+            ..
+        } = &*self.wiring;
+        let parts = if states { state_parts } else { indicators };
+        each(self.members, positions, |k, me| {
+            f(me, part(values, parts, k))
+        })
     }
 
     /// The outputs feeding other members read, the connected inputs set in order.
@@ -368,45 +396,33 @@ impl<M: Members + ?Sized> ModelExchangeCalls for View<'_, M> {
     }
 
     fn set_continuous_states(&mut self, x: &[f64]) -> Result<(), CallError> {
-        let parts = std::mem::take(&mut self.wiring.states);
-        let result = self.each(|k, me| {
-            let (first, count) = parts[k];
+        let Wiring {
+            positions, states, ..
+        } = &*self.wiring;
+        each(self.members, positions, |k, me| {
+            let (first, count) = states[k];
             me.set_continuous_states(&x[first..first + count])
-        });
-        self.wiring.states = parts;
-        result
+        })
     }
 
     fn get_continuous_states(&mut self, x: &mut [f64]) -> Result<(), CallError> {
-        let parts = std::mem::take(&mut self.wiring.states);
-        let result = self.each(|k, me| me.get_continuous_states(part(x, &parts, k)));
-        self.wiring.states = parts;
-        result
+        self.each_part(true, x, |me, x| me.get_continuous_states(x))
     }
 
     fn get_nominals(&mut self, nominals: &mut [f64]) -> Result<(), CallError> {
-        let parts = std::mem::take(&mut self.wiring.states);
-        let result = self.each(|k, me| me.get_nominals(part(nominals, &parts, k)));
-        self.wiring.states = parts;
-        result
+        self.each_part(true, nominals, |me, n| me.get_nominals(n))
     }
 
     /// The derivatives of every member, its connected inputs set from the others' outputs
     /// at the time and states set.
     fn get_derivatives(&mut self, dx: &mut [f64]) -> Result<(), CallError> {
         self.propagate()?;
-        let parts = std::mem::take(&mut self.wiring.states);
-        let result = self.each(|k, me| me.get_derivatives(part(dx, &parts, k)));
-        self.wiring.states = parts;
-        result
+        self.each_part(true, dx, |me, dx| me.get_derivatives(dx))
     }
 
     fn get_event_indicators(&mut self, z: &mut [f64]) -> Result<(), CallError> {
         self.propagate()?;
-        let parts = std::mem::take(&mut self.wiring.indicators);
-        let result = self.each(|k, me| me.get_event_indicators(part(z, &parts, k)));
-        self.wiring.indicators = parts;
-        result
+        self.each_part(false, z, |me, z| me.get_event_indicators(z))
     }
 
     /// A group's Jacobian has the blocks of its connections, which no member gives: the

@@ -82,27 +82,16 @@ fn chain_error(interface: &str, extra: &str, step: f64) -> f64 {
 
 /// The chain system of [`chain_error`].
 fn chain(interface: &str, extra: &str, step: f64) -> System {
+    let instances: String = [("a", PLANT_A), ("b", PLANT_B)]
+        .iter()
+        .map(|(name, parameters)| {
+            format!(
+                "[[instance]]\nname = \"{name}\"\nfmu = \"LinearSystem.fmu\"\ninterface = \"{interface}\"\n{extra}\nparameters = {{ {parameters} }}\n"
+            )
+        })
+        .collect();
     let text = format!(
-        r#"
-        stop_time = 5.0
-        step_size = {step:?}
-        connections = ["a.y[1] -> b.u[1]"]
-        record = ["a.x[1]", "b.x[1]", "b.x[2]"]
-
-        [[instance]]
-        name = "a"
-        fmu = "LinearSystem.fmu"
-        interface = "{interface}"
-        {extra}
-        parameters = {{ {PLANT_A} }}
-
-        [[instance]]
-        name = "b"
-        fmu = "LinearSystem.fmu"
-        interface = "{interface}"
-        {extra}
-        parameters = {{ {PLANT_B} }}
-        "#
+        "stop_time = 5.0\nstep_size = {step:?}\nconnections = [\"a.y[1] -> b.u[1]\"]\nrecord = [\"a.x[1]\", \"b.x[1]\", \"b.x[2]\"]\n{instances}"
     );
     common::resolve(&text).unwrap()
 }

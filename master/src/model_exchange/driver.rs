@@ -332,17 +332,6 @@ impl Stepper {
         Ok(())
     }
 
-    /// The event indicators at `t` into `which` (the FMU placed at `t` first).
-    fn indicators_at<M: ModelExchangeCalls>(
-        &mut self,
-        fmu: &mut M,
-        t: f64,
-        which: Buffer,
-    ) -> Result<(), MeError> {
-        self.place(fmu, t)?;
-        self.read_indicators(fmu, t, which)
-    }
-
     /// The event indicators of the FMU as it is (at `t`) into `which`; a NaN is an error.
     fn read_indicators<M: ModelExchangeCalls>(
         &mut self,
@@ -443,7 +432,8 @@ impl Stepper {
             } else {
                 estimate.clamp(a + margin, b - margin)
             };
-            self.indicators_at(fmu, t, Buffer::Middle)?;
+            self.place(fmu, t)?;
+            self.read_indicators(fmu, t, Buffer::Middle)?;
             let crossing = (0..self.za.len()).any(|i| crossed(self.za[i], self.zm[i]));
             let (moved, kept) = if crossing {
                 b = t;
@@ -676,7 +666,8 @@ impl Stepper {
             let mut state_event = None;
             let mut t_valid = t_new;
             if m > 0 {
-                self.indicators_at(fmu, t_new, Buffer::New)?;
+                self.place(fmu, t_new)?;
+                self.read_indicators(fmu, t_new, Buffer::New)?;
                 if (0..m).any(|i| crossed(self.z_old[i], self.z_new[i])) {
                     let (t_event, indicator) = self.locate(fmu, t, t_new)?;
                     t_valid = t_event;
