@@ -190,9 +190,9 @@ fn call_every<T>(
 pub enum StepOutcome {
     /// Every due member completed its step.
     Completed,
-    /// (instance, last successful time, its version) of every member that asked to end
-    /// the run.
-    Terminated(Vec<(String, f64, FmiVersion)>),
+    /// (instance, last successful time, its version, its interface) of every member that
+    /// asked to end the run (of a Model Exchange group: its first member).
+    Terminated(Vec<(String, f64, FmiVersion, Interface)>),
 }
 
 /// The instances of a running system, the value buffer and the compiled transfers between
@@ -484,7 +484,8 @@ impl Exchange {
                         FmiVersion::Fmi2 => time,
                         FmiVersion::Fmi3 => time + h,
                     };
-                    terminated.push((m.name.clone(), last.unwrap_or(fallback), version));
+                    let end = last.unwrap_or(fallback);
+                    terminated.push((m.name.clone(), end, version, Interface::CoSimulation));
                 }
                 Err(StepProblem::Failed(e)) => failures.push(m.failure("fmi2DoStep", e, time)),
                 Err(StepProblem::EarlyReturn {
@@ -530,7 +531,8 @@ impl Exchange {
             )?;
             if let Some(end) = end {
                 let m = &members[first];
-                terminated.push((m.name.clone(), end, m.instance.version()));
+                let version = m.instance.version();
+                terminated.push((m.name.clone(), end, version, Interface::ModelExchange));
             }
         }
         Ok(if terminated.is_empty() {

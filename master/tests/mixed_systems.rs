@@ -292,3 +292,33 @@ fn state_events_inside_a_communication_step_are_handled_as_in_a_single_fmu_run()
         assert!(worst < 1e-9, "{version}: {worst}");
     }
 }
+
+#[test]
+fn a_model_exchange_fmu_that_ends_the_simulation_ends_the_run_where_it_asked() {
+    // Stair counts the seconds with time events and asks to end at t = 9 (FMI 2.0 and 3.0).
+    for version in ["fmi2", "fmi3"] {
+        let fmu = common::reference(version, "Stair");
+        let text = format!(
+            "stop_time = 10.0\nstep_size = 0.2\n[[instance]]\nname = \"stair\"\nfmu = {:?}\ninterface = \"me\"\n",
+            fmu.display().to_string()
+        );
+        let (series, end) = common::run(&common::resolve(&text).unwrap(), &RunOptions::default());
+        let spurio_master::RunEnd::Terminated {
+            instance,
+            time,
+            interface,
+            ..
+        } = &end
+        else {
+            panic!("{version}: {end:?}")
+        };
+        assert_eq!(
+            (instance.as_str(), *interface),
+            ("stair", Interface::ModelExchange)
+        );
+        assert!((time - 9.0).abs() < 1e-12, "{version}: {time}");
+        assert_eq!(series.time.last(), Some(time));
+        assert_eq!(series.column("stair.counter").unwrap().last(), Some(&10.0));
+        common::assert_names(&end.to_string(), &["`stair`", "t = 9", "Model Exchange"]);
+    }
+}
