@@ -322,3 +322,43 @@ fn a_model_exchange_fmu_that_ends_the_simulation_ends_the_run_where_it_asked() {
         common::assert_names(&end.to_string(), &["`stair`", "t = 9", "Model Exchange"]);
     }
 }
+
+#[test]
+fn an_fmu_with_model_exchange_only_is_integrated_without_being_asked() {
+    // LinearSystem without its <CoSimulation> element: no `interface` key needed.
+    let dir = tempfile::tempdir().unwrap();
+    let only_me = dir.path().join("LinearSystemME.fmu");
+    let bytes = common::rewrite(
+        &common::fmus().join("LinearSystem.fmu"),
+        |name, data| {
+            if name != "modelDescription.xml" {
+                return Some(data);
+            }
+            let text = String::from_utf8(data).unwrap();
+            let start = text.find("<CoSimulation").unwrap();
+            let end = start + text[start..].find("/>").unwrap() + 2;
+            Some(format!("{}{}", &text[..start], &text[end..]).into_bytes())
+        },
+        &[],
+    );
+    std::fs::write(&only_me, bytes).unwrap();
+    let text = format!(
+        "stop_time = 1.0\nstep_size = 0.1\nrecord = [\"p.x[1]\"]\n[[instance]]\nname = \"p\"\nfmu = {:?}\nparameters = {{ continuous = true, \"A[1,1]\" = -1.0, \"A[1,2]\" = 0.0, \"A[2,1]\" = 0.0, \"A[2,2]\" = -1.0, \"x0[1]\" = 1.0 }}\n",
+        only_me.display().to_string()
+    );
+    let system = common::resolve(&text).unwrap();
+    assert_eq!(
+        system.instance("p").unwrap().fmu.interface,
+        Interface::ModelExchange
+    );
+    // ẋ = −x from 1 (B u with u = 0): e^{−t}.
+    let (series, _) = common::run(&system, &RunOptions::default());
+    let x = series.column("p.x[1]").unwrap();
+    for (t, x) in series.time.iter().zip(&x) {
+        assert!((x - (-t).exp()).abs() < 1e-5, "t = {t}: {x}");
+    }
+    // Asking for Co-Simulation is refused, naming the interface.
+    let e =
+        common::resolve(&text.replace("parameters", "interface = \"cs\"\nparameters")).unwrap_err();
+    common::assert_names(&e.to_string(), &["LinearSystemME.fmu", "Co-Simulation"]);
+}
