@@ -245,6 +245,16 @@ fn an_ssp_marks_the_model_exchange_components_and_runs_them_so() {
     assert_eq!(error, deviation(&system));
 }
 
+/// A system (keys `head`) of one instance `name` of the FMU `fmu` run as Model Exchange
+/// (with the instance keys `keys`).
+fn reference_system(fmu: &std::path::Path, head: &str, name: &str, keys: &str) -> System {
+    let text = format!(
+        "{head}\n[[instance]]\nname = \"{name}\"\nfmu = {:?}\ninterface = \"me\"\n{keys}\n",
+        fmu.display().to_string()
+    );
+    common::resolve(&text).unwrap()
+}
+
 #[test]
 fn state_events_inside_a_communication_step_are_handled_as_in_a_single_fmu_run() {
     // BouncingBall (FMI 2.0 and 3.0) as a system instance: its bounces fall inside the
@@ -252,11 +262,12 @@ fn state_events_inside_a_communication_step_are_handled_as_in_a_single_fmu_run()
     // same grid, to the solvers' accuracy (the system restarts the solver at every point).
     for version in ["fmi2", "fmi3"] {
         let fmu = common::reference(version, "BouncingBall");
-        let text = format!(
-            "stop_time = 3.0\nstep_size = 0.01\nrecord = [\"ball.h\"]\n[[instance]]\nname = \"ball\"\nfmu = {:?}\ninterface = \"me\"\ntolerance = 1e-9\n",
-            fmu.display().to_string()
+        let system = reference_system(
+            &fmu,
+            "stop_time = 3.0\nstep_size = 0.01\nrecord = [\"ball.h\"]",
+            "ball",
+            "tolerance = 1e-9",
         );
-        let system = common::resolve(&text).unwrap();
         let (series, _) = common::run(&system, &RunOptions::default());
         let file = spurio_master::fmu::FmuFile::open_for(
             &fmu,
@@ -298,11 +309,8 @@ fn a_model_exchange_fmu_that_ends_the_simulation_ends_the_run_where_it_asked() {
     // Stair counts the seconds with time events and asks to end at t = 9 (FMI 2.0 and 3.0).
     for version in ["fmi2", "fmi3"] {
         let fmu = common::reference(version, "Stair");
-        let text = format!(
-            "stop_time = 10.0\nstep_size = 0.2\n[[instance]]\nname = \"stair\"\nfmu = {:?}\ninterface = \"me\"\n",
-            fmu.display().to_string()
-        );
-        let (series, end) = common::run(&common::resolve(&text).unwrap(), &RunOptions::default());
+        let system = reference_system(&fmu, "stop_time = 10.0\nstep_size = 0.2", "stair", "");
+        let (series, end) = common::run(&system, &RunOptions::default());
         let spurio_master::RunEnd::Terminated {
             instance,
             time,
