@@ -18,10 +18,12 @@
 //! the group: every member enters event mode and iterates until none asks for another
 //! iteration; the earliest announced time event of any member is the group's.
 //!
-//! A group with one member is an ME instance alone. Its inputs from Co-Simulation instances
-//! are set at the communication point and held over the interval; the solver starts again
-//! from the states there ([`Stepper::inputs_changed`]), and the outputs are read at the
-//! interval's end like those of a Co-Simulation instance.
+//! A group with one member is an ME instance alone. Inputs from outside the group (from
+//! Co-Simulation or data instances, or from another group) are set at the communication
+//! point and held over the interval; the solver then starts again from the states there
+//! ([`Stepper::inputs_changed`]; a group that no outside connection drives goes on without
+//! a restart), and the outputs are read at the interval's end like those of a
+//! Co-Simulation instance.
 
 use crate::batch::{Batch, Unit};
 use crate::coupling::ResolvedInstance;
@@ -61,6 +63,8 @@ pub(crate) struct Coupled {
     pub(crate) multiple: u64,
     /// Where a member asked to end the run (`terminateSimulation`), if one did.
     terminated: Option<f64>,
+    /// Whether inputs are set from outside the group at the communication points.
+    driven_from_outside: bool,
 }
 
 /// The error of member `k` of a group, naming it.
@@ -159,6 +163,7 @@ impl Coupled {
             stepper,
             multiple: u64::from(plan.step_multiple),
             terminated: None,
+            driven_from_outside: plan.driven_from_outside,
         })
     }
 
@@ -203,7 +208,12 @@ impl Coupled {
             buffer,
         };
         let mut no_events = |_: &crate::model_exchange::Event| {};
-        let outcome = match self.stepper.inputs_changed(&mut view, &mut no_events)? {
+        let start = if self.driven_from_outside {
+            self.stepper.inputs_changed(&mut view, &mut no_events)?
+        } else {
+            Advance::Reached(self.stepper.time())
+        };
+        let outcome = match start {
             Advance::Reached(_) => {
                 self.stepper
                     .advance_to(&mut view, t_end, &mut NoRecording, &mut no_events)?

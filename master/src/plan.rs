@@ -127,6 +127,9 @@ pub struct CoupledPlan {
     pub propagation: Vec<Op>,
     /// The step multiple of every member.
     pub step_multiple: u32,
+    /// Whether a connection from outside the group drives an input of a member (set at
+    /// every communication point: the solver starts again there).
+    pub driven_from_outside: bool,
 }
 
 impl Plan {
@@ -452,6 +455,7 @@ fn coupled_groups(
                 reads: Vec::new(),
                 propagation: Vec::new(),
                 step_multiple: instances[i].step_multiple,
+                driven_from_outside: false,
             }),
         }
     }
@@ -491,6 +495,9 @@ fn coupled_groups(
                 instances[other].integration.method
             )));
         }
+        g.driven_from_outside = connections
+            .iter()
+            .any(|c| g.members.contains(&c.to.0) && !g.members.contains(&c.from.0));
         let inner: Vec<Connection> = connections
             .iter()
             .filter(|c| g.members.contains(&c.from.0) && g.members.contains(&c.to.0))
