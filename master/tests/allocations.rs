@@ -150,3 +150,38 @@ fn a_data_instance_reads_without_allocating() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Model Exchange instances in a system, to `stop_time` in steps of 0.01: BouncingBall of
+/// FMI `version` alone (state events inside the steps) and two continuous LinearSystems in a
+/// chain, integrated as one ODE (inputs propagated at every right-hand side).
+fn model_exchange_system(version: &str, stop_time: f64) -> System {
+    let ball = reference(version, "BouncingBall");
+    let plant = common::fmus().join("LinearSystem.fmu");
+    let text = format!(
+        "stop_time = {stop_time:?}\nstep_size = 0.01\nconnections = [\"a.y[1] -> b.u[1]\"]\n\
+         [[instance]]\nname = \"ball\"\nfmu = {:?}\ninterface = \"me\"\n\
+         [[instance]]\nname = \"a\"\nfmu = {:?}\ninterface = \"me\"\nparameters = {{ continuous = true, \"u[1]\" = 1.0 }}\n\
+         [[instance]]\nname = \"b\"\nfmu = {:?}\ninterface = \"me\"\nsolver = \"dopri5\"\nparameters = {{ continuous = true }}\n",
+        ball.display().to_string(),
+        plant.display().to_string(),
+        plant.display().to_string(),
+    );
+    let description: SystemDescription = toml::from_str(&text).unwrap();
+    System::resolve(&description, Path::new(".")).unwrap()
+}
+
+#[test]
+fn a_model_exchange_advance_allocates_nothing() {
+    for version in ["fmi2", "fmi3"] {
+        for csv in [false, true] {
+            let short = run_allocations(&model_exchange_system(version, 1.0), csv);
+            let long = run_allocations(&model_exchange_system(version, 3.0), csv);
+            assert_eq!(
+                long,
+                short,
+                "{version}, csv = {csv}: 200 more steps made {} more allocations",
+                long as i64 - short as i64
+            );
+        }
+    }
+}

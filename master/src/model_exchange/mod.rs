@@ -29,7 +29,9 @@ mod driver;
 #[cfg(test)]
 mod tests;
 
-pub use driver::{event_time_tolerance, simulate, Event, EventKind, Layout, Options, Summary};
+pub use driver::{
+    event_time_tolerance, simulate, Advance, Event, EventKind, Layout, Options, Stepper, Summary,
+};
 pub use spurio_solvers::{Method, Statistics};
 
 use crate::fmu::{CallError, Experiment, VarType};
