@@ -27,6 +27,7 @@ use crate::plot::{panels_png, Line, Panel, Style};
 use crate::runner::{column, mean_std, simulate, write_csv};
 use anyhow::{Context as _, Result};
 use models::{fit_percent, Arx, InnovationModel};
+use rayon::prelude::*;
 use record::{centred, contaminated, deviation, missing, Record, SAMPLES, TS};
 use spurio_master::{SystemDescription, TimeSeries};
 use std::fmt::Write as _;
@@ -248,28 +249,40 @@ fn run_condition(
         csv
     };
     record::write_csv(&csv, &u, &y, &m.gone)?;
-    let runs = ctx.for_each_seed(&[0, 1, 2, 3], |i| {
-        let path = ESTIMATORS[i as usize];
-        let series = simulate(&system(ctx, path, &csv)?)?;
-        let model = path.model(&series)?;
-        let scored = truth.arx(&model);
-        Ok(Run {
-            model,
-            scored,
-            series,
-        })
+    // The four paths in parallel on the experiments' pool (each run's FMU instances live on
+    // the worker that runs it).
+    let runs = ctx.pool.install(|| {
+        ESTIMATORS
+            .par_iter()
+            .map(|&estimator| {
+                let series = simulate(&system(ctx, estimator, &csv)?)?;
+                let model = estimator.model(&series)?;
+                let scored = truth.arx(&model);
+                Ok(Run {
+                    model,
+                    scored,
+                    series,
+                })
+            })
+            .collect::<Result<Vec<_>>>()
     })?;
     Ok((m, runs))
 }
 
-/// `examples/real_data/<path's file>` with its data instance reading `csv`.
-fn system(ctx: &ExperimentContext, path: Estimator, csv: &Path) -> Result<spurio_master::System> {
-    let file = ctx.example("real_data", path.file());
+/// `examples/real_data/<estimator's file>` with its data instance reading `csv`.
+fn system(
+    ctx: &ExperimentContext,
+    estimator: Estimator,
+    csv: &Path,
+) -> Result<spurio_master::System> {
+    let file = ctx.example("real_data", estimator.file());
     let mut description =
         SystemDescription::read(&file).with_context(|| format!("reading {}", file.display()))?;
+    // Absolute: a relative data path would be read relative to the system file.
+    let csv = std::path::absolute(csv).with_context(|| format!("locating {}", csv.display()))?;
     for instance in &mut description.instances {
         if instance.name == "dryer" {
-            instance.data = Some(csv.to_path_buf());
+            instance.data = Some(csv.clone());
         }
     }
     let base = file.parent().unwrap_or(Path::new("."));
@@ -304,31 +317,25 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         y: centred_by_halves(&record.y, &all),
     };
     let (ui, yi) = (&truth.u[..SPLIT], &truth.y[..SPLIT]);
-    let arx223 = Arx::least_squares(ui, yi, &all, (2, 2, 3))?;
-    let arx441 = Arx::least_squares(ui, yi, &all, (4, 4, 1))?;
-    let arx233 = Arx::least_squares(ui, yi, &all, (2, 3, 3))?;
-    let references = [
-        (
-            "arx223",
-            "batch least squares ARX(2, 2, 3)",
-            truth.arx(&arx223),
-        ),
-        (
-            "arx441",
-            "batch least squares ARX(4, 4, 1)",
-            truth.arx(&arx441),
-        ),
+    let batch = |order| Arx::least_squares(ui, yi, &all, order);
+    let arx223 = batch((2, 2, 3))?;
+    let mut references = Vec::new();
+    for (key, title, order) in [
+        ("arx223", "batch least squares ARX(2, 2, 3)", (2, 2, 3)),
+        ("arx441", "batch least squares ARX(4, 4, 1)", (4, 4, 1)),
         (
             "arx233",
             "batch least squares ARX(2, 3, 3) (the DKF's structure)",
-            truth.arx(&arx233),
+            (2, 3, 3),
         ),
-        (
-            "slicot",
-            "SLICOT IB01BD order-4 subspace model (whole record)",
-            truth.state_space(&slicot),
-        ),
-    ];
+    ] {
+        references.push((key, title, truth.arx(&batch(order)?)));
+    }
+    references.push((
+        "slicot",
+        "SLICOT IB01BD order-4 subspace model (whole record)",
+        truth.state_space(&slicot),
+    ));
 
     let (_, clean) = run_condition(ctx, Condition::Clean, &record, &truth)?;
     let mut outlier_runs = Vec::new();
@@ -433,11 +440,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
 }
 
 /// The batch and subspace references.
-fn reference_rows(
-    report: &mut Report,
-    references: &[(&str, &str, Scored); 4],
-    contaminated: &[f64],
-) {
+fn reference_rows(report: &mut Report, references: &[(&str, &str, Scored)], contaminated: &[f64]) {
     for (key, title, s) in references {
         let (paper, goal) = match *key {
             "arx223" => (
@@ -623,7 +626,7 @@ fn notes(slicot: &InnovationModel, arx223: &Arx, clean: &[Run]) -> Result<Vec<St
 fn write_validation_csv(
     ctx: &ExperimentContext,
     truth: &Truth,
-    references: &[(&str, &str, Scored); 4],
+    references: &[(&str, &str, Scored)],
     clean: &[Run],
     outliers: &Measured,
     outlier_runs: &[Run],
@@ -677,6 +680,17 @@ const BLUE: RGBColor = RGBColor(0, 70, 200);
 const GREEN: RGBColor = RGBColor(0, 150, 0);
 const ORANGE: RGBColor = RGBColor(230, 130, 0);
 
+/// The clean RLS and DKF runs' one-step predictions or simulations (`pick`) as lines.
+fn rls_and_dkf(t: &[f64], clean: &[Run], pick: fn(&Scored) -> &Vec<f64>) -> Vec<Line> {
+    [("RLS ARX(2, 2, 3)", RED), ("DKF ARX(2, 3, 3)", BLUE)]
+        .into_iter()
+        .zip(clean)
+        .map(|((label, colour), run)| {
+            Line::new(label, t.to_vec(), pick(&run.scored).clone()).colour(colour)
+        })
+        .collect()
+}
+
 fn plot_clean(
     ctx: &ExperimentContext,
     truth: &Truth,
@@ -689,42 +703,18 @@ fn plot_clean(
             .style(Style::Points)
             .colour(GREY)
     };
+    let mut one_step = vec![measured()];
+    one_step.extend(rls_and_dkf(&t, clean, |s| &s.predicted));
+    let mut simulated = vec![measured()];
+    simulated.extend(rls_and_dkf(&t, clean, |s| &s.simulated));
+    simulated.push(Line::new("SLICOT order 4", t.clone(), slicot.simulated.clone()).colour(GREEN));
     let one_step = Panel {
         label: "one step ahead [V]".into(),
-        lines: vec![
-            measured(),
-            Line::new(
-                "RLS ARX(2, 2, 3)",
-                t.clone(),
-                clean[0].scored.predicted.clone(),
-            )
-            .colour(RED),
-            Line::new(
-                "DKF ARX(2, 3, 3)",
-                t.clone(),
-                clean[1].scored.predicted.clone(),
-            )
-            .colour(BLUE),
-        ],
+        lines: one_step,
     };
     let simulated = Panel {
         label: "simulated [V]".into(),
-        lines: vec![
-            measured(),
-            Line::new(
-                "RLS ARX(2, 2, 3)",
-                t.clone(),
-                clean[0].scored.simulated.clone(),
-            )
-            .colour(RED),
-            Line::new(
-                "DKF ARX(2, 3, 3)",
-                t.clone(),
-                clean[1].scored.simulated.clone(),
-            )
-            .colour(BLUE),
-            Line::new("SLICOT order 4", t.clone(), slicot.simulated.clone()).colour(GREEN),
-        ],
+        lines: simulated,
     };
     panels_png(
         &ctx.out_dir.join("real_data_clean.png"),
