@@ -242,12 +242,10 @@ fn run_condition(
     let all = vec![true; SAMPLES];
     let u = centred_by_halves(&record.u, &all);
     let y = centred_by_halves(&m.y, &present);
-    let csv = ctx.out_dir.join(format!("dryer_{}.csv", condition.label()));
-    let csv = if condition == Condition::Clean {
-        ctx.out_dir.join("dryer.csv")
-    } else {
-        csv
-    };
+    let csv = ctx.out_dir.join(match condition {
+        Condition::Clean => "dryer.csv".to_string(),
+        _ => format!("dryer_{}.csv", condition.label()),
+    });
     record::write_csv(&csv, &u, &y, &m.gone)?;
     // The four paths in parallel on the experiments' pool (each run's FMU instances live on
     // the worker that runs it).
@@ -767,7 +765,8 @@ fn plot_outliers(ctx: &ExperimentContext, truth: &Truth, m: &Measured, runs: &[R
     let ti: Vec<f64> = (0..SPLIT).map(|k| k as f64 * TS).collect();
     let (it, iy) = split(0, SPLIT);
     let cleaned = column(&runs[2].series, "rskf.y_hat[1]")?;
-    let cleaned_t = runs[2].series.time.clone();
+    // The estimate of the sample of t_k is recorded at t_{k+1} (docs/experiments.md §4, "Alignment").
+    let cleaned_t: Vec<f64> = runs[2].series.time.iter().map(|t| t - TS).collect();
     let identification = Panel {
         label: "identification [V]".into(),
         lines: vec![
