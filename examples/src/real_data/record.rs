@@ -212,7 +212,7 @@ pub fn missing(samples: usize, fraction: f64, seed: u64) -> Vec<bool> {
 pub fn write_csv(path: &Path, u: &[f64], y: &[f64], gone: &[bool]) -> Result<()> {
     use std::fmt::Write as _;
     let mut text = String::from(
-        "\"time [s]\",\"u [V]\",\"u_delayed [V]\",\"u_delayed_more [V]\",\"y [V]\",\"y_previous [V]\"\n",
+        "\"time [s]\",\"u [V]\",\"u_delayed [V]\",\"u_delayed_more [V]\",\"y [V]\",\"y_previous [V]\",\"y_previous2 [V]\"\n",
     );
     let cell = |k: Option<usize>| match k {
         Some(k) if !gone[k] => format!("{:.17e}", y[k]),
@@ -222,13 +222,14 @@ pub fn write_csv(path: &Path, u: &[f64], y: &[f64], gone: &[bool]) -> Result<()>
     for (k, uk) in u.iter().enumerate().take(y.len()) {
         let _ = writeln!(
             text,
-            "{},{:.17e},{:.17e},{:.17e},{},{}",
+            "{},{:.17e},{:.17e},{:.17e},{},{},{}",
             k as f64 * TS,
             uk,
             lagged(k, 2),
             lagged(k, 3),
             cell(Some(k)),
-            cell(k.checked_sub(1))
+            cell(k.checked_sub(1)),
+            cell(k.checked_sub(2))
         );
     }
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
