@@ -35,6 +35,7 @@ ESTIMATORS = {
     "KalmanFilter": "y",
     "RobustKalmanFilter": "y",
     "RobustKalmanFilter2": "y",
+    "RobustKalmanFilterInput": "y",
     "DistributedObserverCentralKalman": "y",
     "DualKalmanFilter": "y",
     "DualKalmanFilterGenerator": "y",
