@@ -3,7 +3,9 @@
 use super::{Call, EventUpdate, MeError, ModelExchangeCalls};
 use crate::fmu::{CallError, Experiment, VarType};
 use crate::record::Observer;
-use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverError, Statistics};
+use spurio_solvers::{
+    Direction, Method, OdeSystem, Settings, Solver, SolverError, SolverErrorKind, Statistics,
+};
 
 /// The bracket to which a state event's time is located: `10⁻¹² · max(1, |t|)` s.
 pub fn event_time_tolerance(t: f64) -> f64 {
@@ -282,20 +284,21 @@ impl Stepper {
     fn solver_error(&self, e: SolverError<Failure>) -> MeError {
         let fmu = self.name.clone();
         let derivatives = Call::GetDerivatives.name(self.fmi3);
-        match e {
-            SolverError::Model { time, source } => MeError::Call {
+        let time = e.time;
+        match e.kind {
+            SolverErrorKind::Model(source) => MeError::Call {
                 fmu,
                 call: source.call.name(self.fmi3),
                 time,
                 reason: source.error.0,
             },
-            SolverError::NonFiniteDerivative { time, index, value } => MeError::NotFinite {
+            SolverErrorKind::NonFiniteDerivative { index, value } => MeError::NotFinite {
                 fmu,
                 call: derivatives,
                 time,
                 what: format!("the derivative of state {} is {value}", index + 1),
             },
-            SolverError::NonFiniteStages { time, step } => MeError::NotFinite {
+            SolverErrorKind::NonFiniteStages { step } => MeError::NotFinite {
                 fmu,
                 call: derivatives,
                 time,
@@ -303,20 +306,11 @@ impl Stepper {
                     "the derivatives were not finite in every step tried, down to {step:e} s"
                 ),
             },
-            other => {
-                let time = match &other {
-                    SolverError::StepTooSmall { time, .. }
-                    | SolverError::TooManyRejections { time, .. }
-                    | SolverError::TooManySteps { time, .. }
-                    | SolverError::BadTarget { time, .. } => *time,
-                    _ => self.solver.time(),
-                };
-                MeError::Solver {
-                    fmu,
-                    time,
-                    reason: other.to_string(),
-                }
-            }
+            kind => MeError::Solver {
+                fmu,
+                time,
+                reason: SolverError::at(time, kind).to_string(),
+            },
         }
     }
 
