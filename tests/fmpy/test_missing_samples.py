@@ -263,14 +263,19 @@ def pin_of(outputs):
             "last": [repr(float(v)) for v in table[-1]]}
 
 
-@pytest.mark.parametrize("stem,version", CASES)
+# the estimators that existed before `y_valid` (a variant bundled since has no "before")
+PINNED = json.loads(BEFORE.read_text())
+PINNED_CASES = [(stem, version) for stem, version in CASES if stem in PINNED]
+
+
+@pytest.mark.parametrize("stem,version", PINNED_CASES)
 def test_without_missing_samples_the_outputs_are_those_of_before(stem, version):
     valid = []
     names, now, _ = run(stem, version, missing=False, valid=valid)
     # every sample present: each validity input read back true at every step
     flags = np.concatenate(valid)
     assert flags.size >= len(now) and np.all(flags == 1.0), f"{stem}: a y_valid was false"
-    pinned = json.loads(BEFORE.read_text())[stem]
+    pinned = PINNED[stem]
     assert names == pinned["outputs"]
     got = pin_of(now)
     # the last step first: a difference there names the output and both numbers
@@ -284,6 +289,8 @@ def pin(folder):
     dd24126, with fmi3/): FMI 2.0 and 3.0 must agree bit for bit."""
     pins = {}
     for stem in ESTIMATORS:
+        if not (pathlib.Path(folder) / f"{stem}.fmu").exists():
+            continue  # bundled after that build
         names, outputs, _ = run(stem, 2, missing=False, folder=folder)
         names3, outputs3, _ = run(stem, 3, missing=False, folder=folder)
         assert names == names3 and np.array_equal(outputs, outputs3), stem
