@@ -353,6 +353,14 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
                 .fmu
                 .update_discrete_states()
                 .map_err(self.failed(Call::UpdateDiscreteStates, t))?;
+            if let Some(te) = update.next_event_time.filter(|te| te.is_nan()) {
+                return Err(MeError::NotFinite {
+                    fmu: self.name.clone(),
+                    call: Call::UpdateDiscreteStates.name(self.fmi3),
+                    time: t,
+                    what: format!("the next event time is {te}"),
+                });
+            }
             any_values_changed |= update.values_changed;
             any_nominals_changed |= update.nominals_changed;
             if update.terminate_simulation || !update.discrete_states_need_update {
@@ -522,10 +530,16 @@ pub fn simulate<M: ModelExchangeCalls>(
     let (mut last_event_time, mut events_here) = (f64::NEG_INFINITY, 0usize);
     let mut steps_in_interval = 0usize;
     while t < stop {
-        let time_event = update.next_event_time.filter(|&te| te > t && te <= stop);
+        // A time event announced at or before the current time is due now: handled at `t`
+        // without a step (an FMU that keeps announcing one is stopped as chattering).
+        let time_event = update
+            .next_event_time
+            .filter(|&te| te <= stop)
+            .map(|te| te.max(t));
         let limit = time_event.unwrap_or(stop);
-        // One step (no states: straight to the next output point or the limit).
-        let t_new = if n == 0 {
+        // One step (no states, or an event due now: straight to the next output point or the
+        // limit).
+        let t_new = if n == 0 || limit <= t {
             limit.min(grid(k_next))
         } else {
             steps_in_interval += 1;

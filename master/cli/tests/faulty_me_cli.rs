@@ -1,0 +1,175 @@
+//! Faulty Model Exchange FMUs through `spurio run --interface me`: the FMU of
+//! `master/tests/fixtures/faulty_me/` (compiled here with `cc`, packaged with its model
+//! description) fails as its `fault` parameter says from t = `at` = 0.5 s on, and every fault
+//! must end the run with a message naming the FMU, the call and the time: an error returned
+//! by a call, NaN derivatives, a chattering event indicator, an event iteration that never
+//! settles, time events at the same time forever, crowding time events and a NaN next event
+//! time. Exit code 1, no backtrace (RUST_BACKTRACE is set), and within a bound of time.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+/// The most a faulty run may take (each takes milliseconds; the bound is for a loaded machine).
+const BOUND: Duration = Duration::from_secs(20);
+
+/// The time at which the fixture's faults begin (its `at` parameter's default).
+const FAULT_AT: f64 = 0.5;
+
+/// `<dir>/FaultyME.fmu`: faulty_me.c compiled for this machine beside its model description.
+fn faulty_fmu(dir: &Path) -> PathBuf {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/faulty_me");
+    let library = dir.join("FaultyME.so");
+    let cc = Command::new("cc")
+        .args(["-shared", "-fPIC", "-O1", "-Wall", "-Werror", "-o"])
+        .arg(&library)
+        .arg(fixture.join("faulty_me.c"))
+        .arg("-lm")
+        .output()
+        .expect("a C compiler (cc) builds the faulty FMU");
+    assert!(
+        cc.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cc.stderr)
+    );
+    let path = dir.join("FaultyME.fmu");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+    let options = zip::write::SimpleFileOptions::default();
+    let entries = [
+        (
+            "modelDescription.xml",
+            std::fs::read(fixture.join("modelDescription.xml")).unwrap(),
+        ),
+        (
+            "binaries/linux64/FaultyME.so",
+            std::fs::read(&library).unwrap(),
+        ),
+    ];
+    for (name, data) in entries {
+        zip.start_file(name, options).unwrap();
+        zip.write_all(&data).unwrap();
+    }
+    zip.finish().unwrap();
+    path
+}
+
+/// What one run said and how long it took.
+struct Outcome {
+    success: bool,
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+    took: Duration,
+}
+
+/// Runs the FMU with `fault` set, into `<dir>/fault<N>.csv`.
+fn run(fmu: &Path, dir: &Path, fault: u32) -> Outcome {
+    let csv = dir.join(format!("fault{fault}.csv"));
+    let started = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_spurio"))
+        .args(["run", fmu.to_str().unwrap(), "--interface", "me"])
+        .args(["--set", &format!("fault={fault}"), "--out"])
+        .arg(&csv)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    Outcome {
+        success: out.status.success(),
+        code: out.status.code(),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        took: started.elapsed(),
+    }
+}
+
+/// The number after the first `t = ` of `message`.
+fn time_in(message: &str) -> f64 {
+    let after = message
+        .split_once("t = ")
+        .unwrap_or_else(|| panic!("no `t = ` in: {message}"))
+        .1;
+    let end = after
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | '-' | '+')))
+        .unwrap_or(after.len());
+    after[..end]
+        .parse()
+        .unwrap_or_else(|_| panic!("no time after `t = ` in: {message}"))
+}
+
+#[test]
+fn every_fault_of_a_model_exchange_fmu_is_a_clear_error_naming_the_fmu_the_call_and_the_time() {
+    let dir = std::env::temp_dir().join(format!("spurio-faulty-me-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let fmu = faulty_fmu(&dir);
+
+    // Without a fault the FMU is sound: x = exp(-t), recorded as y up to t = 1.
+    let sound = run(&fmu, &dir, 0);
+    assert!(sound.success, "{}", sound.stderr);
+    let table = std::fs::read_to_string(dir.join("fault0.csv")).unwrap();
+    let last = table.lines().last().unwrap();
+    let (t, y) = last.split_once(',').unwrap();
+    let (t, y): (f64, f64) = (t.parse().unwrap(), y.parse().unwrap());
+    assert_eq!(t, 1.0, "{table}");
+    assert!((y - (-1.0f64).exp()).abs() < 1e-6, "y(1) = {y}");
+
+    // (fault, the call named, what else the message says, the time's bracket)
+    let cases: [(u32, &str, &str, (f64, f64)); 7] = [
+        (1, "fmi2GetDerivatives failed", "fmi2Error", (FAULT_AT, 0.6)),
+        (
+            2,
+            "fmi2GetDerivatives gave a value that is not finite",
+            "",
+            (0.499, FAULT_AT),
+        ),
+        (
+            3,
+            "events come from fmi2GetEventIndicators",
+            "chattering",
+            (FAULT_AT, 0.500001),
+        ),
+        (
+            4,
+            "fmi2NewDiscreteStates still asked for another iteration",
+            "did not settle",
+            (FAULT_AT, FAULT_AT),
+        ),
+        (
+            5,
+            "events come from fmi2NewDiscreteStates",
+            "chattering",
+            (FAULT_AT, FAULT_AT),
+        ),
+        (
+            6,
+            "events come from fmi2NewDiscreteStates",
+            "chattering",
+            (FAULT_AT, 0.500001),
+        ),
+        (
+            7,
+            "fmi2NewDiscreteStates gave a value that is not finite",
+            "the next event time is NaN",
+            (FAULT_AT, FAULT_AT),
+        ),
+    ];
+    for (fault, call, what, (earliest, latest)) in cases {
+        let out = run(&fmu, &dir, fault);
+        let said = format!("fault {fault}: {}\n{}", out.stdout, out.stderr);
+        assert!(!out.success && out.code == Some(1), "{said}");
+        assert!(out.took < BOUND, "{said}\ntook {:?}", out.took);
+        assert!(out.stderr.contains(&fmu.display().to_string()), "{said}");
+        assert!(out.stderr.contains(call), "{said}");
+        assert!(out.stderr.contains(what), "{said}");
+        assert!(!out.stderr.contains("backtrace"), "{said}");
+        assert!(!out.stderr.contains("panicked"), "{said}");
+        let cause = out.stderr.split_once("Caused by:").map_or("", |c| c.1);
+        let t = time_in(cause);
+        assert!(
+            (earliest..=latest).contains(&t),
+            "fault {fault}: t = {t}, not in [{earliest}, {latest}]\n{said}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
