@@ -51,7 +51,7 @@ CASES = [
      0.1, {},
      ["speed", "voltage", "frequency", "field_current", "T_e", "i_d", "i_q"]),
 ]
-TOLERANCES = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
+TOLERANCES = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11]
 TARGETS = [1e-4, 1e-6, 1e-8]
 THEIRS = ["fmpy", "OMSimulator"]
 
@@ -157,7 +157,11 @@ def bench_case(case, rounds, tolerances, work, oms):
     fm = Fmpy(fmu)
     _, tight = spurio(fmu, "dopri5", 1e-12, stop, step, start_values, work / "tight.csv")
     try:
-        _, reference = fm.run(1e-12, stop, step, start_values, outputs)
+        # CVode stops after 500 steps between two output points: at 1e-12 it is asked for
+        # outputs 20 times as often, and the rows on the grid are kept.
+        _, fine = fm.run(1e-12, stop, step / 20, start_values, outputs)
+        on_grid = np.abs(fine["time"] / step - np.round(fine["time"] / step)) < 1e-9
+        reference = {name: column[on_grid] for name, column in fine.items()}
         said = (f"fmpy CVode at 1e-12 (against spurio dopri5 at 1e-12: "
                 f"{error(tight, reference, outputs):.1e})")
     except Exception as e:
