@@ -6,6 +6,9 @@
 //! settles, time events at the same time forever, crowding time events and a NaN next event
 //! time. Exit code 1, no backtrace (RUST_BACKTRACE is set), and within a bound of time.
 
+#[path = "../../tests/common/mod.rs"]
+mod engine;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -19,32 +22,15 @@ const FAULT_AT: f64 = 0.5;
 
 /// `<dir>/FaultyME.fmu`: faulty_me.c compiled for this machine beside its model description.
 fn faulty_fmu(dir: &Path) -> PathBuf {
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/faulty_me");
-    let library = dir.join("FaultyME.so");
-    let cc = Command::new("cc")
-        .args(["-shared", "-fPIC", "-O1", "-Wall", "-Werror", "-o"])
-        .arg(&library)
-        .arg(fixture.join("faulty_me.c"))
-        .arg("-lm")
-        .output()
-        .expect("a C compiler (cc) builds the faulty FMU");
-    assert!(
-        cc.status.success(),
-        "{}",
-        String::from_utf8_lossy(&cc.stderr)
-    );
+    let so = engine::compiled_fixture("faulty_me/faulty_me.c", dir);
+    let description = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/fixtures/faulty_me/modelDescription.xml");
     let path = dir.join("FaultyME.fmu");
     let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
     let options = zip::write::SimpleFileOptions::default();
     let entries = [
-        (
-            "modelDescription.xml",
-            std::fs::read(fixture.join("modelDescription.xml")).unwrap(),
-        ),
-        (
-            "binaries/linux64/FaultyME.so",
-            std::fs::read(&library).unwrap(),
-        ),
+        ("modelDescription.xml", std::fs::read(description).unwrap()),
+        ("binaries/linux64/FaultyME.so", so),
     ];
     for (name, data) in entries {
         zip.start_file(name, options).unwrap();
