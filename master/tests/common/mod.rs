@@ -84,7 +84,7 @@ pub fn rewrite(
 /// `fixtures/misbehaving.c` (compiled with `cc`), which misbehaves in `fmi2DoStep` as the
 /// `MISBEHAVE*` environment variables say (see that file); the FMU has no other binary.
 pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
-    let so = compiled_fixture("misbehaving.c", dir);
+    let so = compiled_fixture("misbehaving.c", &[], dir);
     let library_entry = "binaries/linux64/GantryCrane.so";
     let bytes = rewrite(
         &crane(),
@@ -100,12 +100,14 @@ pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
     path
 }
 
-/// The shared library built by `cc -shared -fPIC -O1` from `master/tests/fixtures/<source>`
-/// (in `dir`, removed after reading).
-pub fn compiled_fixture(source: &str, dir: &Path) -> Vec<u8> {
+/// The shared library built by `cc -shared -fPIC -O1` with `flags` (e.g. `-DNAME`) from
+/// `master/tests/fixtures/<source>` (in `dir`, removed after reading).
+pub fn compiled_fixture(source: &str, flags: &[&str], dir: &Path) -> Vec<u8> {
     let library = dir.join("fixture.so");
     let cc = std::process::Command::new("cc")
-        .args(["-shared", "-fPIC", "-O1", "-o"])
+        .args(["-shared", "-fPIC", "-O1"])
+        .args(flags)
+        .arg("-o")
         .arg(&library)
         .arg(master_dir().join("tests/fixtures").join(source))
         .arg("-lm")
