@@ -73,7 +73,12 @@ fn solve(method: Method, system: &mut impl OdeSystem, x0: &[f64], t_end: f64, to
 
 #[test]
 fn exponential_decay_to_the_tolerance() {
-    for method in [Method::Dopri5, Method::Rodas3, Method::Shampine4] {
+    for method in [
+        Method::Dopri5,
+        Method::Rodas4,
+        Method::Rodas3,
+        Method::Shampine4,
+    ] {
         for tol in [1e-4, 1e-7, 1e-10] {
             let solver = solve(method, &mut Decay(2.0), &[1.0], 3.0, tol);
             let exact = (-6f64).exp();
@@ -91,7 +96,7 @@ fn exponential_decay_to_the_tolerance() {
 #[test]
 fn the_oscillator_error_is_proportional_to_the_tolerance_and_the_dense_output_as_good() {
     let omega = 2.0;
-    for method in [Method::Dopri5, Method::Rodas3] {
+    for method in [Method::Dopri5, Method::Rodas4, Method::Rodas3] {
         let mut errors = Vec::new();
         for tol in [1e-6, 1e-8, 1e-10] {
             let mut system = Oscillator {
@@ -232,7 +237,7 @@ impl OdeSystem for Failing {
 #[test]
 fn a_failing_model_ends_in_an_error_naming_the_time_and_nothing_hangs() {
     let start = std::time::Instant::now();
-    for method in [Method::Dopri5, Method::Rodas3] {
+    for method in [Method::Dopri5, Method::Rodas4, Method::Rodas3] {
         let mut solver = Solver::new(method, 1, Settings::default());
         solver.reset::<ModelError>(0.0, &[0.0], &[1.0]).unwrap();
         let e = solver
