@@ -271,7 +271,7 @@ pub fn run(
         )
     })?;
     let s = summary.statistics;
-    println!(
+    say!(
         "{}: Model Exchange, {method} at tolerance {:e}: {} steps ({} rejected), {} right-hand sides, {} Jacobians ({} directional-derivative calls); {} state, {} time, {} step events",
         fmu.model_name,
         run_options.tolerance,
@@ -285,11 +285,11 @@ pub fn run(
         summary.step_events,
     );
     if summary.terminated {
-        println!(
+        say!(
             "the FMU ended the simulation at t = {} (terminateSimulation)",
             summary.end_time
         );
     }
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }
