@@ -47,7 +47,7 @@ CASES = [
     ("GantryCrane U=3", REPO / "build" / "fmus" / "GantryCrane.fmu", ["dopri5"], 10.0, 0.05,
      {"U": 3.0}, ["x", "theta", "v", "omega"]),
     # start-up: stiff (60 Hz stator currents), angle-wrap and torque-limit events
-    ("WindGenerator", REPO / "build" / "fmus" / "WindGenerator.fmu", ["dopri5", "rodas3"], 10.0,
+    ("WindGenerator", REPO / "build" / "fmus" / "WindGenerator.fmu", ["dopri5", "rodas4", "rodas3"], 10.0,
      0.1, {},
      ["speed", "voltage", "frequency", "field_current", "T_e", "i_d", "i_q"]),
 ]

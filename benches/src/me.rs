@@ -22,7 +22,7 @@ use std::time::Instant;
 struct Args {
     /// The FMU (FMI 2.0 or 3.0, with Model Exchange).
     fmu: PathBuf,
-    /// dopri5, rodas3 or shampine4.
+    /// dopri5, rodas4, rodas3 or shampine4.
     #[arg(long, default_value = "dopri5")]
     solver: Method,
     /// The relative tolerance (the absolute one: the same times each state's nominal).

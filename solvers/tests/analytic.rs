@@ -5,9 +5,9 @@
 
 use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverError};
 
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct ModelError(String);
+mod problems;
+
+use problems::{ModelError, Robertson};
 
 /// `ẋ = −λ x`.
 struct Decay(f64);
@@ -41,20 +41,6 @@ impl OdeSystem for Oscillator {
         out[0] = v[1];
         out[1] = -self.omega * self.omega * v[0];
         Ok(true)
-    }
-}
-
-/// Robertson's chemical kinetics (Hairer & Wanner, *Solving ODEs II*, §IV.1, (1.4)):
-/// rate constants 0.04, 10⁴, 3·10⁷; stiff.
-struct Robertson;
-
-impl OdeSystem for Robertson {
-    type Error = ModelError;
-    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), ModelError> {
-        dy[0] = -0.04 * y[0] + 1e4 * y[1] * y[2];
-        dy[2] = 3e7 * y[1] * y[1];
-        dy[1] = -dy[0] - dy[2];
-        Ok(())
     }
 }
 

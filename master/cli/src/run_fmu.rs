@@ -34,7 +34,8 @@ pub struct FmuArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// For a Model Exchange run: the solver, `dopri5` (explicit Dormand–Prince 5(4), the
-    /// default), `rodas3` (stiff, Rosenbrock) or `shampine4`.
+    /// default), `rodas4` (also `stiff`: Rosenbrock, L-stable, with dense output from its
+    /// stages), `rodas3` or `shampine4`.
     #[arg(long, value_name = "METHOD")]
     pub solver: Option<Method>,
     /// For a Model Exchange run: the relative tolerance (the absolute one: the same times each
