@@ -20,6 +20,7 @@ pub mod crane_free_swing;
 pub mod distributed_observer;
 pub mod generator_identification;
 pub mod opamp_identification;
+pub mod real_data;
 pub mod runner;
 
 use anyhow::{Context as _, Result};
@@ -207,6 +208,11 @@ pub fn all() -> Vec<Experiment> {
         name: "opamp_identification",
         description: "op-amp filter identified from a noisy step and a PRBS: RLS with Steiglitz–McBride iterations (paper 002)",
         run: opamp_identification::run,
+    },
+    Experiment {
+        name: "real_data",
+        description: "the DaISy hair dryer (measured data): RLS, DKF and the robust paths through the data source, with outliers and missing samples",
+        run: real_data::run,
     }]
 }
 

@@ -4,15 +4,14 @@
 //! inputs are set and the direct-feedthrough outputs re-read in at a communication point) and
 //! then drives a running [`Exchange`] through initialisation, every base step and the end of
 //! the run. The plan compiler ([`crate::plan`]) sees only the first half ([`Propagation`],
-//! which [`Algorithm`] extends) and the run loop ([`crate::Simulation`]) only the trait: a new algorithm (Model Exchange integration, an identification loop that
-//! repeats steps) is a new implementation given to [`crate::System::set_algorithm`], with no
+//! which [`Algorithm`] extends) and the run loop ([`crate::Simulation`]) only the trait: a new algorithm (an identification loop that repeats steps) is a new implementation given to [`crate::System::set_algorithm`], with no
 //! edit to either.
 //!
 //! The built-in algorithms are the two fixed-step co-simulation schemes (docs/engine.md):
 //! [`GaussSeidel`] (values flow through the direct-feedthrough graph within a communication
 //! point) and [`Jacobi`] (every input gets the value its source had after the previous step).
 
-use crate::coupling::{feeds_through, has_feedthrough, variable_name};
+use crate::coupling::propagation_order;
 use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance};
 use crate::description::AlgorithmName;
 use crate::error::{RunError, SystemError};
@@ -157,68 +156,4 @@ pub fn named(name: AlgorithmName) -> Arc<dyn Algorithm> {
         AlgorithmName::GaussSeidel => Arc::new(GaussSeidel),
         AlgorithmName::Jacobi => Arc::new(Jacobi),
     }
-}
-
-/// The order in which, at a communication point, connected inputs are set and
-/// direct-feedthrough outputs re-read: a topological order of the graph whose edges are
-/// the connections (output → input) and the feedthrough inside each FMU (input → output
-/// that depends on it). A cycle is an algebraic loop and is reported with its variables.
-pub fn propagation_order(
-    instances: &[ResolvedInstance],
-    connections: &[Connection],
-) -> Result<Vec<PropagationStep>, SystemError> {
-    // Nodes: the connected inputs and the feedthrough outputs that are connection sources.
-    let mut nodes: Vec<PropagationStep> = Vec::new();
-    for c in connections {
-        nodes.push(PropagationStep::SetInput(c.to));
-        if has_feedthrough(instances, c.from) {
-            let n = PropagationStep::GetOutput(c.from);
-            if !nodes.contains(&n) {
-                nodes.push(n);
-            }
-        }
-    }
-    let n = nodes.len();
-    let mut edges = vec![Vec::new(); n];
-    let mut indegree = vec![0usize; n];
-    for (a, na) in nodes.iter().enumerate() {
-        for (b, nb) in nodes.iter().enumerate() {
-            let edge = match (na, nb) {
-                (PropagationStep::GetOutput(o), PropagationStep::SetInput(i)) => {
-                    connections.iter().any(|c| c.from == *o && c.to == *i)
-                }
-                (PropagationStep::SetInput(i), PropagationStep::GetOutput(o)) => {
-                    feeds_through(instances, *o, *i)
-                }
-                _ => false,
-            };
-            if edge {
-                edges[a].push(b);
-                indegree[b] += 1;
-            }
-        }
-    }
-    let mut ready: Vec<usize> = (0..n).filter(|&i| indegree[i] == 0).rev().collect();
-    let mut order = Vec::with_capacity(n);
-    while let Some(a) = ready.pop() {
-        order.push(nodes[a]);
-        for &b in edges[a].iter().rev() {
-            indegree[b] -= 1;
-            if indegree[b] == 0 {
-                ready.push(b);
-            }
-        }
-    }
-    if order.len() < n {
-        let stuck: Vec<String> = (0..n)
-            .filter(|&i| indegree[i] > 0)
-            .map(|i| match nodes[i] {
-                PropagationStep::SetInput(r) | PropagationStep::GetOutput(r) => {
-                    variable_name(instances, r)
-                }
-            })
-            .collect();
-        return Err(SystemError::AlgebraicLoop(stuck.join(", ")));
-    }
-    Ok(order)
 }

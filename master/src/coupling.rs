@@ -3,8 +3,10 @@
 //! lays out and a stepping algorithm ([`crate::algorithm`]) orders.
 
 use crate::data::DataTable;
+use crate::description::DEFAULT_TOLERANCE;
 use crate::error::SystemError;
 use crate::fmu::{Causality, FmuFile, VarType};
+use spurio_solvers::Method;
 use std::sync::Arc;
 
 /// A variable of an instance: (instance index, variable index in its FMU).
@@ -41,6 +43,30 @@ pub struct ResolvedInstance {
     /// For a data instance, its table (then `fmu` is only the table's interface,
     /// [`FmuFile::is_table`]).
     pub data: Option<Arc<DataTable>>,
+    /// How the master integrates it when its FMU is loaded for Model Exchange.
+    pub integration: Integration,
+}
+
+/// How the master integrates a Model Exchange instance ([`crate::model_exchange`]): the
+/// system file's `solver`, `tolerance` and `max_step`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Integration {
+    pub method: Method,
+    /// The relative tolerance (the absolute one: the same times each state's nominal).
+    pub tolerance: f64,
+    /// The longest solver step (None: no bound).
+    pub max_step: Option<f64>,
+}
+
+impl Default for Integration {
+    /// DOPRI5 at [`DEFAULT_TOLERANCE`], no maximum step.
+    fn default() -> Self {
+        Self {
+            method: Method::Dopri5,
+            tolerance: DEFAULT_TOLERANCE,
+            max_step: None,
+        }
+    }
 }
 
 /// Whether output `output` depends directly on input `input` of the same instance.
@@ -132,4 +158,68 @@ pub trait Propagation: std::fmt::Debug + Send + Sync {
     /// set at a communication point are read again after the propagation, so that a record
     /// holds the values of that point (true), or keep those read after the last step (false).
     fn refreshes_records(&self) -> bool;
+}
+
+/// The order in which, at a communication point, connected inputs are set and
+/// direct-feedthrough outputs re-read: a topological order of the graph whose edges are
+/// the connections (output → input) and the feedthrough inside each FMU (input → output
+/// that depends on it). A cycle is an algebraic loop and is reported with its variables.
+pub fn propagation_order(
+    instances: &[ResolvedInstance],
+    connections: &[Connection],
+) -> Result<Vec<PropagationStep>, SystemError> {
+    // Nodes: the connected inputs and the feedthrough outputs that are connection sources.
+    let mut nodes: Vec<PropagationStep> = Vec::new();
+    for c in connections {
+        nodes.push(PropagationStep::SetInput(c.to));
+        if has_feedthrough(instances, c.from) {
+            let n = PropagationStep::GetOutput(c.from);
+            if !nodes.contains(&n) {
+                nodes.push(n);
+            }
+        }
+    }
+    let n = nodes.len();
+    let mut edges = vec![Vec::new(); n];
+    let mut indegree = vec![0usize; n];
+    for (a, na) in nodes.iter().enumerate() {
+        for (b, nb) in nodes.iter().enumerate() {
+            let edge = match (na, nb) {
+                (PropagationStep::GetOutput(o), PropagationStep::SetInput(i)) => {
+                    connections.iter().any(|c| c.from == *o && c.to == *i)
+                }
+                (PropagationStep::SetInput(i), PropagationStep::GetOutput(o)) => {
+                    feeds_through(instances, *o, *i)
+                }
+                _ => false,
+            };
+            if edge {
+                edges[a].push(b);
+                indegree[b] += 1;
+            }
+        }
+    }
+    let mut ready: Vec<usize> = (0..n).filter(|&i| indegree[i] == 0).rev().collect();
+    let mut order = Vec::with_capacity(n);
+    while let Some(a) = ready.pop() {
+        order.push(nodes[a]);
+        for &b in edges[a].iter().rev() {
+            indegree[b] -= 1;
+            if indegree[b] == 0 {
+                ready.push(b);
+            }
+        }
+    }
+    if order.len() < n {
+        let stuck: Vec<String> = (0..n)
+            .filter(|&i| indegree[i] > 0)
+            .map(|i| match nodes[i] {
+                PropagationStep::SetInput(r) | PropagationStep::GetOutput(r) => {
+                    variable_name(instances, r)
+                }
+            })
+            .collect();
+        return Err(SystemError::AlgebraicLoop(stuck.join(", ")));
+    }
+    Ok(order)
 }

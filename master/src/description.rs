@@ -3,6 +3,7 @@
 
 use crate::data::Interpolation;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use spurio_solvers::Method;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -44,6 +45,105 @@ pub struct InstanceDescription {
     /// Turns the FMU's debug logging on.
     #[serde(default)]
     pub logging: bool,
+    /// The FMI interface to run the FMU with (`"me"` or `"cs"`); default: Co-Simulation when
+    /// the FMU offers it, else Model Exchange (integrated by the master, [`crate::model_exchange`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interface: Option<InterfaceName>,
+    /// Model Exchange: the solver (`dopri5`, `rodas3`, `shampine4`; default `dopri5`).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "method_by_name",
+        serialize_with = "write_method"
+    )]
+    pub solver: Option<Method>,
+    /// Model Exchange: the solver's relative tolerance (the absolute one: the same times each
+    /// state's nominal); default [`DEFAULT_TOLERANCE`].
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "positive"
+    )]
+    pub tolerance: Option<f64>,
+    /// Model Exchange: the longest solver step in seconds (default: none).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "positive"
+    )]
+    pub max_step: Option<f64>,
+}
+
+/// The relative tolerance of a Model Exchange instance whose system file gives none.
+pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+/// The FMI interface an instance runs with, as a system file writes it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum InterfaceName {
+    /// Model Exchange: the master integrates the FMU's states with its own solvers.
+    #[serde(rename = "me")]
+    ModelExchange,
+    /// Co-Simulation: the FMU steps itself (`DoStep`).
+    #[serde(rename = "cs")]
+    CoSimulation,
+}
+
+impl InstanceDescription {
+    /// An FMU instance called `name` of the FMU at `fmu`, with the defaults of a system file.
+    pub fn new(name: impl Into<String>, fmu: impl Into<PathBuf>) -> Self {
+        Self {
+            name: name.into(),
+            fmu: fmu.into(),
+            data: None,
+            interpolation: None,
+            parameters: BTreeMap::new(),
+            step_multiple: 1,
+            logging: false,
+            interface: None,
+            solver: None,
+            tolerance: None,
+            max_step: None,
+        }
+    }
+
+    /// Whether a Model Exchange key (`solver`, `tolerance`, `max_step`) is given.
+    pub fn has_solver_settings(&self) -> bool {
+        self.solver.is_some() || self.tolerance.is_some() || self.max_step.is_some()
+    }
+}
+
+/// A solver named as `spurio_solvers::Method` parses it (the error lists the names).
+fn method_by_name<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Method>, D::Error> {
+    let name = String::deserialize(d)?;
+    name.parse().map(Some).map_err(serde::de::Error::custom)
+}
+
+fn write_method<S: Serializer>(m: &Option<Method>, s: S) -> Result<S::Ok, S::Error> {
+    match m {
+        Some(m) => s.serialize_str(m.name()),
+        None => s.serialize_none(),
+    }
+}
+
+/// A positive, finite number of seconds or a tolerance (an integer is taken as a number).
+fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Number {
+        Float(f64),
+        Integer(i64),
+    }
+    let x = match Number::deserialize(d)? {
+        Number::Float(x) => x,
+        Number::Integer(i) => i as f64,
+    };
+    if x.is_finite() && x > 0.0 {
+        Ok(Some(x))
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "expected a positive number, found {x}"
+        )))
+    }
 }
 
 fn one() -> u32 {

@@ -34,7 +34,7 @@
 use crate::algorithm::{Algorithm, GaussSeidel, Jacobi};
 use crate::error::{RunError, SystemError};
 use crate::exchange::{due_at, Exchange, StepOutcome};
-use crate::fmu::FmiVersion;
+use crate::fmu::{FmiVersion, Interface};
 use crate::monitor::CallMonitor;
 use crate::record::Observer;
 use crate::system::System;
@@ -65,6 +65,9 @@ pub enum RunEnd {
         instance: String,
         time: f64,
         version: FmiVersion,
+        /// Model Exchange: `fmi2NewDiscreteStates`/`fmi3UpdateDiscreteStates` or
+        /// `CompletedIntegratorStep` set `terminateSimulation`.
+        interface: Interface,
     },
 }
 
@@ -76,13 +79,16 @@ impl std::fmt::Display for RunEnd {
                 instance,
                 time,
                 version,
+                interface,
             } => write!(
                 f,
                 "instance `{instance}` asked to end the simulation at t = {time} ({})",
-                match version {
-                    FmiVersion::Fmi2 =>
+                match (interface, version) {
+                    (Interface::ModelExchange, _) =>
+                        "Model Exchange: terminateSimulation = true in an event or an integrator step",
+                    (_, FmiVersion::Fmi2) =>
                         "fmi2DoStep returned fmi2Discard with fmi2Terminated = true",
-                    FmiVersion::Fmi3 => "fmi3DoStep returned terminateSimulation = true",
+                    (_, FmiVersion::Fmi3) => "fmi3DoStep returned terminateSimulation = true",
                 }
             ),
         }
@@ -208,15 +214,21 @@ impl Simulation {
             if let StepOutcome::Terminated(asked) = algorithm.step(&mut self.exchange, k, time)? {
                 // The run ends where the earliest of them stopped: every output is read
                 // there and recorded as the last point.
-                let (instance, end, version) = asked
+                let (instance, end, version, interface) = asked
                     .into_iter()
                     .reduce(|first, other| if first.1 <= other.1 { first } else { other })
-                    .unwrap_or((String::new(), time, FmiVersion::Fmi2));
+                    .unwrap_or((
+                        String::new(),
+                        time,
+                        FmiVersion::Fmi2,
+                        Interface::CoSimulation,
+                    ));
                 self.finish(algorithm, observer, end, end)?;
                 return Ok(RunEnd::Terminated {
                     instance,
                     time: end,
                     version,
+                    interface,
                 });
             }
             if let Some(factor) = options.real_time_factor {

@@ -46,6 +46,11 @@ pub enum SystemError {
     },
     #[error("algebraic loop: these direct-feedthrough variables depend on each other within a communication point: {0}")]
     AlgebraicLoop(String),
+    #[error("an algebraic loop between the Model Exchange instances {instances}, which the master integrates as one ODE: these variables depend on each other directly, through the connections between them: {variables}; break the loop (an output that depends only on states, or a Co-Simulation instance in between)")]
+    ModelExchangeLoop {
+        instances: String,
+        variables: String,
+    },
     /// What is wrong with the system an SSP archive describes, naming the archive (and its
     /// FMUs by their paths inside it, not by the folder they were unpacked into). The
     /// message holds the error's whole text, so the error is no `source()` of it (an error
@@ -103,6 +108,10 @@ pub enum RunError {
     /// One or more FMUs failed in the same step (all of them are listed).
     #[error("{}", joined(failures))]
     Fmi { failures: Vec<FmiFailure> },
+    /// A Model Exchange instance (or a group of them integrated as one ODE) failed: the
+    /// FMU, the call and the time.
+    #[error(transparent)]
+    ModelExchange(#[from] crate::model_exchange::MeError),
     /// Writing the results failed (the I/O error's text is the message's, not a source).
     #[error("writing results: {0}")]
     Output(std::io::Error),

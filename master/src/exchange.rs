@@ -8,114 +8,15 @@
 //! ([`RunError::Fmi`] names each failing instance, its FMU, the call and the time, quoting
 //! what that instance logged).
 
+use crate::batch::{Batch, Unit};
+use crate::coupled::{Coupled, Members};
 use crate::coupling::ResolvedInstance;
 use crate::data::{Cursor, DataTable, Reading};
 use crate::error::{FmiFailure, RunError, SystemError};
-use crate::fmu::{
-    CallError, Experiment, FmiVersion, FmuFile, Instance, StepEnd, StepProblem, VarType,
-};
+use crate::fmu::{CallError, Experiment, FmiVersion, Interface, StepEnd, StepProblem};
 use crate::monitor::{watched, CallMonitor};
 use crate::plan::{push_op, Op, Plan, Transfer};
 use std::sync::Arc;
-
-/// One value of a [`Batch`]: its buffer slot, its position among the call's values and,
-/// for an FMI 3.0 array element, (array, position in the array).
-#[derive(Debug, Clone, Copy)]
-struct Entry {
-    slot: usize,
-    position: usize,
-    element: Option<(usize, usize)>,
-}
-
-/// A [`Transfer`] of the plan as one FMI call: the value references of the call (an FMI 3.0
-/// array once, with all its values), where each value goes, and the scratch space.
-#[derive(Debug, Clone)]
-struct Batch {
-    var_type: VarType,
-    member: usize,
-    vrs: Vec<u32>,
-    entries: Vec<Entry>,
-    /// (array, first position) of every array moved whole by the call.
-    arrays: Vec<(usize, usize)>,
-    values: Vec<f64>,
-}
-
-impl Batch {
-    fn new(t: &Transfer, fmu: &FmuFile) -> Self {
-        let mut vrs = Vec::with_capacity(t.vrs.len());
-        let mut entries = Vec::with_capacity(t.vrs.len());
-        let mut arrays: Vec<(usize, usize)> = Vec::new();
-        let mut count = 0;
-        for ((&vr, &slot), &var) in t.vrs.iter().zip(&t.slots).zip(&t.vars) {
-            let element = fmu.variables.get(var).and_then(|v| v.element);
-            let position = match element {
-                None => {
-                    vrs.push(vr);
-                    count += 1;
-                    count - 1
-                }
-                Some((array, k)) => match arrays.iter().find(|(a, _)| *a == array) {
-                    Some(&(_, first)) => first + k,
-                    None => {
-                        let first = count;
-                        vrs.push(vr);
-                        count += fmu.arrays.get(array).map_or(0, |a| a.elements.len());
-                        arrays.push((array, first));
-                        first + k
-                    }
-                },
-            };
-            entries.push(Entry {
-                slot,
-                position,
-                element,
-            });
-        }
-        Self {
-            var_type: t.var_type,
-            member: t.member,
-            vrs,
-            entries,
-            arrays,
-            values: vec![0.0; count],
-        }
-    }
-
-    #[inline]
-    fn get(&mut self, inst: &mut Instance, buffer: &mut [f64]) -> Result<(), CallError> {
-        inst.get(self.var_type, &self.vrs, &mut self.values)?;
-        for e in &self.entries {
-            buffer[e.slot] = self.values[e.position];
-        }
-        Ok(())
-    }
-
-    /// Sets the values from the buffer; the elements of an array this batch does not set
-    /// keep the values last given to them (`held`, per array of the instance's FMU).
-    #[inline]
-    fn set(
-        &mut self,
-        inst: &mut Instance,
-        buffer: &[f64],
-        held: &mut [Vec<f64>],
-    ) -> Result<(), CallError> {
-        for e in &self.entries {
-            let v = buffer[e.slot];
-            self.values[e.position] = v;
-            if let Some((array, k)) = e.element {
-                if let Some(x) = held.get_mut(array).and_then(|a| a.get_mut(k)) {
-                    *x = v;
-                }
-            }
-        }
-        for &(array, first) in &self.arrays {
-            if let Some(a) = held.get(array) {
-                self.values[first..first + a.len()].copy_from_slice(a);
-            }
-        }
-        inst.set(self.var_type, &self.vrs, &self.values)
-    }
-}
 
 enum Step {
     Set(Batch),
@@ -128,7 +29,7 @@ struct Member {
     monitor: Option<Arc<CallMonitor>>,
     name: String,
     file: String,
-    instance: Instance,
+    instance: Unit,
     multiple: u64,
     /// Gets after this member's step (its slots).
     after_step: Vec<Batch>,
@@ -153,7 +54,7 @@ impl Member {
     /// Runs `f` on this member's instance as FMI call `call` at `time`, noted in the
     /// monitor.
     #[inline]
-    fn call<T>(&mut self, call: &'static str, time: f64, f: impl FnOnce(&mut Instance) -> T) -> T {
+    fn call<T>(&mut self, call: &'static str, time: f64, f: impl FnOnce(&mut Unit) -> T) -> T {
         let instance = &mut self.instance;
         watched(self.monitor.as_deref(), self.index, call, time, || {
             f(instance)
@@ -166,7 +67,7 @@ impl Member {
         FmiFailure {
             instance: self.name.clone(),
             file: self.file.clone(),
-            call: self.instance.call_name(call),
+            call: self.instance.version().call_name(call),
             status: e.0,
             time,
             log: if said.is_empty() {
@@ -175,6 +76,17 @@ impl Member {
                 format!(" (the FMU logged: {})", said.join("; "))
             },
         }
+    }
+}
+
+impl Members for [Member] {
+    fn unit(&mut self, position: usize) -> (&mut Unit, &mut [Vec<f64>]) {
+        let m = &mut self[position];
+        (&mut m.instance, &mut m.held)
+    }
+
+    fn name(&self, position: usize) -> &str {
+        &self[position].name
     }
 }
 
@@ -260,7 +172,7 @@ fn call_every<T>(
     members: &mut [Member],
     name: &'static str,
     time: f64,
-    call: impl Fn(&mut Instance) -> Result<T, CallError>,
+    call: impl Fn(&mut Unit) -> Result<T, CallError>,
 ) -> Result<(), RunError> {
     on_every(
         members,
@@ -278,9 +190,9 @@ fn call_every<T>(
 pub enum StepOutcome {
     /// Every due member completed its step.
     Completed,
-    /// (instance, last successful time, its version) of every member that asked to end
-    /// the run.
-    Terminated(Vec<(String, f64, FmiVersion)>),
+    /// (instance, last successful time, its version, its interface) of every member that
+    /// asked to end the run (of a Model Exchange group: its first member).
+    Terminated(Vec<(String, f64, FmiVersion, Interface)>),
 }
 
 /// The instances of a running system, the value buffer and the compiled transfers between
@@ -292,6 +204,8 @@ pub struct Exchange {
     members: Vec<Member>,
     /// The data instances.
     sources: Vec<Source>,
+    /// The Model Exchange instances in their groups, each integrated as one ODE.
+    coupled: Vec<Coupled>,
     /// Set/get operations at each communication point.
     propagation: Vec<Step>,
     buffer: Vec<f64>,
@@ -332,8 +246,14 @@ impl Exchange {
             }
             position[i] = members.len();
             let fmu = &spec.fmu;
+            let me = fmu.interface == Interface::ModelExchange;
             let instance = watched(monitor.as_deref(), i, "fmi2Instantiate", t0, || {
-                fmu.instantiate(&spec.name, spec.logging)
+                if me {
+                    let instance = fmu.instantiate_model_exchange(&spec.name, spec.logging);
+                    instance.map(Unit::Me)
+                } else {
+                    fmu.instantiate(&spec.name, spec.logging).map(Unit::Cs)
+                }
             })
             .map_err(SystemError::from)?;
             let mut m = Member {
@@ -359,7 +279,7 @@ impl Exchange {
                     .collect(),
             };
             let experiment = Experiment {
-                tolerance: None,
+                tolerance: me.then_some(spec.integration.tolerance),
                 start: t0,
                 stop: Some(stop_time),
             };
@@ -393,8 +313,21 @@ impl Exchange {
             .map_err(|e| m.failure("fmi2EnterInitializationMode", e, t0))?;
             members.push(m);
         }
+        let mut coupled = Vec::with_capacity(plan.model_exchange.len());
+        for group in &plan.model_exchange {
+            let made = Coupled::new(
+                group,
+                instances,
+                &position,
+                members.as_mut_slice(),
+                (t0, stop_time),
+            );
+            let first = &members[position[group.members[0]]];
+            coupled.push(made.map_err(|e| first.failure("fmi2Instantiate", e, t0))?);
+        }
         Ok(Self {
             members,
+            coupled,
             propagation: plan
                 .propagation
                 .iter()
@@ -491,24 +424,33 @@ impl Exchange {
         Ok(())
     }
 
-    /// Every member leaves initialisation mode at `time`.
+    /// Every member leaves initialisation mode at `time`; the Model Exchange ones then
+    /// iterate their first event and enter continuous-time mode, group by group.
     pub fn exit_initialization_mode(&mut self, time: f64) -> Result<(), RunError> {
         call_every(
             &mut self.members,
             "fmi2ExitInitializationMode",
             time,
-            Instance::exit_initialization_mode,
-        )
+            Unit::exit_initialization_mode,
+        )?;
+        for group in &mut self.coupled {
+            let members = self.members.as_mut_slice();
+            let first = group.first_position();
+            let (monitor, index) = (members[first].monitor.clone(), members[first].index);
+            watched(
+                monitor.as_deref(),
+                index,
+                "fmi2NewDiscreteStates (first event iteration)",
+                time,
+                || group.initialise(members, &mut self.buffer, time),
+            )?;
+        }
+        Ok(())
     }
 
     /// Terminates every member at `time` (they are freed when dropped).
     pub(crate) fn terminate(&mut self, time: f64) -> Result<(), RunError> {
-        call_every(
-            &mut self.members,
-            "fmi2Terminate",
-            time,
-            Instance::terminate,
-        )
+        call_every(&mut self.members, "fmi2Terminate", time, Unit::terminate)
     }
 
     /// `fmi2DoStep`/`fmi3DoStep` on every member due at base step `k` (beginning at `time`),
@@ -520,9 +462,19 @@ impl Exchange {
         let (step_size, stop_time) = (self.step_size, self.stop_time);
         let mut failures = Vec::new();
         let mut terminated = Vec::new();
-        for m in self.members.iter_mut().filter(|m| due_at(k, m.multiple)) {
+        let co_simulation = |m: &&mut Member| matches!(m.instance, Unit::Cs(_));
+        for m in self
+            .members
+            .iter_mut()
+            .filter(|m| due_at(k, m.multiple))
+            .filter(co_simulation)
+        {
             let h = (step_size * m.multiple as f64).min(stop_time - time);
-            match m.call("fmi2DoStep", time, |inst| inst.do_step(time, h)) {
+            let step = |unit: &mut Unit| match unit {
+                Unit::Cs(instance) => instance.do_step(time, h),
+                Unit::Me(_) => Ok(StepEnd::Completed),
+            };
+            match m.call("fmi2DoStep", time, step) {
                 Ok(StepEnd::Completed) => {}
                 Ok(StepEnd::Terminate(last)) => {
                     // FMI 2.0 stopped within the step (fmi2Discard); FMI 3.0 completed it
@@ -532,7 +484,8 @@ impl Exchange {
                         FmiVersion::Fmi2 => time,
                         FmiVersion::Fmi3 => time + h,
                     };
-                    terminated.push((m.name.clone(), last.unwrap_or(fallback), version));
+                    let end = last.unwrap_or(fallback);
+                    terminated.push((m.name.clone(), end, version, Interface::CoSimulation));
                 }
                 Err(StepProblem::Failed(e)) => failures.push(m.failure("fmi2DoStep", e, time)),
                 Err(StepProblem::EarlyReturn {
@@ -560,6 +513,27 @@ impl Exchange {
         }
         if !failures.is_empty() {
             return Err(RunError::Fmi { failures });
+        }
+        // The Model Exchange groups, integrated over the same interval with their inputs
+        // held as set at `time`.
+        for group in self.coupled.iter_mut().filter(|g| due_at(k, g.multiple)) {
+            let h = (step_size * group.multiple as f64).min(stop_time - time);
+            let members = self.members.as_mut_slice();
+            let first = group.first_position();
+            let (monitor, index) = (members[first].monitor.clone(), members[first].index);
+            let buffer = &mut self.buffer;
+            let end = watched(
+                monitor.as_deref(),
+                index,
+                "Model Exchange integration",
+                time,
+                || group.advance_to(members, buffer, time + h),
+            )?;
+            if let Some(end) = end {
+                let m = &members[first];
+                let version = m.instance.version();
+                terminated.push((m.name.clone(), end, version, Interface::ModelExchange));
+            }
         }
         Ok(if terminated.is_empty() {
             StepOutcome::Completed

@@ -1,5 +1,6 @@
 //! spurio-master: a co-simulation engine for FMI 2.0 and FMI 3.0 Co-Simulation FMUs (ours or
-//! a third party's). It loads FMUs on rust-fmi ([`fmu`]), reads systems described by name in
+//! a third party's), and for Model Exchange FMUs, which it integrates itself between
+//! communication points ([`model_exchange`]; several connected ones as one ODE). It loads FMUs on rust-fmi ([`fmu`]), reads systems described by name in
 //! TOML or SSP ([`SystemDescription`], [`ssp`]), resolves and edits them by name ([`System`]),
 //! compiles them to indices once ([`Plan`]) for a stepping [`Algorithm`] ([`GaussSeidel`],
 //! [`Jacobi`], or one of the caller's), steps them ([`Simulation`]), sends results to
@@ -7,14 +8,19 @@
 //! FMU of its own: any FMI 2.0 or 3.0 CS FMU runs, both versions mixed in one system.
 //! Sweeps, shards and cluster runs are built on it by the `spurio-batch` crate.
 //!
-//! Its modules, each importing only those listed before it:
-//! `xml`, `logging`, `data`, [`fmu`], `description`, [`ssp`], `error`, `coupling`, `monitor`,
-//! `plan`, `exchange`, `algorithm`, `system`, `record`, `results`, `engine`, and
-//! [`model_exchange`] (Model Exchange import: on `fmu` and `record` and the solvers crate).
+//! Its modules, each importing only those listed before it (but for [`fmu`]'s `me`, which
+//! implements [`model_exchange`]'s calls for the FMI instances):
+//! `xml`, `logging`, `data`, [`fmu`], `record`, [`model_exchange`] (Model Exchange import: the
+//! stepper over the solvers crate), `description`, [`ssp`], `error`, `coupling`, `monitor`,
+//! `plan`, `batch` (the values of one FMI call; a running CS or ME instance), `coupled` (the
+//! ME instances of a system, integrated group by group), `exchange`, `algorithm`, `system`,
+//! `results`, `engine`.
 
 #![forbid(unsafe_code)]
 
 mod algorithm;
+mod batch;
+mod coupled;
 mod coupling;
 mod data;
 mod description;
@@ -32,8 +38,11 @@ pub mod ssp;
 mod system;
 mod xml;
 
-pub use algorithm::{named as named_algorithm, propagation_order, Algorithm, GaussSeidel, Jacobi};
-pub use coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
+pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
+pub use coupling::{
+    propagation_order, Connection, Integration, Propagation, PropagationStep, ResolvedInstance,
+    VarRef,
+};
 pub use data::{Cursor, DataError, DataTable, Interpolation, Reading};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};

@@ -8,11 +8,11 @@
 //! in one buffer and groups the value references of one instance and type into batches,
 //! so the engine's loop ([`crate::engine`]) only moves numbers.
 
-use crate::coupling::{has_feedthrough, split_variable, unknown, variable_name};
+use crate::coupling::{has_feedthrough, propagation_order, split_variable, unknown, variable_name};
 use crate::coupling::{Connection, Propagation, PropagationStep, ResolvedInstance, VarRef};
 use crate::description::SystemDescription;
 use crate::error::SystemError;
-use crate::fmu::{Causality, VarType};
+use crate::fmu::{Causality, Interface, VarType};
 use std::collections::HashMap;
 
 /// Value references of one instance and one type, moved in one FMI call, and the buffer
@@ -107,6 +107,29 @@ pub struct Plan {
     pub propagation: Vec<Op>,
     /// Number of base steps from start to stop time.
     pub steps: u64,
+    /// The Model Exchange instances, in groups connected to each other (each integrated as
+    /// one ODE by the master).
+    pub model_exchange: Vec<CoupledPlan>,
+}
+
+/// Model Exchange instances connected to each other (directly or through others of them),
+/// integrated as one ODE (OMSimulator's strongly coupled system): at every evaluation of
+/// the right-hand side, the outputs that feed other members are read and the connected
+/// inputs set, in dependency order, before the derivatives are read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoupledPlan {
+    /// The instances, in the order of the system.
+    pub members: Vec<usize>,
+    /// The outputs feeding other members that depend on no input: read first.
+    pub reads: Vec<Transfer>,
+    /// The connected inputs set and the direct-feedthrough outputs re-read, in dependency
+    /// order ([`crate::propagation_order`] over the connections between members).
+    pub propagation: Vec<Op>,
+    /// The step multiple of every member.
+    pub step_multiple: u32,
+    /// Whether a connection from outside the group drives an input of a member (set at
+    /// every communication point: the solver starts again there).
+    pub driven_from_outside: bool,
 }
 
 impl Plan {
@@ -260,15 +283,18 @@ impl Plan {
             }
             recorded
         };
+        // An algebraic loop between Model Exchange instances is named as one (before the
+        // algorithm's order, which would name it as a loop of a communication point).
+        coupled_groups(instances, &connections, &|_| 0)?;
         let order = algorithm.propagation(instances, &connections)?;
-        Ok(Self::lay_out(
+        Self::lay_out(
             d,
             instances,
             connections,
             recorded,
             &order,
             algorithm.refreshes_records(),
-        ))
+        )
     }
 
     /// This plan recording nothing: after a step only the outputs that feed connections are
@@ -280,14 +306,14 @@ impl Plan {
         algorithm: &dyn Propagation,
     ) -> Result<Self, SystemError> {
         let order = algorithm.propagation(instances, &self.connections)?;
-        Ok(Self::lay_out(
+        Self::lay_out(
             d,
             instances,
             self.connections.clone(),
             Vec::new(),
             &order,
             algorithm.refreshes_records(),
-        ))
+        )
     }
 
     /// Slots, batches and the propagation for resolved connections and records.
@@ -298,7 +324,7 @@ impl Plan {
         recorded: Vec<VarRef>,
         order: &[PropagationStep],
         refresh_records: bool,
-    ) -> Self {
+    ) -> Result<Self, SystemError> {
         // Buffer slots: every connection source and every recorded variable.
         let mut slot_of: HashMap<VarRef, usize> = HashMap::new();
         let mut slot = |r: VarRef| {
@@ -378,13 +404,143 @@ impl Plan {
         let steps = ((d.stop_time - d.start_time) / d.step_size - 1e-9)
             .ceil()
             .max(0.0) as u64;
-        Self {
+        let model_exchange = coupled_groups(instances, &connections, &|r| slot_of[&r])?;
+        Ok(Self {
             slot_count: slot_of.len(),
             after_step,
             propagation,
             steps,
             connections,
             recorded,
+            model_exchange,
+        })
+    }
+}
+
+/// The Model Exchange instances of `instances` in groups: two are in one group when a
+/// connection joins them (directly or through other members). Each group's propagation
+/// is laid out on the slots of the connections' sources; an algebraic loop between
+/// members, or members of different step multiples, is an error naming them.
+fn coupled_groups(
+    instances: &[ResolvedInstance],
+    connections: &[Connection],
+    slot_of: &dyn Fn(VarRef) -> usize,
+) -> Result<Vec<CoupledPlan>, SystemError> {
+    let is_me = |i: usize| {
+        instances[i].data.is_none() && instances[i].fmu.interface == Interface::ModelExchange
+    };
+    // Union–find on the instances, over the connections between two members.
+    let mut root: Vec<usize> = (0..instances.len()).collect();
+    fn find(root: &mut [usize], mut i: usize) -> usize {
+        while root[i] != i {
+            root[i] = root[root[i]];
+            i = root[i];
+        }
+        i
+    }
+    for c in connections {
+        if is_me(c.from.0) && is_me(c.to.0) {
+            let (a, b) = (find(&mut root, c.from.0), find(&mut root, c.to.0));
+            root[a.max(b)] = a.min(b);
         }
     }
+    let mut groups: Vec<CoupledPlan> = Vec::new();
+    for i in (0..instances.len()).filter(|&i| is_me(i)) {
+        let r = find(&mut root, i);
+        let first = r;
+        match groups.iter_mut().find(|g| g.members[0] == first) {
+            Some(g) => g.members.push(i),
+            None => groups.push(CoupledPlan {
+                members: vec![i],
+                reads: Vec::new(),
+                propagation: Vec::new(),
+                step_multiple: instances[i].step_multiple,
+                driven_from_outside: false,
+            }),
+        }
+    }
+    for g in &mut groups {
+        let names = || {
+            g.members
+                .iter()
+                .map(|&i| format!("`{}`", instances[i].name))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if let Some(&other) = g
+            .members
+            .iter()
+            .find(|&&i| instances[i].step_multiple != g.step_multiple)
+        {
+            return Err(SystemError::Invalid(format!(
+                "the Model Exchange instances {} are connected to each other and integrated as one ODE, so they step together: give them one step_multiple (`{}` has {}, `{}` has {})",
+                names(),
+                instances[g.members[0]].name,
+                g.step_multiple,
+                instances[other].name,
+                instances[other].step_multiple
+            )));
+        }
+        let method = instances[g.members[0]].integration.method;
+        if let Some(&other) = g
+            .members
+            .iter()
+            .find(|&&i| instances[i].integration.method != method)
+        {
+            return Err(SystemError::Invalid(format!(
+                "the Model Exchange instances {} are connected to each other and integrated as one ODE by one solver: give them one `solver` (`{}` has {method}, `{}` has {})",
+                names(),
+                instances[g.members[0]].name,
+                instances[other].name,
+                instances[other].integration.method
+            )));
+        }
+        g.driven_from_outside = connections
+            .iter()
+            .any(|c| g.members.contains(&c.to.0) && !g.members.contains(&c.from.0));
+        let inner: Vec<Connection> = connections
+            .iter()
+            .filter(|c| g.members.contains(&c.from.0) && g.members.contains(&c.to.0))
+            .copied()
+            .collect();
+        let order = propagation_order(instances, &inner).map_err(|e| match e {
+            SystemError::AlgebraicLoop(variables) => SystemError::ModelExchangeLoop {
+                instances: names(),
+                variables,
+            },
+            other => other,
+        })?;
+        let mut reads = Vec::new();
+        for c in &inner {
+            let source = c.from;
+            let read = !has_feedthrough(instances, source)
+                && !reads.iter().any(|op| match op {
+                    Op::Get(t) => t.member == source.0 && t.vars.contains(&source.1),
+                    Op::Set(_) => false,
+                });
+            if read {
+                push_op(&mut reads, false, instances, source, slot_of(source));
+            }
+        }
+        g.reads = reads
+            .into_iter()
+            .filter_map(|op| match op {
+                Op::Get(t) => Some(t),
+                Op::Set(_) => None,
+            })
+            .collect();
+        for step in order {
+            match step {
+                PropagationStep::SetInput(to) => {
+                    if let Some(c) = inner.iter().find(|c| c.to == to) {
+                        push_op(&mut g.propagation, true, instances, to, slot_of(c.from));
+                    }
+                }
+                PropagationStep::GetOutput(from) => {
+                    push_op(&mut g.propagation, false, instances, from, slot_of(from));
+                }
+            }
+        }
+    }
+    Ok(groups)
 }

@@ -15,6 +15,13 @@
 //! (`UInt32`, `Int64`, `UInt64`) is refused, naming it and `--ssp-version 2.0`
 //! ([`connector_type`]).
 //!
+//! A component run with Model Exchange (integrated by this master) carries the SSP 1.0
+//! attribute `implementation="ModelExchange"` (and one chosen for Co-Simulation
+//! `implementation="CoSimulation"`); the import reads it as the instance's `interface`
+//! (`any` or none: Co-Simulation when the FMU offers it). Its solver settings, for which SSP
+//! has no place, go into the `org.spurio.simulation` annotation with the step multiples
+//! (`solver`, `tolerance`, `maxStep`); another tool's SSP runs it with the defaults.
+//!
 //! Start values go into inline `ssv:ParameterSet`s of each component's `ParameterBindings`.
 //! The standard has no place for a fixed step size, so the export writes it twice:
 //! - on the system, OpenModelica's `org.openmodelica` annotation with an
@@ -22,7 +29,8 @@
 //!   `OMSimulator x.ssp --stopTime <stop>` runs the file (OMSimulator takes neither the
 //!   `DefaultExperiment`'s stop time nor, without this annotation, a step size);
 //! - on the `DefaultExperiment`, an `org.spurio.simulation` annotation with the step size,
-//!   the algorithm, the recorded variables and the step multiples.
+//!   the algorithm, the recorded variables, the step multiples and the Model Exchange
+//!   instances' solver settings.
 //!
 //! The import takes the step size from the first of: `org.spurio.simulation` `stepSize`,
 //! `oms:FixedStepMaster` `stepSize` (OMSimulator 2.x and this export),
@@ -31,7 +39,7 @@
 //! `DefaultExperiment` annotation); with none of them it uses (stopTime − startTime)/100 and
 //! says so in [`Imported::notes`].
 
-use crate::description::{AlgorithmName, InstanceDescription, SystemDescription};
+use crate::description::{AlgorithmName, InstanceDescription, InterfaceName, SystemDescription};
 use crate::fmu::{Causality, FmuFile, LoadLimits, VarType};
 use crate::xml::Tag;
 use quick_xml::events::{BytesDecl, Event};
@@ -342,11 +350,17 @@ fn component(
     source: &str,
     version: SspVersion,
 ) -> std::io::Result<()> {
-    let attributes = [
+    let mut attributes = vec![
         ("name", inst.name.as_str()),
         ("type", "application/x-fmu-sharedlibrary"),
         ("source", source),
     ];
+    // SSP 1.0 §5.3.2: which FMU interface the component is run with.
+    match inst.interface {
+        Some(InterfaceName::ModelExchange) => attributes.push(("implementation", "ModelExchange")),
+        Some(InterfaceName::CoSimulation) => attributes.push(("implementation", "CoSimulation")),
+        None => {}
+    }
     element(w, "ssd:Component", &attributes, |w| {
         if !connectors.is_empty() {
             element(w, "ssd:Connectors", &[], |w| {
@@ -397,7 +411,8 @@ fn parameter_set(
     })
 }
 
-/// What SSP has no place for: step size, algorithm, record, step multiples, logging.
+/// What SSP has no place for: step size, algorithm, record, step multiples, logging, and a
+/// Model Exchange instance's `solver`, `tolerance` and `max_step` (`maxStep`), when given.
 fn simulation_annotation(w: &mut Xml, d: &SystemDescription) -> std::io::Result<()> {
     let algorithm = match d.algorithm {
         AlgorithmName::GaussSeidel => "gauss-seidel",
@@ -414,11 +429,19 @@ fn simulation_annotation(w: &mut Xml, d: &SystemDescription) -> std::io::Result<
         for inst in &d.instances {
             let multiple = inst.step_multiple.to_string();
             let logging = inst.logging.to_string();
-            let attributes = [
+            let tolerance = inst.tolerance.map(|t| format!("{t:?}"));
+            let max_step = inst.max_step.map(|t| format!("{t:?}"));
+            let mut attributes = vec![
                 ("name", inst.name.as_str()),
                 ("stepMultiple", multiple.as_str()),
                 ("logging", logging.as_str()),
             ];
+            let solver_keys = [
+                ("solver", inst.solver.map(|m| m.name())),
+                ("tolerance", tolerance.as_deref()),
+                ("maxStep", max_step.as_deref()),
+            ];
+            attributes.extend(solver_keys.iter().filter_map(|(k, v)| v.map(|v| (*k, v))));
             empty(w, "Instance", &attributes)?;
         }
         Ok(())
@@ -742,17 +765,22 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                         ));
                     }
                 }
+                let interface = match attr(&e, "implementation").as_deref() {
+                    None | Some("any") => None,
+                    Some("ModelExchange") => Some(InterfaceName::ModelExchange),
+                    Some("CoSimulation") => Some(InterfaceName::CoSimulation),
+                    Some(other) => {
+                        return Err(format!(
+                            "component `{name}` has implementation=\"{other}\"; SSP 1.0 \
+                             allows ModelExchange, CoSimulation or any"
+                        ))
+                    }
+                };
+                let source = attr(&e, "source")
+                    .ok_or_else(|| format!("component `{name}` has no source"))?;
                 d.instances.push(InstanceDescription {
-                    fmu: PathBuf::from(
-                        attr(&e, "source")
-                            .ok_or_else(|| format!("component `{name}` has no source"))?,
-                    ),
-                    name,
-                    parameters: BTreeMap::new(),
-                    step_multiple: 1,
-                    logging: false,
-                    data: None,
-                    interpolation: None,
+                    interface,
+                    ..InstanceDescription::new(name, source)
                 });
             }
             "ParameterBinding" if depth_component => {
@@ -826,6 +854,22 @@ pub fn parse_ssd(text: &str) -> Result<Imported, String> {
                         .and_then(|v| v.parse().ok())
                         .unwrap_or(1);
                     inst.logging = attr(&e, "logging").as_deref() == Some("true");
+                    if let Some(solver) = attr(&e, "solver") {
+                        inst.solver = Some(solver.parse().map_err(|reason| {
+                            format!("instance `{name}` of the spurio annotation: {reason}")
+                        })?);
+                    }
+                    for (key, value) in [
+                        ("tolerance", &mut inst.tolerance),
+                        ("maxStep", &mut inst.max_step),
+                    ] {
+                        *value = number(&e, key)?;
+                        if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                            return Err(format!(
+                                "instance `{name}` of the spurio annotation: `{key}` must be a positive number"
+                            ));
+                        }
+                    }
                 }
             }
             "FixedStepMaster" => {
@@ -907,22 +951,17 @@ mod tests {
             algorithm: AlgorithmName::Jacobi,
             instances: vec![
                 InstanceDescription {
-                    name: "crane".into(),
-                    fmu: PathBuf::from("resources/GantryCrane.fmu"),
                     parameters,
-                    step_multiple: 1,
-                    logging: false,
-                    data: None,
-                    interpolation: None,
+                    ..InstanceDescription::new("crane", "resources/GantryCrane.fmu")
                 },
                 InstanceDescription {
-                    name: "sensor".into(),
-                    fmu: PathBuf::from("resources/Sensor2.fmu"),
-                    parameters: BTreeMap::new(),
                     step_multiple: 2,
                     logging: true,
-                    data: None,
-                    interpolation: None,
+                    interface: Some(InterfaceName::ModelExchange),
+                    solver: Some(spurio_solvers::Method::Rodas3),
+                    tolerance: Some(1e-8),
+                    max_step: Some(0.01),
+                    ..InstanceDescription::new("sensor", "resources/Sensor2.fmu")
                 },
             ],
             connections: vec!["crane.x -> sensor.u[1]".into()],
@@ -980,15 +1019,7 @@ mod tests {
             stop_time: 1.0,
             step_size: 0.1,
             algorithm: AlgorithmName::GaussSeidel,
-            instances: vec![InstanceDescription {
-                name: "c".into(),
-                fmu: PathBuf::from("resources/Feedthrough.fmu"),
-                parameters: BTreeMap::new(),
-                step_multiple: 1,
-                logging: false,
-                data: None,
-                interpolation: None,
-            }],
+            instances: vec![InstanceDescription::new("c", "resources/Feedthrough.fmu")],
             connections: vec![],
             record: vec![],
         };

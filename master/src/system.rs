@@ -21,6 +21,14 @@
 //! fmu = "../build/fmus/Sensor2.fmu"
 //! step_multiple = 1                       # multirate: steps every N base steps
 //!
+//! [[instance]]                            # Model Exchange: the master integrates it
+//! name = "filter"                         # (an FMU with Model Exchange only needs no
+//! fmu = "../build/fmus/OpAmpFilter.fmu"   # `interface`; one with both runs as
+//! interface = "me"                        # Co-Simulation unless it says "me")
+//! solver = "dopri5"                       # or "rodas3", "shampine4" (default dopri5)
+//! tolerance = 1e-6                        # relative (default 1e-6)
+//! max_step = 0.01                         # seconds (default: none)
+//!
 //! [[instance]]                            # a table of recorded signals ([`crate::data`]):
 //! name = "rig"                            # its columns are outputs (`rig.force`, with
 //! data = "rig.csv"                        # `rig.force.valid` and `rig.force.held`)
@@ -35,11 +43,13 @@
 //! is the one loader: it reads a TOML system file or an SSP archive, by the file's type.
 
 use crate::algorithm::{self, Algorithm};
-use crate::coupling::{split_variable, unknown, variable_name, ResolvedInstance, VarRef};
+use crate::coupling::{
+    split_variable, unknown, variable_name, Integration, ResolvedInstance, VarRef,
+};
 use crate::data::DataTable;
-use crate::description::{InstanceDescription, SystemDescription};
+use crate::description::{InstanceDescription, InterfaceName, SystemDescription};
 use crate::error::SystemError;
-use crate::fmu::{Causality, FmuFile, LoadOptions, VarType, VariableInfo};
+use crate::fmu::{Causality, FmuFile, Interface, LoadOptions, VarType, VariableInfo};
 use crate::plan::Plan;
 use crate::ssp::SspError;
 use std::collections::HashMap;
@@ -147,7 +157,7 @@ impl System {
     fn resolve_with(
         description: &SystemDescription,
         base_dir: &Path,
-        loaded: &mut HashMap<PathBuf, Arc<FmuFile>>,
+        loaded: &mut HashMap<(PathBuf, Interface), Arc<FmuFile>>,
         options: &LoadOptions,
         algorithm: Arc<dyn Algorithm>,
     ) -> Result<Self, SystemError> {
@@ -201,18 +211,30 @@ impl System {
                     step_multiple: spec.step_multiple,
                     logging: spec.logging,
                     data: Some(Arc::new(table)),
+                    integration: Integration::default(),
                 });
                 continue;
             }
             let path = base_dir.join(&spec.fmu);
-            let fmu = match loaded.get(&path) {
+            let asked = spec.interface.map(|i| match i {
+                InterfaceName::ModelExchange => Interface::ModelExchange,
+                InterfaceName::CoSimulation => Interface::CoSimulation,
+            });
+            let cached = match asked {
+                Some(i) => loaded.get(&(path.clone(), i)),
+                None => loaded
+                    .get(&(path.clone(), Interface::CoSimulation))
+                    .or_else(|| loaded.get(&(path.clone(), Interface::ModelExchange))),
+            };
+            let fmu = match cached {
                 Some(f) => f.clone(),
                 None => {
-                    let f = Arc::new(FmuFile::open_with(&path, options)?);
-                    loaded.insert(path.clone(), f.clone());
+                    let f = Arc::new(FmuFile::open_preferring(&path, options, asked)?);
+                    loaded.insert((path.clone(), f.interface), f.clone());
                     f
                 }
             };
+            let integration = integration(spec, &fmu)?;
             let mut start_values = Vec::new();
             for (name, value) in &spec.parameters {
                 let fail = |reason: String| SystemError::Parameter {
@@ -254,6 +276,7 @@ impl System {
                 step_multiple: spec.step_multiple,
                 logging: spec.logging,
                 data: None,
+                integration,
             });
         }
         let plan = Plan::compile(d, &instances, algorithm.as_ref())?;
@@ -374,7 +397,15 @@ impl System {
             });
         }
         let fmus: Vec<&FmuFile> = self.instances.iter().map(|i| i.fmu.as_ref()).collect();
-        crate::ssp::export(&self.source, &fmus, target, version)
+        // An instance integrated by the master is marked so in the SSD, also when its FMU
+        // offers Model Exchange only and the system file does not say so.
+        let mut source = self.source.clone();
+        for (written, inst) in source.instances.iter_mut().zip(&self.instances) {
+            if inst.fmu.interface == Interface::ModelExchange {
+                written.interface = Some(InterfaceName::ModelExchange);
+            }
+        }
+        crate::ssp::export(&source, &fmus, target, version)
     }
 
     /// The instance called `name`.
@@ -499,10 +530,15 @@ impl System {
         description.instances[i].fmu = fmu.to_path_buf();
         description.instances[i].data = None;
         description.instances[i].interpolation = None;
-        let mut loaded: HashMap<PathBuf, Arc<FmuFile>> = self
+        let mut loaded: HashMap<(PathBuf, Interface), Arc<FmuFile>> = self
             .instances
             .iter()
-            .map(|inst| (inst.fmu.path.clone(), inst.fmu.clone()))
+            .map(|inst| {
+                (
+                    (inst.fmu.path.clone(), inst.fmu.interface),
+                    inst.fmu.clone(),
+                )
+            })
             .collect();
         let mut edited = Self::resolve_with(
             &description,
@@ -583,6 +619,26 @@ impl System {
     }
 }
 
+/// How instance `spec` of `fmu` is integrated: its `solver`, `tolerance` and `max_step` (the
+/// system file checked them), which only a Model Exchange instance takes.
+fn integration(spec: &InstanceDescription, fmu: &FmuFile) -> Result<Integration, SystemError> {
+    if fmu.interface == Interface::CoSimulation && spec.has_solver_settings() {
+        return Err(SystemError::Invalid(format!(
+            "instance `{}` ({}) runs as Co-Simulation (its FMU steps itself), so `solver`, \
+             `tolerance` and `max_step` do not apply; write `interface = \"me\"` to have the \
+             master integrate it as Model Exchange",
+            spec.name,
+            fmu.path.display()
+        )));
+    }
+    let default = Integration::default();
+    Ok(Integration {
+        method: spec.solver.unwrap_or(default.method),
+        tolerance: spec.tolerance.unwrap_or(default.tolerance),
+        max_step: spec.max_step.or(default.max_step),
+    })
+}
+
 /// The table of every data instance of `d` (`None` for an FMU instance), read relative to
 /// `base_dir` (at most `max_bytes` each) and checked whole. An instance names exactly one of `fmu` and `data`; a data
 /// instance takes no parameters and no step multiple, and only it takes `interpolation`.
@@ -603,6 +659,9 @@ fn read_tables(
             let has_fmu = !spec.fmu.as_os_str().is_empty();
             match &spec.data {
                 None if !has_fmu => invalid("give `fmu = \"…\"` or `data = \"…\"`"),
+                Some(_) if spec.interface.is_some() || spec.has_solver_settings() => invalid(
+                    "a data instance is read, not integrated: `interface`, `solver`, `tolerance` and `max_step` do not apply",
+                ),
                 None if spec.interpolation.is_some() => {
                     invalid("`interpolation` is for a data instance (`data = \"….csv\"`)")
                 }

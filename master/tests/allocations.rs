@@ -8,49 +8,14 @@
 mod common;
 
 use common::{instance_tables, reference};
+use spurio_counting_allocator::{count, CountingAllocator};
 use spurio_master::{CsvWriter, NoRecording, Observer};
 use spurio_master::{RunOptions, Simulation};
 use spurio_master::{System, SystemDescription};
-use std::alloc::{GlobalAlloc, Layout, System as Heap};
-use std::cell::Cell;
 use std::path::Path;
 
-/// Counts the allocations of the current thread (other tests' threads are not counted).
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    // `try_with`: a thread being torn down has no counter left, and is not the one measured.
-    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        unsafe { Heap.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count();
-        unsafe { Heap.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        unsafe { Heap.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { Heap.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static COUNTING: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// Two Feedthrough instances of FMI `version`, every numeric output of the first driving
 /// the same input of the second, to `stop_time` in steps of 0.01.
@@ -75,9 +40,9 @@ fn run_allocations(system: &System, csv: bool) -> u64 {
     let mut none = NoRecording;
     let mut file = CsvWriter::new(std::io::sink());
     let observer: &mut dyn Observer = if csv { &mut file } else { &mut none };
-    let before = allocations();
-    sim.run(observer, &RunOptions::default()).unwrap();
-    allocations() - before
+    let (ran, counts) = count(|| sim.run(observer, &RunOptions::default()));
+    ran.unwrap();
+    counts.allocations
 }
 
 #[test]
@@ -149,4 +114,39 @@ fn a_data_instance_reads_without_allocating() {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Model Exchange instances in a system, to `stop_time` in steps of 0.01: BouncingBall of
+/// FMI `version` alone (state events inside the steps) and two continuous LinearSystems in a
+/// chain, integrated as one ODE (inputs propagated at every right-hand side).
+fn model_exchange_system(version: &str, stop_time: f64) -> System {
+    let ball = reference(version, "BouncingBall");
+    let plant = common::fmus().join("LinearSystem.fmu");
+    let text = format!(
+        "stop_time = {stop_time:?}\nstep_size = 0.01\nconnections = [\"a.y[1] -> b.u[1]\"]\n\
+         [[instance]]\nname = \"ball\"\nfmu = {:?}\ninterface = \"me\"\n\
+         [[instance]]\nname = \"a\"\nfmu = {:?}\ninterface = \"me\"\nparameters = {{ continuous = true, \"u[1]\" = 1.0 }}\n\
+         [[instance]]\nname = \"b\"\nfmu = {:?}\ninterface = \"me\"\nsolver = \"dopri5\"\nparameters = {{ continuous = true }}\n",
+        ball.display().to_string(),
+        plant.display().to_string(),
+        plant.display().to_string(),
+    );
+    let description: SystemDescription = toml::from_str(&text).unwrap();
+    System::resolve(&description, Path::new(".")).unwrap()
+}
+
+#[test]
+fn a_model_exchange_advance_allocates_nothing() {
+    for version in ["fmi2", "fmi3"] {
+        for csv in [false, true] {
+            let short = run_allocations(&model_exchange_system(version, 1.0), csv);
+            let long = run_allocations(&model_exchange_system(version, 3.0), csv);
+            assert_eq!(
+                long,
+                short,
+                "{version}, csv = {csv}: 200 more steps made {} more allocations",
+                long as i64 - short as i64
+            );
+        }
+    }
 }

@@ -159,6 +159,7 @@ fn stair_ends_the_run_normally_at_its_terminate_time() {
         instance,
         time,
         version,
+        ..
     } = &end
     else {
         panic!("{end:?}")

@@ -125,40 +125,87 @@ pub struct Statistics {
     pub rejected: usize,
 }
 
-/// Why a solver stopped.
-#[derive(Debug, thiserror::Error)]
-pub enum SolverError<E: std::error::Error + 'static> {
-    #[error("the model could not evaluate at t = {time}: {source}")]
-    Model {
-        time: f64,
-        #[source]
-        source: E,
-    },
+/// Why a solver stopped, and the time at which it did (for [`SolverErrorKind::Model`] the
+/// time the model was asked at; for [`SolverErrorKind::Dimension`] the time of the reset).
+#[derive(Debug)]
+pub struct SolverError<E: std::error::Error + 'static> {
+    pub time: f64,
+    pub kind: SolverErrorKind<E>,
+}
+
+/// What stopped a solver (the time is the [`SolverError`]'s).
+#[derive(Debug)]
+pub enum SolverErrorKind<E: std::error::Error + 'static> {
+    /// The model could not evaluate its right-hand side (or Jacobian).
+    Model(E),
     /// The model gave a derivative that is not finite at an accepted state.
-    #[error("the derivative of state {index} is {value} at t = {time}")]
-    NonFiniteDerivative { time: f64, index: usize, value: f64 },
+    NonFiniteDerivative { index: usize, value: f64 },
     /// Every step tried had a stage that was not finite, down to the smallest step.
-    #[error("the derivatives were not finite in every step tried from t = {time}, down to a step of {step:e} s")]
-    NonFiniteStages { time: f64, step: f64 },
+    NonFiniteStages { step: f64 },
     /// The error control shrank the step below the round-off of the time.
-    #[error("the error control asked for a step of {step:e} s at t = {time}, below the round-off of the time")]
-    StepTooSmall { time: f64, step: f64 },
-    #[error("{rejections} rejected steps in a row at t = {time} (last step {step:e} s): the solution is not smooth there, or the tolerance is too tight")]
-    TooManyRejections {
-        time: f64,
-        rejections: usize,
-        step: f64,
-    },
-    #[error("more than {max_steps} steps to reach t = {target} (stopped at t = {time})")]
-    TooManySteps {
-        time: f64,
-        target: f64,
-        max_steps: usize,
-    },
-    #[error("the solver was asked to step to t = {target}, not after its time t = {time}")]
-    BadTarget { time: f64, target: f64 },
-    #[error("the dimension {given} given does not match the solver's {expected}")]
+    StepTooSmall { step: f64 },
+    /// More rejected steps in a row than [`Settings::max_rejections`].
+    TooManyRejections { rejections: usize, step: f64 },
+    /// More accepted steps than allowed to reach `target`.
+    TooManySteps { target: f64, max_steps: usize },
+    /// A target time that is not after the solver's time.
+    BadTarget { target: f64 },
+    /// A state or nominal vector of the wrong length.
     Dimension { expected: usize, given: usize },
+}
+
+impl<E: std::error::Error + 'static> SolverError<E> {
+    /// The error `kind` at `time`.
+    pub fn at(time: f64, kind: SolverErrorKind<E>) -> Self {
+        Self { time, kind }
+    }
+}
+
+impl<E: std::error::Error + 'static> std::fmt::Display for SolverError<E> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let time = self.time;
+        match &self.kind {
+            SolverErrorKind::Model(source) => {
+                write!(f, "the model could not evaluate at t = {time}: {source}")
+            }
+            SolverErrorKind::NonFiniteDerivative { index, value } => {
+                write!(f, "the derivative of state {index} is {value} at t = {time}")
+            }
+            SolverErrorKind::NonFiniteStages { step } => write!(
+                f,
+                "the derivatives were not finite in every step tried from t = {time}, down to a step of {step:e} s"
+            ),
+            SolverErrorKind::StepTooSmall { step } => write!(
+                f,
+                "the error control asked for a step of {step:e} s at t = {time}, below the round-off of the time"
+            ),
+            SolverErrorKind::TooManyRejections { rejections, step } => write!(
+                f,
+                "{rejections} rejected steps in a row at t = {time} (last step {step:e} s): the solution is not smooth there, or the tolerance is too tight"
+            ),
+            SolverErrorKind::TooManySteps { target, max_steps } => write!(
+                f,
+                "more than {max_steps} steps to reach t = {target} (stopped at t = {time})"
+            ),
+            SolverErrorKind::BadTarget { target } => write!(
+                f,
+                "the solver was asked to step to t = {target}, not after its time t = {time}"
+            ),
+            SolverErrorKind::Dimension { expected, given } => write!(
+                f,
+                "the dimension {given} given does not match the solver's {expected}"
+            ),
+        }
+    }
+}
+
+impl<E: std::error::Error + 'static> std::error::Error for SolverError<E> {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.kind {
+            SolverErrorKind::Model(source) => Some(source),
+            _ => None,
+        }
+    }
 }
 
 /// The weighted RMS norm of the module docs: `√((1/n) Σ (eᵢ/(atolᵢ + rtol·max(|aᵢ|, |bᵢ|)))²)`

@@ -28,7 +28,7 @@
 use crate::lu;
 use crate::solver::{Norm, Outcome, Stepper, Trajectory};
 use crate::tableau::{RosenbrockTableau, MAX_STAGES};
-use crate::{OdeSystem, SolverError};
+use crate::{OdeSystem, SolverError, SolverErrorKind};
 
 /// A Rosenbrock method with its buffers for `n` states.
 #[derive(Debug, Clone)]
@@ -126,7 +126,7 @@ impl Rosenbrock {
                 };
                 given = system
                     .jacobian_times(at, column)
-                    .map_err(|source| SolverError::Model { time: tr.t, source })?;
+                    .map_err(|source| SolverError::at(tr.t, SolverErrorKind::Model(source)))?;
                 if !given {
                     tr.statistics.jacobian_products -= 1;
                     break;

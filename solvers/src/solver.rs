@@ -2,7 +2,7 @@
 
 use crate::{
     error_norm, first_non_finite, min_step, step_factor, Dopri5, OdeSystem, Rosenbrock, Settings,
-    SolverError, Statistics,
+    SolverError, SolverErrorKind, Statistics,
 };
 
 /// Where a solver is: the time and state of the last accepted step (and of the one before,
@@ -68,7 +68,7 @@ impl Trajectory {
         statistics.rhs += 1;
         system
             .rhs(t, x, out)
-            .map_err(|source| SolverError::Model { time: t, source })
+            .map_err(|source| SolverError::at(t, SolverErrorKind::Model(source)))
     }
 
     /// Takes `x_new` at `t_new` as the state, the current one becoming the previous (for the
@@ -109,11 +109,10 @@ impl Trajectory {
         }
         if let Some((index, value)) = first_non_finite(&self.dx) {
             self.dx_valid = false;
-            return Err(SolverError::NonFiniteDerivative {
-                time: self.t,
-                index,
-                value,
-            });
+            return Err(SolverError::at(
+                self.t,
+                SolverErrorKind::NonFiniteDerivative { index, value },
+            ));
         }
         Ok(())
     }
@@ -200,10 +199,10 @@ pub(crate) fn step<M: Stepper, S: OdeSystem>(
 ) -> Result<f64, SolverError<S::Error>> {
     let t = trajectory.t;
     if t_limit.is_nan() || t_limit <= t {
-        return Err(SolverError::BadTarget {
-            time: t,
-            target: t_limit,
-        });
+        return Err(SolverError::at(
+            t,
+            SolverErrorKind::BadTarget { target: t_limit },
+        ));
     }
     trajectory.ensure_derivative(system)?;
     if !(trajectory.h > 0.0 && trajectory.h.is_finite()) {
@@ -220,9 +219,15 @@ pub(crate) fn step<M: Stepper, S: OdeSystem>(
         let h = if last { remaining } else { proposal };
         if h < min_step(t) || h.is_nan() {
             if non_finite {
-                return Err(SolverError::NonFiniteStages { time: t, step: h });
+                return Err(SolverError::at(
+                    t,
+                    SolverErrorKind::NonFiniteStages { step: h },
+                ));
             }
-            return Err(SolverError::StepTooSmall { time: t, step: h });
+            return Err(SolverError::at(
+                t,
+                SolverErrorKind::StepTooSmall { step: h },
+            ));
         }
         let error = method.attempt(trajectory, system, h)?;
         if error.is_finite() && error <= 1.0 {
@@ -255,13 +260,18 @@ pub(crate) fn step<M: Stepper, S: OdeSystem>(
         non_finite = !error.is_finite();
         if rejections > trajectory.settings.max_rejections {
             if non_finite {
-                return Err(SolverError::NonFiniteStages { time: t, step: h });
+                return Err(SolverError::at(
+                    t,
+                    SolverErrorKind::NonFiniteStages { step: h },
+                ));
             }
-            return Err(SolverError::TooManyRejections {
-                time: t,
-                rejections,
-                step: h,
-            });
+            return Err(SolverError::at(
+                t,
+                SolverErrorKind::TooManyRejections {
+                    rejections,
+                    step: h,
+                },
+            ));
         }
         trajectory.h = if error.is_finite() {
             h * step_factor(error, method.error_order()).min(1.0)
@@ -389,7 +399,10 @@ impl Solver {
         let n = self.trajectory.n;
         for given in [x.len(), nominal.len()] {
             if given != n {
-                return Err(SolverError::Dimension { expected: n, given });
+                return Err(SolverError::at(
+                    t,
+                    SolverErrorKind::Dimension { expected: n, given },
+                ));
             }
         }
         let tr = &mut self.trajectory;
@@ -443,11 +456,13 @@ impl Solver {
         let mut steps = 0;
         while self.trajectory.t < t_end {
             if steps == max_steps {
-                return Err(SolverError::TooManySteps {
-                    time: self.trajectory.t,
-                    target: t_end,
-                    max_steps,
-                });
+                return Err(SolverError::at(
+                    self.trajectory.t,
+                    SolverErrorKind::TooManySteps {
+                        target: t_end,
+                        max_steps,
+                    },
+                ));
             }
             self.step(system, t_end)?;
             steps += 1;

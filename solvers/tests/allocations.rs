@@ -1,27 +1,11 @@
 //! No allocation per step: once a solver is made (and has taken its first step), stepping
 //! allocates nothing, with either method, finite-difference Jacobians included.
 
+use spurio_counting_allocator::{count, CountingAllocator};
 use spurio_solvers::{Method, OdeSystem, Settings, Solver};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// The system allocator, counting allocations.
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
 
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 #[derive(Debug)]
 struct Never;
@@ -61,14 +45,15 @@ fn stepping_allocates_nothing() {
         let x0 = [2.0, 0.0, 1.0, 0.5, -1.0, 0.0];
         solver.reset::<Never>(0.0, &x0, &[1.0; 6]).unwrap();
         solver.step(&mut Oscillators, 20.0).unwrap();
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
         let steps_before = solver.statistics().accepted;
         let mut out = [0.0; 6];
-        while solver.time() < 20.0 {
-            solver.step(&mut Oscillators, 20.0).unwrap();
-            solver.interpolate(0.5 * (solver.previous_time() + solver.time()), &mut out);
-        }
-        let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        let (_, counts) = count(|| {
+            while solver.time() < 20.0 {
+                solver.step(&mut Oscillators, 20.0).unwrap();
+                solver.interpolate(0.5 * (solver.previous_time() + solver.time()), &mut out);
+            }
+        });
+        let allocations = counts.allocations;
         let steps = solver.statistics().accepted - steps_before;
         eprintln!("{method}: {steps} steps, {allocations} allocations");
         assert!(steps > 100, "{steps}");

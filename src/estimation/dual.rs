@@ -511,11 +511,10 @@ impl DualKalmanFilter {
         concatenate(&mut self.regressor, &self.core.x, &self.core.u_prev);
 
         // 1. State filter with Θ̂_{k−1}.
-        let missing = MissingMask::any(y);
-        {
+        let missing = {
             let [a, b, c, d] = theta_blocks(&self.theta, n, m, p);
             self.core.predict(a, b, &self.q);
-            self.core.compute_innovation(c, d, u, y)?;
+            let missing = self.core.compute_innovation(c, d, u, y)?;
             let predicted = self.predicted_output.as_mut_slice();
             if missing {
                 // Ĉ x⁻ + D̂ u for every channel (y − e is not a number for a missing one).
@@ -538,7 +537,8 @@ impl DualKalmanFilter {
             if missing {
                 self.core.check_output()?;
             }
-        }
+            missing
+        };
 
         if self.output_error.is_some() {
             // 2'. Output-error parameter filter on the innovation of this sample.

@@ -199,14 +199,29 @@ impl FilterCore {
         d: View<'_>,
         u: &DVector<f64>,
         y: &DVector<f64>,
-    ) -> Result<(), EstimationError> {
+    ) -> Result<bool, EstimationError> {
         let e = self.innovation.as_mut_slice();
         for (e, y) in e.iter_mut().zip(y.as_slice()) {
             *e = *y;
         }
         dense::gemv_inline(e, -1.0, c, self.x_prior.as_slice(), 1.0);
         dense::gemv_inline(e, -1.0, d, u.as_slice(), 1.0);
-        // A missing sample (NaN) of channel j: no prediction error to correct with, e_j = 0.
+        // Every e_j finite: every sample present (a missing y_j = NaN makes e_j NaN), decided
+        // by the one check the step needs anyway; the rest is out of line.
+        if dense::all_finite(e) {
+            return Ok(false);
+        }
+        self.innovation_of_missing(y)
+    }
+
+    /// The rest of [`FilterCore::compute_innovation`] when some e_j is not finite: a missing
+    /// sample (NaN) of channel j has no prediction error to correct with, e_j = 0; what is
+    /// then still not finite is an error (a non-finite u, or a y_j = ±∞). Gives whether a
+    /// channel is missing.
+    #[cold]
+    #[inline(never)]
+    fn innovation_of_missing(&mut self, y: &DVector<f64>) -> Result<bool, EstimationError> {
+        let e = self.innovation.as_mut_slice();
         for (e, y) in e.iter_mut().zip(y.as_slice()) {
             if y.is_nan() {
                 *e = 0.0;
@@ -218,14 +233,14 @@ impl FilterCore {
                 step: self.steps,
             });
         }
-        Ok(())
+        Ok(MissingMask::any(y))
     }
 
     /// The opening of a step on the model's own matrices, the same for the sKF and the rsKF:
     /// checks the lengths of (u_k, y_k), predicts x⁻ = A x̂ + B u_{k−1}, P⁻ = A P Aᵀ + Q
     /// ([`FilterCore::predict`]) and computes e = y − C x⁻ − D u
     /// ([`FilterCore::compute_innovation`]). Gives whether the sample has a missing channel
-    /// (a y_j = NaN, [`MissingMask::any`]): the correction then uses the present ones only.
+    /// (a y_j = NaN): the correction then uses the present ones only.
     pub(crate) fn predict_and_innovate(
         &mut self,
         model: &StateSpace,
@@ -234,8 +249,7 @@ impl FilterCore {
     ) -> Result<bool, EstimationError> {
         let [a, b, c, d] = sample_views(model, u, y)?;
         self.predict(a, b, &model.q);
-        self.compute_innovation(c, d, u, y)?;
-        Ok(MissingMask::any(y))
+        self.compute_innovation(c, d, u, y)
     }
 
     /// Gain from S = C P⁻ Cᵀ + R_eff, state update and covariance update with R_eff (see
@@ -754,15 +768,20 @@ impl ScalarEstimate {
         if let Some((_, d)) = m.input {
             self.innovation += d * -u;
         }
-        if y.is_nan() {
-            return self.predict_only(m, u, r_eff);
-        }
+        // A missing sample y = NaN makes e NaN: the one check of e decides "present" and
+        // the missing sample is handled out of line.
         let e = self.innovation;
         if !e.is_finite() {
-            return Err(non_finite(
-                "innovation y − C x⁻ − D u (check y and u)",
-                step,
-            ));
+            if !y.is_nan() {
+                return Err(non_finite(
+                    "innovation y − C x⁻ − D u (check y and u)",
+                    step,
+                ));
+            }
+            // `r_eff` told here, not passed to the out-of-line rest: the hot path then never
+            // lays the covariance's arguments out in memory.
+            r_eff.missing();
+            return self.predict_only(m, u);
         }
         let (k, x, p) = joseph_scalar(m.c, r_eff.at(e), self.x_prior, self.p_prior, e, step)?;
         (self.gain, self.x, self.p) = (k, x, p);
@@ -784,13 +803,7 @@ impl ScalarEstimate {
     /// non-finite u).
     #[cold]
     #[inline(never)]
-    fn predict_only(
-        &mut self,
-        m: &ScalarModel,
-        u: f64,
-        r_eff: impl ScalarCovariance,
-    ) -> Result<(), EstimationError> {
-        r_eff.missing();
+    fn predict_only(&mut self, m: &ScalarModel, u: f64) -> Result<(), EstimationError> {
         (self.innovation, self.gain, self.x, self.p) = (0.0, 0.0, self.x_prior, self.p_prior);
         self.output = m.c * self.x;
         if let Some((_, d)) = m.input {

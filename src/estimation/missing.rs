@@ -13,7 +13,7 @@
 //! | sKF, rsKF | prediction x⁻, P⁻ = A P Aᵀ + Q; the update with the present channels (rows of C, rows and columns of R selected, [`MissingMask`]); e_j = 0; the rsKF's w_j = 0 |
 //! | DKF | the state filter as the sKF; the parameter filter's random walk only (Θ̂ kept, Σ += diag(q̃)) when a channel of y_k or y_{k−1} is missing |
 //! | DKF-rsKF | the rsKF as above; the DKF gets the missing channels as missing |
-//! | RLS | no update (θ, P kept); y(t) replaced in the regressors by its prediction φᵀθ; ε = 0 |
+//! | RLS | no update (θ, P kept); y(t) replaced in the regressors by its prediction φᵀθ; ε = 0; the na steps whose regressors hold that prediction do not update either |
 //! | distributed observer | no output injection from channel j (e_j = 0): prediction and consensus |
 //!
 //! Each is allocation-free and bounded: a few passes over the model's matrices in buffers
@@ -441,8 +441,9 @@ mod tests {
     }
 
     /// RLS: a missing y leaves θ and P as they are (no update, no forgetting), returns ε = 0,
-    /// and the next regressor holds the prediction φᵀθ in place of y; with or without the
-    /// prefilter. A y = ±∞ or a NaN u stays an error.
+    /// and the next regressor holds the prediction φᵀθ in place of y; the na = 2 steps whose
+    /// regressors hold it give their prediction error but leave θ and P too; with or without
+    /// the prefilter. A y = ±∞ or a NaN u stays an error.
     #[test]
     fn rls_skips_its_update_on_a_missing_sample() {
         // A square wave of period 20 samples into y(t) = 1.5 y(t−1) − 0.7 y(t−2) + 0.5 u(t−1).
@@ -463,12 +464,23 @@ mod tests {
             for k in 0..200 {
                 let u = input(k);
                 let y = 1.5 * y1 - 0.7 * y2 + 0.5 * u_prev;
+                let (theta, p) = (rls.parameters().to_vec(), rls.covariance().to_vec());
                 if (100..110).contains(&k) {
-                    let (theta, p) = (rls.parameters().to_vec(), rls.covariance().to_vec());
                     assert_eq!(rls.step(u, NAN).unwrap(), 0.0);
                     assert_eq!(rls.parameters(), theta.as_slice());
                     assert_eq!(rls.covariance(), p.as_slice());
                     assert_eq!(rls.last_error(), 0.0);
+                } else if (110..112).contains(&k) {
+                    let error = rls.step(u, y).unwrap();
+                    assert!(
+                        error.is_finite() && error == rls.last_error(),
+                        "ε = {error}"
+                    );
+                    assert_eq!(rls.parameters(), theta.as_slice(), "θ held at {k}");
+                    assert_eq!(rls.covariance(), p.as_slice(), "P held at {k}");
+                } else if k == 112 {
+                    rls.step(u, y).unwrap();
+                    assert_ne!(rls.covariance(), p.as_slice(), "updating again at {k}");
                 } else {
                     rls.step(u, y).unwrap();
                 }

@@ -14,6 +14,14 @@
 //! P is updated in the symmetric form P − L sᵀ − s Lᵀ + d L Lᵀ (s = Pφ, d = λ + φᵀPφ; equal
 //! to P − s sᵀ/d) and symmetrised. Samples before the first call are taken as zero.
 //!
+//! **Missing samples** (docs/estimators.md, "Missing samples"). A missing y(t) has no
+//! equation: θ and P stay, and y(t) is replaced in the regressors by its prediction φ(t)ᵀθ so
+//! that the predictions go on. The na equations after it hold that imputed value in φ; they
+//! are not data either, so θ and P stay through them too (the prediction ŷ and the error ε are
+//! still formed): the recursion uses exactly the equations that batch least squares keeps when
+//! it drops every equation touching a missing sample. With every sample present nothing
+//! changes, bit for bit.
+//!
 //! **Continuous-time readout** (second order, na = 2, nb ∈ {1, 2}): the discrete poles are
 //! the roots of z² + a₁ z + a₂; s = ln(z)/Ts gives ω_n = |s| and ζ = −Re(s)/|s| (for two
 //! real positive roots ω_n = √(s₁s₂), ζ = −(s₁+s₂)/(2ω_n)); the DC gain is
@@ -56,6 +64,9 @@ pub struct RecursiveLeastSquares {
     /// u(t−1) … u(t−nb).
     past_u: Vec<f64>,
     prefilter: Option<Prefilter>,
+    /// How many of the next steps still have an imputed (predicted) y in their regressor φ:
+    /// na after a missing sample, counting down with each present one (module doc).
+    imputed_regressors: usize,
     last_error: f64,
     steps: u64,
 }
@@ -112,6 +123,7 @@ impl RecursiveLeastSquares {
             past_y: vec![0.0; na],
             past_u: vec![0.0; nb],
             prefilter: None,
+            imputed_regressors: 0,
             last_error: 0.0,
             steps: 0,
         })
@@ -172,7 +184,8 @@ impl RecursiveLeastSquares {
 
     /// Processes one sample u(t), y(t); returns the prior prediction error ε(t). A NaN y(t)
     /// is a missing sample ([`RecursiveLeastSquares::step_missing`]); a non-finite u or a
-    /// y = ±∞ is an error.
+    /// y = ±∞ is an error. While φ(t) holds an imputed y (the na samples after a missing
+    /// one) the step predicts and gives ε(t) but does not update θ and P (module doc).
     pub fn step(&mut self, u: f64, y: f64) -> Result<f64, EstimationError> {
         if y.is_nan() && u.is_finite() {
             self.step_missing(u)?;
@@ -198,6 +211,15 @@ impl RecursiveLeastSquares {
         }
         let prediction: f64 = self.phi.iter().zip(&self.theta).map(|(f, t)| f * t).sum();
         let error = y_used - prediction;
+        if self.imputed_regressors > 0 {
+            // φ(t) holds a prediction of a missing y: no equation, as batch least squares
+            // drops it (θ, P and the prefilter's refresh counter stay).
+            self.imputed_regressors -= 1;
+            shift_in(&mut self.past_y, y_used);
+            shift_in(&mut self.past_u, u_used);
+            self.last_error = error;
+            return Ok(error);
+        }
         // s = P φ, d = λ + φᵀ s.
         for i in 0..dim {
             self.work_s[i] = (0..dim).map(|j| self.p[i * dim + j] * self.phi[j]).sum();
@@ -254,7 +276,8 @@ impl RecursiveLeastSquares {
     /// data, so no update and no forgetting: P is not divided by λ); the regressor φ(t) is
     /// formed as usual and y(t) is replaced in the history of the regressors by its one-step
     /// prediction φ(t)ᵀθ (in the prefiltered signals when prefiltering; u still passes
-    /// through the prefilter), which is what the ARX model expects there. The prediction
+    /// through the prefilter), which is what the ARX model expects there; the na steps that
+    /// follow hold it in φ and do not update θ and P either (module doc). The prediction
     /// error ε(t) is not defined and is 0 ([`RecursiveLeastSquares::last_error`]); the
     /// prefilter's refresh counter counts updates and does not advance. Gives the
     /// prediction ŷ(t) of the unfiltered y (φᵀθ + Σ âᵢ y_f(t−i) when prefiltering: the
@@ -280,6 +303,7 @@ impl RecursiveLeastSquares {
         };
         shift_in(&mut self.past_y, prediction);
         shift_in(&mut self.past_u, u_used);
+        self.imputed_regressors = self.na;
         self.last_error = 0.0;
         if !y_hat.is_finite() {
             return Err(EstimationError::NonFinite {
@@ -291,8 +315,8 @@ impl RecursiveLeastSquares {
     }
 
     /// Everything that evolves from step to step, as a flat list of numbers (for FMU state
-    /// serialization): θ, P, the past samples, the prefilter's state, the last error and the
-    /// step count. Restoring it with [`RecursiveLeastSquares::set_dynamic_state`] into an
+    /// serialization): θ, P, the past samples, the prefilter's state, the count of regressors
+    /// still holding an imputed sample, the last error and the step count. Restoring it with [`RecursiveLeastSquares::set_dynamic_state`] into an
     /// estimator built with the same arguments continues bit for bit.
     pub fn dynamic_state(&self) -> Vec<f64> {
         let mut out = Vec::new();
@@ -305,6 +329,7 @@ impl RecursiveLeastSquares {
             out.extend_from_slice(&filter.filtered_past_u);
             out.extend_from_slice(&filter.filtered_past_y);
         }
+        out.push(self.imputed_regressors as f64);
         out.push(self.last_error);
         out.push(self.steps as f64);
         out
@@ -324,6 +349,8 @@ impl RecursiveLeastSquares {
             input.fill(&mut filter.filtered_past_u)?;
             input.fill(&mut filter.filtered_past_y)?;
         }
+        // At most na: a regressor holds na past outputs.
+        self.imputed_regressors = input.counter()?.min(self.na as u64) as usize;
         self.last_error = input.scalar()?;
         self.steps = input.counter()?;
         input.finish()
@@ -878,6 +905,60 @@ mod tests {
         assert!(rls.set_prefilter_denominator(&[0.5]).is_err());
         let mut no_prefilter = RecursiveLeastSquares::new(2, 2, 1.0, 1e4).unwrap();
         assert!(no_prefilter.set_prefilter_denominator(&[0.0, 0.0]).is_err());
+    }
+
+    /// With gaps in y, λ = 1 RLS is batch least squares over the equations that touch no
+    /// missing sample (y(t) and y(t−1) … y(t−na) present; samples before the start are 0):
+    /// noisy ARX(2, 2) data, 15 % of y missing, P₀ = 10⁸·I (a negligible prior).
+    #[test]
+    fn with_missing_samples_rls_is_least_squares_over_the_kept_equations() {
+        let (a, b) = ([-1.5, 0.7], [1.0, 0.5]);
+        let mut rng = TestRng::new(17);
+        let inputs: Vec<f64> = (0..400).map(|_| rng.normal()).collect();
+        let outputs: Vec<f64> = simulate_arx(a, b, &inputs)
+            .into_iter()
+            .map(|y| y + 0.3 * rng.normal())
+            .collect();
+        let missing: Vec<bool> = (0..400).map(|_| rng.uniform() < 0.15).collect();
+        let mut rls = RecursiveLeastSquares::new(2, 2, 1.0, 1e8).unwrap();
+        for k in 0..400 {
+            let y = if missing[k] { f64::NAN } else { outputs[k] };
+            rls.step(inputs[k], y).unwrap();
+        }
+        let at = |v: &[f64], k: usize, lag: usize| if k >= lag { v[k - lag] } else { 0.0 };
+        let gone = |k: usize, lag: usize| k >= lag && missing[k - lag];
+        let (mut normal, mut right) = (DMatrix::<f64>::zeros(4, 4), DMatrix::<f64>::zeros(4, 1));
+        let mut kept = 0;
+        for k in 0..400 {
+            if (0..=2).any(|lag| gone(k, lag)) {
+                continue;
+            }
+            kept += 1;
+            let phi = DMatrix::from_row_slice(
+                4,
+                1,
+                &[
+                    -at(&outputs, k, 1),
+                    -at(&outputs, k, 2),
+                    at(&inputs, k, 1),
+                    at(&inputs, k, 2),
+                ],
+            );
+            normal += &phi * phi.transpose();
+            right += &phi * outputs[k];
+        }
+        let batch = normal.cholesky().unwrap().solve(&right);
+        println!(
+            "{kept} equations kept; RLS θ = {:?}, batch θ = {batch}",
+            rls.parameters()
+        );
+        assert!(kept < 260, "{kept}");
+        for (estimate, least_squares) in rls.parameters().iter().zip(batch.iter()) {
+            assert!(
+                (estimate - least_squares).abs() < 1e-6,
+                "{estimate} vs {least_squares}"
+            );
+        }
     }
 
     #[test]

@@ -11,11 +11,17 @@ measurement inputs hold garbage:
   parameters or the estimated model Â, B̂, the innovation e of one standard deviation /2 in
   each channel);
 * the dual filters hold Θ̂ (every `A_hat`, `B_hat`) and RLS holds θ over the gap;
-* with no missing sample the outputs are those of the FMUs before `y_valid` existed, bit for
-  bit: set SPURIO_FMUS_BEFORE to such a build/fmus (with fmi3/) to compare (skipped without).
+* with no missing sample (every `y_valid` true) the outputs are those of the FMUs before
+  `y_valid` existed, bit for bit: `missing_samples_before.json` pins them, as the FMUs of
+  dd24126 (the commit before missing samples) gave them on these scenarios: per FMU the
+  SHA-256 of every output of every step (little-endian float64, row by row) and the last
+  step's outputs written out (`repr`, for a readable difference). Pinned again with
+  `PYTHONPATH=. python3 tests/fmpy/test_missing_samples.py --pin DIR`, DIR a build/fmus of
+  that commit.
 """
 
-import os
+import hashlib
+import json
 import pathlib
 import sys
 
@@ -35,6 +41,7 @@ ESTIMATORS = {
     "KalmanFilter": "y",
     "RobustKalmanFilter": "y",
     "RobustKalmanFilter2": "y",
+    "RobustKalmanFilterInput": "y",
     "DistributedObserverCentralKalman": "y",
     "DualKalmanFilter": "y",
     "DualKalmanFilterGenerator": "y",
@@ -45,7 +52,7 @@ ESTIMATORS = {
     "DistributedObserverAgent2": "y_own",
 }
 CASES = [(stem, version) for stem in ESTIMATORS for version in (2, 3)]
-BEFORE = os.environ.get("SPURIO_FMUS_BEFORE")
+BEFORE = pathlib.Path(__file__).with_name("missing_samples_before.json")
 
 
 def path_of(stem, version, folder=FMU_DIR):
@@ -159,12 +166,13 @@ def model_matrices(inst):
                                       matrix("C", len(ys), len(xs)), matrix("D", len(ys), len(us)))
 
 
-def run(stem, version, missing=True, garbage=1e6, probe=False, folder=FMU_DIR):
+def run(stem, version, missing=True, garbage=1e6, probe=False, folder=FMU_DIR, valid=None):
     """Drives the FMU through its scenario; with `missing`, the samples of `gap_of` are
     missing and their measurements `garbage`. Returns (outputs per step, gains): with
     `probe`, the measurement of the sample before the gap and of the one after it is the
     one-step prediction plus half a standard deviation per channel, and `gains` are
-    ‖x̂ − x⁻‖/‖e‖ at those two samples."""
+    ‖x̂ − x⁻‖/‖e‖ at those two samples. A list `valid` receives the validity inputs read
+    back before each step (none for an FMU without them)."""
     measured = ESTIMATORS[stem]
     inst = Instance(path_of(stem, version, folder))
     t0, h, n, table = scenario(stem)
@@ -200,6 +208,8 @@ def run(stem, version, missing=True, garbage=1e6, probe=False, folder=FMU_DIR):
             for j, y in enumerate(ys):
                 inst.set(y, prediction[j] + 0.5 * np.sqrt(r[j]))
         inst.push()
+        if valid is not None:
+            valid.append(inst.get([n for n in inst.values if n.startswith(measured + "_valid")]))
         inst.s.doStep(currentCommunicationPoint=t0 + k * h, communicationStepSize=h)
         outputs = inst.get(inst.outputs)
         assert np.all(np.isfinite(outputs)), f"{stem}: step {k}"
@@ -245,10 +255,44 @@ def test_the_covariance_grows_while_data_is_missing(stem, version):
     assert after > 1.1 * before, f"{stem}: gain {before} before the gap, {after} after it"
 
 
-@pytest.mark.skipif(BEFORE is None, reason="SPURIO_FMUS_BEFORE (a build/fmus before y_valid) not set")
+def pin_of(outputs):
+    """The pin of a run's outputs: the SHA-256 of every step's outputs (little-endian
+    float64, row by row) and the last step's outputs."""
+    table = np.asarray(outputs, dtype="<f8")
+    return {"steps": len(table), "sha256": hashlib.sha256(table.tobytes()).hexdigest(),
+            "last": [repr(float(v)) for v in table[-1]]}
+
+
 @pytest.mark.parametrize("stem,version", CASES)
 def test_without_missing_samples_the_outputs_are_those_of_before(stem, version):
-    names, now, _ = run(stem, version, missing=False)
-    names_before, before, _ = run(stem, version, missing=False, folder=BEFORE)
-    assert names == names_before
-    assert np.array_equal(now, before)
+    valid = []
+    names, now, _ = run(stem, version, missing=False, valid=valid)
+    # every sample present: each validity input read back true at every step
+    flags = np.concatenate(valid)
+    assert flags.size >= len(now) and np.all(flags == 1.0), f"{stem}: a y_valid was false"
+    pinned = json.loads(BEFORE.read_text())[stem]
+    assert names == pinned["outputs"]
+    got = pin_of(now)
+    # the last step first: a difference there names the output and both numbers
+    differing = [(n, p, g) for n, p, g in zip(names, pinned["last"], got["last"]) if p != g]
+    assert not differing, f"{stem} FMI {version}: the last step differs (name, before, now): {differing}"
+    assert got == {k: pinned[k] for k in ("steps", "sha256", "last")}, f"{stem} FMI {version}"
+
+
+def pin(folder):
+    """Writes `missing_samples_before.json` from the FMUs of `folder` (a build/fmus of
+    dd24126, with fmi3/): FMI 2.0 and 3.0 must agree bit for bit."""
+    pins = {}
+    for stem in ESTIMATORS:
+        names, outputs, _ = run(stem, 2, missing=False, folder=folder)
+        names3, outputs3, _ = run(stem, 3, missing=False, folder=folder)
+        assert names == names3 and np.array_equal(outputs, outputs3), stem
+        pins[stem] = {"outputs": names, **pin_of(outputs)}
+    lines = [f" {json.dumps(stem)}: {json.dumps(pinned)}" for stem, pinned in pins.items()]
+    BEFORE.write_text("{\n" + ",\n".join(lines) + "\n}\n")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3 or sys.argv[1] != "--pin":
+        sys.exit("usage: test_missing_samples.py --pin DIR (a build/fmus of dd24126)")
+    pin(sys.argv[2])

@@ -97,6 +97,30 @@ impl<M: FmuModel> Harness<M> {
             .any(|(_, _, text)| words.iter().all(|w| text.contains(w)))
     }
 
+    /// Whether `call` is refused at once: it returns `fmi2Error` within `seconds` and a message
+    /// logged then contains every one of `words`. What went otherwise is the error (for the
+    /// tests that a call which once hung or ran for minutes now ends in an error).
+    pub fn refuses_at_once(
+        &mut self,
+        seconds: f64,
+        words: &[&str],
+        call: impl FnOnce(&mut Self) -> Result<Status, Status>,
+    ) -> Result<(), String> {
+        let start = std::time::Instant::now();
+        let status = call(self);
+        let took = start.elapsed().as_secs_f64();
+        if status != Err(Status::Error) {
+            return Err(format!("the call gave {status:?}, not fmi2Error"));
+        }
+        if took >= seconds {
+            return Err(format!("refusing took {took} s, not under {seconds} s"));
+        }
+        if !self.logged(words) {
+            return Err(format!("{words:?} not all in the log {:?}", self.log()));
+        }
+        Ok(())
+    }
+
     /// `fmi2SetupExperiment` + `fmi2EnterInitializationMode` + `fmi2ExitInitializationMode`.
     pub fn initialize(&mut self, start_time: f64) -> Result<Status, Status> {
         // SAFETY: `component` is a live component created by `into_component`.

@@ -7,6 +7,7 @@
 //! `tests/allocations/run`.
 #![allow(unsafe_code)]
 
+use spurio_counting_allocator::CountingAllocator;
 use spurio_export::fmi2::{ffi, values};
 use spurio_export::fmi3::ffi as ffi3;
 use spurio_export::fmi3::types::*;
@@ -16,8 +17,6 @@ use spurio_export::{
     ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo, Value,
     Variability, Variable,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::ffi::CString;
 
 #[path = "common/ramp.rs"]
@@ -25,51 +24,12 @@ mod ramp;
 
 use ramp::{expected, Me, N, Z0};
 
-/// Counts the allocations and frees of the thread while `COUNTING` is set.
-struct Counter;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static EVENTS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note() {
-    let _ = COUNTING.try_with(|on| {
-        if on.get() {
-            let _ = EVENTS.try_with(|n| n.set(n.get() + 1));
-        }
-    });
-}
-
-unsafe impl GlobalAlloc for Counter {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        note();
-        unsafe { System.realloc(p, layout, size) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, layout: Layout) {
-        note();
-        unsafe { System.dealloc(p, layout) }
-    }
-}
-
 #[global_allocator]
-static COUNTER: Counter = Counter;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// The allocations and frees of this thread during `f`.
-fn count(f: impl FnOnce()) -> usize {
-    EVENTS.with(|n| n.set(0));
-    COUNTING.with(|on| on.set(true));
-    f();
-    COUNTING.with(|on| on.set(false));
-    EVENTS.with(|n| n.get())
+fn count(f: impl FnOnce()) -> u64 {
+    spurio_counting_allocator::count(f).1.events()
 }
 
 /// An input of another type than Real: discrete, no `initial`.

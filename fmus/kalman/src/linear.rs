@@ -244,7 +244,8 @@ pub struct Scalar<S: ScalarFilter> {
 impl<S: ScalarFilter> Scalar<S> {
     /// The step: the inputs read (Reals, checked when the estimator was built; a non-finite
     /// one is an error naming it, the filter untouched), the filter stepped, the outputs
-    /// written.
+    /// written. `y_valid[1]` false makes y a NaN (a select, no branch): the filter's one
+    /// check of its innovation finds it and predicts only, out of line.
     #[inline(always)]
     fn step(&mut self, values: &mut Values) -> Result<(), Failure> {
         let numbers = values.numbers();

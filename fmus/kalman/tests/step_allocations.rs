@@ -3,45 +3,15 @@
 //! of every real output), with a counting global allocator over `fmi2DoStep` and
 //! `fmi2GetReal` (`fmi2SetReal` is the export layer's alone and is counted by its own test).
 
+use spurio_counting_allocator::{count, CountingAllocator};
 use spurio_export::harness::Harness;
 use spurio_export::{Causality, Config, FmuModel, VariableType};
 use spurio_fmu_kalman::{
     dims_config, DkfRsKfFmu, DualKalmanFilterFmu, KalmanFilterFmu, RobustKalmanFilterFmu,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
-
-/// Counts the allocations of the threads that set [`COUNTING`] (not the test harness's).
-struct Counting;
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-fn count() {
-    if COUNTING.try_with(Cell::get).unwrap_or(false) {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-    }
-}
-
-// SAFETY: forwards to the system allocator, only counting.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(ptr, layout, size) }
-    }
-}
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// Allocations in `fmi2DoStep` + `fmi2GetReal` over 50 steps after 5 warm-up steps, every
 /// input set (missing samples among them) and every real output read; `set` and `flags` are parameters set before
@@ -95,15 +65,14 @@ fn allocations<M: FmuModel>(config: &Config, set: &[(&str, f64)], flags: &[(&str
             })
             .collect();
         h.set_boolean(&valid, &present).expect("set");
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
-        COUNTING.set(true);
-        let stepped = h.do_step(k as f64 * step, step);
-        let got = h.get_real(&outputs, &mut out);
-        COUNTING.set(false);
+        let ((stepped, got), counts) = count(|| {
+            let stepped = h.do_step(k as f64 * step, step);
+            (stepped, h.get_real(&outputs, &mut out))
+        });
         stepped.expect("step");
         got.expect("get");
         if k >= 5 {
-            counted += ALLOCATIONS.load(Ordering::Relaxed) - before;
+            counted += counts.allocations;
         }
     }
     counted

@@ -49,15 +49,17 @@ pub const PRODUCER: &str = concat!("spurio ", env!("CARGO_PKG_VERSION"));
 pub enum ShardError {
     #[error("shard `{0}`: expected i/N with 0 <= i < N, e.g. 3/8")]
     Spec(String),
-    #[error("cannot read shard file {path}: {source}")]
+    /// The I/O error's text is the message's, not a source (said once).
+    #[error("cannot read shard file {path}: {error}")]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("cannot write shard file {path}: {source}")]
+    /// As [`ShardError::Read`].
+    #[error("cannot write shard file {path}: {error}")]
     Write {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("shard file {path}: {reason}")]
     Format { path: PathBuf, reason: String },
@@ -208,9 +210,9 @@ pub fn identity_of_system_file(
     definition: &SweepDefinition,
 ) -> Result<SweepIdentity, ShardError> {
     let read = |path: &Path| {
-        std::fs::read(path).map_err(|source| ShardError::Read {
+        std::fs::read(path).map_err(|error| ShardError::Read {
             path: path.to_path_buf(),
-            source,
+            error,
         })
     };
     let bytes = read(system)?;
@@ -250,16 +252,16 @@ pub fn read_shard_files(inputs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardFile)>,
     let mut paths = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let entries = std::fs::read_dir(input).map_err(|source| ShardError::Read {
+            let entries = std::fs::read_dir(input).map_err(|error| ShardError::Read {
                 path: input.clone(),
-                source,
+                error,
             })?;
             let mut found = Vec::new();
             for entry in entries {
                 let path = entry
-                    .map_err(|source| ShardError::Read {
+                    .map_err(|error| ShardError::Read {
                         path: input.clone(),
-                        source,
+                        error,
                     })?
                     .path();
                 if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
@@ -402,9 +404,9 @@ impl ShardFile {
 
     /// Reads a shard file.
     pub fn read(path: &Path) -> Result<Self, ShardError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ShardError::Read {
+        let text = std::fs::read_to_string(path).map_err(|error| ShardError::Read {
             path: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::from_toml(&text, path)
     }
@@ -413,9 +415,9 @@ impl ShardFile {
     /// that readers see either the whole file or none (a rerun replaces it the same way).
     pub fn write(&self, path: &Path) -> Result<(), ShardError> {
         let text = self.to_toml()?;
-        let write_error = |source| ShardError::Write {
+        let write_error = |error| ShardError::Write {
             path: path.to_path_buf(),
-            source,
+            error,
         };
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(format!(".tmp{}", std::process::id()));

@@ -41,10 +41,11 @@ pub const INJECT_FAILURE_DIR: &str = "inject-failure";
 /// Errors of staging and submitting a sweep.
 #[derive(Debug, thiserror::Error)]
 pub enum SlurmError {
-    #[error("{}: {source}", path.display())]
+    /// The I/O error's text is the message's, not a source (said once).
+    #[error("{}: {error}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{0}")]
     Invalid(String),
@@ -57,9 +58,9 @@ pub enum SlurmError {
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SlurmError + '_ {
-    move |source| SlurmError::Io {
+    move |error| SlurmError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     }
 }
 

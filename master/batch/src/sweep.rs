@@ -447,8 +447,9 @@ pub fn sweep_runs(
 /// The per-run table of a sweep cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum TableError {
-    #[error("cannot write {}: {source}", path.display())]
-    Write { path: PathBuf, source: csv::Error },
+    /// The CSV error's text is the message's, not a source (said once).
+    #[error("cannot write {}: {error}", path.display())]
+    Write { path: PathBuf, error: csv::Error },
     #[error("{rows} rows of parameter values for {runs} runs")]
     Rows { rows: usize, runs: usize },
 }
@@ -471,9 +472,9 @@ pub fn write_table(
         });
     }
     if let Some(path) = out {
-        let error = |source| TableError::Write {
+        let error = |error| TableError::Write {
             path: path.to_path_buf(),
-            source,
+            error,
         };
         let mut csv = csv::WriterBuilder::new()
             .quote_style(csv::QuoteStyle::NonNumeric)

@@ -234,21 +234,12 @@ fn main() -> ExitCode {
     }
 }
 
-/// `Error: ` and the error, then its causes under `Caused by:` as anyhow lays them out,
-/// leaving out each cause whose text is already printed (an error that quotes its source
-/// in its own message), so no message appears twice.
+/// `Error: ` and the error, then its causes under `Caused by:` as anyhow lays them out, without
+/// a backtrace. Each error of the engine and the batch tools says its cause once (quoted in
+/// its message, or as its source, never both), so no message appears twice.
 fn error_report(error: &anyhow::Error) -> String {
-    let mut shown = error.to_string();
-    let mut causes: Vec<String> = Vec::new();
-    for cause in error.chain().skip(1) {
-        let text = cause.to_string();
-        if !shown.contains(&text) {
-            shown.push('\n');
-            shown.push_str(&text);
-            causes.push(text);
-        }
-    }
     let mut report = format!("Error: {error}");
+    let causes: Vec<String> = error.chain().skip(1).map(|c| c.to_string()).collect();
     match causes.as_slice() {
         [] => {}
         [one] => report.push_str(&format!("\n\nCaused by:\n    {one}")),

@@ -5,7 +5,7 @@
 
 use anyhow::{bail, Context, Result};
 use spurio_master::fmu::me::read_description;
-use spurio_master::fmu::{FmuFile, Interface, LoadError, LoadOptions};
+use spurio_master::fmu::{FmuFile, Interface, LoadOptions};
 use spurio_master::model_exchange::{simulate, EventKind, Method, Options};
 use spurio_master::{CsvWriter, InstanceDescription, System, SystemDescription};
 use std::collections::BTreeMap;
@@ -134,16 +134,11 @@ pub fn classify(path: &Path) -> Result<RunTarget> {
 /// The interface to run `path` with: the one asked for, or Co-Simulation when the FMU offers
 /// it and Model Exchange otherwise; the FMU loaded for it.
 fn open(path: &Path, asked: Option<&str>, options: &LoadOptions) -> Result<FmuFile> {
-    let interface = match asked {
-        Some("me") => Interface::ModelExchange,
-        Some(_) => Interface::CoSimulation,
-        None => match FmuFile::open_for(path, options, Interface::CoSimulation) {
-            Ok(fmu) => return Ok(fmu),
-            Err(LoadError::NotCoSimulation { .. }) => Interface::ModelExchange,
-            Err(e) => return Err(e.into()),
-        },
-    };
-    Ok(FmuFile::open_for(path, options, interface)?)
+    let interface = asked.map(|a| match a {
+        "me" => Interface::ModelExchange,
+        _ => Interface::CoSimulation,
+    });
+    Ok(FmuFile::open_preferring(path, options, interface)?)
 }
 
 /// The experiment of a run: the flags, else the DefaultExperiment, else fmpy's defaults.
@@ -218,13 +213,8 @@ pub fn run(
             step_size: e.step,
             algorithm: Default::default(),
             instances: vec![InstanceDescription {
-                name: fmu.model_identifier.clone(),
-                fmu: absolute,
-                data: None,
-                interpolation: None,
                 parameters,
-                step_multiple: 1,
-                logging: false,
+                ..InstanceDescription::new(fmu.model_identifier.clone(), absolute)
             }],
             connections: Vec::new(),
             record: Vec::new(),

@@ -266,6 +266,10 @@ fn every_error_message_is_printed_once() {
             ],
         ),
         (
+            "merge shards that are not there",
+            vec!["sweep-merge".into(), s(&dir.join("no-shards.toml")).into()],
+        ),
+        (
             "diagnose a missing file",
             vec![
                 "diagnose".into(),

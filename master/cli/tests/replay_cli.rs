@@ -78,13 +78,8 @@ fn live_and_replayed(system: &str) -> Vec<String> {
         stop_time: f64::NAN,
         instances: vec![
             InstanceDescription {
-                name: "rig".into(),
-                fmu: PathBuf::new(),
                 data: Some(PathBuf::from("live.csv")),
-                interpolation: None,
-                parameters: Default::default(),
-                step_multiple: 1,
-                logging: false,
+                ..InstanceDescription::new("rig", PathBuf::new())
             },
             est,
         ],

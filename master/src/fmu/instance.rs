@@ -205,23 +205,9 @@ impl Instance {
     }
 
     /// The name of a call in this instance's version, from its FMI 2.0 name
-    /// (`fmi2DoStep` → `fmi3DoStep`; `fmi2SetupExperiment` → `fmi3EnterInitializationMode`,
-    /// which takes its arguments in FMI 3.0).
+    /// ([`FmiVersion::call_name`]).
     pub fn call_name(&self, fmi2: &'static str) -> &'static str {
-        if self.version() == FmiVersion::Fmi2 {
-            return fmi2;
-        }
-        match fmi2 {
-            "fmi2SetupExperiment" | "fmi2EnterInitializationMode" => "fmi3EnterInitializationMode",
-            "fmi2ExitInitializationMode" => "fmi3ExitInitializationMode",
-            "fmi2DoStep" => "fmi3DoStep",
-            "fmi2Terminate" => "fmi3Terminate",
-            "fmi2Set*" => "fmi3Set*",
-            "fmi2Get*" => "fmi3Get*",
-            "fmi2Set* (start value)" => "fmi3Set* (start value)",
-            "fmi2Get* (initial outputs)" => "fmi3Get* (initial outputs)",
-            other => other,
-        }
+        self.version().call_name(fmi2)
     }
 
     /// Runs `call` on the instance; an FMI 3.0 instance's messages meanwhile are kept under

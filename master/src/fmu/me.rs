@@ -257,6 +257,19 @@ fn log_of(key: &LogKey, e: impl std::fmt::Display) -> String {
 }
 
 impl MeInstance {
+    /// Where this instance's log messages are kept.
+    pub fn log(&self) -> &LogKey {
+        &self.log
+    }
+
+    /// The FMI version of the instance.
+    pub fn version(&self) -> FmiVersion {
+        match self.inner {
+            Inner::Fmi2(_) => FmiVersion::Fmi2,
+            Inner::Fmi3(_) => FmiVersion::Fmi3,
+        }
+    }
+
     /// The layout read from the model description (and, FMI 3.0, the instance).
     pub fn description(&self) -> &MeDescription {
         &self.description

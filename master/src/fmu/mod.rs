@@ -56,6 +56,26 @@ pub enum FmiVersion {
 }
 
 impl FmiVersion {
+    /// The name of a call in this version, from its FMI 2.0 name (`fmi2DoStep` →
+    /// `fmi3DoStep`; `fmi2SetupExperiment` → `fmi3EnterInitializationMode`, which takes its
+    /// arguments in FMI 3.0).
+    pub fn call_name(self, fmi2: &'static str) -> &'static str {
+        if self == FmiVersion::Fmi2 {
+            return fmi2;
+        }
+        match fmi2 {
+            "fmi2SetupExperiment" | "fmi2EnterInitializationMode" => "fmi3EnterInitializationMode",
+            "fmi2ExitInitializationMode" => "fmi3ExitInitializationMode",
+            "fmi2DoStep" => "fmi3DoStep",
+            "fmi2Terminate" => "fmi3Terminate",
+            "fmi2Set*" => "fmi3Set*",
+            "fmi2Get*" => "fmi3Get*",
+            "fmi2Set* (start value)" => "fmi3Set* (start value)",
+            "fmi2Get* (initial outputs)" => "fmi3Get* (initial outputs)",
+            other => other,
+        }
+    }
+
     /// `2.0` or `3.0`.
     pub fn number(self) -> &'static str {
         match self {
@@ -395,6 +415,25 @@ impl FmuFile {
     /// Opens, checks and imports `path` for Co-Simulation.
     pub fn open_with(path: &Path, options: &LoadOptions) -> Result<Self, LoadError> {
         Self::open_for(path, options, Interface::CoSimulation)
+    }
+
+    /// Opens `path` for `interface` when one is asked, else for Co-Simulation when the FMU
+    /// offers it and for Model Exchange otherwise (an FMU that offers neither is refused
+    /// with the Co-Simulation error, which says what it declares).
+    pub fn open_preferring(
+        path: &Path,
+        options: &LoadOptions,
+        interface: Option<Interface>,
+    ) -> Result<Self, LoadError> {
+        if let Some(interface) = interface {
+            return Self::open_for(path, options, interface);
+        }
+        match Self::open_for(path, options, Interface::CoSimulation) {
+            Err(e @ LoadError::NotCoSimulation { .. }) => {
+                Self::open_for(path, options, Interface::ModelExchange).map_err(|_| e)
+            }
+            other => other,
+        }
     }
 
     /// Opens, checks and imports `path` for `interface` (an FMU that does not offer it is

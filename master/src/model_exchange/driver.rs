@@ -3,7 +3,9 @@
 use super::{Call, EventUpdate, MeError, ModelExchangeCalls};
 use crate::fmu::{CallError, Experiment, VarType};
 use crate::record::Observer;
-use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverError, Statistics};
+use spurio_solvers::{
+    Direction, Method, OdeSystem, Settings, Solver, SolverError, SolverErrorKind, Statistics,
+};
 
 /// The bracket to which a state event's time is located: `10⁻¹² · max(1, |t|)` s.
 pub fn event_time_tolerance(t: f64) -> f64 {
@@ -146,27 +148,128 @@ fn crossed(before: f64, after: f64) -> bool {
     (before > 0.0) != (after > 0.0)
 }
 
-/// The run's state between the calls.
-struct Run<'a, M> {
-    fmu: &'a mut M,
-    fmi3: bool,
-    name: String,
-    solver: Solver,
-    x: Vec<f64>,
-    nominal: Vec<f64>,
-    z_old: Vec<f64>,
-    z_new: Vec<f64>,
-    za: Vec<f64>,
-    zm: Vec<f64>,
+/// How an [`Stepper::advance_to`] ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Advance {
+    /// The instance reached the time asked for.
+    Reached(f64),
+    /// The FMU asked to end the simulation (`terminateSimulation`) at this time.
+    Terminated(f64),
+}
+
+/// The recorded variables of a single-FMU run ([`simulate`]) and its output grid
+/// `start + k · interval` (and the stop time).
+struct Recording {
     /// The recorded variables by type: (type, value references, the column of each value).
     groups: Vec<(VarType, Vec<u32>, Vec<usize>)>,
     values: Vec<f64>,
     /// One group's values as read.
     read: Vec<f64>,
-    scratch: Vec<f64>,
+    start: f64,
+    stop: f64,
+    interval: f64,
+    /// The number of intervals from start to stop, and the next grid point's index.
+    intervals: u64,
+    next: u64,
 }
 
-impl<M: ModelExchangeCalls> Run<'_, M> {
+impl Recording {
+    /// The grid point `k`.
+    fn grid(&self, k: u64) -> f64 {
+        (self.start + k as f64 * self.interval).min(self.stop)
+    }
+
+    /// The next grid point, if any is left.
+    fn next_point(&self) -> Option<f64> {
+        (self.next <= self.intervals).then(|| self.grid(self.next))
+    }
+}
+
+/// One Model Exchange instance integrated by a solver of its own from event to event, in
+/// three calls (module docs of [`super`]): [`Stepper::initialise`] after initialisation mode
+/// (the first event iteration, continuous-time mode), [`Stepper::advance_to`] as often as
+/// the caller wants (a co-simulation advances it from one communication point to the next,
+/// its inputs held over the interval), and [`Stepper::finish`]. It holds no FMU: each call
+/// is given the instance, so that a co-simulation keeps its instances where it reads and
+/// sets their values. Every buffer is sized when it is made: an advance allocates nothing
+/// (but for the messages of an error).
+pub struct Stepper {
+    name: String,
+    fmi3: bool,
+    options: Options,
+    solver: Solver,
+    /// The time the instance is at.
+    t: f64,
+    x: Vec<f64>,
+    nominal: Vec<f64>,
+    /// The event indicators at `t`, at the end of a step, and the ends of a bracket.
+    z_old: Vec<f64>,
+    z_new: Vec<f64>,
+    za: Vec<f64>,
+    zm: Vec<f64>,
+    scratch: Vec<f64>,
+    /// The time event the FMU announced last.
+    next_event_time: Option<f64>,
+    /// The last event's time and how many events happened at it (chattering).
+    last_event_time: f64,
+    events_here: usize,
+    summary: Summary,
+    recording: Option<Recording>,
+}
+
+impl Stepper {
+    /// A stepper for an instance of `layout.states` states and `layout.event_indicators`
+    /// indicators called `name` (FMI 3.0 when `fmi3`, for the calls' names), run with
+    /// `options` (its method, tolerance, maximum step and bounds; its start time is the
+    /// first [`Stepper::initialise`]'s).
+    pub fn new(name: String, fmi3: bool, layout: &Layout, options: &Options) -> Self {
+        let (n, m) = (layout.states, layout.event_indicators);
+        let settings = Settings {
+            relative: options.tolerance,
+            absolute: options.tolerance,
+            max_step: options.max_step.unwrap_or(f64::INFINITY),
+            ..Settings::default()
+        };
+        let zeros = |k: usize| vec![0.0; k];
+        Self {
+            name,
+            fmi3,
+            options: *options,
+            solver: Solver::new(options.method, n, settings),
+            t: options.start,
+            x: zeros(n),
+            nominal: vec![1.0; n],
+            z_old: zeros(m),
+            z_new: zeros(m),
+            za: zeros(m),
+            zm: zeros(m),
+            scratch: zeros(n),
+            next_event_time: None,
+            last_event_time: f64::NEG_INFINITY,
+            events_here: 0,
+            summary: Summary {
+                end_time: options.start,
+                ..Summary::default()
+            },
+            recording: None,
+        }
+    }
+
+    /// The time the instance is at.
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
+    /// What the run did so far (its end time: the time reached; its statistics: the
+    /// solver's).
+    pub fn summary(&self) -> Summary {
+        Summary {
+            end_time: self.t,
+            statistics: self.solver.statistics(),
+            ..self.summary
+        }
+    }
+
     /// The error for `call` failing at `time`.
     fn failed(&self, call: Call, time: f64) -> impl FnOnce(CallError) -> MeError + '_ {
         move |e| MeError::Call {
@@ -181,20 +284,21 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
     fn solver_error(&self, e: SolverError<Failure>) -> MeError {
         let fmu = self.name.clone();
         let derivatives = Call::GetDerivatives.name(self.fmi3);
-        match e {
-            SolverError::Model { time, source } => MeError::Call {
+        let time = e.time;
+        match e.kind {
+            SolverErrorKind::Model(source) => MeError::Call {
                 fmu,
                 call: source.call.name(self.fmi3),
                 time,
                 reason: source.error.0,
             },
-            SolverError::NonFiniteDerivative { time, index, value } => MeError::NotFinite {
+            SolverErrorKind::NonFiniteDerivative { index, value } => MeError::NotFinite {
                 fmu,
                 call: derivatives,
                 time,
                 what: format!("the derivative of state {} is {value}", index + 1),
             },
-            SolverError::NonFiniteStages { time, step } => MeError::NotFinite {
+            SolverErrorKind::NonFiniteStages { step } => MeError::NotFinite {
                 fmu,
                 call: derivatives,
                 time,
@@ -202,45 +306,38 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
                     "the derivatives were not finite in every step tried, down to {step:e} s"
                 ),
             },
-            other => {
-                let time = match &other {
-                    SolverError::StepTooSmall { time, .. }
-                    | SolverError::TooManyRejections { time, .. }
-                    | SolverError::TooManySteps { time, .. }
-                    | SolverError::BadTarget { time, .. } => *time,
-                    _ => self.solver.time(),
-                };
-                MeError::Solver {
-                    fmu,
-                    time,
-                    reason: other.to_string(),
-                }
-            }
+            kind => MeError::Solver {
+                fmu,
+                time,
+                reason: SolverError::at(time, kind).to_string(),
+            },
         }
     }
 
     /// Sets the time and the states (the solution at `t`, from the dense output when `t` is
     /// inside the last step).
-    fn place(&mut self, t: f64) -> Result<(), MeError> {
-        self.fmu
-            .set_time(t)
-            .map_err(self.failed(Call::SetTime, t))?;
+    fn place<M: ModelExchangeCalls>(&mut self, fmu: &mut M, t: f64) -> Result<(), MeError> {
+        fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
         if !self.x.is_empty() {
             self.solver.interpolate(t, &mut self.scratch);
-            let set = self.fmu.set_continuous_states(&self.scratch);
+            let set = fmu.set_continuous_states(&self.scratch);
             set.map_err(self.failed(Call::SetContinuousStates, t))?;
         }
         Ok(())
     }
 
-    /// The event indicators at `t` into `out` (the FMU placed at `t` first).
-    fn indicators_at(&mut self, t: f64, which: Buffer) -> Result<(), MeError> {
-        self.place(t)?;
+    /// The event indicators of the FMU as it is (at `t`) into `which`; a NaN is an error.
+    fn read_indicators<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+        which: Buffer,
+    ) -> Result<(), MeError> {
         let buffer = match which {
             Buffer::New => &mut self.z_new,
             Buffer::Middle => &mut self.zm,
         };
-        let result = self.fmu.get_event_indicators(buffer);
+        let result = fmu.get_event_indicators(buffer);
         result.map_err(self.failed(Call::GetEventIndicators, t))?;
         let buffer = match which {
             Buffer::New => &self.z_new,
@@ -257,22 +354,27 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
         Ok(())
     }
 
-    /// Records the outputs at `t` (the FMU placed there).
-    fn record(&mut self, t: f64, observer: &mut dyn Observer) -> Result<(), MeError> {
-        let Self {
-            fmu,
+    /// Records the outputs at `t` (the FMU placed there), when this stepper records.
+    fn record<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+        observer: &mut dyn Observer,
+    ) -> Result<(), MeError> {
+        let Some(recording) = &mut self.recording else {
+            return Ok(());
+        };
+        let Recording {
             groups,
             values,
             read,
-            name,
-            fmi3,
             ..
-        } = self;
+        } = recording;
         for (var_type, vrs, columns) in groups.iter() {
             let out = &mut read[..columns.len()];
             fmu.get(*var_type, vrs, out).map_err(|e| MeError::Call {
-                fmu: name.clone(),
-                call: Call::Get.name(*fmi3),
+                fmu: self.name.clone(),
+                call: Call::Get.name(self.fmi3),
                 time: t,
                 reason: e.0,
             })?;
@@ -287,7 +389,12 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
     /// Locates the first sign change of an indicator in `(a, b]`, `z_old` holding the
     /// indicators at `a` and `z_new` those at `b` (module docs): the time at the bracket's
     /// right end and the indicator; `z_new` then holds the indicators there.
-    fn locate(&mut self, a: f64, b: f64) -> Result<(f64, usize), MeError> {
+    fn locate<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        a: f64,
+        b: f64,
+    ) -> Result<(f64, usize), MeError> {
         let (mut a, mut b) = (a, b);
         self.za.copy_from_slice(&self.z_old);
         let (mut weight_a, mut weight_b) = (1.0, 1.0);
@@ -319,7 +426,8 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
             } else {
                 estimate.clamp(a + margin, b - margin)
             };
-            self.indicators_at(t, Buffer::Middle)?;
+            self.place(fmu, t)?;
+            self.read_indicators(fmu, t, Buffer::Middle)?;
             let crossing = (0..self.za.len()).any(|i| crossed(self.za[i], self.zm[i]));
             let (moved, kept) = if crossing {
                 b = t;
@@ -345,12 +453,16 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
 
     /// The event iteration at `t` (in event mode): until no new iteration is needed. The last
     /// update's flags are returned (its next event time, whether to terminate).
-    fn iterate_events(&mut self, t: f64, max: usize) -> Result<EventUpdate, MeError> {
+    fn iterate_events<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+    ) -> Result<EventUpdate, MeError> {
+        let max = self.options.max_event_iterations;
         let mut any_values_changed = false;
         let mut any_nominals_changed = false;
         for _ in 0..max {
-            let update = self
-                .fmu
+            let update = fmu
                 .update_discrete_states()
                 .map_err(self.failed(Call::UpdateDiscreteStates, t))?;
             if let Some(te) = update.next_event_time.filter(|te| te.is_nan()) {
@@ -381,28 +493,26 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
 
     /// Continuous-time mode at `t` after an event iteration: the solver started afresh from
     /// the states and nominals read, the indicators read as the ones before the next step.
-    fn resume(&mut self, t: f64) -> Result<(), MeError> {
-        let entered = self.fmu.enter_continuous_time_mode();
+    fn resume<M: ModelExchangeCalls>(&mut self, fmu: &mut M, t: f64) -> Result<(), MeError> {
+        let entered = fmu.enter_continuous_time_mode();
         entered.map_err(self.failed(Call::EnterContinuousTimeMode, t))?;
-        self.restart(t)?;
-        self.fmu
-            .set_time(t)
-            .map_err(self.failed(Call::SetTime, t))?;
+        self.restart(fmu, t)?;
+        fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
         if !self.z_old.is_empty() {
-            let read = self.fmu.get_event_indicators(&mut self.z_old);
+            let read = fmu.get_event_indicators(&mut self.z_old);
             read.map_err(self.failed(Call::GetEventIndicators, t))?;
         }
         Ok(())
     }
 
     /// Reads the states and nominals at `t` and starts the solver from them.
-    fn restart(&mut self, t: f64) -> Result<(), MeError> {
+    fn restart<M: ModelExchangeCalls>(&mut self, fmu: &mut M, t: f64) -> Result<(), MeError> {
         if self.x.is_empty() {
             return Ok(());
         }
-        let read = self.fmu.get_continuous_states(&mut self.x);
+        let read = fmu.get_continuous_states(&mut self.x);
         read.map_err(self.failed(Call::GetContinuousStates, t))?;
-        let read = self.fmu.get_nominals(&mut self.nominal);
+        let read = fmu.get_nominals(&mut self.nominal);
         read.map_err(self.failed(Call::GetNominalsOfContinuousStates, t))?;
         if let Some(i) = self.x.iter().position(|v| !v.is_finite()) {
             return Err(MeError::NotFinite {
@@ -415,6 +525,227 @@ impl<M: ModelExchangeCalls> Run<'_, M> {
         let reset = self.solver.reset(t, &self.x, &self.nominal);
         reset.map_err(|e| self.solver_error(e))
     }
+
+    /// Leaves initialisation at `t` (the FMU out of initialisation mode, in event mode): the
+    /// first event iteration, then continuous-time mode with the solver started from the
+    /// states. `Advance::Terminated` when the FMU asks to end the run there.
+    pub fn initialise<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+    ) -> Result<Advance, MeError> {
+        self.t = t;
+        self.summary.end_time = t;
+        let update = self.iterate_events(fmu, t)?;
+        self.next_event_time = update.next_event_time;
+        if update.terminate_simulation {
+            self.summary.terminated = true;
+            return Ok(Advance::Terminated(t));
+        }
+        self.resume(fmu, t)?;
+        Ok(Advance::Reached(t))
+    }
+
+    /// The inputs of the FMU were set at its time (a communication point of a
+    /// co-simulation): the solver starts again from the states there (the derivatives
+    /// changed), and an event indicator that changed sign with the inputs is an event there.
+    pub fn inputs_changed<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        on_event: &mut dyn FnMut(&Event),
+    ) -> Result<Advance, MeError> {
+        let t = self.t;
+        self.restart(fmu, t)?;
+        if self.z_old.is_empty() {
+            return Ok(Advance::Reached(t));
+        }
+        self.read_indicators(fmu, t, Buffer::New)?;
+        match (0..self.z_new.len()).find(|&i| crossed(self.z_old[i], self.z_new[i])) {
+            Some(indicator) => {
+                let kind = EventKind::State { indicator };
+                match self.handle_event(fmu, kind, on_event)? {
+                    Some(end) => Ok(Advance::Terminated(end)),
+                    None => Ok(Advance::Reached(t)),
+                }
+            }
+            None => {
+                self.z_old.copy_from_slice(&self.z_new);
+                Ok(Advance::Reached(t))
+            }
+        }
+    }
+
+    /// Handles an event of `kind` at the stepper's time: counted, checked for chattering,
+    /// told to `on_event`, the event iteration, continuous-time mode again. The time at which
+    /// the FMU asked to end the run, if it did.
+    fn handle_event<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        kind: EventKind,
+        on_event: &mut dyn FnMut(&Event),
+    ) -> Result<Option<f64>, MeError> {
+        let t = self.t;
+        match kind {
+            EventKind::State { .. } => self.summary.state_events += 1,
+            EventKind::Time => self.summary.time_events += 1,
+            EventKind::Step => self.summary.step_events += 1,
+        }
+        if t - self.last_event_time <= event_time_tolerance(t) {
+            self.events_here += 1;
+            let bound = self.options.max_events_without_progress;
+            if self.events_here > bound {
+                return Err(MeError::Chattering {
+                    fmu: self.name.clone(),
+                    time: t,
+                    events: self.events_here,
+                    bound,
+                    call: match kind {
+                        EventKind::State { .. } => Call::GetEventIndicators,
+                        EventKind::Time => Call::UpdateDiscreteStates,
+                        EventKind::Step => Call::CompletedIntegratorStep,
+                    }
+                    .name(self.fmi3),
+                });
+            }
+        } else {
+            self.events_here = 1;
+        }
+        self.last_event_time = t;
+        on_event(&Event { time: t, kind });
+        fmu.enter_event_mode()
+            .map_err(self.failed(Call::EnterEventMode, t))?;
+        let update = self.iterate_events(fmu, t)?;
+        self.next_event_time = update.next_event_time;
+        if update.terminate_simulation {
+            self.summary.terminated = true;
+            return Ok(Some(t));
+        }
+        self.resume(fmu, t)?;
+        Ok(None)
+    }
+
+    /// Integrates from the stepper's time to `t_end` (not before it), handling every event
+    /// on the way (module docs of [`super`]); the FMU is left at the time reached with the
+    /// states there. The inputs keep the values they have. A stepper made by [`simulate`]
+    /// records its grid points on the way into `observer` (any other records nothing there).
+    pub fn advance_to<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t_end: f64,
+        observer: &mut dyn Observer,
+        on_event: &mut dyn FnMut(&Event),
+    ) -> Result<Advance, MeError> {
+        let n = self.x.len();
+        let m = self.z_old.len();
+        let mut steps_in_interval = 0usize;
+        while self.t < t_end {
+            let t = self.t;
+            // A time event announced at or before the current time is due now: handled at `t`
+            // without a step (an FMU that keeps announcing one is stopped as chattering).
+            let time_event = self
+                .next_event_time
+                .filter(|&te| te <= t_end)
+                .map(|te| te.max(t));
+            let limit = time_event.unwrap_or(t_end);
+            // One step (no states, or an event due now: straight to the next output point or
+            // the limit).
+            let t_new = if n == 0 || limit <= t {
+                let next_output = self.recording.as_ref().and_then(Recording::next_point);
+                next_output.map_or(limit, |point| limit.min(point))
+            } else {
+                steps_in_interval += 1;
+                if steps_in_interval > self.options.max_steps_per_interval {
+                    return Err(MeError::Solver {
+                        fmu: self.name.clone(),
+                        time: t,
+                        reason: format!(
+                            "more than {} steps without reaching an output point or an event",
+                            self.options.max_steps_per_interval
+                        ),
+                    });
+                }
+                let mut plant = Plant { fmu: &mut *fmu };
+                match self.solver.step(&mut plant, limit) {
+                    Ok(t_new) => t_new,
+                    Err(e) => return Err(self.solver_error(e)),
+                }
+            };
+            // State events over (t, t_new].
+            let mut state_event = None;
+            let mut t_valid = t_new;
+            if m > 0 {
+                self.place(fmu, t_new)?;
+                self.read_indicators(fmu, t_new, Buffer::New)?;
+                if (0..m).any(|i| crossed(self.z_old[i], self.z_new[i])) {
+                    let (t_event, indicator) = self.locate(fmu, t, t_new)?;
+                    t_valid = t_event;
+                    state_event = Some(indicator);
+                }
+            }
+            // Output points before t_valid (at t_valid: after any event there).
+            while let Some(t_out) = self.recording.as_ref().and_then(Recording::next_point) {
+                if t_out >= t_valid {
+                    break;
+                }
+                self.place(fmu, t_out)?;
+                self.record(fmu, t_out, observer)?;
+                if let Some(r) = &mut self.recording {
+                    r.next += 1;
+                }
+                steps_in_interval = 0;
+            }
+            self.place(fmu, t_valid)?;
+            self.t = t_valid;
+            let mut step_event = false;
+            if state_event.is_none() {
+                let (enter, terminate) = fmu
+                    .completed_integrator_step()
+                    .map_err(self.failed(Call::CompletedIntegratorStep, t_valid))?;
+                if terminate {
+                    self.summary.terminated = true;
+                    self.record(fmu, t_valid, observer)?;
+                    return Ok(Advance::Terminated(t_valid));
+                }
+                step_event = enter;
+            }
+            let is_time_event = time_event.is_some_and(|te| te <= t_valid);
+            let kind = match (state_event, is_time_event, step_event) {
+                (Some(indicator), _, _) => Some(EventKind::State { indicator }),
+                (None, true, _) => Some(EventKind::Time),
+                (None, false, true) => Some(EventKind::Step),
+                (None, false, false) => None,
+            };
+            if let Some(kind) = kind {
+                if let Some(end) = self.handle_event(fmu, kind, on_event)? {
+                    self.record(fmu, end, observer)?;
+                    return Ok(Advance::Terminated(end));
+                }
+                steps_in_interval = 0;
+            } else if m > 0 {
+                // The indicators at the accepted point (t_valid = t_new here).
+                self.z_old.copy_from_slice(&self.z_new);
+            }
+            let due = self.recording.as_ref().and_then(Recording::next_point);
+            if due.is_some_and(|point| point <= self.t) {
+                let t = self.t;
+                self.record(fmu, t, observer)?;
+                if let Some(r) = &mut self.recording {
+                    r.next += 1;
+                }
+                steps_in_interval = 0;
+            }
+        }
+        self.summary.end_time = self.t;
+        Ok(Advance::Reached(self.t))
+    }
+
+    /// Terminates the instance (`fmi2Terminate`/`fmi3Terminate`) at the time reached and
+    /// returns what the run did.
+    pub fn finish<M: ModelExchangeCalls>(&mut self, fmu: &mut M) -> Result<Summary, MeError> {
+        let t = self.t;
+        fmu.terminate().map_err(self.failed(Call::Terminate, t))?;
+        Ok(self.summary())
+    }
 }
 
 /// Which indicator buffer to fill.
@@ -426,8 +757,9 @@ enum Buffer {
 
 /// Runs `fmu` (instantiated, not yet initialised) over the experiment of `options`, recording
 /// `layout.recorded` at every output point into `observer` and telling `on_event` each event
-/// handled (module docs of [`super`]). The instance is terminated at the end (also when the
-/// FMU asked to end early), not when the run fails.
+/// handled (module docs of [`super`]): a [`Stepper`] initialised and advanced to the stop
+/// time. The instance is terminated at the end (also when the FMU asked to end early), not
+/// when the run fails.
 pub fn simulate<M: ModelExchangeCalls>(
     fmu: &mut M,
     layout: &Layout,
@@ -437,23 +769,15 @@ pub fn simulate<M: ModelExchangeCalls>(
 ) -> Result<Summary, MeError> {
     let name = fmu.name();
     let fmi3 = fmu.is_fmi3();
-    let bad = |reason: String| MeError::Layout {
-        fmu: name.clone(),
-        reason,
-    };
     if !(options.stop >= options.start && options.output_interval > 0.0) {
-        return Err(bad(format!(
-            "the experiment runs from {} to {} recorded every {}: the stop time must not be before the start and the interval must be positive",
-            options.start, options.stop, options.output_interval
-        )));
+        return Err(MeError::Layout {
+            fmu: name,
+            reason: format!(
+                "the experiment runs from {} to {} recorded every {}: the stop time must not be before the start and the interval must be positive",
+                options.start, options.stop, options.output_interval
+            ),
+        });
     }
-    let n = layout.states;
-    let settings = Settings {
-        relative: options.tolerance,
-        absolute: options.tolerance,
-        max_step: options.max_step.unwrap_or(f64::INFINITY),
-        ..Settings::default()
-    };
     // One read per type; the elements of an FMI 3.0 array (consecutive, one value reference)
     // are read as the array.
     let mut groups: Vec<(VarType, Vec<u32>, Vec<usize>)> = Vec::new();
@@ -468,203 +792,58 @@ pub fn simulate<M: ModelExchangeCalls>(
             None => groups.push((*t, vec![*vr], vec![column])),
         }
     }
-    let m = layout.event_indicators;
-    let zeros = |k: usize| vec![0.0; k];
-    let mut run = Run {
-        fmu,
-        fmi3,
-        name: name.clone(),
-        solver: Solver::new(options.method, n, settings),
-        x: zeros(n),
-        nominal: vec![1.0; n],
-        z_old: zeros(m),
-        z_new: zeros(m),
-        za: zeros(m),
-        zm: zeros(m),
-        groups,
-        values: zeros(layout.recorded.len()),
-        read: zeros(layout.recorded.len()),
-        scratch: zeros(n),
-    };
     let (start, stop) = (options.start, options.stop);
+    let mut stepper = Stepper::new(name, fmi3, layout, options);
+    let columns = layout.recorded.len();
+    stepper.recording = Some(Recording {
+        groups,
+        values: vec![0.0; columns],
+        read: vec![0.0; columns],
+        start,
+        stop,
+        interval: options.output_interval,
+        intervals: ((stop - start) / options.output_interval - 1e-9)
+            .ceil()
+            .max(0.0) as u64,
+        next: 1,
+    });
+    initialise(fmu, layout, options, &stepper)?;
+    let names: Vec<String> = layout.recorded.iter().map(|r| r.0.clone()).collect();
+    observer.start(&names)?;
+    if let Advance::Reached(t) = stepper.initialise(fmu, start)? {
+        stepper.record(fmu, t, observer)?;
+        stepper.advance_to(fmu, stop, observer, on_event)?;
+    } else {
+        stepper.record(fmu, start, observer)?;
+    }
+    let summary = stepper.finish(fmu)?;
+    observer.finish()?;
+    Ok(summary)
+}
+
+/// The experiment set up, the start values set, initialisation mode entered and left
+/// (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1); errors named as `stepper` names them.
+fn initialise<M: ModelExchangeCalls>(
+    fmu: &mut M,
+    layout: &Layout,
+    options: &Options,
+    stepper: &Stepper,
+) -> Result<(), MeError> {
+    let start = options.start;
     let experiment = Experiment {
         tolerance: Some(options.tolerance),
         start,
-        stop: Some(stop),
+        stop: Some(options.stop),
     };
-    // Initialisation (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1).
-    run.fmu
-        .setup_experiment(experiment)
-        .map_err(run.failed(Call::SetupExperiment, start))?;
+    fmu.setup_experiment(experiment)
+        .map_err(stepper.failed(Call::SetupExperiment, start))?;
     for (t, vr, value) in &layout.start_values {
-        run.fmu
-            .set(*t, &[*vr], &[*value])
-            .map_err(run.failed(Call::Set, start))?;
+        fmu.set(*t, &[*vr], &[*value])
+            .map_err(stepper.failed(Call::Set, start))?;
     }
-    run.fmu
-        .enter_initialization_mode(experiment)
-        .map_err(run.failed(Call::EnterInitializationMode, start))?;
-    run.fmu
-        .exit_initialization_mode()
-        .map_err(run.failed(Call::ExitInitializationMode, start))?;
-    let names: Vec<String> = layout.recorded.iter().map(|r| r.0.clone()).collect();
-    observer.start(&names)?;
-    let mut summary = Summary {
-        end_time: start,
-        ..Summary::default()
-    };
-    let mut update = run.iterate_events(start, options.max_event_iterations)?;
-    let mut t = start;
-    // The output grid: start + k · interval, and the stop time.
-    let intervals = ((stop - start) / options.output_interval - 1e-9)
-        .ceil()
-        .max(0.0) as u64;
-    let grid = |k: u64| (start + k as f64 * options.output_interval).min(stop);
-    let mut k_next = 1;
-    if update.terminate_simulation {
-        run.record(t, observer)?;
-        return finish(run, summary, observer, true);
-    }
-    run.resume(t)?;
-    run.record(t, observer)?;
-    let (mut last_event_time, mut events_here) = (f64::NEG_INFINITY, 0usize);
-    let mut steps_in_interval = 0usize;
-    while t < stop {
-        // A time event announced at or before the current time is due now: handled at `t`
-        // without a step (an FMU that keeps announcing one is stopped as chattering).
-        let time_event = update
-            .next_event_time
-            .filter(|&te| te <= stop)
-            .map(|te| te.max(t));
-        let limit = time_event.unwrap_or(stop);
-        // One step (no states, or an event due now: straight to the next output point or the
-        // limit).
-        let t_new = if n == 0 || limit <= t {
-            limit.min(grid(k_next))
-        } else {
-            steps_in_interval += 1;
-            if steps_in_interval > options.max_steps_per_interval {
-                return Err(MeError::Solver {
-                    fmu: name,
-                    time: t,
-                    reason: format!(
-                        "more than {} steps without reaching an output point or an event",
-                        options.max_steps_per_interval
-                    ),
-                });
-            }
-            let mut plant = Plant { fmu: &mut *run.fmu };
-            match run.solver.step(&mut plant, limit) {
-                Ok(t_new) => t_new,
-                Err(e) => return Err(run.solver_error(e)),
-            }
-        };
-        // State events over (t, t_new].
-        let mut state_event = None;
-        let mut t_valid = t_new;
-        if m > 0 {
-            run.indicators_at(t_new, Buffer::New)?;
-            if (0..m).any(|i| crossed(run.z_old[i], run.z_new[i])) {
-                let (t_event, indicator) = run.locate(t, t_new)?;
-                t_valid = t_event;
-                state_event = Some(indicator);
-            }
-        }
-        // Output points before t_valid (at t_valid: after any event there).
-        while k_next <= intervals && grid(k_next) < t_valid {
-            let t_out = grid(k_next);
-            run.place(t_out)?;
-            run.record(t_out, observer)?;
-            k_next += 1;
-            steps_in_interval = 0;
-        }
-        run.place(t_valid)?;
-        let mut step_event = false;
-        if state_event.is_none() {
-            let (enter, terminate) = run
-                .fmu
-                .completed_integrator_step()
-                .map_err(run.failed(Call::CompletedIntegratorStep, t_valid))?;
-            if terminate {
-                run.record(t_valid, observer)?;
-                summary.end_time = t_valid;
-                return finish(run, summary, observer, true);
-            }
-            step_event = enter;
-        }
-        let is_time_event = time_event.is_some_and(|te| te <= t_valid);
-        t = t_valid;
-        let kind = match (state_event, is_time_event, step_event) {
-            (Some(indicator), _, _) => Some(EventKind::State { indicator }),
-            (None, true, _) => Some(EventKind::Time),
-            (None, false, true) => Some(EventKind::Step),
-            (None, false, false) => None,
-        };
-        if let Some(kind) = kind {
-            match kind {
-                EventKind::State { .. } => summary.state_events += 1,
-                EventKind::Time => summary.time_events += 1,
-                EventKind::Step => summary.step_events += 1,
-            }
-            if t - last_event_time <= event_time_tolerance(t) {
-                events_here += 1;
-                if events_here > options.max_events_without_progress {
-                    return Err(MeError::Chattering {
-                        fmu: name,
-                        time: t,
-                        events: events_here,
-                        bound: options.max_events_without_progress,
-                        call: match kind {
-                            EventKind::State { .. } => Call::GetEventIndicators,
-                            EventKind::Time => Call::UpdateDiscreteStates,
-                            EventKind::Step => Call::CompletedIntegratorStep,
-                        }
-                        .name(fmi3),
-                    });
-                }
-            } else {
-                events_here = 1;
-            }
-            last_event_time = t;
-            on_event(&Event { time: t, kind });
-            run.fmu
-                .enter_event_mode()
-                .map_err(run.failed(Call::EnterEventMode, t))?;
-            update = run.iterate_events(t, options.max_event_iterations)?;
-            if update.terminate_simulation {
-                run.record(t, observer)?;
-                summary.end_time = t;
-                return finish(run, summary, observer, true);
-            }
-            run.resume(t)?;
-            steps_in_interval = 0;
-        } else if m > 0 {
-            // The indicators at the accepted point (t_valid = t_new here).
-            run.z_old.copy_from_slice(&run.z_new);
-        }
-        if k_next <= intervals && grid(k_next) <= t {
-            run.record(t, observer)?;
-            k_next += 1;
-            steps_in_interval = 0;
-        }
-    }
-    summary.end_time = t;
-    finish(run, summary, observer, false)
-}
-
-/// Terminates the instance and closes the recording.
-fn finish<M: ModelExchangeCalls>(
-    run: Run<'_, M>,
-    mut summary: Summary,
-    observer: &mut dyn Observer,
-    terminated: bool,
-) -> Result<Summary, MeError> {
-    summary.terminated = terminated;
-    summary.statistics = run.solver.statistics();
-    let t = summary.end_time;
-    run.fmu
-        .terminate()
-        .map_err(run.failed(Call::Terminate, t))?;
-    observer.finish()?;
-    Ok(summary)
+    fmu.enter_initialization_mode(experiment)
+        .map_err(stepper.failed(Call::EnterInitializationMode, start))?;
+    fmu.exit_initialization_mode()
+        .map_err(stepper.failed(Call::ExitInitializationMode, start))?;
+    Ok(())
 }

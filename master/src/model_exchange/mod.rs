@@ -30,7 +30,9 @@ mod driver;
 #[cfg(test)]
 mod tests;
 
-pub use driver::{event_time_tolerance, simulate, Event, EventKind, Layout, Options, Summary};
+pub use driver::{
+    event_time_tolerance, simulate, Advance, Event, EventKind, Layout, Options, Stepper, Summary,
+};
 pub use spurio_solvers::{Method, Statistics};
 
 use crate::fmu::{CallError, Experiment, VarType};
@@ -163,6 +165,13 @@ pub enum MeError {
     },
     #[error("{fmu}: the layout does not fit the FMU: {reason}")]
     Layout { fmu: String, reason: String },
+    /// The I/O error's text is the message's, not a source (said once).
     #[error("cannot record the results: {0}")]
-    Output(#[from] std::io::Error),
+    Output(std::io::Error),
+}
+
+impl From<std::io::Error> for MeError {
+    fn from(e: std::io::Error) -> Self {
+        Self::Output(e)
+    }
 }
