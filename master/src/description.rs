@@ -49,7 +49,8 @@ pub struct InstanceDescription {
     /// the FMU offers it, else Model Exchange (integrated by the master, [`crate::model_exchange`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub interface: Option<InterfaceName>,
-    /// Model Exchange: the solver (`dopri5`, `rodas3`, `shampine4`; default `dopri5`).
+    /// Model Exchange: the solver (`dopri5`, `rodas4` or `stiff`, `rodas3`, `shampine4`;
+    /// default `dopri5`).
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",

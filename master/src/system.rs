@@ -25,7 +25,7 @@
 //! name = "filter"                         # (an FMU with Model Exchange only needs no
 //! fmu = "../build/fmus/OpAmpFilter.fmu"   # `interface`; one with both runs as
 //! interface = "me"                        # Co-Simulation unless it says "me")
-//! solver = "dopri5"                       # or "rodas3", "shampine4" (default dopri5)
+//! solver = "dopri5"                       # or "rodas4" (stiff), "rodas3", "shampine4"
 //! tolerance = 1e-6                        # relative (default 1e-6)
 //! max_step = 0.01                         # seconds (default: none)
 //!

@@ -5,10 +5,11 @@
 //!
 //! - [`Dopri5`]: the explicit Dormand–Prince 5(4) pair with its continuous extension of
 //!   order 4 (six right-hand sides per accepted step, first same as last);
-//! - [`Rosenbrock`]: linearly implicit, for stiff problems (RODAS3, L-stable, or Shampine's
-//!   order-4 method), with the Jacobian from the model's Jacobian–vector products when it
-//!   gives them and from forward differences otherwise, one LU factorisation per step (never
-//!   an inverse), and cubic Hermite dense output;
+//! - [`Rosenbrock`]: linearly implicit, for stiff problems (RODAS4, L-stable, with its
+//!   continuous extension of order 3, the stiff default; RODAS3 or Shampine's order-4
+//!   method), with the Jacobian from the model's Jacobian–vector products when it gives them
+//!   and from forward differences otherwise, one LU factorisation per attempt (never an
+//!   inverse), and dense output from the stages (RODAS4) or a cubic Hermite (the others);
 //! - [`Solver`]: either, chosen by [`Method`] at run time.
 //!
 //! **Error control.** A step from `x₀` to `x₁` with local error estimate `err` is accepted when

@@ -1,9 +1,10 @@
-//! Linearly implicit four-stage Rosenbrock methods ([`crate::tableau::RosenbrockMethod`]:
-//! RODAS3, Shampine's order-4 method) for stiff problems. For `ẋ = f(t, x)` and a step `h`,
-//! with `J = ∂f/∂x(t₀, x₀)`, `fₜ = ∂f/∂t(t₀, x₀)` and `G = I/(γh) − J`:
+//! Linearly implicit Rosenbrock methods ([`crate::tableau::RosenbrockTableau`]: RODAS4 with
+//! its continuous extension; RODAS3 and Shampine's order-4 method) for stiff problems. For
+//! `ẋ = f(t, x)` and a step `h`, with `J = ∂f/∂x(t₀, x₀)`, `fₜ = ∂f/∂t(t₀, x₀)` and
+//! `G = I/(γh) − J`:
 //!
 //! ```text
-//! G kᵢ = f(t₀ + αᵢh, x₀ + Σⱼ<ᵢ aᵢⱼ kⱼ) + Σⱼ<ᵢ cᵢⱼ kⱼ / h + γᵢ h fₜ     (i = 1 … 4)
+//! G kᵢ = f(t₀ + αᵢh, x₀ + Σⱼ<ᵢ aᵢⱼ kⱼ) + Σⱼ<ᵢ cᵢⱼ kⱼ / h + γᵢ h fₜ     (i = 1 … s)
 //! x₁ = x₀ + Σ bᵢ kᵢ,   error estimate Σ eᵢ kᵢ
 //! ```
 //!
@@ -12,22 +13,27 @@
 //! accepted state (a rejected step reuses it), column by column: `J eⱼ` from the model's
 //! Jacobian–vector products when [`OdeSystem::jacobian_times`] gives them, otherwise the
 //! forward difference `(f(t, x + δⱼeⱼ) − f(t, x))/δⱼ` with
-//! `δⱼ = √ε · max(|xⱼ|, nominalⱼ)`. `fₜ` is the forward difference in `t` with
+//! `δⱼ = √(ε · nominalⱼ · max(|xⱼ|, 10⁻⁵ nominalⱼ))` (Hairer & Wanner's RODAS: a state far
+//! below its nominal is perturbed in proportion to its size, not to the nominal, which
+//! would change it by orders of magnitude and spoil `J` where the model is nonlinear). `fₜ` is the forward difference in `t` with
 //! `δₜ = √ε · max(|t|, 1)` (one evaluation, skipped when the model says it is autonomous).
 //!
-//! Dense output: the cubic Hermite polynomial through `(t₀, x₀, f₀)` and `(t₁, x₁, f₁)`
-//! (order 3 locally, as the method); `f₁ = f(t₁, x₁)` is the next step's first stage, so it
-//! costs nothing extra.
+//! Dense output: the method's continuous extension from its stages when it has one (RODAS4:
+//! `(1 − θ) x₀ + θ (x₁ + (1 − θ) (r₁ + θ r₂))`, `r_m = Σ dₘᵢ kᵢ`, order 3, see
+//! [`crate::tableau::RosenbrockTableau`]); otherwise the cubic Hermite polynomial through
+//! `(t₀, x₀, f₀)` and `(t₁, x₁, f₁)`. The Hermite cubic is accurate on a smooth solution but
+//! multiplies a stiff component's distance from its slow manifold by the eigenvalue through
+//! `f₁`; the continuous extension does not, which is why RODAS4 is the stiff default.
 
 use crate::lu;
 use crate::solver::{Norm, Outcome, Stepper, Trajectory};
-use crate::tableau::RosenbrockMethod;
+use crate::tableau::{RosenbrockTableau, MAX_STAGES};
 use crate::{OdeSystem, SolverError, SolverErrorKind};
 
 /// A Rosenbrock method with its buffers for `n` states.
 #[derive(Debug, Clone)]
 pub struct Rosenbrock {
-    method: RosenbrockMethod,
+    method: RosenbrockTableau,
     n: usize,
     /// `J` at the trajectory's state, column-major, valid when `jacobian_valid`.
     jacobian: Vec<f64>,
@@ -41,7 +47,9 @@ pub struct Rosenbrock {
     /// `G`, then its LU factors.
     g: Vec<f64>,
     rows: Vec<usize>,
-    k: [Vec<f64>; 4],
+    k: [Vec<f64>; MAX_STAGES],
+    /// `r₁`, `r₂` of the continuous extension of the last accepted step.
+    dense: [Vec<f64>; 2],
     y: Vec<f64>,
     f: Vec<f64>,
     rhs: Vec<f64>,
@@ -53,8 +61,23 @@ pub struct Rosenbrock {
 
 impl Rosenbrock {
     /// `method` for `n` states, taking `f` as time-dependent.
-    pub fn new(method: RosenbrockMethod, n: usize) -> Self {
+    pub fn new(method: impl Into<RosenbrockTableau>, n: usize) -> Self {
+        let method = method.into();
         let zeros = || vec![0.0; n];
+        let stage = |i: usize| {
+            if i < method.stages {
+                zeros()
+            } else {
+                Vec::new()
+            }
+        };
+        let dense = |_| {
+            if method.dense.is_some() {
+                zeros()
+            } else {
+                Vec::new()
+            }
+        };
         Self {
             method,
             n,
@@ -65,7 +88,8 @@ impl Rosenbrock {
             f_t: zeros(),
             g: vec![0.0; n * n],
             rows: vec![0; n],
-            k: std::array::from_fn(|_| zeros()),
+            k: std::array::from_fn(stage),
+            dense: std::array::from_fn(dense),
             y: zeros(),
             f: zeros(),
             rhs: zeros(),
@@ -112,7 +136,8 @@ impl Rosenbrock {
         }
         if self.products == Some(false) {
             for j in 0..n {
-                let delta = f64::EPSILON.sqrt() * tr.x[j].abs().max(tr.nominal[j]);
+                let scale = tr.nominal[j];
+                let delta = (f64::EPSILON * scale * tr.x[j].abs().max(1e-5 * scale)).sqrt();
                 self.y.copy_from_slice(&tr.x);
                 self.y[j] += delta;
                 let delta = self.y[j] - tr.x[j];
@@ -190,7 +215,7 @@ impl Stepper for Rosenbrock {
             return Ok(f64::NAN);
         }
         let (a, alpha) = (self.method.a, self.method.alpha);
-        for i in 0..4usize {
+        for i in 0..self.method.stages {
             if i == 0 {
                 self.f.copy_from_slice(&tr.dx);
             } else {
@@ -216,7 +241,7 @@ impl Stepper for Rosenbrock {
         for r in 0..n {
             let mut next = tr.x[r];
             let mut error = 0.0;
-            for j in 0..4 {
+            for j in 0..self.method.stages {
                 next += b[j] * self.k[j][r];
                 error += e[j] * self.k[j][r];
             }
@@ -227,6 +252,13 @@ impl Stepper for Rosenbrock {
     }
 
     fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S> {
+        if let Some(d) = &self.method.dense {
+            for (r, d) in self.dense.iter_mut().zip(d) {
+                for i in 0..self.n {
+                    r[i] = (0..self.method.stages).map(|j| d[j] * self.k[j][i]).sum();
+                }
+            }
+        }
         tr.advance(&self.x_new, t_new);
         tr.dx_valid = false;
         self.jacobian_valid = false;
@@ -237,6 +269,13 @@ impl Stepper for Rosenbrock {
         let Some((h, s)) = tr.fraction(t, out) else {
             return;
         };
+        if self.method.dense.is_some() {
+            let [r1, r2] = &self.dense;
+            for i in 0..tr.n {
+                out[i] = (1.0 - s) * tr.x_old[i] + s * (tr.x[i] + (1.0 - s) * (r1[i] + s * r2[i]));
+            }
+            return;
+        }
         // Cubic Hermite basis in s = (t − t₀)/h.
         let h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s);
         let h10 = s * (1.0 - s) * (1.0 - s);

@@ -288,6 +288,9 @@ pub enum Method {
     /// Dormand–Prince 5(4), explicit ([`Dopri5`]).
     #[default]
     Dopri5,
+    /// RODAS4, linearly implicit, L-stable, order 4 with a continuous extension of order 3
+    /// ([`Rosenbrock`] with [`crate::tableau::RODAS4`]): the stiff default.
+    Rodas4,
     /// RODAS3, linearly implicit, L-stable ([`Rosenbrock`] with [`crate::tableau::RODAS3`]).
     Rodas3,
     /// Shampine's order-4 Rosenbrock method ([`crate::tableau::SHAMPINE4`]).
@@ -295,10 +298,11 @@ pub enum Method {
 }
 
 impl Method {
-    /// The name a user writes: `dopri5`, `rodas3`, `shampine4`.
+    /// The name a user writes: `dopri5`, `rodas4`, `rodas3`, `shampine4`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Dopri5 => "dopri5",
+            Self::Rodas4 => "rodas4",
             Self::Rodas3 => "rodas3",
             Self::Shampine4 => "shampine4",
         }
@@ -313,14 +317,17 @@ impl Method {
 impl std::str::FromStr for Method {
     type Err = String;
 
-    /// `dopri5` (also `explicit`), `rodas3` (also `stiff`, `rosenbrock`), `shampine4`.
+    /// `dopri5` (also `explicit`), `rodas4` (also `stiff`, `rosenbrock`), `rodas3`,
+    /// `shampine4`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.to_ascii_lowercase().as_str() {
             "dopri5" | "explicit" | "dormand-prince" => Ok(Self::Dopri5),
-            "rodas3" | "stiff" | "rosenbrock" => Ok(Self::Rodas3),
+            "rodas4" | "stiff" | "rosenbrock" => Ok(Self::Rodas4),
+            "rodas3" => Ok(Self::Rodas3),
             "shampine4" => Ok(Self::Shampine4),
             other => Err(format!(
-                "unknown solver `{other}`: expected dopri5 (explicit), rodas3 (stiff) or shampine4"
+                "unknown solver `{other}`: expected dopri5 (explicit), rodas4 (stiff), rodas3 \
+                 or shampine4"
             )),
         }
     }
@@ -352,6 +359,9 @@ impl Solver {
     pub fn new(method: Method, n: usize, settings: Settings) -> Self {
         let inner = match method {
             Method::Dopri5 => Inner::Dopri5(Box::new(Dopri5::new(n))),
+            Method::Rodas4 => {
+                Inner::Rosenbrock(Box::new(Rosenbrock::new(crate::tableau::RODAS4, n)))
+            }
             Method::Rodas3 => {
                 Inner::Rosenbrock(Box::new(Rosenbrock::new(crate::tableau::RODAS3, n)))
             }

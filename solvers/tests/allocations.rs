@@ -35,7 +35,12 @@ impl OdeSystem for Oscillators {
 
 #[test]
 fn stepping_allocates_nothing() {
-    for method in [Method::Dopri5, Method::Rodas3, Method::Shampine4] {
+    for method in [
+        Method::Dopri5,
+        Method::Rodas4,
+        Method::Rodas3,
+        Method::Shampine4,
+    ] {
         let mut solver = Solver::new(method, 6, Settings::with_tolerance(1e-8));
         let x0 = [2.0, 0.0, 1.0, 0.5, -1.0, 0.0];
         solver.reset::<Never>(0.0, &x0, &[1.0; 6]).unwrap();

@@ -5,9 +5,9 @@
 
 use spurio_solvers::{Direction, Method, OdeSystem, Settings, Solver, SolverErrorKind};
 
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct ModelError(String);
+mod problems;
+
+use problems::{ModelError, Robertson};
 
 /// `ẋ = −λ x`.
 struct Decay(f64);
@@ -44,20 +44,6 @@ impl OdeSystem for Oscillator {
     }
 }
 
-/// Robertson's chemical kinetics (Hairer & Wanner, *Solving ODEs II*, §IV.1, (1.4)):
-/// rate constants 0.04, 10⁴, 3·10⁷; stiff.
-struct Robertson;
-
-impl OdeSystem for Robertson {
-    type Error = ModelError;
-    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), ModelError> {
-        dy[0] = -0.04 * y[0] + 1e4 * y[1] * y[2];
-        dy[2] = 3e7 * y[1] * y[1];
-        dy[1] = -dy[0] - dy[2];
-        Ok(())
-    }
-}
-
 fn solve(method: Method, system: &mut impl OdeSystem, x0: &[f64], t_end: f64, tol: f64) -> Solver {
     let mut solver = Solver::new(method, x0.len(), Settings::with_tolerance(tol));
     let nominal = vec![1.0; x0.len()];
@@ -73,7 +59,12 @@ fn solve(method: Method, system: &mut impl OdeSystem, x0: &[f64], t_end: f64, to
 
 #[test]
 fn exponential_decay_to_the_tolerance() {
-    for method in [Method::Dopri5, Method::Rodas3, Method::Shampine4] {
+    for method in [
+        Method::Dopri5,
+        Method::Rodas4,
+        Method::Rodas3,
+        Method::Shampine4,
+    ] {
         for tol in [1e-4, 1e-7, 1e-10] {
             let solver = solve(method, &mut Decay(2.0), &[1.0], 3.0, tol);
             let exact = (-6f64).exp();
@@ -91,7 +82,7 @@ fn exponential_decay_to_the_tolerance() {
 #[test]
 fn the_oscillator_error_is_proportional_to_the_tolerance_and_the_dense_output_as_good() {
     let omega = 2.0;
-    for method in [Method::Dopri5, Method::Rodas3] {
+    for method in [Method::Dopri5, Method::Rodas4, Method::Rodas3] {
         let mut errors = Vec::new();
         for tol in [1e-6, 1e-8, 1e-10] {
             let mut system = Oscillator {
@@ -232,7 +223,7 @@ impl OdeSystem for Failing {
 #[test]
 fn a_failing_model_ends_in_an_error_naming_the_time_and_nothing_hangs() {
     let start = std::time::Instant::now();
-    for method in [Method::Dopri5, Method::Rodas3] {
+    for method in [Method::Dopri5, Method::Rodas4, Method::Rodas3] {
         let mut solver = Solver::new(method, 1, Settings::default());
         solver.reset::<ModelError>(0.0, &[0.0], &[1.0]).unwrap();
         let e = solver

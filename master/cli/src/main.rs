@@ -16,6 +16,31 @@ use spurio_master::logging;
 use spurio_master::{CsvWriter, NoRecording, Observer, TimeSeries};
 use spurio_master::{RunEnd, RunError, RunOptions, Simulation, System};
 
+/// `println!` for what a command tells the user on stdout. A closed stdout (`spurio run … |
+/// head`) ends nothing: the line is dropped, the run goes on and ends with its own status
+/// (`println!` would panic with a backtrace); another failure to write is said on stderr.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::say_line(format_args!($($arg)*))
+    };
+}
+
+/// Writes one line of [`say!`] to stdout.
+fn say_line(line: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let written = out
+        .write_fmt(line)
+        .and_then(|()| out.write_all(b"\n"))
+        .and_then(|()| out.flush());
+    match written {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            eprintln!("spurio: cannot write to stdout: {e}");
+        }
+        _ => {}
+    }
+}
+
 mod guard;
 mod library_query;
 mod limits;
@@ -311,7 +336,7 @@ fn run_resolved(
         let end = run(&mut sim, &mut NoRecording)?;
         sim.terminate()?;
         if let RunEnd::Terminated { .. } = end {
-            println!("{end}");
+            say!("{end}");
         }
         return Ok(());
     }
@@ -349,12 +374,12 @@ fn run_resolved(
     if let Some(series) = &observer.series {
         let png = out.with_extension("png");
         plot::labelled_time_series_png(&png, resolved.name(), series, &plotted)?;
-        println!("wrote {}", png.display());
+        say!("wrote {}", png.display());
     }
     if let RunEnd::Terminated { .. } = end {
-        println!("{end}");
+        say!("{end}");
     }
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }
 
@@ -471,7 +496,7 @@ fn command(command: Command) -> Result<ExitCode> {
             } = packaging;
             let platforms = parse_platforms(&platform_dirs)?;
             for path in package::package_bundled(&repo, &lib_dir, &platforms, &names, &out)? {
-                println!("wrote {}", path.display());
+                say!("wrote {}", path.display());
             }
         }
         Command::PackageVariant {
@@ -497,7 +522,7 @@ fn command(command: Command) -> Result<ExitCode> {
                 &stem,
                 &out,
             )? {
-                println!("wrote {}", path.display());
+                say!("wrote {}", path.display());
             }
         }
         Command::Sweep(args) => return sweep::run(args),
@@ -510,8 +535,8 @@ fn command(command: Command) -> Result<ExitCode> {
         } => {
             let resolved = System::from_file(&system)?;
             resolved.export_ssp(&out, ssp_version)?;
-            println!("wrote {} (SSP {ssp_version})", out.display());
-            println!(
+            say!("wrote {} (SSP {ssp_version})", out.display());
+            say!(
                 "run it with: OMSimulator {} --stopTime {:?}   or: spurio run {}",
                 out.display(),
                 resolved.stop_time(),
@@ -525,7 +550,7 @@ fn command(command: Command) -> Result<ExitCode> {
             }
             let path = out.join("system.toml");
             std::fs::write(&path, toml::to_string_pretty(&imported.description)?)?;
-            println!("wrote {}", path.display());
+            say!("wrote {}", path.display());
         }
         Command::Diagnose {
             csv,
@@ -547,7 +572,7 @@ fn command(command: Command) -> Result<ExitCode> {
             let touched = package::model_descriptions(&repo, &lib_dir, write)?;
             if write {
                 for path in &touched {
-                    println!("wrote {}", path.display());
+                    say!("wrote {}", path.display());
                 }
             } else if !touched.is_empty() {
                 let stale: Vec<String> = touched.iter().map(|p| p.display().to_string()).collect();

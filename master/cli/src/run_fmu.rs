@@ -34,7 +34,8 @@ pub struct FmuArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// For a Model Exchange run: the solver, `dopri5` (explicit Dormand–Prince 5(4), the
-    /// default), `rodas3` (stiff, Rosenbrock) or `shampine4`.
+    /// default), `rodas4` (also `stiff`: Rosenbrock, L-stable, with dense output from its
+    /// stages), `rodas3` or `shampine4`.
     #[arg(long, value_name = "METHOD")]
     pub solver: Option<Method>,
     /// For a Model Exchange run: the relative tolerance (the absolute one: the same times each
@@ -261,7 +262,7 @@ pub fn run(
         )
     })?;
     let s = summary.statistics;
-    println!(
+    say!(
         "{}: Model Exchange, {method} at tolerance {:e}: {} steps ({} rejected), {} right-hand sides, {} Jacobians ({} directional-derivative calls); {} state, {} time, {} step events",
         fmu.model_name,
         run_options.tolerance,
@@ -275,11 +276,11 @@ pub fn run(
         summary.step_events,
     );
     if summary.terminated {
-        println!(
+        say!(
             "the FMU ended the simulation at t = {} (terminateSimulation)",
             summary.end_time
         );
     }
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }

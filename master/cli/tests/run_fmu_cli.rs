@@ -125,3 +125,33 @@ fn model_exchange_errors_name_the_fmu_and_stop_without_a_backtrace() {
     assert!(stderr.contains("has no variable `nobody`"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_closed_stdout_ends_the_run_quietly() {
+    // `spurio run … | head`: stdout is a pipe whose reader has gone before the run speaks.
+    for interface in ["me", "cs"] {
+        let (dir, csv, fmu) = case(&format!("pipe-{interface}"), "fmi2", "BouncingBall");
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_spurio"))
+            .args(["run", fmu.to_str().unwrap(), "--interface", interface])
+            .args(["--out", csv.to_str().unwrap()])
+            .env("RUST_BACKTRACE", "1")
+            .stdout(writer)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        let stderr = text(&out.stderr);
+        assert!(
+            out.status.success(),
+            "{interface}: {:?}: {stderr}",
+            out.status
+        );
+        assert!(!stderr.contains("panicked"), "{interface}: {stderr}");
+        assert!(!stderr.contains("backtrace"), "{interface}: {stderr}");
+        // the run itself went on: its rows are written
+        let rows = std::fs::read_to_string(&csv).unwrap();
+        assert_eq!(rows.lines().count(), 302, "{interface}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

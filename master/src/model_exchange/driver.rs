@@ -465,6 +465,14 @@ impl Stepper {
             let update = fmu
                 .update_discrete_states()
                 .map_err(self.failed(Call::UpdateDiscreteStates, t))?;
+            if let Some(te) = update.next_event_time.filter(|te| te.is_nan()) {
+                return Err(MeError::NotFinite {
+                    fmu: self.name.clone(),
+                    call: Call::UpdateDiscreteStates.name(self.fmi3),
+                    time: t,
+                    what: format!("the next event time is {te}"),
+                });
+            }
             any_values_changed |= update.values_changed;
             any_nominals_changed |= update.nominals_changed;
             if update.terminate_simulation || !update.discrete_states_need_update {
@@ -632,10 +640,16 @@ impl Stepper {
         let mut steps_in_interval = 0usize;
         while self.t < t_end {
             let t = self.t;
-            let time_event = self.next_event_time.filter(|&te| te > t && te <= t_end);
+            // A time event announced at or before the current time is due now: handled at `t`
+            // without a step (an FMU that keeps announcing one is stopped as chattering).
+            let time_event = self
+                .next_event_time
+                .filter(|&te| te <= t_end)
+                .map(|te| te.max(t));
             let limit = time_event.unwrap_or(t_end);
-            // One step (no states: straight to the next output point or the limit).
-            let t_new = if n == 0 {
+            // One step (no states, or an event due now: straight to the next output point or
+            // the limit).
+            let t_new = if n == 0 || limit <= t {
                 let next_output = self.recording.as_ref().and_then(Recording::next_point);
                 next_output.map_or(limit, |point| limit.min(point))
             } else {

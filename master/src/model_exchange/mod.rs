@@ -17,8 +17,9 @@
 //! crossing is estimated first (bisection when the bracket does not halve), to a bracket of
 //! [`event_time_tolerance`] `= 10⁻¹² · max(1, |t|)`, and taken at the bracket's right end (the
 //! indicator has changed sign there, so the FMU sees the event). A *time event* happens at
-//! the `nextEventTime` the FMU announced: the solver steps end exactly on it. A *step event*
-//! is asked by `CompletedIntegratorStep`. After every event the continuous states and their
+//! the `nextEventTime` the FMU announced: the solver steps end exactly on it (one announced at
+//! or before the current time is due at once, without a step; a NaN one is an error). A *step
+//! event* is asked by `CompletedIntegratorStep`. After every event the continuous states and their
 //! nominals are read again and the solver starts afresh from them. `terminateSimulation` ends
 //! the run normally (recorded and said). More than [`Options::max_events_without_progress`]
 //! events without the time moving on (chattering), or an event iteration that does not settle

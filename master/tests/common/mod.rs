@@ -84,21 +84,7 @@ pub fn rewrite(
 /// `fixtures/misbehaving.c` (compiled with `cc`), which misbehaves in `fmi2DoStep` as the
 /// `MISBEHAVE*` environment variables say (see that file); the FMU has no other binary.
 pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
-    let source = master_dir().join("tests/fixtures/misbehaving.c");
-    let library = dir.join("misbehaving.so");
-    let cc = std::process::Command::new("cc")
-        .args(["-shared", "-fPIC", "-O1", "-o"])
-        .arg(&library)
-        .arg(&source)
-        .output()
-        .expect("a C compiler (cc) builds the misbehaving FMU");
-    assert!(
-        cc.status.success(),
-        "{}",
-        String::from_utf8_lossy(&cc.stderr)
-    );
-    let so = std::fs::read(&library).unwrap();
-    std::fs::remove_file(&library).unwrap();
+    let so = compiled_fixture("misbehaving.c", &[], dir);
     let library_entry = "binaries/linux64/GantryCrane.so";
     let bytes = rewrite(
         &crane(),
@@ -112,6 +98,29 @@ pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
     let path = dir.join("Bad.fmu");
     std::fs::write(&path, bytes).unwrap();
     path
+}
+
+/// The shared library built by `cc -shared -fPIC -O1` with `flags` (e.g. `-DNAME`) from
+/// `master/tests/fixtures/<source>` (in `dir`, removed after reading).
+pub fn compiled_fixture(source: &str, flags: &[&str], dir: &Path) -> Vec<u8> {
+    let library = dir.join("fixture.so");
+    let cc = std::process::Command::new("cc")
+        .args(["-shared", "-fPIC", "-O1"])
+        .args(flags)
+        .arg("-o")
+        .arg(&library)
+        .arg(master_dir().join("tests/fixtures").join(source))
+        .arg("-lm")
+        .output()
+        .expect("a C compiler (cc) builds the fixture");
+    assert!(
+        cc.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cc.stderr)
+    );
+    let so = std::fs::read(&library).unwrap();
+    std::fs::remove_file(&library).unwrap();
+    so
 }
 
 /// The system a TOML text describes, its FMUs taken from [`fmus`].
