@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::{assert_names, instance_tables, reference, run};
+use common::{assert_names, compiled_fixture, instance_tables, reference, run};
 use spurio_master::fmu::FmuFile;
 use spurio_master::{RunEnd, RunOptions, Simulation, System, SystemDescription, TimeSeries};
 use std::io::{Read, Write};
@@ -188,20 +188,7 @@ fn an_fmu_that_refuses_event_mode_runs_without_it() {
 /// `<dir>/EventMode.fmu`: the library of `fixtures/event_mode.c` (compiled with `cc`) with
 /// its model description, `hasEventMode` as `has_event_mode` says.
 fn event_mode_fmu(dir: &Path, has_event_mode: bool) -> PathBuf {
-    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let library = dir.join("event_mode.so");
-    let cc = std::process::Command::new("cc")
-        .args(["-shared", "-fPIC", "-O1", "-o"])
-        .arg(&library)
-        .arg(manifest.join("tests/fixtures/event_mode.c"))
-        .arg("-lm")
-        .output()
-        .expect("a C compiler (cc) builds the event mode FMU");
-    assert!(
-        cc.status.success(),
-        "{}",
-        String::from_utf8_lossy(&cc.stderr)
-    );
+    let library = compiled_fixture("event_mode.c", dir);
     let description = format!(
         r#"<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="3.0" modelName="EventMode" instantiationToken="{{event-mode}}">
@@ -227,7 +214,7 @@ fn event_mode_fmu(dir: &Path, has_event_mode: bool) -> PathBuf {
     out.write_all(description.as_bytes()).unwrap();
     out.start_file("binaries/x86_64-linux/EventMode.so", options)
         .unwrap();
-    out.write_all(&std::fs::read(&library).unwrap()).unwrap();
+    out.write_all(&library).unwrap();
     out.finish().unwrap();
     path
 }
@@ -241,16 +228,19 @@ fn event_system(dir: &Path, has_event_mode: bool, stop: f64, parameters: &str) -
     )
 }
 
-/// The error a run of `s` stops with.
-fn run_error(s: &System) -> String {
-    let mut sim = match Simulation::new(s) {
-        Ok(sim) => sim,
-        Err(e) => return e.to_string(),
+/// Asserts that a run of the fixture FMU (see [`event_system`]) stops with an error naming
+/// every one of `parts`.
+fn assert_run_fails(has_event_mode: bool, stop: f64, parameters: &str, parts: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let s = event_system(dir.path(), has_event_mode, stop, parameters);
+    let error = match Simulation::new(&s) {
+        Ok(mut sim) => sim
+            .run(&mut TimeSeries::default(), &RunOptions::default())
+            .unwrap_err()
+            .to_string(),
+        Err(e) => e.to_string(),
     };
-    let e = sim
-        .run(&mut TimeSeries::default(), &RunOptions::default())
-        .unwrap_err();
-    e.to_string()
+    assert_names(&error, parts);
 }
 
 #[test]
@@ -272,10 +262,10 @@ fn events_are_handled_in_event_mode_and_the_outputs_read_after_the_iteration() {
 
 #[test]
 fn an_event_iteration_that_never_settles_is_an_error_naming_the_fmu_call_and_time() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = event_system(dir.path(), true, 2.0, "mode = 1");
-    assert_names(
-        &run_error(&s),
+    assert_run_fails(
+        true,
+        2.0,
+        "mode = 1",
         &[
             "instance `e`",
             "EventMode.fmu",
@@ -289,10 +279,10 @@ fn an_event_iteration_that_never_settles_is_an_error_naming_the_fmu_call_and_tim
 
 #[test]
 fn an_initial_event_iteration_that_never_settles_is_an_error() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = event_system(dir.path(), true, 1.0, "mode = 3");
-    assert_names(
-        &run_error(&s),
+    assert_run_fails(
+        true,
+        1.0,
+        "mode = 3",
         &[
             "instance `e`",
             "fmi3ExitInitializationMode",
@@ -323,10 +313,10 @@ fn terminate_simulation_in_the_event_iteration_ends_the_run_normally() {
 fn event_handling_needed_without_event_mode_is_an_error() {
     // hasEventMode="false": instantiated with eventModeUsed = false, the fixture still asks
     // for event handling at t = 0.5, which the master cannot give.
-    let dir = tempfile::tempdir().unwrap();
-    let s = event_system(dir.path(), false, 1.0, "");
-    assert_names(
-        &run_error(&s),
+    assert_run_fails(
+        false,
+        1.0,
+        "",
         &[
             "instance `e`",
             "fmi3DoStep",

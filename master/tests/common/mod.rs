@@ -80,18 +80,17 @@ pub fn rewrite(
     out.finish().unwrap().into_inner()
 }
 
-/// `<dir>/Bad.fmu`: the packaged GantryCrane's model description over the library of
-/// `fixtures/misbehaving.c` (compiled with `cc`), which misbehaves in `fmi2DoStep` as the
-/// `MISBEHAVE*` environment variables say (see that file); the FMU has no other binary.
-pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
-    let source = master_dir().join("tests/fixtures/misbehaving.c");
-    let library = dir.join("misbehaving.so");
+/// The bytes of the shared library of `fixtures/<source>`, compiled in `dir` with `cc -shared
+/// -fPIC -O1` (and `-lm`).
+pub fn compiled_fixture(source: &str, dir: &Path) -> Vec<u8> {
+    let library = dir.join(format!("{source}.so"));
     let cc = std::process::Command::new("cc")
         .args(["-shared", "-fPIC", "-O1", "-o"])
         .arg(&library)
-        .arg(&source)
+        .arg(master_dir().join("tests/fixtures").join(source))
+        .arg("-lm")
         .output()
-        .expect("a C compiler (cc) builds the misbehaving FMU");
+        .expect("a C compiler (cc) builds the fixture");
     assert!(
         cc.status.success(),
         "{}",
@@ -99,6 +98,14 @@ pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
     );
     let so = std::fs::read(&library).unwrap();
     std::fs::remove_file(&library).unwrap();
+    so
+}
+
+/// `<dir>/Bad.fmu`: the packaged GantryCrane's model description over the library of
+/// `fixtures/misbehaving.c` (compiled with `cc`), which misbehaves in `fmi2DoStep` as the
+/// `MISBEHAVE*` environment variables say (see that file); the FMU has no other binary.
+pub fn misbehaving_fmu(dir: &Path) -> PathBuf {
+    let so = compiled_fixture("misbehaving.c", dir);
     let library_entry = "binaries/linux64/GantryCrane.so";
     let bytes = rewrite(
         &crane(),
