@@ -71,7 +71,7 @@ pub enum StepProblem {
 }
 
 /// The most `fmi3UpdateDiscreteStates` calls of one event iteration (one super-dense time
-/// instant, FMI 3.0 §3.2.3 and §4.2): an iteration still asking for another update after as
+/// instant, FMI 3.0 §3.2 and §4.2): an iteration still asking for another update after as
 /// many is an error, as the Model Exchange driver's default bound.
 pub const EVENT_ITERATION_LIMIT: usize = 1000;
 
@@ -290,7 +290,7 @@ impl Instance {
 
     /// Leaves initialization mode. An FMI 3.0 instance without event mode is then in Step
     /// Mode; one with event mode is in Event Mode (FMI 3.0 §4.2, the Co-Simulation state
-    /// machine): the master runs the initial event iteration ([`event_iteration`]) and
+    /// machine): the master runs the initial event iteration (`event_iteration`) and
     /// enters Step Mode. `terminateSimulation` in that iteration is an error (the run would
     /// end before its first step; fmpy refuses it too); a failed call or an iteration that
     /// does not settle is one naming that call.
@@ -381,7 +381,7 @@ impl Instance {
     /// One communication step from `time` over `h`. An FMI 3.0 instance with event mode
     /// whose `fmi3DoStep` returns `eventHandlingNeeded = true` then has its event handled at
     /// the end of the step (FMI 3.0 §4.2): `fmi3EnterEventMode`, the event iteration
-    /// ([`event_iteration`]), `fmi3EnterStepMode`; `terminateSimulation` from the iteration
+    /// (`event_iteration`), `fmi3EnterStepMode`; `terminateSimulation` from the iteration
     /// ends the run as from `fmi3DoStep`.
     pub fn do_step(&mut self, time: f64, h: f64) -> Result<StepEnd, StepProblem> {
         let event_mode = self.event_mode;
@@ -442,7 +442,7 @@ impl Instance {
     }
 }
 
-/// The event iteration of an FMI 3.0 instance in Event Mode (FMI 3.0 §4.2, as in §3.2.3 for
+/// The event iteration of an FMI 3.0 instance in Event Mode (FMI 3.0 §4.2, as in §3.2 for
 /// Model Exchange): `fmi3UpdateDiscreteStates` until `discreteStatesNeedUpdate` is false,
 /// at most [`EVENT_ITERATION_LIMIT`] times. The master sets no inputs between the updates (its
 /// connections are exchanged at the communication points only), so the outputs read after

@@ -25,7 +25,7 @@ pub(super) struct Description {
     /// `modelIdentifier` of `<CoSimulation>` (None: no Co-Simulation interface).
     pub co_simulation: Option<String>,
     /// `<CoSimulation hasEventMode="true">`: the FMU can be run with Event Mode (FMI 3.0
-    /// §4.2.1, `eventModeUsed`).
+    /// §4.2, `eventModeUsed`).
     pub co_simulation_event_mode: bool,
     /// `modelIdentifier` of `<ModelExchange>` (None: no Model Exchange interface).
     pub model_exchange: Option<String>,
