@@ -326,3 +326,47 @@ fn event_handling_needed_without_event_mode_is_an_error() {
         ],
     );
 }
+
+#[test]
+fn event_mode_instances_in_a_system_pass_their_values_after_each_event_iteration() {
+    // Stair (event mode) counts the seconds; its counter drives an FMI 2.0 Feedthrough's
+    // Int32 input and BouncingBall's height an FMI 3.0 Feedthrough's (event mode) Float64
+    // input: Gauss–Seidel passes each value read after the event iteration on at the same
+    // communication point.
+    let s = system(
+        r#"stop_time = 3.0
+step_size = 0.1
+connections = ["stair.counter -> f2.Int32_input",
+               "ball.h -> f3.Float64_continuous_input"]
+record = ["stair.counter", "f2.Int32_output", "ball.h", "f3.Float64_continuous_output"]"#,
+        &[
+            ("stair", &reference("fmi3", "Stair"), ""),
+            ("f2", &reference("fmi2", "Feedthrough"), ""),
+            ("ball", &reference("fmi3", "BouncingBall"), ""),
+            ("f3", &reference("fmi3", "Feedthrough"), ""),
+        ],
+    );
+    let (series, end) = run(&s, &RunOptions::default());
+    assert_eq!(end, RunEnd::StopTime { time: 3.0 });
+    assert_eq!(series.rows.len(), 31);
+    let passed: Vec<f64> = column(&series, "f2.Int32_output").collect();
+    for ((t, counter), out) in series
+        .time
+        .iter()
+        .zip(column(&series, "stair.counter"))
+        .zip(&passed)
+    {
+        assert_eq!(counter, (t + 1e-9).floor() + 1.0, "t = {t}");
+        assert_eq!(*out, counter, "t = {t}");
+    }
+    let heights: Vec<f64> = column(&series, "ball.h").collect();
+    assert_eq!(
+        heights,
+        column(&series, "f3.Float64_continuous_output").collect::<Vec<_>>()
+    );
+    // The ball bounces: falling until the impact near 0.45 s, rising after it.
+    assert!(
+        heights[4] < heights[3] && heights[6] > heights[5],
+        "{heights:?}"
+    );
+}
