@@ -16,15 +16,17 @@
 //!    in between).
 //!
 //! An instance whose `fmi2DoStep` returns `fmi2Discard` with `fmi2GetBooleanStatus(
-//! fmi2Terminated)` = true, or whose `fmi3DoStep` sets `terminateSimulation`, asks to end the
+//! fmi2Terminated)` = true, or whose `fmi3DoStep` (or, with event mode, the event iteration
+//! after it: [`crate::fmu::Instance::do_step`]) sets `terminateSimulation`, asks to end the
 //! simulation (as the Reference FMU `Stair` does; fmpy, OMSimulator and the FMU Compliance
 //! Checker stop there too): the run ends normally at that instance's last successful time
 //! (FMI 3.0: the end of the step unless it says otherwise), records that point and says
 //! why it ended ([`RunEnd::Terminated`]). Any other `fmi2Discard`/`fmi3Discard`, an error, an
-//! FMI 3.0 `earlyReturn` (never allowed) or `eventHandlingNeeded` (event mode is not run) stop
-//! the run with an error naming the instance, the FMU file, the call and the time, quoting what
-//! that instance logged; when several instances fail in the same step (or in initialisation,
-//! or in terminate), the error names every one of them.
+//! FMI 3.0 `earlyReturn` (never allowed), `eventHandlingNeeded` from an FMU without event mode,
+//! or an event iteration that fails or does not settle stop the run with an error naming the
+//! instance, the FMU file, the call and the time, quoting what that instance logged; when
+//! several instances fail in the same step (or in initialisation, or in terminate), the error
+//! names every one of them.
 //!
 //! A simulation made with [`Simulation::with_monitor`] notes every FMI call it enters and
 //! leaves in a [`CallMonitor`], so that a watchdog on another thread can name a call that
@@ -88,7 +90,9 @@ impl std::fmt::Display for RunEnd {
                         "Model Exchange: terminateSimulation = true in an event or an integrator step",
                     (_, FmiVersion::Fmi2) =>
                         "fmi2DoStep returned fmi2Discard with fmi2Terminated = true",
-                    (_, FmiVersion::Fmi3) => "fmi3DoStep returned terminateSimulation = true",
+                    (_, FmiVersion::Fmi3) =>
+                        "fmi3DoStep, or the event iteration after it, returned \
+                         terminateSimulation = true",
                 }
             ),
         }

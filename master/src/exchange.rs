@@ -502,13 +502,19 @@ impl Exchange {
                     m.failure(
                         "fmi2DoStep",
                         CallError(
-                            "eventHandlingNeeded = true: the FMU needs event mode, which this \
-                         master does not run (it instantiates with eventModeUsed = false)"
+                            "eventHandlingNeeded = true, although the FMU was instantiated with \
+                         eventModeUsed = false (its CoSimulation does not declare \
+                         hasEventMode=\"true\")"
                                 .into(),
                         ),
                         time,
                     ),
                 ),
+                Err(StepProblem::Event {
+                    call,
+                    error,
+                    time: at,
+                }) => failures.push(m.failure(call, error, at)),
             }
         }
         if !failures.is_empty() {

@@ -1,6 +1,7 @@
 """Every FMI 3.0 Co-Simulation Reference FMU runs in `spurio run` as in fmpy's `simulate_fmu`
-(CS, no event mode, no early return): same points, same values (to 1e-12), at each FMU's own
-default experiment. Arrays (StateSpace's `y`) are recorded as their elements `y[1]`, `y[2]`,
+(CS, no early return; spurio uses event mode where the FMU declares `hasEventMode`, fmpy
+here does not): same points, same values (to 1e-12), at each FMU's own default experiment.
+The FMUs with event mode also run as in fmpy with `use_event_mode=True`. Arrays (StateSpace's `y`) are recorded as their elements `y[1]`, `y[2]`,
 … (1-based, row-major). `Stair` asks to end the simulation at t = 9 (`terminateSimulation`
 in fmi3DoStep): both stop there, normally. `Clocks` (Scheduled Execution only) is refused
 with a message that says why. A mixed system (FMI 2.0 and FMI 3.0 Feedthrough) passes
@@ -10,7 +11,8 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from conftest import THIRD_PARTY, REFERENCE_FMUS, assert_ends_as_fmpy, read_csv, require, run_alone, spurio
+from conftest import (THIRD_PARTY, REFERENCE_FMUS, assert_ends_as_fmpy, default_experiment, read_csv, require,
+                      run_alone, spurio)
 
 REFERENCE_FMUS_3 = THIRD_PARTY / "reference-fmus" / "fmi3"
 CO_SIMULATION = ["BouncingBall", "Dahlquist", "Feedthrough", "Resource", "Stair", "StateSpace", "VanDerPol"]
@@ -60,6 +62,42 @@ def test_spurio_run_matches_fmpy(model, workdir):
         # y = C x + D u with C = D = I: y[i] > u[i] = 1, 2, 3 once x grows (x' = x + u).
         assert [n for n in names if n.startswith("m.y")] == ["m.y[1]", "m.y[2]", "m.y[3]"]
         assert rows[-1, names.index("m.y[3]")] > 3.0
+
+
+EVENT_MODE = ["BouncingBall", "Feedthrough", "Stair", "StateSpace"]
+
+
+@pytest.mark.parametrize("model", EVENT_MODE)
+def test_spurio_event_mode_matches_fmpy_event_mode(model, workdir):
+    """Both instantiate with eventModeUsed = true and run the event iteration after every
+    step that needs one. fmpy samples a point again after each event iteration: its last
+    value at each time is compared. fmpy goes on past Stair's terminateSimulation from the
+    event iteration at t = 9 (spurio stops there): the points up to 9 are compared."""
+    from fmpy import simulate_fmu
+
+    fmu = REFERENCE_FMUS_3 / f"{model}.fmu"
+    assert read_model_description(str(fmu)).coSimulation.hasEventMode
+    stop, step = default_experiment(fmu)
+    system = workdir / "system.toml"
+    system.write_text(f'stop_time = {stop!r}\nstep_size = {step!r}\n[[instance]]\nname = "m"\nfmu = "{fmu}"\n')
+    out = workdir / "spurio.csv"
+    run = spurio("run", system, "--out", out)
+    names, rows = read_csv(out)
+    expected = simulate_fmu(str(fmu), fmi_type="CoSimulation", use_event_mode=True,
+                            stop_time=stop, step_size=step, output_interval=step)
+    time = expected["time"]
+    expected = expected[np.r_[time[1:] != time[:-1], True]]
+    if model == "Stair":
+        assert expected["time"][-1] == pytest.approx(9.2, abs=1e-12)
+        expected = expected[expected["time"] <= 9.0 + 1e-12]
+    assert rows.shape[0] == len(expected)
+    np.testing.assert_allclose(rows[:, 0], expected["time"], rtol=0, atol=1e-12)
+    for column, variable, index in columns(fmu):
+        got = rows[:, names.index(f"m.{column}")]
+        want = expected[variable]
+        want = want[(slice(None), *index)] if index else want
+        np.testing.assert_allclose(got, want.astype(float), rtol=0, atol=1e-12, err_msg=column)
+    assert_ends_as_fmpy(model, run, rows, expected, stop, "terminateSimulation = true")
 
 
 def test_clocks_is_refused_with_the_reason(workdir):

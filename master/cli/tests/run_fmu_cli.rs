@@ -155,3 +155,33 @@ fn a_closed_stdout_ends_the_run_quietly() {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+#[test]
+fn an_fmi3_fmu_with_event_mode_runs_as_co_simulation_through_its_event_iterations() {
+    // Stair declares hasEventMode: its counter's time events are handled in event mode and
+    // the event iteration at t = 9 asks to end the run, which ends there normally, said.
+    let (dir, csv, fmu) = case("cs-event-mode", "fmi3", "Stair");
+    let (fmu, out_csv) = (fmu.to_str().unwrap(), csv.to_str().unwrap());
+    let out = spurio(&["run", fmu, "--interface", "cs", "--out", out_csv]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        stdout.contains(
+            "asked to end the simulation at t = 9 (fmi3DoStep, or the event iteration after \
+             it, returned terminateSimulation = true)"
+        ),
+        "{stdout}"
+    );
+    // The counter counts the seconds from 1: ⌊t⌋ + 1 at every 0.2 s, 10 at t = 9.
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    let mut points = 0;
+    for line in rows.lines().skip(1) {
+        let (t, counter) = line.split_once(',').unwrap();
+        let (t, counter): (f64, f64) = (t.parse().unwrap(), counter.parse().unwrap());
+        assert_eq!(counter, (t + 1e-9).floor() + 1.0, "{line}");
+        points += 1;
+    }
+    assert_eq!(points, 46);
+    assert!(rows.ends_with("9.0,10.0\n"), "{rows}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

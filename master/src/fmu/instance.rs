@@ -48,18 +48,32 @@ pub enum StepEnd {
     Terminate(Option<f64>),
 }
 
-/// Why a step that returned OK cannot be taken as done (FMI 3.0 flags this master does not
-/// handle: it instantiates without event mode and without early return).
+/// Why a step that returned OK cannot be taken as done.
 #[derive(Debug, Clone, PartialEq)]
 pub enum StepProblem {
     Failed(CallError),
-    /// `earlyReturn` = true although early return was not allowed.
+    /// `earlyReturn` = true although early return was not allowed (the master instantiates
+    /// without it).
     EarlyReturn {
         last_successful_time: f64,
     },
-    /// `eventHandlingNeeded` = true: the FMU needs event mode, which this master does not run.
+    /// `eventHandlingNeeded` = true from an instance instantiated without event mode (its
+    /// `<CoSimulation>` does not declare `hasEventMode="true"`).
     EventHandlingNeeded,
+    /// The event handling after the step, at `time`, failed: `call` (`fmi3EnterEventMode`,
+    /// `fmi3UpdateDiscreteStates`, `fmi3EnterStepMode`) did not succeed, or the event
+    /// iteration did not settle within [`EVENT_ITERATION_LIMIT`].
+    Event {
+        call: &'static str,
+        error: CallError,
+        time: f64,
+    },
 }
+
+/// The most `fmi3UpdateDiscreteStates` calls of one event iteration (one super-dense time
+/// instant, FMI 3.0 §3.2 and §4.2): an iteration still asking for another update after as
+/// many is an error, as the Model Exchange driver's default bound.
+pub const EVENT_ITERATION_LIMIT: usize = 1000;
 
 impl From<CallError> for StepProblem {
     fn from(e: CallError) -> Self {
@@ -73,6 +87,9 @@ pub struct Instance {
     log: LogKey,
     /// Scratch space of the calls whose values are not f64 (no allocation per call).
     scratch: Scratch,
+    /// FMI 3.0, instantiated with `eventModeUsed = true`: the master runs the event
+    /// iterations (after initialisation and after every step that needs one).
+    event_mode: bool,
 }
 
 impl std::fmt::Debug for Instance {
@@ -172,14 +189,21 @@ impl Instance {
             inner: CsInstance::Fmi2(Box::new(instance)),
             log,
             scratch: Scratch::default(),
+            event_mode: false,
         }
     }
 
-    pub(super) fn fmi3(instance: fmi::fmi3::instance::InstanceCS, log: LogKey) -> Self {
+    /// An FMI 3.0 instance; `event_mode`: it was instantiated with `eventModeUsed = true`.
+    pub(super) fn fmi3(
+        instance: fmi::fmi3::instance::InstanceCS,
+        log: LogKey,
+        event_mode: bool,
+    ) -> Self {
         Self {
             inner: CsInstance::Fmi3(Box::new(instance)),
             log,
             scratch: Scratch::default(),
+            event_mode,
         }
     }
 
@@ -250,13 +274,42 @@ impl Instance {
         )
     }
 
-    /// Leaves initialization mode (an FMI 3.0 instance without event mode is then in step
-    /// mode).
+    /// Leaves initialization mode. An FMI 3.0 instance without event mode is then in Step
+    /// Mode; one with event mode is in Event Mode (FMI 3.0 §4.2, the Co-Simulation state
+    /// machine): the master runs the initial event iteration (`event_iteration`) and
+    /// enters Step Mode. `terminateSimulation` in that iteration is an error (the run would
+    /// end before its first step; fmpy refuses it too); a failed call or an iteration that
+    /// does not settle is one naming that call.
     pub fn exit_initialization_mode(&mut self) -> Result<(), CallError> {
         self.call(
             fmi::fmi2::instance::Common::exit_initialization_mode,
             fmi::fmi3::Common::exit_initialization_mode,
-        )
+        )?;
+        if !self.event_mode {
+            return Ok(());
+        }
+        self.with_log(|inner| {
+            let CsInstance::Fmi3(i) = inner else {
+                return Ok(());
+            };
+            let in_context = |(call, e): (&str, CallError)| {
+                CallError(format!(
+                    "{} ({call}, in the event iteration that follows it)",
+                    e.0
+                ))
+            };
+            if event_iteration(i).map_err(in_context)? {
+                return Err(CallError(
+                    "terminateSimulation = true (fmi3UpdateDiscreteStates, in the event \
+                     iteration that follows it): the FMU asks to end the run before its first \
+                     step"
+                        .into(),
+                ));
+            }
+            i.enter_step_mode()
+                .map(|_| ())
+                .map_err(|e| in_context(("fmi3EnterStepMode", e.into())))
+        })
     }
 
     /// Terminates the instance.
@@ -311,8 +364,13 @@ impl Instance {
         }
     }
 
-    /// One communication step from `time` over `h`.
+    /// One communication step from `time` over `h`. An FMI 3.0 instance with event mode
+    /// whose `fmi3DoStep` returns `eventHandlingNeeded = true` then has its event handled at
+    /// the end of the step (FMI 3.0 §4.2): `fmi3EnterEventMode`, the event iteration
+    /// (`event_iteration`), `fmi3EnterStepMode`; `terminateSimulation` from the iteration
+    /// ends the run as from `fmi3DoStep`.
     pub fn do_step(&mut self, time: f64, h: f64) -> Result<StepEnd, StepProblem> {
+        let event_mode = self.event_mode;
         self.with_log(|inner| match inner {
             CsInstance::Fmi2(i) => match i.do_step(time, h, true) {
                 Ok(_) => Ok(StepEnd::Completed),
@@ -335,21 +393,72 @@ impl Instance {
                     &mut last,
                 )
                 .map_err(CallError::from)?;
+                let last = Some(last).filter(|t| t.is_finite());
                 if terminate {
-                    return Ok(StepEnd::Terminate(Some(last).filter(|t| t.is_finite())));
+                    return Ok(StepEnd::Terminate(last));
                 }
                 if early {
                     return Err(StepProblem::EarlyReturn {
-                        last_successful_time: last,
+                        last_successful_time: last.unwrap_or(f64::NAN),
                     });
                 }
-                if event {
+                if !event {
+                    return Ok(StepEnd::Completed);
+                }
+                if !event_mode {
                     return Err(StepProblem::EventHandlingNeeded);
                 }
+                // The event is at the end of the step (early return is not allowed).
+                let at = last.unwrap_or(time + h);
+                let failed = |(call, error)| StepProblem::Event {
+                    call,
+                    error,
+                    time: at,
+                };
+                fmi::fmi3::Common::enter_event_mode(i.as_mut())
+                    .map_err(|e| failed(("fmi3EnterEventMode", e.into())))?;
+                if event_iteration(i).map_err(failed)? {
+                    return Ok(StepEnd::Terminate(Some(at)));
+                }
+                i.enter_step_mode()
+                    .map_err(|e| failed(("fmi3EnterStepMode", e.into())))?;
                 Ok(StepEnd::Completed)
             }
         })
     }
+}
+
+/// The event iteration of an FMI 3.0 instance in Event Mode (FMI 3.0 §4.2, as in §3.2 for
+/// Model Exchange): `fmi3UpdateDiscreteStates` until `discreteStatesNeedUpdate` is false,
+/// at most [`EVENT_ITERATION_LIMIT`] times. The master sets no inputs between the updates (its
+/// connections are exchanged at the communication points only), so the outputs read after
+/// the step are those after the iteration. Returns whether the FMU asked to end the
+/// simulation (`terminateSimulation`, which ends the iteration). `nextEventTime` is not
+/// used: the communication grid is fixed (t_k = start + k·h), so the master does not
+/// shorten a step to reach it; an FMU with event mode handles a time event inside the step
+/// that reaches it and says so by `eventHandlingNeeded` at that step's end.
+fn event_iteration(
+    i: &mut fmi::fmi3::instance::InstanceCS,
+) -> Result<bool, (&'static str, CallError)> {
+    let mut flags = fmi::EventFlags::default();
+    for _ in 0..EVENT_ITERATION_LIMIT {
+        flags.reset();
+        fmi::fmi3::Common::update_discrete_states(i, &mut flags)
+            .map_err(|e| ("fmi3UpdateDiscreteStates", e.into()))?;
+        if flags.terminate_simulation {
+            return Ok(true);
+        }
+        if !flags.discrete_states_need_update {
+            return Ok(false);
+        }
+    }
+    Err((
+        "fmi3UpdateDiscreteStates",
+        CallError(format!(
+            "discreteStatesNeedUpdate = true {EVENT_ITERATION_LIMIT} times in a row: the event \
+             iteration did not settle"
+        )),
+    ))
 }
 
 /// Reads FMI 2.0 values of type `t` into `out`: Integers and Booleans (`fmi2Boolean` is an

@@ -351,6 +351,11 @@ pub struct FmuFile {
     pub variables: Vec<VariableInfo>,
     /// The FMI 3.0 array variables (none for FMI 2.0).
     pub arrays: Vec<ArrayInfo>,
+    /// An FMI 3.0 Co-Simulation FMU whose `<CoSimulation>` declares `hasEventMode="true"`:
+    /// it is instantiated with `eventModeUsed = true` and the master runs its event
+    /// iterations (FMI 3.0 §4.2; see [`Instance::do_step`]). False for FMI 2.0, for Model
+    /// Exchange and for data tables.
+    pub event_mode: bool,
     by_name: HashMap<String, usize>,
     arrays_by_name: HashMap<String, usize>,
 }
@@ -544,6 +549,7 @@ impl FmuFile {
             import: Import::Fmi2(import),
             variables,
             arrays: Vec::new(),
+            event_mode: false,
             by_name,
             arrays_by_name: HashMap::new(),
         })
@@ -633,6 +639,7 @@ impl FmuFile {
             import: Import::Fmi3(import),
             variables: d.variables,
             arrays: d.arrays,
+            event_mode: interface == Interface::CoSimulation && d.co_simulation_event_mode,
             by_name,
             arrays_by_name,
         })
@@ -655,10 +662,12 @@ impl FmuFile {
 
     /// A Co-Simulation instance called `instance`, created on the calling thread (rust-fmi
     /// instances are `!Send`), with the key its log messages are kept under (see
-    /// [`crate::logging`]). An FMI 3.0 instance is created without event mode, early return
-    /// or intermediate update. On failure the error quotes what the FMU logged.
+    /// [`crate::logging`]). An FMI 3.0 instance is created with `eventModeUsed` as its
+    /// `hasEventMode` ([`FmuFile::event_mode`]; if the FMU refuses it, again without), without
+    /// early return or intermediate update. On failure the error quotes what the FMU logged.
     pub fn instantiate(&self, instance: &str, logging_on: bool) -> Result<Instance, LoadError> {
         let key = LogKey::new(instance);
+        let mut event_mode_used = self.event_mode;
         let (created, call) = match &self.import {
             Import::Fmi2(import) => (
                 import
@@ -666,13 +675,38 @@ impl FmuFile {
                     .map(|i| CsInstance::Fmi2(Box::new(i))),
                 "fmi2Instantiate",
             ),
-            Import::Fmi3(import) => (
-                crate::logging::speaking(&key, || {
-                    import.instantiate_cs(key.instance_name(), false, logging_on, false, false, &[])
-                })
-                .map(|i| CsInstance::Fmi3(Box::new(i))),
-                "fmi3InstantiateCoSimulation",
-            ),
+            Import::Fmi3(import) => {
+                let create = |event_mode: bool| {
+                    crate::logging::speaking(&key, || {
+                        import.instantiate_cs(
+                            key.instance_name(),
+                            false,
+                            logging_on,
+                            event_mode,
+                            false,
+                            &[],
+                        )
+                    })
+                };
+                let mut created = create(event_mode_used);
+                if created.is_err() && event_mode_used {
+                    // Some FMUs declare hasEventMode="true" and yet refuse eventModeUsed =
+                    // true (the Reference FMU Roberts: "Event Mode is not supported"): they
+                    // run without event mode, handling their events inside fmi3DoStep.
+                    log::warn!(
+                        "instance `{instance}` ({}): fmi3InstantiateCoSimulation with \
+                         eventModeUsed = true failed although the FMU declares \
+                         hasEventMode=\"true\"; instantiated without event mode",
+                        self.path.display()
+                    );
+                    event_mode_used = false;
+                    created = create(false);
+                }
+                (
+                    created.map(|i| CsInstance::Fmi3(Box::new(i))),
+                    "fmi3InstantiateCoSimulation",
+                )
+            }
             Import::Table => {
                 return Err(LoadError::Instantiate {
                     instance: instance.to_string(),
@@ -684,7 +718,7 @@ impl FmuFile {
         };
         match created {
             Ok(CsInstance::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
-            Ok(CsInstance::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key)),
+            Ok(CsInstance::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key, event_mode_used)),
             Err(e) => {
                 let said = key.recent_messages();
                 let log = if said.is_empty() {

@@ -77,6 +77,7 @@ impl FmuFile {
             guid: String::new(),
             variables,
             arrays: Vec::new(),
+            event_mode: false,
             by_name,
             arrays_by_name: HashMap::new(),
         }

@@ -24,6 +24,9 @@ pub(super) struct Description {
     pub instantiation_token: String,
     /// `modelIdentifier` of `<CoSimulation>` (None: no Co-Simulation interface).
     pub co_simulation: Option<String>,
+    /// `<CoSimulation hasEventMode="true">`: the FMU can be run with Event Mode (FMI 3.0
+    /// §4.2, `eventModeUsed`).
+    pub co_simulation_event_mode: bool,
     /// `modelIdentifier` of `<ModelExchange>` (None: no Model Exchange interface).
     pub model_exchange: Option<String>,
     /// The other interfaces declared, to say what the FMU is when it is not Co-Simulation.
@@ -94,6 +97,7 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
         model_name: String::new(),
         instantiation_token: String::new(),
         co_simulation: None,
+        co_simulation_event_mode: false,
         model_exchange: None,
         other_interfaces: Vec::new(),
         variables: Vec::new(),
@@ -124,7 +128,11 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
                         d.instantiation_token =
                             attribute(&e, "instantiationToken").unwrap_or_default();
                     }
-                    "CoSimulation" => d.co_simulation = attribute(&e, "modelIdentifier"),
+                    "CoSimulation" => {
+                        d.co_simulation = attribute(&e, "modelIdentifier");
+                        d.co_simulation_event_mode =
+                            attribute(&e, "hasEventMode").is_some_and(|v| v.trim() == "true");
+                    }
                     "ModelExchange" => {
                         d.model_exchange = attribute(&e, "modelIdentifier");
                         d.other_interfaces.push("Model Exchange");
