@@ -600,7 +600,9 @@ impl DataTable {
         match interpolation {
             Interpolation::Hold => ui,
             Interpolation::Linear => {
-                if t <= ti {
+                // A time within rounding of the sample ([`DataTable::reached`]) is at it:
+                // exactly u_i, never a hair along the line (to a missing sample: NaN).
+                if t - ti <= instant::tolerance(i as f64) * self.interval(i) {
                     return ui;
                 }
                 match (self.times.get(i + 1), column.get(i + 1)) {
@@ -729,6 +731,15 @@ mod tests {
         assert_eq!(v[2], 0.7);
         assert_eq!(v[4], -2.5);
         assert!((v[1] - 0.3).abs() <= 4.0 * f64::EPSILON * 0.3, "{}", v[1]);
+        // Within rounding of a sample time (0.1·3, one ulp above 0.3): exactly the sample.
+        let above = f64::from_bits(0.3f64.to_bits() + 1);
+        assert_eq!(at(&t, 0, &[0.1 * 3.0, above]), [0.7, 0.7]);
+        // Next to a missing sample, a hair after the present one still reads it.
+        let gap = table("time,u\n0,1\n0.1,2\n0.2,\n", Interpolation::Linear);
+        assert_eq!(
+            at(&gap, 0, &[0.1 + 1e-17, 0.30000000000000004 - 0.2]),
+            [2.0, 2.0]
+        );
         assert!((v[3] - (-0.9)).abs() <= 4.0 * f64::EPSILON, "{}", v[3]);
     }
 
