@@ -17,6 +17,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from conftest import REPO, LogSink, fmu_path, make_callbacks
+from table_reference import read
 
 SPURIO = REPO / "target" / "release" / "spurio"
 
@@ -46,21 +47,9 @@ def table(text=RIG):
 
 
 def expected(t, times, u, linear):
-    """The column `u` at time `t`, written out independently of the Rust code: the last sample
-    at or before t (within 1e-9 of an interval), held over missing samples, or the line to the
-    next sample; returns (value, valid, held)."""
-    i = 0
-    while i + 1 < len(times) and times[i + 1] <= t + 1e-9 * (times[i + 1] - times[i]):
-        i += 1
-    present = [k for k in range(i + 1) if not math.isnan(u[k])]
-    held_i = u[present[-1]] if present else 0.0
-    value = u[i]
-    if linear and t - times[i] > 1e-9 * (times[i] - times[i - 1] if i else times[1] - times[0]) \
-            and i + 1 < len(times):
-        value = u[i] + (u[i + 1] - u[i]) * ((t - times[i]) / (times[i + 1] - times[i]))
-    if math.isnan(value):
-        return held_i, False, held_i
-    return value, True, value
+    """The column `u` at time `t` (table_reference): (value, valid, held)."""
+    value, valid, _ = read(u, times, t, linear)
+    return value, valid, value
 
 
 def package(tmp_path, text=RIG, interpolation="hold", name="RigData", check=True):

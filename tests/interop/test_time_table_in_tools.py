@@ -10,11 +10,15 @@ The table's sample times are decimal (0.1, 0.3, …), so the tools' communicatio
 
 import math
 import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from conftest import FMUCHECK, OMS_RTOL, OMSIMULATOR, REPO, by_time, omsimulator, read_csv, require
+
+sys.path.insert(0, str(REPO / "fmus" / "TimeTable"))
+from table_reference import read  # noqa: E402
 
 SPURIO = REPO / "target" / "release" / "spurio"
 
@@ -36,21 +40,9 @@ def rig_csv():
 
 
 def expected(t, u, linear):
-    """Column `u` at time `t` (the FMU's `c`, `c.valid`), written out independently, and the
-    slope of the line there (linear)."""
-    i = 0
-    while i + 1 < len(TIMES) and TIMES[i + 1] <= t + 1e-9 * (TIMES[i + 1] - TIMES[i]):
-        i += 1
-    present = [k for k in range(i + 1) if not math.isnan(u[k])]
-    held = u[present[-1]] if present else 0.0
-    value = u[i]
-    if linear and t - TIMES[i] > 1e-9 * (TIMES[i] - TIMES[i - 1] if i else TIMES[1] - TIMES[0]) \
-            and i + 1 < len(TIMES):
-        value = u[i] + (u[i + 1] - u[i]) * ((t - TIMES[i]) / (TIMES[i + 1] - TIMES[i]))
-    slope = 0.0
-    if linear and i + 1 < len(TIMES):
-        slope = (u[i + 1] - u[i]) / (TIMES[i + 1] - TIMES[i])
-    return ((held, 0.0) if math.isnan(value) else (value, 1.0)), (0.0 if math.isnan(slope) else slope)
+    """Column `u` at time `t` (table_reference): ((value, valid), slope)."""
+    value, valid, slope = read(u, TIMES, t, linear)
+    return (value, float(valid)), slope
 
 
 @pytest.fixture(scope="module")

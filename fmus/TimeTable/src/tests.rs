@@ -112,33 +112,33 @@ fn a_packaged_table_is_read_from_the_resources_linear_to_rounding() {
 #[test]
 fn bad_tables_and_times_outside_the_samples_are_refused_by_name() {
     let (config, dir) = packaged(RIG, Interpolation::Hold);
-    // Missing file.
-    let empty = std::env::temp_dir().join(format!("spurio-time-table-none-{}", std::process::id()));
-    std::fs::create_dir_all(&empty).unwrap();
-    let err = Harness::<TimeTableFmu>::with_resources(&config, &empty)
-        .err()
-        .unwrap()
-        .to_string();
+    // The message of an instantiation whose resources/rig.csv holds `text` (None: absent).
+    let refused = |text: Option<&str>| -> String {
+        let dir = std::env::temp_dir().join(format!(
+            "spurio-time-table-refused-{}-{}",
+            std::process::id(),
+            text.map_or(0, str::len)
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        if let Some(text) = text {
+            std::fs::write(dir.join("rig.csv"), text).unwrap();
+        }
+        let made = Harness::<TimeTableFmu>::with_resources(&config, &dir);
+        made.err().map(|e| e.to_string()).unwrap_or_default()
+    };
+    let err = refused(None);
     assert!(
         err.contains("rig.csv") && err.contains("No such file"),
         "{err}"
     );
     // A malformed cell: file, line and column.
-    std::fs::write(empty.join("rig.csv"), RIG.replace("0.7", "0.7x")).unwrap();
-    let err = Harness::<TimeTableFmu>::with_resources(&config, &empty)
-        .err()
-        .unwrap()
-        .to_string();
+    let err = refused(Some(&RIG.replace("0.7", "0.7x")));
     assert!(
         err.ends_with("rig.csv, line 3, column 2 (`force`): `0.7x` is not a number (an empty cell or `nan` is a missing sample)"),
         "{err}"
     );
     // Another table than the one packaged.
-    std::fs::write(empty.join("rig.csv"), "time,force [N],x\n0,1,2\n").unwrap();
-    let err = Harness::<TimeTableFmu>::with_resources(&config, &empty)
-        .err()
-        .unwrap()
-        .to_string();
+    let err = refused(Some("time,force [N],x\n0,1,2\n"));
     assert!(
         err.contains("does not match the model description"),
         "{err}"

@@ -532,15 +532,8 @@ fn command(command: Command) -> Result<ExitCode> {
             table,
             interpolation,
             name,
-            packaging:
-                Packaging {
-                    lib_dir,
-                    out,
-                    platform_dirs,
-                    repo,
-                },
+            packaging,
         } => {
-            let platforms = parse_platforms(&platform_dirs)?;
             let interpolation = spurio_master::Interpolation::named(&interpolation)
                 .with_context(|| format!("--interpolation {interpolation}: hold or linear"))?;
             let stem = match name {
@@ -550,15 +543,16 @@ fn command(command: Command) -> Result<ExitCode> {
                     .map(|s| s.to_string_lossy().into_owned())
                     .with_context(|| format!("{}: no file name", table.display()))?,
             };
-            for path in package::package_data(
-                &repo,
-                &lib_dir,
-                &platforms,
+            let written = package::package_data(
+                &packaging.repo,
+                &packaging.lib_dir,
+                &parse_platforms(&packaging.platform_dirs)?,
                 &table,
                 interpolation,
                 &stem,
-                &out,
-            )? {
+                &packaging.out,
+            )?;
+            for path in written {
                 println!("wrote {}", path.display());
             }
         }
