@@ -128,7 +128,7 @@ fn bad_tables_and_times_outside_the_samples_are_refused_by_name() {
     };
     let err = refused(None);
     assert!(
-        err.contains("rig.csv") && err.contains("No such file"),
+        err.contains("rig.csv") && err.contains("(os error 2)"),
         "{err}"
     );
     // A malformed cell: file, line and column.
