@@ -60,6 +60,10 @@ fn the_bundled_table_reads_as_the_master_reads_it_at_and_between_samples() {
             }
         }
     }
+    // An interpolation that is neither 1 nor 2 is refused when set, naming the parameter.
+    let mut h = Harness::<TimeTableFmu>::new(&Config::new()).unwrap();
+    assert_eq!(h.set_integer(&[6], &[3]), Err(Status::Error));
+    assert!(h.logged(&["`interpolation`"]), "{:?}", h.log());
     // Hold at 1.0 s: y is missing there, held at 20.740 (0.9 s, line 11), invalid.
     let mut h = Harness::<TimeTableFmu>::new(&Config::new()).unwrap();
     h.initialize(0.0).unwrap();
