@@ -22,7 +22,8 @@ mod algorithm;
 mod batch;
 mod coupled;
 mod coupling;
-mod data;
+/// The data source's table: the reader and interpolation it shares with the `TimeTable` FMU.
+use spurio_table as data;
 mod description;
 mod engine;
 mod error;

@@ -176,6 +176,17 @@ def read_outputs(path: Path) -> tuple[list[str], list[list[float]]]:
     return header, rows
 
 
+def in_driver_order(header: list[str], reference) -> list[list[float]] | None:
+    """The reference rows with their columns in the order of the driver's `header`, or None
+    when the two name other columns. The driver writes the outputs in value-reference order,
+    fmpy's reference the Boolean ones after the Real ones: they are matched by name."""
+    names = [h.strip('"') for h in header]
+    if sorted(names) != sorted(reference[0]) or names[:1] != reference[0][:1]:
+        return None
+    order = [reference[0].index(name) for name in names]
+    return [[row[i] for i in order] for row in reference[1]]
+
+
 def compare(ref: list[list[float]], other: list[list[float]]) -> dict:
     """max |Δ|, max relative difference and the number of differing values."""
     if len(ref) != len(other) or any(len(a) != len(b) for a, b in zip(ref, other)):
@@ -317,10 +328,11 @@ def main() -> int:
             header, rows = outputs[platform]
             ref_note = "no reference"
             if reference is not None:
-                if [h.strip('"') for h in header] != reference[0]:
+                ref_rows = in_driver_order(header, reference)
+                if ref_rows is None:
                     failures.append(f"{stem} {platform}: output columns differ from _ref.csv")
                     continue
-                vs_ref = compare(reference[1], rows)
+                vs_ref = compare(ref_rows, rows)
                 ref_note = (f"{vs_ref['differing']}/{vs_ref['values']}, max rel "
                             f"{vs_ref['max_rel']:.3g}")
                 if platform == "linux64" and not (vs_ref["shape"]

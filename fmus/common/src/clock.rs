@@ -36,22 +36,11 @@ use std::ops::Range;
 /// Name of the sample-period parameter of every discrete-time FMU.
 pub const SAMPLE_PERIOD: &str = "sample_period";
 
-/// Relative tolerance of an instant, in periods, near the start: a communication point `τ`
-/// and an instant `t_0 + k·T` are the same when `|τ − t_k| ≤ tolerance(k)·T`.
-pub const TOLERANCE: f64 = 1e-9;
-
-/// The largest tolerance, in periods (reached after about 2·10⁶ samples).
-pub const MAX_TOLERANCE: f64 = 1e-3;
-
-/// The tolerance around instant `k`, in periods: `min(10⁻⁹ + k²·ε, 10⁻³)`, ε the machine
-/// epsilon. A master that accumulates its time by addition (`t += h`, as OMSimulator does)
-/// drifts from `k·T` by up to about `k²·ε/2` periods after `k` steps (measured: 4·10⁻⁵ T
-/// after 2·10⁶ steps of 0.001 s), so a fixed tolerance would, late in a long run, let the
-/// drift cross it and a step take two samples or none; this one grows with that bound and
-/// stays far below any step a master takes on purpose.
-pub fn tolerance(k: f64) -> f64 {
-    (TOLERANCE + k * k * f64::EPSILON).min(MAX_TOLERANCE)
-}
+/// When a communication point τ and an instant t_0 + k·T are the same:
+/// `|τ − t_k| ≤ tolerance(k)·T`, `tolerance(k) = min(10⁻⁹ + k²·ε, 10⁻³)` periods, the one rule
+/// of the sample clock, the master's data source and the `TimeTable` FMU
+/// ([`spurio_table::instant`], where the bound of a master's accumulated drift is derived).
+pub use spurio_table::instant::{tolerance, MAX_TOLERANCE, TOLERANCE};
 
 /// The most samples one `fmi2DoStep` may take (a longer step is an error).
 pub const MAX_SAMPLES_PER_STEP: u64 = 10_000;

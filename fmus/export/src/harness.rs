@@ -53,6 +53,15 @@ impl<M: FmuModel> Harness<M> {
         Self::with(config, |instance| instance)
     }
 
+    /// Instantiates `M` for `config` with its unpacked `resources/` folder at `resources`
+    /// ([`FmuModel::create_with_resources`]), debug logging on.
+    pub fn with_resources(
+        config: &Config,
+        resources: &std::path::Path,
+    ) -> Result<Self, crate::model::Cause> {
+        Self::with_located(config, Some(resources.to_path_buf()), |instance| instance)
+    }
+
     /// Instantiates `M` for Model Exchange, with its Model Exchange functions `hooks`.
     pub fn model_exchange(config: &Config, hooks: Hooks<M>) -> Result<Self, crate::model::Cause> {
         Self::with(config, |instance| instance.into_model_exchange(hooks))
@@ -69,10 +78,20 @@ impl<M: FmuModel> Harness<M> {
         config: &Config,
         setup: impl FnOnce(Instance<M>) -> Instance<M>,
     ) -> Result<Self, crate::model::Cause> {
+        Self::with_located(config, None, setup)
+    }
+
+    /// Instantiates `M` for `config` and `resources`, the new instance set up by `setup`.
+    fn with_located(
+        config: &Config,
+        resources: Option<std::path::PathBuf>,
+        setup: impl FnOnce(Instance<M>) -> Instance<M>,
+    ) -> Result<Self, crate::model::Cause> {
         let info = M::describe(config)?;
         let log = MemorySink::default();
         let logger = Logger::new("harness", Box::new(log.clone()), true);
-        let mut instance = setup(Instance::<M>::new(info, logger)?);
+        let interface = std::sync::Arc::new(crate::instance::Interface::new(info));
+        let mut instance = setup(Instance::<M>::with_resources(interface, logger, resources)?);
         // every model call of a test checks that the model writes only what it computes
         instance.audit_model_writes();
         let component = ffi::into_component(instance);
@@ -283,6 +302,14 @@ impl<M: FmuModel> Harness<M> {
         let mut out = [f64::NAN];
         self.get_real(&[vr], &mut out)?;
         Ok(out[0])
+    }
+
+    /// `fmi2GetBoolean` of one variable.
+    pub fn boolean(&mut self, vr: u32) -> Result<bool, Status> {
+        let mut out = [0];
+        // SAFETY: one value reference, one element.
+        status(unsafe { get::<M, Boolean>(self.component, [vr].as_ptr(), 1, out.as_mut_ptr()) })?;
+        Ok(out[0] != 0)
     }
 
     /// `fmi2DoStep`.

@@ -252,6 +252,18 @@ pub trait FmuModel: Clone + 'static {
     /// A new model for an instance of `info`.
     fn create(info: &ModelInfo) -> Result<Self, Cause>;
 
+    /// A new model for an instance of `info` whose unpacked `resources/` folder is
+    /// `resources` (`None` when the importer gives no resource location): for a model that
+    /// reads a file there at instantiation (a table). The default ignores it:
+    /// [`FmuModel::create`].
+    fn create_with_resources(
+        info: &ModelInfo,
+        resources: Option<&std::path::Path>,
+    ) -> Result<Self, Cause> {
+        let _ = resources;
+        Self::create(info)
+    }
+
     /// Reads and checks the parameters, sets the initial state and computes the initial
     /// outputs. Called in initialization mode (possibly more than once: when outputs are read
     /// there) and at `fmi2ExitInitializationMode`; it must give the same result each time.

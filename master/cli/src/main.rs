@@ -142,6 +142,25 @@ enum Command {
         #[command(flatten)]
         packaging: Packaging,
     },
+    /// Package a table of recorded signals as an FMU for any FMI tool, like Modelica's
+    /// CombiTimeTable: e.g. `spurio package-data rig.csv --name RigData --interpolation
+    /// linear` writes RigData.fmu (FMI 2.0) and fmi3/RigData.fmu (FMI 3.0) whose outputs are
+    /// the columns (`c`, `c.valid`, `c.held`, as a system's data instance), with the table
+    /// in resources/ and its time range as the default experiment.
+    PackageData {
+        /// The table: CSV with a `time` column, one column per signal, units as
+        /// `name [unit]` or a units row (the layout `spurio run` writes).
+        table: PathBuf,
+        /// Between samples: `hold` (the sample at or before t) or `linear`.
+        #[arg(long, default_value = "hold", value_parser = ["hold", "linear"])]
+        interpolation: String,
+        /// File name of the .fmu without extension, and its model name (default: the
+        /// table's file stem).
+        #[arg(long)]
+        name: Option<String>,
+        #[command(flatten)]
+        packaging: Packaging,
+    },
     /// Run a system many times with one parameter varied (e.g. a seed), in parallel, and
     /// print metrics as mean ± std; or one shard of it (`--shard i/N`), or stage it as a
     /// Slurm job array (`--slurm <dir>`).
@@ -523,6 +542,34 @@ fn command(command: Command) -> Result<ExitCode> {
                 &out,
             )? {
                 say!("wrote {}", path.display());
+            }
+        }
+        Command::PackageData {
+            table,
+            interpolation,
+            name,
+            packaging,
+        } => {
+            let interpolation = spurio_master::Interpolation::named(&interpolation)
+                .with_context(|| format!("--interpolation {interpolation}: hold or linear"))?;
+            let stem = match name {
+                Some(name) => name,
+                None => table
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .with_context(|| format!("{}: no file name", table.display()))?,
+            };
+            let written = package::package_data(
+                &packaging.repo,
+                &packaging.lib_dir,
+                &parse_platforms(&packaging.platform_dirs)?,
+                &table,
+                interpolation,
+                &stem,
+                &packaging.out,
+            )?;
+            for path in written {
+                println!("wrote {}", path.display());
             }
         }
         Command::Sweep(args) => return sweep::run(args),

@@ -248,13 +248,15 @@ impl FmiVersion {
 }
 
 /// Writes the `version` archive of one variant of `fmu` as `<out_dir>/<stem>.fmu`, with the
-/// binaries of `platforms` (the first one is normally `linux64`).
+/// binaries of `platforms` (the first one is normally `linux64`) and the files `resources`
+/// (name in `resources/`, bytes) beside its configuration.
 pub fn package_variant(
     version: FmiVersion,
     fmu: &BuiltFmu,
     stem: &str,
     config: &Config,
     platforms: &[Platform],
+    resources: &[(String, Vec<u8>)],
     out_dir: &Path,
 ) -> Result<PathBuf> {
     let id = &fmu.source.model_identifier;
@@ -314,6 +316,9 @@ pub fn package_variant(
             config.to_text().as_bytes(),
         )?;
     }
+    for (name, bytes) in resources {
+        add(&format!("resources/{name}"), bytes)?;
+    }
     zip.finish()?;
     Ok(path)
 }
@@ -344,7 +349,13 @@ pub fn package_bundled(
             for version in [FmiVersion::Fmi2, FmiVersion::Fmi3] {
                 let dir = version.out_dir(out_dir);
                 written.push(package_variant(
-                    version, &fmu, &stem, &config, &platforms, &dir,
+                    version,
+                    &fmu,
+                    &stem,
+                    &config,
+                    &platforms,
+                    &[],
+                    &dir,
                 )?);
             }
         }
@@ -382,10 +393,70 @@ pub fn package_custom(
         .into_iter()
         .map(|version| {
             let dir = version.out_dir(out_dir);
-            package_variant(version, &fmu, stem, &config, &platforms, &dir)
+            package_variant(version, &fmu, stem, &config, &platforms, &[], &dir)
         })
         .collect()
 }
+
+/// The FMU that `package-data` packages a table as.
+pub const DATA_FMU: &str = "TimeTable";
+
+/// `spurio package-data`: the table `table` (CSV, read and checked as the master's data
+/// source reads it) as a `TimeTable` FMU named `stem`, interpolated as `interpolation`: the
+/// table in `resources/` under its own file name, its declaration (columns, units, time
+/// range, interpolation; [`spurio_table::declaration`]) in `resources/variant.cfg`; FMI 2.0
+/// (`<out_dir>/<stem>.fmu`) and FMI 3.0 (`<out_dir>/fmi3/<stem>.fmu`).
+pub fn package_data(
+    repo: &Path,
+    lib_dir: &Path,
+    extra_platforms: &[Platform],
+    table: &Path,
+    interpolation: spurio_table::Interpolation,
+    stem: &str,
+    out_dir: &Path,
+) -> Result<Vec<PathBuf>> {
+    let read = spurio_table::DataTable::read(table, interpolation, TABLE_MAX_BYTES)?;
+    let file_name = table
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| !n.is_empty() && !n.contains(['#', '\n', '\r']))
+        .ok_or_else(|| {
+            anyhow!(
+                "{}: not a file name a configuration can carry",
+                table.display()
+            )
+        })?;
+    let declared = spurio_table::declaration::Declaration::of(&read, &file_name)
+        .with_context(|| format!("packaging {}", table.display()))?;
+    let mut config = Config::new();
+    for (key, value) in declared.entries() {
+        config.set(&key, value);
+    }
+    config.set(MODEL_NAME_KEY, stem);
+    let bytes = std::fs::read(table).with_context(|| format!("reading {}", table.display()))?;
+    let source = select(repo, &[DATA_FMU.to_string()])?
+        .into_iter()
+        .next()
+        .ok_or_else(|| anyhow!("unknown FMU `{DATA_FMU}`"))?;
+    let platforms: Vec<Platform> = std::iter::once(Platform::linux64(lib_dir))
+        .chain(extra_platforms.iter().cloned())
+        .collect();
+    let fmu = BuiltFmu::load(source, lib_dir)?;
+    let resources = [(file_name, bytes)];
+    [FmiVersion::Fmi2, FmiVersion::Fmi3]
+        .into_iter()
+        .map(|version| {
+            let dir = version.out_dir(out_dir);
+            package_variant(version, &fmu, stem, &config, &platforms, &resources, &dir)
+        })
+        .collect()
+}
+
+/// The largest table `package-data` packages (1 GiB; the FMU reads no larger one).
+pub const TABLE_MAX_BYTES: u64 = 1 << 30;
+
+/// The configuration key of a packaged table's model name (`--name`).
+pub const MODEL_NAME_KEY: &str = "name";
 
 /// `spurio model-descriptions`: compares (or, with `write`, rewrites) the committed
 /// `modelDescription/<stem>.xml` (FMI 2.0) and `modelDescription/fmi3/<stem>.xml` (FMI 3.0)
@@ -425,11 +496,12 @@ mod tests {
     }
 
     #[test]
-    fn the_fourteen_fmu_folders_are_found_by_their_cdylib() {
+    fn the_fifteen_fmu_folders_are_found_by_their_cdylib() {
         let found = discover(&repo()).unwrap();
         let names: Vec<&str> = found.iter().map(|f| f.model_identifier.as_str()).collect();
-        assert_eq!(names.len(), 14, "{names:?}");
+        assert_eq!(names.len(), 15, "{names:?}");
         assert!(names.contains(&"GantryCrane") && names.contains(&"DkfRsKf"));
+        assert!(names.contains(&DATA_FMU));
         assert!(!names.iter().any(|n| n.starts_with("spurio")));
         for f in &found {
             assert!(f.dir.join("README.md").is_file(), "{}", f.dir.display());

@@ -32,23 +32,11 @@ impl FmuFile {
         let mut variables = Vec::with_capacity(Reading::ALL.len() * table.names.len());
         for (j, (name, unit)) in table.names.iter().zip(&table.units).enumerate() {
             for (r, reading) in Reading::ALL.into_iter().enumerate() {
-                let (var_type, unit, description) = match reading {
-                    Reading::Value => (
-                        VarType::Real,
-                        unit.clone(),
-                        format!("column `{name}` of {}", table.file.display()),
-                    ),
-                    Reading::Valid => (
-                        VarType::Boolean,
-                        None,
-                        format!("whether column `{name}` has a sample (false where it is missing)"),
-                    ),
-                    Reading::Held => (
-                        VarType::Real,
-                        unit.clone(),
-                        format!("column `{name}` with each missing sample replaced by the last present one"),
-                    ),
+                let (var_type, unit) = match reading {
+                    Reading::Valid => (VarType::Boolean, None),
+                    Reading::Value | Reading::Held => (VarType::Real, unit.clone()),
                 };
+                let description = reading.describe(name, &table.file.display().to_string());
                 variables.push(output(
                     format!("{name}{}", reading.suffix()),
                     Reading::ALL.len() * j + r,

@@ -135,7 +135,11 @@ fn create<M: FmuModel>(
     if let Some(note) = request.note {
         logger.log(Status::Ok, "logEvents", &format!("{function}: {note}"));
     }
-    match Instance::<M>::of(Arc::clone(&interface), logger) {
+    let resources = match located(&request.resources) {
+        Some(Ok(dir)) => Some(dir),
+        _ => None,
+    };
+    match Instance::<M>::with_resources(Arc::clone(&interface), logger, resources) {
         Ok(instance) => Some(match offered.filter(|_| request.model_exchange) {
             Some(hooks) => instance.into_model_exchange(hooks),
             None => instance.with_hooks(me),

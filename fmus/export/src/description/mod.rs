@@ -181,6 +181,14 @@ impl ModelInfo {
         info
     }
 
+    /// The same model under the model name `name` (a packaged variant's own name); the GUID
+    /// covers it.
+    pub fn with_model_name(mut self, name: &str) -> Self {
+        self.model_name = name.to_string();
+        self.guid = guid_of(&self.to_xml_with_guid(""));
+        self
+    }
+
     /// The same model offering Model Exchange too: the states, derivatives and event
     /// indicators come from the table ([`crate::Variable::state`],
     /// [`crate::Variable::derivative_of`], [`crate::Variable::event_indicator`]), checked here

@@ -11,6 +11,7 @@ use crate::description::ModelInfo;
 use crate::model::{Cause, FmuModel, Hooks};
 use crate::types::Status;
 use crate::values::Values;
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The part of an instance that an FMU state captures.
@@ -53,6 +54,9 @@ pub struct Instance<M: FmuModel> {
     /// builds): every value before the current call, to check that the model changed only
     /// computed ones.
     pub(super) audit: Option<Box<Values>>,
+    /// The unpacked `resources/` folder the importer gave, from which the model was created
+    /// (and is created again by `fmi2Reset`).
+    pub(crate) resources: Option<PathBuf>,
 }
 
 /// The event indicators of a Model Exchange instance, computed when they are read: by
@@ -105,7 +109,18 @@ impl<M: FmuModel> Instance<M> {
     /// A new instance of a shared interface (see [`super::interface::interface`]), in state
     /// `Instantiated` with its start values.
     pub fn of(interface: Arc<Interface>, logger: Logger) -> Result<Self, Cause> {
-        let model = M::create(&interface.info)?;
+        Self::with_resources(interface, logger, None)
+    }
+
+    /// A new instance of a shared interface whose unpacked `resources/` folder is
+    /// `resources` ([`FmuModel::create_with_resources`]), in state `Instantiated` with its
+    /// start values.
+    pub fn with_resources(
+        interface: Arc<Interface>,
+        logger: Logger,
+        resources: Option<PathBuf>,
+    ) -> Result<Self, Cause> {
+        let model = M::create_with_resources(&interface.info, resources.as_deref())?;
         let values = Values::from_start(&interface.info.variables);
         Ok(Self {
             before: match interface.window {
@@ -120,6 +135,7 @@ impl<M: FmuModel> Instance<M> {
             indicators: Default::default(),
             before_texts: values.texts().clone(),
             audit: cfg!(debug_assertions).then(|| Box::new(values.clone())),
+            resources,
             core: Core {
                 model,
                 values,
@@ -296,7 +312,7 @@ impl<M: FmuModel> Instance<M> {
 
     /// `fmi2Reset` or its FMI 3.0 twin `f`.
     pub fn reset_as(&mut self, f: &Function) -> Status {
-        match M::create(&self.interface.info) {
+        match M::create_with_resources(&self.interface.info, self.resources.as_deref()) {
             Ok(model) => {
                 self.core = Core {
                     model,

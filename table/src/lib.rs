@@ -1,7 +1,9 @@
-//! Recorded signals as a system member: a table read from a CSV file in the layout `spurio run`
-//! writes and fmpy reads (a `time` column, one column per signal, units in the header as
-//! `name [unit]` or in a units row), checked whole when the system is loaded, and read at
-//! every communication point through a [`Cursor`] (no search, no allocation per step).
+//! Recorded signals as a table: a CSV file in the layout `spurio run` writes and fmpy reads (a
+//! `time` column, one column per signal, units in the header as `name [unit]` or in a units
+//! row), checked whole when it is read, and read at any time through a [`Cursor`] (no search,
+//! no allocation per read). The one reader and the one interpolation of the master's data
+//! source (a system instance `data = "rig.csv"`) and of the `TimeTable` FMU
+//! (`spurio package-data`), so both give the same value at the same time, bit for bit.
 //!
 //! At time t, between samples t_i ≤ t < t_{i+1}, a column u reads
 //!
@@ -9,11 +11,22 @@
 //! - linear: u(t) = u_i + (u_{i+1} − u_i)·((t − t_i)/(t_{i+1} − t_i)), and exactly u_i at
 //!   t = t_i.
 //!
-//! A sample time within rounding of t (16 ε relative, [`at_or_before`]) is at t.
+//! Before the first sample a column reads it, after the last sample the last one (the
+//! master refuses a system whose start or stop lies outside the samples, the FMU a step that
+//! would leave them: [`DataTable::check_range`]).
+//!
+//! A sample time within rounding of t is at t ([`DataTable::reached`]): t_i counts as at or
+//! before t when t_i ≤ t + [`instant::tolerance`]`(i)`·Δ_i, Δ_i the sampling interval at
+//! sample i, the rule by which every discrete-time FMU's sample clock meets the master's
+//! communication points (docs/models.md, `spurio_fmu_common::clock`).
 //!
 //! An empty cell or `nan` is a missing sample: it reads as NaN (hold: until the next sample;
 //! linear: on both intervals next to it), and the column's validity flag
-//! ([`DataTable::valid`]) reads 0 there, 1 elsewhere.
+//! ([`Reading::Valid`]) reads 0 there, 1 elsewhere; [`Reading::Held`] reads the last present
+//! sample instead.
+
+pub mod declaration;
+pub mod instant;
 
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -27,6 +40,38 @@ pub enum Interpolation {
     Hold,
     /// The straight line between the samples around t.
     Linear,
+}
+
+impl Interpolation {
+    /// Its name in a system file and in the `TimeTable` FMU's configuration: `hold`, `linear`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Interpolation::Hold => "hold",
+            Interpolation::Linear => "linear",
+        }
+    }
+
+    /// The interpolation called `name` ([`Interpolation::name`]).
+    pub fn named(name: &str) -> Option<Self> {
+        [Interpolation::Hold, Interpolation::Linear]
+            .into_iter()
+            .find(|i| i.name() == name)
+    }
+
+    /// Its code as the `TimeTable` FMU's Integer parameter `interpolation`: 1 hold, 2 linear.
+    pub fn code(self) -> i32 {
+        match self {
+            Interpolation::Hold => 1,
+            Interpolation::Linear => 2,
+        }
+    }
+
+    /// The interpolation of code `code` ([`Interpolation::code`]).
+    pub fn of_code(code: i32) -> Option<Self> {
+        [Interpolation::Hold, Interpolation::Linear]
+            .into_iter()
+            .find(|i| i.code() == code)
+    }
 }
 
 /// The suffix of the Boolean output that says whether a column has a sample at t
@@ -53,6 +98,19 @@ pub enum Reading {
 impl Reading {
     /// Every reading of a column, in the order of its outputs.
     pub const ALL: [Reading; 3] = [Reading::Value, Reading::Valid, Reading::Held];
+
+    /// The description of the output reading column `column` of `file`.
+    pub fn describe(self, column: &str, file: &str) -> String {
+        match self {
+            Reading::Value => format!("column `{column}` of {file}"),
+            Reading::Valid => {
+                format!("whether column `{column}` has a sample (false where it is missing)")
+            }
+            Reading::Held => format!(
+                "column `{column}` with each missing sample replaced by the last present one"
+            ),
+        }
+    }
 
     /// The suffix of its output's name.
     pub fn suffix(self) -> &'static str {
@@ -128,19 +186,24 @@ pub struct Cursor {
     index: usize,
 }
 
-/// Whether sample time `ti` is at or before time `t`, up to rounding: within 16 ε·max(|t|,
-/// |ti|), so that decimal sample times (0.15) meet the engine's communication points
-/// t_k = t_0 + k·h (0.15000000000000002, or one ulp below) as the same instant. Times
-/// written by `spurio run` are the t_k themselves, exactly.
-#[inline]
-pub fn at_or_before(ti: f64, t: f64) -> bool {
-    ti <= t + 16.0 * f64::EPSILON * t.abs().max(ti.abs())
+impl Cursor {
+    /// A cursor at sample `index` (as [`Cursor::sample`] gave it: an FMU state restored);
+    /// [`DataTable::seek`] starts again from the first sample if the table has no such
+    /// sample or it is after the time sought.
+    pub fn at(index: usize) -> Self {
+        Self { index }
+    }
+
+    /// The sample it is at.
+    pub fn sample(self) -> usize {
+        self.index
+    }
 }
 
 /// The text of file `path` (`what`, e.g. "the data file"), refused when it is larger than
 /// `max_bytes` (named as the loader's limit `limit`); no more than `max_bytes + 1` bytes are
 /// read, so an endless file such as `/dev/zero` is refused too.
-pub(crate) fn read_text_at_most(
+pub fn read_text_at_most(
     path: &Path,
     max_bytes: u64,
     what: &str,
@@ -176,7 +239,7 @@ fn cell_value(text: &str) -> Option<f64> {
 }
 
 /// A header cell `name [unit]` as (name, unit).
-fn name_and_unit(cell: &str) -> (String, Option<String>) {
+pub fn name_and_unit(cell: &str) -> (String, Option<String>) {
     if let Some(open) = cell.rfind(" [") {
         if let Some(unit) = cell[open + 2..].strip_suffix(']') {
             let unit = unit.trim();
@@ -451,7 +514,7 @@ impl DataTable {
             name: "time".into(),
             reason,
         };
-        if !at_or_before(self.start(), start) {
+        if !self.reached(0, start) {
             return Err(cell(
                 0,
                 format!(
@@ -460,7 +523,7 @@ impl DataTable {
                 ),
             ));
         }
-        if !at_or_before(stop, self.end()) {
+        if !self.not_passed(stop) {
             return Err(cell(
                 self.times.len() - 1,
                 format!(
@@ -472,22 +535,52 @@ impl DataTable {
         Ok(())
     }
 
+    /// The sampling interval at sample `i`: Δ_i = t_i − t_{i−1}, for the first sample the
+    /// interval after it, t_1 − t_0; 0 for a table of one sample (then times compare exactly).
+    #[inline]
+    pub fn interval(&self, i: usize) -> f64 {
+        let t = &self.times;
+        match (
+            i.checked_sub(1).and_then(|b| t.get(b)),
+            t.get(i),
+            t.get(i + 1),
+        ) {
+            (Some(&before), Some(&ti), _) => ti - before,
+            (None, Some(&ti), Some(&next)) => next - ti,
+            _ => 0.0,
+        }
+    }
+
+    /// Whether sample `i` is at or before time `t`, up to rounding:
+    /// t_i ≤ t + [`instant::tolerance`]`(i)`·Δ_i ([`DataTable::interval`]), so that decimal
+    /// sample times (0.15) and the communication points of a master (t_0 + k·h,
+    /// 0.15000000000000002, or time accumulated step by step as OMSimulator does) are the same
+    /// instant; the tolerance grows with the accumulated drift (k²·ε/2 intervals after k
+    /// steps) and stays far below any interval. Times written by `spurio run` are the
+    /// t_k themselves, exactly. `false` for a sample the table does not have.
+    #[inline]
+    pub fn reached(&self, i: usize, t: f64) -> bool {
+        self.times
+            .get(i)
+            .is_some_and(|&ti| ti <= t + instant::tolerance(i as f64) * self.interval(i))
+    }
+
+    /// Whether time `t` is not past the last sample, by the rule of [`DataTable::reached`]:
+    /// t ≤ t_n + tolerance(n)·Δ_n.
+    #[inline]
+    pub fn not_passed(&self, t: f64) -> bool {
+        let n = self.times.len().saturating_sub(1);
+        t <= self.end() + instant::tolerance(n as f64) * self.interval(n)
+    }
+
     /// Moves `cursor` to the last sample at or before `t` (the first sample when `t` is
-    /// before it); a sample time within rounding of t ([`at_or_before`]) counts as at t.
+    /// before it); a sample time within rounding of t ([`DataTable::reached`]) counts as at t.
     #[inline]
     pub fn seek(&self, cursor: &mut Cursor, t: f64) {
-        if self
-            .times
-            .get(cursor.index)
-            .is_some_and(|&ti| !at_or_before(ti, t))
-        {
+        if !self.reached(cursor.index, t) {
             cursor.index = 0;
         }
-        while self
-            .times
-            .get(cursor.index + 1)
-            .is_some_and(|&next| at_or_before(next, t))
-        {
+        while self.reached(cursor.index + 1, t) {
             cursor.index += 1;
         }
     }
@@ -495,12 +588,21 @@ impl DataTable {
     /// Column `j` at time `t`, `cursor` having been moved to `t` ([`DataTable::seek`]).
     #[inline]
     pub fn value(&self, cursor: Cursor, j: usize, t: f64) -> f64 {
+        self.value_as(self.interpolation, cursor, j, t)
+    }
+
+    /// Column `j` at time `t` interpolated as `interpolation` (whatever the table's own),
+    /// `cursor` having been moved to `t` ([`DataTable::seek`]).
+    #[inline]
+    pub fn value_as(&self, interpolation: Interpolation, cursor: Cursor, j: usize, t: f64) -> f64 {
         let (i, column) = (cursor.index, &self.columns[j]);
         let (ti, ui) = (self.times[i], column[i]);
-        match self.interpolation {
+        match interpolation {
             Interpolation::Hold => ui,
             Interpolation::Linear => {
-                if t <= ti {
+                // A time within rounding of the sample ([`DataTable::reached`]) is at it:
+                // exactly u_i, never a hair along the line (to a missing sample: NaN).
+                if t - ti <= instant::tolerance(i as f64) * self.interval(i) {
                     return ui;
                 }
                 match (self.times.get(i + 1), column.get(i + 1)) {
@@ -515,7 +617,21 @@ impl DataTable {
     /// ([`DataTable::seek`]).
     #[inline]
     pub fn reading(&self, cursor: Cursor, j: usize, reading: Reading, t: f64) -> f64 {
-        let value = self.value(cursor, j, t);
+        self.reading_as(self.interpolation, cursor, j, reading, t)
+    }
+
+    /// Column `j` read as `reading` at time `t` and interpolated as `interpolation`,
+    /// `cursor` having been moved to `t` ([`DataTable::seek`]).
+    #[inline]
+    pub fn reading_as(
+        &self,
+        interpolation: Interpolation,
+        cursor: Cursor,
+        j: usize,
+        reading: Reading,
+        t: f64,
+    ) -> f64 {
+        let value = self.value_as(interpolation, cursor, j, t);
         match reading {
             Reading::Value => value,
             Reading::Valid => {
@@ -586,6 +702,28 @@ mod tests {
     }
 
     #[test]
+    fn time_accumulated_step_by_step_meets_every_sample() {
+        // 200 000 samples 1 ms apart, read at t += 0.001 (OMSimulator's clock): the sum drifts
+        // from k·0.001 by about 2·10⁻⁹ s at the end, 10⁴ times the old 16 ε·t; the growing
+        // tolerance keeps every read on its own sample.
+        let n = 200_000;
+        let mut text = String::from("time,k\n");
+        for k in 0..n {
+            text.push_str(&format!("{},{k}\n", k as f64 * 0.001));
+        }
+        let t = table(&text, Interpolation::Hold);
+        let (mut cursor, mut time, mut off) = (Cursor::default(), 0.0f64, 0usize);
+        for k in 0..n {
+            t.seek(&mut cursor, time);
+            off += usize::from(t.value(cursor, 0, time) != k as f64);
+            time += 0.001;
+        }
+        assert_eq!(off, 0);
+        let drift = (time - 0.001 - (n - 1) as f64 * 0.001).abs();
+        assert!(drift > 16.0 * f64::EPSILON * 200.0, "{drift}");
+    }
+
+    #[test]
     fn linear_is_exact_at_samples_and_on_the_line_between() {
         let t = table("time,u\n0,0.1\n0.3,0.7\n0.6,-2.5\n", Interpolation::Linear);
         let v = at(&t, 0, &[0.0, 0.1, 0.3, 0.45, 0.6]);
@@ -593,6 +731,15 @@ mod tests {
         assert_eq!(v[2], 0.7);
         assert_eq!(v[4], -2.5);
         assert!((v[1] - 0.3).abs() <= 4.0 * f64::EPSILON * 0.3, "{}", v[1]);
+        // Within rounding of a sample time (0.1·3, one ulp above 0.3): exactly the sample.
+        let above = f64::from_bits(0.3f64.to_bits() + 1);
+        assert_eq!(at(&t, 0, &[0.1 * 3.0, above]), [0.7, 0.7]);
+        // Next to a missing sample, a hair after the present one still reads it.
+        let gap = table("time,u\n0,1\n0.1,2\n0.2,\n", Interpolation::Linear);
+        assert_eq!(
+            at(&gap, 0, &[0.1 + 1e-17, 0.30000000000000004 - 0.2]),
+            [2.0, 2.0]
+        );
         assert!((v[3] - (-0.9)).abs() <= 4.0 * f64::EPSILON, "{}", v[3]);
     }
 
