@@ -5,8 +5,60 @@
 //! proposal), shrinks hard after an overflow, and bounds the work ([`MAX_ATTEMPTS`] attempts,
 //! no step shorter than [`MIN_STEP_FRACTION`] of the interval).
 
-use super::rosenbrock::{Statistics, StepError, MAX_ATTEMPTS, MIN_STEP_FRACTION};
 use nalgebra::SVector;
+use std::fmt;
+
+/// The most step attempts (accepted or rejected) one call may take.
+pub const MAX_ATTEMPTS: usize = 100_000;
+
+/// The shortest step, as a fraction of the interval, before the integrator gives up.
+pub const MIN_STEP_FRACTION: f64 = 1e-12;
+
+/// Why an interval could not be integrated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StepError {
+    /// `I/(γh) − J` was singular at time `at` (from the interval's start).
+    Singular { at: f64 },
+    /// The step fell below [`MIN_STEP_FRACTION`] of the interval (at `at`, step `step`).
+    StepTooSmall { at: f64, step: f64 },
+    /// More than [`MAX_ATTEMPTS`] attempts (stopped at `at`).
+    TooManySteps { at: f64 },
+    /// The state or the error estimate became non-finite at `at`.
+    NonFinite { at: f64 },
+}
+
+impl fmt::Display for StepError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Singular { at } => write!(
+                f,
+                "the Rosenbrock iteration matrix is singular {at} s into the step"
+            ),
+            Self::StepTooSmall { at, step } => write!(
+                f,
+                "the error control asked for a step of {step} s ({at} s into the step), too small to go on"
+            ),
+            Self::TooManySteps { at } => write!(
+                f,
+                "more than {MAX_ATTEMPTS} Rosenbrock steps were needed (stopped {at} s into the step)"
+            ),
+            Self::NonFinite { at } => {
+                write!(f, "the state became non-finite {at} s into the step")
+            }
+        }
+    }
+}
+
+impl std::error::Error for StepError {}
+
+/// What one call did (for benchmarks and tests).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Statistics {
+    /// Accepted steps.
+    pub accepted: usize,
+    /// Rejected steps.
+    pub rejected: usize,
+}
 
 /// A candidate step and its weighted error norm, or a failure.
 pub(crate) type Attempt<const N: usize> = Result<(SVector<f64, N>, f64), StepError>;

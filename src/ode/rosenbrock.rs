@@ -27,52 +27,9 @@
 //! state). Allocation-free: fixed-size matrices only.
 
 use super::adaptive::{Attempt, Embedded};
+pub use super::adaptive::{Statistics, StepError, MAX_ATTEMPTS, MIN_STEP_FRACTION};
 use nalgebra::{SMatrix, SVector};
 use spurio_solvers::lu;
-use std::fmt;
-
-/// The most step attempts (accepted or rejected) one call may take.
-pub const MAX_ATTEMPTS: usize = 100_000;
-
-/// The shortest step, as a fraction of the interval, before the integrator gives up.
-pub const MIN_STEP_FRACTION: f64 = 1e-12;
-
-/// Why an interval could not be integrated.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum StepError {
-    /// `I/(γh) − J` was singular at time `at` (from the interval's start).
-    Singular { at: f64 },
-    /// The step fell below [`MIN_STEP_FRACTION`] of the interval (at `at`, step `step`).
-    StepTooSmall { at: f64, step: f64 },
-    /// More than [`MAX_ATTEMPTS`] attempts (stopped at `at`).
-    TooManySteps { at: f64 },
-    /// The state or the error estimate became non-finite at `at`.
-    NonFinite { at: f64 },
-}
-
-impl fmt::Display for StepError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Singular { at } => write!(
-                f,
-                "the Rosenbrock iteration matrix is singular {at} s into the step"
-            ),
-            Self::StepTooSmall { at, step } => write!(
-                f,
-                "the error control asked for a step of {step} s ({at} s into the step), too small to go on"
-            ),
-            Self::TooManySteps { at } => write!(
-                f,
-                "more than {MAX_ATTEMPTS} Rosenbrock steps were needed (stopped {at} s into the step)"
-            ),
-            Self::NonFinite { at } => {
-                write!(f, "the state became non-finite {at} s into the step")
-            }
-        }
-    }
-}
-
-impl std::error::Error for StepError {}
 
 /// Error tolerances: relative `rtol` and absolute per state `atol`. An infinite absolute
 /// tolerance leaves that state out of the error norm (a state nothing depends on).
@@ -111,15 +68,6 @@ impl<const N: usize> Tolerance<N> {
         let count = controlled.iter().filter(|&&c| c).count();
         (controlled, count)
     }
-}
-
-/// What one call did (for benchmarks and tests).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Statistics {
-    /// Accepted steps.
-    pub accepted: usize,
-    /// Rejected steps.
-    pub rejected: usize,
 }
 
 /// An LU factorisation with partial pivoting of a fixed-size matrix (`P A = L U`), by the
