@@ -137,7 +137,7 @@ impl Rosenbrock {
         }
         if self.products == Some(false) {
             for j in 0..n {
-                let scale = tr.nominal[j];
+                let scale = tr.tolerance.nominal[j];
                 let delta = (f64::EPSILON * scale * point.x[j].abs().max(1e-5 * scale)).sqrt();
                 self.y.copy_from_slice(&point.x);
                 self.y[j] += delta;

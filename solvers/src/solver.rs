@@ -24,6 +24,29 @@ impl Point {
     }
 }
 
+/// The states' nominals and absolute tolerances `atolᵢ = atol · nominalᵢ`.
+#[derive(Debug, Clone)]
+pub(crate) struct Tolerance {
+    pub nominal: Vec<f64>,
+    pub atol: Vec<f64>,
+}
+
+impl Tolerance {
+    /// Takes `|nominalᵢ|` as the nominals (one that is zero or not finite counts as 1) and
+    /// `absolute · nominalᵢ` as the absolute tolerances.
+    fn set(&mut self, absolute: f64, nominal: &[f64]) {
+        for (i, &given) in nominal.iter().enumerate() {
+            let given = given.abs();
+            self.nominal[i] = if given > 0.0 && given.is_finite() {
+                given
+            } else {
+                1.0
+            };
+            self.atol[i] = absolute * self.nominal[i];
+        }
+    }
+}
+
 /// Where a solver is: the last accepted step's end point and its start point (for the dense
 /// output), the step to try next, the absolute tolerances.
 #[derive(Debug, Clone)]
@@ -39,10 +62,7 @@ pub(crate) struct Trajectory {
     pub h: f64,
     /// The error norm of the last accepted step (at least 10⁻⁴), for the PI step control.
     pub error_old: f64,
-    /// The states' nominals.
-    pub nominal: Vec<f64>,
-    /// `atol · nominalᵢ`.
-    pub atol: Vec<f64>,
+    pub tolerance: Tolerance,
     pub settings: Settings,
     pub statistics: Statistics,
     /// Scratch of the first-step estimate.
@@ -58,8 +78,10 @@ impl Trajectory {
             previous: Point::new(n),
             h: settings.initial_step.unwrap_or(0.0),
             error_old: 1e-4,
-            nominal: vec![1.0; n],
-            atol: vec![settings.absolute; n],
+            tolerance: Tolerance {
+                nominal: vec![1.0; n],
+                atol: vec![settings.absolute; n],
+            },
             settings,
             statistics: Statistics::default(),
             scratch: (vec![0.0; n], vec![0.0; n]),
@@ -106,7 +128,7 @@ impl Trajectory {
             error,
             &self.current.x,
             next,
-            &self.atol,
+            &self.tolerance.atol,
             self.settings.relative,
         )
     }
@@ -152,8 +174,8 @@ impl Trajectory {
         let span = (t_limit - t).min(self.settings.max_step);
         let rtol = self.settings.relative;
         let zeros = &self.scratch.1;
-        let d0 = error_norm(x, x, zeros, &self.atol, rtol);
-        let d1 = error_norm(dx, x, zeros, &self.atol, rtol);
+        let d0 = error_norm(x, x, zeros, &self.tolerance.atol, rtol);
+        let d1 = error_norm(dx, x, zeros, &self.tolerance.atol, rtol);
         let mut h0 = if d0 < 1e-5 || d1 < 1e-5 {
             1e-6
         } else {
@@ -168,7 +190,7 @@ impl Trajectory {
         for i in 0..self.n {
             f[i] -= dx[i];
         }
-        let d2 = error_norm(f, x, x, &self.atol, rtol) / h0;
+        let d2 = error_norm(f, x, x, &self.tolerance.atol, rtol) / h0;
         f.fill(0.0);
         let d = d1.max(d2);
         let h1 = if d <= 1e-15 || !d.is_finite() {
@@ -433,15 +455,7 @@ impl Solver {
             point.x.copy_from_slice(x);
         }
         tr.dx_valid = false;
-        for i in 0..n {
-            let nominal = nominal[i].abs();
-            tr.nominal[i] = if nominal > 0.0 && nominal.is_finite() {
-                nominal
-            } else {
-                1.0
-            };
-            tr.atol[i] = tr.settings.absolute * tr.nominal[i];
-        }
+        tr.tolerance.set(tr.settings.absolute, nominal);
         match &mut self.inner {
             Inner::Dopri5(m) => m.forget(),
             Inner::Rosenbrock(m) => m.forget(),
