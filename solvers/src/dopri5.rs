@@ -50,16 +50,16 @@ impl Stepper for Dopri5 {
         for stage in 0..6 {
             let row = &DP5_A[stage];
             for i in 0..n {
-                let mut sum = row[0] * tr.dx[i];
+                let mut sum = row[0] * tr.current.dx[i];
                 for (j, a) in row.iter().enumerate().take(stage + 1).skip(1) {
                     sum += a * self.k[j - 1][i];
                 }
-                self.y[i] = tr.x[i] + h * sum;
+                self.y[i] = tr.current.x[i] + h * sum;
             }
             if stage == 5 {
                 self.x_new.copy_from_slice(&self.y);
             }
-            let t_stage = tr.t + DP5_C[stage] * h;
+            let t_stage = tr.current.t + DP5_C[stage] * h;
             Trajectory::evaluate(
                 &mut tr.statistics,
                 sys,
@@ -69,7 +69,7 @@ impl Stepper for Dopri5 {
             )?;
         }
         for i in 0..n {
-            let mut e = DP5_E[0] * tr.dx[i];
+            let mut e = DP5_E[0] * tr.current.dx[i];
             for (j, w) in DP5_E.iter().enumerate().skip(1) {
                 e += w * self.k[j - 1][i];
             }
@@ -79,12 +79,12 @@ impl Stepper for Dopri5 {
     }
 
     fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S> {
-        let h = t_new - tr.t;
+        let h = t_new - tr.current.t;
         // r₅ = h (d₁k₁ + d₃k₃ + d₄k₄ + d₅k₅ + d₆k₆ + d₇k₇)
         for i in 0..tr.n {
             let k = |s: usize| self.k[s - 2][i];
             self.r5[i] = h
-                * (DP5_DENSE[0] * tr.dx[i]
+                * (DP5_DENSE[0] * tr.current.dx[i]
                     + DP5_DENSE[1] * k(3)
                     + DP5_DENSE[2] * k(4)
                     + DP5_DENSE[3] * k(5)
@@ -93,7 +93,7 @@ impl Stepper for Dopri5 {
         }
         tr.advance(&self.x_new, t_new);
         // k₇ = f(t₁, x₁): the next step's first stage
-        tr.dx.copy_from_slice(&self.k[5]);
+        tr.current.dx.copy_from_slice(&self.k[5]);
         tr.dx_valid = true;
         tr.ensure_derivative(sys)
     }
@@ -103,11 +103,12 @@ impl Stepper for Dopri5 {
             return;
         };
         let theta1 = 1.0 - theta;
+        let (start, end) = (&tr.previous, &tr.current);
         for i in 0..tr.n {
-            let r1 = tr.x_old[i];
-            let r2 = tr.x[i] - tr.x_old[i];
-            let r3 = h * tr.dx_old[i] - r2;
-            let r4 = r2 - h * tr.dx[i] - r3;
+            let r1 = start.x[i];
+            let r2 = end.x[i] - start.x[i];
+            let r3 = h * start.dx[i] - r2;
+            let r4 = r2 - h * end.dx[i] - r3;
             out[i] = r1 + theta * (r2 + theta1 * (r3 + theta * (r4 + theta1 * self.r5[i])));
         }
     }

@@ -112,6 +112,7 @@ impl Rosenbrock {
     ) -> Result<(), SolverError<S::Error>> {
         let n = self.n;
         tr.statistics.jacobians += 1;
+        let point = &tr.current;
         if self.products != Some(false) {
             let mut given = true;
             for j in 0..n {
@@ -120,13 +121,13 @@ impl Rosenbrock {
                 tr.statistics.jacobian_products += 1;
                 let column = &mut self.jacobian[j * n..(j + 1) * n];
                 let at = crate::Direction {
-                    t: tr.t,
-                    x: &tr.x,
+                    t: point.t,
+                    x: &point.x,
                     v: &self.seed,
                 };
                 given = system
                     .jacobian_times(at, column)
-                    .map_err(|source| SolverError::at(tr.t, SolverErrorKind::Model(source)))?;
+                    .map_err(|source| SolverError::at(point.t, SolverErrorKind::Model(source)))?;
                 if !given {
                     tr.statistics.jacobian_products -= 1;
                     break;
@@ -136,26 +137,26 @@ impl Rosenbrock {
         }
         if self.products == Some(false) {
             for j in 0..n {
-                let scale = tr.nominal[j];
-                let delta = (f64::EPSILON * scale * tr.x[j].abs().max(1e-5 * scale)).sqrt();
-                self.y.copy_from_slice(&tr.x);
+                let scale = tr.tolerance.nominal[j];
+                let delta = (f64::EPSILON * scale * point.x[j].abs().max(1e-5 * scale)).sqrt();
+                self.y.copy_from_slice(&point.x);
                 self.y[j] += delta;
-                let delta = self.y[j] - tr.x[j];
-                Trajectory::evaluate(&mut tr.statistics, system, tr.t, &self.y, &mut self.f)?;
+                let delta = self.y[j] - point.x[j];
+                Trajectory::evaluate(&mut tr.statistics, system, point.t, &self.y, &mut self.f)?;
                 for i in 0..n {
-                    self.jacobian[i + j * n] = (self.f[i] - tr.dx[i]) / delta;
+                    self.jacobian[i + j * n] = (self.f[i] - point.dx[i]) / delta;
                 }
             }
         }
         if self.autonomous {
             self.f_t.fill(0.0);
         } else {
-            let delta = f64::EPSILON.sqrt() * tr.t.abs().max(1.0);
-            let t = tr.t + delta;
-            let delta = t - tr.t;
-            Trajectory::evaluate(&mut tr.statistics, system, t, &tr.x, &mut self.f)?;
+            let delta = f64::EPSILON.sqrt() * point.t.abs().max(1.0);
+            let t = point.t + delta;
+            let delta = t - point.t;
+            Trajectory::evaluate(&mut tr.statistics, system, t, &point.x, &mut self.f)?;
             for i in 0..n {
-                self.f_t[i] = (self.f[i] - tr.dx[i]) / delta;
+                self.f_t[i] = (self.f[i] - point.dx[i]) / delta;
             }
         }
         self.jacobian_valid = true;
@@ -217,7 +218,7 @@ impl Stepper for Rosenbrock {
         let (a, alpha) = (self.method.a, self.method.alpha);
         for i in 0..self.method.stages {
             if i == 0 {
-                self.f.copy_from_slice(&tr.dx);
+                self.f.copy_from_slice(&tr.current.dx);
             } else {
                 // A stage at the previous stage's point reuses its f.
                 let packed = i * (i - 1) / 2;
@@ -228,10 +229,10 @@ impl Stepper for Rosenbrock {
                     && (0..i - 1).all(|j| a[packed + j] == a[previous + j]);
                 let at_start = alpha[i] == 0.0 && (0..i).all(|j| a[packed + j] == 0.0);
                 if at_start {
-                    self.f.copy_from_slice(&tr.dx);
+                    self.f.copy_from_slice(&tr.current.dx);
                 } else if !same_point {
-                    self.stage_point(&tr.x, i);
-                    let t = tr.t + alpha[i] * h;
+                    self.stage_point(&tr.current.x, i);
+                    let t = tr.current.t + alpha[i] * h;
                     Trajectory::evaluate(&mut tr.statistics, sys, t, &self.y, &mut self.f)?;
                 }
             }
@@ -239,7 +240,7 @@ impl Stepper for Rosenbrock {
         }
         let (b, e) = (self.method.b, self.method.e);
         for r in 0..n {
-            let mut next = tr.x[r];
+            let mut next = tr.current.x[r];
             let mut error = 0.0;
             for j in 0..self.method.stages {
                 next += b[j] * self.k[j][r];
@@ -269,10 +270,11 @@ impl Stepper for Rosenbrock {
         let Some((h, s)) = tr.fraction(t, out) else {
             return;
         };
+        let (start, end) = (&tr.previous, &tr.current);
         if self.method.dense.is_some() {
             let [r1, r2] = &self.dense;
             for i in 0..tr.n {
-                out[i] = (1.0 - s) * tr.x_old[i] + s * (tr.x[i] + (1.0 - s) * (r1[i] + s * r2[i]));
+                out[i] = (1.0 - s) * start.x[i] + s * (end.x[i] + (1.0 - s) * (r1[i] + s * r2[i]));
             }
             return;
         }
@@ -283,7 +285,7 @@ impl Stepper for Rosenbrock {
         let h11 = s * s * (s - 1.0);
         for i in 0..tr.n {
             out[i] =
-                h00 * tr.x_old[i] + h10 * h * tr.dx_old[i] + h01 * tr.x[i] + h11 * h * tr.dx[i];
+                h00 * start.x[i] + h10 * h * start.dx[i] + h01 * end.x[i] + h11 * h * end.dx[i];
         }
     }
 

@@ -5,30 +5,64 @@ use crate::{
     SolverError, SolverErrorKind, Statistics,
 };
 
-/// Where a solver is: the time and state of the last accepted step (and of the one before,
-/// for dense output), the derivative there, the step to try next, the absolute tolerances.
+/// A point of the solution: a time, the state there and the derivative `f(t, x)`.
+#[derive(Debug, Clone)]
+pub(crate) struct Point {
+    pub t: f64,
+    pub x: Vec<f64>,
+    pub dx: Vec<f64>,
+}
+
+impl Point {
+    /// `t = 0`, `x = 0`, `dx = 0` for `n` states.
+    fn new(n: usize) -> Self {
+        Self {
+            t: 0.0,
+            x: vec![0.0; n],
+            dx: vec![0.0; n],
+        }
+    }
+}
+
+/// The states' nominals and absolute tolerances `atolᵢ = atol · nominalᵢ`.
+#[derive(Debug, Clone)]
+pub(crate) struct Tolerance {
+    pub nominal: Vec<f64>,
+    pub atol: Vec<f64>,
+}
+
+impl Tolerance {
+    /// Takes `|nominalᵢ|` as the nominals (one that is zero or not finite counts as 1) and
+    /// `absolute · nominalᵢ` as the absolute tolerances.
+    fn set(&mut self, absolute: f64, nominal: &[f64]) {
+        for (i, &given) in nominal.iter().enumerate() {
+            let given = given.abs();
+            self.nominal[i] = if given > 0.0 && given.is_finite() {
+                given
+            } else {
+                1.0
+            };
+            self.atol[i] = absolute * self.nominal[i];
+        }
+    }
+}
+
+/// Where a solver is: the last accepted step's end point and its start point (for the dense
+/// output), the step to try next, the absolute tolerances.
 #[derive(Debug, Clone)]
 pub(crate) struct Trajectory {
     /// The number of states.
     pub n: usize,
-    /// The time and state of the last accepted step.
-    pub t: f64,
-    pub x: Vec<f64>,
-    /// `f(t, x)`, valid when `dx_valid`.
-    pub dx: Vec<f64>,
+    /// The last accepted step's end: its derivative is `f(t, x)` when `dx_valid`.
+    pub current: Point,
     pub dx_valid: bool,
-    /// Time, state and derivative before the last accepted step (for the dense output).
-    pub t_old: f64,
-    pub x_old: Vec<f64>,
-    pub dx_old: Vec<f64>,
+    /// The last accepted step's start (for the dense output).
+    pub previous: Point,
     /// The step to try next (≤ 0: to be estimated).
     pub h: f64,
     /// The error norm of the last accepted step (at least 10⁻⁴), for the PI step control.
     pub error_old: f64,
-    /// The states' nominals.
-    pub nominal: Vec<f64>,
-    /// `atol · nominalᵢ`.
-    pub atol: Vec<f64>,
+    pub tolerance: Tolerance,
     pub settings: Settings,
     pub statistics: Statistics,
     /// Scratch of the first-step estimate.
@@ -39,17 +73,15 @@ impl Trajectory {
     pub fn new(n: usize, settings: Settings) -> Self {
         Self {
             n,
-            t: 0.0,
-            x: vec![0.0; n],
-            dx: vec![0.0; n],
+            current: Point::new(n),
             dx_valid: false,
-            t_old: 0.0,
-            x_old: vec![0.0; n],
-            dx_old: vec![0.0; n],
+            previous: Point::new(n),
             h: settings.initial_step.unwrap_or(0.0),
             error_old: 1e-4,
-            nominal: vec![1.0; n],
-            atol: vec![settings.absolute; n],
+            tolerance: Tolerance {
+                nominal: vec![1.0; n],
+                atol: vec![settings.absolute; n],
+            },
             settings,
             statistics: Statistics::default(),
             scratch: (vec![0.0; n], vec![0.0; n]),
@@ -71,30 +103,34 @@ impl Trajectory {
             .map_err(|source| SolverError::at(t, SolverErrorKind::Model(source)))
     }
 
-    /// Takes `x_new` at `t_new` as the state, the current one becoming the previous (for the
-    /// dense output); the caller sets `dx`.
+    /// Takes `x_new` at `t_new` as the current point, the current one becoming the previous
+    /// (for the dense output; the two are swapped, nothing allocated); the caller sets `dx`.
     pub fn advance(&mut self, x_new: &[f64], t_new: f64) {
-        std::mem::swap(&mut self.x_old, &mut self.x);
-        std::mem::swap(&mut self.dx_old, &mut self.dx);
-        self.x.copy_from_slice(x_new);
-        self.t_old = self.t;
-        self.t = t_new;
+        std::mem::swap(&mut self.previous, &mut self.current);
+        self.current.x.copy_from_slice(x_new);
+        self.current.t = t_new;
     }
 
     /// The last step's length `h` and the fraction `θ = (t − t₀)/h` of it at `t`; `None` (the
     /// state copied into `out`) when no step was taken since the last reset.
     pub fn fraction(&self, t: f64, out: &mut [f64]) -> Option<(f64, f64)> {
-        let h = self.t - self.t_old;
+        let h = self.current.t - self.previous.t;
         if h == 0.0 {
-            out.copy_from_slice(&self.x);
+            out.copy_from_slice(&self.current.x);
             return None;
         }
-        Some((h, (t - self.t_old) / h))
+        Some((h, (t - self.previous.t) / h))
     }
 
     /// The error norm of a step from the state to `next` with local error estimate `error`.
     pub fn norm(&self, error: &[f64], next: &[f64]) -> f64 {
-        error_norm(error, &self.x, next, &self.atol, self.settings.relative)
+        error_norm(
+            error,
+            &self.current.x,
+            next,
+            &self.tolerance.atol,
+            self.settings.relative,
+        )
     }
 
     /// Makes sure `dx = f(t, x)`; a derivative that is not finite at an accepted state is
@@ -103,14 +139,21 @@ impl Trajectory {
         &mut self,
         system: &mut S,
     ) -> Result<(), SolverError<S::Error>> {
+        let current = &mut self.current;
         if !self.dx_valid {
-            Self::evaluate(&mut self.statistics, system, self.t, &self.x, &mut self.dx)?;
+            Self::evaluate(
+                &mut self.statistics,
+                system,
+                current.t,
+                &current.x,
+                &mut current.dx,
+            )?;
             self.dx_valid = true;
         }
-        if let Some((index, value)) = first_non_finite(&self.dx) {
+        if let Some((index, value)) = first_non_finite(&current.dx) {
             self.dx_valid = false;
             return Err(SolverError::at(
-                self.t,
+                current.t,
                 SolverErrorKind::NonFiniteDerivative { index, value },
             ));
         }
@@ -127,11 +170,12 @@ impl Trajectory {
         order: f64,
         t_limit: f64,
     ) -> Result<f64, SolverError<S::Error>> {
-        let span = (t_limit - self.t).min(self.settings.max_step);
+        let Point { t, x, dx } = &self.current;
+        let span = (t_limit - t).min(self.settings.max_step);
         let rtol = self.settings.relative;
         let zeros = &self.scratch.1;
-        let d0 = error_norm(&self.x, &self.x, zeros, &self.atol, rtol);
-        let d1 = error_norm(&self.dx, &self.x, zeros, &self.atol, rtol);
+        let d0 = error_norm(x, x, zeros, &self.tolerance.atol, rtol);
+        let d1 = error_norm(dx, x, zeros, &self.tolerance.atol, rtol);
         let mut h0 = if d0 < 1e-5 || d1 < 1e-5 {
             1e-6
         } else {
@@ -140,13 +184,13 @@ impl Trajectory {
         h0 = h0.min(span);
         let (y, f) = &mut self.scratch;
         for i in 0..self.n {
-            y[i] = self.x[i] + h0 * self.dx[i];
+            y[i] = x[i] + h0 * dx[i];
         }
-        Self::evaluate(&mut self.statistics, system, self.t + h0, y, f)?;
+        Self::evaluate(&mut self.statistics, system, t + h0, y, f)?;
         for i in 0..self.n {
-            f[i] -= self.dx[i];
+            f[i] -= dx[i];
         }
-        let d2 = error_norm(f, &self.x, &self.x, &self.atol, rtol) / h0;
+        let d2 = error_norm(f, x, x, &self.tolerance.atol, rtol) / h0;
         f.fill(0.0);
         let d = d1.max(d2);
         let h1 = if d <= 1e-15 || !d.is_finite() {
@@ -180,7 +224,7 @@ pub(crate) trait Stepper {
     fn attempt<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, h: f64) -> Norm<S>;
 
     /// Takes the candidate as the new state at `t_new` (shifting the old one back) with
-    /// `f(t_new, x_new)` in `trajectory.dx`.
+    /// `f(t_new, x_new)` in `trajectory.current.dx`.
     fn accept<S: OdeSystem>(&mut self, tr: &mut Trajectory, sys: &mut S, t_new: f64) -> Outcome<S>;
 
     /// The dense output at `t` within the last accepted step, into `out`.
@@ -197,7 +241,7 @@ pub(crate) fn step<M: Stepper, S: OdeSystem>(
     system: &mut S,
     t_limit: f64,
 ) -> Result<f64, SolverError<S::Error>> {
-    let t = trajectory.t;
+    let t = trajectory.current.t;
     if t_limit.is_nan() || t_limit <= t {
         return Err(SolverError::at(
             t,
@@ -406,20 +450,12 @@ impl Solver {
             }
         }
         let tr = &mut self.trajectory;
-        tr.t = t;
-        tr.t_old = t;
-        tr.x.copy_from_slice(x);
-        tr.x_old.copy_from_slice(x);
-        tr.dx_valid = false;
-        for i in 0..n {
-            let nominal = nominal[i].abs();
-            tr.nominal[i] = if nominal > 0.0 && nominal.is_finite() {
-                nominal
-            } else {
-                1.0
-            };
-            tr.atol[i] = tr.settings.absolute * tr.nominal[i];
+        for point in [&mut tr.current, &mut tr.previous] {
+            point.t = t;
+            point.x.copy_from_slice(x);
         }
+        tr.dx_valid = false;
+        tr.tolerance.set(tr.settings.absolute, nominal);
         match &mut self.inner {
             Inner::Dopri5(m) => m.forget(),
             Inner::Rosenbrock(m) => m.forget(),
@@ -454,10 +490,10 @@ impl Solver {
         max_steps: usize,
     ) -> Result<(), SolverError<S::Error>> {
         let mut steps = 0;
-        while self.trajectory.t < t_end {
+        while self.trajectory.current.t < t_end {
             if steps == max_steps {
                 return Err(SolverError::at(
-                    self.trajectory.t,
+                    self.trajectory.current.t,
                     SolverErrorKind::TooManySteps {
                         target: t_end,
                         max_steps,
@@ -473,8 +509,8 @@ impl Solver {
     /// The solution at `t` in `[previous_time, time]` of the last step (the dense output),
     /// into `out`; outside, the method's polynomial extrapolated.
     pub fn interpolate(&self, t: f64, out: &mut [f64]) {
-        if t == self.trajectory.t {
-            out.copy_from_slice(&self.trajectory.x);
+        if t == self.trajectory.current.t {
+            out.copy_from_slice(&self.trajectory.current.x);
             return;
         }
         match &self.inner {
@@ -485,17 +521,17 @@ impl Solver {
 
     /// The time of the last accepted step.
     pub fn time(&self) -> f64 {
-        self.trajectory.t
+        self.trajectory.current.t
     }
 
     /// The time before the last accepted step.
     pub fn previous_time(&self) -> f64 {
-        self.trajectory.t_old
+        self.trajectory.previous.t
     }
 
     /// The state at [`Solver::time`].
     pub fn state(&self) -> &[f64] {
-        &self.trajectory.x
+        &self.trajectory.current.x
     }
 
     /// The step the error control proposes next.

@@ -14,7 +14,7 @@
 //! samples = 1000
 //! ```
 
-use crate::{name_and_unit, DataTable, Interpolation, Reading};
+use crate::{name_and_unit, DataTable, Interpolation, Reading, Signals};
 
 /// What is wrong with a declaration (a configuration key and why), or with a table that
 /// should match it.
@@ -39,11 +39,8 @@ pub enum DeclarationError {
 pub struct Declaration {
     /// The table's file name in `resources/`.
     pub table: String,
-    pub interpolation: Interpolation,
-    /// The signal columns' names, in file order.
-    pub names: Vec<String>,
-    /// Their units.
-    pub units: Vec<Option<String>>,
+    /// The signals, as the table's header gives them, and their interpolation.
+    pub signals: Signals,
     /// The first sample time.
     pub start: f64,
     /// The last sample time.
@@ -60,7 +57,7 @@ impl Declaration {
     /// Refuses a column name the configuration file cannot carry (`#`, a line break) or that
     /// clashes with the FMU's parameter `interpolation`.
     pub fn of(table: &DataTable, file_name: &str) -> Result<Self, DeclarationError> {
-        for name in &table.names {
+        for name in &table.signals.names {
             let reason = if name.contains(['#', '\n', '\r']) {
                 "a `#` or a line break cannot be written in the FMU's configuration; rename it"
             } else if name == INTERPOLATION_PARAMETER {
@@ -75,9 +72,7 @@ impl Declaration {
         }
         Ok(Self {
             table: file_name.to_string(),
-            interpolation: table.interpolation,
-            names: table.names.clone(),
-            units: table.units.clone(),
+            signals: table.signals.clone(),
             start: table.start(),
             stop: table.end(),
             samples: table.times.len(),
@@ -90,14 +85,15 @@ impl Declaration {
             ("table".to_string(), self.table.clone()),
             (
                 "interpolation".to_string(),
-                self.interpolation.name().to_string(),
+                self.signals.interpolation.name().to_string(),
             ),
-            ("columns".to_string(), self.names.len().to_string()),
+            ("columns".to_string(), self.signals.names.len().to_string()),
             ("start".to_string(), format!("{:?}", self.start)),
             ("stop".to_string(), format!("{:?}", self.stop)),
             ("samples".to_string(), self.samples.to_string()),
         ];
-        for (j, (name, unit)) in self.names.iter().zip(&self.units).enumerate() {
+        let Signals { names, units, .. } = &self.signals;
+        for (j, (name, unit)) in names.iter().zip(units).enumerate() {
             let cell = match unit {
                 Some(unit) => format!("{name} [{unit}]"),
                 None => name.clone(),
@@ -159,9 +155,11 @@ impl Declaration {
         }
         Ok(Self {
             table,
-            interpolation,
-            names,
-            units,
+            signals: Signals {
+                interpolation,
+                names,
+                units,
+            },
             start,
             stop,
             samples,
@@ -175,10 +173,11 @@ impl Declaration {
             file: table.file.display().to_string(),
             reason,
         };
-        if table.names != self.names || table.units != self.units {
+        let (found, declared) = (&table.signals, &self.signals);
+        if found.names != declared.names || found.units != declared.units {
             return Err(mismatch(format!(
                 "its columns are {:?} with units {:?}, the description's {:?} with units {:?}",
-                table.names, table.units, self.names, self.units
+                found.names, found.units, declared.names, declared.units
             )));
         }
         if (table.start(), table.end(), table.times.len()) != (self.start, self.stop, self.samples)
@@ -200,7 +199,7 @@ impl Declaration {
     /// `name`, `name.valid`, `name.held` (value references 3j, 3j + 1, 3j + 2), as the
     /// master's data instance names them.
     pub fn outputs(&self) -> impl Iterator<Item = (usize, Reading, String)> + '_ {
-        self.names.iter().enumerate().flat_map(|(j, name)| {
+        self.signals.names.iter().enumerate().flat_map(|(j, name)| {
             Reading::ALL
                 .into_iter()
                 .map(move |r| (j, r, format!("{name}{}", r.suffix())))

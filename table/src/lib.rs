@@ -152,16 +152,24 @@ pub enum DataError {
     },
 }
 
-/// A table of recorded signals: sample times and one column of values per signal.
+/// A table's signals as its header gives them, and how they are read between samples: what a
+/// [`DataTable`] read and its [`declaration::Declaration`] in a `TimeTable` FMU have in
+/// common.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DataTable {
-    /// The file it was read from.
-    pub file: PathBuf,
+pub struct Signals {
     pub interpolation: Interpolation,
     /// The signal columns' names, in file order (without `time`).
     pub names: Vec<String>,
     /// The unit of each signal column, if the file gives one.
     pub units: Vec<Option<String>>,
+}
+
+/// A table of recorded signals: sample times and one column of values per signal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataTable {
+    /// The file it was read from.
+    pub file: PathBuf,
+    pub signals: Signals,
     /// The sample times, strictly increasing.
     pub times: Vec<f64>,
     /// `columns[j][i]`: signal j at sample i (NaN: missing).
@@ -463,9 +471,11 @@ impl DataTable {
         units.remove(time_column);
         Ok(Self {
             file,
-            interpolation,
-            names,
-            units,
+            signals: Signals {
+                interpolation,
+                names,
+                units,
+            },
             times,
             columns,
             held,
@@ -488,7 +498,8 @@ impl DataTable {
     /// The index of the column called `name`, or an error naming the file, the header line
     /// and the columns there are.
     pub fn column(&self, name: &str) -> Result<usize, DataError> {
-        self.names
+        self.signals
+            .names
             .iter()
             .position(|n| n == name)
             .ok_or_else(|| self.no_column(name))
@@ -500,7 +511,7 @@ impl DataTable {
             file: self.file.clone(),
             line: self.header_line,
             name: name.to_string(),
-            columns: self.names.join(", "),
+            columns: self.signals.names.join(", "),
         }
     }
 
@@ -588,7 +599,7 @@ impl DataTable {
     /// Column `j` at time `t`, `cursor` having been moved to `t` ([`DataTable::seek`]).
     #[inline]
     pub fn value(&self, cursor: Cursor, j: usize, t: f64) -> f64 {
-        self.value_as(self.interpolation, cursor, j, t)
+        self.value_as(self.signals.interpolation, cursor, j, t)
     }
 
     /// Column `j` at time `t` interpolated as `interpolation` (whatever the table's own),
@@ -617,7 +628,7 @@ impl DataTable {
     /// ([`DataTable::seek`]).
     #[inline]
     pub fn reading(&self, cursor: Cursor, j: usize, reading: Reading, t: f64) -> f64 {
-        self.reading_as(self.interpolation, cursor, j, reading, t)
+        self.reading_as(self.signals.interpolation, cursor, j, reading, t)
     }
 
     /// Column `j` read as `reading` at time `t` and interpolated as `interpolation`,
@@ -678,11 +689,14 @@ mod tests {
             "\"time\",\"force [N]\",\"x\"\n1.0,2,3\n",
             Interpolation::Hold,
         );
-        assert_eq!(t.names, ["force", "x"]);
-        assert_eq!(t.units, [Some("N".to_string()), None]);
+        assert_eq!(t.signals.names, ["force", "x"]);
+        assert_eq!(t.signals.units, [Some("N".to_string()), None]);
         let t = table("time,force,y[1]\n[s],N,[m]\n0,2,3\n", Interpolation::Hold);
-        assert_eq!(t.names, ["force", "y[1]"]);
-        assert_eq!(t.units, [Some("N".to_string()), Some("m".to_string())]);
+        assert_eq!(t.signals.names, ["force", "y[1]"]);
+        assert_eq!(
+            t.signals.units,
+            [Some("N".to_string()), Some("m".to_string())]
+        );
         assert_eq!(t.times, [0.0]);
         assert_eq!(t.lines, [3]);
     }

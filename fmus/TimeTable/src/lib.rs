@@ -70,7 +70,7 @@ pub fn declaration(config: &Config) -> Result<Declaration, Cause> {
 
 /// The value reference of the parameter `interpolation` (after the 3 outputs per column).
 fn interpolation_vr(declared: &Declaration) -> usize {
-    Reading::ALL.len() * declared.names.len()
+    Reading::ALL.len() * declared.signals.names.len()
 }
 
 /// The variables of a declaration.
@@ -78,8 +78,8 @@ fn variables(declared: &Declaration) -> Vec<Variable> {
     let mut variables: Vec<Variable> = declared
         .outputs()
         .map(|(j, reading, name)| {
-            let unit = declared.units[j].as_deref();
-            let description = reading.describe(&declared.names[j], &declared.table);
+            let unit = declared.signals.units[j].as_deref();
+            let description = reading.describe(&declared.signals.names[j], &declared.table);
             let variable = match reading {
                 Reading::Valid => Variable::boolean_output(&name),
                 Reading::Value | Reading::Held => Variable::discrete_output(&name),
@@ -92,7 +92,7 @@ fn variables(declared: &Declaration) -> Vec<Variable> {
         })
         .collect();
     variables.push(
-        Variable::integer_parameter(INTERPOLATION_PARAMETER, declared.interpolation.code())
+        Variable::integer_parameter(INTERPOLATION_PARAMETER, declared.signals.interpolation.code())
             .min(1.0)
             .max(2.0)
             .describe("Between samples: 1 hold (the sample at or before t), 2 linear (the line between the samples around t)"),
@@ -114,7 +114,7 @@ impl TimeTableFmu {
     pub fn of(table: DataTable, declared: &Declaration) -> Self {
         Self {
             table: Arc::new(table),
-            interpolation: declared.interpolation,
+            interpolation: declared.signals.interpolation,
             cursor: Cursor::default(),
             interpolation_vr: interpolation_vr(declared),
         }
@@ -142,7 +142,7 @@ impl TimeTableFmu {
         let table = &self.table;
         table.seek(&mut self.cursor, t);
         let mut vr = 0;
-        for j in 0..table.names.len() {
+        for j in 0..table.signals.names.len() {
             let read = |r| table.reading_as(self.interpolation, self.cursor, j, r, t);
             // An output is never NaN: `c` reads the held value at a missing sample.
             ctx.values.set_real(vr, read(Reading::Held));
@@ -169,7 +169,7 @@ impl FmuModel for TimeTableFmu {
                 declared.samples,
                 declared.start,
                 declared.stop,
-                declared.interpolation.name()
+                declared.signals.interpolation.name()
             ),
             variables(&declared),
             Some(DefaultExperiment {
@@ -192,7 +192,10 @@ impl FmuModel for TimeTableFmu {
     fn create_with_resources(info: &ModelInfo, resources: Option<&Path>) -> Result<Self, Cause> {
         let declared = declaration(&info.config)?;
         if info.config.is_empty() {
-            return Ok(Self::of(example(declared.interpolation)?, &declared));
+            return Ok(Self::of(
+                example(declared.signals.interpolation)?,
+                &declared,
+            ));
         }
         let Some(dir) = resources else {
             return Err(format!(
@@ -209,7 +212,7 @@ impl FmuModel for TimeTableFmu {
                     reason,
                 }
             })?;
-        let table = DataTable::parse(&text, &path, declared.interpolation)?;
+        let table = DataTable::parse(&text, &path, declared.signals.interpolation)?;
         declared.check(&table)?;
         Ok(Self::of(table, &declared))
     }

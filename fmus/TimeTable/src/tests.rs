@@ -42,7 +42,7 @@ fn the_bundled_table_reads_as_the_master_reads_it_at_and_between_samples() {
         h.set_integer(&[6], &[interpolation.code()]).unwrap();
         h.initialize(0.0).unwrap();
         let mut master = table.clone();
-        master.interpolation = interpolation;
+        master.signals.interpolation = interpolation;
         let h_step = 0.125;
         for k in 0..=800 {
             let t = k as f64 * h_step;

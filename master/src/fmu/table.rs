@@ -29,8 +29,9 @@ impl FmuFile {
                 dependencies: Some(Vec::new()),
                 element: None,
             };
-        let mut variables = Vec::with_capacity(Reading::ALL.len() * table.names.len());
-        for (j, (name, unit)) in table.names.iter().zip(&table.units).enumerate() {
+        let signals = &table.signals;
+        let mut variables = Vec::with_capacity(Reading::ALL.len() * signals.names.len());
+        for (j, (name, unit)) in signals.names.iter().zip(&signals.units).enumerate() {
             for (r, reading) in Reading::ALL.into_iter().enumerate() {
                 let (var_type, unit) = match reading {
                     Reading::Valid => (VarType::Boolean, None),
