@@ -71,13 +71,22 @@ class LogSink:
         return [m[3] for m in self.messages if status is None or m[1] == status]
 
 
+# fmpy's native logger proxy keeps ONE process-wide pointer: the logger it wrapped last.
+# Every FMU instantiated with fmpy's default callbacks (`simulate_fmu` without a logger) logs
+# through that pointer, so each logger wrapped here is kept alive for the whole session:
+# a freed one would be called by the next FMU that logs (a segmentation fault).
+_WRAPPED_LOGGERS = []
+
+
 def make_callbacks(sink: LogSink):
     """fmi2CallbackFunctions whose logger formats the variadic message (fmpy's native proxy)
     and hands it to `sink`."""
     from fmpy.logging import addLoggerProxy
 
     callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(sink)
+    logger = fmi2CallbackLoggerTYPE(sink)
+    _WRAPPED_LOGGERS.append(logger)
+    callbacks.logger = logger
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     addLoggerProxy(byref(callbacks))
