@@ -1440,7 +1440,23 @@ mod tests {
         let (q, r, p0) = (1e-2, 0.0025, 1.0);
         let psi = InfluenceFunction::huber();
         let dual = || DualKalmanFilter::new(config(0.0025)).unwrap();
-        let walk = RobustKalmanFilter::random_walk_from(start.clone(), q, r, p0, psi).unwrap();
+        // The random walk of A = C = I, no input, as RobustKalmanFilter::new takes it.
+        let eye = DMatrix::<f64>::identity(2, 2);
+        let system = StateSpace {
+            a: eye.clone(),
+            b: DMatrix::zeros(2, 0),
+            c: eye.clone(),
+            d: DMatrix::zeros(2, 0),
+            q: &eye * q,
+            r: &eye * r,
+        };
+        let (x0, p0_matrix) = (start.clone(), &eye * p0);
+        let model = GaussianModel {
+            system,
+            x0,
+            p0: p0_matrix,
+        };
+        let walk = RobustKalmanFilter::new(model, psi).unwrap();
         let ones = DVector::from_element(2, 1.0);
         let zeros = DVector::zeros(2);
         let first =
@@ -1468,7 +1484,7 @@ mod tests {
             RobustKalmanFilter::first_order_from(DVector::zeros(2), (&a, &b), 1e-4, r, p0, psi)
                 .unwrap();
         assert_eq!(driven.inputs(), 2);
-        let walk = RobustKalmanFilter::random_walk_from(DVector::zeros(2), q, r, p0, psi).unwrap();
+        let walk = RobustKalmanFilter::random_walk(2, q, r, p0, psi).unwrap();
         let mut by_walk = DkfRsKf::new(walk, dual()).unwrap();
         let mut by_input = DkfRsKf::with_cleaner_input(driven, dual()).unwrap();
         let (mut walk_error, mut input_error) = (0.0, 0.0);

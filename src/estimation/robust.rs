@@ -229,29 +229,18 @@ impl RobustKalmanFilter {
         p0: f64,
         psi: InfluenceFunction,
     ) -> Result<Self, EstimationError> {
-        Self::random_walk_from(DVector::zeros(channels), q, r, p0, psi)
-    }
-
-    /// [`RobustKalmanFilter::random_walk`] started at x̂₀ = `start` (one entry per channel):
-    /// the outlier cleaner of the DKF-rsKF, started at the DKF's initial output.
-    pub fn random_walk_from(
-        start: DVector<f64>,
-        q: f64,
-        r: f64,
-        p0: f64,
-        psi: InfluenceFunction,
-    ) -> Result<Self, EstimationError> {
-        let channels = start.len();
         let ones = DVector::from_element(channels, 1.0);
-        Self::first_order_from(start, (&ones, &DVector::zeros(channels)), q, r, p0, psi)
+        let zeros = DVector::zeros(channels);
+        Self::first_order_from(zeros.clone(), (&ones, &zeros), q, r, p0, psi)
     }
 
     /// A first-order model per channel driven by an input of its own, started at x̂₀ =
     /// `start`: x_j(k) = a_j x_j(k−1) + b_j v_j(k−1), y_j = x_j (A = diag(a), B = diag(b),
     /// C = I_p, D = 0, Q = q I, R = r I, P₀ = p0 I; the filter applies B to the input of the
     /// previous step). With every b_j = 0 the filter has no input (B is p×0), and with a = 1
-    /// as well it is [`RobustKalmanFilter::random_walk_from`], bit for bit: the input-driven
-    /// cleaner of the DKF-rsKF (docs/estimators.md §2.10).
+    /// as well it is the random walk of [`RobustKalmanFilter::random_walk`] started at `start`:
+    /// the cleaner of the DKF-rsKF, started at the DKF's initial output, input-driven or not
+    /// (docs/estimators.md §2.10).
     pub fn first_order_from(
         start: DVector<f64>,
         (a, b): (&DVector<f64>, &DVector<f64>),

@@ -42,6 +42,7 @@ use crate::model::{
     add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
     ModelBlocks,
 };
+use nalgebra::DVector;
 use spurio::estimation::{
     AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
     RobustKalmanFilter, StateEstimator,
@@ -513,13 +514,12 @@ impl DualFilter for DkfRsKf {
         // a robust filter started far from the signal trusts its first samples whatever
         // they are, so a known initial state must reach the cleaner too.
         let start = dual.c() * dual.state();
-        let Some(driven) = c.driven else {
-            let cleaner =
-                RobustKalmanFilter::random_walk_from(start, q, r, p0, psi).map_err(error)?;
-            return DkfRsKf::new(cleaner, dual).map_err(error);
+        // The random walk (a = 1, b = 0) unless the variant's cleaner is input-driven.
+        let p = start.len();
+        let (a, b) = match c.driven {
+            Some(d) => (d.a_clean.vector(values), d.b_clean.vector(values)),
+            None => (DVector::from_element(p, 1.0), DVector::zeros(p)),
         };
-        let a = driven.a_clean.vector(values);
-        let b = driven.b_clean.vector(values);
         // The library names the per-channel vectors a, b; the FMU calls them a_clean, b_clean.
         let named = |e: spurio::estimation::EstimationError| {
             let text = e.to_string();
@@ -530,7 +530,11 @@ impl DualFilter for DkfRsKf {
         };
         let cleaner =
             RobustKalmanFilter::first_order_from(start, (&a, &b), q, r, p0, psi).map_err(named)?;
-        DkfRsKf::with_cleaner_input(cleaner, dual).map_err(error)
+        if c.driven.is_some() {
+            DkfRsKf::with_cleaner_input(cleaner, dual).map_err(error)
+        } else {
+            DkfRsKf::new(cleaner, dual).map_err(error)
+        }
     }
     fn read_cleaner_input(&mut self, c: &CleanerBlocks, values: &Values) -> Result<(), Failure> {
         let (Some(driven), Some(v)) = (c.driven, self.cleaner_input_mut()) else {
