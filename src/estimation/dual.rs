@@ -1140,6 +1140,8 @@ pub struct DkfRsKf {
     cleaner: RobustKalmanFilter,
     dual: DualKalmanFilter,
     no_input: DVector<f64>,
+    /// The cleaner's own input v_k ([`DkfRsKf::with_cleaner_input`]), set before each step.
+    cleaner_input: Option<DVector<f64>>,
     /// The DKF's measurement of the step: the cleaned outputs, NaN where y is missing.
     dual_output: DVector<f64>,
 }
@@ -1151,16 +1153,6 @@ impl DkfRsKf {
         cleaner: RobustKalmanFilter,
         dual: DualKalmanFilter,
     ) -> Result<Self, EstimationError> {
-        if cleaner.outputs() != dual.outputs() {
-            return Err(parameter_error(
-                "cleaner",
-                format!(
-                    "the rsKF has {} outputs but the DKF has {}",
-                    cleaner.outputs(),
-                    dual.outputs()
-                ),
-            ));
-        }
         if cleaner.inputs() != 0 && cleaner.inputs() != dual.inputs() {
             return Err(parameter_error(
                 "cleaner",
@@ -1171,12 +1163,59 @@ impl DkfRsKf {
                 ),
             ));
         }
+        Self::compose(cleaner, dual, None)
+    }
+
+    /// Composes a cleaner driven by an input of its own (e.g.
+    /// [`RobustKalmanFilter::first_order_from`]) and a DKF: each step the cleaner takes the
+    /// input set by [`DkfRsKf::set_cleaner_input`] (v_k, one entry per cleaner input, zero
+    /// until set) instead of the DKF's u_k. The cleaner must have as many outputs as the DKF.
+    pub fn with_cleaner_input(
+        cleaner: RobustKalmanFilter,
+        dual: DualKalmanFilter,
+    ) -> Result<Self, EstimationError> {
+        let inputs = DVector::zeros(cleaner.inputs());
+        Self::compose(cleaner, dual, Some(inputs))
+    }
+
+    fn compose(
+        cleaner: RobustKalmanFilter,
+        dual: DualKalmanFilter,
+        cleaner_input: Option<DVector<f64>>,
+    ) -> Result<Self, EstimationError> {
+        if cleaner.outputs() != dual.outputs() {
+            return Err(parameter_error(
+                "cleaner",
+                format!(
+                    "the rsKF has {} outputs but the DKF has {}",
+                    cleaner.outputs(),
+                    dual.outputs()
+                ),
+            ));
+        }
         Ok(Self {
             dual_output: DVector::zeros(dual.outputs()),
             cleaner,
             dual,
             no_input: DVector::zeros(0),
+            cleaner_input,
         })
+    }
+
+    /// The cleaner's own input v_k for the next [`DkfRsKf::step`], to be overwritten in
+    /// place (no allocation per step); `None` when the cleaner takes none or the DKF's u_k.
+    pub fn cleaner_input_mut(&mut self) -> Option<&mut DVector<f64>> {
+        self.cleaner_input.as_mut()
+    }
+
+    /// Sets the cleaner's own input v_k for the next [`DkfRsKf::step`].
+    pub fn set_cleaner_input(&mut self, v: &DVector<f64>) -> Result<(), EstimationError> {
+        let slot = self.cleaner_input.as_mut().ok_or_else(|| {
+            parameter_error("v", "this DKF-rsKF's cleaner takes no input of its own")
+        })?;
+        require_length("v", v, slot.len(), "one entry per cleaner input")?;
+        slot.copy_from(v);
+        Ok(())
     }
 
     /// One sample: rsKF on (u, y), then the DKF on (u, cleaned y). A missing y_j (NaN)
@@ -1184,10 +1223,10 @@ impl DkfRsKf {
     /// measurement, so the DKF predicts its state and lets Θ walk (module documentation).
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
         require_input_length("u", u, self.dual.inputs())?;
-        let cleaner_input = if self.cleaner.inputs() == 0 {
-            &self.no_input
-        } else {
-            u
+        let cleaner_input = match &self.cleaner_input {
+            Some(v) => v,
+            None if self.cleaner.inputs() == 0 => &self.no_input,
+            None => u,
         };
         self.cleaner.step(cleaner_input, y)?;
         if !MissingMask::any(y) {
@@ -1388,6 +1427,81 @@ mod tests {
         );
         assert!(robust_a < 0.03 && robust_a < plain_a);
         assert!(robust_error < 0.5 * plain_error);
+    }
+
+    /// The first-order cleaner with a = 1, b = 0 is the random walk bit for bit, whatever its
+    /// own input; with b ≠ 0 its own input v (not the DKF's u) drives it: a cleaner that knows
+    /// the signal's dynamics, x_j(k) = a x_j(k−1) + b v_j(k−1), cleans it better than the
+    /// random walk, which lags it.
+    #[test]
+    fn the_first_order_cleaner_reduces_to_the_random_walk_and_follows_its_own_input() {
+        let data = simulate(17, 400, 0.01, 0.05, 0.05);
+        let start = DVector::from_vec(vec![0.1, -0.2]);
+        let (q, r, p0) = (1e-2, 0.0025, 1.0);
+        let psi = InfluenceFunction::huber();
+        let dual = || DualKalmanFilter::new(config(0.0025)).unwrap();
+        // The random walk of A = C = I, no input, as RobustKalmanFilter::new takes it.
+        let eye = DMatrix::<f64>::identity(2, 2);
+        let system = StateSpace {
+            a: eye.clone(),
+            b: DMatrix::zeros(2, 0),
+            c: eye.clone(),
+            d: DMatrix::zeros(2, 0),
+            q: &eye * q,
+            r: &eye * r,
+        };
+        let (x0, p0_matrix) = (start.clone(), &eye * p0);
+        let model = GaussianModel {
+            system,
+            x0,
+            p0: p0_matrix,
+        };
+        let walk = RobustKalmanFilter::new(model, psi).unwrap();
+        let ones = DVector::from_element(2, 1.0);
+        let zeros = DVector::zeros(2);
+        let first =
+            RobustKalmanFilter::first_order_from(start.clone(), (&ones, &zeros), q, r, p0, psi)
+                .unwrap();
+        assert_eq!(first.inputs(), 0, "b = 0: no input");
+        let mut by_walk = DkfRsKf::new(walk, dual()).unwrap();
+        let mut by_first = DkfRsKf::with_cleaner_input(first, dual()).unwrap();
+        assert!(by_first.cleaner_input_mut().is_some());
+        for (u, _, y) in &data {
+            by_walk.step(u, y).unwrap();
+            by_first.step(u, y).unwrap();
+        }
+        assert_eq!(by_first.dynamic_state(), by_walk.dynamic_state());
+        assert!(by_walk.set_cleaner_input(&zeros).is_err());
+
+        // Each channel of the truth's output seen as first order: x_j(k) = a_j x_j(k−1) +
+        // b_j v_j(k−1) with v_j(k) = (x(k+1) − a_j x(k))_j / b_j, the rest of the dynamics
+        // folded into v. The driven cleaner then predicts the clean output to the noise.
+        let (a, b) = (
+            DVector::from_vec(vec![0.9, 0.8]),
+            DVector::from_vec(vec![0.5, 1.0]),
+        );
+        let driven =
+            RobustKalmanFilter::first_order_from(DVector::zeros(2), (&a, &b), 1e-4, r, p0, psi)
+                .unwrap();
+        assert_eq!(driven.inputs(), 2);
+        let walk = RobustKalmanFilter::random_walk(2, q, r, p0, psi).unwrap();
+        let mut by_walk = DkfRsKf::new(walk, dual()).unwrap();
+        let mut by_input = DkfRsKf::with_cleaner_input(driven, dual()).unwrap();
+        let (mut walk_error, mut input_error) = (0.0, 0.0);
+        for k in 0..data.len() - 1 {
+            let (u, clean, y) = &data[k];
+            let next = &data[k + 1].1;
+            let v = DVector::from_fn(2, |j, _| (next[j] - a[j] * clean[j]) / b[j]);
+            by_input.set_cleaner_input(&v).unwrap();
+            by_input.step(u, y).unwrap();
+            by_walk.step(u, y).unwrap();
+            input_error += (by_input.cleaned_output() - clean).norm_squared();
+            walk_error += (by_walk.cleaned_output() - clean).norm_squared();
+        }
+        println!("cleaned E_res: random walk {walk_error:.4}, input-driven {input_error:.4}");
+        assert!(input_error < 0.5 * walk_error);
+        let e = by_input.set_cleaner_input(&DVector::zeros(3)).unwrap_err();
+        assert!(e.to_string().contains("`v`"), "{e}");
     }
 
     #[test]

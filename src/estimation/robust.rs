@@ -27,7 +27,7 @@ use super::kalman::{
     core_accessors, FilterCore, GaussianModel, KalmanFilter, ScalarCovariance, ScalarKalmanFilter,
 };
 use super::missing::MissingMask;
-use super::{parameter_error, EstimationError, Saved, StateReader};
+use super::{parameter_error, require_length, EstimationError, Saved, StateReader};
 use crate::linalg::dense::{self, View};
 use crate::state_space::StateSpace;
 use nalgebra::{Cholesky, DMatrix, DVector};
@@ -229,27 +229,42 @@ impl RobustKalmanFilter {
         p0: f64,
         psi: InfluenceFunction,
     ) -> Result<Self, EstimationError> {
-        Self::random_walk_from(DVector::zeros(channels), q, r, p0, psi)
+        let ones = DVector::from_element(channels, 1.0);
+        let zeros = DVector::zeros(channels);
+        Self::first_order_from(zeros.clone(), (&ones, &zeros), q, r, p0, psi)
     }
 
-    /// [`RobustKalmanFilter::random_walk`] started at x̂₀ = `start` (one entry per channel):
-    /// the outlier cleaner of the DKF-rsKF, started at the DKF's initial output.
-    pub fn random_walk_from(
+    /// A first-order model per channel driven by an input of its own, started at x̂₀ =
+    /// `start`: x_j(k) = a_j x_j(k−1) + b_j v_j(k−1), y_j = x_j (A = diag(a), B = diag(b),
+    /// C = I_p, D = 0, Q = q I, R = r I, P₀ = p0 I; the filter applies B to the input of the
+    /// previous step). With every b_j = 0 the filter has no input (B is p×0), and with a = 1
+    /// as well it is the random walk of [`RobustKalmanFilter::random_walk`] started at `start`:
+    /// the cleaner of the DKF-rsKF, started at the DKF's initial output, input-driven or not
+    /// (docs/estimators.md §2.10).
+    pub fn first_order_from(
         start: DVector<f64>,
+        (a, b): (&DVector<f64>, &DVector<f64>),
         q: f64,
         r: f64,
         p0: f64,
         psi: InfluenceFunction,
     ) -> Result<Self, EstimationError> {
         let channels = start.len();
+        require_length("a", a, channels, "one entry per channel")?;
+        require_length("b", b, channels, "one entry per channel")?;
         let eye = DMatrix::<f64>::identity(channels, channels);
+        let driven = b.iter().any(|v| *v != 0.0);
         Self::new(
             GaussianModel {
                 system: StateSpace {
-                    a: eye.clone(),
-                    b: DMatrix::zeros(channels, 0),
+                    a: DMatrix::from_diagonal(a),
+                    b: if driven {
+                        DMatrix::from_diagonal(b)
+                    } else {
+                        DMatrix::zeros(channels, 0)
+                    },
                     c: eye.clone(),
-                    d: DMatrix::zeros(channels, 0),
+                    d: DMatrix::zeros(channels, if driven { channels } else { 0 }),
                     q: &eye * q,
                     r: &eye * r,
                 },

@@ -47,6 +47,7 @@ ESTIMATORS = {
     "DualKalmanFilterGenerator": "y",
     "DkfRsKf": "y",
     "DkfRsKfGenerator": "y",
+    "DkfRsKfInput": "y",
     "RecursiveLeastSquares": "y",
     "DistributedObserverAgent1": "y_own",
     "DistributedObserverAgent2": "y_own",

@@ -55,7 +55,7 @@ def run_omsimulator(fmu, stop, step, workdir):
 
 
 def test_every_fmi3_fmu_is_tested():
-    assert len(FMUS3) == 24, FMUS3
+    assert len(FMUS3) == 25, FMUS3
 
 
 @pytest.mark.parametrize("name", FMUS3)

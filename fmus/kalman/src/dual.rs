@@ -42,12 +42,15 @@ use crate::model::{
     add_estimates, add_influence, add_inputs, model_info, read_influence, Defaults, Dimensions,
     ModelBlocks,
 };
+use nalgebra::DVector;
 use spurio::estimation::{
     AdaptationBounds, DkfRsKf, DualKalmanConfig, DualKalmanFilter, ParameterMeasurement,
     RobustKalmanFilter, StateEstimator,
 };
 use spurio_export::{Cause, Config, Context, Failure, ModelInfo, Values, Variable, VariableTable};
-use spurio_fmu_common::estimator::{add_tuning, add_validity, error, EstimatorFmu};
+use spurio_fmu_common::estimator::{
+    add_tuning, add_validity, copy_inputs, count, error, read_inputs, EstimatorFmu,
+};
 use spurio_fmu_common::structured::{add_matrix, add_vector, Block};
 
 /// Value references of the cleaner's parameters (DkfRsKf).
@@ -59,6 +62,18 @@ pub struct CleanerBlocks {
     pub r_clean: usize,
     pub p0_clean: usize,
     pub psi: (usize, usize),
+    /// The input-driven cleaner (configuration key `cleaner_input` = 1): its inputs `v[j]`
+    /// and per-channel parameters `a_clean[j]`, `b_clean[j]`.
+    pub driven: Option<DrivenCleanerBlocks>,
+}
+
+/// Value references of the input-driven cleaner's inputs and parameters (docs/estimators.md
+/// §2.10): x_j(k) = a_clean[j] x_j(k−1) + b_clean[j] v_j(k−1), y_j = x_j.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DrivenCleanerBlocks {
+    pub v: Block,
+    pub a_clean: Block,
+    pub b_clean: Block,
 }
 
 /// Value references of a `DualKalmanFilter` / `DkfRsKf` variant.
@@ -139,6 +154,12 @@ fn add_bounds(t: &mut VariableTable, n: usize) -> BoundBlocks {
 fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), Cause> {
     let dims = Dimensions::from_config(config, 4, 1, 2)?;
     let Dimensions { n, m, p } = dims;
+    let driven = cleaned && count(config, "cleaner_input", 0, 0)? > 0;
+    if driven && count(config, "cleaner_input", 0, 0)? != 1 {
+        return Err(
+            "variant.cfg: `cleaner_input` must be 0 (random walk) or 1 (driven by v[j])".into(),
+        );
+    }
     let mut t = VariableTable::new();
     let (u, y) = add_inputs(
         &mut t,
@@ -149,6 +170,11 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
             "Measured output y_k (sampled at the start of the step)"
         },
     );
+    let v = driven.then(|| {
+        add_vector(&mut t, "v", p, |name, _| {
+            Variable::input(name, 0.0).describe("Input v_j of the rsKF cleaner of channel j: x_j(k) = a_clean[j] x_j(k−1) + b_clean[j] v_j(k−1) (sampled at the start of the step)")
+        })
+    });
     let (x_hat, y_hat) = add_estimates(&mut t, dims);
     let hat = |t: &mut VariableTable, name: &str, rows: usize, cols: usize, what: &str| {
         add_matrix(t, name, rows, cols, |element, _, _| {
@@ -218,6 +244,15 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
                 "rsKF cleaner: measurement noise variance of each channel",
             );
             let p0_clean = add_tuning(&mut t, "p0_clean", 1.0, "rsKF cleaner: initial variance (its estimate starts at C·x0, the DKF's initial output)");
+            let driven = v.map(|v| DrivenCleanerBlocks {
+                v,
+                a_clean: add_vector(&mut t, "a_clean", p, |name, _| {
+                    Variable::parameter(name, 1.0).describe("rsKF cleaner of channel j: a_j of x_j(k) = a_j x_j(k−1) + b_j v_j(k−1) (1 with b_j = 0: the random walk)")
+                }),
+                b_clean: add_vector(&mut t, "b_clean", p, |name, _| {
+                    Variable::parameter(name, 0.0).describe("rsKF cleaner of channel j: b_j of x_j(k) = a_j x_j(k−1) + b_j v_j(k−1) (0: v_j unused)")
+                }),
+            });
             let psi = add_influence(&mut t);
             Some(CleanerBlocks {
                 w,
@@ -226,6 +261,7 @@ fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), 
                 r_clean,
                 p0_clean,
                 psi,
+                driven,
             })
         }
         None => None,
@@ -438,6 +474,15 @@ pub trait DualFilter: StateEstimator + Clone + std::fmt::Debug + 'static {
     fn build(layout: &DualLayout, values: &Values) -> Result<Self, Failure>;
     /// The DKF (estimates of the state and of Θ).
     fn dual(&self) -> &DualKalmanFilter;
+    /// Reads the cleaner's own inputs `v[j]` (input-driven cleaner) before a step.
+    fn read_cleaner_input(
+        &mut self,
+        cleaner: &CleanerBlocks,
+        values: &Values,
+    ) -> Result<(), Failure> {
+        let _ = (cleaner, values);
+        Ok(())
+    }
     /// Writes the cleaner's outputs, before the first step (`initial`) or after a step.
     fn write_cleaner(&self, cleaner: &CleanerBlocks, values: &mut Values, initial: bool) {
         let _ = (cleaner, values, initial);
@@ -469,8 +514,40 @@ impl DualFilter for DkfRsKf {
         // a robust filter started far from the signal trusts its first samples whatever
         // they are, so a known initial state must reach the cleaner too.
         let start = dual.c() * dual.state();
-        let cleaner = RobustKalmanFilter::random_walk_from(start, q, r, p0, psi).map_err(error)?;
-        DkfRsKf::new(cleaner, dual).map_err(error)
+        // The random walk (a = 1, b = 0) unless the variant's cleaner is input-driven.
+        let p = start.len();
+        let (a, b) = match c.driven {
+            Some(d) => (d.a_clean.vector(values), d.b_clean.vector(values)),
+            None => (DVector::from_element(p, 1.0), DVector::zeros(p)),
+        };
+        // The library names the per-channel vectors a, b; the FMU calls them a_clean, b_clean.
+        let named = |e: spurio::estimation::EstimationError| {
+            let text = e.to_string();
+            Failure::error(
+                text.replace("parameter `a`", "parameter `a_clean`")
+                    .replace("parameter `b`", "parameter `b_clean`"),
+            )
+        };
+        let cleaner =
+            RobustKalmanFilter::first_order_from(start, (&a, &b), q, r, p0, psi).map_err(named)?;
+        if c.driven.is_some() {
+            DkfRsKf::with_cleaner_input(cleaner, dual).map_err(error)
+        } else {
+            DkfRsKf::new(cleaner, dual).map_err(error)
+        }
+    }
+    fn read_cleaner_input(&mut self, c: &CleanerBlocks, values: &Values) -> Result<(), Failure> {
+        let (Some(driven), Some(v)) = (c.driven, self.cleaner_input_mut()) else {
+            return Ok(());
+        };
+        // Every b_j = 0: the cleaner has no input and v is not read.
+        if v.is_empty() {
+            return Ok(());
+        }
+        if !copy_inputs(values, &driven.v, v) {
+            read_inputs(values, &driven.v, "v", v)?;
+        }
+        Ok(())
     }
     fn dual(&self) -> &DualKalmanFilter {
         DkfRsKf::dual(self)
@@ -496,6 +573,13 @@ impl<F: DualFilter> FilterFamily<F> for DualLayout {
 
     fn build(&self, values: &Values) -> Result<F, Failure> {
         F::build(self, values)
+    }
+
+    fn read_inputs(&self, filter: &mut F, values: &Values) -> Result<(), Failure> {
+        match &self.cleaner {
+            Some(c) => filter.read_cleaner_input(c, values),
+            None => Ok(()),
+        }
     }
 
     fn write_initial(&self, filter: &F, ctx: &mut Context) {
@@ -580,6 +664,80 @@ mod tests {
             out[0]
         );
         assert!(out[2] < 0.05, "weight {}", out[2]);
+    }
+
+    /// The real outputs of a DkfRsKf variant after 300 steps on a signal with outliers (`v`:
+    /// the cleaner's inputs, if it has them, and the parameters to set before initialising).
+    fn dkf_rskf_outputs(
+        config: &Config,
+        parameters: &[(&str, f64)],
+        with_v: bool,
+    ) -> Vec<(String, f64)> {
+        let info = DkfRsKfFmu::describe(config).unwrap();
+        let vr = |name: &str| info.index_of(name).unwrap() as u32;
+        let mut h = Harness::<DkfRsKfFmu>::new(config).unwrap();
+        for (name, value) in parameters {
+            h.set_real(&[vr(name)], &[*value]).unwrap();
+        }
+        h.set_real(&[vr("q_clean"), vr("r_clean")], &[0.05, 0.01])
+            .unwrap();
+        h.initialize(0.0).unwrap();
+        for k in 0..300 {
+            let t = k as f64 * 0.05;
+            let spike = if k % 23 == 7 { 2.0 } else { 0.0 };
+            let u = (0.7 * t).sin().signum();
+            h.set_real(
+                &[vr("u[1]"), vr("y[1]"), vr("y[2]")],
+                &[u, (0.5 * t).sin() + spike, 0.3 * (0.9 * t).cos()],
+            )
+            .unwrap();
+            if with_v {
+                h.set_real(&[vr("v[1]"), vr("v[2]")], &[u, -u]).unwrap();
+            }
+            h.do_step(t, 0.05).unwrap();
+        }
+        info.variables
+            .iter()
+            .filter(|v| v.causality == spurio_export::Causality::Output)
+            .filter(|v| matches!(v.start, spurio_export::Value::Real(_)))
+            .map(|v| {
+                let mut out = [0.0];
+                h.get_real(&[vr(&v.name)], &mut out).unwrap();
+                (v.name.clone(), out[0])
+            })
+            .collect()
+    }
+
+    /// `cleaner_input` = 1 with a_clean = 1, b_clean = 0 (the defaults) is the DkfRsKf's
+    /// random-walk cleaner bit for bit, whatever v; a_clean, b_clean ≠ defaults drive it by v.
+    #[test]
+    fn the_driven_cleaner_with_default_parameters_is_the_random_walk() {
+        let mut driven = dims_config(4, 1, 2);
+        driven.set("cleaner_input", 1);
+        let walk = dkf_rskf_outputs(&dims_config(4, 1, 2), &[], false);
+        let by_default = dkf_rskf_outputs(&driven, &[], true);
+        assert_eq!(walk.len(), by_default.len());
+        for ((name, a), (other, b)) in walk.iter().zip(&by_default) {
+            assert_eq!(name, other);
+            assert_eq!(a.to_bits(), b.to_bits(), "{name}: {a} against {b}");
+        }
+        let moved = dkf_rskf_outputs(
+            &driven,
+            &[
+                ("a_clean[1]", 0.9),
+                ("b_clean[1]", 0.1),
+                ("b_clean[2]", 0.05),
+            ],
+            true,
+        );
+        let differs = |name: &str| {
+            let find = |set: &[(String, f64)]| set.iter().find(|(n, _)| n == name).unwrap().1;
+            find(&walk) != find(&moved)
+        };
+        assert!(differs("y_clean[1]") && differs("y_clean[2]"));
+        let mut bad = dims_config(4, 1, 2);
+        bad.set("cleaner_input", 2);
+        assert!(DkfRsKfFmu::describe(&bad).is_err());
     }
 
     /// Near rest (u, y a tiny wobble around 0) the papers' filter lets Σ grow and Θ̂ move;

@@ -52,6 +52,11 @@ pub trait FilterFamily<F>: Signals + Sized + Clone + std::fmt::Debug + 'static {
     fn interface(config: &Config) -> Result<(Self, ModelInfo), Cause>;
     /// Reads and checks the parameters, builds the filter.
     fn build(&self, values: &Values) -> Result<F, Failure>;
+    /// Reads the filter's inputs other than `u[i]`, `y[j]` before a step (none by default).
+    fn read_inputs(&self, filter: &mut F, values: &Values) -> Result<(), Failure> {
+        let _ = (filter, values);
+        Ok(())
+    }
     /// Writes the outputs before the first step.
     fn write_initial(&self, filter: &F, ctx: &mut Context);
     /// Writes the outputs after a step.
@@ -107,6 +112,7 @@ where
             read_inputs(ctx.values, y, "y", &mut self.y)?;
         }
         mark_missing(ctx.values, y_valid, &mut self.y);
+        l.read_inputs(&mut self.filter, ctx.values)?;
         self.filter.step(&self.u, &self.y).map_err(error)?;
         l.write_outputs(&self.filter, ctx.values);
         Ok(())
