@@ -30,6 +30,7 @@ mod distributed;
 mod dual;
 mod estimator;
 mod kalman;
+pub mod likelihood;
 mod missing;
 mod rls;
 mod robust;
