@@ -1,6 +1,6 @@
 //! Durbin & Koopman's Nile example (docs/estimators.md, "Maximum likelihood"): the local-level
 //! model x⁺ = x + η, y = x + ε fitted to the Nile flows 1871–1970 by maximum likelihood with a
-//! diffuse initial state gives σ²_ε = 15099, σ²_η = 1469.1 (D&K §2.10, §7.2.4; an
+//! diffuse initial state gives σ²_ε = 15099, σ²_η = 1469.1 (D&K §2.10, diffuse likelihood §7.2.2; an
 //! independent numpy filter gives 15098.5, 1469.18 and ℓ = −632.55, the first term left out).
 
 use sha2::{Digest, Sha256};

@@ -110,19 +110,15 @@ fn a_simulated_two_state_model_is_identified_within_its_standard_errors() {
 /// standard error.
 #[test]
 fn a_parameter_the_data_do_not_determine_gives_no_standard_error() {
-    let model = LinearGaussianModel::new(StateSpace {
-        a: dmatrix![1.0],
-        b: dmatrix![0.0],
-        c: dmatrix![1.0],
-        d: dmatrix![0.0],
-        q: dmatrix![1.0],
-        r: dmatrix![1.0],
-    })
-    .unwrap()
-    .free("b", ModelMatrix::B, &[(0, 0)])
-    .unwrap()
-    .free("r", ModelMatrix::R, &[(0, 0)])
-    .unwrap();
+    let one = || dmatrix![1.0];
+    let mut with_input = StateSpace::without_input(one(), one(), one(), one());
+    (with_input.b, with_input.d) = (dmatrix![0.0], dmatrix![0.0]);
+    let model = LinearGaussianModel::new(with_input)
+        .unwrap()
+        .free("b", ModelMatrix::B, &[(0, 0)])
+        .unwrap()
+        .free("r", ModelMatrix::R, &[(0, 0)])
+        .unwrap();
     let y: Vec<f64> = (0..60).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
     let record = Record::new(
         vec![DVector::zeros(1); y.len()],
