@@ -139,6 +139,9 @@ pub enum IdentifyError {
         /// The model's free parameters, comma-separated.
         known: String,
     },
+    /// The model has no free parameter: nothing to estimate.
+    #[error("the model has no free parameter: nothing to estimate")]
+    NoFreeParameter,
     /// A free parameter of the model that was given no start.
     #[error(
         "free parameter `{name}` of the model is not given (every free parameter needs its starts)"
@@ -305,6 +308,9 @@ fn in_model_order<'a, M: PredictionErrorModel>(
     parameters: &'a [FreeParameter],
 ) -> Result<Vec<&'a FreeParameter>, IdentifyError> {
     let names = model.parameter_names();
+    if names.is_empty() {
+        return Err(IdentifyError::NoFreeParameter);
+    }
     for (i, parameter) in parameters.iter().enumerate() {
         if !names.contains(&parameter.name) {
             return Err(IdentifyError::UnknownParameter {
@@ -481,9 +487,9 @@ pub fn maximise_likelihood<M: PredictionErrorModel>(
         });
     }
     let Some((best_run, mut psi, mut cost)) = best else {
-        let first = objective()
-            .evaluate(&to_psi(&runs[0].start))
-            .err()
+        let first = runs
+            .first()
+            .and_then(|run| objective().evaluate(&to_psi(&run.start)).err())
             .map_or_else(|| "finite".to_string(), |e| e.to_string());
         return Err(IdentifyError::NoFiniteOptimum {
             runs: runs.len(),
@@ -536,7 +542,7 @@ pub fn maximise_likelihood<M: PredictionErrorModel>(
                 Curvature::PositiveDefinite { covariance } => Some(covariance[(i, i)].sqrt()),
                 Curvature::NotPositiveDefinite => None,
             },
-            start: runs[best_run].start[i],
+            start: runs[best_run].start.get(i).copied().unwrap_or(f64::NAN),
         })
         .collect();
     Ok(Fit {

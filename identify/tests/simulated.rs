@@ -172,4 +172,7 @@ fn parameters_are_checked_by_name_before_anything_runs() {
         matches!(error, IdentifyError::DuplicateParameter { .. }),
         "{error}"
     );
+    let fixed = LinearGaussianModel::new(system(0.8, 0.5, 0.01, 0.04)).unwrap();
+    let error = maximise_likelihood(&fixed, &record, &diffuse, &[], &Options::default());
+    assert_eq!(error.unwrap_err(), IdentifyError::NoFreeParameter);
 }
