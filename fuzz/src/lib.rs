@@ -4,6 +4,7 @@
 //! the FMU models whose serialised states and variant configurations are fuzzed.
 
 use spurio_export::harness::Harness;
+use spurio_export::types::Status;
 use spurio_export::{Config, FmuModel};
 use spurio_fmu_kalman::{
     dims_config, DkfRsKfFmu, DualKalmanFilterFmu, KalmanFilterFmu, RobustKalmanFilterFmu,
@@ -96,7 +97,8 @@ pub fn with_instance<R>(
 ) -> Option<R> {
     fn go<M: FmuModel, R>(config: &Config, f: impl FnOnce(&mut dyn Driven) -> R) -> Option<R> {
         let mut h = Harness::<M>::new(config).ok()?;
-        h.initialize(0.0).ok()?;
+        let initialized = h.initialize(0.0);
+        succeeded(&h, initialized).then_some(())?;
         Some(f(&mut h))
     }
     match model {
@@ -118,12 +120,30 @@ pub trait Driven {
 
 impl<M: FmuModel> Driven for Harness<M> {
     fn serialized_state(&mut self) -> Option<Vec<u8>> {
-        Harness::serialized_state(self).ok()
+        match Harness::serialized_state(self) {
+            Ok(bytes) => Some(bytes),
+            Err(status) => {
+                succeeded(self, Err(status));
+                None
+            }
+        }
     }
     fn restore_state(&mut self, bytes: &[u8]) -> bool {
-        Harness::restore_state(self, bytes).is_ok()
+        let result = Harness::restore_state(self, bytes);
+        succeeded(self, result)
     }
     fn do_step(&mut self, time: f64, step: f64) -> bool {
-        Harness::do_step(self, time, step).is_ok()
+        let result = Harness::do_step(self, time, step);
+        succeeded(self, result)
     }
+}
+
+/// Whether a call succeeded; panics (a finding) when it ended `Fatal`: the export layer
+/// answers a panic inside the FMU with `fmi2Fatal` (and logs it) instead of unwinding
+/// across the C ABI, so a panic would otherwise pass unseen.
+fn succeeded<M: FmuModel>(h: &Harness<M>, result: Result<Status, Status>) -> bool {
+    if result == Err(Status::Fatal) {
+        panic!("an FMU call ended Fatal; its log: {:?}", h.log());
+    }
+    result.is_ok()
 }
