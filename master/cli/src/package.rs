@@ -16,8 +16,12 @@
 //! Every FMU is written twice from the same binaries: as FMI 2.0 (`<out>/<stem>.fmu`) and as
 //! FMI 3.0 (`<out>/fmi3/<stem>.fmu`: the FMI 3.0 model description, the binaries under the
 //! FMI 3.0 platform tuples `x86_64-linux`, `x86_64-windows`, `aarch64-linux`; FMI 3.0.2
-//! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions.
+//! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions. The FMI
+//! 3.0 archive also carries `terminalsAndIcons/` (the terminals of its signals; the icon
+//! `fmus/<dir>/icon.png` and `icon.svg`) and, for a bundled variant, its cross-check
+//! scenario as `fmi-ls-ref` reference results ([`crate::fmi3_extras`]).
 
+use crate::fmi3_extras::{self, ExtrasError};
 use crate::library_query::{FmuLibrary, QueryError};
 use anyhow::{anyhow, bail, Context, Result};
 use spurio_export::description::CONFIG_FILE;
@@ -319,8 +323,62 @@ pub fn package_variant(
     for (name, bytes) in resources {
         add(&format!("resources/{name}"), bytes)?;
     }
+    if version == FmiVersion::Fmi3 {
+        for (name, bytes) in fmi3_extras(fmu, stem, config, &xml)? {
+            add(&name, &bytes)?;
+        }
+    }
     zip.finish()?;
     Ok(path)
+}
+
+/// The FMU's icon files in `fmus/<dir>/`, in the order an archive lists them: `icon.png`,
+/// then `icon.svg` (which FMI 3.0.2 §2.4.9.1.3 allows only beside the PNG).
+pub const ICON_FILES: [&str; 2] = ["icon.png", "icon.svg"];
+
+/// What an FMI 3.0 archive of `fmu` carries beside its description `xml` and binaries
+/// ([`crate::fmi3_extras`]): `terminalsAndIcons/` (the terminals of its signals, and the
+/// icon of its folder when it has one) and, for a bundled variant (`stem` and `config` one
+/// the library lists), the `fmi-ls-ref` reference results of its cross-check scenario.
+fn fmi3_extras(
+    fmu: &BuiltFmu,
+    stem: &str,
+    config: &Config,
+    xml: &str,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let (_, signals) = fmi3_extras::signals(xml).map_err(|reason| ExtrasError::Description {
+        model: stem.to_string(),
+        reason,
+    })?;
+    let mut icons = Vec::new();
+    for name in ICON_FILES {
+        let path = fmu.source.dir.join(name);
+        if path.is_file() {
+            let bytes =
+                std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+            icons.push((format!("terminalsAndIcons/{name}"), bytes));
+        } else if name == "icon.png" {
+            break;
+        }
+    }
+    let xml = fmi3_extras::terminals::terminals_and_icons(&signals, !icons.is_empty());
+    let mut files = vec![(
+        "terminalsAndIcons/terminalsAndIcons.xml".to_string(),
+        xml.into_bytes(),
+    )];
+    files.extend(icons);
+    let bundled = fmu
+        .library
+        .variants()?
+        .iter()
+        .any(|(s, c)| s == stem && c == config);
+    if bundled {
+        let crosscheck = fmu.source.dir.join("crosscheck");
+        for (name, text) in fmi3_extras::reference::files(stem, &signals, &crosscheck)? {
+            files.push((name, text.into_bytes()));
+        }
+    }
+    Ok(files)
 }
 
 /// The `modelName` attribute of a model description.

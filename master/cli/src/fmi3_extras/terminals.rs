@@ -1,0 +1,333 @@
+//! `terminalsAndIcons/terminalsAndIcons.xml` (FMI 3.0.2 §2.4.9, schema
+//! `fmi3TerminalsAndIcons.xsd`): the FMU's icon and the terminals that group its signals.
+//!
+//! The terminals are the natural buses of the variable table, per causality (inputs first):
+//!
+//! - a signal's *family* is its base name: the name up to the first `[` or `.` (`x_hat[2]` and
+//!   `u.valid` belong to `x_hat` and `u`), and a Boolean `<b>_valid` belongs to `<b>` (an
+//!   estimator's `y` and `y_valid` travel together);
+//! - a family that is an array (`x_hat`, `A_hat`) or holds more than one variable (the
+//!   scalars `x_hat[1]` … `x_hat[4]` of a controller; `y` with `y_valid`; a table's `u`,
+//!   `u.valid`, `u.held`) is a terminal of its own, named after it;
+//! - the other scalars of a causality form one terminal, `inputs` or `outputs` (the crane's
+//!   `x`, `theta`, `v`, `omega`, `U_applied`; the generator's references `u_drive`,
+//!   `u_field`).
+//!
+//! Member names follow the standard's suggested scheme: the variable name without its
+//! `<terminal>.` prefix (`u.valid` is member `valid` of `u`), else the variable name. Every
+//! member is a `signal` (§2.4.9.2.2: inputs and outputs). The matching rule is `plug` for a
+//! terminal of one variable or of one naming-convention array (all of it must connect),
+//! `bus` otherwise (a sensor's `y` may connect to an estimator's `y`, leaving `y_valid`).
+//!
+//! With an icon (`terminalsAndIcons/icon.png`, and `icon.svg` beside it), the
+//! `<GraphicalRepresentation>` places it over the default coordinate system (−100 … 100,
+//! 0.1 mm per unit: 20 mm square); the icon files are fixed paths (§2.4.9.1.3), the element
+//! has no file attribute.
+
+use super::{escape, Direction, Signal};
+use std::fmt::Write;
+
+/// One terminal: its name, its members (variable, member name) and a description.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Terminal {
+    pub name: String,
+    pub direction: Direction,
+    pub matching_rule: &'static str,
+    pub members: Vec<(String, String)>,
+    pub description: String,
+}
+
+/// The family a signal belongs to (see the module documentation).
+fn family(signal: &Signal, all: &[Signal]) -> String {
+    let base = signal
+        .name
+        .split(['[', '.'])
+        .next()
+        .unwrap_or(&signal.name)
+        .to_string();
+    if signal.type_name == "Boolean" {
+        if let Some(value) = base.strip_suffix("_valid") {
+            let has_value = all.iter().any(|s| {
+                s.direction == signal.direction
+                    && s.type_name != "Boolean"
+                    && s.name.split(['[', '.']).next() == Some(value)
+            });
+            if has_value {
+                return value.to_string();
+            }
+        }
+    }
+    base
+}
+
+/// The terminals of a model's signals, inputs first, each in declaration order.
+pub fn terminals(signals: &[Signal]) -> Vec<Terminal> {
+    let mut terminals: Vec<Terminal> = Vec::new();
+    for direction in [Direction::Input, Direction::Output] {
+        let ours: Vec<&Signal> = signals
+            .iter()
+            .filter(|s| s.direction == direction)
+            .collect();
+        let mut families: Vec<(String, Vec<&Signal>)> = Vec::new();
+        for signal in &ours {
+            let name = family(signal, signals);
+            match families.iter_mut().find(|(f, _)| *f == name) {
+                Some((_, members)) => members.push(signal),
+                None => families.push((name, vec![signal])),
+            }
+        }
+        let mut loose: Vec<&Signal> = Vec::new();
+        for (name, members) in families {
+            if members.len() == 1 && members[0].dimensions.is_empty() {
+                loose.push(members[0]);
+                continue;
+            }
+            let one_array = members.len() == 1
+                || members
+                    .iter()
+                    .all(|m| m.name.starts_with(&format!("{name}[")));
+            let listed = members
+                .iter()
+                .map(|m| m.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ");
+            let description = match members[0].description.as_deref() {
+                Some(d) if members.len() == 1 => d.to_string(),
+                Some(d) => format!("{listed}: {d}"),
+                None => listed,
+            };
+            terminals.push(Terminal {
+                members: members
+                    .iter()
+                    .map(|m| (m.name.clone(), member_name(&m.name, &name)))
+                    .collect(),
+                name,
+                direction,
+                matching_rule: if one_array { "plug" } else { "bus" },
+                description,
+            });
+        }
+        if !loose.is_empty() {
+            let name = format!("{}s", direction.causality());
+            terminals.push(Terminal {
+                description: format!(
+                    "The scalar {}s: {}",
+                    direction.causality(),
+                    loose
+                        .iter()
+                        .map(|m| m.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                members: loose
+                    .iter()
+                    .map(|m| (m.name.clone(), member_name(&m.name, &name)))
+                    .collect(),
+                matching_rule: if loose.len() == 1 { "plug" } else { "bus" },
+                name,
+                direction,
+            });
+        }
+    }
+    unique_names(&mut terminals);
+    terminals
+}
+
+/// The member name of `variable` in the terminal `terminal`: without the `<terminal>.`
+/// prefix where it has one.
+fn member_name(variable: &str, terminal: &str) -> String {
+    variable
+        .strip_prefix(terminal)
+        .and_then(|rest| rest.strip_prefix('.'))
+        .filter(|rest| !rest.is_empty())
+        .unwrap_or(variable)
+        .to_string()
+}
+
+/// Terminal names are unique among siblings (§2.4.9.2.1): a name given to an input and an
+/// output terminal gets `_in` and `_out`; any clash left (within a causality) gets a number.
+fn unique_names(terminals: &mut [Terminal]) {
+    let named: Vec<(String, Direction)> = terminals
+        .iter()
+        .map(|t| (t.name.clone(), t.direction))
+        .collect();
+    for t in terminals.iter_mut() {
+        if named.iter().any(|(n, d)| *n == t.name && *d != t.direction) {
+            let suffix = match t.direction {
+                Direction::Input => "_in",
+                Direction::Output => "_out",
+            };
+            t.name.push_str(suffix);
+        }
+    }
+    for k in 0..terminals.len() {
+        let mut n = 2;
+        let base = terminals[k].name.clone();
+        while terminals[..k].iter().any(|t| t.name == terminals[k].name) {
+            terminals[k].name = format!("{base}_{n}");
+            n += 1;
+        }
+    }
+}
+
+/// The `terminalsAndIcons.xml` text: the icon's placement when `icon`, then the terminals.
+pub fn terminals_and_icons(signals: &[Signal], icon: bool) -> String {
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(x, r#"<fmiTerminalsAndIcons fmiVersion="3.0">"#);
+    if icon {
+        let _ = writeln!(x, "  <GraphicalRepresentation>");
+        let _ = writeln!(
+            x,
+            r#"    <CoordinateSystem x1="-100" y1="-100" x2="100" y2="100" suggestedScalingFactorTo_mm="0.1"/>"#
+        );
+        let _ = writeln!(x, r#"    <Icon x1="-100" y1="-100" x2="100" y2="100"/>"#);
+        let _ = writeln!(x, "  </GraphicalRepresentation>");
+    }
+    let terminals = terminals(signals);
+    if !terminals.is_empty() {
+        let _ = writeln!(x, "  <Terminals>");
+        for t in &terminals {
+            let _ = writeln!(
+                x,
+                r#"    <Terminal name="{}" matchingRule="{}" description="{}">"#,
+                escape(&t.name),
+                t.matching_rule,
+                escape(&t.description)
+            );
+            for (variable, member) in &t.members {
+                let _ = writeln!(
+                    x,
+                    r#"      <TerminalMemberVariable variableName="{}" memberName="{}" variableKind="signal"/>"#,
+                    escape(variable),
+                    escape(member)
+                );
+            }
+            let _ = writeln!(x, "    </Terminal>");
+        }
+        let _ = writeln!(x, "  </Terminals>");
+    }
+    let _ = writeln!(x, "</fmiTerminalsAndIcons>");
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn signal(name: &str, direction: Direction, type_name: &str, dims: &[usize]) -> Signal {
+        Signal {
+            name: name.into(),
+            direction,
+            type_name: type_name.into(),
+            dimensions: dims.to_vec(),
+            description: Some(format!("about {name}")),
+        }
+    }
+
+    fn summary(ts: &[Terminal]) -> Vec<String> {
+        ts.iter()
+            .map(|t| {
+                let members: Vec<String> = t
+                    .members
+                    .iter()
+                    .map(|(v, m)| {
+                        if v == m {
+                            v.clone()
+                        } else {
+                            format!("{v}={m}")
+                        }
+                    })
+                    .collect();
+                format!("{} {} [{}]", t.name, t.matching_rule, members.join(" "))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_crane_has_its_input_and_its_outputs_as_two_terminals() {
+        use Direction::*;
+        let crane: Vec<Signal> = [("U", Input), ("x", Output), ("theta", Output)]
+            .iter()
+            .map(|(n, d)| signal(n, *d, "Float64", &[]))
+            .collect();
+        assert_eq!(
+            summary(&terminals(&crane)),
+            ["inputs plug [U]", "outputs bus [x theta]"]
+        );
+    }
+
+    #[test]
+    fn an_estimator_groups_its_vectors_and_validity_flags() {
+        use Direction::*;
+        let kf = vec![
+            signal("u", Input, "Float64", &[1]),
+            signal("y", Input, "Float64", &[2]),
+            signal("x_hat", Output, "Float64", &[4]),
+            signal("y_hat", Output, "Float64", &[2]),
+            signal("A_hat", Output, "Float64", &[4, 4]),
+            signal("excitation", Output, "Float64", &[]),
+            signal("adapting", Output, "Boolean", &[]),
+            signal("y_valid", Input, "Boolean", &[2]),
+        ];
+        assert_eq!(
+            summary(&terminals(&kf)),
+            [
+                "u plug [u]",
+                "y bus [y y_valid]",
+                "x_hat plug [x_hat]",
+                "y_hat plug [y_hat]",
+                "A_hat plug [A_hat]",
+                "outputs bus [excitation adapting]",
+            ]
+        );
+        let xml = terminals_and_icons(&kf, false);
+        assert!(!xml.contains("GraphicalRepresentation"));
+        assert!(xml.contains(
+            r#"<TerminalMemberVariable variableName="y_valid" memberName="y_valid" variableKind="signal"/>"#
+        ));
+        assert!(xml
+            .contains(r#"<Terminal name="x_hat" matchingRule="plug" description="about x_hat">"#));
+    }
+
+    #[test]
+    fn structured_scalars_and_table_columns_form_families() {
+        use Direction::*;
+        let controller: Vec<Signal> = (1..=2)
+            .map(|i| signal(&format!("x_hat[{i}]"), Input, "Float64", &[]))
+            .chain([signal("u", Output, "Float64", &[1])])
+            .collect();
+        assert_eq!(
+            summary(&terminals(&controller)),
+            ["x_hat plug [x_hat[1] x_hat[2]]", "u plug [u]"]
+        );
+        let table = vec![
+            signal("u", Output, "Float64", &[]),
+            signal("u.valid", Output, "Boolean", &[]),
+            signal("u.held", Output, "Float64", &[]),
+            signal("time_of_day", Output, "Float64", &[]),
+        ];
+        assert_eq!(
+            summary(&terminals(&table)),
+            [
+                "u bus [u u.valid=valid u.held=held]",
+                "outputs plug [time_of_day]"
+            ]
+        );
+    }
+
+    #[test]
+    fn names_shared_by_an_input_and_an_output_terminal_are_made_unique() {
+        use Direction::*;
+        let s = vec![
+            signal("u", Input, "Float64", &[2]),
+            signal("u", Output, "Float64", &[2]),
+            signal("inputs", Input, "Float64", &[3]),
+            signal("w", Input, "Float64", &[]),
+        ];
+        let names: Vec<String> = terminals(&s).into_iter().map(|t| t.name).collect();
+        assert_eq!(names, ["u_in", "inputs", "inputs_2", "u_out"]);
+        let xml = terminals_and_icons(&s, true);
+        assert!(xml.contains(r#"<Icon x1="-100" y1="-100" x2="100" y2="100"/>"#));
+    }
+}
