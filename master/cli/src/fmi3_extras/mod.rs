@@ -49,11 +49,11 @@ impl Direction {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Signal {
     pub name: String,
+    /// The `<Dimension start>` of an array, in order (empty for a scalar).
+    pub dimensions: Vec<usize>,
     pub direction: Direction,
     /// The element type (`Float64`, `Int32`, `Boolean`, …).
     pub type_name: String,
-    /// The `<Dimension start>` of an array, in order (empty for a scalar).
-    pub dimensions: Vec<usize>,
     pub description: Option<String>,
 }
 

@@ -318,13 +318,13 @@ mod tests {
 
     #[test]
     fn names_shared_by_an_input_and_an_output_terminal_are_made_unique() {
-        use Direction::*;
-        let s = vec![
-            signal("u", Input, "Float64", &[2]),
-            signal("u", Output, "Float64", &[2]),
-            signal("inputs", Input, "Float64", &[3]),
-            signal("w", Input, "Float64", &[]),
+        let vector = |name, direction| signal(name, direction, "Float64", &[2]);
+        let mut s = vec![
+            vector("u", Direction::Input),
+            vector("u", Direction::Output),
         ];
+        s.push(vector("inputs", Direction::Input));
+        s.push(signal("w", Direction::Input, "Float64", &[]));
         let names: Vec<String> = terminals(&s).into_iter().map(|t| t.name).collect();
         assert_eq!(names, ["u_in", "inputs", "inputs_2", "u_out"]);
         let xml = terminals_and_icons(&s, true);
