@@ -210,3 +210,25 @@ def test_the_reference_fmus_write_an_older_draft_of_the_manifest():
     assert not LS_REF_XSD.validate(theirs)
     errors = str(LS_REF_XSD.error_log)
     assert "fmi-ls-description" in errors and "Expected is ( Experiment )" in errors
+
+
+def test_a_variant_packaged_on_request_has_terminals_but_no_reference_results(tmp_path):
+    """`spurio package-variant` with other dimensions under a bundled variant's name: its own
+    terminals (sized by its description) and the folder's icon, but not the bundled variant's
+    reference results, which are not its own; the FMI 2.0 archive carries neither."""
+    spurio = REPO / "target" / "release" / "spurio"
+    assert spurio.is_file(), "build with scripts/build-fmus first"
+    subprocess.run(
+        [str(spurio), "package-variant", "KalmanFilter", "--set", "n=3", "--set", "p=2",
+         "--name", "KalmanFilter", "--lib-dir", str(REPO / "target" / "release"),
+         "--out", str(tmp_path)],
+        check=True, capture_output=True,
+    )
+    with zipfile.ZipFile(tmp_path / "fmi3" / "KalmanFilter.fmu") as z:
+        names = z.namelist()
+        doc = validated(TERMINALS_XSD, z.read("terminalsAndIcons/terminalsAndIcons.xml"))
+    assert "terminalsAndIcons/icon.png" in names and "terminalsAndIcons/icon.svg" in names
+    assert not [n for n in names if n.startswith("extra/")], names
+    assert doc.find("Terminals/Terminal[@name='y']") is not None
+    with zipfile.ZipFile(tmp_path / "KalmanFilter.fmu") as z:
+        assert not [n for n in z.namelist() if n.startswith(("terminalsAndIcons", "extra"))]
