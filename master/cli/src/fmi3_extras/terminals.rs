@@ -86,16 +86,7 @@ pub fn terminals(signals: &[Signal]) -> Vec<Terminal> {
                 || members
                     .iter()
                     .all(|m| m.name.starts_with(&format!("{name}[")));
-            let listed = members
-                .iter()
-                .map(|m| m.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ");
-            let description = match members[0].description.as_deref() {
-                Some(d) if members.len() == 1 => d.to_string(),
-                Some(d) => format!("{listed}: {d}"),
-                None => listed,
-            };
+            let description = describe(&members, one_array);
             terminals.push(Terminal {
                 members: members
                     .iter()
@@ -131,6 +122,42 @@ pub fn terminals(signals: &[Signal]) -> Vec<Terminal> {
     }
     unique_names(&mut terminals);
     terminals
+}
+
+/// A terminal's description: its variable's, for one; for the scalars of a naming-convention
+/// array, the first and last and what their descriptions share up to a `:`
+/// (`x_hat[1] … x_hat[4]: Estimated state`); else the variables and the first one's.
+fn describe(members: &[&Signal], one_array: bool) -> String {
+    let first = members[0].description.clone().unwrap_or_default();
+    let (Some(head), Some(last)) = (members.first(), members.last()) else {
+        return first;
+    };
+    if members.len() == 1 {
+        return first;
+    }
+    if !one_array {
+        let listed: Vec<&str> = members.iter().map(|m| m.name.as_str()).collect();
+        return format!("{}: {first}", listed.join(", "));
+    }
+    let mut shared = first.as_str();
+    for m in members {
+        let d = m.description.as_deref().unwrap_or("");
+        let common = shared
+            .char_indices()
+            .zip(d.chars())
+            .find(|((_, a), b)| a != b)
+            .map_or(shared.len().min(d.len()), |((i, _), _)| i);
+        shared = &shared[..common];
+    }
+    let shared = shared
+        .rsplit_once(':')
+        .map_or("", |(before, _)| before.trim());
+    let span = format!("{} … {}", head.name, last.name);
+    if shared.is_empty() {
+        span
+    } else {
+        format!("{span}: {shared}")
+    }
 }
 
 /// The member name of `variable` in the terminal `terminal`: without the `<terminal>.`
@@ -301,6 +328,14 @@ mod tests {
             summary(&terminals(&controller)),
             ["x_hat plug [x_hat[1] x_hat[2]]", "u plug [u]"]
         );
+        let mut described = controller.clone();
+        described[0].description = Some("Estimated state: cart position x".into());
+        described[1].description = Some("Estimated state: load angle θ".into());
+        assert_eq!(
+            terminals(&described)[0].description,
+            "x_hat[1] … x_hat[2]: Estimated state"
+        );
+        assert_eq!(terminals(&controller)[0].description, "x_hat[1] … x_hat[2]");
         let table = vec![
             signal("u", Output, "Float64", &[]),
             signal("u.valid", Output, "Boolean", &[]),
