@@ -1,6 +1,8 @@
 """Draws the FMU icons: `fmus/<dir>/icon.svg` and `icon.png` (128 × 128 pixels), which the
 packager puts into every FMI 3.0 archive as `terminalsAndIcons/icon.svg` and `icon.png`
-(FMI 3.0.2 §2.4.9.1.3; `master/cli/src/fmi3_extras`).
+(FMI 3.0.2 §2.4.9.1.3; `master/cli/src/fmi3_extras`), and the terminal icons all FMUs share,
+`fmus/export/icons/input` and `output` (32 × 32 pixels: a filled and an open triangle
+pointing with the signal, as block diagrams draw inputs and outputs).
 
 Each symbol is one list of shapes in a 100 × 100 box (y downwards), written twice from the
 same list: as SVG text by hand (a few hundred bytes) and as a PNG through Pillow (drawn at
@@ -29,6 +31,7 @@ from PIL import Image, ImageDraw
 
 REPO = Path(__file__).resolve().parents[1]
 SIZE = 128
+TERMINAL_SIZE = 32
 OVERSAMPLE = 4
 INK = "#1f3b57"
 ACCENT = "#c8553d"
@@ -186,12 +189,20 @@ SYMBOLS = {
 }
 
 
+def terminal(fill: str) -> list[Shape]:
+    return [("poly", [(12, 10), (90, 50), (12, 90)], INK, 8, fill)]
+
+
+# fmus/export/icons/<name> → its symbol.
+TERMINALS = {"input": lambda: terminal(INK), "output": lambda: terminal("#ffffff")}
+
+
 def num(v: float) -> str:
     return f"{v:.2f}".rstrip("0").rstrip(".")
 
 
-def svg(shapes: list[Shape], title: str) -> str:
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{SIZE}" height="{SIZE}" '
+def svg(shapes: list[Shape], title: str, size: int) -> str:
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{size}" '
            f'viewBox="0 0 100 100"><title>{title}</title>']
     for kind, geometry, stroke, width, fill in shapes:
         paint = (f' fill="{fill or "none"}" stroke="{stroke}" stroke-width="{num(width)}" '
@@ -211,8 +222,8 @@ def svg(shapes: list[Shape], title: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def png(shapes: list[Shape]) -> bytes:
-    big = SIZE * OVERSAMPLE
+def png(shapes: list[Shape], size: int) -> bytes:
+    big = size * OVERSAMPLE
     scale = big / 100
     image = Image.new("RGBA", (big, big), (0, 0, 0, 0))
     draw = ImageDraw.Draw(image)
@@ -234,7 +245,7 @@ def png(shapes: list[Shape]) -> bytes:
             draw.line(points, fill=stroke, width=w, joint="curve")
             for x, y in (points[0], points[-1]):  # round caps
                 draw.ellipse([x - w / 2, y - w / 2, x + w / 2, y + w / 2], fill=stroke)
-    small = image.resize((SIZE, SIZE), Image.Resampling.LANCZOS)
+    small = image.resize((size, size), Image.Resampling.LANCZOS)
     buffer = io.BytesIO()
     small.save(buffer, format="PNG", optimize=True)
     return buffer.getvalue()
@@ -246,11 +257,17 @@ def main() -> int:
                         help="compare with the committed icons instead of writing them")
     args = parser.parse_args()
     stale = []
-    for folder, draw in SYMBOLS.items():
+    drawings = [(REPO / "fmus" / folder, "icon", folder, draw, SIZE)
+                for folder, draw in SYMBOLS.items()]
+    shared = REPO / "fmus" / "export" / "icons"
+    drawings += [(shared, name, f"{name} terminal", draw, TERMINAL_SIZE)
+                 for name, draw in TERMINALS.items()]
+    for folder, base, title, draw, size in drawings:
         shapes = draw()
-        files = {"icon.svg": svg(shapes, folder).encode(), "icon.png": png(shapes)}
+        files = {f"{base}.svg": svg(shapes, title, size).encode(), f"{base}.png": png(shapes, size)}
+        folder.mkdir(exist_ok=True)
         for name, data in files.items():
-            path = REPO / "fmus" / folder / name
+            path = folder / name
             if args.check:
                 if not path.is_file() or path.read_bytes() != data:
                     stale.append(str(path.relative_to(REPO)))

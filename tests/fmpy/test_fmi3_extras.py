@@ -86,6 +86,15 @@ def test_terminals_are_schema_valid_and_name_the_signals_of_the_model(stem):
         # One causality per terminal: a terminal is a bus in one direction.
         assert len(kinds) == 1, (t.get("name"), kinds)
         assert t.get("matchingRule") in {"plug", "bus"}
+        # Drawn outside the icon's edge on its side: inputs left, outputs right.
+        drawn = t.find("TerminalGraphicalRepresentation")
+        (kind,) = kinds
+        assert drawn.get("iconBaseName") == kind
+        x1, y1, x2, y2 = (float(drawn.get(a)) for a in ("x1", "y1", "x2", "y2"))
+        assert (x1, x2) == ((-120.0, -100.0) if kind == "input" else (100.0, 120.0))
+        assert -100 <= y1 < y2 <= 100 and y2 - y1 <= 20
+        assert f"terminalsAndIcons/{kind}.png" in files
+        assert f"terminalsAndIcons/{kind}.svg" in files
     signals = [v.name for v in md.modelVariables if v.causality in ("input", "output")]
     assert sorted(seen) == sorted(signals)
 
@@ -135,6 +144,12 @@ def test_the_icon_is_the_models_png_and_svg(stem):
     folder = source_folder(stem, md)
     assert files["terminalsAndIcons/icon.png"] == (folder / "icon.png").read_bytes()
     assert files["terminalsAndIcons/icon.svg"] == (folder / "icon.svg").read_bytes()
+    shared = REPO / "fmus" / "export" / "icons"
+    for kind in ("input", "output"):
+        name = f"terminalsAndIcons/{kind}.png"
+        if name in files:
+            assert files[name] == (shared / f"{kind}.png").read_bytes()
+            assert Image.open(io.BytesIO(files[name])).size == (32, 32)
 
 
 def test_the_committed_icons_are_what_the_script_draws():

@@ -18,7 +18,8 @@
 //! FMI 3.0 platform tuples `x86_64-linux`, `x86_64-windows`, `aarch64-linux`; FMI 3.0.2
 //! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions. The FMI
 //! 3.0 archive also carries `terminalsAndIcons/` (the terminals of its signals; the icon
-//! `fmus/<dir>/icon.png` and `icon.svg`) and, for a bundled variant, its cross-check
+//! `fmus/<dir>/icon.png` and `icon.svg`, the terminal icons of `fmus/export/icons/`) and,
+//! for a bundled variant, its cross-check
 //! scenario as `fmi-ls-ref` reference results ([`crate::fmi3_extras`]).
 
 use crate::fmi3_extras::{self, ExtrasError};
@@ -332,14 +333,52 @@ pub fn package_variant(
     Ok(path)
 }
 
-/// The FMU's icon files in `fmus/<dir>/`, in the order an archive lists them: `icon.png`,
-/// then `icon.svg` (which FMI 3.0.2 §2.4.9.1.3 allows only beside the PNG).
-pub const ICON_FILES: [&str; 2] = ["icon.png", "icon.svg"];
+/// The folder, below `fmus/` (in the export layer every FMU is built on), of the terminal
+/// icons all FMUs share
+/// ([`fmi3_extras::terminals::TERMINAL_ICONS`]).
+pub const TERMINAL_ICON_DIR: &str = "export/icons";
+
+/// The image files of an FMU's graphical representation (archive name, bytes): the icon of
+/// its folder (`fmus/<dir>/icon.png`, `icon.svg`) and the shared terminal icons
+/// (`fmus/export/icons/input.png`, …), each PNG with its SVG (FMI 3.0.2 §2.4.9.1.3 allows
+/// an SVG only beside its PNG); none unless every PNG is there.
+fn graphics_files(fmu: &BuiltFmu) -> Result<Vec<(String, Vec<u8>)>> {
+    let shared = fmu
+        .source
+        .dir
+        .parent()
+        .unwrap_or(&fmu.source.dir)
+        .join(TERMINAL_ICON_DIR);
+    let images = std::iter::once((fmu.source.dir.clone(), "icon")).chain(
+        fmi3_extras::terminals::TERMINAL_ICONS
+            .iter()
+            .map(|name| (shared.clone(), *name)),
+    );
+    let mut files = Vec::new();
+    for (dir, base) in images {
+        let png = dir.join(format!("{base}.png"));
+        if !png.is_file() {
+            return Ok(Vec::new());
+        }
+        for path in [png, dir.join(format!("{base}.svg"))] {
+            if let (true, Some(name)) = (path.is_file(), path.file_name()) {
+                let bytes =
+                    std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+                files.push((
+                    format!("terminalsAndIcons/{}", name.to_string_lossy()),
+                    bytes,
+                ));
+            }
+        }
+    }
+    Ok(files)
+}
 
 /// What an FMI 3.0 archive of `fmu` carries beside its description `xml` and binaries
 /// ([`crate::fmi3_extras`]): `terminalsAndIcons/` (the terminals of its signals, and the
-/// icon of its folder when it has one) and, for a bundled variant (`stem` and `config` one
-/// the library lists), the `fmi-ls-ref` reference results of its cross-check scenario.
+/// icons of [`graphics_files`] when they are there) and, for a bundled variant (`stem` and
+/// `config` one the library lists), the `fmi-ls-ref` reference results of its cross-check
+/// scenario.
 fn fmi3_extras(
     fmu: &BuiltFmu,
     stem: &str,
@@ -350,17 +389,7 @@ fn fmi3_extras(
         model: stem.to_string(),
         reason,
     })?;
-    let mut icons = Vec::new();
-    for name in ICON_FILES {
-        let path = fmu.source.dir.join(name);
-        if path.is_file() {
-            let bytes =
-                std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-            icons.push((format!("terminalsAndIcons/{name}"), bytes));
-        } else if name == "icon.png" {
-            break;
-        }
-    }
+    let icons = graphics_files(fmu)?;
     let xml = fmi3_extras::terminals::terminals_and_icons(&signals, !icons.is_empty());
     let mut files = vec![(
         "terminalsAndIcons/terminalsAndIcons.xml".to_string(),

@@ -197,12 +197,33 @@ fn unique_names(terminals: &mut [Terminal]) {
     }
 }
 
-/// The `terminalsAndIcons.xml` text: the icon's placement when `icon`, then the terminals.
-pub fn terminals_and_icons(signals: &[Signal], icon: bool) -> String {
+/// The base names of the terminal icons (`terminalsAndIcons/<name>.png` and `.svg`): an input
+/// terminal is drawn as a filled triangle on the icon's left edge, an output terminal as an
+/// open one on its right edge, both pointing in the direction of the signal.
+pub const TERMINAL_ICONS: [&str; 2] = ["input", "output"];
+
+/// Where terminal `k` of `n` on one edge sits: `(x1, y1, x2, y2)` in the coordinate system
+/// (−100 … 100): outside the icon, 20 units wide, the edge divided evenly from the top, each
+/// at most 20 units high (rounded to hundredths).
+pub fn terminal_extent(direction: Direction, k: usize, n: usize) -> (f64, f64, f64, f64) {
+    let pitch = 200.0 / n.max(1) as f64;
+    let centre = 100.0 - pitch * (k as f64 + 0.5);
+    let half = (pitch / 2.0).min(10.0);
+    let (x1, x2) = match direction {
+        Direction::Input => (-120.0, -100.0),
+        Direction::Output => (100.0, 120.0),
+    };
+    let hundredths = |v: f64| (v * 100.0).round() / 100.0;
+    (x1, hundredths(centre - half), x2, hundredths(centre + half))
+}
+
+/// The `terminalsAndIcons.xml` text: with `graphics`, the icon's placement and each
+/// terminal's ([`terminal_extent`], [`TERMINAL_ICONS`]); then the terminals.
+pub fn terminals_and_icons(signals: &[Signal], graphics: bool) -> String {
     let mut x = String::new();
     let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(x, r#"<fmiTerminalsAndIcons fmiVersion="3.0">"#);
-    if icon {
+    if graphics {
         let _ = writeln!(x, "  <GraphicalRepresentation>");
         let _ = writeln!(
             x,
@@ -228,6 +249,19 @@ pub fn terminals_and_icons(signals: &[Signal], icon: bool) -> String {
                     r#"      <TerminalMemberVariable variableName="{}" memberName="{}" variableKind="signal"/>"#,
                     escape(variable),
                     escape(member)
+                );
+            }
+            if graphics {
+                let side: Vec<&Terminal> = terminals
+                    .iter()
+                    .filter(|o| o.direction == t.direction)
+                    .collect();
+                let k = side.iter().position(|o| o.name == t.name).unwrap_or(0);
+                let (x1, y1, x2, y2) = terminal_extent(t.direction, k, side.len());
+                let _ = writeln!(
+                    x,
+                    r#"      <TerminalGraphicalRepresentation x1="{x1}" y1="{y1}" x2="{x2}" y2="{y2}" iconBaseName="{}"/>"#,
+                    t.direction.causality()
                 );
             }
             let _ = writeln!(x, "    </Terminal>");
@@ -364,5 +398,16 @@ mod tests {
         assert_eq!(names, ["u_in", "inputs", "inputs_2", "u_out"]);
         let xml = terminals_and_icons(&s, true);
         assert!(xml.contains(r#"<Icon x1="-100" y1="-100" x2="100" y2="100"/>"#));
+        // Three input terminals down the left edge, one output in the middle of the right.
+        assert!(xml.contains(
+            r#"<TerminalGraphicalRepresentation x1="-120" y1="56.67" x2="-100" y2="76.67" iconBaseName="input"/>"#
+        ), "{xml}");
+        assert!(xml.contains(
+            r#"<TerminalGraphicalRepresentation x1="100" y1="-10" x2="120" y2="10" iconBaseName="output"/>"#
+        ));
+        assert_eq!(
+            terminal_extent(Direction::Input, 0, 20),
+            (-120.0, 90.0, -100.0, 100.0)
+        );
     }
 }
