@@ -19,10 +19,11 @@
 //! terminal of one variable or of one naming-convention array (all of it must connect),
 //! `bus` otherwise (a sensor's `y` may connect to an estimator's `y`, leaving `y_valid`).
 //!
-//! With an icon (`terminalsAndIcons/icon.png`, and `icon.svg` beside it), the
-//! `<GraphicalRepresentation>` places it over the default coordinate system (−100 … 100,
-//! 0.1 mm per unit: 20 mm square); the icon files are fixed paths (§2.4.9.1.3), the element
-//! has no file attribute.
+//! With the images (`terminalsAndIcons/icon.png`, and `icon.svg` beside it), the
+//! `<GraphicalRepresentation>` places the icon over the default coordinate system (−100 … 100,
+//! 0.1 mm per unit: 20 mm square; the icon files are fixed paths, §2.4.9.1.3, the element has
+//! no file attribute), and each terminal's `<TerminalGraphicalRepresentation>` draws it beside
+//! the icon, inputs down the left edge and outputs down the right ([`terminal_extent`]).
 
 use super::{escape, Direction, Signal};
 use std::fmt::Write;
