@@ -41,6 +41,7 @@ fn say_line(line: std::fmt::Arguments<'_>) {
     }
 }
 
+mod fmi3_extras;
 mod guard;
 mod library_query;
 mod limits;
