@@ -82,18 +82,29 @@ def first_reals(fmu, count: int, proxy: bool) -> dict[str, list[float]]:
 
 
 def first_reals_in_a_process(fmu, count: int):
-    """first_reals through proxyfmu in a process of its own (the fault may end it): the
-    values, or None if the process died."""
+    """first_reals through proxyfmu in a process group of its own (the fault may end the
+    process, and then its `proxyfmu` lives on, unzipping the FMU again and again: the group
+    is killed after the run): the values, or None if the process died."""
     import json
+    import os
+    import signal
 
-    run = subprocess.run(
+    process = subprocess.Popen(
         [sys.executable, "-c", PROXY_READ.format(interop=str(REPO / "tests" / "interop"),
                                                  fmu=str(fmu), count=count)],
-        capture_output=True, text=True, timeout=120, cwd=REPO,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+        start_new_session=True,
     )
-    if run.returncode != 0:
+    try:
+        stdout, _ = process.communicate(timeout=120)
+    finally:
+        try:
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    if process.returncode != 0:
         return None
-    return json.loads(run.stdout.strip().splitlines()[-1])
+    return json.loads(stdout.strip().splitlines()[-1])
 
 
 def test_proxyfmu_cuts_off_a_read_of_62_reals():
