@@ -45,6 +45,7 @@ class Scenario:
     boolean_inputs: set[str]
     input_rows: np.ndarray
     outputs: dict[str, str]
+    input_file: Path | None = None
 
     @property
     def steps(self) -> int:
@@ -78,7 +79,8 @@ def scenario(fmu: Path) -> Scenario:
     outputs = {v.name: v.type for v in described.modelVariables
                if v.causality == "output" and v.type in ("Real", "Integer", "Boolean")}
     return Scenario(fmu, opt["StartTime"], opt["StopTime"], opt["StepSize"], inputs,
-                    {n for n in inputs if types[n] == "Boolean"}, rows, outputs)
+                    {n for n in inputs if types[n] == "Boolean"}, rows, outputs,
+                    in_csv if inputs else None)
 
 
 _FMPY: dict[Path, dict[str, np.ndarray]] = {}
@@ -420,35 +422,62 @@ FMI_SIM = REPO / "target" / "tools" / "bin" / "fmi-sim"
 
 
 def write_held_inputs(sc: Scenario, path: Path) -> Path:
-    """The scenario's inputs as one row per communication point t_k, the value held from t_k
-    on. fmi-sim, as fmusim, applies at t_k the value left of t_k (`after_event` false): the
-    cross-check file's pair of rows at a change (before, after) would reach it one step late;
-    with one row per point, left of t_k and at t_k are the same value."""
+    """The scenario's inputs as fmi-sim reads them to apply at each t_k exactly the value
+    fmpy applies. fmi-sim, as fmusim, applies at t_k the value left of t_k (`after_event`
+    false), interpolated linearly as v₀ + 1·(v₁ − v₀) (not v₁ in floating point): the
+    cross-check file's pair of rows at a change (before, after) would reach it one step late,
+    and a row per point would reach it rounded at a change. So a row per point t_k with the
+    value held from t_k on, and at a change a row half a step before with the new value: each
+    t_k then ends a segment whose ends hold the same value."""
     import csv
+
+    def cells(t: float, held: dict[str, float]) -> list[str]:
+        return [repr(float(t))] + [
+            ("true" if held[n] else "false") if n in sc.boolean_inputs else repr(float(held[n]))
+            for n in sc.inputs]
 
     with path.open("w", newline="") as f:
         out = csv.writer(f)
         out.writerow(["time"] + sc.inputs)
+        previous = None
         for t in sc.grid:
             held = sc.inputs_at(t)
-            out.writerow([repr(float(t))] + [
-                ("true" if held[n] else "false") if n in sc.boolean_inputs else repr(float(held[n]))
-                for n in sc.inputs])
+            if previous is not None and held != previous:
+                out.writerow(cells(t - 0.5 * sc.step, held))
+            out.writerow(cells(t, held))
+            previous = held
+    return path
+
+
+def write_event_inputs(sc: Scenario, path: Path) -> Path:
+    """The scenario's inputs for fmi-sim's Model Exchange: the cross-check file as it is (a
+    change is two rows at one time: an input event, handled as fmpy handles it), and one row
+    half a step after its last, holding the last value. fmi-sim 0.7.0 interpolates after an
+    event between the row after it and the next: at a change on the last row that is two rows
+    at one time, (t − t₀)/(t₁ − t₀) = 0/0, a NaN input, which our FMUs refuse (fmi-sim then
+    ends with "Error: Error"; `test_fmi_sim.py` pins it)."""
+    assert sc.input_file is not None
+    text = sc.input_file.read_text().rstrip("\n").split("\n")
+    last = text[-1].split(",", 1)[1]
+    text.append(f"{float(sc.input_rows[-1, 0]) + 0.5 * sc.step!r},{last}")
+    path.write_text("\n".join(text) + "\n")
     return path
 
 
 def run_fmi_sim(sc: Scenario, fmu: Path, interface: str, workdir: Path):
     """`fmi-sim` on `fmu` (`interface`: co-simulation or model-exchange, forward Euler at the
-    scenario's step) with the scenario's inputs, an output every step: (the process, the
-    names and rows of its CSV, or None when it failed)."""
+    scenario's step) with the scenario's inputs, an output every step: (the process, its
+    result by column, or None when it failed)."""
     import subprocess
 
-    from conftest import read_csv, require
+    from conftest import require
 
     require(FMI_SIM, "scripts/setup builds it (cargo install fmi-sim into target/tools)")
     out = workdir / f"{fmu.stem}_{interface}.csv"
     args = [str(FMI_SIM), "--model", str(fmu), "-o", str(out)]
-    if sc.inputs:
+    if sc.inputs and interface == "model-exchange":
+        args += ["-i", str(write_event_inputs(sc, workdir / f"{fmu.stem}_in.csv"))]
+    elif sc.inputs:
         args += ["-i", str(write_held_inputs(sc, workdir / f"{fmu.stem}_in.csv"))]
     args += [interface, "-s", repr(sc.start), "-f", repr(sc.stop),
              "--output-interval", repr(sc.step), "-n", "0"]
@@ -457,4 +486,36 @@ def run_fmi_sim(sc: Scenario, fmu: Path, interface: str, workdir: Path):
     run = subprocess.run(args, capture_output=True, text=True, timeout=300)
     if run.returncode != 0 or not out.exists():
         return run, None
-    return run, read_csv(out)
+    return run, read_fmi_sim_csv(out)
+
+
+def read_fmi_sim_csv(path: Path) -> dict[str, np.ndarray]:
+    """fmi-sim's result CSV (arrow's writer: a header of names, quoted where they need it;
+    Booleans as true/false): one array per column."""
+    import csv
+
+    with path.open(newline="") as f:
+        rows = list(csv.reader(f))
+    names = rows[0]
+
+    def number(text: str) -> float:
+        return {"true": 1.0, "false": 0.0}.get(text, None) if text in ("true", "false") \
+            else float(text)
+
+    table = np.array([[number(v) for v in row] for row in rows[1:] if row], dtype=float)
+    return {n: table[:, i] for i, n in enumerate(names)}
+
+
+def fmpy_model_exchange(sc: Scenario) -> dict[str, np.ndarray]:
+    """fmpy's Model Exchange run of the scenario with its forward Euler at the scenario's step
+    (an output every step)."""
+    from fmpy import simulate_fmu
+
+    signals = None
+    if sc.inputs:
+        signals = np.array([tuple(r) for r in sc.input_rows],
+                           dtype=[("time", np.float64)] + [(n, np.float64) for n in sc.inputs])
+    result = simulate_fmu(str(sc.fmu), fmi_type="ModelExchange", solver="Euler",
+                          start_time=sc.start, stop_time=sc.stop, step_size=sc.step,
+                          output_interval=sc.step, input=signals)
+    return {n: np.asarray(result[n], dtype=float) for n in result.dtype.names}

@@ -9,7 +9,7 @@ What the tools get wrong, pinned here (the README's interoperability section lis
   bytes (src/proxyfmu/proxy_slave.cpp, `get_real`): a read of 62 or more Real variables in one
   call is cut off, and the values, and every reply after it, are garbage (zeros, or a
   segmentation fault). Through `proxyfmu` the two FMUs with more Real outputs than that
-  (DkfRsKfGenerator: 114, DualKalmanFilterGenerator: 110) are compared on their first
+  (DkfRsKfGenerator: 115, DualKalmanFilterGenerator: 111) are compared on their first
   PROXYFMU_MAX_REALS outputs, and `test_proxyfmu_cuts_off_a_read_of_62_reals` pins the fault.
 - ecos applies an SSD's parameter bindings only as a named parameter set chosen at
   initialization (`init(parameter_set=…)`; its command line chooses none): our export names
