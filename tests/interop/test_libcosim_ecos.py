@@ -56,7 +56,8 @@ def proxy_readable(sc: engines.Scenario) -> engines.Scenario:
 
 
 @pytest.mark.parametrize("name", FMUS)
-def test_ecos_through_proxyfmu_equals_fmpy(name):
+def test_ecos_through_proxyfmu_equals_fmpy(name, workdir, monkeypatch):
+    monkeypatch.chdir(workdir)  # proxyfmu writes logs/<instance>.txt where it is started
     sc = proxy_readable(engines.scenario(our_fmu(name)))
     engines.assert_equals_fmpy(sc, engines.run_ecos(sc, proxy=True), "ecos+proxyfmu")
 
@@ -81,7 +82,7 @@ def first_reals(fmu, count: int, proxy: bool) -> dict[str, list[float]]:
     return {n: [float(v) for v in got[n]] for n in reals}
 
 
-def first_reals_in_a_process(fmu, count: int):
+def first_reals_in_a_process(fmu, count: int, cwd):
     """first_reals through proxyfmu in a process group of its own (the fault may end the
     process, and then its `proxyfmu` lives on, unzipping the FMU again and again: the group
     is killed after the run): the values, or None if the process died."""
@@ -92,7 +93,7 @@ def first_reals_in_a_process(fmu, count: int):
     process = subprocess.Popen(
         [sys.executable, "-c", PROXY_READ.format(interop=str(REPO / "tests" / "interop"),
                                                  fmu=str(fmu), count=count)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
         start_new_session=True,
     )
     try:
@@ -107,17 +108,18 @@ def first_reals_in_a_process(fmu, count: int):
     return json.loads(stdout.strip().splitlines()[-1])
 
 
-def test_proxyfmu_cuts_off_a_read_of_62_reals():
+def test_proxyfmu_cuts_off_a_read_of_62_reals(workdir, monkeypatch):
     """ecos 0.7.2 through proxyfmu: 61 Real outputs read per call come back right, 62 do not
     (the 512-byte reply buffer): every value read after a step is 0.0 (measured: every
     time), or the process dies (seen when the reads come one by one). When ecos reads them
     right, this fails: raise PROXYFMU_MAX_REALS."""
+    monkeypatch.chdir(workdir)  # proxyfmu writes logs/<instance>.txt where it is started
     fmu = our_fmu("DkfRsKfGenerator")
     limit = PROXYFMU_MAX_REALS
     assert first_reals(fmu, limit, proxy=True) == first_reals(fmu, limit, proxy=False)
     right = first_reals(fmu, limit + 1, proxy=False)
     assert any(v != 0.0 for v in right["x_hat[1]"][1:])
-    wrong = first_reals_in_a_process(fmu, limit + 1)
+    wrong = first_reals_in_a_process(fmu, limit + 1, workdir)
     if wrong is not None:
         assert all(v == 0.0 for values in wrong.values() for v in values[1:]), (
             "proxyfmu read 62 reals: no longer all zeros", wrong)
