@@ -290,10 +290,12 @@ def run_ecos_proxy(sc: Scenario) -> dict[str, np.ndarray]:
 #   bits: the discrete-time FMUs (they sample on their own clock, docs/README.md "Sampling"),
 #   the estimators, the sources;
 # - a relative 1e-11 for an FMU that integrates over the step (it has the parameter `h_max`,
-#   its longest RK4 substep: GantryCrane, OpAmpFilter, WindGenerator): fmpy steps by
-#   (k+1)·h − k·h, which differs from h in the last bits, libcosim and ecos by h itself, so
-#   the substeps differ by rounding and the trajectories by rounding grown over the run
-#   (measured: at most 3.5e-12).
+#   its longest RK4 substep: GantryCrane, OpAmpFilter, WindGenerator): fmpy steps from k·h by
+#   (k+1)·h − k·h, which differs from h in the last bits; ecos and fmi-sim by h; libcosim
+#   from k·h_ns/10⁹ by the difference of two such points. The substeps differ by rounding,
+#   the trajectories by rounding grown over the run (measured: at most 3.5e-12); driven
+#   through fmpy's FMU2Slave on a tool's own points and steps (`tool_steps`), the FMU gives
+#   the tool's numbers bit for bit (tested).
 EXACT = 0.0
 INTEGRATING_RTOL = 1e-11
 
@@ -519,3 +521,52 @@ def fmpy_model_exchange(sc: Scenario) -> dict[str, np.ndarray]:
                           start_time=sc.start, stop_time=sc.stop, step_size=sc.step,
                           output_interval=sc.step, input=signals)
     return {n: np.asarray(result[n], dtype=float) for n in result.dtype.names}
+
+
+def fmpy_slave_stepped(sc: Scenario, points: np.ndarray,
+                       steps: np.ndarray) -> dict[str, np.ndarray]:
+    """The scenario stepped by hand through fmpy's FMU2Slave from the communication points
+    `points` (t_0 … t_(n−1)) by the steps `steps`, inputs and outputs as fmpy's
+    `simulate_fmu` handles them: the Real outputs."""
+    from fmpy import extract
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(sc.fmu))
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(sc.fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="m")
+    slave.instantiate()
+    slave.setupExperiment(startTime=float(points[0]))
+    slave.enterInitializationMode()
+
+    def set_inputs(t):
+        for name, value in sc.inputs_at(t).items():
+            slave.setReal([vrs[name]], [float(value)])
+
+    reals = [n for n, kind in sc.outputs.items() if kind == "Real"]
+    set_inputs(sc.grid[0])
+    slave.exitInitializationMode()
+    rows = [slave.getReal([vrs[n] for n in reals])]
+    for k in range(sc.steps):
+        set_inputs(sc.grid[k])
+        slave.doStep(float(points[k]), float(steps[k]))
+        rows.append(slave.getReal([vrs[n] for n in reals]))
+    slave.terminate()
+    slave.freeInstance()
+    table = np.array(rows)
+    result = {n: table[:, i] for i, n in enumerate(reals)}
+    result["time"] = sc.grid
+    return result
+
+
+def tool_steps(sc: Scenario, tool: str) -> tuple[np.ndarray, np.ndarray]:
+    """The communication points t_0 … t_(n−1) and steps a tool passes to fmi2DoStep."""
+    n = sc.steps
+    if tool == "fmpy":
+        return sc.grid[:-1], np.diff(sc.grid)
+    if tool == "libcosim":
+        ns = libcosim_nanoseconds(sc.step)
+        points = np.array([sc.start + k * ns / NANOSECONDS for k in range(n + 1)])
+        return points[:-1], np.diff(points)
+    assert tool in ("ecos", "fmi-sim"), tool
+    return sc.grid[:-1], np.full(n, sc.step)

@@ -47,6 +47,24 @@ def test_ecos_equals_fmpy(name):
     engines.assert_equals_fmpy(sc, engines.run_ecos(sc), "ecos")
 
 
+INTEGRATING = ["GantryCrane", "OpAmpFilter", "WindGenerator"]
+
+
+@pytest.mark.parametrize("name", INTEGRATING)
+def test_an_integrating_fmu_differs_from_fmpy_only_by_the_steps_it_is_given(name):
+    """The FMUs that integrate over the step (engines.INTEGRATING_RTOL) driven through
+    fmpy's FMU2Slave on each tool's own communication points and steps give that tool's
+    numbers bit for bit: fmpy's `simulate_fmu`, libcosim and ecos."""
+    sc = engines.scenario(our_fmu(name))
+    assert engines.rounding_rtol(sc) == engines.INTEGRATING_RTOL
+    reals = [n for n, kind in sc.outputs.items() if kind == "Real"]
+    for tool, run in [("fmpy", engines.fmpy_result), ("libcosim", engines.run_libcosim),
+                      ("ecos", engines.run_ecos)]:
+        driven = engines.fmpy_slave_stepped(sc, *engines.tool_steps(sc, tool))
+        assert engines.worst_difference(driven, run(sc), reals)[0] == 0.0, tool
+    assert engines.worst_difference(driven, engines.fmpy_result(sc), reals)[0] > 0.0
+
+
 def proxy_readable(sc: engines.Scenario) -> engines.Scenario:
     """`sc` with its outputs cut to the first PROXYFMU_MAX_REALS Real ones (and every other)."""
     reals = [n for n, kind in sc.outputs.items() if kind == "Real"][:PROXYFMU_MAX_REALS]
