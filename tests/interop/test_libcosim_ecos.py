@@ -11,6 +11,8 @@ What the tools get wrong, pinned here (the README's interoperability section lis
   segmentation fault). Through `proxyfmu` the two FMUs with more Real outputs than that
   (DkfRsKfGenerator: 115, DualKalmanFilterGenerator: 111) are compared on their first
   PROXYFMU_MAX_REALS outputs, and `test_proxyfmu_cuts_off_a_read_of_62_reals` pins the fault.
+- libcosimpy 0.0.6's `time_series_real_samples` drops the last sample of a series read
+  from step 0 (`test_libcosimpy_drops_the_last_sample_of_a_series_read_from_step_0`).
 - ecos applies an SSD's parameter bindings only as a named parameter set chosen at
   initialization (`init(parameter_set=…)`; its command line chooses none): our export names
   each component's set after the component, so the crane's set is `crane`.
@@ -45,6 +47,33 @@ def test_libcosim_equals_fmpy(name):
 def test_ecos_equals_fmpy(name):
     sc = engines.scenario(our_fmu(name))
     engines.assert_equals_fmpy(sc, engines.run_ecos(sc), "ecos")
+
+
+def test_libcosimpy_drops_the_last_sample_of_a_series_read_from_step_0():
+    """libcosimpy 0.0.6's `time_series_real_samples` trims its result by the count of step
+    numbers equal to 0, taken for empty slots: a series read from step 0 (after
+    initialization) loses its last sample. engines.run_libcosim reads the series through
+    libcosimc itself; this pins the wrapper's answer: the first n of n + 1."""
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    sc = engines.scenario(our_fmu("SignalSource"))
+    steps = 10
+    execution = CosimExecution.from_step_size(engines.libcosim_nanoseconds(sc.step))
+    slave = execution.add_local_slave(CosimLocalSlave(fmu_path=str(sc.fmu), instance_name="m"))
+    vr = {v.name.decode(): v.reference for v in execution.slave_variables(slave)}["y"]
+    series = CosimObserver.create_time_series(buffer_size=steps + 1)
+    execution.add_observer(series)
+    assert series.start_time_series(slave, vr, CosimVariableType.REAL)
+    assert execution.step(steps)
+    times, numbers, values = series.time_series_real_samples(slave, vr, from_step=0,
+                                                             sample_count=steps + 1)
+    assert list(numbers) == list(range(steps))  # step `steps` is missing
+    right = engines._libcosim_real_or_integer_samples(series, slave, vr, "Real", steps + 1)
+    assert list(values) == list(right[:steps])
+    assert np.array_equal(right, engines.fmpy_result(sc)["y"][: steps + 1])
 
 
 INTEGRATING = ["GantryCrane", "OpAmpFilter", "WindGenerator"]
