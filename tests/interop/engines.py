@@ -1,9 +1,10 @@
 """Our FMUs in the fixed-step masters of libcosim (the Open Simulation Platform's engine,
 PyPI `libcosimpy`, which bundles `libcosimc`) and ecos (PyPI `ecospy`, in process and through
-`proxyfmu`, out of process), driven through the cross-check scenario of each FMU
-(fmus/<Id>/crosscheck/: `_ref.opt` the experiment, `_in.csv` the inputs), and compared with
-fmpy's run of the same scenario (`scripts/crosscheck.py simulate`, as the `_ref.csv` were
-written).
+`proxyfmu`, out of process), and in rust-fmi's simulator `fmi-sim`, driven through the
+cross-check scenario of each FMU (fmus/<Id>/crosscheck/: `_ref.opt` the experiment,
+`_in.csv` the inputs), and compared with fmpy's run of the same scenario
+(`scripts/crosscheck.py simulate`, as the `_ref.csv` were written); our SSP 1.0 exports of
+the crane systems in libcosim and ecos, against fmpy's SSP runner.
 
 How the scenario is applied (what fmpy does, `simulateCS`): the inputs at the start time are
 set in initialization mode; before the step from t_k, the inputs at t_k (the last row of
@@ -17,7 +18,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path

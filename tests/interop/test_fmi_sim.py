@@ -15,7 +15,7 @@ The inputs are the scenario's, written one row per communication point
 
 import numpy as np
 import pytest
-from fmpy import read_model_description, simulate_fmu
+from fmpy import read_model_description
 
 from conftest import FMU_DIR, our_fmu, our_fmus
 import engines

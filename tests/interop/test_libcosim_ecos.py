@@ -20,12 +20,11 @@ What the tools get wrong, pinned here (the README's interoperability section lis
 
 import subprocess
 import sys
-import zipfile
 
 import numpy as np
 import pytest
 
-from conftest import REPO, our_fmu, our_fmus, spurio
+from conftest import REPO, our_fmu, our_fmus
 import engines
 
 FMUS = our_fmus()
