@@ -1,0 +1,179 @@
+//! An FMU's XML files checked against the standard's XML schemas with libxml2's XML Schema
+//! validator: the model description (FMI 2.0 `fmi2ModelDescription.xsd`, FMI 3.0
+//! `fmi3ModelDescription.xsd`) and FMI 3.0's other files where an FMU has them,
+//! `terminalsAndIcons/terminalsAndIcons.xml` (`fmi3TerminalsAndIcons.xsd`) and
+//! `sources/buildDescription.xml` (`fmi3BuildDescription.xsd`). The schema files are the standard's own, committed under
+//! `master/inspect/schema/` (BSD licence; `schema/README.md` says where they come from) and
+//! built into the library; they are written to a temporary folder for libxml2, which
+//! resolves their `xs:include`s beside them.
+
+use crate::{InspectError, Problem, Rule};
+use libxml::parser::{Parser, ParserOptions};
+use libxml::schemas::{SchemaParserContext, SchemaValidationContext};
+use std::sync::Mutex;
+
+/// The schema files of each version: (file name, text).
+const FMI2: &[(&str, &str)] = &[
+    (
+        "fmi2ModelDescription.xsd",
+        include_str!("../schema/fmi2/fmi2ModelDescription.xsd"),
+    ),
+    (
+        "fmi2Annotation.xsd",
+        include_str!("../schema/fmi2/fmi2Annotation.xsd"),
+    ),
+    (
+        "fmi2AttributeGroups.xsd",
+        include_str!("../schema/fmi2/fmi2AttributeGroups.xsd"),
+    ),
+    (
+        "fmi2ScalarVariable.xsd",
+        include_str!("../schema/fmi2/fmi2ScalarVariable.xsd"),
+    ),
+    ("fmi2Type.xsd", include_str!("../schema/fmi2/fmi2Type.xsd")),
+    ("fmi2Unit.xsd", include_str!("../schema/fmi2/fmi2Unit.xsd")),
+    (
+        "fmi2VariableDependency.xsd",
+        include_str!("../schema/fmi2/fmi2VariableDependency.xsd"),
+    ),
+];
+
+const FMI3: &[(&str, &str)] = &[
+    (
+        "fmi3ModelDescription.xsd",
+        include_str!("../schema/fmi3/fmi3ModelDescription.xsd"),
+    ),
+    (
+        "fmi3Annotation.xsd",
+        include_str!("../schema/fmi3/fmi3Annotation.xsd"),
+    ),
+    (
+        "fmi3AttributeGroups.xsd",
+        include_str!("../schema/fmi3/fmi3AttributeGroups.xsd"),
+    ),
+    (
+        "fmi3InterfaceType.xsd",
+        include_str!("../schema/fmi3/fmi3InterfaceType.xsd"),
+    ),
+    ("fmi3Type.xsd", include_str!("../schema/fmi3/fmi3Type.xsd")),
+    ("fmi3Unit.xsd", include_str!("../schema/fmi3/fmi3Unit.xsd")),
+    (
+        "fmi3Variable.xsd",
+        include_str!("../schema/fmi3/fmi3Variable.xsd"),
+    ),
+    (
+        "fmi3VariableDependency.xsd",
+        include_str!("../schema/fmi3/fmi3VariableDependency.xsd"),
+    ),
+    (
+        "fmi3Terminal.xsd",
+        include_str!("../schema/fmi3/fmi3Terminal.xsd"),
+    ),
+    (
+        "fmi3TerminalsAndIcons.xsd",
+        include_str!("../schema/fmi3/fmi3TerminalsAndIcons.xsd"),
+    ),
+    (
+        "fmi3BuildDescription.xsd",
+        include_str!("../schema/fmi3/fmi3BuildDescription.xsd"),
+    ),
+];
+
+/// A schema of the standard: the kind of file it describes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Schema {
+    Fmi2ModelDescription,
+    Fmi3ModelDescription,
+    Fmi3TerminalsAndIcons,
+    Fmi3BuildDescription,
+}
+
+impl Schema {
+    /// The schema files it is made of, and the one that is its entry point.
+    fn files(self) -> (&'static [(&'static str, &'static str)], &'static str) {
+        match self {
+            Self::Fmi2ModelDescription => (FMI2, "fmi2ModelDescription.xsd"),
+            Self::Fmi3ModelDescription => (FMI3, "fmi3ModelDescription.xsd"),
+            Self::Fmi3TerminalsAndIcons => (FMI3, "fmi3TerminalsAndIcons.xsd"),
+            Self::Fmi3BuildDescription => (FMI3, "fmi3BuildDescription.xsd"),
+        }
+    }
+}
+
+/// libxml2's schema code is used by one thread at a time (its wrapper is not documented as
+/// safe to share between threads).
+static LIBXML: Mutex<()> = Mutex::new(());
+
+/// The complaints of `schema` about `xml` (the well-formed text of the archive entry
+/// `place`), each with its line.
+pub fn validate(xml: &str, schema: Schema, place: &str) -> Result<Vec<Problem>, InspectError> {
+    let (files, entry) = schema.files();
+    let folder = tempfile::Builder::new()
+        .prefix("spurio-xsd-")
+        .tempdir()
+        .map_err(|e| InspectError::Schema(format!("cannot create a temporary folder: {e}")))?;
+    for (name, text) in files {
+        std::fs::write(folder.path().join(name), text)
+            .map_err(|e| InspectError::Schema(format!("cannot write {name}: {e}")))?;
+    }
+    let entry = folder.path().join(entry);
+    let entry = entry
+        .to_str()
+        .ok_or_else(|| InspectError::Schema(format!("{} is not UTF-8", entry.display())))?
+        .to_string();
+    let _one_at_a_time = LIBXML
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    // The wrapper panics where libxml2 returns a null context (out of memory): that is
+    // answered as an error, not a crash.
+    std::panic::catch_unwind(|| run(&entry, xml, place)).unwrap_or_else(|_| {
+        Err(InspectError::Schema(
+            "libxml2 failed to set up the validation".into(),
+        ))
+    })
+}
+
+fn run(schema: &str, xml: &str, place: &str) -> Result<Vec<Problem>, InspectError> {
+    let mut parser = SchemaParserContext::from_file(schema);
+    let mut context = SchemaValidationContext::from_parser(&mut parser).map_err(|errors| {
+        let first = errors
+            .first()
+            .and_then(|e| e.message.clone())
+            .unwrap_or_default();
+        InspectError::Schema(format!(
+            "the built-in schema {schema} does not parse: {first}"
+        ))
+    })?;
+    let options = ParserOptions {
+        recover: false,
+        no_net: true,
+        ..Default::default()
+    };
+    let document = Parser::default()
+        .parse_string_with_options(xml, options)
+        .map_err(|e| InspectError::IllFormed {
+            file: place.to_string(),
+            reason: format!("libxml2: {e:?}"),
+        })?;
+    let problems = match context.validate_document(&document) {
+        Ok(()) => Vec::new(),
+        Err(errors) => errors
+            .into_iter()
+            .map(|e| Problem {
+                rule: Rule::Schema,
+                severity: crate::Severity::Error,
+                place: place.to_string(),
+                line: e
+                    .line
+                    .and_then(|l| u32::try_from(l).ok())
+                    .filter(|l| *l > 0),
+                message: e
+                    .message
+                    .unwrap_or_else(|| "the schema refuses it".into())
+                    .trim()
+                    .to_string(),
+            })
+            .collect(),
+    };
+    Ok(problems)
+}
