@@ -17,17 +17,18 @@ struct Row<'a> {
 fn rows(md: &ModelDescription) -> Vec<Row<'_>> {
     let mut rows = Vec::new();
     for v in &md.variables {
+        let description = v.element.get("description");
         rows.push(Row {
-            name: &v.name,
+            name: v.name(),
             variable: v,
             alias_of: None,
-            description: v.description.as_deref(),
+            description,
         });
         rows.extend(v.aliases.iter().map(|a| Row {
-            name: &a.name,
+            name: a.get("name").unwrap_or_default(),
             variable: v,
-            alias_of: Some(&v.name),
-            description: a.description.as_deref().or(v.description.as_deref()),
+            alias_of: Some(v.name()),
+            description: a.get("description").or(description),
         }));
     }
     rows
@@ -42,8 +43,8 @@ fn shape(v: &Variable) -> String {
     let extents: Vec<String> = v
         .dimensions
         .iter()
-        .map(|d| match (&d.start, &d.value_reference) {
-            (Some(n), _) => n.clone(),
+        .map(|d| match (d.get("start"), d.get("valueReference")) {
+            (Some(n), _) => n.to_string(),
             (None, Some(vr)) => format!("#{vr}"),
             (None, None) => "?".into(),
         })
@@ -51,178 +52,145 @@ fn shape(v: &Variable) -> String {
     format!("[{}]", extents.join(","))
 }
 
-/// `spurio info`: the summary and every variable, as text or JSON.
-pub fn info(path: &Path, as_json: bool) -> Result<()> {
-    let fmu = Fmu::open(path)?;
+/// The attributes of a variable's row, as JSON keys and table columns: its own, then those
+/// in force by the standard's defaults (causality, variability, initial) or its declared
+/// type (unit).
+const COLUMNS: [&str; 12] = [
+    "name",
+    "value_reference",
+    "causality",
+    "variability",
+    "initial",
+    "type",
+    "unit",
+    "start",
+    "min",
+    "max",
+    "alias_of",
+    "description",
+];
+
+/// The values of `row` in the order of [`COLUMNS`].
+fn values(md: &ModelDescription, row: &Row) -> [Option<String>; 12] {
+    let v = row.variable;
+    let written = |name| v.element.text(name);
+    [
+        Some(row.name.to_string()),
+        written("valueReference"),
+        Some(v.causality().to_string()),
+        Some(md.variability(v)),
+        md.initial(v),
+        Some(format!("{}{}", v.type_name, shape(v))),
+        md.unit_of(v).map(str::to_string),
+        written("start"),
+        written("min"),
+        written("max"),
+        row.alias_of.map(str::to_string),
+        row.description.map(str::to_string),
+    ]
+}
+
+/// The FMU's summary: (JSON key, label, value).
+fn summary(fmu: &Fmu) -> Vec<(&'static str, &'static str, Value)> {
     let md = &fmu.model_description;
-    let platforms = fmu.platforms();
-    if as_json {
-        say!(
-            "{}",
-            serde_json::to_string_pretty(&info_json(&fmu, &platforms))?
-        );
-        return Ok(());
-    }
-    let or_none = |s: &Option<String>| s.clone().unwrap_or_else(|| "-".into());
-    let interfaces: Vec<String> = md
+    let interfaces: Vec<Value> = md
         .interfaces
         .iter()
-        .map(|i| {
-            format!(
-                "{} ({})",
-                i.kind.element(),
-                i.model_identifier
-                    .as_deref()
-                    .unwrap_or("no modelIdentifier")
-            )
-        })
+        .map(|(kind, e)| json!({"kind": kind.short(), "element": kind.element(), "model_identifier": e.get("modelIdentifier")}))
         .collect();
-    let mut places = platforms.clone();
-    if fmu.archive.has_sources() {
-        places.push("sources".into());
-    }
+    let experiment = md.default_experiment.as_ref().map(|e| {
+        let given = ["startTime", "stopTime", "stepSize", "tolerance"]
+            .iter()
+            .filter_map(|name| e.get(name).map(|v| (name.to_string(), json!(v))));
+        Value::Object(given.collect())
+    });
     let token = match md.version {
         spurio_inspect::Version::Fmi2 => "GUID",
         spurio_inspect::Version::Fmi3 => "instantiation token",
     };
-    say!("{}", path.display());
-    say!("  {:<20} {}", "FMI version", md.fmi_version);
-    say!("  {:<20} {}", "interfaces", interfaces.join(", "));
-    say!("  {:<20} {}", "model name", or_none(&md.model_name));
-    say!("  {:<20} {}", "description", or_none(&md.description));
-    say!("  {:<20} {}", token, or_none(&md.token));
-    say!(
-        "  {:<20} {}",
-        "generation tool",
-        or_none(&md.generation_tool)
-    );
-    say!(
-        "  {:<20} {}",
-        "platforms",
-        if places.is_empty() {
-            "none".into()
-        } else {
-            places.join(", ")
-        }
-    );
-    let experiment = match &md.default_experiment {
-        None => "none".to_string(),
-        Some(e) => [
-            ("start", &e.start_time),
-            ("stop", &e.stop_time),
-            ("step size", &e.step_size),
-            ("tolerance", &e.tolerance),
-        ]
-        .iter()
-        .filter_map(|(name, value)| value.as_ref().map(|v| format!("{name} {v}")))
-        .collect::<Vec<_>>()
-        .join(", "),
-    };
-    say!("  {:<20} {}", "default experiment", experiment);
-    let rows = rows(md);
-    say!("  {:<20} {}", "variables", rows.len());
-    say!("");
-    let header = [
-        "name",
-        "vr",
-        "causality",
-        "variability",
-        "type",
-        "unit",
-        "start",
-        "min",
-        "max",
-        "description",
-    ];
-    let table: Vec<[String; 10]> = rows
-        .iter()
-        .map(|r| {
-            let v = r.variable;
-            let description = match r.alias_of {
-                Some(of) => format!("(alias of {of}) {}", r.description.unwrap_or_default()),
-                None => r.description.unwrap_or_default().to_string(),
-            };
-            [
-                r.name.to_string(),
-                v.value_reference.clone().unwrap_or_default(),
-                v.causality().to_string(),
-                md.variability(v),
-                format!("{}{}", v.type_name, shape(v)),
-                md.unit_of(v).unwrap_or_default(),
-                v.start.clone().unwrap_or_default(),
-                v.min.clone().unwrap_or_default(),
-                v.max.clone().unwrap_or_default(),
-                description,
-            ]
-        })
-        .collect();
-    let mut widths = header.map(str::len);
-    for row in &table {
-        for (w, cell) in widths.iter_mut().zip(row) {
-            *w = (*w).max(cell.chars().count());
-        }
-    }
-    let line = |cells: &[String]| {
-        let padded: Vec<String> = cells
-            .iter()
-            .zip(widths)
-            .map(|(c, w)| format!("{c:<w$}"))
-            .collect();
-        padded.join("  ").trim_end().to_string()
-    };
-    say!("  {}", line(&header.map(String::from)));
-    for row in &table {
-        say!("  {}", line(row));
-    }
-    Ok(())
+    let root = |name| json!(md.root.get(name));
+    vec![
+        ("fmi_version", "FMI version", root("fmiVersion")),
+        ("interfaces", "interfaces", json!(interfaces)),
+        ("model_name", "model name", root("modelName")),
+        ("description", "description", root("description")),
+        ("token", token, json!(md.token())),
+        ("generation_tool", "generation tool", root("generationTool")),
+        ("platforms", "platforms", json!(fmu.platforms())),
+        ("sources", "C sources", json!(fmu.archive.has_sources())),
+        (
+            "default_experiment",
+            "default experiment",
+            json!(experiment),
+        ),
+    ]
 }
 
-fn info_json(fmu: &Fmu, platforms: &[String]) -> Value {
+/// A summary value as text: `-` for none, a list joined by commas, an interface as
+/// `Element (identifier)`, the default experiment as `name value` pairs.
+fn as_text(value: &Value) -> String {
+    match value {
+        Value::Null => "-".into(),
+        Value::String(s) => s.clone(),
+        Value::Array(items) if items.is_empty() => "none".into(),
+        Value::Array(items) => items.iter().map(as_text).collect::<Vec<_>>().join(", "),
+        Value::Object(map) if map.contains_key("element") => format!(
+            "{} ({})",
+            as_text(&map["element"]),
+            as_text(&map["model_identifier"])
+        ),
+        Value::Object(map) => map
+            .iter()
+            .map(|(k, v)| format!("{k} {}", as_text(v)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        other => other.to_string(),
+    }
+}
+
+/// `spurio info`: the summary and every variable, as text or JSON.
+pub fn info(path: &Path, as_json: bool) -> Result<()> {
+    let fmu = Fmu::open(path)?;
     let md = &fmu.model_description;
-    let variables: Vec<Value> = rows(md)
-        .iter()
-        .map(|r| {
-            let v = r.variable;
-            json!({
-                "name": r.name,
-                "alias_of": r.alias_of,
-                "value_reference": v.value_reference,
-                "causality": v.causality(),
-                "variability": md.variability(v),
-                "initial": md.initial(v),
-                "type": v.type_name,
-                "dimensions": shape(v),
-                "unit": md.unit_of(v),
-                "display_unit": v.display_unit,
-                "start": v.start,
-                "min": v.min,
-                "max": v.max,
-                "nominal": v.nominal,
-                "derivative": v.derivative,
-                "description": r.description,
-            })
-        })
-        .collect();
-    json!({
-        "fmi_version": md.fmi_version,
-        "interfaces": md.interfaces.iter().map(|i| json!({
-            "kind": i.kind.short(),
-            "model_identifier": i.model_identifier,
-        })).collect::<Vec<_>>(),
-        "model_name": md.model_name,
-        "description": md.description,
-        "token": md.token,
-        "generation_tool": md.generation_tool,
-        "platforms": platforms,
-        "sources": fmu.archive.has_sources(),
-        "default_experiment": md.default_experiment.as_ref().map(|e| json!({
-            "start_time": e.start_time,
-            "stop_time": e.stop_time,
-            "step_size": e.step_size,
-            "tolerance": e.tolerance,
-        })),
-        "variables": variables,
-    })
+    let table: Vec<[Option<String>; 12]> = rows(md).iter().map(|r| values(md, r)).collect();
+    if as_json {
+        let mut out: serde_json::Map<String, Value> = summary(&fmu)
+            .into_iter()
+            .map(|(key, _, value)| (key.to_string(), value))
+            .collect();
+        let variables = table.iter().map(|row| {
+            let fields = COLUMNS
+                .iter()
+                .zip(row)
+                .map(|(k, v)| (k.to_string(), json!(v)));
+            Value::Object(fields.collect())
+        });
+        out.insert("variables".into(), Value::Array(variables.collect()));
+        say!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    say!("{}", path.display());
+    for (_, label, value) in summary(&fmu) {
+        say!("  {label:<20} {}", as_text(&value));
+    }
+    say!("  {:<20} {}", "variables", table.len());
+    say!("");
+    let header = COLUMNS.map(|c| Some(c.replace('_', " ")));
+    let mut widths = [0usize; 12];
+    for row in std::iter::once(&header).chain(&table) {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.as_deref().map_or(1, |c| c.chars().count()));
+        }
+    }
+    for row in std::iter::once(&header).chain(&table) {
+        let cells: Vec<String> = row
+            .iter()
+            .zip(widths)
+            .map(|(c, w)| format!("{:<w$}", c.as_deref().unwrap_or("-")))
+            .collect();
+        say!("  {}", cells.join("  ").trim_end());
+    }
+    Ok(())
 }
 
 /// `spurio validate`: every problem on stdout; fails when there is an error.
@@ -236,27 +204,20 @@ pub fn validate(path: &Path) -> Result<()> {
         .iter()
         .filter(|p| p.severity == Severity::Error)
         .count();
-    let warnings = problems.len() - errors;
+    let warnings = match problems.len() - errors {
+        0 => String::new(),
+        n => format!(", {n} warning(s)"),
+    };
     let version = fmu.model_description.version.number();
     if errors > 0 {
         bail!(
-            "{}: {errors} problem(s) against FMI {version}{}",
-            path.display(),
-            if warnings > 0 {
-                format!(" and {warnings} warning(s)")
-            } else {
-                String::new()
-            }
+            "{}: {errors} problem(s) against FMI {version}{warnings}",
+            path.display()
         );
     }
     say!(
-        "{}: valid FMI {version} (the standard's schema and rules){}",
-        path.display(),
-        if warnings > 0 {
-            format!(", {warnings} warning(s)")
-        } else {
-            String::new()
-        }
+        "{}: valid FMI {version} (the standard's schema and rules){warnings}",
+        path.display()
     );
     Ok(())
 }

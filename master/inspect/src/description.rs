@@ -10,14 +10,11 @@
 
 use crate::InspectError;
 use roxmltree::{Document, Node};
-use serde::Serialize;
 
 /// The FMI version of a model description.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Version {
-    #[serde(rename = "2.0")]
     Fmi2,
-    #[serde(rename = "3.0")]
     Fmi3,
 }
 
@@ -32,7 +29,7 @@ impl Version {
 }
 
 /// An interface the FMU declares.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InterfaceKind {
     ModelExchange,
     CoSimulation,
@@ -59,94 +56,80 @@ impl InterfaceKind {
     }
 }
 
-/// `<ModelExchange>`, `<CoSimulation>` or `<ScheduledExecution>`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Interface {
-    pub kind: InterfaceKind,
-    pub model_identifier: Option<String>,
+/// An element as written: its attributes (in file order) and its line.
+#[derive(Debug, Clone)]
+pub struct Element {
     pub line: u32,
+    pub attributes: Vec<(String, String)>,
 }
 
-/// `<DefaultExperiment>`, its attributes as written.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct DefaultExperiment {
-    pub start_time: Option<String>,
-    pub stop_time: Option<String>,
-    pub tolerance: Option<String>,
-    pub step_size: Option<String>,
-    pub line: u32,
+impl Element {
+    /// The attributes of `node` (no namespace) and its line.
+    fn of(doc: &Document, node: Node) -> Self {
+        Self {
+            line: doc.text_pos_at(node.range().start).row,
+            attributes: node
+                .attributes()
+                .filter(|a| a.namespace().is_none())
+                .map(|a| (a.name().to_string(), a.value().to_string()))
+                .collect(),
+        }
+    }
+
+    /// The attribute `name`, if written.
+    pub fn get(&self, name: &str) -> Option<&str> {
+        self.attributes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// The attribute `name` as an owned string.
+    pub fn text(&self, name: &str) -> Option<String> {
+        self.get(name).map(str::to_string)
+    }
+
+    /// The attribute `name` split at whitespace; `None` when it is absent.
+    pub fn words(&self, name: &str) -> Option<Vec<&str>> {
+        self.get(name).map(|v| v.split_whitespace().collect())
+    }
+}
+
+/// A type definition: FMI 2.0 `<SimpleType name>` with its type element, FMI 3.0
+/// `<Float64Type name …>` and the like.
+#[derive(Debug, Clone)]
+pub struct TypeDefinition {
+    /// `Real`, `Float64`, `Enumeration`, …
+    pub type_name: String,
+    /// The attributes of the definition (`name`) and of its type (`unit`, `displayUnit`, …).
+    pub element: Element,
 }
 
 /// A `<Unit>` of `UnitDefinitions` and the names of its display units.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone)]
 pub struct Unit {
-    pub name: String,
+    pub element: Element,
     pub display_units: Vec<String>,
-    pub line: u32,
 }
 
-/// A type definition (FMI 2.0 `<SimpleType>`, FMI 3.0 `<Float64Type>` …).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TypeDefinition {
-    pub name: String,
-    /// `Real`, `Float64`, `Enumeration`, …
-    pub type_name: String,
-    pub unit: Option<String>,
-    pub display_unit: Option<String>,
-    pub line: u32,
-}
-
-/// An FMI 3.0 `<Dimension>`: a fixed extent (`start`) or the value reference of the
-/// structural parameter that holds it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Dimension {
-    pub start: Option<String>,
-    pub value_reference: Option<String>,
-    pub line: u32,
-}
-
-/// An FMI 3.0 `<Alias>`: another name of its variable.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Alias {
-    pub name: String,
-    pub description: Option<String>,
-    pub display_unit: Option<String>,
-    pub line: u32,
-}
-
-/// One variable of `ModelVariables`, its attributes as written.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One variable of `ModelVariables`: its `type_name` (FMI 2.0: `Real`, `Integer`, `Boolean`,
+/// `String`, `Enumeration`, empty when it has no type element; FMI 3.0: the element,
+/// `Float64`, `Int32`, `Binary`, `Clock`, …); in `element` the attributes of the variable and,
+/// in FMI 2.0, of its type element (`start`, `unit`, `min`, … live there; the two never share
+/// a name), as written, where the `start` of an FMI 3.0 String or Binary variable is its
+/// `<Start value>` children joined by spaces; FMI 3.0's `<Dimension>`s (a fixed extent
+/// `start`, or the `valueReference` of the structural parameter that holds it) and
+/// `<Alias>`es (`name`, `description`, `displayUnit`).
+#[derive(Debug, Clone)]
 pub struct Variable {
-    pub name: String,
-    pub value_reference: Option<String>,
-    /// FMI 2.0: `Real`, `Integer`, `Boolean`, `String`, `Enumeration`; FMI 3.0: the element
-    /// (`Float64`, `Int32`, `Binary`, `Clock`, …). Empty when an FMI 2.0 variable has no type
-    /// element.
     pub type_name: String,
-    pub description: Option<String>,
-    /// As written; absent is `local`.
-    pub causality: Option<String>,
-    pub variability: Option<String>,
-    pub initial: Option<String>,
-    pub declared_type: Option<String>,
-    pub unit: Option<String>,
-    pub display_unit: Option<String>,
-    /// The start value: the attribute, or FMI 3.0's `<Start value>` children of a String or
-    /// Binary variable joined by spaces.
-    pub start: Option<String>,
-    pub min: Option<String>,
-    pub max: Option<String>,
-    pub nominal: Option<String>,
-    /// FMI 2.0: the 1-based index of the state; FMI 3.0: its value reference.
-    pub derivative: Option<String>,
-    pub clocks: Option<String>,
-    pub dimensions: Vec<Dimension>,
-    pub aliases: Vec<Alias>,
-    pub line: u32,
+    pub element: Element,
+    pub dimensions: Vec<Element>,
+    pub aliases: Vec<Element>,
 }
 
 /// The lists of `ModelStructure`, in both versions' terms.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum StructureList {
     /// FMI 2.0 `<Outputs>`, FMI 3.0 `<Output>`.
     Outputs,
@@ -176,52 +159,36 @@ impl StructureList {
     }
 }
 
-/// An entry of `ModelStructure`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// An entry of `ModelStructure`: FMI 2.0 `<Unknown index>`, FMI 3.0 `<Output
+/// valueReference>` and the like, with its `dependencies` and `dependenciesKind`.
+#[derive(Debug, Clone)]
 pub struct Unknown {
     pub list: StructureList,
-    /// FMI 2.0: `index` (1-based position); FMI 3.0: `valueReference`.
-    pub reference: Option<String>,
-    /// Split at whitespace; `None` when the attribute is absent.
-    pub dependencies: Option<Vec<String>>,
-    pub dependencies_kind: Option<Vec<String>>,
-    pub line: u32,
+    pub element: Element,
+}
+
+impl Unknown {
+    /// The variable it is: FMI 2.0 `index` (1-based position), FMI 3.0 `valueReference`.
+    pub fn reference(&self) -> Option<&str> {
+        self.element
+            .get("index")
+            .or_else(|| self.element.get("valueReference"))
+    }
 }
 
 /// A model description of FMI 2.0 or 3.0.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone)]
 pub struct ModelDescription {
-    /// `fmiVersion` as written.
-    pub fmi_version: String,
     pub version: Version,
-    pub model_name: Option<String>,
-    /// FMI 2.0 `guid`, FMI 3.0 `instantiationToken`.
-    pub token: Option<String>,
-    pub description: Option<String>,
-    pub generation_tool: Option<String>,
-    pub generation_date_and_time: Option<String>,
-    /// `flat` (the default) or `structured`.
-    pub variable_naming_convention: Option<String>,
-    pub interfaces: Vec<Interface>,
-    pub default_experiment: Option<DefaultExperiment>,
+    /// `<fmiModelDescription>`: `fmiVersion`, `modelName`, `guid` (FMI 3.0:
+    /// `instantiationToken`), `generationTool`, `variableNamingConvention`, …
+    pub root: Element,
+    pub interfaces: Vec<(InterfaceKind, Element)>,
+    pub default_experiment: Option<Element>,
     pub units: Vec<Unit>,
     pub types: Vec<TypeDefinition>,
     pub variables: Vec<Variable>,
     pub structure: Vec<Unknown>,
-}
-
-/// The 1-based line of `node`.
-fn line(doc: &Document, node: Node) -> u32 {
-    doc.text_pos_at(node.range().start).row
-}
-
-fn text(node: Node, name: &str) -> Option<String> {
-    node.attribute(name).map(str::to_string)
-}
-
-fn words(node: Node, name: &str) -> Option<Vec<String>> {
-    node.attribute(name)
-        .map(|v| v.split_whitespace().map(str::to_string).collect())
 }
 
 fn children<'a, 'input>(
@@ -234,25 +201,6 @@ fn children<'a, 'input>(
 
 /// The FMI 2.0 type elements of a `<ScalarVariable>`.
 const FMI2_TYPES: [&str; 5] = ["Real", "Integer", "Boolean", "String", "Enumeration"];
-
-/// The FMI 3.0 variable elements.
-pub const FMI3_TYPES: [&str; 15] = [
-    "Float32",
-    "Float64",
-    "Int8",
-    "UInt8",
-    "Int16",
-    "UInt16",
-    "Int32",
-    "UInt32",
-    "Int64",
-    "UInt64",
-    "Boolean",
-    "String",
-    "Binary",
-    "Enumeration",
-    "Clock",
-];
 
 impl ModelDescription {
     /// Reads the text of a `modelDescription.xml`; fails only when it is not well-formed XML
@@ -274,7 +222,7 @@ impl ModelDescription {
                 root.tag_name().name()
             )));
         }
-        let fmi_version = root.attribute("fmiVersion").unwrap_or_default().to_string();
+        let fmi_version = root.attribute("fmiVersion").unwrap_or_default();
         let version = if fmi_version == "2.0" {
             Version::Fmi2
         } else if fmi_version.starts_with("3.") {
@@ -291,54 +239,20 @@ impl ModelDescription {
         ]
         .iter()
         .flat_map(|&kind| children(root, kind.element()).map(move |n| (kind, n)))
-        .map(|(kind, n)| Interface {
-            kind,
-            model_identifier: text(n, "modelIdentifier"),
-            line: line(&doc, n),
-        })
+        .map(|(kind, n)| (kind, Element::of(&doc, n)))
         .collect();
-        let default_experiment =
-            children(root, "DefaultExperiment")
-                .next()
-                .map(|n| DefaultExperiment {
-                    start_time: text(n, "startTime"),
-                    stop_time: text(n, "stopTime"),
-                    tolerance: text(n, "tolerance"),
-                    step_size: text(n, "stepSize"),
-                    line: line(&doc, n),
-                });
         let units = children(root, "UnitDefinitions")
             .flat_map(|d| children(d, "Unit"))
             .map(|u| Unit {
-                name: u.attribute("name").unwrap_or_default().to_string(),
+                element: Element::of(&doc, u),
                 display_units: children(u, "DisplayUnit")
-                    .filter_map(|d| text(d, "name"))
+                    .filter_map(|d| d.attribute("name").map(str::to_string))
                     .collect(),
-                line: line(&doc, u),
             })
             .collect();
         let types = children(root, "TypeDefinitions")
             .flat_map(|d| d.children().filter(|c| c.is_element()))
-            .map(|t| {
-                // FMI 2.0: <SimpleType name><Real unit/></SimpleType>; FMI 3.0: <Float64Type name unit/>.
-                let (named, typed, type_name) = match version {
-                    Version::Fmi2 => {
-                        let inner = t.first_element_child().unwrap_or(t);
-                        (t, inner, inner.tag_name().name().to_string())
-                    }
-                    Version::Fmi3 => {
-                        let tag = t.tag_name().name();
-                        (t, t, tag.strip_suffix("Type").unwrap_or(tag).to_string())
-                    }
-                };
-                TypeDefinition {
-                    name: named.attribute("name").unwrap_or_default().to_string(),
-                    type_name,
-                    unit: text(typed, "unit"),
-                    display_unit: text(typed, "displayUnit"),
-                    line: line(&doc, t),
-                }
-            })
+            .map(|t| type_definition(&doc, t, version))
             .collect();
         let variables = children(root, "ModelVariables")
             .flat_map(|m| m.children().filter(|c| c.is_element()))
@@ -347,18 +261,12 @@ impl ModelDescription {
         let structure = children(root, "ModelStructure")
             .flat_map(|m| structure(&doc, m, version))
             .collect();
+        let default_experiment = children(root, "DefaultExperiment")
+            .next()
+            .map(|n| Element::of(&doc, n));
         Ok(Self {
-            fmi_version,
             version,
-            model_name: text(root, "modelName"),
-            token: match version {
-                Version::Fmi2 => text(root, "guid"),
-                Version::Fmi3 => text(root, "instantiationToken"),
-            },
-            description: text(root, "description"),
-            generation_tool: text(root, "generationTool"),
-            generation_date_and_time: text(root, "generationDateAndTime"),
-            variable_naming_convention: text(root, "variableNamingConvention"),
+            root: Element::of(&doc, root),
             interfaces,
             default_experiment,
             units,
@@ -368,18 +276,28 @@ impl ModelDescription {
         })
     }
 
+    /// The GUID (FMI 2.0) or instantiation token (FMI 3.0).
+    pub fn token(&self) -> Option<&str> {
+        match self.version {
+            Version::Fmi2 => self.root.get("guid"),
+            Version::Fmi3 => self.root.get("instantiationToken"),
+        }
+    }
+
     /// The type definition called `name`.
     pub fn type_definition(&self, name: &str) -> Option<&TypeDefinition> {
-        self.types.iter().find(|t| t.name == name)
+        self.types
+            .iter()
+            .find(|t| t.element.get("name") == Some(name))
     }
 
     /// A variable's unit: its own, else its declared type's.
-    pub fn unit_of(&self, v: &Variable) -> Option<String> {
-        v.unit.clone().or_else(|| {
-            v.declared_type
-                .as_deref()
+    pub fn unit_of<'a>(&'a self, v: &'a Variable) -> Option<&'a str> {
+        v.element.get("unit").or_else(|| {
+            v.element
+                .get("declaredType")
                 .and_then(|t| self.type_definition(t))
-                .and_then(|t| t.unit.clone())
+                .and_then(|t| t.element.get("unit"))
         })
     }
 
@@ -387,8 +305,8 @@ impl ModelDescription {
     /// `continuous`; FMI 3.0: `fixed` for parameters, `continuous` for floats, `discrete`
     /// otherwise).
     pub fn variability(&self, v: &Variable) -> String {
-        if let Some(written) = &v.variability {
-            return written.clone();
+        if let Some(written) = v.element.get("variability") {
+            return written.to_string();
         }
         let default = match self.version {
             Version::Fmi2 => "continuous",
@@ -405,8 +323,8 @@ impl ModelDescription {
     /// and variability (FMI 2.0 table in section 2.2.7, FMI 3.0 section 2.4.7.4); `None` for
     /// `independent` and for a combination that has no default (an illegal one).
     pub fn initial(&self, v: &Variable) -> Option<String> {
-        if let Some(written) = &v.initial {
-            return Some(written.clone());
+        if let Some(written) = v.element.get("initial") {
+            return Some(written.to_string());
         }
         let default = match (self.variability(v).as_str(), v.causality()) {
             ("constant", "output" | "local") => "exact",
@@ -423,7 +341,22 @@ impl ModelDescription {
 impl Variable {
     /// The causality in force (absent is `local`).
     pub fn causality(&self) -> &str {
-        self.causality.as_deref().unwrap_or("local")
+        self.element.get("causality").unwrap_or("local")
+    }
+
+    /// Its line.
+    pub fn line(&self) -> u32 {
+        self.element.line
+    }
+
+    /// Its name.
+    pub fn name(&self) -> &str {
+        self.element.get("name").unwrap_or_default()
+    }
+
+    /// Its start value, if it has one.
+    pub fn start(&self) -> Option<&str> {
+        self.element.get("start")
     }
 
     /// Whether it is a floating-point variable (FMI 2.0 `Real`, FMI 3.0 `Float32`/`Float64`).
@@ -432,71 +365,65 @@ impl Variable {
     }
 }
 
-fn variable(doc: &Document, v: Node, version: Version) -> Variable {
-    // Where the type's attributes are: FMI 2.0's inner element, FMI 3.0's variable itself.
-    let (typed, type_name) = match version {
-        Version::Fmi2 => match v
-            .children()
-            .find(|c| c.is_element() && FMI2_TYPES.contains(&c.tag_name().name()))
-        {
-            Some(t) => (t, t.tag_name().name().to_string()),
-            None => (v, String::new()),
+/// A type definition of `version`.
+fn type_definition(doc: &Document, t: Node, version: Version) -> TypeDefinition {
+    let mut element = Element::of(doc, t);
+    let type_name = match version {
+        // <SimpleType name><Real unit/></SimpleType>: the type element's attributes join the name.
+        Version::Fmi2 => match t.first_element_child() {
+            Some(inner) => {
+                element
+                    .attributes
+                    .extend(Element::of(doc, inner).attributes);
+                inner.tag_name().name().to_string()
+            }
+            None => String::new(),
         },
-        Version::Fmi3 => (v, v.tag_name().name().to_string()),
+        // <Float64Type name unit/>
+        Version::Fmi3 => {
+            let tag = t.tag_name().name();
+            tag.strip_suffix("Type").unwrap_or(tag).to_string()
+        }
     };
-    let start = text(typed, "start").or_else(|| {
-        let values: Vec<&str> = children(v, "Start")
-            .filter_map(|s| s.attribute("value"))
-            .collect();
-        (!values.is_empty()).then(|| values.join(" "))
-    });
-    Variable {
-        name: v.attribute("name").unwrap_or_default().to_string(),
-        value_reference: text(v, "valueReference"),
-        type_name,
-        description: text(v, "description"),
-        causality: text(v, "causality"),
-        variability: text(v, "variability"),
-        initial: text(v, "initial"),
-        declared_type: text(typed, "declaredType"),
-        unit: text(typed, "unit"),
-        display_unit: text(typed, "displayUnit"),
-        start,
-        min: text(typed, "min"),
-        max: text(typed, "max"),
-        nominal: text(typed, "nominal"),
-        derivative: text(typed, "derivative"),
-        clocks: text(v, "clocks"),
-        dimensions: children(v, "Dimension")
-            .map(|d| Dimension {
-                start: text(d, "start"),
-                value_reference: text(d, "valueReference"),
-                line: line(doc, d),
-            })
-            .collect(),
-        aliases: children(v, "Alias")
-            .map(|a| Alias {
-                name: a.attribute("name").unwrap_or_default().to_string(),
-                description: text(a, "description"),
-                display_unit: text(a, "displayUnit"),
-                line: line(doc, a),
-            })
-            .collect(),
-        line: line(doc, v),
-    }
+    TypeDefinition { type_name, element }
 }
 
-fn unknown(doc: &Document, u: Node, list: StructureList, reference: &str) -> Unknown {
-    Unknown {
-        list,
-        reference: text(u, reference),
-        dependencies: words(u, "dependencies"),
-        dependencies_kind: words(u, "dependenciesKind"),
-        line: line(doc, u),
+fn variable(doc: &Document, v: Node, version: Version) -> Variable {
+    let mut element = Element::of(doc, v);
+    let mut type_name = v.tag_name().name().to_string();
+    if version == Version::Fmi2 {
+        // The type element's attributes (`start`, `unit`, …) join the variable's.
+        let typed = v
+            .children()
+            .find(|c| c.is_element() && FMI2_TYPES.contains(&c.tag_name().name()));
+        type_name = typed
+            .map(|t| t.tag_name().name().to_string())
+            .unwrap_or_default();
+        if let Some(t) = typed {
+            element.attributes.extend(Element::of(doc, t).attributes);
+        }
+    }
+    let values: Vec<&str> = children(v, "Start")
+        .filter_map(|s| s.attribute("value"))
+        .collect();
+    if element.get("start").is_none() && !values.is_empty() {
+        element.attributes.push(("start".into(), values.join(" ")));
+    }
+    Variable {
+        type_name,
+        element,
+        dimensions: children(v, "Dimension")
+            .map(|d| Element::of(doc, d))
+            .collect(),
+        aliases: children(v, "Alias").map(|a| Element::of(doc, a)).collect(),
     }
 }
 
 fn structure(doc: &Document, m: Node, version: Version) -> Vec<Unknown> {
+    let unknown = |list, u| Unknown {
+        list,
+        element: Element::of(doc, u),
+    };
     let mut out = Vec::new();
     match version {
         Version::Fmi2 => {
@@ -506,7 +433,7 @@ fn structure(doc: &Document, m: Node, version: Version) -> Vec<Unknown> {
                 ("InitialUnknowns", StructureList::InitialUnknowns),
             ] {
                 for l in children(m, element) {
-                    out.extend(children(l, "Unknown").map(|u| unknown(doc, u, list, "index")));
+                    out.extend(children(l, "Unknown").map(|u| unknown(list, u)));
                 }
             }
         }
@@ -520,7 +447,7 @@ fn structure(doc: &Document, m: Node, version: Version) -> Vec<Unknown> {
                     "EventIndicator" => StructureList::EventIndicators,
                     _ => continue,
                 };
-                out.push(unknown(doc, u, list, "valueReference"));
+                out.push(unknown(list, u));
             }
         }
     }

@@ -221,7 +221,7 @@ fn document_problems(
         let known = |n: &str| {
             md.variables
                 .iter()
-                .any(|v| v.name == n || v.aliases.iter().any(|a| a.name == n))
+                .any(|v| v.name() == n || v.aliases.iter().any(|a| a.get("name") == Some(n)))
         };
         let members = doc
             .descendants()

@@ -56,7 +56,7 @@ struct Checker<'a> {
 
 /// `variable `name``, the place of a problem with a variable.
 fn place(v: &Variable) -> String {
-    format!("variable `{}`", v.name)
+    format!("variable `{}`", v.name())
 }
 
 impl Checker<'_> {
@@ -74,8 +74,11 @@ impl Checker<'_> {
         let md = self.md;
         let mut seen: HashMap<&str, u32> = HashMap::new();
         let names = md.variables.iter().flat_map(|v| {
-            std::iter::once((v.name.as_str(), v.line))
-                .chain(v.aliases.iter().map(|a| (a.name.as_str(), a.line)))
+            std::iter::once((v.name(), v.line())).chain(
+                v.aliases
+                    .iter()
+                    .map(|a| (a.get("name").unwrap_or_default(), a.line)),
+            )
         });
         for (name, line) in names {
             if let Some(first) = seen.insert(name, line) {
@@ -87,10 +90,13 @@ impl Checker<'_> {
                 );
             }
         }
-        let structured = md.variable_naming_convention.as_deref() == Some("structured");
+        let structured = md.root.get("variableNamingConvention") == Some("structured");
         for v in &md.variables {
-            let names = std::iter::once((v.name.as_str(), v.line))
-                .chain(v.aliases.iter().map(|a| (a.name.as_str(), a.line)));
+            let names = std::iter::once((v.name(), v.line())).chain(
+                v.aliases
+                    .iter()
+                    .map(|a| (a.get("name").unwrap_or_default(), a.line)),
+            );
             for (name, line) in names {
                 let fault = if structured {
                     structured_name(name).err()
@@ -118,15 +124,15 @@ impl Checker<'_> {
             Version::Fmi3 => {
                 let mut seen: HashMap<&str, &Variable> = HashMap::new();
                 for v in &md.variables {
-                    let Some(vr) = v.value_reference.as_deref() else {
+                    let Some(vr) = v.element.get("valueReference") else {
                         continue;
                     };
                     if let Some(first) = seen.insert(vr, v) {
                         let message = format!(
                             "value reference {vr} is that of `{}` (line {}) too; in FMI 3.0 each variable has its own (another name is an <Alias>)",
-                            first.name, first.line
+                            first.name(), first.line()
                         );
-                        self.error(Rule::ValueReference, place(v), v.line, message);
+                        self.error(Rule::ValueReference, place(v), v.line(), message);
                     }
                 }
             }
@@ -134,10 +140,10 @@ impl Checker<'_> {
                 // The alias set's variable that carries a start value, per (base type, vr).
                 let mut start_holder: HashMap<(&str, &str), &Variable> = HashMap::new();
                 for v in &md.variables {
-                    let Some(vr) = v.value_reference.as_deref() else {
+                    let Some(vr) = v.element.get("valueReference") else {
                         continue;
                     };
-                    if v.start.is_none() || md.variability(v) == "constant" {
+                    if v.start().is_none() || md.variability(v) == "constant" {
                         continue;
                     }
                     let base = match v.type_name.as_str() {
@@ -148,9 +154,9 @@ impl Checker<'_> {
                         let message = format!(
                             "shares value reference {vr} ({base}) with `{}` (line {}) and both have a start value; \
                              of a set of aliases at most one non-constant variable may have one",
-                            first.name, first.line
+                            first.name(), first.line()
                         );
-                        self.error(Rule::ValueReference, place(v), v.line, message);
+                        self.error(Rule::ValueReference, place(v), v.line(), message);
                     }
                 }
             }
@@ -172,11 +178,11 @@ impl Checker<'_> {
                 "FMI 3.0 asks for exactly one variable of causality=\"independent\" (the time); there is none".into(),
             ),
             (_, n) if n > 1 => {
-                let names: Vec<String> = independent.iter().map(|v| format!("`{}`", v.name)).collect();
+                let names: Vec<String> = independent.iter().map(|v| format!("`{}`", v.name())).collect();
                 self.error(
                     Rule::Causality,
                     place(independent[1]),
-                    independent[1].line,
+                    independent[1].line(),
                     format!("{n} variables are independent ({}); there may be only one", names.join(", ")),
                 );
             }
@@ -189,7 +195,7 @@ impl Checker<'_> {
                 self.error(
                     Rule::Causality,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!(
                         "a {} variable cannot have variability=\"continuous\" (only floats can)",
                         v.type_name
@@ -197,7 +203,7 @@ impl Checker<'_> {
                 );
             }
             if !legal(md.version, v.causality(), &variability, initial.as_deref()) {
-                let initial = match (&v.initial, &initial) {
+                let initial = match (v.element.get("initial"), &initial) {
                     (Some(i), _) => format!(" and initial=\"{i}\""),
                     (None, Some(i)) => format!(" (initial=\"{i}\" by default)"),
                     (None, None) => String::new(),
@@ -205,7 +211,7 @@ impl Checker<'_> {
                 self.error(
                     Rule::Causality,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!(
                         "causality=\"{}\" with variability=\"{variability}\"{initial} is not a combination FMI {} allows",
                         v.causality(),
@@ -222,7 +228,7 @@ impl Checker<'_> {
             let initial = md.initial(v);
             let needs =
                 matches!(initial.as_deref(), Some("exact" | "approx")) || v.causality() == "input";
-            if needs && v.start.is_none() && v.type_name != "Clock" {
+            if needs && v.start().is_none() && v.type_name != "Clock" {
                 let why = match initial.as_deref() {
                     _ if v.causality() == "input" => "an input".to_string(),
                     Some(i) => format!("initial=\"{i}\""),
@@ -231,23 +237,23 @@ impl Checker<'_> {
                 self.error(
                     Rule::StartValue,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("has no start value, which {why} requires"),
                 );
             }
-            if v.start.is_some() && initial.as_deref() == Some("calculated") {
+            if v.start().is_some() && initial.as_deref() == Some("calculated") {
                 self.error(
                     Rule::StartValue,
                     place(v),
-                    v.line,
+                    v.line(),
                     "has a start value but initial=\"calculated\" (the FMU calculates it; a start value is not allowed)".into(),
                 );
             }
-            if v.start.is_some() && v.causality() == "independent" {
+            if v.start().is_some() && v.causality() == "independent" {
                 self.error(
                     Rule::StartValue,
                     place(v),
-                    v.line,
+                    v.line(),
                     "is the independent variable and may not have a start value".into(),
                 );
             }
@@ -263,20 +269,24 @@ impl Checker<'_> {
         ) {
             return;
         }
-        let number = |s: &Option<String>| s.as_deref().and_then(|s| s.trim().parse::<f64>().ok());
-        let (min, max) = (number(&v.min), number(&v.max));
+        let number = |name| {
+            v.element
+                .get(name)
+                .and_then(|s| s.trim().parse::<f64>().ok())
+        };
+        let (min, max) = (number("min"), number("max"));
         if let (Some(lo), Some(hi)) = (min, max) {
             if lo > hi {
                 self.error(
                     Rule::Bounds,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("min = {lo} is above max = {hi}"),
                 );
                 return;
             }
         }
-        let starts = v.start.as_deref().unwrap_or_default().split_whitespace();
+        let starts = v.start().unwrap_or_default().split_whitespace();
         for start in starts.filter_map(|s| s.parse::<f64>().ok()) {
             let below = min
                 .filter(|lo| start < *lo)
@@ -288,7 +298,7 @@ impl Checker<'_> {
                 self.error(
                     Rule::Bounds,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("the start value {start} is {outside}"),
                 );
                 return;
@@ -300,55 +310,55 @@ impl Checker<'_> {
         let md = self.md;
         for v in &md.variables {
             let declared = v
-                .declared_type
-                .as_deref()
+                .element
+                .get("declaredType")
                 .map(|t| (t, md.type_definition(t)));
             match declared {
                 Some((name, None)) => self.error(
                     Rule::UnitsAndTypes,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("declaredType=\"{name}\" is not defined in TypeDefinitions"),
                 ),
                 Some((name, Some(t))) if t.type_name != v.type_name => self.error(
                     Rule::UnitsAndTypes,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!(
                         "a {} variable cannot have declaredType=\"{name}\", a {} type (line {})",
-                        v.type_name, t.type_name, t.line
+                        v.type_name, t.type_name, t.element.line
                     ),
                 ),
                 _ => {}
             }
             let unit = md.unit_of(v);
-            let defined = unit
-                .as_deref()
-                .map(|u| (u, md.units.iter().find(|d| d.name == u)));
+            let defined = unit.map(|u| {
+                (
+                    u,
+                    md.units.iter().find(|d| d.element.get("name") == Some(u)),
+                )
+            });
             if let Some((u, None)) = defined {
                 self.error(
                     Rule::UnitsAndTypes,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("its unit \"{u}\" is not defined in UnitDefinitions"),
                 );
                 continue;
             }
-            let display_units =
-                std::iter::once((v.display_unit.as_deref(), v.line, v.name.as_str())).chain(
-                    v.aliases
-                        .iter()
-                        .map(|a| (a.display_unit.as_deref(), a.line, a.name.as_str())),
-                );
+            let display_units = std::iter::once((v.element.get("displayUnit"), v.line(), v.name()))
+                .chain(v.aliases.iter().map(|a| {
+                    let name = a.get("name").unwrap_or_default();
+                    (a.get("displayUnit"), a.line, name)
+                }));
             for (display, line, name) in display_units {
                 let Some(display) = display else { continue };
                 let known = defined
                     .and_then(|(_, d)| d)
                     .is_some_and(|d| d.display_units.iter().any(|n| n == display));
                 if !known {
-                    let of = unit
-                        .as_deref()
-                        .map_or("it has no unit".to_string(), |u| format!("unit \"{u}\""));
+                    let of = unit.map_or("it has no unit".to_string(), |u| format!("unit \"{u}\""));
                     self.error(
                         Rule::UnitsAndTypes,
                         format!("variable `{name}`"),
@@ -376,7 +386,7 @@ impl Checker<'_> {
             Version::Fmi3 => md
                 .variables
                 .iter()
-                .position(|v| v.value_reference.as_deref() == Some(reference))
+                .position(|v| v.element.get("valueReference") == Some(reference))
                 .ok_or_else(|| format!("no variable has value reference {reference}")),
         }
     }
@@ -384,14 +394,14 @@ impl Checker<'_> {
     fn derivative_attributes(&mut self) {
         let md = self.md;
         for v in &md.variables {
-            let Some(reference) = v.derivative.as_deref() else {
+            let Some(reference) = v.element.get("derivative") else {
                 continue;
             };
             match self.resolve(reference.trim()) {
                 Err(why) => self.error(
                     Rule::Derivative,
                     place(v),
-                    v.line,
+                    v.line(),
                     format!("derivative=\"{reference}\" names no variable: {why}"),
                 ),
                 Ok(i) if !md.variables[i].is_float() => {
@@ -399,8 +409,8 @@ impl Checker<'_> {
                     self.error(
                         Rule::Derivative,
                         place(v),
-                        v.line,
-                        format!("derivative=\"{reference}\" names `{}`, a {} variable; a state must be a float", state.name, state.type_name),
+                        v.line(),
+                        format!("derivative=\"{reference}\" names `{}`, a {} variable; a state must be a float", state.name(), state.type_name),
                     )
                 }
                 Ok(_) => {}
@@ -411,25 +421,30 @@ impl Checker<'_> {
     fn model_structure(&mut self) {
         let md = self.md;
         let mut listed: HashMap<StructureList, Vec<usize>> = HashMap::new();
+        // The line of each state derivative's entry.
+        let mut lines: HashMap<usize, u32> = HashMap::new();
         for u in &md.structure {
             let list = u.list.place(md.version);
-            let Some(reference) = u.reference.as_deref() else {
+            let Some(reference) = u.reference() else {
                 continue; // the schema names the missing attribute
             };
             let entry = match self.resolve(reference.trim()) {
                 Ok(i) => i,
                 Err(why) => {
-                    self.error(Rule::ModelStructure, list.into(), u.line, why);
+                    self.error(Rule::ModelStructure, list.into(), u.element.line, why);
                     continue;
                 }
             };
             self.dependencies(u, &md.variables[entry]);
             listed.entry(u.list).or_default().push(entry);
+            if u.list == StructureList::Derivatives {
+                lines.insert(entry, u.element.line);
+            }
         }
         let names = |set: &BTreeSet<usize>| -> String {
             let names: Vec<String> = set
                 .iter()
-                .map(|&i| format!("`{}`", md.variables[i].name))
+                .map(|&i| format!("`{}`", md.variables[i].name()))
                 .collect();
             if names.is_empty() {
                 "none".into()
@@ -441,7 +456,7 @@ impl Checker<'_> {
             md.structure
                 .iter()
                 .find(|u| u.list == list)
-                .map_or(1, |u| u.line)
+                .map_or(1, |u| u.element.line)
         };
 
         // Outputs: each output once, nothing else.
@@ -455,7 +470,7 @@ impl Checker<'_> {
                     Rule::ModelStructure,
                     place.into(),
                     line,
-                    format!("`{}` is listed twice", md.variables[i].name),
+                    format!("`{}` is listed twice", md.variables[i].name()),
                 );
             }
         }
@@ -479,28 +494,20 @@ impl Checker<'_> {
         let mut states = BTreeSet::new();
         for &i in &derivatives {
             let d = &md.variables[i];
-            match d.derivative.as_deref().map(|r| self.resolve(r.trim())) {
+            match d.element.get("derivative").map(|r| self.resolve(r.trim())) {
                 Some(Ok(state)) => {
                     states.insert(state);
                 }
                 Some(Err(_)) => {} // said by derivative_attributes
                 None => {
-                    let line = md
-                        .structure
-                        .iter()
-                        .find(|u| {
-                            u.list == StructureList::Derivatives
-                                && u.reference.as_deref().map(|r| self.resolve(r.trim()))
-                                    == Some(Ok(i))
-                        })
-                        .map_or(d.line, |u| u.line);
+                    let line = lines.get(&i).copied().unwrap_or(d.line());
                     self.error(
                         Rule::ModelStructure,
                         place.into(),
                         line,
                         format!(
                             "`{}` is listed as a state derivative but has no derivative= attribute",
-                            d.name
+                            d.name()
                         ),
                     )
                 }
@@ -522,7 +529,7 @@ impl Checker<'_> {
         let mut expected: BTreeSet<usize> = (0..md.variables.len())
             .filter(|&i| {
                 let v = &md.variables[i];
-                (v.causality() == "output" && v.clocks.is_none() && approximate(&i))
+                (v.causality() == "output" && v.element.get("clocks").is_none() && approximate(&i))
                     || v.causality() == "calculatedParameter"
             })
             .collect();
@@ -574,41 +581,28 @@ impl Checker<'_> {
 
     fn dependencies(&mut self, u: &Unknown, of: &Variable) {
         let list = u.list.place(self.md.version);
-        if let Some(dependencies) = &u.dependencies {
-            for d in dependencies {
-                if let Err(why) = self.resolve(d) {
-                    self.error(
-                        Rule::Dependencies,
-                        list.into(),
-                        u.line,
-                        format!("a dependency of `{}`: {why}", of.name),
-                    );
-                }
+        let line = u.element.line;
+        let dependencies = u.element.words("dependencies");
+        for d in dependencies.iter().flatten() {
+            if let Err(why) = self.resolve(d) {
+                let message = format!("a dependency of `{}`: {why}", of.name());
+                self.error(Rule::Dependencies, list.into(), line, message);
             }
         }
-        match (&u.dependencies, &u.dependencies_kind) {
-            (None, Some(_)) => self.error(
-                Rule::Dependencies,
-                list.into(),
-                u.line,
-                format!(
-                    "the entry of `{}` has dependenciesKind but no dependencies",
-                    of.name
-                ),
+        let message = match (dependencies, u.element.words("dependenciesKind")) {
+            (None, Some(_)) => format!(
+                "the entry of `{}` has dependenciesKind but no dependencies",
+                of.name()
             ),
-            (Some(d), Some(k)) if d.len() != k.len() => self.error(
-                Rule::Dependencies,
-                list.into(),
-                u.line,
-                format!(
-                    "the entry of `{}` has {} dependencies but {} dependenciesKind",
-                    of.name,
-                    d.len(),
-                    k.len()
-                ),
+            (Some(d), Some(k)) if d.len() != k.len() => format!(
+                "the entry of `{}` has {} dependencies but {} dependenciesKind",
+                of.name(),
+                d.len(),
+                k.len()
             ),
-            _ => {}
-        }
+            _ => return,
+        };
+        self.error(Rule::Dependencies, list.into(), line, message);
     }
 
     fn interfaces(&mut self, archive: &Archive) {
@@ -632,21 +626,21 @@ impl Checker<'_> {
             );
         }
         let mut identifiers: Vec<(&str, u32)> = Vec::new();
-        for i in &md.interfaces {
-            let Some(id) = i.model_identifier.as_deref() else {
+        for (kind, element) in &md.interfaces {
+            let Some(id) = element.get("modelIdentifier") else {
                 continue; // the schema names the missing attribute
             };
             if !is_c_identifier(id) {
                 self.error(
                     Rule::Interface,
-                    format!("<{}>", i.kind.element()),
-                    i.line,
+                    format!("<{}>", kind.element()),
+                    element.line,
                     format!("modelIdentifier \"{id}\" is not a valid C identifier (letters, digits and `_`, not starting with a digit): it prefixes the library's function names and names its file"),
                 );
                 continue;
             }
             if !identifiers.iter().any(|(known, _)| *known == id) {
-                identifiers.push((id, i.line));
+                identifiers.push((id, element.line));
             }
         }
         for platform in &platforms {
@@ -671,8 +665,8 @@ impl Checker<'_> {
         let Some(e) = &self.md.default_experiment else {
             return;
         };
-        let mut number = |name: &str, text: &Option<String>| -> Option<f64> {
-            let text = text.as_deref()?;
+        let mut number = |name: &str| -> Option<f64> {
+            let text = e.get(name)?;
             match text.trim().parse::<f64>() {
                 Ok(x) if x.is_finite() => Some(x),
                 _ => {
@@ -686,10 +680,10 @@ impl Checker<'_> {
                 }
             }
         };
-        let start = number("startTime", &e.start_time);
-        let stop = number("stopTime", &e.stop_time);
-        let step = number("stepSize", &e.step_size);
-        let tolerance = number("tolerance", &e.tolerance);
+        let start = number("startTime");
+        let stop = number("stopTime");
+        let step = number("stepSize");
+        let tolerance = number("tolerance");
         if let (Some(start), Some(stop)) = (start, stop) {
             if stop < start {
                 self.error(

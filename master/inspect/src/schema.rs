@@ -12,72 +12,10 @@ use libxml::parser::{Parser, ParserOptions};
 use libxml::schemas::{SchemaParserContext, SchemaValidationContext};
 use std::sync::Mutex;
 
-/// The schema files of each version: (file name, text).
-const FMI2: &[(&str, &str)] = &[
-    (
-        "fmi2ModelDescription.xsd",
-        include_str!("../schema/fmi2/fmi2ModelDescription.xsd"),
-    ),
-    (
-        "fmi2Annotation.xsd",
-        include_str!("../schema/fmi2/fmi2Annotation.xsd"),
-    ),
-    (
-        "fmi2AttributeGroups.xsd",
-        include_str!("../schema/fmi2/fmi2AttributeGroups.xsd"),
-    ),
-    (
-        "fmi2ScalarVariable.xsd",
-        include_str!("../schema/fmi2/fmi2ScalarVariable.xsd"),
-    ),
-    ("fmi2Type.xsd", include_str!("../schema/fmi2/fmi2Type.xsd")),
-    ("fmi2Unit.xsd", include_str!("../schema/fmi2/fmi2Unit.xsd")),
-    (
-        "fmi2VariableDependency.xsd",
-        include_str!("../schema/fmi2/fmi2VariableDependency.xsd"),
-    ),
-];
-
-const FMI3: &[(&str, &str)] = &[
-    (
-        "fmi3ModelDescription.xsd",
-        include_str!("../schema/fmi3/fmi3ModelDescription.xsd"),
-    ),
-    (
-        "fmi3Annotation.xsd",
-        include_str!("../schema/fmi3/fmi3Annotation.xsd"),
-    ),
-    (
-        "fmi3AttributeGroups.xsd",
-        include_str!("../schema/fmi3/fmi3AttributeGroups.xsd"),
-    ),
-    (
-        "fmi3InterfaceType.xsd",
-        include_str!("../schema/fmi3/fmi3InterfaceType.xsd"),
-    ),
-    ("fmi3Type.xsd", include_str!("../schema/fmi3/fmi3Type.xsd")),
-    ("fmi3Unit.xsd", include_str!("../schema/fmi3/fmi3Unit.xsd")),
-    (
-        "fmi3Variable.xsd",
-        include_str!("../schema/fmi3/fmi3Variable.xsd"),
-    ),
-    (
-        "fmi3VariableDependency.xsd",
-        include_str!("../schema/fmi3/fmi3VariableDependency.xsd"),
-    ),
-    (
-        "fmi3Terminal.xsd",
-        include_str!("../schema/fmi3/fmi3Terminal.xsd"),
-    ),
-    (
-        "fmi3TerminalsAndIcons.xsd",
-        include_str!("../schema/fmi3/fmi3TerminalsAndIcons.xsd"),
-    ),
-    (
-        "fmi3BuildDescription.xsd",
-        include_str!("../schema/fmi3/fmi3BuildDescription.xsd"),
-    ),
-];
+/// The schema files of each version, `schema/fmi2/*.xsd` and `schema/fmi3/*.xsd`: (file
+/// name, text), listed by the build script (`build.rs`).
+const FMI2: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/fmi2.rs"));
+const FMI3: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/fmi3.rs"));
 
 /// A schema of the standard: the kind of file it describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
