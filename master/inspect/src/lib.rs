@@ -59,6 +59,8 @@ pub enum Rule {
     Bounds,
     UnitsAndTypes,
     Derivative,
+    /// FMI 3.0 array dimensions.
+    Dimension,
     ModelStructure,
     Dependencies,
     /// Interfaces and model identifiers.
@@ -84,6 +86,7 @@ impl Rule {
             Self::Bounds => "bounds",
             Self::UnitsAndTypes => "units-and-types",
             Self::Derivative => "derivative",
+            Self::Dimension => "dimension",
             Self::ModelStructure => "model-structure",
             Self::Dependencies => "dependencies",
             Self::Interface => "interface",

@@ -15,6 +15,8 @@
 //!   `min` ≤ `max`;
 //! - units and types: a variable's unit and display unit, and its declared type, are defined;
 //! - `derivative=`: names an existing variable, itself a float;
+//! - FMI 3.0 arrays: each `<Dimension>` a fixed extent or the value reference of a structural
+//!   parameter or constant of an integer type;
 //! - `ModelStructure`: every reference and dependency names a variable; `dependenciesKind`
 //!   has one entry per dependency; the outputs are exactly the variables of causality
 //!   output; each listed derivative has `derivative=`; the initial unknowns are exactly the
@@ -42,6 +44,7 @@ pub fn check(md: &ModelDescription, archive: &Archive) -> Vec<Problem> {
     c.combinations();
     c.start_values();
     c.units_and_types();
+    c.dimensions();
     c.derivative_attributes();
     c.model_structure();
     c.interfaces(archive);
@@ -388,6 +391,43 @@ impl Checker<'_> {
                 .iter()
                 .position(|v| v.element.get("valueReference") == Some(reference))
                 .ok_or_else(|| format!("no variable has value reference {reference}")),
+        }
+    }
+
+    /// FMI 3.0 arrays: a `<Dimension>` has a fixed extent (`start`) or names, by value
+    /// reference, the structural parameter or constant of an integer type that holds it.
+    fn dimensions(&mut self) {
+        let md = self.md;
+        for v in &md.variables {
+            for d in &v.dimensions {
+                let problem = match (d.get("start"), d.get("valueReference")) {
+                    (Some(_), None) => continue,
+                    (None, None) => "has neither start nor valueReference".to_string(),
+                    (Some(_), Some(_)) => "has both start and valueReference".to_string(),
+                    (None, Some(vr)) => match self.resolve(vr.trim()) {
+                        Err(why) => format!("valueReference=\"{vr}\" names no variable: {why}"),
+                        Ok(i) => {
+                            let holder = &md.variables[i];
+                            let integer = holder.type_name.contains("Int");
+                            let fixed = holder.causality() == "structuralParameter"
+                                || md.variability(holder) == "constant";
+                            if integer && fixed {
+                                continue;
+                            }
+                            format!(
+                                "valueReference=\"{vr}\" names `{}`, which is not a structural parameter or constant of an integer type",
+                                holder.name()
+                            )
+                        }
+                    },
+                };
+                self.error(
+                    Rule::Dimension,
+                    place(v),
+                    d.line,
+                    format!("its <Dimension> {problem}"),
+                );
+            }
         }
     }
 
