@@ -196,7 +196,10 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
 /// `spurio validate`: every problem on stdout; fails when there is an error.
 pub fn validate(path: &Path) -> Result<()> {
     let fmu = Fmu::open(path)?;
-    let problems = fmu.validate()?;
+    let problems = fmu.validate().map_err(|error| spurio_inspect::FmuError {
+        file: path.to_path_buf(),
+        error,
+    })?;
     for p in &problems {
         say!("{p}");
     }

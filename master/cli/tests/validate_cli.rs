@@ -112,20 +112,55 @@ fn the_reference_fmus_are_valid_and_roberts_manifest_is_a_warning() {
     );
 }
 
+/// An archive at `path` with the one entry `modelDescription.xml`, deflated.
+fn archive_with_description(path: &Path, text: &[u8]) {
+    use std::io::Write;
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(path).unwrap());
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    zip.start_file("modelDescription.xml", options).unwrap();
+    zip.write_all(text).unwrap();
+    zip.finish().unwrap();
+}
+
 #[test]
-fn an_archive_that_is_not_an_fmu_is_an_error_not_a_report() {
-    let dir = std::env::temp_dir().join(format!("spurio-validate-zip-{}", std::process::id()));
+fn what_is_not_a_readable_fmu_is_an_error_not_a_report() {
+    let dir = std::env::temp_dir().join(format!("spurio-validate-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("plain.fmu");
-    std::fs::write(&path, b"not a zip").unwrap();
-    for command in ["validate", "info"] {
-        let out = spurio(&[command, path.to_str().unwrap()]);
-        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-        assert_eq!(out.status.code(), Some(1), "{stderr}");
-        assert_names(
-            &stderr,
-            &["plain.fmu: not an FMU archive (an FMU is a zip file)"],
-        );
+    let plain = dir.join("plain.fmu");
+    std::fs::write(&plain, b"not a zip").unwrap();
+    // A model description that inflates beyond 64 MiB (65 MiB of spaces, 65 KiB deflated).
+    let bomb = dir.join("bomb.fmu");
+    archive_with_description(&bomb, &vec![b' '; 65 << 20]);
+    // An entity that expands a billion times: refused with the DTD, never expanded.
+    let laughs = dir.join("laughs.fmu");
+    let dtd = r#"<?xml version="1.0"?><!DOCTYPE m [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]><fmiModelDescription fmiVersion="2.0" modelName="&b;"/>"#;
+    archive_with_description(&laughs, dtd.as_bytes());
+    let cases = [
+        (
+            &plain,
+            "plain.fmu: not an FMU archive (an FMU is a zip file)",
+        ),
+        (
+            &bomb,
+            "bomb.fmu: modelDescription.xml is larger than 67108864 bytes",
+        ),
+        (
+            &laughs,
+            "laughs.fmu: modelDescription.xml is not well-formed XML",
+        ),
+    ];
+    for (fmu, message) in cases {
+        for command in ["validate", "info"] {
+            let started = std::time::Instant::now();
+            let out = spurio(&[command, fmu.to_str().unwrap()]);
+            let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+            assert_eq!(out.status.code(), Some(1), "{stderr}");
+            assert_names(&stderr, &[message]);
+            assert_eq!(stderr.matches(message).count(), 1, "said once: {stderr}");
+            assert!(!stderr.contains("Caused by"), "{stderr}");
+            assert!(started.elapsed().as_secs_f64() < 5.0, "{command} {message}");
+        }
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -36,12 +36,12 @@ pub enum InspectError {
     Schema(String),
 }
 
-/// An [`InspectError`] with the FMU it concerns.
+/// An [`InspectError`] with the FMU it concerns (its message quotes the error, which is
+/// therefore not its source: the message is said once).
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {error}", file.display())]
 pub struct FmuError {
     pub file: PathBuf,
-    #[source]
     pub error: InspectError,
 }
 
