@@ -65,6 +65,34 @@ pub(crate) struct Coupled {
     terminated: Option<f64>,
     /// Whether inputs are set from outside the group at the communication points.
     driven_from_outside: bool,
+    /// Who an event is told of (`--verbose`).
+    speakers: Speakers,
+}
+
+/// Whom a group's events are told of: a state event by the member whose indicator changed
+/// sign (its own indicator number), a time or step event by the group.
+struct Speakers {
+    group: String,
+    /// Per member: its instance name and the range of its indicators in the group's.
+    members: Vec<(String, std::ops::Range<usize>)>,
+}
+
+impl Speakers {
+    /// Tells `event` to the log (shown with `--verbose`): `instance `name`: t = …: state
+    /// event (indicator i)`, the time to 17 digits as a single-FMU run prints it.
+    fn tell(&self, event: &crate::model_exchange::Event) {
+        use crate::model_exchange::EventKind;
+        if let EventKind::State { indicator } = event.kind {
+            if let Some((name, range)) = self.members.iter().find(|(_, r)| r.contains(&indicator)) {
+                let own = EventKind::State {
+                    indicator: indicator - range.start,
+                };
+                log::info!("instance `{name}`: t = {:.17}: {own}", event.time);
+                return;
+            }
+        }
+        log::info!("{}: t = {:.17}: {}", self.group, event.time, event.kind);
+    }
 }
 
 /// The error of member `k` of a group, naming it.
@@ -158,7 +186,17 @@ impl Coupled {
             ..Layout::default()
         };
         let stepper = Stepper::new(wiring.name.clone(), wiring.fmi3, &layout, &options);
+        let speakers = Speakers {
+            group: wiring.name.clone(),
+            members: wiring
+                .positions
+                .iter()
+                .zip(&wiring.indicators)
+                .map(|(&p, &(first, count))| (members.name(p).to_string(), first..first + count))
+                .collect(),
+        };
         Ok(Self {
+            speakers,
             wiring,
             stepper,
             multiple: u64::from(plan.step_multiple),
@@ -207,16 +245,17 @@ impl Coupled {
             wiring: &mut self.wiring,
             buffer,
         };
-        let mut no_events = |_: &crate::model_exchange::Event| {};
+        let speakers = &self.speakers;
+        let mut tell = |event: &crate::model_exchange::Event| speakers.tell(event);
         let start = if self.driven_from_outside {
-            self.stepper.inputs_changed(&mut view, &mut no_events)?
+            self.stepper.inputs_changed(&mut view, &mut tell)?
         } else {
             Advance::Reached(self.stepper.time())
         };
         let outcome = match start {
             Advance::Reached(_) => {
                 self.stepper
-                    .advance_to(&mut view, t_end, &mut NoRecording, &mut no_events)?
+                    .advance_to(&mut view, t_end, &mut NoRecording, &mut tell)?
             }
             terminated => terminated,
         };

@@ -37,7 +37,7 @@ mod record;
 mod results;
 pub mod ssp;
 mod system;
-mod xml;
+pub mod xml;
 
 pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
 pub use coupling::{

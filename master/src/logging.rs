@@ -70,7 +70,11 @@ impl log::Log for ForwardingLogger {
             _ => None,
         };
         if record.module_path() != Some("logger") && speaker.is_none() {
-            if record.level() <= log::Level::Warn && self.verbose {
+            // the engine's own notes (events in a system) with `--verbose`, as `spurio: …`
+            let ours = record.target().starts_with("spurio_master");
+            if self.verbose && ours && record.level() == log::Level::Info {
+                eprintln!("spurio: {}", record.args());
+            } else if record.level() <= log::Level::Warn && self.verbose {
                 eprintln!("spurio: {}: {}", record.level(), record.args());
             }
             return;

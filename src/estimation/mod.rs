@@ -1,4 +1,5 @@
-//! State and parameter estimators of spurio (docs/estimators.md §2.7–§2.12).
+//! State and parameter estimators of spurio (docs/estimators.md §2.7–§2.12, "Maximum
+//! likelihood").
 //!
 //! | type | what | paper |
 //! |---|---|---|
@@ -8,6 +9,7 @@
 //! | [`DkfRsKf`] | rsKF cleaning the outputs feeding a DKF | 001 §3, Fig. 2 |
 //! | [`RecursiveLeastSquares`] | ARX(na, nb) RLS with forgetting, continuous readout | 002 §3 |
 //! | [`DistributedObserver`] | one agent of the two-agent LQ-designed observer | 004 §3–4 |
+//! | [`likelihood`] | the innovations log-likelihood of a linear Gaussian model (offline maximum likelihood, diffuse initial state) | Durbin & Koopman §7.2 |
 //!
 //! All matrices are dynamic (`DMatrix<f64>`): the dimensions are chosen by the user when an
 //! FMU is packaged. Every constructor validates its inputs and returns an
@@ -30,6 +32,7 @@ mod distributed;
 mod dual;
 mod estimator;
 mod kalman;
+pub mod likelihood;
 mod missing;
 mod rls;
 mod robust;

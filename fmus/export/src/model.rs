@@ -227,7 +227,9 @@ pub trait ModelExchange: FmuModel {
         let jacobian = self.jacobian(ctx)?;
         for (o, &unknown) in out.iter_mut().zip(unknowns) {
             let mut sum = 0.0;
-            for (&known, &s) in knowns.iter().zip(seed) {
+            // a column whose seed is 0 adds nothing (a unit seed, as Jacobian columns are
+            // asked for, reads one entry per unknown)
+            for (&known, &s) in knowns.iter().zip(seed).filter(|(_, &s)| s != 0.0) {
                 sum += self.partial(&jacobian, unknown, known)? * s;
             }
             *o = sum;

@@ -154,8 +154,13 @@ fn add_bounds(t: &mut VariableTable, n: usize) -> BoundBlocks {
 fn interface(config: &Config, cleaned: bool) -> Result<(DualLayout, ModelInfo), Cause> {
     let dims = Dimensions::from_config(config, 4, 1, 2)?;
     let Dimensions { n, m, p } = dims;
-    let driven = cleaned && count(config, "cleaner_input", 0, 0)? > 0;
-    if driven && count(config, "cleaner_input", 0, 0)? != 1 {
+    let cleaner_input = if cleaned {
+        count(config, "cleaner_input", 0, 0)?
+    } else {
+        0
+    };
+    let driven = cleaner_input > 0;
+    if cleaner_input > 1 {
         return Err(
             "variant.cfg: `cleaner_input` must be 0 (random walk) or 1 (driven by v[j])".into(),
         );
@@ -520,16 +525,10 @@ impl DualFilter for DkfRsKf {
             Some(d) => (d.a_clean.vector(values), d.b_clean.vector(values)),
             None => (DVector::from_element(p, 1.0), DVector::zeros(p)),
         };
-        // The library names the per-channel vectors a, b; the FMU calls them a_clean, b_clean.
-        let named = |e: spurio::estimation::EstimationError| {
-            let text = e.to_string();
-            Failure::error(
-                text.replace("parameter `a`", "parameter `a_clean`")
-                    .replace("parameter `b`", "parameter `b_clean`"),
-            )
-        };
+        // a, b hold one finite entry per channel (the layout's vectors; values set are
+        // finite), so the library's checks of them cannot fail here
         let cleaner =
-            RobustKalmanFilter::first_order_from(start, (&a, &b), q, r, p0, psi).map_err(named)?;
+            RobustKalmanFilter::first_order_from(start, (&a, &b), q, r, p0, psi).map_err(error)?;
         if c.driven.is_some() {
             DkfRsKf::with_cleaner_input(cleaner, dual).map_err(error)
         } else {

@@ -43,6 +43,7 @@ fn say_line(line: std::fmt::Arguments<'_>) {
     }
 }
 
+mod fmi3_extras;
 mod guard;
 mod inspect;
 mod library_query;

@@ -6,7 +6,7 @@
 use anyhow::{bail, Context, Result};
 use spurio_master::fmu::me::read_description;
 use spurio_master::fmu::{FmuFile, Interface, LoadOptions};
-use spurio_master::model_exchange::{simulate, EventKind, Method, Options};
+use spurio_master::model_exchange::{simulate, Method, Options};
 use spurio_master::{CsvWriter, InstanceDescription, System, SystemDescription};
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -238,14 +238,7 @@ pub fn run(
         CsvWriter::create(out).with_context(|| format!("cannot write {}", out.display()))?;
     let mut on_event = |event: &spurio_master::model_exchange::Event| {
         if verbose {
-            let what = match event.kind {
-                EventKind::State { indicator } => {
-                    format!("state event (indicator {})", indicator + 1)
-                }
-                EventKind::Time => "time event".to_string(),
-                EventKind::Step => "step event (CompletedIntegratorStep)".to_string(),
-            };
-            eprintln!("spurio: t = {:.17}: {what}", event.time);
+            eprintln!("spurio: t = {:.17}: {}", event.time, event.kind);
         }
     };
     let summary = simulate(

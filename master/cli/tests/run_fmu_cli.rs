@@ -101,6 +101,74 @@ fn a_reference_fmu_runs_as_model_exchange_and_reports_its_events() {
 }
 
 #[test]
+fn the_events_of_a_model_exchange_instance_in_a_system_are_told_with_verbose() {
+    // BouncingBall (FMI 2.0) as a system instance: each bounce said with the instance's name
+    // and the time the single-FMU run gives (the first at √(2 h₀/g) = 0.45152364098…).
+    let (dir, csv, fmu) = case("system-events", "fmi2", "BouncingBall");
+    let system = dir.join("ball.toml");
+    std::fs::write(
+        &system,
+        format!(
+            "stop_time = 3.0\nstep_size = 0.01\n\n[[instance]]\nname = \"ball\"\nfmu = {:?}\ninterface = \"me\"\ntolerance = 1e-9\n",
+            fmu.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = spurio(&[
+        "run",
+        system.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+        "--verbose",
+    ]);
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let told: Vec<&str> = stderr
+        .lines()
+        .filter(|l| {
+            l.starts_with("spurio: instance `ball`: t = ")
+                && l.contains("state event (indicator 1)")
+        })
+        .collect();
+    let alone = run_me(&fmu, &dir.join("alone.csv"), &["--verbose"]);
+    let alone_stderr = text(&alone.stderr);
+    let alone_times: Vec<&str> = alone_stderr
+        .lines()
+        .filter(|l| l.contains("state event"))
+        .map(|l| l.split(": ").nth(1).unwrap())
+        .collect();
+    assert!(told.len() >= 8, "{stderr}");
+    assert_eq!(told.len(), alone_times.len(), "{stderr}\n{alone_stderr}");
+    assert!(told[0].contains("t = 0.451523640"), "{}", told[0]);
+    for (line, time) in told.iter().zip(&alone_times) {
+        let t: f64 = line
+            .split("t = ")
+            .nth(1)
+            .unwrap()
+            .split(':')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let t_alone: f64 = time.trim_start_matches("t = ").parse().unwrap();
+        assert!((t - t_alone).abs() < 1e-9, "{line} against {time}");
+    }
+    // without --verbose nothing is said
+    let quiet = spurio(&[
+        "run",
+        system.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(
+        !text(&quiet.stderr).contains("state event"),
+        "{}",
+        text(&quiet.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn model_exchange_errors_name_the_fmu_and_stop_without_a_backtrace() {
     // Robertson's stiff problem to 1e8 s with the explicit method: bounded work, an error.
     // (Model Exchange asked for: the FMU's own Co-Simulation takes fixed Euler steps.)

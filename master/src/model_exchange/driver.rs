@@ -75,6 +75,20 @@ pub enum EventKind {
     Step,
 }
 
+impl std::fmt::Display for EventKind {
+    /// `state event (indicator i)` (1-based), `time event`, `step event
+    /// (CompletedIntegratorStep)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EventKind::State { indicator } => {
+                write!(f, "state event (indicator {})", indicator + 1)
+            }
+            EventKind::Time => f.write_str("time event"),
+            EventKind::Step => f.write_str("step event (CompletedIntegratorStep)"),
+        }
+    }
+}
+
 /// One event handled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Event {

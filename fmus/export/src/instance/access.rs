@@ -27,6 +27,10 @@ impl Access {
     pub const INPUT: u32 = 1 << 24;
     /// The bit of a parameter (setting it in Step Mode calls `parameters_changed`).
     pub const PARAMETER: u32 = 1 << 25;
+    /// The bit of a Real output or state derivative: an unknown of a directional derivative.
+    pub const UNKNOWN: u32 = 1 << 26;
+    /// The bit of a Real input or continuous state: a known of a directional derivative.
+    pub const KNOWN: u32 = 1 << 27;
 
     /// The bit of type `t` in [`Access::bits`] (above the state bits).
     #[inline(always)]
@@ -81,6 +85,14 @@ impl Access {
         }
         if v.causality == Causality::Parameter {
             bits |= Self::PARAMETER;
+        }
+        if v.variable_type() == VariableType::Real {
+            if v.causality == Causality::Output || v.derivative_of.is_some() {
+                bits |= Self::UNKNOWN;
+            }
+            if input || v.state {
+                bits |= Self::KNOWN;
+            }
         }
         Self {
             variable_type: v.variable_type(),

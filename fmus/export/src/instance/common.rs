@@ -57,6 +57,9 @@ pub struct Instance<M: FmuModel> {
     /// The unpacked `resources/` folder the importer gave, from which the model was created
     /// (and is created again by `fmi2Reset`).
     pub(crate) resources: Option<PathBuf>,
+    /// The directional derivative's result before it is checked and published (a reused
+    /// buffer: one element per Real variable, so no call allocates).
+    pub(crate) directional: Vec<f64>,
 }
 
 /// The event indicators of a Model Exchange instance, computed when they are read: by
@@ -128,6 +131,7 @@ impl<M: FmuModel> Instance<M> {
                 None => vec![0.0; interface.computed_len()],
             },
             before_window: [0.0; WINDOW],
+            directional: Vec::with_capacity(interface.info.variables.len()),
             interface,
             logger,
             me: None,

@@ -5,13 +5,13 @@
 //! serialize) carry them with everything else; the event indicators are computed when they
 //! are read ([`Indicators`]).
 
+use super::access::Access;
 use super::common::{Indicators, Instance};
 use super::state::{Function, ModelState};
 use crate::description::model_exchange::ModelExchangeInfo;
 use crate::model::{EventUpdate, FmuModel, Hooks};
 use crate::types::Status;
 use crate::values::first_non_finite;
-use crate::variables::{Causality, VariableType};
 
 /// Which indices of the Model Exchange interface a read takes (the states', the
 /// derivatives', the event indicators').
@@ -409,28 +409,25 @@ impl<M: FmuModel> Instance<M> {
                 ),
             );
         }
-        for (&i, role) in unknowns
+        // one bit test an index (the roles are set once per configuration, in the access
+        // table); the message is built only for the index that fails
+        let access = &self.interface.access;
+        let fits = |i: usize, role: u32| access.get(i).is_some_and(|a| a.bits & role != 0);
+        let refused = unknowns
             .iter()
-            .map(|i| (i, true))
-            .chain(knowns.iter().map(|i| (i, false)))
-        {
+            .map(|&i| (i, Access::UNKNOWN))
+            .chain(knowns.iter().map(|&i| (i, Access::KNOWN)))
+            .find(|&(i, role)| !fits(i, role));
+        if let Some((i, role)) = refused {
             let Some(v) = self.interface.info.variables.get(i) else {
                 return self.reject(f, &self.unknown_reference(i));
             };
-            let ok = v.variable_type() == VariableType::Real
-                && if role {
-                    v.causality == Causality::Output || v.derivative_of.is_some()
-                } else {
-                    v.causality == Causality::Input || v.state
-                };
-            if !ok {
-                let what = if role {
-                    "an unknown must be a Real output or state derivative"
-                } else {
-                    "a known must be a Real input or continuous state"
-                };
-                return self.reject(f, &format!("variable `{}`: {what}", v.name));
-            }
+            let what = if role == Access::UNKNOWN {
+                "an unknown must be a Real output or state derivative"
+            } else {
+                "a known must be a Real input or continuous state"
+            };
+            return self.reject(f, &format!("variable `{}`: {what}", v.name));
         }
         if let Some(x) = seed.iter().find(|x| !x.is_finite()) {
             return self.reject(
@@ -444,23 +441,29 @@ impl<M: FmuModel> Instance<M> {
         if status > Status::Warning {
             return status;
         }
-        let mut result = vec![0.0; out.len()];
+        let mut result = std::mem::take(&mut self.directional);
+        result.clear();
+        result.resize(out.len(), 0.0);
         status = status.max(self.run_model(f, |m, ctx| {
             (hooks.directional_derivative)(m, ctx, unknowns, knowns, seed, &mut result)
         }));
-        if status > Status::Warning {
-            return status;
+        let published = if status > Status::Warning {
+            Err(status)
+        } else {
+            first_non_finite(&result).map_or(Ok(()), |(k, value)| {
+                let name = &self.interface.info.variables[unknowns[k]].name;
+                Err(self.reject(
+                    f,
+                    &format!(
+                        "the directional derivative of `{name}` came out as {value}: not published"
+                    ),
+                ))
+            })
+        };
+        if published.is_ok() {
+            out.copy_from_slice(&result);
         }
-        if let Some((k, value)) = first_non_finite(&result) {
-            let name = &self.interface.info.variables[unknowns[k]].name;
-            return self.reject(
-                f,
-                &format!(
-                    "the directional derivative of `{name}` came out as {value}: not published"
-                ),
-            );
-        }
-        out.copy_from_slice(&result);
-        status
+        self.directional = result;
+        published.err().unwrap_or(status)
     }
 }
