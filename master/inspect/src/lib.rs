@@ -215,6 +215,11 @@ fn document_problems(
     let schema = match name {
         "terminalsAndIcons/terminalsAndIcons.xml" => schema::Schema::Fmi3TerminalsAndIcons,
         "sources/buildDescription.xml" => schema::Schema::Fmi3BuildDescription,
+        "extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml" => {
+            let mut problems = manifest_problems(&doc, name);
+            problems.extend(ls_ref_problems(&doc, text, name)?);
+            return Ok(problems);
+        }
         _ => {
             return Ok(manifest_problems(&doc, name));
         }
@@ -301,4 +306,33 @@ fn manifest_problems(doc: &roxmltree::Document, name: &str) -> Vec<Problem> {
         Some(_) => {}
     }
     problems
+}
+
+/// The problems of fmi-ls-ref's manifest against the schema of version
+/// [`schema::LS_REF_VERSION`]. A manifest that declares another version (the Reference FMUs
+/// v0.0.41 write the draft 1.0.0-alpha.1, `<Related>` elements only) cannot be held to it:
+/// its problems are warnings that say so.
+fn ls_ref_problems(
+    doc: &roxmltree::Document,
+    text: &str,
+    name: &str,
+) -> Result<Vec<Problem>, InspectError> {
+    const MANIFEST: &str = "http://fmi-standard.org/fmi-ls-manifest";
+    let declared = doc
+        .root_element()
+        .attribute((MANIFEST, "fmi-ls-version"))
+        .unwrap_or_default();
+    let mut problems = schema::validate(text, schema::Schema::LsRefManifest, name)?;
+    if declared != schema::LS_REF_VERSION {
+        for p in &mut problems {
+            p.severity = Severity::Warning;
+            p.message = format!(
+                "{} (the manifest declares fmi-ls-ref version \"{declared}\"; the schema is of version {}, \
+                 so this is a warning: the draft it follows may allow it)",
+                p.message,
+                schema::LS_REF_VERSION
+            );
+        }
+    }
+    Ok(problems)
 }

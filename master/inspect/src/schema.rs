@@ -2,7 +2,10 @@
 //! validator: the model description (FMI 2.0 `fmi2ModelDescription.xsd`, FMI 3.0
 //! `fmi3ModelDescription.xsd`) and FMI 3.0's other files where an FMU has them,
 //! `terminalsAndIcons/terminalsAndIcons.xml` (`fmi3TerminalsAndIcons.xsd`) and
-//! `sources/buildDescription.xml` (`fmi3BuildDescription.xsd`). The schema files are the standard's own, committed under
+//! `sources/buildDescription.xml` (`fmi3BuildDescription.xsd`), and the manifest of the
+//! layered standard fmi-ls-ref, `extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml`
+//! (`fmi3LayeredStandardReferenceManifest.xsd`, which imports the FMI 3.0 manifest
+//! attributes from `../fmi3/`). The schema files are the standard's own, committed under
 //! `master/inspect/schema/` (BSD licence; `schema/README.md` says where they come from) and
 //! built into the library; they are written to a temporary folder for libxml2, which
 //! resolves their `xs:include`s beside them.
@@ -12,10 +15,16 @@ use libxml::parser::{Parser, ParserOptions};
 use libxml::schemas::{SchemaParserContext, SchemaValidationContext};
 use std::sync::Mutex;
 
-/// The schema files of each version, `schema/fmi2/*.xsd` and `schema/fmi3/*.xsd`: (file
-/// name, text), listed by the build script (`build.rs`).
-const FMI2: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/fmi2.rs"));
-const FMI3: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/fmi3.rs"));
+/// The schema files of each folder, `schema/<folder>/*.xsd`: (file name, text), listed by the
+/// build script (`build.rs`).
+const FOLDERS: [(&str, &[(&str, &str)]); 3] = [
+    ("fmi2", include!(concat!(env!("OUT_DIR"), "/fmi2.rs"))),
+    ("fmi3", include!(concat!(env!("OUT_DIR"), "/fmi3.rs"))),
+    (
+        "fmi-ls-ref",
+        include!(concat!(env!("OUT_DIR"), "/fmi-ls-ref.rs")),
+    ),
+];
 
 /// A schema of the standard: the kind of file it describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -24,16 +33,22 @@ pub enum Schema {
     Fmi3ModelDescription,
     Fmi3TerminalsAndIcons,
     Fmi3BuildDescription,
+    /// The manifest of fmi-ls-ref, version 1.0.0-rc.1 ([`LS_REF_VERSION`]).
+    LsRefManifest,
 }
 
+/// The version of fmi-ls-ref whose manifest schema is built in.
+pub const LS_REF_VERSION: &str = "1.0.0-rc.1";
+
 impl Schema {
-    /// The schema files it is made of, and the one that is its entry point.
-    fn files(self) -> (&'static [(&'static str, &'static str)], &'static str) {
+    /// Its entry point, `<folder>/<file>`.
+    fn entry(self) -> &'static str {
         match self {
-            Self::Fmi2ModelDescription => (FMI2, "fmi2ModelDescription.xsd"),
-            Self::Fmi3ModelDescription => (FMI3, "fmi3ModelDescription.xsd"),
-            Self::Fmi3TerminalsAndIcons => (FMI3, "fmi3TerminalsAndIcons.xsd"),
-            Self::Fmi3BuildDescription => (FMI3, "fmi3BuildDescription.xsd"),
+            Self::Fmi2ModelDescription => "fmi2/fmi2ModelDescription.xsd",
+            Self::Fmi3ModelDescription => "fmi3/fmi3ModelDescription.xsd",
+            Self::Fmi3TerminalsAndIcons => "fmi3/fmi3TerminalsAndIcons.xsd",
+            Self::Fmi3BuildDescription => "fmi3/fmi3BuildDescription.xsd",
+            Self::LsRefManifest => "fmi-ls-ref/fmi3LayeredStandardReferenceManifest.xsd",
         }
     }
 }
@@ -45,16 +60,20 @@ static LIBXML: Mutex<()> = Mutex::new(());
 /// The complaints of `schema` about `xml` (the well-formed text of the archive entry
 /// `place`), each with its line.
 pub fn validate(xml: &str, schema: Schema, place: &str) -> Result<Vec<Problem>, InspectError> {
-    let (files, entry) = schema.files();
     let folder = tempfile::Builder::new()
         .prefix("spurio-xsd-")
         .tempdir()
         .map_err(|e| InspectError::Schema(format!("cannot create a temporary folder: {e}")))?;
-    for (name, text) in files {
-        std::fs::write(folder.path().join(name), text)
-            .map_err(|e| InspectError::Schema(format!("cannot write {name}: {e}")))?;
+    for (sub, files) in FOLDERS {
+        let sub = folder.path().join(sub);
+        std::fs::create_dir(&sub)
+            .map_err(|e| InspectError::Schema(format!("cannot create {}: {e}", sub.display())))?;
+        for (name, text) in files {
+            std::fs::write(sub.join(name), text)
+                .map_err(|e| InspectError::Schema(format!("cannot write {name}: {e}")))?;
+        }
     }
-    let entry = folder.path().join(entry);
+    let entry = folder.path().join(schema.entry());
     let entry = entry
         .to_str()
         .ok_or_else(|| InspectError::Schema(format!("{} is not UTF-8", entry.display())))?
