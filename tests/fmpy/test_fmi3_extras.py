@@ -4,7 +4,7 @@
 fmi-ls-ref (`extra/org.fmi-standard.fmi-ls-ref/`: `fmi-ls-manifest.xml`, `<Model>_out.csv`,
 `<Model>_in.csv` where the model has inputs).
 
-Checked: both XML files valid against the standard's schemas (tests/schemas/: the FMI 3.0 set
+Checked: both XML files valid against the standard's schemas (master/inspect/schema/: the FMI 3.0 set
 of fmu-manipulation-toolbox 2.0, the fmi-ls-ref manifest schema); every terminal member a
 variable of the model description with a causality a `signal` allows, every input and output
 in exactly one terminal; the icons a PNG and an SVG, the files drawn by
@@ -26,7 +26,7 @@ from PIL import Image
 from conftest import FMU_DIR, REPO, element_names
 from test_fmi3 import STEMS, drive, fmi3_path
 
-SCHEMAS = REPO / "tests" / "schemas"
+SCHEMAS = REPO / "master" / "inspect" / "schema"
 LS_REF = "extra/org.fmi-standard.fmi-ls-ref"
 SIGNAL_CAUSALITIES = {"input", "output", "parameter", "calculatedParameter"}
 
