@@ -387,6 +387,95 @@ fn a_wrong_fmi_version_and_an_unknown_unit_child_are_said_in_the_standard_s_term
     assert!(!text.contains("Fmi2Unit"), "{text}");
 }
 
+/// Every refusal of an FMI 2.0 description speaks the standard's element and attribute
+/// names (never rust-fmi's Rust types or fields: `Fmi2Unit`, `value_reference`), a version
+/// that does not match the description's shape says so, and ill-formed XML names its line.
+#[test]
+fn model_description_refusals_name_the_standard_s_elements_attributes_and_lines() {
+    // (case, text replaced, its replacement, what the refusal must say)
+    let cases = [
+        (
+            "unitname",
+            "<Unit name=\"N\">",
+            "<Unit>",
+            "<Unit> has no `name`, which FMI 2.0 requires there",
+        ),
+        (
+            "valuereference",
+            "name=\"x\" valueReference=\"1\"",
+            "name=\"x\"",
+            "<ScalarVariable> has no `valueReference`, which FMI 2.0 requires there",
+        ),
+        (
+            "modelidentifier",
+            "<CoSimulation modelIdentifier=\"GantryCrane\"",
+            "<CoSimulation",
+            "<CoSimulation> has no `modelIdentifier`, which FMI 2.0 requires there",
+        ),
+        (
+            "guid",
+            "guid=\"{ae27508b-3946-7ebc-ec7a-9503eda8c018}\"",
+            "",
+            "<fmiModelDescription> has no `guid`, which FMI 2.0 requires there",
+        ),
+        (
+            "mismatched",
+            "</UnitDefinitions>",
+            "</UnitDefinition>",
+            "ill-formed XML at line ",
+        ),
+    ];
+    for (case_name, from, to, expected) in cases {
+        let text = refuse_xml(case_name, from, to);
+        assert!(text.contains(expected), "{case_name}: {text}");
+        for internal in ["Fmi2", "value_reference", "model_identifier", "missing field"] {
+            assert!(!text.contains(internal), "{case_name}: `{internal}` in {text}");
+        }
+    }
+    // An FMI 3.0 description that says fmiVersion 2.0, and a version of neither.
+    let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
+    let with_version = |version: &str| {
+        rewrite(
+            &fmi3,
+            |name, data| {
+                Some(if name == "modelDescription.xml" {
+                    String::from_utf8(data)
+                        .unwrap()
+                        .replacen("fmiVersion=\"3.0\"", version, 1)
+                        .into_bytes()
+                } else {
+                    data
+                })
+            },
+            &[],
+        )
+    };
+    let case = Case::new("version-shape");
+    let (_, text) = case.refuse_bytes(
+        "Shape.fmu",
+        &with_version("fmiVersion=\"2.0\""),
+        &case.options(),
+    );
+    assert!(
+        text.contains(
+            "fmiVersion is `2.0`, but the description is FMI 3.0: its <fmiModelDescription> \
+             has an instantiationToken (FMI 2.0: guid); correct fmiVersion to 3.0"
+        ),
+        "{text}"
+    );
+    let case = Case::new("version-four");
+    let (e, text) = case.refuse_bytes(
+        "Four.fmu",
+        &with_version("fmiVersion=\"4.0\""),
+        &case.options(),
+    );
+    assert!(matches!(e, LoadError::NotFmi2 { .. }), "{e}");
+    assert!(
+        text.contains("fmiVersion is `4.0`; this master runs FMI 2.0 and FMI 3.0 FMUs"),
+        "{text}"
+    );
+}
+
 #[test]
 fn an_output_aliasing_another_output_is_accepted() {
     // `theta` (vr 2) as an alias of `x` (vr 1): same base type, no start values: allowed.

@@ -451,22 +451,34 @@ impl FmuFile {
         let temp_root = options.temp_dir.clone().unwrap_or_else(std::env::temp_dir);
         // From here on, returning drops `unpacked.dir`, which removes the folder.
         let unpacked = archive::unpack(path, &options.limits, &temp_root)?;
-        if fmi_version(&unpacked.model_description)
-            .map_err(|e| md_error(path, e))?
-            .starts_with("3.")
-        {
+        let version = fmi_version(&unpacked.model_description).map_err(|e| md_error(path, e))?;
+        if version.starts_with("3.") {
             return Self::open_3(path, unpacked, interface);
         }
-        let xml = &unpacked.model_description;
-        let md: fmi::schema::fmi2::Fmi2ModelDescription = xml
-            .parse()
-            .map_err(|e: fmi::schema::Error| md_error(path, xml::schema_error(&e)))?;
-        if !md.fmi_version.starts_with("2.") {
+        if !version.starts_with("2.") {
             return Err(LoadError::NotFmi2 {
                 file: path.to_path_buf(),
-                version: md.fmi_version.clone(),
+                version,
             });
         }
+        let xml = &unpacked.model_description;
+        // Well-formed to the end first, so ill-formed XML is said with its line.
+        for tag in crate::xml::tags(xml) {
+            tag.map_err(|e| md_error(path, e))?;
+        }
+        let md: fmi::schema::fmi2::Fmi2ModelDescription =
+            xml.parse().map_err(|e: fmi::schema::Error| {
+                md_error(
+                    path,
+                    match xml::fmi3_shape(xml) {
+                        Some(why) => format!(
+                            "fmiVersion is `{version}`, but the description is FMI 3.0: {why}; \
+                             correct fmiVersion to 3.0"
+                        ),
+                        None => xml::schema_error(&e),
+                    },
+                )
+            })?;
         let model_identifier = match interface {
             Interface::CoSimulation => md.co_simulation.as_ref().map(|i| &i.model_identifier),
             Interface::ModelExchange => md.model_exchange.as_ref().map(|i| &i.model_identifier),
@@ -801,12 +813,12 @@ fn fmi_version(xml: &str) -> Result<String, String> {
     for tag in crate::xml::tags(xml) {
         if let crate::xml::Tag::Start { element, .. } = tag? {
             if element.name().as_ref() == "fmiModelDescription" {
-                return Ok(element
+                return element
                     .attributes()
                     .flatten()
                     .find(|a| a.key.as_ref() == "fmiVersion")
                     .map(|a| a.value.to_string())
-                    .unwrap_or_default());
+                    .ok_or_else(|| "<fmiModelDescription> has no fmiVersion".to_string());
             }
         }
     }
