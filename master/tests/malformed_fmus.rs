@@ -317,6 +317,26 @@ fn refuse_xml(case_name: &str, from: &str, to: &str) -> String {
     text
 }
 
+/// [`refuse_xml`] for each `(case, text replaced, its replacement, what the refusal must
+/// say)`; no refusal names rust-fmi's Rust types or fields for the standard's elements.
+fn refuse_each(cases: &[(&str, &str, &str, &str)]) {
+    for (case_name, from, to, expected) in cases {
+        let text = refuse_xml(case_name, from, to);
+        assert!(text.contains(expected), "{case_name}: {text}");
+        for internal in [
+            "Fmi2",
+            "value_reference",
+            "model_identifier",
+            "missing field",
+        ] {
+            assert!(
+                !text.contains(internal),
+                "{case_name}: `{internal}` in {text}"
+            );
+        }
+    }
+}
+
 #[test]
 fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
     // (case, text replaced, its replacement, what the refusal must say)
@@ -353,10 +373,7 @@ fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
             "index 7 is `M`, whose causality is parameter, not output",
         ),
     ];
-    for (case_name, from, to, expected) in cases {
-        let text = refuse_xml(case_name, from, to);
-        assert!(text.contains(expected), "{case_name}: {text}");
-    }
+    refuse_each(&cases);
 }
 
 #[test]
@@ -425,13 +442,7 @@ fn model_description_refusals_name_the_standard_s_elements_attributes_and_lines(
             "ill-formed XML at line ",
         ),
     ];
-    for (case_name, from, to, expected) in cases {
-        let text = refuse_xml(case_name, from, to);
-        assert!(text.contains(expected), "{case_name}: {text}");
-        for internal in ["Fmi2", "value_reference", "model_identifier", "missing field"] {
-            assert!(!text.contains(internal), "{case_name}: `{internal}` in {text}");
-        }
-    }
+    refuse_each(&cases);
     // An FMI 3.0 description that says fmiVersion 2.0, and a version of neither.
     let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
     let with_version = |version: &str| {
