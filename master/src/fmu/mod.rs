@@ -11,7 +11,8 @@
 //! `x86_64-linux` for FMI 3.0), a library for another platform or one that lacks a required
 //! function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
 //! is removed. The GUID (FMI 3.0: instantiation token) is checked by the FMU itself when it
-//! is instantiated; when instantiation fails, the error quotes what the FMU logged.
+//! is instantiated; when instantiation fails, the error says what the FMU logged
+//! ([`crate::logging::LogKey::failure_note`]).
 //! Variables are indexed by name once, here, so the simulation can work with value
 //! references only; an FMI 3.0 array is indexed as its elements (`x[1,2]`, 1-based,
 //! row-major) and as a whole ([`FmuFile::array`]).
@@ -676,7 +677,7 @@ impl FmuFile {
     /// instances are `!Send`), with the key its log messages are kept under (see
     /// [`crate::logging`]). An FMI 3.0 instance is created with `eventModeUsed` as its
     /// `hasEventMode` ([`FmuFile::event_mode`]; if the FMU refuses it, again without), without
-    /// early return or intermediate update. On failure the error quotes what the FMU logged.
+    /// early return or intermediate update. On failure the error says what the FMU logged.
     pub fn instantiate(&self, instance: &str, logging_on: bool) -> Result<Instance, LoadError> {
         let key = LogKey::new(instance);
         let mut event_mode_used = self.event_mode;
@@ -731,20 +732,12 @@ impl FmuFile {
         match created {
             Ok(CsInstance::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
             Ok(CsInstance::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key, event_mode_used)),
-            Err(e) => {
-                let said = key.recent_messages();
-                let log = if said.is_empty() {
-                    format!(" ({e})")
-                } else {
-                    format!(": {}", said.join("; "))
-                };
-                Err(LoadError::Instantiate {
-                    instance: instance.to_string(),
-                    file: self.path.clone(),
-                    call,
-                    log,
-                })
-            }
+            Err(e) => Err(LoadError::Instantiate {
+                instance: instance.to_string(),
+                file: self.path.clone(),
+                call,
+                log: key.failed_call(e),
+            }),
         }
     }
 }

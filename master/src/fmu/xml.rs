@@ -227,9 +227,7 @@ pub(super) fn fmi3_shape(xml: &str) -> Option<&'static str> {
         };
         match element.name().as_ref() {
             "fmiModelDescription" if attribute(&element, "instantiationToken").is_some() => {
-                return Some(
-                    "its <fmiModelDescription> has an instantiationToken (FMI 2.0: guid)",
-                )
+                return Some("its <fmiModelDescription> has an instantiationToken (FMI 2.0: guid)")
             }
             "ModelVariables" => in_variables = !empty,
             "Float64" | "Float32" | "Int8" | "UInt8" | "Int16" | "UInt16" | "Int32" | "UInt32"
