@@ -117,6 +117,11 @@ const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
 /// GantryCrane.fmu's bytes with `from` replaced by `to` in its model description (which
 /// must hold `from`, so that every edit is sure to take effect).
 fn crane_with_xml(from: &str, to: &str) -> Vec<u8> {
+    with_xml(&crane(), from, to)
+}
+
+/// The bytes of the FMU `source` with `from` replaced by `to` in its model description.
+fn with_xml(source: &Path, from: &str, to: &str) -> Vec<u8> {
     let edit = |name: &str, data: Vec<u8>| {
         Some(if name == "modelDescription.xml" {
             let xml = String::from_utf8(data).unwrap();
@@ -126,7 +131,7 @@ fn crane_with_xml(from: &str, to: &str) -> Vec<u8> {
             data
         })
     };
-    rewrite(&crane(), edit, &[])
+    rewrite(source, edit, &[])
 }
 
 /// GantryCrane.fmu's bytes with its Linux library passed through `f`.
@@ -445,22 +450,7 @@ fn model_description_refusals_name_the_standard_s_elements_attributes_and_lines(
     refuse_each(&cases);
     // An FMI 3.0 description that says fmiVersion 2.0, and a version of neither.
     let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
-    let with_version = |version: &str| {
-        rewrite(
-            &fmi3,
-            |name, data| {
-                Some(if name == "modelDescription.xml" {
-                    String::from_utf8(data)
-                        .unwrap()
-                        .replacen("fmiVersion=\"3.0\"", version, 1)
-                        .into_bytes()
-                } else {
-                    data
-                })
-            },
-            &[],
-        )
-    };
+    let with_version = |version: &str| with_xml(&fmi3, "fmiVersion=\"3.0\"", version);
     let case = Case::new("version-shape");
     let (_, text) = case.refuse_bytes(
         "Shape.fmu",
@@ -485,6 +475,41 @@ fn model_description_refusals_name_the_standard_s_elements_attributes_and_lines(
         text.contains("fmiVersion is `4.0`; this master runs FMI 2.0 and FMI 3.0 FMUs"),
         "{text}"
     );
+}
+
+/// An FMI 3.0 description is refused, not read otherwise, when a variable's causality is
+/// none of the standard's or an interface has no modelIdentifier (the FMU would run as
+/// another interface, or a variable as local).
+#[test]
+fn fmi3_descriptions_with_an_unknown_causality_or_no_model_identifier_are_refused() {
+    let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
+    let cases = [
+        (
+            "causality",
+            "(saturated at ±U_max)\" causality=\"input\"",
+            "(saturated at ±U_max)\" causality=\"inptu\"",
+            "variable `U`: causality `inptu` is none of FMI 3.0's (parameter, \
+             calculatedParameter, structuralParameter, input, output, local, independent)",
+        ),
+        (
+            "cs-identifier",
+            "<CoSimulation modelIdentifier=\"GantryCrane\"",
+            "<CoSimulation",
+            "<CoSimulation> has no modelIdentifier, which FMI 3.0 requires",
+        ),
+        (
+            "me-identifier",
+            "<ModelExchange modelIdentifier=\"GantryCrane\"",
+            "<ModelExchange",
+            "<ModelExchange> has no modelIdentifier, which FMI 3.0 requires",
+        ),
+    ];
+    for (case_name, from, to, expected) in cases {
+        let case = Case::new(&format!("fmi3-{case_name}"));
+        let (e, text) = case.refuse_bytes("Bad3.fmu", &with_xml(&fmi3, from, to), &case.options());
+        assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
+        assert!(text.contains(expected), "{case_name}: {text}");
+    }
 }
 
 #[test]
