@@ -252,7 +252,12 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
-    logging::install(verbose);
+    if matches!(cli.command, Command::SweepWorker(_)) {
+        // A worker's standard error goes to a file: its errors quote what the FMUs logged.
+        logging::install_unseen(verbose);
+    } else {
+        logging::install(verbose);
+    }
     // A panic (a bug) still removes the session folder before the process ends with 101.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         guard::start().and_then(|()| match &cli.command {
