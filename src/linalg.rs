@@ -301,6 +301,9 @@ const PADE13: [f64; 14] = [
 /// Largest 1-norm for which r₁₃ reaches double precision (Higham 2005, Table 2.3).
 const THETA13: f64 = 5.371_920_351_148_152;
 
+/// What [`try_expm`] names when `e^A` overflows.
+const EXPM_OVERFLOW: &str = "e^A (overflow)";
+
 /// The matrix exponential `e^a`, or an error for a non-square or non-finite matrix.
 pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
     let n = require_square("A", a)?;
@@ -345,7 +348,7 @@ pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
     for _ in 0..squarings {
         result = &result * &result;
     }
-    require_finite("e^A (overflow)", &result)?;
+    require_finite(EXPM_OVERFLOW, &result)?;
     Ok(result)
 }
 
@@ -381,6 +384,13 @@ pub fn try_zoh(
     let exponential = try_expm(&augmented).map_err(|e| match e {
         LinalgError::NormOverflow { .. } => LinalgError::NormOverflow {
             what: format!("[[A, B], [0, 0]]·Ts (Ts = {ts:e} s; a shorter Ts is needed)"),
+        },
+        // The norm is finite but e^{A Ts} is not: A grows too fast over Ts.
+        LinalgError::NonFinite { what } if what == EXPM_OVERFLOW => LinalgError::NonFinite {
+            what: format!(
+                "e^([[A, B], [0, 0]]·Ts) (overflow: Ts = {ts:e} s is too long for this A; a \
+                 shorter Ts is needed)"
+            ),
         },
         other => other,
     })?;
@@ -1235,6 +1245,15 @@ mod tests {
             try_expm(&largest),
             Err(LinalgError::NonFinite { what }) if what == "e^A (overflow)"
         ));
+        // A finite norm whose exponential overflows names the step too.
+        let err = try_zoh(&dmatrix![0.9, 0.1; 0.0, 0.9], &dmatrix![0.854; 1.0], 1e300)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            err,
+            "matrix e^([[A, B], [0, 0]]·Ts) (overflow: Ts = 1e300 s is too long for this A; a \
+             shorter Ts is needed) contains NaN or infinity"
+        );
         let err = try_zoh(&dmatrix![0.9, 0.1; 0.0, 0.9], &dmatrix![0.854; 1.0], 1e308)
             .unwrap_err()
             .to_string();

@@ -4,7 +4,7 @@
 
 use crate::diagnostics;
 use anyhow::{Context, Result};
-use spurio_master::ResultTable;
+use spurio_master::{ResultTable, MAX_RESULTS_BYTES};
 use std::fmt::Write;
 use std::path::Path;
 
@@ -16,7 +16,7 @@ pub fn diagnose(
     alpha: f64,
     png: Option<&Path>,
 ) -> Result<String> {
-    let table = ResultTable::read(csv)?;
+    let table = ResultTable::read(csv, MAX_RESULTS_BYTES)?;
     let data = table
         .column(column)
         .with_context(|| format!("in {}", csv.display()))?;

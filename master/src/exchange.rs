@@ -63,18 +63,18 @@ impl Member {
 
     /// A failed call `call` (named by its FMI 2.0 name; an FMI 3.0 instance says its own).
     fn failure(&self, call: &'static str, e: CallError, time: f64) -> FmiFailure {
-        let said = self.instance.log().recent_messages();
         FmiFailure {
             instance: self.name.clone(),
             file: self.file.clone(),
             call: self.instance.version().call_name(call),
             status: e.0,
             time,
-            log: if said.is_empty() {
-                String::new()
-            } else {
-                format!(" (the FMU logged: {})", said.join("; "))
-            },
+            log: self
+                .instance
+                .log()
+                .failure_note()
+                .map(|note| format!(" ({note})"))
+                .unwrap_or_default(),
         }
     }
 }

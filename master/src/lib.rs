@@ -37,14 +37,14 @@ mod record;
 mod results;
 pub mod ssp;
 mod system;
-mod xml;
+pub mod xml;
 
 pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
 pub use coupling::{
     propagation_order, Connection, Integration, Propagation, PropagationStep, ResolvedInstance,
     VarRef,
 };
-pub use data::{Cursor, DataError, DataTable, Interpolation, Reading};
+pub use data::{read_text_at_most, Cursor, DataError, DataTable, Interpolation, Reading};
 pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
 pub use engine::{RunEnd, RunOptions, Simulation};
 pub use error::{FmiFailure, RunError, SystemError};
@@ -52,5 +52,5 @@ pub use exchange::{Exchange, StepOutcome};
 pub use monitor::{CallInProgress, CallMonitor};
 pub use plan::{Op, Plan, Recorded, Transfer};
 pub use record::{replay, CsvWriter, NoRecording, Observer, TimeSeries};
-pub use results::{ResultTable, ResultsError};
+pub use results::{ResultTable, ResultsError, MAX_RESULTS_BYTES};
 pub use system::{StartValue, System};

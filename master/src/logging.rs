@@ -6,8 +6,9 @@
 //! instance is created under a name of its own, `<name>#<n>` ([`LogKey`]). [`install`] sets
 //! a logger that prints the messages as `[name] LEVEL: message` on standard error (warnings
 //! and errors always, informational messages with `--verbose`) and keeps the most recent
-//! ones of each live [`LogKey`], so an error report quotes what that very instance said
-//! ([`LogKey::recent_messages`]).
+//! ones of each live [`LogKey`], so an error report says what that very instance said
+//! ([`LogKey::failure_note`]): it quotes the messages the user has not seen, and points to
+//! those printed already instead of repeating them (each message is said once).
 //!
 //! rust-fmi's FMI 3.0 logger does not pass the instance (its callback gets a null instance
 //! environment and emits the log category as the target, with module path `fmu`): every call
@@ -23,12 +24,23 @@ const KEPT: usize = 100;
 
 struct ForwardingLogger {
     verbose: bool,
+    /// Whether what is printed on standard error reaches the user ([`install`]), or not
+    /// ([`install_unseen`]): only messages the user has seen are left out of a quote.
+    seen: bool,
 }
 
 static LOGGER: OnceLock<ForwardingLogger> = OnceLock::new();
 
+/// One message an instance logged.
+struct Message {
+    level: log::Level,
+    text: String,
+    /// Printed on a standard error the user sees.
+    shown: bool,
+}
+
 /// The messages of the live instances, by their unique name.
-type Kept = Mutex<HashMap<String, VecDeque<(log::Level, String)>>>;
+type Kept = Mutex<HashMap<String, VecDeque<Message>>>;
 
 fn kept() -> &'static Kept {
     static KEPT_MESSAGES: OnceLock<Kept> = OnceLock::new();
@@ -81,7 +93,8 @@ impl log::Log for ForwardingLogger {
         }
         let target = speaker.as_deref().unwrap_or(record.target());
         let text = record.args().to_string();
-        if record.level() <= log::Level::Warn || self.verbose {
+        let printed = record.level() <= log::Level::Warn || self.verbose;
+        if printed {
             eprintln!("[{}] {}: {}", display_name(target), record.level(), text);
         }
         if let Ok(mut kept) = kept().lock() {
@@ -89,7 +102,11 @@ impl log::Log for ForwardingLogger {
                 if messages.len() == KEPT {
                     messages.pop_front();
                 }
-                messages.push_back((record.level(), text));
+                messages.push_back(Message {
+                    level: record.level(),
+                    text,
+                    shown: printed && self.seen,
+                });
             }
         }
     }
@@ -98,8 +115,27 @@ impl log::Log for ForwardingLogger {
 }
 
 /// Installs the forwarding logger (once per process; later calls keep the first setting).
+/// Standard error is taken to reach the user: an error report points to the messages printed
+/// there instead of quoting them again ([`LogKey::failure_note`]).
 pub fn install(verbose: bool) {
-    let logger = LOGGER.get_or_init(|| ForwardingLogger { verbose });
+    install_logger(ForwardingLogger {
+        verbose,
+        seen: true,
+    });
+}
+
+/// [`install`] for a process whose standard error the user does not see (a sweep's worker
+/// writes it to a file read only if the worker crashes): the messages are printed all the
+/// same, and an error report quotes them.
+pub fn install_unseen(verbose: bool) {
+    install_logger(ForwardingLogger {
+        verbose,
+        seen: false,
+    });
+}
+
+fn install_logger(logger: ForwardingLogger) {
+    let logger = LOGGER.get_or_init(|| logger);
     if log::set_logger(logger).is_ok() {
         log::set_max_level(log::LevelFilter::Info);
     }
@@ -130,19 +166,38 @@ impl LogKey {
         &self.unique
     }
 
-    /// The most recent messages this instance logged (oldest first), as `LEVEL: text`.
-    pub fn recent_messages(&self) -> Vec<String> {
-        let Ok(kept) = kept().lock() else {
-            return Vec::new();
-        };
-        kept.get(&*self.unique)
-            .map(|messages| {
-                messages
-                    .iter()
-                    .map(|(level, text)| format!("{level}: {text}"))
-                    .collect()
-            })
-            .unwrap_or_default()
+    /// What an error report of this instance adds about what it logged, each message said
+    /// once: the recent messages the user has not seen (oldest first, as `LEVEL: text`)
+    /// quoted, `the FMU logged: …`; those printed on standard error already are pointed to,
+    /// not repeated. `None` when it logged nothing.
+    pub fn failure_note(&self) -> Option<String> {
+        let kept = kept().lock().ok()?;
+        let messages = kept.get(&*self.unique)?;
+        let unseen: Vec<String> = messages
+            .iter()
+            .filter(|m| !m.shown)
+            .map(|m| format!("{}: {}", m.level, m.text))
+            .collect();
+        let shown = messages.iter().filter(|m| m.shown).count();
+        match (unseen.is_empty(), shown) {
+            (true, 0) => None,
+            (true, 1) => Some("the FMU's message is printed above".to_string()),
+            (true, _) => Some("the FMU's messages are printed above".to_string()),
+            (false, 0) => Some(format!("the FMU logged: {}", unseen.join("; "))),
+            (false, _) => Some(format!(
+                "the FMU logged: {}, beside what is printed above",
+                unseen.join("; ")
+            )),
+        }
+    }
+
+    /// The end of the error of a failed call `error` of this instance: what it logged
+    /// ([`Self::failure_note`]) or, when it logged nothing, the error itself.
+    pub(crate) fn failed_call(&self, error: impl std::fmt::Display) -> String {
+        match self.failure_note() {
+            Some(note) => format!(": {note}"),
+            None => format!(" ({error})"),
+        }
     }
 }
 
@@ -160,7 +215,8 @@ mod tests {
 
     #[test]
     fn messages_are_kept_per_key_and_printed_under_the_users_name() {
-        install(false);
+        // Unseen: the test harness captures standard error, so the notes quote the messages.
+        install_unseen(false);
         let a = LogKey::new("crane");
         let b = LogKey::new("crane");
         assert_ne!(a.instance_name(), b.instance_name());
@@ -179,8 +235,18 @@ mod tests {
         emit(a.instance_name(), "x0 beyond the rail");
         emit(b.instance_name(), "m_c must be positive");
         emit("crane", "not kept: no key");
-        assert_eq!(a.recent_messages(), ["ERROR: x0 beyond the rail"]);
-        assert_eq!(b.recent_messages(), ["ERROR: m_c must be positive"]);
+        assert_eq!(
+            a.failure_note().as_deref(),
+            Some("the FMU logged: ERROR: x0 beyond the rail")
+        );
+        assert_eq!(
+            b.failed_call("no such call"),
+            ": the FMU logged: ERROR: m_c must be positive"
+        );
+        assert_eq!(
+            LogKey::new("quiet").failed_call("it failed"),
+            " (it failed)"
+        );
         let name = a.instance_name().to_string();
         drop(a);
         assert!(!kept().lock().unwrap().contains_key(&name));

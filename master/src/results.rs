@@ -8,11 +8,8 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum ResultsError {
     // The causes are in the messages, so they are no `source()` (a chain would repeat them).
-    #[error("cannot read results file {}: {error}", file.display())]
-    Read {
-        file: PathBuf,
-        error: std::io::Error,
-    },
+    #[error("cannot read results file {}: {reason}", file.display())]
+    Read { file: PathBuf, reason: String },
     #[error("in results file {}: {error}", file.display())]
     InFile {
         file: PathBuf,
@@ -34,6 +31,10 @@ pub enum ResultsError {
     NoColumn { name: String, columns: String },
 }
 
+/// The largest results file read (1 GiB): the table is held in memory
+/// whole.
+pub const MAX_RESULTS_BYTES: u64 = 1 << 30;
+
 /// A table of named columns read from a results CSV.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ResultTable {
@@ -44,11 +45,19 @@ pub struct ResultTable {
 }
 
 impl ResultTable {
-    /// Reads `path`; every error names the file and the line.
-    pub fn read(path: &Path) -> Result<Self, ResultsError> {
-        let text = std::fs::read_to_string(path).map_err(|error| ResultsError::Read {
+    /// Reads `path`, of at most `max_bytes` bytes ([`MAX_RESULTS_BYTES`] unless a caller
+    /// bounds it lower; no more is read, so an endless file such as `/dev/zero` is refused
+    /// too); every error names the file and the line.
+    pub fn read(path: &Path, max_bytes: u64) -> Result<Self, ResultsError> {
+        let text = crate::data::read_text_at_most(
+            path,
+            max_bytes,
+            "the results file",
+            "the largest results file read",
+        )
+        .map_err(|reason| ResultsError::Read {
             file: path.to_path_buf(),
-            error,
+            reason,
         })?;
         Self::parse(&text).map_err(|e| ResultsError::InFile {
             file: path.to_path_buf(),
@@ -122,6 +131,19 @@ impl ResultTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An endless file (`/dev/zero`) is read no further than the bound, then refused.
+    #[test]
+    fn a_results_file_is_not_read_past_its_bound() {
+        let e = ResultTable::read(Path::new("/dev/zero"), 1024)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "cannot read results file /dev/zero: the results file is larger than 1024 bytes \
+             (the largest results file read); not read"
+        );
+    }
 
     #[test]
     fn reads_fmpy_layout_and_names_missing_columns() {

@@ -1,11 +1,13 @@
 //! What the readers of model descriptions and SSDs share: the element tags of an XML text,
-//! in document order, with everything else (text, comments, declarations) passed over.
+//! in document order, with everything else (text, comments, declarations) passed over. Public
+//! for the packager, which reads the FMI 3.0 description it writes beside the terminals and
+//! reference results of an archive.
 
 use quick_xml::events::{BytesEnd, BytesStart, Event};
 use quick_xml::Reader;
 
 /// An element's start tag (`empty`: a self-closing `<a/>`), or an end tag.
-pub(crate) enum Tag {
+pub enum Tag {
     Start {
         element: BytesStart<'static>,
         empty: bool,
@@ -17,7 +19,7 @@ pub(crate) enum Tag {
 /// line. Besides what the reader checks (an end tag matches its start tag), the walk checks
 /// what makes the whole text a well-formed document: one root element, every element
 /// closed before the end, no element after the root.
-pub(crate) fn tags(text: &str) -> Tags<'_> {
+pub fn tags(text: &str) -> Tags<'_> {
     Tags {
         reader: Reader::from_str(text),
         text,
@@ -27,7 +29,7 @@ pub(crate) fn tags(text: &str) -> Tags<'_> {
     }
 }
 
-pub(crate) struct Tags<'a> {
+pub struct Tags<'a> {
     reader: Reader<&'a [u8]>,
     text: &'a str,
     /// The names of the elements open at the reader's position, outermost first.
@@ -129,7 +131,7 @@ impl Iterator for Tags<'_> {
 
 /// The value of the attribute `key` of `element` (entities resolved, white space as XML 1.0
 /// normalises it); `None` when it is absent or malformed.
-pub(crate) fn attribute(element: &BytesStart, key: &str) -> Option<String> {
+pub fn attribute(element: &BytesStart, key: &str) -> Option<String> {
     element
         .attributes()
         .flatten()

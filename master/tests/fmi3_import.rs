@@ -306,7 +306,7 @@ fn an_ssp_export_names_array_elements_and_wholes_and_runs_the_same() {
 fn a_rejected_instantiation_token_is_reported_with_what_the_fmu_logged() {
     // The FMU's messages reach the error although rust-fmi's FMI 3.0 logger does not say
     // which instance spoke: the master attributes them to the instance it is calling.
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     let dir = tempfile::tempdir().unwrap();
     let fmu = dir.path().join("Dahlquist.fmu");
     let bytes = common::rewrite(

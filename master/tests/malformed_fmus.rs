@@ -117,6 +117,11 @@ const LIBRARY: &str = "binaries/linux64/GantryCrane.so";
 /// GantryCrane.fmu's bytes with `from` replaced by `to` in its model description (which
 /// must hold `from`, so that every edit is sure to take effect).
 fn crane_with_xml(from: &str, to: &str) -> Vec<u8> {
+    with_xml(&crane(), from, to)
+}
+
+/// The bytes of the FMU `source` with `from` replaced by `to` in its model description.
+fn with_xml(source: &Path, from: &str, to: &str) -> Vec<u8> {
     let edit = |name: &str, data: Vec<u8>| {
         Some(if name == "modelDescription.xml" {
             let xml = String::from_utf8(data).unwrap();
@@ -126,7 +131,7 @@ fn crane_with_xml(from: &str, to: &str) -> Vec<u8> {
             data
         })
     };
-    rewrite(&crane(), edit, &[])
+    rewrite(source, edit, &[])
 }
 
 /// GantryCrane.fmu's bytes with its Linux library passed through `f`.
@@ -317,6 +322,26 @@ fn refuse_xml(case_name: &str, from: &str, to: &str) -> String {
     text
 }
 
+/// [`refuse_xml`] for each `(case, text replaced, its replacement, what the refusal must
+/// say)`; no refusal names rust-fmi's Rust types or fields for the standard's elements.
+fn refuse_each(cases: &[(&str, &str, &str, &str)]) {
+    for (case_name, from, to, expected) in cases {
+        let text = refuse_xml(case_name, from, to);
+        assert!(text.contains(expected), "{case_name}: {text}");
+        for internal in [
+            "Fmi2",
+            "value_reference",
+            "model_identifier",
+            "missing field",
+        ] {
+            assert!(
+                !text.contains(internal),
+                "{case_name}: `{internal}` in {text}"
+            );
+        }
+    }
+}
+
 #[test]
 fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
     // (case, text replaced, its replacement, what the refusal must say)
@@ -353,10 +378,7 @@ fn model_descriptions_with_an_inconsistency_are_refused_with_the_reason() {
             "index 7 is `M`, whose causality is parameter, not output",
         ),
     ];
-    for (case_name, from, to, expected) in cases {
-        let text = refuse_xml(case_name, from, to);
-        assert!(text.contains(expected), "{case_name}: {text}");
-    }
+    refuse_each(&cases);
 }
 
 #[test]
@@ -385,6 +407,109 @@ fn a_wrong_fmi_version_and_an_unknown_unit_child_are_said_in_the_standard_s_term
         "{text}"
     );
     assert!(!text.contains("Fmi2Unit"), "{text}");
+}
+
+/// Every refusal of an FMI 2.0 description speaks the standard's element and attribute
+/// names (never rust-fmi's Rust types or fields: `Fmi2Unit`, `value_reference`), a version
+/// that does not match the description's shape says so, and ill-formed XML names its line.
+#[test]
+fn model_description_refusals_name_the_standard_s_elements_attributes_and_lines() {
+    // (case, text replaced, its replacement, what the refusal must say)
+    let cases = [
+        (
+            "unitname",
+            "<Unit name=\"N\">",
+            "<Unit>",
+            "<Unit> has no `name`, which FMI 2.0 requires there",
+        ),
+        (
+            "valuereference",
+            "name=\"x\" valueReference=\"1\"",
+            "name=\"x\"",
+            "<ScalarVariable> has no `valueReference`, which FMI 2.0 requires there",
+        ),
+        (
+            "modelidentifier",
+            "<CoSimulation modelIdentifier=\"GantryCrane\"",
+            "<CoSimulation",
+            "<CoSimulation> has no `modelIdentifier`, which FMI 2.0 requires there",
+        ),
+        (
+            "guid",
+            "guid=\"{ae27508b-3946-7ebc-ec7a-9503eda8c018}\"",
+            "",
+            "<fmiModelDescription> has no `guid`, which FMI 2.0 requires there",
+        ),
+        (
+            "mismatched",
+            "</UnitDefinitions>",
+            "</UnitDefinition>",
+            "ill-formed XML at line ",
+        ),
+    ];
+    refuse_each(&cases);
+    // An FMI 3.0 description that says fmiVersion 2.0, and a version of neither.
+    let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
+    let with_version = |version: &str| with_xml(&fmi3, "fmiVersion=\"3.0\"", version);
+    let case = Case::new("version-shape");
+    let (_, text) = case.refuse_bytes(
+        "Shape.fmu",
+        &with_version("fmiVersion=\"2.0\""),
+        &case.options(),
+    );
+    assert!(
+        text.contains(
+            "fmiVersion is `2.0`, but the description is FMI 3.0: its <fmiModelDescription> \
+             has an instantiationToken (FMI 2.0: guid); correct fmiVersion to 3.0"
+        ),
+        "{text}"
+    );
+    let case = Case::new("version-four");
+    let (e, text) = case.refuse_bytes(
+        "Four.fmu",
+        &with_version("fmiVersion=\"4.0\""),
+        &case.options(),
+    );
+    assert!(matches!(e, LoadError::NotFmi2 { .. }), "{e}");
+    assert!(
+        text.contains("fmiVersion is `4.0`; this master runs FMI 2.0 and FMI 3.0 FMUs"),
+        "{text}"
+    );
+}
+
+/// An FMI 3.0 description is refused, not read otherwise, when a variable's causality is
+/// none of the standard's or an interface has no modelIdentifier (the FMU would run as
+/// another interface, or a variable as local).
+#[test]
+fn fmi3_descriptions_with_an_unknown_causality_or_no_model_identifier_are_refused() {
+    let fmi3 = common::fmus().join("fmi3/GantryCrane.fmu");
+    let cases = [
+        (
+            "causality",
+            "(saturated at ±U_max)\" causality=\"input\"",
+            "(saturated at ±U_max)\" causality=\"inptu\"",
+            "variable `U`: causality `inptu` is none of FMI 3.0's (parameter, \
+             calculatedParameter, structuralParameter, input, output, local, independent)",
+        ),
+        (
+            "cs-identifier",
+            "<CoSimulation modelIdentifier=\"GantryCrane\"",
+            "<CoSimulation",
+            "<CoSimulation> has no modelIdentifier, which FMI 3.0 requires",
+        ),
+        (
+            "me-identifier",
+            "<ModelExchange modelIdentifier=\"GantryCrane\"",
+            "<ModelExchange",
+            "<ModelExchange> has no modelIdentifier, which FMI 3.0 requires",
+        ),
+    ];
+    for (case_name, from, to, expected) in cases {
+        let case = Case::new(&format!("fmi3-{case_name}"));
+        let (e, text) = case.refuse_bytes("Bad3.fmu", &with_xml(&fmi3, from, to), &case.options());
+        assert!(matches!(e, LoadError::ModelDescription { .. }), "{e}");
+        assert!(text.contains(expected), "{case_name}: {text}");
+    }
 }
 
 #[test]

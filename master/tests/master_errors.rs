@@ -60,7 +60,7 @@ fn missing_linux64_binary_is_named() {
 
 #[test]
 fn guid_mismatch_is_reported_with_what_the_fmu_said() {
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     let zero_guid = "guid=\"{00000000-0000-0000-0000-000000000000}\"";
     let target = crane_with_xml("WrongGuid.fmu", "guid=\"", "\"", zero_guid);
     let fmu = FmuFile::open(&target).unwrap();
@@ -175,7 +175,7 @@ fn bad_parameter_values_are_named() {
 
 #[test]
 fn an_error_inside_the_fmu_names_the_instance_and_the_call() {
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     let text = TWO.replace(
         "fmu = \"GantryCrane.fmu\"",
         "fmu = \"GantryCrane.fmu\"\nparameters = { x0 = 0.9 }",
@@ -195,7 +195,7 @@ fn an_error_inside_the_fmu_names_the_instance_and_the_call() {
 
 #[test]
 fn an_error_in_a_step_names_the_instance_the_call_and_the_time() {
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     let s = system(
         "stop_time = 1.0\nstep_size = 0.1\n[[instance]]\nname = \"plant\"\nfmu = \"LinearSystem.fmu\"\nparameters = { \"A[1,1]\" = 1e200, \"x0[1]\" = 1e200 }\n",
     )

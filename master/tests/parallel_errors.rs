@@ -16,7 +16,7 @@ fn system(text: &str) -> System {
 
 #[test]
 fn every_instance_that_fails_in_a_step_is_named() {
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     let plant = |name: &str| {
         format!(
             "[[instance]]\nname = \"{name}\"\nfmu = \"LinearSystem.fmu\"\nparameters = {{ \"A[1,1]\" = 1e200, \"x0[1]\" = 1e200 }}\n"
@@ -66,7 +66,7 @@ fn failing_crane(parameters: &str, start: &Barrier) -> String {
 
 #[test]
 fn parallel_runs_quote_their_own_instances_messages() {
-    spurio_master::logging::install(false);
+    spurio_master::logging::install_unseen(false);
     for _ in 0..10 {
         let start = Arc::new(Barrier::new(2));
         let (a, b) = (start.clone(), start);

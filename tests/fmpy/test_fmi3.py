@@ -68,18 +68,22 @@ def test_fmpy_validates_and_simulates_every_fmi3_fmu(stem):
         assert np.all(np.isfinite(result[v.name].astype(float)))
 
 
-def drive(stem, version):
+def drive(stem, version, inputs_table=None, experiment=None):
     """The model's cross-check scenario (fmus/<Id>/crosscheck/) stepped by hand, the same way
     for both versions: inputs (interpolated at each communication point) set before every
-    step, every output element read after it. Returns {element name: values}."""
+    step, every output element read after it. Returns {element name: values}.
+    `inputs_table` ({"time" and element names: values}) and `experiment` ((start, stop, step))
+    replace the scenario's when given (the reference results an FMU carries)."""
     path = str(FMU_DIR / f"{stem}.fmu") if version == 2 else fmi3_path(stem)
     md = read_model_description(path)
     folder = crosscheck.folder_of(stem, md.coSimulation.modelIdentifier)
-    opt = crosscheck.read_opt(folder / f"{stem}_ref.opt")
-    t0, t1, h = opt["StartTime"], opt["StopTime"], opt["StepSize"]
-    table = {}
+    if experiment is None:
+        opt = crosscheck.read_opt(folder / f"{stem}_ref.opt")
+        experiment = opt["StartTime"], opt["StopTime"], opt["StepSize"]
+    t0, t1, h = experiment
+    table = {} if inputs_table is None else inputs_table
     in_csv = folder / f"{stem}_in.csv"
-    if in_csv.exists():
+    if inputs_table is None and in_csv.exists():
         header, rows = crosscheck.read_table(in_csv)
         columns = np.array(rows).T
         table = {name: columns[k] for k, name in enumerate(header)}

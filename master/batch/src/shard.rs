@@ -44,6 +44,9 @@ pub const FORMAT: u32 = 1;
 /// The program that writes shard files; shards of different builds are not merged.
 pub const PRODUCER: &str = concat!("spurio ", env!("CARGO_PKG_VERSION"));
 
+/// The largest shard file read (1 GiB: a million runs' rows fit many times over).
+pub const MAX_SHARD_FILE_BYTES: u64 = 1 << 30;
+
 /// Errors of shard specifications and shard files.
 #[derive(Debug, thiserror::Error)]
 pub enum ShardError {
@@ -402,11 +405,23 @@ impl ShardFile {
         Ok(file)
     }
 
-    /// Reads a shard file.
+    /// Reads a shard file, of at most [`MAX_SHARD_FILE_BYTES`] bytes (no more is read, so an
+    /// endless file such as `/dev/zero` is refused too).
     pub fn read(path: &Path) -> Result<Self, ShardError> {
-        let text = std::fs::read_to_string(path).map_err(|error| ShardError::Read {
+        Self::read_at_most(path, MAX_SHARD_FILE_BYTES)
+    }
+
+    /// [`ShardFile::read`] of a file of at most `max_bytes` bytes.
+    pub fn read_at_most(path: &Path, max_bytes: u64) -> Result<Self, ShardError> {
+        let text = spurio_master::read_text_at_most(
+            path,
+            max_bytes,
+            "the shard file",
+            "the largest shard file read",
+        )
+        .map_err(|reason| ShardError::Read {
             path: path.to_path_buf(),
-            error,
+            error: std::io::Error::other(reason),
         })?;
         Self::from_toml(&text, path)
     }
@@ -1456,6 +1471,19 @@ mod tests {
             .to_string();
         assert!(
             e.contains("cannot read shard file") && e.contains("absent.toml"),
+            "{e}"
+        );
+        // A file larger than the bound, and an endless one, are not read past it.
+        let e = ShardFile::read_at_most(&path, 16).unwrap_err().to_string();
+        assert!(
+            e.contains("the shard file is larger than 16 bytes (the largest shard file read)"),
+            "{e}"
+        );
+        let e = ShardFile::read_at_most(Path::new("/dev/zero"), 1024)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("cannot read shard file /dev/zero: the shard file is larger than 1024"),
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();

@@ -4,6 +4,8 @@
 //!   compiled libraries;
 //! - `spurio model-descriptions` checks (or, with `--write`, regenerates) the committed
 //!   `modelDescription/*.xml` against what the built FMU libraries generate;
+//! - `spurio info` shows what any FMU says about itself, `spurio validate` checks its model
+//!   description against the standard (schema and rules);
 //! - `spurio diagnose` runs the outlier diagnostics (Grubbs, kurtosis, skewness, E_res,
 //!   histogram) on a column of a results CSV.
 
@@ -41,7 +43,9 @@ fn say_line(line: std::fmt::Arguments<'_>) {
     }
 }
 
+mod fmi3_extras;
 mod guard;
+mod inspect;
 mod library_query;
 mod limits;
 mod package;
@@ -207,6 +211,26 @@ enum Command {
         #[arg(long)]
         png: Option<PathBuf>,
     },
+    /// Show what an FMI 2.0 or 3.0 FMU (any, ours or a third party's) says about itself:
+    /// interfaces, FMI version, model name, GUID or instantiation token, generation tool,
+    /// platforms, default experiment, and every variable with its value reference,
+    /// causality, variability, type, unit, start value and bounds.
+    Info {
+        /// The FMU.
+        fmu: PathBuf,
+        /// Print it as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Check an FMI 2.0 or 3.0 FMU's model description against the standard: its XML schema
+    /// and the rules the schema cannot express (unique names and value references, names of
+    /// the naming convention, causality/variability/initial, start values, units and types,
+    /// ModelStructure, model identifiers and platform binaries). Prints each problem with
+    /// its line; exits with 1 when there is one.
+    Validate {
+        /// The FMU.
+        fmu: PathBuf,
+    },
     /// Runs of a sweep in a worker process: values in on standard input, metrics out.
     #[command(hide = true)]
     SweepWorker(sweep::WorkerArgs),
@@ -228,7 +252,12 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let verbose = matches!(cli.command, Command::Run { verbose: true, .. });
-    logging::install(verbose);
+    if matches!(cli.command, Command::SweepWorker(_)) {
+        // A worker's standard error goes to a file: its errors quote what the FMUs logged.
+        logging::install_unseen(verbose);
+    } else {
+        logging::install(verbose);
+    }
     // A panic (a bug) still removes the session folder before the process ends with 101.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         guard::start().and_then(|()| match &cli.command {
@@ -572,6 +601,8 @@ fn command(command: Command) -> Result<ExitCode> {
                 println!("wrote {}", path.display());
             }
         }
+        Command::Info { fmu, json } => inspect::info(&fmu, json)?,
+        Command::Validate { fmu } => inspect::validate(&fmu)?,
         Command::Sweep(args) => return sweep::run(args),
         Command::SweepWorker(args) => sweep::worker(args)?,
         Command::SweepMerge(args) => sweep::merge(args)?,

@@ -16,8 +16,13 @@
 //! Every FMU is written twice from the same binaries: as FMI 2.0 (`<out>/<stem>.fmu`) and as
 //! FMI 3.0 (`<out>/fmi3/<stem>.fmu`: the FMI 3.0 model description, the binaries under the
 //! FMI 3.0 platform tuples `x86_64-linux`, `x86_64-windows`, `aarch64-linux`; FMI 3.0.2
-//! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions.
+//! §2.5.1.1), since one library exports both the `fmi2*` and the `fmi3*` functions. The FMI
+//! 3.0 archive also carries `terminalsAndIcons/` (the terminals of its signals; the icon
+//! `fmus/<dir>/icon.png` and `icon.svg`, the terminal icons of `fmus/export/icons/`) and,
+//! for a bundled variant, its cross-check
+//! scenario as `fmi-ls-ref` reference results ([`crate::fmi3_extras`]).
 
+use crate::fmi3_extras::{self, ExtrasError};
 use crate::library_query::{FmuLibrary, QueryError};
 use anyhow::{anyhow, bail, Context, Result};
 use spurio_export::description::CONFIG_FILE;
@@ -319,8 +324,90 @@ pub fn package_variant(
     for (name, bytes) in resources {
         add(&format!("resources/{name}"), bytes)?;
     }
+    if version == FmiVersion::Fmi3 {
+        for (name, bytes) in fmi3_extras(fmu, stem, config, &xml)? {
+            add(&name, &bytes)?;
+        }
+    }
     zip.finish()?;
     Ok(path)
+}
+
+/// The folder, below `fmus/` (in the export layer every FMU is built on), of the terminal
+/// icons all FMUs share
+/// ([`fmi3_extras::terminals::TERMINAL_ICONS`]).
+pub const TERMINAL_ICON_DIR: &str = "export/icons";
+
+/// The image files of an FMU's graphical representation (archive name, bytes): the icon of
+/// its folder (`fmus/<dir>/icon.png`, `icon.svg`) and the shared terminal icons
+/// (`fmus/export/icons/input.png`, …), each PNG with its SVG (FMI 3.0.2 §2.4.9.1.3 allows
+/// an SVG only beside its PNG); none unless every PNG is there.
+fn graphics_files(fmu: &BuiltFmu) -> Result<Vec<(String, Vec<u8>)>> {
+    let shared = fmu
+        .source
+        .dir
+        .parent()
+        .unwrap_or(&fmu.source.dir)
+        .join(TERMINAL_ICON_DIR);
+    let images = std::iter::once((fmu.source.dir.clone(), "icon")).chain(
+        fmi3_extras::terminals::TERMINAL_ICONS
+            .iter()
+            .map(|name| (shared.clone(), *name)),
+    );
+    let mut files = Vec::new();
+    for (dir, base) in images {
+        let png = dir.join(format!("{base}.png"));
+        if !png.is_file() {
+            return Ok(Vec::new());
+        }
+        for path in [png, dir.join(format!("{base}.svg"))] {
+            if let (true, Some(name)) = (path.is_file(), path.file_name()) {
+                let bytes =
+                    std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+                files.push((
+                    format!("terminalsAndIcons/{}", name.to_string_lossy()),
+                    bytes,
+                ));
+            }
+        }
+    }
+    Ok(files)
+}
+
+/// What an FMI 3.0 archive of `fmu` carries beside its description `xml` and binaries
+/// ([`crate::fmi3_extras`]): `terminalsAndIcons/` (the terminals of its signals, and the
+/// icons of [`graphics_files`] when they are there) and, for a bundled variant (`stem` and
+/// `config` one the library lists), the `fmi-ls-ref` reference results of its cross-check
+/// scenario.
+fn fmi3_extras(
+    fmu: &BuiltFmu,
+    stem: &str,
+    config: &Config,
+    xml: &str,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let (_, signals) = fmi3_extras::signals(xml).map_err(|reason| ExtrasError::Description {
+        model: stem.to_string(),
+        reason,
+    })?;
+    let icons = graphics_files(fmu)?;
+    let xml = fmi3_extras::terminals::terminals_and_icons(&signals, !icons.is_empty());
+    let mut files = vec![(
+        "terminalsAndIcons/terminalsAndIcons.xml".to_string(),
+        xml.into_bytes(),
+    )];
+    files.extend(icons);
+    let bundled = fmu
+        .library
+        .variants()?
+        .iter()
+        .any(|(s, c)| s == stem && c == config);
+    if bundled {
+        let crosscheck = fmu.source.dir.join("crosscheck");
+        for (name, text) in fmi3_extras::reference::files(stem, &signals, &crosscheck)? {
+            files.push((name, text.into_bytes()));
+        }
+    }
+    Ok(files)
 }
 
 /// The `modelName` attribute of a model description.

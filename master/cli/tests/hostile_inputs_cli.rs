@@ -307,3 +307,61 @@ fn every_error_message_is_printed_once() {
         assert!(!stderr.contains("spurio-ssp-"), "{what}: {stderr}");
     }
 }
+
+/// An FMU's message printed as it logs it (`[name] ERROR: …`) is not quoted again by the
+/// error of the call that failed: the error points to it. FMI 2.0 and 3.0, a failed step
+/// (LinearSystem's step too long to discretise) and a failed first read of the outputs.
+#[test]
+fn what_an_fmu_logged_is_said_once_with_the_failure() {
+    common::require_fmus(&["LinearSystem"]);
+    let (dir, tmp) = case("logged-once");
+    let fmus = common::repo().join("build/fmus");
+    let cases: [(&str, &[&str], &str); 2] = [
+        (
+            "a step too long to discretise",
+            &[
+                "--set",
+                "continuous=true",
+                "--set",
+                "B[1,1]=0.854",
+                "--step-size",
+                "1e308",
+                "--stop-time",
+                "1e308",
+            ],
+            "cannot discretise",
+        ),
+        (
+            "a negative variance",
+            &["--set", "Q[1,1]=-1"],
+            "negative variance -1",
+        ),
+    ];
+    for fmu in [
+        fmus.join("LinearSystem.fmu"),
+        fmus.join("fmi3/LinearSystem.fmu"),
+    ] {
+        for (what, flags, message) in cases {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_spurio"))
+                .args(["run", s(&fmu), "--out", s(&dir.join("out.csv"))])
+                .args(flags)
+                .env("TMPDIR", &tmp)
+                .env("RUST_BACKTRACE", "0")
+                .output()
+                .unwrap();
+            let stderr = failed(out);
+            assert_eq!(
+                stderr.matches(message).count(),
+                1,
+                "{}, {what}: `{message}` is said more than once:\n{stderr}",
+                fmu.display()
+            );
+            assert!(
+                stderr.contains("the FMU's message is printed above"),
+                "{}, {what}:\n{stderr}",
+                fmu.display()
+            );
+            assert_empty(&tmp);
+        }
+    }
+}

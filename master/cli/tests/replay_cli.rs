@@ -12,7 +12,7 @@ mod common;
 mod packaged_fmus;
 
 use common::{ok, repo, require_fmus, s, spurio, temp};
-use spurio_master::{InstanceDescription, ResultTable, SystemDescription};
+use spurio_master::{InstanceDescription, ResultTable, SystemDescription, MAX_RESULTS_BYTES};
 use std::path::{Path, PathBuf};
 
 /// The estimator's outputs compared.
@@ -96,8 +96,8 @@ fn live_and_replayed(system: &str) -> Vec<String> {
     let replay_csv = dir.join("replay.csv");
     ok(spurio(["run", s(&replay_toml), "--out", s(&replay_csv)]));
 
-    let live = ResultTable::read(&live_csv).unwrap();
-    let replayed = ResultTable::read(&replay_csv).unwrap();
+    let live = ResultTable::read(&live_csv, MAX_RESULTS_BYTES).unwrap();
+    let replayed = ResultTable::read(&replay_csv, MAX_RESULTS_BYTES).unwrap();
     assert_eq!(
         live.column("time").unwrap(),
         replayed.column("time").unwrap()

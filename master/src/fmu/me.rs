@@ -214,12 +214,12 @@ impl FmuFile {
             Import::Fmi2(import) => import
                 .instantiate_me(key.instance_name(), false, logging_on)
                 .map(|i| Inner::Fmi2(Box::new(i)))
-                .map_err(|e| failed("fmi2Instantiate", log_of(&key, e)))?,
+                .map_err(|e| failed("fmi2Instantiate", key.failed_call(e)))?,
             Import::Fmi3(import) => {
                 let mut i = crate::logging::speaking(&key, || {
                     import.instantiate_me(key.instance_name(), false, logging_on)
                 })
-                .map_err(|e| failed("fmi3InstantiateModelExchange", log_of(&key, e)))?;
+                .map_err(|e| failed("fmi3InstantiateModelExchange", key.failed_call(e)))?;
                 description.states = i
                     .get_number_of_continuous_states()
                     .map_err(|e| failed("fmi3GetNumberOfContinuousStates", format!(" ({e})")))?;
@@ -243,16 +243,6 @@ impl FmuFile {
             ints: Vec::new(),
             description,
         })
-    }
-}
-
-/// What the FMU logged while failing, or the error.
-fn log_of(key: &LogKey, e: impl std::fmt::Display) -> String {
-    let said = key.recent_messages();
-    if said.is_empty() {
-        format!(" ({e})")
-    } else {
-        format!(": {}", said.join("; "))
     }
 }
 

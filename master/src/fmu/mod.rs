@@ -11,7 +11,8 @@
 //! `x86_64-linux` for FMI 3.0), a library for another platform or one that lacks a required
 //! function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
 //! is removed. The GUID (FMI 3.0: instantiation token) is checked by the FMU itself when it
-//! is instantiated; when instantiation fails, the error quotes what the FMU logged.
+//! is instantiated; when instantiation fails, the error says what the FMU logged
+//! ([`crate::logging::LogKey::failure_note`]).
 //! Variables are indexed by name once, here, so the simulation can work with value
 //! references only; an FMI 3.0 array is indexed as its elements (`x[1,2]`, 1-based,
 //! row-major) and as a whole ([`FmuFile::array`]).
@@ -451,22 +452,34 @@ impl FmuFile {
         let temp_root = options.temp_dir.clone().unwrap_or_else(std::env::temp_dir);
         // From here on, returning drops `unpacked.dir`, which removes the folder.
         let unpacked = archive::unpack(path, &options.limits, &temp_root)?;
-        if fmi_version(&unpacked.model_description)
-            .map_err(|e| md_error(path, e))?
-            .starts_with("3.")
-        {
+        let version = fmi_version(&unpacked.model_description).map_err(|e| md_error(path, e))?;
+        if version.starts_with("3.") {
             return Self::open_3(path, unpacked, interface);
         }
-        let xml = &unpacked.model_description;
-        let md: fmi::schema::fmi2::Fmi2ModelDescription = xml
-            .parse()
-            .map_err(|e: fmi::schema::Error| md_error(path, xml::schema_error(&e)))?;
-        if !md.fmi_version.starts_with("2.") {
+        if !version.starts_with("2.") {
             return Err(LoadError::NotFmi2 {
                 file: path.to_path_buf(),
-                version: md.fmi_version.clone(),
+                version,
             });
         }
+        let xml = &unpacked.model_description;
+        // Well-formed to the end first, so ill-formed XML is said with its line.
+        for tag in crate::xml::tags(xml) {
+            tag.map_err(|e| md_error(path, e))?;
+        }
+        let md: fmi::schema::fmi2::Fmi2ModelDescription =
+            xml.parse().map_err(|e: fmi::schema::Error| {
+                md_error(
+                    path,
+                    match xml::fmi3_shape(xml) {
+                        Some(why) => format!(
+                            "fmiVersion is `{version}`, but the description is FMI 3.0: {why}; \
+                             correct fmiVersion to 3.0"
+                        ),
+                        None => xml::schema_error(&e),
+                    },
+                )
+            })?;
         let model_identifier = match interface {
             Interface::CoSimulation => md.co_simulation.as_ref().map(|i| &i.model_identifier),
             Interface::ModelExchange => md.model_exchange.as_ref().map(|i| &i.model_identifier),
@@ -664,7 +677,7 @@ impl FmuFile {
     /// instances are `!Send`), with the key its log messages are kept under (see
     /// [`crate::logging`]). An FMI 3.0 instance is created with `eventModeUsed` as its
     /// `hasEventMode` ([`FmuFile::event_mode`]; if the FMU refuses it, again without), without
-    /// early return or intermediate update. On failure the error quotes what the FMU logged.
+    /// early return or intermediate update. On failure the error says what the FMU logged.
     pub fn instantiate(&self, instance: &str, logging_on: bool) -> Result<Instance, LoadError> {
         let key = LogKey::new(instance);
         let mut event_mode_used = self.event_mode;
@@ -719,20 +732,12 @@ impl FmuFile {
         match created {
             Ok(CsInstance::Fmi2(cs)) => Ok(Instance::fmi2(*cs, key)),
             Ok(CsInstance::Fmi3(cs)) => Ok(Instance::fmi3(*cs, key, event_mode_used)),
-            Err(e) => {
-                let said = key.recent_messages();
-                let log = if said.is_empty() {
-                    format!(" ({e})")
-                } else {
-                    format!(": {}", said.join("; "))
-                };
-                Err(LoadError::Instantiate {
-                    instance: instance.to_string(),
-                    file: self.path.clone(),
-                    call,
-                    log,
-                })
-            }
+            Err(e) => Err(LoadError::Instantiate {
+                instance: instance.to_string(),
+                file: self.path.clone(),
+                call,
+                log: key.failed_call(e),
+            }),
         }
     }
 }
@@ -801,12 +806,12 @@ fn fmi_version(xml: &str) -> Result<String, String> {
     for tag in crate::xml::tags(xml) {
         if let crate::xml::Tag::Start { element, .. } = tag? {
             if element.name().as_ref() == "fmiModelDescription" {
-                return Ok(element
+                return element
                     .attributes()
                     .flatten()
                     .find(|a| a.key.as_ref() == "fmiVersion")
                     .map(|a| a.value.to_string())
-                    .unwrap_or_default());
+                    .ok_or_else(|| "<fmiModelDescription> has no fmiVersion".to_string());
             }
         }
     }

@@ -129,12 +129,12 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
                             attribute(&e, "instantiationToken").unwrap_or_default();
                     }
                     "CoSimulation" => {
-                        d.co_simulation = attribute(&e, "modelIdentifier");
+                        d.co_simulation = Some(model_identifier(&e, "CoSimulation")?);
                         d.co_simulation_event_mode =
                             attribute(&e, "hasEventMode").is_some_and(|v| v.trim() == "true");
                     }
                     "ModelExchange" => {
-                        d.model_exchange = attribute(&e, "modelIdentifier");
+                        d.model_exchange = Some(model_identifier(&e, "ModelExchange")?);
                         d.other_interfaces.push("Model Exchange");
                     }
                     "ScheduledExecution" => d.other_interfaces.push("Scheduled Execution"),
@@ -217,6 +217,13 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
     Ok(d)
 }
 
+/// The `modelIdentifier` of the interface element `element` (`<CoSimulation>`, …), which
+/// FMI 3.0 requires.
+fn model_identifier(e: &quick_xml::events::BytesStart, element: &str) -> Result<String, String> {
+    attribute(e, "modelIdentifier")
+        .ok_or_else(|| format!("<{element}> has no modelIdentifier, which FMI 3.0 requires"))
+}
+
 fn variable(e: &quick_xml::events::BytesStart, var_type: VarType) -> Result<Raw, String> {
     let name = attribute(e, "name").ok_or("a variable has no name")?;
     let vr = attribute(e, "valueReference")
@@ -229,7 +236,13 @@ fn variable(e: &quick_xml::events::BytesStart, var_type: VarType) -> Result<Raw,
         Some("input") => Causality::Input,
         Some("output") => Causality::Output,
         Some("independent") => Causality::Independent,
-        _ => Causality::Local,
+        Some("local") | None => Causality::Local,
+        Some(other) => {
+            return Err(format!(
+                "variable `{name}`: causality `{other}` is none of FMI 3.0's (parameter, \
+                 calculatedParameter, structuralParameter, input, output, local, independent)"
+            ))
+        }
     };
     Ok(Raw {
         name,

@@ -124,71 +124,125 @@ pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
     Ok(VariableExtras { units, has_start })
 }
 
-/// What each FMI 2.0 element that rust-fmi's schema reads strictly allows, by the schema's
-/// name for it: `(schema type, element, what it allows)`. The schema names an element by
-/// its Rust type, which differs from the element for `<Unit>` and `<fmiModelDescription>`.
-const FMI2_ELEMENTS: &[(&str, &str, &str)] = &[
+/// The FMI 2.0 elements whose rust-fmi schema type is not named as the element:
+/// `(schema type, element)`. rust-fmi's errors name an element by its Rust type.
+const FMI2_TYPE_NAMES: &[(&str, &str)] = &[
+    ("Fmi2ModelDescription", "fmiModelDescription"),
+    ("Fmi2Unit", "Unit"),
+    ("Fmi2VariableDependency", "Unknown"),
+];
+
+/// What each FMI 2.0 element that rust-fmi's schema reads strictly allows:
+/// `(element, what it allows)`.
+const FMI2_ALLOWED: &[(&str, &str)] = &[
     (
-        "Fmi2Unit",
         "Unit",
         "the attribute name and the elements <BaseUnit> (at most one) and <DisplayUnit>",
     ),
     (
         "BaseUnit",
-        "BaseUnit",
         "the attributes kg, m, s, A, K, mol, cd, rad, factor and offset",
     ),
     (
         "DisplayUnit",
-        "DisplayUnit",
         "the attributes name, factor, offset and inverse",
     ),
-    ("UnitDefinitions", "UnitDefinitions", "the elements <Unit>"),
+    ("UnitDefinitions", "the elements <Unit>"),
+    ("TypeDefinitions", "the elements <SimpleType>"),
+    ("LogCategories", "the elements <Category>"),
+    ("ModelVariables", "the elements <ScalarVariable>"),
     (
-        "TypeDefinitions",
-        "TypeDefinitions",
-        "the elements <SimpleType>",
-    ),
-    ("LogCategories", "LogCategories", "the elements <Category>"),
-    (
-        "ModelVariables",
-        "ModelVariables",
-        "the elements <ScalarVariable>",
-    ),
-    (
-        "ModelStructure",
         "ModelStructure",
         "the elements <Outputs>, <Derivatives> and <InitialUnknowns>",
     ),
-    (
-        "Fmi2ModelDescription",
-        "fmiModelDescription",
-        "the attributes of FMI 2.0",
-    ),
+    ("fmiModelDescription", "the attributes of FMI 2.0"),
 ];
 
-/// The message of rust-fmi's FMI 2.0 schema refusing a model description, in the standard's
-/// terms: hard_xml's `unknown field "X" in element "T"` (`T` the schema's Rust type) becomes
-/// `<Element> has `X`, which FMI 2.0 does not allow there (allowed: …)`. Other messages are
-/// kept as they are.
-pub(super) fn schema_error(error: &dyn std::fmt::Display) -> String {
-    let text = error.to_string();
-    let unknown = text
-        .strip_prefix("unknown field \"")
-        .and_then(|rest| rest.split_once("\" in element \""))
-        .and_then(|(field, rest)| Some((field, rest.strip_suffix('"')?)));
-    let Some((field, schema_type)) = unknown else {
-        return text;
-    };
-    match FMI2_ELEMENTS.iter().find(|(t, _, _)| *t == schema_type) {
-        Some((_, element, allowed)) => format!(
-            "<{element}> has `{field}`, which FMI 2.0 does not allow there (allowed: {allowed})"
-        ),
-        None => format!(
-            "<{}> has `{field}`, which FMI 2.0 does not allow there",
-            schema_type.strip_prefix("Fmi2").unwrap_or(schema_type)
-        ),
+/// The FMI 2.0 element rust-fmi's schema type `schema_type` reads.
+fn fmi2_element(schema_type: &str) -> &str {
+    FMI2_TYPE_NAMES
+        .iter()
+        .find(|(t, _)| *t == schema_type)
+        .map_or(schema_type, |(_, element)| element)
+}
+
+/// The attribute the schema's Rust field `field` reads: its name in camel case
+/// (`value_reference` → `valueReference`), as every required attribute of FMI 2.0 is.
+fn fmi2_attribute(field: &str) -> String {
+    let mut parts = field.split('_');
+    let mut name = parts.next().unwrap_or_default().to_string();
+    for part in parts {
+        let mut chars = part.chars();
+        if let Some(first) = chars.next() {
+            name.extend(first.to_uppercase());
+            name.push_str(chars.as_str());
+        }
     }
+    name
+}
+
+/// The message of rust-fmi's FMI 2.0 schema refusing a model description, in the standard's
+/// terms: an element is named as FMI 2.0 names it (`<Unit>`, not the schema's `Fmi2Unit`)
+/// and an attribute too (`valueReference`, not the field `value_reference`). An unknown
+/// attribute or child says what the element allows; a missing one that it is required.
+/// Other messages (a value that does not parse) are kept as they are.
+pub(super) fn schema_error(error: &fmi::schema::Error) -> String {
+    use hard_xml::XmlError;
+    let fmi::schema::Error::XmlParse(xml_error) = error else {
+        return error.to_string();
+    };
+    match xml_error {
+        XmlError::UnknownField { name, field } => {
+            let element = fmi2_element(name);
+            match FMI2_ALLOWED.iter().find(|(e, _)| *e == element) {
+                Some((_, allowed)) => format!(
+                    "<{element}> has `{field}`, which FMI 2.0 does not allow there (allowed: {allowed})"
+                ),
+                None => format!("<{element}> has `{field}`, which FMI 2.0 does not allow there"),
+            }
+        }
+        // The variable's type element is the schema's field `elem`.
+        XmlError::MissingField { name, field } if name == "ScalarVariable" && field == "elem" => {
+            "a <ScalarVariable> has none of <Real>, <Integer>, <Boolean>, <String> and \
+             <Enumeration>, one of which FMI 2.0 requires"
+                .to_string()
+        }
+        XmlError::MissingField { name, field } => format!(
+            "<{}> has no `{}`, which FMI 2.0 requires there",
+            fmi2_element(name),
+            fmi2_attribute(field)
+        ),
+        other => other.to_string(),
+    }
+}
+
+/// Why `xml`, which says fmiVersion 2.0 and which FMI 2.0's schema refuses, is an FMI 3.0
+/// description, if it is shaped as one: its root has FMI 3.0's `instantiationToken`, or
+/// its variables are FMI 3.0's typed elements (`<Float64>`, …) instead of `<ScalarVariable>`.
+pub(super) fn fmi3_shape(xml: &str) -> Option<&'static str> {
+    let mut in_variables = false;
+    for tag in tags(xml) {
+        let Ok(Tag::Start { element, empty }) = tag else {
+            continue;
+        };
+        match element.name().as_ref() {
+            "fmiModelDescription" if attribute(&element, "instantiationToken").is_some() => {
+                return Some("its <fmiModelDescription> has an instantiationToken (FMI 2.0: guid)")
+            }
+            "ModelVariables" => in_variables = !empty,
+            "Float64" | "Float32" | "Int8" | "UInt8" | "Int16" | "UInt16" | "Int32" | "UInt32"
+            | "Int64" | "UInt64" | "Binary" | "Clock"
+                if in_variables =>
+            {
+                return Some(
+                    "it declares its variables as <Float64>, <Int32>, … (FMI 2.0 declares \
+                     <ScalarVariable>)",
+                )
+            }
+            _ => {}
+        }
+    }
+    None
 }
 
 #[cfg(test)]
