@@ -320,6 +320,10 @@ pub(crate) struct StateReader<'a> {
     position: usize,
 }
 
+/// The largest step counter a saved state may carry: 2^53, the largest whole number below
+/// which every whole number is an f64 (the form a state is saved in).
+pub(crate) const MAX_SAVED_COUNTER: u64 = 1 << 53;
+
 impl<'a> StateReader<'a> {
     pub(crate) fn new(data: &'a [f64]) -> Self {
         Self { data, position: 0 }
@@ -355,13 +359,15 @@ impl<'a> StateReader<'a> {
         Ok(v[0])
     }
 
-    /// The next number as a step counter.
+    /// The next number as a step counter: a whole number in 0..=[`MAX_SAVED_COUNTER`]. A
+    /// larger one no estimator could have saved (it counts by one from 0 and is saved as an
+    /// f64), and it would overflow on the next step (`1e20` reads as `u64::MAX`).
     pub(crate) fn counter(&mut self) -> Result<u64, EstimationError> {
         let v = self.scalar()?;
-        if !(v.is_finite() && v >= 0.0 && v.fract() == 0.0) {
+        if !(v.is_finite() && (0.0..=MAX_SAVED_COUNTER as f64).contains(&v) && v.fract() == 0.0) {
             return Err(parameter_error(
                 "state",
-                format!("a saved step counter must be a non-negative integer, got {v}"),
+                format!("a saved step counter must be a whole number in 0..=2^53, got {v}"),
             ));
         }
         Ok(v as u64)
@@ -489,6 +495,37 @@ mod factor_tests {
             assert!(
                 matches!(e, EstimationError::Factorisation { step: 4, .. }),
                 "{e}"
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod saved_counter_tests {
+    use super::*;
+
+    /// A saved step counter above 2^53 is refused: 1e19 read as `u64::MAX` overflowed the
+    /// next step's `steps += 1` (found by fuzzing `fmi2DeSerializeFMUstate`,
+    /// fmus/kalman/tests/fuzz_findings.rs).
+    #[test]
+    fn a_step_counter_no_estimator_could_have_saved_is_refused() {
+        let limit = MAX_SAVED_COUNTER as f64;
+        for ok in [0.0, 1.0, 12345.0, limit] {
+            assert_eq!(StateReader::new(&[ok]).counter().unwrap() as f64, ok);
+        }
+        for bad in [
+            limit * 2.0,
+            1e19,
+            1.8446744073709552e19,
+            f64::MAX,
+            -1.0,
+            0.5,
+            f64::NAN,
+        ] {
+            let e = StateReader::new(&[bad]).counter().unwrap_err().to_string();
+            assert!(
+                e.contains("step counter") && e.contains("2^53"),
+                "{bad}: {e}"
             );
         }
     }
