@@ -309,6 +309,11 @@ pub struct DualKalmanFilter {
     output_error: Option<OutputErrorFilter>,
 }
 
+/// The most free entries of [A B] the output-error parameter filter takes: its Σ and work
+/// matrices hold nϑ² values each (2000: 32 MB apiece), so a large model with every entry free
+/// is refused up front instead of asking for tens of gigabytes.
+pub const MAX_OUTPUT_ERROR_PARAMETERS: usize = 2000;
+
 /// The output-error parameter filter (module documentation, "Output-error parameter
 /// filter") on the free entries ϑ of [A B].
 #[derive(Debug, Clone)]
@@ -435,6 +440,14 @@ impl DualKalmanFilter {
                     .filter(|&(r, c)| !fixed(r, c))
                     .collect();
                 let count = entries.len();
+                if count > MAX_OUTPUT_ERROR_PARAMETERS {
+                    return Err(parameter_error(
+                        "Q_theta",
+                        format!(
+                            "the output-error parameter filter carries an nϑ × nϑ covariance: at most {MAX_OUTPUT_ERROR_PARAMETERS} free entries of [A B], got {count} (fix entries by zero Q_theta and P0_theta)"
+                        ),
+                    ));
+                }
                 Some(OutputErrorFilter {
                     q_diag: DVector::from_iterator(
                         count,
@@ -1628,6 +1641,29 @@ mod tests {
         free_c.parameter_p0.fill(1.0);
         let e = DualKalmanFilter::new(free_c).unwrap_err();
         assert!(e.to_string().contains("C and D known"), "{e}");
+        // n = 40, m = 20: 2400 free entries of [A B], above the bound: refused at once
+        let (n, m) = (40, 20);
+        let mut large = DualKalmanConfig::new(GaussianModel {
+            system: StateSpace {
+                a: DMatrix::identity(n, n) * 0.5,
+                b: DMatrix::zeros(n, m),
+                c: DMatrix::identity(1, n),
+                d: DMatrix::zeros(1, m),
+                q: DMatrix::identity(n, n) * 1e-4,
+                r: DMatrix::identity(1, 1),
+            },
+            x0: DVector::zeros(n),
+            p0: DMatrix::identity(n, n),
+        })
+        .fix_output_matrices();
+        large.parameter_p0.rows_mut(0, n).fill(1e-1);
+        large.measurement = ParameterMeasurement::OutputError;
+        let e = DualKalmanFilter::new(large).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("at most 2000 free entries of [A B], got 2400"),
+            "{e}"
+        );
     }
 
     /// The former parameter-filter step (before the symmetric Joseph update), kept as the
