@@ -560,6 +560,59 @@ impl Stepper {
         Ok(Advance::Reached(t))
     }
 
+    /// Puts the instance (in continuous-time mode) at time `t` with the continuous states `x`,
+    /// wherever it was before, and starts the solver afresh from there: the time set, the
+    /// states set and read back with their nominals, the event indicators there taken as the
+    /// ones before the next step, the count of events without progress started again. An
+    /// estimator propagating sigma points or a state estimate from one sample to the next
+    /// calls this before [`Stepper::advance_to`].
+    pub fn place_at<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+        x: &[f64],
+    ) -> Result<(), MeError> {
+        if x.len() != self.x.len() {
+            return Err(MeError::Layout {
+                fmu: self.name.clone(),
+                reason: format!("{} states given for an FMU with {}", x.len(), self.x.len()),
+            });
+        }
+        self.t = t;
+        self.last_event_time = f64::NEG_INFINITY;
+        self.events_here = 0;
+        fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
+        if !x.is_empty() {
+            let set = fmu.set_continuous_states(x);
+            set.map_err(self.failed(Call::SetContinuousStates, t))?;
+        }
+        self.restart(fmu, t)?;
+        if !self.z_old.is_empty() {
+            let read = fmu.get_event_indicators(&mut self.z_old);
+            read.map_err(self.failed(Call::GetEventIndicators, t))?;
+        }
+        Ok(())
+    }
+
+    /// Values were set in event mode at the stepper's time (the caller entered event mode
+    /// and set tunable parameters, FMI 2.0 §3.2.3): the event iteration there, then
+    /// continuous-time mode with the solver started afresh. `Advance::Terminated` when the
+    /// FMU asks to end the run.
+    pub fn values_set_in_event_mode<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+    ) -> Result<Advance, MeError> {
+        let t = self.t;
+        let update = self.iterate_events(fmu, t)?;
+        self.next_event_time = update.next_event_time;
+        if update.terminate_simulation {
+            self.summary.terminated = true;
+            return Ok(Advance::Terminated(t));
+        }
+        self.resume(fmu, t)?;
+        Ok(Advance::Reached(t))
+    }
+
     /// The inputs of the FMU were set at its time (a communication point of a
     /// co-simulation): the solver starts again from the states there (the derivatives
     /// changed), and an event indicator that changed sign with the inputs is an event there.
@@ -836,8 +889,9 @@ pub fn simulate<M: ModelExchangeCalls>(
 }
 
 /// The experiment set up, the start values set, initialisation mode entered and left
-/// (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1); errors named as `stepper` names them.
-fn initialise<M: ModelExchangeCalls>(
+/// (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1); errors named as `stepper` names them. The instance is
+/// then in event mode: [`Stepper::initialise`] goes on from there.
+pub fn initialise<M: ModelExchangeCalls>(
     fmu: &mut M,
     layout: &Layout,
     options: &Options,
