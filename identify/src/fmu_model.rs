@@ -4,12 +4,16 @@
 //! the prediction errors v_t and their covariances F_t = S_t of the innovations likelihood,
 //! so that [`crate::maximise_likelihood`] fits the FMU's parameters.
 //!
-//! **Robust loss.** With [`Loss::Huber`] the filter corrects with the Huber weights and each
-//! channel's term ½ v²/F becomes ρ(v/√F), ρ(r) = r²/2 for |r| ≤ c and c|r| − c²/2 beyond
+//! **Robust loss.** With [`Loss::Huber`] each channel's term ½ v²/F becomes ρ(v/√F), ρ(r) = r²/2 for |r| ≤ c and c|r| − c²/2 beyond
 //! (Huber's loss): the predictor reports the pseudo-residual ṽ = sgn(v) √(2ρ(v/√F)) √F, for
 //! which ½ ṽ²/F = ρ, and a diagonal F (the channels taken apart). The curvature at the
 //! optimum is then that of the Huber loss (standard errors from it are those of the
-//! M-estimator's Hessian, without the sandwich correction).
+//! M-estimator's Hessian, without the sandwich correction). The filter itself corrects
+//! without robust weights: with weights, a model far from the truth (a wrong coefficient of
+//! restitution, whose first bounce misses the data) would have every later innovation taken
+//! for an outlier, the filter would stop following the data and the loss would go flat in
+//! θ; corrected fully, the filter follows the data and an outlier moves the state for a
+//! sample or two, while the loss bounds each prediction error's influence.
 
 use crate::plant::FmuPlant;
 use crate::ukf::{Ukf, UkfSettings};
@@ -18,7 +22,6 @@ use spurio::estimation::likelihood::{
     LikelihoodError, OneStepPredictor, PredictionError, PredictionErrorModel,
 };
 use spurio::estimation::EstimationError;
-use spurio::estimation::InfluenceFunction;
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -183,14 +186,13 @@ impl PredictionErrorModel for FmuModel {
             state_noise: self.state_noise.clone(),
             parameter_noise: Vec::new(),
             measurement_variance,
-            robust: match self.loss {
-                Loss::Gaussian => None,
-                Loss::Huber { c } => Some(InfluenceFunction::Huber { c }),
-            },
+            // The filter corrects fully under either loss (module documentation).
+            robust: None,
             alpha: 1.0,
             beta: 2.0,
             kappa: None,
         };
+        self.plant.borrow_mut().start_afresh();
         let filter = Ukf::new(
             self.plant.clone(),
             &theta[..free],

@@ -12,7 +12,9 @@
 //! Mode (FMI 2.0 §3.2.3: enter event mode, set, event iteration, continuous-time mode). A
 //! *fixed* one can only be set before initialisation: the instance is reset (`fmi2Reset` /
 //! `fmi3Reset`), every free parameter set, initialised again, and then placed at the states
-//! asked for (which restores them). Consecutive calls at the same θ reset nothing.
+//! asked for (which restores them). Consecutive calls at the same θ reset nothing. After a
+//! failed call (an FMU that refuses a value, a run that stops) the instance is reset and
+//! initialised again before its next use, so that an optimiser may try such points.
 //!
 //! **Checks before anything runs.** An FMU without Model Exchange, a free name that is not a
 //! parameter (or not a number), a measured variable that does not exist or is not a
@@ -127,6 +129,8 @@ pub struct FmuPlant {
     inputs_set: Vec<f64>,
     /// Instance resets so far (fixed parameters changed).
     resets: u64,
+    /// A call failed: the instance is reset and initialised again before the next use.
+    failed: bool,
 }
 
 impl std::fmt::Debug for FmuPlant {
@@ -258,6 +262,7 @@ impl FmuPlant {
             set: None,
             inputs_set,
             resets: 0,
+            failed: false,
         })
     }
 
@@ -322,6 +327,7 @@ impl FmuPlant {
     fn ensure_parameters(&mut self, theta: &[f64]) -> Result<(), PlantError> {
         Self::check("parameters", self.parameters.len(), theta.len())?;
         let (fixed_changed, tunable_changed) = match &self.set {
+            _ if self.failed => (true, true),
             None => (true, true),
             Some(set) => {
                 let changed = |tunable: bool| {
@@ -334,7 +340,7 @@ impl FmuPlant {
             }
         };
         if fixed_changed {
-            if self.set.is_some() {
+            if self.set.is_some() || self.failed {
                 let reset = self.instance.reset();
                 reset.map_err(|e| self.call_failed("Reset", e))?;
                 self.resets += 1;
@@ -361,6 +367,7 @@ impl FmuPlant {
                 return Err(self.terminated(time));
             }
             self.inputs_set.fill(f64::NAN);
+            self.failed = false;
         } else if tunable_changed {
             let entered = self.instance.enter_event_mode();
             entered.map_err(|e| self.call_failed("EnterEventMode", e))?;
@@ -402,11 +409,12 @@ impl FmuPlant {
     /// The continuous states right after initialisation at θ (the experiment's start).
     pub fn initial_states(&mut self, theta: &[f64]) -> Result<Vec<f64>, PlantError> {
         // A fresh initialisation: the states are the FMU's own start values.
-        if self.set.is_some() {
+        if self.set.is_some() || self.failed {
             let reset = self.instance.reset();
             reset.map_err(|e| self.call_failed("Reset", e))?;
             self.resets += 1;
             self.set = None;
+            self.failed = false;
         }
         self.ensure_parameters(theta)?;
         let mut x = vec![0.0; self.layout.states];
@@ -428,12 +436,68 @@ impl FmuPlant {
         x_out: &mut [f64],
         y_out: &mut [f64],
     ) -> Result<(), PlantError> {
+        self.propagate_near(t0, x, theta, u, t1, None, x_out, y_out)
+    }
+
+    /// Makes the next call start from a fresh instance (reset and initialised again): a
+    /// filter run over a record starts so, since events may change variables of the FMU that
+    /// are neither states nor parameters (BouncingBall at rest sets its own gravity to 0).
+    pub fn start_afresh(&mut self) {
+        self.failed = true;
+    }
+
+    /// The event indicators at the state last placed (before integrating), for
+    /// [`FmuPlant::propagate_near`].
+    pub fn placed_indicators(&self) -> Vec<f64> {
+        self.stepper.event_indicators().to_vec()
+    }
+
+    /// [`FmuPlant::propagate`] of a state near another whose event indicators at t₀ are
+    /// `reference` (a sigma point near the mean): an indicator of this state on the other
+    /// side of zero is an event at t₀ ([`Stepper::place_at`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn propagate_near(
+        &mut self,
+        t0: f64,
+        x: &[f64],
+        theta: &[f64],
+        u: &[f64],
+        t1: f64,
+        reference: Option<&[f64]>,
+        x_out: &mut [f64],
+        y_out: &mut [f64],
+    ) -> Result<(), PlantError> {
+        let result = self.propagate_unchecked(t0, x, theta, u, t1, reference, x_out, y_out);
+        if result.is_err() {
+            // The instance may be left in any state: the next call resets it.
+            self.failed = true;
+        }
+        result
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn propagate_unchecked(
+        &mut self,
+        t0: f64,
+        x: &[f64],
+        theta: &[f64],
+        u: &[f64],
+        t1: f64,
+        reference: Option<&[f64]>,
+        x_out: &mut [f64],
+        y_out: &mut [f64],
+    ) -> Result<(), PlantError> {
         Self::check("states", self.layout.states, x.len())?;
         Self::check("states out", self.layout.states, x_out.len())?;
         Self::check("measurements", self.outputs.len(), y_out.len())?;
         self.ensure_parameters(theta)?;
         self.set_inputs(u)?;
-        self.stepper.place_at(&mut self.instance, t0, x)?;
+        let placed = self
+            .stepper
+            .place_at(&mut self.instance, t0, x, reference, &mut |_| {})?;
+        if let Advance::Terminated(time) = placed {
+            return Err(self.terminated(time));
+        }
         if t1 > t0 {
             let advanced =
                 self.stepper

@@ -16,6 +16,10 @@
 //! which gives χ⁻ and the measured variables 𝒴 at t_k; ẑ⁻ = Σ Wᵐ χ⁻,
 //! P⁻ = Σ Wᶜ (χ⁻ − ẑ⁻)(χ⁻ − ẑ⁻)ᵀ + Q, ŷ = Σ Wᵐ 𝒴, S = Σ Wᶜ (𝒴 − ŷ)(𝒴 − ŷ)ᵀ + R,
 //! C = Σ Wᶜ (χ⁻ − ẑ⁻)(𝒴 − ŷ)ᵀ. (The first sample only evaluates 𝒴 at the prior.)
+//! A sigma point whose event indicators at t_{k−1} lie on the other side of zero than the
+//! mean's has crossed an event surface the mean has not (a ball a little below the floor):
+//! the event is handled at t_{k−1} before it is integrated ([`FmuPlant::propagate_near`]),
+//! so that every sigma point follows the model's hybrid dynamics.
 //!
 //! **Robust correction** (the papers' rsKF, as `spurio`'s robust Kalman filter): over the
 //! present channels (a NaN is a missing sample, left out; none present: no correction) the
@@ -24,9 +28,15 @@
 //! inflated, R̃ⱼⱼ = Rⱼⱼ / wⱼ: S̃ = S + R̃ − R, K = C S̃⁻¹, ẑ = ẑ⁻ + K e, P = P⁻ − K S̃ Kᵀ.
 //!
 //! **Positive definiteness.** P is symmetrised, ½(P + Pᵀ), after every prediction and
-//! correction. When its Cholesky factorisation fails, a jitter ε·I is added,
-//! ε = 10⁻¹² · mean(diag P) and then ten times more per attempt up to 10⁻³ · mean(diag P);
-//! if that still fails the step is an error naming the sample ([`UkfError::NotPositive`]).
+//! correction, and the sigma points need only a square root S of it (S Sᵀ = P): its
+//! Cholesky factor, or, when the factorisation fails (P semidefinite, or indefinite by
+//! rounding), V √Λ₊ from the symmetric eigen-decomposition P = V Λ Vᵀ with the negative
+//! eigenvalues set to zero (the nearest positive semidefinite matrix's root). A P that is
+//! not finite, or an innovation covariance S̃ (which holds R > 0) whose Cholesky
+//! factorisation fails, stops the step with an error naming the sample
+//! ([`UkfError::NotPositive`]). P = 0 (a known state, no process noise) is no failure:
+//! every sigma point is the mean, the gain is zero and the filter simulates the FMU (the
+//! prediction errors are then the output errors of a simulation).
 
 use crate::plant::{FmuPlant, PlantError};
 use nalgebra::{Cholesky, DMatrix, DVector};
@@ -39,7 +49,9 @@ use std::rc::Rc;
 pub enum UkfError {
     #[error(transparent)]
     Plant(#[from] PlantError),
-    #[error("at sample {sample} (t = {time}): the {what} is not positive definite, even with a jitter of 1e-3 of its mean variance")]
+    #[error(
+        "at sample {sample} (t = {time}): the {what} is not positive definite (or not finite)"
+    )]
     NotPositive {
         what: &'static str,
         sample: usize,
@@ -111,22 +123,19 @@ fn symmetrise(p: &mut DMatrix<f64>) {
     *p *= 0.5;
 }
 
-/// The lower Cholesky factor of `p`, with the jitter of the module documentation.
+/// A square root S of `p` (S Sᵀ = P, module documentation): the lower Cholesky factor, or,
+/// when P is only semidefinite in floating point, V √Λ₊ from its symmetric eigen-decomposition
+/// with negative eigenvalues set to zero; None when P is not finite.
 fn factor(p: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    if !p.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     if let Some(c) = Cholesky::new(p.clone()) {
         return Some(c.l());
     }
-    let k = p.nrows().max(1) as f64;
-    let mean = (p.trace() / k).abs().max(f64::MIN_POSITIVE);
-    let mut eps = 1e-12 * mean;
-    while eps <= 1e-3 * mean {
-        let jittered = p + DMatrix::identity(p.nrows(), p.ncols()) * eps;
-        if let Some(c) = Cholesky::new(jittered) {
-            return Some(c.l());
-        }
-        eps *= 10.0;
-    }
-    None
+    let eigen = p.clone().symmetric_eigen();
+    let roots = eigen.eigenvalues.map(|l| l.max(0.0).sqrt());
+    Some(&eigen.eigenvectors * DMatrix::from_diagonal(&roots))
 }
 
 impl Ukf {
@@ -187,7 +196,7 @@ impl Ukf {
         let kappa = settings.kappa.unwrap_or((3.0 - lf).max(0.0));
         let (alpha, beta) = (settings.alpha, settings.beta);
         let lambda = alpha * alpha * (lf + kappa) - lf;
-        if !(lf + lambda > 0.0) {
+        if lf + lambda <= 0.0 || (lf + lambda).is_nan() {
             return bad(format!("L + λ = {} must be positive", lf + lambda));
         }
         let wi = 1.0 / (2.0 * (lf + lambda));
@@ -283,12 +292,25 @@ impl Ukf {
         let mut y_out = vec![0.0; p_out];
         {
             let mut plant = self.plant.borrow_mut();
+            let mut reference: Option<Vec<f64>> = None;
             for c in 0..count {
                 for (k, &i) in self.augmented.iter().enumerate() {
                     theta[i] = chi[(n + k, c)];
                 }
                 let x: Vec<f64> = chi.column(c).rows(0, n).iter().copied().collect();
-                plant.propagate(t0, &x, &theta, &u_held, time, &mut x_out, &mut y_out)?;
+                plant.propagate_near(
+                    t0,
+                    &x,
+                    &theta,
+                    &u_held,
+                    time,
+                    reference.as_deref(),
+                    &mut x_out,
+                    &mut y_out,
+                )?;
+                if c == 0 {
+                    reference = Some(plant.placed_indicators());
+                }
                 propagated
                     .column_mut(c)
                     .rows_mut(0, n)

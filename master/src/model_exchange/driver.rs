@@ -566,12 +566,21 @@ impl Stepper {
     /// ones before the next step, the count of events without progress started again. An
     /// estimator propagating sigma points or a state estimate from one sample to the next
     /// calls this before [`Stepper::advance_to`].
+    ///
+    /// `reference`: event indicators of a state the caller takes as the one this state
+    /// deviates from (an estimator's mean for a sigma point); an indicator on the other side
+    /// of zero from its reference ([`crossed`]) means the state is past that event surface,
+    /// and the event is handled at `t` (the FMU's event iteration, as for a state event), so
+    /// that a sigma point placed a little past a bounce bounces. `Advance::Terminated` when
+    /// the FMU asks to end the run there.
     pub fn place_at<M: ModelExchangeCalls>(
         &mut self,
         fmu: &mut M,
         t: f64,
         x: &[f64],
-    ) -> Result<(), MeError> {
+        reference: Option<&[f64]>,
+        on_event: &mut dyn FnMut(&Event),
+    ) -> Result<Advance, MeError> {
         if x.len() != self.x.len() {
             return Err(MeError::Layout {
                 fmu: self.name.clone(),
@@ -587,11 +596,27 @@ impl Stepper {
             set.map_err(self.failed(Call::SetContinuousStates, t))?;
         }
         self.restart(fmu, t)?;
-        if !self.z_old.is_empty() {
-            let read = fmu.get_event_indicators(&mut self.z_old);
-            read.map_err(self.failed(Call::GetEventIndicators, t))?;
+        if self.z_old.is_empty() {
+            return Ok(Advance::Reached(t));
         }
-        Ok(())
+        let read = fmu.get_event_indicators(&mut self.z_old);
+        read.map_err(self.failed(Call::GetEventIndicators, t))?;
+        let past = reference.and_then(|r| {
+            (0..self.z_old.len().min(r.len())).find(|&i| crossed(r[i], self.z_old[i]))
+        });
+        if let Some(indicator) = past {
+            let kind = EventKind::State { indicator };
+            if let Some(end) = self.handle_event(fmu, kind, on_event)? {
+                return Ok(Advance::Terminated(end));
+            }
+        }
+        Ok(Advance::Reached(t))
+    }
+
+    /// The event indicators as the stepper last read them (after [`Stepper::place_at`]: at
+    /// the state placed, before any step).
+    pub fn event_indicators(&self) -> &[f64] {
+        &self.z_old
     }
 
     /// Values were set in event mode at the stepper's time (the caller entered event mode
