@@ -32,6 +32,7 @@
 
 pub mod fmu_model;
 pub mod plant;
+pub mod session;
 pub mod ukf;
 
 use argmin::core::{CostFunction, Executor, State, TerminationReason};
