@@ -145,20 +145,20 @@ impl OneStepPredictor for FmuPredictor {
 impl PredictionErrorModel for FmuModel {
     type Predictor = FmuPredictor;
 
-    fn parameter_names(&self) -> &[String] {
-        &self.names
-    }
-
-    fn states(&self) -> usize {
-        self.plant.borrow().states()
+    fn outputs(&self) -> usize {
+        self.variances.len()
     }
 
     fn inputs(&self) -> usize {
         self.plant.borrow().input_names().len()
     }
 
-    fn outputs(&self) -> usize {
-        self.variances.len()
+    fn states(&self) -> usize {
+        self.plant.borrow().states()
+    }
+
+    fn parameter_names(&self) -> &[String] {
+        &self.names
     }
 
     fn predictor(

@@ -30,6 +30,23 @@ use spurio_master::model_exchange::{
 use spurio_master::NoRecording;
 use std::path::{Path, PathBuf};
 
+/// Where a propagation starts ([`FmuPlant::propagate`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Start<'a> {
+    /// t₀.
+    pub time: f64,
+    /// x(t₀).
+    pub states: &'a [f64],
+    /// Every free parameter's value θ.
+    pub parameters: &'a [f64],
+    /// The inputs u, held over the interval.
+    pub inputs: &'a [f64],
+    /// The event indicators at t₀ of a state this one deviates from (a sigma point's mean),
+    /// if any: an indicator of this state on the other side of zero is an event at t₀
+    /// ([`Stepper::place_at`]).
+    pub reference: Option<&'a [f64]>,
+}
+
 /// What the estimator takes from the FMU, by name.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlantSpec {
@@ -423,20 +440,10 @@ impl FmuPlant {
         Ok(x)
     }
 
-    /// x(t₁) and y(t₁) from x(t₀) = `x` at the parameters `theta`, the inputs `u` held over
-    /// [t₀, t₁] (module documentation); `t1 == t0` only evaluates y at (t₀, x).
-    #[allow(clippy::too_many_arguments)]
-    pub fn propagate(
-        &mut self,
-        t0: f64,
-        x: &[f64],
-        theta: &[f64],
-        u: &[f64],
-        t1: f64,
-        x_out: &mut [f64],
-        y_out: &mut [f64],
-    ) -> Result<(), PlantError> {
-        self.propagate_near(t0, x, theta, u, t1, None, x_out, y_out)
+    /// The event indicators at the state last placed (before integrating), for
+    /// [`Start::reference`].
+    pub fn placed_indicators(&self) -> Vec<f64> {
+        self.stepper.event_indicators().to_vec()
     }
 
     /// Makes the next call start from a fresh instance (reset and initialised again): a
@@ -446,28 +453,16 @@ impl FmuPlant {
         self.failed = true;
     }
 
-    /// The event indicators at the state last placed (before integrating), for
-    /// [`FmuPlant::propagate_near`].
-    pub fn placed_indicators(&self) -> Vec<f64> {
-        self.stepper.event_indicators().to_vec()
-    }
-
-    /// [`FmuPlant::propagate`] of a state near another whose event indicators at t₀ are
-    /// `reference` (a sigma point near the mean): an indicator of this state on the other
-    /// side of zero is an event at t₀ ([`Stepper::place_at`]).
-    #[allow(clippy::too_many_arguments)]
-    pub fn propagate_near(
+    /// x(t₁) and y(t₁) into `x_out`, `y_out` from `start` (module documentation);
+    /// `t1 == start.time` only evaluates y there.
+    pub fn propagate(
         &mut self,
-        t0: f64,
-        x: &[f64],
-        theta: &[f64],
-        u: &[f64],
+        start: &Start,
         t1: f64,
-        reference: Option<&[f64]>,
         x_out: &mut [f64],
         y_out: &mut [f64],
     ) -> Result<(), PlantError> {
-        let result = self.propagate_unchecked(t0, x, theta, u, t1, reference, x_out, y_out);
+        let result = self.advance(start, t1, x_out, y_out);
         if result.is_err() {
             // The instance may be left in any state: the next call resets it.
             self.failed = true;
@@ -475,18 +470,20 @@ impl FmuPlant {
         result
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn propagate_unchecked(
+    fn advance(
         &mut self,
-        t0: f64,
-        x: &[f64],
-        theta: &[f64],
-        u: &[f64],
+        start: &Start,
         t1: f64,
-        reference: Option<&[f64]>,
         x_out: &mut [f64],
         y_out: &mut [f64],
     ) -> Result<(), PlantError> {
+        let Start {
+            time: t0,
+            states: x,
+            parameters: theta,
+            inputs: u,
+            reference,
+        } = *start;
         Self::check("states", self.layout.states, x.len())?;
         Self::check("states out", self.layout.states, x_out.len())?;
         Self::check("measurements", self.outputs.len(), y_out.len())?;

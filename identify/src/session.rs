@@ -194,7 +194,7 @@ fn filter_run(
     Ok(samples)
 }
 
-/// 100 (1 − ‖e‖/‖y − ȳ‖) over the samples `range` that are present and not `excluded`.
+/// 100 (1 − ‖e‖/‖y − ȳ‖) over the samples that are present and kept (`keep`).
 fn fit_percent(y: &[f64], e: &[f64], keep: &[bool]) -> f64 {
     let pairs: Vec<(f64, f64)> = y
         .iter()
@@ -506,16 +506,19 @@ pub fn write_outcome(
         path: dir.to_path_buf(),
         source,
     })?;
-    let number = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
+    // estimates.csv and the report's table of estimates, row by row.
     let mut csv = String::from("parameter,estimate,standard_error,start\n");
+    let mut table =
+        String::from("| parameter | estimate | ± standard error | start |\n|---|---|---|---|\n");
     for r in &outcome.rows {
-        let _ = writeln!(
-            csv,
-            "{},{:e},{},{:e}",
-            r.name,
-            r.estimate,
-            number(r.standard_error),
-            r.start
+        let (se_csv, se_md) = match r.standard_error {
+            Some(se) => (format!("{se:e}"), format!("{se:.3e}")),
+            None => (String::new(), "—".to_string()),
+        };
+        csv += &format!("{},{:e},{se_csv},{:e}\n", r.name, r.estimate, r.start);
+        table += &format!(
+            "| `{}` | {:.6} | {se_md} | {} |\n",
+            r.name, r.estimate, r.start
         );
     }
     write(&dir.join("estimates.csv"), &csv)?;
@@ -561,27 +564,14 @@ pub fn write_outcome(
         (_, Some(InfluenceFunction::Huber { c })) => format!("Huber weights, c = {c}"),
         (_, Some(InfluenceFunction::Tukey { c })) => format!("Tukey bisquare weights, c = {c}"),
     };
-    let _ = writeln!(md, "# Identification of {}\n", request.fmu.display());
-    let _ = writeln!(
+    let _ = write!(
         md,
-        "Method: {method}. Robustness: {robust}. {} samples estimated on, {} validated on; {:.2} s.\n",
-        outcome.estimation_samples, outcome.validation_samples, outcome.seconds
+        "# Identification of {}\n\nMethod: {method}. Robustness: {robust}. {} samples estimated on, {} validated on; {:.2} s.\n\n## Estimates\n\n{table}",
+        request.fmu.display(),
+        outcome.estimation_samples,
+        outcome.validation_samples,
+        outcome.seconds
     );
-    let _ = writeln!(
-        md,
-        "## Estimates\n\n| parameter | estimate | ± standard error | start |\n|---|---|---|---|"
-    );
-    for r in &outcome.rows {
-        let _ = writeln!(
-            md,
-            "| `{}` | {:.6} | {} | {} |",
-            r.name,
-            r.estimate,
-            r.standard_error
-                .map_or("—".to_string(), |s| format!("{s:.3e}")),
-            r.start
-        );
-    }
     let _ = writeln!(md, "\n## Fit on the validation part\n\n| measured | one-step fit | simulation fit | Ljung–Box Q (20 lags; white below {CHI2_20_95}) | lags with |ρ̂| > 1.96/√N |\n|---|---|---|---|---|");
     for (j, name) in request.outputs.iter().enumerate() {
         let n = outcome.validation_samples.max(1) as f64;

@@ -18,7 +18,7 @@
 //! C = Σ Wᶜ (χ⁻ − ẑ⁻)(𝒴 − ŷ)ᵀ. (The first sample only evaluates 𝒴 at the prior.)
 //! A sigma point whose event indicators at t_{k−1} lie on the other side of zero than the
 //! mean's has crossed an event surface the mean has not (a ball a little below the floor):
-//! the event is handled at t_{k−1} before it is integrated ([`FmuPlant::propagate_near`]),
+//! the event is handled at t_{k−1} before it is integrated ([`Start::reference`]),
 //! so that every sigma point follows the model's hybrid dynamics.
 //!
 //! **Robust correction** (the papers' rsKF, as `spurio`'s robust Kalman filter): over the
@@ -38,7 +38,7 @@
 //! every sigma point is the mean, the gain is zero and the filter simulates the FMU (the
 //! prediction errors are then the output errors of a simulation).
 
-use crate::plant::{FmuPlant, PlantError};
+use crate::plant::{FmuPlant, PlantError, Start};
 use nalgebra::{Cholesky, DMatrix, DVector};
 use spurio::estimation::{InfluenceFunction, MIN_WEIGHT};
 use std::cell::RefCell;
@@ -298,16 +298,14 @@ impl Ukf {
                     theta[i] = chi[(n + k, c)];
                 }
                 let x: Vec<f64> = chi.column(c).rows(0, n).iter().copied().collect();
-                plant.propagate_near(
-                    t0,
-                    &x,
-                    &theta,
-                    &u_held,
-                    time,
-                    reference.as_deref(),
-                    &mut x_out,
-                    &mut y_out,
-                )?;
+                let start = Start {
+                    time: t0,
+                    states: &x,
+                    parameters: &theta,
+                    inputs: &u_held,
+                    reference: reference.as_deref(),
+                };
+                plant.propagate(&start, time, &mut x_out, &mut y_out)?;
                 if c == 0 {
                     reference = Some(plant.placed_indicators());
                 }

@@ -2,7 +2,7 @@
 
 mod common;
 
-use spurio_identify::plant::{FmuPlant, PlantError, PlantSpec};
+use spurio_identify::plant::{FmuPlant, PlantError, PlantSpec, Start};
 
 fn open(
     model: &str,
@@ -66,13 +66,20 @@ fn a_fixed_parameter_resets_the_instance_a_tunable_one_does_not() {
     let x0 = plant.initial_states(&[-9.81, 0.7]).unwrap();
     let resets = plant.resets();
     let (mut x, mut y) = (vec![0.0; 2], vec![0.0]);
+    let start = |parameters: &'static [f64]| Start {
+        time: 0.0,
+        states: &x0,
+        parameters,
+        inputs: &[],
+        reference: None,
+    };
     plant
-        .propagate(0.0, &x0, &[-9.81, 0.9], &[], 0.2, &mut x, &mut y)
+        .propagate(&start(&[-9.81, 0.9]), 0.2, &mut x, &mut y)
         .unwrap();
     assert_eq!(plant.resets(), resets);
     assert!((y[0] - (1.0 - 0.5 * 9.81 * 0.04)).abs() < 1e-6, "{y:?}");
     plant
-        .propagate(0.0, &x0, &[-4.0, 0.9], &[], 0.2, &mut x, &mut y)
+        .propagate(&start(&[-4.0, 0.9]), 0.2, &mut x, &mut y)
         .unwrap();
     assert_eq!(plant.resets(), resets + 1);
     assert!((y[0] - (1.0 - 0.5 * 4.0 * 0.04)).abs() < 1e-6, "{y:?}");

@@ -4,7 +4,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::likelihood::Record;
-use spurio_identify::plant::{FmuPlant, PlantSpec};
+use spurio_identify::plant::{FmuPlant, PlantSpec, Start};
 use std::cell::RefCell;
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -68,7 +68,14 @@ pub fn simulate(plant: &Rc<RefCell<FmuPlant>>, theta: &[f64], times: &[f64]) -> 
     let mut t0 = times[0];
     for &t in times {
         let mut y = vec![0.0; outputs];
-        p.propagate(t0, &x, theta, &[], t, &mut x_next, &mut y)
+        let start = Start {
+            time: t0,
+            states: &x,
+            parameters: theta,
+            inputs: &[],
+            reference: None,
+        };
+        p.propagate(&start, t, &mut x_next, &mut y)
             .expect("propagated");
         x.copy_from_slice(&x_next);
         t0 = t;

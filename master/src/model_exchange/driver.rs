@@ -550,14 +550,7 @@ impl Stepper {
     ) -> Result<Advance, MeError> {
         self.t = t;
         self.summary.end_time = t;
-        let update = self.iterate_events(fmu, t)?;
-        self.next_event_time = update.next_event_time;
-        if update.terminate_simulation {
-            self.summary.terminated = true;
-            return Ok(Advance::Terminated(t));
-        }
-        self.resume(fmu, t)?;
-        Ok(Advance::Reached(t))
+        self.values_set_in_event_mode(fmu)
     }
 
     /// Puts the instance (in continuous-time mode) at time `t` with the continuous states `x`,
