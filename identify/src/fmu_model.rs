@@ -91,11 +91,14 @@ pub struct FmuPredictor {
     loss: Loss,
 }
 
+/// A sample's vector (inputs, outputs).
+type Vector = DVector<f64>;
+
 impl OneStepPredictor for FmuPredictor {
     fn step(
         &mut self,
-        u: &DVector<f64>,
-        y: &DVector<f64>,
+        u: &Vector,
+        y: &Vector,
         error: &mut PredictionError,
     ) -> Result<(), EstimationError> {
         let time = *self

@@ -220,42 +220,49 @@ impl FmuPlant {
                 vr: h.value_reference,
             });
         }
-        let mut outputs = Vec::new();
-        for name in &spec.outputs {
+        // A measured variable or an input: numeric, of an accepted causality, else `refuse`d.
+        let port = |name: &String,
+                    accepted: &dyn Fn(Causality) -> bool,
+                    refuse: &dyn Fn(String) -> PlantError| {
             let v = lookup(name)?;
             let h = &v.head;
-            let measurable = matches!(h.causality, Causality::Output | Causality::Local)
-                && h.var_type.is_numeric();
-            if !measurable {
-                return Err(PlantError::NotMeasurable {
-                    file: file.clone(),
-                    name: name.clone(),
-                    what: what_is(h.causality, v.fixed, h.var_type),
-                });
+            if !(accepted(h.causality) && h.var_type.is_numeric()) {
+                return Err(refuse(what_is(h.causality, v.fixed, h.var_type)));
             }
-            outputs.push(Port {
+            Ok(Port {
                 name: name.clone(),
                 var_type: h.var_type,
                 vr: h.value_reference,
-            });
-        }
-        let mut inputs = Vec::new();
-        for name in &spec.inputs {
-            let v = lookup(name)?;
-            let h = &v.head;
-            if !(h.causality == Causality::Input && h.var_type.is_numeric()) {
-                return Err(PlantError::NotAnInput {
-                    file: file.clone(),
-                    name: name.clone(),
-                    what: what_is(h.causality, v.fixed, h.var_type),
-                });
-            }
-            inputs.push(Port {
-                name: name.clone(),
-                var_type: h.var_type,
-                vr: h.value_reference,
-            });
-        }
+            })
+        };
+        let outputs = spec
+            .outputs
+            .iter()
+            .map(|name| {
+                port(
+                    name,
+                    &|c| matches!(c, Causality::Output | Causality::Local),
+                    &|what| PlantError::NotMeasurable {
+                        file: file.clone(),
+                        name: name.clone(),
+                        what,
+                    },
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let inputs = spec
+            .inputs
+            .iter()
+            .map(|name| {
+                port(name, &|c| c == Causality::Input, &|what| {
+                    PlantError::NotAnInput {
+                        file: file.clone(),
+                        name: name.clone(),
+                        what,
+                    }
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let instance = fmu.instantiate_model_exchange("plant", false)?;
         let layout = Layout {
             states: instance.description().states,
@@ -462,7 +469,7 @@ impl FmuPlant {
         x_out: &mut [f64],
         y_out: &mut [f64],
     ) -> Result<(), PlantError> {
-        let result = self.advance(start, t1, x_out, y_out);
+        let result = self.advance(start, t1, (x_out, y_out));
         if result.is_err() {
             // The instance may be left in any state: the next call resets it.
             self.failed = true;
@@ -470,13 +477,14 @@ impl FmuPlant {
         result
     }
 
+    /// [`FmuPlant::propagate`]'s work, into (x(t₁), y(t₁)).
     fn advance(
         &mut self,
         start: &Start,
         t1: f64,
-        x_out: &mut [f64],
-        y_out: &mut [f64],
+        out: (&mut [f64], &mut [f64]),
     ) -> Result<(), PlantError> {
+        let (x_out, y_out) = out;
         let Start {
             time: t0,
             states: x,
