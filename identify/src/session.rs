@@ -28,6 +28,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
+/// The online filter's prior standard deviation of a parameter, relative to its start value:
+/// wider, the sigma points of a hybrid model's parameter leave its meaningful range
+/// (BouncingBall's e from 0.7 ± 0.6 bounces with gain).
+pub const PARAMETER_PRIOR: f64 = 0.2;
+
 /// |standardised innovation| above which a sample is an outlier.
 pub const OUTLIER_THRESHOLD: f64 = 3.0;
 /// Lags of the whiteness test.
@@ -315,7 +320,11 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
                 kappa: None,
             };
             let mut p0 = state_variance(&x0);
-            p0.extend(starts.iter().map(|s| (0.5 * s.abs().max(1e-3)).powi(2)));
+            p0.extend(
+                starts
+                    .iter()
+                    .map(|s| (PARAMETER_PRIOR * s.abs().max(1e-3)).powi(2)),
+            );
             let augmented: Vec<usize> = (0..starts.len()).collect();
             plant.borrow_mut().start_afresh();
             let p0 = DMatrix::from_diagonal(&DVector::from_vec(p0));

@@ -11,7 +11,8 @@ pub struct IdentifyArgs {
     /// The plant: an FMU with Model Exchange (FMI 2.0 or 3.0).
     pub fmu: PathBuf,
     /// The recorded data: CSV with a header, a `time` column (or the first column) and
-    /// one column per input and measured variable; an empty or `nan` cell is missing.
+    /// one column per input and measured variable; an empty or `nan` cell is missing; a
+    /// row at the time of the row before replaces it (an event's two rows in fmpy's output).
     #[arg(long)]
     pub data: PathBuf,
     /// An input of the FMU from a column: `NAME=column` (or `NAME` when they agree).
@@ -96,19 +97,25 @@ fn read_data(path: &Path, inputs: &[String], outputs: &[String]) -> Result<Data>
                 )
             })
         };
-        data.time.push(cell(time, false)?);
-        data.inputs.push(
-            input_columns
-                .iter()
-                .map(|&j| cell(j, false))
-                .collect::<Result<_>>()?,
-        );
-        data.outputs.push(
-            output_columns
-                .iter()
-                .map(|&j| cell(j, true))
-                .collect::<Result<_>>()?,
-        );
+        let t = cell(time, false)?;
+        let u = input_columns
+            .iter()
+            .map(|&j| cell(j, false))
+            .collect::<Result<Vec<_>>>()?;
+        let y = output_columns
+            .iter()
+            .map(|&j| cell(j, true))
+            .collect::<Result<Vec<_>>>()?;
+        // A row at the time of the row before (fmpy records an event's time twice: before
+        // and after it) replaces it: the values after the event are kept.
+        if data.time.last() == Some(&t) {
+            data.inputs.pop();
+            data.outputs.pop();
+        } else {
+            data.time.push(t);
+        }
+        data.inputs.push(u);
+        data.outputs.push(y);
     }
     if data.time.windows(2).any(|w| w[1] <= w[0]) {
         bail!(
