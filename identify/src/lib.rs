@@ -30,6 +30,11 @@
 //! do not determine) is reported as such ([`Curvature::NotPositiveDefinite`]), without
 //! standard errors.
 
+pub mod fmu_model;
+pub mod plant;
+pub mod session;
+pub mod ukf;
+
 use argmin::core::{CostFunction, Executor, State, TerminationReason};
 use argmin::solver::neldermead::NelderMead;
 use nalgebra::{Cholesky, DMatrix};

@@ -44,7 +44,7 @@ pub use dual::{
 pub use estimator::StateEstimator;
 pub use kalman::{GaussianModel, KalmanFilter, ScalarKalmanFilter};
 pub use rls::{ContinuousSecondOrder, ReadoutUnavailable, RecursiveLeastSquares};
-pub use robust::{InfluenceFunction, RobustKalmanFilter, ScalarRobustKalmanFilter};
+pub use robust::{InfluenceFunction, RobustKalmanFilter, ScalarRobustKalmanFilter, MIN_WEIGHT};
 
 use crate::linalg::dense;
 use crate::ParameterError;

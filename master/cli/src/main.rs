@@ -46,6 +46,7 @@ fn say_line(line: std::fmt::Arguments<'_>) {
 mod fmi3_extras;
 mod guard;
 mod inspect;
+mod identify;
 mod library_query;
 mod limits;
 mod package;
@@ -123,6 +124,11 @@ enum Command {
         #[command(flatten)]
         fmu: run_fmu::FmuArgs,
     },
+    /// Identify an FMU's parameters (and states) from recorded data: e.g. `spurio identify
+    /// plant.fmu --data rig.csv --input U=force --output x=pos --free m_c,l,b`. Online by a
+    /// robust unscented Kalman filter (`--method ukf`) or offline by maximum likelihood
+    /// (`--method ml`); writes estimates.csv and report.md into --out.
+    Identify(identify::IdentifyArgs),
     /// Package FMUs: writes <out>/<ModelIdentifier>.fmu for every bundled FMU variant.
     Package {
         /// Model identifiers to package (default: all).
@@ -621,6 +627,7 @@ fn command(command: Command) -> Result<ExitCode> {
                 out.display()
             );
         }
+        Command::Identify(args) => identify::run(&args)?,
         Command::SspImport { ssp, out } => {
             let imported = spurio_master::ssp::import(&ssp, &out)?;
             for note in &imported.notes {

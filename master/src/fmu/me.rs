@@ -347,6 +347,17 @@ fn discarded(call: &str) -> CallError {
     ))
 }
 
+impl MeInstance {
+    /// `fmi2Reset` / `fmi3Reset`: the instance back to the state right after instantiation
+    /// (FMI 2.0 §2.1.6, FMI 3.0 §2.3.1), so that fixed parameters can be set again before a
+    /// new initialisation.
+    pub fn reset(&mut self) -> Result<(), CallError> {
+        me_call!(self, |i| fmi::fmi2::instance::Common::reset(i), |i| {
+            fmi::fmi3::Common::reset(i)
+        })
+    }
+}
+
 impl ModelExchangeCalls for MeInstance {
     fn name(&self) -> String {
         self.name.clone()

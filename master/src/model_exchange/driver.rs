@@ -550,6 +550,77 @@ impl Stepper {
     ) -> Result<Advance, MeError> {
         self.t = t;
         self.summary.end_time = t;
+        self.values_set_in_event_mode(fmu)
+    }
+
+    /// Puts the instance (in continuous-time mode) at time `t` with the continuous states `x`,
+    /// wherever it was before, and starts the solver afresh from there: the time set, the
+    /// states set and read back with their nominals, the event indicators there taken as the
+    /// ones before the next step, the count of events without progress started again. An
+    /// estimator propagating sigma points or a state estimate from one sample to the next
+    /// calls this before [`Stepper::advance_to`].
+    ///
+    /// `reference`: event indicators of a state the caller takes as the one this state
+    /// deviates from (an estimator's mean for a sigma point); an indicator on the other side
+    /// of zero from its reference ([`crossed`]) means the state is past that event surface,
+    /// and the event is handled at `t` (the FMU's event iteration, as for a state event), so
+    /// that a sigma point placed a little past a bounce bounces. `Advance::Terminated` when
+    /// the FMU asks to end the run there.
+    pub fn place_at<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+        x: &[f64],
+        reference: Option<&[f64]>,
+        on_event: &mut dyn FnMut(&Event),
+    ) -> Result<Advance, MeError> {
+        if x.len() != self.x.len() {
+            return Err(MeError::Layout {
+                fmu: self.name.clone(),
+                reason: format!("{} states given for an FMU with {}", x.len(), self.x.len()),
+            });
+        }
+        self.t = t;
+        self.last_event_time = f64::NEG_INFINITY;
+        self.events_here = 0;
+        fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
+        if !x.is_empty() {
+            let set = fmu.set_continuous_states(x);
+            set.map_err(self.failed(Call::SetContinuousStates, t))?;
+        }
+        self.restart(fmu, t)?;
+        if self.z_old.is_empty() {
+            return Ok(Advance::Reached(t));
+        }
+        let read = fmu.get_event_indicators(&mut self.z_old);
+        read.map_err(self.failed(Call::GetEventIndicators, t))?;
+        let past = reference.and_then(|r| {
+            (0..self.z_old.len().min(r.len())).find(|&i| crossed(r[i], self.z_old[i]))
+        });
+        if let Some(indicator) = past {
+            let kind = EventKind::State { indicator };
+            if let Some(end) = self.handle_event(fmu, kind, on_event)? {
+                return Ok(Advance::Terminated(end));
+            }
+        }
+        Ok(Advance::Reached(t))
+    }
+
+    /// The event indicators as the stepper last read them (after [`Stepper::place_at`]: at
+    /// the state placed, before any step).
+    pub fn event_indicators(&self) -> &[f64] {
+        &self.z_old
+    }
+
+    /// Values were set in event mode at the stepper's time (the caller entered event mode
+    /// and set tunable parameters, FMI 2.0 §3.2.3): the event iteration there, then
+    /// continuous-time mode with the solver started afresh. `Advance::Terminated` when the
+    /// FMU asks to end the run.
+    pub fn values_set_in_event_mode<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+    ) -> Result<Advance, MeError> {
+        let t = self.t;
         let update = self.iterate_events(fmu, t)?;
         self.next_event_time = update.next_event_time;
         if update.terminate_simulation {
@@ -836,8 +907,9 @@ pub fn simulate<M: ModelExchangeCalls>(
 }
 
 /// The experiment set up, the start values set, initialisation mode entered and left
-/// (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1); errors named as `stepper` names them.
-fn initialise<M: ModelExchangeCalls>(
+/// (FMI 2.0 §3.2.3 / FMI 3.0 §3.2.1); errors named as `stepper` names them. The instance is
+/// then in event mode: [`Stepper::initialise`] goes on from there.
+pub fn initialise<M: ModelExchangeCalls>(
     fmu: &mut M,
     layout: &Layout,
     options: &Options,

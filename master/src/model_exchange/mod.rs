@@ -31,7 +31,8 @@ mod driver;
 mod tests;
 
 pub use driver::{
-    event_time_tolerance, simulate, Advance, Event, EventKind, Layout, Options, Stepper, Summary,
+    event_time_tolerance, initialise, simulate, Advance, Event, EventKind, Layout, Options,
+    Stepper, Summary,
 };
 pub use spurio_solvers::{Method, Statistics};
 

@@ -1,0 +1,624 @@
+//! One identification from recorded data, as `spurio identify` runs it (docs/estimators.md,
+//! "spurio identify"): the FMU's free parameters estimated on the first part of the record
+//! (online by the robust UKF or offline by maximum likelihood), then judged on the rest
+//! (one-step and simulation fit, residual whiteness, outliers), written as `estimates.csv`
+//! and `report.md`.
+//!
+//! **Fit.** On the validation samples, fit = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) % over the present
+//! samples that are not outliers (as MATLAB's `compare`), ŷ the one-step prediction of the
+//! filter at θ̂ (states only) or the simulation from the initial state at θ̂.
+//!
+//! **Outliers.** A sample whose one-step innovation, standardised by its standard
+//! deviation, exceeds [`OUTLIER_THRESHOLD`] in magnitude.
+//!
+//! **Whiteness.** The sample autocorrelation ρ̂(τ), τ = 1 … 20, of the standardised one-step
+//! innovations of the validation part (outliers left out): white residuals keep
+//! |ρ̂(τ)| ≤ 1.96/√N at 95 % for each lag; the report gives the lags outside the band and
+//! the Ljung–Box statistic Q = N(N+2) Σ ρ̂(τ)²/(N−τ) against χ²₂₀'s 95 % quantile 31.41.
+
+use crate::fmu_model::{variance_name, FmuModel, Loss};
+use crate::plant::{FmuPlant, PlantError, PlantSpec};
+use crate::ukf::{Ukf, UkfError, UkfSample, UkfSettings};
+use crate::{maximise_likelihood, FreeParameter, IdentifyError, Options};
+use nalgebra::{DMatrix, DVector};
+use spurio::estimation::likelihood::{Initialisation, LikelihoodError, Record};
+use spurio::estimation::InfluenceFunction;
+use std::cell::RefCell;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// The online filter's prior standard deviation of a parameter, relative to its start value:
+/// wider, the sigma points of a hybrid model's parameter leave its meaningful range
+/// (BouncingBall's e from 0.7 ± 0.6 bounces with gain).
+pub const PARAMETER_PRIOR: f64 = 0.2;
+
+/// |standardised innovation| above which a sample is an outlier.
+pub const OUTLIER_THRESHOLD: f64 = 3.0;
+/// Lags of the whiteness test.
+pub const WHITENESS_LAGS: usize = 20;
+/// χ²₂₀'s 95 % quantile.
+const CHI2_20_95: f64 = 31.410;
+
+/// The estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// The robust UKF, the parameters random-walk states.
+    Ukf,
+    /// Maximum likelihood (Huber loss when robust) of the output errors.
+    MaximumLikelihood,
+}
+
+/// The robust weights of the online filter (and the loss of the offline fit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Robust {
+    /// The plain filter and the Gaussian likelihood.
+    None,
+    /// Huber's weights (c = 1.645) online, Huber's loss (c = 1.345) offline.
+    Huber,
+    /// Tukey's bisquare weights (c = 4.685) online, Huber's loss offline.
+    Tukey,
+}
+
+impl Robust {
+    /// The ψ function of the online filter.
+    pub fn influence(self) -> Option<InfluenceFunction> {
+        match self {
+            Self::None => None,
+            Self::Huber => Some(InfluenceFunction::huber()),
+            Self::Tukey => Some(InfluenceFunction::tukey()),
+        }
+    }
+}
+
+/// The recorded data: sample times, inputs and measured variables per sample (NaN missing).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Data {
+    pub time: Vec<f64>,
+    pub inputs: Vec<Vec<f64>>,
+    pub outputs: Vec<Vec<f64>>,
+}
+
+/// What to identify and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Request {
+    pub fmu: PathBuf,
+    /// The FMU's inputs, in the order of the data's inputs.
+    pub inputs: Vec<String>,
+    /// The FMU's measured variables, in the order of the data's outputs.
+    pub outputs: Vec<String>,
+    pub free: Vec<String>,
+    pub robust: Robust,
+    pub method: Method,
+    /// The fraction of the record (at its end) kept for validation, in [0, 1).
+    pub validate: f64,
+    /// The measurement variances (None: from the data, and estimated by `ml`).
+    pub noise: Option<Vec<f64>>,
+}
+
+/// Why an identification cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    #[error(transparent)]
+    Filter(#[from] UkfError),
+    #[error(transparent)]
+    Fit(#[from] IdentifyError),
+    #[error(transparent)]
+    Likelihood(#[from] LikelihoodError),
+    #[error("the data: {0}")]
+    Data(String),
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// One parameter's estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub name: String,
+    pub estimate: f64,
+    pub standard_error: Option<f64>,
+    pub start: f64,
+}
+
+/// What an identification gave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    pub rows: Vec<Row>,
+    /// The online filter's samples (UKF only).
+    pub trajectory: Vec<UkfSample>,
+    /// One-step and simulation fit (%) per measured variable on the validation part.
+    pub one_step_fit: Vec<f64>,
+    pub simulation_fit: Vec<f64>,
+    /// Indices of the samples taken as outliers.
+    pub outliers: Vec<usize>,
+    /// ρ̂(1 … 20) of each measured variable, and its Ljung–Box Q.
+    pub autocorrelation: Vec<Vec<f64>>,
+    pub ljung_box: Vec<f64>,
+    /// The samples estimated on and validated on.
+    pub estimation_samples: usize,
+    pub validation_samples: usize,
+    pub seconds: f64,
+}
+
+/// x̂₀'s variance per state: (1 % of max(|x₀|, 1))².
+fn state_variance(x0: &[f64]) -> Vec<f64> {
+    x0.iter()
+        .map(|x| (0.01 * x.abs().max(1.0)).powi(2))
+        .collect()
+}
+
+/// σ² of each measured variable from the data: (1.4826 MAD(Δy))² / 2, a robust estimate of
+/// the noise of a smooth signal sampled densely.
+fn noise_from_data(outputs: &[Vec<f64>], p: usize) -> Vec<f64> {
+    (0..p)
+        .map(|j| {
+            let present: Vec<f64> = outputs
+                .iter()
+                .map(|y| y[j])
+                .filter(|v| !v.is_nan())
+                .collect();
+            let mut d: Vec<f64> = present.windows(2).map(|w| w[1] - w[0]).collect();
+            let median = |v: &mut Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(0.0)
+            };
+            let m = median(&mut d);
+            let mut dev: Vec<f64> = d.iter().map(|x| (x - m).abs()).collect();
+            let mad = median(&mut dev);
+            let variance = (1.4826 * mad).powi(2) / 2.0;
+            if variance > 0.0 {
+                variance
+            } else {
+                1e-12
+            }
+        })
+        .collect()
+}
+
+/// Runs the filter at fixed θ over every sample, from P₀ = diag(`p0`): its samples.
+fn filter_run(
+    plant: &Rc<RefCell<FmuPlant>>,
+    theta: &[f64],
+    x0: &[f64],
+    p0: &[f64],
+    settings: &UkfSettings,
+    data: &Data,
+) -> Result<Vec<UkfSample>, SessionError> {
+    plant.borrow_mut().start_afresh();
+    let p0 = DMatrix::from_diagonal(&DVector::from_column_slice(p0));
+    let mut ukf = Ukf::new(plant.clone(), theta, &[], x0, p0, settings)?;
+    let mut samples = Vec::with_capacity(data.time.len());
+    for k in 0..data.time.len() {
+        samples.push(ukf.step(data.time[k], &data.inputs[k], &data.outputs[k])?.0);
+    }
+    Ok(samples)
+}
+
+/// 100 (1 − ‖e‖/‖y − ȳ‖) over the samples that are present and kept (`keep`).
+fn fit_percent(y: &[f64], e: &[f64], keep: &[bool]) -> f64 {
+    let pairs: Vec<(f64, f64)> = y
+        .iter()
+        .zip(e)
+        .zip(keep)
+        .filter(|((y, e), keep)| **keep && !y.is_nan() && !e.is_nan())
+        .map(|((y, e), _)| (*y, *e))
+        .collect();
+    let n = pairs.len().max(1) as f64;
+    let mean = pairs.iter().map(|p| p.0).sum::<f64>() / n;
+    let spread = pairs
+        .iter()
+        .map(|p| (p.0 - mean).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let error = pairs.iter().map(|p| p.1 * p.1).sum::<f64>().sqrt();
+    100.0 * (1.0 - error / spread.max(f64::MIN_POSITIVE))
+}
+
+/// ρ̂(1 … lags) of `r` (NaN entries left out as gaps) and the Ljung–Box Q.
+fn autocorrelation(r: &[f64], lags: usize) -> (Vec<f64>, f64) {
+    let present: Vec<f64> = r.iter().copied().filter(|v| !v.is_nan()).collect();
+    let n = present.len() as f64;
+    let mean = present.iter().sum::<f64>() / n.max(1.0);
+    let c0: f64 = r
+        .iter()
+        .filter(|v| !v.is_nan())
+        .map(|v| (v - mean).powi(2))
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    let mut rho = Vec::with_capacity(lags);
+    let mut q = 0.0;
+    for tau in 1..=lags {
+        let c: f64 = (tau..r.len())
+            .filter(|&k| !r[k].is_nan() && !r[k - tau].is_nan())
+            .map(|k| (r[k] - mean) * (r[k - tau] - mean))
+            .sum();
+        let value = c / c0;
+        rho.push(value);
+        if n > tau as f64 {
+            q += value * value / (n - tau as f64);
+        }
+    }
+    (rho, n * (n + 2.0) * q)
+}
+
+/// Opens the FMU and checks the names of `request` against it (before any data are read):
+/// the number of its continuous states.
+pub fn check(request: &Request) -> Result<usize, SessionError> {
+    let plant = FmuPlant::open(&request.fmu, &spec(request, 0.0))?;
+    Ok(plant.states())
+}
+
+fn spec(request: &Request, start: f64) -> PlantSpec {
+    PlantSpec {
+        free: request.free.clone(),
+        inputs: request.inputs.clone(),
+        outputs: request.outputs.clone(),
+        tolerance: 1e-8,
+        start,
+    }
+}
+
+/// Identifies `request.free` from `data` (module documentation).
+pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError> {
+    let started = std::time::Instant::now();
+    let n_samples = data.time.len();
+    if n_samples < 3 || data.inputs.len() != n_samples || data.outputs.len() != n_samples {
+        return Err(SessionError::Data(format!(
+            "{n_samples} sample times, {} input rows and {} output rows: at least 3 samples, one row each",
+            data.inputs.len(),
+            data.outputs.len()
+        )));
+    }
+    if !(0.0..1.0).contains(&request.validate) {
+        return Err(SessionError::Data(format!(
+            "--validate {} must be in [0, 1)",
+            request.validate
+        )));
+    }
+    let plant = Rc::new(RefCell::new(FmuPlant::open(
+        &request.fmu,
+        &spec(request, data.time[0]),
+    )?));
+    let p = request.outputs.len();
+    let starts = plant.borrow().parameter_starts();
+    let x0 = plant.borrow_mut().initial_states(&starts)?;
+    let n = x0.len();
+    let estimation = ((1.0 - request.validate) * n_samples as f64).round() as usize;
+    let estimation = estimation.clamp(2, n_samples);
+    let head = Data {
+        time: data.time[..estimation].to_vec(),
+        inputs: data.inputs[..estimation].to_vec(),
+        outputs: data.outputs[..estimation].to_vec(),
+    };
+    let mut noise = match &request.noise {
+        Some(v) if v.len() == p => v.clone(),
+        Some(v) => {
+            return Err(SessionError::Data(format!(
+                "{} noise variances for {p} measured variables",
+                v.len()
+            )))
+        }
+        None => noise_from_data(&head.outputs, p),
+    };
+    let mut rows = Vec::new();
+    let mut trajectory = Vec::new();
+    let theta: Vec<f64> = match request.method {
+        Method::Ukf => {
+            let q_theta = vec![0.0; starts.len()];
+            let settings = UkfSettings {
+                state_noise: vec![1e-10; n],
+                parameter_noise: q_theta,
+                measurement_variance: noise.clone(),
+                robust: request.robust.influence(),
+                alpha: 1.0,
+                beta: 2.0,
+                kappa: None,
+            };
+            let mut p0 = state_variance(&x0);
+            p0.extend(
+                starts
+                    .iter()
+                    .map(|s| (PARAMETER_PRIOR * s.abs().max(1e-3)).powi(2)),
+            );
+            let augmented: Vec<usize> = (0..starts.len()).collect();
+            plant.borrow_mut().start_afresh();
+            let p0 = DMatrix::from_diagonal(&DVector::from_vec(p0));
+            let mut ukf = Ukf::new(plant.clone(), &starts, &augmented, &x0, p0, &settings)?;
+            for k in 0..estimation {
+                trajectory.push(ukf.step(head.time[k], &head.inputs[k], &head.outputs[k])?.0);
+            }
+            let last = trajectory.last().cloned();
+            for (i, name) in request.free.iter().enumerate() {
+                let (estimate, sd) = last.as_ref().map_or((starts[i], None), |s| {
+                    (s.estimate[n + i], Some(s.standard_deviation[n + i]))
+                });
+                rows.push(Row {
+                    name: name.clone(),
+                    estimate,
+                    standard_error: sd,
+                    start: starts[i],
+                });
+            }
+            rows.iter().map(|r| r.estimate).collect()
+        }
+        Method::MaximumLikelihood => {
+            let given: Vec<Option<f64>> = match &request.noise {
+                Some(v) => v.iter().map(|v| Some(*v)).collect(),
+                None => vec![None; p],
+            };
+            let loss = match request.robust {
+                Robust::None => Loss::Gaussian,
+                Robust::Huber | Robust::Tukey => Loss::Huber { c: 1.345 },
+            };
+            let model = FmuModel::new(plant.clone(), head.time.clone(), given, vec![0.0; n], loss);
+            let record = Record::new(
+                head.inputs
+                    .iter()
+                    .map(|u| DVector::from_column_slice(u))
+                    .collect(),
+                head.outputs
+                    .iter()
+                    .map(|y| DVector::from_column_slice(y))
+                    .collect(),
+            )?;
+            let init = Initialisation::Known {
+                x0: DVector::from_column_slice(&x0),
+                p0: DMatrix::zeros(n, n),
+            };
+            let mut parameters: Vec<FreeParameter> = request
+                .free
+                .iter()
+                .zip(&starts)
+                .map(|(name, &s)| {
+                    if s > 0.0 {
+                        FreeParameter::positive(name, &[s])
+                    } else {
+                        FreeParameter::real(name, &[s])
+                    }
+                })
+                .collect();
+            if request.noise.is_none() {
+                let names = plant.borrow().output_names();
+                for (name, v) in names.iter().zip(&noise) {
+                    parameters.push(FreeParameter::positive(&variance_name(name), &[*v]));
+                }
+            }
+            let fit = maximise_likelihood(
+                &model,
+                &record,
+                &init,
+                &parameters,
+                &Options {
+                    tolerance: 1e-8,
+                    max_iterations: 1000,
+                    ..Options::default()
+                },
+            )?;
+            for e in &fit.estimates {
+                rows.push(Row {
+                    name: e.name.clone(),
+                    estimate: e.value,
+                    standard_error: e.standard_error,
+                    start: e.start,
+                });
+            }
+            if request.noise.is_none() {
+                noise = fit.estimates[starts.len()..]
+                    .iter()
+                    .map(|e| e.value)
+                    .collect();
+            }
+            fit.estimates[..starts.len()]
+                .iter()
+                .map(|e| e.value)
+                .collect()
+        }
+    };
+    // Judged on the validation part (all samples when none is kept).
+    let from = if estimation < n_samples {
+        estimation
+    } else {
+        0
+    };
+    let x0 = plant.borrow_mut().initial_states(&theta)?;
+    let settings = |q: f64, robust: Option<InfluenceFunction>| UkfSettings {
+        state_noise: vec![q; n],
+        parameter_noise: Vec::new(),
+        measurement_variance: noise.clone(),
+        robust,
+        alpha: 1.0,
+        beta: 2.0,
+        kappa: None,
+    };
+    let one_step = filter_run(
+        &plant,
+        &theta,
+        &x0,
+        &state_variance(&x0),
+        &settings(1e-10, request.robust.influence()),
+        data,
+    )?;
+    let simulation = filter_run(
+        &plant,
+        &theta,
+        &x0,
+        &vec![0.0; n],
+        &settings(0.0, None),
+        data,
+    )?;
+    let standardised = |s: &UkfSample, j: usize| s.innovation[j] / s.innovation_sd[j];
+    let outliers: Vec<usize> = (0..n_samples)
+        .filter(|&k| (0..p).any(|j| standardised(&one_step[k], j).abs() > OUTLIER_THRESHOLD))
+        .collect();
+    let keep: Vec<bool> = (0..n_samples)
+        .map(|k| k >= from && outliers.binary_search(&k).is_err())
+        .collect();
+    let mut one_step_fit = Vec::new();
+    let mut simulation_fit = Vec::new();
+    let mut rho = Vec::new();
+    let mut ljung_box = Vec::new();
+    for j in 0..p {
+        let y: Vec<f64> = data.outputs.iter().map(|y| y[j]).collect();
+        let e1: Vec<f64> = one_step.iter().map(|s| s.innovation[j]).collect();
+        let es: Vec<f64> = simulation.iter().map(|s| s.innovation[j]).collect();
+        one_step_fit.push(fit_percent(&y, &e1, &keep));
+        simulation_fit.push(fit_percent(&y, &es, &keep));
+        let r: Vec<f64> = (from..n_samples)
+            .map(|k| {
+                if keep[k] {
+                    standardised(&one_step[k], j)
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        let (values, q) = autocorrelation(&r, WHITENESS_LAGS);
+        rho.push(values);
+        ljung_box.push(q);
+    }
+    Ok(Outcome {
+        rows,
+        trajectory,
+        one_step_fit,
+        simulation_fit,
+        outliers,
+        autocorrelation: rho,
+        ljung_box,
+        estimation_samples: estimation,
+        validation_samples: n_samples - from,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn write(path: &Path, text: &str) -> Result<(), SessionError> {
+    std::fs::write(path, text).map_err(|source| SessionError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Writes `estimates.csv` (parameter, estimate, standard_error, start), `report.md` and, for
+/// the UKF, `trajectory.csv` (time, x̂, θ̂, their standard deviations, innovations, weights)
+/// into `dir`; the report's text is returned.
+pub fn write_outcome(
+    request: &Request,
+    outcome: &Outcome,
+    state_count: usize,
+    dir: &Path,
+) -> Result<String, SessionError> {
+    std::fs::create_dir_all(dir).map_err(|source| SessionError::Write {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    // estimates.csv and the report's table of estimates, row by row.
+    let mut csv = String::from("parameter,estimate,standard_error,start\n");
+    let mut table =
+        String::from("| parameter | estimate | ± standard error | start |\n|---|---|---|---|\n");
+    for r in &outcome.rows {
+        let (se_csv, se_md) = match r.standard_error {
+            Some(se) => (format!("{se:e}"), format!("{se:.3e}")),
+            None => (String::new(), "—".to_string()),
+        };
+        csv += &format!("{},{:e},{se_csv},{:e}\n", r.name, r.estimate, r.start);
+        table += &format!(
+            "| `{}` | {:.6} | {se_md} | {} |\n",
+            r.name, r.estimate, r.start
+        );
+    }
+    write(&dir.join("estimates.csv"), &csv)?;
+    if !outcome.trajectory.is_empty() {
+        let q = request.free.len();
+        let p = request.outputs.len();
+        let mut header = vec!["time".to_string()];
+        header.extend((0..state_count).map(|i| format!("x{i}")));
+        header.extend(request.free.iter().cloned());
+        header.extend((0..state_count).map(|i| format!("sd(x{i})")));
+        header.extend(request.free.iter().map(|f| format!("sd({f})")));
+        header.extend(request.outputs.iter().map(|o| format!("innovation({o})")));
+        header.extend(request.outputs.iter().map(|o| format!("weight({o})")));
+        let mut text = header.join(",") + "\n";
+        for s in &outcome.trajectory {
+            let mut row = vec![format!("{}", s.time)];
+            row.extend(
+                s.estimate
+                    .iter()
+                    .take(state_count + q)
+                    .map(|v| format!("{v:e}")),
+            );
+            row.extend(
+                s.standard_deviation
+                    .iter()
+                    .take(state_count + q)
+                    .map(|v| format!("{v:e}")),
+            );
+            row.extend(s.innovation.iter().take(p).map(|v| format!("{v:e}")));
+            row.extend(s.weight.iter().take(p).map(|v| format!("{v}")));
+            text += &(row.join(",") + "\n");
+        }
+        write(&dir.join("trajectory.csv"), &text)?;
+    }
+    let mut md = String::new();
+    let method = match request.method {
+        Method::Ukf => "online: robust unscented Kalman filter, parameters as random-walk states",
+        Method::MaximumLikelihood => "offline: maximum likelihood of the output errors",
+    };
+    let robust = match (request.method, request.robust.influence()) {
+        (_, None) => "none (Gaussian)".to_string(),
+        (Method::MaximumLikelihood, Some(_)) => "Huber's loss, c = 1.345".to_string(),
+        (_, Some(InfluenceFunction::Huber { c })) => format!("Huber weights, c = {c}"),
+        (_, Some(InfluenceFunction::Tukey { c })) => format!("Tukey bisquare weights, c = {c}"),
+    };
+    let _ = write!(
+        md,
+        "# Identification of {}\n\nMethod: {method}. Robustness: {robust}. {} samples estimated on, {} validated on; {:.2} s.\n\n## Estimates\n\n{table}",
+        request.fmu.display(),
+        outcome.estimation_samples,
+        outcome.validation_samples,
+        outcome.seconds
+    );
+    let _ = writeln!(md, "\n## Fit on the validation part\n\n| measured | one-step fit | simulation fit | Ljung–Box Q (20 lags; white below {CHI2_20_95}) | lags with |ρ̂| > 1.96/√N |\n|---|---|---|---|---|");
+    for (j, name) in request.outputs.iter().enumerate() {
+        let n = outcome.validation_samples.max(1) as f64;
+        let band = 1.96 / n.sqrt();
+        let outside: Vec<String> = outcome.autocorrelation[j]
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.abs() > band)
+            .map(|(tau, _)| (tau + 1).to_string())
+            .collect();
+        let _ = writeln!(
+            md,
+            "| `{name}` | {:.1} % | {:.1} % | {:.1} ({}) | {} |",
+            outcome.one_step_fit[j],
+            outcome.simulation_fit[j],
+            outcome.ljung_box[j],
+            if outcome.ljung_box[j] <= CHI2_20_95 {
+                "white"
+            } else {
+                "not white"
+            },
+            if outside.is_empty() {
+                "none".to_string()
+            } else {
+                outside.join(", ")
+            }
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n## Outliers\n\n{} samples with a standardised one-step innovation beyond {OUTLIER_THRESHOLD}: {}.",
+        outcome.outliers.len(),
+        if outcome.outliers.is_empty() {
+            "none".to_string()
+        } else {
+            outcome.outliers.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", ")
+        }
+    );
+    write(&dir.join("report.md"), &md)?;
+    Ok(md)
+}
