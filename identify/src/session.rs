@@ -83,11 +83,9 @@ pub struct Data {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Request {
     pub fmu: PathBuf,
-    /// The FMU's inputs, in the order of the data's inputs.
-    pub inputs: Vec<String>,
-    /// The FMU's measured variables, in the order of the data's outputs.
-    pub outputs: Vec<String>,
-    pub free: Vec<String>,
+    /// The FMU's free parameters, inputs (in the order of the data's inputs) and measured
+    /// variables (in the order of the data's outputs), its tolerance; `start` is the data's.
+    pub plant: PlantSpec,
     pub robust: Robust,
     pub method: Method,
     /// The fraction of the record (at its end) kept for validation, in [0, 1).
@@ -255,15 +253,12 @@ pub fn check(request: &Request) -> Result<usize, SessionError> {
 
 fn spec(request: &Request, start: f64) -> PlantSpec {
     PlantSpec {
-        free: request.free.clone(),
-        inputs: request.inputs.clone(),
-        outputs: request.outputs.clone(),
-        tolerance: 1e-8,
         start,
+        ..request.plant.clone()
     }
 }
 
-/// Identifies `request.free` from `data` (module documentation).
+/// Identifies `request.plant.free` from `data` (module documentation).
 pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError> {
     let started = std::time::Instant::now();
     let n_samples = data.time.len();
@@ -284,7 +279,7 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         &request.fmu,
         &spec(request, data.time[0]),
     )?));
-    let p = request.outputs.len();
+    let p = request.plant.outputs.len();
     let starts = plant.borrow().parameter_starts();
     let x0 = plant.borrow_mut().initial_states(&starts)?;
     let n = x0.len();
@@ -333,7 +328,7 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
                 trajectory.push(ukf.step(head.time[k], &head.inputs[k], &head.outputs[k])?.0);
             }
             let last = trajectory.last().cloned();
-            for (i, name) in request.free.iter().enumerate() {
+            for (i, name) in request.plant.free.iter().enumerate() {
                 let (estimate, sd) = last.as_ref().map_or((starts[i], None), |s| {
                     (s.estimate[n + i], Some(s.standard_deviation[n + i]))
                 });
@@ -371,6 +366,7 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
                 p0: DMatrix::zeros(n, n),
             };
             let mut parameters: Vec<FreeParameter> = request
+                .plant
                 .free
                 .iter()
                 .zip(&starts)
@@ -532,15 +528,21 @@ pub fn write_outcome(
     }
     write(&dir.join("estimates.csv"), &csv)?;
     if !outcome.trajectory.is_empty() {
-        let q = request.free.len();
-        let p = request.outputs.len();
+        let q = request.plant.free.len();
+        let p = request.plant.outputs.len();
         let mut header = vec!["time".to_string()];
         header.extend((0..state_count).map(|i| format!("x{i}")));
-        header.extend(request.free.iter().cloned());
+        header.extend(request.plant.free.iter().cloned());
         header.extend((0..state_count).map(|i| format!("sd(x{i})")));
-        header.extend(request.free.iter().map(|f| format!("sd({f})")));
-        header.extend(request.outputs.iter().map(|o| format!("innovation({o})")));
-        header.extend(request.outputs.iter().map(|o| format!("weight({o})")));
+        header.extend(request.plant.free.iter().map(|f| format!("sd({f})")));
+        header.extend(
+            request
+                .plant
+                .outputs
+                .iter()
+                .map(|o| format!("innovation({o})")),
+        );
+        header.extend(request.plant.outputs.iter().map(|o| format!("weight({o})")));
         let mut text = header.join(",") + "\n";
         for s in &outcome.trajectory {
             let mut row = vec![format!("{}", s.time)];
@@ -582,7 +584,7 @@ pub fn write_outcome(
         outcome.seconds
     );
     let _ = writeln!(md, "\n## Fit on the validation part\n\n| measured | one-step fit | simulation fit | Ljung–Box Q (20 lags; white below {CHI2_20_95}) | lags with |ρ̂| > 1.96/√N |\n|---|---|---|---|---|");
-    for (j, name) in request.outputs.iter().enumerate() {
+    for (j, name) in request.plant.outputs.iter().enumerate() {
         let n = outcome.validation_samples.max(1) as f64;
         let band = 1.96 / n.sqrt();
         let outside: Vec<String> = outcome.autocorrelation[j]

@@ -2,6 +2,7 @@
 //! `spurio-identify` run on them (docs/estimators.md, "spurio identify").
 
 use anyhow::{bail, Context, Result};
+use spurio_identify::plant::PlantSpec;
 use spurio_identify::session::{identify, write_outcome, Data, Method, Request, Robust};
 use std::path::{Path, PathBuf};
 
@@ -134,9 +135,13 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         args.output.iter().map(|e| mapping(e)).unzip();
     let request = Request {
         fmu: args.fmu.clone(),
-        inputs: input_names,
-        outputs: output_names,
-        free: args.free.clone(),
+        plant: PlantSpec {
+            free: args.free.clone(),
+            inputs: input_names,
+            outputs: output_names,
+            tolerance: 1e-8,
+            start: 0.0,
+        },
         robust: match args.robust.as_str() {
             "none" => Robust::None,
             "tukey" => Robust::Tukey,

@@ -45,8 +45,8 @@ fn say_line(line: std::fmt::Arguments<'_>) {
 
 mod fmi3_extras;
 mod guard;
-mod inspect;
 mod identify;
+mod inspect;
 mod library_query;
 mod limits;
 mod package;
