@@ -56,10 +56,15 @@ pub struct PlantSpec {
     pub inputs: Vec<String>,
     /// The measured variables (outputs or local continuous variables), in the order of y.
     pub outputs: Vec<String>,
-    /// The integrator's relative tolerance.
-    pub tolerance: f64,
-    /// The start time of the experiment (the first sample's time).
-    pub start: f64,
+}
+
+/// The master's Model Exchange settings for an estimator's propagations: the experiment
+/// starting at `start` (the first sample's time), the default solver at relative tolerance
+/// `tolerance`, no end.
+pub fn integration(start: f64, tolerance: f64) -> Options {
+    let mut options = Options::new(start, f64::INFINITY, 1.0);
+    options.tolerance = tolerance;
+    options
 }
 
 /// Why an FMU cannot be the model, or a propagation failed.
@@ -148,6 +153,8 @@ pub struct FmuPlant {
     resets: u64,
     /// A call failed: the instance is reset and initialised again before the next use.
     failed: bool,
+    /// Events handled by the last propagation (at its start and on its way).
+    events: usize,
 }
 
 impl std::fmt::Debug for FmuPlant {
@@ -172,8 +179,9 @@ fn what_is(causality: Causality, fixed: bool, var_type: VarType) -> String {
 }
 
 impl FmuPlant {
-    /// Opens `path` for Model Exchange and checks `spec` against it (module documentation).
-    pub fn open(path: &Path, spec: &PlantSpec) -> Result<Self, PlantError> {
+    /// Opens `path` for Model Exchange and checks `spec` against it (module documentation);
+    /// `options` are the master's settings of its integration ([`integration`]).
+    pub fn open(path: &Path, spec: &PlantSpec, options: Options) -> Result<Self, PlantError> {
         let fmu = FmuFile::open_for(path, &LoadOptions::default(), Interface::ModelExchange)?;
         let file = fmu.path.clone();
         let lookup = |name: &str| {
@@ -270,8 +278,6 @@ impl FmuPlant {
             recorded: Vec::new(),
             start_values: Vec::new(),
         };
-        let mut options = Options::new(spec.start, f64::INFINITY, 1.0);
-        options.tolerance = spec.tolerance;
         let stepper = Stepper::new(instance.name(), instance.is_fmi3(), &layout, &options);
         let inputs_set = vec![f64::NAN; inputs.len()];
         Ok(Self {
@@ -287,6 +293,7 @@ impl FmuPlant {
             inputs_set,
             resets: 0,
             failed: false,
+            events: 0,
         })
     }
 
@@ -497,20 +504,24 @@ impl FmuPlant {
         Self::check("measurements", self.outputs.len(), y_out.len())?;
         self.ensure_parameters(theta)?;
         self.set_inputs(u)?;
+        let mut events = 0;
         let placed = self
             .stepper
-            .place_at(&mut self.instance, t0, x, reference, &mut |_| {})?;
+            .place_at(&mut self.instance, t0, x, reference, &mut |_| events += 1)?;
         if let Advance::Terminated(time) = placed {
             return Err(self.terminated(time));
         }
         if t1 > t0 {
             let advanced =
                 self.stepper
-                    .advance_to(&mut self.instance, t1, &mut NoRecording, &mut |_| {})?;
+                    .advance_to(&mut self.instance, t1, &mut NoRecording, &mut |_| {
+                        events += 1
+                    })?;
             if let Advance::Terminated(time) = advanced {
                 return Err(self.terminated(time));
             }
         }
+        self.events = events;
         if !x_out.is_empty() {
             let read = self.instance.get_continuous_states(x_out);
             read.map_err(|e| self.call_failed("GetContinuousStates", e))?;
@@ -522,5 +533,46 @@ impl FmuPlant {
             read.map_err(|e| self.call_failed("Get* (a measured variable)", e))?;
         }
         Ok(())
+    }
+
+    /// Events the last [`FmuPlant::propagate`] handled (an event at its start included).
+    pub fn events_in_last_propagation(&self) -> usize {
+        self.events
+    }
+
+    /// ∂ẋ/∂x (n×n) at `start` (the instance placed at its time, states, parameters and
+    /// inputs) from the FMU's directional derivatives (FMI 2.0 `fmi2GetDirectionalDerivative`
+    /// with the states as knowns and the derivatives as unknowns, one unit seed per column,
+    /// through the master's importer); None when the FMU gives none.
+    pub fn state_jacobian(&mut self, start: &Start) -> Result<Option<Vec<f64>>, PlantError> {
+        let n = self.layout.states;
+        Self::check("states", n, start.states.len())?;
+        self.ensure_parameters(start.parameters)?;
+        self.set_inputs(start.inputs)?;
+        let placed = self.stepper.place_at(
+            &mut self.instance,
+            start.time,
+            start.states,
+            start.reference,
+            &mut |_| {},
+        );
+        if let Advance::Terminated(time) = placed.inspect_err(|_| self.failed = true)? {
+            return Err(self.terminated(time));
+        }
+        let mut jacobian = vec![0.0; n * n];
+        let mut seed = vec![0.0; n];
+        for (i, column) in jacobian.chunks_exact_mut(n.max(1)).enumerate().take(n) {
+            seed.fill(0.0);
+            seed[i] = 1.0;
+            match self.instance.directional_derivative(&seed, column) {
+                Ok(true) => {}
+                Ok(false) => return Ok(None),
+                Err(e) => {
+                    self.failed = true;
+                    return Err(self.call_failed("GetDirectionalDerivative", e));
+                }
+            }
+        }
+        Ok(Some(jacobian))
     }
 }

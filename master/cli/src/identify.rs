@@ -28,9 +28,10 @@ pub struct IdentifyArgs {
     /// Robust weights against outliers.
     #[arg(long, default_value = "huber", value_parser = ["huber", "tukey", "none"])]
     pub robust: String,
-    /// `ukf`: online (robust UKF, parameters as random-walk states); `ml`: offline maximum
-    /// likelihood (Huber loss unless --robust none) with standard errors from the curvature.
-    #[arg(long, default_value = "ukf", value_parser = ["ukf", "ml"])]
+    /// `ukf` / `ekf`: online (robust unscented / extended Kalman filter, parameters as
+    /// random-walk states); `ml`: offline maximum likelihood (Huber loss unless --robust
+    /// none) with standard errors from the curvature.
+    #[arg(long, default_value = "ukf", value_parser = ["ukf", "ekf", "ml"])]
     pub method: String,
     /// The fraction of the record, at its end, kept for validation.
     #[arg(long, default_value_t = 0.0)]
@@ -39,7 +40,7 @@ pub struct IdentifyArgs {
     /// estimates them).
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<f64>,
-    /// Where to write estimates.csv, report.md (and trajectory.csv for `ukf`).
+    /// Where to write estimates.csv, report.md (and trajectory.csv for `ukf` and `ekf`).
     #[arg(long, default_value = "identification")]
     pub out: PathBuf,
 }
@@ -139,18 +140,17 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             free: args.free.clone(),
             inputs: input_names,
             outputs: output_names,
-            tolerance: 1e-8,
-            start: 0.0,
         },
+        tolerance: 1e-8,
         robust: match args.robust.as_str() {
             "none" => Robust::None,
             "tukey" => Robust::Tukey,
             _ => Robust::Huber,
         },
-        method: if args.method == "ml" {
-            Method::MaximumLikelihood
-        } else {
-            Method::Ukf
+        method: match args.method.as_str() {
+            "ml" => Method::MaximumLikelihood,
+            "ekf" => Method::Ekf,
+            _ => Method::Ukf,
         },
         validate: args.validate,
         noise: (!args.noise.is_empty()).then(|| args.noise.clone()),
