@@ -250,8 +250,8 @@ impl Case {
         (e.value, e.standard_error)
     }
 
-    /// Runs the four fits, prints them and asserts the done-when figures: offline (robust)
-    /// within 1 % of the truth, online (robust) within two standard deviations. The error
+    /// Runs the five fits, prints them and asserts the done-when figures: offline (robust)
+    /// within 1 % of the truth, online (robust UKF and EKF) within two standard deviations. The error
     /// ratios without/with the robust weights (online, offline) are returned.
     pub fn check(&self) -> (f64, f64) {
         use spurio_identify::fmu_model::Loss;
@@ -261,11 +261,12 @@ impl Case {
         let huber = Some(spurio::estimation::InfluenceFunction::huber());
         let (ukf, sd) = self.online(huber, Linearisation::UNSCENTED);
         let (ukf_plain, sd_plain) = self.online(None, Linearisation::UNSCENTED);
+        let (ekf, ekf_sd) = self.online(huber, Linearisation::Extended);
         let truth = self.truth;
         let ratio = |plain: f64, robust: f64| (plain - truth).abs() / (robust - truth).abs();
         let ratios = (ratio(ukf_plain, ukf), ratio(ml_plain, ml));
         println!(
-            "{} {} (truth {truth}, start {}): offline Huber {ml:.6} ± {se:?}, Gaussian {ml_plain:.6} ± {se_plain:?}; online robust UKF {ukf:.6} ± {sd:.6}, plain {ukf_plain:.6} ± {sd_plain:.6}; error ratio none/robust online {:.2}, offline {:.2}; {:.2} s",
+            "{} {} (truth {truth}, start {}): offline Huber {ml:.6} ± {se:?}, Gaussian {ml_plain:.6} ± {se_plain:?}; online robust UKF {ukf:.6} ± {sd:.6}, plain {ukf_plain:.6} ± {sd_plain:.6}, robust EKF {ekf:.6} ± {ekf_sd:.6}; error ratio none/robust online {:.2}, offline {:.2}; {:.2} s",
             self.model,
             self.parameter,
             self.start,
@@ -279,6 +280,10 @@ impl Case {
             "se {se:?}"
         );
         assert!((ukf - truth).abs() < 2.0 * sd, "online {ukf} ± {sd}");
+        assert!(
+            (ekf - truth).abs() < 2.0 * ekf_sd,
+            "online EKF {ekf} ± {ekf_sd}"
+        );
         ratios
     }
 }

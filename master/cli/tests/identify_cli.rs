@@ -102,8 +102,9 @@ fn dahlquist_k_offline_and_online_robust_beats_plain() {
     let (ml_plain, _) = identify(&dir, &data, "ml", "none");
     let (ukf, sd) = identify(&dir, &data, "ukf", "huber");
     let (ukf_plain, _) = identify(&dir, &data, "ukf", "none");
+    let (ekf, ekf_sd) = identify(&dir, &data, "ekf", "huber");
     println!(
-        "k: ml huber {ml} ± {se}, none {ml_plain}; ukf huber {ukf} ± {sd}, none {ukf_plain}; ratios {:.1}, {:.1}",
+        "k: ml huber {ml} ± {se}, none {ml_plain}; ukf huber {ukf} ± {sd}, none {ukf_plain}; ekf huber {ekf} ± {ekf_sd}; ratios {:.1}, {:.1}",
         (ml_plain - K).abs() / (ml - K).abs(),
         (ukf_plain - K).abs() / (ukf - K).abs()
     );
@@ -112,11 +113,13 @@ fn dahlquist_k_offline_and_online_robust_beats_plain() {
         "{ml} ± {se}"
     );
     assert!((ukf - K).abs() < 2.0 * sd, "{ukf} ± {sd}");
+    assert!((ekf - K).abs() < 2.0 * ekf_sd, "{ekf} ± {ekf_sd}");
     assert!(
         (ml_plain - K).abs() > 2.0 * (ml - K).abs(),
         "{ml_plain} vs {ml}"
     );
     assert!(dir.join("ukf-huber/trajectory.csv").is_file());
+    assert!(dir.join("ekf-huber/trajectory.csv").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
