@@ -21,7 +21,7 @@ use crate::fmu_model::{variance_name, FmuModel, Loss};
 use crate::plant::{integration, FmuPlant, PlantError, PlantSpec};
 use crate::{maximise_likelihood, Estimate, FreeParameter, IdentifyError, Options};
 use nalgebra::{DMatrix, DVector};
-use spurio::estimation::likelihood::{Initialisation, Record};
+use spurio::estimation::likelihood::{Initialisation, LikelihoodError, Record};
 use spurio::estimation::InfluenceFunction;
 use std::cell::RefCell;
 use std::fmt::Write as _;
@@ -90,6 +90,18 @@ pub struct Data {
     pub time: Vec<f64>,
     pub inputs: Vec<Vec<f64>>,
     pub outputs: Vec<Vec<f64>>,
+}
+
+impl Data {
+    /// The record of the likelihood: per sample, u and y as vectors (NaN missing).
+    pub fn record(&self) -> Result<Record, LikelihoodError> {
+        let column = |rows: &[Vec<f64>]| {
+            rows.iter()
+                .map(|row| DVector::from_column_slice(row))
+                .collect()
+        };
+        Record::new(column(&self.inputs), column(&self.outputs))
+    }
 }
 
 /// What to identify and how.
@@ -366,17 +378,7 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
                 request.noise.is_none(),
                 loss,
             );
-            let record = Record::new(
-                head.inputs
-                    .iter()
-                    .map(|u| DVector::from_column_slice(u))
-                    .collect(),
-                head.outputs
-                    .iter()
-                    .map(|y| DVector::from_column_slice(y))
-                    .collect(),
-            )
-            .map_err(IdentifyError::from)?;
+            let record = head.record().map_err(IdentifyError::from)?;
             let init = Initialisation::Known {
                 x0: DVector::from_column_slice(&x0),
                 p0: DMatrix::zeros(n, n),

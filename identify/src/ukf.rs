@@ -29,7 +29,8 @@
 //! factorisation fails, stops the step with an error naming the sample
 //! ([`FilterError::NotPositive`]). P = 0 (a known state, no process noise) is no failure:
 //! every sigma point is the mean, the gain is zero and the filter simulates the FMU (the
-//! prediction errors are then the output errors of a simulation).
+//! prediction errors are then the output errors of a simulation); a sigma point equal to the
+//! mean is not integrated again (its image is the mean's).
 
 use crate::filter::{symmetrise, FilterError, Prediction, Step};
 use crate::plant::Start;
@@ -124,6 +125,13 @@ impl SigmaPoints {
         let mut y_out = vec![0.0; p_out];
         let mut reference: Option<Vec<f64>> = None;
         for c in 0..count {
+            // A sigma point on the mean (a zero column of √P: P = 0 in that direction, as
+            // in the likelihood's simulation) has the mean's image: not integrated again.
+            if c > 0 && chi.column(c) == chi.column(0) {
+                propagated.set_column(c, &propagated.column(0).clone_owned());
+                outputs.set_column(c, &outputs.column(0).clone_owned());
+                continue;
+            }
             let point = chi.column(c);
             step.parameters_of(point.as_slice(), &mut theta);
             let start = Start {
