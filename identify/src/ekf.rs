@@ -1,6 +1,7 @@
-//! The robust extended Kalman filter on an FMU (docs/estimators.md, "Extended Kalman filter
-//! on an FMU"): the state z = [x; θ_a], the settings, the robust correction (in Joseph form)
-//! and the trajectory are [`crate::filter`]'s; this module is the linearised prediction.
+//! The robust extended Kalman filter on an FMU (docs/estimators.md, "Identifying an FMU",
+//! "Extended filter"): the state z = [x; θ_a], the settings, the robust correction (in
+//! Joseph form) and the trajectory are [`crate::filter`]'s; this module is the linearised
+//! prediction.
 //!
 //! **Mean.** x̂⁻ = x(t_k) integrated by the master's Model Exchange stepper from
 //! (t_{k−1}, x̂) at θ̂ with u_{k−1} held (events included), θ̂_a⁻ = θ̂_a (random walk), and

@@ -1,4 +1,4 @@
-//! What the online filters on an FMU share (docs/estimators.md, "Online filters on an FMU"):
+//! What the online filters on an FMU share (docs/estimators.md, "Identifying an FMU"):
 //! their settings, their robust correction, their errors and the trajectory they write.
 //!
 //! **State.** z = [x; θ_a]: the FMU's continuous states x (n) and the parameters estimated

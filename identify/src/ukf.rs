@@ -1,5 +1,5 @@
-//! The robust unscented Kalman filter on an FMU (docs/estimators.md, "Unscented Kalman
-//! filter on an FMU").
+//! The robust unscented Kalman filter on an FMU (docs/estimators.md, "Identifying an FMU",
+//! "Unscented filter").
 //!
 //! The state z = [x; θ_a], the settings, the robust correction and the trajectory are
 //! [`crate::filter`]'s; this module is the unscented prediction.
@@ -10,7 +10,7 @@
 //! the defaults α = 1, β = 2, κ = max(0, 3 − L) every covariance weight is ≥ 0, so the
 //! predicted covariance is a sum of positive semidefinite terms plus Q.
 //!
-//! **Prediction** from t_{k−1} to t_k: each χ through the FMU ([`FmuPlant::propagate`]: its
+//! **Prediction** from t_{k−1} to t_k: each χ through the FMU ([`crate::plant::FmuPlant::propagate`]: its
 //! states and θ set, the inputs u_{k−1} held, the master's ME integration with its events),
 //! which gives χ⁻ and the measured variables 𝒴 at t_k; ẑ⁻ = Σ Wᵐ χ⁻,
 //! P⁻ = Σ Wᶜ (χ⁻ − ẑ⁻)(χ⁻ − ẑ⁻)ᵀ + Q, ŷ = Σ Wᵐ 𝒴, S = Σ Wᶜ (𝒴 − ŷ)(𝒴 − ŷ)ᵀ + R,
