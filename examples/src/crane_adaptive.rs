@@ -328,7 +328,19 @@ fn check_initial_model(system: &System) -> Result<()> {
 
 /// The relative error of the perturbed crane's dynamics rows of [A B].
 fn initial_model_error(truth: &DMatrix<f64>) -> f64 {
-    (dynamics_rows(&perturbed_crane()) - truth).norm() / truth.norm()
+    model_error(&perturbed_crane(), truth)
+}
+
+/// The table's model error of a crane with `parameters`: ‖Θ − Θ₀‖ / ‖Θ₀‖ over rows 3–4 of the
+/// ZOH [A B] (Θ₀ = `truth`, [`true_dynamics_rows`]); also the measure of the physical model
+/// identified by `crane_identification`.
+pub fn model_error(parameters: &GantryCraneParameters, truth: &DMatrix<f64>) -> f64 {
+    (dynamics_rows(parameters) - truth).norm() / truth.norm()
+}
+
+/// [`model_error`] against the true crane (paper 000, Annex A).
+pub fn model_error_of(parameters: &GantryCraneParameters) -> f64 {
+    model_error(parameters, &true_dynamics_rows())
 }
 
 /// `system` with `edits` (name, value) set.

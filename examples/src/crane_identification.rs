@@ -18,12 +18,14 @@
 //! states 10⁻⁶; and the plain UKF for the ratio.
 
 use super::{ExperimentContext, Report, Row};
+use crate::crane_adaptive::model_error_of;
 use crate::plot::{panels_png, Line, Panel, RGBColor};
 use crate::runner::{column, edited, simulate, write_csv};
 use anyhow::{Context as _, Result};
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::likelihood::Initialisation;
 use spurio::estimation::InfluenceFunction;
+use spurio::plants::gantry_crane::GantryCraneParameters;
 use spurio_identify::filter::{Filter, FilterSettings, Linearisation, Noise, Trajectory};
 use spurio_identify::fmu_model::{FmuModel, Loss};
 use spurio_identify::plant::{integration, FmuPlant, PlantSpec};
@@ -278,6 +280,29 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         merit.push((format!("{name}_ratio_offline"), ratio_offline));
         merit.push((format!("{name}_ratio_online"), ratio_online));
     }
+    // The identified crane as the adaptive loop's model (crane_adaptive's "model error").
+    let crane = |values: [f64; 3]| GantryCraneParameters {
+        cart_mass: values[0],
+        rod_length: values[1],
+        cart_friction: values[2],
+        ..GantryCraneParameters::default()
+    };
+    let starts = starts();
+    let model_errors = [
+        model_error_of(&crane([starts[0], starts[1], starts[2]])),
+        model_error_of(&crane([ml[0].0, ml[1].0, ml[2].0])),
+        model_error_of(&crane([last(&ukf, 0).0, last(&ukf, 1).0, last(&ukf, 2).0])),
+    ];
+    rows.push(Row::info(
+        "model error of rows 3–4 of the ZOH [A B] (crane_adaptive's measure): start / offline / online at 40 s",
+        "the adaptive loop: 0.1241 at 0 s and at 40 s",
+        format!(
+            "{:.4} / {:.2e} / {:.2e}",
+            model_errors[0], model_errors[1], model_errors[2]
+        ),
+    ));
+    merit.push(("model_error_offline".into(), model_errors[1]));
+    merit.push(("model_error_online".into(), model_errors[2]));
     Ok(Report {
         title: "Crane identified as a physical model (issue 28): M, l, f_c of the GantryCrane ME FMU".into(),
         setup: format!(
@@ -291,7 +316,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
         )],
         notes: vec![
             format!("the same data without robustness (`--robust none`: Gaussian likelihood offline, plain UKF online), and the ratio of its error to the robust one: {}", ratios.join("; ")),
-            "the record is closed_loop.csv; the model is the FMU itself, not a linearisation: compare the adaptive loop's model error above, which does not fall in 40 s".into(),
+            "the record is closed_loop.csv; the model is the FMU itself, not a linearisation: its ZOH linearisation at the identified M, l, f_c is 150–280 times closer to the true [A B] than the adaptive loop's model of the section above, which stays at its initial error in 40 s".into(),
         ],
         figures_of_merit: merit,
     })
