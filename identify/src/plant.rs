@@ -22,7 +22,7 @@
 //! error naming it and the FMU.
 
 use spurio_master::fmu::{
-    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, VarType,
+    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, VarType, VariableInfo,
 };
 use spurio_master::model_exchange::{
     initialise, Advance, Layout, MeError, ModelExchangeCalls, Options, Stepper,
@@ -89,6 +89,12 @@ pub enum PlantError {
     },
     #[error("{file}: `{name}` is {what}, not an input of the FMU")]
     NotAnInput {
+        file: PathBuf,
+        name: String,
+        what: String,
+    },
+    #[error("{file}: `{name}` cannot be set for the experiment: it is {what}, not a parameter of type Real")]
+    NotSettable {
         file: PathBuf,
         name: String,
         what: String,
@@ -178,6 +184,29 @@ fn what_is(causality: Causality, fixed: bool, var_type: VarType) -> String {
     format!("{kind} of type {}", var_type.name())
 }
 
+/// The scalar variable `name` of `fmu` when it is a Real parameter; else Err(what it is),
+/// for the caller's message. An unknown name is an error naming it.
+fn real_parameter<'a>(
+    fmu: &'a FmuFile,
+    name: &str,
+) -> Result<Result<&'a VariableInfo, String>, PlantError> {
+    let v = fmu
+        .variable(name)
+        .filter(|v| v.element.is_none())
+        .ok_or_else(|| PlantError::UnknownVariable {
+            file: fmu.path.clone(),
+            name: name.to_string(),
+        })?;
+    let h = &v.head;
+    Ok(
+        if h.causality == Causality::Parameter && h.var_type.base() == VarType::Real {
+            Ok(v)
+        } else {
+            Err(what_is(h.causality, v.fixed, h.var_type))
+        },
+    )
+}
+
 impl FmuPlant {
     /// Opens `path` for Model Exchange and checks `spec` against it (module documentation);
     /// `options` are the master's settings of its integration ([`integration`]).
@@ -209,16 +238,13 @@ impl FmuPlant {
         };
         let mut parameters = Vec::new();
         for name in &spec.free {
-            let v = lookup(name)?;
+            let v = real_parameter(&fmu, name)?.map_err(|what| PlantError::NotAParameter {
+                file: file.clone(),
+                name: name.clone(),
+                what,
+                known: known_parameters(),
+            })?;
             let h = &v.head;
-            if !(h.causality == Causality::Parameter && h.var_type.base() == VarType::Real) {
-                return Err(PlantError::NotAParameter {
-                    file: file.clone(),
-                    name: name.clone(),
-                    what: what_is(h.causality, v.fixed, h.var_type),
-                    known: known_parameters(),
-                });
-            }
             parameters.push(PlantParameter {
                 name: name.clone(),
                 tunable: !v.fixed,
@@ -295,6 +321,29 @@ impl FmuPlant {
             failed: false,
             events: 0,
         })
+    }
+
+    /// Sets parameters that are not estimated (`x0 = 0.2`: the experiment's initial cart
+    /// position) at every initialisation from now on, by name: each a Real parameter of the
+    /// FMU, else an error naming it. The instance is initialised again at its next use.
+    pub fn set_values(&mut self, values: &[(String, f64)]) -> Result<(), PlantError> {
+        let file = self.fmu.path.clone();
+        for (name, value) in values {
+            let v = real_parameter(&self.fmu, name)?.map_err(|what| PlantError::NotSettable {
+                file: file.clone(),
+                name: name.clone(),
+                what,
+            })?;
+            let h = &v.head;
+            self.layout
+                .start_values
+                .push((h.var_type, h.value_reference, *value));
+        }
+        if self.set.is_some() {
+            // Initialised before: reset and initialised again at the next use.
+            self.failed = true;
+        }
+        Ok(())
     }
 
     /// The free parameters, in the order of θ.
@@ -378,12 +427,13 @@ impl FmuPlant {
             }
             self.set = None;
             let mut layout = self.layout.clone();
-            layout.start_values = self
-                .parameters
-                .iter()
-                .zip(theta)
-                .map(|(p, &value)| (p.var_type, p.vr, value))
-                .collect();
+            // The values set by name ([`FmuPlant::set_values`]), then the free parameters.
+            layout.start_values.extend(
+                self.parameters
+                    .iter()
+                    .zip(theta)
+                    .map(|(p, &value)| (p.var_type, p.vr, value)),
+            );
             self.stepper = Stepper::new(
                 self.instance.name(),
                 self.instance.is_fmi3(),

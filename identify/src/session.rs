@@ -119,6 +119,10 @@ pub struct Request {
     pub validate: f64,
     /// The measurement variances (None: from the data, and estimated by `ml`).
     pub noise: Option<Vec<f64>>,
+    /// Start values of free parameters by name (the others start at the FMU's).
+    pub starts: Vec<(String, f64)>,
+    /// Parameters that are not estimated, set by name (the experiment's own values).
+    pub set: Vec<(String, f64)>,
 }
 
 /// Why an identification cannot be made.
@@ -273,11 +277,12 @@ fn autocorrelation(r: &[f64], lags: usize) -> (Vec<f64>, f64) {
 /// Opens the FMU and checks the names of `request` against it (before any data are read):
 /// the number of its continuous states.
 pub fn check(request: &Request) -> Result<usize, SessionError> {
-    let plant = FmuPlant::open(
+    let mut plant = FmuPlant::open(
         &request.fmu,
         &request.plant,
         integration(0.0, request.tolerance),
     )?;
+    plant.set_values(&request.set)?;
     Ok(plant.states())
 }
 
@@ -304,7 +309,18 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         integration(data.time[0], request.tolerance),
     )?));
     let p = request.plant.outputs.len();
-    let starts = plant.borrow().parameter_starts();
+    plant.borrow_mut().set_values(&request.set)?;
+    let mut starts = plant.borrow().parameter_starts();
+    for (name, value) in &request.starts {
+        let i = request.plant.free.iter().position(|f| f == name);
+        let i = i.ok_or_else(|| {
+            SessionError::Data(format!(
+                "a start for `{name}`, which is not among the free parameters {}",
+                request.plant.free.join(", ")
+            ))
+        })?;
+        starts[i] = *value;
+    }
     let x0 = plant.borrow_mut().initial_states(&starts)?;
     let n = x0.len();
     let estimation = ((1.0 - request.validate) * n_samples as f64).round() as usize;

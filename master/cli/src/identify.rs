@@ -40,6 +40,13 @@ pub struct IdentifyArgs {
     /// estimates them).
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<f64>,
+    /// A free parameter's start value: `NAME=VALUE` (default: the FMU's start value).
+    #[arg(long, value_delimiter = ',')]
+    pub start: Vec<String>,
+    /// A parameter that is not estimated, set for the experiment: `NAME=VALUE` (a crane's
+    /// initial cart position `x0=0.2`).
+    #[arg(long, value_delimiter = ',')]
+    pub set: Vec<String>,
     /// Where to write estimates.csv, report.md (and trajectory.csv for `ukf` and `ekf`).
     #[arg(long, default_value = "identification")]
     pub out: PathBuf,
@@ -51,6 +58,23 @@ fn mapping(entry: &str) -> (String, String) {
         Some((name, column)) => (name.trim().to_string(), column.trim().to_string()),
         None => (entry.trim().to_string(), entry.trim().to_string()),
     }
+}
+
+/// `NAME=VALUE` entries of `flag` as (name, number).
+fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
+    entries
+        .iter()
+        .map(|entry| {
+            let (name, value) = entry
+                .split_once('=')
+                .with_context(|| format!("{flag} {entry}: expected NAME=VALUE"))?;
+            let value: f64 = value
+                .trim()
+                .parse()
+                .with_context(|| format!("{flag} {entry}: `{value}` is not a number"))?;
+            Ok((name.trim().to_string(), value))
+        })
+        .collect()
 }
 
 /// The data's columns for `inputs` and `outputs` (names of columns).
@@ -154,6 +178,8 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         },
         validate: args.validate,
         noise: (!args.noise.is_empty()).then(|| args.noise.clone()),
+        starts: values("--start", &args.start)?,
+        set: values("--set", &args.set)?,
     };
     // The FMU and the names are checked before the data are read.
     let states = spurio_identify::session::check(&request)?;

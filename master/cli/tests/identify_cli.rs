@@ -169,6 +169,29 @@ fn bad_names_and_an_fmu_without_model_exchange_are_refused_before_anything_runs(
     );
     let said = run(&dahlquist(), "y", "k");
     assert!(said.contains("`y` is not a variable"), "{said}");
+    // A value set for the experiment must be a parameter of the FMU, checked as early; a
+    // start must be a number.
+    let with = |flag: &str, value: &str| {
+        failed(spurio([
+            "identify",
+            s(&dahlquist()),
+            "--data",
+            s(&missing),
+            "--output",
+            "x",
+            "--free",
+            "k",
+            flag,
+            value,
+        ]))
+    };
+    let said = with("--set", "x=2");
+    assert!(
+        said.contains("`x` cannot be set") && said.contains("an output"),
+        "{said}"
+    );
+    let said = with("--start", "k=fast");
+    assert!(said.contains("`fast` is not a number"), "{said}");
     let cs_only = dir.join("DahlquistCS.fmu");
     edited_copy(&dahlquist(), &cs_only, |text| {
         let start = text.find("<ModelExchange").unwrap();
