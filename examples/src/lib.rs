@@ -17,6 +17,7 @@ pub use spurio_analysis::{diagnose, diagnostics, plot};
 pub mod cosine_outliers;
 pub mod crane_adaptive;
 pub mod crane_free_swing;
+pub mod crane_identification;
 pub mod distributed_observer;
 pub mod generator_identification;
 pub mod opamp_identification;
@@ -198,6 +199,11 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_adaptive",
         description: "adaptive pole placement of the crane with 5 % outliers: DKF alone vs DKF-rsKF (paper 000 §VII-B)",
         run: crane_adaptive::run,
+    },
+    Experiment {
+        name: "crane_identification",
+        description: "cart mass, rod length and friction of the GantryCrane ME FMU from a recorded closed-loop run with 20 dB noise and 5 % outliers, offline and online (issue 28)",
+        run: crane_identification::run,
     },
     Experiment {
         name: "cosine_outliers",

@@ -1,6 +1,7 @@
 //! An FMU as a [`PredictionErrorModel`] (docs/estimators.md, "Maximum likelihood on an FMU"):
-//! at fixed θ (the FMU's free parameters, then the variances of the measured variables that
-//! are estimated) the unscented Kalman filter of [`crate::ukf`] over the FMU's states gives
+//! at fixed θ (the FMU's free parameters, then the variances of the measured variables when
+//! they are estimated) the online filter of [`crate::filter`] (unscented or extended, by its
+//! settings) over the FMU's states gives
 //! the prediction errors v_t and their covariances F_t = S_t of the innovations likelihood,
 //! so that [`crate::maximise_likelihood`] fits the FMU's parameters.
 //!
@@ -15,8 +16,8 @@
 //! θ; corrected fully, the filter follows the data and an outlier moves the state for a
 //! sample or two, while the loss bounds each prediction error's influence.
 
+use crate::filter::{Filter, FilterSettings};
 use crate::plant::FmuPlant;
-use crate::ukf::{Ukf, UkfSettings};
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::likelihood::{
     LikelihoodError, OneStepPredictor, PredictionError, PredictionErrorModel,
@@ -40,9 +41,10 @@ pub struct FmuModel {
     plant: Rc<RefCell<FmuPlant>>,
     times: Rc<Vec<f64>>,
     names: Vec<String>,
-    /// Per measured variable: its variance when given, None when it is in θ.
-    variances: Vec<Option<f64>>,
-    state_noise: Vec<f64>,
+    /// The filter: its Q_x and linearisation, and R when the variances are not in θ.
+    filter: FilterSettings,
+    /// Whether the variances of the measured variables are in θ (after the parameters).
+    variances_free: bool,
     loss: Loss,
 }
 
@@ -52,22 +54,22 @@ pub fn variance_name(output: &str) -> String {
 }
 
 impl FmuModel {
-    /// The model of `plant` sampled at `times`; `variances[j]` the variance of measured
-    /// variable j (None: estimated, named [`variance_name`]); Q_x = `state_noise` per sample.
+    /// The model of `plant` sampled at `times`, filtered by `filter` (its robust weights
+    /// left out: module documentation); the variances of the measured variables estimated
+    /// (named [`variance_name`], after the FMU's parameters in θ) when `variances_free`, else
+    /// the filter's R.
     pub fn new(
         plant: Rc<RefCell<FmuPlant>>,
         times: Vec<f64>,
-        variances: Vec<Option<f64>>,
-        state_noise: Vec<f64>,
+        filter: FilterSettings,
+        variances_free: bool,
         loss: Loss,
     ) -> Self {
         let names = {
             let pl = plant.borrow();
             let mut names: Vec<String> = pl.parameters().iter().map(|p| p.name.clone()).collect();
-            for (name, v) in pl.output_names().iter().zip(&variances) {
-                if v.is_none() {
-                    names.push(variance_name(name));
-                }
+            if variances_free {
+                names.extend(pl.output_names().iter().map(|name| variance_name(name)));
             }
             names
         };
@@ -75,8 +77,11 @@ impl FmuModel {
             plant,
             times: Rc::new(times),
             names,
-            variances,
-            state_noise,
+            filter: FilterSettings {
+                robust: None,
+                ..filter
+            },
+            variances_free,
             loss,
         }
     }
@@ -85,7 +90,9 @@ impl FmuModel {
 /// The filter at fixed θ over the samples, one per step.
 #[derive(Debug)]
 pub struct FmuPredictor {
-    filter: Ukf,
+    filter: Filter,
+    /// The trajectory column the filter writes (not kept).
+    column: Vec<f64>,
     times: Rc<Vec<f64>>,
     sample: usize,
     loss: Loss,
@@ -109,13 +116,14 @@ impl OneStepPredictor for FmuPredictor {
                 expected: self.times.len(),
                 got: self.sample + 1,
             })?;
-        let (_, v, f) = self
+        let errors = self
             .filter
-            .step(time, u.as_slice(), y.as_slice())
+            .step(time, u.as_slice(), y.as_slice(), &mut self.column)
             .map_err(|e| EstimationError::Design {
-                what: "the FMU's unscented filter",
+                what: "the FMU's filter",
                 reason: e.to_string(),
             })?;
+        let (v, f) = (errors.v, errors.f);
         self.sample += 1;
         match self.loss {
             Loss::Gaussian => {
@@ -149,7 +157,7 @@ impl PredictionErrorModel for FmuModel {
     type Predictor = FmuPredictor;
 
     fn outputs(&self) -> usize {
-        self.variances.len()
+        self.filter.noise.measurement.len()
     }
 
     fn inputs(&self) -> usize {
@@ -179,24 +187,12 @@ impl PredictionErrorModel for FmuModel {
                 self.names.join(", ")
             )));
         }
-        let mut estimated = theta[free..].iter();
-        let measurement_variance: Vec<f64> = self
-            .variances
-            .iter()
-            .map(|v| v.or_else(|| estimated.next().copied()).unwrap_or(f64::NAN))
-            .collect();
-        let settings = UkfSettings {
-            state_noise: self.state_noise.clone(),
-            parameter_noise: Vec::new(),
-            measurement_variance,
-            // The filter corrects fully under either loss (module documentation).
-            robust: None,
-            alpha: 1.0,
-            beta: 2.0,
-            kappa: None,
-        };
+        let mut settings = self.filter.clone();
+        if self.variances_free {
+            settings.noise.measurement = theta[free..].to_vec();
+        }
         self.plant.borrow_mut().start_afresh();
-        let filter = Ukf::new(
+        let filter = Filter::new(
             self.plant.clone(),
             &theta[..free],
             &[],
@@ -205,8 +201,10 @@ impl PredictionErrorModel for FmuModel {
             &settings,
         )
         .map_err(|e| LikelihoodError::Initialisation(e.to_string()))?;
+        let column = vec![0.0; 2 * filter.filter_states() + 3 * settings.noise.measurement.len()];
         Ok(FmuPredictor {
             filter,
+            column,
             times: self.times.clone(),
             sample: 0,
             loss: self.loss,

@@ -30,6 +30,8 @@
 //! do not determine) is reported as such ([`Curvature::NotPositiveDefinite`]), without
 //! standard errors.
 
+pub mod ekf;
+pub mod filter;
 pub mod fmu_model;
 pub mod plant;
 pub mod session;

@@ -22,7 +22,7 @@
 //! error naming it and the FMU.
 
 use spurio_master::fmu::{
-    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, VarType,
+    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, VarType, VariableInfo,
 };
 use spurio_master::model_exchange::{
     initialise, Advance, Layout, MeError, ModelExchangeCalls, Options, Stepper,
@@ -56,10 +56,15 @@ pub struct PlantSpec {
     pub inputs: Vec<String>,
     /// The measured variables (outputs or local continuous variables), in the order of y.
     pub outputs: Vec<String>,
-    /// The integrator's relative tolerance.
-    pub tolerance: f64,
-    /// The start time of the experiment (the first sample's time).
-    pub start: f64,
+}
+
+/// The master's Model Exchange settings for an estimator's propagations: the experiment
+/// starting at `start` (the first sample's time), the default solver at relative tolerance
+/// `tolerance`, no end.
+pub fn integration(start: f64, tolerance: f64) -> Options {
+    let mut options = Options::new(start, f64::INFINITY, 1.0);
+    options.tolerance = tolerance;
+    options
 }
 
 /// Why an FMU cannot be the model, or a propagation failed.
@@ -84,6 +89,12 @@ pub enum PlantError {
     },
     #[error("{file}: `{name}` is {what}, not an input of the FMU")]
     NotAnInput {
+        file: PathBuf,
+        name: String,
+        what: String,
+    },
+    #[error("{file}: `{name}` cannot be set for the experiment: it is {what}, not a parameter of type Real")]
+    NotSettable {
         file: PathBuf,
         name: String,
         what: String,
@@ -148,6 +159,8 @@ pub struct FmuPlant {
     resets: u64,
     /// A call failed: the instance is reset and initialised again before the next use.
     failed: bool,
+    /// Events handled by the last propagation (at its start and on its way).
+    events: usize,
 }
 
 impl std::fmt::Debug for FmuPlant {
@@ -171,9 +184,33 @@ fn what_is(causality: Causality, fixed: bool, var_type: VarType) -> String {
     format!("{kind} of type {}", var_type.name())
 }
 
+/// The scalar variable `name` of `fmu` when it is a Real parameter; else Err(what it is),
+/// for the caller's message. An unknown name is an error naming it.
+fn real_parameter<'a>(
+    fmu: &'a FmuFile,
+    name: &str,
+) -> Result<Result<&'a VariableInfo, String>, PlantError> {
+    let v = fmu
+        .variable(name)
+        .filter(|v| v.element.is_none())
+        .ok_or_else(|| PlantError::UnknownVariable {
+            file: fmu.path.clone(),
+            name: name.to_string(),
+        })?;
+    let h = &v.head;
+    Ok(
+        if h.causality == Causality::Parameter && h.var_type.base() == VarType::Real {
+            Ok(v)
+        } else {
+            Err(what_is(h.causality, v.fixed, h.var_type))
+        },
+    )
+}
+
 impl FmuPlant {
-    /// Opens `path` for Model Exchange and checks `spec` against it (module documentation).
-    pub fn open(path: &Path, spec: &PlantSpec) -> Result<Self, PlantError> {
+    /// Opens `path` for Model Exchange and checks `spec` against it (module documentation);
+    /// `options` are the master's settings of its integration ([`integration`]).
+    pub fn open(path: &Path, spec: &PlantSpec, options: Options) -> Result<Self, PlantError> {
         let fmu = FmuFile::open_for(path, &LoadOptions::default(), Interface::ModelExchange)?;
         let file = fmu.path.clone();
         let lookup = |name: &str| {
@@ -201,16 +238,13 @@ impl FmuPlant {
         };
         let mut parameters = Vec::new();
         for name in &spec.free {
-            let v = lookup(name)?;
+            let v = real_parameter(&fmu, name)?.map_err(|what| PlantError::NotAParameter {
+                file: file.clone(),
+                name: name.clone(),
+                what,
+                known: known_parameters(),
+            })?;
             let h = &v.head;
-            if !(h.causality == Causality::Parameter && h.var_type.base() == VarType::Real) {
-                return Err(PlantError::NotAParameter {
-                    file: file.clone(),
-                    name: name.clone(),
-                    what: what_is(h.causality, v.fixed, h.var_type),
-                    known: known_parameters(),
-                });
-            }
             parameters.push(PlantParameter {
                 name: name.clone(),
                 tunable: !v.fixed,
@@ -270,8 +304,6 @@ impl FmuPlant {
             recorded: Vec::new(),
             start_values: Vec::new(),
         };
-        let mut options = Options::new(spec.start, f64::INFINITY, 1.0);
-        options.tolerance = spec.tolerance;
         let stepper = Stepper::new(instance.name(), instance.is_fmi3(), &layout, &options);
         let inputs_set = vec![f64::NAN; inputs.len()];
         Ok(Self {
@@ -287,7 +319,31 @@ impl FmuPlant {
             inputs_set,
             resets: 0,
             failed: false,
+            events: 0,
         })
+    }
+
+    /// Sets parameters that are not estimated (`x0 = 0.2`: the experiment's initial cart
+    /// position) at every initialisation from now on, by name: each a Real parameter of the
+    /// FMU, else an error naming it. The instance is initialised again at its next use.
+    pub fn set_values(&mut self, values: &[(String, f64)]) -> Result<(), PlantError> {
+        let file = self.fmu.path.clone();
+        for (name, value) in values {
+            let v = real_parameter(&self.fmu, name)?.map_err(|what| PlantError::NotSettable {
+                file: file.clone(),
+                name: name.clone(),
+                what,
+            })?;
+            let h = &v.head;
+            self.layout
+                .start_values
+                .push((h.var_type, h.value_reference, *value));
+        }
+        if self.set.is_some() {
+            // Initialised before: reset and initialised again at the next use.
+            self.failed = true;
+        }
+        Ok(())
     }
 
     /// The free parameters, in the order of θ.
@@ -371,12 +427,13 @@ impl FmuPlant {
             }
             self.set = None;
             let mut layout = self.layout.clone();
-            layout.start_values = self
-                .parameters
-                .iter()
-                .zip(theta)
-                .map(|(p, &value)| (p.var_type, p.vr, value))
-                .collect();
+            // The values set by name ([`FmuPlant::set_values`]), then the free parameters.
+            layout.start_values.extend(
+                self.parameters
+                    .iter()
+                    .zip(theta)
+                    .map(|(p, &value)| (p.var_type, p.vr, value)),
+            );
             self.stepper = Stepper::new(
                 self.instance.name(),
                 self.instance.is_fmi3(),
@@ -497,20 +554,24 @@ impl FmuPlant {
         Self::check("measurements", self.outputs.len(), y_out.len())?;
         self.ensure_parameters(theta)?;
         self.set_inputs(u)?;
+        let mut events = 0;
         let placed = self
             .stepper
-            .place_at(&mut self.instance, t0, x, reference, &mut |_| {})?;
+            .place_at(&mut self.instance, t0, x, reference, &mut |_| events += 1)?;
         if let Advance::Terminated(time) = placed {
             return Err(self.terminated(time));
         }
         if t1 > t0 {
             let advanced =
                 self.stepper
-                    .advance_to(&mut self.instance, t1, &mut NoRecording, &mut |_| {})?;
+                    .advance_to(&mut self.instance, t1, &mut NoRecording, &mut |_| {
+                        events += 1
+                    })?;
             if let Advance::Terminated(time) = advanced {
                 return Err(self.terminated(time));
             }
         }
+        self.events = events;
         if !x_out.is_empty() {
             let read = self.instance.get_continuous_states(x_out);
             read.map_err(|e| self.call_failed("GetContinuousStates", e))?;
@@ -522,5 +583,46 @@ impl FmuPlant {
             read.map_err(|e| self.call_failed("Get* (a measured variable)", e))?;
         }
         Ok(())
+    }
+
+    /// Events the last [`FmuPlant::propagate`] handled (an event at its start included).
+    pub fn events_in_last_propagation(&self) -> usize {
+        self.events
+    }
+
+    /// ∂ẋ/∂x (n×n) at `start` (the instance placed at its time, states, parameters and
+    /// inputs) from the FMU's directional derivatives (FMI 2.0 `fmi2GetDirectionalDerivative`
+    /// with the states as knowns and the derivatives as unknowns, one unit seed per column,
+    /// through the master's importer); None when the FMU gives none.
+    pub fn state_jacobian(&mut self, start: &Start) -> Result<Option<Vec<f64>>, PlantError> {
+        let n = self.layout.states;
+        Self::check("states", n, start.states.len())?;
+        self.ensure_parameters(start.parameters)?;
+        self.set_inputs(start.inputs)?;
+        let placed = self.stepper.place_at(
+            &mut self.instance,
+            start.time,
+            start.states,
+            start.reference,
+            &mut |_| {},
+        );
+        if let Advance::Terminated(time) = placed.inspect_err(|_| self.failed = true)? {
+            return Err(self.terminated(time));
+        }
+        let mut jacobian = vec![0.0; n * n];
+        let mut seed = vec![0.0; n];
+        for (i, column) in jacobian.chunks_exact_mut(n.max(1)).enumerate().take(n) {
+            seed.fill(0.0);
+            seed[i] = 1.0;
+            match self.instance.directional_derivative(&seed, column) {
+                Ok(true) => {}
+                Ok(false) => return Ok(None),
+                Err(e) => {
+                    self.failed = true;
+                    return Err(self.call_failed("GetDirectionalDerivative", e));
+                }
+            }
+        }
+        Ok(Some(jacobian))
     }
 }

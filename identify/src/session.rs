@@ -1,6 +1,6 @@
 //! One identification from recorded data, as `spurio identify` runs it (docs/estimators.md,
 //! "spurio identify"): the FMU's free parameters estimated on the first part of the record
-//! (online by the robust UKF or offline by maximum likelihood), then judged on the rest
+//! (online by the robust UKF or EKF, or offline by maximum likelihood), then judged on the rest
 //! (one-step and simulation fit, residual whiteness, outliers), written as `estimates.csv`
 //! and `report.md`.
 //!
@@ -16,10 +16,10 @@
 //! |ρ̂(τ)| ≤ 1.96/√N at 95 % for each lag; the report gives the lags outside the band and
 //! the Ljung–Box statistic Q = N(N+2) Σ ρ̂(τ)²/(N−τ) against χ²₂₀'s 95 % quantile 31.41.
 
+use crate::filter::{Filter, FilterError, FilterSettings, Linearisation, Noise, Trajectory};
 use crate::fmu_model::{variance_name, FmuModel, Loss};
-use crate::plant::{FmuPlant, PlantError, PlantSpec};
-use crate::ukf::{Ukf, UkfError, UkfSample, UkfSettings};
-use crate::{maximise_likelihood, FreeParameter, IdentifyError, Options};
+use crate::plant::{integration, FmuPlant, PlantError, PlantSpec};
+use crate::{maximise_likelihood, Estimate, FreeParameter, IdentifyError, Options};
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::likelihood::{Initialisation, LikelihoodError, Record};
 use spurio::estimation::InfluenceFunction;
@@ -45,6 +45,8 @@ const CHI2_20_95: f64 = 31.410;
 pub enum Method {
     /// The robust UKF, the parameters random-walk states.
     Ukf,
+    /// The robust EKF, the parameters random-walk states.
+    Ekf,
     /// Maximum likelihood (Huber loss when robust) of the output errors.
     MaximumLikelihood,
 }
@@ -58,6 +60,17 @@ pub enum Robust {
     Huber,
     /// Tukey's bisquare weights (c = 4.685) online, Huber's loss offline.
     Tukey,
+}
+
+impl Method {
+    /// How the method's filters (online, and those judging the fit) carry the covariance:
+    /// linearised for the EKF, unscented otherwise.
+    pub fn linearisation(self) -> Linearisation {
+        match self {
+            Self::Ekf => Linearisation::Extended,
+            Self::Ukf | Self::MaximumLikelihood => Linearisation::UNSCENTED,
+        }
+    }
 }
 
 impl Robust {
@@ -79,34 +92,50 @@ pub struct Data {
     pub outputs: Vec<Vec<f64>>,
 }
 
+impl Data {
+    /// The record of the likelihood: per sample, u and y as vectors (NaN missing).
+    pub fn record(&self) -> Result<Record, LikelihoodError> {
+        let column = |rows: &[Vec<f64>]| {
+            rows.iter()
+                .map(|row| DVector::from_column_slice(row))
+                .collect()
+        };
+        Record::new(column(&self.inputs), column(&self.outputs))
+    }
+}
+
 /// What to identify and how.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Request {
     pub fmu: PathBuf,
     /// The FMU's free parameters, inputs (in the order of the data's inputs) and measured
-    /// variables (in the order of the data's outputs), its tolerance; `start` is the data's.
+    /// variables (in the order of the data's outputs).
     pub plant: PlantSpec,
+    /// The relative tolerance of the FMU's integration.
+    pub tolerance: f64,
     pub robust: Robust,
     pub method: Method,
     /// The fraction of the record (at its end) kept for validation, in [0, 1).
     pub validate: f64,
     /// The measurement variances (None: from the data, and estimated by `ml`).
     pub noise: Option<Vec<f64>>,
+    /// Start values of free parameters by name (the others start at the FMU's).
+    pub starts: Vec<(String, f64)>,
+    /// Parameters that are not estimated, set by name (the experiment's own values).
+    pub set: Vec<(String, f64)>,
 }
 
 /// Why an identification cannot be made.
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
-    #[error(transparent)]
-    Plant(#[from] PlantError),
-    #[error(transparent)]
-    Filter(#[from] UkfError),
-    #[error(transparent)]
-    Fit(#[from] IdentifyError),
-    #[error(transparent)]
-    Likelihood(#[from] LikelihoodError),
     #[error("the data: {0}")]
     Data(String),
+    /// The FMU (its names, its calls) or a filter on it.
+    #[error(transparent)]
+    Filter(#[from] FilterError),
+    /// The offline fit (its likelihood included).
+    #[error(transparent)]
+    Fit(#[from] IdentifyError),
     #[error("cannot write {path}: {source}")]
     Write {
         path: PathBuf,
@@ -114,32 +143,37 @@ pub enum SessionError {
     },
 }
 
-/// One parameter's estimate.
+impl From<PlantError> for SessionError {
+    fn from(e: PlantError) -> Self {
+        Self::Filter(FilterError::Plant(e))
+    }
+}
+
+/// How the identified model fits one measured variable on the validation part.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Row {
-    pub name: String,
-    pub estimate: f64,
-    pub standard_error: Option<f64>,
-    pub start: f64,
+pub struct ChannelFit {
+    /// One-step and simulation fit (%).
+    pub one_step: f64,
+    pub simulation: f64,
+    /// ρ̂(1 … 20) of the standardised one-step innovations, and their Ljung–Box Q.
+    pub autocorrelation: Vec<f64>,
+    pub ljung_box: f64,
 }
 
 /// What an identification gave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
-    pub rows: Vec<Row>,
-    /// The online filter's samples (UKF only).
-    pub trajectory: Vec<UkfSample>,
-    /// One-step and simulation fit (%) per measured variable on the validation part.
-    pub one_step_fit: Vec<f64>,
-    pub simulation_fit: Vec<f64>,
+    /// Each parameter's estimate (its standard error: the filter's σ online, the curvature's
+    /// offline).
+    pub estimates: Vec<Estimate>,
+    /// The online filter's outputs over the estimation part (online methods only).
+    pub trajectory: Option<Trajectory>,
+    /// Per measured variable.
+    pub fit: Vec<ChannelFit>,
     /// Indices of the samples taken as outliers.
     pub outliers: Vec<usize>,
-    /// ρ̂(1 … 20) of each measured variable, and its Ljung–Box Q.
-    pub autocorrelation: Vec<Vec<f64>>,
-    pub ljung_box: Vec<f64>,
-    /// The samples estimated on and validated on.
-    pub estimation_samples: usize,
-    pub validation_samples: usize,
+    /// The samples estimated on (the first ones) and validated on (the last ones).
+    pub samples: (usize, usize),
     pub seconds: f64,
 }
 
@@ -178,23 +212,19 @@ fn noise_from_data(outputs: &[Vec<f64>], p: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Runs the filter at fixed θ over every sample, from P₀ = diag(`p0`): its samples.
+/// Runs the filter at fixed θ over every sample, from P₀ = diag(`p0`): its trajectory.
 fn filter_run(
     plant: &Rc<RefCell<FmuPlant>>,
     theta: &[f64],
     x0: &[f64],
     p0: &[f64],
-    settings: &UkfSettings,
+    settings: &FilterSettings,
     data: &Data,
-) -> Result<Vec<UkfSample>, SessionError> {
+) -> Result<Trajectory, SessionError> {
     plant.borrow_mut().start_afresh();
     let p0 = DMatrix::from_diagonal(&DVector::from_column_slice(p0));
-    let mut ukf = Ukf::new(plant.clone(), theta, &[], x0, p0, settings)?;
-    let mut samples = Vec::with_capacity(data.time.len());
-    for k in 0..data.time.len() {
-        samples.push(ukf.step(data.time[k], &data.inputs[k], &data.outputs[k])?.0);
-    }
-    Ok(samples)
+    let mut filter = Filter::new(plant.clone(), theta, &[], x0, p0, settings)?;
+    Ok(filter.run(&data.time, &data.inputs, &data.outputs)?)
 }
 
 /// 100 (1 − ‖e‖/‖y − ȳ‖) over the samples that are present and kept (`keep`).
@@ -247,15 +277,13 @@ fn autocorrelation(r: &[f64], lags: usize) -> (Vec<f64>, f64) {
 /// Opens the FMU and checks the names of `request` against it (before any data are read):
 /// the number of its continuous states.
 pub fn check(request: &Request) -> Result<usize, SessionError> {
-    let plant = FmuPlant::open(&request.fmu, &spec(request, 0.0))?;
+    let mut plant = FmuPlant::open(
+        &request.fmu,
+        &request.plant,
+        integration(0.0, request.tolerance),
+    )?;
+    plant.set_values(&request.set)?;
     Ok(plant.states())
-}
-
-fn spec(request: &Request, start: f64) -> PlantSpec {
-    PlantSpec {
-        start,
-        ..request.plant.clone()
-    }
 }
 
 /// Identifies `request.plant.free` from `data` (module documentation).
@@ -277,10 +305,22 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
     }
     let plant = Rc::new(RefCell::new(FmuPlant::open(
         &request.fmu,
-        &spec(request, data.time[0]),
+        &request.plant,
+        integration(data.time[0], request.tolerance),
     )?));
     let p = request.plant.outputs.len();
-    let starts = plant.borrow().parameter_starts();
+    plant.borrow_mut().set_values(&request.set)?;
+    let mut starts = plant.borrow().parameter_starts();
+    for (name, value) in &request.starts {
+        let i = request.plant.free.iter().position(|f| f == name);
+        let i = i.ok_or_else(|| {
+            SessionError::Data(format!(
+                "a start for `{name}`, which is not among the free parameters {}",
+                request.plant.free.join(", ")
+            ))
+        })?;
+        starts[i] = *value;
+    }
     let x0 = plant.borrow_mut().initial_states(&starts)?;
     let n = x0.len();
     let estimation = ((1.0 - request.validate) * n_samples as f64).round() as usize;
@@ -300,67 +340,61 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         }
         None => noise_from_data(&head.outputs, p),
     };
-    let mut rows = Vec::new();
-    let mut trajectory = Vec::new();
+    let free = starts.len();
+    let linearisation = request.method.linearisation();
+    // Q_x per sample on the states, Q_θ = 0 on `q` parameters in z.
+    let settings = |state: f64, q: usize, robust, noise: &[f64]| FilterSettings {
+        noise: Noise::new(state, n, 0.0, q, noise),
+        robust,
+        linearisation,
+    };
+    let mut estimates = Vec::new();
+    let mut trajectory = None;
     let theta: Vec<f64> = match request.method {
-        Method::Ukf => {
-            let q_theta = vec![0.0; starts.len()];
-            let settings = UkfSettings {
-                state_noise: vec![1e-10; n],
-                parameter_noise: q_theta,
-                measurement_variance: noise.clone(),
-                robust: request.robust.influence(),
-                alpha: 1.0,
-                beta: 2.0,
-                kappa: None,
-            };
+        Method::Ukf | Method::Ekf => {
             let mut p0 = state_variance(&x0);
             p0.extend(
                 starts
                     .iter()
                     .map(|s| (PARAMETER_PRIOR * s.abs().max(1e-3)).powi(2)),
             );
-            let augmented: Vec<usize> = (0..starts.len()).collect();
+            let augmented: Vec<usize> = (0..free).collect();
             plant.borrow_mut().start_afresh();
             let p0 = DMatrix::from_diagonal(&DVector::from_vec(p0));
-            let mut ukf = Ukf::new(plant.clone(), &starts, &augmented, &x0, p0, &settings)?;
-            for k in 0..estimation {
-                trajectory.push(ukf.step(head.time[k], &head.inputs[k], &head.outputs[k])?.0);
-            }
-            let last = trajectory.last().cloned();
+            let online = settings(1e-10, free, request.robust.influence(), &noise);
+            let mut filter = Filter::new(plant.clone(), &starts, &augmented, &x0, p0, &online)?;
+            let run = filter.run(&head.time, &head.inputs, &head.outputs)?;
+            let last = run.len().checked_sub(1);
             for (i, name) in request.plant.free.iter().enumerate() {
-                let (estimate, sd) = last.as_ref().map_or((starts[i], None), |s| {
-                    (s.estimate[n + i], Some(s.standard_deviation[n + i]))
+                let (value, sd) = last.map_or((starts[i], None), |k| {
+                    (
+                        run.estimate(k, n + i),
+                        Some(run.standard_deviation(k, n + i)),
+                    )
                 });
-                rows.push(Row {
+                estimates.push(Estimate {
                     name: name.clone(),
-                    estimate,
+                    value,
                     standard_error: sd,
                     start: starts[i],
                 });
             }
-            rows.iter().map(|r| r.estimate).collect()
+            trajectory = Some(run);
+            estimates.iter().map(|e| e.value).collect()
         }
         Method::MaximumLikelihood => {
-            let given: Vec<Option<f64>> = match &request.noise {
-                Some(v) => v.iter().map(|v| Some(*v)).collect(),
-                None => vec![None; p],
-            };
             let loss = match request.robust {
                 Robust::None => Loss::Gaussian,
                 Robust::Huber | Robust::Tukey => Loss::Huber { c: 1.345 },
             };
-            let model = FmuModel::new(plant.clone(), head.time.clone(), given, vec![0.0; n], loss);
-            let record = Record::new(
-                head.inputs
-                    .iter()
-                    .map(|u| DVector::from_column_slice(u))
-                    .collect(),
-                head.outputs
-                    .iter()
-                    .map(|y| DVector::from_column_slice(y))
-                    .collect(),
-            )?;
+            let model = FmuModel::new(
+                plant.clone(),
+                head.time.clone(),
+                settings(0.0, 0, None, &noise),
+                request.noise.is_none(),
+                loss,
+            );
+            let record = head.record().map_err(IdentifyError::from)?;
             let init = Initialisation::Known {
                 x0: DVector::from_column_slice(&x0),
                 p0: DMatrix::zeros(n, n),
@@ -395,24 +429,11 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
                     ..Options::default()
                 },
             )?;
-            for e in &fit.estimates {
-                rows.push(Row {
-                    name: e.name.clone(),
-                    estimate: e.value,
-                    standard_error: e.standard_error,
-                    start: e.start,
-                });
-            }
+            estimates = fit.estimates;
             if request.noise.is_none() {
-                noise = fit.estimates[starts.len()..]
-                    .iter()
-                    .map(|e| e.value)
-                    .collect();
+                noise = estimates[free..].iter().map(|e| e.value).collect();
             }
-            fit.estimates[..starts.len()]
-                .iter()
-                .map(|e| e.value)
-                .collect()
+            estimates[..free].iter().map(|e| e.value).collect()
         }
     };
     // Judged on the validation part (all samples when none is kept).
@@ -422,21 +443,12 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         0
     };
     let x0 = plant.borrow_mut().initial_states(&theta)?;
-    let settings = |q: f64, robust: Option<InfluenceFunction>| UkfSettings {
-        state_noise: vec![q; n],
-        parameter_noise: Vec::new(),
-        measurement_variance: noise.clone(),
-        robust,
-        alpha: 1.0,
-        beta: 2.0,
-        kappa: None,
-    };
     let one_step = filter_run(
         &plant,
         &theta,
         &x0,
         &state_variance(&x0),
-        &settings(1e-10, request.robust.influence()),
+        &settings(1e-10, 0, request.robust.influence(), &noise),
         data,
     )?;
     let simulation = filter_run(
@@ -444,49 +456,48 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         &theta,
         &x0,
         &vec![0.0; n],
-        &settings(0.0, None),
+        &settings(0.0, 0, None, &noise),
         data,
     )?;
-    let standardised = |s: &UkfSample, j: usize| s.innovation[j] / s.innovation_sd[j];
+    let standardised =
+        |k: usize, j: usize| one_step.innovation(k, j) / one_step.innovation_sd(k, j);
     let outliers: Vec<usize> = (0..n_samples)
-        .filter(|&k| (0..p).any(|j| standardised(&one_step[k], j).abs() > OUTLIER_THRESHOLD))
+        .filter(|&k| (0..p).any(|j| standardised(k, j).abs() > OUTLIER_THRESHOLD))
         .collect();
     let keep: Vec<bool> = (0..n_samples)
         .map(|k| k >= from && outliers.binary_search(&k).is_err())
         .collect();
-    let mut one_step_fit = Vec::new();
-    let mut simulation_fit = Vec::new();
-    let mut rho = Vec::new();
-    let mut ljung_box = Vec::new();
-    for j in 0..p {
-        let y: Vec<f64> = data.outputs.iter().map(|y| y[j]).collect();
-        let e1: Vec<f64> = one_step.iter().map(|s| s.innovation[j]).collect();
-        let es: Vec<f64> = simulation.iter().map(|s| s.innovation[j]).collect();
-        one_step_fit.push(fit_percent(&y, &e1, &keep));
-        simulation_fit.push(fit_percent(&y, &es, &keep));
-        let r: Vec<f64> = (from..n_samples)
-            .map(|k| {
-                if keep[k] {
-                    standardised(&one_step[k], j)
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        let (values, q) = autocorrelation(&r, WHITENESS_LAGS);
-        rho.push(values);
-        ljung_box.push(q);
-    }
+    let fit = (0..p)
+        .map(|j| {
+            let y: Vec<f64> = data.outputs.iter().map(|y| y[j]).collect();
+            let e1: Vec<f64> = (0..n_samples).map(|k| one_step.innovation(k, j)).collect();
+            let es: Vec<f64> = (0..n_samples)
+                .map(|k| simulation.innovation(k, j))
+                .collect();
+            let r: Vec<f64> = (from..n_samples)
+                .map(|k| {
+                    if keep[k] {
+                        standardised(k, j)
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect();
+            let (autocorrelation, ljung_box) = autocorrelation(&r, WHITENESS_LAGS);
+            ChannelFit {
+                one_step: fit_percent(&y, &e1, &keep),
+                simulation: fit_percent(&y, &es, &keep),
+                autocorrelation,
+                ljung_box,
+            }
+        })
+        .collect();
     Ok(Outcome {
-        rows,
+        estimates,
         trajectory,
-        one_step_fit,
-        simulation_fit,
+        fit,
         outliers,
-        autocorrelation: rho,
-        ljung_box,
-        estimation_samples: estimation,
-        validation_samples: n_samples - from,
+        samples: (estimation, n_samples - from),
         seconds: started.elapsed().as_secs_f64(),
     })
 }
@@ -499,7 +510,7 @@ fn write(path: &Path, text: &str) -> Result<(), SessionError> {
 }
 
 /// Writes `estimates.csv` (parameter, estimate, standard_error, start), `report.md` and, for
-/// the UKF, `trajectory.csv` (time, x̂, θ̂, their standard deviations, innovations, weights)
+/// the online methods, `trajectory.csv` (time, x̂, θ̂, their standard deviations, innovations, weights)
 /// into `dir`; the report's text is returned.
 pub fn write_outcome(
     request: &Request,
@@ -515,51 +526,39 @@ pub fn write_outcome(
     let mut csv = String::from("parameter,estimate,standard_error,start\n");
     let mut table =
         String::from("| parameter | estimate | ± standard error | start |\n|---|---|---|---|\n");
-    for r in &outcome.rows {
-        let (se_csv, se_md) = match r.standard_error {
+    for e in &outcome.estimates {
+        let (se_csv, se_md) = match e.standard_error {
             Some(se) => (format!("{se:e}"), format!("{se:.3e}")),
             None => (String::new(), "—".to_string()),
         };
-        csv += &format!("{},{:e},{se_csv},{:e}\n", r.name, r.estimate, r.start);
+        csv += &format!("{},{:e},{se_csv},{:e}\n", e.name, e.value, e.start);
         table += &format!(
             "| `{}` | {:.6} | {se_md} | {} |\n",
-            r.name, r.estimate, r.start
+            e.name, e.value, e.start
         );
     }
     write(&dir.join("estimates.csv"), &csv)?;
-    if !outcome.trajectory.is_empty() {
-        let q = request.plant.free.len();
-        let p = request.plant.outputs.len();
+    if let Some(trajectory) = &outcome.trajectory {
         let mut header = vec!["time".to_string()];
         header.extend((0..state_count).map(|i| format!("x{i}")));
         header.extend(request.plant.free.iter().cloned());
         header.extend((0..state_count).map(|i| format!("sd(x{i})")));
         header.extend(request.plant.free.iter().map(|f| format!("sd({f})")));
-        header.extend(
-            request
-                .plant
-                .outputs
-                .iter()
-                .map(|o| format!("innovation({o})")),
-        );
-        header.extend(request.plant.outputs.iter().map(|o| format!("weight({o})")));
+        for what in ["innovation", "sd(innovation", "weight"] {
+            let close = if what.starts_with("sd(") { "))" } else { ")" };
+            header.extend(
+                request
+                    .plant
+                    .outputs
+                    .iter()
+                    .map(|o| format!("{what}({o}{close}")),
+            );
+        }
         let mut text = header.join(",") + "\n";
-        for s in &outcome.trajectory {
-            let mut row = vec![format!("{}", s.time)];
-            row.extend(
-                s.estimate
-                    .iter()
-                    .take(state_count + q)
-                    .map(|v| format!("{v:e}")),
-            );
-            row.extend(
-                s.standard_deviation
-                    .iter()
-                    .take(state_count + q)
-                    .map(|v| format!("{v:e}")),
-            );
-            row.extend(s.innovation.iter().take(p).map(|v| format!("{v:e}")));
-            row.extend(s.weight.iter().take(p).map(|v| format!("{v}")));
+        // A row per sample: its column of the trajectory, every entry in that order.
+        for (t, column) in trajectory.time.iter().zip(trajectory.values.column_iter()) {
+            let mut row = vec![format!("{t}")];
+            row.extend(column.iter().map(|v| format!("{v:e}")));
             text += &(row.join(",") + "\n");
         }
         write(&dir.join("trajectory.csv"), &text)?;
@@ -567,6 +566,7 @@ pub fn write_outcome(
     let mut md = String::new();
     let method = match request.method {
         Method::Ukf => "online: robust unscented Kalman filter, parameters as random-walk states",
+        Method::Ekf => "online: robust extended Kalman filter, parameters as random-walk states",
         Method::MaximumLikelihood => "offline: maximum likelihood of the output errors",
     };
     let robust = match (request.method, request.robust.influence()) {
@@ -579,15 +579,17 @@ pub fn write_outcome(
         md,
         "# Identification of {}\n\nMethod: {method}. Robustness: {robust}. {} samples estimated on, {} validated on; {:.2} s.\n\n## Estimates\n\n{table}",
         request.fmu.display(),
-        outcome.estimation_samples,
-        outcome.validation_samples,
+        outcome.samples.0,
+        outcome.samples.1,
         outcome.seconds
     );
     let _ = writeln!(md, "\n## Fit on the validation part\n\n| measured | one-step fit | simulation fit | Ljung–Box Q (20 lags; white below {CHI2_20_95}) | lags with |ρ̂| > 1.96/√N |\n|---|---|---|---|---|");
     for (j, name) in request.plant.outputs.iter().enumerate() {
-        let n = outcome.validation_samples.max(1) as f64;
+        let fit = &outcome.fit[j];
+        let n = outcome.samples.1.max(1) as f64;
         let band = 1.96 / n.sqrt();
-        let outside: Vec<String> = outcome.autocorrelation[j]
+        let outside: Vec<String> = fit
+            .autocorrelation
             .iter()
             .enumerate()
             .filter(|(_, r)| r.abs() > band)
@@ -596,10 +598,10 @@ pub fn write_outcome(
         let _ = writeln!(
             md,
             "| `{name}` | {:.1} % | {:.1} % | {:.1} ({}) | {} |",
-            outcome.one_step_fit[j],
-            outcome.simulation_fit[j],
-            outcome.ljung_box[j],
-            if outcome.ljung_box[j] <= CHI2_20_95 {
+            fit.one_step,
+            fit.simulation,
+            fit.ljung_box,
+            if fit.ljung_box <= CHI2_20_95 {
                 "white"
             } else {
                 "not white"

@@ -2,7 +2,7 @@
 
 mod common;
 
-use spurio_identify::plant::{FmuPlant, PlantError, PlantSpec, Start};
+use spurio_identify::plant::{integration, FmuPlant, PlantError, PlantSpec, Start};
 
 fn open(
     model: &str,
@@ -17,9 +17,8 @@ fn open(
             free: strings(free),
             inputs: strings(inputs),
             outputs: strings(outputs),
-            tolerance: 1e-8,
-            start: 0.0,
         },
+        integration(0.0, 1e-8),
     )
 }
 

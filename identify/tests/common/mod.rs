@@ -4,7 +4,8 @@
 
 use nalgebra::{DMatrix, DVector};
 use spurio::estimation::likelihood::Record;
-use spurio_identify::plant::{FmuPlant, PlantSpec, Start};
+use spurio_identify::filter::{Filter, FilterSettings, Linearisation, Noise};
+use spurio_identify::plant::{integration, FmuPlant, PlantSpec, Start};
 use std::cell::RefCell;
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -29,11 +30,10 @@ pub fn plant(
         free: free.iter().map(|s| s.to_string()).collect(),
         inputs: Vec::new(),
         outputs: outputs.iter().map(|s| s.to_string()).collect(),
-        tolerance,
-        start: 0.0,
     };
     Rc::new(RefCell::new(
-        FmuPlant::open(&reference(model), &spec).expect("the plant opens"),
+        FmuPlant::open(&reference(model), &spec, integration(0.0, tolerance))
+            .expect("the plant opens"),
     ))
 }
 
@@ -169,32 +169,50 @@ impl Case {
             .expect("initialised")
     }
 
+    /// The filter's settings: Q_x, Q_θ (none, or 0 for the parameter), R = σ².
+    pub fn settings(
+        &self,
+        states: usize,
+        parameters: usize,
+        robust: Option<spurio::estimation::InfluenceFunction>,
+        linearisation: Linearisation,
+    ) -> FilterSettings {
+        FilterSettings {
+            noise: Noise::new(
+                self.state_noise,
+                states,
+                0.0,
+                parameters,
+                &vec![self.sigma * self.sigma; self.outputs.len()],
+            ),
+            robust,
+            linearisation,
+        }
+    }
+
     /// The online estimate θ̂ and its standard deviation after the run.
-    pub fn online(&self, robust: Option<spurio::estimation::InfluenceFunction>) -> (f64, f64) {
+    pub fn online(
+        &self,
+        robust: Option<spurio::estimation::InfluenceFunction>,
+        linearisation: Linearisation,
+    ) -> (f64, f64) {
         let (t, y) = self.data();
         let plant = plant(self.model, &[self.parameter], self.outputs, 1e-8);
         let x0 = self.initial_states(&plant);
         let n = x0.len();
-        let settings = spurio_identify::ukf::UkfSettings {
-            state_noise: vec![self.state_noise; n],
-            parameter_noise: vec![0.0],
-            measurement_variance: vec![self.sigma * self.sigma; self.outputs.len()],
-            robust,
-            alpha: 1.0,
-            beta: 2.0,
-            kappa: None,
-        };
+        let settings = self.settings(n, 1, robust, linearisation);
         let mut p0 = vec![self.state_variance; n];
         p0.push(self.parameter_variance);
-        let mut ukf =
-            spurio_identify::ukf::Ukf::new(plant, &[self.start], &[0], &x0, diag(&p0), &settings)
-                .expect("a filter");
-        let mut last = None;
-        for (time, row) in t.iter().zip(&y) {
-            last = Some(ukf.step(*time, &[], row).expect("a step").0);
-        }
-        let last = last.expect("samples");
-        (last.estimate[n], last.standard_deviation[n])
+        let mut filter =
+            Filter::new(plant, &[self.start], &[0], &x0, diag(&p0), &settings).expect("a filter");
+        let trajectory = filter
+            .run(&t, &vec![Vec::new(); t.len()], &y)
+            .expect("the run");
+        let last = trajectory.len() - 1;
+        (
+            trajectory.estimate(last, n),
+            trajectory.standard_deviation(last, n),
+        )
     }
 
     /// The offline estimate and its standard error: the prediction errors of the filter with
@@ -206,13 +224,9 @@ impl Case {
         let plant = plant(self.model, &[self.parameter], self.outputs, 1e-10);
         let x0 = self.initial_states(&plant);
         let n = x0.len();
-        let model = spurio_identify::fmu_model::FmuModel::new(
-            plant,
-            t,
-            vec![Some(self.sigma * self.sigma); self.outputs.len()],
-            vec![0.0; n],
-            loss,
-        );
+        let mut settings = self.settings(n, 0, None, Linearisation::UNSCENTED);
+        settings.noise.process = vec![0.0; n];
+        let model = spurio_identify::fmu_model::FmuModel::new(plant, t, settings, false, loss);
         let init = spurio::estimation::likelihood::Initialisation::Known {
             x0: DVector::from_column_slice(&x0),
             p0: diag(&vec![0.0; n]),
@@ -236,21 +250,23 @@ impl Case {
         (e.value, e.standard_error)
     }
 
-    /// Runs the four fits, prints them and asserts the done-when figures: offline (robust)
-    /// within 1 % of the truth, online (robust) within two standard deviations. The error
+    /// Runs the five fits, prints them and asserts the done-when figures: offline (robust)
+    /// within 1 % of the truth, online (robust UKF and EKF) within two standard deviations. The error
     /// ratios without/with the robust weights (online, offline) are returned.
     pub fn check(&self) -> (f64, f64) {
         use spurio_identify::fmu_model::Loss;
         let started = std::time::Instant::now();
         let (ml, se) = self.offline(Loss::Huber { c: 1.345 });
         let (ml_plain, se_plain) = self.offline(Loss::Gaussian);
-        let (ukf, sd) = self.online(Some(spurio::estimation::InfluenceFunction::huber()));
-        let (ukf_plain, sd_plain) = self.online(None);
+        let huber = Some(spurio::estimation::InfluenceFunction::huber());
+        let (ukf, sd) = self.online(huber, Linearisation::UNSCENTED);
+        let (ukf_plain, sd_plain) = self.online(None, Linearisation::UNSCENTED);
+        let (ekf, ekf_sd) = self.online(huber, Linearisation::Extended);
         let truth = self.truth;
         let ratio = |plain: f64, robust: f64| (plain - truth).abs() / (robust - truth).abs();
         let ratios = (ratio(ukf_plain, ukf), ratio(ml_plain, ml));
         println!(
-            "{} {} (truth {truth}, start {}): offline Huber {ml:.6} ± {se:?}, Gaussian {ml_plain:.6} ± {se_plain:?}; online robust UKF {ukf:.6} ± {sd:.6}, plain {ukf_plain:.6} ± {sd_plain:.6}; error ratio none/robust online {:.2}, offline {:.2}; {:.2} s",
+            "{} {} (truth {truth}, start {}): offline Huber {ml:.6} ± {se:?}, Gaussian {ml_plain:.6} ± {se_plain:?}; online robust UKF {ukf:.6} ± {sd:.6}, plain {ukf_plain:.6} ± {sd_plain:.6}, robust EKF {ekf:.6} ± {ekf_sd:.6}; error ratio none/robust online {:.2}, offline {:.2}; {:.2} s",
             self.model,
             self.parameter,
             self.start,
@@ -264,6 +280,10 @@ impl Case {
             "se {se:?}"
         );
         assert!((ukf - truth).abs() < 2.0 * sd, "online {ukf} ± {sd}");
+        assert!(
+            (ekf - truth).abs() < 2.0 * ekf_sd,
+            "online EKF {ekf} ± {ekf_sd}"
+        );
         ratios
     }
 }

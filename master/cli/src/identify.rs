@@ -28,9 +28,10 @@ pub struct IdentifyArgs {
     /// Robust weights against outliers.
     #[arg(long, default_value = "huber", value_parser = ["huber", "tukey", "none"])]
     pub robust: String,
-    /// `ukf`: online (robust UKF, parameters as random-walk states); `ml`: offline maximum
-    /// likelihood (Huber loss unless --robust none) with standard errors from the curvature.
-    #[arg(long, default_value = "ukf", value_parser = ["ukf", "ml"])]
+    /// `ukf` / `ekf`: online (robust unscented / extended Kalman filter, parameters as
+    /// random-walk states); `ml`: offline maximum likelihood (Huber loss unless --robust
+    /// none) with standard errors from the curvature.
+    #[arg(long, default_value = "ukf", value_parser = ["ukf", "ekf", "ml"])]
     pub method: String,
     /// The fraction of the record, at its end, kept for validation.
     #[arg(long, default_value_t = 0.0)]
@@ -39,7 +40,14 @@ pub struct IdentifyArgs {
     /// estimates them).
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<f64>,
-    /// Where to write estimates.csv, report.md (and trajectory.csv for `ukf`).
+    /// A free parameter's start value: `NAME=VALUE` (default: the FMU's start value).
+    #[arg(long, value_delimiter = ',')]
+    pub start: Vec<String>,
+    /// A parameter that is not estimated, set for the experiment: `NAME=VALUE` (a crane's
+    /// initial cart position `x0=0.2`).
+    #[arg(long, value_delimiter = ',')]
+    pub set: Vec<String>,
+    /// Where to write estimates.csv, report.md (and trajectory.csv for `ukf` and `ekf`).
     #[arg(long, default_value = "identification")]
     pub out: PathBuf,
 }
@@ -50,6 +58,23 @@ fn mapping(entry: &str) -> (String, String) {
         Some((name, column)) => (name.trim().to_string(), column.trim().to_string()),
         None => (entry.trim().to_string(), entry.trim().to_string()),
     }
+}
+
+/// `NAME=VALUE` entries of `flag` as (name, number).
+fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
+    entries
+        .iter()
+        .map(|entry| {
+            let (name, value) = entry
+                .split_once('=')
+                .with_context(|| format!("{flag} {entry}: expected NAME=VALUE"))?;
+            let value: f64 = value
+                .trim()
+                .parse()
+                .with_context(|| format!("{flag} {entry}: `{value}` is not a number"))?;
+            Ok((name.trim().to_string(), value))
+        })
+        .collect()
 }
 
 /// The data's columns for `inputs` and `outputs` (names of columns).
@@ -139,21 +164,22 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             free: args.free.clone(),
             inputs: input_names,
             outputs: output_names,
-            tolerance: 1e-8,
-            start: 0.0,
         },
+        tolerance: 1e-8,
         robust: match args.robust.as_str() {
             "none" => Robust::None,
             "tukey" => Robust::Tukey,
             _ => Robust::Huber,
         },
-        method: if args.method == "ml" {
-            Method::MaximumLikelihood
-        } else {
-            Method::Ukf
+        method: match args.method.as_str() {
+            "ml" => Method::MaximumLikelihood,
+            "ekf" => Method::Ekf,
+            _ => Method::Ukf,
         },
         validate: args.validate,
         noise: (!args.noise.is_empty()).then(|| args.noise.clone()),
+        starts: values("--start", &args.start)?,
+        set: values("--set", &args.set)?,
     };
     // The FMU and the names are checked before the data are read.
     let states = spurio_identify::session::check(&request)?;

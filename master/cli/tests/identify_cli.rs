@@ -102,8 +102,9 @@ fn dahlquist_k_offline_and_online_robust_beats_plain() {
     let (ml_plain, _) = identify(&dir, &data, "ml", "none");
     let (ukf, sd) = identify(&dir, &data, "ukf", "huber");
     let (ukf_plain, _) = identify(&dir, &data, "ukf", "none");
+    let (ekf, ekf_sd) = identify(&dir, &data, "ekf", "huber");
     println!(
-        "k: ml huber {ml} ± {se}, none {ml_plain}; ukf huber {ukf} ± {sd}, none {ukf_plain}; ratios {:.1}, {:.1}",
+        "k: ml huber {ml} ± {se}, none {ml_plain}; ukf huber {ukf} ± {sd}, none {ukf_plain}; ekf huber {ekf} ± {ekf_sd}; ratios {:.1}, {:.1}",
         (ml_plain - K).abs() / (ml - K).abs(),
         (ukf_plain - K).abs() / (ukf - K).abs()
     );
@@ -112,11 +113,13 @@ fn dahlquist_k_offline_and_online_robust_beats_plain() {
         "{ml} ± {se}"
     );
     assert!((ukf - K).abs() < 2.0 * sd, "{ukf} ± {sd}");
+    assert!((ekf - K).abs() < 2.0 * ekf_sd, "{ekf} ± {ekf_sd}");
     assert!(
         (ml_plain - K).abs() > 2.0 * (ml - K).abs(),
         "{ml_plain} vs {ml}"
     );
     assert!(dir.join("ukf-huber/trajectory.csv").is_file());
+    assert!(dir.join("ekf-huber/trajectory.csv").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -166,6 +169,29 @@ fn bad_names_and_an_fmu_without_model_exchange_are_refused_before_anything_runs(
     );
     let said = run(&dahlquist(), "y", "k");
     assert!(said.contains("`y` is not a variable"), "{said}");
+    // A value set for the experiment must be a parameter of the FMU, checked as early; a
+    // start must be a number.
+    let with = |flag: &str, value: &str| {
+        failed(spurio([
+            "identify",
+            s(&dahlquist()),
+            "--data",
+            s(&missing),
+            "--output",
+            "x",
+            "--free",
+            "k",
+            flag,
+            value,
+        ]))
+    };
+    let said = with("--set", "x=2");
+    assert!(
+        said.contains("`x` cannot be set") && said.contains("an output"),
+        "{said}"
+    );
+    let said = with("--start", "k=fast");
+    assert!(said.contains("`fast` is not a number"), "{said}");
     let cs_only = dir.join("DahlquistCS.fmu");
     edited_copy(&dahlquist(), &cs_only, |text| {
         let start = text.find("<ModelExchange").unwrap();

@@ -916,10 +916,11 @@ pub fn initialise<M: ModelExchangeCalls>(
     stepper: &Stepper,
 ) -> Result<(), MeError> {
     let start = options.start;
+    // An infinite stop (an estimator's run, open-ended) is no stop time: stopTimeDefined false.
     let experiment = Experiment {
         tolerance: Some(options.tolerance),
         start,
-        stop: Some(options.stop),
+        stop: options.stop.is_finite().then_some(options.stop),
     };
     fmu.setup_experiment(experiment)
         .map_err(stepper.failed(Call::SetupExperiment, start))?;

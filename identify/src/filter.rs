@@ -1,0 +1,566 @@
+//! What the online filters on an FMU share (docs/estimators.md, "Identifying an FMU"):
+//! their settings, their robust correction, their errors and the trajectory they write.
+//!
+//! **State.** z = [x; θ_a]: the FMU's continuous states x (n) and the parameters estimated
+//! online θ_a (q, possibly none), each a random walk θ_{k+1} = θ_k + w_k, w_k ~ N(0, Q_θ)
+//! (joint estimation). Parameters not in z are held at given values. The unscented filter
+//! ([`crate::ukf`]) and the extended one ([`crate::ekf`]) differ only in how they predict
+//! ẑ⁻, P⁻, ŷ and the covariances S = cov(y) (with R) and C = cov(z, y); the correction is
+//! this module's.
+//!
+//! **Robust correction** (the papers' rsKF, as `spurio`'s robust Kalman filter): over the
+//! present channels (a NaN is a missing sample, left out; none present: no correction) the
+//! innovation e = y − ŷ is standardised by its covariance, rⱼ = eⱼ/√Sⱼⱼ, weighted
+//! wⱼ = ψ(rⱼ)/rⱼ (Huber or Tukey, clamped to [`MIN_WEIGHT`]) and the measurement variance
+//! inflated, R̃ⱼⱼ = Rⱼⱼ / wⱼ: S̃ = S + R̃ − R, K = C S̃⁻¹ (by the Cholesky factor of S̃),
+//! ẑ = ẑ⁻ + K e, and
+//! - without a measurement Jacobian (UKF): P = P⁻ − K S̃ Kᵀ;
+//! - with one, H (EKF, C = P⁻ Hᵀ): the Joseph form P = (I − K H) P⁻ (I − K H)ᵀ + K R̃ Kᵀ,
+//!   a sum of positive semidefinite terms whatever the rounding of K.
+//!
+//! P is symmetrised, ½(P + Pᵀ), after every prediction and correction. An innovation
+//! covariance S̃ (which holds R > 0) whose Cholesky factorisation fails stops the step with an
+//! error naming the sample ([`FilterError::NotPositive`]).
+//!
+//! **Trajectory.** The filter's outputs over time are one matrix, a column per sample (the
+//! columns allocated once for the record), rows [ẑ (L); √diag P (L); e (p); √Sⱼⱼ (p);
+//! w (p)], L = n + q: [`Trajectory`].
+
+use crate::plant::{FmuPlant, PlantError};
+use crate::ukf::SigmaPoints;
+use nalgebra::{Cholesky, DMatrix, DVector};
+use spurio::estimation::{InfluenceFunction, MIN_WEIGHT};
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// The noise of the filter's model, per sample, as diagonals: Q over z = [x; θ_a] (Q_x, the
+/// variance added to each state, then Q_θ, the random-walk variance of each parameter of
+/// z) and R (the variance of each measured variable).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Noise {
+    pub process: Vec<f64>,
+    pub measurement: Vec<f64>,
+}
+
+impl Noise {
+    /// Q_x = `state` on n states, Q_θ = `parameter` on q parameters, R = `measurement`.
+    pub fn new(state: f64, n: usize, parameter: f64, q: usize, measurement: &[f64]) -> Self {
+        let mut process = vec![state; n];
+        process.resize(n + q, parameter);
+        Self {
+            process,
+            measurement: measurement.to_vec(),
+        }
+    }
+}
+
+/// How a filter carries the mean and covariance through the FMU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Linearisation {
+    /// Sigma points through the FMU (scaled unscented transform, [`crate::ukf`]): α, β and
+    /// κ (None: max(0, 3 − L)).
+    Unscented {
+        alpha: f64,
+        beta: f64,
+        kappa: Option<f64>,
+    },
+    /// The FMU linearised about the estimate ([`crate::ekf`]): the state-transition matrix
+    /// and the measurement Jacobian, the state block from the FMU's directional derivatives
+    /// when it gives them.
+    Extended,
+}
+
+impl Linearisation {
+    /// The unscented transform with α = 1, β = 2 and κ = max(0, 3 − L): every covariance
+    /// weight ≥ 0.
+    pub const UNSCENTED: Self = Self::Unscented {
+        alpha: 1.0,
+        beta: 2.0,
+        kappa: None,
+    };
+}
+
+/// The tuning of a filter on an FMU, shared by the online filters and the likelihood of the
+/// offline fit ([`crate::fmu_model`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterSettings {
+    pub noise: Noise,
+    /// The robust weights (None: the plain filter).
+    pub robust: Option<InfluenceFunction>,
+    pub linearisation: Linearisation,
+}
+
+impl FilterSettings {
+    /// Checks the lengths against L = n + q filter states and p measured variables, and the
+    /// variances (finite, ≥ 0 for Q, > 0 for R).
+    pub fn check(&self, l: usize, p: usize) -> Result<(), FilterError> {
+        let noise = &self.noise;
+        if noise.process.len() != l || noise.measurement.len() != p {
+            return Err(FilterError::Settings(format!(
+                "{} process noises and {} measurement variances given; {l} (states and parameters of z) and {p} needed",
+                noise.process.len(),
+                noise.measurement.len(),
+            )));
+        }
+        let nonnegative = noise.process.iter().all(|v| v.is_finite() && *v >= 0.0);
+        if !nonnegative || !noise.measurement.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(FilterError::Settings(
+                "the noise variances must be finite, ≥ 0 (Q) and > 0 (R)".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Why a filter step failed.
+#[derive(Debug, thiserror::Error)]
+pub enum FilterError {
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    #[error(
+        "at sample {sample} (t = {time}): the {what} is not positive definite (or not finite)"
+    )]
+    NotPositive {
+        what: &'static str,
+        sample: usize,
+        time: f64,
+    },
+    #[error("the filter's settings: {0}")]
+    Settings(String),
+}
+
+/// ½(P + Pᵀ).
+pub(crate) fn symmetrise(p: &mut DMatrix<f64>) {
+    let t = p.transpose();
+    *p += t;
+    *p *= 0.5;
+}
+
+/// The prediction a filter hands to [`correct`].
+pub(crate) struct Prediction {
+    /// ẑ⁻ and P⁻.
+    pub z: DVector<f64>,
+    pub p: DMatrix<f64>,
+    /// ŷ, S = cov(y) + R and C = cov(z, y).
+    pub y: DVector<f64>,
+    pub s: DMatrix<f64>,
+    pub cross: DMatrix<f64>,
+    /// H, for the Joseph form (EKF).
+    pub jacobian: Option<DMatrix<f64>>,
+}
+
+/// The prediction errors of the present channels and their covariance S (before the robust
+/// inflation), for the innovations likelihood.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PredictionErrors {
+    pub v: DVector<f64>,
+    pub f: DMatrix<f64>,
+}
+
+/// The robust correction (module documentation) of `prediction` by `y` (NaN: missing), R
+/// the measurement variances: (ẑ, P), the prediction errors, and into `record` (e, √Sⱼⱼ, w:
+/// 3p values) the sample's rows of the trajectory.
+pub(crate) fn correct(
+    prediction: Prediction,
+    y: &[f64],
+    r: &[f64],
+    robust: Option<InfluenceFunction>,
+    at: (usize, f64),
+    record: &mut [f64],
+) -> Result<(DVector<f64>, DMatrix<f64>, PredictionErrors), FilterError> {
+    let p_out = r.len();
+    let Prediction {
+        z,
+        p,
+        y: y_hat,
+        s,
+        cross,
+        jacobian,
+    } = prediction;
+    let (innovation, rest) = record.split_at_mut(p_out);
+    let (innovation_sd, weight) = rest.split_at_mut(p_out);
+    for j in 0..p_out {
+        innovation_sd[j] = s[(j, j)].sqrt();
+        innovation[j] = f64::NAN;
+        weight[j] = f64::NAN;
+    }
+    let present: Vec<usize> = (0..p_out).filter(|&j| !y[j].is_nan()).collect();
+    let k = present.len();
+    let mut errors = PredictionErrors {
+        v: DVector::zeros(k),
+        f: DMatrix::zeros(k, k),
+    };
+    if k == 0 {
+        return Ok((z, p, errors));
+    }
+    let l = z.len();
+    let mut c_present = DMatrix::zeros(l, k);
+    for (a, &ja) in present.iter().enumerate() {
+        errors.v[a] = y[ja] - y_hat[ja];
+        innovation[ja] = errors.v[a];
+        for (b, &jb) in present.iter().enumerate() {
+            errors.f[(a, b)] = s[(ja, jb)];
+        }
+        c_present.set_column(a, &cross.column(ja));
+    }
+    let mut inflated = errors.f.clone();
+    let mut r_inflated = DVector::zeros(k);
+    for (a, &ja) in present.iter().enumerate() {
+        let w = match robust {
+            Some(psi) => psi
+                .weight(errors.v[a] / errors.f[(a, a)].sqrt())
+                .max(MIN_WEIGHT),
+            None => 1.0,
+        };
+        weight[ja] = w;
+        r_inflated[a] = r[ja] / w;
+        inflated[(a, a)] += r[ja] * (1.0 / w - 1.0);
+    }
+    let (sample, time) = at;
+    let chol = Cholesky::new(inflated.clone()).ok_or(FilterError::NotPositive {
+        what: "innovation covariance S",
+        sample,
+        time,
+    })?;
+    // K = C S̃⁻¹ = (S̃⁻¹ Cᵀ)ᵀ (S̃ symmetric).
+    let gain = chol.solve(&c_present.transpose()).transpose();
+    let z_post = &z + &gain * &errors.v;
+    let mut p_post = match &jacobian {
+        None => &p - &gain * &inflated * gain.transpose(),
+        Some(h) => {
+            let mut h_present = DMatrix::zeros(k, l);
+            for (a, &ja) in present.iter().enumerate() {
+                h_present.set_row(a, &h.row(ja));
+            }
+            let i_kh = DMatrix::identity(l, l) - &gain * &h_present;
+            &i_kh * &p * i_kh.transpose()
+                + &gain * DMatrix::from_diagonal(&r_inflated) * gain.transpose()
+        }
+    };
+    symmetrise(&mut p_post);
+    Ok((z_post, p_post, errors))
+}
+
+/// The online filters' outputs over a record (module documentation): one column per sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// t_k of column k.
+    pub time: Vec<f64>,
+    /// Rows [ẑ (L); √diag P (L); e (p); √Sⱼⱼ (p); w (p)], a column per sample.
+    pub values: DMatrix<f64>,
+    /// L = n + q.
+    pub filter_states: usize,
+}
+
+impl Trajectory {
+    /// Room for `samples` samples of a filter of L = `filter_states` and p = `outputs`.
+    pub fn new(filter_states: usize, outputs: usize, samples: usize) -> Self {
+        Self {
+            time: Vec::with_capacity(samples),
+            values: DMatrix::from_element(2 * filter_states + 3 * outputs, samples, f64::NAN),
+            filter_states,
+        }
+    }
+
+    /// p.
+    pub fn outputs(&self) -> usize {
+        (self.values.nrows() - 2 * self.filter_states) / 3
+    }
+
+    /// Samples recorded so far.
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+
+    /// Whether no sample is recorded.
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+
+    /// Sample k's column, to be written by a filter step (recorded at `time`).
+    pub(crate) fn next_column(&mut self, time: f64) -> Result<&mut [f64], FilterError> {
+        let k = self.time.len();
+        if k >= self.values.ncols() {
+            return Err(FilterError::Settings(format!(
+                "the trajectory has room for {k} samples"
+            )));
+        }
+        self.time.push(time);
+        let rows = self.values.nrows();
+        Ok(&mut self.values.as_mut_slice()[k * rows..(k + 1) * rows])
+    }
+
+    fn block(&self, from: usize, rows: usize, k: usize, i: usize) -> f64 {
+        debug_assert!(i < rows);
+        self.values[(from + i, k)]
+    }
+
+    /// ẑ_i at sample k.
+    pub fn estimate(&self, k: usize, i: usize) -> f64 {
+        self.block(0, self.filter_states, k, i)
+    }
+
+    /// √P_ii at sample k.
+    pub fn standard_deviation(&self, k: usize, i: usize) -> f64 {
+        self.block(self.filter_states, self.filter_states, k, i)
+    }
+
+    /// e_j = y_j − ŷ_j at sample k (NaN where missing).
+    pub fn innovation(&self, k: usize, j: usize) -> f64 {
+        self.block(2 * self.filter_states, self.outputs(), k, j)
+    }
+
+    /// √S_jj at sample k (before the robust inflation).
+    pub fn innovation_sd(&self, k: usize, j: usize) -> f64 {
+        self.block(
+            2 * self.filter_states + self.outputs(),
+            self.outputs(),
+            k,
+            j,
+        )
+    }
+
+    /// w_j at sample k (1 without robust weighting, NaN where missing).
+    pub fn weight(&self, k: usize, j: usize) -> f64 {
+        self.block(
+            2 * self.filter_states + 2 * self.outputs(),
+            self.outputs(),
+            k,
+            j,
+        )
+    }
+}
+
+/// Writes ẑ and √diag P into the first 2L entries of a trajectory column.
+pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64]) {
+    let l = z.len();
+    column[..l].copy_from_slice(z.as_slice());
+    for i in 0..l {
+        column[l + i] = p[(i, i)].max(0.0).sqrt();
+    }
+}
+
+/// The point a prediction starts from: the filter's ẑ, P, the parameters outside z, the
+/// inputs held and the interval.
+pub(crate) struct Step<'a> {
+    pub plant: &'a mut FmuPlant,
+    /// n.
+    pub states: usize,
+    /// Indices (into θ) of the parameters in z.
+    pub augmented: &'a [usize],
+    /// Every free parameter's value (those in z taken from ẑ).
+    pub theta: &'a [f64],
+    pub z: &'a DVector<f64>,
+    pub p: &'a DMatrix<f64>,
+    /// R.
+    pub r: &'a [f64],
+    /// diag Q, added to P⁻ (None at the first sample, which only evaluates y at the prior).
+    pub q: Option<&'a DVector<f64>>,
+    /// [t₀, t₁] (t₀ = t₁ at the first sample: y evaluated at the prior) and u held over it.
+    pub t0: f64,
+    pub t1: f64,
+    pub u: &'a [f64],
+    /// The sample, for messages.
+    pub sample: usize,
+}
+
+impl Step<'_> {
+    /// θ with the parameters of z taken from `z`, into `theta`.
+    pub fn parameters_of(&self, z: &[f64], theta: &mut [f64]) {
+        theta.copy_from_slice(self.theta);
+        for (k, &i) in self.augmented.iter().enumerate() {
+            theta[i] = z[self.states + k];
+        }
+    }
+}
+
+/// A filter's own way of predicting.
+#[derive(Debug, Clone)]
+enum Predictor {
+    Unscented(SigmaPoints),
+    Extended,
+}
+
+/// An online filter on an FMU (module documentation): the unscented or the extended one by
+/// its [`FilterSettings::linearisation`].
+#[derive(Debug)]
+pub struct Filter {
+    plant: Rc<RefCell<FmuPlant>>,
+    n: usize,
+    augmented: Vec<usize>,
+    theta: Vec<f64>,
+    z: DVector<f64>,
+    p: DMatrix<f64>,
+    q: DVector<f64>,
+    settings: FilterSettings,
+    predictor: Predictor,
+    /// Time and inputs of the last sample (None before the first).
+    last: Option<(f64, Vec<f64>)>,
+    sample: usize,
+}
+
+impl Filter {
+    /// A filter on `plant` with every free parameter at `theta`, those of `augmented`
+    /// (indices into θ) estimated in z, started at ẑ₀ = [x0; θ_a], P₀ = `p0` ((n+q)×(n+q)).
+    pub fn new(
+        plant: Rc<RefCell<FmuPlant>>,
+        theta: &[f64],
+        augmented: &[usize],
+        x0: &[f64],
+        p0: DMatrix<f64>,
+        settings: &FilterSettings,
+    ) -> Result<Self, FilterError> {
+        let (n, free, outputs) = {
+            let pl = plant.borrow();
+            (pl.states(), pl.parameters().len(), pl.output_names().len())
+        };
+        let l = n + augmented.len();
+        if theta.len() != free || x0.len() != n || p0.shape() != (l, l) {
+            return Err(FilterError::Settings(format!(
+                "{} parameters, {} states and a {}×{} P₀ given; the model has {free} parameters, {n} states and {l} filter states",
+                theta.len(),
+                x0.len(),
+                p0.nrows(),
+                p0.ncols()
+            )));
+        }
+        if augmented.iter().any(|&i| i >= free) {
+            return Err(FilterError::Settings(
+                "an estimated parameter's index is out of range".into(),
+            ));
+        }
+        settings.check(l, outputs)?;
+        let predictor = match settings.linearisation {
+            Linearisation::Unscented { alpha, beta, kappa } => {
+                Predictor::Unscented(SigmaPoints::new(l, alpha, beta, kappa)?)
+            }
+            Linearisation::Extended => Predictor::Extended,
+        };
+        let mut z = DVector::zeros(l);
+        z.rows_mut(0, n).copy_from_slice(x0);
+        for (k, &i) in augmented.iter().enumerate() {
+            z[n + k] = theta[i];
+        }
+        Ok(Self {
+            plant,
+            n,
+            augmented: augmented.to_vec(),
+            theta: theta.to_vec(),
+            z,
+            p: p0,
+            q: DVector::from_column_slice(&settings.noise.process),
+            settings: settings.clone(),
+            predictor,
+            last: None,
+            sample: 0,
+        })
+    }
+
+    /// ẑ now.
+    pub fn estimate(&self) -> &DVector<f64> {
+        &self.z
+    }
+
+    /// P now.
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.p
+    }
+
+    /// L = n + q, the rows of ẑ.
+    pub fn filter_states(&self) -> usize {
+        self.z.len()
+    }
+
+    /// A trajectory with room for `samples` samples of this filter.
+    pub fn trajectory(&self, samples: usize) -> Trajectory {
+        Trajectory::new(self.z.len(), self.settings.noise.measurement.len(), samples)
+    }
+
+    /// Processes the sample at `time` with inputs `u` and measurements `y` (NaN: missing):
+    /// prediction from the last sample, robust correction (module documentation); the
+    /// sample's column (2L + 3p values) into `column`. Gives the prediction errors of the
+    /// present channels and their covariance, for the likelihood.
+    pub fn step(
+        &mut self,
+        time: f64,
+        u: &[f64],
+        y: &[f64],
+        column: &mut [f64],
+    ) -> Result<PredictionErrors, FilterError> {
+        let l = self.z.len();
+        let p_out = self.settings.noise.measurement.len();
+        if y.len() != p_out || column.len() != 2 * l + 3 * p_out {
+            return Err(FilterError::Settings(format!(
+                "{} measurements and a column of {} given at sample {}; the filter has {p_out} measured variables and columns of {}",
+                y.len(),
+                column.len(),
+                self.sample,
+                2 * l + 3 * p_out
+            )));
+        }
+        let (t0, u_held) = match &self.last {
+            Some((t0, u0)) => (*t0, u0.clone()),
+            None => (time, u.to_vec()),
+        };
+        let prediction = {
+            let mut plant = self.plant.borrow_mut();
+            let mut step = Step {
+                plant: &mut plant,
+                states: self.n,
+                augmented: &self.augmented,
+                theta: &self.theta,
+                z: &self.z,
+                p: &self.p,
+                r: &self.settings.noise.measurement,
+                q: self.last.is_some().then_some(&self.q),
+                t0,
+                t1: time,
+                u: &u_held,
+                sample: self.sample,
+            };
+            match &self.predictor {
+                Predictor::Unscented(sigma) => sigma.predict(&mut step)?,
+                Predictor::Extended => crate::ekf::predict(&mut step)?,
+            }
+        };
+        let (z, p, errors) = correct(
+            prediction,
+            y,
+            &self.settings.noise.measurement,
+            self.settings.robust,
+            (self.sample, time),
+            &mut column[2 * l..],
+        )?;
+        if let Some(i) = z.iter().position(|v| !v.is_finite()) {
+            return Err(FilterError::Settings(format!(
+                "the estimate of filter state {i} is not finite at sample {} (t = {time})",
+                self.sample
+            )));
+        }
+        self.z = z;
+        self.p = p;
+        for (k, &i) in self.augmented.iter().enumerate() {
+            self.theta[i] = self.z[self.n + k];
+        }
+        record_state(&self.z, &self.p, column);
+        self.last = Some((time, u.to_vec()));
+        self.sample += 1;
+        Ok(errors)
+    }
+
+    /// Steps through every sample of a record (times, inputs, measurements) into a new
+    /// trajectory.
+    pub fn run(
+        &mut self,
+        time: &[f64],
+        inputs: &[Vec<f64>],
+        outputs: &[Vec<f64>],
+    ) -> Result<Trajectory, FilterError> {
+        let mut trajectory = self.trajectory(time.len());
+        for ((t, u), y) in time.iter().zip(inputs).zip(outputs) {
+            let column = trajectory.next_column(*t)?;
+            self.step(*t, u, y, column)?;
+        }
+        Ok(trajectory)
+    }
+}
