@@ -143,34 +143,30 @@ impl Placed {
     }
 
     /// Sets time `t` and states `x` in `fmu`, each only when it differs from what the FMU
-    /// holds; `call` names the failed call.
+    /// holds; `call` names the failed call. A few instructions a call when both differ (a
+    /// solver's stage), as for a plain set.
+    #[inline(always)]
     fn set<M: ModelExchangeCalls>(
         &mut self,
         fmu: &mut M,
         t: f64,
         x: &[f64],
     ) -> Result<(), (Call, CallError)> {
-        let same_time = self.known && self.t.to_bits() == t.to_bits();
-        let same_states = self.known
-            && self.x.len() == x.len()
-            && self
-                .x
-                .iter()
-                .zip(x)
-                .all(|(a, b)| a.to_bits() == b.to_bits());
-        if same_time && same_states {
-            return Ok(());
-        }
-        self.known = false;
-        if !same_time {
+        let known = std::mem::replace(&mut self.known, false);
+        if !(known && self.t.to_bits() == t.to_bits()) {
             fmu.set_time(t).map_err(|e| (Call::SetTime, e))?;
+            self.t = t;
         }
-        if !same_states && !x.is_empty() {
+        // compared and copied in one pass: the states set are the ones kept
+        let mut same = known;
+        for (kept, &given) in self.x.iter_mut().zip(x) {
+            same &= kept.to_bits() == given.to_bits();
+            *kept = given;
+        }
+        if !same && !x.is_empty() {
             fmu.set_continuous_states(x)
                 .map_err(|e| (Call::SetContinuousStates, e))?;
         }
-        self.t = t;
-        self.x.copy_from_slice(x);
         self.known = true;
         Ok(())
     }
@@ -196,6 +192,7 @@ struct Plant<'a, M> {
 }
 
 impl<M: ModelExchangeCalls> Plant<'_, M> {
+    #[inline]
     fn set(&mut self, t: f64, x: &[f64]) -> Result<(), Failure> {
         self.placed
             .set(self.fmu, t, x)
@@ -206,6 +203,7 @@ impl<M: ModelExchangeCalls> Plant<'_, M> {
 impl<M: ModelExchangeCalls> OdeSystem for Plant<'_, M> {
     type Error = Failure;
 
+    #[inline]
     fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) -> Result<(), Failure> {
         self.set(t, x)?;
         self.fmu.get_derivatives(dx).map_err(|error| Failure {
