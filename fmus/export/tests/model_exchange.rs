@@ -607,6 +607,16 @@ impl spurio_export::ModelExchange for Decay {
     }
 }
 
+/// A Model Exchange instance of `Decay`, initialised (`x = 2`, `k = 1`, `d = 0`), in
+/// Continuous-Time Mode.
+fn decay_in_continuous_time_mode() -> Harness<Decay> {
+    let hooks = spurio_export::model::hooks::<Decay>();
+    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
+    h.initialize(0.0).unwrap();
+    decay_mode(&h, false);
+    h
+}
+
 /// `∂der(x)/∂x` of `Decay` through `fmi2GetDirectionalDerivative`.
 fn decay_slope(h: &Harness<Decay>) -> f64 {
     directional_of::<Decay>(h.component(), &[DER_X], &[X], &[1.0]).unwrap()[0]
@@ -617,10 +627,7 @@ fn decay_slope(h: &Harness<Decay>) -> f64 {
 /// it: a parameter set in Event Mode, an FMU state restored.
 #[test]
 fn the_jacobian_kept_between_directional_derivatives_follows_the_values() {
-    let hooks = spurio_export::model::hooks::<Decay>();
-    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
-    h.initialize(0.0).unwrap();
-    decay_mode(&h, false);
+    let mut h = decay_in_continuous_time_mode();
     assert_eq!(decay_slope(&h), -1.0);
     assert_eq!(decay_slope(&h), -1.0);
     let seeded = directional_of::<Decay>(h.component(), &[DER_X], &[X, D], &[2.0, 1.0]);
@@ -662,10 +669,7 @@ fn decay_mode(h: &Harness<Decay>, event: bool) {
 /// events alone).
 #[test]
 fn tunable_parameters_and_discrete_inputs_are_set_in_event_mode_only_and_read_back() {
-    let hooks = spurio_export::model::hooks::<Decay>();
-    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
-    h.initialize(0.0).unwrap();
-    decay_mode(&h, false);
+    let mut h = decay_in_continuous_time_mode();
     assert_eq!(decay_derivative(&h), -2.0);
     // Continuous-Time Mode: neither the discrete input nor the tunable parameter
     assert_eq!(h.set_real(&[D as u32], &[1.0]), Err(Status::Error));
