@@ -34,6 +34,7 @@ pub mod ekf;
 pub mod filter;
 pub mod fmu_model;
 pub mod plant;
+mod prediction;
 pub mod session;
 pub mod ukf;
 
