@@ -14,6 +14,7 @@ pub mod filter;
 pub mod fmu_model;
 #[cfg(feature = "offline")]
 mod maximum_likelihood;
+pub mod online;
 pub mod plant;
 #[cfg(feature = "offline")]
 pub mod session;
