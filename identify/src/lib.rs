@@ -9,6 +9,7 @@
 //! features, so neither the optimiser nor the session's readers enter it).
 
 pub mod ekf;
+pub mod estimator;
 pub mod filter;
 #[cfg(feature = "offline")]
 pub mod fmu_model;

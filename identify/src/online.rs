@@ -1,6 +1,6 @@
 //! The joint online filter as `spurio identify --method ukf|ekf` and the estimator FMU
 //! (fmus/PlantEstimator) both set it up, so that both give the same θ̂ on the same record
-//! (docs/estimators.md, "Online identification"): z = [x; θ] with every free parameter a
+//! (docs/estimators.md, "Identifying an FMU"): z = [x; θ] with every free parameter a
 //! random-walk state, ẑ₀ = [x₀(θ₀); θ₀], P₀ = diag(σ²_x, σ²_θ) with σ_x,i = 1 % of
 //! max(|x₀,i|, 1) and σ_θ,i = [`PARAMETER_PRIOR`] · max(|θ₀,i|, 10⁻³), Q = diag(Q_x, 0) with
 //! Q_x = [`STATE_PROCESS_NOISE`] per sample (the model is trusted; θ drifts only through the
