@@ -15,6 +15,11 @@
 //! `plan`, `batch` (the values of one FMI call; a running CS or ME instance), `coupled` (the
 //! ME instances of a system, integrated group by group), `exchange`, `algorithm`, `system`,
 //! `results`, `engine`.
+//!
+//! Features: `systems` (default; everything from `description` on, data tables and CSV
+//! records) and `archive` (opening `.fmu` files; implied by `systems`). Without them the crate
+//! is `xml`, `logging`, [`fmu`] (an FMU unpacked into a folder), `record`'s observer trait and
+//! [`model_exchange`] over the solvers: the engine-only build an estimator FMU links.
 
 #![forbid(unsafe_code)]
 
