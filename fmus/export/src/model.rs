@@ -188,10 +188,12 @@ pub trait ModelExchange: FmuModel {
     /// a rail stop, a mode switch — written into the state values in `ctx`.
     fn update_discrete_states(&mut self, ctx: &mut Context) -> Result<EventUpdate, Failure>;
 
-    /// What [`ModelExchange::partial`] reads its entries from, computed once per directional
-    /// derivative by [`ModelExchange::jacobian`]: the Jacobian matrices at the current values,
-    /// the saturation slopes, the mode (`()` where the entries need nothing precomputed).
-    type Jacobian;
+    /// What [`ModelExchange::partial`] reads its entries from, computed by
+    /// [`ModelExchange::jacobian`]: the Jacobian matrices at the current values, the
+    /// saturation slopes, the mode (`()` where the entries need nothing precomputed). The
+    /// layer keeps it for the directional derivatives that follow at the same values
+    /// ([`JacobianCache`]).
+    type Jacobian: 'static;
 
     /// The [`ModelExchange::Jacobian`] at the current values (after
     /// [`ModelExchange::evaluate`]), for the calls of [`ModelExchange::partial`] that follow.
@@ -212,10 +214,11 @@ pub trait ModelExchange: FmuModel {
     /// with respect to the `knowns` (states and inputs), at the current values (after
     /// [`ModelExchange::evaluate`]): `out[i] = Σ_k ∂unknowns[i]/∂knowns[k] · seed[k]` from
     /// [`ModelExchange::partial`]; `seed.len() == knowns.len()`, `out.len() == unknowns.len()`.
-    /// Exact, not finite differences. Serves `fmi2GetDirectionalDerivative`,
+    /// Exact, not finite differences. The layer serves `fmi2GetDirectionalDerivative`,
     /// `fmi3GetDirectionalDerivative` and (with the unknowns and knowns swapped by the
     /// caller) `fmi3GetAdjointDerivative`, also from the Co-Simulation interface, where the
-    /// states are the values the last step left. Models supply the entries, not this sum.
+    /// states are the values the last step left, by the same sum over a Jacobian it keeps
+    /// between calls ([`JacobianCache`]). Models supply the entries, not this sum.
     fn directional_derivative(
         &mut self,
         ctx: &mut Context,
@@ -225,17 +228,80 @@ pub trait ModelExchange: FmuModel {
         out: &mut [f64],
     ) -> Result<(), Failure> {
         let jacobian = self.jacobian(ctx)?;
-        for (o, &unknown) in out.iter_mut().zip(unknowns) {
-            let mut sum = 0.0;
-            // a column whose seed is 0 adds nothing (a unit seed, as Jacobian columns are
-            // asked for, reads one entry per unknown)
-            for (&known, &s) in knowns.iter().zip(seed).filter(|(_, &s)| s != 0.0) {
-                sum += self.partial(&jacobian, unknown, known)? * s;
-            }
-            *o = sum;
-        }
-        Ok(())
+        jacobian_times_seed(self, &jacobian, (unknowns, knowns, seed), out)
     }
+}
+
+/// `out[i] = Σ_k ∂unknowns[i]/∂knowns[k] · seed[k]` from `model`'s
+/// [`ModelExchange::partial`]s of `jacobian` (`request`: the unknowns, the knowns, the seed).
+fn jacobian_times_seed<M: ModelExchange>(
+    model: &M,
+    jacobian: &M::Jacobian,
+    (unknowns, knowns, seed): (&[usize], &[usize], &[f64]),
+    out: &mut [f64],
+) -> Result<(), Failure> {
+    out.fill(0.0);
+    // a column whose seed is 0 adds nothing (a unit seed, as Jacobian columns are asked for,
+    // reads one entry per unknown); each sum runs over the knowns in their order
+    for (&known, &s) in knowns.iter().zip(seed).filter(|(_, &s)| s != 0.0) {
+        for (o, &unknown) in out.iter_mut().zip(unknowns) {
+            *o += model.partial(jacobian, unknown, known)? * s;
+        }
+    }
+    Ok(())
+}
+
+/// The [`ModelExchange::Jacobian`] an instance formed last, kept for the directional
+/// derivatives that follow at the same values. An importer forms `J` column by column (one
+/// `fmi2GetDirectionalDerivative` per unit seed: a Rosenbrock solver's `n` calls a step); each
+/// call would otherwise form the whole of `J` again. Type-erased (the instance does not name
+/// the model's `Jacobian` type); its box is allocated at the first directional derivative
+/// and reused. The instance forgets it whenever the values or the model may have changed: at
+/// every other model call, every value set (time, states, inputs, parameters), an FMU state
+/// set and a reset.
+#[derive(Debug, Default)]
+pub struct JacobianCache {
+    slot: Option<Box<dyn std::any::Any>>,
+    /// Whether `slot` holds the Jacobian at the instance's current values.
+    valid: bool,
+}
+
+impl JacobianCache {
+    /// The values changed: the next directional derivative forms the Jacobian again.
+    #[inline(always)]
+    pub fn forget(&mut self) {
+        self.valid = false;
+    }
+}
+
+/// [`ModelExchange::directional_derivative`] with the Jacobian taken from `cache` when it
+/// is valid, formed (and kept there) otherwise.
+fn directional_derivative_cached<M: ModelExchange>(
+    model: &mut M,
+    ctx: &mut Context,
+    cache: &mut JacobianCache,
+    (unknowns, knowns): (&[usize], &[usize]),
+    seed: &[f64],
+    out: &mut [f64],
+) -> Result<(), Failure> {
+    let valid = std::mem::take(&mut cache.valid);
+    let request = (unknowns, knowns, seed);
+    if let Some(jacobian) = cache
+        .slot
+        .as_mut()
+        .and_then(|slot| slot.downcast_mut::<M::Jacobian>())
+    {
+        if !valid {
+            *jacobian = model.jacobian(ctx)?;
+        }
+        cache.valid = true;
+        return jacobian_times_seed(model, jacobian, request, out);
+    }
+    let jacobian = Box::new(model.jacobian(ctx)?);
+    let result = jacobian_times_seed(model, &jacobian, request, out);
+    cache.slot = Some(jacobian);
+    cache.valid = true;
+    result
 }
 
 /// An FMI 2.0 Co-Simulation model.
@@ -317,10 +383,17 @@ pub struct Hooks<M> {
     pub event_indicators: fn(&mut M, &mut Context, &mut [f64]) -> Result<(), Failure>,
     /// [`ModelExchange::update_discrete_states`].
     pub update_discrete_states: fn(&mut M, &mut Context) -> Result<EventUpdate, Failure>,
-    /// [`ModelExchange::directional_derivative`].
+    /// [`ModelExchange::directional_derivative`] over the Jacobian kept in the cache:
+    /// (model, context, cache, (unknowns, knowns), seed, out).
     #[allow(clippy::type_complexity)]
-    pub directional_derivative:
-        fn(&mut M, &mut Context, &[usize], &[usize], &[f64], &mut [f64]) -> Result<(), Failure>,
+    pub directional_derivative: fn(
+        &mut M,
+        &mut Context,
+        &mut JacobianCache,
+        (&[usize], &[usize]),
+        &[f64],
+        &mut [f64],
+    ) -> Result<(), Failure>,
 }
 
 impl<M> Clone for Hooks<M> {
@@ -336,6 +409,6 @@ pub fn hooks<M: ModelExchange>() -> Hooks<M> {
         evaluate: M::evaluate,
         event_indicators: M::event_indicators,
         update_discrete_states: M::update_discrete_states,
-        directional_derivative: M::directional_derivative,
+        directional_derivative: directional_derivative_cached::<M>,
     }
 }

@@ -122,12 +122,22 @@ fn directional(
     knowns: &[usize],
     seed: &[f64],
 ) -> Result<Vec<f64>, fmi2Status> {
+    directional_of::<Toy>(c, unknowns, knowns, seed)
+}
+
+/// `fmi2GetDirectionalDerivative` of an instance of `M`.
+fn directional_of<M: FmuModel>(
+    c: fmi2Component,
+    unknowns: &[usize],
+    knowns: &[usize],
+    seed: &[f64],
+) -> Result<Vec<f64>, fmi2Status> {
     let u: Vec<u32> = unknowns.iter().map(|&i| i as u32).collect();
     let k: Vec<u32> = knowns.iter().map(|&i| i as u32).collect();
     let mut out = vec![f64::NAN; u.len()];
     let s = unsafe {
         let (u, k) = ((u.as_ptr(), u.len()), (k.as_ptr(), k.len()));
-        me2::get_directional_derivative::<Toy>(c, u, k, seed.as_ptr(), out.as_mut_ptr())
+        me2::get_directional_derivative::<M>(c, u, k, seed.as_ptr(), out.as_mut_ptr())
     };
     if s == fmi2OK {
         Ok(out)
@@ -578,18 +588,58 @@ impl spurio_export::ModelExchange for Decay {
     ) -> Result<spurio_export::EventUpdate, spurio_export::Failure> {
         Ok(spurio_export::EventUpdate::default())
     }
-    type Jacobian = ();
-    fn jacobian(&mut self, _ctx: &spurio_export::Context) -> Result<(), spurio_export::Failure> {
-        Ok(())
+    /// `∂der(x)/∂x = −k` (the layer keeps it between directional derivatives).
+    type Jacobian = f64;
+    fn jacobian(&mut self, ctx: &spurio_export::Context) -> Result<f64, spurio_export::Failure> {
+        Ok(-ctx.values.real(K))
     }
     fn partial(
         &self,
-        _: &(),
-        _unknown: usize,
-        _known: usize,
+        slope: &f64,
+        unknown: usize,
+        known: usize,
     ) -> Result<f64, spurio_export::Failure> {
-        Ok(0.0)
+        Ok(match (unknown, known) {
+            (DER_X, X) => *slope,
+            (DER_X, D) => 1.0,
+            _ => 0.0,
+        })
     }
+}
+
+/// A Model Exchange instance of `Decay`, initialised (`x = 2`, `k = 1`, `d = 0`), in
+/// Continuous-Time Mode.
+fn decay_in_continuous_time_mode() -> Harness<Decay> {
+    let hooks = spurio_export::model::hooks::<Decay>();
+    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
+    h.initialize(0.0).unwrap();
+    decay_mode(&h, false);
+    h
+}
+
+/// `∂der(x)/∂x` of `Decay` through `fmi2GetDirectionalDerivative`.
+fn decay_slope(h: &Harness<Decay>) -> f64 {
+    directional_of::<Decay>(h.component(), &[DER_X], &[X], &[1.0]).unwrap()[0]
+}
+
+/// The layer keeps the Jacobian between directional derivatives at the same values (an
+/// importer asks for it column by column) and forms it again after anything that may change
+/// it: a parameter set in Event Mode, an FMU state restored.
+#[test]
+fn the_jacobian_kept_between_directional_derivatives_follows_the_values() {
+    let mut h = decay_in_continuous_time_mode();
+    assert_eq!(decay_slope(&h), -1.0);
+    assert_eq!(decay_slope(&h), -1.0);
+    let seeded = directional_of::<Decay>(h.component(), &[DER_X], &[X, D], &[2.0, 1.0]);
+    assert_eq!(seeded, Ok(vec![-1.0]));
+    let before = h.serialized_state().unwrap();
+    decay_mode(&h, true);
+    assert_eq!(h.set_real(&[K as u32], &[3.0]), Ok(Status::Ok));
+    assert_eq!(decay_slope(&h), -3.0);
+    assert_eq!(h.set_real(&[K as u32], &[5.0]), Ok(Status::Ok));
+    assert_eq!(decay_slope(&h), -5.0);
+    assert_eq!(h.restore_state(&before), Ok(Status::Ok));
+    assert_eq!(decay_slope(&h), -1.0);
 }
 
 /// The derivative of `Decay` through `fmi2GetDerivatives`.
@@ -619,10 +669,7 @@ fn decay_mode(h: &Harness<Decay>, event: bool) {
 /// events alone).
 #[test]
 fn tunable_parameters_and_discrete_inputs_are_set_in_event_mode_only_and_read_back() {
-    let hooks = spurio_export::model::hooks::<Decay>();
-    let mut h = Harness::model_exchange(&Config::new(), hooks).unwrap();
-    h.initialize(0.0).unwrap();
-    decay_mode(&h, false);
+    let mut h = decay_in_continuous_time_mode();
     assert_eq!(decay_derivative(&h), -2.0);
     // Continuous-Time Mode: neither the discrete input nor the tunable parameter
     assert_eq!(h.set_real(&[D as u32], &[1.0]), Err(Status::Error));

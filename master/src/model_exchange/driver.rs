@@ -118,25 +118,92 @@ struct Failure {
     error: CallError,
 }
 
+/// The time and continuous states the driver last gave the FMU in continuous-time mode
+/// (`SetTime`, `SetContinuousStates`), so that a call at the same point sets nothing again:
+/// the Jacobian's columns, the indicators after a step at the state the step's last
+/// derivative was taken at, the derivative after an event at the state read back. A set
+/// value the FMU takes as new makes it evaluate its equations again; the same value would
+/// give the same result. Forgotten whenever the FMU may have changed its states itself (an
+/// event iteration) or a call failed; compared bit for bit.
+#[derive(Debug, Clone)]
+struct Placed {
+    t: f64,
+    x: Vec<f64>,
+    /// Whether `t` and `x` are what the FMU holds.
+    known: bool,
+}
+
+impl Placed {
+    fn new(n: usize) -> Self {
+        Self {
+            t: f64::NAN,
+            x: vec![0.0; n],
+            known: false,
+        }
+    }
+
+    /// Sets time `t` and states `x` in `fmu`, each only when it differs from what the FMU
+    /// holds; `call` names the failed call. A few instructions a call when both differ (a
+    /// solver's stage), as for a plain set.
+    #[inline(always)]
+    fn set<M: ModelExchangeCalls>(
+        &mut self,
+        fmu: &mut M,
+        t: f64,
+        x: &[f64],
+    ) -> Result<(), (Call, CallError)> {
+        let known = std::mem::replace(&mut self.known, false);
+        if !(known && self.t.to_bits() == t.to_bits()) {
+            fmu.set_time(t).map_err(|e| (Call::SetTime, e))?;
+            self.t = t;
+        }
+        // compared and copied in one pass: the states set are the ones kept
+        let mut same = known;
+        for (kept, &given) in self.x.iter_mut().zip(x) {
+            same &= kept.to_bits() == given.to_bits();
+            *kept = given;
+        }
+        if !same && !x.is_empty() {
+            fmu.set_continuous_states(x)
+                .map_err(|e| (Call::SetContinuousStates, e))?;
+        }
+        self.known = true;
+        Ok(())
+    }
+
+    /// Takes `(t, x)` as what the FMU holds (it was just set there, or read there).
+    fn note(&mut self, t: f64, x: &[f64]) {
+        self.t = t;
+        self.x.copy_from_slice(x);
+        self.known = true;
+    }
+
+    /// What the FMU holds is no longer known.
+    fn forget(&mut self) {
+        self.known = false;
+    }
+}
+
 /// The FMU as the solver sees it: `f(t, x)` by `SetTime`, `SetContinuousStates`,
 /// `GetDerivatives`; `J v` by `GetDirectionalDerivative`.
 struct Plant<'a, M> {
     fmu: &'a mut M,
+    placed: &'a mut Placed,
 }
 
 impl<M: ModelExchangeCalls> Plant<'_, M> {
+    #[inline]
     fn set(&mut self, t: f64, x: &[f64]) -> Result<(), Failure> {
-        let fail = |call| move |error| Failure { call, error };
-        self.fmu.set_time(t).map_err(fail(Call::SetTime))?;
-        self.fmu
-            .set_continuous_states(x)
-            .map_err(fail(Call::SetContinuousStates))
+        self.placed
+            .set(self.fmu, t, x)
+            .map_err(|(call, error)| Failure { call, error })
     }
 }
 
 impl<M: ModelExchangeCalls> OdeSystem for Plant<'_, M> {
     type Error = Failure;
 
+    #[inline]
     fn rhs(&mut self, t: f64, x: &[f64], dx: &mut [f64]) -> Result<(), Failure> {
         self.set(t, x)?;
         self.fmu.get_derivatives(dx).map_err(|error| Failure {
@@ -221,7 +288,11 @@ pub struct Stepper {
     z_new: Vec<f64>,
     za: Vec<f64>,
     zm: Vec<f64>,
+    /// The indicators at the place of the bracket's end before its last move (location).
+    zp: Vec<f64>,
     scratch: Vec<f64>,
+    /// What the FMU holds of time and states.
+    placed: Placed,
     /// The time event the FMU announced last.
     next_event_time: Option<f64>,
     /// The last event's time and how many events happened at it (chattering).
@@ -257,7 +328,9 @@ impl Stepper {
             z_new: zeros(m),
             za: zeros(m),
             zm: zeros(m),
+            zp: zeros(m),
             scratch: zeros(n),
+            placed: Placed::new(n),
             next_event_time: None,
             last_event_time: f64::NEG_INFINITY,
             events_here: 0,
@@ -331,13 +404,13 @@ impl Stepper {
     /// Sets the time and the states (the solution at `t`, from the dense output when `t` is
     /// inside the last step).
     fn place<M: ModelExchangeCalls>(&mut self, fmu: &mut M, t: f64) -> Result<(), MeError> {
-        fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
         if !self.x.is_empty() {
             self.solver.interpolate(t, &mut self.scratch);
-            let set = fmu.set_continuous_states(&self.scratch);
-            set.map_err(self.failed(Call::SetContinuousStates, t))?;
         }
-        Ok(())
+        match self.placed.set(fmu, t, &self.scratch) {
+            Ok(()) => Ok(()),
+            Err((call, e)) => Err(self.failed(call, t)(e)),
+        }
     }
 
     /// The event indicators of the FMU as it is (at `t`) into `which`; a NaN is an error.
@@ -403,6 +476,16 @@ impl Stepper {
     /// Locates the first sign change of an indicator in `(a, b]`, `z_old` holding the
     /// indicators at `a` and `z_new` those at `b` (module docs): the time at the bracket's
     /// right end and the indicator; `z_new` then holds the indicators there.
+    ///
+    /// Each iteration evaluates the indicators at one time inside the bracket: for every
+    /// indicator that changes sign over it, the regula falsi estimate `a − z(a)(b − a)/(z(b) −
+    /// z(a))`, or, when the same end moved in the last two iterations (the estimates
+    /// approach the root from one side, as regula falsi does on a convex indicator), the
+    /// secant through that end's last two places, `t₁ − z(t₁)(t₁ − t₀)/(z(t₁) − z(t₀))`, if it
+    /// falls inside the bracket (superlinear, where regula falsi only shaves the bracket);
+    /// the earliest estimate, kept half the tolerance inside the bracket, so that an estimate
+    /// next to the root closes the bracket from the other side at the next evaluation.
+    /// Bisection when the bracket has not halved in four iterations.
     fn locate<M: ModelExchangeCalls>(
         &mut self,
         fmu: &mut M,
@@ -411,30 +494,41 @@ impl Stepper {
     ) -> Result<(f64, usize), MeError> {
         let (mut a, mut b) = (a, b);
         self.za.copy_from_slice(&self.z_old);
-        let (mut weight_a, mut weight_b) = (1.0, 1.0);
-        // Which end was kept by the last iteration (Illinois: twice the same end halves its
-        // weight).
-        let mut kept_a_last = None;
-        let mut widths = [b - a; 3];
+        // The end that moved in the last iteration (true: b), whether it also moved in the
+        // one before, and its place before its last move (its indicators in `zp`).
+        let mut moved_b = None;
+        let mut one_sided = false;
+        let mut before = f64::NAN;
+        let mut widths = [b - a; 5];
         for iteration in 0..400 {
             if b - a <= event_time_tolerance(b) {
                 break;
             }
             let mut estimate = f64::INFINITY;
             for i in 0..self.za.len() {
-                if crossed(self.za[i], self.z_new[i]) {
-                    let (fa, fb) = (weight_a * self.za[i], weight_b * self.z_new[i]);
-                    let t = if fa == fb {
-                        b
-                    } else {
-                        a + (b - a) * fa / (fa - fb)
-                    };
-                    estimate = estimate.min(t);
+                let (za, zb) = (self.za[i], self.z_new[i]);
+                if !crossed(za, zb) {
+                    continue;
                 }
+                let falsi = if za == zb {
+                    b
+                } else {
+                    a + (b - a) * za / (za - zb)
+                };
+                let secant = match moved_b {
+                    Some(end_b) if one_sided => {
+                        let (t1, z1) = if end_b { (b, zb) } else { (a, za) };
+                        let (t0, z0) = (before, self.zp[i]);
+                        let t = t1 - z1 * (t1 - t0) / (z1 - z0);
+                        (t > a && t < b).then_some(t)
+                    }
+                    _ => None,
+                };
+                estimate = estimate.min(secant.unwrap_or(falsi));
             }
-            widths = [widths[1], widths[2], b - a];
-            let stalled = iteration >= 2 && widths[2] > 0.5 * widths[0];
-            let margin = 0.01 * (b - a);
+            widths = [widths[1], widths[2], widths[3], widths[4], b - a];
+            let stalled = iteration >= 4 && widths[4] > 0.5 * widths[0];
+            let margin = 0.5 * event_time_tolerance(b);
             let t = if stalled || !estimate.is_finite() {
                 0.5 * (a + b)
             } else {
@@ -443,21 +537,19 @@ impl Stepper {
             self.place(fmu, t)?;
             self.read_indicators(fmu, t, Buffer::Middle)?;
             let crossing = (0..self.za.len()).any(|i| crossed(self.za[i], self.zm[i]));
-            let (moved, kept) = if crossing {
+            if crossing {
+                before = b;
+                self.zp.copy_from_slice(&self.z_new);
                 b = t;
                 self.z_new.copy_from_slice(&self.zm);
-                (&mut weight_b, &mut weight_a)
             } else {
+                before = a;
+                self.zp.copy_from_slice(&self.za);
                 a = t;
                 self.za.copy_from_slice(&self.zm);
-                (&mut weight_a, &mut weight_b)
-            };
-            // Illinois: the end kept twice in a row has its weight halved.
-            *moved = 1.0;
-            if kept_a_last == Some(crossing) {
-                *kept *= 0.5;
             }
-            kept_a_last = Some(crossing);
+            one_sided = moved_b == Some(crossing);
+            moved_b = Some(crossing);
         }
         let indicator = (0..self.za.len())
             .find(|&i| crossed(self.za[i], self.z_new[i]))
@@ -510,8 +602,12 @@ impl Stepper {
     fn resume<M: ModelExchangeCalls>(&mut self, fmu: &mut M, t: f64) -> Result<(), MeError> {
         let entered = fmu.enter_continuous_time_mode();
         entered.map_err(self.failed(Call::EnterContinuousTimeMode, t))?;
-        self.restart(fmu, t)?;
+        // the time first: the states read next and the indicators then come from one
+        // evaluation of the FMU
         fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
+        self.restart(fmu, t)?;
+        // the FMU holds the states just read, at `t`
+        self.placed.note(t, &self.x);
         if !self.z_old.is_empty() {
             let read = fmu.get_event_indicators(&mut self.z_old);
             read.map_err(self.failed(Call::GetEventIndicators, t))?;
@@ -583,6 +679,7 @@ impl Stepper {
         self.t = t;
         self.last_event_time = f64::NEG_INFINITY;
         self.events_here = 0;
+        self.placed.forget();
         fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
         if !x.is_empty() {
             let set = fmu.set_continuous_states(x);
@@ -621,6 +718,7 @@ impl Stepper {
         fmu: &mut M,
     ) -> Result<Advance, MeError> {
         let t = self.t;
+        self.placed.forget();
         let update = self.iterate_events(fmu, t)?;
         self.next_event_time = update.next_event_time;
         if update.terminate_simulation {
@@ -640,6 +738,7 @@ impl Stepper {
         on_event: &mut dyn FnMut(&Event),
     ) -> Result<Advance, MeError> {
         let t = self.t;
+        self.placed.forget();
         self.restart(fmu, t)?;
         if self.z_old.is_empty() {
             return Ok(Advance::Reached(t));
@@ -697,6 +796,8 @@ impl Stepper {
         }
         self.last_event_time = t;
         on_event(&Event { time: t, kind });
+        // the event iteration may change the states
+        self.placed.forget();
         fmu.enter_event_mode()
             .map_err(self.failed(Call::EnterEventMode, t))?;
         let update = self.iterate_events(fmu, t)?;
@@ -723,6 +824,8 @@ impl Stepper {
         let n = self.x.len();
         let m = self.z_old.len();
         let mut steps_in_interval = 0usize;
+        // the caller may have placed the FMU elsewhere since the last advance
+        self.placed.forget();
         while self.t < t_end {
             let t = self.t;
             // A time event announced at or before the current time is due now: handled at `t`
@@ -749,7 +852,10 @@ impl Stepper {
                         ),
                     });
                 }
-                let mut plant = Plant { fmu: &mut *fmu };
+                let mut plant = Plant {
+                    fmu: &mut *fmu,
+                    placed: &mut self.placed,
+                };
                 match self.solver.step(&mut plant, limit) {
                     Ok(t_new) => t_new,
                     Err(e) => return Err(self.solver_error(e)),

@@ -9,14 +9,21 @@
 //! values, enter and exit initialisation mode, then the event iteration (`fmi2NewDiscreteStates`
 //! / `fmi3UpdateDiscreteStates` until no new iteration is needed), continuous-time mode, and
 //! per solver step `SetTime`, `SetContinuousStates`, `GetDerivatives` for each stage; after an
-//! accepted step the event indicators, then `CompletedIntegratorStep`.
+//! accepted step the event indicators, then `CompletedIntegratorStep`. A time or states equal
+//! (bit for bit) to those the FMU holds are not set again (the Jacobian's columns, the
+//! indicators at the point the step's last derivative was taken at), so the FMU does not
+//! evaluate its equations again for the same point.
 //!
 //! **Events.** A *state event* is a change of sign of an event indicator `zᵢ` over an accepted
 //! step (from `zᵢ > 0` to `zᵢ ≤ 0` or from `zᵢ ≤ 0` to `zᵢ > 0`); its time is located on the
-//! solver's dense output by the Illinois variant of regula falsi on the indicator whose
-//! crossing is estimated first (bisection when the bracket does not halve), to a bracket of
-//! [`event_time_tolerance`] `= 10⁻¹² · max(1, |t|)`, and taken at the bracket's right end (the
-//! indicator has changed sign there, so the FMU sees the event). A *time event* happens at
+//! solver's dense output by regula falsi on the indicator whose crossing is estimated first,
+//! the secant through the last two places of an end that moved twice in a row (so a convex
+//! indicator is not approached from one side only), each estimate kept half the tolerance
+//! inside the bracket (an estimate next to the root closes the bracket at the next
+//! evaluation) and bisection when the bracket does not halve in four iterations, to a
+//! bracket of [`event_time_tolerance`] `= 10⁻¹² · max(1, |t|)`, and taken at the bracket's
+//! right end (the indicator has changed sign there, so the FMU sees the event); about four
+//! indicator evaluations an event on WindGenerator's angle wraps. A *time event* happens at
 //! the `nextEventTime` the FMU announced: the solver steps end exactly on it (one announced at
 //! or before the current time is due at once, without a step; a NaN one is an error). A *step
 //! event* is asked by `CompletedIntegratorStep`. After every event the continuous states and their

@@ -8,7 +8,7 @@ use super::interface::{Interface, WINDOW};
 use super::log::Logger;
 use super::state::{fmi2 as functions, state_name, state_names, Function, ModelState};
 use crate::description::ModelInfo;
-use crate::model::{Cause, FmuModel, Hooks};
+use crate::model::{Cause, FmuModel, Hooks, JacobianCache};
 use crate::types::Status;
 use crate::values::Values;
 use std::path::PathBuf;
@@ -60,6 +60,8 @@ pub struct Instance<M: FmuModel> {
     /// The directional derivative's result before it is checked and published (a reused
     /// buffer: one element per Real variable, so no call allocates).
     pub(crate) directional: Vec<f64>,
+    /// The Jacobian the model formed last, while the values it was formed at hold.
+    pub(crate) jacobian: JacobianCache,
 }
 
 /// The event indicators of a Model Exchange instance, computed when they are read: by
@@ -132,6 +134,7 @@ impl<M: FmuModel> Instance<M> {
             },
             before_window: [0.0; WINDOW],
             directional: Vec::with_capacity(interface.info.variables.len()),
+            jacobian: JacobianCache::default(),
             interface,
             logger,
             me: None,
@@ -318,6 +321,7 @@ impl<M: FmuModel> Instance<M> {
     pub fn reset_as(&mut self, f: &Function) -> Status {
         match M::create_with_resources(&self.interface.info, self.resources.as_deref()) {
             Ok(model) => {
+                self.jacobian.forget();
                 self.core = Core {
                     model,
                     values: Values::from_start(&self.interface.info.variables),

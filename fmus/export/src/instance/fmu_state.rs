@@ -26,6 +26,7 @@ impl<M: FmuModel> Instance<M> {
     pub fn set_state(&mut self, core: &Core<M>) {
         self.core = core.clone();
         self.indicators.invalidate();
+        self.jacobian.forget();
     }
 
     /// `fmi2SerializeFMUstate`: the bytes of a state.

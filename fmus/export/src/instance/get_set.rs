@@ -255,6 +255,7 @@ impl<M: FmuModel> Instance<M> {
     /// Mode (the model is told).
     #[inline(always)]
     pub(crate) fn values_set(&mut self, f: &Function, flags: u32) -> Status {
+        self.jacobian.forget();
         let parameters = flags & Access::PARAMETER != 0;
         // Model Exchange: a tunable parameter set in Event Mode changes the derivatives and
         // outputs read next, as an input does.

@@ -207,6 +207,7 @@ impl<M: FmuModel> Instance<M> {
         }
         self.core.time = time;
         self.core.inputs_changed = true;
+        self.jacobian.forget();
         Status::Ok
     }
 
@@ -239,6 +240,7 @@ impl<M: FmuModel> Instance<M> {
             self.core.values.set_real(i, *value);
         }
         self.core.inputs_changed = true;
+        self.jacobian.forget();
         Status::Ok
     }
 
@@ -444,9 +446,14 @@ impl<M: FmuModel> Instance<M> {
         let mut result = std::mem::take(&mut self.directional);
         result.clear();
         result.resize(out.len(), 0.0);
+        // the Jacobian kept from the last call at the same values (a model call forgets it:
+        // taken out around this one)
+        let mut jacobian = std::mem::take(&mut self.jacobian);
         status = status.max(self.run_model(f, |m, ctx| {
-            (hooks.directional_derivative)(m, ctx, unknowns, knowns, seed, &mut result)
+            let request = (unknowns, knowns);
+            (hooks.directional_derivative)(m, ctx, &mut jacobian, request, seed, &mut result)
         }));
+        self.jacobian = jacobian;
         let published = if status > Status::Warning {
             Err(status)
         } else {

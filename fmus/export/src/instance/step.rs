@@ -34,6 +34,8 @@ impl<M: FmuModel> Instance<M> {
         f: &Function,
         call: impl FnOnce(&mut M, &mut Context) -> Result<(), Failure>,
     ) -> Status {
+        // the call may change the values or the model: a Jacobian kept is stale
+        self.jacobian.forget();
         self.save_computed();
         let mut ctx = Context::at(&mut self.core.values, self.core.time);
         ctx.log_events = self.logger.events;
