@@ -29,8 +29,8 @@
 //! (ẋ = A x, y = C x) every difference is exact up to the integrator's error, and the filter
 //! is the Kalman filter of the sampled system (x_{k+1} = e^{Ah} x_k).
 
-use crate::filter::{symmetrise, FilterError, Prediction, Step};
 use crate::plant::Start;
+use crate::prediction::{symmetrise, FilterError, Prediction, Step};
 use nalgebra::{DMatrix, DVector};
 
 /// δᵢ / max(|ẑᵢ|, 1) of the central differences (module documentation): the truncation

@@ -26,7 +26,9 @@
 //! columns allocated once for the record), rows [ẑ (L); √diag P (L); e (p); √Sⱼⱼ (p);
 //! w (p)], L = n + q: [`Trajectory`].
 
-use crate::plant::{FmuPlant, PlantError};
+use crate::plant::FmuPlant;
+pub use crate::prediction::FilterError;
+use crate::prediction::{symmetrise, Prediction, Step};
 use crate::ukf::SigmaPoints;
 use nalgebra::{Cholesky, DMatrix, DVector};
 use spurio::estimation::{InfluenceFunction, MIN_WEIGHT};
@@ -110,43 +112,6 @@ impl FilterSettings {
         }
         Ok(())
     }
-}
-
-/// Why a filter step failed.
-#[derive(Debug, thiserror::Error)]
-pub enum FilterError {
-    #[error(transparent)]
-    Plant(#[from] PlantError),
-    #[error(
-        "at sample {sample} (t = {time}): the {what} is not positive definite (or not finite)"
-    )]
-    NotPositive {
-        what: &'static str,
-        sample: usize,
-        time: f64,
-    },
-    #[error("the filter's settings: {0}")]
-    Settings(String),
-}
-
-/// ½(P + Pᵀ).
-pub(crate) fn symmetrise(p: &mut DMatrix<f64>) {
-    let t = p.transpose();
-    *p += t;
-    *p *= 0.5;
-}
-
-/// The prediction a filter hands to [`correct`].
-pub(crate) struct Prediction {
-    /// ẑ⁻ and P⁻.
-    pub z: DVector<f64>,
-    pub p: DMatrix<f64>,
-    /// ŷ, S = cov(y) + R and C = cov(z, y).
-    pub y: DVector<f64>,
-    pub s: DMatrix<f64>,
-    pub cross: DMatrix<f64>,
-    /// H, for the Joseph form (EKF).
-    pub jacobian: Option<DMatrix<f64>>,
 }
 
 /// The prediction errors of the present channels and their covariance S (before the robust
@@ -337,40 +302,6 @@ pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64
     column[..l].copy_from_slice(z.as_slice());
     for i in 0..l {
         column[l + i] = p[(i, i)].max(0.0).sqrt();
-    }
-}
-
-/// The point a prediction starts from: the filter's ẑ, P, the parameters outside z, the
-/// inputs held and the interval.
-pub(crate) struct Step<'a> {
-    pub plant: &'a mut FmuPlant,
-    /// n.
-    pub states: usize,
-    /// Indices (into θ) of the parameters in z.
-    pub augmented: &'a [usize],
-    /// Every free parameter's value (those in z taken from ẑ).
-    pub theta: &'a [f64],
-    pub z: &'a DVector<f64>,
-    pub p: &'a DMatrix<f64>,
-    /// R.
-    pub r: &'a [f64],
-    /// diag Q, added to P⁻ (None at the first sample, which only evaluates y at the prior).
-    pub q: Option<&'a DVector<f64>>,
-    /// [t₀, t₁] (t₀ = t₁ at the first sample: y evaluated at the prior) and u held over it.
-    pub t0: f64,
-    pub t1: f64,
-    pub u: &'a [f64],
-    /// The sample, for messages.
-    pub sample: usize,
-}
-
-impl Step<'_> {
-    /// θ with the parameters of z taken from `z`, into `theta`.
-    pub fn parameters_of(&self, z: &[f64], theta: &mut [f64]) {
-        theta.copy_from_slice(self.theta);
-        for (k, &i) in self.augmented.iter().enumerate() {
-            theta[i] = z[self.states + k];
-        }
     }
 }
 

@@ -17,6 +17,7 @@ pub mod fmu_model;
 mod maximum_likelihood;
 pub mod online;
 pub mod plant;
+mod prediction;
 #[cfg(feature = "offline")]
 pub mod session;
 pub mod ukf;

@@ -32,8 +32,8 @@
 //! prediction errors are then the output errors of a simulation); a sigma point equal to the
 //! mean is not integrated again (its image is the mean's).
 
-use crate::filter::{symmetrise, FilterError, Prediction, Step};
 use crate::plant::Start;
+use crate::prediction::{symmetrise, FilterError, Prediction, Step};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// A square root S of `p` (S Sᵀ = P, module documentation): the lower Cholesky factor, or,
