@@ -402,9 +402,14 @@ impl Filter {
         self.z.len()
     }
 
+    /// p, the measured variables.
+    pub fn measured(&self) -> usize {
+        self.settings.noise.measurement.len()
+    }
+
     /// A trajectory with room for `samples` samples of this filter.
     pub fn trajectory(&self, samples: usize) -> Trajectory {
-        Trajectory::new(self.z.len(), self.settings.noise.measurement.len(), samples)
+        Trajectory::new(self.z.len(), self.measured(), samples)
     }
 
     /// Processes the sample at `time` with inputs `u` and measurements `y` (NaN: missing):

@@ -16,8 +16,9 @@
 //! |ρ̂(τ)| ≤ 1.96/√N at 95 % for each lag; the report gives the lags outside the band and
 //! the Ljung–Box statistic Q = N(N+2) Σ ρ̂(τ)²/(N−τ) against χ²₂₀'s 95 % quantile 31.41.
 
-use crate::filter::{Filter, FilterError, FilterSettings, Linearisation, Noise, Trajectory};
+use crate::filter::{Filter, FilterError, FilterSettings, Linearisation, Trajectory};
 use crate::fmu_model::{variance_name, FmuModel, Loss};
+use crate::online;
 use crate::plant::{integration, FmuPlant, PlantError, PlantSpec};
 use crate::{maximise_likelihood, Estimate, FreeParameter, IdentifyError, Options};
 use nalgebra::{DMatrix, DVector};
@@ -28,10 +29,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-/// The online filter's prior standard deviation of a parameter, relative to its start value:
-/// wider, the sigma points of a hybrid model's parameter leave its meaningful range
-/// (BouncingBall's e from 0.7 ± 0.6 bounces with gain).
-pub const PARAMETER_PRIOR: f64 = 0.2;
+pub use crate::online::PARAMETER_PRIOR;
 
 /// |standardised innovation| above which a sample is an outlier.
 pub const OUTLIER_THRESHOLD: f64 = 3.0;
@@ -175,13 +173,6 @@ pub struct Outcome {
     /// The samples estimated on (the first ones) and validated on (the last ones).
     pub samples: (usize, usize),
     pub seconds: f64,
-}
-
-/// x̂₀'s variance per state: (1 % of max(|x₀|, 1))².
-fn state_variance(x0: &[f64]) -> Vec<f64> {
-    x0.iter()
-        .map(|x| (0.01 * x.abs().max(1.0)).powi(2))
-        .collect()
 }
 
 /// σ² of each measured variable from the data: (1.4826 MAD(Δy))² / 2, a robust estimate of
@@ -343,26 +334,21 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
     let free = starts.len();
     let linearisation = request.method.linearisation();
     // Q_x per sample on the states, Q_θ = 0 on `q` parameters in z.
-    let settings = |state: f64, q: usize, robust, noise: &[f64]| FilterSettings {
-        noise: Noise::new(state, n, 0.0, q, noise),
-        robust,
-        linearisation,
+    let settings = |state: f64, q: usize, robust, noise: &[f64]| {
+        online::settings(state, n, q, noise, robust, linearisation)
     };
     let mut estimates = Vec::new();
     let mut trajectory = None;
     let theta: Vec<f64> = match request.method {
         Method::Ukf | Method::Ekf => {
-            let mut p0 = state_variance(&x0);
-            p0.extend(
-                starts
-                    .iter()
-                    .map(|s| (PARAMETER_PRIOR * s.abs().max(1e-3)).powi(2)),
-            );
-            let augmented: Vec<usize> = (0..free).collect();
-            plant.borrow_mut().start_afresh();
-            let p0 = DMatrix::from_diagonal(&DVector::from_vec(p0));
-            let online = settings(1e-10, free, request.robust.influence(), &noise);
-            let mut filter = Filter::new(plant.clone(), &starts, &augmented, &x0, p0, &online)?;
+            let mut filter = online::joint_filter(
+                &plant,
+                &starts,
+                &x0,
+                &noise,
+                request.robust.influence(),
+                linearisation,
+            )?;
             let run = filter.run(&head.time, &head.inputs, &head.outputs)?;
             let last = run.len().checked_sub(1);
             for (i, name) in request.plant.free.iter().enumerate() {
@@ -447,8 +433,13 @@ pub fn identify(request: &Request, data: &Data) -> Result<Outcome, SessionError>
         &plant,
         &theta,
         &x0,
-        &state_variance(&x0),
-        &settings(1e-10, 0, request.robust.influence(), &noise),
+        &online::state_variance(&x0),
+        &settings(
+            online::STATE_PROCESS_NOISE,
+            0,
+            request.robust.influence(),
+            &noise,
+        ),
         data,
     )?;
     let simulation = filter_run(

@@ -15,42 +15,57 @@
 //! `plan`, `batch` (the values of one FMI call; a running CS or ME instance), `coupled` (the
 //! ME instances of a system, integrated group by group), `exchange`, `algorithm`, `system`,
 //! `results`, `engine`.
+//!
+//! Features: `systems` (default; everything from `description` on, data tables and CSV
+//! records) and `archive` (opening `.fmu` files; implied by `systems`). Without them the crate
+//! is `xml`, `logging`, [`fmu`] (an FMU unpacked into a folder), `record`'s observer trait and
+//! [`model_exchange`] over the solvers: the engine-only build an estimator FMU links.
 
 #![forbid(unsafe_code)]
 
-mod algorithm;
-mod batch;
-mod coupled;
-mod coupling;
-/// The data source's table: the reader and interpolation it shares with the `TimeTable` FMU.
-use spurio_table as data;
-mod description;
-mod engine;
-mod error;
-mod exchange;
+/// The items of feature `systems` (systems of FMUs: descriptions, plan, engine, records).
+macro_rules! systems {
+    ($($item:item)*) => { $( #[cfg(feature = "systems")] $item )* };
+}
+
+systems! {
+    mod algorithm;
+    mod batch;
+    mod coupled;
+    mod coupling;
+    mod description;
+    mod engine;
+    mod error;
+    mod exchange;
+    mod monitor;
+    mod plan;
+    mod results;
+    pub mod ssp;
+    mod system;
+    /// The data source's table: the reader and interpolation it shares with the `TimeTable` FMU.
+    use spurio_table as data;
+
+    pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
+    pub use coupling::{
+        propagation_order, Connection, Integration, Propagation, PropagationStep, ResolvedInstance,
+        VarRef,
+    };
+    pub use data::{read_text_at_most, Cursor, DataError, DataTable, Interpolation, Reading};
+    pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
+    pub use engine::{RunEnd, RunOptions, Simulation};
+    pub use error::{FmiFailure, RunError, SystemError};
+    pub use exchange::{Exchange, StepOutcome};
+    pub use monitor::{CallInProgress, CallMonitor};
+    pub use plan::{Op, Plan, Recorded, Transfer};
+    pub use record::CsvWriter;
+    pub use results::{ResultTable, ResultsError, MAX_RESULTS_BYTES};
+    pub use system::{StartValue, System};
+}
+
 pub mod fmu;
 pub mod logging;
 pub mod model_exchange;
-mod monitor;
-mod plan;
 mod record;
-mod results;
-pub mod ssp;
-mod system;
 pub mod xml;
 
-pub use algorithm::{named as named_algorithm, Algorithm, GaussSeidel, Jacobi};
-pub use coupling::{
-    propagation_order, Connection, Integration, Propagation, PropagationStep, ResolvedInstance,
-    VarRef,
-};
-pub use data::{read_text_at_most, Cursor, DataError, DataTable, Interpolation, Reading};
-pub use description::{AlgorithmName, InstanceDescription, ReadError, SystemDescription};
-pub use engine::{RunEnd, RunOptions, Simulation};
-pub use error::{FmiFailure, RunError, SystemError};
-pub use exchange::{Exchange, StepOutcome};
-pub use monitor::{CallInProgress, CallMonitor};
-pub use plan::{Op, Plan, Recorded, Transfer};
-pub use record::{replay, CsvWriter, NoRecording, Observer, TimeSeries};
-pub use results::{ResultTable, ResultsError, MAX_RESULTS_BYTES};
-pub use system::{StartValue, System};
+pub use record::{replay, NoRecording, Observer, TimeSeries};

@@ -4,21 +4,10 @@
 //! [`LoadLimits`] allow. Sizes are checked twice: as declared in the archive, then counted
 //! while inflating (a declared size can lie). On any error the folder is removed.
 
+use super::folder::{Unpacked, MODEL_DESCRIPTION};
 use super::{LoadError, LoadLimits};
 use std::io::{Read, Write};
 use std::path::{Component, Path, PathBuf};
-
-/// Name of the model description inside the archive.
-pub(super) const MODEL_DESCRIPTION: &str = "modelDescription.xml";
-
-/// An archive unpacked into its own temporary folder (removed when dropped).
-pub(super) struct Unpacked {
-    pub dir: tempfile::TempDir,
-    /// Entry names, as written in the archive.
-    pub names: Vec<String>,
-    /// The text of `modelDescription.xml`.
-    pub model_description: String,
-}
 
 fn archive_error(file: &Path, reason: impl ToString) -> LoadError {
     LoadError::Archive {
@@ -147,14 +136,7 @@ pub(super) fn unpack(
     }
 
     // Second pass: unpack, counting the bytes actually inflated.
-    let dir = tempfile::Builder::new()
-        .prefix("spurio-fmu-")
-        .tempdir_in(temp_root)
-        .map_err(|e| LoadError::TempDir {
-            file: path.to_path_buf(),
-            folder: temp_root.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+    let dir = super::folder::temporary(path, temp_root)?;
     let mut written: u64 = 0;
     for (i, name) in names.iter().enumerate() {
         let mut entry = archive.by_index(i).map_err(|e| archive_error(path, e))?;
@@ -222,18 +204,7 @@ pub(super) fn unpack(
             out.write_all(&buffer[..n]).map_err(io_error)?;
         }
     }
-    let model_description =
-        std::fs::read_to_string(dir.path().join(MODEL_DESCRIPTION)).map_err(|e| {
-            LoadError::ModelDescription {
-                file: path.to_path_buf(),
-                reason: e.to_string(),
-            }
-        })?;
-    Ok(Unpacked {
-        dir,
-        names,
-        model_description,
-    })
+    Unpacked::read(path, dir, names)
 }
 
 /// The relative path an already checked entry name unpacks to (normal components only).

@@ -17,11 +17,14 @@
 //! references only; an FMI 3.0 array is indexed as its elements (`x[1,2]`, 1-based,
 //! row-major) and as a whole ([`FmuFile::array`]).
 
+#[cfg(feature = "archive")]
 mod archive;
 pub mod binary;
 mod checks;
+mod folder;
 mod instance;
 pub mod me;
+#[cfg(feature = "systems")]
 mod table;
 mod v3;
 mod xml;
@@ -405,6 +408,26 @@ pub struct LoadOptions {
     pub temp_dir: Option<PathBuf>,
 }
 
+/// The FMU `path` in a fresh temporary folder: a folder (an FMU already unpacked) is copied,
+/// a file is unpacked as a `.fmu` archive (feature `archive`).
+fn unpack(
+    path: &Path,
+    limits: &LoadLimits,
+    temp_root: &Path,
+) -> Result<folder::Unpacked, LoadError> {
+    if path.is_dir() {
+        return folder::copy(path, limits, temp_root);
+    }
+    #[cfg(feature = "archive")]
+    return archive::unpack(path, limits, temp_root);
+    #[cfg(not(feature = "archive"))]
+    Err(LoadError::Archive {
+        file: path.to_path_buf(),
+        reason: "this build opens FMUs unpacked into a folder only (without the `archive` feature)"
+            .into(),
+    })
+}
+
 fn md_error(file: &Path, reason: impl ToString) -> LoadError {
     LoadError::ModelDescription {
         file: file.to_path_buf(),
@@ -451,7 +474,7 @@ impl FmuFile {
     ) -> Result<Self, LoadError> {
         let temp_root = options.temp_dir.clone().unwrap_or_else(std::env::temp_dir);
         // From here on, returning drops `unpacked.dir`, which removes the folder.
-        let unpacked = archive::unpack(path, &options.limits, &temp_root)?;
+        let unpacked = unpack(path, &options.limits, &temp_root)?;
         let version = fmi_version(&unpacked.model_description).map_err(|e| md_error(path, e))?;
         if version.starts_with("3.") {
             return Self::open_3(path, unpacked, interface);
@@ -571,7 +594,7 @@ impl FmuFile {
     /// The FMI 3.0 half of [`FmuFile::open_with`].
     fn open_3(
         path: &Path,
-        unpacked: archive::Unpacked,
+        unpacked: folder::Unpacked,
         interface: Interface,
     ) -> Result<Self, LoadError> {
         let xml = &unpacked.model_description;
@@ -774,7 +797,7 @@ type CsInstance = Versioned<InstanceCS, fmi::fmi3::instance::InstanceCS>;
 /// also made reachable as `resources<e>` beside it (a hard link for a file, falling back to
 /// a copy; a symbolic link for a folder), inside the FMU's own temporary folder. An FMU that
 /// joins the path with a separator itself is not affected.
-fn resource_path_workaround(path: &Path, unpacked: &archive::Unpacked) -> Result<(), LoadError> {
+fn resource_path_workaround(path: &Path, unpacked: &folder::Unpacked) -> Result<(), LoadError> {
     let dir = unpacked.dir.path();
     let Ok(entries) = std::fs::read_dir(dir.join("resources")) else {
         return Ok(());
@@ -822,7 +845,7 @@ fn fmi_version(xml: &str) -> Result<String, String> {
 /// is a library this process loads, exporting every function the version requires.
 fn check_library(
     path: &Path,
-    unpacked: &archive::Unpacked,
+    unpacked: &folder::Unpacked,
     version: FmiVersion,
     interface: Interface,
     model_identifier: &str,

@@ -1,0 +1,169 @@
+//! The plant opened from an FMU unpacked into a folder, as an estimator FMU carries it in its
+//! `resources/`: the build without default features (no zip reader, no optimiser) runs it,
+//! and a build with them gives the same trajectory from the `.fmu` archive; the estimator
+//! of an FMU ([`Estimator`]) on it, sample by sample.
+
+use nalgebra::DMatrix;
+use spurio_identify::estimator::{Estimator, EstimatorError};
+use spurio_identify::filter::Linearisation;
+use spurio_identify::online::joint_filter;
+use spurio_identify::plant::{integration, FmuPlant, PlantSpec, Start};
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+#[global_allocator]
+static ALLOCATOR: spurio_counting_allocator::CountingAllocator =
+    spurio_counting_allocator::CountingAllocator;
+
+fn van_der_pol() -> PathBuf {
+    let fmu = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/third_party/reference-fmus/fmi2/VanDerPol.fmu");
+    assert!(fmu.is_file(), "{} is missing", fmu.display());
+    fmu
+}
+
+fn mu_spec() -> PlantSpec {
+    PlantSpec {
+        free: vec!["mu".into()],
+        inputs: Vec::new(),
+        outputs: vec!["x0".into()],
+    }
+}
+
+/// The unpacked VanDerPol (the folder is removed when the guard is dropped).
+fn unpacked() -> tempfile::TempDir {
+    let folder = tempfile::tempdir().unwrap();
+    let status = std::process::Command::new("unzip")
+        .arg("-q")
+        .arg(van_der_pol())
+        .arg("-d")
+        .arg(folder.path())
+        .status()
+        .expect("unzip runs");
+    assert!(status.success());
+    folder
+}
+
+/// x0 at t = 0.1, 0.2, …, 2.0 with μ = 1.5, from the FMU's own initial states.
+fn x0_trajectory(fmu: &Path) -> Vec<f64> {
+    let mut plant =
+        FmuPlant::open(fmu, &mu_spec(), integration(0.0, 1e-8)).expect("the plant opens");
+    let theta = [1.5];
+    let mut x = plant.initial_states(&theta).expect("initialised");
+    let mut x_next = x.clone();
+    let mut y = [0.0];
+    let mut out = Vec::new();
+    for k in 0..20 {
+        let start = Start {
+            time: 0.1 * k as f64,
+            states: &x,
+            parameters: &theta,
+            inputs: &[],
+            reference: None,
+        };
+        plant
+            .propagate(&start, 0.1 * (k + 1) as f64, &mut x_next, &mut y)
+            .expect("propagated");
+        x.copy_from_slice(&x_next);
+        out.push(y[0]);
+    }
+    out
+}
+
+#[test]
+fn an_unpacked_plant_runs_and_matches_its_archive() {
+    let folder = unpacked();
+    let unpacked = x0_trajectory(folder.path());
+    // VanDerPol starts at x0 = 2 and, with μ = 1.5, falls through zero before t = 2
+    // (the relaxation oscillation's slow branch, then its fast drop).
+    assert!((unpacked[0] - 2.0).abs() < 0.05, "{unpacked:?}");
+    assert!(unpacked.iter().all(|v| v.is_finite()));
+    assert!(unpacked[19] < unpacked[0] - 0.5, "{unpacked:?}");
+    #[cfg(feature = "offline")]
+    assert_eq!(unpacked, x0_trajectory(&van_der_pol()));
+}
+
+#[test]
+fn the_estimator_runs_the_identify_filter_sample_by_sample_with_finite_outputs() {
+    let folder = unpacked();
+    // x0 measured at t = 0, 0.1, …, 2.0 (μ = 1.5), the sample at 0.5 s missing.
+    let mut y: Vec<f64> = std::iter::once(2.0)
+        .chain(x0_trajectory(folder.path()))
+        .collect();
+    y[5] = f64::NAN;
+    let robust = Some(spurio::estimation::InfluenceFunction::Huber { c: 1.645 });
+    // The filter as `spurio identify --method ukf` sets it up.
+    let filter = || {
+        let plant = FmuPlant::open(folder.path(), &mu_spec(), integration(0.0, 1e-8)).unwrap();
+        let plant = Rc::new(RefCell::new(plant));
+        let x0 = plant.borrow_mut().initial_states(&[1.2]).unwrap();
+        joint_filter(
+            &plant,
+            &[1.2],
+            &x0,
+            &[1e-4],
+            robust,
+            Linearisation::UNSCENTED,
+        )
+        .unwrap()
+    };
+    let mut estimator = Estimator::new(filter(), 0);
+    assert_eq!((estimator.filter_states(), estimator.outputs()), (3, 9));
+    let mut columns = Vec::new();
+    let mut allocations = Vec::new();
+    for (k, yk) in y.iter().enumerate() {
+        let (out, counts) = spurio_counting_allocator::count(|| {
+            estimator
+                .step(0.1 * k as f64, &[], &[*yk])
+                .map(<[f64]>::to_vec)
+        });
+        let out = out.expect("a sample");
+        assert!(out.iter().all(|v| v.is_finite()), "sample {k}: {out:?}");
+        columns.push(out);
+        allocations.push(counts.allocations);
+    }
+    // An input the plant does not have is refused, naming the counts.
+    let e = estimator.step(2.1, &[1.0], &[0.0]).err().unwrap();
+    assert!(
+        matches!(
+            e,
+            EstimatorError::Sample {
+                given: 1,
+                inputs: 0,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // The missing sample: innovation, its deviation and weight 0.
+    assert_eq!(&columns[5][6..9], &[0.0, 0.0, 0.0]);
+    // The same filter run over the whole record.
+    let mut filter = filter();
+    let times: Vec<f64> = (0..y.len()).map(|k| 0.1 * k as f64).collect();
+    let rows: Vec<Vec<f64>> = y.iter().map(|v| vec![*v]).collect();
+    let run = filter
+        .run(&times, &vec![Vec::new(); y.len()], &rows)
+        .unwrap();
+    for (k, column) in columns.iter().enumerate() {
+        // ẑ and √diag P, bit for bit.
+        assert_eq!(
+            column[..6],
+            run.values.column(k).as_slice()[..6],
+            "sample {k}"
+        );
+    }
+    // θ̂ = μ̂ moves from the start 1.2 towards the truth 1.5.
+    let last = &columns[y.len() - 1];
+    let (mu, sd) = (last[2], last[5]);
+    let trajectory = DMatrix::from_fn(1, y.len(), |_, k| columns[k][2]);
+    // Measured: 1.49864 ± 0.0141 after 2 s (from 1.2 ± 0.24).
+    assert!(
+        (mu - 1.5).abs() < 0.01 && (mu - 1.5).abs() < 3.0 * sd,
+        "μ̂ = {mu} ± {sd}, {trajectory}"
+    );
+    assert!(sd < 0.03, "σ(μ̂) = {sd} from the prior 0.24");
+    // Heap allocations per sample (the importer's and the filter's matrices): measured, not
+    // yet zero; an estimator FMU's step must come to none (issue 28).
+    println!("allocations per sample: {allocations:?}");
+}
