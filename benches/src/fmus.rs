@@ -1,7 +1,7 @@
 //! Our FMUs' cost per step through their C ABI: the packaged binary (`build/fmus/<Model>.fmu`)
 //! loaded as any importer loads it, then per step `fmi2SetReal` of every input,
-//! `fmi2DoStep` and the getters of every output — against the arithmetic floor estimated in
-//! issue 17 and its target where it names one. Each row is measured two ways, interleaved:
+//! `fmi2DoStep` and the getters of every output — against the arithmetic floor estimated
+//! for it and its target where there is one. Each row is measured two ways, interleaved:
 //! straight through the C ABI by the allocation driver (`tests/allocations/driver.c` in its
 //! timing mode, a subprocess fed batch lengths on stdin: no Rust wrapper between the loop and
 //! the C functions), and through spurio's importer (`spurio_master::fmu::Instance` over
@@ -19,7 +19,7 @@ use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::Instant;
 
 /// One row of the table: an FMU (its file stem in `build/fmus`), its label and communication
-/// step, what it is measured against (issue 17's floor and targets, where it gives them), and
+/// step, what it is measured against (its floor and target, where there are), and
 /// how its inputs move (sines of `amplitude` around their start values, with a 5 % sprinkling
 /// of outliers for the robust estimators). Floor and target in ns per step, the other target
 /// in instructions per step.
@@ -65,7 +65,7 @@ impl Row {
     }
 }
 
-/// The rows, with their constants. Where they come from (issue 17, measured on an AMD Zen 4,
+/// The rows, with their constants. Where they come from (estimated and measured on an AMD Zen 4,
 /// 2 shared cores):
 /// - DkfRsKfGenerator (n = 8, m = p = 2): ≈ 8.1 kflop per step; 0.2 µs with AVX2+FMA
 ///   (0.4 µs with SSE2); target ≤ 1.0 µs and ≤ 20k instructions with every output read.

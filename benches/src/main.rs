@@ -105,7 +105,7 @@ fn our_fmus(args: &Args, repo: &Path, fmus: &Path) -> Result<()> {
     );
     println!(
         "| FMU | outputs read | direct C ABI | through spurio's importer | instructions \
-         (importer path) | floor (issue 17) | direct / floor | target | met |"
+         (importer path) | floor | direct / floor | target | met |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for (row, m) in fmus::ROWS.iter().zip(&measured) {
@@ -142,11 +142,11 @@ fn our_fmus(args: &Args, repo: &Path, fmus: &Path) -> Result<()> {
         );
     }
     println!(
-        "\nFloors and targets are issue 17's estimates (AMD Zen 4): DkfRsKfGenerator ≈ 8.1 kflop \
+        "\nFloors and targets are the estimates in benches/src/fmus.rs (AMD Zen 4): DkfRsKfGenerator ≈ 8.1 kflop \
          (0.2 µs with AVX2+FMA), LinearSystem three Gaussian draws (≈ 85 ns), the scalar filters \
          ≈ 25 flops (≈ 10 ns); WindGenerator's target is 10× its 120 µs then; none is given for \
          AdaptiveStateFeedback and GantryCrane.\n\
-         The target is judged on the direct column: issue 17 sets it per FMU through the C ABI \
+         The target is judged on the direct column: it is set per FMU through the C ABI \
          (set inputs + fmi2DoStep + get outputs), which the C driver (tests/allocations/driver.c, \
          gcc -O2) measures with nothing between its loop and the FMU's functions; the importer's \
          column adds what spurio's master pays per call (its Instance over rust-fmi's wrappers), \

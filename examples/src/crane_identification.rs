@@ -1,4 +1,4 @@
-//! The crane identified as a physical model (issue 28; docs/estimators.md, "Identifying an
+//! The crane identified as a physical model (docs/estimators.md, "Identifying an
 //! FMU"): cart mass M, rod length l and cart friction f_c of the GantryCrane Model Exchange
 //! FMU from a recorded closed-loop run (`examples/crane_identification/closed_loop.toml`:
 //! pole placement on the true states, a PRBS position reference, 20 dB SNR, 5 % outliers of
@@ -304,7 +304,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
     merit.push(("model_error_offline".into(), model_errors[1]));
     merit.push(("model_error_online".into(), model_errors[2]));
     Ok(Report {
-        title: "Crane identified as a physical model (issue 28): M, l, f_c of the GantryCrane ME FMU".into(),
+        title: "Crane identified as a physical model: M, l, f_c of the GantryCrane ME FMU".into(),
         setup: format!(
             "A recorded closed-loop run (examples/crane_identification/closed_loop.toml: pole placement on the true states, PRBS position reference ±0.1 m, x₀ = 0.2 m, 40 s at 0.05 s; 20 dB SNR, 5 % outliers of ±5·RMS per channel, {} outlier samples; seeds 28). The GantryCrane Model Exchange FMU integrated by the master (tolerance 1e-8) with M, l, f_c free from 20 % off the truth, the force as input, x and θ measured (R the sensor's variances). Offline: maximum likelihood of the output errors with Huber's loss, standard errors from the curvature. Online: robust UKF and EKF (Huber weights), the parameters random-walk states with a prior σ of 20 % of their starts. Run times: offline {ml_seconds:.1} s, UKF {ukf_seconds:.1} s, EKF {ekf_seconds:.1} s.",
             data.outliers

@@ -202,7 +202,7 @@ pub fn all() -> Vec<Experiment> {
     },
     Experiment {
         name: "crane_identification",
-        description: "cart mass, rod length and friction of the GantryCrane ME FMU from a recorded closed-loop run with 20 dB noise and 5 % outliers, offline and online (issue 28)",
+        description: "cart mass, rod length and friction of the GantryCrane ME FMU from a recorded closed-loop run with 20 dB noise and 5 % outliers, offline and online",
         run: crane_identification::run,
     },
     Experiment {

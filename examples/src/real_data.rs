@@ -1,4 +1,4 @@
-//! The estimators on measured data (issue 27): the laboratory hair dryer of the DaISy
+//! The estimators on measured data: the laboratory hair dryer of the DaISy
 //! collection (Feedback PT326; heater voltage u in, outlet-air thermocouple voltage y out,
 //! 1000 samples at Ts = 0.08 s), which nobody here wrote, fetched by `scripts/setup` from
 //! Debian's `libslicot-doc` ([`record`]).
@@ -537,10 +537,7 @@ pub fn run(ctx: &ExperimentContext) -> Result<Report> {
 fn reference_rows(report: &mut Report, references: &[(&str, &str, Scored)], contaminated: &[f64]) {
     for (key, title, s) in references {
         let (paper, goal) = match *key {
-            "arx223" => (
-                "≈ 95 % one-step, ≈ 89 % simulation (issue 27)",
-                Some((95.0, 89.0)),
-            ),
+            "arx223" => ("≈ 95 % one-step, ≈ 89 % simulation", Some((95.0, 89.0))),
             _ => ("—", None),
         };
         let ours = format!(
@@ -571,7 +568,7 @@ fn reference_rows(report: &mut Report, references: &[(&str, &str, Scored)], cont
         });
     report.rows.push(Row::goal(
         "batch least squares ARX(2, 2, 3) on the contaminated identification half, simulation fit (seeds 1–3)",
-        "58–75 % (issue 27)",
+        "58–75 %",
         contaminated.iter().map(|v| format!("{v:.1} %")).collect::<Vec<_>>().join(", "),
         "each in 55–78 %",
         contaminated.iter().all(|v| (55.0..=78.0).contains(v)),
@@ -625,7 +622,7 @@ fn path_rows(report: &mut Report, clean: &Fits, outliers: &Fits, missing: &Fits,
         report.rows.push(if path.robust() {
             Row::goal(
                 &format!("{title}, 5 % outliers (seeds 1–3), validation fit"),
-                "robust: within 3 points of its clean fit (issue 27)",
+                "robust: within 3 points of its clean fit",
                 outlier_text,
                 "mean simulation fit within 3 points of clean",
                 sim - out_sim <= 3.0,
@@ -633,7 +630,7 @@ fn path_rows(report: &mut Report, clean: &Fits, outliers: &Fits, missing: &Fits,
         } else {
             Row::goal(
                 &format!("{title}, 5 % outliers (seeds 1–3), validation fit"),
-                "plain: loses at least 10 points (issue 27)",
+                "plain: loses at least 10 points",
                 outlier_text,
                 "mean simulation fit ≥ 10 points below clean",
                 sim - out_sim >= 10.0,
@@ -641,7 +638,7 @@ fn path_rows(report: &mut Report, clean: &Fits, outliers: &Fits, missing: &Fits,
         });
         report.rows.push(Row::goal(
             &format!("{title}, 10 % missing (seeds 1–3), validation fit"),
-            "within 1 point (issue 27)",
+            "within 1 point",
             format!(
                 "one-step {miss_one:.2} %, simulation {miss_sim:.2} %: {:+.2} points (largest seed change {miss_worst:.2})",
                 miss_sim - sim

@@ -1,4 +1,4 @@
-//! Pins the crane's identification as a physical model (issue 28; needs `scripts/build-fmus`):
+//! Pins the crane's identification as a physical model (needs `scripts/build-fmus`):
 //! M, l, f_c of the GantryCrane ME FMU offline within 2 % and online within 5 % at 40 s from
 //! the recorded closed-loop run with 20 dB noise and 5 % outliers (≈ 11 s in release).
 
