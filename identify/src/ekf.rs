@@ -158,10 +158,24 @@ fn differences(
     for i in columns {
         moved[i] = centre[i] + delta[i];
         let out = (&mut plus.0[..], &mut plus.1[..]);
-        evaluate(step, moved.as_slice(), interval, (Some(reference), None), theta, out)?;
+        evaluate(
+            step,
+            moved.as_slice(),
+            interval,
+            (Some(reference), None),
+            theta,
+            out,
+        )?;
         moved[i] = centre[i] - delta[i];
         let out = (&mut minus.0[..], &mut minus.1[..]);
-        evaluate(step, moved.as_slice(), interval, (Some(reference), None), theta, out)?;
+        evaluate(
+            step,
+            moved.as_slice(),
+            interval,
+            (Some(reference), None),
+            theta,
+            out,
+        )?;
         moved[i] = centre[i];
         for r in 0..n {
             dx[(r, i)] = (plus.0[r] - minus.0[r]) / (2.0 * delta[i]);
@@ -209,7 +223,14 @@ pub(crate) fn predict(
     // H at (t₁, x̂⁻, θ̂).
     let placed = (None, Some(&mut work.end_reference));
     let out = (&mut work.scratch.0[..], &mut work.scratch.1[..]);
-    evaluate(step, z_prior.as_slice(), (t1, t1), placed, &mut work.theta, out)?;
+    evaluate(
+        step,
+        z_prior.as_slice(),
+        (t1, t1),
+        placed,
+        &mut work.theta,
+        out,
+    )?;
     let differencing = Differencing {
         delta: &work.delta,
         theta: &mut work.theta,
@@ -246,8 +267,7 @@ pub(crate) fn predict(
             for ((e, a0), a1) in exponent.iter_mut().zip(&work.a0).zip(&work.a1) {
                 *e = (a0 + a1) * half_step;
             }
-            phi.view_mut((0, 0), (n, n))
-                .copy_from(&work.exponent.exp());
+            phi.view_mut((0, 0), (n, n)).copy_from(&work.exponent.exp());
             n..l
         } else {
             0..l

@@ -26,9 +26,9 @@
 //! columns allocated once for the record), rows [ẑ (L); √diag P (L); e (p); √Sⱼⱼ (p);
 //! w (p)], L = n + q: [`Trajectory`].
 
+use crate::ekf::ExtendedWork;
 use crate::plant::FmuPlant;
 pub use crate::prediction::FilterError;
-use crate::ekf::ExtendedWork;
 use crate::prediction::{symmetrise, Prediction, Sizes, Step};
 use crate::ukf::{SigmaPoints, UnscentedWork};
 use nalgebra::{Cholesky, DMatrix, DVector};

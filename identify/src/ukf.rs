@@ -221,12 +221,7 @@ impl SigmaPoints {
             outputs.column_mut(c).copy_from_slice(y_out);
         }
         let Prediction {
-            z,
-            p,
-            y,
-            s,
-            cross,
-            ..
+            z, p, y, s, cross, ..
         } = out;
         self.mean(propagated, z);
         self.mean(outputs, y);
