@@ -400,8 +400,8 @@ pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64
 /// A filter's own way of predicting, with its work buffers.
 #[derive(Debug)]
 enum Predictor {
-    Unscented(SigmaPoints, UnscentedWork),
-    Extended(ExtendedWork),
+    Unscented(SigmaPoints, Box<UnscentedWork>),
+    Extended(Box<ExtendedWork>),
 }
 
 /// An online filter on an FMU (module documentation): the unscented or the extended one by
@@ -473,9 +473,9 @@ impl Filter {
         let predictor = match settings.linearisation {
             Linearisation::Unscented { alpha, beta, kappa } => Predictor::Unscented(
                 SigmaPoints::new(l, alpha, beta, kappa)?,
-                UnscentedWork::new(&sizes),
+                Box::new(UnscentedWork::new(&sizes)),
             ),
-            Linearisation::Extended => Predictor::Extended(ExtendedWork::new(&sizes)),
+            Linearisation::Extended => Predictor::Extended(Box::new(ExtendedWork::new(&sizes))),
         };
         let extended = matches!(predictor, Predictor::Extended(_));
         let mut z = DVector::zeros(l);
