@@ -42,15 +42,12 @@ pub const RELATIVE_STEP: f64 = 1e-4;
 pub(crate) struct ExtendedWork {
     /// The steps δᵢ.
     delta: Vec<f64>,
-    /// θ of a start, and x(t₁) of the mean.
-    theta: Vec<f64>,
+    /// x(t₁) of the mean.
     x_prior: Vec<f64>,
-    /// x(t₁) and y(t₁) of a start not kept; those of the ± starts of a difference.
+    /// x(t₁) and y(t₁) of a start not kept.
     scratch: (Vec<f64>, Vec<f64>),
-    plus: (Vec<f64>, Vec<f64>),
-    minus: (Vec<f64>, Vec<f64>),
-    /// A start moved along one coordinate.
-    moved: DVector<f64>,
+    /// θ of a start, and the buffers of the differences.
+    differencing: Differencing,
     /// The event indicators where the mean starts and where it ends.
     start_reference: Vec<f64>,
     end_reference: Vec<f64>,
@@ -75,12 +72,14 @@ impl ExtendedWork {
         let (n, l, p) = (sizes.states, sizes.filter_states, sizes.measured);
         Self {
             delta: vec![0.0; l],
-            theta: vec![0.0; sizes.parameters],
             x_prior: vec![0.0; n],
             scratch: (vec![0.0; n], vec![0.0; p]),
-            plus: (vec![0.0; n], vec![0.0; p]),
-            minus: (vec![0.0; n], vec![0.0; p]),
-            moved: DVector::zeros(l),
+            differencing: Differencing {
+                theta: vec![0.0; sizes.parameters],
+                plus: (vec![0.0; n], vec![0.0; p]),
+                minus: (vec![0.0; n], vec![0.0; p]),
+                moved: DVector::zeros(l),
+            },
             start_reference: Vec::with_capacity(sizes.indicators),
             end_reference: Vec::with_capacity(sizes.indicators),
             dx: DMatrix::zeros(n, l),
@@ -124,13 +123,13 @@ fn evaluate(
     Ok(())
 }
 
-/// The buffers of central differences: the steps, θ, the ± starts' images, the moved start.
-struct Differencing<'a> {
-    delta: &'a [f64],
-    theta: &'a mut [f64],
-    plus: &'a mut (Vec<f64>, Vec<f64>),
-    minus: &'a mut (Vec<f64>, Vec<f64>),
-    moved: &'a mut DVector<f64>,
+/// The buffers of central differences: θ of a start, the ± starts' images, the moved start.
+#[derive(Debug)]
+struct Differencing {
+    theta: Vec<f64>,
+    plus: (Vec<f64>, Vec<f64>),
+    minus: (Vec<f64>, Vec<f64>),
+    moved: DVector<f64>,
 }
 
 /// Central differences (module documentation) of x(t₁) and y(t₁) from z at t₀ over the
@@ -139,14 +138,13 @@ struct Differencing<'a> {
 fn differences(
     step: &mut Step,
     centre: &DVector<f64>,
-    columns: std::ops::Range<usize>,
+    (columns, delta): (std::ops::Range<usize>, &[f64]),
     (interval, reference): ((f64, f64), &[f64]),
-    work: Differencing,
+    work: &mut Differencing,
     (dx, dy): (&mut DMatrix<f64>, &mut DMatrix<f64>),
 ) -> Result<(), FilterError> {
     let (n, p_out) = (step.states, step.r.len());
     let Differencing {
-        delta,
         theta,
         plus,
         minus,
@@ -156,26 +154,13 @@ fn differences(
     dy.fill(0.0);
     moved.copy_from(centre);
     for i in columns {
-        moved[i] = centre[i] + delta[i];
-        let out = (&mut plus.0[..], &mut plus.1[..]);
-        evaluate(
-            step,
-            moved.as_slice(),
-            interval,
-            (Some(reference), None),
-            theta,
-            out,
-        )?;
-        moved[i] = centre[i] - delta[i];
-        let out = (&mut minus.0[..], &mut minus.1[..]);
-        evaluate(
-            step,
-            moved.as_slice(),
-            interval,
-            (Some(reference), None),
-            theta,
-            out,
-        )?;
+        // ẑ + δᵢ eᵢ, then ẑ − δᵢ eᵢ (c + (−δ) is c − δ exactly).
+        for (image, sign) in [(&mut *plus, 1.0), (&mut *minus, -1.0)] {
+            moved[i] = centre[i] + sign * delta[i];
+            let out = (&mut image.0[..], &mut image.1[..]);
+            let reference = (Some(reference), None);
+            evaluate(step, moved.as_slice(), interval, reference, theta, out)?;
+        }
         moved[i] = centre[i];
         for r in 0..n {
             dx[(r, i)] = (plus.0[r] - minus.0[r]) / (2.0 * delta[i]);
@@ -216,7 +201,14 @@ pub(crate) fn predict(
     // The mean, and the reference event indicators of the start and of the end.
     let placed = (None, Some(&mut work.start_reference));
     let out = (&mut work.x_prior[..], y_hat.as_mut_slice());
-    evaluate(step, z0.as_slice(), (t0, t1), placed, &mut work.theta, out)?;
+    evaluate(
+        step,
+        z0.as_slice(),
+        (t0, t1),
+        placed,
+        &mut work.differencing.theta,
+        out,
+    )?;
     let events = step.plant.events_in_last_propagation();
     z_prior.copy_from(z0);
     z_prior.rows_mut(0, n).copy_from_slice(&work.x_prior);
@@ -228,31 +220,25 @@ pub(crate) fn predict(
         z_prior.as_slice(),
         (t1, t1),
         placed,
-        &mut work.theta,
+        &mut work.differencing.theta,
         out,
     )?;
-    let differencing = Differencing {
-        delta: &work.delta,
-        theta: &mut work.theta,
-        plus: &mut work.plus,
-        minus: &mut work.minus,
-        moved: &mut work.moved,
-    };
     let at = ((t1, t1), &work.end_reference[..]);
     let into = (&mut work.dx_unused, &mut *h);
-    differences(step, z_prior, 0..l, at, differencing, into)?;
+    let columns = (0..l, &work.delta[..]);
+    differences(step, z_prior, columns, at, &mut work.differencing, into)?;
     p.copy_from(step.p);
     if t1 > t0 {
         let phi = &mut work.phi;
         phi.fill_with_identity();
         // Φ_xx from the variational equation where the FMU gives A and no event intervened.
         let variational = events == 0 && {
-            step.parameters_of(z0.as_slice(), &mut work.theta);
+            step.parameters_of(z0.as_slice(), &mut work.differencing.theta);
             let mut jacobian_at = |time: f64, states: &[f64], a: &mut [f64]| {
                 let start = Start {
                     time,
                     states,
-                    parameters: &work.theta,
+                    parameters: &work.differencing.theta,
                     inputs: step.u,
                     reference: None,
                 };
@@ -273,16 +259,10 @@ pub(crate) fn predict(
             0..l
         };
         let columns = differenced.clone();
-        let differencing = Differencing {
-            delta: &work.delta,
-            theta: &mut work.theta,
-            plus: &mut work.plus,
-            minus: &mut work.minus,
-            moved: &mut work.moved,
-        };
         let at = ((t0, t1), &work.start_reference[..]);
         let into = (&mut work.dx, &mut work.dy_unused);
-        differences(step, z0, differenced, at, differencing, into)?;
+        let asked = (differenced, &work.delta[..]);
+        differences(step, z0, asked, at, &mut work.differencing, into)?;
         for i in columns {
             phi.view_mut((0, i), (n, 1)).copy_from(&work.dx.column(i));
         }
