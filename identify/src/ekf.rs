@@ -30,59 +30,137 @@
 //! is the Kalman filter of the sampled system (x_{k+1} = e^{Ah} x_k).
 
 use crate::plant::Start;
-use crate::prediction::{symmetrise, FilterError, Prediction, Step};
+use crate::prediction::{symmetrise, FilterError, Prediction, Sizes, Step};
 use nalgebra::{DMatrix, DVector};
 
 /// δᵢ / max(|ẑᵢ|, 1) of the central differences (module documentation): the truncation
 /// error O(δ²) ≈ 10⁻⁸ against the integrator's error / δ at tolerances of 10⁻⁸ and below.
 pub const RELATIVE_STEP: f64 = 1e-4;
 
-/// x(t₁) and y(t₁) from z at t₀ (y read at t₀ when t₁ = t₀), the parameters of z set in θ;
-/// gives the event indicators where z was placed (a reference for the states near it).
+/// The extended prediction's work buffers, made once for the filter's dimensions.
+#[derive(Debug)]
+pub(crate) struct ExtendedWork {
+    /// The steps δᵢ.
+    delta: Vec<f64>,
+    /// x(t₁) of the mean.
+    x_prior: Vec<f64>,
+    /// x(t₁) and y(t₁) of a start not kept.
+    scratch: (Vec<f64>, Vec<f64>),
+    /// θ of a start, and the buffers of the differences.
+    differencing: Differencing,
+    /// The event indicators where the mean starts and where it ends.
+    start_reference: Vec<f64>,
+    end_reference: Vec<f64>,
+    /// ∂x/∂z (n × L) and, from H's differences, ∂x/∂z at t₁ (not used).
+    dx: DMatrix<f64>,
+    dx_unused: DMatrix<f64>,
+    /// ∂y/∂z of Φ's differences (not used).
+    dy_unused: DMatrix<f64>,
+    /// A(t₀), A(t₁) (n × n, column-major), and ½ h (A(t₀) + A(t₁)).
+    a0: Vec<f64>,
+    a1: Vec<f64>,
+    exponent: DMatrix<f64>,
+    /// Φ, Φᵀ, Φ P (L × L), Hᵀ (L × p).
+    phi: DMatrix<f64>,
+    phi_t: DMatrix<f64>,
+    phi_p: DMatrix<f64>,
+    h_t: DMatrix<f64>,
+}
+
+impl ExtendedWork {
+    pub fn new(sizes: &Sizes) -> Self {
+        let (n, l, p) = (sizes.states, sizes.filter_states, sizes.measured);
+        Self {
+            delta: vec![0.0; l],
+            x_prior: vec![0.0; n],
+            scratch: (vec![0.0; n], vec![0.0; p]),
+            differencing: Differencing {
+                theta: vec![0.0; sizes.parameters],
+                plus: (vec![0.0; n], vec![0.0; p]),
+                minus: (vec![0.0; n], vec![0.0; p]),
+                moved: DVector::zeros(l),
+            },
+            start_reference: Vec::with_capacity(sizes.indicators),
+            end_reference: Vec::with_capacity(sizes.indicators),
+            dx: DMatrix::zeros(n, l),
+            dx_unused: DMatrix::zeros(n, l),
+            dy_unused: DMatrix::zeros(p, l),
+            a0: vec![0.0; n * n],
+            a1: vec![0.0; n * n],
+            exponent: DMatrix::zeros(n, n),
+            phi: DMatrix::zeros(l, l),
+            phi_t: DMatrix::zeros(l, l),
+            phi_p: DMatrix::zeros(l, l),
+            h_t: DMatrix::zeros(l, p),
+        }
+    }
+}
+
+/// x(t₁) and y(t₁) from z at t₀ (y read at t₀ when t₁ = t₀), the parameters of z set in
+/// `theta`; the event indicators where z was placed into `placed` (a reference for the states
+/// near it), when asked for.
 fn evaluate(
     step: &mut Step,
     z: &[f64],
     (t0, t1): (f64, f64),
-    reference: Option<&[f64]>,
+    (reference, placed): (Option<&[f64]>, Option<&mut Vec<f64>>),
+    theta: &mut [f64],
     out: (&mut [f64], &mut [f64]),
-) -> Result<Vec<f64>, FilterError> {
-    let mut theta = step.theta.to_vec();
-    step.parameters_of(z, &mut theta);
+) -> Result<(), FilterError> {
+    step.parameters_of(z, theta);
     let start = Start {
         time: t0,
         states: &z[..step.states],
-        parameters: &theta,
+        parameters: theta,
         inputs: step.u,
         reference,
     };
     step.plant.propagate(&start, t1, out.0, out.1)?;
-    Ok(step.plant.placed_indicators())
+    if let Some(placed) = placed {
+        placed.clear();
+        placed.extend_from_slice(step.plant.event_indicators());
+    }
+    Ok(())
+}
+
+/// The buffers of central differences: θ of a start, the ± starts' images, the moved start.
+#[derive(Debug)]
+struct Differencing {
+    theta: Vec<f64>,
+    plus: (Vec<f64>, Vec<f64>),
+    minus: (Vec<f64>, Vec<f64>),
+    moved: DVector<f64>,
 }
 
 /// Central differences (module documentation) of x(t₁) and y(t₁) from z at t₀ over the
-/// entries `columns` of `centre`, steps `delta`, each start placed with `reference`: (∂x/∂z
-/// (n×L), ∂y/∂z (p×L)), the columns not asked for zero.
+/// entries `columns` of `centre`, each start placed with `reference`: ∂x/∂z (n×L) into `dx`,
+/// ∂y/∂z (p×L) into `dy`, the columns not asked for zero.
 fn differences(
     step: &mut Step,
     centre: &DVector<f64>,
-    delta: &[f64],
-    columns: std::ops::Range<usize>,
-    interval: (f64, f64),
-    reference: &[f64],
-) -> Result<(DMatrix<f64>, DMatrix<f64>), FilterError> {
-    let (n, l, p_out) = (step.states, centre.len(), step.r.len());
-    let mut dx = DMatrix::zeros(n, l);
-    let mut dy = DMatrix::zeros(p_out, l);
-    let mut plus = (vec![0.0; n], vec![0.0; p_out]);
-    let mut minus = plus.clone();
-    let mut moved = centre.clone();
+    (columns, delta): (std::ops::Range<usize>, &[f64]),
+    (interval, reference): ((f64, f64), &[f64]),
+    work: &mut Differencing,
+    (dx, dy): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+) -> Result<(), FilterError> {
+    let (n, p_out) = (step.states, step.r.len());
+    let Differencing {
+        theta,
+        plus,
+        minus,
+        moved,
+    } = work;
+    dx.fill(0.0);
+    dy.fill(0.0);
+    moved.copy_from(centre);
     for i in columns {
-        moved[i] = centre[i] + delta[i];
-        let out = (&mut plus.0[..], &mut plus.1[..]);
-        evaluate(step, moved.as_slice(), interval, Some(reference), out)?;
-        moved[i] = centre[i] - delta[i];
-        let out = (&mut minus.0[..], &mut minus.1[..]);
-        evaluate(step, moved.as_slice(), interval, Some(reference), out)?;
+        // ẑ + δᵢ eᵢ, then ẑ − δᵢ eᵢ (c + (−δ) is c − δ exactly).
+        for (image, sign) in [(&mut *plus, 1.0), (&mut *minus, -1.0)] {
+            moved[i] = centre[i] + sign * delta[i];
+            let out = (&mut image.0[..], &mut image.1[..]);
+            let reference = (Some(reference), None);
+            evaluate(step, moved.as_slice(), interval, reference, theta, out)?;
+        }
         moved[i] = centre[i];
         for r in 0..n {
             dx[(r, i)] = (plus.0[r] - minus.0[r]) / (2.0 * delta[i]);
@@ -91,86 +169,114 @@ fn differences(
             dy[(j, i)] = (plus.1[j] - minus.1[j]) / (2.0 * delta[i]);
         }
     }
-    Ok((dx, dy))
+    Ok(())
 }
 
-/// The linearised prediction over the step's interval (module documentation).
-pub(crate) fn predict(step: &mut Step) -> Result<Prediction, FilterError> {
+/// The linearised prediction over the step's interval (module documentation), into `out`.
+pub(crate) fn predict(
+    step: &mut Step,
+    work: &mut ExtendedWork,
+    out: &mut Prediction,
+) -> Result<(), FilterError> {
     let n = step.states;
     let l = step.z.len();
-    let p_out = step.r.len();
     let (t0, t1) = (step.t0, step.t1);
-    let z0 = step.z.clone();
-    let delta: Vec<f64> = z0
-        .iter()
-        .map(|v| RELATIVE_STEP * v.abs().max(1.0))
-        .collect();
+    let z0: &DVector<f64> = step.z;
+    let Prediction {
+        z: z_prior,
+        p,
+        y: y_hat,
+        s,
+        cross,
+        jacobian,
+    } = out;
+    let Some(h) = jacobian else {
+        return Err(FilterError::Settings(
+            "the extended prediction was given no room for H".into(),
+        ));
+    };
+    for (d, v) in work.delta.iter_mut().zip(z0.iter()) {
+        *d = RELATIVE_STEP * v.abs().max(1.0);
+    }
     // The mean, and the reference event indicators of the start and of the end.
-    let mut x_prior = vec![0.0; n];
-    let mut y_hat = vec![0.0; p_out];
-    let out = (&mut x_prior[..], &mut y_hat[..]);
-    let start_reference = evaluate(step, z0.as_slice(), (t0, t1), None, out)?;
+    let placed = (None, Some(&mut work.start_reference));
+    let out = (&mut work.x_prior[..], y_hat.as_mut_slice());
+    evaluate(
+        step,
+        z0.as_slice(),
+        (t0, t1),
+        placed,
+        &mut work.differencing.theta,
+        out,
+    )?;
     let events = step.plant.events_in_last_propagation();
-    let mut z_prior = z0.clone();
-    z_prior.rows_mut(0, n).copy_from_slice(&x_prior);
+    z_prior.copy_from(z0);
+    z_prior.rows_mut(0, n).copy_from_slice(&work.x_prior);
     // H at (t₁, x̂⁻, θ̂).
-    let mut x_scratch = vec![0.0; n];
-    let mut y_scratch = vec![0.0; p_out];
-    let out = (&mut x_scratch[..], &mut y_scratch[..]);
-    let end_reference = evaluate(step, z_prior.as_slice(), (t1, t1), None, out)?;
-    let (_, h) = differences(step, &z_prior, &delta, 0..l, (t1, t1), &end_reference)?;
-    let mut p = step.p.clone();
+    let placed = (None, Some(&mut work.end_reference));
+    let out = (&mut work.scratch.0[..], &mut work.scratch.1[..]);
+    evaluate(
+        step,
+        z_prior.as_slice(),
+        (t1, t1),
+        placed,
+        &mut work.differencing.theta,
+        out,
+    )?;
+    let at = ((t1, t1), &work.end_reference[..]);
+    let into = (&mut work.dx_unused, &mut *h);
+    let columns = (0..l, &work.delta[..]);
+    differences(step, z_prior, columns, at, &mut work.differencing, into)?;
+    p.copy_from(step.p);
     if t1 > t0 {
-        let mut phi = DMatrix::identity(l, l);
+        let phi = &mut work.phi;
+        phi.fill_with_identity();
         // Φ_xx from the variational equation where the FMU gives A and no event intervened.
-        let variational = if events == 0 {
-            let theta = {
-                let mut theta = step.theta.to_vec();
-                step.parameters_of(z0.as_slice(), &mut theta);
-                theta
-            };
-            let u = step.u;
-            let mut jacobian_at = |time: f64, states: &[f64]| {
-                step.plant.state_jacobian(&Start {
+        let variational = events == 0 && {
+            step.parameters_of(z0.as_slice(), &mut work.differencing.theta);
+            let mut jacobian_at = |time: f64, states: &[f64], a: &mut [f64]| {
+                let start = Start {
                     time,
                     states,
-                    parameters: &theta,
-                    inputs: u,
+                    parameters: &work.differencing.theta,
+                    inputs: step.u,
                     reference: None,
-                })
+                };
+                step.plant.state_jacobian_into(&start, a)
             };
-            let a0 = jacobian_at(t0, &z0.as_slice()[..n])?;
-            let a1 = match a0 {
-                Some(_) => jacobian_at(t1, &x_prior)?,
-                None => None,
-            };
-            a0.zip(a1).map(|(a0, a1)| {
-                let sum = DMatrix::from_vec(n, n, a0) + DMatrix::from_vec(n, n, a1);
-                (sum * (0.5 * (t1 - t0))).exp()
-            })
-        } else {
-            None
+            jacobian_at(t0, &z0.as_slice()[..n], &mut work.a0)?
+                && jacobian_at(t1, &work.x_prior, &mut work.a1)?
         };
-        let differenced = match variational {
-            Some(phi_xx) => {
-                phi.view_mut((0, 0), (n, n)).copy_from(&phi_xx);
-                n..l
+        let differenced = if variational {
+            let half_step = 0.5 * (t1 - t0);
+            let exponent = work.exponent.as_mut_slice();
+            for ((e, a0), a1) in exponent.iter_mut().zip(&work.a0).zip(&work.a1) {
+                *e = (a0 + a1) * half_step;
             }
-            None => 0..l,
+            phi.view_mut((0, 0), (n, n)).copy_from(&work.exponent.exp());
+            n..l
+        } else {
+            0..l
         };
         let columns = differenced.clone();
-        let (dx, _) = differences(step, &z0, &delta, differenced, (t0, t1), &start_reference)?;
+        let at = ((t0, t1), &work.start_reference[..]);
+        let into = (&mut work.dx, &mut work.dy_unused);
+        let asked = (differenced, &work.delta[..]);
+        differences(step, z0, asked, at, &mut work.differencing, into)?;
         for i in columns {
-            phi.view_mut((0, i), (n, 1)).copy_from(&dx.column(i));
+            phi.view_mut((0, i), (n, 1)).copy_from(&work.dx.column(i));
         }
-        p = &phi * p * phi.transpose();
+        // P⁻ = Φ P Φᵀ.
+        phi.mul_to(p, &mut work.phi_p);
+        phi.transpose_to(&mut work.phi_t);
+        work.phi_p.mul_to(&work.phi_t, p);
     }
     if let Some(q) = step.q {
         for i in 0..l {
             p[(i, i)] += q[i];
         }
     }
-    symmetrise(&mut p);
+    symmetrise(p);
     if !p.iter().all(|v| v.is_finite()) {
         return Err(FilterError::NotPositive {
             what: "state covariance P",
@@ -178,18 +284,12 @@ pub(crate) fn predict(step: &mut Step) -> Result<Prediction, FilterError> {
             time: t1,
         });
     }
-    let cross = &p * h.transpose();
-    let mut s = &h * &cross;
+    h.transpose_to(&mut work.h_t);
+    p.mul_to(&work.h_t, cross);
+    h.mul_to(cross, s);
     for (j, r) in step.r.iter().enumerate() {
         s[(j, j)] += r;
     }
-    symmetrise(&mut s);
-    Ok(Prediction {
-        z: z_prior,
-        p,
-        y: DVector::from_vec(y_hat),
-        s,
-        cross,
-        jacobian: Some(h),
-    })
+    symmetrise(s);
+    Ok(())
 }

@@ -78,7 +78,7 @@ impl Estimator {
                 time,
             });
         }
-        self.filter.step(time, u, y, &mut self.column)?;
+        self.filter.process(time, u, y, &mut self.column)?;
         let l = self.filter.filter_states();
         let p = self.outputs;
         for (j, yj) in y.iter().enumerate() {

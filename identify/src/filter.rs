@@ -26,10 +26,11 @@
 //! columns allocated once for the record), rows [ẑ (L); √diag P (L); e (p); √Sⱼⱼ (p);
 //! w (p)], L = n + q: [`Trajectory`].
 
+use crate::ekf::ExtendedWork;
 use crate::plant::FmuPlant;
 pub use crate::prediction::FilterError;
-use crate::prediction::{symmetrise, Prediction, Step};
-use crate::ukf::SigmaPoints;
+use crate::prediction::{symmetrise, Prediction, Sizes, Step};
+use crate::ukf::{SigmaPoints, UnscentedWork};
 use nalgebra::{Cholesky, DMatrix, DVector};
 use spurio::estimation::{InfluenceFunction, MIN_WEIGHT};
 use std::cell::RefCell;
@@ -122,88 +123,179 @@ pub struct PredictionErrors {
     pub f: DMatrix<f64>,
 }
 
-/// The robust correction (module documentation) of `prediction` by `y` (NaN: missing), R
-/// the measurement variances: (ẑ, P), the prediction errors, and into `record` (e, √Sⱼⱼ, w:
-/// 3p values) the sample's rows of the trajectory.
-pub(crate) fn correct(
-    prediction: Prediction,
-    y: &[f64],
-    r: &[f64],
-    robust: Option<InfluenceFunction>,
-    at: (usize, f64),
-    record: &mut [f64],
-) -> Result<(DVector<f64>, DMatrix<f64>, PredictionErrors), FilterError> {
-    let p_out = r.len();
-    let Prediction {
-        z,
-        p,
-        y: y_hat,
-        s,
-        cross,
-        jacobian,
-    } = prediction;
-    let (innovation, rest) = record.split_at_mut(p_out);
-    let (innovation_sd, weight) = rest.split_at_mut(p_out);
-    for j in 0..p_out {
-        innovation_sd[j] = s[(j, j)].sqrt();
-        innovation[j] = f64::NAN;
-        weight[j] = f64::NAN;
-    }
-    let present: Vec<usize> = (0..p_out).filter(|&j| !y[j].is_nan()).collect();
-    let k = present.len();
-    let mut errors = PredictionErrors {
-        v: DVector::zeros(k),
-        f: DMatrix::zeros(k, k),
-    };
-    if k == 0 {
-        return Ok((z, p, errors));
-    }
-    let l = z.len();
-    let mut c_present = DMatrix::zeros(l, k);
-    for (a, &ja) in present.iter().enumerate() {
-        errors.v[a] = y[ja] - y_hat[ja];
-        innovation[ja] = errors.v[a];
-        for (b, &jb) in present.iter().enumerate() {
-            errors.f[(a, b)] = s[(ja, jb)];
+/// `m` as a `rows` × `cols` matrix of zeros in its own storage: nothing allocated while
+/// rows · cols is at most the size it was made with.
+fn reshape(m: &mut DMatrix<f64>, rows: usize, cols: usize) {
+    let mut data: Vec<f64> = std::mem::take(m).data.into();
+    data.clear();
+    data.resize(rows * cols, 0.0);
+    *m = DMatrix::from_vec(rows, cols, data);
+}
+
+/// [`reshape`] of a vector.
+fn resize(v: &mut DVector<f64>, rows: usize) {
+    let mut data: Vec<f64> = std::mem::take(v).data.into();
+    data.clear();
+    data.resize(rows, 0.0);
+    *v = DVector::from_vec(data);
+}
+
+/// The robust correction's work (module documentation): its matrices made once for L states
+/// and p measured variables, those of the k present channels reshaped in their storage, so
+/// that a correction allocates nothing.
+#[derive(Debug)]
+struct Correction {
+    /// The present channels.
+    present: Vec<usize>,
+    /// C of the present channels, transposed (k × L), solved in place into Kᵀ = S̃⁻¹ Cᵀ.
+    gain_t: DMatrix<f64>,
+    /// K (L × k).
+    gain: DMatrix<f64>,
+    /// S̃ (k × k) and its Cholesky factor.
+    inflated: DMatrix<f64>,
+    factor: DMatrix<f64>,
+    /// R̃ (k), and as a diagonal matrix.
+    r_inflated: DVector<f64>,
+    r_diagonal: DMatrix<f64>,
+    /// H of the present channels (k × L).
+    h_present: DMatrix<f64>,
+    /// K S̃ or K R̃ (L × k).
+    gain_product: DMatrix<f64>,
+    /// K e (L).
+    step: DVector<f64>,
+    /// L × L: K S̃ Kᵀ, or K H, I − K H, its transpose and products.
+    square: [DMatrix<f64>; 4],
+}
+
+impl Correction {
+    fn new(l: usize, p: usize) -> Self {
+        Self {
+            present: Vec::with_capacity(p),
+            gain_t: DMatrix::zeros(p, l),
+            gain: DMatrix::zeros(l, p),
+            inflated: DMatrix::zeros(p, p),
+            factor: DMatrix::zeros(p, p),
+            r_inflated: DVector::zeros(p),
+            r_diagonal: DMatrix::zeros(p, p),
+            h_present: DMatrix::zeros(p, l),
+            gain_product: DMatrix::zeros(l, p),
+            step: DVector::zeros(l),
+            square: std::array::from_fn(|_| DMatrix::zeros(l, l)),
         }
-        c_present.set_column(a, &cross.column(ja));
     }
-    let mut inflated = errors.f.clone();
-    let mut r_inflated = DVector::zeros(k);
-    for (a, &ja) in present.iter().enumerate() {
-        let w = match robust {
-            Some(psi) => psi
-                .weight(errors.v[a] / errors.f[(a, a)].sqrt())
-                .max(MIN_WEIGHT),
-            None => 1.0,
-        };
-        weight[ja] = w;
-        r_inflated[a] = r[ja] / w;
-        inflated[(a, a)] += r[ja] * (1.0 / w - 1.0);
-    }
-    let (sample, time) = at;
-    let chol = Cholesky::new(inflated.clone()).ok_or(FilterError::NotPositive {
-        what: "innovation covariance S",
-        sample,
-        time,
-    })?;
-    // K = C S̃⁻¹ = (S̃⁻¹ Cᵀ)ᵀ (S̃ symmetric).
-    let gain = chol.solve(&c_present.transpose()).transpose();
-    let z_post = &z + &gain * &errors.v;
-    let mut p_post = match &jacobian {
-        None => &p - &gain * &inflated * gain.transpose(),
-        Some(h) => {
-            let mut h_present = DMatrix::zeros(k, l);
-            for (a, &ja) in present.iter().enumerate() {
-                h_present.set_row(a, &h.row(ja));
+
+    /// The robust correction (module documentation) of `prediction` by `y` (NaN: missing),
+    /// R the measurement variances: (ẑ, P) into the prediction's ẑ⁻ and P⁻, the prediction
+    /// errors into `errors`, and into `record` (e, √Sⱼⱼ, w: 3p values) the sample's rows of
+    /// the trajectory.
+    fn correct(
+        &mut self,
+        prediction: &mut Prediction,
+        y: &[f64],
+        (r, robust): (&[f64], Option<InfluenceFunction>),
+        at: (usize, f64),
+        record: &mut [f64],
+        errors: &mut PredictionErrors,
+    ) -> Result<(), FilterError> {
+        let p_out = r.len();
+        let Prediction {
+            z,
+            p,
+            y: y_hat,
+            s,
+            cross,
+            jacobian,
+        } = prediction;
+        let (innovation, rest) = record.split_at_mut(p_out);
+        let (innovation_sd, weight) = rest.split_at_mut(p_out);
+        for j in 0..p_out {
+            innovation_sd[j] = s[(j, j)].sqrt();
+            innovation[j] = f64::NAN;
+            weight[j] = f64::NAN;
+        }
+        let present = &mut self.present;
+        present.clear();
+        present.extend((0..p_out).filter(|&j| !y[j].is_nan()));
+        let k = present.len();
+        resize(&mut errors.v, k);
+        reshape(&mut errors.f, k, k);
+        if k == 0 {
+            return Ok(());
+        }
+        let l = z.len();
+        reshape(&mut self.gain_t, k, l);
+        for (a, &ja) in present.iter().enumerate() {
+            errors.v[a] = y[ja] - y_hat[ja];
+            innovation[ja] = errors.v[a];
+            for (b, &jb) in present.iter().enumerate() {
+                errors.f[(a, b)] = s[(ja, jb)];
             }
-            let i_kh = DMatrix::identity(l, l) - &gain * &h_present;
-            &i_kh * &p * i_kh.transpose()
-                + &gain * DMatrix::from_diagonal(&r_inflated) * gain.transpose()
+            for i in 0..l {
+                self.gain_t[(a, i)] = cross[(i, ja)];
+            }
         }
-    };
-    symmetrise(&mut p_post);
-    Ok((z_post, p_post, errors))
+        reshape(&mut self.inflated, k, k);
+        self.inflated.copy_from(&errors.f);
+        resize(&mut self.r_inflated, k);
+        for (a, &ja) in present.iter().enumerate() {
+            let w = match robust {
+                Some(psi) => psi
+                    .weight(errors.v[a] / errors.f[(a, a)].sqrt())
+                    .max(MIN_WEIGHT),
+                None => 1.0,
+            };
+            weight[ja] = w;
+            self.r_inflated[a] = r[ja] / w;
+            self.inflated[(a, a)] += r[ja] * (1.0 / w - 1.0);
+        }
+        let (sample, time) = at;
+        let mut factor = std::mem::take(&mut self.factor);
+        reshape(&mut factor, k, k);
+        factor.copy_from(&self.inflated);
+        // In place (a failed factorisation gives its storage up: the step fails anyway).
+        let chol = Cholesky::new(factor).ok_or(FilterError::NotPositive {
+            what: "innovation covariance S",
+            sample,
+            time,
+        })?;
+        // K = C S̃⁻¹ = (S̃⁻¹ Cᵀ)ᵀ (S̃ symmetric).
+        chol.solve_mut(&mut self.gain_t);
+        self.factor = chol.unpack_dirty();
+        reshape(&mut self.gain, l, k);
+        self.gain_t.transpose_to(&mut self.gain);
+        self.gain.mul_to(&errors.v, &mut self.step);
+        *z += &self.step;
+        reshape(&mut self.gain_product, l, k);
+        let [first, second, third, fourth] = &mut self.square;
+        match jacobian {
+            None => {
+                // P = P⁻ − K S̃ Kᵀ.
+                self.gain.mul_to(&self.inflated, &mut self.gain_product);
+                self.gain_product.mul_to(&self.gain_t, first);
+                *p -= &*first;
+            }
+            Some(h) => {
+                // P = (I − K H) P⁻ (I − K H)ᵀ + K R̃ Kᵀ.
+                reshape(&mut self.h_present, k, l);
+                for (a, &ja) in present.iter().enumerate() {
+                    self.h_present.set_row(a, &h.row(ja));
+                }
+                self.gain.mul_to(&self.h_present, first);
+                second.fill_with_identity();
+                *second -= &*first;
+                second.mul_to(p, first);
+                second.transpose_to(third);
+                first.mul_to(third, fourth);
+                reshape(&mut self.r_diagonal, k, k);
+                self.r_diagonal.set_diagonal(&self.r_inflated);
+                self.gain.mul_to(&self.r_diagonal, &mut self.gain_product);
+                self.gain_product.mul_to(&self.gain_t, first);
+                fourth.add_to(first, p);
+            }
+        }
+        symmetrise(p);
+        Ok(())
+    }
 }
 
 /// The online filters' outputs over a record (module documentation): one column per sample.
@@ -305,11 +397,11 @@ pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64
     }
 }
 
-/// A filter's own way of predicting.
-#[derive(Debug, Clone)]
+/// A filter's own way of predicting, with its work buffers.
+#[derive(Debug)]
 enum Predictor {
-    Unscented(SigmaPoints),
-    Extended,
+    Unscented(SigmaPoints, Box<UnscentedWork>),
+    Extended(Box<ExtendedWork>),
 }
 
 /// An online filter on an FMU (module documentation): the unscented or the extended one by
@@ -325,9 +417,15 @@ pub struct Filter {
     q: DVector<f64>,
     settings: FilterSettings,
     predictor: Predictor,
-    /// Time and inputs of the last sample (None before the first).
-    last: Option<(f64, Vec<f64>)>,
+    /// Time of the last sample (None before the first) and its inputs.
+    last: Option<f64>,
+    last_inputs: Vec<f64>,
     sample: usize,
+    /// The prediction, the correction's work and the last prediction errors (written by every
+    /// sample: a sample allocates nothing once the first has sized them).
+    prediction: Prediction,
+    correction: Correction,
+    errors: PredictionErrors,
 }
 
 impl Filter {
@@ -361,12 +459,25 @@ impl Filter {
             ));
         }
         settings.check(l, outputs)?;
-        let predictor = match settings.linearisation {
-            Linearisation::Unscented { alpha, beta, kappa } => {
-                Predictor::Unscented(SigmaPoints::new(l, alpha, beta, kappa)?)
-            }
-            Linearisation::Extended => Predictor::Extended,
+        let (inputs, indicators) = {
+            let pl = plant.borrow();
+            (pl.input_names().len(), pl.event_indicators().len())
         };
+        let sizes = Sizes {
+            states: n,
+            filter_states: l,
+            measured: outputs,
+            parameters: free,
+            indicators,
+        };
+        let predictor = match settings.linearisation {
+            Linearisation::Unscented { alpha, beta, kappa } => Predictor::Unscented(
+                SigmaPoints::new(l, alpha, beta, kappa)?,
+                Box::new(UnscentedWork::new(&sizes)),
+            ),
+            Linearisation::Extended => Predictor::Extended(Box::new(ExtendedWork::new(&sizes))),
+        };
+        let extended = matches!(predictor, Predictor::Extended(_));
         let mut z = DVector::zeros(l);
         z.rows_mut(0, n).copy_from_slice(x0);
         for (k, &i) in augmented.iter().enumerate() {
@@ -383,7 +494,14 @@ impl Filter {
             settings: settings.clone(),
             predictor,
             last: None,
+            last_inputs: Vec::with_capacity(inputs),
             sample: 0,
+            prediction: Prediction::new(l, outputs, extended),
+            correction: Correction::new(l, outputs),
+            errors: PredictionErrors {
+                v: DVector::zeros(outputs),
+                f: DMatrix::zeros(outputs, outputs),
+            },
         })
     }
 
@@ -423,6 +541,18 @@ impl Filter {
         y: &[f64],
         column: &mut [f64],
     ) -> Result<PredictionErrors, FilterError> {
+        self.process(time, u, y, column).cloned()
+    }
+
+    /// [`Filter::step`], the prediction errors borrowed: after the first sample (which sizes
+    /// the work buffers) nothing is allocated, but for the message of an error.
+    pub fn process(
+        &mut self,
+        time: f64,
+        u: &[f64],
+        y: &[f64],
+        column: &mut [f64],
+    ) -> Result<&PredictionErrors, FilterError> {
         let l = self.z.len();
         let p_out = self.settings.noise.measurement.len();
         if y.len() != p_out || column.len() != 2 * l + 3 * p_out {
@@ -434,11 +564,11 @@ impl Filter {
                 2 * l + 3 * p_out
             )));
         }
-        let (t0, u_held) = match &self.last {
-            Some((t0, u0)) => (*t0, u0.clone()),
-            None => (time, u.to_vec()),
+        let (t0, u_held) = match self.last {
+            Some(t0) => (t0, &self.last_inputs[..]),
+            None => (time, u),
         };
-        let prediction = {
+        {
             let mut plant = self.plant.borrow_mut();
             let mut step = Step {
                 plant: &mut plant,
@@ -451,37 +581,40 @@ impl Filter {
                 q: self.last.is_some().then_some(&self.q),
                 t0,
                 t1: time,
-                u: &u_held,
+                u: u_held,
                 sample: self.sample,
             };
-            match &self.predictor {
-                Predictor::Unscented(sigma) => sigma.predict(&mut step)?,
-                Predictor::Extended => crate::ekf::predict(&mut step)?,
+            let prediction = &mut self.prediction;
+            match &mut self.predictor {
+                Predictor::Unscented(sigma, work) => sigma.predict(&mut step, work, prediction)?,
+                Predictor::Extended(work) => crate::ekf::predict(&mut step, work, prediction)?,
             }
-        };
-        let (z, p, errors) = correct(
-            prediction,
+        }
+        self.correction.correct(
+            &mut self.prediction,
             y,
-            &self.settings.noise.measurement,
-            self.settings.robust,
+            (&self.settings.noise.measurement, self.settings.robust),
             (self.sample, time),
             &mut column[2 * l..],
+            &mut self.errors,
         )?;
-        if let Some(i) = z.iter().position(|v| !v.is_finite()) {
+        if let Some(i) = self.prediction.z.iter().position(|v| !v.is_finite()) {
             return Err(FilterError::Settings(format!(
                 "the estimate of filter state {i} is not finite at sample {} (t = {time})",
                 self.sample
             )));
         }
-        self.z = z;
-        self.p = p;
+        std::mem::swap(&mut self.z, &mut self.prediction.z);
+        std::mem::swap(&mut self.p, &mut self.prediction.p);
         for (k, &i) in self.augmented.iter().enumerate() {
             self.theta[i] = self.z[self.n + k];
         }
         record_state(&self.z, &self.p, column);
-        self.last = Some((time, u.to_vec()));
+        self.last = Some(time);
+        self.last_inputs.clear();
+        self.last_inputs.extend_from_slice(u);
         self.sample += 1;
-        Ok(errors)
+        Ok(&self.errors)
     }
 
     /// Steps through every sample of a record (times, inputs, measurements) into a new

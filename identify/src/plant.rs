@@ -151,8 +151,15 @@ pub struct FmuPlant {
     parameters: Vec<PlantParameter>,
     inputs: Vec<Port>,
     outputs: Vec<Port>,
-    /// The free parameters as set in the instance (None: not initialised yet).
-    set: Option<Vec<f64>>,
+    /// The free parameters as set in the instance (meaningful when `initialised`).
+    set: Vec<f64>,
+    /// The instance was initialised with the parameters `set` (false: not yet, or reset).
+    initialised: bool,
+    /// The layout of an initialisation: `layout`'s start values, then the free parameters
+    /// (rebuilt in place at each, nothing allocated once it has grown).
+    initialisation: Layout,
+    /// The unit seed of a directional derivative.
+    seed: Vec<f64>,
     /// The inputs as last set.
     inputs_set: Vec<f64>,
     /// Instance resets so far (fixed parameters changed).
@@ -306,16 +313,21 @@ impl FmuPlant {
         };
         let stepper = Stepper::new(instance.name(), instance.is_fmi3(), &layout, &options);
         let inputs_set = vec![f64::NAN; inputs.len()];
+        let (initialisation, seed) = (layout.clone(), vec![0.0; layout.states]);
+        let set = vec![0.0; parameters.len()];
         Ok(Self {
             instance,
             stepper,
             fmu,
             layout,
+            initialisation,
+            seed,
             options,
             parameters,
             inputs,
             outputs,
-            set: None,
+            set,
+            initialised: false,
             inputs_set,
             resets: 0,
             failed: false,
@@ -339,7 +351,7 @@ impl FmuPlant {
                 .start_values
                 .push((h.var_type, h.value_reference, *value));
         }
-        if self.set.is_some() {
+        if self.initialised {
             // Initialised before: reset and initialised again at the next use.
             self.failed = true;
         }
@@ -406,41 +418,38 @@ impl FmuPlant {
     /// fixed one changed (reset first), the tunable ones set in Event Mode otherwise.
     fn ensure_parameters(&mut self, theta: &[f64]) -> Result<(), PlantError> {
         Self::check("parameters", self.parameters.len(), theta.len())?;
-        let (fixed_changed, tunable_changed) = match &self.set {
-            _ if self.failed => (true, true),
-            None => (true, true),
-            Some(set) => {
-                let changed = |tunable: bool| {
-                    self.parameters
-                        .iter()
-                        .zip(set.iter().zip(theta))
-                        .any(|(p, (a, b))| p.tunable == tunable && a != b)
-                };
-                (changed(false), changed(true))
-            }
+        let (fixed_changed, tunable_changed) = if self.failed || !self.initialised {
+            (true, true)
+        } else {
+            let changed = |tunable: bool| {
+                self.parameters
+                    .iter()
+                    .zip(self.set.iter().zip(theta))
+                    .any(|(p, (a, b))| p.tunable == tunable && a != b)
+            };
+            (changed(false), changed(true))
         };
         if fixed_changed {
-            if self.set.is_some() || self.failed {
+            if self.initialised || self.failed {
                 let reset = self.instance.reset();
                 reset.map_err(|e| self.call_failed("Reset", e))?;
                 self.resets += 1;
             }
-            self.set = None;
-            let mut layout = self.layout.clone();
+            self.initialised = false;
             // The values set by name ([`FmuPlant::set_values`]), then the free parameters.
-            layout.start_values.extend(
+            let starts = &mut self.initialisation.start_values;
+            starts.clear();
+            starts.extend_from_slice(&self.layout.start_values);
+            starts.extend(
                 self.parameters
                     .iter()
                     .zip(theta)
                     .map(|(p, &value)| (p.var_type, p.vr, value)),
             );
-            self.stepper = Stepper::new(
-                self.instance.name(),
-                self.instance.is_fmi3(),
-                &layout,
-                &self.options,
-            );
-            initialise(&mut self.instance, &layout, &self.options, &self.stepper)?;
+            // A stepper as new, its buffers kept.
+            self.stepper.renew();
+            let layout = &self.initialisation;
+            initialise(&mut self.instance, layout, &self.options, &self.stepper)?;
             if let Advance::Terminated(time) = self
                 .stepper
                 .initialise(&mut self.instance, self.options.start)?
@@ -464,7 +473,8 @@ impl FmuPlant {
                 return Err(self.terminated(time));
             }
         }
-        self.set = Some(theta.to_vec());
+        self.set.copy_from_slice(theta);
+        self.initialised = true;
         Ok(())
     }
 
@@ -490,11 +500,11 @@ impl FmuPlant {
     /// The continuous states right after initialisation at θ (the experiment's start).
     pub fn initial_states(&mut self, theta: &[f64]) -> Result<Vec<f64>, PlantError> {
         // A fresh initialisation: the states are the FMU's own start values.
-        if self.set.is_some() || self.failed {
+        if self.initialised || self.failed {
             let reset = self.instance.reset();
             reset.map_err(|e| self.call_failed("Reset", e))?;
             self.resets += 1;
-            self.set = None;
+            self.initialised = false;
             self.failed = false;
         }
         self.ensure_parameters(theta)?;
@@ -507,7 +517,12 @@ impl FmuPlant {
     /// The event indicators at the state last placed (before integrating), for
     /// [`Start::reference`].
     pub fn placed_indicators(&self) -> Vec<f64> {
-        self.stepper.event_indicators().to_vec()
+        self.event_indicators().to_vec()
+    }
+
+    /// [`FmuPlant::placed_indicators`], borrowed (nothing allocated).
+    pub fn event_indicators(&self) -> &[f64] {
+        self.stepper.event_indicators()
     }
 
     /// Makes the next call start from a fresh instance (reset and initialised again): a
@@ -595,8 +610,21 @@ impl FmuPlant {
     /// with the states as knowns and the derivatives as unknowns, one unit seed per column,
     /// through the master's importer); None when the FMU gives none.
     pub fn state_jacobian(&mut self, start: &Start) -> Result<Option<Vec<f64>>, PlantError> {
+        let mut jacobian = vec![0.0; self.layout.states.pow(2)];
+        let given = self.state_jacobian_into(start, &mut jacobian)?;
+        Ok(given.then_some(jacobian))
+    }
+
+    /// [`FmuPlant::state_jacobian`] into `jacobian` (n×n, column-major; nothing allocated):
+    /// false when the FMU gives none.
+    pub fn state_jacobian_into(
+        &mut self,
+        start: &Start,
+        jacobian: &mut [f64],
+    ) -> Result<bool, PlantError> {
         let n = self.layout.states;
         Self::check("states", n, start.states.len())?;
+        Self::check("Jacobian entries", n * n, jacobian.len())?;
         self.ensure_parameters(start.parameters)?;
         self.set_inputs(start.inputs)?;
         let placed = self.stepper.place_at(
@@ -609,20 +637,18 @@ impl FmuPlant {
         if let Advance::Terminated(time) = placed.inspect_err(|_| self.failed = true)? {
             return Err(self.terminated(time));
         }
-        let mut jacobian = vec![0.0; n * n];
-        let mut seed = vec![0.0; n];
         for (i, column) in jacobian.chunks_exact_mut(n.max(1)).enumerate().take(n) {
-            seed.fill(0.0);
-            seed[i] = 1.0;
-            match self.instance.directional_derivative(&seed, column) {
+            self.seed.fill(0.0);
+            self.seed[i] = 1.0;
+            match self.instance.directional_derivative(&self.seed, column) {
                 Ok(true) => {}
-                Ok(false) => return Ok(None),
+                Ok(false) => return Ok(false),
                 Err(e) => {
                     self.failed = true;
                     return Err(self.call_failed("GetDirectionalDerivative", e));
                 }
             }
         }
-        Ok(Some(jacobian))
+        Ok(true)
     }
 }

@@ -26,14 +26,21 @@ pub enum FilterError {
     Settings(String),
 }
 
-/// ½(P + Pᵀ).
+/// ½(P + Pᵀ), in place (each entry (Pᵢⱼ + Pⱼᵢ) · ½, as P + Pᵀ then · ½ gives it).
 pub(crate) fn symmetrise(p: &mut DMatrix<f64>) {
-    let t = p.transpose();
-    *p += t;
-    *p *= 0.5;
+    let n = p.nrows().min(p.ncols());
+    for j in 0..n {
+        for i in j..n {
+            let mean = (p[(i, j)] + p[(j, i)]) * 0.5;
+            p[(i, j)] = mean;
+            p[(j, i)] = mean;
+        }
+    }
 }
 
-/// The prediction a filter hands to its correction ([`crate::filter`]).
+/// The prediction a filter hands to its correction ([`crate::filter`]): made once for the
+/// filter's L states and p measured variables, written by every prediction.
+#[derive(Debug)]
 pub(crate) struct Prediction {
     /// ẑ⁻ and P⁻.
     pub z: DVector<f64>,
@@ -44,6 +51,35 @@ pub(crate) struct Prediction {
     pub cross: DMatrix<f64>,
     /// H, for the Joseph form (EKF).
     pub jacobian: Option<DMatrix<f64>>,
+}
+
+impl Prediction {
+    /// Room for the prediction of L = `l` states and p = `p` measured variables, with H when
+    /// `extended`.
+    pub fn new(l: usize, p: usize, extended: bool) -> Self {
+        Self {
+            z: DVector::zeros(l),
+            p: DMatrix::zeros(l, l),
+            y: DVector::zeros(p),
+            s: DMatrix::zeros(p, p),
+            cross: DMatrix::zeros(l, p),
+            jacobian: extended.then(|| DMatrix::zeros(p, l)),
+        }
+    }
+}
+
+/// The dimensions a prediction's work buffers are made for.
+pub(crate) struct Sizes {
+    /// n.
+    pub states: usize,
+    /// L = n + q.
+    pub filter_states: usize,
+    /// p.
+    pub measured: usize,
+    /// Every free parameter (θ).
+    pub parameters: usize,
+    /// The FMU's event indicators.
+    pub indicators: usize,
 }
 
 /// The point a prediction starts from: the filter's ẑ, P, the parameters outside z, the

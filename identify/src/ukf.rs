@@ -33,22 +33,67 @@
 //! mean is not integrated again (its image is the mean's).
 
 use crate::plant::Start;
-use crate::prediction::{symmetrise, FilterError, Prediction, Step};
+use crate::prediction::{symmetrise, FilterError, Prediction, Sizes, Step};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
-/// A square root S of `p` (S Sᵀ = P, module documentation): the lower Cholesky factor, or,
-/// when P is only semidefinite in floating point, V √Λ₊ from its symmetric eigen-decomposition
-/// with negative eigenvalues set to zero; None when P is not finite.
-fn factor(p: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+/// A square root S of `p` (S Sᵀ = P, module documentation) into `root`: the lower Cholesky
+/// factor (in `root`'s storage, nothing allocated), or, when P is only semidefinite in
+/// floating point, V √Λ₊ from its symmetric eigen-decomposition with negative eigenvalues set
+/// to zero (allocated: that rare case's price); false when P is not finite.
+fn factor(p: &DMatrix<f64>, root: &mut DMatrix<f64>) -> bool {
     if !p.iter().all(|v| v.is_finite()) {
-        return None;
+        return false;
     }
-    if let Some(c) = Cholesky::new(p.clone()) {
-        return Some(c.l());
+    let mut storage = std::mem::take(root);
+    storage.copy_from(p);
+    match Cholesky::new(storage) {
+        Some(c) => *root = c.unpack(),
+        None => {
+            let eigen = p.clone().symmetric_eigen();
+            let roots = eigen.eigenvalues.map(|l| l.max(0.0).sqrt());
+            *root = &eigen.eigenvectors * DMatrix::from_diagonal(&roots);
+        }
     }
-    let eigen = p.clone().symmetric_eigen();
-    let roots = eigen.eigenvalues.map(|l| l.max(0.0).sqrt());
-    Some(&eigen.eigenvectors * DMatrix::from_diagonal(&roots))
+    true
+}
+
+/// The unscented prediction's work buffers, made once for the filter's dimensions.
+#[derive(Debug)]
+pub(crate) struct UnscentedWork {
+    /// √P (L × L).
+    root: DMatrix<f64>,
+    /// The sigma points χ, their images χ⁻ (L × (2L + 1)) and measured variables 𝒴
+    /// (p × (2L + 1)).
+    chi: DMatrix<f64>,
+    propagated: DMatrix<f64>,
+    outputs: DMatrix<f64>,
+    /// θ of a sigma point, x(t₁) and y(t₁) of a propagation.
+    theta: Vec<f64>,
+    x_out: Vec<f64>,
+    y_out: Vec<f64>,
+    /// The mean's event indicators at t₀ (the sigma points' reference).
+    reference: Vec<f64>,
+    /// χ⁻ − ẑ⁻ and 𝒴 − ŷ of one sigma point.
+    dz: DVector<f64>,
+    dy: DVector<f64>,
+}
+
+impl UnscentedWork {
+    pub fn new(sizes: &Sizes) -> Self {
+        let (n, l, p) = (sizes.states, sizes.filter_states, sizes.measured);
+        Self {
+            root: DMatrix::zeros(l, l),
+            chi: DMatrix::zeros(l, 2 * l + 1),
+            propagated: DMatrix::zeros(l, 2 * l + 1),
+            outputs: DMatrix::zeros(p, 2 * l + 1),
+            theta: vec![0.0; sizes.parameters],
+            x_out: vec![0.0; n],
+            y_out: vec![0.0; p],
+            reference: Vec::with_capacity(sizes.indicators),
+            dz: DVector::zeros(l),
+            dy: DVector::zeros(p),
+        }
+    }
 }
 
 /// The weights of the scaled unscented transform of L filter states (module documentation).
@@ -84,105 +129,136 @@ impl SigmaPoints {
         })
     }
 
-    /// The sigma points of (ẑ, P), one per column.
-    fn points(&self, step: &Step) -> Result<DMatrix<f64>, FilterError> {
+    /// The sigma points of (ẑ, P), one per column, into `work.chi`.
+    fn points(&self, step: &Step, work: &mut UnscentedWork) -> Result<(), FilterError> {
         let (z, l) = (step.z, step.z.len());
-        let s = factor(step.p).ok_or(FilterError::NotPositive {
-            what: "state covariance P",
-            sample: step.sample,
-            time: step.t1,
-        })?;
-        let mut chi = DMatrix::zeros(l, 2 * l + 1);
+        if !factor(step.p, &mut work.root) {
+            return Err(FilterError::NotPositive {
+                what: "state covariance P",
+                sample: step.sample,
+                time: step.t1,
+            });
+        }
+        let (s, chi) = (&work.root, &mut work.chi);
         chi.set_column(0, z);
         for i in 0..l {
-            let d = s.column(i) * self.gamma;
-            chi.set_column(1 + i, &(z + &d));
-            chi.set_column(1 + l + i, &(z - &d));
+            for r in 0..l {
+                let d = s[(r, i)] * self.gamma;
+                chi[(r, 1 + i)] = z[r] + d;
+                chi[(r, 1 + l + i)] = z[r] - d;
+            }
         }
-        Ok(chi)
+        Ok(())
     }
 
-    /// Σ Wᵐ of the columns of `m`.
-    fn mean(&self, m: &DMatrix<f64>) -> DVector<f64> {
-        let mut mean = DVector::zeros(m.nrows());
+    /// Σ Wᵐ of the columns of `m`, into `mean`.
+    fn mean(&self, m: &DMatrix<f64>, mean: &mut DVector<f64>) {
+        mean.fill(0.0);
         for (c, w) in self.wm.iter().enumerate() {
-            mean += m.column(c) * *w;
+            for r in 0..m.nrows() {
+                mean[r] += m[(r, c)] * *w;
+            }
         }
-        mean
     }
 
-    /// The unscented prediction over the step's interval (module documentation).
-    pub(crate) fn predict(&self, step: &mut Step) -> Result<Prediction, FilterError> {
+    /// The unscented prediction over the step's interval (module documentation), into
+    /// `out`.
+    pub(crate) fn predict(
+        &self,
+        step: &mut Step,
+        work: &mut UnscentedWork,
+        out: &mut Prediction,
+    ) -> Result<(), FilterError> {
         let n = step.states;
         let l = step.z.len();
-        let p_out = step.r.len();
-        let chi = self.points(step)?;
+        self.points(step, work)?;
+        let UnscentedWork {
+            chi,
+            propagated,
+            outputs,
+            theta,
+            x_out,
+            y_out,
+            reference,
+            dz,
+            dy,
+            ..
+        } = work;
         let count = chi.ncols();
-        let mut propagated = DMatrix::zeros(l, count);
-        let mut outputs = DMatrix::zeros(p_out, count);
-        let mut theta = step.theta.to_vec();
-        let mut x_out = vec![0.0; n];
-        let mut y_out = vec![0.0; p_out];
-        let mut reference: Option<Vec<f64>> = None;
         for c in 0..count {
             // A sigma point on the mean (a zero column of √P: P = 0 in that direction, as
             // in the likelihood's simulation) has the mean's image: not integrated again.
             if c > 0 && chi.column(c) == chi.column(0) {
-                propagated.set_column(c, &propagated.column(0).clone_owned());
-                outputs.set_column(c, &outputs.column(0).clone_owned());
+                for r in 0..l {
+                    propagated[(r, c)] = propagated[(r, 0)];
+                }
+                for r in 0..outputs.nrows() {
+                    outputs[(r, c)] = outputs[(r, 0)];
+                }
                 continue;
             }
             let point = chi.column(c);
-            step.parameters_of(point.as_slice(), &mut theta);
+            step.parameters_of(point.as_slice(), theta);
             let start = Start {
                 time: step.t0,
                 states: &point.as_slice()[..n],
-                parameters: &theta,
+                parameters: theta,
                 inputs: step.u,
-                reference: reference.as_deref(),
+                reference: (c > 0).then_some(&reference[..]),
             };
-            step.plant
-                .propagate(&start, step.t1, &mut x_out, &mut y_out)?;
+            step.plant.propagate(&start, step.t1, x_out, y_out)?;
             if c == 0 {
-                reference = Some(step.plant.placed_indicators());
+                reference.clear();
+                reference.extend_from_slice(step.plant.event_indicators());
             }
             propagated
                 .column_mut(c)
                 .rows_mut(0, n)
-                .copy_from_slice(&x_out);
+                .copy_from_slice(x_out);
             for k in n..l {
                 propagated[(k, c)] = chi[(k, c)];
             }
-            outputs.column_mut(c).copy_from_slice(&y_out);
+            outputs.column_mut(c).copy_from_slice(y_out);
         }
-        let z = self.mean(&propagated);
-        let y = self.mean(&outputs);
-        let mut p = DMatrix::zeros(l, l);
-        let mut s = DMatrix::zeros(p_out, p_out);
-        let mut cross = DMatrix::zeros(l, p_out);
+        let Prediction {
+            z, p, y, s, cross, ..
+        } = out;
+        self.mean(propagated, z);
+        self.mean(outputs, y);
+        p.fill(0.0);
+        s.fill(0.0);
+        cross.fill(0.0);
         for (c, w) in self.wc.iter().enumerate() {
-            let dz = propagated.column(c) - &z;
-            let dy = outputs.column(c) - &y;
-            p += &dz * dz.transpose() * *w;
-            s += &dy * dy.transpose() * *w;
-            cross += &dz * dy.transpose() * *w;
+            for r in 0..l {
+                dz[r] = propagated[(r, c)] - z[r];
+            }
+            for r in 0..dy.len() {
+                dy[r] = outputs[(r, c)] - y[r];
+            }
+            // Each term as (d dᵀ) · w, added.
+            for j in 0..l {
+                for i in 0..l {
+                    p[(i, j)] += dz[i] * dz[j] * *w;
+                }
+            }
+            for j in 0..dy.len() {
+                for i in 0..dy.len() {
+                    s[(i, j)] += dy[i] * dy[j] * *w;
+                }
+                for i in 0..l {
+                    cross[(i, j)] += dz[i] * dy[j] * *w;
+                }
+            }
         }
         if let Some(q) = step.q {
             for i in 0..l {
                 p[(i, i)] += q[i];
             }
         }
-        symmetrise(&mut p);
+        symmetrise(p);
         for (j, r) in step.r.iter().enumerate() {
             s[(j, j)] += r;
         }
-        Ok(Prediction {
-            z,
-            p,
-            y,
-            s,
-            cross,
-            jacobian: None,
-        })
+        Ok(())
     }
 }

@@ -463,6 +463,22 @@ impl Solver {
         Ok(())
     }
 
+    /// Back to what [`Solver::new`] made, its buffers kept (nothing allocated): the first
+    /// step size to be estimated again, the PI control's memory and the statistics cleared;
+    /// [`Solver::reset`] then gives the start. A model run again from its start (an instance
+    /// reset and initialised afresh) is integrated bit for bit as by a new solver.
+    pub fn renew(&mut self) {
+        let tr = &mut self.trajectory;
+        tr.h = tr.settings.initial_step.unwrap_or(0.0);
+        tr.error_old = 1e-4;
+        tr.statistics = Statistics::default();
+        tr.dx_valid = false;
+        match &mut self.inner {
+            Inner::Dopri5(m) => m.forget(),
+            Inner::Rosenbrock(m) => m.forget(),
+        }
+    }
+
     /// The step size to try first after an event: starts the estimate again.
     pub fn forget_step_size(&mut self) {
         self.trajectory.h = self.trajectory.settings.initial_step.unwrap_or(0.0);

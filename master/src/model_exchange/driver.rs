@@ -342,6 +342,26 @@ impl Stepper {
         }
     }
 
+    /// Back to what [`Stepper::new`] made for the same instance, layout and options, its
+    /// buffers kept (nothing allocated): for an instance reset and initialised again
+    /// ([`initialise`], then [`Stepper::initialise`]), which it then runs bit for bit as a new
+    /// stepper would.
+    pub fn renew(&mut self) {
+        self.solver.renew();
+        self.t = self.options.start;
+        self.placed.forget();
+        self.next_event_time = None;
+        self.last_event_time = f64::NEG_INFINITY;
+        self.events_here = 0;
+        self.summary = Summary {
+            end_time: self.options.start,
+            ..Summary::default()
+        };
+        if let Some(recording) = &mut self.recording {
+            recording.next = 1;
+        }
+    }
+
     /// The time the instance is at.
     pub fn time(&self) -> f64 {
         self.t
