@@ -611,27 +611,28 @@ impl MatrixExponential {
         x4.scale_mut(2.0_f64.powf(-4.0 * s));
         x6.scale_mut(2.0_f64.powf(-6.0 * s));
         let (x2, x4, x6) = (&*x2, &*x4, &*x6);
-        // U = X [X⁶(b₁₃X⁶ + b₁₁X⁴ + b₉X²) + b₇X⁶ + b₅X⁴ + b₃X² + b₁I]
-        combine(
-            &mut self.sum,
-            None,
-            &[(x6, b[13]), (x4, b[11]), (x2, b[9])],
-            None,
-        );
-        x6.mul_to(&self.sum, &mut self.product);
-        let odd_terms = [(x6, b[7]), (x4, b[5]), (x2, b[3])];
-        combine(&mut self.sum, Some(&self.product), &odd_terms, Some(b[1]));
-        self.a.mul_to(&self.sum, &mut self.odd);
-        // V = X⁶(b₁₂X⁶ + b₁₀X⁴ + b₈X²) + b₆X⁶ + b₄X⁴ + b₂X² + b₀I
-        combine(
-            &mut self.sum,
-            None,
-            &[(x6, b[12]), (x4, b[10]), (x2, b[8])],
-            None,
-        );
-        x6.mul_to(&self.sum, &mut self.product);
-        let even_terms = [(x6, b[6]), (x4, b[4]), (x2, b[2])];
-        combine(&mut self.even, Some(&self.product), &even_terms, Some(b[0]));
+        // U = X [X⁶(b₁₃X⁶ + b₁₁X⁴ + b₉X²) + b₇X⁶ + b₅X⁴ + b₃X² + b₁I] (parity 1), then
+        // V = X⁶(b₁₂X⁶ + b₁₀X⁴ + b₈X²) + b₆X⁶ + b₄X⁴ + b₂X² + b₀I (parity 0).
+        for parity in [1, 0] {
+            let inner = [
+                (x6, b[12 + parity]),
+                (x4, b[10 + parity]),
+                (x2, b[8 + parity]),
+            ];
+            combine(&mut self.sum, None, &inner, None);
+            x6.mul_to(&self.sum, &mut self.product);
+            let outer = [
+                (x6, b[6 + parity]),
+                (x4, b[4 + parity]),
+                (x2, b[2 + parity]),
+            ];
+            if parity == 1 {
+                combine(&mut self.sum, Some(&self.product), &outer, Some(b[1]));
+                self.a.mul_to(&self.sum, &mut self.odd);
+            } else {
+                combine(&mut self.even, Some(&self.product), &outer, Some(b[0]));
+            }
+        }
         self.solve(out)
     }
 
