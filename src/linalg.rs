@@ -3,11 +3,11 @@
 //! Everything works on dynamic `DMatrix<f64>` because the FMUs choose their dimensions at
 //! packaging or instantiation time.
 //!
-//! * [`expm`]: the matrix exponential `e^A` by scaling and squaring with the degree-13 Padé
-//!   approximant (Higham, "The scaling and squaring method for the matrix exponential
-//!   revisited", SIAM J. Matrix Anal. Appl. 26(4), 2005):
-//!   `e^A = (r₁₃(A / 2^s))^(2^s)`, `r₁₃ = q₁₃(X)⁻¹ p₁₃(X)`, with `s` chosen so that
-//!   `‖A / 2^s‖₁ ≤ θ₁₃ = 5.37`.
+//! * [`MatrixExponential`] (allocation-free on kept buffers), [`expm`]: the matrix
+//!   exponential `e^A` by scaling and squaring with Padé approximants (Higham, "The scaling
+//!   and squaring method for the matrix exponential revisited", SIAM J. Matrix Anal. Appl.
+//!   26(4), 2005): `e^A = (r_m(A / 2^s))^(2^s)`, `r_m = q_m(X)⁻¹ p_m(X)`, the degree
+//!   m ∈ {3, 5, 7, 9, 13} and `s` chosen from the norms of A's powers.
 //! * [`zoh`]: zero-order-hold discretisation. With `M = [[A, B], [0, 0]]·Ts`,
 //!   `e^M = [[A_d, B_d], [0, I]]`, i.e. `A_d = e^{A Ts}`, `B_d = ∫₀^Ts e^{A τ} dτ B`
 //!   (used for the crane of paper 000 at Ts = 0.05 s).
@@ -31,7 +31,7 @@
 //! Nothing here panics on bad input: the fallible functions return [`LinalgError`], which
 //! names the matrix and says why.
 
-use nalgebra::{Cholesky, DMatrix};
+use nalgebra::{Cholesky, DMatrix, DVector};
 use std::fmt;
 
 /// Why a linear-algebra routine could not produce a result.
@@ -298,61 +298,392 @@ const PADE13: [f64; 14] = [
     182.0,
     1.0,
 ];
-/// Largest 1-norm for which r₁₃ reaches double precision (Higham 2005, Table 2.3).
-const THETA13: f64 = 5.371_920_351_148_152;
+/// Padé(3), (5), (7), (9) coefficients b₀…b_m of r_m = q_m⁻¹ p_m (Higham 2005, Table 10.4 /
+/// expm.m).
+const PADE3: [f64; 4] = [120.0, 60.0, 12.0, 1.0];
+const PADE5: [f64; 6] = [30_240.0, 15_120.0, 3_360.0, 420.0, 30.0, 1.0];
+const PADE7: [f64; 8] = [
+    17_297_280.0,
+    8_648_640.0,
+    1_995_840.0,
+    277_200.0,
+    25_200.0,
+    1_512.0,
+    56.0,
+    1.0,
+];
+const PADE9: [f64; 10] = [
+    17_643_225_600.0,
+    8_821_612_800.0,
+    2_075_673_600.0,
+    302_702_400.0,
+    30_270_240.0,
+    2_162_160.0,
+    110_880.0,
+    3_960.0,
+    90.0,
+    1.0,
+];
+/// θ₃, θ₅, θ₇, θ₉: the largest norm for which r_m reaches double precision (Higham 2005,
+/// Table 2.3), compared with the norm estimates η.
+const THETA3: f64 = 1.495_585_217_958_292e-2;
+const THETA5: f64 = 2.539_398_330_063_23e-1;
+const THETA7: f64 = 9.504_178_996_162_932e-1;
+const THETA9: f64 = 2.097_847_961_257_068;
+/// The η₅ that r₁₃ takes before ℓ adds squarings (Al-Mohy & Higham 2009, Algorithm 5.1).
+const THETA13_SCALED: f64 = 4.25;
 
 /// What [`try_expm`] names when `e^A` overflows.
 const EXPM_OVERFLOW: &str = "e^A (overflow)";
 
-/// The matrix exponential `e^a`, or an error for a non-square or non-finite matrix.
-pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
-    let n = require_square("A", a)?;
-    require_finite("A", a)?;
-    let identity = DMatrix::<f64>::identity(n, n);
-    if n == 0 {
-        return Ok(identity);
-    }
-    let norm = norm1(a);
-    if !norm.is_finite() {
-        // ‖A‖₁ = ∞ would ask for 2^s ≥ ∞ (s saturating to i32::MAX: 2³¹ squarings).
-        return Err(LinalgError::NormOverflow {
-            what: "A".to_string(),
-        });
-    }
-    let squarings = if norm > THETA13 {
-        // 2^s ≥ ‖A‖₁ / θ₁₃; at most 1022 for a finite ‖A‖₁ ≤ f64::MAX.
-        (norm / THETA13).log2().ceil().max(0.0) as i32
-    } else {
-        0
-    };
-    let x = a * 2f64.powi(-squarings);
-    let b = &PADE13;
-    let x2 = &x * &x;
-    let x4 = &x2 * &x2;
-    let x6 = &x2 * &x4;
-    // U = X [X⁶(b₁₃X⁶ + b₁₁X⁴ + b₉X²) + b₇X⁶ + b₅X⁴ + b₃X² + b₁I]
-    let u_inner = &x6 * (&x6 * b[13] + &x4 * b[11] + &x2 * b[9])
-        + &x6 * b[7]
-        + &x4 * b[5]
-        + &x2 * b[3]
-        + &identity * b[1];
-    let u = &x * u_inner;
-    // V = X⁶(b₁₂X⁶ + b₁₀X⁴ + b₈X²) + b₆X⁶ + b₄X⁴ + b₂X² + b₀I
-    let v = &x6 * (&x6 * b[12] + &x4 * b[10] + &x2 * b[8])
-        + &x6 * b[6]
-        + &x4 * b[4]
-        + &x2 * b[2]
-        + &identity * b[0];
-    // r₁₃ = (V − U)⁻¹ (V + U)
-    let mut result = lu_solve(&(&v - &u), &(&v + &u), "Padé denominator q₁₃(A/2^s)")?;
-    for _ in 0..squarings {
-        result = &result * &result;
-    }
-    require_finite(EXPM_OVERFLOW, &result)?;
-    Ok(result)
+/// `n!` (exact in `u128` up to 34!).
+fn factorial(n: u32) -> u128 {
+    (1..=u128::from(n)).product()
 }
 
-/// The matrix exponential `e^a` (scaling and squaring, Padé 13; see the module doc).
+/// The matrix exponential `e^A` of `n × n` matrices on buffers made once: [`Self::exp_into`]
+/// allocates nothing (the EKF's state-transition matrix Φ_xx = e^{½h(A₀+A₁)} every sample,
+/// docs/estimators.md; [`try_expm`] and [`try_zoh`] make one per call).
+///
+/// Scaling and squaring with the diagonal Padé approximants `r_m = q_m⁻¹ p_m`, m ∈ {3, 5, 7,
+/// 9, 13} (Higham, "The scaling and squaring method for the matrix exponential revisited",
+/// SIAM J. Matrix Anal. Appl. 26(4), 2005), the degree and the squarings chosen as in
+/// Al-Mohy & Higham, "A new scaling and squaring algorithm for the matrix exponential",
+/// SIAM J. Matrix Anal. Appl. 31(3), 2009, Algorithm 5.1: the algorithm of scipy's and
+/// nalgebra 0.35's `expm`, operation for operation, so the result is `DMatrix::exp`'s bit
+/// for bit.
+///
+/// * `p_m(X) = V + U`, `q_m(X) = V − U`, with the odd part `U = X Σ_k b_{2k+1} X^{2k}` and
+///   the even part `V = Σ_k b_{2k} X^{2k}` (b from the tables above);
+/// * with `d_p = ‖A^p‖₁^{1/p}` (≤ ‖A‖₁, ≥ the spectral radius), `η₁ = max(d₄, d₆)`,
+///   `η₃ = max(d₆, d₈)`: m = 3 if `η₁ < θ₃`, m = 5 if `η₁ < θ₅`, m = 7 if `η₃ < θ₇`,
+///   m = 9 if `η₃ < θ₉`, each only where the backward-error correction
+///   `ℓ(A, m) = max(0, ⌈log₂(α / u) / 2m⌉)` is 0, `α = ‖|A|^{2m+1}‖₁ / (‖A‖₁ C(2m, m)
+///   (2m+1)!)`, `u = 2⁻⁵³`;
+/// * otherwise `e^A = r₁₃(A / 2^s)^{2^s}` by `s` squarings,
+///   `s = max(0, ⌈log₂(η₅ / 4.25)⌉) + ℓ(A / 2^s, 13)`, `η₅ = min(η₃, max(d₈, d₁₀))` (‖A‖₁
+///   where a power overflows).
+///
+/// `q_m X = p_m` is solved by LU with partial pivoting in place (nalgebra's Gauss steps; the
+/// row interchanges kept in a vector of capacity n).
+#[derive(Debug, Clone)]
+pub struct MatrixExponential {
+    /// A, then A / 2^s.
+    a: DMatrix<f64>,
+    /// A², A⁴, A⁶, A⁸, A¹⁰: the first `powers_known`, then (degree 13) scaled by 2^{−2ks}.
+    powers: [DMatrix<f64>; 5],
+    powers_known: usize,
+    /// The work of ℓ.
+    backward_error: BackwardErrorWork,
+    /// A sum of powers, a product of matrices, U, and V (then q_m and its LU factors).
+    sum: DMatrix<f64>,
+    product: DMatrix<f64>,
+    odd: DMatrix<f64>,
+    even: DMatrix<f64>,
+    /// The LU's row interchanges (i, pivot row), in order.
+    interchanges: Vec<(usize, usize)>,
+    /// The degree m and the squarings s of the last exponential (0, 0 for n ≤ 1).
+    degree_and_squarings: (usize, u64),
+}
+
+/// The buffers of `ℓ(B, m)`: |B|ᵀ and the two vectors of the power iteration
+/// `v ← |B|ᵀ v` from `v = 1`, whose largest entry is ‖|B|^p‖₁.
+#[derive(Debug, Clone)]
+struct BackwardErrorWork {
+    absolute: DMatrix<f64>,
+    absolute_t: DMatrix<f64>,
+    vectors: (DVector<f64>, DVector<f64>),
+}
+
+impl BackwardErrorWork {
+    /// `ℓ(b, m)` (see [`MatrixExponential`]).
+    fn ell(&mut self, b: &DMatrix<f64>, m: u32) -> u64 {
+        self.absolute.zip_apply(b, |x, y| *x = y.abs());
+        self.absolute.transpose_to(&mut self.absolute_t);
+        let (v, next) = &mut self.vectors;
+        v.fill(1.0);
+        for _ in 0..2 * m + 1 {
+            self.absolute_t.mul_to(v, next);
+            std::mem::swap(v, next);
+        }
+        let power_norm = v.max();
+        if power_norm == 0.0 {
+            return 0;
+        }
+        let m_factorial = factorial(m);
+        let choose_2m_m = factorial(2 * m) / (m_factorial * m_factorial);
+        let coefficient_reciprocal = choose_2m_m * factorial(2 * m + 1);
+        let alpha = power_norm / b.one_norm() / coefficient_reciprocal as f64;
+        let unit_roundoff = 2_f64.powf(-53.0);
+        let value = ((alpha / unit_roundoff).log2() / (2.0 * f64::from(m))).ceil();
+        if value > 0.0 {
+            value as u64
+        } else {
+            0
+        }
+    }
+}
+
+/// `out = start + Σ (X c) [+ c_I I]`, entry by entry in this order (nalgebra's
+/// `X * c + …`); without `start` the sum begins with the first term.
+fn combine(
+    out: &mut DMatrix<f64>,
+    start: Option<&DMatrix<f64>>,
+    terms: &[(&DMatrix<f64>, f64)],
+    identity: Option<f64>,
+) {
+    let n = out.nrows();
+    for (index, entry) in out.as_mut_slice().iter_mut().enumerate() {
+        let mut rest = terms.iter();
+        let mut value = match (start, rest.next()) {
+            (Some(start), Some((x, c))) => start.as_slice()[index] + x.as_slice()[index] * c,
+            (Some(start), None) => start.as_slice()[index],
+            (None, Some((x, c))) => x.as_slice()[index] * c,
+            (None, None) => 0.0,
+        };
+        for (x, c) in rest {
+            value += x.as_slice()[index] * c;
+        }
+        if let Some(identity) = identity {
+            value += if index % (n + 1) == 0 { identity } else { 0.0 };
+        }
+        *entry = value;
+    }
+}
+
+impl MatrixExponential {
+    /// Buffers for the exponential of `n × n` matrices.
+    pub fn new(n: usize) -> Self {
+        let square = || DMatrix::zeros(n, n);
+        Self {
+            a: square(),
+            powers: [square(), square(), square(), square(), square()],
+            powers_known: 0,
+            backward_error: BackwardErrorWork {
+                absolute: square(),
+                absolute_t: square(),
+                vectors: (DVector::zeros(n), DVector::zeros(n)),
+            },
+            sum: square(),
+            product: square(),
+            odd: square(),
+            even: square(),
+            interchanges: Vec::with_capacity(n),
+            degree_and_squarings: (0, 0),
+        }
+    }
+
+    /// The order `n` of the matrices these buffers are for.
+    pub fn order(&self) -> usize {
+        self.a.nrows()
+    }
+
+    /// The Padé degree m and the squarings s of the last [`Self::exp_into`] (0, 0 when
+    /// n ≤ 1 or it failed before).
+    pub fn degree_and_squarings(&self) -> (usize, u64) {
+        self.degree_and_squarings
+    }
+
+    /// `out = e^a` (see the type's doc), allocating nothing but an error's text.
+    ///
+    /// Errors: `a` or `out` not `n × n` ([`LinalgError::DimensionMismatch`]), `a` not finite
+    /// ([`LinalgError::NonFinite`]), ‖a‖₁ beyond `f64` ([`LinalgError::NormOverflow`]), a
+    /// singular Padé denominator ([`LinalgError::Singular`]) or an overflowing result
+    /// ([`LinalgError::NonFinite`] naming `e^A (overflow)`); `out` is then unspecified.
+    pub fn exp_into(
+        &mut self,
+        a: &DMatrix<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), LinalgError> {
+        let n = self.order();
+        require_shape("A", a, n, n)?;
+        require_shape("e^A", out, n, n)?;
+        require_finite("A", a)?;
+        let norm = a.one_norm();
+        if !norm.is_finite() {
+            // ‖A‖₁ = ∞ would ask for 2^s ≥ ∞ squarings.
+            return Err(LinalgError::NormOverflow {
+                what: "A".to_string(),
+            });
+        }
+        self.degree_and_squarings = (0, 0);
+        match n {
+            0 => return Ok(()),
+            1 => out[(0, 0)] = a[(0, 0)].exp(),
+            _ => self.pade_scaled_and_squared(a, norm, out)?,
+        }
+        require_finite(EXPM_OVERFLOW, out)
+    }
+
+    /// `out = r_m(A / 2^s)^{2^s}` with m and s chosen from `a` (n ≥ 2, ‖a‖₁ = `norm` finite).
+    fn pade_scaled_and_squared(
+        &mut self,
+        a: &DMatrix<f64>,
+        norm: f64,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), LinalgError> {
+        self.a.copy_from(a);
+        self.powers_known = 0;
+        let eta_1 = self.d(2).max(self.d(3));
+        if eta_1 < THETA3 && self.backward_error.ell(&self.a, 3) == 0 {
+            return self.pade(&PADE3, out);
+        }
+        if eta_1 < THETA5 && self.backward_error.ell(&self.a, 5) == 0 {
+            return self.pade(&PADE5, out);
+        }
+        let eta_3 = self.d(3).max(self.d(4));
+        if eta_3 < THETA7 && self.backward_error.ell(&self.a, 7) == 0 {
+            return self.pade(&PADE7, out);
+        }
+        if eta_3 < THETA9 && self.backward_error.ell(&self.a, 9) == 0 {
+            return self.pade(&PADE9, out);
+        }
+        let eta_4 = self.d(4).max(self.d(5));
+        let eta_5 = eta_3.min(eta_4);
+        let eta_5 = if eta_5.is_finite() { eta_5 } else { norm };
+        let mut squarings = if eta_5 == 0.0 {
+            0
+        } else {
+            let l2 = (eta_5 / THETA13_SCALED).log2().ceil();
+            if l2 < 0.0 {
+                0
+            } else {
+                l2 as u64
+            }
+        };
+        let scale = 2.0_f64.powf(-(squarings as f64));
+        self.sum.zip_apply(&self.a, |x, y| *x = y * scale);
+        squarings += self.backward_error.ell(&self.sum, 13);
+        self.degree_and_squarings = (13, squarings);
+        self.pade13_scaled(squarings, out)?;
+        for _ in 0..squarings {
+            out.mul_to(&*out, &mut self.product);
+            std::mem::swap(out, &mut self.product);
+        }
+        Ok(())
+    }
+
+    /// A^{2k} (k = 1…5), computing the missing ones: A² = A A, A⁴ = A² A², A⁶ = A⁴ A²,
+    /// A⁸ = A⁶ A², A¹⁰ = A⁶ A⁴.
+    fn even_power(&mut self, k: usize) -> &DMatrix<f64> {
+        while self.powers_known < k {
+            let [a2, a4, a6, a8, a10] = &mut self.powers;
+            match self.powers_known {
+                0 => self.a.mul_to(&self.a, a2),
+                1 => a2.mul_to(a2, a4),
+                2 => a4.mul_to(a2, a6),
+                3 => a6.mul_to(a2, a8),
+                _ => a6.mul_to(a4, a10),
+            }
+            self.powers_known += 1;
+        }
+        &self.powers[k - 1]
+    }
+
+    /// `d_{2k} = ‖A^{2k}‖₁^{1/2k}`.
+    fn d(&mut self, k: usize) -> f64 {
+        self.even_power(k).one_norm().powf(1.0 / (2 * k) as f64)
+    }
+
+    /// `out = r_m(A)` for m = `b.len() − 1` ∈ {3, 5, 7, 9} (A², …, A^{m−1} known).
+    fn pade(&mut self, b: &[f64], out: &mut DMatrix<f64>) -> Result<(), LinalgError> {
+        self.degree_and_squarings = (b.len() - 1, 0);
+        let half = (b.len() - 2) / 2;
+        let [a2, a4, a6, a8, _] = &self.powers;
+        let powers = [a2, a4, a6, a8];
+        // The highest power first: U = A (b_m A^{m−1} + … + b₃ A² + b₁ I).
+        let odd_terms = [3, 2, 1, 0].map(|k| (powers[k], b[(2 * k + 3).min(b.len() - 1)]));
+        let even_terms = [3, 2, 1, 0].map(|k| (powers[k], b[(2 * k + 2).min(b.len() - 1)]));
+        combine(&mut self.sum, None, &odd_terms[4 - half..], Some(b[1]));
+        self.a.mul_to(&self.sum, &mut self.odd);
+        combine(&mut self.even, None, &even_terms[4 - half..], Some(b[0]));
+        self.solve(out)
+    }
+
+    /// `out = r₁₃(A / 2^s)` (A², A⁴, A⁶ known), scaling A and its powers in place.
+    fn pade13_scaled(&mut self, squarings: u64, out: &mut DMatrix<f64>) -> Result<(), LinalgError> {
+        let b = &PADE13;
+        let s = squarings as f64;
+        self.even_power(3);
+        self.a.scale_mut(2.0_f64.powf(-s));
+        let [x2, x4, x6, _, _] = &mut self.powers;
+        x2.scale_mut(2.0_f64.powf(-2.0 * s));
+        x4.scale_mut(2.0_f64.powf(-4.0 * s));
+        x6.scale_mut(2.0_f64.powf(-6.0 * s));
+        let (x2, x4, x6) = (&*x2, &*x4, &*x6);
+        // U = X [X⁶(b₁₃X⁶ + b₁₁X⁴ + b₉X²) + b₇X⁶ + b₅X⁴ + b₃X² + b₁I] (parity 1), then
+        // V = X⁶(b₁₂X⁶ + b₁₀X⁴ + b₈X²) + b₆X⁶ + b₄X⁴ + b₂X² + b₀I (parity 0).
+        for parity in [1, 0] {
+            let inner = [
+                (x6, b[12 + parity]),
+                (x4, b[10 + parity]),
+                (x2, b[8 + parity]),
+            ];
+            combine(&mut self.sum, None, &inner, None);
+            x6.mul_to(&self.sum, &mut self.product);
+            let outer = [
+                (x6, b[6 + parity]),
+                (x4, b[4 + parity]),
+                (x2, b[2 + parity]),
+            ];
+            if parity == 1 {
+                combine(&mut self.sum, Some(&self.product), &outer, Some(b[1]));
+                self.a.mul_to(&self.sum, &mut self.odd);
+            } else {
+                combine(&mut self.even, Some(&self.product), &outer, Some(b[0]));
+            }
+        }
+        self.solve(out)
+    }
+
+    /// `out = (V − U)⁻¹ (V + U)` from U = `odd`, V = `even` (`even` then holds the LU
+    /// factors of V − U).
+    fn solve(&mut self, out: &mut DMatrix<f64>) -> Result<(), LinalgError> {
+        out.zip_zip_apply(&self.odd, &self.even, |p, u, v| *p = u + v);
+        self.even.zip_apply(&self.odd, |q, u| *q -= u);
+        let q = &mut self.even;
+        let n = q.nrows();
+        self.interchanges.clear();
+        for i in 0..n {
+            let pivot = q.view_range(i.., i).icamax() + i;
+            let diagonal = q[(pivot, i)];
+            if diagonal == 0.0 {
+                continue;
+            }
+            if pivot != i {
+                self.interchanges.push((i, pivot));
+                q.columns_range_mut(..i).swap_rows(i, pivot);
+                nalgebra::linalg::gauss_step_swap(q, diagonal, i, pivot);
+            } else {
+                nalgebra::linalg::gauss_step(q, diagonal, i);
+            }
+        }
+        for &(i, pivot) in &self.interchanges {
+            out.swap_rows(i, pivot);
+        }
+        // The unit diagonal is never zero: this always succeeds.
+        let _ = q.solve_lower_triangular_with_diag_mut(out, 1.0);
+        if q.solve_upper_triangular_mut(out) {
+            Ok(())
+        } else {
+            Err(LinalgError::Singular {
+                what: "Padé denominator q_m(A/2^s)".to_string(),
+            })
+        }
+    }
+}
+
+/// The matrix exponential `e^a`, or an error for a non-square or non-finite matrix (one
+/// [`MatrixExponential`] made for the call).
+pub fn try_expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>, LinalgError> {
+    let n = require_square("A", a)?;
+    let mut exponential = DMatrix::zeros(n, n);
+    MatrixExponential::new(n).exp_into(a, &mut exponential)?;
+    Ok(exponential)
+}
+
+/// The matrix exponential `e^a` (scaling and squaring with Padé approximants; see
+/// [`MatrixExponential`]).
 ///
 /// Accurate to about 1e-15 relative on well-scaled matrices. This never panics: a
 /// non-square matrix gives a `rows × cols` matrix of NaN, and non-finite input (or overflow)
@@ -1215,6 +1546,102 @@ mod tests {
             );
         }
         assert_eq!(e[(0, 1)], 0.0);
+    }
+
+    /// exp([[a, b], [0, d]]) = [[e^a, b (e^a − e^d) / (a − d)], [0, e^d]]: ‖A‖₁ = 105 and
+    /// the spectral radius 6 need degree 13 on A / 2^s with s = 1 squaring (η₅ ≈ 6 of the
+    /// norms of A's powers; ‖A‖₁ / θ₁₃ alone would ask for 5).
+    #[test]
+    fn expm_of_a_matrix_of_large_norm_scales_and_squares() {
+        let (a, b, d) = (6.0_f64, 100.0, -5.0_f64);
+        let mut work = MatrixExponential::new(2);
+        let mut e = DMatrix::zeros(2, 2);
+        work.exp_into(&dmatrix![a, b; 0.0, d], &mut e).unwrap();
+        assert_eq!(work.degree_and_squarings(), (13, 1));
+        let expected = dmatrix![a.exp(), b * (a.exp() - d.exp()) / (a - d); 0.0, d.exp()];
+        for (got, want) in e.iter().zip(expected.iter()) {
+            assert!(
+                (got - want).abs() <= 1e-13 * want.abs().max(1.0),
+                "{got} against {want}"
+            );
+        }
+    }
+
+    /// Pseudo-random matrices (a linear congruential generator, entries in [−1, 1)) of
+    /// orders 2…8 scaled to 1-norms from 10⁻⁴ to 10³ (every degree 3…13, up to 10
+    /// squarings), all through one [`MatrixExponential`] per order: nalgebra's
+    /// `DMatrix::exp` bit for bit.
+    #[test]
+    fn matrix_exponential_is_nalgebras_bit_for_bit() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let mut degrees_and_squarings = std::collections::BTreeSet::new();
+        for n in 2..=8 {
+            let mut work = MatrixExponential::new(n);
+            let mut e = DMatrix::zeros(n, n);
+            for norm in [1e-4, 3e-3, 0.1, 0.5, 1.5, 3.0, 10.0, 100.0, 1e3] {
+                for _ in 0..4 {
+                    let mut a = DMatrix::from_fn(n, n, |_, _| uniform());
+                    a *= norm / a.one_norm();
+                    work.exp_into(&a, &mut e).unwrap();
+                    let reference = a.exp();
+                    for (got, want) in e.iter().zip(reference.iter()) {
+                        assert_eq!(got.to_bits(), want.to_bits(), "n = {n}, ‖A‖₁ = {norm}");
+                    }
+                    degrees_and_squarings.insert(work.degree_and_squarings());
+                }
+            }
+        }
+        // Every degree was taken, and degree 13 with and without squarings.
+        let degrees: std::collections::BTreeSet<_> =
+            degrees_and_squarings.iter().map(|(m, _)| *m).collect();
+        assert_eq!(
+            degrees,
+            [3, 5, 7, 9, 13].into(),
+            "{degrees_and_squarings:?}"
+        );
+        assert!(
+            degrees_and_squarings.contains(&(13, 0)),
+            "{degrees_and_squarings:?}"
+        );
+        assert!(
+            degrees_and_squarings.iter().any(|&(_, s)| s >= 8),
+            "{degrees_and_squarings:?}"
+        );
+    }
+
+    /// 1×1 and 0×0, and the shapes that do not fit.
+    #[test]
+    fn matrix_exponential_of_the_smallest_orders_and_wrong_shapes() {
+        let mut e = dmatrix![0.0];
+        MatrixExponential::new(1)
+            .exp_into(&dmatrix![-0.7], &mut e)
+            .unwrap();
+        assert_eq!(e[(0, 0)], (-0.7_f64).exp());
+        let mut empty = DMatrix::zeros(0, 0);
+        MatrixExponential::new(0)
+            .exp_into(&DMatrix::zeros(0, 0), &mut empty)
+            .unwrap();
+        let mut work = MatrixExponential::new(2);
+        let mut out = DMatrix::zeros(2, 2);
+        assert!(matches!(
+            work.exp_into(&DMatrix::zeros(3, 3), &mut out),
+            Err(LinalgError::DimensionMismatch {
+                expected: (2, 2),
+                got: (3, 3),
+                ..
+            })
+        ));
+        let mut wrong_out = DMatrix::zeros(2, 3);
+        assert!(matches!(
+            work.exp_into(&DMatrix::zeros(2, 2), &mut wrong_out),
+            Err(LinalgError::DimensionMismatch { .. })
+        ));
     }
 
     #[test]

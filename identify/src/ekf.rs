@@ -13,7 +13,8 @@
 //!   happened on the interval, from the variational equation Φ̇ = A(t) Φ, Φ(t_{k−1}) = I,
 //!   by its second-order Magnus step with the trapezoidal rule:
 //!   Φ_xx = exp(½ h (A(t_{k−1}, x̂) + A(t_k, x̂⁻))), h = t_k − t_{k−1} (exact for a linear
-//!   time-invariant model);
+//!   time-invariant model; the exponential by scaling and squaring with Padé approximants on
+//!   buffers kept in the work, [`spurio::linalg::MatrixExponential`]: nothing allocated);
 //! - otherwise, and for the parameter columns Φ_xθ always (the FMU gives no derivative with
 //!   respect to a parameter), by central differences of the integrator over the interval:
 //!   column i = (x(t_k; ẑ + δᵢ eᵢ) − x(t_k; ẑ − δᵢ eᵢ)) / (2δᵢ), δᵢ = [`RELATIVE_STEP`]
@@ -32,6 +33,7 @@
 use crate::plant::Start;
 use crate::prediction::{symmetrise, FilterError, Prediction, Sizes, Step};
 use nalgebra::{DMatrix, DVector};
+use spurio::linalg::MatrixExponential;
 
 /// δᵢ / max(|ẑᵢ|, 1) of the central differences (module documentation): the truncation
 /// error O(δ²) ≈ 10⁻⁸ against the integrator's error / δ at tolerances of 10⁻⁸ and below.
@@ -56,10 +58,13 @@ pub(crate) struct ExtendedWork {
     dx_unused: DMatrix<f64>,
     /// ∂y/∂z of Φ's differences (not used).
     dy_unused: DMatrix<f64>,
-    /// A(t₀), A(t₁) (n × n, column-major), and ½ h (A(t₀) + A(t₁)).
+    /// A(t₀), A(t₁) (n × n, column-major), ½ h (A(t₀) + A(t₁)), its exponential Φ_xx and
+    /// the exponential's buffers.
     a0: Vec<f64>,
     a1: Vec<f64>,
     exponent: DMatrix<f64>,
+    transition: DMatrix<f64>,
+    exponential: MatrixExponential,
     /// Φ, Φᵀ, Φ P (L × L), Hᵀ (L × p).
     phi: DMatrix<f64>,
     phi_t: DMatrix<f64>,
@@ -88,6 +93,8 @@ impl ExtendedWork {
             a0: vec![0.0; n * n],
             a1: vec![0.0; n * n],
             exponent: DMatrix::zeros(n, n),
+            transition: DMatrix::zeros(n, n),
+            exponential: MatrixExponential::new(n),
             phi: DMatrix::zeros(l, l),
             phi_t: DMatrix::zeros(l, l),
             phi_p: DMatrix::zeros(l, l),
@@ -253,7 +260,10 @@ pub(crate) fn predict(
             for ((e, a0), a1) in exponent.iter_mut().zip(&work.a0).zip(&work.a1) {
                 *e = (a0 + a1) * half_step;
             }
-            phi.view_mut((0, 0), (n, n)).copy_from(&work.exponent.exp());
+            work.exponential
+                .exp_into(&work.exponent, &mut work.transition)
+                .map_err(|source| FilterError::TransitionMatrix { time: t1, source })?;
+            phi.view_mut((0, 0), (n, n)).copy_from(&work.transition);
             n..l
         } else {
             0..l

@@ -22,6 +22,11 @@ pub enum FilterError {
         sample: usize,
         time: f64,
     },
+    #[error("the state-transition matrix Φ_xx = exp(½h(A(t₀) + A(t₁))) to t = {time}: {source}")]
+    TransitionMatrix {
+        time: f64,
+        source: spurio::linalg::LinalgError,
+    },
     #[error("the filter's settings: {0}")]
     Settings(String),
 }
