@@ -74,3 +74,83 @@ pub fn joint_filter(
     );
     Filter::new(plant.clone(), theta0, &augmented, x0, p0, &online)
 }
+
+/// The estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// The robust UKF, the parameters random-walk states.
+    Ukf,
+    /// The robust EKF, the parameters random-walk states.
+    Ekf,
+    /// Maximum likelihood (Huber loss when robust) of the output errors.
+    MaximumLikelihood,
+}
+
+/// The robust weights of the online filter (and the loss of the offline fit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Robust {
+    /// The plain filter and the Gaussian likelihood.
+    None,
+    /// Huber's weights (c = 1.645) online, Huber's loss (c = 1.345) offline.
+    Huber,
+    /// Tukey's bisquare weights (c = 4.685) online, Huber's loss offline.
+    Tukey,
+}
+
+impl Method {
+    /// How the method's filters (online, and those judging the fit) carry the covariance:
+    /// linearised for the EKF, unscented otherwise.
+    pub fn linearisation(self) -> Linearisation {
+        match self {
+            Self::Ekf => Linearisation::Extended,
+            Self::Ukf | Self::MaximumLikelihood => Linearisation::UNSCENTED,
+        }
+    }
+}
+
+impl Robust {
+    /// The ψ function of the online filter.
+    pub fn influence(self) -> Option<InfluenceFunction> {
+        match self {
+            Self::None => None,
+            Self::Huber => Some(InfluenceFunction::huber()),
+            Self::Tukey => Some(InfluenceFunction::tukey()),
+        }
+    }
+}
+
+impl Method {
+    /// The method's name on the command line and in an estimator FMU's configuration.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ukf => "ukf",
+            Self::Ekf => "ekf",
+            Self::MaximumLikelihood => "ml",
+        }
+    }
+
+    /// The method named `text` ([`Method::name`]).
+    pub fn named(text: &str) -> Option<Self> {
+        [Self::Ukf, Self::Ekf, Self::MaximumLikelihood]
+            .into_iter()
+            .find(|m| m.name() == text)
+    }
+}
+
+impl Robust {
+    /// The weights' name on the command line and in an estimator FMU's configuration.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Huber => "huber",
+            Self::Tukey => "tukey",
+        }
+    }
+
+    /// The weights named `text` ([`Robust::name`]).
+    pub fn named(text: &str) -> Option<Self> {
+        [Self::None, Self::Huber, Self::Tukey]
+            .into_iter()
+            .find(|r| r.name() == text)
+    }
+}

@@ -61,7 +61,7 @@ fn mapping(entry: &str) -> (String, String) {
 }
 
 /// `NAME=VALUE` entries of `flag` as (name, number).
-fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
+pub(crate) fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
     entries
         .iter()
         .map(|entry| {
@@ -166,16 +166,8 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             outputs: output_names,
         },
         tolerance: 1e-8,
-        robust: match args.robust.as_str() {
-            "none" => Robust::None,
-            "tukey" => Robust::Tukey,
-            _ => Robust::Huber,
-        },
-        method: match args.method.as_str() {
-            "ml" => Method::MaximumLikelihood,
-            "ekf" => Method::Ekf,
-            _ => Method::Ukf,
-        },
+        robust: Robust::named(&args.robust).unwrap_or(Robust::Huber),
+        method: Method::named(&args.method).unwrap_or(Method::Ukf),
         validate: args.validate,
         noise: (!args.noise.is_empty()).then(|| args.noise.clone()),
         starts: values("--start", &args.start)?,
