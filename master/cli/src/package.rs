@@ -629,10 +629,10 @@ mod tests {
     }
 
     #[test]
-    fn the_fifteen_fmu_folders_are_found_by_their_cdylib() {
+    fn the_sixteen_fmu_folders_are_found_by_their_cdylib() {
         let found = discover(&repo()).unwrap();
         let names: Vec<&str> = found.iter().map(|f| f.model_identifier.as_str()).collect();
-        assert_eq!(names.len(), 15, "{names:?}");
+        assert_eq!(names.len(), 16, "{names:?}");
         assert!(names.contains(&"GantryCrane") && names.contains(&"DkfRsKf"));
         assert!(names.contains(&DATA_FMU));
         assert!(!names.iter().any(|n| n.starts_with("spurio")));

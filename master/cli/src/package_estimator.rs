@@ -165,8 +165,11 @@ pub fn declare(request: &Request) -> Result<EstimatorDeclaration> {
     Ok(declared)
 }
 
+/// Files of an archive: (name, bytes).
+type Files = Vec<(String, Vec<u8>)>;
+
 /// The plant archive's files as `plant/<name>` resources, and the `binaries/` folders it has.
-fn plant_files(path: &Path) -> Result<(Vec<(String, Vec<u8>)>, Vec<String>)> {
+fn plant_files(path: &Path) -> Result<(Files, Vec<String>)> {
     let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let mut archive = zip::ZipArchive::new(file)
         .with_context(|| format!("{}: not a zip archive", path.display()))?;
