@@ -31,19 +31,8 @@
 //! break cannot be carried and is refused when declared.
 
 use crate::online::{Method, Robust};
-
-/// What is wrong with a declaration (a configuration key and why).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum DeclarationError {
-    #[error("`{key}` is missing")]
-    Missing { key: String },
-    #[error("`{key} = {value}`: {reason}")]
-    Invalid {
-        key: String,
-        value: String,
-        reason: String,
-    },
-}
+pub use spurio_table::declaration::DeclarationError;
+use spurio_table::declaration::{invalid, Entries};
 
 /// A variable of the plant by name, with its unit.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,6 +50,8 @@ pub struct EstimatorDeclaration {
     pub robust: Robust,
     pub tolerance: f64,
     pub inputs: Vec<Named>,
+    /// Parameters of the plant set for the experiment (not estimated): (name, value).
+    pub set: Vec<(String, f64)>,
     pub outputs: Vec<Named>,
     /// R: one variance per measured variable.
     pub noise: Vec<f64>,
@@ -68,8 +59,6 @@ pub struct EstimatorDeclaration {
     pub free: Vec<Named>,
     /// θ₀: one start per free parameter.
     pub starts: Vec<f64>,
-    /// Parameters set for the experiment: (name, value).
-    pub set: Vec<(String, f64)>,
 }
 
 /// Writes `v` so that parsing gives it back exactly (Rust's shortest round trip).
@@ -161,57 +150,47 @@ impl EstimatorDeclaration {
     pub fn from_entries<'a>(
         get: impl Fn(&str) -> Option<&'a str>,
     ) -> Result<Self, DeclarationError> {
-        let required = |key: &str| {
-            get(key).ok_or_else(|| DeclarationError::Missing {
-                key: key.to_string(),
-            })
-        };
-        let invalid = |key: &str, value: &str, reason: &str| DeclarationError::Invalid {
-            key: key.to_string(),
-            value: value.to_string(),
-            reason: reason.to_string(),
-        };
-        let number = |key: &str| -> Result<f64, DeclarationError> {
-            let value = required(key)?;
-            value
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| invalid(key, value, "not a finite number"))
-        };
+        let e = Entries::new(get);
         let list = |group: &str, key: &str| -> Result<Vec<Named>, DeclarationError> {
-            let value = required(group)?;
-            let count = value
-                .parse::<usize>()
-                .ok()
-                .filter(|&n| n <= MAX_ITEMS)
-                .ok_or_else(|| invalid(group, value, "not a count up to 1000"))?;
+            let count = e.count(group, 0)?;
+            if count > MAX_ITEMS {
+                return Err(invalid(group, &count.to_string(), "more than 1000"));
+            }
             (1..=count)
                 .map(|i| {
                     let at = format!("{key}.{i}");
+                    let unit = e.optional(&format!("{at}.unit")).map(str::to_string);
                     Ok(Named {
-                        name: required(&at)?.to_string(),
-                        unit: get(&format!("{at}.unit")).map(str::to_string),
+                        name: e.required(&at)?.to_string(),
+                        unit,
                     })
                 })
                 .collect()
         };
-        let method = required("method")?;
-        let method = Method::named(method)
+        // The numbers `{key}.{i}.{field}` of the `count` items of a list.
+        let numbers =
+            |key: &str, count: usize, field: &str| -> Result<Vec<f64>, DeclarationError> {
+                (1..=count)
+                    .map(|i| e.number(&format!("{key}.{i}.{field}")))
+                    .collect()
+            };
+        let method_name = e.required("method")?;
+        let method = Method::named(method_name)
             .filter(|m| *m != Method::MaximumLikelihood)
-            .ok_or_else(|| invalid("method", method, "not `ukf` or `ekf`"))?;
-        let robust = required("robust")?;
-        let robust = Robust::named(robust)
-            .ok_or_else(|| invalid("robust", robust, "not `huber`, `tukey` or `none`"))?;
-        let tolerance = number("tolerance")?;
+            .ok_or_else(|| invalid("method", method_name, "not `ukf` or `ekf`"))?;
+        let robust_name = e.required("robust")?;
+        let robust = Robust::named(robust_name)
+            .ok_or_else(|| invalid("robust", robust_name, "not `huber`, `tukey` or `none`"))?;
+        let tolerance = e.number("tolerance")?;
         if tolerance <= 0.0 {
             return Err(invalid("tolerance", &tolerance.to_string(), "not > 0"));
         }
         let outputs = list("outputs", "output")?;
-        let free = list("free", "free")?;
-        let noise = (1..=outputs.len())
-            .map(|j| number(&format!("output.{j}.noise")))
-            .collect::<Result<Vec<_>, _>>()?;
+        if outputs.is_empty() {
+            let reason = "an estimator measures at least one variable";
+            return Err(invalid("outputs", "0", reason));
+        }
+        let noise = numbers("output", outputs.len(), "noise")?;
         if let Some(j) = noise.iter().position(|v| *v <= 0.0) {
             let key = format!("output.{}.noise", j + 1);
             return Err(invalid(
@@ -220,33 +199,27 @@ impl EstimatorDeclaration {
                 "a variance must be > 0",
             ));
         }
-        let starts = (1..=free.len())
-            .map(|i| number(&format!("free.{i}.start")))
-            .collect::<Result<Vec<_>, _>>()?;
-        let set = list("set", "set")?
+        let free = list("free", "free")?;
+        let starts = numbers("free", free.len(), "start")?;
+        let set_names = list("set", "set")?;
+        let set_values = numbers("set", set_names.len(), "value")?;
+        let set = set_names
             .into_iter()
-            .enumerate()
-            .map(|(i, n)| Ok((n.name, number(&format!("set.{}.value", i + 1))?)))
-            .collect::<Result<Vec<_>, DeclarationError>>()?;
-        if outputs.is_empty() {
-            return Err(invalid(
-                "outputs",
-                "0",
-                "an estimator measures at least one variable",
-            ));
-        }
+            .map(|n| n.name)
+            .zip(set_values)
+            .collect();
         Ok(Self {
-            name: required("name")?.to_string(),
-            plant: required("plant")?.to_string(),
+            name: e.required("name")?.to_string(),
+            plant: e.required("plant")?.to_string(),
             method,
             robust,
             tolerance,
+            noise,
+            starts,
             inputs: list("inputs", "input")?,
             outputs,
-            noise,
             states: list("states", "state")?,
             free,
-            starts,
             set,
         })
     }
@@ -271,12 +244,12 @@ mod tests {
             method: Method::Ukf,
             robust: Robust::Huber,
             tolerance: 1e-8,
+            noise: vec![1e-6, 0.1 + 0.2],
+            starts: vec![1.01262],
             inputs: vec![named("U", Some("N"))],
             outputs: vec![named("x", Some("m")), named("theta", Some("rad"))],
-            noise: vec![1e-6, 0.1 + 0.2],
             states: vec![named("x", Some("m")), named("A[1,2]", None)],
             free: vec![named("M", Some("kg"))],
-            starts: vec![1.01262],
             set: vec![("x0".into(), 0.2)],
         }
     }
