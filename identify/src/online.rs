@@ -75,6 +75,34 @@ pub fn joint_filter(
     Filter::new(plant.clone(), theta0, &augmented, x0, p0, &online)
 }
 
+/// The measured variables of `plant` at θ = `theta` from its initial states at θ, at the
+/// times `times[1..]`, the inputs `inputs[k]` held over [t_k, t_{k+1}] (no noise): a
+/// record to test an estimator on. Row k − 1 is y(t_k).
+pub fn simulate(
+    plant: &mut FmuPlant,
+    theta: &[f64],
+    times: &[f64],
+    inputs: &[Vec<f64>],
+) -> Result<Vec<Vec<f64>>, crate::plant::PlantError> {
+    let mut x = plant.initial_states(theta)?;
+    let mut next = x.clone();
+    let mut rows = Vec::with_capacity(times.len());
+    for (k, pair) in times.windows(2).enumerate() {
+        let mut y = vec![0.0; plant.output_names().len()];
+        let start = crate::plant::Start {
+            time: pair[0],
+            states: &x,
+            parameters: theta,
+            inputs: inputs.get(k).map_or(&[][..], Vec::as_slice),
+            reference: None,
+        };
+        plant.propagate(&start, pair[1], &mut next, &mut y)?;
+        x.copy_from_slice(&next);
+        rows.push(y);
+    }
+    Ok(rows)
+}
+
 /// The estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
@@ -119,38 +147,56 @@ impl Robust {
     }
 }
 
+/// The methods by their names on the command line and in an estimator FMU's configuration.
+const METHODS: [(Method, &str); 3] = [
+    (Method::Ukf, "ukf"),
+    (Method::Ekf, "ekf"),
+    (Method::MaximumLikelihood, "ml"),
+];
+
+/// The robust weights by their names.
+const WEIGHTS: [(Robust, &str); 3] = [
+    (Robust::None, "none"),
+    (Robust::Huber, "huber"),
+    (Robust::Tukey, "tukey"),
+];
+
+/// The name of `value` in `table`.
+fn name_in<T: PartialEq + Copy>(table: &[(T, &'static str)], value: T) -> &'static str {
+    table
+        .iter()
+        .find(|(v, _)| *v == value)
+        .map_or("", |(_, name)| name)
+}
+
+/// The value named `text` in `table`.
+fn named_in<T: Copy>(table: &[(T, &str)], text: &str) -> Option<T> {
+    table
+        .iter()
+        .find(|(_, name)| *name == text)
+        .map(|(v, _)| *v)
+}
+
 impl Method {
-    /// The method's name on the command line and in an estimator FMU's configuration.
+    /// The method's name (`ukf`, `ekf`, `ml`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Ukf => "ukf",
-            Self::Ekf => "ekf",
-            Self::MaximumLikelihood => "ml",
-        }
+        name_in(&METHODS, self)
     }
 
     /// The method named `text` ([`Method::name`]).
     pub fn named(text: &str) -> Option<Self> {
-        [Self::Ukf, Self::Ekf, Self::MaximumLikelihood]
-            .into_iter()
-            .find(|m| m.name() == text)
+        named_in(&METHODS, text)
     }
 }
 
 impl Robust {
-    /// The weights' name on the command line and in an estimator FMU's configuration.
+    /// The weights' name (`none`, `huber`, `tukey`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::None => "none",
-            Self::Huber => "huber",
-            Self::Tukey => "tukey",
-        }
+        name_in(&WEIGHTS, self)
     }
 
     /// The weights named `text` ([`Robust::name`]).
     pub fn named(text: &str) -> Option<Self> {
-        [Self::None, Self::Huber, Self::Tukey]
-            .into_iter()
-            .find(|r| r.name() == text)
+        named_in(&WEIGHTS, text)
     }
 }
