@@ -40,7 +40,7 @@
 
 use spurio_export::{
     ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo,
-    Variability, Variable, VariableTable,
+    Variability, Variable,
 };
 use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_identify::estimator::Estimator;
@@ -70,25 +70,47 @@ pub fn declaration(config: &Config) -> Result<EstimatorDeclaration, Cause> {
         .map_err(|e| format!("variant.cfg: {e}").into())
 }
 
-/// The value references of one variant (in the order of the table).
+/// The blocks of variables, in the order of the table: `u.<input>`, `y.<output>`,
+/// `y.<output>.valid`, `theta0.<parameter>`, `noise.<output>`, `set.<name>`, the outputs (in
+/// the estimator's order [ẑ; √diag P; e; √S; w]); `sample_period` last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Block {
+    Inputs,
+    Measured,
+    Valid,
+    Starts,
+    Noise,
+    Set,
+    Outputs,
+}
+
+/// The value references of one variant: the size of each [`Block`], in table order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layout {
-    /// `u.<input>`.
-    pub inputs: Range<usize>,
-    /// `y.<output>`.
-    pub measured: Range<usize>,
-    /// `y.<output>.valid`.
-    pub valid: Range<usize>,
-    /// `theta0.<parameter>`.
-    pub starts: Range<usize>,
-    /// `noise.<output>`.
-    pub noise: Range<usize>,
-    /// `set.<parameter>`.
-    pub set: Range<usize>,
-    /// The outputs, in the estimator's order [ẑ; √diag P; e; √S; w].
-    pub outputs: Range<usize>,
-    /// `sample_period`.
-    pub sample_period: usize,
+    sizes: [usize; 7],
+}
+
+impl Layout {
+    /// The layout of a declaration: m inputs, p measurements, q free parameters, L = n + q.
+    pub fn of(d: &EstimatorDeclaration) -> Self {
+        let (m, p, q) = (d.inputs.len(), d.outputs.len(), d.free.len());
+        let l = d.states.len() + q;
+        Self {
+            sizes: [m, p, p, q, p, d.set.len(), 2 * l + 3 * p],
+        }
+    }
+
+    /// The value references of `block`.
+    pub fn block(&self, block: Block) -> Range<usize> {
+        let i = block as usize;
+        let first: usize = self.sizes[..i].iter().sum();
+        first..first + self.sizes[i]
+    }
+
+    /// The value reference of `sample_period`, after every block.
+    pub fn sample_period(&self) -> usize {
+        self.sizes.iter().sum()
+    }
 }
 
 /// A variable's unit when the plant declares one.
@@ -97,15 +119,6 @@ fn with_unit(variable: Variable, unit: &Option<String>) -> Variable {
         Some(unit) => variable.unit(unit),
         None => variable,
     }
-}
-
-/// Adds a run of variables and gives its value references.
-fn add_all(table: &mut VariableTable, variables: impl Iterator<Item = Variable>) -> Range<usize> {
-    let first = table.variables().len();
-    for v in variables {
-        table.add(v);
-    }
-    first..table.variables().len()
 }
 
 /// A Real input, discrete (sampled).
@@ -120,152 +133,103 @@ fn sampled_input(name: &str, unit: &Option<String>, description: &str) -> Variab
     .describe(description)
 }
 
-/// The variables of a declaration and their layout (module documentation).
-pub fn variables(d: &EstimatorDeclaration) -> (Vec<Variable>, Layout) {
-    let mut table = VariableTable::new();
+/// The variables of a declaration, in the order of its [`Layout`] (module documentation).
+pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
     let plant = &d.plant;
-    let inputs = add_all(
-        &mut table,
-        d.inputs.iter().map(|n| {
-            sampled_input(
-                &format!("u.{}", n.name),
-                &n.unit,
-                &format!(
-                    "Input `{}` of the plant {plant}, sampled at each instant",
-                    n.name
-                ),
-            )
-        }),
-    );
-    let measured = add_all(
-        &mut table,
-        d.outputs.iter().map(|n| {
-            sampled_input(
-                &format!("y.{}", n.name),
-                &n.unit,
-                &format!("Measurement of `{}` of the plant {plant}", n.name),
-            )
-        }),
-    );
-    let valid = add_all(
-        &mut table,
-        d.outputs.iter().map(|n| Variable {
-            causality: Causality::Input,
-            variability: Variability::Discrete,
-            initial: None,
-            ..Variable::boolean_parameter(&format!("y.{}.valid", n.name), true).describe(&format!(
-                "Whether the sample of y.{} is present (false: a missing sample, not corrected on)",
-                n.name
-            ))
-        }),
-    );
-    let starts = add_all(
-        &mut table,
-        d.free.iter().zip(&d.starts).map(|(n, s)| {
-            with_unit(
-                Variable::parameter(&format!("theta0.{}", n.name), *s),
-                &n.unit,
-            )
+    let mut v: Vec<Variable> = Vec::new();
+    for n in &d.inputs {
+        let what = format!(
+            "Input `{}` of the plant {plant}, sampled at each instant",
+            n.name
+        );
+        v.push(sampled_input(&format!("u.{}", n.name), &n.unit, &what));
+    }
+    for n in &d.outputs {
+        let what = format!("Measurement of `{}` of the plant {plant}", n.name);
+        v.push(sampled_input(&format!("y.{}", n.name), &n.unit, &what));
+    }
+    v.extend(d.outputs.iter().map(|n| Variable {
+        causality: Causality::Input,
+        variability: Variability::Discrete,
+        initial: None,
+        ..Variable::boolean_parameter(&format!("y.{}.valid", n.name), true).describe(&format!(
+            "Whether the sample of y.{} is present (false: a missing sample, not corrected on)",
+            n.name
+        ))
+    }));
+    v.extend(d.free.iter().zip(&d.starts).map(|(n, s)| {
+        with_unit(
+            Variable::parameter(&format!("theta0.{}", n.name), *s),
+            &n.unit,
+        )
+        .describe(&format!(
+            "Start value θ₀ of the estimated parameter `{}` (prior σ = 20 % of |θ₀|)",
+            n.name
+        ))
+    }));
+    v.extend(d.outputs.iter().zip(&d.noise).map(|(n, r)| {
+        Variable::parameter(&format!("noise.{}", n.name), *r)
+            .min(0.0)
             .describe(&format!(
-                "Start value θ₀ of the estimated parameter `{}` (prior σ = 20 % of |θ₀|)",
+                "Measurement noise variance R of y.{} (> 0)",
                 n.name
             ))
-        }),
-    );
-    let noise = add_all(
-        &mut table,
-        d.outputs.iter().zip(&d.noise).map(|(n, r)| {
-            Variable::parameter(&format!("noise.{}", n.name), *r)
-                .min(0.0)
-                .describe(&format!(
-                    "Measurement noise variance R of y.{} (> 0)",
-                    n.name
-                ))
-        }),
-    );
-    let set = add_all(
-        &mut table,
-        d.set.iter().map(|(name, v)| {
-            Variable::parameter(&format!("set.{name}"), *v).describe(&format!(
-                "Parameter `{name}` of the plant, set for the experiment (not estimated)"
-            ))
-        }),
-    );
+    }));
+    v.extend(d.set.iter().map(|(name, value)| {
+        Variable::parameter(&format!("set.{name}"), *value).describe(&format!(
+            "Parameter `{name}` of the plant, set for the experiment (not estimated)"
+        ))
+    }));
+    // The outputs: ẑ and √diag P over z = [x; θ], then e, √S and w per measurement.
+    let estimated: Vec<(&Named, &str, &str)> = (d.states.iter().map(|n| (n, "x_hat", "state")))
+        .chain(d.free.iter().map(|n| (n, "theta_hat", "parameter")))
+        .collect();
     let output = |name: String, unit: &Option<String>, description: String| {
         with_unit(Variable::discrete_output(&name), unit).describe(&description)
     };
-    let states = d.states.iter().map(|n| (n, "state"));
-    let params = d.free.iter().map(|n| (n, "parameter"));
-    let z: Vec<(&Named, &str)> = states.chain(params).collect();
-    let mut outs: Vec<Variable> = Vec::new();
-    for (n, kind) in &z {
-        let prefix = if *kind == "state" {
-            "x_hat"
-        } else {
-            "theta_hat"
-        };
-        outs.push(output(
-            format!("{prefix}.{}", n.name),
-            &n.unit,
-            format!(
-                "Estimate of the {kind} `{}` of the plant after the last sample",
-                n.name
-            ),
-        ));
+    for (n, prefix, kind) in &estimated {
+        let what = format!(
+            "Estimate of the {kind} `{}` of the plant after the last sample",
+            n.name
+        );
+        v.push(output(format!("{prefix}.{}", n.name), &n.unit, what));
     }
-    for (n, kind) in &z {
-        outs.push(output(
-            format!("sd.{}", n.name),
-            &n.unit,
-            format!(
-                "Standard deviation of the estimate of the {kind} `{}`",
-                n.name
-            ),
-        ));
+    for (n, _, kind) in &estimated {
+        let what = format!(
+            "Standard deviation of the estimate of the {kind} `{}`",
+            n.name
+        );
+        v.push(output(format!("sd.{}", n.name), &n.unit, what));
     }
-    for n in &d.outputs {
-        outs.push(output(
-            format!("innovation.{}", n.name),
-            &n.unit,
-            format!(
-                "Innovation y − ŷ of `{}` at the last sample (0 when missing)",
-                n.name
-            ),
-        ));
+    let per_measurement = [
+        (
+            "innovation",
+            true,
+            "Innovation y − ŷ of `{}` at the last sample (0 when missing)",
+        ),
+        (
+            "innovation_sd",
+            true,
+            "Standard deviation √S of the innovation of `{}` (0 when missing)",
+        ),
+        (
+            "weight",
+            false,
+            "Robust weight of the measurement of `{}` (0 when missing)",
+        ),
+    ];
+    for (prefix, has_unit, what) in per_measurement {
+        for n in &d.outputs {
+            let unit = if has_unit { n.unit.clone() } else { None };
+            v.push(output(
+                format!("{prefix}.{}", n.name),
+                &unit,
+                what.replace("{}", &n.name),
+            ));
+        }
     }
-    for n in &d.outputs {
-        outs.push(output(
-            format!("innovation_sd.{}", n.name),
-            &n.unit,
-            format!(
-                "Standard deviation √S of the innovation of `{}` (0 when missing)",
-                n.name
-            ),
-        ));
-    }
-    for n in &d.outputs {
-        outs.push(output(
-            format!("weight.{}", n.name),
-            &None,
-            format!(
-                "Robust weight of the measurement of `{}` (1: a regular sample; 0 when missing)",
-                n.name
-            ),
-        ));
-    }
-    let outputs = add_all(&mut table, outs.into_iter());
-    let sample_period = table.add(clock::parameter());
-    let layout = Layout {
-        inputs,
-        measured,
-        valid,
-        starts,
-        noise,
-        set,
-        outputs,
-        sample_period,
-    };
-    (table.into_variables(), layout)
+    v.push(clock::parameter());
+    v
 }
 
 /// The estimator FMU: its declaration, the plant opened from `resources/plant/`, the filter
@@ -327,15 +291,16 @@ impl PlantEstimatorFmu {
     /// non-finite input is an error naming it.
     fn read_sample(&mut self, ctx: &Context) -> Result<(), Failure> {
         let values = &ctx.values;
-        for (k, vr) in self.layout.inputs.clone().enumerate() {
+        for (k, vr) in self.layout.block(Block::Inputs).enumerate() {
             let v = values.real(vr);
             if !v.is_finite() {
                 return Err(non_finite(&self.declared.inputs[k].name, "u", v));
             }
             self.u[k] = v;
         }
-        for (j, vr) in self.layout.measured.clone().enumerate() {
-            let present = values.boolean(self.layout.valid.start + j);
+        let valid = self.layout.block(Block::Valid);
+        for (j, vr) in self.layout.block(Block::Measured).enumerate() {
+            let present = values.boolean(valid.start + j);
             let v = values.real(vr);
             if present && !v.is_finite() {
                 return Err(non_finite(&self.declared.outputs[j].name, "y", v));
@@ -357,7 +322,7 @@ fn non_finite(name: &str, prefix: &str, v: f64) -> Failure {
 impl FmuModel for PlantEstimatorFmu {
     fn describe(config: &Config) -> Result<ModelInfo, Cause> {
         let d = declaration(config)?;
-        let (variables, _) = variables(&d);
+        let variables = variables(&d);
         let description = format!(
             "Robust {} ({} weights) of the states and the parameters {} of the plant {} (carried in resources/{PLANT_FOLDER}), as `spurio identify --method {}`",
             match d.method {
@@ -385,7 +350,7 @@ impl FmuModel for PlantEstimatorFmu {
 
     fn create_with_resources(info: &ModelInfo, resources: Option<&Path>) -> Result<Self, Cause> {
         let declared = declaration(&info.config)?;
-        let (_, layout) = variables(&declared);
+        let layout = Layout::of(&declared);
         let Some(resources) = resources else {
             return Err(format!(
                 "the plant resources/{PLANT_FOLDER} cannot be opened: no resource location is given"
@@ -408,8 +373,12 @@ impl FmuModel for PlantEstimatorFmu {
 
     fn initialize(&mut self, ctx: &mut Context) -> Result<(), Failure> {
         let start = ctx.time();
-        let clock =
-            SampleClock::from_parameter(Rule::Step, ctx.values, self.layout.sample_period, start)?;
+        let clock = SampleClock::from_parameter(
+            Rule::Step,
+            ctx.values,
+            self.layout.sample_period(),
+            start,
+        )?;
         let d = Rc::clone(&self.declared);
         // The plant opened at instantiation serves the first initialisation from t = 0; any
         // other (a second one, another start) opens it afresh.
@@ -423,21 +392,12 @@ impl FmuModel for PlantEstimatorFmu {
         let set: Vec<(String, f64)> = d
             .set
             .iter()
-            .zip(self.layout.set.clone())
+            .zip(self.layout.block(Block::Set))
             .map(|((name, _), vr)| (name.clone(), values.real(vr)))
             .collect();
-        let starts: Vec<f64> = self
-            .layout
-            .starts
-            .clone()
-            .map(|vr| values.real(vr))
-            .collect();
-        let noise: Vec<f64> = self
-            .layout
-            .noise
-            .clone()
-            .map(|vr| values.real(vr))
-            .collect();
+        let read =
+            |block| -> Vec<f64> { self.layout.block(block).map(|vr| values.real(vr)).collect() };
+        let (starts, noise) = (read(Block::Starts), read(Block::Noise));
         if let Some(j) = noise.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
             return Err(Failure::error(format!(
                 "parameter `noise.{}` = {}: a measurement variance must be finite and > 0",
@@ -461,7 +421,8 @@ impl FmuModel for PlantEstimatorFmu {
         let estimator = Estimator::new(filter, d.inputs.len());
         // Before the first sample: ẑ₀, √diag P₀; no innovation yet.
         let l = self.filter_states();
-        let first = self.layout.outputs.start;
+        let outputs = self.layout.block(Block::Outputs);
+        let first = outputs.start;
         let (z, p) = (
             estimator.filter().estimate(),
             estimator.filter().covariance(),
@@ -471,7 +432,7 @@ impl FmuModel for PlantEstimatorFmu {
             ctx.values
                 .set_real(first + l + i, p[(i, i)].max(0.0).sqrt());
         }
-        for vr in first + 2 * l..self.layout.outputs.end {
+        for vr in first + 2 * l..outputs.end {
             ctx.values.set_real(vr, 0.0);
         }
         self.estimator = Some(estimator);
@@ -481,30 +442,29 @@ impl FmuModel for PlantEstimatorFmu {
 
     fn do_step(&mut self, ctx: &mut Context, time: f64, step: f64) -> Result<(), Failure> {
         let (clock, samples) = self.clock.after(time, step)?;
-        if samples.is_empty() {
-            self.clock = clock;
-            return Ok(());
+        // The inputs are read once, for every sample the step takes (none: outputs hold).
+        if !samples.is_empty() {
+            self.read_sample(ctx)?;
         }
-        self.read_sample(ctx)?;
-        let Some(estimator) = self.estimator.as_mut() else {
-            return Err(Failure::error(
-                "the estimator was not initialized (fmi2ExitInitializationMode failed?)",
-            ));
-        };
+        let outputs = self.layout.block(Block::Outputs);
         for k in samples {
+            let estimator = self.estimator.as_mut().ok_or_else(|| {
+                Failure::error(
+                    "the estimator was not initialized (fmi2ExitInitializationMode failed?)",
+                )
+            })?;
             let column = estimator
                 .step(clock.instant(k), &self.u, &self.y)
                 .map_err(failed)?;
-            match ctx.values.reals_mut(self.layout.outputs.clone()) {
-                Some(target) if target.len() == column.len() => target.copy_from_slice(column),
-                _ => {
-                    return Err(Failure::error(format!(
-                        "the estimator gives {} outputs, the FMU declares {}",
-                        column.len(),
-                        self.layout.outputs.len()
-                    )))
-                }
-            }
+            let target = ctx.values.reals_mut(outputs.clone());
+            let target = target.filter(|t| t.len() == column.len()).ok_or_else(|| {
+                Failure::error(format!(
+                    "the estimator gives {} outputs, the FMU declares {}",
+                    column.len(),
+                    outputs.len()
+                ))
+            })?;
+            target.copy_from_slice(column);
         }
         self.clock = clock;
         Ok(())

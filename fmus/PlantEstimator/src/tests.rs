@@ -13,13 +13,6 @@ use std::path::PathBuf;
 static ALLOCATOR: spurio_counting_allocator::CountingAllocator =
     spurio_counting_allocator::CountingAllocator;
 
-fn van_der_pol() -> PathBuf {
-    let fmu = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/third_party/reference-fmus/fmi2/VanDerPol.fmu");
-    assert!(fmu.is_file(), "{} is missing", fmu.display());
-    fmu
-}
-
 /// A `resources/` folder holding VanDerPol unpacked in `plant/` (removed on drop).
 struct Resources(PathBuf);
 
@@ -30,6 +23,10 @@ impl Drop for Resources {
 }
 
 fn resources(tag: &str) -> Resources {
+    let reference_fmus = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../tests/third_party/reference-fmus"
+    );
     let dir = std::env::temp_dir().join(format!(
         "spurio-plant-estimator-{}-{tag}",
         std::process::id()
@@ -38,7 +35,7 @@ fn resources(tag: &str) -> Resources {
     std::fs::create_dir_all(&dir).unwrap();
     let status = std::process::Command::new("unzip")
         .arg("-q")
-        .arg(van_der_pol())
+        .arg(format!("{reference_fmus}/fmi2/VanDerPol.fmu"))
         .arg("-d")
         .arg(dir.join(PLANT_FOLDER))
         .status()
@@ -60,12 +57,12 @@ fn declared(method: Method) -> EstimatorDeclaration {
         method,
         robust: Robust::Huber,
         tolerance: 1e-8,
+        noise: vec![1e-4],
+        starts: vec![1.2],
         inputs: Vec::new(),
         outputs: vec![named("x0")],
-        noise: vec![1e-4],
         states: vec![named("x0"), named("x1")],
         free: vec![named("mu")],
-        starts: vec![1.2],
         set: Vec::new(),
     }
 }
@@ -86,26 +83,11 @@ fn measurements(dir: &Path) -> Vec<f64> {
         outputs: vec!["x0".into()],
     };
     let mut plant = FmuPlant::open(dir, &spec, integration(0.0, 1e-8)).unwrap();
-    let theta = [1.5];
-    let mut x = plant.initial_states(&theta).unwrap();
-    let mut next = x.clone();
-    let mut y = vec![2.0];
-    let mut out = [0.0];
-    for k in 0..30 {
-        let start = spurio_identify::plant::Start {
-            time: 0.1 * k as f64,
-            states: &x,
-            parameters: &theta,
-            inputs: &[],
-            reference: None,
-        };
-        plant
-            .propagate(&start, 0.1 * (k + 1) as f64, &mut next, &mut out)
-            .unwrap();
-        x.copy_from_slice(&next);
-        y.push(out[0]);
-    }
-    y
+    let times: Vec<f64> = (0..=30).map(|k| 0.1 * k as f64).collect();
+    let rows = spurio_identify::online::simulate(&mut plant, &[1.5], &times, &[]).unwrap();
+    std::iter::once(2.0)
+        .chain(rows.iter().map(|y| y[0]))
+        .collect()
 }
 
 /// The reference: the library's estimator with the filter `spurio identify` sets up.
@@ -125,8 +107,9 @@ fn reference(dir: &Path, d: &EstimatorDeclaration) -> Estimator {
     Estimator::new(filter, 0)
 }
 
-fn vr(range: &Range<usize>, i: usize) -> u32 {
-    (range.start + i) as u32
+/// The value reference of the `i`-th variable of `block`.
+fn vr(layout: &Layout, block: Block, i: usize) -> u32 {
+    (layout.block(block).start + i) as u32
 }
 
 #[test]
@@ -134,23 +117,25 @@ fn the_fmu_gives_the_library_estimator_sample_by_sample_bit_for_bit() {
     for method in [Method::Ukf, Method::Ekf] {
         let res = resources(method.name());
         let d = declared(method);
-        let (_, layout) = variables(&d);
+        let layout = Layout::of(&d);
         let y = measurements(&res.0.join(PLANT_FOLDER));
         let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0)
             .unwrap_or_else(|e| panic!("{e}"));
         h.initialize(0.0).unwrap();
         // Before the first sample: x̂₀ = VanDerPol's start (2, 0), μ̂₀ = 1.2 ± 0.24.
-        assert_eq!(h.real(vr(&layout.outputs, 0)).unwrap(), 2.0);
-        assert_eq!(h.real(vr(&layout.outputs, 2)).unwrap(), 1.2);
-        assert!((h.real(vr(&layout.outputs, 5)).unwrap() - 0.24).abs() < 1e-12);
+        assert_eq!(h.real(vr(&layout, Block::Outputs, 0)).unwrap(), 2.0);
+        assert_eq!(h.real(vr(&layout, Block::Outputs, 2)).unwrap(), 1.2);
+        assert!((h.real(vr(&layout, Block::Outputs, 5)).unwrap() - 0.24).abs() < 1e-12);
         let mut library = reference(&res.0.join(PLANT_FOLDER), &d);
         let mut allocations = Vec::new();
         for (k, yk) in y.iter().enumerate() {
             // Sample 12 is missing (its value garbage, its flag false).
             let missing = k == 12;
             let value = if missing { 1e6 } else { *yk };
-            h.set_real(&[vr(&layout.measured, 0)], &[value]).unwrap();
-            h.set_boolean(&[vr(&layout.valid, 0)], &[!missing]).unwrap();
+            h.set_real(&[vr(&layout, Block::Measured, 0)], &[value])
+                .unwrap();
+            h.set_boolean(&[vr(&layout, Block::Valid, 0)], &[!missing])
+                .unwrap();
             let (stepped, counts) =
                 spurio_counting_allocator::count(|| h.do_step(0.1 * k as f64, 0.1));
             assert_eq!(stepped, Ok(Status::Ok), "sample {k}: {:?}", h.log());
@@ -161,7 +146,7 @@ fn the_fmu_gives_the_library_estimator_sample_by_sample_bit_for_bit() {
                 .unwrap()
                 .to_vec();
             let mut fmu = vec![0.0; expected.len()];
-            let all: Vec<u32> = layout.outputs.clone().map(|v| v as u32).collect();
+            let all: Vec<u32> = layout.block(Block::Outputs).map(|v| v as u32).collect();
             h.get_real(&all, &mut fmu).unwrap();
             assert_eq!(fmu, expected, "{method:?}, sample {k}");
             if missing {
@@ -171,8 +156,8 @@ fn the_fmu_gives_the_library_estimator_sample_by_sample_bit_for_bit() {
             }
         }
         // μ̂ from 1.2 ± 0.24 to the truth 1.5 within 1 % after 3 s.
-        let mu = h.real(vr(&layout.outputs, 2)).unwrap();
-        let sd = h.real(vr(&layout.outputs, 5)).unwrap();
+        let mu = h.real(vr(&layout, Block::Outputs, 2)).unwrap();
+        let sd = h.real(vr(&layout, Block::Outputs, 5)).unwrap();
         assert!(
             (mu - 1.5).abs() < 0.015 && sd < 0.03,
             "{method:?}: μ̂ = {mu} ± {sd}"
@@ -185,14 +170,16 @@ fn the_fmu_gives_the_library_estimator_sample_by_sample_bit_for_bit() {
 fn a_step_of_half_the_period_holds_and_a_double_step_takes_two_samples() {
     let res = resources("clock");
     let d = declared(Method::Ukf);
-    let (_, layout) = variables(&d);
+    let layout = Layout::of(&d);
     let y = measurements(&res.0.join(PLANT_FOLDER));
     let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
-    h.set_real(&[layout.sample_period as u32], &[0.1]).unwrap();
+    h.set_real(&[layout.sample_period() as u32], &[0.1])
+        .unwrap();
     h.initialize(0.0).unwrap();
     let mut library = reference(&res.0.join(PLANT_FOLDER), &d);
-    let mu = vr(&layout.outputs, 2);
-    h.set_real(&[vr(&layout.measured, 0)], &[y[0]]).unwrap();
+    let mu = vr(&layout, Block::Outputs, 2);
+    h.set_real(&[vr(&layout, Block::Measured, 0)], &[y[0]])
+        .unwrap();
     // [0, 0.05) holds sample 0; [0.05, 0.1) holds none.
     h.do_step(0.0, 0.05).unwrap();
     let after_first = library.step(0.0, &[], &[y[0]]).unwrap()[2];
@@ -200,11 +187,20 @@ fn a_step_of_half_the_period_holds_and_a_double_step_takes_two_samples() {
     h.do_step(0.05, 0.05).unwrap();
     assert_eq!(h.real(mu).unwrap(), after_first);
     // [0.1, 0.3) holds samples 1 and 2, both with the inputs set before the step.
-    h.set_real(&[vr(&layout.measured, 0)], &[y[1]]).unwrap();
+    h.set_real(&[vr(&layout, Block::Measured, 0)], &[y[1]])
+        .unwrap();
     h.do_step(0.1, 0.2).unwrap();
     library.step(0.1, &[], &[y[1]]).unwrap();
     let two = library.step(0.2, &[], &[y[1]]).unwrap()[2];
     assert_eq!(h.real(mu).unwrap(), two);
+}
+
+/// The message with which instantiating `d` on `resources` is refused.
+fn refusal(d: &EstimatorDeclaration, resources: &Path) -> String {
+    match Harness::<PlantEstimatorFmu>::with_resources(&config_of(d), resources) {
+        Ok(_) => panic!("{} on {} was not refused", d.name, resources.display()),
+        Err(e) => e.to_string(),
+    }
 }
 
 #[test]
@@ -216,10 +212,7 @@ fn a_missing_or_garbled_plant_fails_instantiation_naming_the_file() {
     ));
     std::fs::create_dir_all(&empty).unwrap();
     let guard = Resources(empty);
-    let e = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &guard.0)
-        .err()
-        .expect("no plant: refused")
-        .to_string();
+    let e = refusal(&d, &guard.0);
     assert!(e.contains("resources/plant"), "{e}");
     let res = resources("garbled");
     std::fs::write(
@@ -227,10 +220,7 @@ fn a_missing_or_garbled_plant_fails_instantiation_naming_the_file() {
         "<fmiModelDescription",
     )
     .unwrap();
-    let e = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0)
-        .err()
-        .expect("a garbled plant: refused")
-        .to_string();
+    let e = refusal(&d, &res.0);
     assert!(
         e.contains("resources/plant") && e.contains("modelDescription"),
         "{e}"
@@ -242,10 +232,7 @@ fn a_missing_or_garbled_plant_fails_instantiation_naming_the_file() {
         name: "x2".into(),
         unit: None,
     });
-    let e = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&three), &res.0)
-        .err()
-        .expect("another plant: refused")
-        .to_string();
+    let e = refusal(&three, &res.0);
     assert!(
         e.contains("2 continuous states") && e.contains("declares 3"),
         "{e}"
@@ -253,16 +240,22 @@ fn a_missing_or_garbled_plant_fails_instantiation_naming_the_file() {
     // A declared name the plant lacks.
     let mut unknown = declared(Method::Ukf);
     unknown.free[0].name = "nu".into();
-    let e = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&unknown), &res.0)
-        .err()
-        .expect("an unknown parameter: refused")
-        .to_string();
+    let e = refusal(&unknown, &res.0);
     assert!(e.contains("`nu`"), "{e}");
 }
 
 #[test]
 fn the_library_bundles_no_variant_and_says_why() {
     assert!(bundled_variants().is_empty());
+    // The table is laid out as its layout says: the first output and `sample_period`.
+    let d = declared(Method::Ukf);
+    let (variables, layout) = (variables(&d), Layout::of(&d));
+    assert_eq!(
+        variables[layout.block(Block::Outputs).start].name,
+        "x_hat.x0"
+    );
+    assert_eq!(variables[layout.sample_period()].name, "sample_period");
+    assert_eq!(variables.len(), layout.sample_period() + 1);
     let e = PlantEstimatorFmu::describe(&Config::new())
         .err()
         .unwrap()
@@ -274,14 +267,15 @@ fn the_library_bundles_no_variant_and_says_why() {
 fn a_bad_variance_fails_initialisation_and_a_serialized_state_is_refused_with_a_reason() {
     let res = resources("state");
     let d = declared(Method::Ukf);
-    let (_, layout) = variables(&d);
+    let layout = Layout::of(&d);
     let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
-    h.set_real(&[vr(&layout.noise, 0)], &[0.0]).unwrap();
+    h.set_real(&[vr(&layout, Block::Noise, 0)], &[0.0]).unwrap();
     assert_eq!(h.initialize(0.0), Err(Status::Error));
     assert!(h.logged(&["noise.x0", "> 0"]), "{:?}", h.log());
     let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
     h.initialize(0.0).unwrap();
-    h.set_real(&[vr(&layout.measured, 0)], &[2.0]).unwrap();
+    h.set_real(&[vr(&layout, Block::Measured, 0)], &[2.0])
+        .unwrap();
     h.do_step(0.0, 0.1).unwrap();
     let bytes = h.serialized_state().unwrap();
     assert_eq!(h.restore_state(&bytes), Err(Status::Error));

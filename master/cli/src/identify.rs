@@ -52,6 +52,10 @@ pub struct IdentifyArgs {
     pub out: PathBuf,
 }
 
+/// The relative tolerance of the plant's integration (`spurio identify`, and the estimator
+/// FMU `spurio package-estimator` writes).
+pub const TOLERANCE: f64 = 1e-8;
+
 /// `NAME=column` or `NAME`.
 fn mapping(entry: &str) -> (String, String) {
     match entry.split_once('=') {
@@ -165,7 +169,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             inputs: input_names,
             outputs: output_names,
         },
-        tolerance: 1e-8,
+        tolerance: TOLERANCE,
         robust: Robust::named(&args.robust).unwrap_or(Robust::Huber),
         method: Method::named(&args.method).unwrap_or(Method::Ukf),
         validate: args.validate,

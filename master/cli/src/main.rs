@@ -663,17 +663,21 @@ fn command(command: Command) -> Result<ExitCode> {
             set,
             packaging,
         } => {
+            let noise = identify::values("--noise", &noise)?;
             let request = package_estimator::Request {
-                plant,
-                free,
-                inputs: input,
-                outputs: output,
-                name,
+                noise: Some(package_estimator::noise_in_order(&output, &noise)?),
+                fmu: plant,
+                plant: spurio_identify::plant::PlantSpec {
+                    free,
+                    inputs: input,
+                    outputs: output,
+                },
+                tolerance: identify::TOLERANCE,
                 robust: spurio_identify::online::Robust::named(&robust)
                     .with_context(|| format!("--robust {robust}: huber, tukey or none"))?,
                 method: spurio_identify::online::Method::named(&method)
                     .with_context(|| format!("--method {method}: ukf or ekf"))?,
-                noise: identify::values("--noise", &noise)?,
+                validate: 0.0,
                 starts: identify::values("--start", &start)?,
                 set: identify::values("--set", &set)?,
             };
@@ -682,6 +686,7 @@ fn command(command: Command) -> Result<ExitCode> {
                 &packaging.lib_dir,
                 &parse_platforms(&packaging.platform_dirs)?,
                 &request,
+                &name,
                 &packaging.out,
             )?;
             for path in written {

@@ -9,9 +9,9 @@
 use crate::package::{self, Extras, Packaged, Platform};
 use anyhow::{anyhow, bail, Context, Result};
 use spurio_export::Config;
-use spurio_identify::online::{Method, Robust};
 use spurio_identify::packaged::{EstimatorDeclaration, Named};
-use spurio_identify::plant::{integration, FmuPlant, PlantSpec};
+use spurio_identify::plant::{integration, FmuPlant};
+pub use spurio_identify::session::Request;
 use spurio_master::fmu::me::read_description;
 use spurio_master::fmu::{FmuFile, Interface, LoadOptions, VarType};
 use std::fmt::Write as _;
@@ -21,26 +21,34 @@ use std::path::{Path, PathBuf};
 /// The FMU binary an estimator is packaged with.
 pub const ESTIMATOR_FMU: &str = "PlantEstimator";
 
-/// The relative tolerance of the plant's integration (as `spurio identify`).
-pub const TOLERANCE: f64 = 1e-8;
-
 /// The largest plant archive unpacked into the estimator (256 MiB).
 pub const MAX_PLANT_BYTES: u64 = 256 << 20;
 
-/// What to package.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Request {
-    pub plant: PathBuf,
-    pub free: Vec<String>,
-    pub inputs: Vec<String>,
-    pub outputs: Vec<String>,
-    pub name: String,
-    pub robust: Robust,
-    pub method: Method,
-    /// The measurement variances by measured variable.
-    pub noise: Vec<(String, f64)>,
-    pub starts: Vec<(String, f64)>,
-    pub set: Vec<(String, f64)>,
+/// The variances of `outputs` in their order from `NAME=VALUE` entries: each a measured
+/// variable, each finite and > 0, every output given one.
+pub fn noise_in_order(outputs: &[String], entries: &[(String, f64)]) -> Result<Vec<f64>> {
+    let mut noise = vec![None; outputs.len()];
+    for (name, value) in entries {
+        let j = outputs.iter().position(|o| o == name).ok_or_else(|| {
+            anyhow!(
+                "--noise {name}: `{name}` is not among the measured variables {}",
+                outputs.join(", ")
+            )
+        })?;
+        if !(value.is_finite() && *value > 0.0) {
+            bail!("--noise {name}={value}: a measurement variance must be finite and > 0");
+        }
+        noise[j] = Some(*value);
+    }
+    noise
+        .iter()
+        .zip(outputs)
+        .map(|(v, name)| {
+            v.ok_or_else(|| {
+                anyhow!("--noise: no variance for `{name}` (give --noise {name}=VARIANCE for every --output; an FMU cannot take it from data)")
+            })
+        })
+        .collect()
 }
 
 /// The unit of variable `name` of `fmu`.
@@ -76,63 +84,41 @@ fn states(fmu: &FmuFile, n: usize) -> Result<Vec<Named>> {
         .collect())
 }
 
-/// The declaration of `request`, every name checked against the plant (module
-/// documentation).
-pub fn declare(request: &Request) -> Result<EstimatorDeclaration> {
-    let file = request.plant.display();
-    if !request.plant.is_file() {
+/// The declaration of the estimator `name` of `request` (as `spurio identify` takes it, the
+/// variances given), every name checked against the plant (module documentation).
+pub fn declare(request: &Request, name: &str) -> Result<EstimatorDeclaration> {
+    let file = request.fmu.display();
+    if !request.fmu.is_file() {
         bail!("{file}: not an FMU archive (a .fmu file)");
     }
-    let spec = PlantSpec {
-        free: request.free.clone(),
-        inputs: request.inputs.clone(),
-        outputs: request.outputs.clone(),
-    };
-    let mut plant = FmuPlant::open(&request.plant, &spec, integration(0.0, TOLERANCE))?;
+    let spec = &request.plant;
+    let noise = request
+        .noise
+        .clone()
+        .ok_or_else(|| anyhow!("{file}: the measurement variances are needed (--noise)"))?;
+    let mut plant = FmuPlant::open(&request.fmu, spec, integration(0.0, request.tolerance))?;
     plant.set_values(&request.set)?;
     let n = plant.states();
     let mut starts = plant.parameter_starts();
-    for (name, value) in &request.starts {
-        let i = request.free.iter().position(|f| f == name).ok_or_else(|| {
-            anyhow!(
-                "--start {name}: `{name}` is not among the free parameters {}",
-                request.free.join(", ")
-            )
-        })?;
-        starts[i] = *value;
-    }
-    let mut noise = vec![None; request.outputs.len()];
-    for (name, value) in &request.noise {
-        let j = request
-            .outputs
+    for (parameter, value) in &request.starts {
+        let i = spec
+            .free
             .iter()
-            .position(|o| o == name)
+            .position(|f| f == parameter)
             .ok_or_else(|| {
                 anyhow!(
-                    "--noise {name}: `{name}` is not among the measured variables {}",
-                    request.outputs.join(", ")
+                    "--start {parameter}: `{parameter}` is not among the free parameters {}",
+                    spec.free.join(", ")
                 )
             })?;
-        if !(value.is_finite() && *value > 0.0) {
-            bail!("--noise {name}={value}: a measurement variance must be finite and > 0");
-        }
-        noise[j] = Some(*value);
+        starts[i] = *value;
     }
-    let noise = noise
-        .iter()
-        .zip(&request.outputs)
-        .map(|(v, name)| {
-            v.ok_or_else(|| {
-                anyhow!("--noise: no variance for `{name}` (give --noise {name}=VARIANCE for every --output; an FMU cannot take it from data)")
-            })
-        })
-        .collect::<Result<Vec<f64>>>()?;
     // Initialised once here, so that a plant that cannot start at θ₀ is refused now.
     plant
         .initial_states(&starts)
         .with_context(|| format!("{file}: initialising the plant at the start values"))?;
     let fmu = FmuFile::open_for(
-        &request.plant,
+        &request.fmu,
         &LoadOptions::default(),
         Interface::ModelExchange,
     )?;
@@ -146,17 +132,17 @@ pub fn declare(request: &Request) -> Result<EstimatorDeclaration> {
             .collect()
     };
     let declared = EstimatorDeclaration {
-        name: request.name.clone(),
+        name: name.to_string(),
         plant: fmu.model_name.clone(),
         method: request.method,
         robust: request.robust,
-        tolerance: TOLERANCE,
-        inputs: named(&request.inputs),
-        outputs: named(&request.outputs),
+        tolerance: request.tolerance,
         noise,
-        states: states(&fmu, n)?,
-        free: named(&request.free),
         starts,
+        inputs: named(&spec.inputs),
+        outputs: named(&spec.outputs),
+        states: states(&fmu, n)?,
+        free: named(&spec.free),
         set: request.set.clone(),
     };
     if let Some((what, text)) = declared.uncarriable() {
@@ -331,10 +317,11 @@ pub fn package_estimator(
     lib_dir: &Path,
     extra_platforms: &[Platform],
     request: &Request,
+    name: &str,
     out_dir: &Path,
 ) -> Result<Vec<PathBuf>> {
-    let declared = declare(request)?;
-    let (resources, folders) = plant_files(&request.plant)?;
+    let declared = declare(request, name)?;
+    let (resources, folders) = plant_files(&request.fmu)?;
     let platforms = platforms_of_plant(extra_platforms, &folders);
     if !folders
         .iter()
@@ -342,7 +329,7 @@ pub fn package_estimator(
     {
         bail!(
             "{}: the plant has no linux64 binary, which the estimator's host binary needs",
-            request.plant.display()
+            request.fmu.display()
         );
     }
     let mut config = Config::new();
