@@ -193,3 +193,28 @@ def test_a_missing_output_and_a_plant_without_model_exchange_are_refused(tmp_pat
                      plant=fmu_path("SignalSource"), check=False)
     assert result.returncode != 0 and "Model Exchange" in result.stderr, result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_only_the_platforms_the_plant_has_are_packaged_and_a_dropped_one_is_said(tmp_path):
+    # The plant with a win64 binary beside its linux64 one (bytes only: the packager copies).
+    plant = tmp_path / "GantryCrane.fmu"
+    with zipfile.ZipFile(fmu_path("GantryCrane")) as src, zipfile.ZipFile(plant, "w") as dst:
+        for item in src.namelist():
+            if not item.startswith(("binaries/win64/", "binaries/aarch64-linux/")):
+                dst.writestr(item, src.read(item))
+        dst.writestr("binaries/win64/GantryCrane.dll", b"MZ plant")
+    libs = {}
+    for platform, lib in (("win64", "PlantEstimator.dll"), ("aarch64-linux", "libPlantEstimator.so")):
+        libs[platform] = tmp_path / platform
+        libs[platform].mkdir()
+        (libs[platform] / lib).write_bytes(b"estimator " + platform.encode())
+    result = package(tmp_path / "out", "--free", "M", "--noise", NOISE, plant=plant,
+                     *[a for p in libs for a in ("--platform-dir", f"{p}={libs[p]}")])
+    assert "no aarch64-linux binary" in result.stderr and "win64" not in result.stderr
+    with zipfile.ZipFile(tmp_path / "out/GantryCraneEstimator.fmu") as z:
+        names = z.namelist()
+        assert z.read("binaries/win64/PlantEstimator.dll") == b"estimator win64"
+    assert "resources/plant/binaries/win64/GantryCrane.dll" in names
+    assert not any(n.startswith("binaries/aarch64-linux/") for n in names)
+    with zipfile.ZipFile(tmp_path / "out/fmi3/GantryCraneEstimator.fmu") as z:
+        assert "binaries/x86_64-windows/PlantEstimator.dll" in z.namelist()

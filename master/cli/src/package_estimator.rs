@@ -202,9 +202,14 @@ fn platforms_of_plant(platforms: &[Platform], folders: &[String]) -> Vec<Platfor
             let tuple = package::FmiVersion::Fmi3.platform_folder(&p.name);
             let has = folders.iter().any(|f| *f == p.name || *f == tuple);
             if !has {
+                let folders = if tuple == p.name {
+                    format!("binaries/{tuple}")
+                } else {
+                    format!("binaries/{} or binaries/{tuple}", p.name)
+                };
                 eprintln!(
-                    "package-estimator: the plant has no {} binary (binaries/{} or binaries/{tuple}): the estimator is packaged without that platform",
-                    p.name, p.name
+                    "package-estimator: the plant has no {} binary ({folders}): the estimator is packaged without that platform",
+                    p.name
                 );
             }
             has
