@@ -10,7 +10,8 @@ four times the size and reduced, for smooth edges). The symbols say what the mod
 crane (rail, cart, rope, load), the generator (a sine wave in a machine circle), the filter
 (a low-pass magnitude curve), the estimators (a bell curve under a hat: x̂; the robust ones
 with an outlier, the dual ones with two estimates, the RLS a line fitted through samples,
-the distributed observer two estimators that exchange), the controllers (a feedback loop
+the distributed observer two estimators that exchange; the plant estimator the robust one
+beside the step response of the plant it carries), the controllers (a feedback loop
 through a gain; the adaptive one crossed by the adaptation arrow), the sensor (a dial),
 the signal source (a staircase in a source circle), the plant (a step response), the table
 (a grid).
@@ -169,6 +170,20 @@ def table() -> list[Shape]:
     return shapes
 
 
+def plant_estimator() -> list[Shape]:
+    """The robust estimator (bell under a hat, an outlier) of a plant carried inside (the
+    plant's step response in a box)."""
+    response = curve(lambda x: 76 - 14 * (1 - math.exp(-(x - 64) / 5)), 64, 86, 12)
+    return frame() + [
+        ("line", [(10, 80), (58, 80)], INK, 3, None),
+        ("line", bell(34, 8, 80, 36), INK, 4, None),
+        hat(34, 26),
+        ("circle", (52, 30, 5), ACCENT, 2, ACCENT),
+        ("rect", (60, 52, 30, 30, 3), INK, 3, "#e3ebf3"),
+        ("line", response, ACCENT, 3, None),
+    ]
+
+
 # fmus/<dir>/ → its symbol.
 SYMBOLS = {
     "GantryCrane": crane,
@@ -179,6 +194,7 @@ SYMBOLS = {
     "DualKalmanFilter": lambda: estimator(bells=2),
     "DkfRsKf": lambda: estimator(bells=2, outlier=True),
     "RecursiveLeastSquares": identification,
+    "PlantEstimator": plant_estimator,
     "DistributedObserver": observers,
     "StateFeedback": controller,
     "AdaptiveStateFeedback": lambda: controller(adaptive=True),

@@ -32,8 +32,9 @@ pub enum EstimatorError {
     NotFinite { index: usize, time: f64 },
 }
 
-/// The online filter on a plant FMU, one sample per call (module documentation).
-#[derive(Debug)]
+/// The online filter on a plant FMU, one sample per call (module documentation). A clone
+/// (an estimator FMU's FMU state) shares the plant ([`Filter`]).
+#[derive(Debug, Clone)]
 pub struct Estimator {
     filter: Filter,
     /// The outputs of the last sample.
@@ -59,6 +60,11 @@ impl Estimator {
     /// L = n + q: the rows of ẑ (the states, then the free parameters).
     pub fn filter_states(&self) -> usize {
         self.filter.filter_states()
+    }
+
+    /// The filter: ẑ and P before the next sample.
+    pub fn filter(&self) -> &Filter {
+        &self.filter
     }
 
     /// The length of the output vector, 2L + 3p.

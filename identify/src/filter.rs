@@ -405,8 +405,9 @@ enum Predictor {
 }
 
 /// An online filter on an FMU (module documentation): the unscented or the extended one by
-/// its [`FilterSettings::linearisation`].
-#[derive(Debug)]
+/// its [`FilterSettings::linearisation`]. A clone shares the plant: every propagation places
+/// the plant's instance at the states and parameters it is given, so clones are independent.
+#[derive(Debug, Clone)]
 pub struct Filter {
     plant: Rc<RefCell<FmuPlant>>,
     n: usize,

@@ -16,6 +16,7 @@ pub mod fmu_model;
 #[cfg(feature = "offline")]
 mod maximum_likelihood;
 pub mod online;
+pub mod packaged;
 pub mod plant;
 mod prediction;
 #[cfg(feature = "offline")]

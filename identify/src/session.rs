@@ -16,7 +16,7 @@
 //! |ρ̂(τ)| ≤ 1.96/√N at 95 % for each lag; the report gives the lags outside the band and
 //! the Ljung–Box statistic Q = N(N+2) Σ ρ̂(τ)²/(N−τ) against χ²₂₀'s 95 % quantile 31.41.
 
-use crate::filter::{Filter, FilterError, FilterSettings, Linearisation, Trajectory};
+use crate::filter::{Filter, FilterError, FilterSettings, Trajectory};
 use crate::fmu_model::{variance_name, FmuModel, Loss};
 use crate::online;
 use crate::plant::{integration, FmuPlant, PlantError, PlantSpec};
@@ -29,7 +29,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-pub use crate::online::PARAMETER_PRIOR;
+pub use crate::online::{Method, Robust, PARAMETER_PRIOR};
 
 /// |standardised innovation| above which a sample is an outlier.
 pub const OUTLIER_THRESHOLD: f64 = 3.0;
@@ -37,50 +37,6 @@ pub const OUTLIER_THRESHOLD: f64 = 3.0;
 pub const WHITENESS_LAGS: usize = 20;
 /// χ²₂₀'s 95 % quantile.
 const CHI2_20_95: f64 = 31.410;
-
-/// The estimator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Method {
-    /// The robust UKF, the parameters random-walk states.
-    Ukf,
-    /// The robust EKF, the parameters random-walk states.
-    Ekf,
-    /// Maximum likelihood (Huber loss when robust) of the output errors.
-    MaximumLikelihood,
-}
-
-/// The robust weights of the online filter (and the loss of the offline fit).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Robust {
-    /// The plain filter and the Gaussian likelihood.
-    None,
-    /// Huber's weights (c = 1.645) online, Huber's loss (c = 1.345) offline.
-    Huber,
-    /// Tukey's bisquare weights (c = 4.685) online, Huber's loss offline.
-    Tukey,
-}
-
-impl Method {
-    /// How the method's filters (online, and those judging the fit) carry the covariance:
-    /// linearised for the EKF, unscented otherwise.
-    pub fn linearisation(self) -> Linearisation {
-        match self {
-            Self::Ekf => Linearisation::Extended,
-            Self::Ukf | Self::MaximumLikelihood => Linearisation::UNSCENTED,
-        }
-    }
-}
-
-impl Robust {
-    /// The ψ function of the online filter.
-    pub fn influence(self) -> Option<InfluenceFunction> {
-        match self {
-            Self::None => None,
-            Self::Huber => Some(InfluenceFunction::huber()),
-            Self::Tukey => Some(InfluenceFunction::tukey()),
-        }
-    }
-}
 
 /// The recorded data: sample times, inputs and measured variables per sample (NaN missing).
 #[derive(Debug, Clone, PartialEq)]

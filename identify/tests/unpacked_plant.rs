@@ -6,8 +6,8 @@
 use nalgebra::DMatrix;
 use spurio_identify::estimator::{Estimator, EstimatorError};
 use spurio_identify::filter::Linearisation;
-use spurio_identify::online::joint_filter;
-use spurio_identify::plant::{integration, FmuPlant, PlantSpec, Start};
+use spurio_identify::online::{joint_filter, simulate};
+use spurio_identify::plant::{integration, FmuPlant, PlantSpec};
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -49,26 +49,9 @@ fn unpacked() -> tempfile::TempDir {
 fn x0_trajectory(fmu: &Path) -> Vec<f64> {
     let mut plant =
         FmuPlant::open(fmu, &mu_spec(), integration(0.0, 1e-8)).expect("the plant opens");
-    let theta = [1.5];
-    let mut x = plant.initial_states(&theta).expect("initialised");
-    let mut x_next = x.clone();
-    let mut y = [0.0];
-    let mut out = Vec::new();
-    for k in 0..20 {
-        let start = Start {
-            time: 0.1 * k as f64,
-            states: &x,
-            parameters: &theta,
-            inputs: &[],
-            reference: None,
-        };
-        plant
-            .propagate(&start, 0.1 * (k + 1) as f64, &mut x_next, &mut y)
-            .expect("propagated");
-        x.copy_from_slice(&x_next);
-        out.push(y[0]);
-    }
-    out
+    let times: Vec<f64> = (0..=20).map(|k| 0.1 * k as f64).collect();
+    let rows = simulate(&mut plant, &[1.5], &times, &[]).expect("simulated");
+    rows.iter().map(|y| y[0]).collect()
 }
 
 #[test]

@@ -34,6 +34,61 @@ pub enum DeclarationError {
     Mismatch { file: String, reason: String },
 }
 
+/// The error of `key = value`, saying why.
+pub fn invalid(key: &str, value: &str, reason: &str) -> DeclarationError {
+    DeclarationError::Invalid {
+        key: key.to_string(),
+        value: value.to_string(),
+        reason: reason.to_string(),
+    }
+}
+
+/// The `key = value` entries of a packaged FMU's configuration, read by key, every error
+/// naming the key (the TimeTable's declaration here, the PlantEstimator's in
+/// `spurio-identify`).
+pub struct Entries<G> {
+    get: G,
+}
+
+impl<'a, G: Fn(&str) -> Option<&'a str>> Entries<G> {
+    /// The entries `get` gives (`None` for a key that is absent).
+    pub fn new(get: G) -> Self {
+        Self { get }
+    }
+
+    /// The value of `key`, if present.
+    pub fn optional(&self, key: &str) -> Option<&'a str> {
+        (self.get)(key)
+    }
+
+    /// The value of `key`, or [`DeclarationError::Missing`].
+    pub fn required(&self, key: &str) -> Result<&'a str, DeclarationError> {
+        (self.get)(key).ok_or_else(|| DeclarationError::Missing {
+            key: key.to_string(),
+        })
+    }
+
+    /// `key` as a finite number.
+    pub fn number(&self, key: &str) -> Result<f64, DeclarationError> {
+        let value = self.required(key)?;
+        value
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| invalid(key, value, "not a finite number"))
+    }
+
+    /// `key` as a whole number of at least `min`.
+    pub fn count(&self, key: &str, min: usize) -> Result<usize, DeclarationError> {
+        let value = self.required(key)?;
+        value
+            .parse::<usize>()
+            .ok()
+            .filter(|&n| n >= min)
+            .ok_or_else(|| invalid(key, value, &format!("not a whole number ≥ {min}")))
+    }
+}
+
 /// The declaration of one table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Declaration {
@@ -107,32 +162,10 @@ impl Declaration {
     pub fn from_entries<'a>(
         get: impl Fn(&str) -> Option<&'a str>,
     ) -> Result<Self, DeclarationError> {
-        let required = |key: &str| {
-            get(key).ok_or_else(|| DeclarationError::Missing {
-                key: key.to_string(),
-            })
-        };
-        let invalid = |key: &str, value: &str, reason: &str| DeclarationError::Invalid {
-            key: key.to_string(),
-            value: value.to_string(),
-            reason: reason.to_string(),
-        };
-        let number = |key: &str| -> Result<f64, DeclarationError> {
-            let value = required(key)?;
-            value
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| invalid(key, value, "not a finite number"))
-        };
-        let count = |key: &str| -> Result<usize, DeclarationError> {
-            let value = required(key)?;
-            value
-                .parse::<usize>()
-                .ok()
-                .filter(|&n| n >= 1)
-                .ok_or_else(|| invalid(key, value, "not a positive integer"))
-        };
+        let entries = Entries::new(get);
+        let required = |key: &str| entries.required(key);
+        let number = |key: &str| entries.number(key);
+        let count = |key: &str| entries.count(key, 1);
         let table = required("table")?.to_string();
         let interpolation = required("interpolation")?;
         let interpolation = Interpolation::named(interpolation)

@@ -8,9 +8,17 @@ use std::path::Path;
 /// Each bundled variant describes itself, has unique variable names, and its generated
 /// `modelDescription.xml` equals the committed `<repo>/modelDescription/<stem>.xml` (FMI 2.0)
 /// and `<repo>/modelDescription/fmi3/<stem>.xml` (FMI 3.0); the
-/// FMU's page (`<crate>/README.md`) starts with `# <modelIdentifier>`.
+/// FMU's page (`<crate>/README.md`) starts with `# <modelIdentifier>`. A library that bundles
+/// none (an FMU only a packager writes, for a configuration it is given) must refuse the
+/// empty configuration, so that no tool mistakes it for a variant.
 pub fn check_bundled_variants<M: FmuModel>(variants: &[Variant], crate_dir: &Path) {
-    assert!(!variants.is_empty(), "no bundled variant");
+    if variants.is_empty() {
+        let refused = M::describe(&crate::description::Config::new()).is_err();
+        assert!(
+            refused,
+            "no bundled variant, yet the empty configuration describes one"
+        );
+    }
     let repo = crate_dir.join("../..");
     for (stem, config) in variants {
         let info = M::describe(config).unwrap_or_else(|e| panic!("{stem}: {e}"));

@@ -52,6 +52,10 @@ pub struct IdentifyArgs {
     pub out: PathBuf,
 }
 
+/// The relative tolerance of the plant's integration (`spurio identify`, and the estimator
+/// FMU `spurio package-estimator` writes).
+pub const TOLERANCE: f64 = 1e-8;
+
 /// `NAME=column` or `NAME`.
 fn mapping(entry: &str) -> (String, String) {
     match entry.split_once('=') {
@@ -61,7 +65,7 @@ fn mapping(entry: &str) -> (String, String) {
 }
 
 /// `NAME=VALUE` entries of `flag` as (name, number).
-fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
+pub(crate) fn values(flag: &str, entries: &[String]) -> Result<Vec<(String, f64)>> {
     entries
         .iter()
         .map(|entry| {
@@ -165,17 +169,9 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             inputs: input_names,
             outputs: output_names,
         },
-        tolerance: 1e-8,
-        robust: match args.robust.as_str() {
-            "none" => Robust::None,
-            "tukey" => Robust::Tukey,
-            _ => Robust::Huber,
-        },
-        method: match args.method.as_str() {
-            "ml" => Method::MaximumLikelihood,
-            "ekf" => Method::Ekf,
-            _ => Method::Ukf,
-        },
+        tolerance: TOLERANCE,
+        robust: Robust::named(&args.robust).unwrap_or(Robust::Huber),
+        method: Method::named(&args.method).unwrap_or(Method::Ukf),
         validate: args.validate,
         noise: (!args.noise.is_empty()).then(|| args.noise.clone()),
         starts: values("--start", &args.start)?,

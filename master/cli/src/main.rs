@@ -50,6 +50,7 @@ mod inspect;
 mod library_query;
 mod limits;
 mod package;
+mod package_estimator;
 #[cfg(test)]
 #[path = "../../tests/common/packaged_fmus.rs"]
 mod packaged_fmus;
@@ -168,6 +169,48 @@ enum Command {
         /// table's file stem).
         #[arg(long)]
         name: Option<String>,
+        #[command(flatten)]
+        packaging: Packaging,
+    },
+    /// Package an estimator FMU for any plant FMU with Model Exchange: e.g. `spurio
+    /// package-estimator GantryCrane.fmu --free M,l,f_c --input U --output x --output theta
+    /// --noise x=1e-6,theta=1e-5 --name GantryCraneEstimator` writes GantryCraneEstimator.fmu
+    /// (FMI 2.0) and fmi3/GantryCraneEstimator.fmu (FMI 3.0): the robust online filter of
+    /// `spurio identify --method ukf|ekf` on the plant, which it carries in resources/plant/;
+    /// inputs u.<input>, y.<output> (and y.<output>.valid), outputs x_hat.<state>,
+    /// theta_hat.<parameter>, sd.<…>, innovation.<output>, innovation_sd.<output>,
+    /// weight.<output>.
+    PackageEstimator {
+        /// The plant: an FMU with Model Exchange (FMI 2.0 or 3.0).
+        plant: PathBuf,
+        /// The parameters to estimate, comma-separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        free: Vec<String>,
+        /// An input of the plant (repeatable, in order).
+        #[arg(long)]
+        input: Vec<String>,
+        /// A measured variable of the plant (repeatable, in order).
+        #[arg(long, required = true)]
+        output: Vec<String>,
+        /// The file name of the .fmu without extension, and its model name.
+        #[arg(long)]
+        name: String,
+        /// Robust weights against outliers.
+        #[arg(long, default_value = "huber", value_parser = ["huber", "tukey", "none"])]
+        robust: String,
+        /// The online filter: robust unscented (`ukf`) or extended (`ekf`) Kalman filter.
+        #[arg(long, default_value = "ukf", value_parser = ["ukf", "ekf"])]
+        method: String,
+        /// The measurement variances, `NAME=VALUE` for every --output (an FMU cannot take
+        /// them from data); the FMU's parameters `noise.<output>` start there.
+        #[arg(long, value_delimiter = ',', required = true)]
+        noise: Vec<String>,
+        /// A free parameter's start value `NAME=VALUE` (default: the plant's).
+        #[arg(long, value_delimiter = ',')]
+        start: Vec<String>,
+        /// A parameter of the plant set for the experiment, not estimated: `NAME=VALUE`.
+        #[arg(long, value_delimiter = ',')]
+        set: Vec<String>,
         #[command(flatten)]
         packaging: Packaging,
     },
@@ -601,6 +644,49 @@ fn command(command: Command) -> Result<ExitCode> {
                 &table,
                 interpolation,
                 &stem,
+                &packaging.out,
+            )?;
+            for path in written {
+                println!("wrote {}", path.display());
+            }
+        }
+        Command::PackageEstimator {
+            plant,
+            free,
+            input,
+            output,
+            name,
+            robust,
+            method,
+            noise,
+            start,
+            set,
+            packaging,
+        } => {
+            let noise = identify::values("--noise", &noise)?;
+            let request = package_estimator::Request {
+                noise: Some(package_estimator::noise_in_order(&output, &noise)?),
+                fmu: plant,
+                plant: spurio_identify::plant::PlantSpec {
+                    free,
+                    inputs: input,
+                    outputs: output,
+                },
+                tolerance: identify::TOLERANCE,
+                robust: spurio_identify::online::Robust::named(&robust)
+                    .with_context(|| format!("--robust {robust}: huber, tukey or none"))?,
+                method: spurio_identify::online::Method::named(&method)
+                    .with_context(|| format!("--method {method}: ukf or ekf"))?,
+                validate: 0.0,
+                starts: identify::values("--start", &start)?,
+                set: identify::values("--set", &set)?,
+            };
+            let written = package_estimator::package_estimator(
+                &packaging.repo,
+                &packaging.lib_dir,
+                &parse_platforms(&packaging.platform_dirs)?,
+                &request,
+                &name,
                 &packaging.out,
             )?;
             for path in written {

@@ -252,16 +252,24 @@ impl FmiVersion {
     }
 }
 
+/// What a variant's archive carries beyond its description and binaries: the files of
+/// `resources/` (name there, bytes) beside its configuration, and its page (Markdown;
+/// `None`: the FMU folder's `README.md`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Extras<'a> {
+    pub resources: &'a [(String, Vec<u8>)],
+    pub page: Option<&'a str>,
+}
+
 /// Writes the `version` archive of one variant of `fmu` as `<out_dir>/<stem>.fmu`, with the
-/// binaries of `platforms` (the first one is normally `linux64`) and the files `resources`
-/// (name in `resources/`, bytes) beside its configuration.
+/// binaries of `platforms` (the first one is normally `linux64`) and `extras`.
 pub fn package_variant(
     version: FmiVersion,
     fmu: &BuiltFmu,
     stem: &str,
     config: &Config,
     platforms: &[Platform],
-    resources: &[(String, Vec<u8>)],
+    extras: Extras,
     out_dir: &Path,
 ) -> Result<PathBuf> {
     let id = &fmu.source.model_identifier;
@@ -276,9 +284,14 @@ pub fn package_variant(
         let folder = version.platform_folder(&platform.name);
         binaries.push((format!("binaries/{folder}/{packaged}"), bytes));
     }
-    let page_path = fmu.source.dir.join("README.md");
-    let page = std::fs::read_to_string(&page_path)
-        .with_context(|| format!("{id}: reading its page {}", page_path.display()))?;
+    let page = match extras.page {
+        Some(page) => page.to_string(),
+        None => {
+            let page_path = fmu.source.dir.join("README.md");
+            std::fs::read_to_string(&page_path)
+                .with_context(|| format!("{id}: reading its page {}", page_path.display()))?
+        }
+    };
     let mut images = Vec::new();
     let img = fmu.source.dir.join("img");
     if img.is_dir() {
@@ -321,7 +334,7 @@ pub fn package_variant(
             config.to_text().as_bytes(),
         )?;
     }
-    for (name, bytes) in resources {
+    for (name, bytes) in extras.resources {
         add(&format!("resources/{name}"), bytes)?;
     }
     if version == FmiVersion::Fmi3 {
@@ -441,7 +454,7 @@ pub fn package_bundled(
                     &stem,
                     &config,
                     &platforms,
-                    &[],
+                    Extras::default(),
                     &dir,
                 )?);
             }
@@ -461,10 +474,7 @@ pub fn package_custom(
     stem: &str,
     out_dir: &Path,
 ) -> Result<Vec<PathBuf>> {
-    let source = select(repo, &[model_identifier.to_string()])?
-        .into_iter()
-        .next()
-        .ok_or_else(|| anyhow!("unknown FMU `{model_identifier}`"))?;
+    let source = source_of(repo, model_identifier)?;
     let mut config = Config::new();
     for setting in settings {
         let Some((key, value)) = setting.split_once('=') else {
@@ -472,6 +482,31 @@ pub fn package_custom(
         };
         config.set(key.trim(), value.trim());
     }
+    let target = Packaged {
+        stem,
+        config: &config,
+        extras: Extras::default(),
+    };
+    package_both(lib_dir, extra_platforms, source, &target, out_dir)
+}
+
+/// One packaged variant: its file stem, configuration and extras.
+pub struct Packaged<'a> {
+    pub stem: &'a str,
+    pub config: &'a Config,
+    pub extras: Extras<'a>,
+}
+
+/// The FMI 2.0 (`<out_dir>/<stem>.fmu`) and FMI 3.0 (`<out_dir>/fmi3/<stem>.fmu`) archives
+/// of `target`, an FMU of `source`, with the host library of `lib_dir` and those of
+/// `extra_platforms`.
+pub fn package_both(
+    lib_dir: &Path,
+    extra_platforms: &[Platform],
+    source: FmuSource,
+    target: &Packaged,
+    out_dir: &Path,
+) -> Result<Vec<PathBuf>> {
     let platforms: Vec<Platform> = std::iter::once(Platform::linux64(lib_dir))
         .chain(extra_platforms.iter().cloned())
         .collect();
@@ -480,9 +515,25 @@ pub fn package_custom(
         .into_iter()
         .map(|version| {
             let dir = version.out_dir(out_dir);
-            package_variant(version, &fmu, stem, &config, &platforms, &[], &dir)
+            package_variant(
+                version,
+                &fmu,
+                target.stem,
+                target.config,
+                &platforms,
+                target.extras,
+                &dir,
+            )
         })
         .collect()
+}
+
+/// The FMU folder of `model_identifier`, or an error naming it.
+pub fn source_of(repo: &Path, model_identifier: &str) -> Result<FmuSource> {
+    select(repo, &[model_identifier.to_string()])?
+        .into_iter()
+        .next()
+        .ok_or_else(|| anyhow!("unknown FMU `{model_identifier}`"))
 }
 
 /// The FMU that `package-data` packages a table as.
@@ -521,22 +572,17 @@ pub fn package_data(
     }
     config.set(MODEL_NAME_KEY, stem);
     let bytes = std::fs::read(table).with_context(|| format!("reading {}", table.display()))?;
-    let source = select(repo, &[DATA_FMU.to_string()])?
-        .into_iter()
-        .next()
-        .ok_or_else(|| anyhow!("unknown FMU `{DATA_FMU}`"))?;
-    let platforms: Vec<Platform> = std::iter::once(Platform::linux64(lib_dir))
-        .chain(extra_platforms.iter().cloned())
-        .collect();
-    let fmu = BuiltFmu::load(source, lib_dir)?;
+    let source = source_of(repo, DATA_FMU)?;
     let resources = [(file_name, bytes)];
-    [FmiVersion::Fmi2, FmiVersion::Fmi3]
-        .into_iter()
-        .map(|version| {
-            let dir = version.out_dir(out_dir);
-            package_variant(version, &fmu, stem, &config, &platforms, &resources, &dir)
-        })
-        .collect()
+    let target = Packaged {
+        stem,
+        config: &config,
+        extras: Extras {
+            resources: &resources,
+            page: None,
+        },
+    };
+    package_both(lib_dir, extra_platforms, source, &target, out_dir)
 }
 
 /// The largest table `package-data` packages (1 GiB; the FMU reads no larger one).
@@ -583,10 +629,10 @@ mod tests {
     }
 
     #[test]
-    fn the_fifteen_fmu_folders_are_found_by_their_cdylib() {
+    fn the_sixteen_fmu_folders_are_found_by_their_cdylib() {
         let found = discover(&repo()).unwrap();
         let names: Vec<&str> = found.iter().map(|f| f.model_identifier.as_str()).collect();
-        assert_eq!(names.len(), 15, "{names:?}");
+        assert_eq!(names.len(), 16, "{names:?}");
         assert!(names.contains(&"GantryCrane") && names.contains(&"DkfRsKf"));
         assert!(names.contains(&DATA_FMU));
         assert!(!names.iter().any(|n| n.starts_with("spurio")));
