@@ -40,7 +40,7 @@ use spurio::linalg::MatrixExponential;
 pub const RELATIVE_STEP: f64 = 1e-4;
 
 /// The extended prediction's work buffers, made once for the filter's dimensions.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct ExtendedWork {
     /// The steps δᵢ.
     delta: Vec<f64>,
@@ -131,7 +131,7 @@ fn evaluate(
 }
 
 /// The buffers of central differences: θ of a start, the ± starts' images, the moved start.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Differencing {
     theta: Vec<f64>,
     plus: (Vec<f64>, Vec<f64>),

@@ -143,7 +143,7 @@ fn resize(v: &mut DVector<f64>, rows: usize) {
 /// The robust correction's work (module documentation): its matrices made once for L states
 /// and p measured variables, those of the k present channels reshaped in their storage, so
 /// that a correction allocates nothing.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Correction {
     /// The present channels.
     present: Vec<usize>,
@@ -398,7 +398,7 @@ pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64
 }
 
 /// A filter's own way of predicting, with its work buffers.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 enum Predictor {
     Unscented(SigmaPoints, Box<UnscentedWork>),
     Extended(Box<ExtendedWork>),

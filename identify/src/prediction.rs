@@ -45,7 +45,7 @@ pub(crate) fn symmetrise(p: &mut DMatrix<f64>) {
 
 /// The prediction a filter hands to its correction ([`crate::filter`]): made once for the
 /// filter's L states and p measured variables, written by every prediction.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct Prediction {
     /// ẑ⁻ and P⁻.
     pub z: DVector<f64>,

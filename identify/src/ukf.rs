@@ -58,7 +58,7 @@ fn factor(p: &DMatrix<f64>, root: &mut DMatrix<f64>) -> bool {
 }
 
 /// The unscented prediction's work buffers, made once for the filter's dimensions.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct UnscentedWork {
     /// √P (L × L).
     root: DMatrix<f64>,
