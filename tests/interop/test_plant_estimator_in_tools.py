@@ -21,9 +21,12 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from conftest import FMU_DIR, FMUCHECK, REPO, read_csv, require, spurio
+from conftest import (FMU_DIR, FMUCHECK, OMS_RTOL, REPO, by_time, oms_system, read_csv,
+                      require, spurio)
 
 STOP, STEP = 20.0, 0.05
+# Samples whose measurements are missing (both channels), as in the PlantEstimator pytest.
+MISSING = range(100, 112)
 PLANT_ARGS = ["--free", "M,l,f_c", "--start", "M=1.01262,l=0.41208,f_c=0.536",
               "--set", "x0=0.2"]
 
@@ -42,7 +45,8 @@ def estimator(tmp_path_factory):
            "--output", "theta", *PLANT_ARGS, "--noise", "x=0.01,theta=0.01",
            "--name", "GantryCraneEstimator", "--out", tmp / "out")
     return {"fmu": tmp / "out" / "GantryCraneEstimator.fmu", "tmp": tmp,
-            "force": rows[:, names.index("ctrl.u[1]")]}
+            "force": rows[:, names.index("ctrl.u[1]")],
+            "measured": rows[:, [names.index("sensor.y[1]"), names.index("sensor.y[2]")]]}
 
 
 def fmucheck(fmu, out, *extra):
@@ -93,3 +97,45 @@ def test_fmucheck_passes_and_equals_fmpy(estimator, inputs, workdir):
     # Predicting only, θ̂ stays at the start; corrected, it has moved.
     moved = abs(got[-1, names.index("theta_hat.M")] - 1.01262)
     assert (moved < 1e-12) if inputs.startswith("force") else (moved > 0.01)
+
+
+def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, workdir):
+    """OMSimulator runs the estimator fed by the record as a TimeTable FMU (`spurio
+    package-data`, hold: outputs U, x, theta and x.valid, theta.valid, false where a sample
+    is missing) in a co-simulation system; x̂, θ̂ and their standard deviations equal fmpy's
+    on the same record to OMSimulator's printing (%.12g, OMS_RTOL)."""
+    force, measured = estimator["force"], estimator["measured"]
+    cells = lambda k: ("", "") if k in MISSING else tuple(repr(float(v)) for v in measured[k])
+    (workdir / "record.csv").write_text("time,U,x,theta\n" + "".join(
+        f"{k * STEP!r},{float(u)!r},{','.join(cells(k))}\n" for k, u in enumerate(force)))
+    spurio("package-data", workdir / "record.csv", "--name", "Record", "--out", workdir,
+           "--lib-dir", REPO / "target" / "release", "--repo", REPO)
+    oms_system({
+        "instances": [{"name": "data", "fmu": str(workdir / "Record.fmu"), "parameters": {}},
+                      {"name": "est", "fmu": str(estimator["fmu"]), "parameters": {}}],
+        "connections": [["data.U", "est.u.U"], ["data.x", "est.y.x"],
+                        ["data.theta", "est.y.theta"], ["data.x.valid", "est.y.x.valid"],
+                        ["data.theta.valid", "est.y.theta.valid"]],
+        "model_exchange": None, "step": STEP, "stop": STOP, "out": "oms.csv"}, cwd=workdir)
+    names, rows = by_time(*read_csv(workdir / "oms.csv"), keep="first")
+    present = np.array([k not in MISSING for k in range(len(force))])
+    signals = np.zeros(len(force), dtype=[("time", float), ("u.U", float), ("y.x", float),
+                                          ("y.theta", float), ("y.x.valid", bool),
+                                          ("y.theta.valid", bool)])
+    signals["time"] = np.arange(len(force)) * STEP
+    signals["u.U"] = force
+    signals["y.x"] = np.where(present, measured[:, 0], 0.0)
+    signals["y.theta"] = np.where(present, measured[:, 1], 0.0)
+    signals["y.x.valid"] = signals["y.theta.valid"] = present
+    outputs = [f"{kind}.{n}" for kind in ("x_hat", "sd") for n in ("x", "theta", "v", "omega")]
+    outputs += [f"{kind}.{n}" for kind in ("theta_hat", "sd") for n in ("M", "l", "f_c")]
+    expected = simulate_fmu(str(estimator["fmu"]), stop_time=STOP, step_size=STEP,
+                            output_interval=STEP, input=signals, output=outputs)
+    assert rows.shape[0] == len(expected), (rows.shape, len(expected))
+    worst = 0.0
+    for name in outputs:
+        got, want = rows[:, names.index(f"model.root.est.{name}")], expected[name]
+        worst = max(worst, float(np.max(np.abs(got - want) / np.maximum(np.abs(want), 1e-300))))
+    print(f"OMSimulator vs fmpy: max relative difference {worst:.3g} over {rows.shape[0]} rows "
+          f"x {len(outputs)} outputs (x̂, θ̂, sd)")
+    assert worst <= OMS_RTOL
