@@ -16,6 +16,7 @@ reaches, so that it takes each row at its own step) with both measurements marke
 U = 0, measurements 0, present: the filter corrects on them)."""
 
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -24,29 +25,21 @@ from fmpy import simulate_fmu
 from conftest import (FMU_DIR, FMUCHECK, OMS_RTOL, REPO, by_time, oms_system, read_csv,
                       require, spurio)
 
-STOP, STEP = 20.0, 0.05
-# Samples whose measurements are missing (both channels), as in the PlantEstimator pytest.
-MISSING = range(100, 112)
-PLANT_ARGS = ["--free", "M,l,f_c", "--start", "M=1.01262,l=0.41208,f_c=0.536",
-              "--set", "x0=0.2"]
+sys.path.insert(0, str(REPO / "tests" / "platforms"))
+import run_estimator  # noqa: E402
+
+STOP, STEP = run_estimator.STOP, run_estimator.STEP
 
 
 @pytest.fixture(scope="module")
 def estimator(tmp_path_factory):
-    """The estimator FMU and the force of the closed-loop record (20 s every 0.05 s)."""
+    """The estimator FMU and the closed-loop record (20 s every 0.05 s, samples 100–111
+    missing), made as the platform tests make them (tests/platforms/run_estimator.py)."""
     tmp = tmp_path_factory.mktemp("estimator")
-    system = (REPO / "examples/crane_identification/closed_loop.toml").read_text()
-    system = system.replace("../../build/fmus", str(FMU_DIR)).replace(
-        "stop_time = 40.0", f"stop_time = {STOP}")
-    (tmp / "closed_loop.toml").write_text(system)
-    spurio("run", tmp / "closed_loop.toml", "--out", tmp / "full.csv")
-    names, rows = read_csv(tmp / "full.csv")
-    spurio("package-estimator", FMU_DIR / "GantryCrane.fmu", "--input", "U", "--output", "x",
-           "--output", "theta", *PLANT_ARGS, "--noise", "x=0.01,theta=0.01",
-           "--name", "GantryCraneEstimator", "--out", tmp / "out")
-    return {"fmu": tmp / "out" / "GantryCraneEstimator.fmu", "tmp": tmp,
-            "force": rows[:, names.index("ctrl.u[1]")],
-            "measured": rows[:, [names.index("sensor.y[1]"), names.index("sensor.y[2]")]]}
+    fmu, _, _ = run_estimator.prepare_estimator(FMU_DIR, None, tmp)
+    record = np.genfromtxt(tmp / "record.csv", delimiter=",", names=True)
+    return {"fmu": fmu, "record": tmp / "record.csv", "force": record["U"],
+            "measured": np.stack([record["x"], record["theta"]], axis=1)}
 
 
 def fmucheck(fmu, out, *extra):
@@ -105,10 +98,7 @@ def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, workdir):
     is missing) in a co-simulation system; x̂, θ̂ and their standard deviations equal fmpy's
     on the same record to OMSimulator's printing (%.12g, OMS_RTOL)."""
     force, measured = estimator["force"], estimator["measured"]
-    cells = lambda k: ("", "") if k in MISSING else tuple(repr(float(v)) for v in measured[k])
-    (workdir / "record.csv").write_text("time,U,x,theta\n" + "".join(
-        f"{k * STEP!r},{float(u)!r},{','.join(cells(k))}\n" for k, u in enumerate(force)))
-    spurio("package-data", workdir / "record.csv", "--name", "Record", "--out", workdir,
+    spurio("package-data", estimator["record"], "--name", "Record", "--out", workdir,
            "--lib-dir", REPO / "target" / "release", "--repo", REPO)
     oms_system({
         "instances": [{"name": "data", "fmu": str(workdir / "Record.fmu"), "parameters": {}},
@@ -118,7 +108,8 @@ def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, workdir):
                         ["data.theta.valid", "est.y.theta.valid"]],
         "model_exchange": None, "step": STEP, "stop": STOP, "out": "oms.csv"}, cwd=workdir)
     names, rows = by_time(*read_csv(workdir / "oms.csv"), keep="first")
-    present = np.array([k not in MISSING for k in range(len(force))])
+    present = ~np.isnan(measured[:, 0])
+    assert np.array_equal(np.flatnonzero(~present), run_estimator.MISSING)
     signals = np.zeros(len(force), dtype=[("time", float), ("u.U", float), ("y.x", float),
                                           ("y.theta", float), ("y.x.valid", bool),
                                           ("y.theta.valid", bool)])

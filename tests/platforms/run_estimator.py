@@ -27,7 +27,6 @@ from __future__ import annotations
 import csv
 import subprocess
 import sys
-import time
 import zipfile
 from pathlib import Path
 
@@ -66,7 +65,7 @@ def spurio(*args: object) -> None:
     result = subprocess.run([str(SPURIO), *map(str, args)], capture_output=True, text=True,
                             cwd=REPO)
     if result.returncode != 0:
-        raise SystemExit(f"spurio {' '.join(map(str, args[:2]))} failed: {result.stderr}")
+        raise RuntimeError(f"spurio {' '.join(map(str, args[:2]))} failed: {result.stderr}")
 
 
 def table_of(path: Path) -> tuple[list[str], list[list[str]]]:
@@ -74,10 +73,12 @@ def table_of(path: Path) -> tuple[list[str], list[list[str]]]:
     return [h.strip('"') for h in rows[0]], [r for r in rows[1:] if r]
 
 
-def prepare_estimator(fmus: Path, cross: Path, folder: Path) -> tuple[Path, Path, Path]:
-    """The record, the cross-check files (`<NAME>_in.csv`, `_ref.opt`) in `folder/own`, the
-    estimator FMUs in `folder/fmus` and identify's trajectory in `folder/id`; returns the
-    FMI 2.0 FMU, the FMI 3.0 FMU and the trajectory."""
+def prepare_estimator(fmus: Path, cross: Path | None, folder: Path) -> tuple[Path, Path, Path]:
+    """The record `folder/record.csv` (time, U, x, theta; the missing samples empty), the
+    cross-check files (`<NAME>_in.csv`, `_ref.opt`) in `folder/own`, the estimator FMUs in
+    `folder/fmus` (with the win64 and aarch64-linux binaries of `cross`, unless None) and
+    identify's trajectory in `folder/id`; returns the FMI 2.0 FMU, the FMI 3.0 FMU and the
+    trajectory. Also what tests/interop/test_plant_estimator_in_tools.py runs on."""
     folder.mkdir(parents=True, exist_ok=True)
     system = (REPO / "examples/crane_identification/closed_loop.toml").read_text()
     system = system.replace("../../build/fmus", str(fmus.resolve())).replace(
@@ -101,7 +102,7 @@ def prepare_estimator(fmus: Path, cross: Path, folder: Path) -> tuple[Path, Path
     (own / f"{NAME}_ref.opt").write_text(
         f"StartTime, 0.0\nStopTime, {STOP!r}\nStepSize, {STEP!r}\nRelTol, 1e-6\n")
     platform_dirs = []
-    for platform in ("win64", "aarch64-linux"):
+    for platform in ("win64", "aarch64-linux") if cross else ():
         platform_dirs += ["--platform-dir",
                           f"{platform}={cross.resolve() / PLATFORMS[platform][3] / 'release'}"]
     plant = fmus / "GantryCrane.fmu"
@@ -193,9 +194,7 @@ def main() -> int:
                         run_driver.native_path(platform, out)]
             cmd = (run_driver.command if version == 2 else run_fmi3.command)(
                 platform, bin_dir, cmd_args)
-            t0 = time.monotonic()
-            result = run_driver.run(cmd, env if platform == "win64" else None)
-            elapsed = f"{time.monotonic() - t0:.1f}"
+            result, elapsed = run_driver.timed(cmd, platform, env)
             if result.returncode != 0:
                 failures.append(f"{NAME} FMI {version} {platform}: driver exit "
                                 f"{result.returncode}: {result.stderr.strip()[-2000:]}")
