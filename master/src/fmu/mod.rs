@@ -8,8 +8,9 @@
 //! 2.0 nor 3.0 or declares no Co-Simulation interface (an FMI 3.0 FMU with Scheduled
 //! Execution and clocks only is named as such), ambiguous variables or `ModelStructure`
 //! ([`checks`], [`v3`]), a missing `binaries/<platform>/<id>.so` (`linux64` for FMI 2.0,
-//! `x86_64-linux` for FMI 3.0), a library for another platform or one that lacks a required
-//! function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
+//! `x86_64-linux` for FMI 3.0; on aarch64-linux `aarch64-linux`, on Windows
+//! `win64`/`x86_64-windows` and `.dll`: [`PLATFORM`]), a library for another platform or one
+//! that lacks a required function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
 //! is removed. The GUID (FMI 3.0: instantiation token) is checked by the FMU itself when it
 //! is instantiated; when instantiation fails, the error says what the FMU logged
 //! ([`crate::logging::LogKey::failure_note`]).
