@@ -215,6 +215,15 @@ def run(cmd: list[str], env: dict[str, str] | None, timeout: float = 600) -> sub
                           errors="replace")
 
 
+def timed(cmd: list[str], platform: str,
+          env: dict[str, str]) -> tuple[subprocess.CompletedProcess, str]:
+    """Runs a driver command (with the wine environment `env` on win64): its result and the
+    seconds it took, as the tables print them."""
+    t0 = time.monotonic()
+    result = run(cmd, env if platform == "win64" else None)
+    return result, f"{time.monotonic() - t0:.1f}"
+
+
 def arguments(doc: str, fmus: Path) -> argparse.ArgumentParser:
     """The options of both runners: the FMUs (default `fmus`), the work folder, the FMUs and
     platforms to run."""

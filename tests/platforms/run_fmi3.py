@@ -19,7 +19,6 @@ from __future__ import annotations
 import itertools
 import shutil
 import sys
-import time
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -147,9 +146,7 @@ def main() -> int:
                 run_driver.native_path(platform, binary),
                 resource_path(platform, folder / "resources"),
                 run_driver.native_path(platform, scen), run_driver.native_path(platform, out)])
-            t0 = time.monotonic()
-            result = run_driver.run(cmd, env if platform == "win64" else None)
-            elapsed = f"{time.monotonic() - t0:.1f}"
+            result, elapsed = run_driver.timed(cmd, platform, env)
             if result.returncode != 0:
                 failures.append(f"{stem} {platform}: driver3 exit {result.returncode}: "
                                 f"{result.stderr.strip()[-2000:]}")

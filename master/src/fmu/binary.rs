@@ -188,7 +188,12 @@ pub enum LibraryProblem {
 /// The library format this machine loads, e.g. "an ELF shared library for x86_64".
 pub fn expected_kind() -> String {
     format!(
-        "an ELF shared library for {} ({} {})",
+        "{} for {} ({} {})",
+        if cfg!(windows) {
+            "a Windows PE/DLL file"
+        } else {
+            "an ELF shared library"
+        },
         std::env::consts::ARCH,
         std::env::consts::OS,
         std::env::consts::ARCH
@@ -249,7 +254,14 @@ pub fn check(data: &[u8], required: &[&'static str]) -> Result<(), LibraryProble
     let arch = architecture_name(file.architecture());
     let bits = if file.is_64() { "64-bit" } else { "32-bit" };
     match file.format() {
-        BinaryFormat::Elf => {}
+        // The host's own format: ELF, or PE on Windows.
+        BinaryFormat::Elf if !cfg!(windows) => {}
+        BinaryFormat::Pe if cfg!(windows) => {}
+        BinaryFormat::Elf => {
+            return Err(wrong(format!(
+                "an ELF file for {arch} ({bits}), not a Windows PE/DLL file"
+            )))
+        }
         BinaryFormat::Pe | BinaryFormat::Coff => {
             return Err(wrong(format!(
                 "a Windows PE/DLL file for {arch} ({bits}), not an ELF shared library"

@@ -8,8 +8,9 @@
 //! 2.0 nor 3.0 or declares no Co-Simulation interface (an FMI 3.0 FMU with Scheduled
 //! Execution and clocks only is named as such), ambiguous variables or `ModelStructure`
 //! ([`checks`], [`v3`]), a missing `binaries/<platform>/<id>.so` (`linux64` for FMI 2.0,
-//! `x86_64-linux` for FMI 3.0), a library for another platform or one that lacks a required
-//! function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
+//! `x86_64-linux` for FMI 3.0; on aarch64-linux `aarch64-linux`, on Windows
+//! `win64`/`x86_64-windows` and `.dll`: [`PLATFORM`]), a library for another platform or one
+//! that lacks a required function ([`binary`]). Only then is the folder handed to rust-fmi. On any error the folder
 //! is removed. The GUID (FMI 3.0: instantiation token) is checked by the FMU itself when it
 //! is instantiated; when instantiation fails, the error says what the FMU logged
 //! ([`crate::logging::LogKey::failure_note`]).
@@ -370,11 +371,36 @@ impl std::fmt::Debug for FmuFile {
     }
 }
 
-/// The platform folder of FMI 2.0 binaries on this machine.
+/// The platform folder of FMI 2.0 binaries on this machine: `linux64`, `win64`, or
+/// `aarch64-linux` (the folder of FMPy, the FMI cross-check and `spurio package`; FMI 2.0
+/// names no folder for Linux on AArch64).
+#[cfg(not(any(windows, all(target_os = "linux", target_arch = "aarch64"))))]
 pub const PLATFORM: &str = "linux64";
+/// The platform folder of FMI 2.0 binaries on this machine.
+#[cfg(windows)]
+pub const PLATFORM: &str = "win64";
+/// The platform folder of FMI 2.0 binaries on this machine.
+#[cfg(all(target_os = "linux", target_arch = "aarch64"))]
+pub const PLATFORM: &str = "aarch64-linux";
 
-/// The platform tuple of FMI 3.0 binaries on this machine.
+/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
+#[cfg(not(any(windows, all(target_os = "linux", target_arch = "aarch64"))))]
 pub const PLATFORM_3: &str = "x86_64-linux";
+/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
+#[cfg(windows)]
+pub const PLATFORM_3: &str = "x86_64-windows";
+/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
+#[cfg(all(target_os = "linux", target_arch = "aarch64"))]
+pub const PLATFORM_3: &str = "aarch64-linux";
+
+/// Where rust-fmi loads an FMI 2.0 binary from, when that is not [`PLATFORM`]: on Linux on
+/// AArch64 it reads `binaries/linux64/`, so the loader puts the `aarch64-linux` binary there
+/// in its own copy of the FMU ([`rust_fmi_place`]).
+const RUST_FMI_PLATFORM: Option<&str> = if cfg!(all(target_os = "linux", target_arch = "aarch64")) {
+    Some("linux64")
+} else {
+    None
+};
 
 /// How much an FMU archive may hold; beyond it the loader stops with [`LoadError::TooLarge`]
 /// naming the file and the limit. Sizes are checked as declared in the archive and again as
@@ -566,6 +592,7 @@ impl FmuFile {
             interface,
             &model_identifier,
         )?;
+        rust_fmi_place(path, &unpacked, &model_identifier)?;
         let by_name = variables
             .iter()
             .enumerate()
@@ -841,6 +868,29 @@ fn fmi_version(xml: &str) -> Result<String, String> {
     Err("no <fmiModelDescription> element".into())
 }
 
+/// Copies the FMI 2.0 binary of [`PLATFORM`] to the folder rust-fmi loads it from
+/// ([`RUST_FMI_PLATFORM`]), in the loader's own copy of the FMU, where the two differ.
+fn rust_fmi_place(
+    path: &Path,
+    unpacked: &folder::Unpacked,
+    model_identifier: &str,
+) -> Result<(), LoadError> {
+    let Some(folder) = RUST_FMI_PLATFORM else {
+        return Ok(());
+    };
+    let name = format!("{model_identifier}{}", std::env::consts::DLL_SUFFIX);
+    let binaries = unpacked.dir.path().join("binaries");
+    let to = binaries.join(folder);
+    std::fs::create_dir_all(&to)
+        .and_then(|()| std::fs::copy(binaries.join(PLATFORM).join(&name), to.join(&name)))
+        .map(|_| ())
+        .map_err(|e| LoadError::Unpack {
+            file: path.to_path_buf(),
+            entry: format!("binaries/{folder}/{name}"),
+            reason: e.to_string(),
+        })
+}
+
 /// Checks that the archive holds this platform's library of `model_identifier` and that it
 /// is a library this process loads, exporting every function the version requires.
 fn check_library(
@@ -851,7 +901,10 @@ fn check_library(
     model_identifier: &str,
 ) -> Result<(), LoadError> {
     let platform = version.platform();
-    let expected = format!("binaries/{platform}/{model_identifier}.so");
+    let expected = format!(
+        "binaries/{platform}/{model_identifier}{}",
+        std::env::consts::DLL_SUFFIX
+    );
     if !unpacked.names.iter().any(|n| n == &expected) {
         let found: Vec<&str> = unpacked
             .names
