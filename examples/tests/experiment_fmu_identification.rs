@@ -1,0 +1,32 @@
+//! Pins the identification of the Reference FMUs' parameters and of the Nile local level
+//! (≈ 2 s in release): offline within 1 % of the truth, online within 2 σ, `--robust none`
+//! worse, the Nile's variances and log-likelihood to three significant digits
+//! (examples/tests/pinned.toml).
+
+mod common;
+
+use common::{run_pinned, value};
+
+#[test]
+fn reference_fmu_parameters_and_the_nile_are_identified() {
+    let (report, out) = run_pinned("fmu_identification", "fmu-identification", 1);
+    for theta in ["mu", "e", "k"] {
+        let offline = value(&report, &format!("{theta}_offline_error"));
+        let online = value(&report, &format!("{theta}_online_sigmas"));
+        assert!(
+            offline < 0.01 && online < 2.0,
+            "{theta}: {offline}, {online}"
+        );
+    }
+    // Three panels per model: the measurements, θ̂ ± σ over the run and over its second half.
+    let (width, height) = png_size(&out.join("fmu_identification/BouncingBall_e.png"));
+    assert_eq!((width, height), (1100, 840));
+}
+
+/// A PNG's width and height from its IHDR chunk.
+fn png_size(path: &std::path::Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG", "{} is not a PNG", path.display());
+    let word = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    (word(16), word(20))
+}
