@@ -39,33 +39,33 @@ pub enum SyntheticError {
     #[error("plant {model}: {source}")]
     Plant {
         /// The case's model.
-        model: String,
+        model: &'static str,
         /// Why.
-        source: PlantError,
+        source: Box<PlantError>,
     },
     /// An online filter failed.
     #[error("online filter on {model}: {source}")]
     Filter {
         /// The case's model.
-        model: String,
+        model: &'static str,
         /// Why.
-        source: FilterError,
+        source: Box<FilterError>,
     },
     /// The measurements are not a record (rows of unequal length, non-finite values).
     #[error("record of {model}: {source}")]
     Record {
         /// The case's model.
-        model: String,
+        model: &'static str,
         /// Why.
-        source: LikelihoodError,
+        source: Box<LikelihoodError>,
     },
     /// The offline fit failed.
     #[error("offline fit of {model}: {source}")]
     Fit {
         /// The case's model.
-        model: String,
+        model: &'static str,
         /// Why.
-        source: IdentifyError,
+        source: Box<IdentifyError>,
     },
 }
 
@@ -335,8 +335,8 @@ impl Case {
 
     fn plant_error(&self, source: PlantError) -> SyntheticError {
         SyntheticError::Plant {
-            model: self.model.to_string(),
-            source,
+            model: self.model,
+            source: Box::new(source),
         }
     }
 
@@ -400,8 +400,8 @@ impl Case {
         let mut p0 = vec![self.state_variance; n];
         p0.push(self.parameter_variance);
         let filter_error = |source| SyntheticError::Filter {
-            model: self.model.to_string(),
-            source,
+            model: self.model,
+            source: Box::new(source),
         };
         let mut filter = Filter::new(plant, &[self.start], &[0], &x0, diag(&p0), &settings)
             .map_err(filter_error)?;
@@ -427,12 +427,12 @@ impl Case {
             p0: diag(&vec![0.0; n]),
         };
         let record = record(&data.measured).map_err(|source| SyntheticError::Record {
-            model: self.model.to_string(),
-            source,
+            model: self.model,
+            source: Box::new(source),
         })?;
         let fit_error = |source| SyntheticError::Fit {
-            model: self.model.to_string(),
-            source,
+            model: self.model,
+            source: Box::new(source),
         };
         let fit = maximise_likelihood(
             &model,
