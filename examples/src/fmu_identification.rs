@@ -18,7 +18,7 @@
 //! log-likelihood −632.55 of an independent numpy filter (the diffuse first term left out).
 
 use super::{ExperimentContext, Report, Row};
-use crate::plot::{panels_png, Line, Panel, RGBColor, Style};
+use crate::plot::{measured_lines, panels_png, Line, Panel, RGBColor};
 use anyhow::{Context as _, Result};
 use spurio_identify::filter::Trajectory;
 use spurio_identify::nile;
@@ -76,83 +76,63 @@ fn estimates_png(path: &Path, case: &Case, fits: &Identified) -> Result<()> {
             })
             .collect()
     };
-    let output = |rows: &[Vec<f64>], keep: &dyn Fn(usize) -> bool| -> (Vec<f64>, Vec<f64>) {
-        rows.iter()
-            .enumerate()
-            .filter(|(k, _)| keep(*k))
-            .map(|(k, row)| (t[k], row[0]))
-            .unzip()
-    };
-    let wild = |k: usize| fits.data.outliers.contains(&k);
-    let (t_good, y_good) = output(&fits.data.measured, &|k| !wild(k));
-    let (t_wild, y_wild) = output(&fits.data.measured, &wild);
-    let (robust, plain) = (RGBColor(200, 30, 30), RGBColor(30, 80, 200));
-    let (robust_band, plain_band) = (RGBColor(240, 160, 160), RGBColor(150, 180, 240));
     let name = case.outputs[0];
     let theta = case.parameter;
-    // θ̂ ± σ of both filters from sample `from` on, the truth drawn over them.
-    let estimates = |label: &str, from: usize| {
+    // θ̂ ± σ of both filters from sample `from` on (the ±σ lines lighter), the truth on top.
+    let filters = [
+        (
+            "plain UKF",
+            &fits.ukf_plain,
+            RGBColor(30, 80, 200),
+            RGBColor(150, 180, 240),
+        ),
+        (
+            "robust UKF",
+            &fits.ukf_robust,
+            RGBColor(200, 30, 30),
+            RGBColor(240, 160, 160),
+        ),
+    ];
+    let estimates = |label: String, from: usize| {
         let time = t[from..].to_vec();
-        Panel {
-            label: label.to_string(),
-            lines: vec![
-                Line::new(
-                    "plain UKF + σ",
-                    time.clone(),
-                    band(&fits.ukf_plain, 1.0, from),
-                )
-                .colour(plain_band),
-                Line::new(
-                    "plain UKF − σ",
-                    time.clone(),
-                    band(&fits.ukf_plain, -1.0, from),
-                )
-                .colour(plain_band),
-                Line::new("plain UKF", time.clone(), band(&fits.ukf_plain, 0.0, from))
-                    .colour(plain),
-                Line::new(
-                    "robust UKF + σ",
-                    time.clone(),
-                    band(&fits.ukf_robust, 1.0, from),
-                )
-                .colour(robust_band),
-                Line::new(
-                    "robust UKF − σ",
-                    time.clone(),
-                    band(&fits.ukf_robust, -1.0, from),
-                )
-                .colour(robust_band),
-                Line::new(
-                    "robust UKF",
-                    time.clone(),
-                    band(&fits.ukf_robust, 0.0, from),
-                )
-                .colour(robust),
-                Line::new("truth", time.clone(), vec![case.truth; time.len()])
-                    .colour(RGBColor(0, 0, 0)),
-            ],
+        let mut lines = Vec::new();
+        for (filter, trajectory, colour, light) in filters {
+            for (suffix, sign, shade) in [
+                (" + σ", 1.0, light),
+                (" − σ", -1.0, light),
+                ("", 0.0, colour),
+            ] {
+                lines.push(
+                    Line::new(
+                        format!("{filter}{suffix}"),
+                        time.clone(),
+                        band(trajectory, sign, from),
+                    )
+                    .colour(shade),
+                );
+            }
         }
+        lines.push(
+            Line::new("truth", time.clone(), vec![case.truth; time.len()])
+                .colour(RGBColor(0, 0, 0)),
+        );
+        Panel { label, lines }
     };
+    let y: Vec<f64> = fits.data.measured.iter().map(|row| row[0]).collect();
+    let [measured, outliers] =
+        measured_lines("measured", &t, &y, |k| fits.data.outliers.contains(&k));
+    let clean = fits.data.clean.iter().map(|row| row[0]).collect();
     let panels = [
         Panel {
             label: name.to_string(),
             lines: vec![
-                Line::new("measured", t_good, y_good)
-                    .style(Style::Points)
-                    .colour(RGBColor(120, 120, 120)),
-                Line::new("outliers", t_wild, y_wild)
-                    .style(Style::Crosses)
-                    .colour(RGBColor(230, 120, 0)),
-                Line::new(
-                    "clean",
-                    t.clone(),
-                    fits.data.clean.iter().map(|r| r[0]).collect(),
-                )
-                .colour(RGBColor(0, 0, 0)),
+                measured,
+                outliers,
+                Line::new("clean", t.clone(), clean).colour(RGBColor(0, 0, 0)),
             ],
         },
-        estimates(&format!("{theta} estimate"), 0),
-        estimates(&format!("{theta} estimate, second half"), t.len() / 2),
+        estimates(format!("{theta} estimate"), 0),
+        estimates(format!("{theta} estimate, second half"), t.len() / 2),
     ];
     panels_png(
         path,

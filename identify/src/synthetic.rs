@@ -446,17 +446,11 @@ impl Case {
             },
         )
         .map_err(fit_error)?;
-        let estimate = fit.estimate(self.parameter).ok_or_else(|| {
-            fit_error(IdentifyError::UnknownParameter {
-                name: self.parameter.to_string(),
-                known: fit
-                    .estimates
-                    .iter()
-                    .map(|e| e.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            })
-        })?;
+        // The one free parameter's estimate.
+        let estimate = fit
+            .estimates
+            .first()
+            .ok_or_else(|| fit_error(IdentifyError::NoFreeParameter))?;
         Ok(Offline {
             value: estimate.value,
             standard_error: estimate.standard_error,
