@@ -120,6 +120,33 @@ impl Line {
     }
 }
 
+/// The measured samples `y` against `x` as two lines of a [`Panel`]: the good ones as grey
+/// points labelled `label`, those `outlier(k)` flags as red crosses labelled "outliers".
+pub fn measured_lines(
+    label: &str,
+    x: &[f64],
+    y: &[f64],
+    outlier: impl Fn(usize) -> bool,
+) -> [Line; 2] {
+    let split = |wild: bool| -> (Vec<f64>, Vec<f64>) {
+        x.iter()
+            .zip(y)
+            .enumerate()
+            .filter(|(k, _)| outlier(*k) == wild)
+            .map(|(_, (x, y))| (*x, *y))
+            .unzip()
+    };
+    let ((x_good, y_good), (x_wild, y_wild)) = (split(false), split(true));
+    [
+        Line::new(label, x_good, y_good)
+            .style(Style::Points)
+            .colour(RGBColor(150, 150, 150)),
+        Line::new("outliers", x_wild, y_wild)
+            .style(Style::Crosses)
+            .colour(RGBColor(220, 0, 0)),
+    ]
+}
+
 /// One panel of [`panels_png`]: a y-axis label (with its unit) and the lines drawn in it.
 #[derive(Debug, Clone)]
 pub struct Panel {

@@ -23,7 +23,7 @@ use crate::diagnostics::{
     skewness, std_dev, two_sigma_band,
 };
 use crate::plot::RGBColor;
-use crate::plot::{panels_png, Line, Panel, Style};
+use crate::plot::{measured_lines, panels_png, Line, Panel};
 use crate::runner::{column, edited, mean_std, mean_std_of, median, pm, simulate, write_csv, Edit};
 use anyhow::{ensure, Result};
 use spurio_master::System;
@@ -240,24 +240,12 @@ fn segments(results: &[SeedFigures], f: impl Fn(&SeedFigures) -> (f64, f64)) -> 
 /// (papers 000 Figs 3 and 5, 001 Figs 3–4).
 fn signals_png(ctx: &ExperimentContext, file: &str, title: &str, s: &Signals) -> Result<()> {
     let k: Vec<f64> = (0..SAMPLES).map(|k| k as f64).collect();
-    let measured = |outliers: bool| -> (Vec<f64>, Vec<f64>) {
-        k.iter()
-            .zip(&s.measured)
-            .zip(&s.outlier)
-            .filter(|(_, o)| **o == outliers)
-            .map(|((k, y), _)| (*k, *y))
-            .unzip()
-    };
-    let ((kn, yn), (ko, yo)) = (measured(false), measured(true));
+    let [measured, outliers] = measured_lines("measured", &k, &s.measured, |i| s.outlier[i]);
     let panel = Panel {
         label: "y (noisy cosine)".into(),
         lines: vec![
-            Line::new("measured", kn, yn)
-                .style(Style::Points)
-                .colour(RGBColor(150, 150, 150)),
-            Line::new("outliers", ko, yo)
-                .style(Style::Crosses)
-                .colour(RGBColor(220, 0, 0)),
+            measured,
+            outliers,
             Line::new("clean cosine", k.clone(), s.clean.clone()).colour(RGBColor(0, 0, 0)),
             Line::new("sKF", k.clone(), s.skf.clone()).colour(RGBColor(230, 120, 0)),
             Line::new("rsKF", k.clone(), s.rskf.clone()).colour(RGBColor(30, 80, 200)),

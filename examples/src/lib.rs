@@ -19,6 +19,7 @@ pub mod crane_adaptive;
 pub mod crane_free_swing;
 pub mod crane_identification;
 pub mod distributed_observer;
+pub mod fmu_identification;
 pub mod generator_identification;
 pub mod opamp_identification;
 pub mod real_data;
@@ -204,6 +205,11 @@ pub fn all() -> Vec<Experiment> {
         name: "crane_identification",
         description: "cart mass, rod length and friction of the GantryCrane ME FMU from a recorded closed-loop run with 20 dB noise and 5 % outliers, offline and online",
         run: crane_identification::run,
+    },
+    Experiment {
+        name: "fmu_identification",
+        description: "the Reference FMUs' VanDerPol mu, BouncingBall e and Dahlquist k from their own outputs with noise and 5 % outliers, offline and online, and the Nile local level by maximum likelihood (Durbin & Koopman)",
+        run: fmu_identification::run,
     },
     Experiment {
         name: "cosine_outliers",

@@ -2,7 +2,8 @@
 //! (docs/estimators.md): online, the robust unscented and extended Kalman filters of
 //! [`filter`] on a Model Exchange FMU ([`plant`]); offline (feature `offline`, on by default),
 //! maximum likelihood of the innovations over named free parameters ([`maximise_likelihood`],
-//! argmin's Nelder–Mead) and the `spurio identify` session ([`session`]).
+//! argmin's Nelder–Mead), the `spurio identify` session ([`session`]) and identification
+//! from an FMU's own run plus noise and outliers ([`synthetic`]).
 //!
 //! The online part links the FMU importer, its Model Exchange stepper and the solvers only: it
 //! is what an estimator FMU carries (fmus/PlantEstimator builds this crate without default
@@ -21,6 +22,8 @@ pub mod plant;
 mod prediction;
 #[cfg(feature = "offline")]
 pub mod session;
+#[cfg(feature = "offline")]
+pub mod synthetic;
 pub mod ukf;
 
 #[cfg(feature = "offline")]

@@ -594,6 +594,29 @@ fn hessian<M: PredictionErrorModel>(
 /// The Nile record of Durbin & Koopman's local-level example (data/nile/README.md: statsmodels
 /// 0.14.6, originally Cobb 1978; public domain), embedded.
 pub mod nile {
+    use super::{maximise_likelihood, Fit, FreeParameter, IdentifyError, Options};
+    use spurio::estimation::likelihood::{Initialisation, LinearGaussianModel, Record};
+
+    /// Durbin & Koopman's estimates (§2.10): σ²_ε, σ²_η.
+    pub const DURBIN_KOOPMAN: [f64; 2] = [15099.0, 1469.1];
+
+    /// The local-level model x⁺ = x + η, y = x + ε fitted to `flows` by maximum likelihood
+    /// with a diffuse initial state (the first term left out), σ²_ε and σ²_η free (log
+    /// scale) from the nine starts {10³, 10⁴, 10⁵} × {10², 10³, 10⁴}, default [`Options`].
+    pub fn fit(flows: &[f64]) -> Result<Fit, IdentifyError> {
+        let record = Record::of_output(flows)?;
+        maximise_likelihood(
+            &LinearGaussianModel::local_level(),
+            &record,
+            &Initialisation::Diffuse { kappa: None },
+            &[
+                FreeParameter::positive("sigma2_epsilon", &[1e3, 1e4, 1e5]),
+                FreeParameter::positive("sigma2_eta", &[1e2, 1e3, 1e4]),
+            ],
+            &Options::default(),
+        )
+    }
+
     /// `data/nile/nile.csv`: header `year,volume`, then one row per year 1871–1970.
     pub const CSV: &str = include_str!("../../data/nile/nile.csv");
 

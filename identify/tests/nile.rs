@@ -5,22 +5,11 @@
 
 use sha2::{Digest, Sha256};
 use spurio::estimation::likelihood::{log_likelihood, Initialisation, LinearGaussianModel, Record};
-use spurio_identify::{maximise_likelihood, nile, Curvature, FreeParameter, Options};
+use spurio_identify::{nile, Curvature};
 
 fn nile_fit() -> spurio_identify::Fit {
     let (_, flows) = nile::flows().unwrap();
-    let record = Record::of_output(&flows).unwrap();
-    maximise_likelihood(
-        &LinearGaussianModel::local_level(),
-        &record,
-        &Initialisation::Diffuse { kappa: None },
-        &[
-            FreeParameter::positive("sigma2_epsilon", &[1e3, 1e4, 1e5]),
-            FreeParameter::positive("sigma2_eta", &[1e2, 1e3, 1e4]),
-        ],
-        &Options::default(),
-    )
-    .unwrap()
+    nile::fit(&flows).unwrap()
 }
 
 #[test]
