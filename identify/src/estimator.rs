@@ -28,8 +28,6 @@ pub enum EstimatorError {
         outputs: usize,
         time: f64,
     },
-    #[error("a restored estimator state has {given} outputs of its last sample; the estimator has {outputs}")]
-    Restore { given: usize, outputs: usize },
     #[error("output {index} of the estimator is not finite at t = {time}")]
     NotFinite { index: usize, time: f64 },
 }
@@ -83,10 +81,12 @@ impl Estimator {
     /// sample, `outputs`, into an estimator set up alike: it then continues bit for bit.
     pub fn restore(&mut self, state: &FilterState, outputs: &[f64]) -> Result<(), EstimatorError> {
         if outputs.len() != self.column.len() {
-            return Err(EstimatorError::Restore {
-                given: outputs.len(),
-                outputs: self.column.len(),
-            });
+            return Err(FilterError::Settings(format!(
+                "a restored state has {} outputs of its last sample; the estimator has {}",
+                outputs.len(),
+                self.column.len()
+            ))
+            .into());
         }
         self.filter.restore(state)?;
         self.column.copy_from_slice(outputs);

@@ -351,6 +351,35 @@ impl PlantEstimatorFmu {
         Ok(Estimator::new(filter, d.inputs.len()))
     }
 
+    /// The estimator of a serialized state (its part after the flag "initialised"): built
+    /// from `start` and `parameters` ([`Self::build`]), its [`FilterState`] and last outputs
+    /// restored.
+    fn restored(
+        &mut self,
+        input: &mut ByteReader,
+        start: f64,
+        parameters: &[f64],
+    ) -> Result<Estimator, Cause> {
+        let estimate = input.f64_vec()?;
+        let covariance = input.f64_vec()?;
+        let has_last = input.bool()?;
+        let (last, held) = (input.f64()?, input.f64_vec()?);
+        let state = FilterState {
+            estimate,
+            covariance,
+            last: has_last.then_some((last, held)),
+            samples: usize::try_from(input.u64()?)?,
+        };
+        let outputs = input.f64_vec()?;
+        let name = self.declared.name.clone();
+        let mut estimator = (self.build(start, parameters, Some(&state)))
+            .map_err(|f| format!("{name}: serialized state: {}", f.cause()))?;
+        estimator
+            .restore(&state, &outputs)
+            .map_err(|e| format!("{name}: serialized state: {e}"))?;
+        Ok(estimator)
+    }
+
     /// Reads the sample's inputs into the buffers: u, and y with NaN where not valid; a
     /// non-finite input is an error naming it.
     fn read_sample(&mut self, ctx: &Context) -> Result<(), Failure> {
@@ -519,48 +548,27 @@ impl FmuModel for PlantEstimatorFmu {
             }
             None => out.put_bool(false),
         }
-        out.put_bytes(&spurio::state::to_bytes(&self.clock));
+        clock::save(&self.clock, out);
     }
 
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
-        let name = self.declared.name.clone();
         let start = input.f64()?;
         let parameters = input.f64_vec()?;
         let expected = self.parameters().len();
         if parameters.len() != expected || !start.is_finite() {
             return Err(format!(
-                "{name}: a serialized state of {} parameters from t = {start}; this estimator has {expected} (θ₀, noise, set): it is another configuration's",
+                "{}: a serialized state of {} parameters from t = {start}; this estimator has {expected} (θ₀, noise, set): it is another configuration's",
+                self.declared.name,
                 parameters.len()
             )
             .into());
         }
-        let estimator = if input.bool()? {
-            let estimate = input.f64_vec()?;
-            let covariance = input.f64_vec()?;
-            let has_last = input.bool()?;
-            let (last, held) = (input.f64()?, input.f64_vec()?);
-            let state = FilterState {
-                estimate,
-                covariance,
-                last: has_last.then_some((last, held)),
-                samples: usize::try_from(input.u64()?)?,
-            };
-            let outputs = input.f64_vec()?;
-            let mut estimator = (self.build(start, &parameters, Some(&state)))
-                .map_err(|f| format!("{name}: serialized state: {}", f.cause()))?;
-            estimator
-                .restore(&state, &outputs)
-                .map_err(|e| format!("{name}: serialized state: {e}"))?;
-            Some(estimator)
-        } else {
-            None
+        let estimator = match input.bool()? {
+            true => Some(self.restored(input, start, &parameters)?),
+            false => None,
         };
-        let clock = spurio::state::from_bytes(&input.byte_vec()?)
-            .map_err(|e| format!("{name}: serialized state: sample clock: {e}"))?;
-        self.estimator = estimator;
-        self.clock = clock;
-        self.start = start;
-        self.parameters = parameters;
+        (self.estimator, self.clock) = (estimator, clock::load(input)?);
+        (self.start, self.parameters) = (start, parameters);
         Ok(())
     }
 }

@@ -369,7 +369,8 @@ fn a_serialized_state_restores_the_filter_bit_for_bit_here_and_in_a_fresh_instan
 fn model_part_length() -> usize {
     let (l, p, q) = (3, 1, 1);
     let vector = |n: usize| 8 + 8 * n;
-    let clock = spurio::state::to_bytes(&SampleClock::new(Rule::Step, 0.0, 0.0).unwrap()).len();
+    let mut clock = ByteWriter::new();
+    clock::save(&SampleClock::new(Rule::Step, 0.0, 0.0).unwrap(), &mut clock);
     8 + vector(q + p)
         + 1
         + vector(l)
@@ -379,7 +380,7 @@ fn model_part_length() -> usize {
         + vector(0)
         + 8
         + vector(2 * l + 3 * p)
-        + (8 + clock)
+        + clock.into_bytes().len()
 }
 
 #[test]
