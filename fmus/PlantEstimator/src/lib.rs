@@ -30,7 +30,9 @@
 //!
 //! **Errors.** A missing or garbled plant, or a plant whose names do not match the
 //! configuration, fails instantiation with a message naming the file; a non-finite input
-//! or a filter failure is `fmi2Error` naming what.
+//! or a filter failure is `fmi2Error` naming what. A call the plant refuses is an error that
+//! quotes what the plant logged (its messages are kept, not printed:
+//! [`spurio_identify::plant::keep_plant_messages`]).
 //!
 //! **FMU state.** `fmi2GetFMUstate`/`fmi2SetFMUstate` take and restore the filter (its
 //! clone shares the plant instance, which every propagation places at the states and
@@ -450,6 +452,8 @@ impl FmuModel for PlantEstimatorFmu {
             )
             .into());
         };
+        // A plant's refusal (its fmi2Error and the message it logs) reaches this FMU's log.
+        spurio_identify::plant::keep_plant_messages();
         let plant_dir = resources.join(PLANT_FOLDER);
         let plant = open_plant(&plant_dir, &declared, 0.0)?;
         Ok(Self {
