@@ -2,7 +2,8 @@
 GantryCrane's estimator (M, l, f_c free, as the README's `spurio identify` example) validates,
 and run by fmpy on a closed-loop record with missing samples gives `spurio identify --method
 ukf`'s trajectory (x̂, θ̂ and their standard deviations) to rounding; FMU states are taken and
-restored; a bad name, a missing variance or a plant without Model Exchange is refused before
+restored, serialized states too (into the same instance and a fresh one); a plant's refusal
+reaches the estimator's error with the plant's own message; a bad name, a missing variance or a plant without Model Exchange is refused before
 anything is written."""
 
 import subprocess
@@ -15,7 +16,9 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy import extract
 from fmpy.validation import validate_fmu
 
-from conftest import FMU_DIR, REPO, fmu_path
+from fmpy.fmi1 import FMICallException
+
+from conftest import FMU_DIR, REPO, LogSink, fmu_path, make_callbacks
 
 SPURIO = REPO / "target" / "release" / "spurio"
 STOP = 20.0
@@ -160,12 +163,48 @@ def test_an_fmu_state_taken_and_restored_continues_identically(crane):
     for k in range(40):
         step(k)
     state = slave.getFMUstate()
+    serialized = slave.serializeFMUstate(state)
     first = [step(k) for k in range(40, 60)]
     slave.setFMUstate(state)
     again = [step(k) for k in range(40, 60)]
     assert first == again
     slave.freeFMUstate(state)
+    # The serialized state, into this instance and into a fresh one never initialised.
+    restored = slave.deSerializeFMUstate(serialized)
+    slave.setFMUstate(restored)
+    assert [step(k) for k in range(40, 60)] == first
+    slave.freeFMUstate(restored)
     slave.terminate()
+    slave.freeInstance()
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fresh")
+    slave.instantiate()
+    restored = slave.deSerializeFMUstate(serialized)
+    slave.setFMUstate(restored)
+    assert [step(k) for k in range(40, 60)] == first
+    slave.freeFMUstate(restored)
+    slave.freeInstance()
+
+
+def test_the_plant_s_own_message_reaches_the_estimator_s_error(crane):
+    """θ₀ M = −1: GantryCrane refuses it (its fmi2Error and the message it logs); the
+    estimator's fmi2Error quotes what the plant said."""
+    md = read_model_description(str(crane["fmu"]))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(crane["fmu"])),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="est")
+    sink = LogSink()
+    callbacks = make_callbacks(sink)
+    slave.instantiate(callbacks=callbacks)
+    slave.setupExperiment(startTime=0.0)
+    slave.setReal([vr["theta0.M"]], [-1.0])
+    slave.enterInitializationMode()
+    with pytest.raises(FMICallException) as e:
+        slave.exitInitializationMode()
+    assert e.value.status == 3
+    errors = sink.texts(3)
+    assert any("resources/plant" in t and "the FMU logged" in t
+               and "`M` = -1 is below its minimum 0" in t for t in errors), errors
     slave.freeInstance()
 
 

@@ -13,7 +13,7 @@
 //! weight are given as 0 (an FMU output is finite). Any other value that is not finite is an
 //! error naming the output and the time, never an output.
 
-use crate::filter::{Filter, FilterError};
+use crate::filter::{Filter, FilterError, FilterState};
 
 /// Why a sample failed.
 #[derive(Debug, thiserror::Error)]
@@ -70,6 +70,27 @@ impl Estimator {
     /// The length of the output vector, 2L + 3p.
     pub fn outputs(&self) -> usize {
         self.column.len()
+    }
+
+    /// The output vector of the last sample (zeros before the first).
+    pub fn last_outputs(&self) -> &[f64] {
+        &self.column
+    }
+
+    /// Restores the filter's `state` ([`Filter::restore`]) and the output vector of its last
+    /// sample, `outputs`, into an estimator set up alike: it then continues bit for bit.
+    pub fn restore(&mut self, state: &FilterState, outputs: &[f64]) -> Result<(), EstimatorError> {
+        if outputs.len() != self.column.len() {
+            return Err(FilterError::Settings(format!(
+                "a restored state has {} outputs of its last sample; the estimator has {}",
+                outputs.len(),
+                self.column.len()
+            ))
+            .into());
+        }
+        self.filter.restore(state)?;
+        self.column.copy_from_slice(outputs);
+        Ok(())
     }
 
     /// Processes the sample at `time` (inputs `u`, measurements `y`, NaN where missing) and

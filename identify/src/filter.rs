@@ -397,6 +397,19 @@ pub(crate) fn record_state(z: &DVector<f64>, p: &DMatrix<f64>, column: &mut [f64
     }
 }
 
+/// What a filter carries from one sample to the next, besides its settings and the plant:
+/// ẑ, P (column-major, L × L), the time and held inputs of the last sample (None before the
+/// first: the next sample is then the first, with no prediction) and the samples taken. An
+/// estimator FMU serializes it ([`Filter::state`]) and restores it into a filter set up
+/// alike ([`Filter::restore`]), which then continues bit for bit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterState {
+    pub estimate: Vec<f64>,
+    pub covariance: Vec<f64>,
+    pub last: Option<(f64, Vec<f64>)>,
+    pub samples: usize,
+}
+
 /// A filter's own way of predicting, with its work buffers.
 #[derive(Debug, Clone)]
 enum Predictor {
@@ -511,6 +524,11 @@ impl Filter {
         &self.z
     }
 
+    /// The plant it propagates through (shared with its clones).
+    pub fn plant(&self) -> Rc<RefCell<FmuPlant>> {
+        Rc::clone(&self.plant)
+    }
+
     /// P now.
     pub fn covariance(&self) -> &DMatrix<f64> {
         &self.p
@@ -524,6 +542,57 @@ impl Filter {
     /// p, the measured variables.
     pub fn measured(&self) -> usize {
         self.settings.noise.measurement.len()
+    }
+
+    /// What the next sample reads of this filter ([`FilterState`]).
+    pub fn state(&self) -> FilterState {
+        FilterState {
+            estimate: self.z.as_slice().to_vec(),
+            covariance: self.p.as_slice().to_vec(),
+            last: self.last.map(|t| (t, self.last_inputs.clone())),
+            samples: self.sample,
+        }
+    }
+
+    /// Restores `state` (of a filter with the same settings on the same plant): ẑ, P, the
+    /// parameters θ_a of ẑ, the last sample and the count. Lengths that do not fit this
+    /// filter (L, L², the plant's inputs) or a value that is not finite are an error naming
+    /// them, the filter unchanged.
+    pub fn restore(&mut self, state: &FilterState) -> Result<(), FilterError> {
+        let l = self.z.len();
+        let inputs = self.plant.borrow().input_names().len();
+        let held = state.last.as_ref().map_or(inputs, |(_, u)| u.len());
+        if state.estimate.len() != l || state.covariance.len() != l * l || held != inputs {
+            return Err(FilterError::Settings(format!(
+                "a filter state of {} estimates, {} covariances and {held} held inputs given; this filter has {l} filter states and {inputs} inputs",
+                state.estimate.len(),
+                state.covariance.len()
+            )));
+        }
+        let last = state.last.as_ref();
+        let finite = (state.estimate.iter().chain(&state.covariance))
+            .chain(
+                last.into_iter()
+                    .flat_map(|(t, u)| std::iter::once(t).chain(u)),
+            )
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(FilterError::Settings(
+                "a filter state with a value that is not finite".into(),
+            ));
+        }
+        self.z.copy_from_slice(&state.estimate);
+        self.p.copy_from_slice(&state.covariance);
+        for (k, &i) in self.augmented.iter().enumerate() {
+            self.theta[i] = self.z[self.n + k];
+        }
+        self.last = last.map(|(t, _)| *t);
+        self.last_inputs.clear();
+        if let Some((_, u)) = last {
+            self.last_inputs.extend_from_slice(u);
+        }
+        self.sample = state.samples;
+        Ok(())
     }
 
     /// A trajectory with room for `samples` samples of this filter.

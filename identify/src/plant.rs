@@ -67,6 +67,13 @@ pub fn integration(start: f64, tolerance: f64) -> Options {
     options
 }
 
+/// Keeps the plants' log messages (nothing printed) so that a failed call's error quotes what
+/// the plant said: for a library running plants inside an FMU of its own (the estimator
+/// FMU), whose host sees only that FMU's log. Once per process; an installed logger stays.
+pub fn keep_plant_messages() {
+    spurio_master::logging::install_quiet();
+}
+
 /// Why an FMU cannot be the model, or a propagation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum PlantError {
@@ -393,7 +400,7 @@ impl FmuPlant {
         self.resets
     }
 
-    /// The error for `call` failing with `e`.
+    /// The error for `call` failing with `e` (which quotes what the instance logged).
     fn call_failed(&self, call: &'static str, e: spurio_master::fmu::CallError) -> PlantError {
         PlantError::Call {
             fmu: self.instance.name(),

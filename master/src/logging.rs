@@ -24,6 +24,9 @@ const KEPT: usize = 100;
 
 struct ForwardingLogger {
     verbose: bool,
+    /// Whether messages are printed on standard error at all (false: only kept, for a
+    /// library inside an FMU whose errors quote them, [`install_quiet`]).
+    print: bool,
     /// Whether what is printed on standard error reaches the user ([`install`]), or not
     /// ([`install_unseen`]): only messages the user has seen are left out of a quote.
     seen: bool,
@@ -86,14 +89,14 @@ impl log::Log for ForwardingLogger {
             let ours = record.target().starts_with("spurio_master");
             if self.verbose && ours && record.level() == log::Level::Info {
                 eprintln!("spurio: {}", record.args());
-            } else if record.level() <= log::Level::Warn && self.verbose {
+            } else if record.level() <= log::Level::Warn && self.verbose && self.print {
                 eprintln!("spurio: {}: {}", record.level(), record.args());
             }
             return;
         }
         let target = speaker.as_deref().unwrap_or(record.target());
         let text = record.args().to_string();
-        let printed = record.level() <= log::Level::Warn || self.verbose;
+        let printed = self.print && (record.level() <= log::Level::Warn || self.verbose);
         if printed {
             eprintln!("[{}] {}: {}", display_name(target), record.level(), text);
         }
@@ -120,6 +123,7 @@ impl log::Log for ForwardingLogger {
 pub fn install(verbose: bool) {
     install_logger(ForwardingLogger {
         verbose,
+        print: true,
         seen: true,
     });
 }
@@ -130,6 +134,19 @@ pub fn install(verbose: bool) {
 pub fn install_unseen(verbose: bool) {
     install_logger(ForwardingLogger {
         verbose,
+        print: true,
+        seen: false,
+    });
+}
+
+/// [`install`] for a library that imports FMUs inside an FMU of its own (an estimator FMU
+/// carrying its plant): nothing is printed (the process's standard error is its host's);
+/// each instance's messages are kept, and an error report quotes them
+/// ([`LogKey::failure_note`]), so the outer FMU's error says what the inner one said.
+pub fn install_quiet() {
+    install_logger(ForwardingLogger {
+        verbose: false,
+        print: false,
         seen: false,
     });
 }

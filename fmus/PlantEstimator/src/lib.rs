@@ -30,13 +30,19 @@
 //!
 //! **Errors.** A missing or garbled plant, or a plant whose names do not match the
 //! configuration, fails instantiation with a message naming the file; a non-finite input
-//! or a filter failure is `fmi2Error` naming what.
+//! or a filter failure is `fmi2Error` naming what. A call the plant refuses is an error that
+//! quotes what the plant logged (its messages are kept, not printed:
+//! [`spurio_identify::plant::keep_plant_messages`]).
 //!
 //! **FMU state.** `fmi2GetFMUstate`/`fmi2SetFMUstate` take and restore the filter (its
 //! clone shares the plant instance, which every propagation places at the states and
-//! parameters it is given). Serialization writes the samples taken, ẑ and P, but a serialized state
-//! cannot be restored (`fmi2DeSerializeFMUstate` gives `fmi2Error` saying so): the filter's
-//! last sample (its time and held inputs) has no public setter in `spurio-identify` yet.
+//! parameters it is given). A serialized state holds the start time and the parameters the
+//! filter was built from (`theta0.*`, `noise.*`, `set.*`), the filter's
+//! [`FilterState`] (ẑ, P, the time and held inputs of its last sample, the samples taken),
+//! the outputs of the last sample and the sample clock; deserialization builds the filter
+//! again from the parameters (on the instance's plant, or one opened afresh) and restores
+//! the rest, so the restored instance, this one or a fresh one, continues bit for bit. A
+//! state of another configuration (its parameter count) or truncated is refused naming why.
 
 use spurio_export::{
     ByteReader, ByteWriter, Causality, Cause, Config, Context, Failure, FmuModel, ModelInfo,
@@ -44,6 +50,7 @@ use spurio_export::{
 };
 use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_identify::estimator::Estimator;
+use spurio_identify::filter::FilterState;
 use spurio_identify::online::joint_filter;
 use spurio_identify::packaged::{EstimatorDeclaration, Named};
 use spurio_identify::plant::{integration, FmuPlant, PlantSpec};
@@ -244,6 +251,10 @@ pub struct PlantEstimatorFmu {
     opened: Option<Rc<RefCell<FmuPlant>>>,
     estimator: Option<Estimator>,
     clock: SampleClock,
+    /// The start time and the parameters ([`PlantEstimatorFmu::parameters`]) the estimator
+    /// was built from, saved with an FMU state to build it again.
+    start: f64,
+    parameters: Vec<f64>,
     u: Vec<f64>,
     y: Vec<f64>,
 }
@@ -285,6 +296,90 @@ impl PlantEstimatorFmu {
     /// The number of filter states L = n + q.
     fn filter_states(&self) -> usize {
         self.declared.states.len() + self.declared.free.len()
+    }
+
+    /// The value references of the parameters the filter is built from, in table order: θ₀
+    /// (`theta0.*`), R (`noise.*`), then the plant's `set.*`.
+    fn parameters(&self) -> Range<usize> {
+        self.layout.block(Block::Starts).start..self.layout.block(Block::Set).end
+    }
+
+    /// The estimator from `start` with `parameters` ([`Self::parameters`]): the plant set and
+    /// the joint filter at ẑ₀, P₀ as `spurio identify` sets them up. The plant is the one
+    /// opened at instantiation for the first build from t = 0, the estimator's own when the
+    /// build restores a `state` of it at the same start and parameters (an FMU state of this
+    /// instance: the plant is already set), else one opened afresh.
+    fn build(
+        &mut self,
+        start: f64,
+        parameters: &[f64],
+        restoring: Option<&FilterState>,
+    ) -> Result<Estimator, Failure> {
+        let d = Rc::clone(&self.declared);
+        let same = restoring.is_some() && start == self.start && parameters == self.parameters;
+        let plant = match (self.opened.take(), &self.estimator) {
+            (_, Some(estimator)) if same => estimator.filter().plant(),
+            (Some(plant), _) if start == 0.0 => plant,
+            _ => Rc::new(RefCell::new(
+                open_plant(&self.plant_dir, &d, start).map_err(Failure::Error)?,
+            )),
+        };
+        let (q, p) = (d.free.len(), d.outputs.len());
+        let (starts, rest) = parameters.split_at(q);
+        let (noise, set) = rest.split_at(p);
+        if let Some(j) = noise.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
+            return Err(Failure::error(format!(
+                "parameter `noise.{}` = {}: a measurement variance must be finite and > 0",
+                d.outputs[j].name, noise[j]
+            )));
+        }
+        let set: Vec<(String, f64)> = (d.set.iter().zip(set))
+            .map(|((name, _), value)| (name.clone(), *value))
+            .collect();
+        let x0 = {
+            let mut p = plant.borrow_mut();
+            p.set_values(&set).map_err(failed)?;
+            p.initial_states(starts).map_err(failed)?
+        };
+        let filter = joint_filter(
+            &plant,
+            starts,
+            &x0,
+            noise,
+            d.robust.influence(),
+            d.method.linearisation(),
+        )
+        .map_err(failed)?;
+        Ok(Estimator::new(filter, d.inputs.len()))
+    }
+
+    /// The estimator of a serialized state (its part after the flag "initialised"): built
+    /// from `start` and `parameters` ([`Self::build`]), its [`FilterState`] and last outputs
+    /// restored.
+    fn restored(
+        &mut self,
+        input: &mut ByteReader,
+        start: f64,
+        parameters: &[f64],
+    ) -> Result<Estimator, Cause> {
+        let estimate = input.f64_vec()?;
+        let covariance = input.f64_vec()?;
+        let has_last = input.bool()?;
+        let (last, held) = (input.f64()?, input.f64_vec()?);
+        let state = FilterState {
+            estimate,
+            covariance,
+            last: has_last.then_some((last, held)),
+            samples: usize::try_from(input.u64()?)?,
+        };
+        let outputs = input.f64_vec()?;
+        let name = self.declared.name.clone();
+        let mut estimator = (self.build(start, parameters, Some(&state)))
+            .map_err(|f| format!("{name}: serialized state: {}", f.cause()))?;
+        estimator
+            .restore(&state, &outputs)
+            .map_err(|e| format!("{name}: serialized state: {e}"))?;
+        Ok(estimator)
     }
 
     /// Reads the sample's inputs into the buffers: u, and y with NaN where not valid; a
@@ -357,6 +452,8 @@ impl FmuModel for PlantEstimatorFmu {
             )
             .into());
         };
+        // A plant's refusal (its fmi2Error and the message it logs) reaches this FMU's log.
+        spurio_identify::plant::keep_plant_messages();
         let plant_dir = resources.join(PLANT_FOLDER);
         let plant = open_plant(&plant_dir, &declared, 0.0)?;
         Ok(Self {
@@ -368,6 +465,8 @@ impl FmuModel for PlantEstimatorFmu {
             opened: Some(Rc::new(RefCell::new(plant))),
             estimator: None,
             clock: SampleClock::new(Rule::Step, 0.0, 0.0)?,
+            start: 0.0,
+            parameters: Vec::new(),
         })
     }
 
@@ -379,46 +478,9 @@ impl FmuModel for PlantEstimatorFmu {
             self.layout.sample_period(),
             start,
         )?;
-        let d = Rc::clone(&self.declared);
-        // The plant opened at instantiation serves the first initialisation from t = 0; any
-        // other (a second one, another start) opens it afresh.
-        let plant = match self.opened.take() {
-            Some(plant) if start == 0.0 => plant,
-            _ => Rc::new(RefCell::new(
-                open_plant(&self.plant_dir, &d, start).map_err(Failure::Error)?,
-            )),
-        };
         let values = &ctx.values;
-        let set: Vec<(String, f64)> = d
-            .set
-            .iter()
-            .zip(self.layout.block(Block::Set))
-            .map(|((name, _), vr)| (name.clone(), values.real(vr)))
-            .collect();
-        let read =
-            |block| -> Vec<f64> { self.layout.block(block).map(|vr| values.real(vr)).collect() };
-        let (starts, noise) = (read(Block::Starts), read(Block::Noise));
-        if let Some(j) = noise.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
-            return Err(Failure::error(format!(
-                "parameter `noise.{}` = {}: a measurement variance must be finite and > 0",
-                d.outputs[j].name, noise[j]
-            )));
-        }
-        let x0 = {
-            let mut p = plant.borrow_mut();
-            p.set_values(&set).map_err(failed)?;
-            p.initial_states(&starts).map_err(failed)?
-        };
-        let filter = joint_filter(
-            &plant,
-            &starts,
-            &x0,
-            &noise,
-            d.robust.influence(),
-            d.method.linearisation(),
-        )
-        .map_err(failed)?;
-        let estimator = Estimator::new(filter, d.inputs.len());
+        let parameters: Vec<f64> = self.parameters().map(|vr| values.real(vr)).collect();
+        let estimator = self.build(start, &parameters, None)?;
         // Before the first sample: ẑ₀, √diag P₀; no innovation yet.
         let l = self.filter_states();
         let outputs = self.layout.block(Block::Outputs);
@@ -437,6 +499,8 @@ impl FmuModel for PlantEstimatorFmu {
         }
         self.estimator = Some(estimator);
         self.clock = clock;
+        self.start = start;
+        self.parameters = parameters;
         Ok(())
     }
 
@@ -471,23 +535,45 @@ impl FmuModel for PlantEstimatorFmu {
     }
 
     fn save_state(&self, out: &mut ByteWriter) {
-        out.put_u64(self.clock.taken());
+        out.put_f64(self.start);
+        out.put_f64_slice(&self.parameters);
         match &self.estimator {
             Some(estimator) => {
+                let state = estimator.filter().state();
                 out.put_bool(true);
-                out.put_f64_slice(estimator.filter().estimate().as_slice());
-                out.put_f64_slice(estimator.filter().covariance().as_slice());
+                out.put_f64_slice(&state.estimate);
+                out.put_f64_slice(&state.covariance);
+                out.put_bool(state.last.is_some());
+                let (last, held) = state.last.unwrap_or_default();
+                out.put_f64(last);
+                out.put_f64_slice(&held);
+                out.put_u64(state.samples as u64);
+                out.put_f64_slice(estimator.last_outputs());
             }
             None => out.put_bool(false),
         }
+        clock::save(&self.clock, out);
     }
 
-    fn load_state(&mut self, _input: &mut ByteReader) -> Result<(), Cause> {
-        Err(format!(
-            "{}: a serialized FMU state cannot be restored (the filter's last sample, its time and held inputs, is not restorable); use fmi2GetFMUstate/fmi2SetFMUstate",
-            self.declared.name
-        )
-        .into())
+    fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
+        let start = input.f64()?;
+        let parameters = input.f64_vec()?;
+        let expected = self.parameters().len();
+        if parameters.len() != expected || !start.is_finite() {
+            return Err(format!(
+                "{}: a serialized state of {} parameters from t = {start}; this estimator has {expected} (θ₀, noise, set): it is another configuration's",
+                self.declared.name,
+                parameters.len()
+            )
+            .into());
+        }
+        let estimator = match input.bool()? {
+            true => Some(self.restored(input, start, &parameters)?),
+            false => None,
+        };
+        (self.estimator, self.clock) = (estimator, clock::load(input)?);
+        (self.start, self.parameters) = (start, parameters);
+        Ok(())
     }
 }
 

@@ -1,7 +1,9 @@
 //! The estimator FMU through the export layer's harness on the Reference FMU VanDerPol
 //! (unpacked as a packaged estimator carries it): the same outputs as
 //! `spurio_identify::estimator::Estimator` sample by sample (bit for bit), missing samples,
-//! the refusals at instantiation, FMU state serialization refused with a reason.
+//! the refusals at instantiation, no heap allocation per DoStep after the first, the
+//! serialized FMU state restored bit for bit (and refused truncated, garbled or of another
+//! configuration).
 
 use super::*;
 use spurio_export::harness::Harness;
@@ -163,6 +165,11 @@ fn the_fmu_gives_the_library_estimator_sample_by_sample_bit_for_bit() {
             "{method:?}: μ̂ = {mu} ± {sd}"
         );
         println!("{method:?}: heap allocations per DoStep (one sample each): {allocations:?}");
+        // The first sample sizes the filter's buffers; none after it allocates, missing or not.
+        assert!(
+            allocations[1..].iter().all(|&n| n == 0),
+            "{method:?}: allocations per DoStep {allocations:?}"
+        );
     }
 }
 
@@ -264,20 +271,142 @@ fn the_library_bundles_no_variant_and_says_why() {
 }
 
 #[test]
-fn a_bad_variance_fails_initialisation_and_a_serialized_state_is_refused_with_a_reason() {
-    let res = resources("state");
+fn a_bad_variance_fails_initialisation_naming_it() {
+    let res = resources("variance");
     let d = declared(Method::Ukf);
     let layout = Layout::of(&d);
     let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
     h.set_real(&[vr(&layout, Block::Noise, 0)], &[0.0]).unwrap();
     assert_eq!(h.initialize(0.0), Err(Status::Error));
     assert!(h.logged(&["noise.x0", "> 0"]), "{:?}", h.log());
+}
+
+/// Steps `h` over samples `range` of `y` (0.1 s each) and gives every output after each.
+fn outputs_over(
+    h: &mut Harness<PlantEstimatorFmu>,
+    layout: &Layout,
+    y: &[f64],
+    range: Range<usize>,
+) -> Vec<Vec<f64>> {
+    let all: Vec<u32> = layout.block(Block::Outputs).map(|v| v as u32).collect();
+    range
+        .map(|k| {
+            h.set_real(&[vr(layout, Block::Measured, 0)], &[y[k]])
+                .unwrap();
+            assert_eq!(
+                h.do_step(0.1 * k as f64, 0.1),
+                Ok(Status::Ok),
+                "{:?}",
+                h.log()
+            );
+            let mut out = vec![0.0; all.len()];
+            h.get_real(&all, &mut out).unwrap();
+            out
+        })
+        .collect()
+}
+
+#[test]
+fn a_serialized_state_restores_the_filter_bit_for_bit_here_and_in_a_fresh_instance() {
+    const N: usize = 8;
+    const M: usize = 10;
+    for method in [Method::Ukf, Method::Ekf] {
+        let res = resources(&format!("state-{}", method.name()));
+        let d = declared(method);
+        let layout = Layout::of(&d);
+        let y = measurements(&res.0.join(PLANT_FOLDER));
+        let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
+        h.initialize(0.0).unwrap();
+        outputs_over(&mut h, &layout, &y, 0..N);
+        let bytes = h.serialized_state().unwrap();
+        let first = outputs_over(&mut h, &layout, &y, N..N + M);
+        // Back to sample N in the same instance: the same M samples again, bit for bit.
+        assert_eq!(h.restore_state(&bytes), Ok(Status::Ok), "{:?}", h.log());
+        assert_eq!(
+            outputs_over(&mut h, &layout, &y, N..N + M),
+            first,
+            "{method:?}"
+        );
+        // In a fresh instance of the FMU, never initialised: the same.
+        let mut fresh =
+            Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
+        assert_eq!(
+            fresh.restore_state(&bytes),
+            Ok(Status::Ok),
+            "{:?}",
+            fresh.log()
+        );
+        assert_eq!(
+            outputs_over(&mut fresh, &layout, &y, N..N + M),
+            first,
+            "{method:?}"
+        );
+        // The filter moved between N and N + M (the check compares something).
+        assert_ne!(first[0][2], first[M - 1][2]);
+        // A truncated state, and one with a garbled flag byte, are refused.
+        let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
+        for cut in [1, 9, model_part_length() / 2] {
+            assert_eq!(
+                h.restore_state(&bytes[..bytes.len() - cut]),
+                Err(Status::Error)
+            );
+            assert!(h.logged(&["serialized FMU state", "left"]), "{:?}", h.log());
+        }
+        let mut garbled = bytes.clone();
+        // The byte after the start time and the parameters (θ₀, R: 2 values) is the flag
+        // "the filter was initialised": 7 is no boolean.
+        let flag = garbled.len() - model_part_length() + 8 + 8 + 2 * 8;
+        assert_eq!(garbled[flag], 1);
+        garbled[flag] = 7;
+        assert_eq!(h.restore_state(&garbled), Err(Status::Error));
+        assert!(h.logged(&["invalid boolean"]), "{:?}", h.log());
+    }
+}
+
+/// The length of the estimator's own part at the end of a serialized state of an initialised
+/// `declared(…)` (L = 3, p = 1, q = 1, no input, no set parameter), from what
+/// [`PlantEstimatorFmu::save_state`] writes: a vector is its length then its values.
+fn model_part_length() -> usize {
+    let (l, p, q) = (3, 1, 1);
+    let vector = |n: usize| 8 + 8 * n;
+    let mut clock = ByteWriter::new();
+    clock::save(&SampleClock::new(Rule::Step, 0.0, 0.0).unwrap(), &mut clock);
+    8 + vector(q + p)
+        + 1
+        + vector(l)
+        + vector(l * l)
+        + 1
+        + 8
+        + vector(0)
+        + 8
+        + vector(2 * l + 3 * p)
+        + clock.into_bytes().len()
+}
+
+#[test]
+fn a_state_of_another_configuration_is_refused_naming_the_counts() {
+    let res = resources("other");
+    let d = declared(Method::Ukf);
     let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&d), &res.0).unwrap();
     h.initialize(0.0).unwrap();
-    h.set_real(&[vr(&layout, Block::Measured, 0)], &[2.0])
-        .unwrap();
-    h.do_step(0.0, 0.1).unwrap();
     let bytes = h.serialized_state().unwrap();
+    // The same model, another configuration (a set parameter more): the export layer's
+    // check of the variable count refuses it, and so does the estimator's own of the
+    // parameter count when handed the model part.
+    let mut other = declared(Method::Ukf);
+    other.set.push(("x1".into(), 0.0));
+    let mut h = Harness::<PlantEstimatorFmu>::with_resources(&config_of(&other), &res.0).unwrap();
     assert_eq!(h.restore_state(&bytes), Err(Status::Error));
-    assert!(h.logged(&["cannot be restored"]), "{:?}", h.log());
+    let info = PlantEstimatorFmu::describe(&config_of(&other)).unwrap();
+    let mut model = PlantEstimatorFmu::create_with_resources(&info, Some(&res.0)).unwrap();
+    let mut w = ByteWriter::new();
+    w.put_f64(0.0);
+    w.put_f64_slice(&[1.2, 1e-4]);
+    w.put_bool(false);
+    let bytes = w.into_bytes();
+    let e = model.load_state(&mut ByteReader::new(&bytes)).unwrap_err();
+    assert!(
+        e.to_string().contains("2 parameters") && e.to_string().contains("has 3"),
+        "{e}"
+    );
 }

@@ -29,7 +29,7 @@
 //!
 //! The clock is part of the FMU state (`fmi2GetFMUstate`, serialization).
 
-use spurio_export::{Failure, Values, Variable};
+use spurio_export::{ByteReader, ByteWriter, Cause, Failure, Values, Variable};
 use std::fmt;
 use std::ops::Range;
 
@@ -89,6 +89,18 @@ impl From<ClockError> for Failure {
     fn from(e: ClockError) -> Self {
         Failure::error(e)
     }
+}
+
+/// Writes `clock` into an FMU state (an estimator's part of `fmi2SerializeFMUstate`).
+pub fn save(clock: &SampleClock, out: &mut ByteWriter) {
+    out.put_bytes(&spurio::state::to_bytes(clock));
+}
+
+/// Reads a clock written by [`save`]; malformed bytes are an error saying so.
+pub fn load(input: &mut ByteReader) -> Result<SampleClock, Cause> {
+    let bytes = input.byte_vec()?;
+    spurio::state::from_bytes(&bytes)
+        .map_err(|e| format!("serialized FMU state: the sample clock: {e}").into())
 }
 
 /// The parameter `sample_period` (s), start 0 (= the size of the first step).

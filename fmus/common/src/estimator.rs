@@ -182,7 +182,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
             }
             None => out.put_bool(false),
         }
-        out.put_bytes(&spurio::state::to_bytes(&self.clock));
+        clock::save(&self.clock, out);
     }
 
     fn load_state(&mut self, input: &mut ByteReader) -> Result<(), Cause> {
@@ -206,8 +206,7 @@ impl<E: Estimator> FmuModel for EstimatorFmu<E> {
         } else {
             None
         };
-        let clock = spurio::state::from_bytes(&input.byte_vec()?)
-            .map_err(|e| format!("estimator state: sample clock: {e}"))?;
+        let clock = clock::load(input)?;
         self.estimator = estimator;
         self.parameters = parameters;
         self.clock = clock;

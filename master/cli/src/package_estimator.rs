@@ -312,7 +312,7 @@ pub fn page(d: &EstimatorDeclaration) -> String {
         );
     }
     p.push_str("| `sample_period` | s | parameter: T |\n\n");
-    p.push_str("## FMU state\n\n`fmi2GetFMUstate`/`fmi2SetFMUstate` are supported; a serialized state cannot be restored (`fmi2DeSerializeFMUstate` gives `fmi2Error`).\n\nWritten by `spurio package-estimator`.\n");
+    p.push_str("## FMU state\n\n`fmi2GetFMUstate`/`fmi2SetFMUstate` are supported, and so are `fmi2SerializeFMUstate`/`fmi2DeSerializeFMUstate` (a restored state continues bit for bit).\n\nWritten by `spurio package-estimator`.\n");
     p
 }
 

@@ -314,6 +314,17 @@ impl MeInstance {
     }
 }
 
+/// The error of a failed call, with what the instance logged (its recent messages the user
+/// has not seen, [`LogKey::failure_note`]): a plant's own reason reaches the error report
+/// even where its log is not printed (inside an estimator FMU).
+#[cold]
+fn quoting_log(log: &LogKey, e: CallError) -> CallError {
+    match log.failure_note() {
+        Some(note) => CallError(format!("{} ({note})", e.0)),
+        None => e,
+    }
+}
+
 /// Runs the FMI 2.0 call `$fmi2` or the FMI 3.0 call `$fmi3` on `$self`'s instance (bound to
 /// `$i`; an FMI 3.0 instance's log messages heard under its key), for its success.
 macro_rules! me_call {
@@ -321,13 +332,15 @@ macro_rules! me_call {
         match &mut $self.inner {
             Inner::Fmi2($i) => {
                 let $i = $i.as_mut();
-                $fmi2.map(|_| ()).map_err(CallError::from)
+                $fmi2
+                    .map(|_| ())
+                    .map_err(|e| quoting_log(&$self.log, CallError::from(e)))
             }
             Inner::Fmi3($j) => {
                 let $j = $j.as_mut();
                 crate::logging::speaking(&$self.log, || $fmi3)
                     .map(|_| ())
-                    .map_err(CallError::from)
+                    .map_err(|e| quoting_log(&$self.log, CallError::from(e)))
             }
         }
     };

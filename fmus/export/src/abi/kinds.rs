@@ -82,31 +82,25 @@ macro_rules! get_set_entries {
         $handle:ty, $vr:ty, $status:ty, $counted:tt;
         $($get:ident, $set:ident, $c:ty => $get_fn:expr, $set_fn:expr;)+
     ) => {
-        $($crate::get_set_entries!(@pair $handle, $vr, $status, $counted; $get, $set, $c, $get_fn, $set_fn);)+
+        $(
+            $crate::get_set_entries!(@entry $handle, $vr, $status, $counted; $get, *mut $c, $get_fn);
+            $crate::get_set_entries!(@entry $handle, $vr, $status, $counted; $set, *const $c, $set_fn);
+        )+
     };
+    // One symbol: a getter (values `*mut`) or a setter (values `*const`).
     (
-        @pair $handle:ty, $vr:ty, $status:ty, ($($count:ident)?);
-        $get:ident, $set:ident, $c:ty, $get_fn:expr, $set_fn:expr
+        @entry $handle:ty, $vr:ty, $status:ty, ($($count:ident)?);
+        $name:ident, $values:ty, $call:expr
     ) => {
         #[no_mangle]
-        pub unsafe extern "C" fn $get(
+        pub unsafe extern "C" fn $name(
             c: $handle,
             vr: *const $vr,
             nvr: usize,
-            values: *mut $c,
+            values: $values,
             $($count: usize)?
         ) -> $status {
-            unsafe { ($get_fn)(c, vr, nvr, values, $($count)?) }
-        }
-        #[no_mangle]
-        pub unsafe extern "C" fn $set(
-            c: $handle,
-            vr: *const $vr,
-            nvr: usize,
-            values: *const $c,
-            $($count: usize)?
-        ) -> $status {
-            unsafe { ($set_fn)(c, vr, nvr, values, $($count)?) }
+            unsafe { ($call)(c, vr, nvr, values, $($count)?) }
         }
     };
 }
