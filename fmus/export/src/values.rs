@@ -354,14 +354,28 @@ pub const RUN_GAP: usize = 4;
 mod tests {
     use super::*;
 
-    #[test]
-    fn clone_from_reuses_the_buffers_and_copies_every_value() {
-        let table = [
+    /// A Real, an Integer, a String and a Boolean parameter: x = 1.5, n = 3, s = "abc",
+    /// b = true.
+    fn one_of_each_type() -> [Variable; 4] {
+        [
             Variable::parameter("x", 1.5),
             Variable::integer_parameter("n", 3),
             Variable::string_parameter("s", "abc"),
             Variable::boolean_parameter("b", true),
-        ];
+        ]
+    }
+
+    /// Sets x = −2.25, n = 7, s = `text`, b = false.
+    fn change_every_value(values: &mut Values, text: &str) {
+        values.set_real(0, -2.25);
+        values.set_integer(1, 7);
+        values.set(2, Value::String(text.to_string()));
+        values.set_boolean(3, false);
+    }
+
+    #[test]
+    fn clone_from_reuses_the_buffers_and_copies_every_value() {
+        let table = one_of_each_type();
         let mut current = Values::from_start(&table);
         assert_eq!(current.get(0), Some(Value::Real(1.5)));
         assert_eq!(current.get(1), Some(Value::Integer(3)));
@@ -370,10 +384,7 @@ mod tests {
         let mut before = current.clone();
         let buffer = before.numbers.as_ptr();
         let string = before.string(2).as_ptr();
-        current.set_real(0, -2.25);
-        current.set_integer(1, 7);
-        current.set(2, Value::String("xy".to_string()));
-        current.set_boolean(3, false);
+        change_every_value(&mut current, "xy");
         before.clone_from(&current);
         assert_eq!(before, current);
         assert_eq!(before.real(0), -2.25);
@@ -386,19 +397,11 @@ mod tests {
 
     #[test]
     fn reset_to_start_restores_every_start_value_in_the_same_buffers() {
-        let table = [
-            Variable::parameter("x", 1.5),
-            Variable::integer_parameter("n", 3),
-            Variable::string_parameter("s", "abc"),
-            Variable::boolean_parameter("b", true),
-        ];
+        let table = one_of_each_type();
         let mut values = Values::from_start(&table);
         let numbers = values.numbers.as_ptr();
         let text = values.string(2).as_ptr();
-        values.set_real(0, -2.25);
-        values.set_integer(1, 7);
-        values.set(2, Value::String("wxyz".to_string()));
-        values.set_boolean(3, false);
+        change_every_value(&mut values, "wxyz");
         let text_changed = values.string(2).as_ptr();
         values.reset_to_start(&table);
         assert_eq!(values, Values::from_start(&table));
