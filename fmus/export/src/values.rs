@@ -10,7 +10,7 @@ use crate::variables::{Causality, Value, Variable, VariableType};
 /// a Boolean as 0 or 1, a String as 0 with its text kept apart), so that an instance's values
 /// take 9 bytes per variable, a get or set is one load or store, and the roll-back copy
 /// before a model call is a `memcpy`.
-#[derive(Debug, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct Values {
     numbers: Vec<f64>,
     types: Vec<VariableType>,
@@ -56,19 +56,35 @@ fn typed(t: VariableType, x: f64) -> Value {
 impl Values {
     /// The start values of `variables`.
     pub fn from_start(variables: &[Variable]) -> Self {
-        let mut values = Self {
-            numbers: vec![0.0; variables.len()],
-            types: variables.iter().map(Variable::variable_type).collect(),
-            strings: Vec::new(),
-        };
+        let mut values = Self::default();
+        values.reset_to_start(variables);
+        values
+    }
+    /// Back to the start values of `variables` in place: the buffers (and each String's) are
+    /// reused, so a reset of an instance with the same table allocates nothing (`fmi2Reset`
+    /// of a plant that an estimator resets once per sigma point and step).
+    pub fn reset_to_start(&mut self, variables: &[Variable]) {
+        self.numbers.clear();
+        self.numbers.resize(variables.len(), 0.0);
+        self.types.clear();
+        self.types
+            .extend(variables.iter().map(Variable::variable_type));
+        let mut texts = 0;
         for (i, v) in variables.iter().enumerate() {
             if let Value::String(text) = &v.start {
-                values.strings.push((i, text.clone()));
+                match self.strings.get_mut(texts) {
+                    Some(slot) => {
+                        slot.0 = i;
+                        slot.1.clone_from(text);
+                    }
+                    None => self.strings.push((i, text.clone())),
+                }
+                texts += 1;
             } else {
-                values.set(i, v.start.clone());
+                self.set(i, v.start.clone());
             }
         }
-        values
+        self.strings.truncate(texts);
     }
     /// The number of values.
     pub fn len(&self) -> usize {
@@ -338,14 +354,28 @@ pub const RUN_GAP: usize = 4;
 mod tests {
     use super::*;
 
-    #[test]
-    fn clone_from_reuses_the_buffers_and_copies_every_value() {
-        let table = [
+    /// A Real, an Integer, a String and a Boolean parameter: x = 1.5, n = 3, s = "abc",
+    /// b = true.
+    fn one_of_each_type() -> [Variable; 4] {
+        [
             Variable::parameter("x", 1.5),
             Variable::integer_parameter("n", 3),
             Variable::string_parameter("s", "abc"),
             Variable::boolean_parameter("b", true),
-        ];
+        ]
+    }
+
+    /// Sets x = −2.25, n = 7, s = `text`, b = false.
+    fn change_every_value(values: &mut Values, text: &str) {
+        values.set_real(0, -2.25);
+        values.set_integer(1, 7);
+        values.set(2, Value::String(text.to_string()));
+        values.set_boolean(3, false);
+    }
+
+    #[test]
+    fn clone_from_reuses_the_buffers_and_copies_every_value() {
+        let table = one_of_each_type();
         let mut current = Values::from_start(&table);
         assert_eq!(current.get(0), Some(Value::Real(1.5)));
         assert_eq!(current.get(1), Some(Value::Integer(3)));
@@ -354,10 +384,7 @@ mod tests {
         let mut before = current.clone();
         let buffer = before.numbers.as_ptr();
         let string = before.string(2).as_ptr();
-        current.set_real(0, -2.25);
-        current.set_integer(1, 7);
-        current.set(2, Value::String("xy".to_string()));
-        current.set_boolean(3, false);
+        change_every_value(&mut current, "xy");
         before.clone_from(&current);
         assert_eq!(before, current);
         assert_eq!(before.real(0), -2.25);
@@ -366,6 +393,31 @@ mod tests {
         assert!(!before.boolean(3));
         assert_eq!(before.numbers.as_ptr(), buffer);
         assert_eq!(before.string(2).as_ptr(), string);
+    }
+
+    #[test]
+    fn reset_to_start_restores_every_start_value_in_the_same_buffers() {
+        let table = one_of_each_type();
+        let mut values = Values::from_start(&table);
+        let numbers = values.numbers.as_ptr();
+        let text = values.string(2).as_ptr();
+        change_every_value(&mut values, "wxyz");
+        let text_changed = values.string(2).as_ptr();
+        values.reset_to_start(&table);
+        assert_eq!(values, Values::from_start(&table));
+        assert_eq!(
+            (values.real(0), values.integer(1), values.string(2)),
+            (1.5, 3, "abc")
+        );
+        assert!(values.boolean(3));
+        assert_eq!(values.numbers.as_ptr(), numbers);
+        // The set moved in a new String (4 bytes); the reset copies "abc" into its buffer.
+        assert_ne!(text_changed, text);
+        assert_eq!(values.string(2).as_ptr(), text_changed);
+        // A table with fewer Strings drops the extra texts.
+        let shorter = [Variable::parameter("x", 0.5)];
+        values.reset_to_start(&shorter);
+        assert_eq!(values, Values::from_start(&shorter));
     }
 
     #[test]

@@ -177,11 +177,12 @@ impl ModelExchangeInfo {
         })
     }
 
-    /// The nominal of each state (its declared `nominal`, 1 by default).
-    pub fn nominals(&self, variables: &[Variable]) -> Vec<f64> {
+    /// The nominal of each state (its declared `nominal`, 1 by default), in the order of
+    /// `states`, without allocating (`fmi2GetNominalsOfContinuousStates` is called at every
+    /// restart of an importer's integration).
+    pub fn nominals<'a>(&'a self, variables: &'a [Variable]) -> impl Iterator<Item = f64> + 'a {
         self.states
             .iter()
             .map(|&i| variables[i].nominal.unwrap_or(1.0))
-            .collect()
     }
 }

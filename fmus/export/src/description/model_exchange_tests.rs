@@ -29,7 +29,7 @@ fn the_interface_comes_from_the_table() {
         (vec![0, 1], vec![1, 3])
     );
     assert_eq!(me.event_indicators, [4]);
-    assert_eq!(me.nominals(&info.variables), [0.5, 1.0]);
+    assert_eq!(me.nominals(&info.variables).collect::<Vec<_>>(), [0.5, 1.0]);
     // the GUID covers the interface
     let cs = ModelInfo::new("Osc", "", table(), None, Config::new());
     assert_ne!(cs.guid, info.guid);

@@ -322,9 +322,11 @@ impl<M: FmuModel> Instance<M> {
         match M::create_with_resources(&self.interface.info, self.resources.as_deref()) {
             Ok(model) => {
                 self.jacobian.forget();
+                let mut values = std::mem::take(&mut self.core.values);
+                values.reset_to_start(&self.interface.info.variables);
                 self.core = Core {
                     model,
-                    values: Values::from_start(&self.interface.info.variables),
+                    values,
                     time: 0.0,
                     state: ModelState::Instantiated,
                     stop_time: None,

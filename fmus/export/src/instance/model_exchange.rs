@@ -305,15 +305,15 @@ impl<M: FmuModel> Instance<M> {
         if let Err(status) = self.model_exchange_hooks(f) {
             return status;
         }
-        let nominals = self
-            .interface
-            .info
-            .model_exchange
-            .as_ref()
-            .map_or_else(Vec::new, |m| m.nominals(&self.interface.info.variables));
-        let status = self.check_count(f, "nx", out.len(), nominals.len());
+        let info = &self.interface.info;
+        let Some(me) = info.model_exchange.as_ref() else {
+            return self.check_count(f, "nx", out.len(), 0);
+        };
+        let status = self.check_count(f, "nx", out.len(), me.states.len());
         if status == Status::Ok {
-            out.copy_from_slice(&nominals);
+            for (to, nominal) in out.iter_mut().zip(me.nominals(&info.variables)) {
+                *to = nominal;
+            }
         }
         status
     }
