@@ -371,27 +371,21 @@ impl std::fmt::Debug for FmuFile {
     }
 }
 
-/// The platform folder of FMI 2.0 binaries on this machine: `linux64`, `win64`, or
-/// `aarch64-linux` (the folder of FMPy, the FMI cross-check and `spurio package`; FMI 2.0
-/// names no folder for Linux on AArch64).
+/// The platform folder of FMI 2.0 binaries and the platform tuple of FMI 3.0 binaries on
+/// this machine (FMI 3.0 §2.5.1.1): `linux64`/`x86_64-linux`, `win64`/`x86_64-windows`, or
+/// `aarch64-linux` for both (the folder of FMPy, the FMI cross-check and `spurio package`;
+/// FMI 2.0 names no folder for Linux on AArch64).
 #[cfg(not(any(windows, all(target_os = "linux", target_arch = "aarch64"))))]
-pub const PLATFORM: &str = "linux64";
-/// The platform folder of FMI 2.0 binaries on this machine.
+const PLATFORMS: (&str, &str) = ("linux64", "x86_64-linux");
 #[cfg(windows)]
-pub const PLATFORM: &str = "win64";
-/// The platform folder of FMI 2.0 binaries on this machine.
+const PLATFORMS: (&str, &str) = ("win64", "x86_64-windows");
 #[cfg(all(target_os = "linux", target_arch = "aarch64"))]
-pub const PLATFORM: &str = "aarch64-linux";
+const PLATFORMS: (&str, &str) = ("aarch64-linux", "aarch64-linux");
 
-/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
-#[cfg(not(any(windows, all(target_os = "linux", target_arch = "aarch64"))))]
-pub const PLATFORM_3: &str = "x86_64-linux";
-/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
-#[cfg(windows)]
-pub const PLATFORM_3: &str = "x86_64-windows";
-/// The platform tuple of FMI 3.0 binaries on this machine (FMI 3.0 §2.5.1.1).
-#[cfg(all(target_os = "linux", target_arch = "aarch64"))]
-pub const PLATFORM_3: &str = "aarch64-linux";
+/// The platform folder of FMI 2.0 binaries on this machine (the first of the pair above).
+pub const PLATFORM: &str = PLATFORMS.0;
+/// The platform tuple of FMI 3.0 binaries on this machine (the second of the pair above).
+pub const PLATFORM_3: &str = PLATFORMS.1;
 
 /// Where rust-fmi loads an FMI 2.0 binary from, when that is not [`PLATFORM`]: on Linux on
 /// AArch64 it reads `binaries/linux64/`, so the loader puts the `aarch64-linux` binary there
