@@ -6,7 +6,8 @@ Each case follows the library's synthetic one (identify/src/synthetic.rs): the s
 output, sample step Δ, number of samples, noise σ and 5 % outliers of ±20 σ; the noise and the
 outliers are drawn here by numpy (`default_rng(seed)`), not by the library's generator, and
 fmpy integrates the data (CVode, relative tolerance 10⁻¹⁰, a point every Δ), so the data are
-not the library's.
+not the library's. fmpy's extra rows at BouncingBall's bounces are dropped: the UKF does not
+learn e from a sample at a bounce's time (the last test, an expected failure, says why).
 
 Done when (asserted per case, `--noise σ²` as the library's cases know R = σ²):
 - offline (`--method ml --robust huber`): |θ̂ − θ| ≤ 1 % of θ, on the record of seed 28;
@@ -55,9 +56,10 @@ CASES = [
 ]
 
 
-def fmpy_record(case: Case, truth: float) -> tuple[np.ndarray, np.ndarray]:
+def fmpy_record(case: Case, truth: float, event_rows=False) -> tuple[np.ndarray, np.ndarray]:
     """fmpy's run of the Reference FMU at `truth` (Model Exchange, CVode at 10⁻¹⁰): the
-    measured output at t_k = k Δ, k < samples (an event's two rows at one time: the last)."""
+    measured output at t_k = k Δ, k < samples (an event's two rows at one time: the last),
+    and with `event_rows` also fmpy's rows at the events between them."""
     from fmpy import simulate_fmu
 
     fmu = require(REFERENCE_FMUS / f"{case.model}.fmu", "the Reference FMUs (third-party README)")
@@ -71,6 +73,8 @@ def fmpy_record(case: Case, truth: float) -> tuple[np.ndarray, np.ndarray]:
         relative_tolerance=1e-10,
         output=[case.output],
     )
+    if event_rows:
+        return result["time"], result[case.output]
     grid = np.arange(case.samples) * case.step
     # The row of each grid time: the last row within 10⁻⁹ of it.
     rows = [np.flatnonzero(np.abs(result["time"] - t) < 1e-9) for t in grid]
@@ -185,3 +189,20 @@ def test_a_wrong_truth_fails(workdir):
     assert accuracy_misses(case, fits, case.truth) == []
     misses = accuracy_misses(case, fits, 1.53)
     assert [m.split()[0] for m in misses] == ["offline", "online"], misses
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="a sample at a bounce's time puts the UKF's sigma points on both sides of the "
+    "bounce: the predicted velocity is bimodal (unscented mean 0.67 m/s, sd 5.0 m/s against "
+    "7e-3 one sample before, on the clean record) and e's link to the state is lost",
+)
+def test_bouncing_ball_online_from_fmpy_record_with_event_rows(workdir):
+    """fmpy's record of BouncingBall with its rows at the six bounces (t = 0.4515 … 2.8801 s)
+    as well: the robust UKF gives e = 0.8082 ± 0.0024 (3.4 se off; 0.737 ± 0.13 on the clean
+    record, e hardly learned); without them 0.79998 ± 0.00033; the EKF 0.80000 ± 0.00034 with
+    them."""
+    case = CASES[1]
+    fits = identify_all(case, fmpy_record(case, case.truth, event_rows=True), SEED, workdir)
+    online, se = fits[("ukf", "huber")]
+    assert abs(online - case.truth) <= 2 * se, f"online {online} ± {se}"
