@@ -18,6 +18,12 @@
 //! - with one, H (EKF, C = P⁻ Hᵀ): the Joseph form P = (I − K H) P⁻ (I − K H)ᵀ + K R̃ Kᵀ,
 //!   a sum of positive semidefinite terms whatever the rounding of K.
 //!
+//! **Declared ranges.** A parameter of z is held to the `min`/`max` its FMU declares: the
+//! model the filter propagates is f(x, Π(θ)) with Π the projection onto the ranges (a sigma
+//! point beyond a bound sees the plant at the bound, [`crate::prediction::Step`]), and the
+//! corrected θ̂ is projected onto them (estimate projection; P is kept), so the plant is never
+//! handed a value it may refuse and θ̂ never leaves what the model admits.
+//!
 //! P is symmetrised, ½(P + Pᵀ), after every prediction and correction. An innovation
 //! covariance S̃ (which holds R > 0) whose Cholesky factorisation fails stops the step with an
 //! error naming the sample ([`FilterError::NotPositive`]).
@@ -676,8 +682,15 @@ impl Filter {
         }
         std::mem::swap(&mut self.z, &mut self.prediction.z);
         std::mem::swap(&mut self.p, &mut self.prediction.p);
-        for (k, &i) in self.augmented.iter().enumerate() {
-            self.theta[i] = self.z[self.n + k];
+        {
+            // θ̂ projected onto its declared range (module documentation), P kept.
+            let plant = self.plant.borrow();
+            let declared = plant.parameters();
+            for (k, &i) in self.augmented.iter().enumerate() {
+                let projected = declared[i].range.clamp(self.z[self.n + k]);
+                self.z[self.n + k] = projected;
+                self.theta[i] = projected;
+            }
         }
         record_state(&self.z, &self.p, column);
         self.last = Some(time);

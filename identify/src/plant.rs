@@ -22,7 +22,8 @@
 //! error naming it and the FMU.
 
 use spurio_master::fmu::{
-    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, VarType, VariableInfo,
+    me::MeInstance, Causality, FmuFile, Interface, LoadError, LoadOptions, Range, VarType,
+    VariableInfo,
 };
 use spurio_master::model_exchange::{
     initialise, Advance, Layout, MeError, ModelExchangeCalls, Options, Stepper,
@@ -142,6 +143,9 @@ pub struct PlantParameter {
     pub start: f64,
     /// Its unit, if declared.
     pub unit: Option<String>,
+    /// The values the FMU accepts for it (`min`, `max`): the online filters hold their
+    /// sigma points and estimates to it ([`crate::prediction::Step::parameters_of`]).
+    pub range: Range,
     var_type: VarType,
     vr: u32,
 }
@@ -264,6 +268,7 @@ impl FmuPlant {
                 tunable: !v.fixed,
                 start: v.start.unwrap_or(0.0),
                 unit: v.unit.clone(),
+                range: v.range,
                 var_type: h.var_type,
                 vr: h.value_reference,
             });

@@ -112,11 +112,15 @@ pub(crate) struct Step<'a> {
 }
 
 impl Step<'_> {
-    /// θ with the parameters of z taken from `z`, into `theta`.
+    /// θ with the parameters of z taken from `z`, into `theta`, each held to its declared
+    /// range: Π(θ)ᵢ = min(max(θᵢ, minᵢ), maxᵢ). The filters' model is f(x, Π(θ)), so a sigma
+    /// point or a difference step beyond a bound sees the plant at the bound instead of a
+    /// value the FMU refuses (docs/estimators.md, "Parameters within their declared range").
     pub fn parameters_of(&self, z: &[f64], theta: &mut [f64]) {
         theta.copy_from_slice(self.theta);
+        let declared = self.plant.parameters();
         for (k, &i) in self.augmented.iter().enumerate() {
-            theta[i] = z[self.states + k];
+            theta[i] = declared[i].range.clamp(z[self.states + k]);
         }
     }
 }

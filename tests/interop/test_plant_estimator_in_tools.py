@@ -7,9 +7,10 @@ reader sets every discrete Real input to the value of the *first* Real column of
 file (`interpData[i] = *v1` instead of `v1[i]` in fmi2_update_input_interpolation), and takes
 the row before a sample whose time its accumulated `t + h` falls just short of. The
 estimator's inputs `u.U`, `y.x`, `y.theta` are discrete (sampled at each step), so given the
-closed-loop record fmuCheck gives it the force as both measurements: the filter, fitting the
-crane to those, drove the mass's sigma point below 0, which the plant refused (fmi2Error at
-t = 2.95 s). Reproduced exactly through fmpy with those inputs; not the FMU's doing. Hence the
+closed-loop record fmuCheck gives it the force as both measurements, and the filter fits the
+crane to those (before the filters held parameters to their declared ranges, the mass's sigma
+point went below 0 and the plant refused it, fmi2Error at t = 2.95 s, reproduced exactly
+through fmpy with those inputs); not the FMU's doing. Hence the
 runs here give fmuCheck one Real column only (the force, at the time stamps fmuCheck's sum
 reaches, so that it takes each row at its own step) with both measurements marked missing
 (`y.<name>.valid` = 0: the filter predicts only), and no input file at all (the start values:

@@ -134,7 +134,7 @@ pub(super) fn model_structure(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmu::VariableHead;
+    use crate::fmu::{Range, VariableHead};
 
     fn var(name: &str, vr: u32, t: VarType, c: Causality) -> VariableInfo {
         VariableInfo {
@@ -147,6 +147,7 @@ mod tests {
             fixed: false,
             start: None,
             unit: None,
+            range: Range::default(),
             description: None,
             dependencies: None,
             element: None,

@@ -313,6 +313,8 @@ pub struct VariableInfo {
     pub start: Option<f64>,
     /// The unit (`unit` of the variable, or of its declared type), e.g. `m`.
     pub unit: Option<String>,
+    /// The values it may take (`min`, `max` of the variable, or of its declared type).
+    pub range: Range,
     /// The model description's `description` of the variable.
     pub description: Option<String>,
     /// For outputs: indices (into [`FmuFile::variables`]) of the inputs it depends on directly;
@@ -321,6 +323,28 @@ pub struct VariableInfo {
     /// For an element of an FMI 3.0 array: (index into [`FmuFile::arrays`], position of the
     /// element among the array's values, row-major).
     pub element: Option<(usize, usize)>,
+}
+
+/// A numeric variable's declared `min` and `max` (FMI 2.0 §2.2.7, FMI 3.0 §2.4.7.4): the
+/// values an FMU accepts for it and promises for it; either may be absent (no bound).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Range {
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+}
+
+impl Range {
+    /// `value` moved to the nearest bound when it lies outside the range: the projection
+    /// onto [min, max].
+    pub fn clamp(&self, value: f64) -> f64 {
+        let above_min = self.min.map_or(value, |min| value.max(min));
+        self.max.map_or(above_min, |max| above_min.min(max))
+    }
+
+    /// Whether `value` lies in [min, max].
+    pub fn contains(&self, value: f64) -> bool {
+        self.min.is_none_or(|min| value >= min) && self.max.is_none_or(|max| value <= max)
+    }
 }
 
 /// An FMI 3.0 array variable: its elements are variables of their own (`x[1,2]`).
@@ -530,8 +554,11 @@ impl FmuFile {
         let Some(model_identifier) = model_identifier.cloned() else {
             return Err(not_offered(path, interface, &md.model_name, String::new()));
         };
-        let xml::VariableExtras { units, has_start } =
-            xml::variable_extras(xml).map_err(|e| md_error(path, e))?;
+        let xml::VariableExtras {
+            units,
+            ranges,
+            has_start,
+        } = xml::variable_extras(xml).map_err(|e| md_error(path, e))?;
         let structure = xml::model_structure(xml).map_err(|e| md_error(path, e))?;
         let mut variables = Vec::with_capacity(md.model_variables.variables.len());
         let mut constant = Vec::with_capacity(md.model_variables.variables.len());
@@ -568,6 +595,7 @@ impl FmuFile {
                 fixed,
                 start,
                 unit: units.get(i).cloned().flatten(),
+                range: ranges.get(i).copied().unwrap_or_default(),
                 description: v.description.clone(),
                 dependencies: None,
                 element: None,

@@ -6,7 +6,7 @@
 //! takes part in a direct-feedthrough chain. Nothing is imported: the engine reads the table.
 
 use super::{
-    Causality, FmiVersion, FmuFile, Import, Interface, VarType, VariableHead, VariableInfo,
+    Causality, FmiVersion, FmuFile, Import, Interface, Range, VarType, VariableHead, VariableInfo,
 };
 use crate::data::{DataTable, Reading};
 use std::collections::HashMap;
@@ -25,6 +25,7 @@ impl FmuFile {
                 fixed: false,
                 start: None,
                 unit,
+                range: Range::default(),
                 description: Some(description),
                 dependencies: Some(Vec::new()),
                 element: None,

@@ -12,6 +12,7 @@
 //! dimension's structural parameter exists and has a start value; every `ModelStructure`
 //! entry refers to a known variable, an `<Output>` to an output listed once.
 
+use super::xml::Inherited;
 use super::{ArrayInfo, Causality, VarType, VariableHead, VariableInfo};
 use crate::xml::{attribute, tags, Tag};
 use std::collections::HashMap;
@@ -53,7 +54,8 @@ struct Raw {
     causality: Causality,
     variability: String,
     start: Option<String>,
-    unit: Option<String>,
+    /// Its own `unit`, `min` and `max`.
+    own: Inherited,
     declared_type: Option<String>,
     description: Option<String>,
     dims: Vec<Dim>,
@@ -105,7 +107,7 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
         aliases: Vec::new(),
     };
     let mut raw: Vec<Raw> = Vec::new();
-    let mut type_units: HashMap<String, String> = HashMap::new();
+    let mut types: HashMap<String, Inherited> = HashMap::new();
     let mut in_variables = false;
     let mut in_structure = false;
     // Whether the last variable element is still open (its Dimension/Alias children follow).
@@ -202,9 +204,9 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
                         unknowns.push((list, vr, deps));
                     }
                     element if element.ends_with("Type") && !in_variables => {
-                        // <Float64Type name="Length" unit="m"/> in TypeDefinitions.
-                        if let (Some(n), Some(u)) = (attribute(&e, "name"), attribute(&e, "unit")) {
-                            type_units.insert(n, u);
+                        // <Float64Type name="Length" unit="m" min="0"/> in TypeDefinitions.
+                        if let Some(n) = attribute(&e, "name") {
+                            types.insert(n, Inherited::of(&e));
                         }
                     }
                     _ => {}
@@ -212,7 +214,7 @@ pub(super) fn read(xml: &str) -> Result<Description, String> {
             }
         }
     }
-    lay_out(&mut d, raw, &type_units)?;
+    lay_out(&mut d, raw, &types)?;
     dependencies(&mut d, &unknowns)?;
     Ok(d)
 }
@@ -251,7 +253,7 @@ fn variable(e: &quick_xml::events::BytesStart, var_type: VarType) -> Result<Raw,
         causality,
         variability: attribute(e, "variability").unwrap_or_default(),
         start: attribute(e, "start"),
-        unit: attribute(e, "unit"),
+        own: Inherited::of(e),
         declared_type: attribute(e, "declaredType"),
         description: attribute(e, "description"),
         dims: Vec::new(),
@@ -294,7 +296,7 @@ pub(super) fn element_names(name: &str, dims: &[usize]) -> Vec<String> {
 fn lay_out(
     d: &mut Description,
     raw: Vec<Raw>,
-    type_units: &HashMap<String, String>,
+    types: &HashMap<String, Inherited>,
 ) -> Result<(), String> {
     let mut by_vr: HashMap<u32, usize> = HashMap::new();
     for (i, r) in raw.iter().enumerate() {
@@ -350,11 +352,10 @@ fn lay_out(
             .as_deref()
             .map(|s| s.split_whitespace().collect())
             .unwrap_or_default();
-        let unit = r.unit.clone().or_else(|| {
-            r.declared_type
-                .as_ref()
-                .and_then(|t| type_units.get(t).cloned())
-        });
+        let Inherited { unit, range } = r
+            .own
+            .clone()
+            .or(r.declared_type.as_ref().and_then(|t| types.get(t)));
         let fixed = matches!(r.variability.as_str(), "fixed" | "constant");
         let head = |name: String| VariableHead {
             name,
@@ -368,6 +369,7 @@ fn lay_out(
                 fixed,
                 start: start.and_then(|s| start_value(r.var_type, s)),
                 unit: unit.clone(),
+                range,
                 description: r.description.clone(),
                 dependencies: None,
                 element,
@@ -501,7 +503,7 @@ mod tests {
                <Float64 name="A" valueReference="2" causality="parameter" variability="tunable" start="1 2 3 4 5 6">
                  <Dimension valueReference="1"/><Dimension start="3"/></Float64>
                <Float64 name="u" valueReference="3" causality="input" start="7"><Dimension start="2"/></Float64>
-               <Float64 name="y" valueReference="4" causality="output" unit="m"><Dimension valueReference="1"/></Float64>"#,
+               <Float64 name="y" valueReference="4" causality="output" unit="m" min="-1"><Dimension valueReference="1"/></Float64>"#,
             r#"<Output valueReference="4" dependencies="3"/>"#,
         );
         let d = read(&xml).unwrap();
@@ -525,9 +527,37 @@ mod tests {
         assert_eq!(d.arrays[2].elements, [9, 10]);
         assert_eq!(d.variables[10].dependencies, Some(vec![7, 8]));
         assert_eq!(d.variables[10].unit.as_deref(), Some("m"));
+        assert_eq!(d.variables[10].range.min, Some(-1.0));
+        assert_eq!(d.variables[1].range, crate::fmu::Range::default());
         assert_eq!(
             d.variables[0].head.causality,
             Causality::StructuralParameter
+        );
+    }
+
+    #[test]
+    fn units_and_ranges_come_from_the_variable_or_its_declared_type() {
+        let xml = r#"<fmiModelDescription fmiVersion="3.0" modelName="M" instantiationToken="{t}">
+            <ModelExchange modelIdentifier="M"/>
+            <TypeDefinitions><Float64Type name="Mass" unit="kg" min="0" max="1e4"/></TypeDefinitions>
+            <ModelVariables>
+              <Float64 name="M" valueReference="1" causality="parameter" variability="fixed" start="1" declaredType="Mass"/>
+              <Float64 name="m" valueReference="2" causality="parameter" variability="fixed" start="1" declaredType="Mass" max="2.5" unit="g"/>
+              <Int32 name="n" valueReference="3" causality="parameter" variability="fixed" start="1" min="-3"/>
+            </ModelVariables><ModelStructure/></fmiModelDescription>"#;
+        let d = read(xml).unwrap();
+        let seen: Vec<_> = d
+            .variables
+            .iter()
+            .map(|v| (v.unit.as_deref(), v.range.min, v.range.max))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                (Some("kg"), Some(0.0), Some(1e4)),
+                (Some("g"), Some(0.0), Some(2.5)),
+                (None, Some(-3.0), None)
+            ]
         );
     }
 

@@ -2,7 +2,9 @@
 //! `ModelStructure` as written (so indices can be checked and an absent `dependencies` told
 //! from an empty one), each variable's unit and whether it declares a start value.
 
+use super::Range;
 use crate::xml::{attribute, tags, Tag};
+use quick_xml::events::BytesStart;
 use std::collections::HashMap;
 
 /// One `<Unknown>` of `ModelStructure`, as written.
@@ -70,17 +72,54 @@ fn unknown(list: Option<&'static str>, e: &quick_xml::events::BytesStart) -> Opt
 pub(super) struct VariableExtras {
     /// The unit: the variable's own `unit` attribute, else that of its `declaredType`.
     pub units: Vec<Option<String>>,
+    /// `min` and `max`: each the variable's own, else its `declaredType`'s.
+    pub ranges: Vec<Range>,
     /// Whether its type element has a `start`.
     pub has_start: Vec<bool>,
 }
 
-/// The units and start flags of every `ScalarVariable`, in one walk.
+/// The attributes a variable takes from its type definition when it does not declare them
+/// itself: `unit`, `min`, `max`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct Inherited {
+    pub unit: Option<String>,
+    pub range: Range,
+}
+
+impl Inherited {
+    /// The `unit`, `min` and `max` of a numeric type element; a bound that is not a number is
+    /// no bound.
+    pub fn of(element: &BytesStart) -> Self {
+        let bound = |key| attribute(element, key).and_then(|t| t.trim().parse::<f64>().ok());
+        Self {
+            unit: attribute(element, "unit"),
+            range: Range {
+                min: bound("min"),
+                max: bound("max"),
+            },
+        }
+    }
+
+    /// These attributes, each absent one taken from `declared` (a type definition's).
+    pub fn or(self, declared: Option<&Inherited>) -> Self {
+        let Some(d) = declared else { return self };
+        Self {
+            unit: self.unit.or_else(|| d.unit.clone()),
+            range: Range {
+                min: self.range.min.or(d.range.min),
+                max: self.range.max.or(d.range.max),
+            },
+        }
+    }
+}
+
+/// The units, ranges and start flags of every `ScalarVariable`, in one walk.
 pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
-    let mut type_units: HashMap<String, String> = HashMap::new();
+    let mut types: HashMap<String, Inherited> = HashMap::new();
     let mut simple_type: Option<String> = None;
     let mut in_variable = false;
-    // (own unit, declared type) per variable.
-    let mut declared: Vec<(Option<String>, Option<String>)> = Vec::new();
+    // (own attributes, declared type) per variable.
+    let mut declared: Vec<(Inherited, Option<String>)> = Vec::new();
     let mut has_start = Vec::new();
     for tag in tags(xml) {
         match tag? {
@@ -92,19 +131,19 @@ pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
             Tag::Start { element: e, empty } => match e.name().as_ref() {
                 "SimpleType" if !empty => simple_type = attribute(&e, "name"),
                 "ScalarVariable" => {
-                    declared.push((None, None));
+                    declared.push((Inherited::default(), None));
                     has_start.push(false);
                     in_variable = !empty;
                 }
                 kind @ ("Real" | "Integer" | "Boolean" | "String" | "Enumeration") => {
-                    let has_unit = matches!(kind, "Real" | "Integer" | "Enumeration");
+                    let numeric = matches!(kind, "Real" | "Integer" | "Enumeration");
                     if let Some(name) = &simple_type {
-                        if let Some(unit) = attribute(&e, "unit").filter(|_| has_unit) {
-                            type_units.insert(name.clone(), unit);
+                        if numeric {
+                            types.insert(name.clone(), Inherited::of(&e));
                         }
                     } else if in_variable {
-                        if let Some(last) = declared.last_mut().filter(|_| has_unit) {
-                            *last = (attribute(&e, "unit"), attribute(&e, "declaredType"));
+                        if let Some(last) = declared.last_mut().filter(|_| numeric) {
+                            *last = (Inherited::of(&e), attribute(&e, "declaredType"));
                         }
                         if let Some(last) = has_start.last_mut() {
                             *last |= e.attributes().flatten().any(|a| a.key.as_ref() == "start");
@@ -115,13 +154,18 @@ pub(super) fn variable_extras(xml: &str) -> Result<VariableExtras, String> {
             },
         }
     }
-    let units = declared
+    let (units, ranges) = declared
         .into_iter()
-        .map(|(unit, declared_type)| {
-            unit.or_else(|| declared_type.and_then(|t| type_units.get(&t).cloned()))
+        .map(|(own, declared_type)| {
+            let all = own.or(declared_type.and_then(|t| types.get(&t)));
+            (all.unit, all.range)
         })
-        .collect();
-    Ok(VariableExtras { units, has_start })
+        .unzip();
+    Ok(VariableExtras {
+        units,
+        ranges,
+        has_start,
+    })
 }
 
 /// The FMI 2.0 elements whose rust-fmi schema type is not named as the element:
@@ -307,5 +351,35 @@ mod tests {
             variable_extras(xml).unwrap().units,
             vec![Some("m".into()), Some("N".into()), None, Some("m/s".into())]
         );
+    }
+
+    #[test]
+    fn ranges_come_from_the_variable_or_its_declared_type_bound_by_bound() {
+        let xml = r#"<fmiModelDescription>
+            <TypeDefinitions>
+              <SimpleType name="Mass"><Real unit="kg" min="0" max="1e4"/></SimpleType>
+            </TypeDefinitions>
+            <ModelVariables>
+              <ScalarVariable name="M" valueReference="0"><Real declaredType="Mass"/></ScalarVariable>
+              <ScalarVariable name="m" valueReference="1"><Real declaredType="Mass" max="2.5"/></ScalarVariable>
+              <ScalarVariable name="n" valueReference="2"><Integer min="-3"/></ScalarVariable>
+              <ScalarVariable name="b" valueReference="3"><Boolean/></ScalarVariable>
+              <ScalarVariable name="e" valueReference="4"><Real min="0.5" max="oops"/></ScalarVariable>
+            </ModelVariables></fmiModelDescription>"#;
+        let range = |min, max| Range { min, max };
+        assert_eq!(
+            variable_extras(xml).unwrap().ranges,
+            vec![
+                range(Some(0.0), Some(1e4)),
+                range(Some(0.0), Some(2.5)),
+                range(Some(-3.0), None),
+                range(None, None),
+                range(Some(0.5), None),
+            ]
+        );
+        let r = range(Some(0.0), Some(2.5));
+        assert_eq!((r.clamp(-1.0), r.clamp(1.0), r.clamp(3.0)), (0.0, 1.0, 2.5));
+        assert!(r.contains(0.0) && r.contains(2.5) && !r.contains(-1e-300));
+        assert_eq!(Range::default().clamp(-7.0), -7.0);
     }
 }
