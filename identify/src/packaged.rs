@@ -31,6 +31,7 @@
 //! break cannot be carried and is refused when declared.
 
 use crate::online::{Method, Robust};
+use crate::plant::PlantSpec;
 pub use spurio_table::declaration::DeclarationError;
 use spurio_table::declaration::{invalid, Entries};
 
@@ -39,6 +40,20 @@ use spurio_table::declaration::{invalid, Entries};
 pub struct Named {
     pub name: String,
     pub unit: Option<String>,
+}
+
+/// A measured variable y_j of the plant, with the variance R_jj of its noise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measured {
+    pub variable: Named,
+    pub noise: f64,
+}
+
+/// A free parameter θ_i of the plant, with its start value θ₀,i.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Free {
+    pub parameter: Named,
+    pub start: f64,
 }
 
 /// One estimator FMU's declaration (module documentation).
@@ -52,18 +67,35 @@ pub struct EstimatorDeclaration {
     pub inputs: Vec<Named>,
     /// Parameters of the plant set for the experiment (not estimated): (name, value).
     pub set: Vec<(String, f64)>,
-    pub outputs: Vec<Named>,
-    /// R: one variance per measured variable.
-    pub noise: Vec<f64>,
+    pub outputs: Vec<Measured>,
     pub states: Vec<Named>,
-    pub free: Vec<Named>,
-    /// θ₀: one start per free parameter.
-    pub starts: Vec<f64>,
+    pub free: Vec<Free>,
 }
 
 /// Writes `v` so that parsing gives it back exactly (Rust's shortest round trip).
 fn number_text(v: f64) -> String {
     format!("{v:?}")
+}
+
+/// Whether a name or unit cannot be carried by the configuration (`#`, a line break,
+/// surrounding spaces, empty).
+fn uncarriable_text(s: &str) -> bool {
+    s.trim().is_empty() || s.trim() != s || s.contains(['#', '\n', '\r'])
+}
+
+/// The first of `items` whose name or unit cannot be carried, as (`what`, text).
+fn first_uncarriable<'a>(
+    what: &'static str,
+    items: impl IntoIterator<Item = &'a Named>,
+) -> Option<(&'static str, String)> {
+    items.into_iter().find_map(|n| {
+        let unit = n.unit.as_ref().filter(|u| uncarriable_text(u));
+        if uncarriable_text(&n.name) {
+            Some((what, n.name.clone()))
+        } else {
+            unit.map(|u| (what, u.clone()))
+        }
+    })
 }
 
 impl EstimatorDeclaration {
@@ -76,74 +108,95 @@ impl EstimatorDeclaration {
             ("robust".to_string(), self.robust.name().to_string()),
             ("tolerance".to_string(), number_text(self.tolerance)),
         ];
-        let mut list =
-            |group: &str,
-             key: &str,
-             items: &[Named],
-             extra: &dyn Fn(usize) -> Option<(&'static str, String)>| {
-                entries.push((group.to_string(), items.len().to_string()));
-                for (i, item) in items.iter().enumerate() {
-                    let at = format!("{key}.{}", i + 1);
-                    entries.push((at.clone(), item.name.clone()));
-                    if let Some(unit) = &item.unit {
-                        entries.push((format!("{at}.unit"), unit.clone()));
-                    }
-                    if let Some((field, value)) = extra(i) {
-                        entries.push((format!("{at}.{field}"), value));
-                    }
-                }
-            };
-        list("inputs", "input", &self.inputs, &|_| None);
-        list("outputs", "output", &self.outputs, &|j| {
-            self.noise.get(j).map(|v| ("noise", number_text(*v)))
-        });
-        list("states", "state", &self.states, &|_| None);
-        list("free", "free", &self.free, &|i| {
-            self.starts.get(i).map(|v| ("start", number_text(*v)))
-        });
-        let set: Vec<Named> = self
-            .set
-            .iter()
+        // Each list: its items with their numbers (`noise`, `start`, `value`), if any.
+        type Item<'a> = (&'a Named, Option<(&'static str, f64)>);
+        fn plain(items: &[Named]) -> Vec<Item<'_>> {
+            items.iter().map(|n| (n, None)).collect()
+        }
+        let outputs: Vec<Item> = (self.outputs.iter())
+            .map(|m| (&m.variable, Some(("noise", m.noise))))
+            .collect();
+        let free: Vec<Item> = (self.free.iter())
+            .map(|f| (&f.parameter, Some(("start", f.start))))
+            .collect();
+        let set_names: Vec<Named> = (self.set.iter())
             .map(|(name, _)| Named {
                 name: name.clone(),
                 unit: None,
             })
             .collect();
-        list("set", "set", &set, &|i| {
-            self.set.get(i).map(|(_, v)| ("value", number_text(*v)))
-        });
+        let set: Vec<Item> = (set_names.iter().zip(&self.set))
+            .map(|(n, (_, v))| (n, Some(("value", *v))))
+            .collect();
+        let lists = [
+            ("inputs", "input", plain(&self.inputs)),
+            ("outputs", "output", outputs),
+            ("states", "state", plain(&self.states)),
+            ("free", "free", free),
+            ("set", "set", set),
+        ];
+        // Each list's count under `group`, then each item's name, unit and number.
+        for (group, key, items) in lists {
+            entries.push((group.to_string(), items.len().to_string()));
+            for (i, (item, number)) in items.into_iter().enumerate() {
+                let at = format!("{key}.{}", i + 1);
+                entries.push((at.clone(), item.name.clone()));
+                if let Some(unit) = &item.unit {
+                    entries.push((format!("{at}.unit"), unit.clone()));
+                }
+                if let Some((field, value)) = number {
+                    entries.push((format!("{at}.{field}"), number_text(value)));
+                }
+            }
+        }
         entries
     }
 
     /// The first name or unit the configuration cannot carry (`#`, a line break, empty), as
     /// (what, text).
     pub fn uncarriable(&self) -> Option<(&'static str, String)> {
-        let bad = |s: &str| s.trim().is_empty() || s.trim() != s || s.contains(['#', '\n', '\r']);
-        let named = |what: &'static str, items: &[Named]| {
-            items.iter().find_map(|n| {
-                if bad(&n.name) {
-                    Some((what, n.name.clone()))
-                } else {
-                    n.unit
-                        .as_ref()
-                        .filter(|u| bad(u))
-                        .map(|u| (what, u.clone()))
-                }
-            })
-        };
-        if bad(&self.name) {
+        if uncarriable_text(&self.name) {
             return Some(("the model name", self.name.clone()));
         }
-        named("an input", &self.inputs)
-            .or_else(|| named("a measured variable", &self.outputs))
-            .or_else(|| named("a state", &self.states))
-            .or_else(|| named("a free parameter", &self.free))
+        first_uncarriable("an input", &self.inputs)
+            .or_else(|| {
+                first_uncarriable(
+                    "a measured variable",
+                    self.outputs.iter().map(|m| &m.variable),
+                )
+            })
+            .or_else(|| first_uncarriable("a state", &self.states))
+            .or_else(|| {
+                first_uncarriable("a free parameter", self.free.iter().map(|f| &f.parameter))
+            })
             .or_else(|| {
                 self.set
                     .iter()
-                    .find(|(n, _)| bad(n))
+                    .find(|(n, _)| uncarriable_text(n))
                     .map(|(n, _)| ("a set parameter", n.clone()))
             })
+    }
+
+    /// R's diagonal: the measured variables' noise variances, in the order of y.
+    pub fn noise(&self) -> Vec<f64> {
+        self.outputs.iter().map(|m| m.noise).collect()
+    }
+
+    /// θ₀: the free parameters' starts, in the order of θ.
+    pub fn starts(&self) -> Vec<f64> {
+        self.free.iter().map(|f| f.start).collect()
+    }
+
+    /// What the filter takes from the plant, by name: the free parameters, the inputs and
+    /// the measured variables.
+    pub fn plant_spec(&self) -> PlantSpec {
+        let names =
+            |items: &mut dyn Iterator<Item = &Named>| items.map(|n| n.name.clone()).collect();
+        PlantSpec {
+            free: names(&mut self.free.iter().map(|f| &f.parameter)),
+            inputs: names(&mut self.inputs.iter()),
+            outputs: names(&mut self.outputs.iter().map(|m| &m.variable)),
+        }
     }
 
     /// The declaration whose entries `get` gives (`None` for a key that is absent).
@@ -199,8 +252,14 @@ impl EstimatorDeclaration {
                 "a variance must be > 0",
             ));
         }
+        let outputs = (outputs.into_iter().zip(noise))
+            .map(|(variable, noise)| Measured { variable, noise })
+            .collect();
         let free = list("free", "free")?;
         let starts = numbers("free", free.len(), "start")?;
+        let free = (free.into_iter().zip(starts))
+            .map(|(parameter, start)| Free { parameter, start })
+            .collect();
         let set_names = list("set", "set")?;
         let set_values = numbers("set", set_names.len(), "value")?;
         let set = set_names
@@ -214,8 +273,6 @@ impl EstimatorDeclaration {
             method,
             robust,
             tolerance,
-            noise,
-            starts,
             inputs: list("inputs", "input")?,
             outputs,
             states: list("states", "state")?,
@@ -244,12 +301,22 @@ mod tests {
             method: Method::Ukf,
             robust: Robust::Huber,
             tolerance: 1e-8,
-            noise: vec![1e-6, 0.1 + 0.2],
-            starts: vec![1.01262],
             inputs: vec![named("U", Some("N"))],
-            outputs: vec![named("x", Some("m")), named("theta", Some("rad"))],
+            outputs: vec![
+                Measured {
+                    variable: named("x", Some("m")),
+                    noise: 1e-6,
+                },
+                Measured {
+                    variable: named("theta", Some("rad")),
+                    noise: 0.1 + 0.2,
+                },
+            ],
             states: vec![named("x", Some("m")), named("A[1,2]", None)],
-            free: vec![named("M", Some("kg"))],
+            free: vec![Free {
+                parameter: named("M", Some("kg")),
+                start: 1.01262,
+            }],
             set: vec![("x0".into(), 0.2)],
         }
     }
@@ -262,6 +329,18 @@ mod tests {
         assert_eq!(back.unwrap(), declared);
         assert_eq!(entries["output.2.noise"], "0.30000000000000004");
         assert_eq!(entries["state.2"], "A[1,2]");
+        assert_eq!(entries["free.1.start"], "1.01262");
+        assert_eq!(declared.noise(), [1e-6, 0.30000000000000004]);
+        assert_eq!(declared.starts(), [1.01262]);
+        let spec = declared.plant_spec();
+        assert_eq!(
+            (spec.free, spec.inputs, spec.outputs),
+            (
+                vec!["M".to_string()],
+                vec!["U".to_string()],
+                vec!["x".to_string(), "theta".to_string()]
+            )
+        );
         assert_eq!(declared.uncarriable(), None);
     }
 
@@ -285,7 +364,7 @@ mod tests {
         let e = EstimatorDeclaration::from_entries(|k| entries.get(k).map(String::as_str));
         assert!(e.unwrap_err().to_string().contains("output.1.noise"));
         let mut named = crane();
-        named.free[0].name = "a#b".into();
+        named.free[0].parameter.name = "a#b".into();
         assert_eq!(
             named.uncarriable(),
             Some(("a free parameter", "a#b".into()))

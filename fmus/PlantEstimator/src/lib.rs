@@ -52,8 +52,8 @@ use spurio_fmu_common::clock::{self, Rule, SampleClock};
 use spurio_identify::estimator::Estimator;
 use spurio_identify::filter::FilterState;
 use spurio_identify::online::joint_filter;
-use spurio_identify::packaged::{EstimatorDeclaration, Named};
-use spurio_identify::plant::{integration, FmuPlant, PlantSpec};
+use spurio_identify::packaged::{EstimatorDeclaration, Free, Measured, Named};
+use spurio_identify::plant::{integration, FmuPlant};
 use std::cell::RefCell;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -143,6 +143,7 @@ fn sampled_input(name: &str, unit: &Option<String>, description: &str) -> Variab
 /// The variables of a declaration, in the order of its [`Layout`] (module documentation).
 pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
     let plant = &d.plant;
+    let measured: Vec<&Named> = d.outputs.iter().map(|m| &m.variable).collect();
     let mut v: Vec<Variable> = Vec::new();
     for n in &d.inputs {
         let what = format!(
@@ -151,11 +152,11 @@ pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
         );
         v.push(sampled_input(&format!("u.{}", n.name), &n.unit, &what));
     }
-    for n in &d.outputs {
+    for n in &measured {
         let what = format!("Measurement of `{}` of the plant {plant}", n.name);
         v.push(sampled_input(&format!("y.{}", n.name), &n.unit, &what));
     }
-    v.extend(d.outputs.iter().map(|n| Variable {
+    v.extend(measured.iter().map(|n| Variable {
         causality: Causality::Input,
         variability: Variability::Discrete,
         initial: None,
@@ -164,18 +165,23 @@ pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
             n.name
         ))
     }));
-    v.extend(d.free.iter().zip(&d.starts).map(|(n, s)| {
-        with_unit(
-            Variable::parameter(&format!("theta0.{}", n.name), *s),
-            &n.unit,
-        )
-        .describe(&format!(
-            "Start value θ₀ of the estimated parameter `{}` (prior σ = 20 % of |θ₀|)",
-            n.name
-        ))
-    }));
-    v.extend(d.outputs.iter().zip(&d.noise).map(|(n, r)| {
-        Variable::parameter(&format!("noise.{}", n.name), *r)
+    v.extend(d.free.iter().map(
+        |Free {
+             parameter: n,
+             start,
+         }| {
+            with_unit(
+                Variable::parameter(&format!("theta0.{}", n.name), *start),
+                &n.unit,
+            )
+            .describe(&format!(
+                "Start value θ₀ of the estimated parameter `{}` (prior σ = 20 % of |θ₀|)",
+                n.name
+            ))
+        },
+    ));
+    v.extend(d.outputs.iter().map(|Measured { variable: n, noise }| {
+        Variable::parameter(&format!("noise.{}", n.name), *noise)
             .min(0.0)
             .describe(&format!(
                 "Measurement noise variance R of y.{} (> 0)",
@@ -189,7 +195,11 @@ pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
     }));
     // The outputs: ẑ and √diag P over z = [x; θ], then e, √S and w per measurement.
     let estimated: Vec<(&Named, &str, &str)> = (d.states.iter().map(|n| (n, "x_hat", "state")))
-        .chain(d.free.iter().map(|n| (n, "theta_hat", "parameter")))
+        .chain(
+            d.free
+                .iter()
+                .map(|f| (&f.parameter, "theta_hat", "parameter")),
+        )
         .collect();
     let output = |name: String, unit: &Option<String>, description: String| {
         with_unit(Variable::discrete_output(&name), unit).describe(&description)
@@ -226,7 +236,7 @@ pub fn variables(d: &EstimatorDeclaration) -> Vec<Variable> {
         ),
     ];
     for (prefix, has_unit, what) in per_measurement {
-        for n in &d.outputs {
+        for n in &measured {
             let unit = if has_unit { n.unit.clone() } else { None };
             v.push(output(
                 format!("{prefix}.{}", n.name),
@@ -262,12 +272,7 @@ pub struct PlantEstimatorFmu {
 /// The plant of `declared` in `dir`, opened for integrations from `start`, checked against
 /// the declaration (its state count).
 fn open_plant(dir: &Path, declared: &EstimatorDeclaration, start: f64) -> Result<FmuPlant, Cause> {
-    let names = |items: &[Named]| items.iter().map(|n| n.name.clone()).collect();
-    let spec = PlantSpec {
-        free: names(&declared.free),
-        inputs: names(&declared.inputs),
-        outputs: names(&declared.outputs),
-    };
+    let spec = declared.plant_spec();
     let plant =
         FmuPlant::open(dir, &spec, integration(start, declared.tolerance)).map_err(|e| {
             format!(
@@ -330,7 +335,7 @@ impl PlantEstimatorFmu {
         if let Some(j) = noise.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
             return Err(Failure::error(format!(
                 "parameter `noise.{}` = {}: a measurement variance must be finite and > 0",
-                d.outputs[j].name, noise[j]
+                d.outputs[j].variable.name, noise[j]
             )));
         }
         let set: Vec<(String, f64)> = (d.set.iter().zip(set))
@@ -398,7 +403,7 @@ impl PlantEstimatorFmu {
             let present = values.boolean(valid.start + j);
             let v = values.real(vr);
             if present && !v.is_finite() {
-                return Err(non_finite(&self.declared.outputs[j].name, "y", v));
+                return Err(non_finite(&self.declared.outputs[j].variable.name, "y", v));
             }
             self.y[j] = if present { v } else { f64::NAN };
         }
@@ -425,7 +430,10 @@ impl FmuModel for PlantEstimatorFmu {
                 _ => "unscented Kalman filter",
             },
             d.robust.name(),
-            d.free.iter().map(|n| n.name.as_str()).collect::<Vec<_>>().join(", "),
+            (d.free.iter())
+                .map(|f| f.parameter.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
             d.plant,
             d.method.name()
         );

@@ -59,12 +59,16 @@ fn declared(method: Method) -> EstimatorDeclaration {
         method,
         robust: Robust::Huber,
         tolerance: 1e-8,
-        noise: vec![1e-4],
-        starts: vec![1.2],
         inputs: Vec::new(),
-        outputs: vec![named("x0")],
+        outputs: vec![Measured {
+            variable: named("x0"),
+            noise: 1e-4,
+        }],
         states: vec![named("x0"), named("x1")],
-        free: vec![named("mu")],
+        free: vec![Free {
+            parameter: named("mu"),
+            start: 1.2,
+        }],
         set: Vec::new(),
     }
 }
@@ -79,11 +83,7 @@ fn config_of(d: &EstimatorDeclaration) -> Config {
 
 /// x0 of VanDerPol at t = 0.1 k (μ = 1.5), from its own initial state, 2 at k = 0.
 fn measurements(dir: &Path) -> Vec<f64> {
-    let spec = PlantSpec {
-        free: vec!["mu".into()],
-        inputs: Vec::new(),
-        outputs: vec!["x0".into()],
-    };
+    let spec = declared(Method::Ukf).plant_spec();
     let mut plant = FmuPlant::open(dir, &spec, integration(0.0, 1e-8)).unwrap();
     let times: Vec<f64> = (0..=30).map(|k| 0.1 * k as f64).collect();
     let rows = spurio_identify::online::simulate(&mut plant, &[1.5], &times, &[]).unwrap();
@@ -96,12 +96,12 @@ fn measurements(dir: &Path) -> Vec<f64> {
 fn reference(dir: &Path, d: &EstimatorDeclaration) -> Estimator {
     let plant = open_plant(dir, d, 0.0).unwrap();
     let plant = Rc::new(RefCell::new(plant));
-    let x0 = plant.borrow_mut().initial_states(&d.starts).unwrap();
+    let x0 = plant.borrow_mut().initial_states(&d.starts()).unwrap();
     let filter = joint_filter(
         &plant,
-        &d.starts,
+        &d.starts(),
         &x0,
-        &d.noise,
+        &d.noise(),
         d.robust.influence(),
         d.method.linearisation(),
     )
@@ -246,7 +246,7 @@ fn a_missing_or_garbled_plant_fails_instantiation_naming_the_file() {
     );
     // A declared name the plant lacks.
     let mut unknown = declared(Method::Ukf);
-    unknown.free[0].name = "nu".into();
+    unknown.free[0].parameter.name = "nu".into();
     let e = refusal(&unknown, &res.0);
     assert!(e.contains("`nu`"), "{e}");
 }

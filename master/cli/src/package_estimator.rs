@@ -9,7 +9,7 @@
 use crate::package::{self, Extras, Packaged, Platform};
 use anyhow::{anyhow, bail, Context, Result};
 use spurio_export::Config;
-use spurio_identify::packaged::{EstimatorDeclaration, Named};
+use spurio_identify::packaged::{EstimatorDeclaration, Free, Measured, Named};
 use spurio_identify::plant::{integration, FmuPlant};
 pub use spurio_identify::session::Request;
 use spurio_master::fmu::me::read_description;
@@ -137,12 +137,14 @@ pub fn declare(request: &Request, name: &str) -> Result<EstimatorDeclaration> {
         method: request.method,
         robust: request.robust,
         tolerance: request.tolerance,
-        noise,
-        starts,
         inputs: named(&spec.inputs),
-        outputs: named(&spec.outputs),
+        outputs: (named(&spec.outputs).into_iter().zip(noise))
+            .map(|(variable, noise)| Measured { variable, noise })
+            .collect(),
         states: states(&fmu, n)?,
-        free: named(&spec.free),
+        free: (named(&spec.free).into_iter().zip(starts))
+            .map(|(parameter, start)| Free { parameter, start })
+            .collect(),
         set: request.set.clone(),
     };
     if let Some((what, text)) = declared.uncarriable() {
@@ -218,15 +220,21 @@ fn platforms_of_plant(platforms: &[Platform], folders: &[String]) -> Vec<Platfor
         .collect()
 }
 
-/// A Markdown table row of named variables.
-fn rows(page: &mut String, prefix: &str, items: &[Named], what: &str) {
-    for n in items {
-        let unit = n.unit.as_deref().unwrap_or("");
-        let _ = writeln!(
-            page,
-            "| `{prefix}{}` | {unit} | {what} `{}` |",
-            n.name, n.name
-        );
+/// A table of the page's variables: the rows `prefix` + name + `suffix` of every one of
+/// `items`, each with its unit when `with_unit`, and `what` it is.
+type Rows<'a> = (&'a str, &'a str, &'a [&'a Named], bool, &'a str);
+
+/// The Markdown rows of `table` ([`Rows`]).
+fn rows(page: &mut String, table: &[Rows]) {
+    for (prefix, suffix, items, with_unit, what) in table {
+        for n in *items {
+            let unit = n.unit.as_deref().filter(|_| *with_unit).unwrap_or("");
+            let _ = writeln!(
+                page,
+                "| `{prefix}{}{suffix}` | {unit} | {what} `{}` |",
+                n.name, n.name
+            );
+        }
     }
 }
 
@@ -234,7 +242,9 @@ fn rows(page: &mut String, prefix: &str, items: &[Named], what: &str) {
 /// its settings and its conventions.
 pub fn page(d: &EstimatorDeclaration) -> String {
     let mut p = String::new();
-    let free: Vec<&str> = d.free.iter().map(|n| n.name.as_str()).collect();
+    let free: Vec<&str> = d.free.iter().map(|f| f.parameter.name.as_str()).collect();
+    let measured: Vec<&Named> = d.outputs.iter().map(|m| &m.variable).collect();
+    let parameters: Vec<&Named> = d.free.iter().map(|f| &f.parameter).collect();
     let _ = writeln!(p, "# {}\n", d.name);
     let _ = writeln!(
         p,
@@ -247,24 +257,37 @@ pub fn page(d: &EstimatorDeclaration) -> String {
     );
     p.push_str("## Equations\n\nz = [x; θ] (the states, then the free parameters as random walks); ẑ₀ = [x₀(θ₀); θ₀], the plant's initial states at θ₀ and the `set.*` parameters; P₀ = diag((1 % of max(|x₀,i|, 1))², (0.2 · max(|θ₀,i|, 10⁻³))²); Q = diag(10⁻¹⁰ per state, 0 per parameter) per sample; R = diag(`noise.*`). Between samples the plant is integrated (relative tolerance ");
     let _ = write!(p, "{}", d.tolerance);
-    p.push_str(") with the inputs of the earlier sample held. The correction is the robust one of docs/estimators.md: standardised innovations rⱼ = eⱼ/√Sⱼⱼ, weights wⱼ = ψ(rⱼ)/rⱼ (Huber c = 1.645, Tukey c = 4.685), R inflated by 1/wⱼ.\n\n");
+    p.push_str(") with the inputs of the earlier sample held. The correction is the robust one of docs/estimators.md: standardised innovations rⱼ = eⱼ/√Sⱼⱼ, weights wⱼ = ψ(rⱼ)/rⱼ (Huber c = 1.645, Tukey c = 4.685), R inflated by 1/wⱼ. Each parameter is held to the plant's declared range [min, max]: a sigma point beyond a bound sees the plant at the bound, and θ̂ is projected onto the range after each correction.\n\n");
     p.push_str("## Sampling\n\nThe step from t to t + h processes the samples whose instants t_k = t₀ + k·T lie in [t, t + h) (T: parameter `sample_period`, 0 = the first step's size), each with the inputs set before the step, and shows the estimates of the last at t + h. A sample with `y.<name>.valid` = false is missing: predicted only, its innovation, deviation and weight read 0.\n\n");
     p.push_str("## Variables\n\n| name | unit | what |\n|---|---|---|\n");
-    rows(&mut p, "u.", &d.inputs, "input (plant input)");
-    rows(&mut p, "y.", &d.outputs, "input (measurement of)");
-    for n in &d.outputs {
+    let inputs: Vec<&Named> = d.inputs.iter().collect();
+    let states: Vec<&Named> = d.states.iter().collect();
+    rows(
+        &mut p,
+        &[
+            ("u.", "", &inputs, true, "input (plant input)"),
+            ("y.", "", &measured, true, "input (measurement of)"),
+            (
+                "y.",
+                ".valid",
+                &measured,
+                false,
+                "input: true when present, the sample of",
+            ),
+            (
+                "theta0.",
+                "",
+                &parameters,
+                true,
+                "parameter: start value of",
+            ),
+        ],
+    );
+    for Measured { variable: n, noise } in &d.outputs {
+        let name = &n.name;
         let _ = writeln!(
             p,
-            "| `y.{}.valid` | | input: the sample of `{}` is present |",
-            n.name, n.name
-        );
-    }
-    rows(&mut p, "theta0.", &d.free, "parameter: start value of");
-    for (n, r) in d.outputs.iter().zip(&d.noise) {
-        let _ = writeln!(
-            p,
-            "| `noise.{}` | | parameter: variance R of `{}` (start {r}) |",
-            n.name, n.name
+            "| `noise.{name}` | | parameter: variance R of `{name}` (start {noise}) |"
         );
     }
     for (name, v) in &d.set {
@@ -273,44 +296,37 @@ pub fn page(d: &EstimatorDeclaration) -> String {
             "| `set.{name}` | | parameter of the plant for the experiment (start {v}) |"
         );
     }
-    rows(&mut p, "x_hat.", &d.states, "output: estimate of the state");
+    let deviation = "output: standard deviation of the estimate of";
     rows(
         &mut p,
-        "theta_hat.",
-        &d.free,
-        "output: estimate of the parameter",
+        &[
+            ("x_hat.", "", &states, true, "output: estimate of the state"),
+            (
+                "theta_hat.",
+                "",
+                &parameters,
+                true,
+                "output: estimate of the parameter",
+            ),
+            ("sd.", "", &states, true, deviation),
+            ("sd.", "", &parameters, true, deviation),
+            (
+                "innovation.",
+                "",
+                &measured,
+                true,
+                "output: innovation y − ŷ of",
+            ),
+            (
+                "innovation_sd.",
+                "",
+                &measured,
+                true,
+                "output: its standard deviation √S, of",
+            ),
+            ("weight.", "", &measured, false, "output: robust weight of"),
+        ],
     );
-    rows(
-        &mut p,
-        "sd.",
-        &d.states,
-        "output: standard deviation of the estimate of",
-    );
-    rows(
-        &mut p,
-        "sd.",
-        &d.free,
-        "output: standard deviation of the estimate of",
-    );
-    rows(
-        &mut p,
-        "innovation.",
-        &d.outputs,
-        "output: innovation y − ŷ of",
-    );
-    rows(
-        &mut p,
-        "innovation_sd.",
-        &d.outputs,
-        "output: its standard deviation √S, of",
-    );
-    for n in &d.outputs {
-        let _ = writeln!(
-            p,
-            "| `weight.{}` | | output: robust weight of `{}` |",
-            n.name, n.name
-        );
-    }
     p.push_str("| `sample_period` | s | parameter: T |\n\n");
     p.push_str("## FMU state\n\n`fmi2GetFMUstate`/`fmi2SetFMUstate` are supported, and so are `fmi2SerializeFMUstate`/`fmi2DeSerializeFMUstate` (a restored state continues bit for bit).\n\nWritten by `spurio package-estimator`.\n");
     p
