@@ -288,15 +288,20 @@ impl GantryCraneParameters {
         [right, left, self.max_force - u.abs()]
     }
 
-    /// The discrete change at an event for state `s` under the applied force `u`: a cart at a
-    /// stop (within [`STOP_TOLERANCE`] relative, where a solver locates the crossing) is put
-    /// on it, its velocity into the stop is set to zero (perfectly inelastic), and the
-    /// contact is chosen by [`Self::contact`]: held while the net force pushes outwards,
-    /// released (free) once it turns inwards. Returns the new state and contact.
+    /// The discrete change at an event for state `s` under the applied force `u`: a cart
+    /// beyond a stop, or at it (within [`STOP_TOLERANCE`] relative, where a solver locates
+    /// the crossing) and not moving away from it, is put on it, its velocity into the stop
+    /// set to zero (perfectly inelastic); the contact is chosen by [`Self::contact`]: held
+    /// while the net force pushes outwards, released (free) once it turns inwards. A cart
+    /// leaving the stop keeps its place: put back, its indicator `x_limit − |x|` would be 0
+    /// again after every step, each an event (docs/models.md §2.1). Returns the new state
+    /// and contact.
     pub fn at_event(&self, s: &CraneState, u: f64) -> (CraneState, RailContact) {
         let mut next = *s;
-        if next[0].abs() >= self.rail_limit * (1.0 - STOP_TOLERANCE) {
-            let side = next[0].signum();
+        let side = next[0].signum();
+        let beyond = next[0].abs() > self.rail_limit;
+        let at_stop = next[0].abs() >= self.rail_limit * (1.0 - STOP_TOLERANCE);
+        if beyond || (at_stop && side * next[2] >= 0.0) {
             next[0] = side * self.rail_limit;
             if side * next[2] > 0.0 {
                 next[2] = 0.0;
@@ -688,6 +693,28 @@ mod tests {
         let s = Vector4::new(0.2, 0.1, -0.4, 0.2);
         assert_eq!(p.at_event(&s, 17.0), (s, RailContact::Free));
         assert_eq!(p.event_indicators(&s, -17.0, RailContact::Free)[2], 0.0);
+    }
+
+    #[test]
+    fn a_cart_leaving_a_stop_is_not_put_back_and_one_beyond_it_is_put_on_it() {
+        let p = GantryCraneParameters::default();
+        // Released at the right stop a moment ago, moving in by 1e-13 m: an event there (z₀
+        // left 0 for > 0) leaves it where it is, free, so z₀ stays > 0 and no event follows.
+        // Put back on the stop, z₀ would be 0 again and every step another event.
+        let leaving = Vector4::new(0.5 - 1e-13, 1e-6, -2e-9, 0.0);
+        let (next, contact) = p.at_event(&leaving, 0.0);
+        assert_eq!((next, contact), (leaving, RailContact::Free));
+        assert!(p.event_indicators(&next, 0.0, contact)[0] > 0.0);
+        // The same at the left stop.
+        let leaving = Vector4::new(-0.5 + 1e-13, 1e-6, 2e-9, 0.0);
+        assert_eq!(p.at_event(&leaving, 0.0), (leaving, RailContact::Free));
+        // A state beyond a stop (a filter's sigma point, a state set by a master) is put on
+        // it, its outward velocity removed: the velocity inwards is kept.
+        let beyond = Vector4::new(0.52, 0.0, -0.1, 0.0);
+        let (next, contact) = p.at_event(&beyond, 0.0);
+        assert_eq!((next[0], next[2], contact), (0.5, -0.1, RailContact::Free));
+        let (next, _) = p.at_event(&Vector4::new(-0.52, 0.0, -0.1, 0.0), 0.0);
+        assert_eq!((next[0], next[2]), (-0.5, 0.0));
     }
 
     /// θ₀ = 0.3, a varying force, `push` added for the first 3 s (4 N drive the cart into the

@@ -345,7 +345,7 @@ impl ControlLaw for AdaptiveLaw {
             GainUpdate::Updated if was_rejecting => {
                 let rejected = controller.rejected_updates() - self.rejections_before_episode;
                 let gain = controller.gain().map_or(String::new(), format_gain);
-                ctx.log_event(format!(
+                ctx.log_event(|| format!(
                     "t = {time} s: the estimate is usable again after {rejected} rejected updates; new gain L = {gain}"
                 ));
             }

@@ -202,7 +202,7 @@ impl FmuModel for GantryCraneFmu {
             .map_err(Failure::error)?;
         if let (Some((t, x)), false) = (report.hit_stop, self.stop_logged) {
             self.stop_logged = true;
-            ctx.log_event(format!(
+            ctx.log_event(|| format!(
                 "the cart reached the rail end x = {x:+} m at t = {t:.4} s: its velocity into the stop was set to zero (logged once)"
             ));
         }
@@ -263,12 +263,13 @@ impl ModelExchange for GantryCraneFmu {
                 RailContact::HeldLeft => "the cart is held against the left stop",
                 RailContact::HeldRight => "the cart is held against the right stop",
             };
-            ctx.log_event(format!(
-                "t = {} s: {what} (x = {:+} m, v = {} m/s)",
-                ctx.time(),
-                next[0],
-                next[2]
-            ));
+            let time = ctx.time();
+            ctx.log_event(|| {
+                format!(
+                    "t = {} s: {what} (x = {:+} m, v = {} m/s)",
+                    time, next[0], next[2]
+                )
+            });
             self.contact = contact;
         }
         self.crane.state = next;

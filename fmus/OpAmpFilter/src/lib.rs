@@ -242,16 +242,19 @@ impl ModelExchange for OpAmpFilterFmu {
         let v = Self::states(ctx);
         let rail = self.filter.parameters.rail_of(v[1]);
         if rail != self.rail {
-            ctx.log_event(format!(
-                "t = {}: the output {} (v_C2 = {} V)",
-                ctx.time(),
-                match rail {
-                    Rail::Inside => "leaves its rail",
-                    Rail::High => "reaches the upper rail",
-                    Rail::Low => "reaches the lower rail",
-                },
-                v[1]
-            ));
+            let time = ctx.time();
+            ctx.log_event(|| {
+                format!(
+                    "t = {}: the output {} (v_C2 = {} V)",
+                    time,
+                    match rail {
+                        Rail::Inside => "leaves its rail",
+                        Rail::High => "reaches the upper rail",
+                        Rail::Low => "reaches the lower rail",
+                    },
+                    v[1]
+                )
+            });
             self.rail = rail;
             self.write_outputs(ctx, &v);
         }

@@ -309,7 +309,7 @@ impl Estimator for Rls {
                             Err(why) => EstimationError::from(why).to_string(),
                             Ok(_) => "a figure of the continuous equivalent is not finite".into(),
                         };
-                        ctx.log_event(format!(
+                        ctx.log_event(|| format!(
                             "t = {time}: no continuous second-order readout ({reason}); wn, zeta, dc_gain, overshoot and settling_time are 0 while it is unavailable (logged once)"
                         ));
                     }

@@ -525,16 +525,19 @@ impl ModelExchange for WindGeneratorFmu {
         let mut update = EventUpdate::default();
         let limit = p.torque_limit_of(x[5], x[3]);
         if limit != self.limit {
-            ctx.log_event(format!(
-                "t = {}: the motor torque {} (k_s (omega_s - omega_m) = {} N.m)",
-                ctx.time(),
-                match limit {
-                    TorqueLimit::Linear => "leaves its limit",
-                    TorqueLimit::Upper => "reaches +T_max",
-                    TorqueLimit::Lower => "reaches -T_max",
-                },
-                p.slip_stiffness * (x[5] - x[3])
-            ));
+            let time = ctx.time();
+            ctx.log_event(|| {
+                format!(
+                    "t = {}: the motor torque {} (k_s (omega_s - omega_m) = {} N.m)",
+                    time,
+                    match limit {
+                        TorqueLimit::Linear => "leaves its limit",
+                        TorqueLimit::Upper => "reaches +T_max",
+                        TorqueLimit::Lower => "reaches -T_max",
+                    },
+                    p.slip_stiffness * (x[5] - x[3])
+                )
+            });
             self.limit = limit;
         }
         if p.event_indicators(&x)[2] <= 0.0 {

@@ -108,14 +108,14 @@ impl<'a> Context<'a> {
         self.time
     }
     /// Logs an event (category `logEvents`; shown when debug logging is on, else dropped
-    /// here). A text that costs work to format is better built only when
-    /// [`Context::logs_events`] says it will be shown.
-    pub fn log_event(&mut self, text: impl Into<String>) {
+    /// here). `text` is called only when the message will be shown, so an event costs no
+    /// formatting and no allocation while logging is off (no allocation per step).
+    pub fn log_event(&mut self, text: impl FnOnce() -> String) {
         if self.log_events {
             self.messages.push(LogMessage {
                 status: Status::Ok,
                 category: EVENTS,
-                text: text.into(),
+                text: text(),
             });
         }
     }

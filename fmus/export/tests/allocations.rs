@@ -82,7 +82,7 @@ impl FmuModel for Toy {
         self.0[0] += step * ctx.values.real(vr::U);
         self.0[1] += step * ctx.values.real(vr::U + 1);
         self.0[2] += 1.0;
-        ctx.log_event("a step taken");
+        ctx.log_event(|| "a step taken".into());
         self.write(ctx)
     }
     fn update_outputs(&mut self, ctx: &mut Context) -> Result<(), Failure> {

@@ -12,6 +12,13 @@ pub fn event_time_tolerance(t: f64) -> f64 {
     1e-12 * t.abs().max(1.0)
 }
 
+/// Events closer than this to the one before (1 µs at |t| ≤ 1, relative beyond) are *close*:
+/// a run of more than [`Options::max_close_events`] of them in a row is stopped as chattering
+/// (time moves on, but by so little that the run would not end in any useful time).
+pub fn close_event_spacing(t: f64) -> f64 {
+    1e-6 * t.abs().max(1.0)
+}
+
 /// What the driver must know of the FMU beyond its calls.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Layout {
@@ -41,14 +48,17 @@ pub struct Options {
     pub max_steps_per_interval: usize,
     /// The most events at one time before the run is stopped as chattering.
     pub max_events_without_progress: usize,
+    /// The most events in a row each closer than [`close_event_spacing`] to the one before,
+    /// before the run is stopped as chattering.
+    pub max_close_events: usize,
     /// The most iterations of one event iteration.
     pub max_event_iterations: usize,
 }
 
 impl Options {
     /// Defaults for a run over `[start, stop]` recorded every `output_interval`: the explicit
-    /// solver at tolerance 1e-6, 10⁶ steps per interval, 100 events without progress, 1000
-    /// event iterations.
+    /// solver at tolerance 1e-6, 10⁶ steps per interval, 100 events without progress, 10⁴
+    /// close events in a row, 1000 event iterations.
     pub fn new(start: f64, stop: f64, output_interval: f64) -> Self {
         Self {
             method: Method::Dopri5,
@@ -59,6 +69,7 @@ impl Options {
             output_interval,
             max_steps_per_interval: 1_000_000,
             max_events_without_progress: 100,
+            max_close_events: 10_000,
             max_event_iterations: 1000,
         }
     }
@@ -298,6 +309,9 @@ pub struct Stepper {
     /// The last event's time and how many events happened at it (chattering).
     last_event_time: f64,
     events_here: usize,
+    /// The first event of the present run of close events and how many it holds.
+    close_since: f64,
+    close_events: usize,
     summary: Summary,
     recording: Option<Recording>,
 }
@@ -334,6 +348,8 @@ impl Stepper {
             next_event_time: None,
             last_event_time: f64::NEG_INFINITY,
             events_here: 0,
+            close_since: f64::NEG_INFINITY,
+            close_events: 0,
             summary: Summary {
                 end_time: options.start,
                 ..Summary::default()
@@ -353,6 +369,7 @@ impl Stepper {
         self.next_event_time = None;
         self.last_event_time = f64::NEG_INFINITY;
         self.events_here = 0;
+        self.close_events = 0;
         self.summary = Summary {
             end_time: self.options.start,
             ..Summary::default()
@@ -699,6 +716,7 @@ impl Stepper {
         self.t = t;
         self.last_event_time = f64::NEG_INFINITY;
         self.events_here = 0;
+        self.close_events = 0;
         self.placed.forget();
         fmu.set_time(t).map_err(self.failed(Call::SetTime, t))?;
         if !x.is_empty() {
@@ -813,6 +831,23 @@ impl Stepper {
             }
         } else {
             self.events_here = 1;
+        }
+        if t - self.last_event_time < close_event_spacing(t) {
+            self.close_events += 1;
+            let bound = self.options.max_close_events;
+            if self.close_events > bound {
+                return Err(MeError::CloseEvents {
+                    fmu: self.name.clone(),
+                    from: self.close_since,
+                    time: t,
+                    events: self.close_events,
+                    spacing: close_event_spacing(t),
+                    bound,
+                });
+            }
+        } else {
+            self.close_events = 1;
+            self.close_since = t;
         }
         self.last_event_time = t;
         on_event(&Event { time: t, kind });

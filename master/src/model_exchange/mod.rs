@@ -29,8 +29,9 @@
 //! event* is asked by `CompletedIntegratorStep`. After every event the continuous states and their
 //! nominals are read again and the solver starts afresh from them. `terminateSimulation` ends
 //! the run normally (recorded and said). More than [`Options::max_events_without_progress`]
-//! events without the time moving on (chattering), or an event iteration that does not settle
-//! within [`Options::max_event_iterations`], is an error naming the FMU, the call and the
+//! events without the time moving on, or more than [`Options::max_close_events`] in a row each
+//! less than [`close_event_spacing`] after the one before (chattering), or an event iteration
+//! that does not settle within [`Options::max_event_iterations`], is an error naming the FMU, the call and the
 //! time; so is an FMU call that fails, and derivatives that are not finite.
 
 mod driver;
@@ -38,8 +39,8 @@ mod driver;
 mod tests;
 
 pub use driver::{
-    event_time_tolerance, initialise, simulate, Advance, Event, EventKind, Layout, Options,
-    Stepper, Summary,
+    close_event_spacing, event_time_tolerance, initialise, simulate, Advance, Event, EventKind,
+    Layout, Options, Stepper, Summary,
 };
 pub use spurio_solvers::{Method, Statistics};
 
@@ -163,6 +164,15 @@ pub enum MeError {
         events: usize,
         bound: usize,
         call: String,
+    },
+    #[error("{fmu}: {events} events from t = {from} to t = {time}, each less than {spacing:e} s after the one before (chattering; the bound is {bound} in a row): the model switches back and forth at an event surface")]
+    CloseEvents {
+        fmu: String,
+        from: f64,
+        time: f64,
+        events: usize,
+        spacing: f64,
+        bound: usize,
     },
     #[error("{fmu}: the event iteration at t = {time} did not settle: {call} still asked for another iteration after {iterations}")]
     EventIteration {

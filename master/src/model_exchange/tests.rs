@@ -15,6 +15,9 @@ enum Misbehaviour {
     Chatter,
     /// Every event iteration after the first asks for another one.
     NeverSettles,
+    /// Every event puts the state back 10 ns of time above the indicator's zero: events
+    /// 10 ns apart, time moving on, the end 5·10⁷ events away.
+    Creeps,
 }
 
 struct Model {
@@ -66,10 +69,16 @@ impl ModelExchangeCalls for Model {
         if self.misbehaviour == Misbehaviour::Chatter && self.t > 0.0 {
             self.x = 0.5 + 1e-15;
         }
+        if self.misbehaviour == Misbehaviour::Creeps && self.t > 0.0 {
+            self.x = 0.5 + 1e-8;
+        }
         Ok(EventUpdate {
             discrete_states_need_update: self.misbehaviour == Misbehaviour::NeverSettles
                 && self.t > 0.0,
-            values_changed: self.misbehaviour == Misbehaviour::Chatter,
+            values_changed: matches!(
+                self.misbehaviour,
+                Misbehaviour::Chatter | Misbehaviour::Creeps
+            ),
             ..EventUpdate::default()
         })
     }
@@ -204,5 +213,35 @@ fn chattering_and_an_unsettled_event_iteration_are_errors_and_nothing_hangs() {
     };
     assert_eq!(*call, "fmi2NewDiscreteStates");
     assert!((*time - 0.5).abs() < 1e-9, "{e}");
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
+#[test]
+fn events_in_a_row_closer_than_a_microsecond_are_chattering_and_end_at_once() {
+    let start = std::time::Instant::now();
+    let (result, events) = run(Misbehaviour::Creeps, Method::Dopri5);
+    let e = result.unwrap_err();
+    eprintln!("{e}");
+    let MeError::CloseEvents {
+        from,
+        time,
+        events: n,
+        ..
+    } = &e
+    else {
+        panic!("{e}")
+    };
+    assert_eq!(*n, 10_001);
+    assert_eq!(
+        events.len(),
+        10_000,
+        "the one beyond the bound is not handled"
+    );
+    // 10⁴ events 10 ns apart from the first at 0.5.
+    assert!(
+        (*from - 0.5).abs() < 1e-9 && (*time - 0.5 - 1e-4).abs() < 1e-7,
+        "{e}"
+    );
+    assert!(e.to_string().contains("Model.fmu"), "{e}");
     assert!(start.elapsed().as_secs_f64() < 5.0);
 }

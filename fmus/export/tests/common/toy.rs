@@ -140,7 +140,8 @@ impl ModelExchange for Toy {
         let mut update = EventUpdate::default();
         if ctx.values.real(Y) >= ctx.values.real(Y_MAX) {
             ctx.values.set_real(Y, 0.0);
-            ctx.log_event(format!("y[1] wrapped to 0 at t = {}", ctx.time()));
+            let time = ctx.time();
+            ctx.log_event(|| format!("y[1] wrapped to 0 at t = {}", time));
             update.states_changed = true;
         }
         Ok(update)
