@@ -1,4 +1,4 @@
-//! A filter's sigma point beyond a rail stop (needs `scripts/build-fmus`): the GantryCrane ME
+//! A filter's sigma point beyond a rail stop (the packaged GantryCrane): the GantryCrane ME
 //! FMU on a rail of ±0.02 m, the mean at x = 0.0088 m, a sigma point at 0.029 m. The importer
 //! places it (an event there: the cart is put on the stop) and integrates 10 ms. The load
 //! swings in slightly, so the cart is released at once and moves in. Before, every event put
@@ -8,10 +8,14 @@
 use spurio_identify::plant::{integration, FmuPlant, PlantSpec, Start};
 use std::path::PathBuf;
 
+#[path = "../../master/tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
+
 #[test]
 fn a_sigma_point_beyond_a_stop_is_put_on_it_released_and_integrated_in_a_few_events() {
     spurio_identify::plant::keep_plant_messages();
-    let fmu = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus/GantryCrane.fmu");
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let fmu = packaged_fmus::packaged_fmus(&repo).join("GantryCrane.fmu");
     let spec = PlantSpec {
         free: vec!["M".into(), "l".into(), "f_c".into()],
         inputs: vec!["U".into()],

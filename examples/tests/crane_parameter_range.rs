@@ -1,4 +1,4 @@
-//! A parameter identified near the edge of its declared range (needs `scripts/build-fmus`):
+//! A parameter identified near the edge of its declared range (the packaged GantryCrane):
 //! the GantryCrane ME FMU refuses a value outside [min, max] (`f_c` ≥ 0), so an online filter
 //! whose sigma points, or whose corrected mean, leave the range would stop with the plant's
 //! error. A well-greased rail (f_c = 0.02 N·s/m) started from the FMU's default 0.67 takes the
@@ -20,8 +20,12 @@ const SIGMA: [f64; 2] = [1e-3, 1e-3];
 const STEP: f64 = 0.02;
 const SAMPLES: usize = 501;
 
+#[path = "../../master/tests/common/packaged_fmus.rs"]
+mod packaged_fmus;
+
 fn crane() -> Rc<RefCell<FmuPlant>> {
-    let fmu = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../build/fmus/GantryCrane.fmu");
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let fmu = packaged_fmus::packaged_fmus(&repo).join("GantryCrane.fmu");
     spurio_identify::plant::keep_plant_messages();
     let spec = PlantSpec {
         free: vec!["f_c".into()],
