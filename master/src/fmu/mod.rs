@@ -340,11 +340,6 @@ impl Range {
         let above_min = self.min.map_or(value, |min| value.max(min));
         self.max.map_or(above_min, |max| above_min.min(max))
     }
-
-    /// Whether `value` lies in [min, max].
-    pub fn contains(&self, value: f64) -> bool {
-        self.min.is_none_or(|min| value >= min) && self.max.is_none_or(|max| value <= max)
-    }
 }
 
 /// An FMI 3.0 array variable: its elements are variables of their own (`x[1,2]`).
