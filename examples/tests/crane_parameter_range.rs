@@ -101,6 +101,9 @@ fn identify(linearisation: Linearisation) -> (f64, f64, f64) {
 /// within 2 σ of the truth with σ < 0.005.
 fn check(linearisation: Linearisation) {
     let (estimate, sd, lowest) = identify(linearisation);
+    println!(
+        "{linearisation:?}: f_c at the end {estimate:.4} ± {sd:.4}, lowest on the way {lowest:.4}"
+    );
     assert!((0.0..TRUTH / 2.0).contains(&lowest), "lowest θ̂ {lowest}");
     assert!(
         (estimate - TRUTH).abs() < 2.0 * sd && sd < 0.005,

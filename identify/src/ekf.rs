@@ -18,7 +18,10 @@
 //! - otherwise, and for the parameter columns Φ_xθ always (the FMU gives no derivative with
 //!   respect to a parameter), by central differences of the integrator over the interval:
 //!   column i = (x(t_k; ẑ + δᵢ eᵢ) − x(t_k; ẑ − δᵢ eᵢ)) / (2δᵢ), δᵢ = [`RELATIVE_STEP`]
-//!   · max(|ẑᵢ|, 1). Each perturbed start is placed with the mean's event indicators as its
+//!   · max(|ẑᵢ|, 1); for a parameter within δᵢ of a bound of its declared range the pair is
+//!   moved inside it, its width kept (θ at min: [min, min + 2δᵢ]), a one-sided difference
+//!   where the central one would see the plant at the bound on one side and halve the slope
+//!   (docs/estimators.md, "Parameters within their declared range"). Each perturbed start is placed with the mean's event indicators as its
 //!   reference (as the UKF's sigma points are), so a start across an event surface has its
 //!   event: the differences then carry the saltation of the hybrid model.
 //!
@@ -161,22 +164,46 @@ fn differences(
     dy.fill(0.0);
     moved.copy_from(centre);
     for i in columns {
-        // ẑ + δᵢ eᵢ, then ẑ − δᵢ eᵢ (c + (−δ) is c − δ exactly).
-        for (image, sign) in [(&mut *plus, 1.0), (&mut *minus, -1.0)] {
-            moved[i] = centre[i] + sign * delta[i];
+        let (low, high) = pair(step, i, centre[i], delta[i]);
+        let width = high - low;
+        if width <= 0.0 {
+            continue; // a parameter whose range is one value: no slope
+        }
+        for (image, end) in [(&mut *plus, high), (&mut *minus, low)] {
+            moved[i] = end;
             let out = (&mut image.0[..], &mut image.1[..]);
             let reference = (Some(reference), None);
             evaluate(step, moved.as_slice(), interval, reference, theta, out)?;
         }
         moved[i] = centre[i];
         for r in 0..n {
-            dx[(r, i)] = (plus.0[r] - minus.0[r]) / (2.0 * delta[i]);
+            dx[(r, i)] = (plus.0[r] - minus.0[r]) / width;
         }
         for j in 0..p_out {
-            dy[(j, i)] = (plus.1[j] - minus.1[j]) / (2.0 * delta[i]);
+            dy[(j, i)] = (plus.1[j] - minus.1[j]) / width;
         }
     }
     Ok(())
+}
+
+/// The two ends of entry i's difference: ẑᵢ ∓ δᵢ, or, for a parameter where one end would
+/// leave its declared range, the pair of the same width 2δᵢ moved inside it, [min, min + 2δᵢ]
+/// or [max − 2δᵢ, max] (cut to the range if it is narrower). The plant sees Π(θ), so a
+/// central pair across a bound would measure half the slope; the moved pair is the one-sided
+/// difference, first-order accurate (module documentation).
+fn pair(step: &Step, i: usize, centre: f64, delta: f64) -> (f64, f64) {
+    let (mut low, mut high) = (centre - delta, centre + delta);
+    let parameter = i.checked_sub(step.states).map(|k| step.augmented[k]);
+    if let Some(range) = parameter.map(|k| step.plant.parameters()[k].range) {
+        if let Some(min) = range.min.filter(|min| low < *min) {
+            (low, high) = (min, min + 2.0 * delta);
+        }
+        if let Some(max) = range.max.filter(|max| high > *max) {
+            (low, high) = (max - 2.0 * delta, max);
+        }
+        (low, high) = (range.clamp(low), range.clamp(high));
+    }
+    (low, high)
 }
 
 /// The linearised prediction over the step's interval (module documentation), into `out`.
