@@ -1,6 +1,7 @@
 """The GantryCrane's estimator FMU (`spurio package-estimator`, packaged as in
-fmus/PlantEstimator/test_plant_estimator.py) in the FMU Compliance Checker: it passes, and
-its outputs equal fmpy's on the same inputs bit for bit.
+fmus/PlantEstimator/test_plant_estimator.py) in the FMU Compliance Checker and in OMSimulator
+(FMI 2.0 and 3.0): it passes the checker, its outputs there equal fmpy's on the same inputs
+bit for bit, and OMSimulator's equal them to its printing.
 
 fmuCheck (commit c704b98, FMI Library 2.0.3) feeds discrete Real inputs wrongly: its input
 reader sets every discrete Real input to the value of the *first* Real column of the input
@@ -21,7 +22,7 @@ import sys
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
+from fmpy import read_model_description, simulate_fmu
 
 from conftest import (FMU_DIR, FMUCHECK, OMS_RTOL, REPO, by_time, oms_system, read_csv,
                       require, spurio)
@@ -37,9 +38,9 @@ def estimator(tmp_path_factory):
     """The estimator FMU and the closed-loop record (20 s every 0.05 s, samples 100–111
     missing), made as the platform tests make them (tests/platforms/run_estimator.py)."""
     tmp = tmp_path_factory.mktemp("estimator")
-    fmu, _, _ = run_estimator.prepare_estimator(FMU_DIR, None, tmp)
+    fmu, fmu3, _ = run_estimator.prepare_estimator(FMU_DIR, None, tmp)
     record = np.genfromtxt(tmp / "record.csv", delimiter=",", names=True)
-    return {"fmu": fmu, "record": tmp / "record.csv", "force": record["U"],
+    return {"fmu": fmu, "fmu3": fmu3, "record": tmp / "record.csv", "force": record["U"],
             "measured": np.stack([record["x"], record["theta"]], axis=1)}
 
 
@@ -93,17 +94,24 @@ def test_fmucheck_passes_and_equals_fmpy(estimator, inputs, workdir):
     assert (moved < 1e-12) if inputs.startswith("force") else (moved > 0.01)
 
 
-def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, workdir):
+@pytest.mark.parametrize("version", [2, 3], ids=["FMI 2.0", "FMI 3.0"])
+def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, version, workdir):
     """OMSimulator runs the estimator fed by the record as a TimeTable FMU (`spurio
     package-data`, hold: outputs U, x, theta and x.valid, theta.valid, false where a sample
-    is missing) in a co-simulation system; x̂, θ̂ and their standard deviations equal fmpy's
-    on the same record to OMSimulator's printing (%.12g, OMS_RTOL)."""
+    is missing) in a co-simulation system, both FMUs FMI 2.0 or both FMI 3.0 (every variable
+    the system connects or records is a scalar, so OMSimulator's one-value reads of FMI 3.0
+    arrays do not arise: test_our_fmi3_fmus.py); x̂, θ̂ and their standard deviations equal
+    fmpy's on the same record to OMSimulator's printing (%.12g, OMS_RTOL)."""
     force, measured = estimator["force"], estimator["measured"]
     spurio("package-data", estimator["record"], "--name", "Record", "--out", workdir,
            "--lib-dir", REPO / "target" / "release", "--repo", REPO)
+    fmu, data = ((estimator["fmu"], workdir / "Record.fmu") if version == 2 else
+                 (estimator["fmu3"], workdir / "fmi3" / "Record.fmu"))
+    assert read_model_description(str(fmu)).fmiVersion == f"{version}.0"
+    assert read_model_description(str(data)).fmiVersion == f"{version}.0"
     oms_system({
-        "instances": [{"name": "data", "fmu": str(workdir / "Record.fmu"), "parameters": {}},
-                      {"name": "est", "fmu": str(estimator["fmu"]), "parameters": {}}],
+        "instances": [{"name": "data", "fmu": str(data), "parameters": {}},
+                      {"name": "est", "fmu": str(fmu), "parameters": {}}],
         "connections": [["data.U", "est.u.U"], ["data.x", "est.y.x"],
                         ["data.theta", "est.y.theta"], ["data.x.valid", "est.y.x.valid"],
                         ["data.theta.valid", "est.y.theta.valid"]],
@@ -121,13 +129,13 @@ def test_omsimulator_fed_by_a_time_table_equals_fmpy(estimator, workdir):
     signals["y.x.valid"] = signals["y.theta.valid"] = present
     outputs = [f"{kind}.{n}" for kind in ("x_hat", "sd") for n in ("x", "theta", "v", "omega")]
     outputs += [f"{kind}.{n}" for kind in ("theta_hat", "sd") for n in ("M", "l", "f_c")]
-    expected = simulate_fmu(str(estimator["fmu"]), stop_time=STOP, step_size=STEP,
+    expected = simulate_fmu(str(fmu), stop_time=STOP, step_size=STEP,
                             output_interval=STEP, input=signals, output=outputs)
     assert rows.shape[0] == len(expected), (rows.shape, len(expected))
     worst = 0.0
     for name in outputs:
         got, want = rows[:, names.index(f"model.root.est.{name}")], expected[name]
         worst = max(worst, float(np.max(np.abs(got - want) / np.maximum(np.abs(want), 1e-300))))
-    print(f"OMSimulator vs fmpy: max relative difference {worst:.3g} over {rows.shape[0]} rows "
+    print(f"OMSimulator vs fmpy, FMI {version}.0: max relative difference {worst:.3g} over {rows.shape[0]} rows "
           f"x {len(outputs)} outputs (x̂, θ̂, sd)")
     assert worst <= OMS_RTOL
