@@ -21,9 +21,10 @@
 //!   · max(|ẑᵢ|, 1); for a parameter within δᵢ of a bound of its declared range the pair is
 //!   moved inside it, its width kept (θ at min: [min, min + 2δᵢ]), a one-sided difference
 //!   where the central one would see the plant at the bound on one side and halve the slope
-//!   (docs/estimators.md, "Parameters within their declared range"). Each perturbed start is placed with the mean's event indicators as its
-//!   reference (as the UKF's sigma points are), so a start across an event surface has its
-//!   event: the differences then carry the saltation of the hybrid model.
+//!   (docs/estimators.md, "Parameters within their declared range"). Each perturbed start is
+//!   placed with the mean's event indicators as its reference (as the UKF's sigma points
+//!   are), so a start across an event surface has its event: the differences then carry the
+//!   saltation of the hybrid model.
 //!
 //! **Measurement Jacobian** H = ∂y/∂z at (t_k, x̂⁻, θ̂) by central differences of the FMU's
 //! measured variables (placed, not integrated), the same steps δᵢ.
